@@ -1,0 +1,49 @@
+"""Exceptions for bad input.
+
+Every error a user can cause derives from :class:`StarsenseError`; the CLI prints its message
+on one line and exits with status 2. Messages name what is wrong and where (file, line, field,
+value, allowed range) so that the user can act on them.
+"""
+
+from __future__ import annotations
+
+
+class StarsenseError(Exception):
+    """Base class for user-facing errors (bad input, bad configuration, impossible geometry)."""
+
+
+class InputError(StarsenseError, ValueError):
+    """A parameter value is invalid (out of range, NaN, wrong shape, unknown name)."""
+
+
+class CatalogFormatError(StarsenseError, ValueError):
+    """A catalogue file is malformed.
+
+    Parameters
+    ----------
+    path : str
+        The file being read.
+    line : int or None
+        1-based line number (or record number for binary files), if known.
+    field : str or None
+        The name of the field that could not be parsed.
+    detail : str
+        What is wrong, e.g. ``"'abc' is not a number"``.
+    """
+
+    def __init__(self, path: str, line: int | None, field: str | None, detail: str) -> None:
+        self.path = str(path)
+        self.line = line
+        self.field = field
+        self.detail = detail
+        where = self.path
+        if line is not None:
+            where += f", line {line}"
+        if field is not None:
+            where += f", field {field}"
+        super().__init__(f"{where}: {detail}")
+
+
+class SingularGeometryError(StarsenseError, ValueError):
+    """The star geometry does not determine the attitude (too few stars, or all on one great
+    circle): the Fisher information matrix is singular."""
