@@ -1,0 +1,630 @@
+"""The physical limit of star-sensor attitude accuracy (Fialho & Mortari 2019).
+
+An ideal sensor of diameter D, exposing for t, limited only by diffraction and photon noise:
+
+* per-star centroid Fisher information F_i = 12 zeta(5) pi^4 k^5 / (h^5 c^4) D^4 t C_i T_i^5
+  (eq. 19), or eq. 17 integrated numerically over a passband x QE, or over a measured spectrum;
+* attitude Fisher matrix F = sum_i F_i (I - r_i r_i^T) (eq. 21), covariance P = F^-1 (eq. 20);
+* theta_rms = sqrt(tr P) (eq. 22) = G D^-2 t^-1/2 (eqs. 23-24).
+
+Kernels are plain functions on NumPy arrays (no I/O), shared with the distributed path.
+Stars are carried by :class:`BlackBodyStars`: unit vectors, temperatures, dilutions and the
+catalogue magnitude used to rank them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from starsense.errors import InputError, SingularGeometryError
+from starsense.photometry.blackbody import (
+    BOLTZMANN_J_K,
+    PLANCK_J_S,
+    SPEED_OF_LIGHT_M_S,
+    ZETA5,
+    photons_per_wavelength,
+    total_photons,
+)
+from starsense.photometry.colour import COLOUR_SYSTEMS, ColourModel
+
+#: 12 zeta(5) pi^4 k^5 / (h^5 c^4): eq. 19's constant, in K^-5 m^-4 s^-1 rad^-2
+FISHER_CONSTANT = (
+    12.0 * ZETA5 * np.pi**4 * BOLTZMANN_J_K**5 / (PLANCK_J_S**5 * SPEED_OF_LIGHT_M_S**4)
+)
+
+#: the paper's interval for G, rad m^2 s^1/2 (sec. 3.3)
+G_PAPER_INTERVAL = (7e-15, 1e-13)
+#: stars in the Galaxy used for the paper's extrapolation (sec. 3.3)
+N_GALAXY = 3e11
+
+#: relative size of the smallest eigenvalue of F below which the geometry is called singular
+SINGULAR_RCOND = 1e-10
+
+
+def check_aperture(diameter_m: float, exposure_s: float) -> None:
+    """Raise InputError unless D > 0 and t > 0 are finite."""
+    for name, value in (("diameter_m", diameter_m), ("exposure_s", exposure_s)):
+        if not np.isfinite(value) or value <= 0:
+            raise InputError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+def centroid_fisher(dilution, temperature_k, diameter_m: float = 1.0, exposure_s: float = 1.0):
+    """Per-star centroid Fisher information, closed form (Fialho & Mortari 2019, eq. 19).
+
+    Parameters
+    ----------
+    dilution : array (N,)
+        Dilution factors C.
+    temperature_k : array (N,)
+        Black-body temperatures, K.
+    diameter_m, exposure_s : float
+        Aperture D (m) and exposure t (s).
+
+    Returns
+    -------
+    array (N,)
+        F_i = 1 / sigma_min,i^2 in rad^-2.
+    """
+    check_aperture(diameter_m, exposure_s)
+    t = np.asarray(temperature_k, dtype=float)
+    return FISHER_CONSTANT * diameter_m**4 * exposure_s * np.asarray(dilution) * t**5
+
+
+def centroid_fisher_numeric(
+    dilution,
+    temperature_k,
+    wavelength_m,
+    response=None,
+    diameter_m: float = 1.0,
+    exposure_s: float = 1.0,
+):
+    """Per-star centroid Fisher information by integrating eq. 17 over wavelength.
+
+    dF/dlambda = pi^2 D^2 / lambda^2 n_ph,lambda QE(lambda), with n_ph,lambda from eq. 12. With
+    ``response`` = 1 over a wide enough grid this reproduces eq. 19; with a passband x QE curve it
+    gives the bound of a non-ideal sensor that counts only the photons it detects.
+
+    Parameters
+    ----------
+    dilution, temperature_k : array (N,)
+    wavelength_m : array (L,)
+        Integration grid, m.
+    response : array (L,) or None
+        Fraction of photons detected at each wavelength (QE x transmission), 0..1.
+
+    Returns
+    -------
+    array (N,), rad^-2
+    """
+    check_aperture(diameter_m, exposure_s)
+    lam = np.asarray(wavelength_m, dtype=float)
+    n = photons_per_wavelength(dilution, temperature_k, lam, diameter_m, exposure_s)
+    q = 1.0 if response is None else np.asarray(response, dtype=float)
+    return np.trapezoid(np.pi**2 * diameter_m**2 / lam**2 * n * q, lam, axis=-1)
+
+
+def centroid_fisher_spectrum(wavelength_m, irradiance, diameter_m: float, exposure_s: float):
+    """Centroid Fisher information of a star with a measured spectrum (eq. 17; Table 1, last row).
+
+    Parameters
+    ----------
+    wavelength_m : array (L,)
+    irradiance : array (L,)
+        Spectral irradiance at the sensor, W m^-2 m^-1.
+    """
+    check_aperture(diameter_m, exposure_s)
+    lam = np.asarray(wavelength_m, dtype=float)
+    photons = np.asarray(irradiance) * lam / (PLANCK_J_S * SPEED_OF_LIGHT_M_S)
+    n = photons * np.pi * diameter_m**2 / 4.0 * exposure_s
+    return float(np.trapezoid(np.pi**2 * diameter_m**2 / lam**2 * n, lam))
+
+
+# ---------------------------------------------------------------------------------------------
+# attitude Fisher matrix and covariance
+
+
+def fisher_matrix(vectors, weights) -> np.ndarray:
+    """Attitude Fisher information matrix, eq. 21: sum_i w_i (I - r_i r_i^T).
+
+    Parameters
+    ----------
+    vectors : array (N, 3)
+        Unit vectors of the stars.
+    weights : array (N,)
+        Per-star centroid Fisher information, rad^-2.
+
+    Returns
+    -------
+    array (3, 3)
+    """
+    r = np.asarray(vectors, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    s = (r * w[:, None]).T @ r
+    return w.sum() * np.eye(3) - s
+
+
+def covariance(fisher: np.ndarray, n_stars: int | None = None) -> np.ndarray:
+    """P = F^-1 (eq. 20), with a specific error when F is singular.
+
+    F is singular exactly when all stars lie along one axis (a single star, or stars at the same
+    or antipodal points): a rotation about that axis moves none of them.
+    """
+    f = np.asarray(fisher, dtype=float)
+    if not np.all(np.isfinite(f)):
+        raise InputError("Fisher matrix has non-finite entries (NaN or inf in the star data)")
+    eig = np.linalg.eigvalsh(f)
+    stars = "" if n_stars is None else f" ({n_stars} star{'s' if n_stars != 1 else ''})"
+    if eig[-1] <= 0 or eig[0] <= SINGULAR_RCOND * eig[-1]:
+        raise SingularGeometryError(
+            f"singular geometry{stars}: the stars do not constrain rotation about every axis "
+            "(at least two stars in distinct, non-antipodal directions are needed)"
+        )
+    return np.linalg.inv(f)
+
+
+def theta_rms(cov: np.ndarray) -> float:
+    """sqrt(tr P): the rms attitude error angle, eq. 22."""
+    return float(np.sqrt(np.trace(cov)))
+
+
+def boresight_frame(target) -> np.ndarray:
+    """Rows: unit x (east), y (north), z (boresight) of a sensor pointed at ``target``.
+
+    Used to express a pointed sensor's covariance as two cross-boresight axes and roll.
+    """
+    z = np.asarray(target, dtype=float)
+    z = z / np.linalg.norm(z)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    if np.linalg.norm(x) < 1e-12:  # boresight at a celestial pole
+        x = np.array([1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z])
+
+
+# ---------------------------------------------------------------------------------------------
+# stars
+
+
+@dataclass(frozen=True, eq=False)
+class BlackBodyStars:
+    """Catalogue stars reduced to what the limit needs.
+
+    Attributes
+    ----------
+    vectors : array (N, 3)
+        ICRS unit vectors.
+    temperature_k, dilution : array (N,)
+        Equivalent black body of each star (eqs. 1, 9).
+    magnitude : array (N,)
+        The catalogue magnitude that ranks the stars (N brightest).
+    colour : str
+        The colour system the black bodies were fitted in.
+    n_skipped : int
+        Catalogue stars left out for lack of a finite magnitude or colour.
+    """
+
+    vectors: np.ndarray = field(repr=False)
+    temperature_k: np.ndarray = field(repr=False)
+    dilution: np.ndarray = field(repr=False)
+    magnitude: np.ndarray = field(repr=False)
+    colour: str = "B-V"
+    n_skipped: int = 0
+
+    def __len__(self) -> int:
+        return len(self.dilution)
+
+    @property
+    def fisher_unit(self) -> np.ndarray:
+        """F_i for D = 1 m, t = 1 s; scale by D^4 t for any other sensor (eq. 19)."""
+        return FISHER_CONSTANT * self.dilution * self.temperature_k**5
+
+    def subset(self, index) -> BlackBodyStars:
+        return BlackBodyStars(
+            self.vectors[index],
+            self.temperature_k[index],
+            self.dilution[index],
+            self.magnitude[index],
+            self.colour,
+            self.n_skipped,
+        )
+
+    @classmethod
+    def from_catalog(cls, catalog, colour: str | None = None) -> BlackBodyStars:
+        """Fit every star of a :class:`~starsense.catalog.Catalog` with a black body.
+
+        ``colour`` picks the colour system (default: the first of B-V, BT-VT, J-H, H-Ks, J-Ks,
+        V-I, BP-RP that the catalogue has). A catalogue with a magnitude but no colour (BSC5)
+        uses B-V from the spectral type (:func:`b_v_from_spectral_type`) when it has one.
+        Stars without a finite magnitude or colour are skipped and counted in ``n_skipped``.
+        """
+        mags, colours = dict(catalog.mags), dict(catalog.colours)
+        if "B-V" not in colours and "spectral_type" in getattr(catalog, "extra", {}):
+            colours["B-V"] = b_v_from_spectral_type(catalog.extra["spectral_type"])
+        available = [c for c in COLOUR_SYSTEMS if c in colours and COLOUR_SYSTEMS[c][2] in mags]
+        if colour is None:
+            order = ["B-V", "BT-VT", "J-H", "H-Ks", "J-Ks", "V-I", "BP-RP"]
+            colour = next((c for c in order if c in available), None)
+            if colour is None:
+                raise InputError(
+                    f"catalogue {catalog.name!r} has no colour index usable for the black-body "
+                    f"model (has colours {sorted(colours)} and magnitudes {sorted(mags)})"
+                )
+        elif colour not in available:
+            raise InputError(
+                f"catalogue {catalog.name!r} cannot provide colour system {colour!r}; "
+                f"available: {', '.join(available) or 'none'}"
+            )
+        model = ColourModel(colour)
+        mag = np.asarray(mags[model.magnitude_band], dtype=float)
+        ci = np.asarray(colours[colour], dtype=float)
+        ok = np.isfinite(mag) & np.isfinite(ci)
+        t, c = model.fit(mag[ok], ci[ok])
+        return cls(
+            vectors=np.asarray(catalog.vectors)[ok],
+            temperature_k=t,
+            dilution=c,
+            magnitude=mag[ok],
+            colour=colour,
+            n_skipped=int((~ok).sum()),
+        )
+
+
+# Intrinsic B-V of main-sequence stars by spectral class (Schmidt-Kaler 1982, in Landolt-
+# Boernstein VI/2b, as tabulated in Allen's Astrophysical Quantities, 4th ed., Table 15.7).
+# Luminosity class and reddening are ignored: a rough colour for catalogues (BSC5) that give only
+# a two-character spectral type.
+_SPECTRAL_B_V = {
+    "O": [(5, -0.33), (9, -0.31)],
+    "B": [(0, -0.30), (2, -0.24), (5, -0.17), (8, -0.11)],
+    "A": [(0, -0.02), (2, 0.05), (5, 0.15), (7, 0.20)],
+    "F": [(0, 0.30), (2, 0.35), (5, 0.44), (8, 0.52)],
+    "G": [(0, 0.58), (2, 0.63), (5, 0.68), (8, 0.74)],
+    "K": [(0, 0.81), (2, 0.91), (5, 1.15), (7, 1.33)],
+    "M": [(0, 1.40), (2, 1.49), (5, 1.64), (8, 1.80)],
+}
+
+
+def b_v_from_spectral_type(types) -> np.ndarray:
+    """Approximate B-V from spectral types such as "A0", "K5", "B" (NaN when unknown)."""
+    out = np.full(len(types), np.nan)
+    for i, s in enumerate(types):
+        s = str(s).strip().upper()
+        if not s or s[0] not in _SPECTRAL_B_V:
+            continue
+        table = _SPECTRAL_B_V[s[0]]
+        sub = int(s[1]) if len(s) > 1 and s[1].isdigit() else 5
+        xs = [p[0] for p in table]
+        ys = [p[1] for p in table]
+        out[i] = np.interp(sub, xs, ys)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# results
+
+
+@dataclass(frozen=True)
+class LimitResult:
+    """The attitude-accuracy limit of one sensor (or of merged heads).
+
+    Attributes
+    ----------
+    theta_rms_rad : float
+        sqrt(tr P), eq. 22.
+    axis_sigma_rad : array (3,)
+        sqrt(diag P) in ``frame``: ICRS x, y, z for the whole sky; for a pointed sensor the two
+        cross-boresight axes (east, north) and the roll about the boresight.
+    covariance : array (3, 3)
+        P in ICRS, rad^2.
+    n_stars : int
+        Stars contributing.
+    g_rad_m2_s05 : float
+        G = theta_rms D^2 t^1/2 (eq. 23).
+    frame : str
+        "icrs" or "boresight".
+    """
+
+    theta_rms_rad: float
+    axis_sigma_rad: np.ndarray
+    covariance: np.ndarray
+    n_stars: int
+    g_rad_m2_s05: float
+    frame: str = "icrs"
+
+    def to_dict(self) -> dict:
+        return {
+            "theta_rms_rad": self.theta_rms_rad,
+            "axis_sigma_rad": [float(x) for x in self.axis_sigma_rad],
+            "n_stars": self.n_stars,
+            "g_rad_m2_s05": self.g_rad_m2_s05,
+            "frame": self.frame,
+        }
+
+
+def _result(fisher, n_stars, diameter_m, exposure_s, frame_rows=None) -> LimitResult:
+    p = covariance(fisher, n_stars)
+    th = theta_rms(p)
+    if frame_rows is None:
+        axes, frame = np.sqrt(np.diag(p)), "icrs"
+    else:
+        axes, frame = np.sqrt(np.diag(frame_rows @ p @ frame_rows.T)), "boresight"
+    return LimitResult(th, axes, p, n_stars, th * diameter_m**2 * np.sqrt(exposure_s), frame)
+
+
+def in_cone(vectors, target, fov_diameter_rad: float) -> np.ndarray:
+    """Mask of stars inside a cone of full angle ``fov_diameter_rad`` around ``target``."""
+    if not (0 < fov_diameter_rad <= 2 * np.pi):
+        raise InputError(
+            f"FOV diameter must be in (0, 360] deg, got {np.degrees(fov_diameter_rad):.6g} deg"
+        )
+    t = np.asarray(target, dtype=float)
+    t = t / np.linalg.norm(t)
+    return np.asarray(vectors) @ t >= np.cos(fov_diameter_rad / 2.0) - 1e-15
+
+
+def sky_limit(
+    stars: BlackBodyStars,
+    diameter_m: float = 1.0,
+    exposure_s: float = 1.0,
+) -> LimitResult:
+    """Limit of the ideal spherical sensor that sees the whole sky (eqs. 19-24)."""
+    check_aperture(diameter_m, exposure_s)
+    w = stars.fisher_unit * diameter_m**4 * exposure_s
+    return _result(fisher_matrix(stars.vectors, w), len(stars), diameter_m, exposure_s)
+
+
+def fov_limit(
+    stars: BlackBodyStars,
+    targets,
+    fov_diameter_rad: float,
+    diameter_m: float = 1.0,
+    exposure_s: float = 1.0,
+) -> tuple[list[LimitResult], LimitResult | None]:
+    """FOV-limited limit (sec. 3.4, Table 2): one head per target, and all heads merged.
+
+    Each head sees the stars in a cone of full angle ``fov_diameter_rad`` around its target
+    (unit vector). The merged estimate adds the heads' Fisher matrices: measurements of separate
+    heads are independent, so a merged pair is never worse than either head.
+
+    Returns
+    -------
+    heads : list of LimitResult (axes in each head's boresight frame)
+    merged : LimitResult (ICRS axes) or None for a single target
+    """
+    check_aperture(diameter_m, exposure_s)
+    targets = np.atleast_2d(np.asarray(targets, dtype=float))
+    w = stars.fisher_unit * diameter_m**4 * exposure_s
+    heads, fishers, counts = [], [], []
+    for t in targets:
+        m = in_cone(stars.vectors, t, fov_diameter_rad)
+        f = fisher_matrix(stars.vectors[m], w[m])
+        n = int(m.sum())
+        heads.append(_result(f, n, diameter_m, exposure_s, boresight_frame(t)))
+        fishers.append(f)
+        counts.append(n)
+    merged = None
+    if len(targets) > 1:
+        merged = _result(sum(fishers), int(sum(counts)), diameter_m, exposure_s)
+    return heads, merged
+
+
+@dataclass(frozen=True)
+class BrightestCurve:
+    """theta_rms over the N brightest stars (Fig. 7) and its power-law extrapolation.
+
+    Attributes
+    ----------
+    n_stars : array (K,)
+    theta_rms_rad : array (K,)
+        For the given D and t (G itself when D = 1 m, t = 1 s).
+    slope : float
+        d log theta / d log N fitted over the last decade of the catalogue.
+    n_extrapolated : float
+        N the curve is extrapolated to (paper: 3e11 stars in the Galaxy).
+    theta_extrapolated_rad : float
+    colour : str
+    """
+
+    n_stars: np.ndarray
+    theta_rms_rad: np.ndarray
+    slope: float
+    intercept: float
+    n_extrapolated: float
+    theta_extrapolated_rad: float
+    colour: str
+
+    def extrapolate(self, n) -> np.ndarray:
+        return 10 ** (self.intercept + self.slope * np.log10(n))
+
+    def to_dict(self) -> dict:
+        return {
+            "colour": self.colour,
+            "n_stars": [int(n) for n in self.n_stars],
+            "theta_rms_rad": [float(x) for x in self.theta_rms_rad],
+            "slope": self.slope,
+            "n_extrapolated": self.n_extrapolated,
+            "theta_extrapolated_rad": self.theta_extrapolated_rad,
+        }
+
+
+def brightest_curve(
+    stars: BlackBodyStars,
+    diameter_m: float = 1.0,
+    exposure_s: float = 1.0,
+    points_per_decade: int = 20,
+    n_extrapolated: float = N_GALAXY,
+) -> BrightestCurve:
+    """theta_rms of the N brightest stars, N = 2 ... all (Fig. 7), in one pass over the stars.
+
+    Stars are ranked by catalogue magnitude; the six independent components of sum w r r^T and
+    sum w are accumulated between checkpoints with ``np.add.reduceat``. N with a singular
+    geometry (e.g. N = 2 antipodal stars) is dropped from the curve.
+    """
+    check_aperture(diameter_m, exposure_s)
+    n_total = len(stars)
+    if n_total < 2:
+        raise SingularGeometryError(f"singular geometry ({n_total} star): need at least 2 stars")
+    order = np.argsort(stars.magnitude, kind="stable")
+    r = stars.vectors[order]
+    w = stars.fisher_unit[order] * diameter_m**4 * exposure_s
+    ns = np.unique(
+        np.concatenate(
+            [
+                np.round(
+                    np.logspace(
+                        np.log10(2),
+                        np.log10(n_total),
+                        1 + int(points_per_decade * np.log10(n_total / 2)),
+                    )
+                ).astype(int),
+                [n_total],
+            ]
+        )
+    )
+    comps = np.column_stack(
+        [
+            w,
+            w * r[:, 0] ** 2,
+            w * r[:, 1] ** 2,
+            w * r[:, 2] ** 2,
+            w * r[:, 0] * r[:, 1],
+            w * r[:, 0] * r[:, 2],
+            w * r[:, 1] * r[:, 2],
+        ]
+    )
+    starts = np.concatenate([[0], ns[:-1]])
+    sums = np.cumsum(np.add.reduceat(comps, starts, axis=0), axis=0)
+    keep_n, theta = [], []
+    for n, s in zip(ns, sums, strict=True):
+        sw, xx, yy, zz, xy, xz, yz = s
+        f = sw * np.eye(3) - np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        try:
+            theta.append(theta_rms(covariance(f, int(n))))
+            keep_n.append(n)
+        except SingularGeometryError:
+            continue
+    ns_arr, th_arr = np.array(keep_n), np.array(theta)
+    tail = ns_arr >= max(ns_arr[-1] / 10.0, 2)
+    if tail.sum() < 2:
+        tail = np.ones_like(ns_arr, dtype=bool)
+    slope, intercept = np.polyfit(np.log10(ns_arr[tail]), np.log10(th_arr[tail]), 1)
+    extrap = float(10 ** (intercept + slope * np.log10(n_extrapolated)))
+    return BrightestCurve(
+        ns_arr,
+        th_arr,
+        float(slope),
+        float(intercept),
+        float(n_extrapolated),
+        extrap,
+        stars.colour,
+    )
+
+
+@dataclass(frozen=True)
+class LowPhotonResult:
+    """Sec. 3.3.2: what a small sensor or short exposure loses to stars delivering few photons.
+
+    Attributes
+    ----------
+    expected_photons : array (N,)
+        iota_i, the Poisson mean of photons from each star.
+    n_below_one_photon : int
+        Stars expected to deliver fewer than one photon.
+    expected_observed_stars : float
+        sum_i (1 - exp(-iota_i)): the mean number of stars with at least one photon.
+    theta_ideal_rad : float
+        The bound with every star's expected photons (eq. 22).
+    theta_poisson_rad : float
+        rms attitude bound over Monte Carlo draws of the photon counts N_i ~ Poisson(iota_i),
+        F_i scaled by N_i / iota_i (information carried by the photons actually detected).
+    degradation : float
+        theta_poisson / theta_ideal (>= 1 in expectation: Jensen's inequality on tr F^-1).
+    n_trials : int
+    """
+
+    expected_photons: np.ndarray
+    n_below_one_photon: int
+    expected_observed_stars: float
+    theta_ideal_rad: float
+    theta_poisson_rad: float
+    degradation: float
+    n_trials: int
+
+    def to_dict(self) -> dict:
+        return {
+            "n_stars": len(self.expected_photons),
+            "n_below_one_photon": self.n_below_one_photon,
+            "expected_observed_stars": self.expected_observed_stars,
+            "theta_ideal_rad": self.theta_ideal_rad,
+            "theta_poisson_rad": self.theta_poisson_rad,
+            "degradation": self.degradation,
+            "n_trials": self.n_trials,
+        }
+
+
+def low_photon_degradation(
+    stars: BlackBodyStars,
+    diameter_m: float,
+    exposure_s: float,
+    n_trials: int = 200,
+    rng: np.random.Generator | int | None = 0,
+) -> LowPhotonResult:
+    """Low-photon degradation of the limit (Fialho & Mortari 2019, sec. 3.3.2).
+
+    Stars whose expected photon count is large (> 1e4) are treated as deterministic: their
+    relative Poisson fluctuation is below 1 %, and drawing them would only cost time.
+    Trials with a singular geometry (too few stars seen) count as infinite error and make the
+    result infinite: the sensor cannot solve in those exposures.
+    """
+    check_aperture(diameter_m, exposure_s)
+    if n_trials < 1:
+        raise InputError(f"n_trials must be >= 1, got {n_trials}")
+    rng = np.random.default_rng(rng)
+    iota = total_photons(stars.dilution, stars.temperature_k, diameter_m, exposure_s)
+    w = stars.fisher_unit * diameter_m**4 * exposure_s
+    r = stars.vectors
+    ideal = theta_rms(covariance(fisher_matrix(r, w), len(stars)))
+    fixed = iota > 1e4
+    f_fixed = fisher_matrix(r[fixed], w[fixed])
+    rv, wv, iv = r[~fixed], w[~fixed], iota[~fixed]
+    comps = (
+        np.column_stack(
+            [
+                wv / iv * (1 - rv[:, i] * rv[:, j]) if i == j else -wv / iv * rv[:, i] * rv[:, j]
+                for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+            ]
+        )
+        if len(iv)
+        else np.zeros((0, 6))
+    )
+    sq = []
+    chunk = max(1, int(2e7 // max(len(iv), 1)))
+    for start in range(0, n_trials, chunk):
+        k = min(chunk, n_trials - start)
+        counts = rng.poisson(iv, size=(k, len(iv))).astype(float)
+        s = counts @ comps  # (k, 6)
+        for row in s:
+            f = f_fixed + np.array(
+                [[row[0], row[3], row[4]], [row[3], row[1], row[5]], [row[4], row[5], row[2]]]
+            )
+            try:
+                sq.append(np.trace(covariance(f)))
+            except SingularGeometryError:
+                sq.append(np.inf)
+    poisson = float(np.sqrt(np.mean(sq)))
+    return LowPhotonResult(
+        expected_photons=iota,
+        n_below_one_photon=int((iota < 1).sum()),
+        expected_observed_stars=float(np.sum(-np.expm1(-iota))),
+        theta_ideal_rad=ideal,
+        theta_poisson_rad=poisson,
+        degradation=poisson / ideal,
+        n_trials=n_trials,
+    )
+
+
+def limit_line(g_rad_m2_s05, d2_sqrt_t):
+    """theta = G / (D^2 t^1/2) (eq. 23) as a function of the figure of merit D^2 t^1/2."""
+    return np.asarray(g_rad_m2_s05) / np.asarray(d2_sqrt_t)

@@ -1,0 +1,153 @@
+"""Colour index -> black-body temperature, magnitude -> dilution factor C.
+
+Fialho & Mortari 2019, sec. 2.5-2.6: the synthetic colour index of a black body is computed on a
+grid of temperatures, then inverted by pchip interpolation of 1/T against the colour (nearly linear,
+Fig. 5), with the colour clamped to the values of 30,000 K and 2,000 K. The dilution factor follows
+from the black body's magnitude at its own surface (eq. 9).
+
+A :class:`ColourModel` is one colour system (a pair of bands) plus the band whose magnitude sets C.
+The paper's systems, the curves of its Fig. 7, are in :data:`COLOUR_SYSTEMS`.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from starsense.errors import InputError
+from starsense.photometry.blackbody import spectral_exitance
+from starsense.photometry.passbands import passband
+
+#: colour name -> (blue band, red band, band whose magnitude sets the dilution C)
+COLOUR_SYSTEMS: dict[str, tuple[str, str, str]] = {
+    "B-V": ("B", "V", "V"),  # paper sec. 2.5-2.6, Hipparcos
+    "V-I": ("V", "I", "V"),  # Hipparcos V-I curve of Fig. 7
+    "BT-VT": ("BT", "VT", "VT"),  # Tycho-2
+    "J-H": ("J", "H", "J"),  # 2MASS, sec. 3.4 ("from the J and H magnitudes")
+    "J-Ks": ("J", "Ks", "J"),
+    "H-Ks": ("H", "Ks", "H"),  # Table 1 lower half: m_H with H-Ks
+    "BP-RP": ("BP", "RP", "G"),  # Gaia: temperature from BP-RP, C from G
+}
+
+#: paper's temperature clamp, K (sec. 2.5)
+T_MIN_K = 2000.0
+T_MAX_K = 30000.0
+
+# grid over which the synthetic colour is tabulated: wider than the clamp so that pchip is
+# well-behaved at its ends; 1/T is the interpolation variable.
+_T_GRID_K = np.geomspace(1000.0, 200000.0, 1200)
+
+
+@functools.cache
+def _surface_magnitudes(band: str) -> np.ndarray:
+    """Magnitude of a black body seen from its own surface, over _T_GRID_K (Fig. 4)."""
+    pb = passband(band)
+    # chunk over temperatures to bound memory (grid of up to ~15,000 wavelengths)
+    out = np.empty(_T_GRID_K.size)
+    for i in range(0, _T_GRID_K.size, 200):
+        t = _T_GRID_K[i : i + 200]
+        out[i : i + 200] = pb.magnitude(None, spectral_exitance(t, pb.wavelength_m))
+    return out
+
+
+@dataclass(frozen=True)
+class ColourModel:
+    """Black-body fit of a star from one colour index and one magnitude.
+
+    Parameters
+    ----------
+    colour : str
+        A key of :data:`COLOUR_SYSTEMS` ("B-V", "V-I", "BT-VT", "J-H", "J-Ks", "H-Ks", "BP-RP").
+    t_min_k, t_max_k : float
+        Temperature clamp, K (paper: 2000 and 30,000 K).
+    """
+
+    colour: str = "B-V"
+    t_min_k: float = T_MIN_K
+    t_max_k: float = T_MAX_K
+
+    def __post_init__(self) -> None:
+        if self.colour not in COLOUR_SYSTEMS:
+            raise InputError(
+                f"unknown colour system {self.colour!r}; known: {', '.join(COLOUR_SYSTEMS)}"
+            )
+        if not (_T_GRID_K[0] <= self.t_min_k < self.t_max_k <= _T_GRID_K[-1]):
+            raise InputError(
+                f"temperature clamp [{self.t_min_k}, {self.t_max_k}] K must satisfy "
+                f"{_T_GRID_K[0]:.0f} <= t_min_k < t_max_k <= {_T_GRID_K[-1]:.0f}"
+            )
+
+    @property
+    def blue_band(self) -> str:
+        return COLOUR_SYSTEMS[self.colour][0]
+
+    @property
+    def red_band(self) -> str:
+        return COLOUR_SYSTEMS[self.colour][1]
+
+    @property
+    def magnitude_band(self) -> str:
+        """The band whose catalogue magnitude sets the dilution factor C (eq. 9)."""
+        return COLOUR_SYSTEMS[self.colour][2]
+
+    @functools.cached_property
+    def _tables(self):
+        blue = _surface_magnitudes(self.blue_band)
+        red = _surface_magnitudes(self.red_band)
+        ci = blue - red  # decreasing with T
+        inv_t = 1.0 / _T_GRID_K
+        # ascending in colour <=> ascending in 1/T
+        ci_asc, inv_asc = ci[::-1], inv_t[::-1]
+        if np.any(np.diff(ci_asc) <= 0):
+            raise RuntimeError(f"synthetic {self.colour} is not monotonic in temperature")
+        to_inv_t = PchipInterpolator(ci_asc, inv_asc)
+        mag_surface = PchipInterpolator(inv_asc, _surface_magnitudes(self.magnitude_band)[::-1])
+        colour_of_inv_t = PchipInterpolator(inv_asc, ci_asc)
+        lo = float(colour_of_inv_t(1.0 / self.t_max_k))
+        hi = float(colour_of_inv_t(1.0 / self.t_min_k))
+        return to_inv_t, mag_surface, colour_of_inv_t, (lo, hi)
+
+    @property
+    def colour_limits(self) -> tuple[float, float]:
+        """Colour indices of the clamp temperatures (t_max_k, t_min_k): the paper's
+        [-0.2357, +2.7028] for B-V."""
+        return self._tables[3]
+
+    def colour_index(self, temperature_k) -> np.ndarray:
+        """Synthetic colour index of a black body at ``temperature_k`` (Fig. 5)."""
+        return self._tables[2](1.0 / np.asarray(temperature_k, dtype=float))
+
+    def surface_magnitude(self, temperature_k) -> np.ndarray:
+        """m_BB,surface(T) in the magnitude band (Fig. 4)."""
+        return self._tables[1](1.0 / np.asarray(temperature_k, dtype=float))
+
+    def temperature_k(self, colour_index) -> np.ndarray:
+        """Black-body temperature for a colour index, clamped to [t_min_k, t_max_k] (sec. 2.5).
+
+        NaN colours give NaN temperatures: callers decide whether that is an error (one star) or a
+        star to skip (a catalogue).
+        """
+        lo, hi = self.colour_limits
+        ci = np.clip(np.asarray(colour_index, dtype=float), lo, hi)
+        return 1.0 / self._tables[0](ci)
+
+    def dilution(self, magnitude, temperature_k) -> np.ndarray:
+        """Geometric dilution factor C = 10^(0.4 (m_BB,surface(T) - m)), eq. 9."""
+        return 10.0 ** (0.4 * (self.surface_magnitude(temperature_k) - np.asarray(magnitude)))
+
+    def fit(self, magnitude, colour_index) -> tuple[np.ndarray, np.ndarray]:
+        """Temperature (K) and dilution C of the equivalent black body of each star."""
+        t = self.temperature_k(colour_index)
+        return t, self.dilution(magnitude, t)
+
+
+def fit_star(magnitude: float, colour_index: float, colour: str = "B-V") -> tuple[float, float]:
+    """Black-body (T, C) of one star, with a specific error for non-finite input."""
+    for name, value in (("magnitude", magnitude), ("colour index", colour_index)):
+        if not np.isfinite(value):
+            raise InputError(f"{name} must be a finite number, got {value!r}")
+    t, c = ColourModel(colour).fit(magnitude, colour_index)
+    return float(t), float(c)
