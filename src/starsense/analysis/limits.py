@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from starsense.errors import InputError, SingularGeometryError
+from starsense.geometry.attitude import east_north, vectors_to_radec
 from starsense.photometry.blackbody import (
     BOLTZMANN_J_K,
     PLANCK_J_S,
@@ -170,17 +171,16 @@ def theta_rms(cov: np.ndarray) -> float:
 
 
 def boresight_frame(target) -> np.ndarray:
-    """Rows: unit x (east), y (north), z (boresight) of a sensor pointed at ``target``.
+    """Rows: unit east, north and boresight of a sensor pointed at ``target`` (ICRS unit vector).
 
-    Used to express a pointed sensor's covariance as two cross-boresight axes and roll.
+    Used to express a pointed sensor's covariance as two cross-boresight axes and roll; the
+    east/north convention is :func:`starsense.geometry.attitude.east_north`'s.
     """
     z = np.asarray(target, dtype=float)
     z = z / np.linalg.norm(z)
-    x = np.cross([0.0, 0.0, 1.0], z)
-    if np.linalg.norm(x) < 1e-12:  # boresight at a celestial pole
-        x = np.array([1.0, 0.0, 0.0])
-    x /= np.linalg.norm(x)
-    return np.stack([x, np.cross(z, x), z])
+    ra, dec = vectors_to_radec(z)
+    east, north = east_north(ra, dec)
+    return np.stack([east, north, z])
 
 
 # ---------------------------------------------------------------------------------------------

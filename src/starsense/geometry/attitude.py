@@ -1,0 +1,371 @@
+"""Attitudes: rotations between the sky (ICRS) and the camera, and (RA, Dec, roll).
+
+Frame conventions
+-----------------
+These are the conventions of the whole package; every other module refers here.
+
+Sky
+    Directions on the sky are ICRS unit vectors, shape ``(N, 3)`` (batch axis first):
+    ``(cos dec cos ra, cos dec sin ra, sin dec)``. Angles are in radians inside the package;
+    degrees appear only at the edges (CLI, TOML, reports).
+
+Camera
+    +z along the boresight (out of the lens, towards the sky), +x towards increasing column,
+    +y towards increasing row. Rows increase *downward* in the displayed image (row 0 at the
+    top), so "up" in the image is -y and "right" is +x. The frame is right-handed
+    (x × y = z: right × down = into the scene).
+
+Attitude
+    The attitude is the :class:`scipy.spatial.transform.Rotation` ``A`` that takes ICRS vectors
+    into the camera frame, ``v_cam = A.apply(v_icrs)``. Its matrix has the camera axes,
+    expressed in ICRS, as rows; ``A.inv().apply([0, 0, 1])`` is the boresight on the sky.
+    A batch of ``M`` attitudes is one ``Rotation`` of length ``M``.
+
+(RA, Dec, roll)
+    ``(ra, dec)`` is the direction of the boresight. ``roll`` follows the reference solutions
+    in ``shared/data/images/esa/reference.json``: the rotation of celestial north relative to
+    the image's "up" direction (towards row 0); zero when north and up coincide; positive
+    means north is counter-clockwise from up, as seen in the displayed image (row 0 at the
+    top, columns increasing to the right). In camera coordinates the local north and east
+    directions at the boresight are therefore::
+
+        north_cam = (-sin roll, -cos roll, 0)
+        east_cam  = (-cos roll, +sin roll, 0)
+
+    At roll 0 north is up (-y) and **east is to the left (-x)**, as on any image of the sky
+    taken from inside the celestial sphere; going from north to east is counter-clockwise in
+    the displayed image. At roll +90 deg north points to the left (-x) and east down (+y).
+    (A frame that put east on the right with north up would be mirrored, i.e. left-handed.)
+
+    Equivalently, the camera-to-ICRS rotation is the intrinsic z-y-z Euler sequence
+    ``A.inv() = Rz(ra) Ry(pi/2 - dec) Rz(roll - pi/2)``.
+
+    When the boresight is at a celestial pole (``cos dec`` below about ``1e-15``) RA is
+    undefined; :func:`radec_roll_from_attitude` then returns ``ra = 0`` and measures roll
+    against the north/east directions that the formulas above give for ``ra = 0``, so the
+    rotation round-trips exactly (to rounding) through (RA, Dec, roll) everywhere, including
+    at and near the poles, although the angles themselves do not.
+
+Attitude errors
+    :func:`small_rotation_angles` expresses the error of an estimate as the rotation vector of
+    ``r_est * r_true.inv()`` in the camera frame: components x and y are the cross-boresight
+    (pointing) errors, z is the roll error about the boresight.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from starsense.errors import InputError
+
+__all__ = [
+    "angular_separation",
+    "attitude_from_radec_roll",
+    "boresight",
+    "east_north",
+    "radec_roll_from_attitude",
+    "radec_to_vectors",
+    "small_rotation_angles",
+    "vectors_to_radec",
+]
+
+TWO_PI = 2.0 * np.pi
+HALF_PI = 0.5 * np.pi
+
+# Below this value of cos(dec) the boresight is treated as being exactly at a pole and RA is set
+# to 0 (a few ulp of a unit vector component).
+_POLE_COS_DEC = 1e-15
+
+
+def _finite_array(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """Convert to a float64 array and reject NaN/inf with an :class:`InputError`."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be a real number or array of them, got {value!r}") from exc
+    if not np.all(np.isfinite(arr)):
+        bad = arr[~np.isfinite(arr)].flat[0]
+        raise InputError(f"{name} = {bad} is not allowed; must be finite")
+    return arr
+
+
+def _wrap_two_pi(angle: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Wrap angles to [0, 2 pi) (``np.mod`` alone can return exactly 2 pi for tiny negatives)."""
+    wrapped = np.mod(angle, TWO_PI)
+    return np.where(wrapped >= TWO_PI, 0.0, wrapped)
+
+
+def _as_vectors(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """Validate an array of 3-vectors: shape ``(..., 3)``, finite."""
+    arr = _finite_array(value, name)
+    if arr.ndim == 0 or arr.shape[-1] != 3:
+        raise InputError(f"{name} must have shape (N, 3) or (3,), got shape {arr.shape}")
+    return arr
+
+
+def _unpack(arr: NDArray[np.float64]) -> NDArray[np.float64] | np.float64:
+    """Return 0-d arrays as NumPy scalars and anything else unchanged."""
+    return arr[()] if arr.ndim == 0 else arr
+
+
+def radec_to_vectors(ra_rad: ArrayLike, dec_rad: ArrayLike) -> NDArray[np.float64]:
+    """Unit vectors from right ascension and declination.
+
+    Parameters
+    ----------
+    ra_rad : float or array_like, shape (N,)
+        Right ascension, rad (any finite value; taken modulo 2 pi).
+    dec_rad : float or array_like, shape (N,)
+        Declination, rad, in [-pi/2, pi/2]. Broadcast against `ra_rad`.
+
+    Returns
+    -------
+    ndarray, shape (N, 3) or (3,) for scalar input
+        ICRS unit vectors ``(cos dec cos ra, cos dec sin ra, sin dec)``.
+
+    Raises
+    ------
+    InputError
+        If a value is not finite or a declination is outside [-pi/2, pi/2].
+    """
+    ra = _finite_array(ra_rad, "ra_rad")
+    dec = _finite_array(dec_rad, "dec_rad")
+    if np.any(np.abs(dec) > HALF_PI):
+        bad = dec[np.abs(dec) > HALF_PI].flat[0]
+        raise InputError(f"dec_rad = {bad} is out of range; must be in [-pi/2, pi/2]")
+    try:
+        ra, dec = np.broadcast_arrays(ra, dec)
+    except ValueError as exc:
+        raise InputError(
+            f"ra_rad (shape {ra.shape}) and dec_rad (shape {dec.shape}) do not broadcast"
+        ) from exc
+    cos_dec = np.cos(dec)
+    return np.stack([cos_dec * np.cos(ra), cos_dec * np.sin(ra), np.sin(dec)], axis=-1)
+
+
+def vectors_to_radec(
+    vectors: ArrayLike,
+) -> tuple[NDArray[np.float64] | np.float64, NDArray[np.float64] | np.float64]:
+    """Right ascension and declination of direction vectors.
+
+    Parameters
+    ----------
+    vectors : array_like, shape (N, 3) or (3,)
+        Directions in ICRS; need not be normalised, must be non-zero and finite.
+
+    Returns
+    -------
+    ra_rad : ndarray, shape (N,), or float
+        Right ascension in [0, 2 pi), rad. Zero for vectors along the poles.
+    dec_rad : ndarray, shape (N,), or float
+        Declination in [-pi/2, pi/2], rad.
+
+    Raises
+    ------
+    InputError
+        If the shape is not (N, 3) or (3,), a value is not finite or a vector is zero.
+    """
+    v = _as_vectors(vectors, "vectors")
+    rho = np.hypot(v[..., 0], v[..., 1])
+    if np.any((rho == 0.0) & (v[..., 2] == 0.0)):
+        raise InputError("vectors contains a zero vector, which has no direction")
+    ra = _wrap_two_pi(np.arctan2(v[..., 1], v[..., 0]))
+    ra = np.where(rho <= _POLE_COS_DEC * np.abs(v[..., 2]), 0.0, ra)
+    dec = np.arctan2(v[..., 2], rho)
+    return _unpack(ra), _unpack(dec)
+
+
+def east_north(
+    ra_rad: ArrayLike, dec_rad: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Local east and north unit vectors (ICRS) at sky positions.
+
+    East is the direction of increasing RA, north of increasing Dec; with the outward
+    direction ``u`` they form a right-handed triad ``east × north = u``. At a pole the formulas
+    are used as they stand (they stay orthonormal and depend on the RA passed in).
+
+    Parameters
+    ----------
+    ra_rad, dec_rad : float or array_like, shape (N,)
+        Position, rad.
+
+    Returns
+    -------
+    east, north : ndarray, shape (N, 3) or (3,)
+        ``east = (-sin ra, cos ra, 0)``, ``north = (-sin dec cos ra, -sin dec sin ra, cos dec)``.
+    """
+    ra = _finite_array(ra_rad, "ra_rad")
+    dec = _finite_array(dec_rad, "dec_rad")
+    ra, dec = np.broadcast_arrays(ra, dec)
+    sin_ra, cos_ra = np.sin(ra), np.cos(ra)
+    sin_dec, cos_dec = np.sin(dec), np.cos(dec)
+    east = np.stack([-sin_ra, cos_ra, np.zeros_like(ra)], axis=-1)
+    north = np.stack([-sin_dec * cos_ra, -sin_dec * sin_ra, cos_dec], axis=-1)
+    return east, north
+
+
+def attitude_from_radec_roll(
+    ra_rad: ArrayLike, dec_rad: ArrayLike, roll_rad: ArrayLike
+) -> Rotation:
+    """Attitude (ICRS -> camera rotation) from boresight (RA, Dec) and roll.
+
+    See the module docstring for the roll convention (that of the ESA reference solutions:
+    north counter-clockwise from image up by `roll_rad`; east is left of north at roll 0).
+    The camera axes, in ICRS, are::
+
+        x = -sin(roll) north - cos(roll) east
+        y = -cos(roll) north + sin(roll) east
+        z = boresight
+
+    Parameters
+    ----------
+    ra_rad : float or array_like, shape (M,)
+        Boresight right ascension, rad.
+    dec_rad : float or array_like, shape (M,)
+        Boresight declination, rad, in [-pi/2, pi/2].
+    roll_rad : float or array_like, shape (M,)
+        Roll, rad (any finite value). The three arguments are broadcast together.
+
+    Returns
+    -------
+    Rotation
+        A single rotation for scalar inputs, otherwise a batch of ``M``; ``v_cam = A.apply(v)``.
+
+    Raises
+    ------
+    InputError
+        If a value is not finite, a declination is outside [-pi/2, pi/2], or the shapes do not
+        broadcast to a scalar or a 1-D batch.
+    """
+    ra = _finite_array(ra_rad, "ra_rad")
+    dec = _finite_array(dec_rad, "dec_rad")
+    roll = _finite_array(roll_rad, "roll_rad")
+    try:
+        ra, dec, roll = np.broadcast_arrays(ra, dec, roll)
+    except ValueError as exc:
+        raise InputError(
+            f"ra_rad {ra.shape}, dec_rad {dec.shape} and roll_rad {roll.shape} do not broadcast"
+        ) from exc
+    if ra.ndim > 1:
+        raise InputError(f"angles must be scalars or 1-D arrays, got shape {ra.shape}")
+    z = radec_to_vectors(ra, dec)
+    east, north = east_north(ra, dec)
+    sin_roll = np.sin(roll)[..., None]
+    cos_roll = np.cos(roll)[..., None]
+    x = -sin_roll * north - cos_roll * east
+    y = -cos_roll * north + sin_roll * east
+    matrix = np.stack([x, y, z], axis=-2)  # rows are the camera axes in ICRS
+    return Rotation.from_matrix(matrix)
+
+
+def _check_rotation(rot: Rotation, name: str) -> None:
+    if not isinstance(rot, Rotation):
+        raise InputError(f"{name} must be a scipy Rotation, got {type(rot).__name__}")
+    if not rot.single and len(rot.shape) != 1:
+        raise InputError(f"{name} must be a single Rotation or a 1-D batch, got shape {rot.shape}")
+
+
+def boresight(rot: Rotation) -> NDArray[np.float64]:
+    """ICRS direction of the camera +z axis.
+
+    Parameters
+    ----------
+    rot : Rotation, single or batch of M
+        Attitude(s), ICRS -> camera.
+
+    Returns
+    -------
+    ndarray, shape (M, 3) or (3,)
+        Boresight unit vectors (the third row of each attitude matrix).
+    """
+    _check_rotation(rot, "rot")
+    return rot.as_matrix()[..., 2, :]
+
+
+def radec_roll_from_attitude(
+    rot: Rotation,
+) -> tuple[
+    NDArray[np.float64] | np.float64,
+    NDArray[np.float64] | np.float64,
+    NDArray[np.float64] | np.float64,
+]:
+    """Boresight (RA, Dec) and roll of attitudes; the inverse of :func:`attitude_from_radec_roll`.
+
+    Parameters
+    ----------
+    rot : Rotation, single or batch of M
+        Attitude(s), ICRS -> camera.
+
+    Returns
+    -------
+    ra_rad : ndarray, shape (M,), or float
+        Boresight right ascension in [0, 2 pi), rad; 0 when the boresight is at a pole.
+    dec_rad : ndarray, shape (M,), or float
+        Boresight declination in [-pi/2, pi/2], rad.
+    roll_rad : ndarray, shape (M,), or float
+        Roll in [0, 2 pi), rad, measured against the north/east directions of the returned
+        (RA, Dec), so that ``attitude_from_radec_roll(*radec_roll_from_attitude(A))`` equals
+        ``A`` to rounding everywhere, poles included.
+    """
+    _check_rotation(rot, "rot")
+    matrix = rot.as_matrix()
+    x, y, z = matrix[..., 0, :], matrix[..., 1, :], matrix[..., 2, :]
+    ra, dec = vectors_to_radec(z)
+    east, north = east_north(ra, dec)
+    # north_cam = (-sin roll, -cos roll), east_cam = (-cos roll, sin roll); both estimates are
+    # combined so that the result is well conditioned whatever the rounding in x, y.
+    x_north = np.einsum("...i,...i->...", x, north)
+    y_north = np.einsum("...i,...i->...", y, north)
+    x_east = np.einsum("...i,...i->...", x, east)
+    y_east = np.einsum("...i,...i->...", y, east)
+    roll = _wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
+    return ra, dec, _unpack(np.asarray(roll))
+
+
+def angular_separation(u: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | np.float64:
+    """Angle between directions, ``atan2(|u × v|, u · v)``, accurate at all separations.
+
+    Parameters
+    ----------
+    u, v : array_like, shape (N, 3) or (3,)
+        Direction vectors (need not be normalised); broadcast against each other.
+
+    Returns
+    -------
+    ndarray, shape (N,), or float
+        Separation in [0, pi], rad.
+    """
+    a = _as_vectors(u, "u")
+    b = _as_vectors(v, "v")
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    dot = np.einsum("...i,...i->...", a, b)
+    return _unpack(np.asarray(np.arctan2(cross, dot)))
+
+
+def small_rotation_angles(r_true: Rotation, r_est: Rotation) -> NDArray[np.float64]:
+    """Attitude error as a rotation vector in the camera frame.
+
+    The error rotation ``r_est * r_true.inv()`` takes the true camera frame to the estimated
+    one; its rotation vector has components (x, y) about the cross-boresight axes (pointing
+    error) and z about the boresight (roll error). For small errors these are the usual
+    per-axis error angles.
+
+    Parameters
+    ----------
+    r_true, r_est : Rotation, single or batch of N
+        True and estimated attitudes (ICRS -> camera); a single rotation broadcasts.
+
+    Returns
+    -------
+    ndarray, shape (N, 3) or (3,)
+        Rotation vector, rad; its norm is the total error angle in [0, pi].
+    """
+    _check_rotation(r_true, "r_true")
+    _check_rotation(r_est, "r_est")
+    if not r_true.single and not r_est.single and len(r_true) != len(r_est):
+        raise InputError(
+            f"r_true and r_est must have the same length, got {len(r_true)} and {len(r_est)}"
+        )
+    return (r_est * r_true.inv()).as_rotvec()
