@@ -39,6 +39,22 @@ T_MAX_K = 30000.0
 # grid over which the synthetic colour is tabulated: wider than the clamp so that pchip is
 # well-behaved at its ends; 1/T is the interpolation variable.
 _T_GRID_K = np.geomspace(1000.0, 200000.0, 1200)
+# points of the dense lookup tables (uniform grids, see _uniform_interp)
+_DENSE = 20001
+
+
+def _uniform_interp(x, x0: float, x1: float, table: np.ndarray) -> np.ndarray:
+    """Linear interpolation in ``table`` sampled uniformly on [x0, x1], clamped at the ends.
+
+    Same result as ``np.interp`` on a uniform grid, without its per-element binary search:
+    O(1) per point, which matters over millions of stars.
+    """
+    n = table.size - 1
+    u = (np.asarray(x, dtype=float) - x0) * (n / (x1 - x0))
+    u = np.clip(u, 0.0, n)  # NaN stays NaN
+    i = np.minimum(np.nan_to_num(u, nan=0.0).astype(np.intp), n - 1)
+    f = u - i
+    return table[i] * (1.0 - f) + table[i + 1] * f
 
 
 @functools.cache
@@ -108,21 +124,47 @@ class ColourModel:
         colour_of_inv_t = PchipInterpolator(inv_asc, ci_asc)
         lo = float(colour_of_inv_t(1.0 / self.t_max_k))
         hi = float(colour_of_inv_t(1.0 / self.t_min_k))
-        return to_inv_t, mag_surface, colour_of_inv_t, (lo, hi)
+        # The pchip curves sampled on dense grids, evaluated by direct indexing: over millions
+        # of stars this is ~10x faster than evaluating the pchip, and the linear interpolation error
+        # (spacing^2 / 8 x curvature) is ~2e-8 in T and ~6e-8 mag (tested against the pchip).
+        dense_ci = np.linspace(lo, hi, _DENSE)
+        dense_inv_t = np.linspace(1.0 / self.t_max_k, 1.0 / self.t_min_k, _DENSE)
+        return {
+            "to_inv_t": to_inv_t,
+            "mag_surface": mag_surface,
+            "colour_of_inv_t": colour_of_inv_t,
+            "limits": (lo, hi),
+            "dense_ci": dense_ci,
+            "dense_inv_t_of_ci": to_inv_t(dense_ci),
+            "dense_inv_t": dense_inv_t,
+            "dense_mag_surface": mag_surface(dense_inv_t),
+        }
 
     @property
     def colour_limits(self) -> tuple[float, float]:
         """Colour indices of the clamp temperatures (t_max_k, t_min_k): the paper's
         [-0.2357, +2.7028] for B-V."""
-        return self._tables[3]
+        return self._tables["limits"]
 
     def colour_index(self, temperature_k) -> np.ndarray:
         """Synthetic colour index of a black body at ``temperature_k`` (Fig. 5)."""
-        return self._tables[2](1.0 / np.asarray(temperature_k, dtype=float))
+        return self._tables["colour_of_inv_t"](1.0 / np.asarray(temperature_k, dtype=float))
 
     def surface_magnitude(self, temperature_k) -> np.ndarray:
-        """m_BB,surface(T) in the magnitude band (Fig. 4)."""
-        return self._tables[1](1.0 / np.asarray(temperature_k, dtype=float))
+        """m_BB,surface(T) in the magnitude band (Fig. 4); T within the clamp."""
+        tab = self._tables
+        inv_t = 1.0 / np.asarray(temperature_k, dtype=float)
+        out = _uniform_interp(
+            inv_t, tab["dense_inv_t"][0], tab["dense_inv_t"][-1], tab["dense_mag_surface"]
+        )
+        # outside the clamp (callers passing their own T): the pchip, for those stars only;
+        # a relative margin keeps clamped temperatures (rounded at the ends) on the fast path
+        lo, hi = tab["dense_inv_t"][0], tab["dense_inv_t"][-1]
+        outside = (inv_t < lo * (1 - 1e-12)) | (inv_t > hi * (1 + 1e-12))
+        if np.any(outside):
+            out = np.array(out, dtype=float, copy=True)
+            out[outside] = tab["mag_surface"](inv_t[outside])
+        return out
 
     def temperature_k(self, colour_index) -> np.ndarray:
         """Black-body temperature for a colour index, clamped to [t_min_k, t_max_k] (sec. 2.5).
@@ -130,9 +172,11 @@ class ColourModel:
         NaN colours give NaN temperatures: callers decide whether that is an error (one star) or a
         star to skip (a catalogue).
         """
-        lo, hi = self.colour_limits
-        ci = np.clip(np.asarray(colour_index, dtype=float), lo, hi)
-        return 1.0 / self._tables[0](ci)
+        tab = self._tables
+        ci = np.asarray(colour_index, dtype=float)
+        # clamping to the table's ends is exactly the paper's colour clamp
+        lo, hi = tab["limits"]
+        return 1.0 / _uniform_interp(ci, lo, hi, tab["dense_inv_t_of_ci"])
 
     def dilution(self, magnitude, temperature_k) -> np.ndarray:
         """Geometric dilution factor C = 10^(0.4 (m_BB,surface(T) - m)), eq. 9."""

@@ -1,0 +1,134 @@
+"""Benchmarks of the hot paths: `make bench`.
+
+Each benchmark is a function registered with :func:`bench`; it returns the seconds of one timed
+run (setup excluded) and a target from the issue that asked for it. Results, with the machine's
+description, go to ``bench/results/<name>.json`` (written atomically) and to a table on stdout.
+Numerical threads are pinned to one core unless a benchmark says otherwise, so "on one core"
+means what it says.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import json  # noqa: E402
+import platform  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results"
+BENCHES: list[tuple[str, str, float, Callable[[], float]]] = []
+
+
+def bench(name: str, description: str, target_s: float):
+    def register(fn: Callable[[], float]):
+        BENCHES.append((name, description, target_s, fn))
+        return fn
+
+    return register
+
+
+def best_of(fn: Callable[[], object], repeat: int = 5) -> float:
+    """Minimum wall time of ``repeat`` calls (the least disturbed run)."""
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def machine() -> dict:
+    return {
+        "python": sys.version.split()[0],
+        "numpy": np.__version__,
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+        "threads": os.environ.get("OMP_NUM_THREADS"),
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 2: catalogue and the physical limit
+
+
+@bench("catalog_warm_load", "warm load of the bundled Hipparcos (hip2) catalogue", 0.3)
+def _catalog_warm_load() -> float:
+    from starsense.catalog import load_catalog
+
+    load_catalog("hipparcos")  # fills the cache if cold
+    return best_of(lambda: load_catalog("hipparcos"))
+
+
+@bench("limit_sky_bundled", "whole-sky limit over all bundled stars (catalogue loaded)", 0.05)
+def _limit_sky_bundled() -> float:
+    from starsense.analysis.limits import BlackBodyStars, sky_limit
+    from starsense.catalog import load_catalog
+
+    cat = load_catalog("hipparcos")
+    BlackBodyStars.from_catalog(cat)  # builds the colour tables once (photometry set-up)
+    return best_of(lambda: sky_limit(BlackBodyStars.from_catalog(cat), 1.0, 1.0))
+
+
+@bench("limit_sky_5M", "whole-sky limit, 5 million synthetic stars from V and B-V, one core", 1.0)
+def _limit_sky_5m() -> float:
+    from starsense.analysis.limits import BlackBodyStars, sky_limit
+    from starsense.photometry import ColourModel
+
+    rng = np.random.default_rng(0)
+    n = 5_000_000
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    mag = rng.uniform(-1.0, 16.0, n)
+    bv = rng.uniform(-0.3, 2.0, n)
+    model = ColourModel("B-V")
+    model.fit(0.0, 0.0)
+
+    def run():
+        t, c = model.fit(mag, bv)
+        return sky_limit(BlackBodyStars(v, t, c, mag), 1.0, 1.0)
+
+    return best_of(run, repeat=3)
+
+
+def main(selected: list[str]) -> int:
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    info = machine()
+    rows = []
+    for name, description, target, fn in BENCHES:
+        if selected and name not in selected:
+            continue
+        seconds = fn()
+        ok = seconds <= target
+        rows.append((name, seconds, target, ok))
+        record = {
+            "name": name,
+            "description": description,
+            "seconds": seconds,
+            "target_s": target,
+            "meets_target": ok,
+            "machine": info,
+            "date": time.strftime("%Y-%m-%d"),
+        }
+        with tempfile.NamedTemporaryFile("w", dir=RESULTS, suffix=".tmp", delete=False) as f:
+            json.dump(record, f, indent=2)
+        os.replace(f.name, RESULTS / f"{name}.json")
+        print(
+            f"{name:24s} {seconds * 1e3:10.1f} ms   target {target * 1e3:8.0f} ms   "
+            f"{'ok' if ok else 'SLOW'}   {description}",
+            flush=True,
+        )
+    return 0 if all(r[3] for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
