@@ -23,3 +23,17 @@ def bsc5_path(shared_dir: Path) -> Path:
     if not path.is_file():
         pytest.skip(f"BSC5 catalogue not found at {path}")
     return path
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _isolated_cache(tmp_path_factory):
+    """Keep the test run's catalogue cache out of the user's cache directory."""
+    import os
+
+    old = os.environ.get("STARSENSE_CACHE_DIR")
+    os.environ["STARSENSE_CACHE_DIR"] = str(tmp_path_factory.mktemp("starsense-cache"))
+    yield
+    if old is None:
+        os.environ.pop("STARSENSE_CACHE_DIR", None)
+    else:
+        os.environ["STARSENSE_CACHE_DIR"] = old

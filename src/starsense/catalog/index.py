@@ -1,0 +1,143 @@
+"""Cone queries on the celestial sphere with a k-d tree over ICRS unit vectors.
+
+Two unit vectors separated by the angle ``theta`` are a Euclidean (chord) distance
+``2 sin(theta / 2)`` apart, so an angular cone of radius ``r`` is a Euclidean ball of radius
+``2 sin(r / 2)`` around its centre vector; :class:`scipy.spatial.cKDTree` answers that
+directly. These are plain functions on arrays, shared by :class:`~starsense.catalog.Catalog`
+and by anything else that holds unit vectors.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from starsense.errors import InputError
+
+if TYPE_CHECKING:  # scipy.spatial takes ~0.25 s to import: only when a tree is built
+    from scipy.spatial import cKDTree
+
+
+def radec_to_vectors(ra_rad: np.ndarray, dec_rad: np.ndarray) -> np.ndarray:
+    """ICRS unit vectors from right ascension and declination.
+
+    Parameters
+    ----------
+    ra_rad, dec_rad : array_like, shape (N,)
+        Right ascension and declination, radians.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3)
+        Unit vectors ``(cos d cos a, cos d sin a, sin d)``.
+    """
+    ra = np.asarray(ra_rad, dtype=np.float64)
+    dec = np.asarray(dec_rad, dtype=np.float64)
+    cos_dec = np.cos(dec)
+    out = np.empty((*np.broadcast_shapes(ra.shape, dec.shape), 3))
+    out[..., 0] = cos_dec * np.cos(ra)
+    out[..., 1] = cos_dec * np.sin(ra)
+    out[..., 2] = np.sin(dec)
+    return out
+
+
+def vectors_to_radec(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Right ascension in ``[0, 2 pi)`` and declination (radians) of vectors ``(..., 3)``
+    (need not be normalised)."""
+    v = np.asarray(vectors, dtype=np.float64)
+    ra = np.mod(np.arctan2(v[..., 1], v[..., 0]), 2.0 * np.pi)
+    ra = np.where(ra >= 2.0 * np.pi, 0.0, ra)  # mod of a tiny negative can round to 2 pi
+    dec = np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1]))
+    return ra, dec
+
+
+def as_unit_vectors(centers: object, *, name: str = "center") -> np.ndarray:
+    """Interpret ``centers`` as unit vector(s).
+
+    Parameters
+    ----------
+    centers : array_like, shape (3,), (2,), (M, 3) or (M, 2)
+        Unit vectors (any non-zero length; they are normalised) or ``(RA, Dec)`` pairs in
+        radians. The last axis decides: 3 means vectors, 2 means RA/Dec.
+    name : str
+        Argument name for error messages.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,) or (M, 3)
+    """
+    try:
+        a = np.asarray(centers, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be numeric, got {centers!r}") from exc
+    if a.ndim not in (1, 2) or a.shape[-1] not in (2, 3):
+        raise InputError(
+            f"{name} must have shape (3,) or (M, 3) (unit vectors) or (2,) or (M, 2) "
+            f"(RA, Dec in radians); got shape {a.shape}"
+        )
+    if not np.isfinite(a).all():
+        raise InputError(f"{name} must be finite, got {a!r}")
+    if a.shape[-1] == 2:
+        return radec_to_vectors(a[..., 0], a[..., 1])
+    norm = np.linalg.norm(a, axis=-1, keepdims=True)
+    if (norm == 0).any():
+        raise InputError(f"{name} contains a zero vector; cannot define a direction")
+    return a / norm
+
+
+def chord_radius(radius_rad: object, *, name: str = "radius_rad") -> np.ndarray:
+    """Chord length ``2 sin(r / 2)`` for an angular radius ``r`` (radians, 0 <= r; radii above
+    pi are clamped to pi, the whole sphere)."""
+    try:
+        r = np.asarray(radius_rad, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be a number, got {radius_rad!r}") from exc
+    if np.isnan(r).any() or (r < 0).any():
+        raise InputError(f"{name} must be >= 0 and not NaN, got {radius_rad!r}")
+    return 2.0 * np.sin(0.5 * np.minimum(r, np.pi))
+
+
+def build_tree(vectors: np.ndarray) -> cKDTree:
+    """A k-d tree over unit vectors ``(N, 3)`` for chord-distance queries."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(np.asarray(vectors, dtype=np.float64))
+
+
+def cone_query(tree: cKDTree, center: object, radius_rad: float) -> np.ndarray:
+    """Indices (ascending, int64) of the tree's points within ``radius_rad`` of ``center``."""
+    c = as_unit_vectors(center)
+    if c.ndim != 1:
+        raise InputError(f"center must be a single direction; got shape {c.shape} (use cones)")
+    chord = float(chord_radius(radius_rad))
+    hits = tree.query_ball_point(c, chord, return_sorted=True)
+    return np.asarray(hits, dtype=np.int64)
+
+
+def cones_query(tree: cKDTree, centers: object, radius_rad: object) -> list[np.ndarray]:
+    """Indices within each of ``M`` cones: a list of M ascending int64 arrays.
+
+    ``radius_rad`` is a scalar or an ``(M,)`` array of radii.
+    """
+    c, chord = _batch(centers, radius_rad)
+    hits = tree.query_ball_point(c, chord, return_sorted=True, workers=-1)
+    return [np.asarray(h, dtype=np.int64) for h in hits]
+
+
+def count_cones(tree: cKDTree, centers: object, radius_rad: object) -> np.ndarray:
+    """Number of points within each of ``M`` cones, ``(M,)`` int64."""
+    c, chord = _batch(centers, radius_rad)
+    counts = tree.query_ball_point(c, chord, return_length=True, workers=-1)
+    return np.asarray(counts, dtype=np.int64).reshape(len(c))
+
+
+def _batch(centers: object, radius_rad: object) -> tuple[np.ndarray, np.ndarray]:
+    c = as_unit_vectors(centers, name="centers")
+    c = np.atleast_2d(c)
+    chord = chord_radius(radius_rad)
+    if chord.ndim not in (0, 1) or (chord.ndim == 1 and chord.shape != (len(c),)):
+        raise InputError(
+            f"radius_rad must be a scalar or have shape ({len(c)},), got shape {chord.shape}"
+        )
+    return c, chord
