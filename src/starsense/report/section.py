@@ -1,0 +1,90 @@
+"""What a report section is, and what it is given to build itself.
+
+A section builder is a function ``builder(ctx: ReportContext) -> Section``. It computes its
+numbers from ``ctx``, saves its figures with :meth:`ReportContext.save_figure` and returns an HTML
+fragment, a few rows for the summary box and its numbers for ``report.json``. The builders the
+report runs, in order, are listed in :data:`starsense.report.build.SECTION_BUILDERS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from matplotlib.figure import Figure
+
+from starsense.analysis.limits import BlackBodyStars
+from starsense.report.sensors import SensorSpec
+
+
+@dataclass(frozen=True)
+class Section:
+    """One section of the report.
+
+    Attributes
+    ----------
+    key : str
+        Anchor id in index.html and key of the section's numbers in report.json.
+    title : str
+    html : str
+        The section body (HTML fragment, without the title).
+    figures : tuple of str
+        PNG files the section wrote, relative to the report directory.
+    summary : tuple of (str, str)
+        (label, value) rows for the summary box at the top of the page, both HTML.
+    data : dict
+        JSON-serialisable numbers of the section.
+    """
+
+    key: str
+    title: str
+    html: str
+    figures: tuple[str, ...] = ()
+    summary: tuple[tuple[str, str], ...] = ()
+    data: dict = field(default_factory=dict)
+
+
+@dataclass
+class ReportContext:
+    """Everything a section builder needs.
+
+    Attributes
+    ----------
+    work_dir : Path
+        Where figures go (a temporary directory renamed to the report directory at the end).
+    catalog_name : str
+    n_catalog : int
+        Rows of the catalogue (stars used + skipped by the black-body fit).
+    stars : dict of str -> BlackBodyStars
+        One black-body fit of the catalogue per colour system it has; the first is the primary
+        one, used wherever a single star set is needed.
+    diameter_m, exposure_s : float
+        The user's sensor: aperture D (m) and exposure t (s).
+    sensors : tuple of SensorSpec
+        Real sensors to compare with the limit (may be empty).
+    seed : int
+        Root seed of the stochastic parts (low-photon Monte Carlo).
+    low_photon_trials : int
+    progress : callable(str)
+    """
+
+    work_dir: Path
+    catalog_name: str
+    n_catalog: int
+    stars: dict[str, BlackBodyStars]
+    diameter_m: float
+    exposure_s: float
+    sensors: tuple[SensorSpec, ...] = ()
+    seed: int = 0
+    low_photon_trials: int = 100
+    progress: Callable[[str], None] = lambda message: None
+
+    @property
+    def primary(self) -> BlackBodyStars:
+        return next(iter(self.stars.values()))
+
+    def save_figure(self, fig: Figure, name: str, dpi: int = 110) -> str:
+        """Write ``fig`` as ``work_dir/name`` (PNG) and return ``name``."""
+        fig.savefig(self.work_dir / name, dpi=dpi, format="png")
+        return name
