@@ -1,0 +1,353 @@
+"""Command line: parse, load, call the API, print or write results. No physics here.
+
+User errors (:class:`~starsense.errors.StarsenseError`) are printed as one line on stderr with exit
+status 2; no traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from starsense.errors import InputError, StarsenseError
+
+ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
+
+app = typer.Typer(
+    name="starsense",
+    help="Star-tracker engineering: how good a star sensor can be, and how good it is.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+limit_app = typer.Typer(
+    help="The physical limit of attitude accuracy (Fialho & Mortari 2019).",
+    no_args_is_help=True,
+)
+app.add_typer(limit_app, name="limit")
+
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON.")]
+DiameterOpt = Annotated[
+    float, typer.Option("--diameter-m", help="Aperture (ideal sensor) diameter D, metres.")
+]
+ExposureOpt = Annotated[float, typer.Option("--exposure-s", help="Exposure time t, seconds.")]
+CatalogOpt = Annotated[
+    str,
+    typer.Option(
+        "--catalog",
+        help="hipparcos (bundled), hip_main:PATH, bsc5:PATH, tycho2:PATH, twomass:PATH, gaia:PATH.",
+    ),
+]
+ColourOpt = Annotated[
+    str | None,
+    typer.Option("--colour", help="Colour system: B-V, V-I, BT-VT, J-H, J-Ks, H-Ks, BP-RP."),
+]
+
+
+def _emit(payload: dict, as_json: bool, lines: list[str]) -> None:
+    if as_json:
+        typer.echo(json.dumps(payload, indent=2))
+    else:
+        for line in lines:
+            typer.echo(line)
+
+
+def _rad(x: float) -> str:
+    return f"{x:.4g} rad ({x * ARCSEC_PER_RAD:.4g} arcsec)"
+
+
+def _parse_target(text: str) -> tuple[float, float]:
+    try:
+        ra, dec = (float(p) for p in text.split(","))
+    except ValueError:
+        raise InputError(f"--target-deg expects RA,DEC in degrees, got {text!r}") from None
+    if not (np.isfinite(ra) and np.isfinite(dec)) or not -90.0 <= dec <= 90.0:
+        raise InputError(f"--target-deg {text!r}: RA must be finite and Dec within [-90, 90]")
+    return ra, dec
+
+
+def _load_stars(catalog: str, max_mag: float | None, colour: str | None):
+    from starsense.analysis.limits import BlackBodyStars
+    from starsense.catalog import load_catalog
+
+    cat = load_catalog(catalog)
+    stars = BlackBodyStars.from_catalog(cat, colour)
+    if max_mag is not None:
+        if not np.isfinite(max_mag):
+            raise InputError(f"--max-mag must be a finite magnitude, got {max_mag!r}")
+        keep = stars.magnitude <= max_mag
+        if keep.sum() < 2:
+            raise InputError(
+                f"--max-mag {max_mag} leaves {int(keep.sum())} star(s) of {len(stars)} in "
+                f"{cat.name}; at least 2 are needed"
+            )
+        stars = stars.subset(keep)
+    return cat, stars
+
+
+@limit_app.command("star")
+def limit_star(
+    mag_v: Annotated[float | None, typer.Option("--mag-v", help="Johnson V magnitude.")] = None,
+    b_v: Annotated[float | None, typer.Option("--b-v", help="B-V colour index.")] = None,
+    mag_h: Annotated[float | None, typer.Option("--mag-h", help="2MASS H magnitude.")] = None,
+    h_ks: Annotated[float | None, typer.Option("--h-ks", help="2MASS H-Ks colour.")] = None,
+    mag: Annotated[
+        float | None, typer.Option("--mag", help="Magnitude in --colour's band.")
+    ] = None,
+    colour_index: Annotated[
+        float | None, typer.Option("--colour-index", help="Colour index in --colour.")
+    ] = None,
+    colour: ColourOpt = None,
+    diameter_m: DiameterOpt = 0.1,
+    exposure_s: ExposureOpt = 0.1,
+    as_json: JsonOpt = False,
+) -> None:
+    """One star's black body, photons and centroid bound (Table 1; eqs. 9, 12, 19)."""
+    from starsense.analysis.limits import centroid_fisher
+    from starsense.photometry import ColourModel, fit_star, total_photons
+
+    if mag_v is not None or b_v is not None:
+        if mag_v is None or b_v is None:
+            raise InputError("--mag-v and --b-v must be given together")
+        m, ci, system = mag_v, b_v, "B-V"
+    elif mag_h is not None or h_ks is not None:
+        if mag_h is None or h_ks is None:
+            raise InputError("--mag-h and --h-ks must be given together")
+        m, ci, system = mag_h, h_ks, "H-Ks"
+    elif mag is not None and colour_index is not None and colour is not None:
+        m, ci, system = mag, colour_index, colour
+    else:
+        raise InputError(
+            "give --mag-v and --b-v, or --mag-h and --h-ks, or --mag, --colour-index and --colour"
+        )
+    t, c = fit_star(m, ci, system)
+    f = float(centroid_fisher(c, t, diameter_m, exposure_s))
+    photons = float(total_photons(c, t, diameter_m, exposure_s))
+    sigma = 1.0 / np.sqrt(f)
+    payload = {
+        "temperature_k": t,
+        "dilution": c,
+        "photons": photons,
+        "sigma_rad": float(sigma),
+        "sigma_arcsec": float(sigma * ARCSEC_PER_RAD),
+        "colour": system,
+        "magnitude_band": ColourModel(system).magnitude_band,
+        "diameter_m": diameter_m,
+        "exposure_s": exposure_s,
+    }
+    _emit(
+        payload,
+        as_json,
+        [
+            f"black body ({system}): T = {t:.0f} K, C = {c:.3e}",
+            f"photons collected (D = {diameter_m} m, t = {exposure_s} s): {photons:.4g}",
+            f"centroid bound sigma_min: {_rad(sigma)}",
+        ],
+    )
+
+
+@limit_app.command("sky")
+def limit_sky(
+    diameter_m: DiameterOpt = 1.0,
+    exposure_s: ExposureOpt = 1.0,
+    catalog: CatalogOpt = "hipparcos",
+    max_mag: Annotated[
+        float | None, typer.Option("--max-mag", help="Use only stars brighter than this.")
+    ] = None,
+    colour: ColourOpt = None,
+    fov_deg: Annotated[
+        float | None, typer.Option("--fov-deg", help="FOV cone diameter, deg (with --target-deg).")
+    ] = None,
+    target_deg: Annotated[
+        list[str] | None,
+        typer.Option("--target-deg", help="RA,DEC of a head's boresight, deg; repeat for heads."),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Attitude limit over a catalogue: theta_rms, per-axis sigma, G (eqs. 21-24; Table 2)."""
+    from starsense.analysis.limits import fov_limit, sky_limit
+    from starsense.geometry.attitude import radec_to_vectors
+
+    if (fov_deg is None) != (not target_deg):
+        raise InputError("--fov-deg and --target-deg go together (one or more targets)")
+    cat, stars = _load_stars(catalog, max_mag, colour)
+    common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
+    if fov_deg is None:
+        res = sky_limit(stars, diameter_m, exposure_s)
+        payload = {**res.to_dict(), **common}
+        lines = [
+            f"catalogue {cat.name}: {res.n_stars} stars ({stars.colour}; "
+            f"{stars.n_skipped} skipped without magnitude or colour)",
+            f"theta_rms (D = {diameter_m} m, t = {exposure_s} s): {_rad(res.theta_rms_rad)}",
+            "per-axis sigma (ICRS x, y, z): "
+            + ", ".join(f"{s:.3g}" for s in res.axis_sigma_rad)
+            + " rad",
+            f"G = {res.g_rad_m2_s05:.3e} rad m^2 s^1/2 (paper: 7e-15 < G < 1e-13)",
+        ]
+        _emit(payload, as_json, lines)
+        return
+    if not np.isfinite(fov_deg) or not 0 < fov_deg <= 360:
+        raise InputError(f"--fov-deg must be in (0, 360], got {fov_deg}")
+    radec = [_parse_target(t) for t in target_deg]
+    vecs = np.array([radec_to_vectors(np.radians(ra), np.radians(dec)) for ra, dec in radec])
+    heads, merged = fov_limit(stars, vecs, np.radians(fov_deg), diameter_m, exposure_s)
+    best = merged if merged is not None else heads[0]
+    payload = {
+        **best.to_dict(),
+        **common,
+        "fov_deg": fov_deg,
+        "heads": [
+            {"target_deg": list(rd), **h.to_dict()} for rd, h in zip(radec, heads, strict=True)
+        ],
+    }
+    if merged is not None:
+        payload["merged"] = merged.to_dict()
+    lines = [f"catalogue {cat.name} ({stars.colour}), FOV {fov_deg} deg:"]
+    for rd, h in zip(radec, heads, strict=True):
+        lines.append(
+            f"  head at RA {rd[0]:g}, Dec {rd[1]:g}: {h.n_stars} stars, theta_rms "
+            f"{_rad(h.theta_rms_rad)}; cross-boresight {h.axis_sigma_rad[0]:.3g}, "
+            f"{h.axis_sigma_rad[1]:.3g} rad, roll {h.axis_sigma_rad[2]:.3g} rad"
+        )
+    if merged is not None:
+        lines.append(f"  merged heads: theta_rms {_rad(merged.theta_rms_rad)}")
+    _emit(payload, as_json, lines)
+
+
+@limit_app.command("curve")
+def limit_curve(
+    catalog: CatalogOpt = "hipparcos",
+    colour: ColourOpt = None,
+    diameter_m: DiameterOpt = 1.0,
+    exposure_s: ExposureOpt = 1.0,
+    extrapolate_to: Annotated[
+        float, typer.Option("--extrapolate-to", help="N stars to extrapolate to (paper: 3e11).")
+    ] = 3e11,
+    plot: Annotated[Path | None, typer.Option("--plot", help="Write a PNG of the curve.")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """theta_rms over the N brightest stars, N = 2 .. all, and its extrapolation (Fig. 7)."""
+    from starsense.analysis.limits import brightest_curve
+
+    if not np.isfinite(extrapolate_to) or extrapolate_to < 2:
+        raise InputError(f"--extrapolate-to must be >= 2 stars, got {extrapolate_to}")
+    cat, stars = _load_stars(catalog, None, colour)
+    curve = brightest_curve(stars, diameter_m, exposure_s, n_extrapolated=extrapolate_to)
+    payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
+    payload.update(curve.to_dict())
+    lines = [
+        f"catalogue {cat.name} ({curve.colour}), D = {diameter_m} m, t = {exposure_s} s",
+        *(
+            f"  N = {n:>9d}  theta_rms = {th:.3e} rad"
+            for n, th in zip(
+                curve.n_stars[:: max(1, len(curve.n_stars) // 12)],
+                curve.theta_rms_rad[:: max(1, len(curve.n_stars) // 12)],
+                strict=True,
+            )
+        ),
+        f"  all {curve.n_stars[-1]} stars: {curve.theta_rms_rad[-1]:.3e} rad",
+        f"  tail slope d log theta / d log N = {curve.slope:.3f}; extrapolated to "
+        f"N = {extrapolate_to:.3g}: {curve.theta_extrapolated_rad:.3e} rad",
+    ]
+    if plot is not None:
+        from starsense.report.figures import plot_brightest_curves
+
+        plot_brightest_curves(
+            [curve], plot, catalog_name=cat.name, diameter_m=diameter_m, exposure_s=exposure_s
+        )
+        payload["plot"] = str(plot)
+        lines.append(f"  figure: {plot}")
+    _emit(payload, as_json, lines)
+
+
+@limit_app.command("photons")
+def limit_photons(
+    diameter_m: DiameterOpt = 0.1,
+    exposure_s: ExposureOpt = 0.01,
+    catalog: CatalogOpt = "hipparcos",
+    colour: ColourOpt = None,
+    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws.")] = 200,
+    seed: Annotated[int, typer.Option("--seed")] = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
+    from starsense.analysis.limits import low_photon_degradation
+
+    cat, stars = _load_stars(catalog, None, colour)
+    res = low_photon_degradation(stars, diameter_m, exposure_s, trials, seed)
+    payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
+    payload.update(res.to_dict())
+    _emit(
+        payload,
+        as_json,
+        [
+            f"catalogue {cat.name}: {len(stars)} stars, {res.n_below_one_photon} expected to "
+            f"deliver < 1 photon; {res.expected_observed_stars:.4g} seen on average",
+            f"theta_rms ideal {_rad(res.theta_ideal_rad)}; with Poisson photon counts "
+            f"{_rad(res.theta_poisson_rad)} (x{res.degradation:.4f}, {trials} trials)",
+            f"D^2 t = {diameter_m**2 * exposure_s:.3g} m^2 s (paper: >= 1e-4 comes close to "
+            "the limit)",
+        ],
+    )
+
+
+@app.command("report")
+def report(
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("report"),
+    catalog: CatalogOpt = "hipparcos",
+    diameter_m: DiameterOpt = 0.1,
+    exposure_s: ExposureOpt = 0.01,
+    sensors: Annotated[
+        Path | None,
+        typer.Option("--sensors", help="CSV of real sensors to plot against the limit (Fig. 8)."),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Root seed of the Monte Carlo parts.")] = 0,
+) -> None:
+    """Write the performance report (HTML + PNG figures) to --out."""
+    from rich.console import Console
+
+    from starsense.report import build_report
+
+    console = Console(stderr=True)
+    with console.status("building report") as status:
+        index = build_report(
+            out,
+            catalog_spec=catalog,
+            diameter_m=diameter_m,
+            exposure_s=exposure_s,
+            sensors_table=sensors,
+            progress=lambda msg: status.update(msg),
+            seed=seed,
+        )
+    typer.echo(f"report written: {index}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run the app, turning user errors into one line and exit status 2.
+
+    Usage errors (unknown option, bad type) are reported by typer itself, also with status 2.
+    """
+    try:
+        app(args=argv, prog_name="starsense")  # standalone mode: ends with SystemExit
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    except StarsenseError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        return 2
+    except FileNotFoundError as exc:
+        typer.echo(f"error: file not found: {exc.filename}", err=True)
+        return 2
+    return 0
+
+
+def _console_main() -> None:  # pragma: no cover - thin wrapper for the console script
+    sys.exit(main())
+
+
+if __name__ == "__main__":  # pragma: no cover
+    _console_main()

@@ -1,0 +1,88 @@
+"""Command line: the interface the checks use, and one-line errors with exit status 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from starsense.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_limit_star_table1_vega_json(capsys):
+    # Paper Table 1 (D = 10 cm, t = 100 ms): Vega T 13231 K, C 2.96e-17, sigma 1.19e-10 rad;
+    # tolerances as in the issue (1.5 %, 6 %, 3 %).
+    code, out, _ = run(
+        capsys, "limit", "star", "--mag-v", "0.03", "--b-v", "-0.001",
+        "--diameter-m", "0.1", "--exposure-s", "0.1", "--json",
+    )  # fmt: skip
+    assert code == 0
+    res = json.loads(out)
+    assert set(res) >= {"temperature_k", "dilution", "photons", "sigma_rad"}
+    assert res["temperature_k"] == pytest.approx(13231, rel=0.015)
+    assert res["dilution"] == pytest.approx(2.96e-17, rel=0.06)
+    assert res["sigma_rad"] == pytest.approx(1.19e-10, rel=0.03)
+    # photons: the closed form of eq. 12's integral; about 8e7 for Vega in 10 cm x 100 ms
+    assert 5e7 < res["photons"] < 1.5e8
+
+
+def test_limit_star_table1_vega_hks_json(capsys):
+    code, out, _ = run(
+        capsys, "limit", "star", "--mag-h", "-0.004", "--h-ks", "-0.005",
+        "--diameter-m", "0.1", "--exposure-s", "0.1", "--json",
+    )  # fmt: skip
+    assert code == 0
+    res = json.loads(out)
+    assert res["temperature_k"] == pytest.approx(10417, rel=0.015)
+    assert res["dilution"] == pytest.approx(4.80e-17, rel=0.06)
+    assert res["sigma_rad"] == pytest.approx(1.70e-10, rel=0.03)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--mag-v", "1", "--b-v", "nan"], "colour index must be a finite number"),
+        (["--mag-v", "1", "--b-v", "0.5", "--diameter-m", "0"], "diameter_m must be"),
+        (["--mag-v", "1", "--b-v", "0.5", "--exposure-s", "-1"], "exposure_s must be"),
+        (["--mag-v", "1"], "--mag-v and --b-v must be given together"),
+        (["--mag", "1", "--colour-index", "0.2", "--colour", "X-Y"], "unknown colour system"),
+    ],
+)
+def test_limit_star_bad_input_one_line_exit_2(capsys, argv, message):
+    code, out, err = run(capsys, "limit", "star", *argv)
+    assert code == 2
+    assert message in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert out == ""
+
+
+def test_limit_sky_unknown_catalog(capsys):
+    code, _, err = run(capsys, "limit", "sky", "--catalog", "nosuch:thing", "--json")
+    assert code == 2
+    assert "nosuch" in err and "Traceback" not in err
+
+
+def test_limit_sky_fov_without_target(capsys):
+    code, _, err = run(capsys, "limit", "sky", "--fov-deg", "10")
+    assert code == 2
+    assert "--fov-deg and --target-deg go together" in err
+
+
+def test_console_script_exit_code_and_single_line():
+    # The installed entry point, in a fresh process: exit 2, one line on stderr, no traceback.
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; from starsense.cli import main; sys.exit(main())",
+         "limit", "star", "--mag-v", "1", "--b-v", "0.2", "--diameter-m", "-3"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert proc.returncode == 2
+    assert proc.stderr.strip().startswith("error: diameter_m must be")
+    assert len(proc.stderr.strip().splitlines()) == 1
