@@ -86,3 +86,54 @@ def test_console_script_exit_code_and_single_line():
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith("error: diameter_m must be")
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_fialho2019_sec33_g_interval_bundled_catalogue(capsys):
+    # Acceptance: G over the bundled Hipparcos lies inside the paper's interval for G,
+    # 7e-15 < G < 1e-13 rad m^2 s^1/2 (sec. 3.3). With D = 1 m, t = 1 s, theta_rms is G itself.
+    code, out, _ = run(capsys, "limit", "sky", "--diameter-m", "1", "--exposure-s", "1", "--json")
+    assert code == 0
+    res = json.loads(out)
+    assert set(res) >= {"theta_rms_rad", "axis_sigma_rad", "n_stars", "g_rad_m2_s05"}
+    assert res["n_stars"] == 117_955  # every hip2 star has Hp and B-V
+    assert 7e-15 < res["g_rad_m2_s05"] < 1e-13
+    assert res["g_rad_m2_s05"] == pytest.approx(res["theta_rms_rad"], rel=1e-12)
+
+
+def test_limit_sky_fov_360_equals_whole_sky_and_merge(capsys):
+    # A 360 deg field sees every star: each head equals the whole-sky limit, and two identical
+    # heads merged gain exactly sqrt(2) (paper Table 2, first row).
+    _, out, _ = run(capsys, "limit", "sky", "--diameter-m", "0.1", "--exposure-s", "0.01", "--json")
+    sky = json.loads(out)
+    _, out, _ = run(
+        capsys, "limit", "sky", "--diameter-m", "0.1", "--exposure-s", "0.01", "--fov-deg", "360",
+        "--target-deg", "0,0", "--target-deg", "90,0", "--json",
+    )  # fmt: skip
+    fov = json.loads(out)
+    for head in fov["heads"]:
+        assert head["theta_rms_rad"] == pytest.approx(sky["theta_rms_rad"], rel=1e-12)
+    assert fov["merged"]["theta_rms_rad"] == pytest.approx(sky["theta_rms_rad"] / 2**0.5, rel=1e-12)
+
+
+def test_limit_sky_max_mag_leaving_no_stars(capsys):
+    code, _, err = run(capsys, "limit", "sky", "--max-mag", "-5")
+    assert code == 2
+    assert "--max-mag -5.0 leaves 0 star(s)" in err
+
+
+def test_limit_sky_malformed_catalogue_names_file_line_field(capsys, tmp_path):
+    # A Gaia CSV whose second data row has a letter in 'ra': file, line and field are named.
+    path = tmp_path / "bad.csv"
+    path.write_text(
+        "source_id,ra,dec,phot_g_mean_mag,bp_rp\n1,10.0,20.0,5.0,0.8\n2,1x.5,21.0,6.0,0.9\n"
+    )
+    code, out, err = run(capsys, "limit", "sky", "--catalog", f"gaia:{path}")
+    assert code == 2 and out == ""
+    assert "bad.csv" in err and "line 3" in err and "ra" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_limit_sky_bad_target(capsys):
+    code, _, err = run(capsys, "limit", "sky", "--fov-deg", "10", "--target-deg", "0,95")
+    assert code == 2
+    assert "Dec within [-90, 90]" in err
