@@ -1,0 +1,155 @@
+"""Detector response: expected electrons -> digital counts (Dzamba & Enright 2014, sec. 3.1).
+
+Per pixel, in order:
+
+1. Collected charge ``N ~ Poisson(S + D t_e)`` (shot noise, step 2 of sec. 3.1, with dark
+   current ``D`` added; the paper's ST-16 has ``D = 0``), clipped at the full well: the charge a
+   pixel holds never exceeds ``full_well_e``.
+2. Read noise: ``+ N(0, sigma_read^2)`` electrons (3.5 e- for the ST-16).
+3. Gain and bias: ``counts = gain x electrons + bias`` (6.5 counts/e-, step 3).
+4. ADC: rounded to the nearest integer (a mid-tread quantiser, so the mean count equals
+   ``gain x electrons + bias`` up to the clipping below, with no half-count offset), then
+   clipped to ``[0, 2^bits - 1]``: never above the saturation count. Returned as ``uint16``
+   for ``bits <= 16``, else ``uint32``.
+
+The noiseless path (:func:`quantise`) applies steps 1 (clip only), 3 and 4 to the expected
+electrons.
+
+Speed: the full frame of an ST-16 (5 Mpixel) costs one float32 normal draw per pixel (the read
+noise, ~40 ms) plus a few in-place passes; Poisson draws are made only for pixels with a non-zero
+mean (when the dark current is zero, the star pixels only). No float64
+temporaries of the full frame are made unless the ADC has more than 24 bits (float32 cannot
+hold every count above 2^24) or the dark current is non-zero (then every pixel needs a Poisson
+draw, ~130 ms more for 5 Mpixel).
+"""
+
+from __future__ import annotations
+
+import secrets
+
+import numpy as np
+
+from starsense.errors import InputError
+
+__all__ = ["apply_noise", "as_generator", "count_dtype", "quantise"]
+
+
+def as_generator(rng=None) -> tuple[np.random.Generator, int | None]:
+    """A Generator and the seed it came from.
+
+    ``None`` draws a fresh 63-bit seed from the OS entropy (recorded, so the run can be
+    repeated; 63 bits fit a FITS integer keyword), an int seeds a new ``default_rng``, a
+    Generator is used as is (seed ``None``: unknown).
+    """
+    if isinstance(rng, np.random.Generator):
+        return rng, None
+    if rng is None:
+        seed = secrets.randbits(63)
+        return np.random.default_rng(seed), seed
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, (int, np.integer)) or rng < 0:
+        raise InputError(f"rng must be None, a non-negative int seed or a Generator, got {rng!r}")
+    return np.random.default_rng(int(rng)), int(rng)
+
+
+def count_dtype(bit_depth: int) -> type:
+    """``uint16`` for ADCs of up to 16 bits, else ``uint32``."""
+    return np.uint16 if bit_depth <= 16 else np.uint32
+
+
+def _work_dtype(bit_depth: int) -> type:
+    return np.float32 if bit_depth <= 24 else np.float64
+
+
+def _check_expected(expected_e) -> np.ndarray:
+    e = np.asarray(expected_e)
+    if not np.issubdtype(e.dtype, np.floating) and not np.issubdtype(e.dtype, np.integer):
+        raise InputError(f"expected_e must be a real array, got dtype {e.dtype}")
+    return e
+
+
+def _to_counts(work: np.ndarray, detector) -> np.ndarray:
+    """In place: electrons -> gain, bias, round, clip; then the integer dtype."""
+    work *= detector.gain_counts_per_e
+    if detector.bias_counts:
+        work += detector.bias_counts
+    np.rint(work, out=work)
+    np.clip(work, 0, detector.saturation_counts, out=work)
+    return work.astype(count_dtype(detector.bit_depth))
+
+
+def quantise(expected_e, sensor) -> np.ndarray:
+    """Noiseless counts: clip at the full well, gain, bias, round, saturate.
+
+    Parameters
+    ----------
+    expected_e : array_like
+        Expected electrons per pixel, any shape.
+    sensor : Sensor
+
+    Returns
+    -------
+    ndarray of uint16 (bits <= 16) or uint32, same shape
+    """
+    det = sensor.detector
+    e = _check_expected(expected_e)
+    if e.size and not (np.isfinite(e.min()) and np.isfinite(e.max()) and e.min() >= 0):
+        raise InputError("expected_e must be finite and >= 0 electrons")
+    work = np.minimum(e, det.full_well_e, dtype=_work_dtype(det.bit_depth))
+    return _to_counts(work, det)
+
+
+def apply_noise(expected_e, sensor, rng=None, *, exposure_s: float | None = None) -> np.ndarray:
+    """Noisy counts from expected electrons: shot, dark, read noise, gain, bias, ADC.
+
+    Parameters
+    ----------
+    expected_e : array_like
+        Expected photo-electrons per pixel (star signal only), any shape (a full frame or a
+        stamp); finite and >= 0.
+    sensor : Sensor
+        Supplies gain, read noise, dark current, bias, full well and bit depth.
+    rng : None, int or numpy.random.Generator
+        Random source (see :func:`as_generator`).
+    exposure_s : float, optional
+        Integration time for the dark current, s (default ``sensor.exposure_s``).
+
+    Returns
+    -------
+    ndarray of uint16 (bits <= 16) or uint32, same shape as ``expected_e``
+
+    Notes
+    -----
+    Random draws, in order: the read noise of every pixel (float32 standard normals, C order),
+    then the Poisson counts of the pixels with a non-zero mean (C order). With the same
+    generator state the result is identical bit for bit.
+    """
+    det = sensor.detector
+    gen, _ = as_generator(rng)
+    e = _check_expected(expected_e)
+    te = sensor.exposure_s if exposure_s is None else float(exposure_s)
+    if not (np.isfinite(te) and te > 0):
+        raise InputError(f"exposure_s = {exposure_s!r} is out of range; must be finite and > 0 s")
+    wdt = _work_dtype(det.bit_depth)
+    if det.read_noise_e > 0:
+        work = gen.standard_normal(e.shape, dtype=wdt)
+        work *= det.read_noise_e
+    else:
+        work = np.zeros(e.shape, dtype=wdt)
+    dark = det.dark_current_e_s * te
+    if dark > 0:
+        lam = np.asarray(e, dtype=np.float64) + dark
+        if not (np.isfinite(lam.min()) and np.isfinite(lam.max()) and lam.min() >= 0):
+            raise InputError("expected_e must be finite and >= 0 electrons")
+        charge = gen.poisson(lam)
+        np.minimum(charge, det.full_well_e, out=lam)
+        work += lam
+    else:
+        # Poisson only where the mean is non-zero: a boolean mask and flatnonzero (~3 ms on
+        # 5 Mpixel, 4x faster than np.nonzero on the float array)
+        flat = np.flatnonzero(e != 0)
+        lam = np.asarray(e.reshape(-1)[flat], dtype=np.float64)
+        if lam.size:
+            if not (np.all(np.isfinite(lam)) and lam.min() >= 0):
+                raise InputError("expected_e must be finite and >= 0 electrons")
+            work.reshape(-1)[flat] += np.minimum(gen.poisson(lam), det.full_well_e)
+    return _to_counts(work, det)
