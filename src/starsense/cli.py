@@ -30,6 +30,11 @@ limit_app = typer.Typer(
     no_args_is_help=True,
 )
 app.add_typer(limit_app, name="limit")
+slew_app = typer.Typer(
+    help="Slew tolerance: detection of smeared stars (Dzamba & Enright 2014).",
+    no_args_is_help=True,
+)
+app.add_typer(slew_app, name="slew")
 
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON.")]
 DiameterOpt = Annotated[
@@ -47,6 +52,31 @@ ColourOpt = Annotated[
     str | None,
     typer.Option("--colour", help="Colour system: B-V, V-I, BT-VT, J-H, J-Ks, H-Ks, BP-RP."),
 ]
+
+
+SensorOpt = Annotated[
+    str, typer.Option("--sensor", help="Sensor preset (st16, esa_blackfly) or a TOML file.")
+]
+ModelOpt = Annotated[
+    str, typer.Option("--model", help="Sensitivity model: reed, liebe (or blackbody to render).")
+]
+SeedOpt = Annotated[int, typer.Option("--seed", help="Root seed (results are reproducible).")]
+
+
+def _floats(text: str | None, option: str, n: int | None = None) -> list[float] | None:
+    """Parse "1,2.5,3" for ``option``; exactly ``n`` values when n is given."""
+    if text is None:
+        return None
+    try:
+        values = [float(p) for p in text.split(",") if p.strip() != ""]
+    except ValueError:
+        raise InputError(f"{option} expects comma-separated numbers, got {text!r}") from None
+    if not values or (n is not None and len(values) != n):
+        want = f"{n} values" if n else "at least one value"
+        raise InputError(f"{option} expects {want}, got {text!r}")
+    if not all(np.isfinite(values)):
+        raise InputError(f"{option} values must be finite, got {text!r}")
+    return values
 
 
 def _emit(payload: dict, as_json: bool, lines: list[str]) -> None:
@@ -296,6 +326,139 @@ def limit_photons(
     )
 
 
+def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed):
+    from rich.progress import Progress
+
+    from starsense.analysis.slew import simulate_slew
+    from starsense.sensor import load_sensor
+
+    sensor = load_sensor(sensor_name)
+    mags = _floats(magnitudes, "--magnitudes")
+    rate_values = _floats(rates, "--rates-deg-s")
+    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
+        task = bar.add_task("slew Monte Carlo", total=None)
+        result = simulate_slew(
+            sensor, model, mags, rate_values, trials, criterion, seed,
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )  # fmt: skip
+    return sensor, result
+
+
+MagsOpt = Annotated[
+    str | None,
+    typer.Option("--magnitudes", help="Comma-separated magnitudes (default 1.25..6 by 0.25)."),
+]
+RatesOpt = Annotated[
+    str | None,
+    typer.Option("--rates-deg-s", help="Comma-separated increasing rates (default 0..10, 40)."),
+]
+TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo trials per point.")]
+CriterionOpt = Annotated[
+    float, typer.Option("--criterion", help="Detection fraction that counts as detected.")
+]
+PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write a PNG figure here.")]
+
+
+@slew_app.command("tolerance")
+def slew_tolerance(
+    sensor: SensorOpt = "st16",
+    model: ModelOpt = "reed",
+    magnitudes: MagsOpt = None,
+    rates_deg_s: RatesOpt = None,
+    trials: TrialsOpt = 20,
+    criterion: CriterionOpt = 0.5,
+    seed: SeedOpt = 0,
+    plot: PlotOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Tolerable slew rate per magnitude (Fig. 10): the fastest rate still detected."""
+    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, criterion, seed)
+    payload = res.tolerance_dict()
+    lines = [
+        f"{sens.name}, {model} model: tolerable cross-axis slew rate (detected in >= "
+        f"{criterion:.0%} of {trials} trials)"
+    ]
+    for m, r, c in zip(res.magnitudes, res.tolerable_rate_deg_s, res.capped, strict=True):
+        text = "not detected at rest" if r is None else f"{'>= ' if c else ''}{r:.2f} deg/s"
+        lines.append(f"  m = {m:5.2f}: {text}")
+    if plot is not None:
+        from starsense.report.slew import plot_tolerance
+
+        plot_tolerance([res], plot)
+        payload["plot"] = str(plot)
+        lines.append(f"figure: {plot}")
+    _emit(payload, as_json, lines)
+
+
+@slew_app.command("intensity")
+def slew_intensity(
+    sensor: SensorOpt = "st16",
+    model: ModelOpt = "reed",
+    magnitudes: MagsOpt = None,
+    rates_deg_s: RatesOpt = None,
+    trials: TrialsOpt = 20,
+    seed: SeedOpt = 0,
+    plot: PlotOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Integrated intensity against slew rate per magnitude (Fig. 9)."""
+    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, 0.5, seed)
+    payload = res.intensity_dict()
+    lines = [f"{sens.name}, {model} model: mean integrated intensity (counts) of detections"]
+    header = "  rate deg/s " + " ".join(f"m={m:<6.2f}" for m in res.magnitudes)
+    lines.append(header)
+    for j, w in enumerate(res.rates_deg_s):
+        row = " ".join(
+            f"{v:8.0f}" if np.isfinite(v) else "       -" for v in res.mean_intensity_counts[:, j]
+        )
+        lines.append(f"  {w:10.2f} {row}")
+    if plot is not None:
+        from starsense.report.slew import plot_intensity
+
+        plot_intensity(res, plot)
+        payload["plot"] = str(plot)
+        lines.append(f"figure: {plot}")
+    _emit(payload, as_json, lines)
+
+
+@app.command("render")
+def render(
+    out: Annotated[Path, typer.Option("--out", help="Frame to write (.tiff, .png, .fits).")],
+    sensor: SensorOpt = "st16",
+    ra_deg: Annotated[float, typer.Option("--ra-deg", help="Boresight RA, deg.")] = 0.0,
+    dec_deg: Annotated[float, typer.Option("--dec-deg", help="Boresight Dec, deg.")] = 0.0,
+    roll_deg: Annotated[float, typer.Option("--roll-deg", help="Roll, deg.")] = 0.0,
+    rate_deg_s: Annotated[
+        str, typer.Option("--rate-deg-s", help="Body rate WX,WY,WZ in the camera frame, deg/s.")
+    ] = "0,0,0",
+    model: ModelOpt = "reed",
+    catalog: CatalogOpt = "hipparcos",
+    max_mag: Annotated[
+        float | None, typer.Option("--max-mag", help="Render only stars brighter than this.")
+    ] = None,
+    seed: SeedOpt = 0,
+    no_noise: Annotated[bool, typer.Option("--no-noise", help="Expected image only.")] = False,
+) -> None:
+    """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
+    from starsense.catalog import load_catalog
+    from starsense.geometry.attitude import attitude_from_radec_roll
+    from starsense.render.io import write_frame
+    from starsense.render.scene import render_frame
+    from starsense.sensor import load_sensor
+
+    if not -90.0 <= dec_deg <= 90.0 or not np.isfinite(ra_deg) or not np.isfinite(roll_deg):
+        raise InputError("--ra-deg and --roll-deg must be finite and --dec-deg within [-90, 90]")
+    rate = np.radians(_floats(rate_deg_s, "--rate-deg-s", 3))
+    sens = load_sensor(sensor)
+    att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
+    frame = render_frame(
+        sens, att, load_catalog(catalog), rate_rad_s=rate, model=model, max_mag=max_mag,
+        rng=seed, noise=not no_noise,
+    )  # fmt: skip
+    written = write_frame(out, frame)
+    typer.echo(f"frame written: {written} ({len(frame.truth)} stars; truth in {written}.json)")
+
+
 @app.command("report")
 def report(
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("report"),
@@ -307,11 +470,18 @@ def report(
         typer.Option("--sensors", help="CSV of real sensors to plot against the limit (Fig. 8)."),
     ] = None,
     seed: Annotated[int, typer.Option("--seed", help="Root seed of the Monte Carlo parts.")] = 0,
+    sensor: SensorOpt = "st16",
+    slew_trials: Annotated[
+        int, typer.Option("--slew-trials", help="Monte Carlo trials per slew point.")
+    ] = 20,
 ) -> None:
     """Write the performance report (HTML + PNG figures) to --out."""
     from rich.console import Console
 
     from starsense.report import build_report
+    from starsense.sensor import load_sensor
+
+    sens = load_sensor(sensor)
 
     console = Console(stderr=True)
     with console.status("building report") as status:
@@ -323,6 +493,8 @@ def report(
             sensors_table=sensors,
             progress=lambda msg: status.update(msg),
             seed=seed,
+            sensor=sens,
+            slew_trials=slew_trials,
         )
     typer.echo(f"report written: {index}")
 

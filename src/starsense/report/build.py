@@ -27,9 +27,10 @@ from starsense.report import page
 from starsense.report.limits import limit_section
 from starsense.report.section import ReportContext, Section
 from starsense.report.sensors import SensorSpec, load_sensor_table
+from starsense.report.slew import slew_section
 
 #: the section builders, in page order: ``builder(ctx) -> Section``. Later analyses append here.
-SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [limit_section]
+SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [limit_section, slew_section]
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,
 #: t = 10 ms)
@@ -60,6 +61,8 @@ def build_report(
     stars=None,
     seed: int = 0,
     low_photon_trials: int = 100,
+    sensor=None,
+    slew_trials: int = 20,
 ) -> Path:
     """Write the performance report to ``out_dir`` (index.html, PNG figures, report.json).
 
@@ -85,6 +88,10 @@ def build_report(
         Root seed of the stochastic parts.
     low_photon_trials : int
         Poisson draws per sensor in the low-photon table (sec. 3.3.2).
+    sensor : starsense.sensor.Sensor or None
+        The star tracker of the slew section (none: the section says so).
+    slew_trials : int
+        Monte Carlo trials per (magnitude, rate) in the slew section.
 
     Returns
     -------
@@ -117,6 +124,8 @@ def build_report(
             seed=seed,
             low_photon_trials=low_photon_trials,
             progress=say,
+            sensor=sensor,
+            slew_trials=slew_trials,
         )
         sections = [builder(ctx) for builder in SECTION_BUILDERS]
         say("writing the report")

@@ -16,6 +16,7 @@ from matplotlib.figure import Figure
 
 from starsense.analysis.limits import BlackBodyStars
 from starsense.report.sensors import SensorSpec
+from starsense.sensor import Sensor
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,10 @@ class ReportContext:
         Root seed of the stochastic parts (low-photon Monte Carlo).
     low_photon_trials : int
     progress : callable(str)
+    sensor : starsense.sensor.Sensor or None
+        The sensor of the slew (and later availability) sections.
+    slew_trials : int
+        Monte Carlo trials per (magnitude, rate) of the slew section.
     """
 
     work_dir: Path
@@ -79,6 +84,8 @@ class ReportContext:
     seed: int = 0
     low_photon_trials: int = 100
     progress: Callable[[str], None] = lambda message: None
+    sensor: Sensor | None = None
+    slew_trials: int = 20
 
     @property
     def primary(self) -> BlackBodyStars:
