@@ -100,6 +100,46 @@ def _limit_sky_5m() -> float:
     return best_of(run, repeat=3)
 
 
+# ---------------------------------------------------------------------------------------------
+# issue 3: rendering, detection, slew tolerance
+
+
+def _st16_frame_inputs():
+    from starsense.catalog import load_catalog
+    from starsense.geometry.attitude import attitude_from_radec_roll
+    from starsense.sensor import load_sensor
+
+    sensor = load_sensor("st16")
+    cat = load_catalog("hipparcos")
+    # a boresight with ~20 stars to V 5.75 (the ST-16 catalogue limit) in its 15 x 20 deg field
+    att = attitude_from_radec_roll(np.radians(250.0), np.radians(35.0), np.radians(10.0))
+    rate = np.radians([0.7, 0.7, 0.1])
+    return sensor, cat, att, rate
+
+
+@bench(
+    "render_frame_st16",
+    "full 2592 x 1944 ST-16 frame, 32 smeared stars (V <= 5.75), noise, 12-bit",
+    0.15,
+)
+def _render_frame() -> float:
+    from starsense.render.scene import render_frame
+
+    sensor, cat, att, rate = _st16_frame_inputs()
+    frame = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1)
+    print(f"    ({len(frame.truth.stars)} stars in the frame)", flush=True)
+    return best_of(lambda: render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1))
+
+
+@bench("slew_tolerance_curve", "tolerance curve, 20 magnitudes x 40 rates x 20 trials (Reed)", 30.0)
+def _slew_curve() -> float:
+    from starsense.analysis.slew import simulate_slew
+    from starsense.sensor import load_sensor
+
+    sensor = load_sensor("st16")
+    return best_of(lambda: simulate_slew(sensor, "reed", n_trials=20, seed=0), repeat=2)
+
+
 def main(selected: list[str]) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()

@@ -456,7 +456,8 @@ def render(
         rng=seed, noise=not no_noise,
     )  # fmt: skip
     written = write_frame(out, frame)
-    typer.echo(f"frame written: {written} ({len(frame.truth)} stars; truth in {written}.json)")
+    n = len(frame.truth.stars)
+    typer.echo(f"frame written: {written} ({n} stars; truth in {written}.json)")
 
 
 @app.command("report")
