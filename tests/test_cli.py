@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from starsense.cli import main
@@ -137,3 +138,49 @@ def test_limit_sky_bad_target(capsys):
     code, _, err = run(capsys, "limit", "sky", "--fov-deg", "10", "--target-deg", "0,95")
     assert code == 2
     assert "Dec within [-90, 90]" in err
+
+
+def test_slew_tolerance_json_interface(capsys):
+    code, out, _ = run(
+        capsys, "slew", "tolerance", "--sensor", "st16", "--model", "reed",
+        "--magnitudes", "3,4,8", "--rates-deg-s", "0,1,2,4,8", "--trials", "4", "--json",
+    )  # fmt: skip
+    assert code == 0
+    res = json.loads(out)
+    assert res["magnitudes"] == [3.0, 4.0, 8.0]
+    tol = res["tolerable_rate_deg_s"]
+    assert tol[2] is None  # m = 8 is ~12 e- under Reed: never detected
+    assert tol[0] > tol[1] > 0
+
+
+def test_slew_bad_rates_one_line(capsys):
+    code, _, err = run(capsys, "slew", "tolerance", "--rates-deg-s", "0,-1", "--json")
+    assert code == 2 and "rates must be >= 0 deg/s" in err
+    code, _, err = run(capsys, "slew", "intensity", "--sensor", "nosuch")
+    assert code == 2 and "unknown sensor 'nosuch'" in err
+
+
+def test_render_writes_frame_and_truth(capsys, tmp_path):
+    from PIL import Image
+
+    out = tmp_path / "frame.tiff"
+    code, stdout, _ = run(
+        capsys, "render", "--sensor", "st16", "--ra-deg", "83.8", "--dec-deg", "-5.4",
+        "--roll-deg", "0", "--rate-deg-s", "0.5,0,0", "--seed", "4", "--max-mag", "5",
+        "--out", str(out),
+    )  # fmt: skip
+    assert code == 0, stdout
+    image = np.array(Image.open(out))
+    assert image.shape == (1944, 2592)
+    assert image.max() <= 4095  # 12-bit ADC
+    truth = json.loads((tmp_path / "frame.tiff.json").read_text())
+    assert truth["n_stars"] > 5  # Orion to V 5 in a 15 x 20 deg field
+    assert truth["seed"] == 4
+
+
+def test_render_bad_rate_and_extension(capsys, tmp_path):
+    code, _, err = run(capsys, "render", "--rate-deg-s", "1,2", "--out", str(tmp_path / "f.tiff"))
+    assert code == 2 and "--rate-deg-s expects 3 values" in err
+    code, _, err = run(capsys, "render", "--max-mag", "3", "--out", str(tmp_path / "f.bmp"))
+    assert code == 2 and "Traceback" not in err
+    assert not (tmp_path / "f.bmp").exists()
