@@ -131,6 +131,18 @@ def _render_frame() -> float:
     return best_of(lambda: render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1))
 
 
+@bench("detect_frame_st16", "ST-16 detection logic + CoG centroids on that full frame", 0.06)
+def _detect_frame() -> float:
+    from starsense.detect import StarDetector
+    from starsense.render.scene import render_frame
+
+    sensor, cat, att, rate = _st16_frame_inputs()
+    image = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1).image
+    detector = StarDetector.for_sensor(sensor)
+    print(f"    ({len(detector(image))} stars detected)", flush=True)
+    return best_of(lambda: detector(image))
+
+
 @bench("slew_tolerance_curve", "tolerance curve, 20 magnitudes x 40 rates x 20 trials (Reed)", 30.0)
 def _slew_curve() -> float:
     from starsense.analysis.slew import simulate_slew

@@ -1,0 +1,258 @@
+"""Star detection: the lit-pixel / contiguous-pixels / integrated-intensity logic of the ST-16.
+
+Dzamba & Enright 2014, sec. 1.2: a pixel is *lit* when its background-subtracted counts exceed a
+threshold; lit pixels that touch (4- or 8-connected, as configured) form a candidate; a candidate
+is a star when it has at least ``min_pixels`` lit pixels and their background-subtracted counts
+sum to at least ``min_integrated_counts`` (its *integrated intensity*).
+
+For real frames the threshold can follow the noise: with ``threshold_sigma`` set, a pixel is lit
+when it exceeds ``max(lit_pixel_counts, threshold_sigma x noise)`` above the background map, and
+hot pixels (:func:`~starsense.detect.background.hot_pixel_mask`) are replaced by the background
+before labelling.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from starsense.detect.background import (
+    Background,
+    constant_background,
+    estimate_background,
+    hot_pixel_mask,
+)
+from starsense.detect.centroid import METHODS, cog, gauss_fit
+from starsense.errors import InputError
+from starsense.sensor import DetectionThresholds
+
+#: the detection logic is the sensor's configuration
+DetectionLogic = DetectionThresholds
+
+
+@dataclass(frozen=True)
+class Detections:
+    """Detected stars, brightest first (columnar).
+
+    Attributes
+    ----------
+    x, y : array (N,)
+        Centroids, pixels (x = column, y = row; pixel centres at integers).
+    integrated_counts : array (N,)
+        Background-subtracted counts summed over the star's lit pixels.
+    n_pixels : array (N,) int
+        Lit pixels.
+    peak_counts : array (N,)
+        Largest raw count in the star.
+    saturated : array (N,) bool
+        Some pixel at the saturation level.
+    bbox : array (N, 4) int
+        row0, row1, col0, col1 (half-open) of the lit pixels.
+    fit_ok : array (N,) bool
+        The centroid method succeeded (always True for cog/iwcog).
+    n_candidates : int
+        Contiguous lit regions before the size and intensity cuts.
+    noise_counts : float
+        Background noise used for the thresholds.
+    time_ms : float
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    integrated_counts: np.ndarray
+    n_pixels: np.ndarray
+    peak_counts: np.ndarray
+    saturated: np.ndarray
+    bbox: np.ndarray
+    fit_ok: np.ndarray
+    n_candidates: int = 0
+    noise_counts: float = 0.0
+    time_ms: float = 0.0
+    method: str = "cog"
+    extra: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    def to_dict(self) -> dict:
+        return {
+            "x": self.x.tolist(),
+            "y": self.y.tolist(),
+            "integrated_counts": self.integrated_counts.tolist(),
+            "n_pixels": self.n_pixels.tolist(),
+            "peak_counts": self.peak_counts.tolist(),
+            "saturated": self.saturated.tolist(),
+            "n_candidates": self.n_candidates,
+            "time_ms": self.time_ms,
+        }
+
+
+def _check_image(image) -> np.ndarray:
+    a = np.asarray(image)
+    if a.ndim != 2:
+        raise InputError(f"image must be 2-D (rows, columns), got shape {a.shape}")
+    if a.size == 0:
+        raise InputError("image is empty")
+    if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
+        raise InputError(f"image must be real numbers, got dtype {a.dtype}")
+    if np.issubdtype(a.dtype, np.floating):
+        bad = int(np.count_nonzero(~np.isfinite(a)))
+        if bad:
+            raise InputError(f"image has {bad} non-finite (NaN or inf) pixel(s)")
+    return a
+
+
+class StarDetector:
+    """Configure, then call: ``StarDetector(logic)(image) -> Detections``.
+
+    Parameters
+    ----------
+    logic : DetectionThresholds
+    centroid : {"cog", "iwcog", "gauss"}
+    background : "auto", float, Background or None
+        "auto" estimates a background map and noise (real frames); a number is a flat known level
+        (simulated frames: the bias); None means zero.
+    noise_counts : float
+        Noise of a known background (used with a numeric background), counts.
+    threshold_sigma : float or None
+        Lit threshold as a multiple of the noise (real frames); the larger of this and
+        ``logic.lit_pixel_counts`` applies.
+    saturation_counts : float or None
+        Pixels at or above this are flagged saturated.
+    remove_hot_pixels : bool
+        Replace isolated hot pixels by the background before labelling (with "auto").
+    margin_px : int
+        Window margin around each star for the centroid.
+    psf_sigma_px : float
+        Starting PSF width of the Gaussian fit.
+    """
+
+    def __init__(
+        self,
+        logic: DetectionThresholds | None = None,
+        centroid: str = "cog",
+        background: str | float | Background | None = None,
+        *,
+        noise_counts: float = 0.0,
+        threshold_sigma: float | None = None,
+        saturation_counts: float | None = None,
+        remove_hot_pixels: bool = True,
+        margin_px: int = 2,
+        psf_sigma_px: float = 1.5,
+    ) -> None:
+        self.logic = logic if logic is not None else DetectionThresholds()
+        if centroid not in METHODS:
+            raise InputError(f"centroid must be one of {', '.join(METHODS)}, got {centroid!r}")
+        if threshold_sigma is not None and not threshold_sigma > 0:
+            raise InputError(f"threshold_sigma must be > 0, got {threshold_sigma!r}")
+        if int(margin_px) != margin_px or margin_px < 0:
+            raise InputError(f"margin_px must be an integer >= 0, got {margin_px!r}")
+        if isinstance(background, str) and background != "auto":
+            raise InputError(f"background must be 'auto', a number or None, got {background!r}")
+        self.centroid = centroid
+        self.background = background
+        self.noise_counts = float(noise_counts)
+        self.threshold_sigma = threshold_sigma
+        self.saturation_counts = saturation_counts
+        self.remove_hot_pixels = remove_hot_pixels
+        self.margin_px = int(margin_px)
+        self.psf_sigma_px = float(psf_sigma_px)
+
+    @classmethod
+    def for_sensor(cls, sensor, centroid: str = "cog", **kwargs) -> StarDetector:
+        """The sensor's own detection logic, bias as the known background."""
+        det = sensor.detector
+        kwargs.setdefault("background", det.bias_counts)
+        kwargs.setdefault("noise_counts", det.read_noise_e * det.gain_counts_per_e)
+        kwargs.setdefault("saturation_counts", det.saturation_counts)
+        kwargs.setdefault("psf_sigma_px", det.psf_sigma_px)
+        return cls(sensor.detection, centroid, **kwargs)
+
+    def _background(self, a: np.ndarray) -> Background:
+        if isinstance(self.background, Background):
+            return self.background
+        if self.background == "auto":
+            return estimate_background(a)
+        level = 0.0 if self.background is None else float(self.background)
+        return constant_background(level, self.noise_counts)
+
+    def __call__(self, image) -> Detections:
+        t0 = time.perf_counter()
+        a = _check_image(image)
+        bg = self._background(a)
+        sub = a.astype(np.float32)
+        sub -= np.asarray(bg.level, dtype=np.float32)
+        if self.background == "auto" and self.remove_hot_pixels:
+            hot = hot_pixel_mask(a, bg)
+            sub[hot] = 0.0
+        threshold = self.logic.lit_pixel_counts
+        if self.threshold_sigma is not None:
+            threshold = max(threshold, self.threshold_sigma * bg.noise)
+        lit = sub > threshold
+        structure = ndimage.generate_binary_structure(2, 1 if self.logic.connectivity == 4 else 2)
+        labels, n = ndimage.label(lit, structure=structure)
+        empty = Detections(
+            np.empty(0), np.empty(0), np.empty(0), np.empty(0, int), np.empty(0),
+            np.empty(0, bool), np.empty((0, 4), int), np.empty(0, bool), int(n),
+            float(bg.noise), 0.0, self.centroid,
+        )  # fmt: skip
+        if n == 0:
+            return _timed(empty, t0)
+        idx = np.flatnonzero(lit)
+        lab = labels.ravel()[idx]
+        sizes = np.bincount(lab, minlength=n + 1)
+        sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
+        ok = (sizes >= self.logic.min_pixels) & (sums >= self.logic.min_integrated_counts)
+        ok[0] = False
+        keep = np.flatnonzero(ok)
+        if keep.size == 0:
+            return _timed(empty, t0)
+        keep = keep[np.argsort(-sums[keep], kind="stable")]
+        slices = ndimage.find_objects(labels)
+        rows, cols = a.shape
+        m = self.margin_px
+        xs, ys, peaks, boxes, fits = [], [], [], [], []
+        for k in keep:
+            sl = slices[k - 1]
+            r0, r1, c0, c1 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
+            boxes.append((r0, r1, c0, c1))
+            peaks.append(float(a[sl][labels[sl] == k].max()))
+            wr0, wr1 = max(r0 - m, 0), min(r1 + m, rows)
+            wc0, wc1 = max(c0 - m, 0), min(c1 + m, cols)
+            window = sub[wr0:wr1, wc0:wc1]
+            if self.centroid == "gauss":
+                x, y, _, fit_ok = gauss_fit(window, wr0, wc0, self.psf_sigma_px)
+            else:
+                x, y = cog(window, wr0, wc0, 2 if self.centroid == "iwcog" else 1)
+                fit_ok = bool(np.isfinite(x))
+            xs.append(x)
+            ys.append(y)
+            fits.append(fit_ok)
+        peak_arr = np.array(peaks)
+        sat = (
+            peak_arr >= self.saturation_counts
+            if self.saturation_counts is not None
+            else np.zeros(len(keep), bool)
+        )
+        det = Detections(
+            x=np.array(xs), y=np.array(ys), integrated_counts=sums[keep].astype(float),
+            n_pixels=sizes[keep].astype(int), peak_counts=peak_arr, saturated=sat,
+            bbox=np.array(boxes, dtype=int).reshape(-1, 4), fit_ok=np.array(fits, bool),
+            n_candidates=int(n), noise_counts=float(bg.noise), method=self.centroid,
+        )  # fmt: skip
+        return _timed(det, t0)
+
+
+def _timed(det: Detections, t0: float) -> Detections:
+    from dataclasses import replace
+
+    return replace(det, time_ms=(time.perf_counter() - t0) * 1e3)
+
+
+def detect_stars(image, logic: DetectionThresholds | None = None, **kwargs) -> Detections:
+    """Function form of :class:`StarDetector`."""
+    centroid = kwargs.pop("centroid", "cog")
+    return StarDetector(logic, centroid, **kwargs)(image)
