@@ -152,6 +152,36 @@ def _slew_curve() -> float:
     return best_of(lambda: simulate_slew(sensor, "reed", n_trials=20, seed=0), repeat=2)
 
 
+# ---------------------------------------------------------------------------------------------
+# issue 4: availability
+
+
+def _availability_setup():
+    from starsense.analysis.availability import AvailabilityAnalysis, field_of_view
+    from starsense.catalog import load_catalog
+    from starsense.sensor import load_sensor
+
+    cat, fov = load_catalog("hipparcos"), field_of_view(load_sensor("st16"))
+    return AvailabilityAnalysis, cat, fov
+
+
+@bench("availability_static_10k", "static availability, 10,000 boresights, Hipparcos V <= 6", 0.5)
+def _availability_static() -> float:
+    analysis, cat, fov = _availability_setup()
+    return best_of(lambda: analysis.from_catalog(cat, fov, 6.0).static(3))
+
+
+@bench("availability_dynamic_20", "spatial dynamic availability curve, 20 rates, given m_t(w)", 5.0)
+def _availability_dynamic() -> float:
+    from starsense.analysis.availability import ThresholdCurve
+
+    analysis, cat, fov = _availability_setup()
+    # the Reed m_t(w) the paper's Table 2 implies on BSC5 (README); any curve costs the same
+    curve = ThresholdCurve([0, 1, 1.5, 2, 3], [5.75, 4.78, 4.40, 3.875, 3.60])
+    rates = np.linspace(0, 5, 20)
+    return best_of(lambda: analysis.from_catalog(cat, fov, 6.0).dynamic(curve, rates, 3))
+
+
 def main(selected: list[str]) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()

@@ -36,6 +36,15 @@ slew_app = typer.Typer(
 )
 app.add_typer(slew_app, name="slew")
 
+
+def _register_subapps() -> None:
+    from starsense.cli_availability import availability_app
+
+    app.add_typer(availability_app, name="availability")
+
+
+_register_subapps()
+
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON.")]
 DiameterOpt = Annotated[
     float, typer.Option("--diameter-m", help="Aperture (ideal sensor) diameter D, metres.")

@@ -24,13 +24,18 @@ from starsense.analysis.limits import BlackBodyStars, check_aperture
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
 from starsense.report import page
+from starsense.report.availability import availability_section
 from starsense.report.limits import limit_section
 from starsense.report.section import ReportContext, Section
 from starsense.report.sensors import SensorSpec, load_sensor_table
 from starsense.report.slew import slew_section
 
 #: the section builders, in page order: ``builder(ctx) -> Section``. Later analyses append here.
-SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [limit_section, slew_section]
+SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [
+    limit_section,
+    slew_section,
+    availability_section,
+]
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,
 #: t = 10 ms)

@@ -72,6 +72,8 @@ class ReportContext:
         The sensor of the slew (and later availability) sections.
     slew_trials : int
         Monte Carlo trials per (magnitude, rate) of the slew section.
+    slew_results : dict of str -> SlewResult
+        The slew section's results by sensitivity model, reused by later sections.
     """
 
     work_dir: Path
@@ -86,6 +88,7 @@ class ReportContext:
     progress: Callable[[str], None] = lambda message: None
     sensor: Sensor | None = None
     slew_trials: int = 20
+    slew_results: dict = field(default_factory=dict)
 
     @property
     def primary(self) -> BlackBodyStars:

@@ -84,7 +84,9 @@ def slew_section(ctx: ReportContext) -> Section:
     results = []
     for model in MODELS:
         ctx.progress(f"slew tolerance, {model} model")
-        results.append(simulate_slew(sensor, model, n_trials=ctx.slew_trials, seed=ctx.seed))
+        result = simulate_slew(sensor, model, n_trials=ctx.slew_trials, seed=ctx.seed)
+        ctx.slew_results[model] = result
+        results.append(result)
     figures = [ctx.save_figure(tolerance_figure(results), "slew_fig10_tolerance.png")]
     figures += [
         ctx.save_figure(intensity_figure(r), f"slew_fig9_intensity_{r.model}.png") for r in results

@@ -1,0 +1,416 @@
+"""``starsense availability static|dynamic|track|fidelity``: star-tracker availability.
+
+Dzamba & Enright 2014: spatial static (sec. 1.2, Figs. 4-6), spatial dynamic (sec. 3.1,
+Fig. 11) and along-track dynamic availability (sec. 4, Table 2, Figs. 16-17), and a check of
+the threshold model against rendered, detected frames. Thin: parse, build the analysis, print
+or write. User errors are :class:`~starsense.errors.InputError`; the main app prints them as one
+line and exits 2.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import typer
+
+from starsense.errors import InputError
+
+availability_app = typer.Typer(
+    help="Star-tracker availability: spatial static, spatial dynamic and along-track "
+    "(Dzamba & Enright 2014).",
+    no_args_is_help=True,
+)
+
+# -- the options every command shares ---------------------------------------------------------
+
+SensorOpt = Annotated[
+    str, typer.Option("--sensor", help="Sensor preset (st16, esa_blackfly) or a TOML file.")
+]
+CatalogOpt = Annotated[
+    str,
+    typer.Option(
+        "--catalog",
+        help="hipparcos (bundled), bsc5:PATH (the ST-16 paper's Yale Bright Star Catalogue), "
+        "hip_main:PATH, tycho2:PATH, twomass:PATH, gaia:PATH.",
+    ),
+]
+FovOpt = Annotated[
+    str,
+    typer.Option(
+        "--fov",
+        help="circular: a cone of the detector's minor half-axis (or --half-fov-deg); "
+        "rectangular: the detector's real field, with roll.",
+    ),
+]
+HalfFovOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--half-fov-deg",
+        help="Half-angle of the circular field, deg (the ST-16 paper: 7.5; default: the "
+        "sensor's minor half-axis).",
+    ),
+]
+MaxMagOpt = Annotated[
+    float,
+    typer.Option(
+        "--max-mag", help="Catalogue cut and static detection threshold m_t, V magnitude."
+    ),
+]
+NMinOpt = Annotated[
+    int,
+    typer.Option("--n-min", help="Stars needed: 2 tracking, 3 lost-in-space, 4 conservative."),
+]
+NOrientOpt = Annotated[
+    int, typer.Option("--n-orientations", help="Quasi-uniform boresights over the sky.")
+]
+RollOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--roll-deg",
+        help="Roll of every spatial attitude, deg (rectangular field; default: uniform "
+        "random from --seed).",
+    ),
+]
+SeedOpt = Annotated[int, typer.Option("--seed", help="Root seed (rolls, slew Monte Carlo).")]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON.")]
+PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write the curve (PNG) here.")]
+MapsOpt = Annotated[
+    Path | None, typer.Option("--maps", help="Write Mollweide sky maps (PNG) into this folder.")
+]
+ModelOpt = Annotated[str, typer.Option("--model", help="Sensitivity model: reed or liebe.")]
+TrialsOpt = Annotated[
+    int, typer.Option("--trials", help="Slew Monte Carlo trials per (magnitude, rate).")
+]
+ToleranceOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--tolerance-json",
+        help="Use a tolerable-slew curve saved by `starsense slew tolerance --json` instead of "
+        "running the slew Monte Carlo.",
+    ),
+]
+
+DEFAULT_DYNAMIC_RATES = "0,0.25,0.5,0.75,1,1.25,1.5,1.75,2,2.25,2.5,2.75,3,3.5,4,4.5,5"
+
+
+@contextlib.contextmanager
+def _progress() -> Iterator[Callable[[str, int, int], None]]:
+    """A rich progress bar on stderr (hidden when stderr is not a terminal)."""
+    from rich.progress import Progress
+
+    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
+        tasks: dict[str, Any] = {}
+
+        def update(label: str, done: int, total: int) -> None:
+            if label not in tasks:
+                tasks[label] = bar.add_task(label, total=total)
+            bar.update(tasks[label], completed=done, total=total)
+
+        yield update
+
+
+def _setup(
+    sensor: str,
+    catalog: str,
+    fov: str,
+    half_fov_deg: float | None,
+    max_mag: float,
+    n_orientations: int,
+    roll_deg: float | None,
+    seed: int,
+    progress: Callable[[str, int, int], None] | None = None,
+):
+    """The options common to every command -> (sensor, catalogue, analysis)."""
+    from starsense.analysis.availability import AvailabilityAnalysis, field_of_view
+    from starsense.catalog import load_catalog
+    from starsense.sensor import load_sensor
+
+    sens = load_sensor(sensor)
+    field = field_of_view(sens, fov, half_fov_deg)
+    cat = load_catalog(catalog)
+    analysis = AvailabilityAnalysis.from_catalog(
+        cat, field, max_mag, n_orientations=n_orientations, roll_deg=roll_deg, seed=seed,
+        progress=progress,
+    )  # fmt: skip
+    return sens, cat, analysis
+
+
+def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: Path | None,
+                     progress: Callable[[str, int, int], None] | None):  # fmt: skip
+    """m_t(w) from a saved tolerance JSON, or from the slew Monte Carlo."""
+    from starsense.analysis.availability import ThresholdCurve
+
+    if tolerance_json is not None:
+        try:
+            data = json.loads(Path(tolerance_json).read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(f"--tolerance-json: file not found: {tolerance_json}") from None
+        except (OSError, ValueError) as exc:
+            raise InputError(f"--tolerance-json {tolerance_json}: not valid JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise InputError(f"--tolerance-json {tolerance_json}: expected a JSON object")
+        return ThresholdCurve.from_tolerance_dict(data, f"--tolerance-json {tolerance_json}")
+    if model not in ("reed", "liebe"):
+        raise InputError(f"--model must be 'reed' or 'liebe', got {model!r}")
+    if isinstance(trials, bool) or trials < 1:
+        raise InputError(f"--trials = {trials} is out of range; must be an integer >= 1")
+    try:
+        from starsense.analysis.slew import simulate_slew
+
+        result = simulate_slew(
+            sens, model, n_trials=trials, seed=seed,
+            progress=None if progress is None else (
+                lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),
+        )  # fmt: skip
+    except ImportError as exc:
+        raise InputError(
+            f"the slew simulation is not available ({exc}); pass a saved curve with "
+            "--tolerance-json"
+        ) from None
+    return ThresholdCurve.from_slew(result)
+
+
+def _rates(text: str, option: str) -> list[float]:
+    try:
+        values = [float(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise InputError(f"{option} expects comma-separated numbers, got {text!r}") from None
+    if not values:
+        raise InputError(f"{option} expects at least one rate, got {text!r}")
+    return values
+
+
+def _emit(payload: dict, as_json: bool, lines: list[str]) -> None:
+    if as_json:
+        typer.echo(json.dumps(payload, indent=2))
+    else:
+        for line in lines:
+            typer.echo(line)
+
+
+def _maps_dir(maps: Path) -> Path:
+    maps = Path(maps)
+    if maps.exists() and not maps.is_dir():
+        raise InputError(f"--maps {maps}: exists and is not a folder")
+    maps.mkdir(parents=True, exist_ok=True)
+    return maps
+
+
+# -- commands ---------------------------------------------------------------------------------
+
+
+@availability_app.command("static")
+def static(
+    sensor: SensorOpt = "st16",
+    catalog: CatalogOpt = "hipparcos",
+    fov: FovOpt = "circular",
+    half_fov_deg: HalfFovOpt = None,
+    max_mag: MaxMagOpt = 5.75,
+    n_min: NMinOpt = 3,
+    n_orientations: NOrientOpt = 10_000,
+    roll_deg: RollOpt = None,
+    seed: SeedOpt = 0,
+    plot: PlotOpt = None,
+    maps: MapsOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Spatial static availability: fraction of boresights with >= N_min stars <= m_t."""
+    with _progress() as progress:
+        sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
+                                   roll_deg, seed, progress)  # fmt: skip
+        res = analysis.static(n_min)
+    payload = {**res.to_dict(), "sensor": sens.name}
+    lines = [f"{sens.name}: " + res.lines()[0], *res.lines()[1:]]
+    figures = []
+    if plot is not None:
+        from starsense.report.availability import save_figure, static_curve_figure
+
+        figures.append(save_figure(static_curve_figure(res), plot))
+    if maps is not None:
+        from starsense.report.availability import save_figure, sky_map_figure
+
+        folder = _maps_dir(maps)
+        figures.append(save_figure(sky_map_figure(
+            res.boresights, res.counts,
+            f"{sens.name}: stars in the field, m_t = {res.max_mag:g} ({res.fov})",
+        ), folder / "static_stars_in_field.png"))  # fmt: skip
+        figures.append(save_figure(sky_map_figure(
+            res.boresights, res.counts, f"{sens.name}: star-sparse regions, m_t = "
+            f"{res.max_mag:g}", sparse=True, n_min=res.n_min,
+        ), folder / "static_sparse.png"))  # fmt: skip
+    if figures:
+        payload["figures"] = [str(f) for f in figures]
+        lines += [f"figure: {f}" for f in figures]
+    _emit(payload, as_json, lines)
+
+
+@availability_app.command("dynamic")
+def dynamic(
+    sensor: SensorOpt = "st16",
+    catalog: CatalogOpt = "hipparcos",
+    fov: FovOpt = "circular",
+    half_fov_deg: HalfFovOpt = None,
+    max_mag: MaxMagOpt = 5.75,
+    n_min: NMinOpt = 3,
+    n_orientations: NOrientOpt = 10_000,
+    roll_deg: RollOpt = None,
+    seed: SeedOpt = 0,
+    model: ModelOpt = "reed",
+    rates_deg_s: Annotated[
+        str, typer.Option("--rates-deg-s", help="Comma-separated slew rates, deg/s.")
+    ] = DEFAULT_DYNAMIC_RATES,
+    trials: TrialsOpt = 20,
+    tolerance_json: ToleranceOpt = None,
+    plot: PlotOpt = None,
+    maps: MapsOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Spatial dynamic availability against slew rate, m_t = m_t(w) (Fig. 11)."""
+    from starsense.analysis.availability import check_n_min, check_rates
+
+    rates = check_rates(_rates(rates_deg_s, "--rates-deg-s"))
+    check_n_min(n_min)
+    with _progress() as progress:
+        sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
+                                   roll_deg, seed, progress)  # fmt: skip
+        curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
+        res = analysis.dynamic(curve, rates, n_min)
+    payload = {**res.to_dict(), "sensor": sens.name, "model": model}
+    lines = res.lines()
+    figures = []
+    if plot is not None:
+        from starsense.report.availability import dynamic_figure, save_figure
+
+        figures.append(save_figure(dynamic_figure([res]), plot))
+    if maps is not None:
+        from starsense.report.availability import save_figure, sky_map_figure
+
+        folder = _maps_dir(maps)
+        for w, m in zip(res.rates_deg_s, res.threshold_mag, strict=True):
+            mt = f"{m:.2f}" if np.isfinite(m) else "none"
+            figures.append(save_figure(sky_map_figure(
+                analysis.boresights, analysis.sky_counts(m),
+                f"{sens.name}: stars detectable at {w:g} deg/s ({curve.label}, m_t = {mt})",
+                sparse=True, n_min=n_min,
+            ), folder / f"dynamic_{w:g}degs.png"))  # fmt: skip
+    if figures:
+        payload["figures"] = [str(f) for f in figures]
+        lines += [f"figure: {f}" for f in figures]
+    _emit(payload, as_json, lines)
+
+
+@availability_app.command("track")
+def track(
+    sensor: SensorOpt = "st16",
+    catalog: CatalogOpt = "hipparcos",
+    fov: FovOpt = "circular",
+    half_fov_deg: HalfFovOpt = None,
+    max_mag: MaxMagOpt = 5.75,
+    n_min: NMinOpt = 3,
+    n_orientations: NOrientOpt = 10_000,
+    roll_deg: RollOpt = None,
+    seed: SeedOpt = 0,
+    model: ModelOpt = "reed",
+    rate_deg_s: Annotated[
+        float, typer.Option("--rate-deg-s", help="Constant slew rate along the tracks, deg/s.")
+    ] = 1.0,
+    inclination_step_deg: Annotated[
+        float,
+        typer.Option("--inclination-step-deg", help="Step of the inclinations -90 ... 90 deg."),
+    ] = 1.0,
+    track_samples: Annotated[
+        int, typer.Option("--track-samples", help="Orientations per track (paper: 1000).")
+    ] = 1000,
+    node_deg: Annotated[
+        float, typer.Option("--node-deg", help="RA of the tracks' common node, deg.")
+    ] = 0.0,
+    trials: TrialsOpt = 20,
+    tolerance_json: ToleranceOpt = None,
+    plot: PlotOpt = None,
+    maps: MapsOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Along-track dynamic availability of great circles inclined -90 ... 90 deg (Table 2)."""
+    from starsense.analysis.availability import check_count, check_n_min, check_rates
+
+    check_rates([rate_deg_s], "--rate-deg-s")
+    check_n_min(n_min)
+    check_count(track_samples, "samples per track", "--track-samples")
+    if not (math.isfinite(inclination_step_deg) and 0 < inclination_step_deg <= 180):
+        raise InputError(
+            f"--inclination-step-deg = {inclination_step_deg:g} is out of range; allowed (0, 180]"
+        )
+    inclinations = np.arange(-90.0, 90.0 + 1e-9, inclination_step_deg)
+    with _progress() as progress:
+        sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
+                                   roll_deg, seed, progress)  # fmt: skip
+        curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
+        res = analysis.track(curve, rate_deg_s, n_min, inclinations, track_samples, node_deg)
+    payload = {**res.to_dict(), "sensor": sens.name, "model": model}
+    lines = res.lines()
+    figures = []
+    if plot is not None:
+        from starsense.report.availability import save_figure, track_nmin_figure
+
+        figures.append(save_figure(track_nmin_figure(res), plot))
+    if maps is not None:
+        from starsense.geometry.sampling import great_circle_track
+        from starsense.report.availability import save_figure, sky_map_figure
+
+        folder = _maps_dir(maps)
+        shown = (-60.0, -30.0, 0.0, 30.0, 60.0, 90.0)
+        paths = [great_circle_track(math.radians(i), 721, math.radians(node_deg))[0]
+                 for i in shown]  # fmt: skip
+        figures.append(save_figure(sky_map_figure(
+            analysis.boresights, analysis.sky_counts(res.threshold_mag),
+            f"{sens.name}: stars detectable at {res.rate_deg_s:g} deg/s; tracks i = "
+            + ", ".join(f"{i:g}" for i in shown) + " deg",
+            sparse=True, n_min=n_min, tracks=paths,
+        ), folder / f"track_{res.rate_deg_s:g}degs.png"))  # fmt: skip
+    if figures:
+        payload["figures"] = [str(f) for f in figures]
+        lines += [f"figure: {f}" for f in figures]
+    _emit(payload, as_json, lines)
+
+
+@availability_app.command("fidelity")
+def fidelity(
+    sensor: SensorOpt = "st16",
+    catalog: CatalogOpt = "hipparcos",
+    max_mag: MaxMagOpt = 5.75,
+    n_min: NMinOpt = 3,
+    seed: SeedOpt = 0,
+    model: ModelOpt = "reed",
+    rate_deg_s: Annotated[
+        float, typer.Option("--rate-deg-s", help="Cross-axis slew rate of the frames, deg/s.")
+    ] = 1.0,
+    frames: Annotated[int, typer.Option("--frames", help="Frames to render.")] = 50,
+    trials: TrialsOpt = 20,
+    tolerance_json: ToleranceOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Rendered frames through the detector against the threshold model (real detector field)."""
+    from starsense.analysis.availability import fidelity_check, fidelity_modules_available
+    from starsense.catalog import load_catalog
+    from starsense.sensor import load_sensor
+
+    reason = fidelity_modules_available()
+    if reason is not None:
+        raise InputError(f"full-fidelity check skipped: {reason}")
+    sens = load_sensor(sensor)
+    cat = load_catalog(catalog)
+    with _progress() as progress:
+        curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
+        res = fidelity_check(
+            sens, cat, curve, rate_deg_s, n_frames=frames, n_min=n_min, max_mag=max_mag,
+            model=model, seed=seed,
+            progress=lambda done, total: progress("rendering frames", done, total),
+        )  # fmt: skip
+    _emit({**res.to_dict(), "sensor": sens.name}, as_json, res.lines())

@@ -1,0 +1,90 @@
+"""The report's availability section, with a given threshold curve (no slew Monte Carlo)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import starsense.report.availability as report_av
+from starsense.analysis.availability import ThresholdCurve
+from starsense.analysis.limits import BlackBodyStars
+from starsense.report.section import ReportContext
+from starsense.sensor import load_sensor
+
+PAPER_IMPLIED = ThresholdCurve(
+    [0.0, 1.0, 1.5, 2.0, 3.0], [5.75, 4.78, 4.40, 3.875, 3.60], label="paper-implied"
+)
+
+
+def synthetic_stars(n=6000, seed=0):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    # a magnitude distribution with ~log-uniform counts, ~3,800 stars <= 5.75
+    mag = 6.3 - rng.exponential(1.1, n)
+    ones = np.ones(n)
+    return BlackBodyStars(v, 6000 * ones, 1e-16 * ones, mag, "B-V")
+
+
+@pytest.fixture
+def ctx(tmp_path):
+    return ReportContext(
+        work_dir=tmp_path,
+        catalog_name="synthetic",
+        n_catalog=6000,
+        stars={"B-V": synthetic_stars()},
+        diameter_m=0.1,
+        exposure_s=0.01,
+        sensor=load_sensor("st16"),
+    )
+
+
+def test_availability_section_builds(ctx, monkeypatch):
+    monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
+    monkeypatch.setattr(report_av, "fidelity_modules_available", lambda: "not in this test")
+    monkeypatch.setattr(report_av, "TRACK_RATES_DEG_S", (1.0, 2.0))
+    monkeypatch.setattr(report_av, "TRACK_NODES_DEG", (0.0, 90.0))
+    monkeypatch.setattr(report_av, "DYNAMIC_RATES_DEG_S", np.arange(0.0, 3.01, 0.5))
+    section = report_av.availability_section(ctx)
+    assert section.key == "availability"
+    for name in section.figures:
+        assert (ctx.work_dir / name).stat().st_size > 1000
+    assert "availability_fig4_map.png" in section.figures
+    assert "availability_fig17_track_n3.png" in section.figures
+    json.dumps(section.data)  # JSON-serialisable
+    assert set(section.data) >= {"static", "dynamic", "track", "track_by_node"}
+    assert section.data["static"]["n_stars"] == int((ctx.primary.magnitude <= 5.75).sum())
+    assert "93.3 / 80.9" in section.html  # the paper's Table 2 beside ours
+    assert "Skipped: not in this test" in section.html
+    assert len(section.summary) == 2
+
+
+def test_availability_section_without_slew_simulation(ctx, monkeypatch):
+    def unavailable(*args):
+        raise ImportError("No module named 'starsense.detect'")
+
+    monkeypatch.setattr(report_av, "_slew_curve", unavailable)
+    section = report_av.availability_section(ctx)
+    assert "the slew simulation cannot run yet" in section.html
+    assert set(section.data) == {"static", "fov"}
+
+
+def test_availability_section_fidelity_part(ctx, monkeypatch):
+    if report_av.fidelity_modules_available() is not None:
+        pytest.skip(report_av.fidelity_modules_available())
+    from starsense.catalog import load_catalog
+
+    monkeypatch.setattr(report_av, "FIDELITY_FRAMES", 2)
+    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", (1.0,))
+    ctx.catalog = load_catalog("hipparcos")  # the section prefers the catalogue when given
+    data: dict = {}
+    html = report_av._fidelity_part(ctx, ctx.sensor, ctx.primary, PAPER_IMPLIED, data)
+    assert "Full-fidelity check" in html and "Skipped" not in html
+    assert data["fidelity"][0]["n_frames"] == 2
+
+
+def test_no_sensor(ctx):
+    ctx.sensor = None
+    assert "No sensor" in report_av.availability_section(ctx).html
