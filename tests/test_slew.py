@@ -63,7 +63,8 @@ def test_magnitude_threshold_inverts_the_tolerance_curve():
         ({"n_trials": 0}, "n_trials must be an integer >= 1"),
         ({"criterion": 1.5}, r"criterion must be in \(0, 1\]"),
         ({"magnitudes": []}, "magnitudes must be a non-empty"),
-        ({"model": "blackbody"}, "slew analysis model must be 'reed' or 'liebe'"),
+        ({"model": "sun"}, "slew analysis model must be reed, liebe or blackbody"),
+        ({"model": "blackbody", "colour_index": float("nan")}, "colour_index must be finite"),
     ],
 )
 def test_bad_input(kwargs, message):
@@ -131,3 +132,14 @@ def test_detect_stack_matches_the_logic_on_crafted_stamps():
     # a background of 50 counts is subtracted before the thresholds
     found, _ = detect_stack(stack + 50, logic, background_counts=50)
     assert list(found) == [True, False, False]
+
+
+def test_blackbody_model_red_star_more_electrons_in_400_800nm():
+    # At equal V, a red star (B-V 1.5) puts more photons into the 400-800 nm passband than an
+    # A0 star (B-V 0): its red excess outweighs its blue deficit for a QE flat over 400-800 nm,
+    # so it tolerates at least as fast a slew. Independent check of the colour-aware path.
+    s = load_sensor("st16")
+    kw = {"magnitudes": [4.0], "rates_deg_s": [0.0, 1.0, 2.0, 3.0], "n_trials": 6, "seed": 2}
+    blue = simulate_slew(s, "blackbody", colour_index=0.0, **kw)
+    red = simulate_slew(s, "blackbody", colour_index=1.5, **kw)
+    assert red.electrons[0] > blue.electrons[0]

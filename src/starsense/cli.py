@@ -335,7 +335,7 @@ def limit_photons(
     )
 
 
-def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed):
+def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
     from rich.progress import Progress
 
     from starsense.analysis.slew import simulate_slew
@@ -349,6 +349,7 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed):
         result = simulate_slew(
             sensor, model, mags, rate_values, trials, criterion, seed,
             progress=lambda done, total: bar.update(task, completed=done, total=total),
+            colour_index=colour_index,
         )  # fmt: skip
     return sensor, result
 
@@ -366,6 +367,9 @@ CriterionOpt = Annotated[
     float, typer.Option("--criterion", help="Detection fraction that counts as detected.")
 ]
 PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write a PNG figure here.")]
+BvOpt = Annotated[
+    float, typer.Option("--b-v", help="B-V of the simulated star (blackbody model; 0 = A0).")
+]
 
 
 @slew_app.command("tolerance")
@@ -377,11 +381,12 @@ def slew_tolerance(
     trials: TrialsOpt = 20,
     criterion: CriterionOpt = 0.5,
     seed: SeedOpt = 0,
+    b_v: BvOpt = 0.0,
     plot: PlotOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Tolerable slew rate per magnitude (Fig. 10): the fastest rate still detected."""
-    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, criterion, seed)
+    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, criterion, seed, b_v)
     payload = res.tolerance_dict()
     lines = [
         f"{sens.name}, {model} model: tolerable cross-axis slew rate (detected in >= "
@@ -407,11 +412,12 @@ def slew_intensity(
     rates_deg_s: RatesOpt = None,
     trials: TrialsOpt = 20,
     seed: SeedOpt = 0,
+    b_v: BvOpt = 0.0,
     plot: PlotOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Integrated intensity against slew rate per magnitude (Fig. 9)."""
-    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, 0.5, seed)
+    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, 0.5, seed, b_v)
     payload = res.intensity_dict()
     lines = [f"{sens.name}, {model} model: mean integrated intensity (counts) of detections"]
     header = "  rate deg/s " + " ".join(f"m={m:<6.2f}" for m in res.magnitudes)

@@ -163,15 +163,16 @@ def simulate_slew(
     criterion: float = 0.5,
     seed: int | None = 0,
     progress=None,
+    colour_index: float = 0.0,
 ) -> SlewResult:
     """Monte Carlo of detection against slew rate, for every magnitude and rate (Figs. 9-10).
 
     Parameters
     ----------
     sensor : starsense.sensor.Sensor
-    model : {"reed", "liebe"}
-        Sensitivity model (magnitude -> electrons). The colour-aware black-body model needs a
-        colour per star, which a magnitude alone does not give: use it through rendering.
+    model : {"reed", "liebe", "blackbody"}
+        Sensitivity model (magnitude -> electrons). "blackbody" fits each star's black body from
+        its V magnitude and ``colour_index`` (B-V) and integrates it through the sensor's QE.
     magnitudes : array (M,), default :func:`default_magnitudes`
     rates_deg_s : array (R,), increasing from rest, default :func:`default_rates_deg_s`
     n_trials : int
@@ -181,20 +182,26 @@ def simulate_slew(
     seed : int
         Root seed; each rate derives its own child stream, so results are reproducible.
     progress : callable(int done, int total) or None
+    colour_index : float
+        B-V of the simulated stars for the "blackbody" model (default 0: an A0 star, the type of
+        Reed's zero-magnitude reference).
     """
     from starsense.detect.stack import detect_stack
     from starsense.render.noise import apply_noise
     from starsense.render.smear import streak_stamp_expected
 
-    if model not in ("reed", "liebe"):
-        raise InputError(
-            f"slew analysis model must be 'reed' or 'liebe' (magnitude only), got {model!r}"
-        )
+    if model not in ("reed", "liebe", "blackbody"):
+        raise InputError(f"slew analysis model must be reed, liebe or blackbody, got {model!r}")
+    if not np.isfinite(colour_index):
+        raise InputError(f"colour_index must be finite, got {colour_index!r}")
     mags = default_magnitudes() if magnitudes is None else magnitudes
     rates = default_rates_deg_s() if rates_deg_s is None else rates_deg_s
     mags, rates = _validate(mags, rates, n_trials, criterion)
     det = sensor.detector
-    electrons = np.asarray(Sensitivity.for_sensor(sensor, model).electrons(mags), dtype=float)
+    colours = np.full(len(mags), float(colour_index)) if model == "blackbody" else None
+    electrons = np.asarray(
+        Sensitivity.for_sensor(sensor, model).electrons(mags, colours), dtype=float
+    )
     max_len = sensor.streak_length_px(math.radians(rates[-1]))
     if max_len + 10 * det.psf_sigma_px >= det.columns:
         raise InputError(
