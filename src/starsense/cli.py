@@ -6,7 +6,6 @@ status 2; no traceback.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -14,6 +13,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
 from starsense.errors import InputError, StarsenseError
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
@@ -45,55 +45,19 @@ def _register_subapps() -> None:
 
 _register_subapps()
 
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON.")]
 DiameterOpt = Annotated[
     float, typer.Option("--diameter-m", help="Aperture (ideal sensor) diameter D, metres.")
 ]
 ExposureOpt = Annotated[float, typer.Option("--exposure-s", help="Exposure time t, seconds.")]
-CatalogOpt = Annotated[
-    str,
-    typer.Option(
-        "--catalog",
-        help="hipparcos (bundled), hip_main:PATH, bsc5:PATH, tycho2:PATH, twomass:PATH, gaia:PATH.",
-    ),
-]
 ColourOpt = Annotated[
     str | None,
     typer.Option("--colour", help="Colour system: B-V, V-I, BT-VT, J-H, J-Ks, H-Ks, BP-RP."),
 ]
 
 
-SensorOpt = Annotated[
-    str, typer.Option("--sensor", help="Sensor preset (st16, esa_blackfly) or a TOML file.")
-]
 ModelOpt = Annotated[
     str, typer.Option("--model", help="Sensitivity model: reed, liebe (or blackbody to render).")
 ]
-SeedOpt = Annotated[int, typer.Option("--seed", help="Root seed (results are reproducible).")]
-
-
-def _floats(text: str | None, option: str, n: int | None = None) -> list[float] | None:
-    """Parse "1,2.5,3" for ``option``; exactly ``n`` values when n is given."""
-    if text is None:
-        return None
-    try:
-        values = [float(p) for p in text.split(",") if p.strip() != ""]
-    except ValueError:
-        raise InputError(f"{option} expects comma-separated numbers, got {text!r}") from None
-    if not values or (n is not None and len(values) != n):
-        want = f"{n} values" if n else "at least one value"
-        raise InputError(f"{option} expects {want}, got {text!r}")
-    if not all(np.isfinite(values)):
-        raise InputError(f"{option} values must be finite, got {text!r}")
-    return values
-
-
-def _emit(payload: dict, as_json: bool, lines: list[str]) -> None:
-    if as_json:
-        typer.echo(json.dumps(payload, indent=2))
-    else:
-        for line in lines:
-            typer.echo(line)
 
 
 def _rad(x: float) -> str:
@@ -179,7 +143,7 @@ def limit_star(
         "diameter_m": diameter_m,
         "exposure_s": exposure_s,
     }
-    _emit(
+    emit(
         payload,
         as_json,
         [
@@ -228,7 +192,7 @@ def limit_sky(
             + " rad",
             f"G = {res.g_rad_m2_s05:.3e} rad m^2 s^1/2 (paper: 7e-15 < G < 1e-13)",
         ]
-        _emit(payload, as_json, lines)
+        emit(payload, as_json, lines)
         return
     if not np.isfinite(fov_deg) or not 0 < fov_deg <= 360:
         raise InputError(f"--fov-deg must be in (0, 360], got {fov_deg}")
@@ -255,7 +219,7 @@ def limit_sky(
         )
     if merged is not None:
         lines.append(f"  merged heads: theta_rms {_rad(merged.theta_rms_rad)}")
-    _emit(payload, as_json, lines)
+    emit(payload, as_json, lines)
 
 
 @limit_app.command("curve")
@@ -301,7 +265,7 @@ def limit_curve(
         )
         payload["plot"] = str(plot)
         lines.append(f"  figure: {plot}")
-    _emit(payload, as_json, lines)
+    emit(payload, as_json, lines)
 
 
 @limit_app.command("photons")
@@ -321,7 +285,7 @@ def limit_photons(
     res = low_photon_degradation(stars, diameter_m, exposure_s, trials, seed)
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
     payload.update(res.to_dict())
-    _emit(
+    emit(
         payload,
         as_json,
         [
@@ -342,8 +306,8 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
     from starsense.sensor import load_sensor
 
     sensor = load_sensor(sensor_name)
-    mags = _floats(magnitudes, "--magnitudes")
-    rate_values = _floats(rates, "--rates-deg-s")
+    mags = parse_floats(magnitudes, "--magnitudes")
+    rate_values = parse_floats(rates, "--rates-deg-s")
     with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
         task = bar.add_task("slew Monte Carlo", total=None)
         result = simulate_slew(
@@ -401,7 +365,7 @@ def slew_tolerance(
         plot_tolerance([res], plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
-    _emit(payload, as_json, lines)
+    emit(payload, as_json, lines)
 
 
 @slew_app.command("intensity")
@@ -433,7 +397,7 @@ def slew_intensity(
         plot_intensity(res, plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
-    _emit(payload, as_json, lines)
+    emit(payload, as_json, lines)
 
 
 @app.command("render")
@@ -463,7 +427,7 @@ def render(
 
     if not -90.0 <= dec_deg <= 90.0 or not np.isfinite(ra_deg) or not np.isfinite(roll_deg):
         raise InputError("--ra-deg and --roll-deg must be finite and --dec-deg within [-90, 90]")
-    rate = np.radians(_floats(rate_deg_s, "--rate-deg-s", 3))
+    rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
     sens = load_sensor(sensor)
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
     frame = render_frame(

@@ -20,6 +20,7 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
+from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
 from starsense.errors import InputError
 
 availability_app = typer.Typer(
@@ -30,17 +31,6 @@ availability_app = typer.Typer(
 
 # -- the options every command shares ---------------------------------------------------------
 
-SensorOpt = Annotated[
-    str, typer.Option("--sensor", help="Sensor preset (st16, esa_blackfly) or a TOML file.")
-]
-CatalogOpt = Annotated[
-    str,
-    typer.Option(
-        "--catalog",
-        help="hipparcos (bundled), bsc5:PATH (the ST-16 paper's Yale Bright Star Catalogue), "
-        "hip_main:PATH, tycho2:PATH, twomass:PATH, gaia:PATH.",
-    ),
-]
 FovOpt = Annotated[
     str,
     typer.Option(
@@ -78,8 +68,6 @@ RollOpt = Annotated[
         "random from --seed).",
     ),
 ]
-SeedOpt = Annotated[int, typer.Option("--seed", help="Root seed (rolls, slew Monte Carlo).")]
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON.")]
 PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write the curve (PNG) here.")]
 MapsOpt = Annotated[
     Path | None, typer.Option("--maps", help="Write Mollweide sky maps (PNG) into this folder.")
@@ -177,24 +165,6 @@ def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: P
     return ThresholdCurve.from_slew(result)
 
 
-def _rates(text: str, option: str) -> list[float]:
-    try:
-        values = [float(p) for p in text.split(",") if p.strip()]
-    except ValueError:
-        raise InputError(f"{option} expects comma-separated numbers, got {text!r}") from None
-    if not values:
-        raise InputError(f"{option} expects at least one rate, got {text!r}")
-    return values
-
-
-def _emit(payload: dict, as_json: bool, lines: list[str]) -> None:
-    if as_json:
-        typer.echo(json.dumps(payload, indent=2))
-    else:
-        for line in lines:
-            typer.echo(line)
-
-
 def _maps_dir(maps: Path) -> Path:
     maps = Path(maps)
     if maps.exists() and not maps.is_dir():
@@ -248,7 +218,7 @@ def static(
     if figures:
         payload["figures"] = [str(f) for f in figures]
         lines += [f"figure: {f}" for f in figures]
-    _emit(payload, as_json, lines)
+    emit(payload, as_json, lines)
 
 
 @availability_app.command("dynamic")
@@ -275,7 +245,7 @@ def dynamic(
     """Spatial dynamic availability against slew rate, m_t = m_t(w) (Fig. 11)."""
     from starsense.analysis.availability import check_n_min, check_rates
 
-    rates = check_rates(_rates(rates_deg_s, "--rates-deg-s"))
+    rates = check_rates(parse_floats(rates_deg_s, "--rates-deg-s"))
     check_n_min(n_min)
     with _progress() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
@@ -303,7 +273,7 @@ def dynamic(
     if figures:
         payload["figures"] = [str(f) for f in figures]
         lines += [f"figure: {f}" for f in figures]
-    _emit(payload, as_json, lines)
+    emit(payload, as_json, lines)
 
 
 @availability_app.command("track")
@@ -377,7 +347,7 @@ def track(
     if figures:
         payload["figures"] = [str(f) for f in figures]
         lines += [f"figure: {f}" for f in figures]
-    _emit(payload, as_json, lines)
+    emit(payload, as_json, lines)
 
 
 @availability_app.command("fidelity")
@@ -413,4 +383,4 @@ def fidelity(
             model=model, seed=seed,
             progress=lambda done, total: progress("rendering frames", done, total),
         )  # fmt: skip
-    _emit({**res.to_dict(), "sensor": sens.name}, as_json, res.lines())
+    emit({**res.to_dict(), "sensor": sens.name}, as_json, res.lines())
