@@ -1,0 +1,270 @@
+"""Lost-in-space identification by geometric hashing of 4-star patterns (tetra3 / cedar-solve).
+
+For every 4-star pattern the six inter-star angles, sorted and divided by the largest, give
+five ratios that do not depend on the plate scale (Brown, Stubis et al. 2023, "tetra3";
+Arnas, Fialho & Mortari 2017 for the general idea). The database
+(:mod:`starsense.identify.database`) quantises the ratios of catalogue patterns into integer
+hash keys; at solve time the patterns of the brightest detections are looked up in breadth-first
+order (patterns of the brightest stars first), each candidate is checked against the ratios
+within ``pattern_max_error``, and the survivors are verified
+(:class:`~starsense.identify.verify.Verifier`) until one passes the false-match test.
+
+Because the ratios are scale-invariant, the field of view need not be known: with
+``fov_rad=None`` the scale comes out of the match (the database must then cover a range of
+field sizes, ``build_database(cat, max_fov_rad, min_fov_rad)``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from starsense.errors import InputError
+from starsense.identify.database import (
+    IdentificationDatabase,
+    _breadth_first_combinations,
+    edge_ratios,
+    hash_keys,
+    order_by_centroid_distance,
+    pattern_edges,
+)
+from starsense.identify.verify import Identification, Verifier, validate_vectors
+
+__all__ = ["HashIdentifier"]
+
+
+class HashIdentifier:
+    """Identify stars by 4-star geometric hashing.
+
+    Parameters
+    ----------
+    database : IdentificationDatabase
+        From :func:`~starsense.identify.database.build_database`.
+    pattern_max_error : float
+        Largest difference between a detected and a catalogue edge ratio (dimensionless).
+    match_radius : float
+        Verification match radius as a fraction of the field width (0.01 as tetra3).
+    false_match_threshold : float
+        Largest accepted probability of a false match.
+    n_pattern_detections : int
+        Patterns are made from the brightest this many detections.
+    max_detections : int
+        Detections used in verification.
+    scale_tolerance : float
+        With a known field: largest relative difference between the detected and catalogue
+        size of a pattern.
+    max_candidates_per_pattern : int
+        Catalogue patterns verified per detection pattern (nearest ratios first).
+    timeout_s : float or None
+        Give up (status ``"timeout"``) after this wall time.
+    """
+
+    algorithm = "hashing"
+
+    def __init__(
+        self,
+        database: IdentificationDatabase,
+        *,
+        pattern_max_error: float = 0.005,
+        match_radius: float = 0.01,
+        false_match_threshold: float = 1e-9,
+        n_pattern_detections: int = 10,
+        max_detections: int = 60,
+        scale_tolerance: float = 0.02,
+        max_candidates_per_pattern: int = 50,
+        timeout_s: float | None = None,
+    ) -> None:
+        if not isinstance(database, IdentificationDatabase):
+            raise InputError(f"database must be an IdentificationDatabase, got {database!r}")
+        if len(database.patterns) == 0:
+            raise InputError("the database holds no 4-star patterns")
+        if not 0 < pattern_max_error < 0.1:
+            raise InputError(f"pattern_max_error = {pattern_max_error} is out of range (0, 0.1)")
+        if not 4 <= n_pattern_detections <= 30:
+            raise InputError(f"n_pattern_detections = {n_pattern_detections} is out of [4, 30]")
+        if not 0 < scale_tolerance < 0.5:
+            raise InputError(f"scale_tolerance = {scale_tolerance} is out of range (0, 0.5)")
+        if timeout_s is not None and not timeout_s > 0:
+            raise InputError(f"timeout_s = {timeout_s} must be positive or None")
+        self.database = database
+        self.pattern_max_error = float(pattern_max_error)
+        self.n_pattern_detections = int(n_pattern_detections)
+        self.scale_tolerance = float(scale_tolerance)
+        self.max_candidates_per_pattern = int(max_candidates_per_pattern)
+        self.timeout_s = timeout_s
+        self.verifier = Verifier(
+            database,
+            match_radius=match_radius,
+            false_match_threshold=false_match_threshold,
+            max_detections=max_detections,
+        )
+        self._combos = _breadth_first_combinations(self.n_pattern_detections, 4)
+
+    def _lookup(self, ratios: NDArray[np.float64]) -> NDArray[np.int64]:
+        """Database patterns whose hash bins overlap ``ratios +- pattern_max_error``."""
+        db = self.database
+        nb = db.params.n_bins
+        err = self.pattern_max_error
+        lo = np.clip(np.floor((ratios - err) * nb).astype(np.int64), 0, nb - 1)
+        hi = np.clip(np.floor((ratios + err) * nb).astype(np.int64), 0, nb - 1)
+        ranges = [range(a, b + 1) for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
+        bins = np.array(list(itertools.product(*ranges)), dtype=np.int64)
+        keys = hash_keys(bins, nb)
+        left = np.searchsorted(db.pattern_keys, keys, side="left")
+        right = np.searchsorted(db.pattern_keys, keys, side="right")
+        hits = [
+            np.arange(a, b) for a, b in zip(left.tolist(), right.tolist(), strict=True) if b > a
+        ]
+        if not hits:
+            return np.zeros(0, dtype=np.int64)
+        cand = np.concatenate(hits)
+        diff = np.abs(db.pattern_ratios[cand] - ratios[None, :]).max(axis=1)
+        ok = diff <= err
+        return cand[ok][np.argsort(diff[ok], kind="stable")]
+
+    def __call__(
+        self,
+        vectors_cam: object,
+        fov_rad: float | None = None,
+        *,
+        assumed_fov_rad: float | None = None,
+    ) -> Identification:
+        """Identify the stars of one frame.
+
+        Parameters
+        ----------
+        vectors_cam : array_like, shape (N, 3)
+            Directions of the detections in the camera frame (+z boresight), brightest first,
+            e.g. ``sensor.unproject(det.x, det.y)``.
+        fov_rad : float, optional
+            Field of view (full width of the widest image axis), rad, when it is known; the
+            vectors are then taken as exact. None: the field is unknown and the scale of the
+            vectors is fitted (the vectors may have been computed with any roughly right focal
+            length).
+        assumed_fov_rad : float, optional
+            With ``fov_rad=None``: the field width at which `vectors_cam` were computed, so that
+            the result can report the field found (``fov_rad``).
+
+        Returns
+        -------
+        Identification
+
+        Raises
+        ------
+        InputError
+            `vectors_cam` is not an (N, 3) array of finite, non-zero vectors in front of the
+            camera, or `fov_rad` is outside what the database was built for.
+        """
+        t0 = time.perf_counter()
+        v = validate_vectors(vectors_cam)
+        db = self.database
+        p = db.params
+        known = fov_rad is not None
+        if known:
+            fov_rad = float(fov_rad)
+            if not (
+                math.isfinite(fov_rad) and 0.75 * p.min_fov_rad <= fov_rad <= 1.25 * p.max_fov_rad
+            ):
+                raise InputError(
+                    f"fov_rad = {fov_rad} ({math.degrees(fov_rad):.3g} deg) is outside the "
+                    f"database's range {math.degrees(p.min_fov_rad):.3g}-"
+                    f"{math.degrees(p.max_fov_rad):.3g} deg"
+                )
+        if assumed_fov_rad is not None and not (
+            math.isfinite(assumed_fov_rad) and 0 < assumed_fov_rad < math.pi
+        ):
+            raise InputError(f"assumed_fov_rad = {assumed_fov_rad} must be in (0, pi)")
+        n = len(v)
+
+        def result(status: str, message: str, **kw) -> Identification:
+            return Identification(
+                status=status,
+                algorithm=self.algorithm,
+                n_detections=n,
+                time_ms=(time.perf_counter() - t0) * 1e3,
+                message=message,
+                **kw,
+            )
+
+        if n < 4:
+            return result("too_few_stars", f"{n} detections; the 4-star hashing needs at least 4")
+
+        n_pat = min(n, self.n_pattern_detections)
+        combos = self._combos[(self._combos < n_pat).all(axis=1)]
+        tried = 0
+        verified = 0
+        # The largest pattern in the image tells the scale; its bounds for an unknown field.
+        scale_range = (0.0, math.inf)
+        if not known:
+            max_off = float(np.arccos(v[:, 2].min()))
+            scale_range = (
+                0.5 * p.min_fov_rad / (2 * max_off + 1e-12),
+                4.0 * p.max_fov_rad / (2 * max_off + 1e-12),
+            )
+        for combo in combos:
+            if self.timeout_s is not None and time.perf_counter() - t0 > self.timeout_s:
+                return result(
+                    "timeout",
+                    f"no match within {self.timeout_s} s ({tried} patterns tried)",
+                    n_patterns_tried=tried,
+                    n_candidates=verified,
+                )
+            tried += 1
+            pv = v[combo][None]
+            order = order_by_centroid_distance(pv)[0]
+            det = combo[order]
+            ratios, largest = edge_ratios(pattern_edges(v[det][None]))
+            ratios, largest = ratios[0], float(largest[0])
+            cand = self._lookup(ratios)
+            if len(cand) == 0:
+                continue
+            scales = db.pattern_largest_rad[cand].astype(np.float64) / largest
+            if known:
+                cand = cand[np.abs(scales - 1.0) <= self.scale_tolerance]
+                scales = np.ones(len(cand))
+            for c, s in zip(
+                cand[: self.max_candidates_per_pattern].tolist(),
+                scales[: self.max_candidates_per_pattern].tolist(),
+                strict=True,
+            ):
+                verified += 1
+                out = self.verifier(
+                    v,
+                    det,
+                    db.patterns[c].astype(np.int64),
+                    scale=s,
+                    fit_scale=not known,
+                    field_width_rad=fov_rad,
+                    scale_range=scale_range,
+                )
+                if out is None:
+                    continue
+                fov_out = fov_rad
+                if not known and assumed_fov_rad is not None:
+                    fov_out = 2.0 * math.atan(out.scale * math.tan(assumed_fov_rad / 2.0))
+                return result(
+                    "solved",
+                    f"matched {len(out.detection_index)} of {n} detections",
+                    rotation=out.rotation,
+                    fov_rad=fov_out,
+                    scale=out.scale,
+                    detection_index=out.detection_index,
+                    catalog_index=out.catalog_index,
+                    catalog_id=db.ids[out.catalog_index],
+                    residual_rms_rad=out.residual_rms_rad,
+                    false_match_probability=out.false_match_probability,
+                    n_patterns_tried=tried,
+                    n_candidates=verified,
+                )
+        return result(
+            "no_match",
+            f"none of {tried} patterns of the brightest {n_pat} detections matched the "
+            f"catalogue with a false-match probability below "
+            f"{self.verifier.false_match_threshold:g} ({verified} hypotheses verified)",
+            n_patterns_tried=tried,
+            n_candidates=verified,
+        )

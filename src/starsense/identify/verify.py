@@ -1,0 +1,397 @@
+"""Verification of a candidate star match, shared by every identification algorithm.
+
+From a hypothesis (a few detections paired with catalogue stars, and for an unknown field a
+first guess of the scale) :class:`Verifier` computes the attitude, projects the catalogue
+stars of the field into the camera, pairs every detection with the nearest one within the
+match radius, refines the attitude (and scale) with all pairs, and computes the probability
+that that many detections would land on catalogue stars by chance (tetra3's test, Brown et
+al. 2023; Mortari et al. 2004 use the same reasoning for the pyramid algorithm):
+
+    p = (catalogue stars in the field) x (pi r_match^2) / (solid angle of the field)
+    P_false = P[X >= n - k],  X ~ Binomial(N - k, p)
+
+with ``N`` detections, ``n`` of them matched and ``k`` the stars of the hypothesis itself
+(which match by construction). A solution is accepted only when ``P_false`` is below a
+threshold (default 1e-9).
+
+Also here: the :class:`Identification` result shared by all algorithms and the input
+validation they share.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+from scipy.stats import binom
+
+from starsense.errors import InputError
+from starsense.identify.database import IdentificationDatabase
+
+__all__ = [
+    "STATUSES",
+    "Identification",
+    "Verifier",
+    "apply_scale",
+    "false_match_probability",
+]
+
+STATUSES = ("solved", "no_match", "ambiguous", "too_few_stars", "timeout")
+"""Possible values of :attr:`Identification.status`."""
+
+_EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class Identification:
+    """The answer of a lost-in-space identifier.
+
+    Attributes
+    ----------
+    status : str
+        ``"solved"``, ``"no_match"`` (no hypothesis passed verification),
+        ``"too_few_stars"`` or ``"timeout"``. (``"ambiguous"``, two different attitudes
+        passing, is reserved: the solvers accept the first hypothesis that passes.)
+    algorithm : str
+        ``"hashing"`` or ``"triangle"``.
+    rotation : Rotation or None
+        Attitude, ICRS -> camera (:mod:`starsense.geometry.attitude`), when solved.
+    fov_rad : float or None
+        Field of view (full width of the widest image axis), rad: the one given, or, when the
+        field was unknown and the caller said at which field the vectors were computed, the
+        one found.
+    scale : float
+        Factor applied to the tangent-plane coordinates ``(x/z, y/z)`` of the input vectors
+        to get true camera directions: 1 for a known field, the estimate otherwise (the true
+        focal length is the assumed one divided by `scale`).
+    detection_index : ndarray of int, shape (M,)
+        Matched detections (indices into the input vectors).
+    catalog_index : ndarray of int, shape (M,)
+        The database stars they match (indices into ``database.vectors``).
+    catalog_id : ndarray of int64, shape (M,)
+        Catalogue identifiers of those stars (HIP numbers for Hipparcos).
+    residual_rms_rad : float
+        RMS angle between matched detections and their catalogue stars after the fit, rad.
+    false_match_probability : float
+        Probability that a wrong attitude would match as many detections by chance.
+    n_detections : int
+        Detections given.
+    n_patterns_tried : int
+        Detection patterns (4-star or triangles) looked up.
+    n_candidates : int
+        Hypotheses verified.
+    time_ms : float
+        Wall time of the call, ms.
+    message : str
+        Why it failed, or a summary when solved.
+    """
+
+    status: str
+    algorithm: str
+    rotation: Rotation | None = None
+    fov_rad: float | None = None
+    scale: float = 1.0
+    detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    catalog_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    catalog_id: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    residual_rms_rad: float = math.nan
+    false_match_probability: float = 1.0
+    n_detections: int = 0
+    n_patterns_tried: int = 0
+    n_candidates: int = 0
+    time_ms: float = 0.0
+    message: str = ""
+
+    @property
+    def solved(self) -> bool:
+        """True when :attr:`status` is ``"solved"``."""
+        return self.status == "solved"
+
+    @property
+    def n_matches(self) -> int:
+        """Number of matched detections."""
+        return len(self.detection_index)
+
+    def __repr__(self) -> str:
+        if not self.solved:
+            return f"Identification({self.status}: {self.message})"
+        from starsense.geometry.attitude import radec_roll_from_attitude
+
+        ra, dec, roll = (math.degrees(a) for a in radec_roll_from_attitude(self.rotation))
+        return (
+            f"Identification(solved, RA {ra:.4f} Dec {dec:.4f} roll {roll:.3f} deg, "
+            f"{self.n_matches}/{self.n_detections} matched, rms "
+            f"{math.degrees(self.residual_rms_rad) * 3600:.1f} arcsec, P_false "
+            f"{self.false_match_probability:.1e}, {self.time_ms:.1f} ms)"
+        )
+
+
+def validate_vectors(vectors_cam: object) -> NDArray[np.float64]:
+    """Check and normalise detection directions ``(N, 3)``; raise :class:`InputError`."""
+    try:
+        v = np.asarray(vectors_cam, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"vectors_cam must be an (N, 3) array of numbers: {exc}") from None
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise InputError(f"vectors_cam must have shape (N, 3), got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        row = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
+        raise InputError(f"vectors_cam[{row}] = {v[row].tolist()} is not finite")
+    norm = np.linalg.norm(v, axis=1)
+    if np.any(norm == 0):
+        raise InputError(f"vectors_cam[{int(np.flatnonzero(norm == 0)[0])}] is a zero vector")
+    v = v / norm[:, None]
+    if np.any(v[:, 2] <= 0):
+        row = int(np.flatnonzero(v[:, 2] <= 0)[0])
+        raise InputError(
+            f"vectors_cam[{row}] = {v[row].tolist()} points behind the camera (z <= 0)"
+        )
+    return v
+
+
+def apply_scale(vectors_cam: NDArray[np.float64], scale: float) -> NDArray[np.float64]:
+    """Scale the tangent-plane coordinates ``(x/z, y/z)`` of unit vectors by `scale`.
+
+    This is what changing the focal length of a pinhole camera does to the directions
+    computed from fixed pixel positions: ``f_true = f_assumed / scale``.
+    """
+    if scale == 1.0:
+        return vectors_cam
+    t = vectors_cam[:, :2] / vectors_cam[:, 2:3] * scale
+    v = np.concatenate([t, np.ones((len(t), 1))], axis=1)
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _estimate_attitude(
+    body: NDArray[np.float64], ref: NDArray[np.float64]
+) -> tuple[Rotation, NDArray[np.float64]]:
+    """Attitude (ICRS -> camera) from paired directions, and the residual angles (rad).
+
+    The one place to point at :func:`starsense.attitude.estimate_attitude` when it lands.
+    """
+    if len(body) == 2:  # align_vectors needs a weight on the primary for two pairs
+        rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
+    else:
+        rot, _ = Rotation.align_vectors(body, ref)
+    chord = np.linalg.norm(rot.apply(ref) - body, axis=1)
+    return rot, 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
+
+
+def false_match_probability(
+    n_detections: int, n_matched: int, n_hypothesis: int, p_single: float
+) -> float:
+    """Probability that at least ``n_matched - n_hypothesis`` of the other
+    ``n_detections - n_hypothesis`` detections fall within the match radius of a catalogue
+    star by chance (binomial tail; tetra3's test).
+
+    Parameters
+    ----------
+    n_detections : int
+        Detections considered.
+    n_matched : int
+        Detections matched.
+    n_hypothesis : int
+        Stars of the hypothesis (matched by construction, not counted as evidence).
+    p_single : float
+        Probability that one random detection lands within the match radius of a catalogue
+        star: (catalogue stars in the field) x (match area) / (field area).
+
+    Returns
+    -------
+    float
+    """
+    extra = n_matched - n_hypothesis
+    trials = n_detections - n_hypothesis
+    if extra <= 0 or trials <= 0:
+        return 1.0
+    p = min(max(p_single, 0.0), 1.0)
+    return float(binom.sf(extra - 1, trials, p))
+
+
+@dataclass(frozen=True)
+class _Verified:
+    rotation: Rotation
+    scale: float
+    detection_index: NDArray[np.int64]
+    catalog_index: NDArray[np.int64]
+    residual_rms_rad: float
+    false_match_probability: float
+
+
+class Verifier:
+    """Verify star-match hypotheses against a database (see the module docstring).
+
+    Parameters
+    ----------
+    database : IdentificationDatabase
+    match_radius : float
+        Match radius as a fraction of the field width (default 0.01, as tetra3).
+    false_match_threshold : float
+        Largest accepted probability of a false match.
+    max_detections : int
+        Only the brightest this many detections take part in the verification.
+    """
+
+    def __init__(
+        self,
+        database: IdentificationDatabase,
+        *,
+        match_radius: float = 0.01,
+        false_match_threshold: float = 1e-9,
+        max_detections: int = 60,
+    ) -> None:
+        if not 0 < match_radius < 0.2:
+            raise InputError(f"match_radius = {match_radius} is out of range (0, 0.2)")
+        if not 0 < false_match_threshold < 1:
+            raise InputError(
+                f"false_match_threshold = {false_match_threshold} is out of range (0, 1)"
+            )
+        if max_detections < 4:
+            raise InputError(f"max_detections = {max_detections} must be at least 4")
+        self.database = database
+        self.match_radius = float(match_radius)
+        self.false_match_threshold = float(false_match_threshold)
+        self.max_detections = int(max_detections)
+
+    def _fit(
+        self,
+        tangent: NDArray[np.float64],
+        det: NDArray[np.int64],
+        cat: NDArray[np.int64],
+        scale: float,
+        fit_scale: bool,
+    ) -> tuple[Rotation, float, NDArray[np.float64]]:
+        """Attitude (and scale) from pairs; tangent = (x/z, y/z) of the input vectors."""
+        ref = self.database.vectors[cat]
+        for _ in range(4 if fit_scale else 1):
+            body = _unit_from_tangent(tangent[det] * scale)
+            rot, resid = _estimate_attitude(body, ref)
+            if not fit_scale:
+                break
+            c = rot.apply(ref)
+            t_cat = c[:, :2] / c[:, 2:3]
+            t_det = tangent[det]
+            denom = float(np.sum(t_det * t_det))
+            if denom <= 0:
+                break
+            scale = float(np.sum(t_det * t_cat)) / denom
+        body = _unit_from_tangent(tangent[det] * scale)
+        rot, resid = _estimate_attitude(body, ref)
+        return rot, scale, resid
+
+    def __call__(
+        self,
+        vectors_cam: NDArray[np.float64],
+        det: NDArray[np.int64],
+        cat: NDArray[np.int64],
+        *,
+        scale: float = 1.0,
+        fit_scale: bool = False,
+        field_width_rad: float | None = None,
+        scale_range: tuple[float, float] = (0.0, math.inf),
+    ) -> _Verified | None:
+        """Verify one hypothesis; None if it fails.
+
+        Parameters
+        ----------
+        vectors_cam : ndarray, shape (N, 3)
+            Detection directions (unit, z > 0), brightest first.
+        det, cat : ndarray of int, shape (K,)
+            The hypothesis: detection ``det[i]`` is database star ``cat[i]``.
+        scale : float
+            Tangent-plane scale of the input (first guess when `fit_scale`).
+        fit_scale : bool
+            Estimate the scale too (unknown field).
+        field_width_rad : float, optional
+            Field width for the match radius; default twice the largest angle of a
+            detection from the boresight.
+        scale_range : (float, float)
+            Accepted range of the fitted scale.
+        """
+        v = vectors_cam[: self.max_detections]
+        n = len(v)
+        k = len(det)
+        tangent = v[:, :2] / v[:, 2:3]
+        rot, scale, resid = self._fit(tangent, det, cat, scale, fit_scale)
+        if not scale_range[0] <= scale <= scale_range[1]:
+            return None
+        vs = _unit_from_tangent(tangent * scale)
+        max_off = float(np.arccos(np.clip(vs[:, 2].min(), -1.0, 1.0)))
+        width = field_width_rad if field_width_rad is not None else 2.0 * max_off
+        radius = self.match_radius * width
+        if resid.max() > radius:
+            return None
+        for _ in range(2):
+            det_m, cat_m, p_single = self._match(vs, rot, max_off + radius, radius)
+            if len(det_m) < k:
+                return None
+            rot, scale, resid = self._fit(tangent, det_m, cat_m, scale, fit_scale)
+            if not scale_range[0] <= scale <= scale_range[1]:
+                return None
+            vs = _unit_from_tangent(tangent * scale)
+        # Final pairing with a radius matched to the residuals (5 robust sigma, at least 1/20
+        # of the search radius): a false or unlisted star that fell near another catalogue
+        # star inside the wide search radius would otherwise bias the attitude.
+        sigma = 1.4826 * float(np.median(resid)) / math.sqrt(2 * math.log(2))
+        radius = min(radius, max(5.0 * sigma, radius / 20.0))
+        det_m, cat_m, p_single = self._match(vs, rot, max_off + radius, radius)
+        if len(det_m) < k:
+            return None
+        rot, scale, resid = self._fit(tangent, det_m, cat_m, scale, fit_scale)
+        p_false = false_match_probability(n, len(det_m), k, p_single)
+        if p_false > self.false_match_threshold:
+            return None
+        return _Verified(
+            rotation=rot,
+            scale=scale,
+            detection_index=det_m,
+            catalog_index=cat_m,
+            residual_rms_rad=float(np.sqrt(np.mean(resid**2))),
+            false_match_probability=p_false,
+        )
+
+    def _match(
+        self,
+        vs: NDArray[np.float64],
+        rot: Rotation,
+        cone_rad: float,
+        radius: float,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64], float]:
+        """One-to-one nearest pairs (detection, star) within `radius`, and p_single."""
+        db = self.database
+        centre = rot.inv().apply([0.0, 0.0, 1.0])
+        near = np.asarray(
+            db.tree.query_ball_point(centre, 2.0 * math.sin(min(cone_rad, math.pi / 2) / 2.0)),
+            dtype=np.int64,
+        )
+        solid_angle = 2.0 * math.pi * (1.0 - math.cos(cone_rad))
+        p_single = len(near) * math.pi * radius**2 / solid_angle
+        if len(near) == 0:
+            return _EMPTY_INT, _EMPTY_INT, p_single
+        cam = rot.apply(db.vectors[near])
+        chord = np.linalg.norm(vs[:, None, :] - cam[None, :, :], axis=-1)
+        limit = 2.0 * math.sin(radius / 2.0)
+        di, ci = np.nonzero(chord <= limit)
+        order = np.argsort(chord[di, ci], kind="stable")
+        used_d: set[int] = set()
+        used_c: set[int] = set()
+        pairs = []
+        for d, c in zip(di[order].tolist(), ci[order].tolist(), strict=True):
+            if d in used_d or c in used_c:
+                continue
+            used_d.add(d)
+            used_c.add(c)
+            pairs.append((d, c))
+        if not pairs:
+            return _EMPTY_INT, _EMPTY_INT, p_single
+        pairs.sort()
+        arr = np.asarray(pairs, dtype=np.int64)
+        return arr[:, 0], near[arr[:, 1]], p_single
+
+
+def _unit_from_tangent(t: NDArray[np.float64]) -> NDArray[np.float64]:
+    v = np.concatenate([t, np.ones((len(t), 1))], axis=1)
+    return v / np.linalg.norm(v, axis=1, keepdims=True)

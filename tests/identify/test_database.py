@@ -1,0 +1,116 @@
+"""The identification database: pattern descriptors, thinning, build and on-disk cache."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from starsense.errors import InputError
+from starsense.identify import build_database, edge_ratios, pattern_edges, thin_by_region
+from starsense.identify import database as database_module
+from starsense.identify.database import database_cache_file
+
+
+def _random_pattern(rng, spread_rad=0.05):
+    offsets = rng.normal(0.0, spread_rad, (4, 2))
+    v = np.column_stack([offsets, np.ones(4)])
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def test_ratios_invariant_under_rotation_and_order():
+    rng = np.random.default_rng(3)
+    v = _random_pattern(rng)
+    ratios, largest = edge_ratios(pattern_edges(v[None]))
+    rotated = Rotation.random(random_state=rng).apply(v)
+    r2, l2 = edge_ratios(pattern_edges(rotated[None]))
+    np.testing.assert_allclose(r2, ratios, atol=1e-12)
+    np.testing.assert_allclose(l2, largest, rtol=1e-12)
+    r3, _ = edge_ratios(pattern_edges(v[[2, 0, 3, 1]][None]))
+    np.testing.assert_allclose(r3, ratios, atol=1e-12)
+    assert ratios.shape == (1, 5)
+    assert np.all((ratios > 0) & (ratios <= 1)) and np.all(np.diff(ratios) >= 0)
+
+
+def test_ratios_invariant_under_scale():
+    # Scaling the angles scales every edge; the ratios do not change. For the angles of a
+    # pinhole camera whose focal length is wrong by 10 % the change stays far below the
+    # default pattern_max_error of 0.005 in a 15 deg field.
+    rng = np.random.default_rng(4)
+    edges = pattern_edges(_random_pattern(rng)[None])
+    np.testing.assert_allclose(edge_ratios(1.7 * edges)[0], edge_ratios(edges)[0], atol=1e-15)
+    v = _random_pattern(rng, spread_rad=0.08)
+    t = v[:, :2] / v[:, 2:3] * 1.1
+    w = np.column_stack([t, np.ones(4)])
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    diff = np.abs(edge_ratios(pattern_edges(w[None]))[0] - edge_ratios(pattern_edges(v[None]))[0])
+    assert diff.max() < 0.005
+
+
+def test_thin_by_region_keeps_the_brightest(hipparcos):
+    mags = np.asarray(hipparcos.mags["V"])
+    keep = thin_by_region(hipparcos.vectors, mags, math.radians(5), 10)
+    assert 0 < keep.sum() < 0.2 * len(mags)
+    # The 100 brightest stars of the sky are each among the 10 brightest of their region.
+    finite = np.flatnonzero(np.isfinite(mags))
+    brightest = finite[np.argsort(mags[finite])[:100]]
+    assert keep[brightest].all()
+    assert not keep[~np.isfinite(mags)].any()
+
+
+def test_build_is_fast_and_sized(db15):
+    assert db15.build_time_s < 10.0
+    assert 1000 < db15.is_pattern_star.sum() <= len(db15)
+    assert db15.patterns.shape[1] == 4 and len(db15.patterns) > 10_000
+    assert np.all(np.diff(db15.pattern_keys) >= 0)
+    assert np.all(np.diff(db15.pair_angles_rad) >= 0)
+    assert db15.pair_angles_rad.max() <= 1.3 * db15.params.max_fov_rad + 1e-12
+    assert np.all(np.diff(db15.mags) >= 0)  # brightest first
+    assert db15.patterns.max() < len(db15)
+
+
+def test_cache_round_trip(hipparcos, tmp_path, monkeypatch):
+    fov = math.radians(20)
+    db = build_database(hipparcos, fov, cache_dir=tmp_path)
+    path, _ = database_cache_file(hipparcos, db.params, tmp_path)
+    assert path.is_file()
+    assert not list(tmp_path.glob(".tmp-*"))
+
+    def no_build(*args, **kwargs):
+        raise AssertionError("rebuilt although cached")
+
+    monkeypatch.setattr(database_module, "_build", no_build)
+    again = build_database(hipparcos, fov, cache_dir=tmp_path)
+    for name in db._ARRAYS:
+        np.testing.assert_array_equal(getattr(again, name), getattr(db, name))
+    assert again.params == db.params
+    # other parameters -> another key -> a rebuild
+    with pytest.raises(AssertionError, match="rebuilt"):
+        build_database(hipparcos, fov, cache_dir=tmp_path, pattern_stars_per_fov=9)
+
+
+def test_cache_ignores_corrupt_file(hipparcos, tmp_path):
+    fov = math.radians(25)
+    db = build_database(hipparcos, fov, cache=False)
+    path, _ = database_cache_file(hipparcos, db.params, tmp_path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(b"not an npz")
+    again = build_database(hipparcos, fov, cache_dir=tmp_path)
+    np.testing.assert_array_equal(again.patterns, db.patterns)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"max_fov_rad": float("nan")}, "max_fov_rad"),
+        ({"max_fov_rad": math.radians(200)}, "max_fov_rad"),
+        ({"max_fov_rad": 0.1, "min_fov_rad": 0.2}, "must not exceed"),
+        ({"max_fov_rad": 0.1, "pattern_stars_per_fov": 3}, "pattern_stars_per_fov"),
+        ({"max_fov_rad": 0.1, "band": "K"}, "no 'K' magnitudes"),
+    ],
+)
+def test_bad_parameters(hipparcos, kwargs, match):
+    with pytest.raises(InputError, match=match):
+        build_database(hipparcos, cache=False, **kwargs)
