@@ -439,6 +439,46 @@ def render(
     typer.echo(f"frame written: {written} ({n} stars; truth in {written}.json)")
 
 
+@app.command("solve")
+def solve(
+    image: Annotated[Path, typer.Argument(help="Frame: TIFF, PNG, JPEG or FITS (8-32 bit).")],
+    sensor: Annotated[
+        str | None, typer.Option("--sensor", help="Sensor preset or TOML (known optics).")
+    ] = None,
+    fov_deg: Annotated[
+        float | None, typer.Option("--fov-deg", help="Horizontal field, deg (pinhole).")
+    ] = None,
+    algorithm: Annotated[
+        str, typer.Option("--algorithm", help="hashing (default, FOV-free) or triangle.")
+    ] = "hashing",
+    catalog: CatalogOpt = "hipparcos",
+    as_json: JsonOpt = False,
+) -> None:
+    """Solve a frame lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
+
+    Without --sensor or --fov-deg the field is searched over 5-30 deg. Exit status 0 when solved,
+    1 when the frame does not solve, 2 for bad input (including a frame with no stars).
+    """
+    from starsense.pipeline import Solver
+
+    sol = Solver(sensor, fov_deg, catalog, algorithm).solve_file(image)
+    payload = {"image": str(image), **sol.to_dict()}
+    if sol.solved:
+        lines = [
+            f"{image}: solved in {sol.time_ms:.0f} ms - RA {sol.ra_deg:.4f} deg, "
+            f"Dec {sol.dec_deg:.4f} deg, roll {sol.roll_deg:.3f} deg, FOV {sol.fov_deg:.3f} deg",
+            f"  {sol.n_matched} of {sol.n_detections} stars matched, residual "
+            f"{sol.rmse_arcsec:.1f} arcsec rms, false-match probability "
+            f"{sol.false_match_probability:.1e}",
+        ]
+        emit(payload, as_json, lines)
+        return
+    if sol.status == "no_stars":
+        raise InputError(f"{image}: {sol.message}")
+    emit(payload, as_json, [f"{image}: not solved ({sol.status}): {sol.message}"])
+    raise typer.Exit(1)
+
+
 @app.command("report")
 def report(
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("report"),

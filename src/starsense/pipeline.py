@@ -1,0 +1,245 @@
+"""The star-tracker pipeline: a frame in, an attitude out.
+
+image -> background -> detection -> centroids -> unit vectors -> identification -> attitude
+
+The optics are known three ways, from best to least:
+
+* a sensor (preset or TOML): its pinhole + distortion model unprojects the centroids;
+* a horizontal field of view (``fov_deg``): a pinhole with the principal point at the centre;
+* nothing: the centroids are unprojected with a nominal field and the FOV-free pattern hashing
+  (edge ratios are scale-invariant) finds the scale, searching fields of 5-30 deg.
+
+The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
+(:mod:`starsense.attitude`), which also gives its covariance (Fialho & Mortari eq. 21) for a
+centroid noise of ``centroid_sigma_px``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from starsense.errors import InputError
+
+ARCSEC_PER_RAD = 180.0 / math.pi * 3600.0
+#: field range searched when the optics are unknown, deg (issue 5)
+UNKNOWN_FOV_RANGE_DEG = (5.0, 30.0)
+#: the field the centroids are unprojected with before the scale is found, deg
+NOMINAL_FOV_DEG = 15.0
+
+
+@dataclass(frozen=True)
+class Solution:
+    """The answer for one frame, with what is needed to judge it.
+
+    ``status`` is "solved" or says why not ("no_stars", "too_few_stars", "no_match", ...);
+    angles follow :mod:`starsense.geometry.attitude` (roll as in the ESA reference.json).
+    """
+
+    status: str
+    message: str = ""
+    ra_deg: float | None = None
+    dec_deg: float | None = None
+    roll_deg: float | None = None
+    fov_deg: float | None = None
+    n_detections: int = 0
+    n_matched: int = 0
+    rmse_arcsec: float | None = None
+    false_match_probability: float | None = None
+    sigma_arcsec: tuple[float, float, float] | None = None
+    time_ms: float = 0.0
+    stage_ms: dict = field(default_factory=dict)
+    rotation: Rotation | None = field(default=None, repr=False)
+    matches: tuple[tuple[int, int], ...] = field(default=(), repr=False)
+
+    @property
+    def solved(self) -> bool:
+        return self.status == "solved"
+
+    def to_dict(self) -> dict:
+        return {
+            "status": self.status,
+            "message": self.message,
+            "ra_deg": self.ra_deg,
+            "dec_deg": self.dec_deg,
+            "roll_deg": self.roll_deg,
+            "fov_deg": self.fov_deg,
+            "n_detections": self.n_detections,
+            "n_matched": self.n_matched,
+            "rmse_arcsec": self.rmse_arcsec,
+            "false_match_probability": self.false_match_probability,
+            "sigma_arcsec": None if self.sigma_arcsec is None else list(self.sigma_arcsec),
+            "time_ms": self.time_ms,
+            "stage_ms": self.stage_ms,
+        }
+
+
+class Solver:
+    """Configure once (database, detector), then call on frames: ``Solver(...)(image)``.
+
+    Parameters
+    ----------
+    sensor : str, Path or Sensor, optional
+        Sensor preset, TOML path or object: known optics and its detection floors.
+    fov_deg : float, optional
+        Horizontal field across the image width (pinhole), when no sensor is given.
+    catalog : str
+        Catalogue spec for the database (default: the bundled Hipparcos).
+    algorithm : {"hashing", "triangle"}
+        Lost-in-space algorithm (triangle needs a known field).
+    threshold_sigma : float
+        Lit-pixel threshold above the background map, in noise sigmas.
+    centroid_sigma_px : float
+        Centroid noise assumed for the attitude covariance, pixels.
+    """
+
+    def __init__(self, sensor=None, fov_deg: float | None = None, catalog: str = "hipparcos",
+                 algorithm: str = "hashing", threshold_sigma: float = 5.0,
+                 centroid_sigma_px: float = 0.3) -> None:  # fmt: skip
+        from starsense.sensor import DetectionThresholds, Sensor, load_sensor
+
+        if sensor is not None and fov_deg is not None:
+            raise InputError("give --sensor or --fov-deg, not both")
+        if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
+            raise InputError(f"--fov-deg must be within [0.5, 120] deg, got {fov_deg}")
+        if algorithm not in ("hashing", "triangle"):
+            raise InputError(f"algorithm must be hashing or triangle, got {algorithm!r}")
+        if sensor is None and fov_deg is None and algorithm == "triangle":
+            raise InputError(
+                "the triangle algorithm needs a known field: give --sensor or --fov-deg"
+            )
+        if not centroid_sigma_px > 0:
+            raise InputError(f"centroid_sigma_px must be > 0, got {centroid_sigma_px}")
+        self.sensor = (
+            sensor if (sensor is None or isinstance(sensor, Sensor)) else load_sensor(sensor)
+        )
+        self.fov_deg = fov_deg
+        self.catalog_spec = catalog
+        self.algorithm = algorithm
+        self.threshold_sigma = threshold_sigma
+        self.centroid_sigma_px = centroid_sigma_px
+        self.logic = (
+            self.sensor.detection
+            if self.sensor is not None
+            else DetectionThresholds(lit_pixel_counts=1e-6, min_pixels=3, min_integrated_counts=0)
+        )
+        self._identifiers: dict = {}
+
+    # -- optics -----------------------------------------------------------------------------
+
+    def _unproject(self, x, y, shape) -> tuple[np.ndarray, float | None, float]:
+        """Unit vectors of the centroids, the known horizontal FOV (rad, or None) and the field
+        the vectors assume (rad)."""
+        if self.sensor is not None:
+            fov = 2.0 * self.sensor.half_fov_rad[0]
+            return self.sensor.unproject(x, y), fov, fov
+        fov = math.radians(self.fov_deg if self.fov_deg is not None else NOMINAL_FOV_DEG)
+        return pinhole_vectors(x, y, shape, fov), (fov if self.fov_deg is not None else None), fov
+
+    def _identifier(self, fov_rad: float | None):
+        from starsense.catalog import load_catalog
+        from starsense.identify import HashIdentifier, TriangleIdentifier, build_database
+
+        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9))
+        if key not in self._identifiers:
+            cat = load_catalog(self.catalog_spec)
+            if fov_rad is None:
+                lo, hi = (math.radians(v) for v in UNKNOWN_FOV_RANGE_DEG)
+                db = build_database(cat, hi, lo, patterns_per_field=50)
+            else:
+                db = build_database(cat, fov_rad)
+            cls = HashIdentifier if self.algorithm == "hashing" else TriangleIdentifier
+            self._identifiers[key] = cls(db)
+        return self._identifiers[key]
+
+    # -- the pipeline -----------------------------------------------------------------------
+
+    def __call__(self, image) -> Solution:
+        from starsense.attitude import estimate_attitude
+        from starsense.detect import StarDetector
+        from starsense.geometry.attitude import radec_roll_from_attitude
+
+        t0 = time.perf_counter()
+        stages: dict[str, float] = {}
+        a = np.asarray(image)
+        detector = StarDetector(
+            self.logic, "cog", background="auto", threshold_sigma=self.threshold_sigma
+        )
+        det = detector(a)
+        stages["detect_ms"] = (time.perf_counter() - t0) * 1e3
+        if len(det) == 0:
+            return Solution("no_stars", "no star passed the detection logic", time_ms=_ms(t0),
+                            stage_ms=stages)  # fmt: skip
+        if len(det) < 3:
+            return Solution("too_few_stars", f"{len(det)} star(s) detected; 3 are needed",
+                            n_detections=len(det), time_ms=_ms(t0), stage_ms=stages)  # fmt: skip
+        vectors, fov_known, fov_assumed = self._unproject(det.x, det.y, a.shape)
+        t1 = time.perf_counter()
+        identifier = self._identifier(fov_known)
+        stages["database_ms"] = (time.perf_counter() - t1) * 1e3
+        t2 = time.perf_counter()
+        if fov_known is None:
+            ident = identifier(vectors, None, assumed_fov_rad=fov_assumed)
+        else:
+            ident = identifier(vectors, fov_known)
+        stages["identify_ms"] = (time.perf_counter() - t2) * 1e3
+        if not ident.solved:
+            return Solution(ident.status, ident.message, n_detections=len(det), time_ms=_ms(t0),
+                            stage_ms=stages)  # fmt: skip
+        # final attitude from all matches, with its covariance
+        t3 = time.perf_counter()
+        fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
+        if fov_known is None:  # re-unproject with the field found
+            vectors = pinhole_vectors(det.x, det.y, a.shape, fov)
+        pixel_rad = fov / a.shape[1]
+        body = vectors[np.asarray(ident.detection_index)]
+        ref = identifier.database.vectors[np.asarray(ident.catalog_index)]
+        att = estimate_attitude(body, ref, self.centroid_sigma_px * pixel_rad, method="svd")
+        stages["attitude_ms"] = (time.perf_counter() - t3) * 1e3
+        ra, dec, roll = radec_roll_from_attitude(att.rotation)
+        return Solution(
+            "solved",
+            f"{ident.n_matches} of {len(det)} detections matched ({ident.algorithm})",
+            ra_deg=float(np.degrees(ra)),
+            dec_deg=float(np.degrees(dec)),
+            roll_deg=float(np.degrees(roll)),
+            fov_deg=float(np.degrees(fov)),
+            n_detections=len(det),
+            n_matched=int(ident.n_matches),
+            rmse_arcsec=float(att.residual_rms_rad * ARCSEC_PER_RAD),
+            false_match_probability=float(ident.false_match_probability),
+            sigma_arcsec=tuple(float(s * ARCSEC_PER_RAD) for s in att.sigma_axes_rad),
+            time_ms=_ms(t0),
+            stage_ms=stages,
+            rotation=att.rotation,
+            matches=tuple(
+                (int(d), int(c))
+                for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
+            ),
+        )
+
+    def solve_file(self, path: str | Path) -> Solution:
+        from starsense.imageio import load_image
+
+        return self(load_image(path))
+
+
+def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:
+    """Camera-frame unit vectors of pixel positions for a pinhole whose horizontal field across
+    the image width is ``fov_rad``, principal point at the image centre (pixel-centre convention).
+    """
+    rows, cols = shape
+    f_px = cols / 2.0 / math.tan(fov_rad / 2.0)
+    u = (np.asarray(x, dtype=float) - (cols - 1) / 2.0) / f_px
+    w = (np.asarray(y, dtype=float) - (rows - 1) / 2.0) / f_px
+    v = np.column_stack([u, w, np.ones_like(u)])
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _ms(t0: float) -> float:
+    return (time.perf_counter() - t0) * 1e3
