@@ -182,6 +182,37 @@ def _availability_dynamic() -> float:
     return best_of(lambda: analysis.from_catalog(cat, fov, 6.0).dynamic(curve, rates, 3))
 
 
+# ---------------------------------------------------------------------------------------------
+# issue 5: the pipeline on real frames
+
+
+@bench("solve_esa_frame", "ESA frame: background + detection + identification + attitude", 1.0)
+def _solve_esa() -> float:
+    from pathlib import Path
+
+    from starsense.imageio import load_image
+    from starsense.pipeline import Solver
+
+    folder = Path(__file__).resolve().parents[2] / "shared" / "data" / "images" / "esa"
+    frames = [load_image(p) for p in sorted(folder.glob("*.tiff"))]
+    if not frames:
+        print("    (skipped: ../shared/data/images/esa not found)")
+        return float("nan")
+    solver = Solver(sensor="esa_blackfly")
+    solver(frames[0])  # database build or cache load, once
+    per_frame = []
+    for image in frames:
+        per_frame.append(best_of(lambda image=image: solver(image), repeat=3))
+        sol = solver(image)
+        assert sol.solved, sol.message
+    print(
+        f"    (8/8 solved; detect {sol.stage_ms['detect_ms']:.0f} ms, identify "
+        f"{sol.stage_ms['identify_ms']:.1f} ms on the last frame)",
+        flush=True,
+    )
+    return float(np.mean(per_frame))
+
+
 def main(selected: list[str]) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()
@@ -190,6 +221,8 @@ def main(selected: list[str]) -> int:
         if selected and name not in selected:
             continue
         seconds = fn()
+        if seconds != seconds:  # NaN: the benchmark's input is absent
+            continue
         ok = seconds <= target
         rows.append((name, seconds, target, ok))
         record = {

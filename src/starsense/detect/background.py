@@ -78,10 +78,13 @@ def estimate_background(
     ny, nx = max(1, round(rows / box_px)), max(1, round(cols / box_px))
     r_edges = np.linspace(0, rows, ny + 1).astype(int)
     c_edges = np.linspace(0, cols, nx + 1).astype(int)
+    # a box's median from every second pixel each way: its error, 1.25 sigma / sqrt(n), is
+    # still ~2 % of the noise for 64-px boxes (n = 1,024), at a quarter of the cost
+    step = 2 if box_px >= 32 else 1
     mesh = np.empty((ny, nx))
     for i in range(ny):
         for j in range(nx):
-            block = a[r_edges[i] : r_edges[i + 1], c_edges[j] : c_edges[j + 1]]
+            block = a[r_edges[i] : r_edges[i + 1] : step, c_edges[j] : c_edges[j + 1] : step]
             mesh[i, j] = _clipped_median(block.ravel(), sigma_clip)
     if np.isnan(mesh).any():
         mesh[np.isnan(mesh)] = np.nanmedian(mesh)
