@@ -479,6 +479,49 @@ def solve(
     raise typer.Exit(1)
 
 
+@app.command("montecarlo")
+def montecarlo(
+    sensor: SensorOpt = "st16",
+    trials: Annotated[int, typer.Option("--trials", help="Random attitudes to solve.")] = 100,
+    rate_deg_s: Annotated[
+        float, typer.Option("--rate-deg-s", help="Cross-axis body rate of every trial, deg/s.")
+    ] = 0.0,
+    model: ModelOpt = "reed",
+    max_mag: Annotated[
+        float | None, typer.Option("--max-mag", help="Render only stars brighter than this.")
+    ] = None,
+    seed: SeedOpt = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Random attitudes through render -> detect -> identify -> estimate: solve and wrong rates,
+    attitude error per axis against the predicted covariance, time per frame."""
+    from rich.progress import Progress
+
+    from starsense.analysis.montecarlo import run_montecarlo
+    from starsense.catalog import load_catalog
+
+    cat = load_catalog("hipparcos")
+    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
+        task = bar.add_task("Monte Carlo", total=trials)
+        res = run_montecarlo(
+            sensor, trials, rate_deg_s=rate_deg_s, model=model, catalog=cat, max_mag=max_mag,
+            seed=seed, progress=lambda done, total: bar.update(task, completed=done),
+        )  # fmt: skip
+    err, pred = res.rms_error_arcsec, res.rms_predicted_arcsec
+    emit(
+        res.to_dict(),
+        as_json,
+        [
+            f"{res.sensor}, {trials} random attitudes at {rate_deg_s:g} deg/s ({model} model): "
+            f"solved {res.solve_rate:.1%}, wrong {res.wrong_rate:.1%} ({res.statuses})",
+            f"  rms error x / y / roll: {err[0]:.2f} / {err[1]:.2f} / {err[2]:.2f} arcsec; "
+            f"predicted {pred[0]:.2f} / {pred[1]:.2f} / {pred[2]:.2f}",
+            f"  time per frame: render {res.time_ms['render']:.0f} ms, "
+            f"solve {res.time_ms['solve']:.0f} ms",
+        ],
+    )
+
+
 @app.command("report")
 def report(
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("report"),

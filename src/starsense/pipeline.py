@@ -94,13 +94,25 @@ class Solver:
         Lost-in-space algorithm (triangle needs a known field).
     threshold_sigma : float
         Lit-pixel threshold above the background map, in noise sigmas.
-    centroid_sigma_px : float
-        Centroid noise assumed for the attitude covariance, pixels.
+    centroid_sigma_px : float or "snr"
+        Centroid noise assumed for the attitude covariance, pixels; "snr" (needs a sensor) uses
+        each star's own noise (:func:`_cog_sigma_px`: photon noise plus read noise over its
+        centroid window).
+    background : {"auto", "known"}
+        "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
+        subtracts the sensor's bias and applies its detection logic as is (simulated frames).
     """
 
-    def __init__(self, sensor=None, fov_deg: float | None = None, catalog: str = "hipparcos",
-                 algorithm: str = "hashing", threshold_sigma: float = 5.0,
-                 centroid_sigma_px: float = 0.3) -> None:  # fmt: skip
+    def __init__(
+        self,
+        sensor=None,
+        fov_deg: float | None = None,
+        catalog: str = "hipparcos",
+        algorithm: str = "hashing",
+        threshold_sigma: float = 5.0,
+        centroid_sigma_px: float | str = 0.3,
+        background: str = "auto",
+    ) -> None:
         from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 
         if sensor is not None and fov_deg is not None:
@@ -113,8 +125,15 @@ class Solver:
             raise InputError(
                 "the triangle algorithm needs a known field: give --sensor or --fov-deg"
             )
-        if not centroid_sigma_px > 0:
-            raise InputError(f"centroid_sigma_px must be > 0, got {centroid_sigma_px}")
+        if centroid_sigma_px != "snr" and not (
+            isinstance(centroid_sigma_px, (int, float)) and centroid_sigma_px > 0
+        ):
+            raise InputError(f"centroid_sigma_px must be > 0 or 'snr', got {centroid_sigma_px!r}")
+        if background not in ("auto", "known"):
+            raise InputError(f"background must be 'auto' or 'known', got {background!r}")
+        if sensor is None and (background == "known" or centroid_sigma_px == "snr"):
+            raise InputError("background='known' and centroid_sigma_px='snr' need a sensor")
+        self.background = background
         self.sensor = (
             sensor if (sensor is None or isinstance(sensor, Sensor)) else load_sensor(sensor)
         )
@@ -167,9 +186,12 @@ class Solver:
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
         a = np.asarray(image)
-        detector = StarDetector(
-            self.logic, "cog", background="auto", threshold_sigma=self.threshold_sigma
-        )
+        if self.background == "known":
+            detector = StarDetector.for_sensor(self.sensor)
+        else:
+            detector = StarDetector(
+                self.logic, "cog", background="auto", threshold_sigma=self.threshold_sigma
+            )
         det = detector(a)
         stages["detect_ms"] = (time.perf_counter() - t0) * 1e3
         if len(det) == 0:
@@ -197,9 +219,14 @@ class Solver:
         if fov_known is None:  # re-unproject with the field found
             vectors = pinhole_vectors(det.x, det.y, a.shape, fov)
         pixel_rad = fov / a.shape[1]
-        body = vectors[np.asarray(ident.detection_index)]
+        matched = np.asarray(ident.detection_index)
+        body = vectors[matched]
         ref = identifier.database.vectors[np.asarray(ident.catalog_index)]
-        att = estimate_attitude(body, ref, self.centroid_sigma_px * pixel_rad, method="svd")
+        if self.centroid_sigma_px == "snr":
+            sigma_px = _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
+        else:
+            sigma_px = self.centroid_sigma_px
+        att = estimate_attitude(body, ref, sigma_px * pixel_rad, method="svd")
         stages["attitude_ms"] = (time.perf_counter() - t3) * 1e3
         ra, dec, roll = radec_roll_from_attitude(att.rotation)
         return Solution(
@@ -227,6 +254,22 @@ class Solver:
         from starsense.imageio import load_image
 
         return self(load_image(path))
+
+
+def _cog_sigma_px(det, index, detector, margin_px: int) -> np.ndarray:
+    """Per-axis noise of a centre-of-gravity centroid, pixels, for the detections ``index``.
+
+    Photon noise: sigma_psf^2 / N_e (N_e = integrated counts / gain). Read noise: each pixel of
+    the CoG window adds sigma_read^2 (x - x_c)^2 / N_e^2; over a w x h window centred on the star
+    the sum of (x - x_c)^2 is h w (w^2 - 1) / 12 (the mean of the two axes is used).
+    """
+    n_e = np.maximum(det.integrated_counts[index] / detector.gain_counts_per_e, 1.0)
+    r0, r1, c0, c1 = det.bbox[index].T
+    w = (c1 - c0 + 2 * margin_px).astype(float)
+    h = (r1 - r0 + 2 * margin_px).astype(float)
+    spread = 0.5 * (h * w * (w**2 - 1) + w * h * (h**2 - 1)) / 12.0
+    var = detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2
+    return np.sqrt(var)
 
 
 def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:
