@@ -108,3 +108,14 @@ def test_solve_bad_options(tmp_path, capsys, argv, message):
     code = main(["solve", str(tmp_path / "x.tiff"), *argv])
     assert code == 2
     assert re.search(message, capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("rough_fov_deg", [10.0, 12.5])
+def test_rough_fov_is_refined(esa, rough_fov_deg):
+    # optics known only to ~10 %: the scale search around the estimate finds the field
+    folder, reference = esa
+    name, ref = next(iter(reference.items()))
+    sol = Solver(fov_deg=rough_fov_deg).solve_file(folder / name).to_dict()
+    assert sol["status"] == "solved"
+    assert sol["fov_deg"] == pytest.approx(ref["fov_deg"], rel=1e-3)
+    assert _separation_arcsec(sol, ref) < 15

@@ -6,6 +6,8 @@ The optics are known three ways, from best to least:
 
 * a sensor (preset or TOML): its pinhole + distortion model unprojects the centroids;
 * a horizontal field of view (``fov_deg``): a pinhole with the principal point at the centre;
+  when the frame does not solve at that field, it is taken as an estimate and the scale is
+  searched (5-30 deg), which refines the field;
 * nothing: the centroids are unprojected with a nominal field and the FOV-free pattern hashing
   (edge ratios are scale-invariant) finds the scale, searching fields of 5-30 deg.
 
@@ -209,6 +211,11 @@ class Solver:
             ident = identifier(vectors, None, assumed_fov_rad=fov_assumed)
         else:
             ident = identifier(vectors, fov_known)
+            if not ident.solved and self.sensor is None and self.algorithm == "hashing":
+                # --fov-deg is an estimate: search the scale around it, which refines the field
+                fov_known = None
+                ident = self._identifier(None)(vectors, None, assumed_fov_rad=fov_assumed)
+                identifier = self._identifiers[(self.algorithm, None)]
         stages["identify_ms"] = (time.perf_counter() - t2) * 1e3
         if not ident.solved:
             return Solution(ident.status, ident.message, n_detections=len(det), time_ms=_ms(t0),
