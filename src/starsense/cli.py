@@ -452,6 +452,9 @@ def solve(
         str, typer.Option("--algorithm", help="hashing (default, FOV-free) or triangle.")
     ] = "hashing",
     catalog: CatalogOpt = "hipparcos",
+    wcs: Annotated[
+        Path | None, typer.Option("--wcs", help="Write the solution's TAN WCS (FITS header).")
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Solve a frame lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
@@ -471,6 +474,9 @@ def solve(
             f"{sol.rmse_arcsec:.1f} arcsec rms, false-match probability "
             f"{sol.false_match_probability:.1e}",
         ]
+        if wcs is not None:
+            payload["wcs"] = str(sol.write_wcs(wcs))
+            lines.append(f"  WCS written: {wcs}")
         emit(payload, as_json, lines)
         return
     if sol.status == "no_stars":

@@ -58,6 +58,58 @@ class Solution:
     stage_ms: dict = field(default_factory=dict)
     rotation: Rotation | None = field(default=None, repr=False)
     matches: tuple[tuple[int, int], ...] = field(default=(), repr=False)
+    centroids_px: np.ndarray | None = field(default=None, repr=False)
+    image_shape: tuple[int, int] | None = None
+    focal_px: float | None = None
+
+    def wcs(self):
+        """An astropy TAN WCS of the solved frame (FITS 1-based pixels).
+
+        A pinhole frame is exactly a gnomonic (TAN) projection: with the camera axes x, y in ICRS
+        and east, north at the boresight, the CD matrix is (180/pi) / f_px
+        [[e.x, e.y], [n.x, n.y]]. Lens distortion, where the sensor has any, is not carried
+        (no SIP terms).
+        """
+        from astropy.wcs import WCS
+
+        from starsense.geometry.attitude import east_north
+
+        if not self.solved:
+            raise InputError(f"no WCS for an unsolved frame (status {self.status})")
+        rows, cols = self.image_shape
+        axes = self.rotation.as_matrix()  # rows: camera x, y, z in ICRS
+        east, north = east_north(np.radians(self.ra_deg), np.radians(self.dec_deg))
+        cd = np.degrees(1.0 / self.focal_px) * np.array(
+            [[east @ axes[0], east @ axes[1]], [north @ axes[0], north @ axes[1]]]
+        )
+        w = WCS(naxis=2)
+        w.wcs.ctype = ["RA---TAN", "DEC--TAN"]
+        w.wcs.crval = [self.ra_deg, self.dec_deg]
+        w.wcs.crpix = [(cols - 1) / 2.0 + 1.0, (rows - 1) / 2.0 + 1.0]
+        w.wcs.cd = cd
+        w.wcs.radesys = "ICRS"
+        w.pixel_shape = (cols, rows)
+        return w
+
+    def write_wcs(self, path) -> Path:
+        """Write the WCS as a FITS header (no data), atomically."""
+        import os
+        import tempfile
+
+        from astropy.io import fits
+
+        path = Path(path)
+        header = self.wcs().to_header()
+        header["COMMENT"] = "starsense solution: " + self.message
+        with tempfile.NamedTemporaryFile(dir=path.parent or ".", suffix=".tmp", delete=False) as f:
+            tmp = f.name
+        try:
+            fits.PrimaryHDU(header=header).writeto(tmp, overwrite=True)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
 
     @property
     def solved(self) -> bool:
@@ -254,6 +306,13 @@ class Solver:
             matches=tuple(
                 (int(d), int(c))
                 for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
+            ),
+            centroids_px=np.column_stack([det.x, det.y]),
+            image_shape=a.shape,
+            focal_px=(
+                self.sensor.focal_length_px
+                if self.sensor is not None
+                else a.shape[1] / 2.0 / math.tan(fov / 2.0)
             ),
         )
 
