@@ -150,3 +150,54 @@ def test_wcs_maps_matched_stars_onto_the_catalogue(esa, tmp_path, capsys):
     )
     assert np.median(sep) * ARCSEC_PER_RAD < 20
     assert np.max(sep) * ARCSEC_PER_RAD < 60
+
+
+def test_identification_does_not_depend_on_centroid_order(esa):
+    # Shuffle the detections: the same stars must be identified and the same attitude found,
+    # and the match indices must follow the shuffled order.
+    from starsense.catalog import load_catalog
+    from starsense.detect import StarDetector
+    from starsense.geometry.attitude import small_rotation_angles
+    from starsense.identify import HashIdentifier, build_database, identify_ranked
+    from starsense.imageio import load_image
+    from starsense.sensor import load_sensor
+
+    folder, reference = esa
+    sensor = load_sensor("esa_blackfly")
+    det = StarDetector(sensor.detection, background="auto", threshold_sigma=5)(
+        load_image(folder / next(iter(reference)))
+    )
+    fov = 2 * sensor.half_fov_rad[0]
+    identify = HashIdentifier(build_database(load_catalog("hipparcos"), fov))
+    v = sensor.unproject(det.x, det.y)
+    flux = det.integrated_counts
+    base = identify_ranked(identify, v, flux, fov)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        order = rng.permutation(len(v))
+        res = identify_ranked(identify, v[order], flux[order], fov)
+        assert res.solved
+        # detection k of the shuffled list is detection order[k] of the original
+        pairs = {
+            (int(order[d]), int(c))
+            for d, c in zip(res.detection_index, res.catalog_id, strict=True)
+        }
+        assert pairs == set(
+            zip(base.detection_index.tolist(), base.catalog_id.tolist(), strict=True)
+        )
+        angle = np.linalg.norm(small_rotation_angles(base.rotation, res.rotation))
+        assert angle * ARCSEC_PER_RAD < 1.0  # same solution (refits differ only by rounding)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_pure_noise_frame_returns_no_solution(seed):
+    # Gaussian noise on a flat background: whatever the detector picks up, the verifier must
+    # refuse (false-match probability not small), never return a wrong attitude or raise.
+    rng = np.random.default_rng(seed)
+    image = np.clip(rng.normal(3000, 150, (768, 1024)), 0, 65535).astype(np.uint16)
+    # a few random "stars" of noise-like blobs, so identification is actually attempted
+    for x, y in rng.uniform([20, 20], [1000, 750], (25, 2)):
+        image[int(y) - 1 : int(y) + 2, int(x) - 1 : int(x) + 2] += 2500
+    sol = Solver(sensor="esa_blackfly")(image)
+    assert sol.status != "solved"
+    assert sol.rotation is None

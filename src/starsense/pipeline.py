@@ -236,6 +236,7 @@ class Solver:
         from starsense.attitude import estimate_attitude
         from starsense.detect import StarDetector
         from starsense.geometry.attitude import radec_roll_from_attitude
+        from starsense.identify import identify_ranked
 
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
@@ -259,15 +260,18 @@ class Solver:
         identifier = self._identifier(fov_known)
         stages["database_ms"] = (time.perf_counter() - t1) * 1e3
         t2 = time.perf_counter()
+        flux = det.integrated_counts
         if fov_known is None:
-            ident = identifier(vectors, None, assumed_fov_rad=fov_assumed)
+            ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
         else:
-            ident = identifier(vectors, fov_known)
+            ident = identify_ranked(identifier, vectors, flux, fov_known)
             if not ident.solved and self.sensor is None and self.algorithm == "hashing":
                 # --fov-deg is an estimate: search the scale around it, which refines the field
                 fov_known = None
-                ident = self._identifier(None)(vectors, None, assumed_fov_rad=fov_assumed)
-                identifier = self._identifiers[(self.algorithm, None)]
+                identifier = self._identifier(None)
+                ident = identify_ranked(
+                    identifier, vectors, flux, None, assumed_fov_rad=fov_assumed
+                )
         stages["identify_ms"] = (time.perf_counter() - t2) * 1e3
         if not ident.solved:
             return Solution(ident.status, ident.message, n_detections=len(det), time_ms=_ms(t0),

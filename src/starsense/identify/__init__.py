@@ -26,7 +26,12 @@ from starsense.identify.database import (
 )
 from starsense.identify.hashing import HashIdentifier
 from starsense.identify.triangle import TriangleIdentifier
-from starsense.identify.verify import Identification, Verifier, false_match_probability
+from starsense.identify.verify import (
+    Identification,
+    Verifier,
+    false_match_probability,
+    identify_ranked,
+)
 
 __all__ = [
     "DatabaseParams",
@@ -38,6 +43,7 @@ __all__ = [
     "build_database",
     "edge_ratios",
     "false_match_probability",
+    "identify_ranked",
     "pattern_edges",
     "thin_by_region",
 ]

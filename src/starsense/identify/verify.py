@@ -20,6 +20,7 @@ validation they share.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -395,3 +396,30 @@ class Verifier:
 def _unit_from_tangent(t: NDArray[np.float64]) -> NDArray[np.float64]:
     v = np.concatenate([t, np.ones((len(t), 1))], axis=1)
     return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def identify_ranked(identifier, vectors_cam, brightness, *args, **kwargs) -> Identification:
+    """Run ``identifier`` on detections given in any order, ranked here by ``brightness``.
+
+    The identifiers build their patterns from the first (brightest) detections; this makes the
+    result independent of the order the caller lists them in. ``detection_index`` of the result
+    refers to the caller's order.
+
+    Parameters
+    ----------
+    identifier : HashIdentifier or TriangleIdentifier
+    vectors_cam : array (N, 3)
+    brightness : array (N,)
+        Any measure that grows with brightness (integrated counts, electrons, flux).
+    *args, **kwargs
+        Passed on to the identifier (``fov_rad``, ``assumed_fov_rad``).
+    """
+    v = np.asarray(vectors_cam, dtype=float)
+    b = np.asarray(brightness, dtype=float)
+    if b.shape != (len(v),):
+        raise InputError(f"brightness must have one value per detection ({len(v)}), got {b.shape}")
+    order = np.argsort(-b, kind="stable")
+    result = identifier(v[order], *args, **kwargs)
+    if len(result.detection_index) == 0:
+        return result
+    return dataclasses.replace(result, detection_index=order[result.detection_index])
