@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint bench clean
+.PHONY: demo test test-fast lint bench bench-peers clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,8 +28,27 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
 
-bench: $(STAMP)  ## time the hot paths; results to bench/results/*.json
+bench: $(STAMP)  ## time the hot paths; results to bench/results/*.json (+ peers if installed)
 	$(BIN)/python bench/run.py
+	@if [ -x bench/peers/.venv/bin/python ]; then \
+		$(BIN)/python bench/peers/compare.py --cedar-python bench/peers/.venv/bin/python; \
+	else echo "(peer comparison: run 'make bench-peers' once to install cedar-solve)"; fi
+
+# Peer comparison (development only): cedar-solve 0.5.1 needs NumPy < 2 (np.math) and Pillow < 9,
+# so it gets its own venv, bench/peers/.venv (git-ignored by .venv/). If that cannot be installed,
+# bench-peers still prints starsense's side and says why cedar-solve is unavailable.
+PEERS       := bench/peers/.venv
+PEERS_STAMP := $(PEERS)/.installed
+
+$(PEERS_STAMP):
+	$(PYTHON) -m venv $(PEERS)
+	$(PEERS)/bin/python -m pip install --quiet --upgrade pip
+	$(PEERS)/bin/python -m pip install --quiet "cedar-solve==0.5.1" "numpy<2"
+	touch $@
+
+bench-peers: $(STAMP)  ## starsense vs cedar-solve on the same inputs; bench/results/peer_cedar.json
+	-@$(MAKE) --no-print-directory $(PEERS_STAMP) || echo "(cedar-solve install failed; see above)"
+	$(BIN)/python bench/peers/compare.py --cedar-python $(PEERS)/bin/python
 
 clean:
-	rm -rf $(VENV) build *.egg-info src/*.egg-info .pytest_cache report
+	rm -rf $(VENV) bench/peers/.venv build *.egg-info src/*.egg-info .pytest_cache report
