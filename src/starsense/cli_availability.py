@@ -149,19 +149,13 @@ def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: P
         raise InputError(f"--model must be 'reed' or 'liebe', got {model!r}")
     if isinstance(trials, bool) or trials < 1:
         raise InputError(f"--trials = {trials} is out of range; must be an integer >= 1")
-    try:
-        from starsense.analysis.slew import simulate_slew
+    from starsense.analysis.slew import simulate_slew
 
-        result = simulate_slew(
-            sens, model, n_trials=trials, seed=seed,
-            progress=None if progress is None else (
-                lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),
-        )  # fmt: skip
-    except ImportError as exc:
-        raise InputError(
-            f"the slew simulation is not available ({exc}); pass a saved curve with "
-            "--tolerance-json"
-        ) from None
+    result = simulate_slew(
+        sens, model, n_trials=trials, seed=seed,
+        progress=None if progress is None else (
+            lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),
+    )  # fmt: skip
     return ThresholdCurve.from_slew(result)
 
 
@@ -367,13 +361,10 @@ def fidelity(
     as_json: JsonOpt = False,
 ) -> None:
     """Rendered frames through the detector against the threshold model (real detector field)."""
-    from starsense.analysis.availability import fidelity_check, fidelity_modules_available
+    from starsense.analysis.availability import fidelity_check
     from starsense.catalog import load_catalog
     from starsense.sensor import load_sensor
 
-    reason = fidelity_modules_available()
-    if reason is not None:
-        raise InputError(f"full-fidelity check skipped: {reason}")
     sens = load_sensor(sensor)
     cat = load_catalog(catalog)
     with _progress() as progress:

@@ -72,7 +72,6 @@ __all__ = [
     "check_rates",
     "describe_fov",
     "fidelity_check",
-    "fidelity_modules_available",
     "field_of_view",
     "sky_attitudes",
     "track_family_attitudes",
@@ -1319,21 +1318,6 @@ class FidelityCheck:
         ]
 
 
-def fidelity_modules_available() -> str | None:
-    """None when frame rendering and full-frame detection can be used, else the reason not."""
-    try:
-        import starsense.detect as detect
-        from starsense.render.scene import render_frame  # noqa: F401
-    except ImportError as exc:
-        return f"rendering/detection modules are not available yet ({exc})"
-    if not (hasattr(detect, "StarDetector") or hasattr(detect, "detect_stars")):
-        return (
-            "the full-frame detector (starsense.detect.StarDetector / detect_stars) is not "
-            "available yet"
-        )
-    return None
-
-
 def _detect(frame: Any, sensor: Any) -> NDArray[np.float64]:
     """Centroids (K, 2) as (x, y) pixels of the stars the sensor's detector finds in a frame
     (:class:`starsense.detect.StarDetector` with the sensor's logic, bias as background)."""
@@ -1379,11 +1363,8 @@ def fidelity_check(
     Raises
     ------
     InputError
-        On bad counts or rates, or when the rendering/detection modules are not importable.
+        On bad counts or rates.
     """
-    reason = fidelity_modules_available()
-    if reason is not None:
-        raise InputError(f"full-fidelity check skipped: {reason}")
     from starsense.render.scene import render_frame
 
     n_frames = check_count(n_frames, "number of frames", "--frames")

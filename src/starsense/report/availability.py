@@ -36,7 +36,6 @@ from starsense.analysis.availability import (
     TrackAvailability,
     describe_fov,
     fidelity_check,
-    fidelity_modules_available,
 )
 from starsense.errors import InputError
 from starsense.geometry.attitude import radec_to_vectors
@@ -418,14 +417,9 @@ max {static.counts.max()}.</p>
 
     # -- threshold curves from the slew simulation -------------------------------------------
     curves: list[ThresholdCurve] = []
-    slew_error = None
     for model in ("reed", "liebe"):
         ctx.progress(f"availability: tolerable slew curve, {model} model")
-        try:
-            curves.append(_slew_curve(ctx, model))
-        except ImportError as exc:
-            slew_error = f"the slew simulation cannot run yet ({exc})"
-            break
+        curves.append(_slew_curve(ctx, model))
     implied_rows = []
     for rate, vals in PAPER_TABLE2.items():
         n2, n3 = (v / 100 for v in vals["spatial"])
@@ -458,36 +452,33 @@ same, the tolerable-slew curve is not.</p>
             f"{100 * static.availability:.2f} % ({static.n_stars:,} stars, paper &gt; 99.9 %)",
         )
     ]
-    if slew_error is not None:
-        html.append(f"<p class='note'>Skipped: {esc(slew_error)}.</p>")
-    else:
-        dyn = [analysis.dynamic(c, DYNAMIC_RATES_DEG_S, N_MIN_LOST_IN_SPACE) for c in curves]
-        data["dynamic"] = {c.label: d.to_dict() for c, d in zip(curves, dyn, strict=True)}
-        figures.append(ctx.save_figure(threshold_figure(curves, DYNAMIC_RATES_DEG_S),
-                                       "availability_threshold_curves.png"))  # fmt: skip
-        figures.append(ctx.save_figure(dynamic_figure(dyn), "availability_fig11_dynamic.png"))
-        reed = dyn[0]
-        m1 = float(analysis._effective(curves[0]([1.0]))[0])
-        figures.append(ctx.save_figure(sky_map_figure(
-            static.boresights, analysis.sky_counts(m1),
-            f"{sensor.name}: stars detectable at 1 deg/s (reed, m_t = {m1:.2f}; cf. Fig. 14)",
-            sparse=True,
-        ), "availability_fig14_sparse_1degs.png"))  # fmt: skip
-        quote_rows = []
-        for rate, (p2, p3) in PAPER_FIG11_REED.items():
-            j = int(np.argmin(np.abs(reed.rates_deg_s - rate)))
-            quote_rows.append([
-                f"{rate:g}", _p(reed.by_n_min[2][j]), f"≈ {100 * p2:.0f}",
-                _p(reed.by_n_min[3][j]), f"≈ {100 * p3:.0f}",
-            ])  # fmt: skip
-        j1 = int(np.argmin(np.abs(reed.rates_deg_s - 1.0)))
-        summary.append((
-            f"{esc(sensor.name)} spatial dynamic availability at 1 deg/s, Reed",
-            f"{_p(reed.by_n_min[3][j1])} % (N<sub>min</sub> = 3), "
-            f"{_p(reed.by_n_min[2][j1])} % (N<sub>min</sub> = 2); paper ≈ 80 / 90 %",
-        ))  # fmt: skip
-        html.append(
-            f"""
+    dyn = [analysis.dynamic(c, DYNAMIC_RATES_DEG_S, N_MIN_LOST_IN_SPACE) for c in curves]
+    data["dynamic"] = {c.label: d.to_dict() for c, d in zip(curves, dyn, strict=True)}
+    figures.append(ctx.save_figure(threshold_figure(curves, DYNAMIC_RATES_DEG_S),
+                                   "availability_threshold_curves.png"))  # fmt: skip
+    figures.append(ctx.save_figure(dynamic_figure(dyn), "availability_fig11_dynamic.png"))
+    reed = dyn[0]
+    m1 = float(analysis._effective(curves[0]([1.0]))[0])
+    figures.append(ctx.save_figure(sky_map_figure(
+        static.boresights, analysis.sky_counts(m1),
+        f"{sensor.name}: stars detectable at 1 deg/s (reed, m_t = {m1:.2f}; cf. Fig. 14)",
+        sparse=True,
+    ), "availability_fig14_sparse_1degs.png"))  # fmt: skip
+    quote_rows = []
+    for rate, (p2, p3) in PAPER_FIG11_REED.items():
+        j = int(np.argmin(np.abs(reed.rates_deg_s - rate)))
+        quote_rows.append([
+            f"{rate:g}", _p(reed.by_n_min[2][j]), f"≈ {100 * p2:.0f}",
+            _p(reed.by_n_min[3][j]), f"≈ {100 * p3:.0f}",
+        ])  # fmt: skip
+    j1 = int(np.argmin(np.abs(reed.rates_deg_s - 1.0)))
+    summary.append((
+        f"{esc(sensor.name)} spatial dynamic availability at 1 deg/s, Reed",
+        f"{_p(reed.by_n_min[3][j1])} % (N<sub>min</sub> = 3), "
+        f"{_p(reed.by_n_min[2][j1])} % (N<sub>min</sub> = 2); paper ≈ 80 / 90 %",
+    ))  # fmt: skip
+    html.append(
+        f"""
 {table(["rate (deg/s)", "Reed N<sub>min</sub>=2 (%)", "paper", "Reed N<sub>min</sub>=3 (%)",
         "paper"], quote_rows, classes=["num", "num", "num paper", "num", "num paper"])}
 {figure_html(figures[-3], "Detection threshold m<sub>t</sub>(w) from the slew simulation, "
@@ -499,9 +490,9 @@ same, the tolerable-slew curve is not.</p>
              "colours reversed as in Fig. 5; black contours enclose boresights with fewer than "
              "3 stars. The paper's Fig. 14.", "sky map at 1 deg/s")}
 """
-        )  # fmt: skip
-        html.append(_track_part(ctx, analysis, curves[0], figures, data))
-        html.append(_fidelity_part(ctx, sensor, stars, curves[0], data))
+    )  # fmt: skip
+    html.append(_track_part(ctx, analysis, curves[0], figures, data))
+    html.append(_fidelity_part(ctx, sensor, stars, curves[0], data))
     return Section(
         "availability",
         "Availability (Dzamba & Enright 2014)",
@@ -585,9 +576,8 @@ show how much the choice matters:</p>
 
 
 def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
-    reason = fidelity_modules_available()
-    if reason is not None:
-        return f"<h3>Full-fidelity check</h3><p class='note'>Skipped: {esc(reason)}.</p>"
+    if not FIDELITY_RATES_DEG_S or FIDELITY_FRAMES < 1:
+        return "<h3>Full-fidelity check</h3><p class='note'>Not run (no rates configured).</p>"
     ctx.progress("availability: full-fidelity check (rendered frames)")
     catalog = getattr(ctx, "catalog", None)
     if catalog is None:
@@ -608,7 +598,7 @@ def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
                 sensor, catalog, curve, rate, n_frames=FIDELITY_FRAMES, max_mag=PAPER_MAX_MAG,
                 seed=ctx.seed,
             ))  # fmt: skip
-    except (InputError, ImportError) as exc:
+    except InputError as exc:
         return f"<h3>Full-fidelity check</h3><p class='note'>Skipped: {esc(exc)}.</p>"
     data["fidelity"] = [c.to_dict() for c in checks]
     rows = [
