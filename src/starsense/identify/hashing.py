@@ -36,6 +36,23 @@ from starsense.identify.verify import Identification, Verifier, validate_vectors
 
 __all__ = ["HashIdentifier"]
 
+_NO_CANDIDATES = np.zeros(0, dtype=np.int64)
+
+
+def _descriptors(v: NDArray[np.float64], combos: NDArray[np.intp]):
+    """Yield (stars in canonical order, edge ratios, largest edge) of the patterns `combos` of
+    `v`, computed a block at a time (most frames solve on one of the first few patterns)."""
+    start = 0
+    for stop in (1, 15, 70, len(combos)):
+        block = combos[start:stop]
+        start = max(start, stop)
+        if len(block) == 0:
+            continue
+        pv = v[block]
+        dets = np.take_along_axis(block, order_by_centroid_distance(pv), axis=1)
+        ratios, largest = edge_ratios(pattern_edges(pv))
+        yield from zip(dets, ratios, largest.tolist(), strict=True)
+
 
 class HashIdentifier:
     """Identify stars by 4-star geometric hashing.
@@ -103,28 +120,49 @@ class HashIdentifier:
             max_detections=max_detections,
         )
         self._combos = _breadth_first_combinations(self.n_pattern_detections, 4)
+        nb = database.params.n_bins
+        self._key_weights = nb ** np.arange(5, dtype=np.int64)
+        # The 32 corners of a box of bins one bin wide in each ratio: when 2 x the pattern
+        # error is below a bin (the default), a detected pattern's box has at most 2 bins per
+        # ratio and these offsets enumerate its keys without itertools.
+        self._corners = np.array(list(itertools.product((0, 1), repeat=5)), dtype=np.int64)
+        self._corner_keys = self._corners @ self._key_weights
 
     def _lookup(self, ratios: NDArray[np.float64]) -> NDArray[np.int64]:
-        """Database patterns whose hash bins overlap ``ratios +- pattern_max_error``."""
+        """Database patterns whose hash bins overlap ``ratios +- pattern_max_error``, nearest
+        ratios first, those farther than the error dropped."""
         db = self.database
         nb = db.params.n_bins
         err = self.pattern_max_error
-        lo = np.clip(np.floor((ratios - err) * nb).astype(np.int64), 0, nb - 1)
-        hi = np.clip(np.floor((ratios + err) * nb).astype(np.int64), 0, nb - 1)
-        ranges = [range(a, b + 1) for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
-        bins = np.array(list(itertools.product(*ranges)), dtype=np.int64)
-        keys = hash_keys(bins, nb)
+        lo = np.minimum(np.maximum((ratios - err) * nb, 0.0), nb - 1).astype(np.int64)
+        hi = np.minimum(np.maximum((ratios + err) * nb, 0.0), nb - 1).astype(np.int64)
+        span = hi - lo
+        if span.max() <= 1:
+            # the corners that step only along ratios spanning two bins: distinct keys
+            corners = self._corners @ (span == 0) == 0
+            keys = int(lo @ self._key_weights) + self._corner_keys[corners]
+        else:
+            ranges = [range(a, b + 1) for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
+            bins = np.array(list(itertools.product(*ranges)), dtype=np.int64)
+            keys = hash_keys(bins, nb)
         left = np.searchsorted(db.pattern_keys, keys, side="left")
         right = np.searchsorted(db.pattern_keys, keys, side="right")
-        hits = [
-            np.arange(a, b) for a, b in zip(left.tolist(), right.tolist(), strict=True) if b > a
-        ]
-        if not hits:
-            return np.zeros(0, dtype=np.int64)
-        cand = np.concatenate(hits)
-        diff = np.abs(db.pattern_ratios[cand] - ratios[None, :]).max(axis=1)
+        hit = right > left
+        if not hit.any():
+            return _NO_CANDIDATES
+        left, right = left[hit], right[hit]
+        if len(left) == 1:
+            cand = np.arange(left[0], right[0])
+        else:
+            cand = np.concatenate(
+                [np.arange(a, b) for a, b in zip(left.tolist(), right.tolist(), strict=True)]
+            )
+        diff = np.abs(db.pattern_ratios[cand] - ratios).max(axis=1)
         ok = diff <= err
-        return cand[ok][np.argsort(diff[ok], kind="stable")]
+        if not ok.any():
+            return _NO_CANDIDATES
+        cand, diff = cand[ok], diff[ok]
+        return cand if len(cand) == 1 else cand[np.argsort(diff, kind="stable")]
 
     def __call__(
         self,
@@ -205,7 +243,9 @@ class HashIdentifier:
                 0.5 * p.min_fov_rad / (2 * max_off + 1e-12),
                 4.0 * p.max_fov_rad / (2 * max_off + 1e-12),
             )
-        for combo in combos:
+        tangent = v[: self.verifier.max_detections, :2] / v[: self.verifier.max_detections, 2:3]
+        keep = self.max_candidates_per_pattern
+        for det, ratios, largest in _descriptors(v, combos):
             if self.timeout_s is not None and time.perf_counter() - t0 > self.timeout_s:
                 return result(
                     "timeout",
@@ -214,11 +254,6 @@ class HashIdentifier:
                     n_candidates=verified,
                 )
             tried += 1
-            pv = v[combo][None]
-            order = order_by_centroid_distance(pv)[0]
-            det = combo[order]
-            ratios, largest = edge_ratios(pattern_edges(v[det][None]))
-            ratios, largest = ratios[0], float(largest[0])
             cand = self._lookup(ratios)
             if len(cand) == 0:
                 continue
@@ -226,11 +261,7 @@ class HashIdentifier:
             if known:
                 cand = cand[np.abs(scales - 1.0) <= self.scale_tolerance]
                 scales = np.ones(len(cand))
-            for c, s in zip(
-                cand[: self.max_candidates_per_pattern].tolist(),
-                scales[: self.max_candidates_per_pattern].tolist(),
-                strict=True,
-            ):
+            for c, s in zip(cand[:keep].tolist(), scales[:keep].tolist(), strict=True):
                 verified += 1
                 out = self.verifier(
                     v,
@@ -240,6 +271,7 @@ class HashIdentifier:
                     fit_scale=not known,
                     field_width_rad=fov_rad,
                     scale_range=scale_range,
+                    tangent=tangent,
                 )
                 if out is None:
                     continue

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
-from scipy.stats import binom
+from scipy.special import bdtrc
 
 from starsense.errors import InputError
 from starsense.identify.database import IdentificationDatabase
@@ -44,6 +44,13 @@ STATUSES = ("solved", "no_match", "ambiguous", "too_few_stars", "timeout")
 """Possible values of :attr:`Identification.status`."""
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+# The SVD fit returns an exact rotation matrix: skip scipy's re-orthogonalisation where it can.
+try:
+    Rotation.from_matrix(np.eye(3), assume_valid=True)
+    _VALID_MATRIX: dict = {"assume_valid": True}
+except TypeError:  # scipy < 1.15
+    _VALID_MATRIX = {}
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,6 +173,24 @@ def apply_scale(vectors_cam: NDArray[np.float64], scale: float) -> NDArray[np.fl
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
+def _estimate_matrix(
+    body: NDArray[np.float64], ref: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Attitude matrix ``R`` (``body ~ R @ ref``) from paired unit vectors, and the residual
+    angles (rad): the SVD solution of Wahba's problem with equal weights (Kabsch)."""
+    if len(body) == 2:  # align_vectors needs a weight on the primary for two pairs
+        rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
+        r = rot.as_matrix()
+    else:
+        u, _, vt = np.linalg.svd(body.T @ ref)
+        r = u @ vt
+        if np.linalg.det(r) < 0:  # reflection -> the nearest proper rotation
+            u[:, 2] = -u[:, 2]
+            r = u @ vt
+    chord = np.sqrt(np.sum((ref @ r.T - body) ** 2, axis=1))
+    return r, 2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0))
+
+
 def _estimate_attitude(
     body: NDArray[np.float64], ref: NDArray[np.float64]
 ) -> tuple[Rotation, NDArray[np.float64]]:
@@ -173,12 +198,8 @@ def _estimate_attitude(
 
     The one place to point at :func:`starsense.attitude.estimate_attitude` when it lands.
     """
-    if len(body) == 2:  # align_vectors needs a weight on the primary for two pairs
-        rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
-    else:
-        rot, _ = Rotation.align_vectors(body, ref)
-    chord = np.linalg.norm(rot.apply(ref) - body, axis=1)
-    return rot, 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
+    r, resid = _estimate_matrix(body, ref)
+    return Rotation.from_matrix(r), resid
 
 
 def false_match_probability(
@@ -209,7 +230,8 @@ def false_match_probability(
     if extra <= 0 or trials <= 0:
         return 1.0
     p = min(max(p_single, 0.0), 1.0)
-    return float(binom.sf(extra - 1, trials, p))
+    # P[X >= extra] = P[X > extra - 1]: bdtrc is binom.sf without the distribution overhead
+    return float(bdtrc(extra - 1, trials, p))
 
 
 @dataclass(frozen=True)
@@ -220,6 +242,21 @@ class _Verified:
     catalog_index: NDArray[np.int64]
     residual_rms_rad: float
     false_match_probability: float
+
+
+class _Field:
+    """Catalogue stars around a first attitude, fetched once per hypothesis and filtered to
+    the cone of each later attitude (which moves by much less than the margin)."""
+
+    __slots__ = ("centre", "cos_reach", "index", "vectors")
+
+    def __init__(self, db: IdentificationDatabase, centre: NDArray[np.float64], reach: float):
+        reach = min(reach, math.pi)
+        self.centre = centre
+        self.cos_reach = math.cos(reach)
+        idx = db.tree.query_ball_point(centre, 2.0 * math.sin(reach / 2.0))
+        self.index = np.asarray(idx, dtype=np.int64)
+        self.vectors = db.vectors[self.index]
 
 
 class Verifier:
@@ -264,24 +301,26 @@ class Verifier:
         cat: NDArray[np.int64],
         scale: float,
         fit_scale: bool,
-    ) -> tuple[Rotation, float, NDArray[np.float64]]:
-        """Attitude (and scale) from pairs; tangent = (x/z, y/z) of the input vectors."""
+        vs: NDArray[np.float64] | None = None,
+    ) -> tuple[NDArray[np.float64], float, NDArray[np.float64]]:
+        """Attitude matrix (and scale) from pairs; tangent = (x/z, y/z) of the input vectors;
+        `vs`, the unit vectors at `scale`, when already computed."""
         ref = self.database.vectors[cat]
-        for _ in range(4 if fit_scale else 1):
-            body = _unit_from_tangent(tangent[det] * scale)
-            rot, resid = _estimate_attitude(body, ref)
-            if not fit_scale:
-                break
-            c = rot.apply(ref)
+        if not fit_scale:
+            body = vs[det] if vs is not None else _unit_from_tangent(tangent[det] * scale)
+            r, resid = _estimate_matrix(body, ref)
+            return r, scale, resid
+        t_det = tangent[det]
+        denom = float(np.sum(t_det * t_det))
+        for _ in range(4):
+            r, resid = _estimate_matrix(_unit_from_tangent(t_det * scale), ref)
+            c = ref @ r.T
             t_cat = c[:, :2] / c[:, 2:3]
-            t_det = tangent[det]
-            denom = float(np.sum(t_det * t_det))
             if denom <= 0:
                 break
             scale = float(np.sum(t_det * t_cat)) / denom
-        body = _unit_from_tangent(tangent[det] * scale)
-        rot, resid = _estimate_attitude(body, ref)
-        return rot, scale, resid
+        r, resid = _estimate_matrix(_unit_from_tangent(t_det * scale), ref)
+        return r, scale, resid
 
     def __call__(
         self,
@@ -293,6 +332,7 @@ class Verifier:
         fit_scale: bool = False,
         field_width_rad: float | None = None,
         scale_range: tuple[float, float] = (0.0, math.inf),
+        tangent: NDArray[np.float64] | None = None,
     ) -> _Verified | None:
         """Verify one hypothesis; None if it fails.
 
@@ -311,42 +351,56 @@ class Verifier:
             detection from the boresight.
         scale_range : (float, float)
             Accepted range of the fitted scale.
+        tangent : ndarray, shape (N, 2), optional
+            ``(x/z, y/z)`` of the first `max_detections` vectors, when the caller verifies many
+            hypotheses on the same vectors (computed here otherwise).
         """
         v = vectors_cam[: self.max_detections]
         n = len(v)
         k = len(det)
-        tangent = v[:, :2] / v[:, 2:3]
-        rot, scale, resid = self._fit(tangent, det, cat, scale, fit_scale)
+        if tangent is None:
+            tangent = v[:, :2] / v[:, 2:3]
+        vs = v if scale == 1.0 and not fit_scale else _unit_from_tangent(tangent * scale)
+        r, scale, resid = self._fit(tangent, det, cat, scale, fit_scale, vs)
         if not scale_range[0] <= scale <= scale_range[1]:
             return None
-        vs = _unit_from_tangent(tangent * scale)
-        max_off = float(np.arccos(np.clip(vs[:, 2].min(), -1.0, 1.0)))
+        if fit_scale:
+            vs = _unit_from_tangent(tangent * scale)
+        max_off = float(np.arccos(min(max(float(vs[:, 2].min()), -1.0), 1.0)))
         width = field_width_rad if field_width_rad is not None else 2.0 * max_off
         radius = self.match_radius * width
         if resid.max() > radius:
             return None
+        # The catalogue stars of the field, once: later attitudes differ from this one by less
+        # than the match radius (every hypothesis star lies within it).
+        sky = _Field(self.database, r[2].copy(), max_off + 4.0 * radius)
+        pairs = (det, cat)
         for _ in range(2):
-            det_m, cat_m, p_single = self._match(vs, rot, max_off + radius, radius)
+            det_m, cat_m, _p = self._match(sky, vs, r, max_off + radius, radius)
             if len(det_m) < k:
                 return None
-            rot, scale, resid = self._fit(tangent, det_m, cat_m, scale, fit_scale)
+            if fit_scale or not _same_pairs(pairs, det_m, cat_m):
+                r, scale, resid = self._fit(tangent, det_m, cat_m, scale, fit_scale, vs)
+                pairs = (det_m, cat_m)
             if not scale_range[0] <= scale <= scale_range[1]:
                 return None
-            vs = _unit_from_tangent(tangent * scale)
+            if fit_scale:
+                vs = _unit_from_tangent(tangent * scale)
         # Final pairing with a radius matched to the residuals (5 robust sigma, at least 1/20
         # of the search radius): a false or unlisted star that fell near another catalogue
         # star inside the wide search radius would otherwise bias the attitude.
         sigma = 1.4826 * float(np.median(resid)) / math.sqrt(2 * math.log(2))
         radius = min(radius, max(5.0 * sigma, radius / 20.0))
-        det_m, cat_m, p_single = self._match(vs, rot, max_off + radius, radius)
+        det_m, cat_m, p_single = self._match(sky, vs, r, max_off + radius, radius)
         if len(det_m) < k:
             return None
-        rot, scale, resid = self._fit(tangent, det_m, cat_m, scale, fit_scale)
+        if fit_scale or not _same_pairs(pairs, det_m, cat_m):
+            r, scale, resid = self._fit(tangent, det_m, cat_m, scale, fit_scale, vs)
         p_false = false_match_probability(n, len(det_m), k, p_single)
         if p_false > self.false_match_threshold:
             return None
         return _Verified(
-            rotation=rot,
+            rotation=Rotation.from_matrix(r, **_VALID_MATRIX),
             scale=scale,
             detection_index=det_m,
             catalog_index=cat_m,
@@ -356,46 +410,64 @@ class Verifier:
 
     def _match(
         self,
+        sky: _Field,
         vs: NDArray[np.float64],
-        rot: Rotation,
+        r: NDArray[np.float64],
         cone_rad: float,
         radius: float,
     ) -> tuple[NDArray[np.int64], NDArray[np.int64], float]:
         """One-to-one nearest pairs (detection, star) within `radius`, and p_single."""
-        db = self.database
-        centre = rot.inv().apply([0.0, 0.0, 1.0])
-        near = np.asarray(
-            db.tree.query_ball_point(centre, 2.0 * math.sin(min(cone_rad, math.pi / 2) / 2.0)),
-            dtype=np.int64,
-        )
+        centre = r[2]  # the boresight in ICRS: R.T @ (0, 0, 1)
+        cone = min(cone_rad, math.pi / 2)
+        if float(centre @ sky.centre) < math.cos(max(math.acos(sky.cos_reach) - cone, 0.0)):
+            # moved too far for the fetched stars (never seen in practice): fetch again
+            sky = _Field(self.database, centre.copy(), cone + 0.05)
+        inside = sky.vectors @ centre >= math.cos(cone)
+        near = sky.index[inside]
         solid_angle = 2.0 * math.pi * (1.0 - math.cos(cone_rad))
         p_single = len(near) * math.pi * radius**2 / solid_angle
         if len(near) == 0:
             return _EMPTY_INT, _EMPTY_INT, p_single
-        cam = rot.apply(db.vectors[near])
-        chord = np.linalg.norm(vs[:, None, :] - cam[None, :, :], axis=-1)
+        cam = sky.vectors[inside] @ r.T
+        # squared chords between unit vectors: 2 - 2 cos
+        chord2 = 2.0 - 2.0 * (vs @ cam.T)
         limit = 2.0 * math.sin(radius / 2.0)
-        di, ci = np.nonzero(chord <= limit)
-        order = np.argsort(chord[di, ci], kind="stable")
-        used_d: set[int] = set()
-        used_c: set[int] = set()
-        pairs = []
-        for d, c in zip(di[order].tolist(), ci[order].tolist(), strict=True):
-            if d in used_d or c in used_c:
-                continue
-            used_d.add(d)
-            used_c.add(c)
-            pairs.append((d, c))
-        if not pairs:
+        di, ci = np.nonzero(chord2 <= limit * limit)
+        if len(di) == 0:
             return _EMPTY_INT, _EMPTY_INT, p_single
-        pairs.sort()
-        arr = np.asarray(pairs, dtype=np.int64)
-        return arr[:, 0], near[arr[:, 1]], p_single
+        if np.any(di[1:] == di[:-1]) or np.bincount(ci).max() > 1:  # di is sorted
+            # contested: nearest pairs first, each detection and star used once
+            order = np.argsort(chord2[di, ci], kind="stable")
+            used_d: set[int] = set()
+            used_c: set[int] = set()
+            pairs = []
+            for d, c in zip(di[order].tolist(), ci[order].tolist(), strict=True):
+                if d in used_d or c in used_c:
+                    continue
+                used_d.add(d)
+                used_c.add(c)
+                pairs.append((d, c))
+            pairs.sort()
+            arr = np.asarray(pairs, dtype=np.int64)
+            di, ci = arr[:, 0], arr[:, 1]
+        return di.astype(np.int64), near[ci], p_single
+
+
+def _same_pairs(
+    pairs: tuple[NDArray[np.int64], NDArray[np.int64]],
+    det: NDArray[np.int64],
+    cat: NDArray[np.int64],
+) -> bool:
+    """Whether (det, cat) are the pairs of the last fit (then the fit would not change)."""
+    d0, c0 = pairs
+    return len(d0) == len(det) and bool(np.array_equal(d0, det) and np.array_equal(c0, cat))
 
 
 def _unit_from_tangent(t: NDArray[np.float64]) -> NDArray[np.float64]:
-    v = np.concatenate([t, np.ones((len(t), 1))], axis=1)
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
+    v = np.empty((len(t), 3))
+    v[:, :2] = t
+    v[:, 2] = 1.0
+    return v / np.sqrt(np.sum(v * v, axis=1))[:, None]
 
 
 def identify_ranked(identifier, vectors_cam, brightness, *args, **kwargs) -> Identification:
