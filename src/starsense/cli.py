@@ -39,8 +39,10 @@ app.add_typer(slew_app, name="slew")
 
 def _register_subapps() -> None:
     from starsense.cli_availability import availability_app
+    from starsense.cli_guide_stars import guide_stars_app
 
     app.add_typer(availability_app, name="availability")
+    app.add_typer(guide_stars_app, name="guide-stars")
 
 
 _register_subapps()
