@@ -6,9 +6,10 @@ is a star when it has at least ``min_pixels`` lit pixels and their background-su
 sum to at least ``min_integrated_counts`` (its *integrated intensity*).
 
 For real frames the threshold can follow the noise: with ``threshold_sigma`` set, a pixel is lit
-when it exceeds ``max(lit_pixel_counts, threshold_sigma x noise)`` above the background map, and
-hot pixels (:func:`~starsense.detect.background.hot_pixel_mask`) are replaced by the background
-before labelling.
+when it exceeds ``max(lit_pixel_counts, threshold_sigma x noise)`` above the background map (with
+``background="auto"`` the noise is a map, so the threshold follows the sky glow's shot noise
+across the frame), and hot pixels (:func:`~starsense.detect.background.hot_pixel_mask`) are
+replaced by the background before labelling.
 """
 
 from __future__ import annotations
@@ -128,6 +129,9 @@ class StarDetector:
         Window margin around each star for the centroid.
     psf_sigma_px : float
         Starting PSF width of the Gaussian fit.
+    max_pixels : int or None
+        Optional upper bound on a star's lit pixels (rejects large blobs: the Moon's limb, a
+        satellite streak, a light leak); None for no bound.
     """
 
     def __init__(
@@ -142,6 +146,7 @@ class StarDetector:
         remove_hot_pixels: bool = True,
         margin_px: int = 2,
         psf_sigma_px: float = 1.5,
+        max_pixels: int | None = None,
     ) -> None:
         self.logic = logic if logic is not None else DetectionThresholds()
         if centroid not in METHODS:
@@ -150,6 +155,23 @@ class StarDetector:
             raise InputError(f"threshold_sigma must be > 0, got {threshold_sigma!r}")
         if int(margin_px) != margin_px or margin_px < 0:
             raise InputError(f"margin_px must be an integer >= 0, got {margin_px!r}")
+        if saturation_counts is not None and not (
+            np.isfinite(saturation_counts) and saturation_counts > 0
+        ):
+            raise InputError(f"saturation_counts must be > 0 or None, got {saturation_counts!r}")
+        if not (np.isfinite(psf_sigma_px) and psf_sigma_px > 0):
+            raise InputError(f"psf_sigma_px must be > 0, got {psf_sigma_px!r}")
+        if not (np.isfinite(noise_counts) and noise_counts >= 0):
+            raise InputError(f"noise_counts must be >= 0, got {noise_counts!r}")
+        if max_pixels is not None and (
+            isinstance(max_pixels, bool)
+            or int(max_pixels) != max_pixels
+            or max_pixels < self.logic.min_pixels
+        ):
+            raise InputError(
+                f"max_pixels must be None or an integer >= min_pixels ({self.logic.min_pixels}), "
+                f"got {max_pixels!r}"
+            )
         if isinstance(background, str) and background != "auto":
             raise InputError(f"background must be 'auto', a number or None, got {background!r}")
         self.centroid = centroid
@@ -160,6 +182,7 @@ class StarDetector:
         self.remove_hot_pixels = remove_hot_pixels
         self.margin_px = int(margin_px)
         self.psf_sigma_px = float(psf_sigma_px)
+        self.max_pixels = None if max_pixels is None else int(max_pixels)
 
     @classmethod
     def for_sensor(cls, sensor, centroid: str = "cog", **kwargs) -> StarDetector:
@@ -190,7 +213,7 @@ class StarDetector:
             sub[hot] = 0.0
         threshold = self.logic.lit_pixel_counts
         if self.threshold_sigma is not None:
-            threshold = max(threshold, self.threshold_sigma * bg.noise)
+            threshold = np.maximum(np.float32(threshold), bg.threshold_counts(self.threshold_sigma))
         lit = sub > threshold
         structure = ndimage.generate_binary_structure(2, 1 if self.logic.connectivity == 4 else 2)
         labels, n = ndimage.label(lit, structure=structure)
@@ -206,6 +229,8 @@ class StarDetector:
         sizes = np.bincount(lab, minlength=n + 1)
         sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
         ok = (sizes >= self.logic.min_pixels) & (sums >= self.logic.min_integrated_counts)
+        if self.max_pixels is not None:
+            ok &= sizes <= self.max_pixels
         ok[0] = False
         keep = np.flatnonzero(ok)
         if keep.size == 0:
@@ -228,6 +253,10 @@ class StarDetector:
             else:
                 x, y = cog(window, wr0, wc0, 2 if self.centroid == "iwcog" else 1)
                 fit_ok = bool(np.isfinite(x))
+            if not np.isfinite(x):
+                # a faint region whose window sums to <= 0 (noise): the CoG of its lit pixels,
+                # which are all above the threshold, still places it (flagged by fit_ok)
+                x, y = cog(np.where(labels[sl] == k, sub[sl], 0.0), r0, c0)
             xs.append(x)
             ys.append(y)
             fits.append(fit_ok)
