@@ -32,7 +32,7 @@ from starsense.identify.database import (
     order_by_centroid_distance,
     pattern_edges,
 )
-from starsense.identify.verify import Identification, Verifier, validate_vectors
+from starsense.identify.verify import Identification, Verifier, result_builder, validate_vectors
 
 __all__ = ["HashIdentifier"]
 
@@ -218,15 +218,7 @@ class HashIdentifier:
             raise InputError(f"assumed_fov_rad = {assumed_fov_rad} must be in (0, pi)")
         n = len(v)
 
-        def result(status: str, message: str, **kw) -> Identification:
-            return Identification(
-                status=status,
-                algorithm=self.algorithm,
-                n_detections=n,
-                time_ms=(time.perf_counter() - t0) * 1e3,
-                message=message,
-                **kw,
-            )
+        result = result_builder(self.algorithm, n, t0)
 
         if n < 4:
             return result("too_few_stars", f"{n} detections; the 4-star hashing needs at least 4")

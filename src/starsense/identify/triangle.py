@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from starsense.errors import InputError
 from starsense.identify.database import IdentificationDatabase, _breadth_first_combinations
-from starsense.identify.verify import Identification, Verifier, validate_vectors
+from starsense.identify.verify import Identification, Verifier, result_builder, validate_vectors
 
 __all__ = ["TriangleIdentifier"]
 
@@ -177,15 +177,7 @@ class TriangleIdentifier:
         tol = self.tolerance_rad if self.tolerance_rad is not None else 0.002 * fov_rad
         n = len(v)
 
-        def result(status: str, message: str, **kw) -> Identification:
-            return Identification(
-                status=status,
-                algorithm=self.algorithm,
-                n_detections=n,
-                time_ms=(time.perf_counter() - t0) * 1e3,
-                message=message,
-                **kw,
-            )
+        result = result_builder(self.algorithm, n, t0)
 
         if n < 3:
             return result("too_few_stars", f"{n} detections; the triangle algorithm needs 3")

@@ -470,6 +470,24 @@ def _unit_from_tangent(t: NDArray[np.float64]) -> NDArray[np.float64]:
     return v / np.sqrt(np.sum(v * v, axis=1))[:, None]
 
 
+def result_builder(algorithm: str, n_detections: int, t0: float):
+    """``result(status, message, **fields) -> Identification`` for one identifier call, stamping
+    the algorithm, the number of detections and the time since ``t0`` (perf_counter)."""
+    import time
+
+    def result(status: str, message: str, **kw) -> Identification:
+        return Identification(
+            status=status,
+            algorithm=algorithm,
+            n_detections=n_detections,
+            time_ms=(time.perf_counter() - t0) * 1e3,
+            message=message,
+            **kw,
+        )
+
+    return result
+
+
 def identify_ranked(identifier, vectors_cam, brightness, *args, **kwargs) -> Identification:
     """Run ``identifier`` on detections given in any order, ranked here by ``brightness``.
 
