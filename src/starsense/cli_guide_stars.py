@@ -50,6 +50,20 @@ def simulate(
         str,
         typer.Option("--metric", help="pointing: cross-boresight error norm; total: with roll."),
     ] = "pointing",
+    identify: Annotated[
+        bool,
+        typer.Option(
+            "--identify/--no-identify",
+            help="Triangle identification in the loop (a misidentified trial fails).",
+        ),
+    ] = True,
+    sigma_kind: Annotated[
+        str,
+        typer.Option(
+            "--sigma-kind",
+            help="1sigma: sigmas are per-axis standard deviations; 3sigma: 3-sigma bounds.",
+        ),
+    ] = "1sigma",
     seed: SeedOpt = 0,
     as_json: JsonOpt = False,
 ) -> None:
@@ -70,12 +84,16 @@ def simulate(
         threshold_arcsec=threshold,
         metric=metric,
         seed=seed,
+        identify=identify,
+        sigma_kind=sigma_kind,
     )
     payload = tab.as_dict()
     names = list(tab.probability_mc)
     lines = [
         f"P(accuracy < {tab.threshold_arcsec:g} arcsec), %, Monte Carlo / analytic "
-        f"({tab.n_trials} trials, metric {tab.metric}, {tab.elapsed_s:.1f} s)",
+        f"({tab.n_trials} trials, metric {tab.metric}, sigma {tab.sigma_kind}, "
+        f"identification {'in the loop' if tab.identify else 'assumed'}, "
+        f"{tab.elapsed_s:.1f} s)",
         "sigma    " + " ".join(f"{c:>15s}" for c in names),
     ]
     for i, s in enumerate(tab.sigma_arcsec):
@@ -84,4 +102,10 @@ def simulate(
             for c in names
         )
         lines.append(f"{s:<8g} {cells}")
+    if tab.identify:
+        lines.append(
+            "identified correctly, %: "
+            + ", ".join(f"{c} {100 * tab.identified[c].min():.2f}" for c in names)
+            + " (lowest over sigma)"
+        )
     emit(payload, as_json, lines)

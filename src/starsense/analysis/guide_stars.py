@@ -36,8 +36,19 @@ The paper's simulation (sec. 4), as implemented here
       ``|delta phi|`` (:func:`starsense.geometry.attitude.small_rotation_angles`), whose mean
       square is tr P (eq. 4: "the variance of the overall attitude error"); ``metric="pointing"``
       uses the cross-boresight part ``|(delta phi_x, delta phi_y)|`` only.
-    * Identification is assumed correct (the paper's reference catalogue "does not include
-      interfering stars"); triangle identification in the loop is not simulated here.
+    * Identification: the triangle algorithm runs in the loop (:func:`identify_triangles`):
+      the catalogue is the trial's own guide stars (the paper's reference catalogue "does not
+      include interfering stars"), the side tolerance is 3 standard deviations of a measured
+      inter-star angle (``3 sqrt(2) sigma``), and a trial counts as a success only when the
+      stars are identified correctly *and* the error is below the threshold. On the 7 % lattice
+      some placements are ambiguous for every triangle (collinear and congruent star sets):
+      0.16 % with four areas, 0.18 % with three, ~0.9 % with one, independent of sigma - the
+      paper's Table 1 saturates at 99.87 % (four) and 99.84 % (three).
+    * sigma: a per-axis standard deviation by default. ``sigma_kind="3sigma"`` reads the
+      paper's "measurement error" as a 3-sigma bound (standard deviation sigma / 3); with it the
+      four-area column comes within 7 points of the paper's at every sigma, which no estimator
+      can do under the per-axis reading (the Cramer-Rao bound caps the four-area cell at
+      sigma = 0.3 arcsec near 24 %).
 
 Analytic prediction: the attitude error is Gaussian with covariance P = F^-1 (eqs. 1-3), so
 ``P(|delta phi| < t)`` is a weighted chi-square probability; it is computed exactly as an
@@ -50,7 +61,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from itertools import combinations
+from itertools import combinations, permutations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -117,6 +128,8 @@ PAPER_FOV_DEG = 2048 * 2.0 / 3600.0
 #: default lattice step, fraction of V (sec. 4)
 PAPER_STEP = 0.07
 METRICS = ("total", "pointing")
+#: how a quoted measurement error relates to the per-axis standard deviation
+SIGMA_KINDS = {"1sigma": 1.0, "3sigma": 3.0}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -515,6 +528,120 @@ def monte_carlo_errors(
 
 
 # ---------------------------------------------------------------------------------------------
+# triangle identification in the loop
+
+#: identification outcome codes of :func:`identify_triangles`
+ID_FAILED, ID_CORRECT, ID_WRONG = 0, 1, 2
+#: default side tolerance, in standard deviations of a measured inter-star angle
+ID_TOLERANCE_SIGMA = 3.0
+
+
+def _pair_angles(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Inter-star angles (..., N, N) of unit vectors (..., N, 3), rad (chord form, exact)."""
+    chord = np.linalg.norm(v[..., :, None, :] - v[..., None, :, :], axis=-1)
+    return 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
+
+
+def _handedness(v: NDArray[np.float64], tri: NDArray[np.int_]) -> NDArray[np.float64]:
+    """Sign of the triple product of the triangles ``tri`` (T, 3) of each set (..., N, 3)."""
+    a, b, c = v[..., tri[:, 0], :], v[..., tri[:, 1], :], v[..., tri[:, 2], :]
+    return np.sign(np.einsum("...i,...i->...", a, np.cross(b, c)))
+
+
+def identify_triangles(
+    measured: ArrayLike, catalogue: ArrayLike, tolerance_rad: float
+) -> NDArray[np.int_]:
+    """Triangle star identification of many small star sets at once (Liebe 1992), with
+    verification by the remaining stars.
+
+    The catalogue of each trial is its own guide stars (Lin et al. 2024, sec. 4: "the reference
+    star catalog does not include interfering stars"). The measured triangles are tried in
+    turn; a catalogue triangle (an ordered vertex triple) is a candidate when its three sides
+    match the measured ones within ``tolerance_rad`` and it has the same handedness (the sign of
+    the triple product, which a rotation keeps). A candidate is verified when every remaining
+    measured star has a remaining catalogue star whose angles to the triangle's three vertices
+    match within the tolerance. The first measured triangle with exactly one verified
+    candidate decides; a trial where no triangle does is a failure. The algorithm sees only
+    inter-star angles, never the star indices, so the outcome is compared to the truth (star
+    ``i`` measured is catalogue star ``i``) only at the end.
+
+    Parameters
+    ----------
+    measured : array_like, shape (M, N, 3)
+        Measured (noisy) camera-frame unit vectors, N >= 3.
+    catalogue : array_like, shape (M, N, 3)
+        The guide stars' true directions in any one frame per trial (angles are all that
+        matter).
+    tolerance_rad : float
+        Largest accepted difference between a measured and a catalogue angle, rad.
+
+    Returns
+    -------
+    ndarray of int, shape (M,)
+        :data:`ID_CORRECT`, :data:`ID_WRONG` or :data:`ID_FAILED` per trial.
+    """
+    tol = _sigma(tolerance_rad, "tolerance_rad")
+    bm = np.asarray(measured, dtype=np.float64)
+    bc = np.asarray(catalogue, dtype=np.float64)
+    if bm.ndim != 3 or bm.shape[-1] != 3 or bm.shape != bc.shape:
+        raise InputError(
+            f"measured and catalogue must both have shape (M, N, 3), got {bm.shape} and {bc.shape}"
+        )
+    m, n = bm.shape[:2]
+    if n < 3:
+        raise InputError(f"triangle identification needs at least 3 guide stars, got {n}")
+    combos = np.array(list(combinations(range(n), 3)))  # measured triangles, tried in order
+    perms = np.array(list(permutations(range(n), 3)))  # catalogue ordered triangles
+    dm, dc = _pair_angles(bm), _pair_angles(bc)
+    hm, hc = _handedness(bm, combos), _handedness(bc, perms)
+    side_m = np.stack(
+        [
+            dm[:, combos[:, 0], combos[:, 1]],
+            dm[:, combos[:, 0], combos[:, 2]],
+            dm[:, combos[:, 1], combos[:, 2]],
+        ],
+        axis=-1,
+    )  # (M, T, 3)
+    side_c = np.stack(
+        [
+            dc[:, perms[:, 0], perms[:, 1]],
+            dc[:, perms[:, 0], perms[:, 2]],
+            dc[:, perms[:, 1], perms[:, 2]],
+        ],
+        axis=-1,
+    )  # (M, P, 3)
+    match = np.all(np.abs(side_m[:, :, None, :] - side_c[:, None, :, :]) <= tol, axis=-1)
+    match &= hm[:, :, None] == hc[:, None, :]
+    # verification of the (sparse) candidates by the remaining stars
+    k, t, p = np.nonzero(match)
+    verified = np.ones(len(k), dtype=bool)
+    if n > 3 and len(k):
+        others = np.array([[j for j in range(n) if j not in c] for c in combos])  # (T, N-3)
+        rest_m = others[t]  # (K, N-3) remaining measured stars
+        in_p = np.zeros((len(k), n), dtype=bool)
+        in_p[np.arange(len(k))[:, None], perms[p]] = True
+        # angles from each remaining measured star to the measured triangle's vertices
+        am = dm[k[:, None, None], rest_m[:, :, None], combos[t][:, None, :]]  # (K, N-3, 3)
+        # angles from every catalogue star to the catalogue triangle's vertices
+        ac = dc[k[:, None, None], np.arange(n)[None, :, None], perms[p][:, None, :]]  # (K, N, 3)
+        ok = np.all(np.abs(am[:, :, None, :] - ac[:, None, :, :]) <= tol, axis=-1)
+        ok &= ~in_p[:, None, :]  # (K, N-3, N)
+        verified = np.all(ok.any(axis=-1), axis=-1)
+    n_verified = np.zeros((m, len(combos)), dtype=int)
+    np.add.at(n_verified, (k[verified], t[verified]), 1)
+    decided = n_verified == 1
+    has = decided.any(axis=1)
+    first = np.argmax(decided, axis=1)
+    out = np.full(m, ID_FAILED, dtype=int)
+    if has.any():
+        sel = verified & (t == first[k]) & has[k]
+        kk, pp = k[sel], p[sel]
+        correct = np.all(perms[pp] == combos[first[kk]], axis=-1)
+        out[kk] = np.where(correct, ID_CORRECT, ID_WRONG)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
 # Table 1
 
 
@@ -533,7 +660,13 @@ class GuideStarTable:
         Average FOV ratio of the triangles of each placement (denominator: the
         configuration's own areas).
     placements : dict str -> ndarray (n_trials, n_stars, 2)
-    threshold_arcsec, fov_deg, step, n_stars, n_trials, metric, seed : settings
+    success : dict str -> ndarray of bool (n_sigma, n_trials)
+        Per trial: identified correctly (when ``identify``) and error below the threshold.
+    identified : dict str -> ndarray (n_sigma,)
+        Fraction of trials whose stars the triangle algorithm identified correctly (1 when
+        ``identify`` is False).
+    threshold_arcsec, fov_deg, step, n_stars, n_trials, metric, seed, identify, sigma_kind :
+        settings
     elapsed_s : float
         Wall-clock time of the whole table, s.
     """
@@ -543,6 +676,8 @@ class GuideStarTable:
     probability_analytic: dict[str, NDArray[np.float64]]
     triangle_ratio: dict[str, NDArray[np.float64]] = field(repr=False)
     placements: dict[str, NDArray[np.float64]] = field(repr=False)
+    success: dict[str, NDArray[np.bool_]] = field(repr=False, default_factory=dict)
+    identified: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     threshold_arcsec: float = 0.1
     fov_deg: float = PAPER_FOV_DEG
     step: float = PAPER_STEP
@@ -550,7 +685,44 @@ class GuideStarTable:
     n_trials: int = 10_000
     metric: str = "pointing"
     seed: int = 0
+    identify: bool = True
+    sigma_kind: str = "1sigma"
     elapsed_s: float = 0.0
+
+    def by_triangle_ratio(
+        self, configuration: str, sigma_arcsec: float, n_bins: int = 10
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int_]]:
+        """Probability of success against the triangle ratio (Lin et al. 2024, Figs. 5-6).
+
+        Trials are binned on quantiles of their average FOV ratio of the triangles, so every bin
+        holds about the same number of trials.
+
+        Returns
+        -------
+        ratio : ndarray (n_bins,)
+            Mean triangle ratio of each bin.
+        probability : ndarray (n_bins,)
+            Fraction of the bin's trials that succeeded, 0-1.
+        count : ndarray of int (n_bins,)
+        """
+        if configuration not in self.success:
+            raise InputError(f"configuration {configuration!r} is not in this table")
+        try:
+            i = [round(x, 12) for x in self.sigma_arcsec].index(round(float(sigma_arcsec), 12))
+        except ValueError:
+            raise InputError(
+                f"sigma {sigma_arcsec!r} arcsec is not in this table ({list(self.sigma_arcsec)})"
+            ) from None
+        if not isinstance(n_bins, int) or n_bins < 1:
+            raise InputError(f"n_bins = {n_bins!r} must be an integer >= 1")
+        r = self.triangle_ratio[configuration]
+        ok = self.success[configuration][i]
+        order = np.argsort(r, kind="stable")
+        groups = np.array_split(order, n_bins)
+        ratio = np.array([r[g].mean() for g in groups])
+        prob = np.array([ok[g].mean() for g in groups])
+        count = np.array([len(g) for g in groups])
+        return ratio, prob, count
 
     def as_dict(self) -> dict:
         """JSON-ready summary (the CLI's ``--json`` payload)."""
@@ -568,6 +740,9 @@ class GuideStarTable:
             "n_trials": self.n_trials,
             "metric": self.metric,
             "seed": self.seed,
+            "identify": self.identify,
+            "identified": {k: v.tolist() for k, v in self.identified.items()},
+            "sigma_kind": self.sigma_kind,
             "elapsed_s": self.elapsed_s,
         }
 
@@ -582,6 +757,9 @@ def simulate_table1(
     step: float = PAPER_STEP,
     metric: str = "pointing",
     seed: int = 0,
+    identify: bool = True,
+    sigma_kind: str = "1sigma",
+    id_tolerance_sigma: float = ID_TOLERANCE_SIGMA,
 ) -> GuideStarTable:
     """Lin et al. 2024, Table 1: P(accuracy < threshold) per configuration and sigma.
 
@@ -609,6 +787,15 @@ def simulate_table1(
         Accuracy = norm of the whole error rotation vector, or of its cross-boresight part.
     seed : int
         Root seed.
+    identify : bool
+        Run triangle identification in the loop (:func:`identify_triangles`); a trial
+        succeeds only if its stars are identified correctly.
+    sigma_kind : {"1sigma", "3sigma"}
+        ``sigmas_arcsec`` are per-axis standard deviations, or 3-sigma bounds (standard
+        deviation sigma / 3), see the module notes.
+    id_tolerance_sigma : float
+        Side tolerance of the identification, in standard deviations of a measured
+        inter-star angle (sqrt(2) x the per-axis standard deviation).
 
     Returns
     -------
@@ -622,6 +809,12 @@ def simulate_table1(
         _sigma(s, "sigma_arcsec")
     thr = _sigma(threshold_arcsec, "threshold_arcsec")
     _check_metric(metric)
+    if sigma_kind not in SIGMA_KINDS:
+        raise InputError(
+            f"sigma_kind = {sigma_kind!r} is not known; choose one of {', '.join(SIGMA_KINDS)}"
+        )
+    k_tol = _sigma(id_tolerance_sigma, "id_tolerance_sigma")
+    sd_per_quoted = 1.0 / SIGMA_KINDS[sigma_kind]
     if not (np.isfinite(fov_deg) and 0.0 < fov_deg < 90.0):
         raise InputError(f"fov_deg = {fov_deg!r} must be in (0, 90)")
     configs = tuple(CONFIGURATIONS) if configurations is None else tuple(configurations)
@@ -634,6 +827,8 @@ def simulate_table1(
     p_an: dict[str, NDArray[np.float64]] = {}
     ratios: dict[str, NDArray[np.float64]] = {}
     places: dict[str, NDArray[np.float64]] = {}
+    succ: dict[str, NDArray[np.bool_]] = {}
+    ident: dict[str, NDArray[np.float64]] = {}
     for c, child in zip(configs, children, strict=True):
         gen = np.random.default_rng(child)
         xy = sample_placements(c, n_trials, n_stars, step, gen)
@@ -641,13 +836,23 @@ def simulate_table1(
         z = gen.standard_normal((n_trials, n_stars, 2))
         att = random_attitudes(n_trials, gen)
         cov1 = batch_covariance(vec, 1.0)  # P scales with sigma^2
-        mc, an = [], []
+        an, ok_rows, id_rows = [], [], []
         for s in sig:
-            s_rad = s * ARCSEC_RAD
+            s_rad = s * ARCSEC_RAD * sd_per_quoted
             err = monte_carlo_errors(vec, s_rad, noise=z, attitudes=att)
-            mc.append(float(np.mean(error_norm(err, metric) < thr_rad)))
+            ok = error_norm(err, metric) < thr_rad
+            if identify:
+                measured = _tangent_noise(vec, z, s_rad)  # the same noisy stars the solve used
+                found = identify_triangles(measured, vec, k_tol * math.sqrt(2.0) * s_rad)
+                ok &= found == ID_CORRECT
+                id_rows.append(float(np.mean(found == ID_CORRECT)))
+            else:
+                id_rows.append(1.0)
+            ok_rows.append(ok)
             an.append(float(np.mean(probability_within(cov1 * s_rad**2, thr_rad, metric))))
-        p_mc[c], p_an[c] = np.array(mc), np.array(an)
+        succ[c] = np.array(ok_rows)
+        p_mc[c], p_an[c] = succ[c].mean(axis=1), np.array(an)
+        ident[c] = np.array(id_rows)
         ratios[c] = triangle_fov_ratio(xy, c)
         places[c] = xy
     return GuideStarTable(
@@ -656,6 +861,8 @@ def simulate_table1(
         probability_analytic=p_an,
         triangle_ratio=ratios,
         placements=places,
+        success=succ,
+        identified=ident,
         threshold_arcsec=thr,
         fov_deg=float(fov_deg),
         step=step,
@@ -663,5 +870,433 @@ def simulate_table1(
         n_trials=n_trials,
         metric=metric,
         seed=seed,
+        identify=bool(identify),
+        sigma_kind=sigma_kind,
         elapsed_s=time.perf_counter() - start,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# guide-star selection (item 4) and real fields (sec. 5, Tables 3-4)
+
+#: selection criteria of :func:`select_guide_stars`
+CRITERIA = ("trace", "rules", "brightest")
+#: area combinations of each configuration on a four-area layout (sec. 5: "the average value of
+#: all possible combinations")
+LAYOUT_COMBINATIONS: dict[str, tuple[tuple[int, ...], ...]] = {
+    "one": ((1,), (2,), (3,), (4,)),
+    "two_adjacent": ((1, 2), (2, 3), (3, 4), (4, 1)),
+    "two_symmetric": ((1, 3), (2, 4)),
+    "three": ((1, 2, 3), (2, 3, 4), (3, 4, 1), (4, 1, 2)),
+    "four": ((1, 2, 3, 4),),
+}
+#: Lin et al. 2024, Tables 3 and 4: average attitude accuracy (arcsec) at average measurement
+#: errors 0.2 and 0.05 arcsec, 1.6 deg patterns (DSS images)
+PAPER_FIELDS: dict[str, dict] = {
+    "table3": {
+        "center_deg": (150.0, 0.0),
+        "accuracy_arcsec": {
+            0.2: {
+                "one": 6.51,
+                "two_adjacent": 0.34,
+                "two_symmetric": 0.21,
+                "three": 0.21,
+                "four": 0.08,
+            },
+            0.05: {
+                "one": 18.02,
+                "two_adjacent": 0.13,
+                "two_symmetric": 0.06,
+                "three": 0.10,
+                "four": 0.04,
+            },
+        },
+    },
+    "table4": {
+        "center_deg": (240.0, -80.0),
+        "accuracy_arcsec": {
+            0.2: {
+                "one": 34.04,
+                "two_adjacent": 0.42,
+                "two_symmetric": 0.21,
+                "three": 0.26,
+                "four": 0.07,
+            },
+            0.05: {
+                "one": 1.17,
+                "two_adjacent": 0.21,
+                "two_symmetric": 0.03,
+                "three": 0.07,
+                "four": 0.03,
+            },
+        },
+    },
+}
+#: the paper's star patterns: lens-circle diameters, deg (Table 2)
+PAPER_PATTERN_FOVS_DEG = (1.6, 0.4)
+
+
+@dataclass(frozen=True, eq=False)
+class GuideStarSelection:
+    """Guide stars chosen from the stars in some attitude-determination areas.
+
+    Attributes
+    ----------
+    status : str
+        ``"ok"``, ``"no_stars"`` (no catalogue star in the areas) or ``"too_few_stars"`` (1-2:
+        no triangle, no attitude).
+    indices : ndarray of int
+        Chosen stars, indices into the arrays given to :func:`select_guide_stars`.
+    n_candidates : int
+        Stars in the areas (before the brightness cut to ``max_candidates``).
+    areas_covered : int
+        Areas holding at least one chosen star.
+    triangle_ratio : float
+        Average FOV ratio of the chosen stars' triangles (NaN below 3 stars).
+    predicted_rad : float
+        ``sqrt(trace P)`` of the metric's block at ``sigma_rad`` (NaN below 3 stars).
+    criterion : str
+    """
+
+    status: str
+    indices: NDArray[np.int_]
+    n_candidates: int
+    areas_covered: int
+    triangle_ratio: float
+    predicted_rad: float
+    criterion: str
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+def _metric_block(cov: NDArray[np.float64], metric: str) -> NDArray[np.float64]:
+    return cov[..., :2, :2] if metric == "pointing" else cov
+
+
+def select_guide_stars(
+    xy: ArrayLike,
+    magnitude: ArrayLike,
+    layout,
+    areas: tuple[int, ...] | None = None,
+    n_stars: int = 5,
+    criterion: str = "trace",
+    sigma_rad: float = 0.1 * ARCSEC_RAD,
+    metric: str = "pointing",
+    max_candidates: int = 20,
+) -> GuideStarSelection:
+    """Choose ``n_stars`` guide stars among the stars in some areas of a layout.
+
+    Criteria
+        ``"trace"`` (the direct one): the combination with the smallest trace of the attitude
+        covariance (eqs. 1-3; the x-y block for ``metric="pointing"``). ``"rules"`` (the paper's
+        sec. 4 rules): cover as many areas as possible, then the largest average FOV ratio of
+        the triangles. ``"brightest"``: the ``n_stars`` brightest, the baseline. Combinations
+        are enumerated exhaustively among the ``max_candidates`` brightest stars in the areas
+        (C(20, 5) = 15,504 at the defaults, vectorised).
+
+    Parameters
+    ----------
+    xy : array_like, shape (N, 2)
+        Stars' tangent-plane coordinates (:mod:`starsense.geometry.areas`).
+    magnitude : array_like, shape (N,)
+        Brightness order (smaller is brighter); NaN sorts last.
+    layout : AreaLayout
+    areas : tuple of int or None
+        1-based area numbers to use (default: all).
+    n_stars : int
+        Guide stars wanted, >= 3; fewer are used when the areas hold fewer.
+    criterion, sigma_rad, metric, max_candidates : see above.
+
+    Returns
+    -------
+    GuideStarSelection
+    """
+    from starsense.geometry.areas import tangent_to_vectors
+
+    p = _xy(xy)
+    if p.ndim != 2:
+        raise InputError(f"xy must have shape (N, 2), got {p.shape}")
+    mag = np.asarray(magnitude, dtype=np.float64)
+    if mag.shape != (len(p),):
+        raise InputError(f"magnitude must have shape ({len(p)},), got {mag.shape}")
+    if criterion not in CRITERIA:
+        raise InputError(f"criterion = {criterion!r} is not known; choose one of {CRITERIA}")
+    _check_metric(metric)
+    s = _sigma(sigma_rad)
+    if not isinstance(n_stars, int | np.integer) or n_stars < 3:
+        raise InputError(
+            f"n_stars = {n_stars!r} must be an integer >= 3 (triangles need three stars)"
+        )
+    if not isinstance(max_candidates, int | np.integer) or max_candidates < n_stars:
+        raise InputError(f"max_candidates = {max_candidates!r} must be an integer >= n_stars")
+    chosen_areas = tuple(range(1, len(layout.areas) + 1)) if areas is None else tuple(areas)
+    for k in chosen_areas:
+        if not 1 <= k <= len(layout.areas):
+            raise InputError(f"area number {k} is not in the layout (1-{len(layout.areas)})")
+    which = layout.index(p) if len(p) else np.zeros(0, dtype=int)
+    cand = np.flatnonzero(np.isin(which, chosen_areas))
+    n_cand = len(cand)
+    cand = cand[np.argsort(np.where(np.isnan(mag[cand]), np.inf, mag[cand]), kind="stable")]
+    cand = cand[:max_candidates]
+    nan = float("nan")
+    if n_cand == 0:
+        return GuideStarSelection("no_stars", cand, 0, 0, nan, nan, criterion)
+    if n_cand < 3:
+        covered = len(set(which[cand].tolist()))
+        return GuideStarSelection("too_few_stars", cand, n_cand, covered, nan, nan, criterion)
+    n = min(n_stars, len(cand))
+    combos = (
+        np.arange(n)[None, :]
+        if criterion == "brightest"
+        else np.array(list(combinations(range(len(cand)), n)))
+    )
+    idx = cand[combos]  # (C, n)
+    denom = layout.subset_area(chosen_areas)
+    best = 0
+    if len(combos) > 1:
+        if criterion == "trace":
+            vec = tangent_to_vectors(p[idx])
+            tr = np.trace(_metric_block(batch_covariance(vec, s), metric), axis1=-2, axis2=-1)
+            best = int(np.argmin(tr))
+        else:  # rules: coverage first, then the triangle ratio
+            covered = np.zeros(len(combos), dtype=int)
+            for k in chosen_areas:
+                covered += (which[idx] == k).any(axis=1)
+            ratio = triangle_fov_ratio(p[idx]) * attitude_area("four") / denom
+            best = int(np.lexsort((-ratio, -covered))[0])
+    sel = idx[best]
+    cov = batch_covariance(tangent_to_vectors(p[sel])[None], s)[0]
+    return GuideStarSelection(
+        status="ok",
+        indices=sel,
+        n_candidates=n_cand,
+        areas_covered=len(set(which[sel].tolist())),
+        triangle_ratio=float(triangle_fov_ratio(p[sel]) * attitude_area("four") / denom),
+        predicted_rad=float(np.sqrt(np.trace(_metric_block(cov, metric)))),
+        criterion=criterion,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class FieldAccuracy:
+    """Average attitude accuracy of a real star field per configuration (Tables 3-4).
+
+    Attributes
+    ----------
+    center_deg, lens_fov_deg, catalog, band, max_mag : the field and the stars used
+    stars_per_area : tuple of int
+        Catalogue stars in areas 1-4.
+    sigma_arcsec : tuple of float
+    accuracy_arcsec : dict str -> ndarray (n_sigma,)
+        Mean attitude error (Monte Carlo, the metric's norm) averaged over the configuration's
+        usable area combinations; NaN when none is usable.
+    predicted_arcsec : dict str -> ndarray (n_sigma,)
+        The same average of ``sqrt(trace P)`` (eqs. 1-3).
+    usable : dict str -> tuple (usable, total)
+        Area combinations with at least three stars, and all combinations.
+    selections : dict str -> list of (areas, GuideStarSelection)
+    """
+
+    center_deg: tuple[float, float]
+    lens_fov_deg: float
+    catalog: str
+    band: str
+    max_mag: float | None
+    stars_per_area: tuple[int, ...]
+    sigma_arcsec: tuple[float, ...]
+    accuracy_arcsec: dict[str, NDArray[np.float64]]
+    predicted_arcsec: dict[str, NDArray[np.float64]]
+    usable: dict[str, tuple[int, int]]
+    selections: dict[str, list] = field(repr=False)
+    criterion: str = "trace"
+    n_trials: int = 2000
+    metric: str = "pointing"
+    sigma_kind: str = "1sigma"
+
+    def as_dict(self) -> dict:
+        def num(x: float) -> float | None:
+            return None if not np.isfinite(x) else float(x)
+
+        return {
+            "center_deg": list(self.center_deg),
+            "lens_fov_deg": self.lens_fov_deg,
+            "catalog": self.catalog,
+            "band": self.band,
+            "max_mag": self.max_mag,
+            "stars_per_area": list(self.stars_per_area),
+            "sigma_arcsec": list(self.sigma_arcsec),
+            "accuracy_arcsec": {k: [num(x) for x in v] for k, v in self.accuracy_arcsec.items()},
+            "predicted_arcsec": {k: [num(x) for x in v] for k, v in self.predicted_arcsec.items()},
+            "usable_combinations": {k: list(v) for k, v in self.usable.items()},
+            "guide_stars": {
+                k: [
+                    {
+                        "areas": list(a),
+                        "status": s.status,
+                        "n_candidates": s.n_candidates,
+                        "n_guide_stars": len(s.indices) if s.ok else 0,
+                        "areas_covered": s.areas_covered,
+                        "triangle_ratio": num(s.triangle_ratio),
+                    }
+                    for a, s in v
+                ]
+                for k, v in self.selections.items()
+            },
+            "criterion": self.criterion,
+            "n_trials": self.n_trials,
+            "metric": self.metric,
+            "sigma_kind": self.sigma_kind,
+        }
+
+
+def lin_layout(lens_fov_deg: float):
+    """The four-segment layout of a lens circle of diameter ``lens_fov_deg`` (Table 2's FOV)."""
+    from starsense.geometry.areas import AreaLayout
+
+    if not (np.isfinite(lens_fov_deg) and 0 < lens_fov_deg < 60):
+        raise InputError(f"lens_fov_deg = {lens_fov_deg!r} must be in (0, 60) deg")
+    return AreaLayout.lin2024(math.tan(math.radians(lens_fov_deg) / 2.0) / math.sqrt(2.0))
+
+
+def field_stars(
+    catalog,
+    center_deg: tuple[float, float],
+    layout,
+    roll_deg: float = 0.0,
+    max_mag: float | None = None,
+) -> tuple[NDArray[np.int_], NDArray[np.float64], NDArray[np.float64], str]:
+    """The catalogue stars that can fall in a layout's areas at one pointing.
+
+    Returns ``(rows, xy, mag, band)``: catalogue row indices, tangent-plane positions and
+    magnitudes of the stars within the layout's outermost vertex of the boresight
+    ``center_deg`` (RA, Dec) at roll ``roll_deg``, and the magnitude band used (V, else G,
+    else Hp).
+    """
+    from starsense.geometry.areas import vectors_to_tangent
+    from starsense.geometry.attitude import attitude_from_radec_roll
+
+    try:
+        ra, dec = (float(c) for c in center_deg)
+    except (TypeError, ValueError):
+        raise InputError(f"center {center_deg!r} must be (RA, Dec) in degrees") from None
+    if not (np.isfinite(ra) and np.isfinite(dec) and -90 <= dec <= 90):
+        raise InputError(f"center {center_deg!r}: RA must be finite and Dec within [-90, 90]")
+    band = next((b for b in ("V", "G", "Hp") if b in catalog.bands), None)
+    if band is None:
+        raise InputError(f"catalogue {catalog.name} has none of the bands V, G, Hp")
+    att = attitude_from_radec_roll(math.radians(ra), math.radians(dec), math.radians(roll_deg))
+    reach = max(float(np.hypot(*a.vertices.T).max()) for a in layout.areas)
+    radius = math.atan(reach) * 1.0001
+    rows = np.asarray(catalog.cone(att.inv().apply([0.0, 0.0, 1.0]), radius), dtype=int)
+    mag = np.asarray(catalog.mags[band], dtype=np.float64)[rows]
+    if max_mag is not None:
+        keep = mag <= max_mag
+        rows, mag = rows[keep], mag[keep]
+    xy = vectors_to_tangent(att.apply(catalog.vectors[rows]).reshape(-1, 3))
+    return rows, xy, mag, band
+
+
+def field_accuracy(
+    catalog,
+    center_deg: tuple[float, float],
+    lens_fov_deg: float = 1.6,
+    sigmas_arcsec: ArrayLike = (0.2, 0.05),
+    configurations: tuple[str, ...] | list[str] | None = None,
+    n_stars: int = 5,
+    criterion: str = "trace",
+    max_mag: float | None = None,
+    n_trials: int = 2000,
+    metric: str = "pointing",
+    sigma_kind: str = "1sigma",
+    roll_deg: float = 0.0,
+    seed: int = 0,
+) -> FieldAccuracy:
+    """Lin et al. 2024, Tables 3-4: average accuracy of a real field per configuration.
+
+    For every area combination of every configuration (:data:`LAYOUT_COMBINATIONS`), guide
+    stars are chosen (:func:`select_guide_stars`) among the catalogue stars in those areas, and
+    ``n_trials`` noisy solves (:func:`monte_carlo_errors`) give the mean error; combinations
+    with fewer than three stars are not usable and are counted, not averaged. The layout is the
+    four segments around the square inscribed in the lens circle (``lens_fov_deg`` is the
+    pattern's field, Table 2: 1.6 or 0.4 deg).
+
+    Returns
+    -------
+    FieldAccuracy
+    """
+    sig = np.atleast_1d(np.asarray(sigmas_arcsec, dtype=np.float64))
+    if sig.ndim != 1 or sig.size == 0:
+        raise InputError("sigmas_arcsec must be a non-empty list of numbers")
+    for s in sig:
+        _sigma(s, "sigma_arcsec")
+    if sigma_kind not in SIGMA_KINDS:
+        raise InputError(
+            f"sigma_kind = {sigma_kind!r} is not known; choose one of {', '.join(SIGMA_KINDS)}"
+        )
+    _check_metric(metric)
+    if not isinstance(n_trials, int | np.integer) or n_trials < 1:
+        raise InputError(f"n_trials = {n_trials!r} must be an integer >= 1")
+    configs = tuple(CONFIGURATIONS) if configurations is None else tuple(configurations)
+    for c in configs:
+        configuration_areas(c)
+    layout = lin_layout(lens_fov_deg)
+    _, xy, mag, band = field_stars(catalog, center_deg, layout, roll_deg, max_mag)
+    which = layout.index(xy) if len(xy) else np.zeros(0, dtype=int)
+    per_area = tuple(int(np.sum(which == k)) for k in (1, 2, 3, 4))
+    sd = 1.0 / SIGMA_KINDS[sigma_kind]
+    gen = np.random.default_rng(seed)
+    from starsense.geometry.areas import tangent_to_vectors
+
+    acc: dict[str, NDArray[np.float64]] = {}
+    pred: dict[str, NDArray[np.float64]] = {}
+    usable: dict[str, tuple[int, int]] = {}
+    sels: dict[str, list] = {}
+    for c in configs:
+        combos = LAYOUT_COMBINATIONS[c]
+        rows_acc, rows_pred, chosen = [], [], []
+        for areas in combos:
+            sel = select_guide_stars(
+                xy, mag, layout, areas, n_stars, criterion, 0.1 * ARCSEC_RAD, metric
+            )
+            chosen.append((areas, sel))
+            if not sel.ok:
+                continue
+            vec = tangent_to_vectors(xy[sel.indices])
+            vecs = np.broadcast_to(vec, (n_trials, *vec.shape))
+            z = gen.standard_normal((n_trials, len(vec), 2))
+            att = random_attitudes(n_trials, gen)
+            cov1 = batch_covariance(vec[None], 1.0)[0]
+            a_row, p_row = [], []
+            for s in sig:
+                s_rad = s * ARCSEC_RAD * sd
+                err = monte_carlo_errors(vecs, s_rad, noise=z, attitudes=att)
+                a_row.append(float(np.mean(error_norm(err, metric))) / ARCSEC_RAD)
+                p_row.append(
+                    float(np.sqrt(np.trace(_metric_block(cov1, metric)))) * s_rad / ARCSEC_RAD
+                )
+            rows_acc.append(a_row)
+            rows_pred.append(p_row)
+        usable[c] = (len(rows_acc), len(combos))
+        nan_row = np.full(len(sig), np.nan)
+        acc[c] = np.mean(rows_acc, axis=0) if rows_acc else nan_row
+        pred[c] = np.mean(rows_pred, axis=0) if rows_pred else nan_row
+        sels[c] = chosen
+    return FieldAccuracy(
+        center_deg=(float(center_deg[0]), float(center_deg[1])),
+        lens_fov_deg=float(lens_fov_deg),
+        catalog=str(catalog.name),
+        band=band,
+        max_mag=max_mag,
+        stars_per_area=per_area,
+        sigma_arcsec=tuple(float(s) for s in sig),
+        accuracy_arcsec=acc,
+        predicted_arcsec=pred,
+        usable=usable,
+        selections=sels,
+        criterion=criterion,
+        n_trials=int(n_trials),
+        metric=metric,
+        sigma_kind=sigma_kind,
     )

