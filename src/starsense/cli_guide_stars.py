@@ -1,4 +1,4 @@
-"""``starsense guide-stars simulate``: Lin et al. 2024, Table 1.
+"""``starsense guide-stars simulate|select|field``: Lin et al. 2024, Tables 1, 3 and 4.
 
 Thin: parse, call :func:`starsense.analysis.guide_stars.simulate_table1`, print. User errors are
 :class:`~starsense.errors.InputError`; the main app prints them as one line and exits 2.
@@ -8,9 +8,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
+import numpy as np
 import typer
 
-from starsense.cli_common import JsonOpt, SeedOpt, emit, parse_floats
+from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats
+from starsense.errors import InputError
 
 guide_stars_app = typer.Typer(
     help="Guide-star distribution for multi-area attitude determination (Lin et al. 2024).",
@@ -109,3 +111,236 @@ def simulate(
             + " (lowest over sigma)"
         )
     emit(payload, as_json, lines)
+
+
+CenterOpt = Annotated[
+    str | None,
+    typer.Option("--center-deg", help="Boresight RA,DEC in degrees (default: the paper's fields)."),
+]
+LensOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--lens-fov-deg",
+        help="Lens-circle diameter, deg (the paper's pattern FOV: 1.6 or 0.4); the four areas "
+        "are the segments around the inscribed square.",
+    ),
+]
+CriterionOpt = Annotated[
+    str,
+    typer.Option(
+        "--criterion",
+        help="trace: smallest covariance trace; rules: most areas, then largest triangles; "
+        "brightest.",
+    ),
+]
+MaxMagOpt = Annotated[
+    float | None, typer.Option("--max-mag", help="Faintest catalogue star used (default: all).")
+]
+
+
+def _center(text: str) -> tuple[float, float]:
+    ra, dec = parse_floats(text, "--center-deg", 2)
+    return ra, dec
+
+
+def _configs(text: str | None) -> list[str] | None:
+    return None if text is None else [c.strip() for c in text.split(",") if c.strip()]
+
+
+@guide_stars_app.command()
+def select(
+    center: CenterOpt = None,
+    lens_fov_deg: LensOpt = None,
+    sensor: Annotated[
+        str | None,
+        typer.Option("--sensor", help="Use a sensor's [attitude_areas] (e.g. lin2024)."),
+    ] = None,
+    catalog: CatalogOpt = "hipparcos",
+    areas: Annotated[
+        str | None,
+        typer.Option("--areas", help="Comma-separated area numbers to use (default: all)."),
+    ] = None,
+    n_stars: Annotated[int, typer.Option("--n-stars", help="Guide stars to choose.")] = 5,
+    criterion: CriterionOpt = "trace",
+    sigma: Annotated[
+        float, typer.Option("--sigma-arcsec", help="Per-axis measurement error, arcsec.")
+    ] = 0.1,
+    roll_deg: Annotated[float, typer.Option("--roll-deg", help="Roll about the boresight.")] = 0.0,
+    max_mag: MaxMagOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Choose guide stars in the attitude-determination areas of one pointing."""
+    from starsense.analysis.guide_stars import (
+        ARCSEC_RAD,
+        field_stars,
+        lin_layout,
+        select_guide_stars,
+    )
+    from starsense.catalog import load_catalog
+
+    if center is None:
+        raise InputError("--center-deg RA,DEC is required")
+    if (sensor is None) == (lens_fov_deg is None):
+        raise InputError("give exactly one of --lens-fov-deg and --sensor")
+    if sensor is not None:
+        from starsense.sensor import load_sensor
+
+        sens = load_sensor(sensor)
+        if sens.attitude_areas is None:
+            raise InputError(f"sensor {sens.name!r} defines no [attitude_areas]")
+        layout = sens.attitude_areas
+    else:
+        layout = lin_layout(lens_fov_deg)
+    wanted = None
+    if areas is not None:
+        try:
+            wanted = tuple(int(a) for a in areas.split(",") if a.strip())
+        except ValueError:
+            raise InputError(f"--areas expects comma-separated integers, got {areas!r}") from None
+    cat = load_catalog(catalog)
+    rows, xy, mag, band = field_stars(cat, _center(center), layout, roll_deg, max_mag)
+    sel = select_guide_stars(xy, mag, layout, wanted, n_stars, criterion, sigma * ARCSEC_RAD)
+    which = layout.index(xy) if len(xy) else []
+    stars = [
+        {
+            "id": int(cat.ids[rows[i]]),
+            "ra_deg": float(np.degrees(cat.ra_rad[rows[i]])),
+            "dec_deg": float(np.degrees(cat.dec_rad[rows[i]])),
+            "mag": float(mag[i]),
+            "area": layout.names[int(which[i]) - 1],
+            "field_deg": [float(np.degrees(np.arctan(c))) for c in xy[i]],
+        }
+        for i in sel.indices
+    ]
+    payload = {
+        "status": sel.status,
+        "catalog": cat.name,
+        "band": band,
+        "criterion": sel.criterion,
+        "n_candidates": sel.n_candidates,
+        "areas_covered": sel.areas_covered,
+        "triangle_ratio": None if not sel.ok else sel.triangle_ratio,
+        "predicted_arcsec": None if not sel.ok else sel.predicted_rad / ARCSEC_RAD,
+        "sigma_arcsec": sigma,
+        "guide_stars": stars,
+    }
+    lines = [
+        f"{sel.status}: {sel.n_candidates} {cat.name} stars in the areas; {len(stars)} chosen"
+        f" by {sel.criterion}"
+    ]
+    if sel.ok:
+        lines.append(
+            f"areas covered {sel.areas_covered}, triangle ratio {sel.triangle_ratio:.3f}, "
+            f"predicted accuracy {sel.predicted_rad / ARCSEC_RAD:.3g} arcsec rms at "
+            f"sigma {sigma:g} arcsec"
+        )
+    for st in stars:
+        lines.append(
+            f"  {st['id']:>20d}  RA {st['ra_deg']:9.4f}  Dec {st['dec_deg']:+8.4f}  "
+            f"{band} {st['mag']:6.2f}  area {st['area']}"
+        )
+    emit(payload, as_json, lines)
+    if not sel.ok:
+        raise typer.Exit(1)
+
+
+@guide_stars_app.command("field")
+def field_cmd(
+    center: CenterOpt = None,
+    lens_fov_deg: LensOpt = None,
+    catalog: CatalogOpt = "hipparcos",
+    sigmas: Annotated[
+        str, typer.Option("--sigmas-arcsec", help="Average measurement errors, arcsec.")
+    ] = "0.2,0.05",
+    configurations: Annotated[
+        str | None, typer.Option("--configurations", help="Comma-separated (default all).")
+    ] = None,
+    n_stars: Annotated[int, typer.Option("--n-stars", help="Guide stars per solve.")] = 5,
+    criterion: CriterionOpt = "trace",
+    trials: Annotated[int, typer.Option("--trials", help="Noisy solves per combination.")] = 2000,
+    metric: Annotated[
+        str, typer.Option("--metric", help="pointing or total (with roll).")
+    ] = "pointing",
+    sigma_kind: Annotated[
+        str, typer.Option("--sigma-kind", help="1sigma or 3sigma (see simulate).")
+    ] = "1sigma",
+    max_mag: MaxMagOpt = None,
+    seed: SeedOpt = 0,
+    as_json: JsonOpt = False,
+) -> None:
+    """Tables 3-4: average accuracy per configuration for real star fields.
+
+    Without --center-deg, the paper's four patterns: (150, 0) and (240, -80) at 1.6 and 0.4 deg.
+    """
+    from starsense.analysis.guide_stars import (
+        PAPER_FIELDS,
+        PAPER_PATTERN_FOVS_DEG,
+        field_accuracy,
+    )
+    from starsense.catalog import load_catalog
+
+    sig = parse_floats(sigmas, "--sigmas-arcsec")
+    if center is None:
+        centers = [t["center_deg"] for t in PAPER_FIELDS.values()]
+    else:
+        centers = [_center(center)]
+    fovs = PAPER_PATTERN_FOVS_DEG if lens_fov_deg is None else (lens_fov_deg,)
+    cat = load_catalog(catalog)
+    results = []
+    lines = []
+    for c in centers:
+        for fov in fovs:
+            res = field_accuracy(
+                cat,
+                c,
+                fov,
+                sig,
+                _configs(configurations),
+                n_stars,
+                criterion,
+                max_mag,
+                trials,
+                metric,
+                sigma_kind,
+                seed=seed,
+            )
+            d = res.as_dict()
+            paper = next(
+                (t for t in PAPER_FIELDS.values() if tuple(t["center_deg"]) == tuple(c)), None
+            )
+            d["paper_accuracy_arcsec"] = (
+                {str(k): v for k, v in paper["accuracy_arcsec"].items()}
+                if paper is not None and fov == 1.6
+                else None
+            )
+            results.append(d)
+            n_in = sum(res.stars_per_area)
+            lines.append(
+                f"({c[0]:g}, {c[1]:g}) lens {fov:g} deg, {cat.name} ({res.band}): "
+                f"{n_in} stars in the areas {list(res.stars_per_area)}"
+            )
+            lines.append(
+                "  mean accuracy, arcsec, at sigma "
+                + " / ".join(f"{s:g}" for s in sig)
+                + (" (paper)" if d["paper_accuracy_arcsec"] else "")
+            )
+            for k, acc in res.accuracy_arcsec.items():
+                used, total = res.usable[k]
+                ours = " / ".join("  --  " if not np.isfinite(a) else f"{a:6.3f}" for a in acc)
+                ref = ""
+                if d["paper_accuracy_arcsec"]:
+                    ref = (
+                        "  ("
+                        + " / ".join(
+                            f"{paper['accuracy_arcsec'].get(s, {}).get(k, float('nan')):g}"
+                            for s in sig
+                        )
+                        + ")"
+                    )
+                lines.append(f"  {k:<14s} {ours}{ref}   [{used}/{total} combinations usable]")
+            if any(u == 0 for u, _ in res.usable.values()):
+                lines.append(
+                    "  catalogue too shallow here: some configurations have no combination with "
+                    "three stars (the paper used DSS images, far deeper)"
+                )
+    emit({"fields": results}, as_json, lines)
