@@ -213,6 +213,36 @@ def _solve_esa() -> float:
     return float(np.mean(per_frame))
 
 
+# ---------------------------------------------------------------------------------------------
+# issue 6: guide-star distribution (Lin et al. 2024)
+
+
+@bench(
+    "guide_stars_table1",
+    "Lin 2024 Table 1: 7 sigmas x 5 configurations x 10,000 trials, identification in the loop",
+    60.0,
+)
+def _guide_stars_table1() -> float:
+    from starsense.analysis.guide_stars import simulate_table1
+
+    tab = simulate_table1(n_trials=10_000, seed=0)
+    four = ", ".join(f"{100 * p:.2f}" for p in tab.probability_mc["four"])
+    print(f"    (four areas, %: {four})", flush=True)
+    return tab.elapsed_s
+
+
+@bench("guide_stars_select", "choose 5 of 20 guide stars by covariance trace (15,504 sets)", 0.5)
+def _guide_stars_select() -> float:
+    from starsense.analysis.guide_stars import lin_layout, select_guide_stars
+
+    lay = lin_layout(1.6)
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(-lay.lens_radius, lay.lens_radius, (400, 2))
+    xy = xy[lay.index(xy) > 0][:20]
+    mag = rng.uniform(5, 10, len(xy))
+    return best_of(lambda: select_guide_stars(xy, mag, lay, criterion="trace"), repeat=5)
+
+
 def main(selected: list[str]) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()
