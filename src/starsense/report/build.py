@@ -25,6 +25,7 @@ from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
 from starsense.report import page
 from starsense.report.availability import availability_section
+from starsense.report.guide_stars import guide_stars_section
 from starsense.report.limits import limit_section
 from starsense.report.section import ReportContext, Section
 from starsense.report.sensors import SensorSpec, load_sensor_table
@@ -35,6 +36,7 @@ SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [
     limit_section,
     slew_section,
     availability_section,
+    guide_stars_section,
 ]
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,
