@@ -42,8 +42,9 @@ The paper's simulation (sec. 4), as implemented here
       inter-star angle (``3 sqrt(2) sigma``), and a trial counts as a success only when the
       stars are identified correctly *and* the error is below the threshold. On the 7 % lattice
       some placements are ambiguous for every triangle (collinear and congruent star sets):
-      0.16 % with four areas, 0.18 % with three, ~0.9 % with one, independent of sigma - the
-      paper's Table 1 saturates at 99.87 % (four) and 99.84 % (three).
+      0.14-0.16 % with four areas, 0.2-0.3 % with three, 0.7-0.9 % with one (two seeds of
+      10,000), independent of sigma - the paper's Table 1 saturates at 99.87 % (four) and
+      99.84 % (three).
     * sigma: a per-axis standard deviation by default. ``sigma_kind="3sigma"`` reads the
       paper's "measurement error" as a 3-sigma bound (standard deviation sigma / 3); with it the
       four-area column comes within 7 points of the paper's at every sigma, which no estimator
