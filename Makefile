@@ -10,7 +10,7 @@ OUT    ?= report
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,scale,gaia]'
 	touch $(STAMP)
 
 demo: $(STAMP)  ## the main job: the performance report for the default sensor

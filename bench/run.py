@@ -243,6 +243,118 @@ def _guide_stars_select() -> float:
     return best_of(lambda: select_guide_stars(xy, mag, lay, criterion="trace"), repeat=5)
 
 
+# ---------------------------------------------------------------------------------------------
+# issue 7: deep catalogues on a cluster (starsense.scale; needs starsense[scale])
+# Synthetic HATS catalogues of 1, 2 and 5 million stars (written once by hats-import into the
+# temporary directory and reused), processed by 2 local worker processes (`--dask local:2`).
+# Cluster start-up and catalogue writing are set-up, excluded from the timings like every
+# benchmark's set-up; one warm-up run (worker imports, colour tables) precedes the timed runs.
+
+_SCALE: dict = {}
+_SCALE_VERSION = 1  # bump when the synthetic catalogue changes
+
+
+def _scale_client():
+    """One 2-worker local cluster for all scale_ benchmarks, closed at exit (None: no extra)."""
+    if "client" not in _SCALE:
+        import atexit
+        import contextlib
+
+        from starsense.scale import ScaleNotInstalledError, dask_client
+
+        stack = contextlib.ExitStack()
+        try:
+            _SCALE["client"] = stack.enter_context(dask_client("local:2", processes=True))
+        except ScaleNotInstalledError as exc:
+            print(f"    (skipped: {exc})")
+            _SCALE["client"] = None
+        atexit.register(stack.close)
+    return _SCALE["client"]
+
+
+def _scale_catalog(n: int):
+    """Synthetic HATS catalogue of n stars: uniform on the sphere, G with N(<G) ~ 10^(0.35 G)
+    up to G = 14.5 (a Galaxy-like luminosity function: 13 % of the stars have G <= 12), BP-RP
+    ~ N(1.0, 0.5); Gaia column names."""
+    from starsense.scale import import_catalog, open_hats
+
+    folder = Path(tempfile.gettempdir()) / f"starsense-bench-hats-v{_SCALE_VERSION}"
+    out = folder / f"synth_{n // 1_000_000}M"
+    if not out.is_dir():
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        rng = np.random.default_rng(n)
+        v = rng.normal(size=(n, 3))
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        table = pa.table(
+            {
+                "source_id": np.arange(n, dtype=np.int64),
+                "ra": np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0,
+                "dec": np.degrees(np.arcsin(np.clip(v[:, 2], -1.0, 1.0))),
+                "phot_g_mean_mag": 14.5 + np.log10(rng.uniform(1e-12, 1.0, n)) / 0.35,
+                "bp_rp": rng.normal(1.0, 0.5, n),
+            }
+        )
+        folder.mkdir(parents=True, exist_ok=True)
+        src = folder / f"synth_{n}.parquet"
+        pq.write_table(table, src)
+        t0 = time.perf_counter()
+        import_catalog(src, out, client=_scale_client())
+        src.unlink()
+        print(f"    (wrote {out} with hats-import in {time.perf_counter() - t0:.1f} s)", flush=True)
+    return open_hats(f"hats:{out}")
+
+
+def _scale_limit(n: int) -> float:
+    client = _scale_client()
+    if client is None:
+        return float("nan")
+    from starsense.scale import sky_limit
+
+    cat = _scale_catalog(n)
+    res, used = sky_limit(cat, client=client)  # warm-up
+    print(f"    ({used.n_stars} stars in {cat.n_partitions} partitions; G = "
+          f"{res.g_rad_m2_s05:.3e} rad m^2 s^1/2)", flush=True)  # fmt: skip
+    return best_of(lambda: sky_limit(cat, client=client), repeat=3)
+
+
+def _scale_counts(n: int, max_mag: float = 12.0) -> float:
+    client = _scale_client()
+    if client is None:
+        return float("nan")
+    from starsense.analysis.availability import sky_attitudes
+    from starsense.geometry.fov import CircularFov
+    from starsense.scale import star_counts
+
+    cat = _scale_catalog(n)
+    fov = CircularFov(np.radians(7.5))
+    _, attitudes = sky_attitudes(1_000, 0.0, 0)
+    counts = star_counts(cat, fov, attitudes, max_mag, band="G", client=client)  # warm-up
+    print(f"    (G <= {max_mag:g}: {counts.mean():.0f} stars per field on average)", flush=True)
+    return best_of(
+        lambda: star_counts(cat, fov, attitudes, max_mag, band="G", client=client), repeat=3
+    )
+
+
+for _n in (1, 2, 5):
+    bench(
+        f"scale_limit_sky_{_n}M",
+        f"whole-sky limit, {_n} million synthetic stars (G, BP-RP) in HATS, 2 local workers",
+        2.0,
+    )(lambda n=_n * 1_000_000: _scale_limit(n))
+for _n in (1, 2, 5):
+    bench(
+        f"scale_counts_1000_{_n}M",
+        f"stars in a 7.5 deg field, 1,000 boresights, G <= 12, {_n} million stars in HATS, "
+        "2 local workers",
+        2.0,
+    )(lambda n=_n * 1_000_000: _scale_counts(n))
+
+# end of issue 7 benchmarks
+# ---------------------------------------------------------------------------------------------
+
+
 def main(selected: list[str]) -> int:
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()

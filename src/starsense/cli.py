@@ -13,6 +13,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense.cli_catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
 from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
 from starsense.errors import InputError, StarsenseError
 
@@ -39,10 +40,12 @@ app.add_typer(slew_app, name="slew")
 
 def _register_subapps() -> None:
     from starsense.cli_availability import availability_app
+    from starsense.cli_catalog import catalog_app
     from starsense.cli_guide_stars import guide_stars_app
 
     app.add_typer(availability_app, name="availability")
     app.add_typer(guide_stars_app, name="guide-stars")
+    app.add_typer(catalog_app, name="catalog")
 
 
 _register_subapps()
@@ -160,7 +163,7 @@ def limit_star(
 def limit_sky(
     diameter_m: DiameterOpt = 1.0,
     exposure_s: ExposureOpt = 1.0,
-    catalog: CatalogOpt = "hipparcos",
+    catalog: ScaleCatalogOpt = "hipparcos",
     max_mag: Annotated[
         float | None, typer.Option("--max-mag", help="Use only stars brighter than this.")
     ] = None,
@@ -172,14 +175,25 @@ def limit_sky(
         list[str] | None,
         typer.Option("--target-deg", help="RA,DEC of a head's boresight, deg; repeat for heads."),
     ] = None,
+    dask: DaskOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Attitude limit over a catalogue: theta_rms, per-axis sigma, G (eqs. 21-24; Table 2)."""
+    """Attitude limit over a catalogue: theta_rms, per-axis sigma, G (eqs. 21-24; Table 2).
+
+    With --catalog hats:PATH_OR_URL the catalogue is processed partition by partition on Dask
+    (--dask), with the same kernels and results as in memory.
+    """
     from starsense.analysis.limits import fov_limit, sky_limit
     from starsense.geometry.attitude import radec_to_vectors
 
     if (fov_deg is None) != (not target_deg):
         raise InputError("--fov-deg and --target-deg go together (one or more targets)")
+    if fov_deg is not None and (not np.isfinite(fov_deg) or not 0 < fov_deg <= 360):
+        raise InputError(f"--fov-deg must be in (0, 360], got {fov_deg}")
+    if check_dask_option(catalog, dask):
+        _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg,
+                        target_deg, as_json)  # fmt: skip
+        return
     cat, stars = _load_stars(catalog, max_mag, colour)
     common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
     if fov_deg is None:
@@ -196,11 +210,13 @@ def limit_sky(
         ]
         emit(payload, as_json, lines)
         return
-    if not np.isfinite(fov_deg) or not 0 < fov_deg <= 360:
-        raise InputError(f"--fov-deg must be in (0, 360], got {fov_deg}")
     radec = [_parse_target(t) for t in target_deg]
     vecs = np.array([radec_to_vectors(np.radians(ra), np.radians(dec)) for ra, dec in radec])
     heads, merged = fov_limit(stars, vecs, np.radians(fov_deg), diameter_m, exposure_s)
+    _emit_fov(cat.name, stars.colour, common, fov_deg, radec, heads, merged, as_json)
+
+
+def _emit_fov(name, colour, common, fov_deg, radec, heads, merged, as_json) -> None:
     best = merged if merged is not None else heads[0]
     payload = {
         **best.to_dict(),
@@ -212,7 +228,7 @@ def limit_sky(
     }
     if merged is not None:
         payload["merged"] = merged.to_dict()
-    lines = [f"catalogue {cat.name} ({stars.colour}), FOV {fov_deg} deg:"]
+    lines = [f"catalogue {name} ({colour}), FOV {fov_deg} deg:"]
     for rd, h in zip(radec, heads, strict=True):
         lines.append(
             f"  head at RA {rd[0]:g}, Dec {rd[1]:g}: {h.n_stars} stars, theta_rms "
@@ -222,6 +238,41 @@ def limit_sky(
     if merged is not None:
         lines.append(f"  merged heads: theta_rms {_rad(merged.theta_rms_rad)}")
     emit(payload, as_json, lines)
+
+
+def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, target_deg,
+                    as_json) -> None:  # fmt: skip
+    """``limit sky`` over a HATS catalogue on Dask (starsense.scale)."""
+    from starsense.cli_catalog import hats_session
+    from starsense.geometry.attitude import radec_to_vectors
+    from starsense.scale import fov_limit, sky_limit
+
+    radec = [_parse_target(t) for t in target_deg or []]
+    with hats_session(catalog, dask, not as_json) as (cat, client, progress):
+        opts = {"colour": colour, "max_mag": max_mag, "client": client, "progress": progress}
+        if fov_deg is None:
+            res, used = sky_limit(cat, diameter_m, exposure_s, **opts)
+        else:
+            vecs = np.array(
+                [radec_to_vectors(np.radians(ra), np.radians(dec)) for ra, dec in radec]
+            )
+            heads, merged, used = fov_limit(
+                cat, vecs, np.radians(fov_deg), diameter_m, exposure_s, **opts
+            )
+    common = {"catalog": cat.name, "colour": used.colour, "n_skipped": used.n_skipped,
+              "source": cat.location}  # fmt: skip
+    if fov_deg is not None:
+        _emit_fov(cat.name, used.colour, common, fov_deg, radec, heads, merged, as_json)
+        return
+    emit({**res.to_dict(), **common}, as_json, [
+        f"HATS catalogue {cat.name} ({cat.location}, {cat.n_partitions} partitions): "
+        f"{res.n_stars} stars ({used.colour}; {used.n_skipped} skipped without magnitude or "
+        "colour)",
+        f"theta_rms (D = {diameter_m} m, t = {exposure_s} s): {_rad(res.theta_rms_rad)}",
+        "per-axis sigma (ICRS x, y, z): " + ", ".join(f"{s:.3g}" for s in res.axis_sigma_rad)
+        + " rad",
+        f"G = {res.g_rad_m2_s05:.3e} rad m^2 s^1/2 (paper: 7e-15 < G < 1e-13)",
+    ])  # fmt: skip
 
 
 @limit_app.command("curve")

@@ -20,6 +20,7 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
+from starsense.cli_catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
 from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
 from starsense.errors import InputError
 
@@ -114,6 +115,7 @@ def _setup(
     roll_deg: float | None,
     seed: int,
     progress: Callable[[str, int, int], None] | None = None,
+    band: str = "V",
 ):
     """The options common to every command -> (sensor, catalogue, analysis)."""
     from starsense.analysis.availability import AvailabilityAnalysis, field_of_view
@@ -124,10 +126,28 @@ def _setup(
     field = field_of_view(sens, fov, half_fov_deg)
     cat = load_catalog(catalog)
     analysis = AvailabilityAnalysis.from_catalog(
-        cat, field, max_mag, n_orientations=n_orientations, roll_deg=roll_deg, seed=seed,
+        cat, field, max_mag, band, n_orientations=n_orientations, roll_deg=roll_deg, seed=seed,
         progress=progress,
     )  # fmt: skip
     return sens, cat, analysis
+
+
+def _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min, n_orientations,
+                 roll_deg, seed, band, as_json):  # fmt: skip
+    """``availability static`` over a HATS catalogue on Dask (starsense.scale)."""
+    from starsense.analysis.availability import field_of_view
+    from starsense.cli_catalog import hats_session
+    from starsense.scale import static_availability
+    from starsense.sensor import load_sensor
+
+    sens = load_sensor(sensor)
+    field = field_of_view(sens, fov, half_fov_deg)
+    with hats_session(catalog, dask, not as_json) as (cat, client, progress):
+        res = static_availability(
+            cat, field, max_mag, n_min, band=band, n_orientations=n_orientations,
+            roll_deg=roll_deg, seed=seed, client=client, progress=progress,
+        )  # fmt: skip
+    return res, sens
 
 
 def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: Path | None,
@@ -173,7 +193,7 @@ def _maps_dir(maps: Path) -> Path:
 @availability_app.command("static")
 def static(
     sensor: SensorOpt = "st16",
-    catalog: CatalogOpt = "hipparcos",
+    catalog: ScaleCatalogOpt = "hipparcos",
     fov: FovOpt = "circular",
     half_fov_deg: HalfFovOpt = None,
     max_mag: MaxMagOpt = 5.75,
@@ -181,15 +201,33 @@ def static(
     n_orientations: NOrientOpt = 10_000,
     roll_deg: RollOpt = None,
     seed: SeedOpt = 0,
+    band: Annotated[
+        str | None,
+        typer.Option(
+            "--band",
+            help="Magnitude band of --max-mag (default V; for a hats: catalogue the first of "
+            "V, Hp, VT, G, J, H, Ks it has).",
+        ),
+    ] = None,
+    dask: DaskOpt = None,
     plot: PlotOpt = None,
     maps: MapsOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Spatial static availability: fraction of boresights with >= N_min stars <= m_t."""
-    with _progress() as progress:
-        sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
-                                   roll_deg, seed, progress)  # fmt: skip
-        res = analysis.static(n_min)
+    """Spatial static availability: fraction of boresights with >= N_min stars <= m_t.
+
+    With --catalog hats:PATH_OR_URL the stars in the field are counted partition by partition on
+    Dask (--dask), with the same kernels and results as in memory.
+    """
+    if check_dask_option(catalog, dask):
+        res, sens = _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min,
+                                 n_orientations, roll_deg, seed, band, as_json)  # fmt: skip
+    else:
+        with _progress() as progress:
+            sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag,
+                                       n_orientations, roll_deg, seed, progress,
+                                       band or "V")  # fmt: skip
+            res = analysis.static(n_min)
     payload = {**res.to_dict(), "sensor": sens.name}
     lines = [f"{sens.name}: " + res.lines()[0], *res.lines()[1:]]
     figures = []

@@ -690,14 +690,7 @@ class FieldStars:
         function of the ``n_min``-th brightest magnitude in the field.
         """
         n_min = check_n_min(n_min)
-        m = np.asarray(max_mag, dtype=np.float64)
-        if np.any(np.isnan(m)):
-            raise InputError("detection threshold m_t must not be NaN")
-        if self.n_pointings == 0:
-            raise InputError("no pointings: availability is undefined")
-        kth = self._sorted_kth(n_min)
-        frac = np.searchsorted(kth, m, side="right") / self.n_pointings
-        return float(frac) if frac.ndim == 0 else frac
+        return _availability(self._sorted_kth(n_min), max_mag, self.n_pointings)
 
     def available(self, max_mag: ArrayLike, n_min: int) -> NDArray[np.bool_]:
         """Per-pointing flag: at least `n_min` stars ``<= max_mag`` (shape (M,), or (..., M)
@@ -705,18 +698,85 @@ class FieldStars:
         kth = self.kth_magnitude(n_min)
         return kth <= np.asarray(max_mag, dtype=np.float64)[..., None]
 
+    def brightest(self, k: int) -> BrightestInField:
+        """The `k` brightest magnitudes in the field at each pointing (see
+        :class:`BrightestInField`): all that availability for N_min <= k needs, in a form that
+        merges exactly over disjoint star sets."""
+        k = check_n_min(k)
+        mags = np.column_stack([self.kth_magnitude(j) for j in range(1, k + 1)])
+        return BrightestInField(mags.reshape(self.n_pointings, k), self.n_stars)
+
+
+def _availability(
+    sorted_kth: NDArray[np.float64], max_mag: ArrayLike, n_pointings: int
+) -> float | NDArray[np.float64]:
+    """Fraction of pointings whose sorted k-th brightest magnitude is ``<= max_mag``."""
+    m = np.asarray(max_mag, dtype=np.float64)
+    if np.any(np.isnan(m)):
+        raise InputError("detection threshold m_t must not be NaN")
+    if n_pointings == 0:
+        raise InputError("no pointings: availability is undefined")
+    frac = np.searchsorted(sorted_kth, m, side="right") / n_pointings
+    return float(frac) if frac.ndim == 0 else frac
+
+
+@dataclass(frozen=True, eq=False)
+class BrightestInField:
+    """The ``K`` brightest magnitudes in the field at each of M pointings.
+
+    Availability for any N_min <= K needs nothing else, and two of these built from disjoint
+    star sets (tiles of a HATS catalogue, :mod:`starsense.scale`) merge exactly into the one
+    of their union (:meth:`merge`).
+
+    Attributes
+    ----------
+    magnitudes : ndarray, shape (M, K)
+        Ascending along each row; ``inf`` where fewer than K stars are in the field.
+    n_stars : int
+        Stars of the star set(s) the field was built from.
+    """
+
+    magnitudes: NDArray[np.float64]
+    n_stars: int
+
+    @property
+    def n_pointings(self) -> int:
+        return self.magnitudes.shape[0]
+
+    def kth_magnitude(self, k: int) -> NDArray[np.float64]:
+        """As :meth:`FieldStars.kth_magnitude`, for k <= K."""
+        k = check_n_min(k)
+        if k > self.magnitudes.shape[1]:
+            raise InputError(f"only the {self.magnitudes.shape[1]} brightest stars are kept; k={k}")
+        return self.magnitudes[:, k - 1]
+
+    def availability(self, max_mag: ArrayLike, n_min: int) -> float | NDArray[np.float64]:
+        """As :meth:`FieldStars.availability`, for N_min <= K."""
+        return _availability(np.sort(self.kth_magnitude(n_min)), max_mag, self.n_pointings)
+
+    @classmethod
+    def merge(cls, parts: Sequence[BrightestInField]) -> BrightestInField:
+        """The K brightest of the union of disjoint star sets, from each set's K brightest."""
+        if not parts:
+            raise InputError("nothing to merge")
+        k = parts[0].magnitudes.shape[1]
+        mags = np.sort(np.concatenate([p.magnitudes for p in parts], axis=1), axis=1)[:, :k]
+        return cls(np.ascontiguousarray(mags), int(sum(p.n_stars for p in parts)))
+
 
 # ---------------------------------------------------------------------------------------------
 # star sets
 
 
 def catalog_stars(
-    catalog: Any, max_mag: float, band: str = "V"
+    catalog: Any, max_mag: float, band: str = "V", allow_empty: bool = False
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Unit vectors and magnitudes of the catalogue stars with ``mag <= max_mag`` in `band`.
 
     Works on a :class:`~starsense.catalog.Catalog` or anything with ``vectors`` (N, 3) and
-    ``mags[band]`` (N,). Stars without a magnitude are dropped.
+    ``mags[band]`` (N,). Stars without a magnitude are dropped. ``allow_empty`` returns empty
+    arrays instead of raising when no star passes the cut (one tile of a catalogue that is
+    processed tile by tile, :mod:`starsense.scale`).
 
     Raises
     ------
@@ -733,6 +793,8 @@ def catalog_stars(
         )
     mags = np.asarray(mags_all[band], dtype=np.float64)
     keep = mags <= m
+    if not keep.any() and allow_empty:
+        return np.zeros((0, 3)), np.zeros(0)
     if not keep.any():
         finite = mags[np.isfinite(mags)]
         brightest = f"{finite.min():.2f}" if finite.size else "none"
@@ -983,6 +1045,59 @@ class TrackAvailability:
         return out
 
 
+def static_result(
+    field: FieldStars | BrightestInField,
+    counts: NDArray[np.intp],
+    boresights: NDArray[np.float64],
+    n_min: int,
+    m_t: float,
+    n_stars: int,
+    fov: str,
+    catalog: str,
+    band: str,
+    curve_span_mag: float = 3.0,
+    curve_step_mag: float = 0.05,
+) -> StaticAvailability:
+    """Assemble :class:`StaticAvailability` from the stars in the field at each boresight.
+
+    Shared by :meth:`AvailabilityAnalysis.static` (a :class:`FieldStars`) and the distributed
+    path (:mod:`starsense.scale`, a merged :class:`BrightestInField` with K >= max(4, n_min)).
+
+    Parameters
+    ----------
+    field : FieldStars or BrightestInField
+    counts : ndarray (M,)
+        Stars ``<= m_t`` in the field per boresight.
+    boresights : ndarray (M, 3)
+    n_min : int
+    m_t : float
+        Detection threshold (finite).
+    n_stars : int
+        Stars used, after the catalogue cut.
+    fov, catalog, band : str
+        Descriptions for reports.
+    curve_span_mag, curve_step_mag : float
+        Availability against m_t from ``m_t - curve_span_mag`` to ``m_t`` (Fig. 6).
+    """
+    keys = sorted({1, 2, 3, 4, n_min})
+    grid = np.round(np.arange(m_t - curve_span_mag, m_t + 1e-9, curve_step_mag), 6)
+    return StaticAvailability(
+        availability=field.availability(m_t, n_min),
+        n_min=n_min,
+        max_mag=m_t,
+        n_orientations=len(boresights),
+        n_stars=n_stars,
+        by_n_min={k: field.availability(m_t, k) for k in keys},
+        counts=counts,
+        boresights=boresights,
+        mag_grid=grid,
+        curve={k: field.availability(grid, k) for k in keys},
+        fov=fov,
+        catalog=catalog,
+        band=band,
+    )
+
+
 # ---------------------------------------------------------------------------------------------
 # the analysis
 
@@ -1124,23 +1239,10 @@ class AvailabilityAnalysis:
         m_t = float(min(m_t, self.max_mag))
         if not math.isfinite(m_t):
             m_t = float(self.magnitudes.max())
-        keys = sorted({1, 2, 3, 4, n_min})
-        grid = np.round(np.arange(m_t - curve_span_mag, m_t + 1e-9, curve_step_mag), 6)
-        return StaticAvailability(
-            availability=self.sky.availability(m_t, n_min),
-            n_min=n_min,
-            max_mag=m_t,
-            n_orientations=self.n_orientations,
-            n_stars=self.n_stars,
-            by_n_min={k: self.sky.availability(m_t, k) for k in keys},
-            counts=self.sky.counts(m_t),
-            boresights=self.boresights,
-            mag_grid=grid,
-            curve={k: self.sky.availability(grid, k) for k in keys},
-            fov=describe_fov(self.fov),
-            catalog=self.catalog,
-            band=self.band,
-        )
+        return static_result(
+            self.sky, self.sky.counts(m_t), self.boresights, n_min, m_t, self.n_stars,
+            describe_fov(self.fov), self.catalog, self.band, curve_span_mag, curve_step_mag,
+        )  # fmt: skip
 
     # -- spatial dynamic ---------------------------------------------------------------------
     def dynamic(

@@ -343,7 +343,23 @@ class LimitResult:
         }
 
 
-def _result(fisher, n_stars, diameter_m, exposure_s, frame_rows=None) -> LimitResult:
+def limit_from_fisher(fisher, n_stars, diameter_m, exposure_s, frame_rows=None) -> LimitResult:
+    """The :class:`LimitResult` of an attitude Fisher matrix (eqs. 20-23).
+
+    The last step of every limit, shared by the in-memory and the distributed paths
+    (:mod:`starsense.scale`): ``fisher`` may be a sum of per-chunk matrices.
+
+    Parameters
+    ----------
+    fisher : array (3, 3)
+        Attitude Fisher matrix, rad^-2.
+    n_stars : int
+        Stars that contributed.
+    diameter_m, exposure_s : float
+        D (m) and t (s), for G = theta_rms D^2 t^1/2.
+    frame_rows : array (3, 3) or None
+        Rows of a pointed sensor's frame (:func:`boresight_frame`); None for ICRS axes.
+    """
     p = covariance(fisher, n_stars)
     th = theta_rms(p)
     if frame_rows is None:
@@ -371,8 +387,72 @@ def sky_limit(
 ) -> LimitResult:
     """Limit of the ideal spherical sensor that sees the whole sky (eqs. 19-24)."""
     check_aperture(diameter_m, exposure_s)
-    w = stars.fisher_unit * diameter_m**4 * exposure_s
-    return _result(fisher_matrix(stars.vectors, w), len(stars), diameter_m, exposure_s)
+    return limit_from_fisher(
+        sky_fisher(stars, diameter_m, exposure_s), len(stars), diameter_m, exposure_s
+    )
+
+
+# Per-chunk kernels: each takes any subset of the stars and returns quantities that add exactly
+# over disjoint subsets (sums of eq. 21's terms), so the whole-catalogue result is the sum over
+# chunks. The in-memory functions call them once on all stars; starsense.scale calls them on
+# every partition of a HATS catalogue and adds the results.
+
+
+def star_weights(stars: BlackBodyStars, diameter_m: float, exposure_s: float) -> np.ndarray:
+    """Per-star centroid Fisher information F_i = F_i(1 m, 1 s) D^4 t (eq. 19), rad^-2, (N,)."""
+    return stars.fisher_unit * diameter_m**4 * exposure_s
+
+
+def sky_fisher(stars: BlackBodyStars, diameter_m: float, exposure_s: float) -> np.ndarray:
+    """Per-chunk kernel of :func:`sky_limit`: eq. 21 over these stars, (3, 3) rad^-2."""
+    return fisher_matrix(stars.vectors, star_weights(stars, diameter_m, exposure_s))
+
+
+def fov_fishers(
+    stars: BlackBodyStars,
+    targets,
+    fov_diameter_rad: float,
+    diameter_m: float,
+    exposure_s: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-chunk kernel of :func:`fov_limit`: each head's Fisher matrix and star count.
+
+    Parameters
+    ----------
+    targets : array (T, 3)
+        Head boresights, ICRS unit vectors.
+
+    Returns
+    -------
+    fishers : array (T, 3, 3), rad^-2
+    counts : array (T,) of int
+    """
+    targets = np.atleast_2d(np.asarray(targets, dtype=float))
+    w = star_weights(stars, diameter_m, exposure_s)
+    fishers = np.zeros((len(targets), 3, 3))
+    counts = np.zeros(len(targets), dtype=np.int64)
+    for k, t in enumerate(targets):
+        m = in_cone(stars.vectors, t, fov_diameter_rad)
+        fishers[k] = fisher_matrix(stars.vectors[m], w[m])
+        counts[k] = int(m.sum())
+    return fishers, counts
+
+
+def fov_results(
+    fishers, counts, targets, diameter_m: float, exposure_s: float
+) -> tuple[list[LimitResult], LimitResult | None]:
+    """Heads and merged heads from the summed output of :func:`fov_fishers` (sec. 3.4)."""
+    targets = np.atleast_2d(np.asarray(targets, dtype=float))
+    heads = [
+        limit_from_fisher(f, int(n), diameter_m, exposure_s, boresight_frame(t))
+        for f, n, t in zip(fishers, counts, targets, strict=True)
+    ]
+    merged = None
+    if len(targets) > 1:
+        merged = limit_from_fisher(
+            np.sum(fishers, axis=0), int(np.sum(counts)), diameter_m, exposure_s
+        )
+    return heads, merged
 
 
 def fov_limit(
@@ -394,20 +474,8 @@ def fov_limit(
     merged : LimitResult (ICRS axes) or None for a single target
     """
     check_aperture(diameter_m, exposure_s)
-    targets = np.atleast_2d(np.asarray(targets, dtype=float))
-    w = stars.fisher_unit * diameter_m**4 * exposure_s
-    heads, fishers, counts = [], [], []
-    for t in targets:
-        m = in_cone(stars.vectors, t, fov_diameter_rad)
-        f = fisher_matrix(stars.vectors[m], w[m])
-        n = int(m.sum())
-        heads.append(_result(f, n, diameter_m, exposure_s, boresight_frame(t)))
-        fishers.append(f)
-        counts.append(n)
-    merged = None
-    if len(targets) > 1:
-        merged = _result(sum(fishers), int(sum(counts)), diameter_m, exposure_s)
-    return heads, merged
+    fishers, counts = fov_fishers(stars, targets, fov_diameter_rad, diameter_m, exposure_s)
+    return fov_results(fishers, counts, targets, diameter_m, exposure_s)
 
 
 @dataclass(frozen=True)
@@ -458,7 +526,8 @@ def brightest_curve(
 ) -> BrightestCurve:
     """theta_rms of the N brightest stars, N = 2 ... all (Fig. 7), in one pass over the stars.
 
-    Stars are ranked by catalogue magnitude; the six independent components of sum w r r^T and
+    Stars are ranked by catalogue magnitude (ties broken by position, :func:`brightest_order`);
+    the six independent components of sum w r r^T and
     sum w are accumulated between checkpoints with ``np.add.reduceat``. N with a singular
     geometry (e.g. N = 2 antipodal stars) is dropped from the curve.
     """
@@ -466,10 +535,74 @@ def brightest_curve(
     n_total = len(stars)
     if n_total < 2:
         raise SingularGeometryError(f"singular geometry ({n_total} star): need at least 2 stars")
-    order = np.argsort(stars.magnitude, kind="stable")
-    r = stars.vectors[order]
-    w = stars.fisher_unit[order] * diameter_m**4 * exposure_s
-    ns = np.unique(
+    w = star_weights(stars, diameter_m, exposure_s)
+    order = brightest_order(stars.magnitude, stars.vectors, w)
+    comps = fisher_components(stars.vectors[order], w[order])
+    ns = brightest_checkpoints(n_total, points_per_decade)
+    starts = np.concatenate([[0], ns[:-1]])
+    sums = np.cumsum(np.add.reduceat(comps, starts, axis=0), axis=0)
+    return brightest_from_sums(ns, sums, n_extrapolated, stars.colour)
+
+
+# Kernels of the N-brightest curve, shared with the distributed path (starsense.scale).
+
+
+def brightest_order(magnitude, vectors, weights) -> np.ndarray:
+    """Indices that rank stars brightest first, independent of their order in the catalogue.
+
+    Stars are sorted by magnitude; stars of equal magnitude (common in catalogues that round to
+    0.01 mag) by x, y, z of the unit vector and then the weight, so that any partitioning of a
+    catalogue (HATS tiles) ranks them the same way and the N-brightest sums agree exactly.
+    """
+    mag = np.asarray(magnitude, dtype=float)
+    order = np.argsort(mag, kind="stable")
+    ms = mag[order]
+    tie = ms[1:] == ms[:-1]
+    if tie.any():
+        in_group = np.zeros(len(ms), dtype=bool)
+        in_group[1:] |= tie
+        in_group[:-1] |= tie
+        pos = np.flatnonzero(in_group)  # runs of equal magnitude, contiguous and ascending
+        o = order[pos]
+        r = np.asarray(vectors, dtype=float)[o]
+        w = np.asarray(weights, dtype=float)[o]
+        order[pos] = o[np.lexsort((w, r[:, 2], r[:, 1], r[:, 0], mag[o]))]
+    return order
+
+
+def fisher_components(vectors, weights) -> np.ndarray:
+    """The seven independent terms of eq. 21 per star: w, w x^2, w y^2, w z^2, w xy, w xz, w yz.
+
+    Returns
+    -------
+    array (N, 7)
+        Any sum of rows is the (sum w, sum w r r^T) of those stars; see
+        :func:`fisher_from_components`.
+    """
+    r = np.asarray(vectors, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    return np.column_stack(
+        [
+            w,
+            w * r[:, 0] ** 2,
+            w * r[:, 1] ** 2,
+            w * r[:, 2] ** 2,
+            w * r[:, 0] * r[:, 1],
+            w * r[:, 0] * r[:, 2],
+            w * r[:, 1] * r[:, 2],
+        ]
+    )
+
+
+def fisher_from_components(sums) -> np.ndarray:
+    """Eq. 21's F = sum w I - sum w r r^T from a row of summed :func:`fisher_components`."""
+    sw, xx, yy, zz, xy, xz, yz = np.asarray(sums, dtype=float)
+    return sw * np.eye(3) - np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def brightest_checkpoints(n_total: int, points_per_decade: int = 20) -> np.ndarray:
+    """N at which the curve is evaluated: log-spaced from 2 to ``n_total``, which is included."""
+    return np.unique(
         np.concatenate(
             [
                 np.round(
@@ -483,25 +616,20 @@ def brightest_curve(
             ]
         )
     )
-    comps = np.column_stack(
-        [
-            w,
-            w * r[:, 0] ** 2,
-            w * r[:, 1] ** 2,
-            w * r[:, 2] ** 2,
-            w * r[:, 0] * r[:, 1],
-            w * r[:, 0] * r[:, 2],
-            w * r[:, 1] * r[:, 2],
-        ]
-    )
-    starts = np.concatenate([[0], ns[:-1]])
-    sums = np.cumsum(np.add.reduceat(comps, starts, axis=0), axis=0)
+
+
+def brightest_from_sums(
+    ns, sums, n_extrapolated: float = N_GALAXY, colour: str = ""
+) -> BrightestCurve:
+    """The curve from the summed components of the ``ns[k]`` brightest stars, ``sums[k]``.
+
+    theta_rms at each N (eq. 22), dropping N with a singular geometry, and the power-law fit
+    over the last decade extrapolated to ``n_extrapolated`` stars.
+    """
     keep_n, theta = [], []
     for n, s in zip(ns, sums, strict=True):
-        sw, xx, yy, zz, xy, xz, yz = s
-        f = sw * np.eye(3) - np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
         try:
-            theta.append(theta_rms(covariance(f, int(n))))
+            theta.append(theta_rms(covariance(fisher_from_components(s), int(n))))
             keep_n.append(n)
         except SingularGeometryError:
             continue
@@ -518,7 +646,7 @@ def brightest_curve(
         float(intercept),
         float(n_extrapolated),
         extrap,
-        stars.colour,
+        colour,
     )
 
 

@@ -90,6 +90,12 @@ def load_catalog(spec: str = DEFAULT_CATALOG, *, cache: bool = True) -> Catalog:
     name, sep, path_text = spec.strip().partition(":")
     name = name.strip().lower()
     known = ", ".join(("hipparcos", *READERS))
+    if name == "hats":  # deep catalogues are never loaded into memory (starsense.scale)
+        raise InputError(
+            f"{spec!r}: hats: catalogues are processed partition by partition on Dask by "
+            "`starsense limit sky` and `starsense availability static` (starsense.scale); "
+            f"this command needs an in-memory catalogue: {known}"
+        )
     if name not in READERS and name != "hipparcos":
         raise InputError(f"unknown catalogue {name!r}; known catalogues: {known}")
     if name == "hipparcos" and sep:

@@ -1,0 +1,119 @@
+"""Star counts per boresight and static availability over HATS catalogues (Dzamba & Enright 2014).
+
+Every partition runs the in-memory :class:`~starsense.analysis.availability.FieldStars` on its
+own stars against all boresights; counts add, and the K brightest magnitudes in the field merge
+exactly (:meth:`~starsense.analysis.availability.BrightestInField.merge`), which is all the
+availability for N_min <= K needs. The result is the in-memory
+:class:`~starsense.analysis.availability.StaticAvailability`, assembled by the same
+:func:`~starsense.analysis.availability.static_result`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from starsense.analysis.availability import (
+    DEFAULT_N_ORIENTATIONS,
+    N_MIN_LOST_IN_SPACE,
+    StaticAvailability,
+    _check_mag,
+    check_n_min,
+    describe_fov,
+    sky_attitudes,
+    static_result,
+)
+from starsense.errors import InputError
+from starsense.geometry.fov import CircularFov, RectangularFov
+from starsense.scale import kernels
+from starsense.scale.hats import ColumnPlan, HatsCatalog
+from starsense.scale.run import Progress, client_or_local, run_partitions
+
+#: bands tried, in order, when none is asked for
+DEFAULT_BANDS = ("V", "Hp", "VT", "G", "J", "H", "Ks")
+
+
+def band_plan(catalog: HatsCatalog, band: str | None) -> tuple[ColumnPlan, str]:
+    """Columns for positions and one magnitude band (default: the first of DEFAULT_BANDS)."""
+    plan = catalog.plan()
+    have = dict(plan.mags)
+    if band is None:
+        band = next((b for b in DEFAULT_BANDS if b in have), None)
+        if band is None:
+            raise catalog.missing("a magnitude (V, Hp, VT, G, J, H or Ks)")
+    elif band not in have:
+        raise catalog.missing(f"the {band} magnitude (--band {band})")
+    return plan.restrict([band], []), band
+
+
+def _field(
+    catalog: HatsCatalog, fov, attitudes: Rotation, max_mag: float, band: str | None, k: int,
+    client: Any | None, progress: Progress | None, label: str,
+):  # fmt: skip
+    if not isinstance(fov, CircularFov | RectangularFov):
+        raise InputError(f"fov must be a CircularFov or RectangularFov, got {type(fov).__name__}")
+    m = _check_mag(max_mag, allow_inf=True)
+    plan, band = band_plan(catalog, band)
+    with client_or_local(client) as c:
+        counts, top, n, faintest = run_partitions(
+            c, catalog, plan.columns, kernels.field_part, (plan, band, m, fov, attitudes, k),
+            kernels.combine_field, label, progress,
+        )  # fmt: skip
+    if n == 0:
+        raise InputError(
+            f"magnitude limit --max-mag {m:g} leaves no stars of HATS catalogue "
+            f"{catalog.location} ({band}); raise --max-mag"
+        )
+    return counts, top, n, faintest, band
+
+
+def star_counts(
+    catalog: HatsCatalog,
+    fov,
+    attitudes: Rotation,
+    max_mag: float = math.inf,
+    *,
+    band: str | None = None,
+    client: Any | None = None,
+    progress: Progress | None = None,
+) -> NDArray[np.intp]:
+    """Stars ``<= max_mag`` in the field at each attitude, shape (M,).
+
+    Equal to ``FieldStars.build(fov, attitudes, *catalog_stars(cat, max_mag, band)).counts()``
+    on the whole catalogue in memory.
+    """
+    counts, *_ = _field(catalog, fov, attitudes, max_mag, band, 0, client, progress,
+                        "stars in the field")  # fmt: skip
+    return counts
+
+
+def static_availability(
+    catalog: HatsCatalog,
+    fov,
+    max_mag: float,
+    n_min: int = N_MIN_LOST_IN_SPACE,
+    *,
+    band: str | None = None,
+    n_orientations: int = DEFAULT_N_ORIENTATIONS,
+    roll_deg: float | None = None,
+    seed: int | None = 0,
+    client: Any | None = None,
+    progress: Progress | None = None,
+) -> StaticAvailability:
+    """Spatial static availability (sec. 1.2), as
+    ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``."""
+    n_min = check_n_min(n_min)
+    roll = roll_deg if isinstance(fov, RectangularFov) else 0.0
+    boresights, attitudes = sky_attitudes(n_orientations, roll, seed)
+    counts, top, n, faintest, band = _field(
+        catalog, fov, attitudes, max_mag, band, max(4, n_min), client, progress,
+        "availability: stars in the field",
+    )  # fmt: skip
+    m_t = float(max_mag) if math.isfinite(max_mag) else faintest
+    return static_result(
+        top, counts, boresights, n_min, m_t, n, describe_fov(fov), catalog.name, band,
+    )  # fmt: skip

@@ -1,0 +1,128 @@
+"""``starsense catalog import``: a CSV or Parquet catalogue to a HATS catalogue (hats-import).
+
+The catalogue is written into a temporary directory next to the output and renamed into place
+only when hats-import has finished, so an interrupted or failed import leaves no half-written
+catalogue behind. The columns are kept as they are; :mod:`starsense.scale.hats` finds the
+positions, magnitudes and colours by name.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any
+
+from starsense.errors import InputError
+from starsense.scale._deps import quiet_third_party_warnings, require
+from starsense.scale.errors import CatalogUnavailableError, MissingColumnsError
+from starsense.scale.run import client_or_local
+
+_FORMATS = {".csv": "csv", ".csv.gz": "csv", ".parquet": "parquet", ".pq": "parquet"}
+
+
+def input_format(path: Path) -> str:
+    """``"csv"`` or ``"parquet"`` from the file name."""
+    name = path.name.lower()
+    for suffix, fmt in _FORMATS.items():
+        if name.endswith(suffix):
+            return fmt
+    raise InputError(
+        f"cannot tell the format of {path} from its name; expected one of {', '.join(_FORMATS)}"
+    )
+
+
+def input_columns(path: Path, fmt: str) -> list[str]:
+    """Column names of the input (Parquet schema or CSV header)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
+
+    try:
+        if fmt == "parquet":
+            return list(pq.read_schema(path).names)
+        with pcsv.open_csv(path) as reader:
+            return list(reader.schema.names)
+    except (pa.ArrowException, OSError) as exc:
+        raise CatalogUnavailableError(f"cannot read {path}: {exc}") from None
+
+
+def import_catalog(
+    input_path: str | Path,
+    output: str | Path,
+    *,
+    ra_column: str = "ra",
+    dec_column: str = "dec",
+    pixel_threshold: int = 1_000_000,
+    client: Any | None = None,
+    progress: bool = False,
+) -> Path:
+    """Turn a CSV or Parquet file into a HATS catalogue at ``output`` (a new directory).
+
+    Parameters
+    ----------
+    input_path : path
+        ``.csv``, ``.csv.gz``, ``.parquet`` or ``.pq`` with a header naming the columns.
+    output : path
+        The catalogue directory to create (must not exist); its name is the catalogue's name.
+    ra_column, dec_column : str
+        ICRS position columns, degrees.
+    pixel_threshold : int
+        Most rows per HEALPix tile (hats-import's ``pixel_threshold``).
+    client : distributed.Client or None
+        Default: an in-process local cluster for the call.
+    progress : bool
+        Let hats-import draw its progress bars (stderr).
+
+    Raises
+    ------
+    InputError
+        Missing input, unknown format, existing output, missing position columns.
+    """
+    src = Path(input_path).expanduser()
+    dst = Path(output).expanduser()
+    if not src.is_file():
+        raise CatalogUnavailableError(f"input catalogue not found: {src}")
+    fmt = input_format(src)
+    if dst.exists():
+        raise InputError(f"output {dst} already exists; remove it or choose another name")
+    if isinstance(pixel_threshold, bool) or int(pixel_threshold) < 1:
+        raise InputError(f"--pixel-threshold must be an integer >= 1, got {pixel_threshold!r}")
+    columns = input_columns(src, fmt)
+    missing = [c for c in (ra_column, dec_column) if c not in columns]
+    if missing:
+        raise MissingColumnsError(
+            f"{src}: position column(s) {', '.join(missing)} missing (columns: "
+            f"{', '.join(columns)}); name them with --ra-column / --dec-column"
+        )
+    require("hats_import", "distributed")
+    from hats_import.catalog.arguments import ImportArguments
+    from hats_import.pipeline import pipeline_with_client
+
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent))
+    try:
+        with warnings.catch_warnings():
+            quiet_third_party_warnings()
+            args = ImportArguments(
+                output_path=work,
+                output_artifact_name=dst.name,
+                input_file_list=[src],
+                file_reader=fmt,
+                ra_column=ra_column,
+                dec_column=dec_column,
+                pixel_threshold=int(pixel_threshold),
+                tmp_dir=work / "intermediate",
+                resume=False,
+                progress_bar=progress,
+            )
+            with client_or_local(client) as c:
+                pipeline_with_client(args, c)
+        shutil.rmtree(work / "intermediate", ignore_errors=True)
+        (work / dst.name).rename(dst)
+    except (ValueError, KeyError) as exc:
+        raise InputError(f"hats-import could not import {src}: {exc}") from None
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return dst
