@@ -470,6 +470,14 @@ def render(
     ] = None,
     seed: SeedOpt = 0,
     no_noise: Annotated[bool, typer.Option("--no-noise", help="Expected image only.")] = False,
+    areas: Annotated[
+        bool,
+        typer.Option(
+            "--areas",
+            help="Render the sensor's attitude-determination areas (its focal plane, bias "
+            "level outside the areas) instead of its detector.",
+        ),
+    ] = False,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
     from starsense.catalog import load_catalog
@@ -483,13 +491,23 @@ def render(
     rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
     sens = load_sensor(sensor)
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
-    frame = render_frame(
-        sens, att, load_catalog(catalog), rate_rad_s=rate, model=model, max_mag=max_mag,
-        rng=seed, noise=not no_noise,
-    )  # fmt: skip
+    kwargs = {"rate_rad_s": rate, "model": model, "max_mag": max_mag, "rng": seed,
+              "noise": not no_noise}  # fmt: skip
+    if areas:
+        from starsense.render.areas import render_areas
+
+        area_frame = render_areas(sens, att, load_catalog(catalog), **kwargs)
+        frame = area_frame.frame
+        per_area = np.bincount(area_frame.star_area, minlength=len(sens.attitude_areas.areas) + 1)
+        names = sens.attitude_areas.names
+        where = ", ".join(f"{a}: {int(k)}" for a, k in zip(names, per_area[1:], strict=True))
+        note = f"; in the areas {where}"
+    else:
+        frame = render_frame(sens, att, load_catalog(catalog), **kwargs)
+        note = ""
     written = write_frame(out, frame)
     n = len(frame.truth.stars)
-    typer.echo(f"frame written: {written} ({n} stars; truth in {written}.json)")
+    typer.echo(f"frame written: {written} ({n} stars{note}; truth in {written}.json)")
 
 
 @app.command("solve")

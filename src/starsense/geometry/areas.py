@@ -93,6 +93,31 @@ class FocalArea:
             inside ^= crosses & (x < x_cross)
         return inside
 
+    def contains_grid(self, xs: ArrayLike, ys: ArrayLike) -> NDArray[np.bool_]:
+        """:meth:`contains` for every point of the grid ``xs`` x ``ys``, shape (len(ys), len(xs)).
+
+        Scanline form of the same even-odd rule: the edge crossings of each row are found
+        once, so the cost is O(rows x vertices + points) instead of O(points x vertices).
+        """
+        xs = np.asarray(xs, dtype=np.float64)
+        ys = np.asarray(ys, dtype=np.float64)
+        v = self.vertices
+        x0, y0 = v[:, 0], v[:, 1]
+        x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+        out = np.zeros((len(ys), len(xs)), dtype=bool)
+        lo, hi = min(y0.min(), y1.min()), max(y0.max(), y1.max())
+        for i in np.flatnonzero((ys >= lo) & (ys <= hi)):
+            y = ys[i]
+            crosses = (y0 > y) != (y1 > y)
+            if not crosses.any():
+                continue
+            a, b, c, d = x0[crosses], y0[crosses], x1[crosses], y1[crosses]
+            xc = np.sort(a + (y - b) * (c - a) / (d - b))
+            # crossings strictly right of x, as in contains(): odd -> inside
+            right = len(xc) - np.searchsorted(xc, xs, side="right")
+            out[i] = (right % 2) == 1
+        return out
+
 
 @dataclass(frozen=True, eq=False)
 class AreaLayout:
@@ -170,6 +195,15 @@ class AreaLayout:
         out = np.zeros(p.shape[:-1], dtype=int)
         for k, a in enumerate(self.areas, start=1):
             out[(out == 0) & a.contains(p)] = k
+        return out
+
+    def index_grid(self, xs: ArrayLike, ys: ArrayLike) -> NDArray[np.int_]:
+        """:meth:`index` on the grid ``xs`` x ``ys``, shape (len(ys), len(xs)) (scanline)."""
+        xs = np.asarray(xs, dtype=np.float64)
+        ys = np.asarray(ys, dtype=np.float64)
+        out = np.zeros((len(ys), len(xs)), dtype=int)
+        for k, a in enumerate(self.areas, start=1):
+            out[(out == 0) & a.contains_grid(xs, ys)] = k
         return out
 
     def subset_area(self, numbers: tuple[int, ...]) -> float:

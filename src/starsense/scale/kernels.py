@@ -24,6 +24,7 @@ from starsense.analysis.limits import (
     sky_fisher,
     star_weights,
 )
+from starsense.geometry.fov import count_in_fov
 from starsense.scale._deps import quiet_third_party_warnings
 from starsense.scale.hats import ColumnPlan
 
@@ -125,9 +126,11 @@ def field_part(frame, plan, band, max_mag, fov, attitudes, k):
     magnitude used)."""
     quiet_third_party_warnings()
     vectors, mags = catalog_stars(plan.catalog(frame), max_mag, band, allow_empty=True)
-    field = FieldStars.build(fov, attitudes, vectors, mags)
     faintest = float(mags.max()) if len(mags) else -math.inf
-    return field.counts(), field.brightest(k) if k else None, len(mags), faintest
+    if not k:  # counts only: the in-memory count_in_fov, no per-pointing magnitude lists
+        return count_in_fov(fov, attitudes, vectors), None, len(mags), faintest
+    field = FieldStars.build(fov, attitudes, vectors, mags)
+    return field.counts(), field.brightest(k), len(mags), faintest
 
 
 def combine_field(*parts):

@@ -1,0 +1,142 @@
+"""Frames of attitude-determination areas (Lin et al. 2024): render and detect per area.
+
+A camera that reads stars only in some focal-plane areas (:mod:`starsense.geometry.areas`) is
+simulated on a *focal-plane sensor*: the same optics and pixels, with a detector grown to cover
+every area. Pixels outside the areas hold no detector: they read the bias level, without noise,
+so nothing is detected there and a star that straddles an area's edge is cut as the real
+detector would cut it. Detection runs on that image with the sensor's own logic and tags each
+detection with the area of its centroid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from starsense.errors import InputError
+
+__all__ = ["AreaFrame", "area_pixel_index", "detect_in_areas", "focal_plane_sensor", "render_areas"]
+
+
+def _layout(sensor):
+    layout = getattr(sensor, "attitude_areas", None)
+    if layout is None:
+        raise InputError(f"sensor {sensor.name!r} defines no [attitude_areas]")
+    return layout
+
+
+def focal_plane_sensor(sensor):
+    """The sensor with a square detector grown to cover all its attitude-determination areas.
+
+    Same focal length, pixel pitch, noise and detection logic; ``columns = rows`` = twice the
+    largest distance of an area vertex from the optical axis, in pixels, plus a margin of 8.
+    """
+    layout = _layout(sensor)
+    reach = max(float(np.hypot(*a.vertices.T).max()) for a in layout.areas)
+    half = math.ceil(reach * sensor.focal_length_px) + 4
+    if 2 * half > 40_000:
+        raise InputError(
+            f"the attitude-determination areas of {sensor.name!r} reach {2 * half} pixels across; "
+            "too large to render as one frame (limit 40,000)"
+        )
+    det = dataclasses.replace(sensor.detector, columns=2 * half, rows=2 * half)
+    return sensor.with_(detector=det, name=f"{sensor.name} (focal plane)")
+
+
+def area_pixel_index(fp_sensor) -> NDArray[np.int8]:
+    """Area number (1-based, 0 = no detector) of every pixel of a focal-plane sensor.
+
+    A pixel belongs to the area holding its centre (pixel-centre convention, distortion
+    included through :meth:`Sensor.unproject`).
+    """
+    from starsense.geometry.areas import vectors_to_tangent
+
+    layout = _layout(fp_sensor)
+    rows, cols = fp_sensor.detector.rows, fp_sensor.detector.columns
+    if not (fp_sensor.optics.distortion_k1 or fp_sensor.optics.distortion_k2):
+        # pinhole: the pixel centres are a regular grid of the tangent plane (scanline fill)
+        cx, cy = fp_sensor.principal_point_px
+        f = fp_sensor.focal_length_px
+        xs = (np.arange(cols) - cx) / f
+        ys = (np.arange(rows) - cy) / f
+        return layout.index_grid(xs, ys).astype(np.int8)
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    xy = vectors_to_tangent(fp_sensor.unproject(xx.ravel(), yy.ravel()))
+    return layout.index(xy).astype(np.int8).reshape(rows, cols)
+
+
+@dataclass(frozen=True, eq=False)
+class AreaFrame:
+    """A rendered frame of the attitude-determination areas.
+
+    Attributes
+    ----------
+    frame : Frame
+        On ``sensor``; pixels outside the areas read the bias level.
+    sensor : Sensor
+        The focal-plane sensor (:func:`focal_plane_sensor`).
+    pixel_area : ndarray of int8, shape (rows, columns)
+        Area number of each pixel, 0 outside.
+    star_area : ndarray of int, shape (N,)
+        Area number of each rendered star's mid-exposure centroid (``frame.truth.stars``).
+    """
+
+    frame: object
+    sensor: object
+    pixel_area: NDArray[np.int8]
+    star_area: NDArray[np.int_]
+
+
+def render_areas(sensor, attitude, catalog, **kwargs) -> AreaFrame:
+    """Render what the attitude-determination areas of ``sensor`` see.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        With ``attitude_areas``.
+    attitude : Rotation
+        ICRS -> camera.
+    catalog : Catalog
+    **kwargs
+        Passed to :func:`starsense.render.render_frame` (rate, model, band, max_mag, rng, ...).
+    """
+    from starsense.render.scene import render_frame
+
+    fp = focal_plane_sensor(sensor)
+    frame = render_frame(fp, attitude, catalog, **kwargs)
+    pixel_area = area_pixel_index(fp)
+    outside = pixel_area == 0
+    bias = np.asarray(round(fp.detector.bias_counts)).astype(frame.image.dtype)
+    frame.image[outside] = bias
+    if frame.expected_e is not None:
+        frame.expected_e[outside] = 0.0
+    st = frame.truth.stars
+    xi = np.clip(np.round(st.x_mid).astype(int), 0, fp.detector.columns - 1)
+    yi = np.clip(np.round(st.y_mid).astype(int), 0, fp.detector.rows - 1)
+    on = (st.x_mid >= -0.5) & (st.x_mid < fp.detector.columns - 0.5)
+    on &= (st.y_mid >= -0.5) & (st.y_mid < fp.detector.rows - 0.5)
+    star_area = np.where(on, pixel_area[yi, xi], 0).astype(int)
+    return AreaFrame(frame, fp, pixel_area, star_area)
+
+
+def detect_in_areas(area_frame: AreaFrame, **kwargs):
+    """Detect stars in an :class:`AreaFrame` with its sensor's logic.
+
+    Returns
+    -------
+    detections : Detections
+    area : ndarray of int, shape (N,)
+        Area number of each detection's centroid.
+    """
+    from starsense.detect import detect_stars
+
+    image = area_frame.frame.image
+    det = detect_stars(image, area_frame.sensor.detection, **kwargs)
+    pa = area_frame.pixel_area
+    xi = np.clip(np.round(det.x).astype(int), 0, pa.shape[1] - 1)
+    yi = np.clip(np.round(det.y).astype(int), 0, pa.shape[0] - 1)
+    return det, pa[yi, xi].astype(int)
