@@ -784,7 +784,7 @@ def catalog_stars(
         If the band is missing or the cut leaves no star (the message gives the brightest
         magnitude present).
     """
-    m = _check_mag(max_mag)
+    m = _check_mag(max_mag, allow_inf=True)  # +inf: every star with a magnitude
     mags_all = getattr(catalog, "mags", {})
     name = getattr(catalog, "name", "catalogue")
     if band not in mags_all:
