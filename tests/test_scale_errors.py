@@ -147,7 +147,7 @@ def g_only_hats(scale, tmp_path_factory):
 
 def test_catalogue_without_colour_for_the_limit(scale, g_only_hats):
     t0 = time.perf_counter()
-    with pytest.raises(MissingColumnsError, match="no colour index usable"):
+    with pytest.raises(MissingColumnsError, match="no column for a magnitude and colour"):
         scale.sky_limit(g_only_hats, client=object())  # refused before any cluster work
     with pytest.raises(MissingColumnsError, match="BP-RP"):
         scale.sky_limit(g_only_hats, colour="BP-RP", client=object())

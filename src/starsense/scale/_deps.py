@@ -31,10 +31,18 @@ _THIRD_PARTY_DEPRECATIONS = (
 )
 
 
+# hats-import warns once per input chunk, from every worker, when RA/Dec are not float64. Integer
+# degrees are exact, and the positions are read as float64 afterwards; the note is not worth a
+# screenful of repeated warnings.
+_THIRD_PARTY_USER_WARNINGS = (r"Column '.*' is not double-precision float",)
+
+
 def quiet_third_party_warnings() -> None:
-    """Ignore the known third-party deprecations above (idempotent; cheap enough per task)."""
+    """Ignore the known third-party warnings above (idempotent; cheap enough per task)."""
     for message in _THIRD_PARTY_DEPRECATIONS:
         warnings.filterwarnings("ignore", message=message, category=DeprecationWarning)
+    for message in _THIRD_PARTY_USER_WARNINGS:
+        warnings.filterwarnings("ignore", message=message, category=UserWarning)
 
 
 def require(*modules: str) -> list[ModuleType]:

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from starsense.errors import InputError
-from starsense.scale._deps import require
+from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import SchedulerUnreachableError
 
 #: seconds to wait for a remote scheduler before giving up
@@ -93,10 +93,13 @@ def dask_client(
             protocol="tcp://",
             host="127.0.0.1",
             dashboard_address=None,
-            silence_logs=logging.ERROR,
+            # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
+            # a traceback; task failures still reach the client as exceptions
+            silence_logs=logging.CRITICAL,
         )
         try:
             client = distributed.Client(cluster)
+            client.run(quiet_third_party_warnings)
             try:
                 yield client
             finally:
@@ -110,6 +113,7 @@ def dask_client(
         raise SchedulerUnreachableError(
             f"no Dask scheduler answers at {value} (gave up after {timeout_s:g} s): {exc}"
         ) from None
+    client.run(quiet_third_party_warnings)
     try:
         yield client
     finally:

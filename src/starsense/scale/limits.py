@@ -34,7 +34,6 @@ from starsense.analysis.limits import (
 )
 from starsense.errors import InputError, SingularGeometryError
 from starsense.scale import kernels
-from starsense.scale.errors import MissingColumnsError
 from starsense.scale.hats import ColumnPlan, HatsCatalog
 from starsense.scale.run import Progress, client_or_local, run_partitions
 
@@ -61,11 +60,13 @@ def limit_plan(catalog: HatsCatalog, colour: str | None) -> tuple[ColumnPlan, st
     plan = catalog.plan()
     try:
         chosen = BlackBodyStars.from_catalog(plan.empty_catalog(), colour).colour
-    except InputError as exc:
-        raise MissingColumnsError(
-            f"HATS catalogue {catalog.location}: {exc}. "
-            + str(catalog.missing("a magnitude and colour of one colour system"))
-        ) from None
+    except InputError:
+        what = (
+            "a magnitude and colour of one colour system"
+            if colour is None
+            else f"the {colour} colour index with its magnitude (--colour {colour})"
+        )
+        raise catalog.missing(what) from None
     from starsense.photometry.colour import COLOUR_SYSTEMS
 
     return plan.restrict([COLOUR_SYSTEMS[chosen][2]], [chosen]), chosen
