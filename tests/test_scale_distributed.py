@@ -251,6 +251,19 @@ def test_cli_limit_sky_hats_by_scheduler_address(data, client, capsys):
     assert payload["theta_rms_rad"] == pytest.approx(ref.theta_rms_rad, rel=REL)
 
 
+def test_cli_limit_curve_hats(data, client, capsys):
+    folder, gaia, _, _ = data
+    code, out, err = run(
+        capsys, "limit", "curve", "--catalog", f"hats:{folder / 'stars_hats'}",
+        "--dask", client.scheduler.address, "--colour", "BP-RP", "--json",
+    )  # fmt: skip
+    assert code == 0, err
+    payload = json.loads(out)
+    ref = mem.brightest_curve(mem.BlackBodyStars.from_catalog(gaia, "BP-RP"))
+    assert payload["n_stars"] == ref.n_stars.tolist()
+    _close(payload["theta_rms_rad"], ref.theta_rms_rad)
+
+
 def test_cli_limit_sky_hats_fov_heads(data, client, capsys):
     folder, gaia, _, _ = data
     code, out, err = run(

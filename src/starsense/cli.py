@@ -277,7 +277,7 @@ def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_
 
 @limit_app.command("curve")
 def limit_curve(
-    catalog: CatalogOpt = "hipparcos",
+    catalog: ScaleCatalogOpt = "hipparcos",
     colour: ColourOpt = None,
     diameter_m: DiameterOpt = 1.0,
     exposure_s: ExposureOpt = 1.0,
@@ -285,15 +285,30 @@ def limit_curve(
         float, typer.Option("--extrapolate-to", help="N stars to extrapolate to (paper: 3e11).")
     ] = 3e11,
     plot: Annotated[Path | None, typer.Option("--plot", help="Write a PNG of the curve.")] = None,
+    dask: DaskOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """theta_rms over the N brightest stars, N = 2 .. all, and its extrapolation (Fig. 7)."""
+    """theta_rms over the N brightest stars, N = 2 .. all, and its extrapolation (Fig. 7).
+
+    With --catalog hats:PATH_OR_URL the curve is built partition by partition on Dask (--dask)
+    from magnitude histograms, without sorting the catalogue.
+    """
     from starsense.analysis.limits import brightest_curve
 
     if not np.isfinite(extrapolate_to) or extrapolate_to < 2:
         raise InputError(f"--extrapolate-to must be >= 2 stars, got {extrapolate_to}")
-    cat, stars = _load_stars(catalog, None, colour)
-    curve = brightest_curve(stars, diameter_m, exposure_s, n_extrapolated=extrapolate_to)
+    if check_dask_option(catalog, dask):
+        from starsense.cli_catalog import hats_session
+        from starsense.scale import brightest_curve as hats_curve
+
+        with hats_session(catalog, dask, not as_json) as (cat, client, progress):
+            curve = hats_curve(
+                cat, diameter_m, exposure_s, n_extrapolated=extrapolate_to, colour=colour,
+                client=client, progress=progress,
+            )  # fmt: skip
+    else:
+        cat, stars = _load_stars(catalog, None, colour)
+        curve = brightest_curve(stars, diameter_m, exposure_s, n_extrapolated=extrapolate_to)
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
     payload.update(curve.to_dict())
     lines = [
