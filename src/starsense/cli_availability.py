@@ -9,19 +9,25 @@ line and exits 2.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
-import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import numpy as np
 import typer
 
 from starsense.cli_catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
-from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
+from starsense.cli_common import (
+    CatalogOpt,
+    JsonOpt,
+    SeedOpt,
+    SensorOpt,
+    emit,
+    parse_floats,
+    progress_bar,
+)
 from starsense.errors import InputError
 
 availability_app = typer.Typer(
@@ -87,22 +93,6 @@ ToleranceOpt = Annotated[
 ]
 
 DEFAULT_DYNAMIC_RATES = "0,0.25,0.5,0.75,1,1.25,1.5,1.75,2,2.25,2.5,2.75,3,3.5,4,4.5,5"
-
-
-@contextlib.contextmanager
-def _progress() -> Iterator[Callable[[str, int, int], None]]:
-    """A rich progress bar on stderr (hidden when stderr is not a terminal)."""
-    from rich.progress import Progress
-
-    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
-        tasks: dict[str, Any] = {}
-
-        def update(label: str, done: int, total: int) -> None:
-            if label not in tasks:
-                tasks[label] = bar.add_task(label, total=total)
-            bar.update(tasks[label], completed=done, total=total)
-
-        yield update
 
 
 def _setup(
@@ -223,7 +213,7 @@ def static(
         res, sens = _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min,
                                  n_orientations, roll_deg, seed, band, as_json)  # fmt: skip
     else:
-        with _progress() as progress:
+        with progress_bar() as progress:
             sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag,
                                        n_orientations, roll_deg, seed, progress,
                                        band or "V")  # fmt: skip
@@ -279,7 +269,7 @@ def dynamic(
 
     rates = check_rates(parse_floats(rates_deg_s, "--rates-deg-s"))
     check_n_min(n_min)
-    with _progress() as progress:
+    with progress_bar() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
                                    roll_deg, seed, progress)  # fmt: skip
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
@@ -350,7 +340,7 @@ def track(
             f"--inclination-step-deg = {inclination_step_deg:g} is out of range; allowed (0, 180]"
         )
     inclinations = np.arange(-90.0, 90.0 + 1e-9, inclination_step_deg)
-    with _progress() as progress:
+    with progress_bar() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
                                    roll_deg, seed, progress)  # fmt: skip
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
@@ -405,7 +395,7 @@ def fidelity(
 
     sens = load_sensor(sensor)
     cat = load_catalog(catalog)
-    with _progress() as progress:
+    with progress_bar() as progress:
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
         res = fidelity_check(
             sens, cat, curve, rate_deg_s, n_frames=frames, n_min=n_min, max_mag=max_mag,

@@ -11,7 +11,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats
+from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
 from starsense.errors import InputError
 
 guide_stars_app = typer.Typer(
@@ -78,17 +78,19 @@ def simulate(
         if configurations is None
         else [c.strip() for c in configurations.split(",") if c.strip()]
     )
-    tab = simulate_table1(
-        sig,
-        configs,
-        n_trials=trials,
-        fov_deg=fov_deg,
-        threshold_arcsec=threshold,
-        metric=metric,
-        seed=seed,
-        identify=identify,
-        sigma_kind=sigma_kind,
-    )
+    with progress_bar() as update:
+        tab = simulate_table1(
+            sig,
+            configs,
+            n_trials=trials,
+            fov_deg=fov_deg,
+            threshold_arcsec=threshold,
+            metric=metric,
+            seed=seed,
+            identify=identify,
+            sigma_kind=sigma_kind,
+            progress=None if as_json else update,
+        )
     payload = tab.as_dict()
     names = list(tab.probability_mc)
     lines = [

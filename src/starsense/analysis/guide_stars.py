@@ -761,6 +761,7 @@ def simulate_table1(
     identify: bool = True,
     sigma_kind: str = "1sigma",
     id_tolerance_sigma: float = ID_TOLERANCE_SIGMA,
+    progress=None,
 ) -> GuideStarTable:
     """Lin et al. 2024, Table 1: P(accuracy < threshold) per configuration and sigma.
 
@@ -797,6 +798,8 @@ def simulate_table1(
     id_tolerance_sigma : float
         Side tolerance of the identification, in standard deviations of a measured
         inter-star angle (sqrt(2) x the per-axis standard deviation).
+    progress : callable(label, done, total), optional
+        Called after each (configuration, sigma) cell.
 
     Returns
     -------
@@ -830,6 +833,7 @@ def simulate_table1(
     places: dict[str, NDArray[np.float64]] = {}
     succ: dict[str, NDArray[np.bool_]] = {}
     ident: dict[str, NDArray[np.float64]] = {}
+    done = 0
     for c, child in zip(configs, children, strict=True):
         gen = np.random.default_rng(child)
         xy = sample_placements(c, n_trials, n_stars, step, gen)
@@ -851,6 +855,9 @@ def simulate_table1(
                 id_rows.append(1.0)
             ok_rows.append(ok)
             an.append(float(np.mean(probability_within(cov1 * s_rad**2, thr_rad, metric))))
+            if progress is not None:
+                done += 1
+                progress("Table 1 cells", done, len(configs) * len(sig))
         succ[c] = np.array(ok_rows)
         p_mc[c], p_an[c] = succ[c].mean(axis=1), np.array(an)
         ident[c] = np.array(id_rows)
