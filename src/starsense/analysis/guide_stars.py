@@ -748,6 +748,20 @@ class GuideStarTable:
         }
 
 
+def _check_sigmas(sigmas_arcsec: ArrayLike, sigma_kind: str) -> tuple[NDArray[np.float64], float]:
+    """Validated sigmas (arcsec, 1-D) and the standard deviation per quoted sigma."""
+    sig = np.atleast_1d(np.asarray(sigmas_arcsec, dtype=np.float64))
+    if sig.ndim != 1 or sig.size == 0:
+        raise InputError("sigmas_arcsec must be a non-empty list of numbers")
+    for s in sig:
+        _sigma(s, "sigma_arcsec")
+    if sigma_kind not in SIGMA_KINDS:
+        raise InputError(
+            f"sigma_kind = {sigma_kind!r} is not known; choose one of {', '.join(SIGMA_KINDS)}"
+        )
+    return sig, 1.0 / SIGMA_KINDS[sigma_kind]
+
+
 def simulate_table1(
     sigmas_arcsec: ArrayLike = PAPER_SIGMAS_ARCSEC,
     configurations: tuple[str, ...] | list[str] | None = None,
@@ -806,19 +820,10 @@ def simulate_table1(
     GuideStarTable
     """
     start = time.perf_counter()
-    sig = np.atleast_1d(np.asarray(sigmas_arcsec, dtype=np.float64))
-    if sig.ndim != 1 or sig.size == 0:
-        raise InputError("sigmas_arcsec must be a non-empty list of numbers")
-    for s in sig:
-        _sigma(s, "sigma_arcsec")
+    sig, sd_per_quoted = _check_sigmas(sigmas_arcsec, sigma_kind)
     thr = _sigma(threshold_arcsec, "threshold_arcsec")
     _check_metric(metric)
-    if sigma_kind not in SIGMA_KINDS:
-        raise InputError(
-            f"sigma_kind = {sigma_kind!r} is not known; choose one of {', '.join(SIGMA_KINDS)}"
-        )
     k_tol = _sigma(id_tolerance_sigma, "id_tolerance_sigma")
-    sd_per_quoted = 1.0 / SIGMA_KINDS[sigma_kind]
     if not (np.isfinite(fov_deg) and 0.0 < fov_deg < 90.0):
         raise InputError(f"fov_deg = {fov_deg!r} must be in (0, 90)")
     configs = tuple(CONFIGURATIONS) if configurations is None else tuple(configurations)
@@ -1234,15 +1239,7 @@ def field_accuracy(
     -------
     FieldAccuracy
     """
-    sig = np.atleast_1d(np.asarray(sigmas_arcsec, dtype=np.float64))
-    if sig.ndim != 1 or sig.size == 0:
-        raise InputError("sigmas_arcsec must be a non-empty list of numbers")
-    for s in sig:
-        _sigma(s, "sigma_arcsec")
-    if sigma_kind not in SIGMA_KINDS:
-        raise InputError(
-            f"sigma_kind = {sigma_kind!r} is not known; choose one of {', '.join(SIGMA_KINDS)}"
-        )
+    sig, sd = _check_sigmas(sigmas_arcsec, sigma_kind)
     _check_metric(metric)
     if not isinstance(n_trials, int | np.integer) or n_trials < 1:
         raise InputError(f"n_trials = {n_trials!r} must be an integer >= 1")
@@ -1253,7 +1250,6 @@ def field_accuracy(
     _, xy, mag, band = field_stars(catalog, center_deg, layout, roll_deg, max_mag)
     which = layout.index(xy) if len(xy) else np.zeros(0, dtype=int)
     per_area = tuple(int(np.sum(which == k)) for k in (1, 2, 3, 4))
-    sd = 1.0 / SIGMA_KINDS[sigma_kind]
     gen = np.random.default_rng(seed)
     from starsense.geometry.areas import tangent_to_vectors
 
