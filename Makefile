@@ -17,8 +17,10 @@ demo: $(STAMP)  ## the main job: the performance report for the default sensor
 	$(BIN)/starsense report --out $(OUT)
 	@echo "Open $(OUT)/index.html"
 
-test: $(STAMP)  ## the whole suite, slow tests included (what CI runs)
+test: $(STAMP)  ## lint, format, the stage contract, then the whole suite (what CI runs)
 	$(BIN)/ruff check src tests bench
+	$(BIN)/ruff format --check src tests bench
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q
 
 test-fast: $(STAMP)
@@ -27,6 +29,7 @@ test-fast: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
+	$(BIN)/lint-imports
 
 bench: $(STAMP)  ## time the hot paths; results to bench/results/*.json (+ peers if installed)
 	$(BIN)/python bench/run.py

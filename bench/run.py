@@ -190,8 +190,8 @@ def _availability_dynamic() -> float:
 def _solve_esa() -> float:
     from pathlib import Path
 
-    from starsense.imageio import load_image
-    from starsense.pipeline import Solver
+    from starsense.solve.frames import load_image
+    from starsense.solve.solver import Solver
 
     folder = Path(__file__).resolve().parents[2] / "shared" / "data" / "images" / "esa"
     frames = [load_image(p) for p in sorted(folder.glob("*.tiff"))]
@@ -367,6 +367,7 @@ def _scale_vectors(n: int) -> np.ndarray:
     rng = np.random.default_rng(n)
     v = rng.normal(size=(n, 3))
     return v / np.linalg.norm(v, axis=1, keepdims=True)
+
 
 # end of issue 7 benchmarks
 # ---------------------------------------------------------------------------------------------

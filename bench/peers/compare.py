@@ -93,8 +93,8 @@ def synthetic_inputs(n: int, seed: int = 20240605):
 def esa_inputs():
     """The eight frames, starsense's detections of each (as the pipeline makes them), reference."""
     from starsense.detect import StarDetector
-    from starsense.imageio import load_image
     from starsense.sensor import load_sensor
+    from starsense.solve.frames import load_image
 
     reference = json.loads((ESA_DIR / "reference.json").read_text())["frames"]
     sensor = load_sensor("esa_blackfly")
@@ -126,7 +126,7 @@ def starsense_side(xy, offsets, esa):
     from starsense.catalog import load_catalog
     from starsense.geometry.attitude import radec_roll_from_attitude
     from starsense.identify import HashIdentifier, build_database
-    from starsense.pipeline import Solver, pinhole_vectors
+    from starsense.solve.solver import Solver, pinhole_vectors
 
     names, images, exy, eoff, _reference, sensor = esa
     cat = load_catalog("hipparcos")

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from starsense.catalog import load_catalog
+from starsense.detect.areas import detect_in_areas
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll
 from starsense.render.areas import (
     area_pixel_index,
-    detect_in_areas,
     focal_plane_sensor,
     render_areas,
 )

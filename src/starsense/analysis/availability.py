@@ -349,7 +349,8 @@ class ThresholdCurve:
     @classmethod
     def from_tolerance_dict(cls, data: dict, source: str = "tolerance JSON") -> ThresholdCurve:
         """From the JSON of ``starsense slew tolerance --json`` (``magnitudes``,
-        ``tolerable_rate_deg_s``, ``capped``, ``rates_deg_s``, ``sensor``, ``model``)."""
+        ``tolerable_rate_deg_s``, ``capped``, ``rates_deg_s``, ``sensor``, ``model``).
+        """
         try:
             mags = data["magnitudes"]
             tol = data["tolerable_rate_deg_s"]
@@ -668,7 +669,8 @@ class FieldStars:
 
     def kth_magnitude(self, k: int) -> NDArray[np.float64]:
         """Magnitude of the ``k``-th brightest star in the field at each pointing, shape (M,);
-        ``inf`` where fewer than ``k`` stars are in the field."""
+        ``inf`` where fewer than ``k`` stars are in the field.
+        """
         k = check_n_min(k)
         start, stop = self.offsets[:-1], self.offsets[1:]
         has = (stop - start) >= k
@@ -694,14 +696,16 @@ class FieldStars:
 
     def available(self, max_mag: ArrayLike, n_min: int) -> NDArray[np.bool_]:
         """Per-pointing flag: at least `n_min` stars ``<= max_mag`` (shape (M,), or (..., M)
-        for an array of thresholds)."""
+        for an array of thresholds).
+        """
         kth = self.kth_magnitude(n_min)
         return kth <= np.asarray(max_mag, dtype=np.float64)[..., None]
 
     def brightest(self, k: int) -> BrightestInField:
         """The `k` brightest magnitudes in the field at each pointing (see
         :class:`BrightestInField`): all that availability for N_min <= k needs, in a form that
-        merges exactly over disjoint star sets."""
+        merges exactly over disjoint star sets.
+        """
         k = check_n_min(k)
         mags = np.column_stack([self.kth_magnitude(j) for j in range(1, k + 1)])
         return BrightestInField(mags.reshape(self.n_pointings, k), self.n_stars)
@@ -1178,7 +1182,8 @@ class AvailabilityAnalysis:
         cls, catalog: Any, fov: Fov, max_mag: float, band: str = "V", **kwargs: Any
     ) -> AvailabilityAnalysis:
         """From a :class:`~starsense.catalog.Catalog` (or anything with ``vectors`` and
-        ``mags[band]``), keeping the stars with ``mag <= max_mag``."""
+        ``mags[band]``), keeping the stars with ``mag <= max_mag``.
+        """
         vectors, mags = catalog_stars(catalog, max_mag, band)
         name = getattr(catalog, "name", "")
         return cls(vectors, mags, fov, max_mag=max_mag, catalog=name, band=band, **kwargs)
@@ -1422,7 +1427,8 @@ class FidelityCheck:
 
 def _detect(frame: Any, sensor: Any) -> NDArray[np.float64]:
     """Centroids (K, 2) as (x, y) pixels of the stars the sensor's detector finds in a frame
-    (:class:`starsense.detect.StarDetector` with the sensor's logic, bias as background)."""
+    (:class:`starsense.detect.StarDetector` with the sensor's logic, bias as background).
+    """
     from starsense.detect import StarDetector
 
     found = StarDetector.for_sensor(sensor)(frame.image)
@@ -1431,7 +1437,8 @@ def _detect(frame: Any, sensor: Any) -> NDArray[np.float64]:
 
 def _truth_xy_mag(frame: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Mid-exposure image positions (K, 2) and magnitudes (K,) of a rendered frame's stars
-    (:class:`starsense.render.scene.StarTruth`)."""
+    (:class:`starsense.render.scene.StarTruth`).
+    """
     stars = frame.truth.stars
     xy = np.stack([np.asarray(stars.x_mid, float), np.asarray(stars.y_mid, float)], axis=-1)
     return xy.reshape(-1, 2), np.asarray(stars.mag, dtype=np.float64).reshape(-1)

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+# the attitude Fisher matrix, covariance and theta (eqs. 20-22) live with the attitude stage
+from starsense.attitude.covariance import covariance, fisher_matrix, theta_rms
 from starsense.errors import InputError, SingularGeometryError
 from starsense.geometry.attitude import east_north, vectors_to_radec
 from starsense.photometry.blackbody import (
@@ -39,9 +41,6 @@ FISHER_CONSTANT = (
 G_PAPER_INTERVAL = (7e-15, 1e-13)
 #: stars in the Galaxy used for the paper's extrapolation (sec. 3.3)
 N_GALAXY = 3e11
-
-#: relative size of the smallest eigenvalue of F below which the geometry is called singular
-SINGULAR_RCOND = 1e-10
 
 
 def check_aperture(diameter_m: float, exposure_s: float) -> None:
@@ -124,50 +123,6 @@ def centroid_fisher_spectrum(wavelength_m, irradiance, diameter_m: float, exposu
 
 # ---------------------------------------------------------------------------------------------
 # attitude Fisher matrix and covariance
-
-
-def fisher_matrix(vectors, weights) -> np.ndarray:
-    """Attitude Fisher information matrix, eq. 21: sum_i w_i (I - r_i r_i^T).
-
-    Parameters
-    ----------
-    vectors : array (N, 3)
-        Unit vectors of the stars.
-    weights : array (N,)
-        Per-star centroid Fisher information, rad^-2.
-
-    Returns
-    -------
-    array (3, 3)
-    """
-    r = np.asarray(vectors, dtype=float)
-    w = np.asarray(weights, dtype=float)
-    s = (r * w[:, None]).T @ r
-    return w.sum() * np.eye(3) - s
-
-
-def covariance(fisher: np.ndarray, n_stars: int | None = None) -> np.ndarray:
-    """P = F^-1 (eq. 20), with a specific error when F is singular.
-
-    F is singular exactly when all stars lie along one axis (a single star, or stars at the same
-    or antipodal points): a rotation about that axis moves none of them.
-    """
-    f = np.asarray(fisher, dtype=float)
-    if not np.all(np.isfinite(f)):
-        raise InputError("Fisher matrix has non-finite entries (NaN or inf in the star data)")
-    eig = np.linalg.eigvalsh(f)
-    stars = "" if n_stars is None else f" ({n_stars} star{'s' if n_stars != 1 else ''})"
-    if eig[-1] <= 0 or eig[0] <= SINGULAR_RCOND * eig[-1]:
-        raise SingularGeometryError(
-            f"singular geometry{stars}: the stars do not constrain rotation about every axis "
-            "(at least two stars in distinct, non-antipodal directions are needed)"
-        )
-    return np.linalg.inv(f)
-
-
-def theta_rms(cov: np.ndarray) -> float:
-    """sqrt(tr P): the rms attitude error angle, eq. 22."""
-    return float(np.sqrt(np.trace(cov)))
 
 
 def boresight_frame(target) -> np.ndarray:
@@ -754,5 +709,5 @@ def low_photon_degradation(
 
 
 def limit_line(g_rad_m2_s05, d2_sqrt_t):
-    """theta = G / (D^2 t^1/2) (eq. 23) as a function of the figure of merit D^2 t^1/2."""
+    """Theta = G / (D^2 t^1/2) (eq. 23) as a function of the figure of merit D^2 t^1/2."""
     return np.asarray(g_rad_m2_s05) / np.asarray(d2_sqrt_t)

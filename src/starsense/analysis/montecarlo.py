@@ -102,8 +102,8 @@ def run_montecarlo(sensor, n_trials: int = 100, *, rate_deg_s: float = 0.0, mode
         small_rotation_angles,
     )
     from starsense.geometry.sampling import random_attitudes
-    from starsense.pipeline import Solver
     from starsense.render.scene import render_frame
+    from starsense.solve.solver import Solver
 
     if int(n_trials) != n_trials or n_trials < 1:
         raise InputError(f"n_trials must be an integer >= 1, got {n_trials!r}")

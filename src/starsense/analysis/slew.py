@@ -41,12 +41,12 @@ DEFAULT_MAX_RATE_DEG_S = 10.0
 
 
 def default_rates_deg_s(n: int = 40, max_rate_deg_s: float = DEFAULT_MAX_RATE_DEG_S) -> np.ndarray:
-    """n rates from 0 to max_rate (inclusive), deg/s."""
+    """N rates from 0 to max_rate (inclusive), deg/s."""
     return np.linspace(0.0, max_rate_deg_s, n)
 
 
 def default_magnitudes(n: int = 20) -> np.ndarray:
-    """n magnitudes in 0.25 mag steps ending at 6.0 (20 -> 1.25 ... 6.0, includes 3, 4, 5, 5.75)."""
+    """N magnitudes in 0.25 mag steps ending at 6.0 (20 -> 1.25 ... 6.0, includes 3, 4, 5, 5.75)."""
     return 6.0 - 0.25 * np.arange(n)[::-1]
 
 

@@ -12,10 +12,63 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from starsense.analysis.limits import covariance, fisher_matrix
 from starsense.attitude.solution import cross3
+from starsense.errors import InputError, SingularGeometryError
 
-__all__ = ["fisher_covariance", "triad_covariance"]
+__all__ = [
+    "covariance",
+    "fisher_covariance",
+    "fisher_matrix",
+    "theta_rms",
+    "triad_covariance",
+]
+
+SINGULAR_RCOND = 1e-10
+"""Smallest eigenvalue ratio of a Fisher matrix taken as non-singular."""
+
+
+def fisher_matrix(vectors, weights) -> np.ndarray:
+    """Attitude Fisher information matrix, eq. 21: sum_i w_i (I - r_i r_i^T).
+
+    Parameters
+    ----------
+    vectors : array (N, 3)
+        Unit vectors of the stars.
+    weights : array (N,)
+        Per-star centroid Fisher information, rad^-2.
+
+    Returns
+    -------
+    array (3, 3)
+    """
+    r = np.asarray(vectors, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    s = (r * w[:, None]).T @ r
+    return w.sum() * np.eye(3) - s
+
+
+def covariance(fisher: np.ndarray, n_stars: int | None = None) -> np.ndarray:
+    """P = F^-1 (eq. 20), with a specific error when F is singular.
+
+    F is singular exactly when all stars lie along one axis (a single star, or stars at the same
+    or antipodal points): a rotation about that axis moves none of them.
+    """
+    f = np.asarray(fisher, dtype=float)
+    if not np.all(np.isfinite(f)):
+        raise InputError("Fisher matrix has non-finite entries (NaN or inf in the star data)")
+    eig = np.linalg.eigvalsh(f)
+    stars = "" if n_stars is None else f" ({n_stars} star{'s' if n_stars != 1 else ''})"
+    if eig[-1] <= 0 or eig[0] <= SINGULAR_RCOND * eig[-1]:
+        raise SingularGeometryError(
+            f"singular geometry{stars}: the stars do not constrain rotation about every axis "
+            "(at least two stars in distinct, non-antipodal directions are needed)"
+        )
+    return np.linalg.inv(f)
+
+
+def theta_rms(cov: np.ndarray) -> float:
+    """sqrt(tr P): the rms attitude error angle, eq. 22."""
+    return float(np.sqrt(np.trace(cov)))
 
 
 def fisher_covariance(

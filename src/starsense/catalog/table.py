@@ -284,7 +284,8 @@ class Catalog:
     # -- selection -----------------------------------------------------------------------
     def subset(self, index_or_mask: object) -> Catalog:
         """The stars selected by a boolean mask ``(N,)``, an integer index array or a slice,
-        with every column sliced consistently (same name, source and epoch)."""
+        with every column sliced consistently (same name, source and epoch).
+        """
         idx = self._normalise_index(index_or_mask)
 
         def take(a: np.ndarray | None) -> np.ndarray | None:
@@ -361,7 +362,8 @@ class Catalog:
 
     def brightest(self, n: int, band: str) -> Catalog:
         """The ``n`` brightest stars in ``band``, sorted brightest first (fewer if fewer
-        stars have a magnitude in that band)."""
+        stars have a magnitude in that band).
+        """
         try:
             count = operator.index(n)
         except TypeError:
@@ -374,7 +376,8 @@ class Catalog:
 
     def sorted_by(self, band: str) -> Catalog:
         """All stars sorted by ``mags[band]``, brightest first; stars without a magnitude in
-        that band come last, in catalogue order."""
+        that band come last, in catalogue order.
+        """
         return self.subset(self._sort_order(band))
 
     def index_of(self, ids: object) -> np.ndarray | int:

@@ -20,34 +20,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from starsense.errors import InputError
+from starsense.geometry.projection import _points, tangent_to_vectors, vectors_to_tangent
 
 __all__ = ["AreaLayout", "FocalArea", "tangent_to_vectors", "vectors_to_tangent"]
-
-
-def _points(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
-    arr = np.asarray(xy, dtype=np.float64)
-    if arr.ndim < 1 or arr.shape[-1] != 2:
-        raise InputError(f"{name} must have shape (..., 2), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InputError(f"{name} has non-finite values")
-    return arr
-
-
-def tangent_to_vectors(xy: ArrayLike) -> NDArray[np.float64]:
-    """Camera-frame unit vectors (..., 3) of tangent-plane points (..., 2)."""
-    p = _points(xy)
-    v = np.concatenate([p, np.ones((*p.shape[:-1], 1))], axis=-1)
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def vectors_to_tangent(vectors: ArrayLike) -> NDArray[np.float64]:
-    """Tangent-plane points (..., 2) of camera-frame vectors (..., 3) with v_z > 0."""
-    v = np.asarray(vectors, dtype=np.float64)
-    if v.shape[-1] != 3:
-        raise InputError(f"vectors must have shape (..., 3), got {v.shape}")
-    if np.any(v[..., 2] <= 0):
-        raise InputError("vectors must lie in front of the camera (v_z > 0)")
-    return v[..., :2] / v[..., 2:3]
 
 
 @dataclass(frozen=True, eq=False)

@@ -58,7 +58,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from starsense._validate import check_rotation
+from starsense._validate import finite_array as _finite_array
+from starsense._validate import vectors3 as _as_vectors
 from starsense.errors import InputError
+from starsense.geometry.projection import (
+    _unpack,
+    _wrap_two_pi,
+    radec_to_vectors,
+    vectors_to_radec,
+)
 
 __all__ = [
     "angular_separation",
@@ -70,111 +79,6 @@ __all__ = [
     "small_rotation_angles",
     "vectors_to_radec",
 ]
-
-TWO_PI = 2.0 * np.pi
-HALF_PI = 0.5 * np.pi
-
-# Below this value of cos(dec) the boresight is treated as being exactly at a pole and RA is set
-# to 0 (a few ulp of a unit vector component).
-_POLE_COS_DEC = 1e-15
-
-
-def _finite_array(value: ArrayLike, name: str) -> NDArray[np.float64]:
-    """Convert to a float64 array and reject NaN/inf with an :class:`InputError`."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a real number or array of them, got {value!r}") from exc
-    if not np.all(np.isfinite(arr)):
-        bad = arr[~np.isfinite(arr)].flat[0]
-        raise InputError(f"{name} = {bad} is not allowed; must be finite")
-    return arr
-
-
-def _wrap_two_pi(angle: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Wrap angles to [0, 2 pi) (``np.mod`` alone can return exactly 2 pi for tiny negatives)."""
-    wrapped = np.mod(angle, TWO_PI)
-    return np.where(wrapped >= TWO_PI, 0.0, wrapped)
-
-
-def _as_vectors(value: ArrayLike, name: str) -> NDArray[np.float64]:
-    """Validate an array of 3-vectors: shape ``(..., 3)``, finite."""
-    arr = _finite_array(value, name)
-    if arr.ndim == 0 or arr.shape[-1] != 3:
-        raise InputError(f"{name} must have shape (N, 3) or (3,), got shape {arr.shape}")
-    return arr
-
-
-def _unpack(arr: NDArray[np.float64]) -> NDArray[np.float64] | np.float64:
-    """Return 0-d arrays as NumPy scalars and anything else unchanged."""
-    return arr[()] if arr.ndim == 0 else arr
-
-
-def radec_to_vectors(ra_rad: ArrayLike, dec_rad: ArrayLike) -> NDArray[np.float64]:
-    """Unit vectors from right ascension and declination.
-
-    Parameters
-    ----------
-    ra_rad : float or array_like, shape (N,)
-        Right ascension, rad (any finite value; taken modulo 2 pi).
-    dec_rad : float or array_like, shape (N,)
-        Declination, rad, in [-pi/2, pi/2]. Broadcast against `ra_rad`.
-
-    Returns
-    -------
-    ndarray, shape (N, 3) or (3,) for scalar input
-        ICRS unit vectors ``(cos dec cos ra, cos dec sin ra, sin dec)``.
-
-    Raises
-    ------
-    InputError
-        If a value is not finite or a declination is outside [-pi/2, pi/2].
-    """
-    ra = _finite_array(ra_rad, "ra_rad")
-    dec = _finite_array(dec_rad, "dec_rad")
-    if np.any(np.abs(dec) > HALF_PI):
-        bad = dec[np.abs(dec) > HALF_PI].flat[0]
-        raise InputError(f"dec_rad = {bad} is out of range; must be in [-pi/2, pi/2]")
-    try:
-        ra, dec = np.broadcast_arrays(ra, dec)
-    except ValueError as exc:
-        raise InputError(
-            f"ra_rad (shape {ra.shape}) and dec_rad (shape {dec.shape}) do not broadcast"
-        ) from exc
-    cos_dec = np.cos(dec)
-    return np.stack([cos_dec * np.cos(ra), cos_dec * np.sin(ra), np.sin(dec)], axis=-1)
-
-
-def vectors_to_radec(
-    vectors: ArrayLike,
-) -> tuple[NDArray[np.float64] | np.float64, NDArray[np.float64] | np.float64]:
-    """Right ascension and declination of direction vectors.
-
-    Parameters
-    ----------
-    vectors : array_like, shape (N, 3) or (3,)
-        Directions in ICRS; need not be normalised, must be non-zero and finite.
-
-    Returns
-    -------
-    ra_rad : ndarray, shape (N,), or float
-        Right ascension in [0, 2 pi), rad. Zero for vectors along the poles.
-    dec_rad : ndarray, shape (N,), or float
-        Declination in [-pi/2, pi/2], rad.
-
-    Raises
-    ------
-    InputError
-        If the shape is not (N, 3) or (3,), a value is not finite or a vector is zero.
-    """
-    v = _as_vectors(vectors, "vectors")
-    rho = np.hypot(v[..., 0], v[..., 1])
-    if np.any((rho == 0.0) & (v[..., 2] == 0.0)):
-        raise InputError("vectors contains a zero vector, which has no direction")
-    ra = _wrap_two_pi(np.arctan2(v[..., 1], v[..., 0]))
-    ra = np.where(rho <= _POLE_COS_DEC * np.abs(v[..., 2]), 0.0, ra)
-    dec = np.arctan2(v[..., 2], rho)
-    return _unpack(ra), _unpack(dec)
 
 
 def east_north(
@@ -260,13 +164,6 @@ def attitude_from_radec_roll(
     return Rotation.from_matrix(matrix)
 
 
-def _check_rotation(rot: Rotation, name: str) -> None:
-    if not isinstance(rot, Rotation):
-        raise InputError(f"{name} must be a scipy Rotation, got {type(rot).__name__}")
-    if not rot.single and len(rot.shape) != 1:
-        raise InputError(f"{name} must be a single Rotation or a 1-D batch, got shape {rot.shape}")
-
-
 def boresight(rot: Rotation) -> NDArray[np.float64]:
     """ICRS direction of the camera +z axis.
 
@@ -280,7 +177,7 @@ def boresight(rot: Rotation) -> NDArray[np.float64]:
     ndarray, shape (M, 3) or (3,)
         Boresight unit vectors (the third row of each attitude matrix).
     """
-    _check_rotation(rot, "rot")
+    check_rotation(rot, "rot")
     return rot.as_matrix()[..., 2, :]
 
 
@@ -309,7 +206,7 @@ def radec_roll_from_attitude(
         (RA, Dec), so that ``attitude_from_radec_roll(*radec_roll_from_attitude(A))`` equals
         ``A`` to rounding everywhere, poles included.
     """
-    _check_rotation(rot, "rot")
+    check_rotation(rot, "rot")
     matrix = rot.as_matrix()
     x, y, z = matrix[..., 0, :], matrix[..., 1, :], matrix[..., 2, :]
     ra, dec = vectors_to_radec(z)
@@ -362,8 +259,8 @@ def small_rotation_angles(r_true: Rotation, r_est: Rotation) -> NDArray[np.float
     ndarray, shape (N, 3) or (3,)
         Rotation vector, rad; its norm is the total error angle in [0, pi].
     """
-    _check_rotation(r_true, "r_true")
-    _check_rotation(r_est, "r_est")
+    check_rotation(r_true, "r_true")
+    check_rotation(r_est, "r_est")
     if not r_true.single and not r_est.single and len(r_true) != len(r_est):
         raise InputError(
             f"r_true and r_est must have the same length, got {len(r_true)} and {len(r_est)}"

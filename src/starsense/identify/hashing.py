@@ -41,7 +41,8 @@ _NO_CANDIDATES = np.zeros(0, dtype=np.int64)
 
 def _descriptors(v: NDArray[np.float64], combos: NDArray[np.intp]):
     """Yield (stars in canonical order, edge ratios, largest edge) of the patterns `combos` of
-    `v`, computed a block at a time (most frames solve on one of the first few patterns)."""
+    `v`, computed a block at a time (most frames solve on one of the first few patterns).
+    """
     start = 0
     for stop in (1, 15, 70, len(combos)):
         block = combos[start:stop]
@@ -130,7 +131,8 @@ class HashIdentifier:
 
     def _lookup(self, ratios: NDArray[np.float64]) -> NDArray[np.int64]:
         """Database patterns whose hash bins overlap ``ratios +- pattern_max_error``, nearest
-        ratios first, those farther than the error dropped."""
+        ratios first, those farther than the error dropped.
+        """
         db = self.database
         nb = db.params.n_bins
         err = self.pattern_max_error

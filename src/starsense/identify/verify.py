@@ -177,7 +177,8 @@ def _estimate_matrix(
     body: NDArray[np.float64], ref: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Attitude matrix ``R`` (``body ~ R @ ref``) from paired unit vectors, and the residual
-    angles (rad): the SVD solution of Wahba's problem with equal weights (Kabsch)."""
+    angles (rad): the SVD solution of Wahba's problem with equal weights (Kabsch).
+    """
     if len(body) == 2:  # align_vectors needs a weight on the primary for two pairs
         rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
         r = rot.as_matrix()
@@ -246,7 +247,8 @@ class _Verified:
 
 class _Field:
     """Catalogue stars around a first attitude, fetched once per hypothesis and filtered to
-    the cone of each later attitude (which moves by much less than the margin)."""
+    the cone of each later attitude (which moves by much less than the margin).
+    """
 
     __slots__ = ("centre", "cos_reach", "index", "vectors")
 
@@ -304,7 +306,8 @@ class Verifier:
         vs: NDArray[np.float64] | None = None,
     ) -> tuple[NDArray[np.float64], float, NDArray[np.float64]]:
         """Attitude matrix (and scale) from pairs; tangent = (x/z, y/z) of the input vectors;
-        `vs`, the unit vectors at `scale`, when already computed."""
+        `vs`, the unit vectors at `scale`, when already computed.
+        """
         ref = self.database.vectors[cat]
         if not fit_scale:
             body = vs[det] if vs is not None else _unit_from_tangent(tangent[det] * scale)
@@ -472,7 +475,8 @@ def _unit_from_tangent(t: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def result_builder(algorithm: str, n_detections: int, t0: float):
     """``result(status, message, **fields) -> Identification`` for one identifier call, stamping
-    the algorithm, the number of detections and the time since ``t0`` (perf_counter)."""
+    the algorithm, the number of detections and the time since ``t0`` (perf_counter).
+    """
     import time
 
     def result(status: str, message: str, **kw) -> Identification:

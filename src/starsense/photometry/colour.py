@@ -143,7 +143,8 @@ class ColourModel:
     @property
     def colour_limits(self) -> tuple[float, float]:
         """Colour indices of the clamp temperatures (t_max_k, t_min_k): the paper's
-        [-0.2357, +2.7028] for B-V."""
+        [-0.2357, +2.7028] for B-V.
+        """
         return self._tables["limits"]
 
     def colour_index(self, temperature_k) -> np.ndarray:

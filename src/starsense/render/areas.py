@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from starsense.errors import InputError
 
-__all__ = ["AreaFrame", "area_pixel_index", "detect_in_areas", "focal_plane_sensor", "render_areas"]
+__all__ = ["AreaFrame", "area_pixel_index", "focal_plane_sensor", "render_areas"]
 
 
 def _layout(sensor):
@@ -121,22 +121,3 @@ def render_areas(sensor, attitude, catalog, **kwargs) -> AreaFrame:
     on &= (st.y_mid >= -0.5) & (st.y_mid < fp.detector.rows - 0.5)
     star_area = np.where(on, pixel_area[yi, xi], 0).astype(int)
     return AreaFrame(frame, fp, pixel_area, star_area)
-
-
-def detect_in_areas(area_frame: AreaFrame, **kwargs):
-    """Detect stars in an :class:`AreaFrame` with its sensor's logic.
-
-    Returns
-    -------
-    detections : Detections
-    area : ndarray of int, shape (N,)
-        Area number of each detection's centroid.
-    """
-    from starsense.detect import detect_stars
-
-    image = area_frame.frame.image
-    det = detect_stars(image, area_frame.sensor.detection, **kwargs)
-    pa = area_frame.pixel_area
-    xi = np.clip(np.round(det.x).astype(int), 0, pa.shape[1] - 1)
-    yi = np.clip(np.round(det.y).astype(int), 0, pa.shape[0] - 1)
-    return det, pa[yi, xi].astype(int)

@@ -66,7 +66,8 @@ class Box(NamedTuple):
     @classmethod
     def around(cls, x_min: float, x_max: float, y_min: float, y_max: float, pad_px: float) -> Box:
         """The smallest box holding every pixel that meets ``[x_min - pad, x_max + pad] x
-        [y_min - pad, y_max + pad]`` (pixel c spans [c - 0.5, c + 0.5))."""
+        [y_min - pad, y_max + pad]`` (pixel c spans [c - 0.5, c + 0.5)).
+        """
         return cls(
             math.floor(y_min - pad_px + 0.5),
             math.floor(y_max + pad_px + 0.5) + 1,

@@ -204,7 +204,8 @@ def pad_sigma_for(electrons, sigma_px: float, floor_e: float = 1e-3) -> np.ndarr
 
 def _pieces(xs: np.ndarray, ys: np.ndarray, electrons: float):
     """Split a polyline (equal time per segment) into straight pieces of <= _MAX_PIECE_PX,
-    yielding (x0, y0, x1, y1, electrons)."""
+    yielding (x0, y0, x1, y1, electrons).
+    """
     k = len(xs) - 1
     share = electrons / k
     for i in range(k):

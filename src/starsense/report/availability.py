@@ -232,7 +232,8 @@ def dynamic_figure(results: Sequence[DynamicAvailability]) -> Figure:
 
 def track_figure(results: Sequence[TrackAvailability], n_min: int) -> Figure:
     """Along-track availability against inclination at several rates, with the spatial
-    dynamic availability at each rate as a horizontal line (Figs. 16, 17)."""
+    dynamic availability at each rate as a horizontal line (Figs. 16, 17).
+    """
     fig = new_figure(7.5, 4.6)
     ax = fig.add_subplot()
     cmap = __import__("matplotlib").colormaps["plasma"]
@@ -259,7 +260,8 @@ def track_figure(results: Sequence[TrackAvailability], n_min: int) -> Figure:
 
 def track_nmin_figure(res: TrackAvailability) -> Figure:
     """Along-track availability against inclination at one rate, N_min = 2 and 3, with the
-    spatial dynamic availability as horizontal lines (one rate of Figs. 16-17)."""
+    spatial dynamic availability as horizontal lines (one rate of Figs. 16-17).
+    """
     fig = new_figure(7.5, 4.6)
     ax = fig.add_subplot()
     for k, colour in zip(sorted(res.by_n_min), ("tab:blue", "tab:orange", "tab:green"),
@@ -302,7 +304,8 @@ def threshold_figure(curves: Sequence[ThresholdCurve], rates_deg_s: np.ndarray) 
 
 def _slew_curve(ctx: ReportContext, model: str) -> ThresholdCurve:
     """The tolerable-slew threshold curve of ``model``: the slew section's result when it ran
-    (same sensor, trials and seed), else a fresh Monte Carlo."""
+    (same sensor, trials and seed), else a fresh Monte Carlo.
+    """
     from starsense.analysis.slew import simulate_slew
 
     result = ctx.slew_results.get(model)
@@ -314,7 +317,8 @@ def _slew_curve(ctx: ReportContext, model: str) -> ThresholdCurve:
 
 def implied_threshold(analysis: AvailabilityAnalysis, availability: float, n_min: int) -> float:
     """The m_t at which our spatial availability equals `availability` (bisection on the
-    monotone curve): what a quoted availability implies for the threshold on our sky."""
+    monotone curve): what a quoted availability implies for the threshold on our sky.
+    """
     lo, hi = float(analysis.magnitudes.min()) - 1.0, float(analysis.max_mag)
     if analysis.sky.availability(hi, n_min) < availability:
         return math.nan

@@ -264,7 +264,7 @@ def _write_index(work: Path, ctx: ReportContext, sections: Sequence[Section], el
 
 
 def _jsonable(x):
-    """numpy scalars/arrays -> Python; NaN and inf -> None (JSON has neither)."""
+    """Numpy scalars/arrays -> Python; NaN and inf -> None (JSON has neither)."""
     if isinstance(x, Mapping):
         return {str(k): _jsonable(v) for k, v in x.items()}
     if isinstance(x, list | tuple | np.ndarray):

@@ -96,7 +96,8 @@ def table(
 ) -> str:
     """An HTML table. Cells are HTML already (use :func:`esc` / :func:`fmt`); ``classes`` gives a
     CSS class per column ("num", "paper", ""). ``header_rows`` are extra header rows above
-    ``headers`` given as (html, colspan) cells."""
+    ``headers`` given as (html, colspan) cells.
+    """
     out = ["<table>", "<thead>"]
     for hr in header_rows:
         out.append(
@@ -116,7 +117,8 @@ def table(
 
 def figure_html(filename: str, caption: str, alt: str) -> str:
     """A figure block; ``caption`` is HTML and must say what the figure shows and what its
-    counterpart in the paper is."""
+    counterpart in the paper is.
+    """
     return (
         f'<figure><img src="{esc(filename)}" alt="{esc(alt)}">'
         f"<figcaption>{caption}</figcaption></figure>"

@@ -105,7 +105,8 @@ def static_availability(
     progress: Progress | None = None,
 ) -> StaticAvailability:
     """Spatial static availability (sec. 1.2), as
-    ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``."""
+    ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``.
+    """
     n_min = check_n_min(n_min)
     roll = roll_deg if isinstance(fov, RectangularFov) else 0.0
     boresights, attitudes = sky_attitudes(n_orientations, roll, seed)

@@ -123,7 +123,8 @@ def combine_brightest(*parts):
 def field_part(frame, plan, band, max_mag, fov, attitudes, k):
     """One tile through the in-memory :class:`FieldStars`: (stars in the field per pointing
     (M,), the k brightest there (:class:`BrightestInField`, None for k = 0), stars used, faintest
-    magnitude used)."""
+    magnitude used).
+    """
     quiet_third_party_warnings()
     vectors, mags = catalog_stars(plan.catalog(frame), max_mag, band, allow_empty=True)
     faintest = float(mags.max()) if len(mags) else -math.inf

@@ -161,7 +161,8 @@ class Detector:
 
     def qe(self, wavelength_m) -> np.ndarray:
         """QE at the given wavelengths: the curve if given, else ``qe_mean`` inside the passband
-        and zero outside it."""
+        and zero outside it.
+        """
         lam_nm = np.asarray(wavelength_m, dtype=float) * 1e9
         if self.qe_curve:
             return np.interp(lam_nm, self.qe_curve_nm, self.qe_curve, left=0.0, right=0.0)
@@ -323,8 +324,7 @@ _AREA_SHAPES = ("rectangle_mm", "polygon_mm")
 
 def _number_list(value: Any, where: str, length: int | None = None) -> list[float]:
     ok = isinstance(value, list) and all(
-        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-        for v in value
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
     )
     if not ok or (length is not None and len(value) != length):
         size = f"{length} " if length is not None else ""
@@ -367,7 +367,7 @@ def _areas_from_table(table: Any, detector: Detector, optics: Optics, source: st
         return AreaLayout.lin2024(half_mm / f_mm)
     entries = table.get("area")
     if not isinstance(entries, list) or not entries:
-        raise InputError(f"{where} needs layout = \"lin2024\" or [[attitude_areas.area]] entries")
+        raise InputError(f'{where} needs layout = "lin2024" or [[attitude_areas.area]] entries')
     areas = []
     for i, entry in enumerate(entries, start=1):
         at = f"{where} area {i}"
@@ -403,6 +403,8 @@ def _areas_from_table(table: Any, detector: Detector, optics: Optics, source: st
         return AreaLayout(tuple(areas), lens_radius=radius)
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
+
+
 _TUPLE_FIELDS = {"qe_curve_nm", "qe_curve", "passband_nm"}
 
 

@@ -16,7 +16,7 @@ from typing import Annotated, Any
 
 import typer
 
-from starsense.cli_common import JsonOpt, emit
+from starsense.cli.common import JsonOpt, emit
 
 catalog_app = typer.Typer(
     help="Catalogues: turn a CSV / Parquet catalogue into HATS for the deep-catalogue commands.",

@@ -18,8 +18,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense.cli_catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
-from starsense.cli_common import (
+from starsense.cli.catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
+from starsense.cli.common import (
     CatalogOpt,
     JsonOpt,
     SeedOpt,
@@ -126,7 +126,7 @@ def _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min, n_ori
                  roll_deg, seed, band, as_json):  # fmt: skip
     """``availability static`` over a HATS catalogue on Dask (starsense.scale)."""
     from starsense.analysis.availability import field_of_view
-    from starsense.cli_catalog import hats_session
+    from starsense.cli.catalog import hats_session
     from starsense.scale import static_availability
     from starsense.sensor import load_sensor
 

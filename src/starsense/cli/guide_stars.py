@@ -11,7 +11,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense.cli_common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
+from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
 from starsense.errors import InputError
 
 guide_stars_app = typer.Typer(

@@ -7,7 +7,7 @@ import pytest
 from PIL import Image
 
 from starsense.errors import InputError
-from starsense.imageio import load_image
+from starsense.solve.frames import load_image
 
 
 def test_16bit_tiff_and_8bit_png_round_trip(tmp_path):

@@ -14,7 +14,7 @@ import pytest
 
 from starsense.cli import main
 from starsense.geometry.attitude import angular_separation, radec_to_vectors
-from starsense.pipeline import Solver
+from starsense.solve.solver import Solver
 
 ARCSEC_PER_RAD = 180 / math.pi * 3600
 INTERFACE_KEYS = {
@@ -159,8 +159,8 @@ def test_identification_does_not_depend_on_centroid_order(esa):
     from starsense.detect import StarDetector
     from starsense.geometry.attitude import small_rotation_angles
     from starsense.identify import HashIdentifier, build_database, identify_ranked
-    from starsense.imageio import load_image
     from starsense.sensor import load_sensor
+    from starsense.solve.frames import load_image
 
     folder, reference = esa
     sensor = load_sensor("esa_blackfly")

@@ -56,7 +56,8 @@ def emit(payload: dict, as_json: bool, lines: list[str]) -> None:
 @contextlib.contextmanager
 def progress_bar() -> Iterator[Callable[[str, int, int], None]]:
     """A rich progress bar on stderr, one task per label (hidden when stderr is not a
-    terminal); yields ``update(label, done, total)``."""
+    terminal); yields ``update(label, done, total)``.
+    """
     from rich.progress import Progress
 
     with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:

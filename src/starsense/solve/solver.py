@@ -207,7 +207,8 @@ class Solver:
 
     def _unproject(self, x, y, shape) -> tuple[np.ndarray, float | None, float]:
         """Unit vectors of the centroids, the known horizontal FOV (rad, or None) and the field
-        the vectors assume (rad)."""
+        the vectors assume (rad).
+        """
         if self.sensor is not None:
             fov = 2.0 * self.sensor.half_fov_rad[0]
             return self.sensor.unproject(x, y), fov, fov
@@ -321,7 +322,7 @@ class Solver:
         )
 
     def solve_file(self, path: str | Path) -> Solution:
-        from starsense.imageio import load_image
+        from starsense.solve.frames import load_image
 
         return self(load_image(path))
 

@@ -7,7 +7,7 @@ import json
 import pytest
 from typer.testing import CliRunner
 
-from starsense.cli_availability import availability_app
+from starsense.cli.availability import availability_app
 from starsense.errors import InputError
 
 runner = CliRunner()

@@ -6,7 +6,7 @@ import json
 
 from typer.testing import CliRunner
 
-from starsense.cli_guide_stars import guide_stars_app
+from starsense.cli.guide_stars import guide_stars_app
 
 runner = CliRunner()
 

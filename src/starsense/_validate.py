@@ -1,0 +1,159 @@
+"""Scalar, array and rotation checks shared by every stage.
+
+Messages name the *parameter* (``rate_rad_s``), never a command-line option: the CLI translates
+parameter names to its option names (:func:`starsense.cli.common.user_errors`). Each check returns
+the validated value converted to the type the caller computes with.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from starsense.errors import InputError
+
+__all__ = [
+    "check_int",
+    "check_rotation",
+    "check_scalar",
+    "finite_array",
+    "finite_float",
+    "positive_float",
+    "show",
+    "vectors3",
+]
+
+
+def show(value: object) -> str:
+    """Plain text for a value in a message (no ``np.float64(...)`` reprs)."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
+        return repr(value)
+    return repr(value) if isinstance(value, str) else str(value)
+
+
+def finite_float(value: object, name: str) -> float:
+    """``value`` as a finite float, or :class:`InputError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.generic, str)):
+        if not (isinstance(value, np.ndarray) and value.ndim == 0):
+            raise InputError(f"{name} must be a real number, got {show(value)}")
+    try:
+        out = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a real number, got {show(value)}") from None
+    if not math.isfinite(out):
+        raise InputError(f"{name} must be finite, got {show(value)}")
+    return out
+
+
+def check_scalar(
+    value: object,
+    name: str,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    allow_inf: bool = False,
+) -> float:
+    """A real number within ``[lo, hi]`` (ends open when asked), or :class:`InputError`.
+
+    Parameters
+    ----------
+    value : object
+        What the caller was given.
+    name : str
+        The parameter's name, used in the message.
+    lo, hi : float or None
+        Bounds; None for none.
+    lo_open, hi_open : bool
+        Exclude the bound itself.
+    allow_inf : bool
+        Accept +-inf (still subject to the bounds); NaN is never accepted.
+
+    Returns
+    -------
+    float
+    """
+    if allow_inf:
+        try:
+            out = float(value)  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            raise InputError(f"{name} must be a real number, got {show(value)}") from None
+        if math.isnan(out) or isinstance(value, bool):
+            raise InputError(f"{name} must be a real number, got {show(value)}")
+    else:
+        out = finite_float(value, name)
+    below = lo is not None and (out <= lo if lo_open else out < lo)
+    above = hi is not None and (out >= hi if hi_open else out > hi)
+    if below or above:
+        left = "(" if lo_open else "["
+        right = ")" if hi_open else "]"
+        lo_s = "-inf" if lo is None else show(lo)
+        hi_s = "inf" if hi is None else show(hi)
+        raise InputError(
+            f"{name} = {show(value)} is out of range; must be in {left}{lo_s}, {hi_s}{right}"
+        )
+    return out
+
+
+def positive_float(value: object, name: str) -> float:
+    """A finite number > 0, or :class:`InputError` naming ``name``."""
+    out = finite_float(value, name)
+    if out <= 0.0:
+        raise InputError(f"{name} must be > 0, got {show(value)}")
+    return out
+
+
+def check_int(
+    value: object, name: str, minimum: int | None = None, maximum: int | None = None
+) -> int:
+    """An integer (bools and non-integral floats refused) within the bounds given."""
+    if isinstance(value, bool):
+        raise InputError(f"{name} must be an integer, got {show(value)}")
+    if isinstance(value, numbers.Integral | np.integer):
+        out = int(value)
+    elif isinstance(value, numbers.Real | np.floating) and float(value).is_integer():
+        out = int(value)
+    else:
+        raise InputError(f"{name} must be an integer, got {show(value)}")
+    if minimum is not None and out < minimum:
+        raise InputError(f"{name} must be >= {minimum}, got {out}")
+    if maximum is not None and out > maximum:
+        raise InputError(f"{name} must be <= {maximum}, got {out}")
+    return out
+
+
+def finite_array(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """A float64 array with no NaN or inf, or :class:`InputError` naming ``name``."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be a real number or array of them, got {value!r}") from exc
+    if not np.all(np.isfinite(arr)):
+        bad = arr[~np.isfinite(arr)].flat[0]
+        raise InputError(f"{name} = {show(bad)} is not allowed; must be finite")
+    return arr
+
+
+def vectors3(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """A finite array of 3-vectors, shape ``(..., 3)``."""
+    arr = finite_array(value, name)
+    if arr.ndim == 0 or arr.shape[-1] != 3:
+        raise InputError(f"{name} must have shape (N, 3) or (3,), got shape {arr.shape}")
+    return arr
+
+
+def check_rotation(rot: object, name: str):
+    """A single :class:`~scipy.spatial.transform.Rotation` or a 1-D batch of them."""
+    from scipy.spatial.transform import Rotation
+
+    if not isinstance(rot, Rotation):
+        raise InputError(f"{name} must be a scipy Rotation, got {type(rot).__name__}")
+    if not rot.single and len(rot.shape) != 1:
+        raise InputError(f"{name} must be a single Rotation or a 1-D batch, got shape {rot.shape}")
+    return rot

@@ -1,0 +1,50 @@
+"""`starsense report`: the HTML performance report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from starsense.cli.common import CatalogOpt, SensorOpt
+from starsense.cli.limit import DiameterOpt, ExposureOpt
+
+
+def report(
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("report"),
+    catalog: CatalogOpt = "hipparcos",
+    diameter_m: DiameterOpt = 0.1,
+    exposure_s: ExposureOpt = 0.01,
+    sensors: Annotated[
+        Path | None,
+        typer.Option("--sensors", help="CSV of real sensors to plot against the limit (Fig. 8)."),
+    ] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Root seed of the Monte Carlo parts.")] = 0,
+    sensor: SensorOpt = "st16",
+    slew_trials: Annotated[
+        int, typer.Option("--slew-trials", help="Monte Carlo trials per slew point.")
+    ] = 20,
+) -> None:
+    """Write the performance report (HTML + PNG figures) to --out."""
+    from rich.console import Console
+
+    from starsense.report import build_report
+    from starsense.sensor import load_sensor
+
+    sens = load_sensor(sensor)
+
+    console = Console(stderr=True)
+    with console.status("building report") as status:
+        index = build_report(
+            out,
+            catalog_spec=catalog,
+            diameter_m=diameter_m,
+            exposure_s=exposure_s,
+            sensors_table=sensors,
+            progress=lambda msg: status.update(msg),
+            seed=seed,
+            sensor=sens,
+            slew_trials=slew_trials,
+        )
+    typer.echo(f"report written: {index}")

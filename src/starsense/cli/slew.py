@@ -1,0 +1,119 @@
+"""`starsense slew`: slew tolerance of smeared stars (Dzamba & Enright 2014)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from starsense.cli.common import JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
+from starsense.cli.limit import ModelOpt
+
+slew_app = typer.Typer(
+    help="Slew tolerance: detection of smeared stars (Dzamba & Enright 2014).",
+    no_args_is_help=True,
+)
+
+
+def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
+    from rich.progress import Progress
+
+    from starsense.analysis.slew import simulate_slew
+    from starsense.sensor import load_sensor
+
+    sensor = load_sensor(sensor_name)
+    mags = parse_floats(magnitudes, "--magnitudes")
+    rate_values = parse_floats(rates, "--rates-deg-s")
+    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
+        task = bar.add_task("slew Monte Carlo", total=None)
+        result = simulate_slew(
+            sensor, model, mags, rate_values, trials, criterion, seed,
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
+            colour_index=colour_index,
+        )  # fmt: skip
+    return sensor, result
+
+
+MagsOpt = Annotated[
+    str | None,
+    typer.Option("--magnitudes", help="Comma-separated magnitudes (default 1.25..6 by 0.25)."),
+]
+RatesOpt = Annotated[
+    str | None,
+    typer.Option("--rates-deg-s", help="Comma-separated increasing rates (default 0..10, 40)."),
+]
+TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo trials per point.")]
+CriterionOpt = Annotated[
+    float, typer.Option("--criterion", help="Detection fraction that counts as detected.")
+]
+PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write a PNG figure here.")]
+BvOpt = Annotated[
+    float, typer.Option("--b-v", help="B-V of the simulated star (blackbody model; 0 = A0).")
+]
+
+
+@slew_app.command("tolerance")
+def slew_tolerance(
+    sensor: SensorOpt = "st16",
+    model: ModelOpt = "reed",
+    magnitudes: MagsOpt = None,
+    rates_deg_s: RatesOpt = None,
+    trials: TrialsOpt = 20,
+    criterion: CriterionOpt = 0.5,
+    seed: SeedOpt = 0,
+    b_v: BvOpt = 0.0,
+    plot: PlotOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Tolerable slew rate per magnitude (Fig. 10): the fastest rate still detected."""
+    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, criterion, seed, b_v)
+    payload = res.tolerance_dict()
+    lines = [
+        f"{sens.name}, {model} model: tolerable cross-axis slew rate (detected in >= "
+        f"{criterion:.0%} of {trials} trials)"
+    ]
+    for m, r, c in zip(res.magnitudes, res.tolerable_rate_deg_s, res.capped, strict=True):
+        text = "not detected at rest" if r is None else f"{'>= ' if c else ''}{r:.2f} deg/s"
+        lines.append(f"  m = {m:5.2f}: {text}")
+    if plot is not None:
+        from starsense.report.slew import plot_tolerance
+
+        plot_tolerance([res], plot)
+        payload["plot"] = str(plot)
+        lines.append(f"figure: {plot}")
+    emit(payload, as_json, lines)
+
+
+@slew_app.command("intensity")
+def slew_intensity(
+    sensor: SensorOpt = "st16",
+    model: ModelOpt = "reed",
+    magnitudes: MagsOpt = None,
+    rates_deg_s: RatesOpt = None,
+    trials: TrialsOpt = 20,
+    seed: SeedOpt = 0,
+    b_v: BvOpt = 0.0,
+    plot: PlotOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Integrated intensity against slew rate per magnitude (Fig. 9)."""
+    sens, res = _run_slew(sensor, model, magnitudes, rates_deg_s, trials, 0.5, seed, b_v)
+    payload = res.intensity_dict()
+    lines = [f"{sens.name}, {model} model: mean integrated intensity (counts) of detections"]
+    header = "  rate deg/s " + " ".join(f"m={m:<6.2f}" for m in res.magnitudes)
+    lines.append(header)
+    for j, w in enumerate(res.rates_deg_s):
+        row = " ".join(
+            f"{v:8.0f}" if np.isfinite(v) else "       -" for v in res.mean_intensity_counts[:, j]
+        )
+        lines.append(f"  {w:10.2f} {row}")
+    if plot is not None:
+        from starsense.report.slew import plot_intensity
+
+        plot_intensity(res, plot)
+        payload["plot"] = str(plot)
+        lines.append(f"figure: {plot}")
+    emit(payload, as_json, lines)

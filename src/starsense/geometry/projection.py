@@ -1,0 +1,129 @@
+"""Projections: RA/Dec <-> unit vectors and the gnomonic (tangent-plane) projection.
+
+The one copy of each, used by every stage. Frames are those of :mod:`starsense.geometry.attitude`:
+ICRS unit vectors on the sky; in the camera frame +z is the boresight and the tangent plane is
+``z = 1``, so a camera vector ``(x, y, z)`` projects to ``(x/z, y/z)`` (radians near the centre;
+multiply by the focal length for metres on the focal plane).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from starsense._validate import finite_array as _finite_array
+from starsense._validate import vectors3 as _as_vectors
+from starsense.errors import InputError
+
+__all__ = ["radec_to_vectors", "tangent_to_vectors", "vectors_to_radec", "vectors_to_tangent"]
+
+TWO_PI = 2.0 * np.pi
+HALF_PI = 0.5 * np.pi
+
+# Below this value of cos(dec) a direction is treated as being exactly at a pole and RA is set
+# to 0 (a few ulp of a unit vector component).
+_POLE_COS_DEC = 1e-15
+
+
+def _wrap_two_pi(angle: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Wrap angles to [0, 2 pi) (``np.mod`` alone can return exactly 2 pi for tiny negatives)."""
+    wrapped = np.mod(angle, TWO_PI)
+    return np.where(wrapped >= TWO_PI, 0.0, wrapped)
+
+
+def _unpack(arr: NDArray[np.float64]) -> NDArray[np.float64] | np.float64:
+    """Return 0-d arrays as NumPy scalars and anything else unchanged."""
+    return arr[()] if arr.ndim == 0 else arr
+
+
+def radec_to_vectors(ra_rad: ArrayLike, dec_rad: ArrayLike) -> NDArray[np.float64]:
+    """Unit vectors from right ascension and declination.
+
+    Parameters
+    ----------
+    ra_rad : float or array_like, shape (N,)
+        Right ascension, rad (any finite value; taken modulo 2 pi).
+    dec_rad : float or array_like, shape (N,)
+        Declination, rad, in [-pi/2, pi/2]. Broadcast against `ra_rad`.
+
+    Returns
+    -------
+    ndarray, shape (N, 3) or (3,) for scalar input
+        ICRS unit vectors ``(cos dec cos ra, cos dec sin ra, sin dec)``.
+
+    Raises
+    ------
+    InputError
+        If a value is not finite or a declination is outside [-pi/2, pi/2].
+    """
+    ra = _finite_array(ra_rad, "ra_rad")
+    dec = _finite_array(dec_rad, "dec_rad")
+    if np.any(np.abs(dec) > HALF_PI):
+        bad = dec[np.abs(dec) > HALF_PI].flat[0]
+        raise InputError(f"dec_rad = {bad} is out of range; must be in [-pi/2, pi/2]")
+    try:
+        ra, dec = np.broadcast_arrays(ra, dec)
+    except ValueError as exc:
+        raise InputError(
+            f"ra_rad (shape {ra.shape}) and dec_rad (shape {dec.shape}) do not broadcast"
+        ) from exc
+    cos_dec = np.cos(dec)
+    return np.stack([cos_dec * np.cos(ra), cos_dec * np.sin(ra), np.sin(dec)], axis=-1)
+
+
+def vectors_to_radec(
+    vectors: ArrayLike,
+) -> tuple[NDArray[np.float64] | np.float64, NDArray[np.float64] | np.float64]:
+    """Right ascension and declination of direction vectors.
+
+    Parameters
+    ----------
+    vectors : array_like, shape (N, 3) or (3,)
+        Directions in ICRS; need not be normalised, must be non-zero and finite.
+
+    Returns
+    -------
+    ra_rad : ndarray, shape (N,), or float
+        Right ascension in [0, 2 pi), rad. Zero for vectors along the poles.
+    dec_rad : ndarray, shape (N,), or float
+        Declination in [-pi/2, pi/2], rad.
+
+    Raises
+    ------
+    InputError
+        If the shape is not (N, 3) or (3,), a value is not finite or a vector is zero.
+    """
+    v = _as_vectors(vectors, "vectors")
+    rho = np.hypot(v[..., 0], v[..., 1])
+    if np.any((rho == 0.0) & (v[..., 2] == 0.0)):
+        raise InputError("vectors contains a zero vector, which has no direction")
+    ra = _wrap_two_pi(np.arctan2(v[..., 1], v[..., 0]))
+    ra = np.where(rho <= _POLE_COS_DEC * np.abs(v[..., 2]), 0.0, ra)
+    dec = np.arctan2(v[..., 2], rho)
+    return _unpack(ra), _unpack(dec)
+
+
+def _points(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
+    arr = np.asarray(xy, dtype=np.float64)
+    if arr.ndim < 1 or arr.shape[-1] != 2:
+        raise InputError(f"{name} must have shape (..., 2), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} has non-finite values")
+    return arr
+
+
+def tangent_to_vectors(xy: ArrayLike) -> NDArray[np.float64]:
+    """Camera-frame unit vectors (..., 3) of tangent-plane points (..., 2)."""
+    p = _points(xy)
+    v = np.concatenate([p, np.ones((*p.shape[:-1], 1))], axis=-1)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def vectors_to_tangent(vectors: ArrayLike) -> NDArray[np.float64]:
+    """Tangent-plane points (..., 2) of camera-frame vectors (..., 3) with v_z > 0."""
+    v = np.asarray(vectors, dtype=np.float64)
+    if v.shape[-1] != 3:
+        raise InputError(f"vectors must have shape (..., 3), got {v.shape}")
+    if np.any(v[..., 2] <= 0):
+        raise InputError("vectors must lie in front of the camera (v_z > 0)")
+    return v[..., :2] / v[..., 2:3]

@@ -1,0 +1,1 @@
+"""Figures, one module per analysis: functions take ``ax=`` and return the figure."""
