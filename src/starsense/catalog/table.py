@@ -21,6 +21,7 @@ import numpy as np
 
 from starsense.catalog import index as _index
 from starsense.errors import InputError
+from starsense.geometry.projection import radec_to_vectors, vectors_to_radec
 
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
@@ -271,7 +272,7 @@ class Catalog:
     @cached_property
     def vectors(self) -> np.ndarray:
         """ICRS unit vectors, shape (N, 3), read-only."""
-        return _readonly(_index.radec_to_vectors(self.ra_rad, self.dec_rad))
+        return _readonly(radec_to_vectors(self.ra_rad, self.dec_rad))
 
     @cached_property
     def _tree(self) -> cKDTree:
@@ -503,7 +504,7 @@ class Catalog:
         r = u0 + velocity * dt
         norm = np.linalg.norm(r, axis=1)
         u = r / norm[:, None]
-        new_ra, new_dec = _index.vectors_to_radec(u)
+        new_ra, new_dec = vectors_to_radec(u)
         p1, q1 = _local_axes(new_ra, new_dec)
         w = velocity / norm[:, None]
         radial = np.einsum("ij,ij->i", u, w)
