@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.sensor.config import Sensor, load_sensor
+from starsense.sensor import Sensor, load_sensor
 
 SYNTH_FOV_RAD = math.radians(15.0)
 """Horizontal field of the synthetic sensor (the ESA camera with a shorter lens)."""

@@ -7,7 +7,7 @@ from identify_helpers import SYNTH_FOV_RAD, sensor_with_fov
 
 from starsense.catalog import load_catalog
 from starsense.identify import build_database
-from starsense.sensor.config import Sensor
+from starsense.sensor import Sensor
 
 
 @pytest.fixture(scope="session")

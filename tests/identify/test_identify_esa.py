@@ -18,7 +18,7 @@ from starsense.geometry.attitude import (
     radec_to_vectors,
 )
 from starsense.identify import HashIdentifier, TriangleIdentifier, build_database
-from starsense.sensor.config import load_sensor
+from starsense.sensor import load_sensor
 
 ARCSEC = math.radians(1.0 / 3600.0)
 ESA_FOV_RAD = math.radians(11.42)

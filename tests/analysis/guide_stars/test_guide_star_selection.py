@@ -13,7 +13,7 @@ from starsense.analysis import guide_stars as gs
 from starsense.cli import app, main
 from starsense.errors import InputError
 from starsense.geometry.areas import AreaLayout, FocalArea, tangent_to_vectors
-from starsense.sensor.config import load_sensor, sensor_from_dict
+from starsense.sensor import load_sensor, sensor_from_dict
 
 FOV_RAD = math.radians(gs.PAPER_FOV_DEG)
 

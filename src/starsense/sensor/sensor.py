@@ -1,0 +1,206 @@
+"""A star sensor: optics, detector, exposure and detection thresholds, with its pixel geometry.
+
+A :class:`Sensor` is immutable and validated on construction: a bad value raises
+:class:`~starsense.errors.InputError` naming the field, the value and the allowed range (and the
+file, when loaded from TOML by :mod:`starsense.sensor.load`).
+
+Pixel convention (shared with rendering and detection): pixel centres are at integer
+coordinates; pixel (row r, column c) covers x in [c - 0.5, c + 0.5), y in [r - 0.5, r + 0.5).
+The boresight (principal point) falls on the centre of the detector,
+((columns - 1) / 2, (rows - 1) / 2). Camera frame: +z boresight, +x increasing column,
++y increasing row (see :mod:`starsense.geometry.attitude`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from starsense.errors import InputError
+from starsense.geometry.projection import tangent_to_vectors
+from starsense.sensor._fields import check_field
+from starsense.sensor.detector import Detector
+from starsense.sensor.optics import Optics
+
+__all__ = ["DetectionThresholds", "Sensor"]
+
+
+@dataclass(frozen=True)
+class DetectionThresholds:
+    """Star-detection logic (Dzamba & Enright 2014, sec. 1.2; ST-16 values by default).
+
+    Attributes
+    ----------
+    lit_pixel_counts : float
+        A pixel is lit when its background-subtracted counts exceed this.
+    min_pixels : int
+        Minimum number of contiguous lit pixels of a star.
+    min_integrated_counts : float
+        Minimum summed background-subtracted counts of the star's lit pixels.
+    connectivity : int
+        4 or 8: which neighbours make pixels contiguous.
+    """
+
+    lit_pixel_counts: float = 120.0
+    min_pixels: int = 6
+    min_integrated_counts: float = 1000.0
+    connectivity: int = 8
+
+    def __post_init__(self) -> None:
+        check_field("detection", "lit_pixel_counts", self.lit_pixel_counts, 0, None, lo_open=True)
+        check_field("detection", "min_pixels", self.min_pixels, 1, 1_000_000, integer=True)
+        check_field("detection", "min_integrated_counts", self.min_integrated_counts, 0, None)
+        if self.connectivity not in (4, 8):
+            raise InputError(f"detection.connectivity must be 4 or 8, got {self.connectivity!r}")
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A star sensor: optics, detector, exposure and detection logic.
+
+    Build it with :func:`~starsense.sensor.load_sensor` from a preset name or a TOML path, or
+    directly.
+
+    Attributes
+    ----------
+    name : str
+        Sensor name.
+    optics : Optics
+    detector : Detector
+    exposure_s : float
+        Exposure time, s.
+    detection : DetectionThresholds
+    description : str
+    attitude_areas : AreaLayout or None
+        Attitude-determination areas in the focal plane (Lin et al. 2024), tangent-plane units
+        (:class:`starsense.geometry.areas.AreaLayout`); None when the whole detector is used.
+    """
+
+    name: str
+    optics: Optics
+    detector: Detector
+    exposure_s: float
+    detection: DetectionThresholds = field(default_factory=DetectionThresholds)
+    description: str = ""
+    attitude_areas: Any = None
+
+    def __post_init__(self) -> None:
+        check_field("sensor", "exposure_s", self.exposure_s, 0, 1e5, lo_open=True)
+        if self.detector.rows * self.detector.pixel_pitch_m >= 2 * self.optics.focal_length_m * 20:
+            raise InputError("detector is too large for the focal length (field beyond 175 deg)")
+
+    # -- geometry ----------------------------------------------------------------------------
+
+    @property
+    def focal_length_px(self) -> float:
+        """Focal length in pixels, f / pitch."""
+        return self.optics.focal_length_m / self.detector.pixel_pitch_m
+
+    @property
+    def principal_point_px(self) -> tuple[float, float]:
+        """(x, y) of the boresight on the detector, pixel-centre convention."""
+        return (self.detector.columns - 1) / 2.0, (self.detector.rows - 1) / 2.0
+
+    @property
+    def half_fov_rad(self) -> tuple[float, float]:
+        """Half-angles across columns (x) and rows (y), pinhole model, rad."""
+        f = self.optics.focal_length_m
+        p = self.detector.pixel_pitch_m
+        return (
+            math.atan(self.detector.columns * p / 2 / f),
+            math.atan(self.detector.rows * p / 2 / f),
+        )
+
+    def fov(self):
+        """Return the rectangular field of view of the detector (geometry.fov.RectangularFov)."""
+        from starsense.geometry.fov import RectangularFov
+
+        hx, hy = self.half_fov_rad
+        return RectangularFov(hx, hy)
+
+    def project(self, vectors_cam) -> tuple[np.ndarray, np.ndarray]:
+        """Project camera-frame directions to pixel coordinates, pinhole + distortion.
+
+        The gnomonic step is written out here rather than taken from
+        :func:`starsense.geometry.projection.vectors_to_tangent`, which refuses directions
+        behind the camera: star tracks need them as NaN.
+
+        Parameters
+        ----------
+        vectors_cam : array_like, shape (N, 3)
+            Directions in the camera frame (need not be unit vectors).
+
+        Returns
+        -------
+        x, y : ndarray, shape (N,)
+            Pixel coordinates; NaN for directions behind the camera (z <= 0).
+        """
+        v = np.asarray(vectors_cam, dtype=float)
+        z = v[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.where(z > 0, v[..., 0] / z, np.nan)
+            w = np.where(z > 0, v[..., 1] / z, np.nan)
+        k1, k2 = self.optics.distortion_k1, self.optics.distortion_k2
+        if k1 or k2:
+            r2 = u * u + w * w
+            s = 1.0 + k1 * r2 + k2 * r2 * r2
+            u, w = u * s, w * s
+        cx, cy = self.principal_point_px
+        fp = self.focal_length_px
+        return cx + fp * u, cy + fp * w
+
+    def unproject(self, x_px, y_px) -> np.ndarray:
+        """Return the camera-frame unit vectors of pixel coordinates (inverts the distortion).
+
+        Parameters
+        ----------
+        x_px, y_px : array_like, shape (N,)
+            Finite pixel coordinates.
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            Unit vectors in the camera frame.
+        """
+        cx, cy = self.principal_point_px
+        fp = self.focal_length_px
+        u = (np.asarray(x_px, dtype=float) - cx) / fp
+        w = (np.asarray(y_px, dtype=float) - cy) / fp
+        k1, k2 = self.optics.distortion_k1, self.optics.distortion_k2
+        if k1 or k2:
+            rd = np.hypot(u, w)
+            r = rd.copy()
+            for _ in range(20):  # fixed-point on r (1 + k1 r^2 + k2 r^4) = rd
+                r = rd / (1.0 + k1 * r**2 + k2 * r**4)
+            scale = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
+            u, w = u * scale, w * scale
+        return tangent_to_vectors(np.stack([u, w], axis=-1))
+
+    def streak_length_px(self, rate_rad_s: float) -> float:
+        """Length of a cross-axis streak, f tan(|w| t_e) / pitch (Dzamba & Enright eq. 1), px.
+
+        Parameters
+        ----------
+        rate_rad_s : float
+            Cross-axis body rate, rad/s.
+        """
+        return self.focal_length_px * math.tan(abs(rate_rad_s) * self.exposure_s)
+
+    def roll_arc_px(self, roll_rate_rad_s: float) -> float:
+        """Largest roll streak, at the edge of the minor axis: (h/2) tan(|w_z| t_e) (eq. 2), px.
+
+        Parameters
+        ----------
+        roll_rate_rad_s : float
+            Roll rate about the boresight, rad/s.
+        """
+        h_px = min(self.detector.rows, self.detector.columns)
+        return h_px / 2.0 * math.tan(abs(roll_rate_rad_s) * self.exposure_s)
+
+    def with_(self, **changes) -> Sensor:
+        """Return a copy with top-level fields replaced (GalSim-style ``with``)."""
+        return dataclasses.replace(self, **changes)
