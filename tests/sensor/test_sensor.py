@@ -80,7 +80,12 @@ def test_boresight_projects_to_centre():
             -2.2e-6,
             r"detector.pixel_pitch_m = -2.2e-06 is out of range",
         ),
-        ("detector", "bit_depth", 0, r"detector.bit_depth = 0 is out of range; must be in \[1, 32\]"),
+        (
+            "detector",
+            "bit_depth",
+            0,
+            r"detector.bit_depth = 0 is out of range; must be in \[1, 32\]",
+        ),
         ("detector", "bit_depth", 33, r"detector.bit_depth = 33 is out of range"),
         ("detector", "columns", 0, r"detector.columns = 0 is out of range"),
         ("detector", "psf_sigma_px", float("nan"), r"detector.psf_sigma_px must be finite"),

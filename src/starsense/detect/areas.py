@@ -1,5 +1,6 @@
-"""Detection per attitude-determination area (Lin et al. 2024): stars found on an area frame,
-each tagged with the area its centroid falls in.
+"""Detection per attitude-determination area (Lin et al. 2024).
+
+Stars found on an area frame, each tagged with the area its centroid falls in.
 """
 
 from __future__ import annotations

@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike
 from scipy import ndimage
 from scipy.interpolate import CubicSpline
 
+from starsense._validate import check_scalar, finite_float, positive_float
 from starsense.errors import InputError
 
 #: 1 / Phi^-1(3/4): the standard deviation of a Gaussian over its median absolute deviation.
@@ -87,7 +88,7 @@ class Background:
 
 
 def constant_background(level_counts: float, noise_counts: float) -> Background:
-    """A known, flat background (simulated frames: the bias, the read noise times the gain).
+    """Return a known, flat background (simulated frames: the bias, the read noise times the gain).
 
     Parameters
     ----------
@@ -96,12 +97,9 @@ def constant_background(level_counts: float, noise_counts: float) -> Background:
     noise_counts : float
         Background noise, counts rms, >= 0.
     """
-    if not np.isfinite(level_counts) or not np.isfinite(noise_counts) or noise_counts < 0:
-        raise InputError(
-            f"background level and noise must be finite (noise >= 0), got "
-            f"{level_counts!r}, {noise_counts!r}"
-        )
-    return Background(float(level_counts), float(noise_counts))
+    level = finite_float(level_counts, "level_counts")
+    noise = check_scalar(noise_counts, "noise_counts", 0.0)
+    return Background(level, noise)
 
 
 def _is_int(value: object) -> bool:
@@ -376,8 +374,7 @@ def hot_pixel_mask(image, background: Background, *, threshold_sigma: float = 8.
     -------
     ndarray of bool, shape (rows, columns)
     """
-    if not (np.isfinite(threshold_sigma) and threshold_sigma > 0):
-        raise InputError(f"threshold_sigma = {threshold_sigma!r} is out of range; must be > 0")
+    threshold_sigma = positive_float(threshold_sigma, "threshold_sigma")
     a = np.asarray(image, dtype=np.float32)
     sub = a - np.asarray(background.level, dtype=np.float32)
     footprint = np.ones((3, 3), dtype=bool)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
+from starsense._validate import check_int, finite_float, positive_float, show
 from starsense.detect.background import (
     Background,
     constant_background,
@@ -79,6 +80,7 @@ class Detections:
         return len(self.x)
 
     def to_dict(self) -> dict:
+        """Return the detections as a JSON-able dictionary (no bounding boxes or fit flags)."""
         return {
             "x": self.x.tolist(),
             "y": self.y.tolist(),
@@ -151,27 +153,24 @@ class StarDetector:
         self.logic = logic if logic is not None else DetectionThresholds()
         if centroid not in METHODS:
             raise InputError(f"centroid must be one of {', '.join(METHODS)}, got {centroid!r}")
-        if threshold_sigma is not None and not threshold_sigma > 0:
-            raise InputError(f"threshold_sigma must be > 0, got {threshold_sigma!r}")
-        if int(margin_px) != margin_px or margin_px < 0:
-            raise InputError(f"margin_px must be an integer >= 0, got {margin_px!r}")
+        if threshold_sigma is not None:
+            positive_float(threshold_sigma, "threshold_sigma")
+        margin_px = check_int(margin_px, "margin_px", 0)
         if saturation_counts is not None and not (
             np.isfinite(saturation_counts) and saturation_counts > 0
         ):
             raise InputError(f"saturation_counts must be > 0 or None, got {saturation_counts!r}")
-        if not (np.isfinite(psf_sigma_px) and psf_sigma_px > 0):
-            raise InputError(f"psf_sigma_px must be > 0, got {psf_sigma_px!r}")
-        if not (np.isfinite(noise_counts) and noise_counts >= 0):
-            raise InputError(f"noise_counts must be >= 0, got {noise_counts!r}")
-        if max_pixels is not None and (
-            isinstance(max_pixels, bool)
-            or int(max_pixels) != max_pixels
-            or max_pixels < self.logic.min_pixels
-        ):
-            raise InputError(
-                f"max_pixels must be None or an integer >= min_pixels ({self.logic.min_pixels}), "
-                f"got {max_pixels!r}"
-            )
+        psf_sigma_px = positive_float(psf_sigma_px, "psf_sigma_px")
+        noise_counts = finite_float(noise_counts, "noise_counts")
+        if noise_counts < 0:
+            raise InputError(f"noise_counts must be >= 0, got {show(noise_counts)}")
+        if max_pixels is not None:
+            max_pixels = check_int(max_pixels, "max_pixels")
+            if max_pixels < self.logic.min_pixels:
+                raise InputError(
+                    "max_pixels must be None or an integer >= min_pixels "
+                    f"({self.logic.min_pixels}), got {max_pixels!r}"
+                )
         if isinstance(background, str) and background != "auto":
             raise InputError(f"background must be 'auto', a number or None, got {background!r}")
         self.centroid = centroid
@@ -186,7 +185,7 @@ class StarDetector:
 
     @classmethod
     def for_sensor(cls, sensor, centroid: str = "cog", **kwargs) -> StarDetector:
-        """The sensor's own detection logic, bias as the known background."""
+        """Build a detector with the sensor's own detection logic, bias as the known background."""
         det = sensor.detector
         kwargs.setdefault("background", det.bias_counts)
         kwargs.setdefault("noise_counts", det.read_noise_e * det.gain_counts_per_e)
@@ -203,6 +202,18 @@ class StarDetector:
         return constant_background(level, self.noise_counts)
 
     def __call__(self, image) -> Detections:
+        """Detect and centroid the stars of one image.
+
+        Parameters
+        ----------
+        image : array_like, shape (rows, columns)
+            Frame, counts (real numbers, finite).
+
+        Returns
+        -------
+        Detections
+            Brightest first.
+        """
         t0 = time.perf_counter()
         a = _check_image(image)
         bg = self._background(a)
@@ -282,6 +293,20 @@ def _timed(det: Detections, t0: float) -> Detections:
 
 
 def detect_stars(image, logic: DetectionThresholds | None = None, **kwargs) -> Detections:
-    """Function form of :class:`StarDetector`."""
+    """Detect stars in one image: the function form of :class:`StarDetector`.
+
+    Parameters
+    ----------
+    image : array_like, shape (rows, columns)
+        Frame, counts.
+    logic : DetectionThresholds, optional
+        Detection logic (default: the ST-16's).
+    **kwargs
+        ``centroid`` and the keyword arguments of :class:`StarDetector`.
+
+    Returns
+    -------
+    Detections
+    """
     centroid = kwargs.pop("centroid", "cog")
     return StarDetector(logic, centroid, **kwargs)(image)

@@ -3,34 +3,29 @@
 Modules, in the order light passes through them:
 
 * :mod:`~starsense.render.psf` -- the static Gaussian PSF integrated exactly over pixels (eq. 9);
-* :mod:`~starsense.render.smear` -- the smeared PSF of a moving star (eqs. 10-22), exact
-  rotation of the camera, arcs by sub-stepping;
+* :mod:`~starsense.render.smear` -- the smeared PSF of a moving star (eqs. 13-22);
+* :mod:`~starsense.render.tracks` -- star tracks from the exact rotation of the camera (eq. 10),
+  arcs by sub-stepping;
 * :mod:`~starsense.render.noise` -- shot and read noise, gain, bias, quantisation (sec. 3.1);
 * :mod:`~starsense.render.scene` -- :func:`render_frame`, :func:`render_star_stamp`;
+* :mod:`~starsense.render.frame` -- :class:`Frame` and its truth;
 * :mod:`~starsense.render.io` -- :func:`write_frame` (TIFF / PNG / FITS + JSON truth).
 
 Equation numbers are those of Dzamba & Enright 2014, Sensors 14, 3939.
 """
 
+from starsense.render.frame import Frame, FrameTruth, StarTruth
 from starsense.render.io import write_frame
 from starsense.render.noise import apply_noise, as_generator, quantise
 from starsense.render.psf import Box, gaussian_stamp
-from starsense.render.scene import (
-    Frame,
-    FrameTruth,
-    StarTruth,
-    check_on_detector,
-    render_frame,
-    render_star_stamp,
-    streak_stamp_expected,
-)
+from starsense.render.scene import check_on_detector, render_frame, render_star_stamp
 from starsense.render.smear import (
-    Tracks,
     gauss_legendre_order,
     polyline_expected,
     smear_intensity,
-    star_tracks,
+    streak_stamp_expected,
 )
+from starsense.render.tracks import Tracks, star_tracks
 
 __all__ = [
     "Box",

@@ -1,9 +1,10 @@
 """Writing rendered frames: TIFF / PNG (Pillow) or FITS (astropy), with the truth as JSON.
 
 ``write_frame("frame.tif", frame)`` writes ``frame.tif`` and ``frame.tif.json`` (the truth,
-:meth:`Frame.truth_dict`). Both are written to temporary names in the target directory and
-renamed into place (``os.replace``) only when both are complete: an error leaves no partial
-file behind.
+:meth:`Frame.truth_dict`). Both are written to temporary names in the target directory
+(:func:`starsense._io.atomic_path`, one inside the other) and renamed into place only when both
+are complete: an error leaves no partial file behind. They get the permissions of any file the
+user creates (``0666`` less the umask).
 
 Formats, chosen by the (case-insensitive) extension:
 
@@ -23,15 +24,14 @@ viewers conventionally display the first row at the bottom).
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from starsense._io import atomic_path
 from starsense.errors import InputError
 
 __all__ = ["FORMATS", "write_frame"]
@@ -76,12 +76,6 @@ def _write_fits(target: str, frame) -> None:
         h["SEED"] = (t.seed, "noise seed (numpy default_rng)")
     h["NSTARS"] = (len(t.stars), "stars rendered; truth in .json")
     hdu.writeto(target, overwrite=True)
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
 
 
 def write_frame(path: str | os.PathLike, frame) -> Path:
@@ -133,25 +127,14 @@ def write_frame(path: str | os.PathLike, frame) -> Path:
     json_path = target.with_name(target.name + ".json")
     text = json.dumps(frame.truth_dict(), indent=1, allow_nan=False)
 
-    temps: list[str] = []
-    try:
-        for suffix in (ext, ".json"):
-            fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix, dir=directory)
-            os.close(fd)
-            temps.append(name)
-            os.chmod(name, 0o666 & ~_umask())  # mkstemp makes 0600 files
-        tmp_image, tmp_json = temps
-        if fmt == "FITS":
-            _write_fits(tmp_image, frame)
-        else:
-            _write_pillow(tmp_image, image, fmt)
-        with open(tmp_json, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.write("\n")
-        os.replace(tmp_image, target)
-        os.replace(tmp_json, json_path)
-    finally:
-        for name in temps:
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(name)
+    # the image is renamed into place first, then the JSON; neither before both are complete
+    with atomic_path(json_path, ".json") as tmp_json:
+        with atomic_path(target, ext) as tmp_image:
+            if fmt == "FITS":
+                _write_fits(str(tmp_image), frame)
+            else:
+                _write_pillow(str(tmp_image), image, fmt)
+            with open(tmp_json, "w", encoding="utf-8") as fh:
+                fh.write(text)
+                fh.write("\n")
     return target

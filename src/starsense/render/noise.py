@@ -29,13 +29,14 @@ import secrets
 
 import numpy as np
 
+from starsense._validate import check_scalar
 from starsense.errors import InputError
 
 __all__ = ["apply_noise", "as_generator", "count_dtype", "quantise"]
 
 
 def as_generator(rng=None) -> tuple[np.random.Generator, int | None]:
-    """A Generator and the seed it came from.
+    """Return a Generator and the seed it came from.
 
     ``None`` draws a fresh 63-bit seed from the OS entropy (recorded, so the run can be
     repeated; 63 bits fit a FITS integer keyword), an int seeds a new ``default_rng``, a
@@ -126,9 +127,13 @@ def apply_noise(expected_e, sensor, rng=None, *, exposure_s: float | None = None
     det = sensor.detector
     gen, _ = as_generator(rng)
     e = _check_expected(expected_e)
-    te = sensor.exposure_s if exposure_s is None else float(exposure_s)
-    if not (np.isfinite(te) and te > 0):
-        raise InputError(f"exposure_s = {exposure_s!r} is out of range; must be finite and > 0 s")
+    te = check_scalar(
+        sensor.exposure_s if exposure_s is None else exposure_s,
+        "exposure_s",
+        0.0,
+        None,
+        lo_open=True,
+    )
     wdt = _work_dtype(det.bit_depth)
     if det.read_noise_e > 0:
         work = gen.standard_normal(e.shape, dtype=wdt)

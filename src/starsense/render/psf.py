@@ -15,7 +15,7 @@ and the same in y. This is exact (to rounding); :func:`pixel_profile` evaluates 
 from ``erfc`` of the absolute arguments, so that pixels far in the tails keep their relative
 accuracy instead of cancelling to zero.
 
-Pixel convention (shared with :mod:`starsense.sensor.config` and detection): pixel centres at
+Pixel convention (shared with :mod:`starsense.sensor.sensor` and detection): pixel centres at
 integer coordinates; pixel (row r, column c) covers x in [c - 0.5, c + 0.5), y in
 [r - 0.5, r + 0.5); arrays are (rows, columns), x = column, y = row.
 """
@@ -28,6 +28,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.special import erf, erfc
 
+from starsense._validate import positive_float
 from starsense.errors import InputError
 
 __all__ = [
@@ -65,8 +66,10 @@ class Box(NamedTuple):
 
     @classmethod
     def around(cls, x_min: float, x_max: float, y_min: float, y_max: float, pad_px: float) -> Box:
-        """The smallest box holding every pixel that meets ``[x_min - pad, x_max + pad] x
-        [y_min - pad, y_max + pad]`` (pixel c spans [c - 0.5, c + 0.5)).
+        """Return the smallest box holding every pixel that meets the padded rectangle.
+
+        The rectangle is ``[x_min - pad, x_max + pad] x [y_min - pad, y_max + pad]``, px
+        (pixel c spans [c - 0.5, c + 0.5)).
         """
         return cls(
             math.floor(y_min - pad_px + 0.5),
@@ -76,19 +79,12 @@ class Box(NamedTuple):
         )
 
     def clip(self, rows: int, columns: int) -> Box | None:
-        """The part of the box on a ``rows x columns`` detector, or None if they do not meet."""
+        """Return the part of the box on a ``rows x columns`` detector, None if they do not meet."""
         r0, r1 = max(self.row0, 0), min(self.row1, rows)
         c0, c1 = max(self.col0, 0), min(self.col1, columns)
         if r0 >= r1 or c0 >= c1:
             return None
         return Box(r0, r1, c0, c1)
-
-
-def _check_sigma(sigma_px: float) -> float:
-    s = float(sigma_px)
-    if not (math.isfinite(s) and s > 0):
-        raise InputError(f"sigma_px must be a finite number > 0, got {sigma_px!r}")
-    return s
 
 
 def erf_diff(a, b) -> np.ndarray:
@@ -163,7 +159,7 @@ def gaussian_intensity(px, py, x, y, sigma_px: float, electrons: float = 1.0) ->
     electrons : float
         Total electrons S_e.
     """
-    s = _check_sigma(sigma_px)
+    s = positive_float(sigma_px, "sigma_px")
     r2 = (np.asarray(px, dtype=float) - x) ** 2 + (np.asarray(py, dtype=float) - y) ** 2
     return electrons / (2.0 * math.pi * s * s) * np.exp(-r2 / (2.0 * s * s))
 
@@ -177,7 +173,7 @@ def gaussian_stamp(
     *,
     pad_sigma: float = 5.0,
 ) -> tuple[np.ndarray, int, int]:
-    """Static star image, eq. 9 integrated exactly over each pixel of a box.
+    """Render a static star: eq. 9 integrated exactly over each pixel of a box.
 
     Parameters
     ----------
@@ -200,7 +196,7 @@ def gaussian_stamp(
     row0, col0 : int
         Detector indices of ``stamp[0, 0]``.
     """
-    s = _check_sigma(sigma_px)
+    s = positive_float(sigma_px, "sigma_px")
     if not (math.isfinite(x) and math.isfinite(y)):
         raise InputError(f"star position must be finite, got x={x!r}, y={y!r}")
     b = Box.around(x, x, y, y, pad_sigma * s) if box is None else Box(*(int(v) for v in box))

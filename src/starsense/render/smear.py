@@ -56,30 +56,19 @@ Either way the star is rendered only within ``pad_sigma`` sigma of its track (a 
 straight piece of at most 48 px): the flux outside, < 1.2e-6 of the star for ``pad_sigma = 5``
 (4 x P(X > 5 sigma) for a static star, less for streaks), is not rendered.
 
-Motion (arcs by sub-stepping)
------------------------------
-For a body rate ``w`` (rad/s, camera frame) a star's camera-frame direction is
-``b(t) = R(-w tau) b_mid``, ``R`` the exact rotation by the rotation vector ``-w tau`` (eq. 10
-without its small-angle approximation), ``tau = t - t_e / 2`` the time from mid-exposure, and
-its pixel position is ``sensor.project(b(t))`` (pinhole + distortion). Cross-axis rates give
-(nearly) straight streaks (eq. 12); roll gives circular arcs, and distortion and off-axis
-projection bend and speed up tracks. :func:`star_tracks` handles all of them by sub-stepping:
-the exposure is split into ``K`` equal time steps whose end points are joined by straight
-segments, each rendered as a uniform straight streak carrying ``S_e / K`` electrons; ``K`` is
-doubled until the true position at 8 times within every step is within ``tol_px = 0.01`` px
-of the uniform straight-line motion assumed there (this bounds the chord sagitta and the
-non-uniform speed together).
+Tracks that are not straight (roll, distortion, off-axis projection) arrive here as polylines
+from :func:`starsense.render.tracks.star_tracks`, rendered segment by segment
+(:func:`polyline_expected`).
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from starsense._validate import check_scalar, finite_array, finite_float, positive_float
 from starsense.errors import InputError
 from starsense.render.psf import (
     SQRT2,
@@ -92,15 +81,11 @@ from starsense.render.psf import (
 
 __all__ = [
     "METHODS",
-    "Tracks",
-    "check_exposure",
-    "check_rate",
     "gauss_legendre_order",
     "pad_sigma_for",
     "polyline_expected",
     "segment_expected",
     "smear_intensity",
-    "star_tracks",
     "streak_stamp_expected",
 ]
 
@@ -114,13 +99,6 @@ _STATIC_LENGTH_SIGMA = 1e-6
 #: longest straight piece rendered into one box, px (long diagonal streaks are split so that
 #: each box stays narrow around its piece of track)
 _MAX_PIECE_PX = 48.0
-
-
-def _finite(name: str, value) -> float:
-    v = float(value)
-    if not math.isfinite(v):
-        raise InputError(f"{name} must be finite, got {value!r}")
-    return v
 
 
 def smear_intensity(
@@ -146,11 +124,9 @@ def smear_intensity(
         sigma / L [erf(u / sqrt2 sigma) - erf((u - L) / sqrt2 sigma)]``; eq. 9 when ``L -> 0``.
         Multiply by ``t_e`` for the paper's ``S_b`` of eq. 20.
     """
-    s = float(sigma_px)
-    if not (math.isfinite(s) and s > 0):
-        raise InputError(f"sigma_px must be a finite number > 0, got {sigma_px!r}")
+    s = positive_float(sigma_px, "sigma_px")
     x0, y0, x1, y1 = (
-        _finite(n, v) for n, v in zip(("x0", "y0", "x1", "y1"), (x0, y0, x1, y1), strict=True)
+        finite_float(v, n) for n, v in zip(("x0", "y0", "x1", "y1"), (x0, y0, x1, y1), strict=True)
     )
     dx, dy = x1 - x0, y1 - y0
     length = math.hypot(dx, dy)
@@ -165,7 +141,7 @@ def smear_intensity(
 
 
 def _closed_form(u, v, length: float, sigma: float, electrons: float) -> np.ndarray:
-    """The along/across closed form for arrays u, v (px) relative to the track start."""
+    """Evaluate the along/across closed form for arrays u, v (px) relative to the track start."""
     k = 1.0 / (SQRT2 * sigma)
     pref = electrons / (2.0 * math.pi * sigma * sigma) * math.sqrt(math.pi / 2.0) * sigma / length
     return pref * np.exp(-0.5 * (v / sigma) ** 2) * erf_diff(u * k, (u - length) * k)
@@ -189,11 +165,12 @@ def gauss_legendre_order(sigma_px: float) -> int:
 
 
 def pad_sigma_for(electrons, sigma_px: float, floor_e: float = 1e-3) -> np.ndarray:
-    """Box half-width around a track, in sigma: at least 5, at most 8, and wide enough that the
-    static peak density times ``exp(-pad^2 / 2)`` is below ``floor_e`` electrons per pixel.
+    """Return the box half-width around a track, in sigma.
 
-    Five sigma leaves < 1e-6 of the flux outside; the density term matters only for very
-    bright stars (e.g. 2e5 e- at sigma 1.5 px needs 5.3 sigma).
+    At least 5, at most 8, and wide enough that the static peak density times
+    ``exp(-pad^2 / 2)`` is below ``floor_e`` electrons per pixel. Five sigma leaves < 1e-6 of
+    the flux outside; the density term matters only for very bright stars (e.g. 2e5 e- at
+    sigma 1.5 px needs 5.3 sigma).
     """
     e = np.maximum(np.asarray(electrons, dtype=float), 0.0)
     peak = e / (2.0 * math.pi * sigma_px * sigma_px)
@@ -203,8 +180,9 @@ def pad_sigma_for(electrons, sigma_px: float, floor_e: float = 1e-3) -> np.ndarr
 
 
 def _pieces(xs: np.ndarray, ys: np.ndarray, electrons: float):
-    """Split a polyline (equal time per segment) into straight pieces of <= _MAX_PIECE_PX,
-    yielding (x0, y0, x1, y1, electrons).
+    """Split a polyline (equal time per segment) into straight pieces of <= _MAX_PIECE_PX.
+
+    Yields (x0, y0, x1, y1, electrons) per piece.
     """
     k = len(xs) - 1
     share = electrons / k
@@ -232,7 +210,7 @@ def segment_expected(
     *,
     method: str = "track",
 ) -> np.ndarray:
-    """Expected electrons in each pixel of ``box`` from one straight uniform streak.
+    """Return the expected electrons in each pixel of ``box`` from one straight uniform streak.
 
     Parameters
     ----------
@@ -294,7 +272,7 @@ def polyline_expected(
     method: str = "track",
     out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, Box]:
-    """Expected electrons per pixel from a star moving along a polyline.
+    """Return the expected electrons per pixel from a star moving along a polyline.
 
     The star spends equal time on each of the ``K = len(xs) - 1`` segments (the vertices are
     its positions at ``t = k t_e / K``), so each segment carries ``electrons / K``. Long
@@ -327,15 +305,11 @@ def polyline_expected(
     box : Box
         The pixels of ``stamp``.
     """
-    xs = np.asarray(xs, dtype=float).ravel()
-    ys = np.asarray(ys, dtype=float).ravel()
+    xs = finite_array(xs, "xs").ravel()
+    ys = finite_array(ys, "ys").ravel()
     if xs.shape != ys.shape or xs.size < 1:
         raise InputError(f"xs and ys must be (K + 1,) vertices, got {xs.shape} and {ys.shape}")
-    if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(ys))):
-        raise InputError("track vertices must be finite")
-    sigma = float(sigma_px)
-    if not (math.isfinite(sigma) and sigma > 0):
-        raise InputError(f"sigma_px must be a finite number > 0, got {sigma_px!r}")
+    sigma = positive_float(sigma_px, "sigma_px")
     if xs.size == 1:
         xs, ys = np.repeat(xs, 2), np.repeat(ys, 2)
     pad = float(pad_sigma) * sigma
@@ -359,155 +333,6 @@ def polyline_expected(
         r0, c0 = sub.row0 - box.row0, sub.col0 - box.col0
         out[r0 : r0 + vals.shape[0], c0 : c0 + vals.shape[1]] += vals
     return out, box
-
-
-@dataclass(frozen=True)
-class Tracks:
-    """Centroid tracks of stars during one exposure (pixel coordinates).
-
-    Attributes
-    ----------
-    start, mid, end : ndarray, shape (N, 2)
-        (x, y) at t = 0, t_e / 2 and t_e (exact projections).
-    vertices : tuple of ndarray, each (K_i + 1, 2)
-        Positions at ``t = k t_e / K_i``; straight uniform motion between them is within
-        ``max_deviation_px`` of the true motion.
-    max_deviation_px : ndarray, shape (N,)
-        Largest distance found between the true position and the sub-stepped one (8 samples
-        per step).
-    valid : ndarray of bool, shape (N,)
-        False where the star is behind the camera at some time in the exposure (NaN positions).
-    """
-
-    start: np.ndarray
-    mid: np.ndarray
-    end: np.ndarray
-    vertices: tuple[np.ndarray, ...]
-    max_deviation_px: np.ndarray
-    valid: np.ndarray
-
-    @property
-    def n_segments(self) -> np.ndarray:
-        """K_i, the number of straight segments of each track, (N,) int."""
-        return np.array([len(v) - 1 for v in self.vertices], dtype=np.int64)
-
-    def __len__(self) -> int:
-        return int(self.start.shape[0])
-
-
-def check_rate(rate_rad_s) -> np.ndarray:
-    """Validate a body rate: three finite numbers (rad/s, camera frame) -> float (3,) array."""
-    try:
-        w = np.asarray(rate_rad_s, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"rate_rad_s must be 3 numbers (rad/s), got {rate_rad_s!r}") from None
-    if w.shape != (3,):
-        raise InputError(
-            f"rate_rad_s must have 3 components (wx, wy, wz) in rad/s, got shape {w.shape}"
-        )
-    if not np.all(np.isfinite(w)):
-        raise InputError(f"rate_rad_s must be finite, got {w.tolist()!r}")
-    return w
-
-
-def check_exposure(exposure_s) -> float:
-    """Validate an exposure time: finite and > 0, s."""
-    try:
-        t = float(exposure_s)
-    except (TypeError, ValueError):
-        raise InputError(f"exposure_s must be a number of seconds, got {exposure_s!r}") from None
-    if not (math.isfinite(t) and t > 0):
-        raise InputError(f"exposure_s = {exposure_s!r} is out of range; must be finite and > 0 s")
-    return t
-
-
-def _project_at(sensor, vectors, rate, exposure_s, fractions) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel positions (N, T) at times ``fractions * t_e`` of stars at ``vectors`` mid-exposure."""
-    tau = (np.asarray(fractions, dtype=float) - 0.5) * exposure_s
-    rot = Rotation.from_rotvec(-tau[:, None] * rate[None, :]).as_matrix()  # (T, 3, 3)
-    v = np.einsum("tij,nj->nti", rot, vectors)
-    return sensor.project(v)
-
-
-def star_tracks(
-    sensor,
-    vectors_cam,
-    rate_rad_s=(0.0, 0.0, 0.0),
-    exposure_s: float | None = None,
-    *,
-    tol_px: float = 0.01,
-    max_segments: int = 4096,
-) -> Tracks:
-    """Pixel tracks of stars during an exposure, sub-stepped into straight segments.
-
-    Parameters
-    ----------
-    sensor : Sensor
-        Provides ``project`` (pinhole + distortion) and the default exposure.
-    vectors_cam : array_like, shape (N, 3) or (3,)
-        Star directions in the camera frame at mid-exposure.
-    rate_rad_s : array_like, shape (3,)
-        Body rate (wx, wy, wz) in the camera frame, rad/s; the camera frame turns by
-        ``w tau`` so the stars turn by ``-w tau`` (eq. 10, exact rotation).
-    exposure_s : float, optional
-        Exposure, s (default ``sensor.exposure_s``).
-    tol_px : float
-        Largest allowed deviation between the true motion and uniform straight motion on each
-        segment, px ("arcs by sub-stepping").
-    max_segments : int
-        Upper limit of K (reached only for pathological rates; the deviation is then reported
-        in ``max_deviation_px``).
-
-    Returns
-    -------
-    Tracks
-    """
-    w = check_rate(rate_rad_s)
-    te = check_exposure(sensor.exposure_s if exposure_s is None else exposure_s)
-    v = np.asarray(vectors_cam, dtype=float).reshape(-1, 3)
-    n = v.shape[0]
-    sub = 8
-    verts: list[np.ndarray | None] = [None] * n
-    dev = np.zeros(n)
-    start = np.full((n, 2), np.nan)
-    mid = np.full((n, 2), np.nan)
-    end = np.full((n, 2), np.nan)
-    valid = np.ones(n, dtype=bool)
-    pending = np.arange(n)
-    k = 1
-    first = True
-    while pending.size:
-        m = k * sub
-        x, y = _project_at(sensor, v[pending], w, te, np.arange(m + 1) / m)
-        if first:
-            start[:, 0], start[:, 1] = x[:, 0], y[:, 0]
-            mid[:, 0], mid[:, 1] = x[:, m // 2], y[:, m // 2]
-            end[:, 0], end[:, 1] = x[:, -1], y[:, -1]
-            first = False
-        bad = ~(np.isfinite(x).all(axis=1) & np.isfinite(y).all(axis=1))
-        xv, yv = x[:, ::sub], y[:, ::sub]  # (P, k + 1)
-        frac = np.arange(sub) / sub
-        xl = xv[:, :-1, None] + (xv[:, 1:, None] - xv[:, :-1, None]) * frac
-        yl = yv[:, :-1, None] + (yv[:, 1:, None] - yv[:, :-1, None]) * frac
-        d = np.hypot(x[:, :-1].reshape(-1, k, sub) - xl, y[:, :-1].reshape(-1, k, sub) - yl)
-        with np.errstate(invalid="ignore"):
-            d_max = np.where(bad, 0.0, np.max(d, axis=(1, 2)))
-        done = bad | (d_max <= tol_px) | (k >= max_segments)
-        for j in np.flatnonzero(done):
-            i = pending[j]
-            verts[i] = np.stack([xv[j], yv[j]], axis=1)
-            dev[i] = d_max[j]
-            valid[i] = not bad[j]
-        pending = pending[~done]
-        k *= 2
-    return Tracks(
-        start=start,
-        mid=mid,
-        end=end,
-        vertices=tuple(verts),  # type: ignore[arg-type]
-        max_deviation_px=dev,
-        valid=valid,
-    )
 
 
 def streak_stamp_expected(
@@ -546,16 +371,14 @@ def streak_stamp_expected(
     row0, col0 : int
         Detector indices of ``stamp[0, 0]``.
     """
-    for name, v in (("x0", x0), ("y0", y0), ("x1", x1), ("y1", y1), ("electrons", electrons)):
-        if not math.isfinite(float(v)):
-            raise InputError(f"{name} must be finite, got {v!r}")
-    if electrons < 0:
-        raise InputError(f"electrons must be >= 0, got {electrons!r}")
+    for name, v in (("x0", x0), ("y0", y0), ("x1", x1), ("y1", y1)):
+        finite_float(v, name)
+    e = check_scalar(electrons, "electrons", 0.0)
     stamp, box = polyline_expected(
         [x0, x1],
         [y0, y1],
         float(sensor.detector.psf_sigma_px),
-        float(electrons),
+        e,
         pad_sigma=pad_sigma,
         method=method,
     )
