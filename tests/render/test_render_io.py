@@ -13,8 +13,7 @@ from PIL import Image
 
 from starsense.errors import InputError
 from starsense.render import render_frame, write_frame
-
-DEG = math.pi / 180
+from starsense.units import DEG
 
 
 @pytest.fixture(scope="module")

@@ -19,8 +19,8 @@ from starsense.render import (
 )
 from starsense.render.noise import quantise
 from starsense.render.psf import gaussian_stamp
+from starsense.units import DEG
 
-DEG = math.pi / 180
 RATE = np.array([0.8, -0.6, 0.1]) * DEG  # ~1 deg/s
 
 
