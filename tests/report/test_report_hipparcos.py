@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from starsense.analysis.limits import G_PAPER_INTERVAL
+from starsense.references.fialho2019 import G_INTERVAL as G_PAPER_INTERVAL
 from starsense.report import build_report
 from starsense.report.limits import TABLE2_PAPER_MAS
 

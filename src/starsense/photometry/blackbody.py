@@ -18,6 +18,12 @@ BOLTZMANN_J_K = 1.380649e-23
 ZETA3 = float(zeta(3.0))
 ZETA5 = float(zeta(5.0))  # 1.0369277551... (paper, below eq. 19)
 
+#: 12 zeta(5) pi^4 k^5 / (h^5 c^4): eq. 19's constant, in K^-5 m^-4 s^-1 rad^-2 (the centroid
+#: Fisher information of a black body per unit dilution, T^5, D^4 and t)
+FISHER_CONSTANT = (
+    12.0 * ZETA5 * np.pi**4 * BOLTZMANN_J_K**5 / (PLANCK_J_S**5 * SPEED_OF_LIGHT_M_S**4)
+)
+
 
 def _broadcast(temperature_k, wavelength_m):
     t = np.asarray(temperature_k, dtype=float)
