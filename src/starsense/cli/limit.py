@@ -172,7 +172,7 @@ def limit_sky(
     if (fov_deg is None) != (not target_deg):
         raise InputError("--fov-deg and --target-deg go together (one or more targets)")
     if fov_deg is not None:
-        check_scalar(fov_deg, "--fov-deg", 0.0, 360.0, lo_open=True)
+        check_scalar(fov_deg, "--fov-deg", 0, 360, lo_open=True)
     radec = [_parse_target(t) for t in target_deg or []]
     _check_max_mag(max_mag)
     if check_dask_option(catalog, dask):
@@ -273,7 +273,7 @@ def limit_curve(
     """
     from starsense.analysis.limits.brightest import brightest_curve
 
-    check_scalar(extrapolate_to, "--extrapolate-to", 2.0)
+    check_scalar(extrapolate_to, "--extrapolate-to", 2)
     if check_dask_option(catalog, dask):
         from starsense.cli.catalog import hats_session
         from starsense.scale import brightest_curve as hats_curve

@@ -92,7 +92,7 @@ def photons_per_wavelength(dilution, temperature_k, wavelength_m, diameter_m, ex
 
 
 def total_photons(dilution, temperature_k, diameter_m, exposure_s):
-    """Expected photons over all wavelengths: the integral of eq. 12 in closed form.
+    """Return the expected photons over all wavelengths: eq. 12 integrated in closed form.
 
     With x = hc / (lambda k T), the integral of lambda^-4 / (e^x - 1) over lambda is
     2 zeta(3) (kT/hc)^3, so N = C t (pi D^2 / 4) 2 pi c 2 zeta(3) (kT/hc)^3

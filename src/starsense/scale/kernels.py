@@ -1,11 +1,12 @@
 """Per-partition tasks: a HATS tile in, small summable results out.
 
 Each task turns its tile into a :class:`~starsense.catalog.Catalog` (:meth:`ColumnPlan.catalog`)
-and calls the in-memory path's own kernels on it — :func:`~starsense.analysis.limits.sky.sky_fisher`,
+and calls the in-memory path's own kernels on it —
+:func:`~starsense.analysis.limits.sky.sky_fisher`,
 :func:`~starsense.analysis.limits.sky.fov_fishers`,
-:class:`~starsense.analysis.availability.FieldStars`
-... — so there is one copy of the physics. What they return adds (or merges) exactly over
-disjoint tiles; the ``combine_*`` functions do that, on the workers, in a tree.
+:class:`~starsense.analysis.availability.FieldStars` ... — so there is one copy of the
+physics. What they return adds (or merges) exactly over disjoint tiles; the ``combine_*``
+functions do that, on the workers, in a tree.
 
 Top-level functions only: they are pickled to worker processes.
 """

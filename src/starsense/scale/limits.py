@@ -238,12 +238,12 @@ def brightest_curve(
 ) -> BrightestCurve:
     """Compute theta_rms of the N brightest stars (Fig. 7) over a HATS catalogue, unsorted.
 
-    :func:`starsense.analysis.limits.brightest_curve` ranks all stars; here a histogram of magnitudes
-    (summed over the partitions) locates the magnitude bin of each checkpoint N, bins that hold
-    too many stars are split and counted again, and a last pass returns the eq. 21 components
-    summed between the checkpoints plus, one by one, only the stars of the bins a checkpoint
-    cuts through, which are ranked with the in-memory :func:`brightest_order`. Three or four
-    passes over the catalogue; memory on the client ~ ``max_explicit`` stars.
+    :func:`starsense.analysis.limits.brightest_curve` ranks all stars; here a histogram of
+    magnitudes (summed over the partitions) locates the magnitude bin of each checkpoint N, bins
+    that hold too many stars are split and counted again, and a last pass returns the eq. 21
+    components summed between the checkpoints plus, one by one, only the stars of the bins a
+    checkpoint cuts through, which are ranked with the in-memory :func:`brightest_order`. Three
+    or four passes over the catalogue; memory on the client ~ ``max_explicit`` stars.
 
     Parameters
     ----------
