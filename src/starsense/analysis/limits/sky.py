@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from starsense._validate import check_scalar
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.analysis.limits.result import LimitResult, boresight_frame, limit_from_fisher
 from starsense.attitude.covariance import fisher_matrix
-from starsense.errors import InputError
 from starsense.photometry.stars import BlackBodyStars
 
 __all__ = [
@@ -44,10 +44,7 @@ def in_cone(vectors, target, fov_diameter_rad: float) -> np.ndarray:
     -------
     array (N,) of bool
     """
-    if not (0 < fov_diameter_rad <= 2 * np.pi):
-        raise InputError(
-            f"FOV diameter must be in (0, 360] deg, got {np.degrees(fov_diameter_rad):.6g} deg"
-        )
+    check_scalar(fov_diameter_rad, "fov_diameter_rad", 0, 2 * np.pi, lo_open=True)
     t = np.asarray(target, dtype=float)
     t = t / np.linalg.norm(t)
     return np.asarray(vectors) @ t >= np.cos(fov_diameter_rad / 2.0) - 1e-15
