@@ -6,39 +6,32 @@ import numpy as np
 import pytest
 
 from starsense.analysis.limits import (
-    BlackBodyStars,
     brightest_curve,
     centroid_fisher,
     centroid_fisher_numeric,
     centroid_fisher_spectrum,
-    fisher_matrix,
     fov_limit,
     low_photon_degradation,
     sky_limit,
 )
+from starsense.attitude.covariance import (
+    fisher_components,
+    fisher_from_components,
+    fisher_matrix,
+)
 from starsense.errors import InputError, SingularGeometryError
 from starsense.photometry import ColourModel, fit_star, passband, total_photons
 from starsense.photometry.passbands import sun_spectrum, vega_spectrum
+from starsense.photometry.stars import BlackBodyStars
+from starsense.references import fialho2019 as paper
 
-D_TABLE1_M = 0.10
-T_TABLE1_S = 0.100
+D_TABLE1_M = paper.TABLE1_DIAMETER_M
+T_TABLE1_S = paper.TABLE1_EXPOSURE_S
 
 # Table 1, UBV half: name, m_V, B-V, T (K), C, sigma_min,BB (rad)
-TABLE1_UBV = [
-    ("Vega", 0.030, -0.001, 13231, 2.96e-17, 1.19e-10),
-    ("1757132", 11.81, 0.26, 8580, 1.87e-21, 4.42e-8),
-    ("Sun", -26.75, 0.65, 5711, 2.42e-5, 1.08e-15),
-    ("KF06T2", 13.97, 1.18, 3951, 9.59e-21, 1.36e-7),
-    ("VB8", 16.80, 2.01, 2613, 2.01e-20, 2.63e-7),
-]
+TABLE1_UBV = list(paper.TABLE1_UBV)
 # Table 1, 2MASS half: name, m_H, H-Ks, T, C, sigma
-TABLE1_HKS = [
-    ("Vega", -0.004, -0.005, 10417, 4.80e-17, 1.70e-10),
-    ("1757132", 11.23, 0.02, 8961, 1.94e-21, 3.89e-8),
-    ("Sun", -28.24, 0.04, 8059, 1.41e-5, 5.94e-16),
-    ("KF06T2", 11.26, 0.10, 6050, 3.72e-21, 7.50e-8),
-    ("VB8", 9.17, 0.34, 3282, 1.05e-19, 6.50e-8),
-]
+TABLE1_HKS = list(paper.TABLE1_HKS)
 
 
 def _row(colour, mag, ci):
@@ -272,3 +265,16 @@ def test_dense_tables_match_pchip(colour):
     exact_t = 1.0 / tab["to_inv_t"](ci)
     assert np.allclose(m.temperature_k(ci), exact_t, rtol=1e-6, atol=0)
     assert np.allclose(m.surface_magnitude(exact_t), tab["mag_surface"](1 / exact_t), atol=1e-6)
+
+
+def test_fisher_matrix_batched_and_by_components_agree():
+    # eq. 21 has one home: single, batched (M, N, 3) and summed per-star components agree.
+    rng = np.random.default_rng(4)
+    r = rng.normal(size=(3, 50, 3))
+    r /= np.linalg.norm(r, axis=-1, keepdims=True)
+    w = rng.uniform(0.5, 2.0, size=(3, 50))
+    single = np.array([fisher_matrix(r[m], w[m]) for m in range(3)])
+    np.testing.assert_allclose(fisher_matrix(r, w), single, rtol=1e-13, atol=1e-12)
+    sums = np.array([fisher_components(r[m], w[m]).sum(axis=0) for m in range(3)])
+    np.testing.assert_allclose(fisher_from_components(sums), single, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(fisher_from_components(sums[0]), single[0], rtol=1e-13, atol=1e-12)

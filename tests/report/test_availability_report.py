@@ -9,7 +9,7 @@ import pytest
 
 import starsense.report.availability as report_av
 from starsense.analysis.availability import ThresholdCurve
-from starsense.analysis.limits import BlackBodyStars
+from starsense.photometry.stars import BlackBodyStars
 from starsense.report.section import ReportContext
 from starsense.sensor import load_sensor
 

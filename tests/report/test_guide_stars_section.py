@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import starsense.report.guide_stars as report_gs
-from starsense.analysis.limits import BlackBodyStars
+from starsense.photometry.stars import BlackBodyStars
 from starsense.report.build import SECTION_BUILDERS
 from starsense.report.guide_star_figures import field_angle_deg, polygon_area, polygon_centroid
 from starsense.report.section import ReportContext

@@ -7,9 +7,9 @@ import time
 
 import pytest
 
-from starsense.analysis.limits import G_PAPER_INTERVAL
+from starsense.references.fialho2019 import G_INTERVAL as G_PAPER_INTERVAL
+from starsense.references.fialho2019 import TABLE2_MAS as TABLE2_PAPER_MAS
 from starsense.report import build_report
-from starsense.report.limits import TABLE2_PAPER_MAS
 
 
 @pytest.mark.slow

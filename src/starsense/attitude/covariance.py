@@ -17,7 +17,9 @@ from starsense.errors import InputError, SingularGeometryError
 
 __all__ = [
     "covariance",
+    "fisher_components",
     "fisher_covariance",
+    "fisher_from_components",
     "fisher_matrix",
     "theta_rms",
     "triad_covariance",
@@ -28,7 +30,34 @@ SINGULAR_RCOND = 1e-10
 
 
 def fisher_matrix(vectors, weights) -> np.ndarray:
-    """Attitude Fisher information matrix, eq. 21: sum_i w_i (I - r_i r_i^T).
+    """Compute the attitude Fisher information matrix, eq. 21: sum_i w_i (I - r_i r_i^T).
+
+    The one copy of eq. 21 in the package: the in-memory limit, the distributed per-chunk sums
+    (:func:`fisher_components`) and the estimators' covariances all come back here.
+
+    Parameters
+    ----------
+    vectors : array (N, 3) or (M, N, 3)
+        Unit vectors of the stars (a batch of M star sets for the 3-d form).
+    weights : array (N,) or (M, N)
+        Per-star centroid Fisher information, rad^-2.
+
+    Returns
+    -------
+    array (3, 3) or (M, 3, 3)
+        rad^-2.
+    """
+    r = np.asarray(vectors, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    if r.ndim == 2:
+        s = (r * w[:, None]).T @ r
+        return w.sum() * np.eye(3) - s
+    s = np.swapaxes(r * w[..., None], -1, -2) @ r
+    return w.sum(axis=-1)[..., None, None] * np.eye(3) - s
+
+
+def fisher_components(vectors, weights) -> np.ndarray:
+    """Return the seven independent terms of eq. 21 per star: w, wx^2, wy^2, wz^2, wxy, wxz, wyz.
 
     Parameters
     ----------
@@ -39,12 +68,49 @@ def fisher_matrix(vectors, weights) -> np.ndarray:
 
     Returns
     -------
-    array (3, 3)
+    array (N, 7)
+        Any sum of rows is the (sum w, sum w r r^T) of those stars: sums over chunks of a
+        catalogue add exactly, and :func:`fisher_from_components` turns a sum into F.
     """
     r = np.asarray(vectors, dtype=float)
     w = np.asarray(weights, dtype=float)
-    s = (r * w[:, None]).T @ r
-    return w.sum() * np.eye(3) - s
+    return np.column_stack(
+        [
+            w,
+            w * r[:, 0] ** 2,
+            w * r[:, 1] ** 2,
+            w * r[:, 2] ** 2,
+            w * r[:, 0] * r[:, 1],
+            w * r[:, 0] * r[:, 2],
+            w * r[:, 1] * r[:, 2],
+        ]
+    )
+
+
+def fisher_from_components(sums) -> np.ndarray:
+    """Return eq. 21's F = sum w I - sum w r r^T from summed :func:`fisher_components`.
+
+    Parameters
+    ----------
+    sums : array (7,) or (M, 7)
+        One row (or a batch of rows) of summed components.
+
+    Returns
+    -------
+    array (3, 3) or (M, 3, 3)
+        rad^-2.
+    """
+    s = np.asarray(sums, dtype=float)
+    sw, xx, yy, zz, xy, xz, yz = np.moveaxis(s, -1, 0)
+    outer = np.stack(
+        [
+            np.stack([xx, xy, xz], axis=-1),
+            np.stack([xy, yy, yz], axis=-1),
+            np.stack([xz, yz, zz], axis=-1),
+        ],
+        axis=-2,
+    )
+    return np.asarray(sw)[..., None, None] * np.eye(3) - outer
 
 
 def covariance(fisher: np.ndarray, n_stars: int | None = None) -> np.ndarray:
@@ -107,7 +173,9 @@ def fisher_covariance(
 def triad_covariance(
     b1: NDArray[np.float64], b2: NDArray[np.float64], sigma1_rad: float, sigma2_rad: float
 ) -> NDArray[np.float64]:
-    """Covariance of the TRIAD attitude with ``b1`` as the anchor (Shuster & Oh 1981)::
+    """Return the covariance of the TRIAD attitude with ``b1`` as the anchor (Shuster & Oh 1981).
+
+    The closed form::
 
         P = s1^2 I + |b1 x b2|^-2 [ (s2^2 - s1^2) b1 b1^T + s1^2 (b1 . b2)(b1 b2^T + b2 b1^T) ]
 

@@ -1,4 +1,8 @@
-"""`starsense limit`: the physical limit of attitude accuracy (Fialho & Mortari 2019)."""
+"""`starsense limit`: the physical limit of attitude accuracy (Fialho & Mortari 2019).
+
+Options are checked here, with their names in the messages, converted from degrees to radians
+and handed to :mod:`starsense.analysis.limits` (or :mod:`starsense.scale` for HATS catalogues).
+"""
 
 from __future__ import annotations
 
@@ -8,11 +12,11 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._validate import check_int, check_scalar, finite_float
 from starsense.cli.catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
 from starsense.cli.common import CatalogOpt, JsonOpt, emit
 from starsense.errors import InputError
-
-ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
+from starsense.units import DEG, RAD_TO_ARCSEC
 
 limit_app = typer.Typer(
     help="The physical limit of attitude accuracy (Fialho & Mortari 2019).",
@@ -35,7 +39,7 @@ ModelOpt = Annotated[
 
 
 def _rad(x: float) -> str:
-    return f"{x:.4g} rad ({x * ARCSEC_PER_RAD:.4g} arcsec)"
+    return f"{x:.4g} rad ({x * RAD_TO_ARCSEC:.4g} arcsec)"
 
 
 def _parse_target(text: str) -> tuple[float, float]:
@@ -48,15 +52,26 @@ def _parse_target(text: str) -> tuple[float, float]:
     return ra, dec
 
 
-def _load_stars(catalog: str, max_mag: float | None, colour: str | None):
-    from starsense.analysis.limits import BlackBodyStars
-    from starsense.catalog import load_catalog
+def _target_vectors(radec: list[tuple[float, float]]) -> np.ndarray:
+    """Return the ICRS unit vectors (T, 3) of (RA, Dec) pairs given in degrees."""
+    from starsense.geometry.projection import radec_to_vectors
 
+    return np.array([radec_to_vectors(ra * DEG, dec * DEG) for ra, dec in radec])
+
+
+def _check_max_mag(max_mag: float | None) -> None:
+    if max_mag is not None:
+        finite_float(max_mag, "--max-mag")
+
+
+def _load_stars(catalog: str, max_mag: float | None, colour: str | None):
+    from starsense.catalog import load_catalog
+    from starsense.photometry.stars import BlackBodyStars
+
+    _check_max_mag(max_mag)
     cat = load_catalog(catalog)
     stars = BlackBodyStars.from_catalog(cat, colour)
     if max_mag is not None:
-        if not np.isfinite(max_mag):
-            raise InputError(f"--max-mag must be a finite magnitude, got {max_mag!r}")
         keep = stars.magnitude <= max_mag
         if keep.sum() < 2:
             raise InputError(
@@ -85,7 +100,7 @@ def limit_star(
     as_json: JsonOpt = False,
 ) -> None:
     """One star's black body, photons and centroid bound (Table 1; eqs. 9, 12, 19)."""
-    from starsense.analysis.limits import centroid_fisher
+    from starsense.analysis.limits.centroid import centroid_fisher
     from starsense.photometry import ColourModel, fit_star, total_photons
 
     if mag_v is not None or b_v is not None:
@@ -111,7 +126,7 @@ def limit_star(
         "dilution": c,
         "photons": photons,
         "sigma_rad": float(sigma),
-        "sigma_arcsec": float(sigma * ARCSEC_PER_RAD),
+        "sigma_arcsec": float(sigma * RAD_TO_ARCSEC),
         "colour": system,
         "magnitude_band": ColourModel(system).magnitude_band,
         "diameter_m": diameter_m,
@@ -152,16 +167,17 @@ def limit_sky(
     With --catalog hats:PATH_OR_URL the catalogue is processed partition by partition on Dask
     (--dask), with the same kernels and results as in memory.
     """
-    from starsense.analysis.limits import fov_limit, sky_limit
-    from starsense.geometry.attitude import radec_to_vectors
+    from starsense.analysis.limits.sky import fov_limit, sky_limit
 
     if (fov_deg is None) != (not target_deg):
         raise InputError("--fov-deg and --target-deg go together (one or more targets)")
-    if fov_deg is not None and (not np.isfinite(fov_deg) or not 0 < fov_deg <= 360):
-        raise InputError(f"--fov-deg must be in (0, 360], got {fov_deg}")
+    if fov_deg is not None:
+        check_scalar(fov_deg, "--fov-deg", 0, 360, lo_open=True)
+    radec = [_parse_target(t) for t in target_deg or []]
+    _check_max_mag(max_mag)
     if check_dask_option(catalog, dask):
         _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg,
-                        target_deg, as_json)  # fmt: skip
+                        radec, as_json)  # fmt: skip
         return
     cat, stars = _load_stars(catalog, max_mag, colour)
     common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
@@ -179,9 +195,7 @@ def limit_sky(
         ]
         emit(payload, as_json, lines)
         return
-    radec = [_parse_target(t) for t in target_deg]
-    vecs = np.array([radec_to_vectors(np.radians(ra), np.radians(dec)) for ra, dec in radec])
-    heads, merged = fov_limit(stars, vecs, np.radians(fov_deg), diameter_m, exposure_s)
+    heads, merged = fov_limit(stars, _target_vectors(radec), fov_deg * DEG, diameter_m, exposure_s)
     _emit_fov(cat.name, stars.colour, common, fov_deg, radec, heads, merged, as_json)
 
 
@@ -209,24 +223,19 @@ def _emit_fov(name, colour, common, fov_deg, radec, heads, merged, as_json) -> N
     emit(payload, as_json, lines)
 
 
-def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, target_deg,
+def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, radec,
                     as_json) -> None:  # fmt: skip
-    """``limit sky`` over a HATS catalogue on Dask (starsense.scale)."""
+    """Run ``limit sky`` over a HATS catalogue on Dask (starsense.scale)."""
     from starsense.cli.catalog import hats_session
-    from starsense.geometry.attitude import radec_to_vectors
     from starsense.scale import fov_limit, sky_limit
 
-    radec = [_parse_target(t) for t in target_deg or []]
     with hats_session(catalog, dask, not as_json) as (cat, client, progress):
         opts = {"colour": colour, "max_mag": max_mag, "client": client, "progress": progress}
         if fov_deg is None:
             res, used = sky_limit(cat, diameter_m, exposure_s, **opts)
         else:
-            vecs = np.array(
-                [radec_to_vectors(np.radians(ra), np.radians(dec)) for ra, dec in radec]
-            )
             heads, merged, used = fov_limit(
-                cat, vecs, np.radians(fov_deg), diameter_m, exposure_s, **opts
+                cat, _target_vectors(radec), fov_deg * DEG, diameter_m, exposure_s, **opts
             )
     common = {"catalog": cat.name, "colour": used.colour, "n_skipped": used.n_skipped,
               "source": cat.location}  # fmt: skip
@@ -262,10 +271,9 @@ def limit_curve(
     With --catalog hats:PATH_OR_URL the curve is built partition by partition on Dask (--dask)
     from magnitude histograms, without sorting the catalogue.
     """
-    from starsense.analysis.limits import brightest_curve
+    from starsense.analysis.limits.brightest import brightest_curve
 
-    if not np.isfinite(extrapolate_to) or extrapolate_to < 2:
-        raise InputError(f"--extrapolate-to must be >= 2 stars, got {extrapolate_to}")
+    check_scalar(extrapolate_to, "--extrapolate-to", 2)
     if check_dask_option(catalog, dask):
         from starsense.cli.catalog import hats_session
         from starsense.scale import brightest_curve as hats_curve
@@ -295,7 +303,7 @@ def limit_curve(
         f"N = {extrapolate_to:.3g}: {curve.theta_extrapolated_rad:.3e} rad",
     ]
     if plot is not None:
-        from starsense.report.figures import plot_brightest_curves
+        from starsense.plotting.limits import plot_brightest_curves
 
         plot_brightest_curves(
             [curve], plot, catalog_name=cat.name, diameter_m=diameter_m, exposure_s=exposure_s
@@ -316,8 +324,9 @@ def limit_photons(
     as_json: JsonOpt = False,
 ) -> None:
     """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
-    from starsense.analysis.limits import low_photon_degradation
+    from starsense.analysis.limits.photons import low_photon_degradation
 
+    check_int(trials, "--trials", 1)
     cat, stars = _load_stars(catalog, None, colour)
     res = low_photon_degradation(stars, diameter_m, exposure_s, trials, seed)
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}

@@ -1,4 +1,4 @@
-"""Photometry: black bodies, passbands and zero points, colour -> temperature, dilution."""
+"""Photometry: black bodies, passbands and zero points, colour -> temperature, catalogue stars."""
 
 from starsense.photometry.blackbody import (
     photons_per_wavelength,
@@ -7,12 +7,15 @@ from starsense.photometry.blackbody import (
 )
 from starsense.photometry.colour import COLOUR_SYSTEMS, ColourModel, fit_star
 from starsense.photometry.passbands import BANDS, Passband, passband, vega_spectrum
+from starsense.photometry.stars import BlackBodyStars, b_v_from_spectral_type
 
 __all__ = [
     "BANDS",
     "COLOUR_SYSTEMS",
+    "BlackBodyStars",
     "ColourModel",
     "Passband",
+    "b_v_from_spectral_type",
     "fit_star",
     "passband",
     "photons_per_wavelength",

@@ -18,6 +18,12 @@ BOLTZMANN_J_K = 1.380649e-23
 ZETA3 = float(zeta(3.0))
 ZETA5 = float(zeta(5.0))  # 1.0369277551... (paper, below eq. 19)
 
+#: 12 zeta(5) pi^4 k^5 / (h^5 c^4): eq. 19's constant, in K^-5 m^-4 s^-1 rad^-2 (the centroid
+#: Fisher information of a black body per unit dilution, T^5, D^4 and t)
+FISHER_CONSTANT = (
+    12.0 * ZETA5 * np.pi**4 * BOLTZMANN_J_K**5 / (PLANCK_J_S**5 * SPEED_OF_LIGHT_M_S**4)
+)
+
 
 def _broadcast(temperature_k, wavelength_m):
     t = np.asarray(temperature_k, dtype=float)
@@ -86,7 +92,7 @@ def photons_per_wavelength(dilution, temperature_k, wavelength_m, diameter_m, ex
 
 
 def total_photons(dilution, temperature_k, diameter_m, exposure_s):
-    """Expected photons over all wavelengths: the integral of eq. 12 in closed form.
+    """Return the expected photons over all wavelengths: eq. 12 integrated in closed form.
 
     With x = hc / (lambda k T), the integral of lambda^-4 / (e^x - 1) over lambda is
     2 zeta(3) (kT/hc)^3, so N = C t (pi D^2 / 4) 2 pi c 2 zeta(3) (kT/hc)^3

@@ -98,10 +98,12 @@ class ColourModel:
 
     @property
     def blue_band(self) -> str:
+        """Band of the colour index's bluer magnitude (B for B-V)."""
         return COLOUR_SYSTEMS[self.colour][0]
 
     @property
     def red_band(self) -> str:
+        """Band of the colour index's redder magnitude (V for B-V)."""
         return COLOUR_SYSTEMS[self.colour][1]
 
     @property
@@ -142,8 +144,9 @@ class ColourModel:
 
     @property
     def colour_limits(self) -> tuple[float, float]:
-        """Colour indices of the clamp temperatures (t_max_k, t_min_k): the paper's
-        [-0.2357, +2.7028] for B-V.
+        """Colour indices of the clamp temperatures (t_max_k, t_min_k).
+
+        The paper's [-0.2357, +2.7028] for B-V.
         """
         return self._tables["limits"]
 

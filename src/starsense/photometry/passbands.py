@@ -92,7 +92,7 @@ def vega_spectrum() -> tuple[np.ndarray, np.ndarray]:
 
 @functools.lru_cache(maxsize=1)
 def sun_spectrum() -> tuple[np.ndarray, np.ndarray]:
-    """The Sun's spectral irradiance at 1 au (Kurucz 1993 model shipped by sedpy), W m^-2 m^-1.
+    """Return the Sun's spectral irradiance at 1 au (Kurucz 1993, shipped by sedpy), W m^-2 m^-1.
 
     Its integral is 1359 W m^-2, the solar constant; the model's far-UV rows below 160 nm are
     NaN in the file and are dropped (they carry a negligible share of the photons).
@@ -174,7 +174,7 @@ def _load_curve(filter_name: str) -> tuple[np.ndarray, np.ndarray]:
 
 @functools.cache
 def passband(name: str) -> Passband:
-    """The passband called ``name`` (one of :data:`BANDS`), with its zero point set."""
+    """Return the passband called ``name`` (one of :data:`BANDS`), with its zero point set."""
     if name not in BANDS:
         raise InputError(f"unknown passband {name!r}; known bands: {', '.join(BANDS)}")
     filter_name, kind, value = BANDS[name]

@@ -140,7 +140,7 @@ class Sensitivity:
 
     @classmethod
     def for_sensor(cls, sensor, model: str = "reed", colour: str = "B-V") -> Sensitivity:
-        """The model for a :class:`~starsense.sensor.Sensor` (any object with its fields)."""
+        """Return the model for a :class:`~starsense.sensor.Sensor` (any object with its fields)."""
         det = sensor.detector
         return cls(
             model=model,
@@ -154,7 +154,7 @@ class Sensitivity:
         )
 
     def electrons(self, magnitude, colour_index=None) -> np.ndarray:
-        """Expected photoelectrons for stars of ``magnitude`` (and colour, for "blackbody").
+        """Return the expected photoelectrons for stars of ``magnitude`` (and colour, "blackbody").
 
         For "blackbody", ``magnitude`` is in the colour system's magnitude band (V for B-V) and
         ``colour_index`` is required; the black body is fitted by Fialho & Mortari sec. 2.5-2.6.

@@ -12,7 +12,6 @@ from starsense.report.build import (
     SECTION_BUILDERS,
     build_report,
 )
-from starsense.report.figures import brightest_curves_figure, plot_brightest_curves
 from starsense.report.limits import fov_table, limit_section, table1_rows
 from starsense.report.section import ReportContext, Section
 from starsense.report.sensors import SensorSpec, load_sensor_table, theta_from_sigmas
@@ -24,12 +23,10 @@ __all__ = [
     "ReportContext",
     "Section",
     "SensorSpec",
-    "brightest_curves_figure",
     "build_report",
     "fov_table",
     "limit_section",
     "load_sensor_table",
-    "plot_brightest_curves",
     "table1_rows",
     "theta_from_sigmas",
 ]

@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 
 import starsense
-from starsense.analysis.limits import BlackBodyStars, check_aperture
+from starsense.analysis.limits.centroid import check_aperture
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
+from starsense.photometry.stars import BlackBodyStars
 from starsense.report import page
 from starsense.report.availability import availability_section
 from starsense.report.guide_stars import guide_stars_section

@@ -9,11 +9,22 @@ import html
 import math
 from collections.abc import Iterable, Sequence
 
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+# figures are drawn by starsense.plotting; new_figure stays importable here for the sections
+from starsense.plotting.figure import new_figure
 
-RAD_TO_MAS = 180.0 / math.pi * 3600.0 * 1000.0
-RAD_TO_ARCSEC = 180.0 / math.pi * 3600.0
+__all__ = [
+    "CSS",
+    "esc",
+    "figure_html",
+    "fmt",
+    "fmt_int",
+    "fmt_ratio",
+    "fmt_rel",
+    "new_figure",
+    "page",
+    "table",
+    "yes_no",
+]
 
 CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", Helvetica, Arial, sans-serif;
@@ -45,11 +56,12 @@ code { background: #f2f5f8; padding: 0 0.2em; }
 
 
 def esc(text) -> str:
+    """Return ``text`` as escaped HTML."""
     return html.escape(str(text))
 
 
 def fmt(x, digits: int = 3) -> str:
-    """A number with ``digits`` significant digits (e-notation when tiny or huge)."""
+    """Format a number with ``digits`` significant digits (e-notation when tiny or huge)."""
     if x is None:
         return "–"
     x = float(x)
@@ -66,24 +78,26 @@ def fmt(x, digits: int = 3) -> str:
 
 
 def fmt_int(n) -> str:
+    """Format an integer with thousands separators."""
     return f"{int(n):,}"
 
 
 def fmt_rel(ours, paper) -> str:
-    """Relative difference ours/paper - 1, in percent."""
+    """Format the relative difference ours/paper - 1, in percent."""
     if ours is None or not math.isfinite(float(ours)):
         return "–"
     return f"{(float(ours) / float(paper) - 1.0) * 100.0:+.1f} %".replace("-", "−")
 
 
 def fmt_ratio(ours, paper) -> str:
-    """ours/paper as a factor."""
+    """Format ours/paper as a factor."""
     if ours is None or not math.isfinite(float(ours)):
         return "–"
     return f"{float(ours) / float(paper):.3g}"
 
 
 def yes_no(flag: bool, yes: str = "yes", no: str = "no") -> str:
+    """Return ``yes`` in green or ``no`` in red, as HTML."""
     return f'<span class="ok">{esc(yes)}</span>' if flag else f'<span class="no">{esc(no)}</span>'
 
 
@@ -94,9 +108,11 @@ def table(
     header_rows: Sequence[Sequence[tuple[str, int]]] = (),
     classes: Sequence[str] | None = None,
 ) -> str:
-    """An HTML table. Cells are HTML already (use :func:`esc` / :func:`fmt`); ``classes`` gives a
-    CSS class per column ("num", "paper", ""). ``header_rows`` are extra header rows above
-    ``headers`` given as (html, colspan) cells.
+    """Return an HTML table.
+
+    Cells are HTML already (use :func:`esc` / :func:`fmt`); ``classes`` gives a CSS class per
+    column ("num", "paper", ""). ``header_rows`` are extra header rows above ``headers`` given as
+    (html, colspan) cells.
     """
     out = ["<table>", "<thead>"]
     for hr in header_rows:
@@ -116,8 +132,10 @@ def table(
 
 
 def figure_html(filename: str, caption: str, alt: str) -> str:
-    """A figure block; ``caption`` is HTML and must say what the figure shows and what its
-    counterpart in the paper is.
+    """Return a figure block.
+
+    ``caption`` is HTML and must say what the figure shows and what its counterpart in the paper
+    is.
     """
     return (
         f'<figure><img src="{esc(filename)}" alt="{esc(alt)}">'
@@ -125,15 +143,8 @@ def figure_html(filename: str, caption: str, alt: str) -> str:
     )
 
 
-def new_figure(width_in: float = 8.0, height_in: float = 5.5) -> Figure:
-    """A matplotlib figure on the Agg canvas, outside pyplot (no display, no global state)."""
-    fig = Figure(figsize=(width_in, height_in), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
 def page(title: str, meta_html: str, summary_rows, nav_items, body: str) -> str:
-    """The whole HTML document."""
+    """Return the whole HTML document."""
     summary = "".join(f"<tr><td>{label}</td><td>{value}</td></tr>" for label, value in summary_rows)
     nav = "".join(f'<li><a href="#{esc(key)}">{esc(t)}</a></li>' for key, t in nav_items)
     return f"""<!DOCTYPE html>

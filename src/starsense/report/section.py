@@ -14,7 +14,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from starsense.analysis.limits import BlackBodyStars
+from starsense.photometry.stars import BlackBodyStars
 from starsense.report.sensors import SensorSpec
 from starsense.sensor import Sensor
 

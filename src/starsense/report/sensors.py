@@ -20,8 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from starsense.errors import InputError
-
-ARCSEC_RAD = math.pi / (180.0 * 3600.0)
+from starsense.units import ARCSEC
 
 #: the two accepted headers (column order is free; extra columns are ignored)
 THETA_COLUMNS = ("name", "diameter_m", "exposure_s", "theta_rms_arcsec")
@@ -62,9 +61,11 @@ class SensorSpec:
 
     @property
     def theta_rms_rad(self) -> float:
-        return self.theta_rms_arcsec * ARCSEC_RAD
+        """Rms attitude error sqrt(tr P), rad."""
+        return self.theta_rms_arcsec * ARCSEC
 
     def to_dict(self) -> dict:
+        """Return the JSON form (arcsec, as the table gave it)."""
         return {
             "name": self.name,
             "diameter_m": self.diameter_m,

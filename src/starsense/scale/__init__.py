@@ -1,5 +1,6 @@
-"""The analyses over catalogues too big for memory: HATS catalogues read by ``lsdb`` on
-``dask.distributed`` (``pip install 'starsense[scale]'``).
+"""The analyses over catalogues too big for memory, on a cluster.
+
+HATS catalogues are read by ``lsdb`` on ``dask.distributed`` (``pip install 'starsense[scale]'``).
 
 * :func:`open_hats` — a HATS catalogue from a path or URL (:data:`PUBLISHED_HATS`: Gaia DR3,
   2MASS);

@@ -104,8 +104,9 @@ def static_availability(
     client: Any | None = None,
     progress: Progress | None = None,
 ) -> StaticAvailability:
-    """Spatial static availability (sec. 1.2), as
-    ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``.
+    """Compute the spatial static availability (sec. 1.2) over a HATS catalogue.
+
+    As ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``.
     """
     n_min = check_n_min(n_min)
     roll = roll_deg if isinstance(fov, RectangularFov) else 0.0

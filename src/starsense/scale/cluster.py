@@ -61,7 +61,7 @@ def dask_client(
     processes: bool = True,
     timeout_s: float = CONNECT_TIMEOUT_S,
 ) -> Iterator[Any]:
-    """A :class:`distributed.Client`, closed (with its local cluster) on exit.
+    """Yield a :class:`distributed.Client`, closed (with its local cluster) on exit.
 
     Parameters
     ----------

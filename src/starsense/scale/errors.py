@@ -1,5 +1,6 @@
-"""Errors of the distributed path: each a :class:`~starsense.errors.InputError`, so the CLI prints
-one line and exits 2.
+"""Errors of the distributed path.
+
+Each is a :class:`~starsense.errors.InputError`, so the CLI prints one line and exits 2.
 """
 
 from __future__ import annotations

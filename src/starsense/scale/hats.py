@@ -1,5 +1,6 @@
-"""HATS catalogues: where they are, which columns they have, and a partition as a
-:class:`~starsense.catalog.Catalog`.
+"""HATS catalogues: where they are, which columns they have, a partition as a Catalog.
+
+A partition is read as a :class:`~starsense.catalog.Catalog`.
 
 A HATS catalogue (Hierarchical Adaptive Tiling Scheme) is a directory of Parquet files, one per
 HEALPix tile, with ``hats.properties`` (or, for a collection of a catalogue with its margins and
@@ -80,7 +81,7 @@ _URL_SCHEMES = ("http://", "https://", "s3://", "gs://", "gcs://", "abfs://", "a
 
 
 def is_hats_spec(spec: str | None) -> bool:
-    """True for a ``hats:PATH_OR_URL`` catalogue specification."""
+    """Return whether ``spec`` is a ``hats:PATH_OR_URL`` catalogue specification."""
     return isinstance(spec, str) and spec.strip().lower().startswith("hats:")
 
 
@@ -161,7 +162,7 @@ class ColumnPlan:
         )
 
     def empty_catalog(self) -> Catalog:
-        """A catalogue with this plan's columns and no rows (to validate choices up front)."""
+        """Return a catalogue with this plan's columns and no rows (to validate choices early)."""
         z = np.zeros(0)
         return Catalog.from_columns(
             name=self.name, source=self.source, epoch_yr=self.epoch_yr,
@@ -170,7 +171,7 @@ class ColumnPlan:
         )  # fmt: skip
 
     def restrict(self, bands=(), colours=()) -> ColumnPlan:
-        """The plan reduced to the given bands and colours (and the bands those colours need)."""
+        """Return the plan reduced to these bands and colours (and the bands those colours need)."""
         keep_c = tuple((c, col) for c, col in self.colours if c in colours)
         need = set(bands) | {b for c, col in keep_c if col is None for b in COLOUR_SYSTEMS[c][:2]}
         keep_m = tuple((b, col) for b, col in self.mags if b in need)
@@ -235,6 +236,7 @@ class HatsCatalog:
         )  # fmt: skip
 
     def missing(self, what: str) -> MissingColumnsError:
+        """Return the error for a catalogue without a column for ``what``."""
         return MissingColumnsError(
             f"HATS catalogue {self.location}: no column for {what} (columns: "
             f"{', '.join(self.columns)}); magnitude columns are recognised by the names "

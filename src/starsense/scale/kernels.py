@@ -1,10 +1,12 @@
 """Per-partition tasks: a HATS tile in, small summable results out.
 
 Each task turns its tile into a :class:`~starsense.catalog.Catalog` (:meth:`ColumnPlan.catalog`)
-and calls the in-memory path's own kernels on it — :func:`~starsense.analysis.limits.sky_fisher`,
-:func:`~starsense.analysis.limits.fov_fishers`, :class:`~starsense.analysis.availability.FieldStars`
-... — so there is one copy of the physics. What they return adds (or merges) exactly over
-disjoint tiles; the ``combine_*`` functions do that, on the workers, in a tree.
+and calls the in-memory path's own kernels on it —
+:func:`~starsense.analysis.limits.sky.sky_fisher`,
+:func:`~starsense.analysis.limits.sky.fov_fishers`,
+:class:`~starsense.analysis.availability.FieldStars` ... — so there is one copy of the
+physics. What they return adds (or merges) exactly over disjoint tiles; the ``combine_*``
+functions do that, on the workers, in a tree.
 
 Top-level functions only: they are pickled to worker processes.
 """
@@ -17,20 +19,16 @@ from typing import Any
 import numpy as np
 
 from starsense.analysis.availability import BrightestInField, FieldStars, catalog_stars
-from starsense.analysis.limits import (
-    BlackBodyStars,
-    fisher_components,
-    fov_fishers,
-    sky_fisher,
-    star_weights,
-)
+from starsense.analysis.limits.sky import fov_fishers, sky_fisher, star_weights
+from starsense.attitude.covariance import fisher_components
 from starsense.geometry.fov import count_in_fov
+from starsense.photometry.stars import BlackBodyStars
 from starsense.scale._deps import quiet_third_party_warnings
 from starsense.scale.hats import ColumnPlan
 
 
 def limit_stars(frame: Any, plan: ColumnPlan, colour: str, max_mag: float | None):
-    """The tile's black-body stars, as :func:`starsense.cli._load_stars` makes them in memory."""
+    """Return the tile's black-body stars, as ``starsense limit`` makes them in memory."""
     quiet_third_party_warnings()
     stars = BlackBodyStars.from_catalog(plan.catalog(frame), colour)
     if max_mag is not None:
@@ -76,8 +74,10 @@ def histogram_part(frame, plan, colour, max_mag, edges):
 
 
 def brightest_part(frame, plan, colour, max_mag, diameter_m, exposure_s, edges, bins, partial):
-    """Summed eq. 21 components between and in the checkpoint bins, and the stars themselves in
-    the bins a checkpoint cuts through.
+    """Return summed eq. 21 components per checkpoint bin, and the stars of the cut bins.
+
+    Components are summed between and in the checkpoint bins; the stars of the bins a
+    checkpoint cuts through are returned one by one.
 
     Parameters
     ----------
@@ -91,7 +91,7 @@ def brightest_part(frame, plan, colour, max_mag, diameter_m, exposure_s, edges, 
     Returns
     -------
     rows : array (2 C + 1, 7)
-        Row 2j: :func:`~starsense.analysis.limits.fisher_components` summed over the stars
+        Row 2j: :func:`~starsense.attitude.covariance.fisher_components` summed over the stars
         between bins[j-1] and bins[j]; row 2j + 1: over the stars in bins[j] unless partial;
         row 2C: after the last checkpoint bin.
     explicit : (magnitude (P,), vectors (P, 3), weights (P,))
@@ -112,6 +112,7 @@ def brightest_part(frame, plan, colour, max_mag, diameter_m, exposure_s, edges, 
 
 
 def combine_brightest(*parts):
+    """Add the rows and concatenate the explicit stars of :func:`brightest_part` results."""
     rows = np.sum([p[0] for p in parts], axis=0)
     explicit = tuple(np.concatenate([p[1][i] for p in parts]) for i in range(3))
     return rows, explicit
@@ -121,9 +122,13 @@ def combine_brightest(*parts):
 
 
 def field_part(frame, plan, band, max_mag, fov, attitudes, k):
-    """One tile through the in-memory :class:`FieldStars`: (stars in the field per pointing
-    (M,), the k brightest there (:class:`BrightestInField`, None for k = 0), stars used, faintest
-    magnitude used).
+    """Run one tile through the in-memory :class:`FieldStars`.
+
+    Returns
+    -------
+    tuple
+        (stars in the field per pointing (M,), the k brightest there (:class:`BrightestInField`,
+        None for k = 0), stars used, faintest magnitude used).
     """
     quiet_third_party_warnings()
     vectors, mags = catalog_stars(plan.catalog(frame), max_mag, band, allow_empty=True)
@@ -135,6 +140,7 @@ def field_part(frame, plan, band, max_mag, fov, attitudes, k):
 
 
 def combine_field(*parts):
+    """Add the counts and merge the brightest stars of :func:`field_part` results."""
     counts = np.sum([p[0] for p in parts], axis=0)
     top = None if parts[0][1] is None else BrightestInField.merge([p[1] for p in parts])
     return counts, top, sum(p[2] for p in parts), max(p[3] for p in parts)

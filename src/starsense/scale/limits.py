@@ -2,9 +2,10 @@
 
 Same results as :mod:`starsense.analysis.limits` on the same stars (to rounding of the sums,
 ~1e-15 relative): each partition computes the in-memory kernels' partial sums, which add
-exactly; the last step (:func:`~starsense.analysis.limits.limit_from_fisher`,
-:func:`~starsense.analysis.limits.fov_results`,
-:func:`~starsense.analysis.limits.brightest_from_sums`) is the in-memory one.
+exactly; the last step (:func:`~starsense.analysis.limits.result.limit_from_fisher`,
+:func:`~starsense.analysis.limits.sky.fov_results`,
+:func:`~starsense.analysis.limits.brightest.brightest_from_sums`) is the in-memory one. Angles
+are radians (FOV diameters, targets as unit vectors).
 
 >>> from starsense.scale import open_hats, sky_limit
 >>> gaia = open_hats("hats:https://data.lsdb.io/hats/gaia_dr3")   # doctest: +SKIP
@@ -18,21 +19,20 @@ from typing import Any
 
 import numpy as np
 
-from starsense.analysis.limits import (
-    N_GALAXY,
-    BlackBodyStars,
+from starsense.analysis.limits.brightest import (
     BrightestCurve,
-    LimitResult,
     brightest_checkpoints,
     brightest_from_sums,
     brightest_order,
-    check_aperture,
-    fisher_components,
-    fov_results,
-    in_cone,
-    limit_from_fisher,
 )
+from starsense.analysis.limits.centroid import check_aperture
+from starsense.analysis.limits.result import LimitResult, limit_from_fisher
+from starsense.analysis.limits.sky import fov_results, in_cone
+from starsense.attitude.covariance import fisher_components
 from starsense.errors import InputError, SingularGeometryError
+from starsense.photometry.colour import COLOUR_SYSTEMS
+from starsense.photometry.stars import BlackBodyStars
+from starsense.references.fialho2019 import N_GALAXY
 from starsense.scale import kernels
 from starsense.scale.hats import ColumnPlan, HatsCatalog
 from starsense.scale.run import Progress, client_or_local, run_partitions
@@ -56,7 +56,22 @@ class StarSummary:
 
 
 def limit_plan(catalog: HatsCatalog, colour: str | None) -> tuple[ColumnPlan, str]:
-    """The columns the black-body model needs, and the colour system (chosen as in memory)."""
+    """Return the columns the black-body model needs, and the colour system (chosen as in memory).
+
+    Parameters
+    ----------
+    catalog : HatsCatalog
+        From :func:`~starsense.scale.open_hats`.
+    colour : str or None
+        Colour system; None for the first the catalogue has (as in memory).
+
+    Returns
+    -------
+    plan : ColumnPlan
+        The columns to read.
+    colour : str
+        The colour system chosen.
+    """
     plan = catalog.plan()
     try:
         chosen = BlackBodyStars.from_catalog(plan.empty_catalog(), colour).colour
@@ -64,22 +79,20 @@ def limit_plan(catalog: HatsCatalog, colour: str | None) -> tuple[ColumnPlan, st
         what = (
             "a magnitude and colour of one colour system"
             if colour is None
-            else f"the {colour} colour index with its magnitude (--colour {colour})"
+            else f"the {colour} colour index with its magnitude (colour {colour!r})"
         )
         raise catalog.missing(what) from None
-    from starsense.photometry.colour import COLOUR_SYSTEMS
-
     return plan.restrict([COLOUR_SYSTEMS[chosen][2]], [chosen]), chosen
 
 
 def _check_max_mag(max_mag: float | None) -> None:
     if max_mag is not None and not np.isfinite(max_mag):
-        raise InputError(f"--max-mag must be a finite magnitude, got {max_mag!r}")
+        raise InputError(f"max_mag must be a finite magnitude, got {max_mag!r}")
 
 
 def _enough(n: int, catalog: HatsCatalog, max_mag: float | None) -> None:
     if n < 2:
-        cut = f" with --max-mag {max_mag}" if max_mag is not None else ""
+        cut = f" with max_mag {max_mag}" if max_mag is not None else ""
         raise InputError(
             f"{n} star(s) of HATS catalogue {catalog.location}{cut} have a magnitude and "
             "colour; at least 2 are needed"
@@ -96,7 +109,9 @@ def sky_limit(
     client: Any | None = None,
     progress: Progress | None = None,
 ) -> tuple[LimitResult, StarSummary]:
-    """Whole-sky limit (eqs. 19-24) over a HATS catalogue: :func:`analysis.limits.sky_limit`.
+    """Compute the whole-sky limit (eqs. 19-24) over a HATS catalogue.
+
+    The distributed :func:`starsense.analysis.limits.sky_limit`.
 
     Parameters
     ----------
@@ -111,6 +126,14 @@ def sky_limit(
     client : distributed.Client or None
         Default: an in-process local cluster for this call.
     progress : callable(label, done, total) or None
+        Called as partitions complete.
+
+    Returns
+    -------
+    LimitResult
+        Axes in ICRS.
+    StarSummary
+        Colour system and star counts.
     """
     check_aperture(diameter_m, exposure_s)
     _check_max_mag(max_mag)
@@ -137,11 +160,31 @@ def fov_limit(
     client: Any | None = None,
     progress: Progress | None = None,
 ) -> tuple[list[LimitResult], LimitResult | None, StarSummary]:
-    """FOV-limited limit for many targets (sec. 3.4): :func:`analysis.limits.fov_limit`.
+    """Compute the FOV-limited limit for many targets (sec. 3.4) over a HATS catalogue.
+
+    The distributed :func:`starsense.analysis.limits.fov_limit`.
+
+    Parameters
+    ----------
+    catalog : HatsCatalog
+        From :func:`~starsense.scale.open_hats`.
+    targets : array (3,) or (T, 3)
+        Head boresights, ICRS unit vectors.
+    fov_diameter_rad : float
+        Full cone angle of each head, rad.
+    diameter_m, exposure_s : float
+        D (m), t (s).
+    colour, max_mag, client, progress
+        As for :func:`sky_limit`.
 
     Returns
     -------
-    heads : list of LimitResult (boresight frame), merged : LimitResult or None, summary
+    heads : list of LimitResult
+        Axes in each head's boresight frame.
+    merged : LimitResult or None
+        All heads merged; None for one target.
+    summary : StarSummary
+        Colour system and star counts.
     """
     check_aperture(diameter_m, exposure_s)
     _check_max_mag(max_mag)
@@ -193,14 +236,33 @@ def brightest_curve(
     progress: Progress | None = None,
     max_explicit: int = MAX_EXPLICIT_STARS,
 ) -> BrightestCurve:
-    """theta_rms of the N brightest stars (Fig. 7) over a HATS catalogue, without sorting it.
+    """Compute theta_rms of the N brightest stars (Fig. 7) over a HATS catalogue, unsorted.
 
-    :func:`analysis.limits.brightest_curve` ranks all stars; here a histogram of magnitudes
-    (summed over the partitions) locates the magnitude bin of each checkpoint N, bins that hold
-    too many stars are split and counted again, and a last pass returns the eq. 21 components
-    summed between the checkpoints plus, one by one, only the stars of the bins a checkpoint
-    cuts through, which are ranked with the in-memory :func:`brightest_order`. Three or four
-    passes over the catalogue; memory on the client ~ ``max_explicit`` stars.
+    :func:`starsense.analysis.limits.brightest_curve` ranks all stars; here a histogram of
+    magnitudes (summed over the partitions) locates the magnitude bin of each checkpoint N, bins
+    that hold too many stars are split and counted again, and a last pass returns the eq. 21
+    components summed between the checkpoints plus, one by one, only the stars of the bins a
+    checkpoint cuts through, which are ranked with the in-memory :func:`brightest_order`. Three
+    or four passes over the catalogue; memory on the client ~ ``max_explicit`` stars.
+
+    Parameters
+    ----------
+    catalog : HatsCatalog
+        From :func:`~starsense.scale.open_hats`.
+    diameter_m, exposure_s : float
+        D (m), t (s).
+    points_per_decade : int
+        Checkpoints per decade of N.
+    n_extrapolated : float
+        N to extrapolate the power law to.
+    colour, max_mag, client, progress
+        As for :func:`sky_limit`.
+    max_explicit : int
+        Stars returned one by one before the magnitude bins are refined.
+
+    Returns
+    -------
+    BrightestCurve
     """
     check_aperture(diameter_m, exposure_s)
     _check_max_mag(max_mag)

@@ -25,7 +25,7 @@ Progress = Callable[[str, int, int], None]
 
 @contextlib.contextmanager
 def client_or_local(client: Any | None) -> Iterator[Any]:
-    """The given client, or an in-process local cluster for the duration."""
+    """Yield the given client, or an in-process local cluster for the duration."""
     if client is not None:
         yield client
         return

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from starsense.analysis import guide_stars as gs
-from starsense.analysis.limits import covariance, fisher_matrix
+from starsense.attitude.covariance import covariance, fisher_matrix
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
 
