@@ -36,7 +36,9 @@ def _separation_arcsec(sol, ref) -> float:
 
 
 @pytest.mark.parametrize(
-    "optics", [{"sensor": "esa_blackfly"}, {"fov_deg": 11.42}, {}], ids=["sensor", "fov", "none"]
+    "optics",
+    [{"sensor": "esa_blackfly"}, {"fov_rad": math.radians(11.42)}, {}],
+    ids=["sensor", "fov", "none"],
 )
 def test_esa_frames_solve_within_15_arcsec(esa, optics):
     folder, reference = esa
@@ -115,7 +117,7 @@ def test_rough_fov_is_refined(esa, rough_fov_deg):
     # optics known only to ~10 %: the scale search around the estimate finds the field
     folder, reference = esa
     name, ref = next(iter(reference.items()))
-    sol = Solver(fov_deg=rough_fov_deg).solve_file(folder / name).to_dict()
+    sol = Solver(fov_rad=math.radians(rough_fov_deg)).solve_file(folder / name).to_dict()
     assert sol["status"] == "solved"
     assert sol["fov_deg"] == pytest.approx(ref["fov_deg"], rel=1e-3)
     assert _separation_arcsec(sol, ref) < 15

@@ -8,8 +8,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense.cli.catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
-from starsense.cli.common import CatalogOpt, JsonOpt, emit
+from starsense.cli.catalog import check_dask_option
+from starsense.cli.common import CatalogOpt, DaskOpt, JsonOpt, ScaleCatalogOpt, emit
 from starsense.errors import InputError
 
 ARCSEC_PER_RAD = 180.0 / np.pi * 3600.0
