@@ -16,7 +16,7 @@ from typing import Annotated
 
 import typer
 
-from starsense.cli.common import DaskOpt, JsonOpt, emit, progress_bar
+from starsense.cli.common import DaskOpt, JsonOpt, emit, option_int, progress_bar
 
 catalog_app = typer.Typer(
     help="Catalogues: turn a CSV / Parquet catalogue into HATS for the deep-catalogue commands.",
@@ -76,6 +76,7 @@ def catalog_import(
     """
     from starsense.scale import dask_client, import_catalog, open_hats
 
+    option_int(pixel_threshold, "--pixel-threshold", 1)
     with dask_client(dask) as client:
         out = import_catalog(
             input_path, output, ra_column=ra_column, dec_column=dec_column,
