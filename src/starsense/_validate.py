@@ -1,7 +1,8 @@
 """Scalar, array and rotation checks shared by every stage.
 
 Messages name the *parameter* (``rate_rad_s``), never a command-line option: the CLI translates
-parameter names to its option names (:func:`starsense.cli.common.user_errors`). Each check returns
+parameter names to its option names (:func:`starsense.cli.common.option_float` checks an option
+under its own name, before the command converts units). Each check returns
 the validated value converted to the type the caller computes with.
 """
 
@@ -28,7 +29,7 @@ __all__ = [
 
 
 def show(value: object) -> str:
-    """Plain text for a value in a message (no ``np.float64(...)`` reprs)."""
+    """Return plain text for a value in a message (no ``np.float64(...)`` reprs)."""
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
@@ -37,7 +38,7 @@ def show(value: object) -> str:
 
 
 def finite_float(value: object, name: str) -> float:
-    """``value`` as a finite float, or :class:`InputError` naming ``name``."""
+    """Return ``value`` as a finite float, or raise :class:`InputError` naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.generic, str)):
         if not (isinstance(value, np.ndarray) and value.ndim == 0):
             raise InputError(f"{name} must be a real number, got {show(value)}")
@@ -60,7 +61,7 @@ def check_scalar(
     hi_open: bool = False,
     allow_inf: bool = False,
 ) -> float:
-    """A real number within ``[lo, hi]`` (ends open when asked), or :class:`InputError`.
+    """Return a real number within ``[lo, hi]`` (ends open when asked), or raise InputError.
 
     Parameters
     ----------
@@ -102,7 +103,7 @@ def check_scalar(
 
 
 def positive_float(value: object, name: str) -> float:
-    """A finite number > 0, or :class:`InputError` naming ``name``."""
+    """Return a finite number > 0, or raise :class:`InputError` naming ``name``."""
     out = finite_float(value, name)
     if out <= 0.0:
         raise InputError(f"{name} must be > 0, got {show(value)}")
@@ -112,7 +113,7 @@ def positive_float(value: object, name: str) -> float:
 def check_int(
     value: object, name: str, minimum: int | None = None, maximum: int | None = None
 ) -> int:
-    """An integer (bools and non-integral floats refused) within the bounds given."""
+    """Return an integer (bools and non-integral floats refused) within the bounds given."""
     if isinstance(value, bool):
         raise InputError(f"{name} must be an integer, got {show(value)}")
     if isinstance(value, numbers.Integral | np.integer):
@@ -129,7 +130,7 @@ def check_int(
 
 
 def finite_array(value: ArrayLike, name: str) -> NDArray[np.float64]:
-    """A float64 array with no NaN or inf, or :class:`InputError` naming ``name``."""
+    """Return a float64 array with no NaN or inf, or raise :class:`InputError` naming ``name``."""
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -141,7 +142,7 @@ def finite_array(value: ArrayLike, name: str) -> NDArray[np.float64]:
 
 
 def vectors3(value: ArrayLike, name: str) -> NDArray[np.float64]:
-    """A finite array of 3-vectors, shape ``(..., 3)``."""
+    """Return a finite array of 3-vectors, shape ``(..., 3)``."""
     arr = finite_array(value, name)
     if arr.ndim == 0 or arr.shape[-1] != 3:
         raise InputError(f"{name} must have shape (N, 3) or (3,), got shape {arr.shape}")
@@ -149,7 +150,7 @@ def vectors3(value: ArrayLike, name: str) -> NDArray[np.float64]:
 
 
 def check_rotation(rot: object, name: str):
-    """A single :class:`~scipy.spatial.transform.Rotation` or a 1-D batch of them."""
+    """Return a single :class:`~scipy.spatial.transform.Rotation` or a 1-D batch of them."""
     from scipy.spatial.transform import Rotation
 
     if not isinstance(rot, Rotation):

@@ -45,6 +45,7 @@ class CatalogFormatError(StarsenseError, ValueError):
 
 
 class SingularGeometryError(StarsenseError, ValueError):
-    """The star geometry does not determine the attitude (too few stars, or all on one great
-    circle): the Fisher information matrix is singular.
+    """The star geometry does not determine the attitude.
+
+    Too few stars, or all on one great circle: the Fisher information matrix is singular.
     """

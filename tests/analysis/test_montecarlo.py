@@ -43,5 +43,5 @@ def test_reproducible():
 def test_bad_input():
     with pytest.raises(InputError, match="n_trials must be an integer >= 1"):
         run_montecarlo(load_sensor("st16"), 0)
-    with pytest.raises(InputError, match="rate_deg_s must be >= 0"):
-        run_montecarlo(load_sensor("st16"), 1, rate_deg_s=-1)
+    with pytest.raises(InputError, match="rate_rad_s must be >= 0"):
+        run_montecarlo(load_sensor("st16"), 1, rate_rad_s=np.radians(-1))

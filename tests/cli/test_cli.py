@@ -184,3 +184,51 @@ def test_render_bad_rate_and_extension(capsys, tmp_path):
     code, _, err = run(capsys, "render", "--max-mag", "3", "--out", str(tmp_path / "f.bmp"))
     assert code == 2 and "Traceback" not in err
     assert not (tmp_path / "f.bmp").exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["montecarlo", "--rate-deg-s", "-1"], "--rate-deg-s = -1.0 is out of range"),
+        (["montecarlo", "--trials", "0"], "--trials must be >= 1, got 0"),
+        (["render", "--dec-deg", "95", "--out", "x.png"], "--dec-deg = 95.0 is out of range"),
+        (["render", "--ra-deg", "nan", "--out", "x.png"], "--ra-deg must be finite"),
+        (["report", "--diameter-m", "0"], "--diameter-m = 0.0 is out of range"),
+    ],
+)
+def test_options_checked_at_the_edge_under_their_own_names(capsys, tmp_path, argv, message):
+    # the command validates its options (in their units) before converting and calling the API
+    argv = [str(tmp_path / a) if a == "x.png" else a for a in argv]
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == ""
+    assert message in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_progress_bar_hidden_when_not_a_terminal_or_json(monkeypatch):
+    from starsense.cli.common import progress_bar
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    with progress_bar() as bar:
+        assert not bar.shown and bar.callback is None
+        bar("label", 1, 2)  # a no-op, not an error
+        bar.task("one task", total=3)(1, 3)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    with progress_bar(enabled=False) as bar:  # --json
+        assert not bar.shown and bar.callback is None
+
+
+def test_progress_bar_labelled_tasks_and_partitions(monkeypatch):
+    from starsense.cli.common import progress_bar
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    with progress_bar(unit="partitions") as bar:
+        assert bar.shown and bar.callback is bar
+        bar("whole-sky limit", 0, 4)
+        bar("whole-sky limit", 3, 4)
+        step = bar.task("Monte Carlo", total=10)
+        step(5, 10)
+        tasks = {t.description: t for t in bar._bar.tasks}
+    assert set(tasks) == {"whole-sky limit", "Monte Carlo"}
+    assert tasks["whole-sky limit"].completed == 3 and tasks["whole-sky limit"].total == 4
+    assert tasks["Monte Carlo"].completed == 5

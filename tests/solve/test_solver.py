@@ -36,7 +36,9 @@ def _separation_arcsec(sol, ref) -> float:
 
 
 @pytest.mark.parametrize(
-    "optics", [{"sensor": "esa_blackfly"}, {"fov_deg": 11.42}, {}], ids=["sensor", "fov", "none"]
+    "optics",
+    [{"sensor": "esa_blackfly"}, {"fov_rad": math.radians(11.42)}, {}],
+    ids=["sensor", "fov", "none"],
 )
 def test_esa_frames_solve_within_15_arcsec(esa, optics):
     folder, reference = esa
@@ -115,7 +117,7 @@ def test_rough_fov_is_refined(esa, rough_fov_deg):
     # optics known only to ~10 %: the scale search around the estimate finds the field
     folder, reference = esa
     name, ref = next(iter(reference.items()))
-    sol = Solver(fov_deg=rough_fov_deg).solve_file(folder / name).to_dict()
+    sol = Solver(fov_rad=math.radians(rough_fov_deg)).solve_file(folder / name).to_dict()
     assert sol["status"] == "solved"
     assert sol["fov_deg"] == pytest.approx(ref["fov_deg"], rel=1e-3)
     assert _separation_arcsec(sol, ref) < 15
@@ -201,3 +203,46 @@ def test_pure_noise_frame_returns_no_solution(seed):
     sol = Solver(sensor="esa_blackfly")(image)
     assert sol.status != "solved"
     assert sol.rotation is None
+
+
+def test_pinhole_vectors_centre_and_edge():
+    # principal point at the image centre (pixel-centre convention); the left and right edges
+    # of the image (x = -0.5 and cols - 0.5) lie at half the horizontal field from the boresight
+    from starsense.solve.solver import pinhole_vectors
+
+    fov = math.radians(12.0)
+    rows, cols = 480, 640
+    v = pinhole_vectors([(cols - 1) / 2, -0.5, cols - 0.5], [(rows - 1) / 2] * 3, (rows, cols), fov)
+    assert v.shape == (3, 3)
+    np.testing.assert_allclose(np.linalg.norm(v, axis=1), 1.0, rtol=1e-15)
+    np.testing.assert_allclose(v[0], [0.0, 0.0, 1.0], atol=1e-15)
+    np.testing.assert_allclose(np.arccos(v[1:, 2]), fov / 2, rtol=1e-12)
+    assert v[1, 0] < 0 < v[2, 0]  # +x towards increasing column
+
+
+def test_solver_checks_its_parameters_by_name():
+    from starsense.errors import InputError
+
+    with pytest.raises(InputError, match="give sensor or fov_rad, not both"):
+        Solver(sensor="st16", fov_rad=0.2)
+    with pytest.raises(InputError, match=r"fov_rad = 5.0 is out of range"):
+        Solver(fov_rad=5.0)
+    with pytest.raises(InputError, match="the triangle algorithm needs a known field"):
+        Solver(algorithm="triangle")
+    with pytest.raises(InputError, match=r"centroid_sigma_px must be > 0 or 'snr', got -1\.0"):
+        Solver(fov_rad=0.2, centroid_sigma_px=np.float64(-1.0))
+
+
+def test_solution_stores_radians_and_shows_degrees():
+    from starsense.solve.solver import Solution
+
+    sigma = (1e-5, 2e-5, 3e-5)
+    sol = Solution("solved", ra_rad=math.pi / 2, dec_rad=-math.pi / 4, roll_rad=0.0,
+                   fov_rad=math.radians(10), rmse_rad=1e-5, sigma_rad=sigma)  # fmt: skip
+    d = sol.to_dict()
+    assert d["ra_deg"] == pytest.approx(90.0) and d["dec_deg"] == pytest.approx(-45.0)
+    assert d["fov_deg"] == pytest.approx(10.0)
+    assert d["rmse_arcsec"] == pytest.approx(1e-5 * ARCSEC_PER_RAD)
+    assert d["sigma_arcsec"] == pytest.approx([s * ARCSEC_PER_RAD for s in sigma])
+    empty = Solution("no_stars").to_dict()
+    assert empty["ra_deg"] is None and empty["sigma_arcsec"] is None

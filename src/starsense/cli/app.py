@@ -45,9 +45,21 @@ _register_subapps()
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the app, turning user errors into one line and exit status 2.
+    """Run the command line on ``argv``; return the exit status.
 
-    Usage errors (unknown option, bad type) are reported by typer itself, also with status 2.
+    User errors (:class:`~starsense.errors.StarsenseError`, a missing file) become one line on
+    stderr and status 2. Usage errors (unknown option, bad type) are reported by typer itself,
+    also with status 2.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success, 1 for a negative answer (a frame that does not solve), 2 for bad input.
     """
     try:
         app(args=argv, prog_name="starsense")  # standalone mode: ends with SystemExit

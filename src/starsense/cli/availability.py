@@ -18,10 +18,12 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense.cli.catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
+from starsense.cli.catalog import check_dask_option
 from starsense.cli.common import (
     CatalogOpt,
+    DaskOpt,
     JsonOpt,
+    ScaleCatalogOpt,
     SeedOpt,
     SensorOpt,
     emit,

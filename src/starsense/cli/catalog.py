@@ -10,71 +10,36 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
-from starsense.cli.common import JsonOpt, emit
+from starsense.cli.common import DaskOpt, JsonOpt, emit, option_int, progress_bar
 
 catalog_app = typer.Typer(
     help="Catalogues: turn a CSV / Parquet catalogue into HATS for the deep-catalogue commands.",
     no_args_is_help=True,
 )
 
-ScaleCatalogOpt = Annotated[
-    str,
-    typer.Option(
-        "--catalog",
-        help="hipparcos (bundled), bsc5:PATH, hip_main:PATH, tycho2:PATH, twomass:PATH, "
-        "gaia:PATH, or hats:PATH_OR_URL (a HATS catalogue, processed on Dask; e.g. "
-        "hats:https://data.lsdb.io/hats/gaia_dr3, hats:https://data.lsdb.io/hats/two_mass).",
-    ),
-]
-DaskOpt = Annotated[
-    str | None,
-    typer.Option(
-        "--dask",
-        help="Dask cluster for hats: catalogues: local (default: this machine, one worker per "
-        "CPU), local:N, or a scheduler address tcp://HOST:PORT.",
-    ),
-]
-
-
-@contextlib.contextmanager
-def partition_progress(enabled: bool) -> Iterator[Callable[[str, int, int], None] | None]:
-    """A rich progress bar of partitions done, on stderr when it is a terminal and ``enabled``."""
-    if not enabled or not sys.stderr.isatty():
-        yield None
-        return
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
-
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("partitions"))  # fmt: skip
-    with Progress(*columns, transient=True) as bar:
-        tasks: dict[str, Any] = {}
-
-        def update(label: str, done: int, total: int) -> None:
-            if label not in tasks:
-                tasks[label] = bar.add_task(label, total=total)
-            bar.update(tasks[label], completed=done, total=total)
-
-        yield update
-
 
 @contextlib.contextmanager
 def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterator[tuple]:
-    """(opened HATS catalogue, Dask client, progress callback) for a ``hats:`` command."""
+    """Yield (opened HATS catalogue, Dask client, progress callback) for a ``hats:`` command.
+
+    The callback is None when the bar of partitions done is hidden (``show_progress`` false, or
+    stderr not a terminal).
+    """
     from starsense.scale import dask_client, open_hats
 
     cat = open_hats(catalog)
-    with dask_client(dask) as client, partition_progress(show_progress) as progress:
-        yield cat, client, progress
+    with dask_client(dask) as client, progress_bar(show_progress, unit="partitions") as bar:
+        yield cat, client, bar.callback
 
 
 def check_dask_option(catalog: str, dask: str | None) -> bool:
-    """True for a ``hats:`` catalogue; --dask with any other catalogue is an error."""
+    """Return True for a ``hats:`` catalogue; --dask with any other catalogue is an error."""
     from starsense.errors import InputError
     from starsense.scale.hats import is_hats_spec
 
@@ -111,6 +76,7 @@ def catalog_import(
     """
     from starsense.scale import dask_client, import_catalog, open_hats
 
+    option_int(pixel_threshold, "--pixel-threshold", 1)
     with dask_client(dask) as client:
         out = import_catalog(
             input_path, output, ra_column=ra_column, dec_column=dec_column,

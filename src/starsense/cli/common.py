@@ -1,4 +1,13 @@
-"""Pieces shared by the command-line modules: common options, number lists, output."""
+"""Pieces shared by the command-line modules: options, edge checks, output, the progress bar.
+
+* Options every command group uses (``--sensor``, ``--catalog``, ``--json``, ``--seed``,
+  ``--dask`` ...) are declared here once, as :data:`typing.Annotated` aliases.
+* Edge checks (:func:`option_float`, :func:`option_int`, :func:`parse_floats`) validate an
+  option's value with :mod:`starsense._validate` under the *option's* name (``--rate-deg-s``),
+  before the command converts degrees to radians and calls the library, whose own messages
+  name its parameters (``rate_rad_s``).
+* :func:`progress_bar` is the one progress bar of the command line.
+"""
 
 from __future__ import annotations
 
@@ -11,7 +20,29 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
+from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
+
+__all__ = [
+    "CatalogOpt",
+    "ColourOpt",
+    "DaskOpt",
+    "DiameterOpt",
+    "ExposureOpt",
+    "JsonOpt",
+    "ModelOpt",
+    "ProgressBar",
+    "ScaleCatalogOpt",
+    "SeedOpt",
+    "SensorOpt",
+    "emit",
+    "option_float",
+    "option_int",
+    "parse_floats",
+    "progress_bar",
+]
+
+# -- options ------------------------------------------------------------------------------------
 
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON.")]
 SensorOpt = Annotated[
@@ -26,10 +57,114 @@ CatalogOpt = Annotated[
         "hip_main:PATH, tycho2:PATH, twomass:PATH, gaia:PATH.",
     ),
 ]
+ScaleCatalogOpt = Annotated[
+    str,
+    typer.Option(
+        "--catalog",
+        help="hipparcos (bundled), bsc5:PATH, hip_main:PATH, tycho2:PATH, twomass:PATH, "
+        "gaia:PATH, or hats:PATH_OR_URL (a HATS catalogue, processed on Dask; e.g. "
+        "hats:https://data.lsdb.io/hats/gaia_dr3, hats:https://data.lsdb.io/hats/two_mass).",
+    ),
+]
+DaskOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--dask",
+        help="Dask cluster for hats: catalogues: local (default: this machine, one worker per "
+        "CPU), local:N, or a scheduler address tcp://HOST:PORT.",
+    ),
+]
+DiameterOpt = Annotated[
+    float, typer.Option("--diameter-m", help="Aperture (ideal sensor) diameter D, metres.")
+]
+ExposureOpt = Annotated[float, typer.Option("--exposure-s", help="Exposure time t, seconds.")]
+ColourOpt = Annotated[
+    str | None,
+    typer.Option("--colour", help="Colour system: B-V, V-I, BT-VT, J-H, J-Ks, H-Ks, BP-RP."),
+]
+ModelOpt = Annotated[
+    str, typer.Option("--model", help="Sensitivity model: reed, liebe (or blackbody to render).")
+]
+
+# -- edge checks --------------------------------------------------------------------------------
 
 
-def parse_floats(text: str | None, option: str, n: int | None = None) -> list[float] | None:
-    """Parse "1,2.5,3" given to ``option``; exactly ``n`` values when n is given."""
+def option_float(
+    value: object,
+    option: str,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    allow_inf: bool = False,
+) -> float:
+    """Check a number given to ``option`` (finite, within ``[lo, hi]``) and return it.
+
+    Parameters
+    ----------
+    value : object
+        The option's value, in the option's own unit (degrees for ``--ra-deg``).
+    option : str
+        The option, as the user typed it (``"--rate-deg-s"``): the message names it.
+    lo, hi : float or None
+        Bounds, in the option's unit; None for none.
+    lo_open, hi_open : bool
+        Exclude the bound itself.
+    allow_inf : bool
+        Accept +-inf (still subject to the bounds).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    InputError
+        Naming ``option``, its value and the allowed range.
+    """
+    return check_scalar(
+        value, option, lo, hi, lo_open=lo_open, hi_open=hi_open, allow_inf=allow_inf
+    )
+
+
+def option_int(
+    value: object, option: str, minimum: int | None = None, maximum: int | None = None
+) -> int:
+    """Check an integer given to ``option`` (within the bounds given) and return it.
+
+    Raises
+    ------
+    InputError
+        Naming ``option`` and its value.
+    """
+    return check_int(value, option, minimum, maximum)
+
+
+def parse_floats(
+    text: str | None,
+    option: str,
+    n: int | None = None,
+    lo: float | None = None,
+    hi: float | None = None,
+) -> list[float] | None:
+    """Parse ``"1,2.5,3"`` given to ``option``: finite numbers, exactly ``n`` of them if given.
+
+    Parameters
+    ----------
+    text : str or None
+        The option's value; None (option not given) is returned as is.
+    option : str
+        The option's name, for the messages.
+    n : int, optional
+        The number of values required.
+    lo, hi : float, optional
+        Bounds every value must respect (closed), in the option's unit.
+
+    Returns
+    -------
+    list of float or None
+    """
     if text is None:
         return None
     try:
@@ -41,7 +176,13 @@ def parse_floats(text: str | None, option: str, n: int | None = None) -> list[fl
         raise InputError(f"{option} expects {want}, got {text!r}")
     if not all(np.isfinite(values)):
         raise InputError(f"{option} values must be finite, got {text!r}")
+    if lo is not None or hi is not None:
+        for v in values:
+            check_scalar(v, option, lo, hi)
     return values
+
+
+# -- output -------------------------------------------------------------------------------------
 
 
 def emit(payload: dict, as_json: bool, lines: list[str]) -> None:
@@ -53,19 +194,80 @@ def emit(payload: dict, as_json: bool, lines: list[str]) -> None:
             typer.echo(line)
 
 
-@contextlib.contextmanager
-def progress_bar() -> Iterator[Callable[[str, int, int], None]]:
-    """A rich progress bar on stderr, one task per label (hidden when stderr is not a
-    terminal); yields ``update(label, done, total)``.
+class ProgressBar:
+    """Progress of one command: a rich bar on stderr with one task per label.
+
+    Call it as ``bar(label, done, total)`` (the callback the analyses and
+    :mod:`starsense.scale` take), or get a ``(done, total)`` callback for one task with
+    :meth:`task`. When hidden every call does nothing and :attr:`callback` is None, so a caller
+    can skip the work of reporting altogether.
     """
-    from rich.progress import Progress
 
-    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
-        tasks: dict[str, Any] = {}
+    def __init__(self, bar: Any | None) -> None:
+        self._bar = bar
+        self._tasks: dict[str, Any] = {}
 
-        def update(label: str, done: int, total: int) -> None:
-            if label not in tasks:
-                tasks[label] = bar.add_task(label, total=total)
-            bar.update(tasks[label], completed=done, total=total)
+    @property
+    def shown(self) -> bool:
+        """Whether the bar is drawn (stderr is a terminal and the command asked for it)."""
+        return self._bar is not None
 
-        yield update
+    @property
+    def callback(self) -> Callable[[str, int, int], None] | None:
+        """Return ``self`` when shown, else None (for APIs that take an optional callback)."""
+        return self if self.shown else None
+
+    def _task(self, label: str, total: int | None) -> Any:
+        if label not in self._tasks:
+            self._tasks[label] = self._bar.add_task(label, total=total)
+        return self._tasks[label]
+
+    def __call__(self, label: str, done: int, total: int | None) -> None:
+        """Set task ``label`` to ``done`` of ``total`` (the task appears on its first call)."""
+        if self._bar is not None:
+            self._bar.update(self._task(label, total), completed=done, total=total)
+
+    def task(self, label: str, total: int | None = None) -> Callable[[int, int | None], None]:
+        """Show task ``label`` now and return its ``progress(done, total)`` callback.
+
+        Parameters
+        ----------
+        label : str
+            What the task does ("Monte Carlo").
+        total : int, optional
+            Steps to do, if known now (an indeterminate bar otherwise).
+        """
+        if self._bar is not None:
+            self._task(label, total)
+        return lambda done, total: self(label, done, total)
+
+
+@contextlib.contextmanager
+def progress_bar(enabled: bool = True, *, unit: str | None = None) -> Iterator[ProgressBar]:
+    """Yield the command's :class:`ProgressBar`: drawn on stderr, and removed when done.
+
+    The bar is hidden when stderr is not a terminal, or when ``enabled`` is false (``--json``).
+
+    Parameters
+    ----------
+    enabled : bool
+        False to hide the bar whatever stderr is.
+    unit : str, optional
+        Counted items (``"partitions"``): each task then shows ``done/total unit`` instead of a
+        percentage and time left.
+
+    Yields
+    ------
+    ProgressBar
+    """
+    if not enabled or not sys.stderr.isatty():
+        yield ProgressBar(None)
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    columns: tuple = ()
+    if unit is not None:
+        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TextColumn(unit))  # fmt: skip
+    with Progress(*columns, transient=True) as bar:
+        yield ProgressBar(bar)

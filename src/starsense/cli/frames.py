@@ -2,16 +2,26 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
 import typer
 
-from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
-from starsense.cli.limit import ModelOpt
+from starsense.cli.common import (
+    CatalogOpt,
+    JsonOpt,
+    ModelOpt,
+    SeedOpt,
+    SensorOpt,
+    emit,
+    option_float,
+    option_int,
+    parse_floats,
+    progress_bar,
+)
 from starsense.errors import InputError
+from starsense.units import DEG
 
 
 def render(
@@ -46,8 +56,9 @@ def render(
     from starsense.render.scene import render_frame
     from starsense.sensor import load_sensor
 
-    if not -90.0 <= dec_deg <= 90.0 or not np.isfinite(ra_deg) or not np.isfinite(roll_deg):
-        raise InputError("--ra-deg and --roll-deg must be finite and --dec-deg within [-90, 90]")
+    option_float(ra_deg, "--ra-deg")
+    option_float(dec_deg, "--dec-deg", -90.0, 90.0)
+    option_float(roll_deg, "--roll-deg")
     rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
     sens = load_sensor(sensor)
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
@@ -94,7 +105,14 @@ def solve(
     """
     from starsense.solve.solver import Solver
 
-    sol = Solver(sensor, fov_deg, catalog, algorithm).solve_file(image)
+    if sensor is not None and fov_deg is not None:
+        raise InputError("give --sensor or --fov-deg, not both")
+    if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
+        raise InputError(f"--fov-deg must be within [0.5, 120] deg, got {fov_deg}")
+    if sensor is None and fov_deg is None and algorithm == "triangle":
+        raise InputError("the triangle algorithm needs a known field: give --sensor or --fov-deg")
+    fov_rad = None if fov_deg is None else fov_deg * DEG
+    sol = Solver(sensor, fov_rad, catalog, algorithm).solve_file(image)
     payload = {"image": str(image), **sol.to_dict()}
     if sol.solved:
         lines = [
@@ -128,24 +146,26 @@ def montecarlo(
     seed: SeedOpt = 0,
     as_json: JsonOpt = False,
 ) -> None:
-    """Random attitudes through render -> detect -> identify -> estimate: solve and wrong rates,
-    attitude error per axis against the predicted covariance, time per frame.
-    """
-    from rich.progress import Progress
+    """Run random attitudes through render -> detect -> identify -> estimate.
 
+    Prints the solve and wrong rates, the attitude error per axis against the predicted
+    covariance, and the time per frame.
+    """
     from starsense.analysis.montecarlo import run_montecarlo
     from starsense.catalog import load_catalog
 
+    option_int(trials, "--trials", 1)
+    option_float(rate_deg_s, "--rate-deg-s", 0.0)
     cat = load_catalog("hipparcos")
-    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
-        task = bar.add_task("Monte Carlo", total=trials)
+    with progress_bar(not as_json) as bar:
         res = run_montecarlo(
-            sensor, trials, rate_deg_s=rate_deg_s, model=model, catalog=cat, max_mag=max_mag,
-            seed=seed, progress=lambda done, total: bar.update(task, completed=done),
+            sensor, trials, rate_rad_s=rate_deg_s * DEG, model=model, catalog=cat,
+            max_mag=max_mag, seed=seed, progress=bar.task("Monte Carlo", total=trials),
         )  # fmt: skip
     err, pred = res.rms_error_arcsec, res.rms_predicted_arcsec
+    payload = {**res.to_dict(), "rate_deg_s": float(rate_deg_s)}  # the option as given
     emit(
-        res.to_dict(),
+        payload,
         as_json,
         [
             f"{res.sensor}, {trials} random attitudes at {rate_deg_s:g} deg/s ({model} model): "

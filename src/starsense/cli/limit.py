@@ -13,8 +13,17 @@ import numpy as np
 import typer
 
 from starsense._validate import check_int, check_scalar, finite_float
-from starsense.cli.catalog import DaskOpt, ScaleCatalogOpt, check_dask_option
-from starsense.cli.common import CatalogOpt, JsonOpt, emit
+from starsense.cli.catalog import check_dask_option
+from starsense.cli.common import (
+    CatalogOpt,
+    ColourOpt,
+    DaskOpt,
+    DiameterOpt,
+    ExposureOpt,
+    JsonOpt,
+    ScaleCatalogOpt,
+    emit,
+)
 from starsense.errors import InputError
 from starsense.units import DEG, RAD_TO_ARCSEC
 
@@ -22,20 +31,6 @@ limit_app = typer.Typer(
     help="The physical limit of attitude accuracy (Fialho & Mortari 2019).",
     no_args_is_help=True,
 )
-
-DiameterOpt = Annotated[
-    float, typer.Option("--diameter-m", help="Aperture (ideal sensor) diameter D, metres.")
-]
-ExposureOpt = Annotated[float, typer.Option("--exposure-s", help="Exposure time t, seconds.")]
-ColourOpt = Annotated[
-    str | None,
-    typer.Option("--colour", help="Colour system: B-V, V-I, BT-VT, J-H, J-Ks, H-Ks, BP-RP."),
-]
-
-
-ModelOpt = Annotated[
-    str, typer.Option("--model", help="Sensitivity model: reed, liebe (or blackbody to render).")
-]
 
 
 def _rad(x: float) -> str:

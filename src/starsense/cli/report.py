@@ -7,8 +7,14 @@ from typing import Annotated
 
 import typer
 
-from starsense.cli.common import CatalogOpt, SensorOpt
-from starsense.cli.limit import DiameterOpt, ExposureOpt
+from starsense.cli.common import (
+    CatalogOpt,
+    DiameterOpt,
+    ExposureOpt,
+    SensorOpt,
+    option_float,
+    option_int,
+)
 
 
 def report(
@@ -32,6 +38,9 @@ def report(
     from starsense.report import build_report
     from starsense.sensor import load_sensor
 
+    option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
+    option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
+    option_int(slew_trials, "--slew-trials", 1)
     sens = load_sensor(sensor)
 
     console = Console(stderr=True)

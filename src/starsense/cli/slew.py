@@ -9,8 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense.cli.common import JsonOpt, SeedOpt, SensorOpt, emit, parse_floats
-from starsense.cli.limit import ModelOpt
+from starsense.cli.common import JsonOpt, ModelOpt, SeedOpt, SensorOpt, emit, parse_floats
 
 slew_app = typer.Typer(
     help="Slew tolerance: detection of smeared stars (Dzamba & Enright 2014).",

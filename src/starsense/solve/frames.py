@@ -18,7 +18,19 @@ PILLOW_SUFFIXES = {".tif", ".tiff", ".png", ".jpg", ".jpeg"}
 
 
 def load_image(path: str | Path) -> np.ndarray:
-    """A frame as a 2-D array (rows, columns): integer for monochrome, float for converted colour.
+    """Load a frame as a 2-D array (rows, columns).
+
+    Monochrome frames keep their integer type; colour frames are converted to luminance
+    (float).
+
+    Parameters
+    ----------
+    path : path-like
+        TIFF, PNG, JPEG or FITS file.
+
+    Returns
+    -------
+    ndarray, shape (rows, columns)
 
     Raises
     ------
