@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 from starsense.errors import InputError
 from starsense.identify import build_database, edge_ratios, pattern_edges, thin_by_region
 from starsense.identify import database as database_module
-from starsense.identify.database import database_cache_file
+from starsense.identify.cache import database_cache_file
 
 
 def _random_pattern(rng, spread_rad=0.05):
