@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from starsense._validate import check_int, check_scalar
 from starsense.catalog.table import Catalog
 from starsense.errors import InputError
 from starsense.identify.cache import (
@@ -125,27 +126,17 @@ class DatabaseParams:
             )
         if self.mag_limit is not None and not math.isfinite(self.mag_limit):
             raise InputError(f"mag_limit must be finite or None, got {self.mag_limit!r}")
-        if not 4 <= self.pattern_stars_per_fov <= 30:
-            raise InputError(
-                f"pattern_stars_per_fov = {self.pattern_stars_per_fov} is out of range [4, 30]"
-            )
+        check_int(self.pattern_stars_per_fov, "pattern_stars_per_fov", 4, 30)
         if self.verification_stars_per_fov < self.pattern_stars_per_fov:
             raise InputError(
                 f"verification_stars_per_fov ({self.verification_stars_per_fov}) must be at "
                 f"least pattern_stars_per_fov ({self.pattern_stars_per_fov})"
             )
-        if not 0.5 <= self.lattice_oversampling <= 8:
-            raise InputError(
-                f"lattice_oversampling = {self.lattice_oversampling} is out of range [0.5, 8]"
-            )
-        if not 0.5 <= self.field_oversampling <= 16:
-            raise InputError(
-                f"field_oversampling = {self.field_oversampling} is out of range [0.5, 16]"
-            )
-        if not 5 <= self.n_bins <= 1000:
-            raise InputError(f"n_bins = {self.n_bins} is out of range [5, 1000]")
-        if self.patterns_per_field is not None and self.patterns_per_field < 1:
-            raise InputError(f"patterns_per_field = {self.patterns_per_field} must be >= 1")
+        check_scalar(self.lattice_oversampling, "lattice_oversampling", 0.5, 8)
+        check_scalar(self.field_oversampling, "field_oversampling", 0.5, 16)
+        check_int(self.n_bins, "n_bins", 5, 1000)
+        if self.patterns_per_field is not None:
+            check_int(self.patterns_per_field, "patterns_per_field", 1)
 
     def to_json(self) -> str:
         """Return the parameters as JSON (sorted keys), as they enter the cache key."""

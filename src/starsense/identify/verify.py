@@ -209,6 +209,7 @@ class Verifier:
         for _ in range(4):
             r, resid = _estimate_matrix(tangent_to_vectors(t_det * scale), ref)
             c = ref @ r.T
+            # inline, not vectors_to_tangent: a wrong hypothesis may not raise on z <= 0
             t_cat = c[:, :2] / c[:, 2:3]
             if denom <= 0:
                 break
