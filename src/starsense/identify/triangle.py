@@ -20,6 +20,7 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.patterns import _breadth_first_combinations, chord_angles
@@ -74,12 +75,11 @@ class TriangleIdentifier:
                 "the database has no star pairs: the triangle algorithm needs a database built "
                 "for one known field (min_fov_rad equal to max_fov_rad)"
             )
-        if tolerance_rad is not None and not (0 < tolerance_rad < 0.05):
-            raise InputError(f"tolerance_rad = {tolerance_rad} is out of range (0, 0.05)")
-        if not 3 <= n_pattern_detections <= 30:
-            raise InputError(f"n_pattern_detections = {n_pattern_detections} is out of [3, 30]")
-        if timeout_s is not None and not timeout_s > 0:
-            raise InputError(f"timeout_s = {timeout_s} must be positive or None")
+        if tolerance_rad is not None:
+            check_scalar(tolerance_rad, "tolerance_rad", 0, 0.05, lo_open=True, hi_open=True)
+        check_int(n_pattern_detections, "n_pattern_detections", 3, 30)
+        if timeout_s is not None:
+            check_scalar(timeout_s, "timeout_s", 0, None, lo_open=True, allow_inf=True)
         self.database = database
         self.tolerance_rad = tolerance_rad
         self.n_pattern_detections = int(n_pattern_detections)
