@@ -155,3 +155,17 @@ def test_missing_file_error_names_the_path(tmp_path: Path) -> None:
         load_catalog(f"hip_main:{tmp_path / 'missing.dat'}")
     with pytest.raises(InputError, match="not a regular file"):
         load_catalog(f"hip2:{tmp_path}")
+
+
+def test_cache_file_gets_the_users_file_permissions(
+    small_hip2: Path, _private_cache_dir: Path
+) -> None:
+    """Written through starsense._io: 0666 less the umask (not mkstemp's 0600), no temp left."""
+    old = os.umask(0o022)
+    try:
+        cached_load(load_hip2, small_hip2)
+    finally:
+        os.umask(old)
+    (entry,) = _private_cache_dir.iterdir()
+    assert entry.suffix == ".npz"
+    assert entry.stat().st_mode & 0o777 == 0o644

@@ -184,7 +184,7 @@ def test_fov_is_frozen() -> None:
         (lambda: RectangularFov.from_detector(1024, 768, -1.0, 0.035), r"pixel_pitch_m = -1\.0"),
         (
             lambda: RectangularFov.from_detector(1024, 768, 6.9e-6, float("nan")),
-            r"focal_length_m = nan",
+            r"focal_length_m must be finite, got nan",
         ),
         (
             lambda: CircularFov(0.1).contains(Rotation.identity(), [[1.0, 0.0]]),

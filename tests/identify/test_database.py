@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from starsense._io import file_mode
 from starsense.errors import InputError
 from starsense.identify import build_database, edge_ratios, pattern_edges, thin_by_region
 from starsense.identify import database as database_module
-from starsense.identify.database import database_cache_file
+from starsense.identify.cache import database_cache_file
 
 
 def _random_pattern(rng, spread_rad=0.05):
@@ -77,6 +78,8 @@ def test_cache_round_trip(hipparcos, tmp_path, monkeypatch):
     path, _ = database_cache_file(hipparcos, db.params, tmp_path)
     assert path.is_file()
     assert not list(tmp_path.glob(".tmp-*"))
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary file left (_io)
+    assert path.stat().st_mode & 0o777 == file_mode()  # 0666 less the umask, not 0600
 
     def no_build(*args, **kwargs):
         raise AssertionError("rebuilt although cached")

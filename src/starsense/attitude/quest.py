@@ -1,5 +1,6 @@
-"""QUEST (Shuster & Oh 1981): the q-method's eigenproblem solved through its characteristic
-equation, with Shuster's method of sequential rotations and a checked fallback to the q-method.
+"""QUEST (Shuster & Oh 1981): the q-method's eigenproblem through its characteristic equation.
+
+Shuster's method of sequential rotations is used, with a checked fallback to the q-method.
 
 With normalised weights and ``B, S, sigma, z, K`` as in :mod:`starsense.attitude.davenport`,
 ``kappa = tr adj S`` and ``Delta = det S``, the characteristic equation of K is
@@ -50,6 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from starsense._validate import check_int, check_scalar
 from starsense.attitude.covariance import fisher_covariance
 from starsense.attitude.davenport import attitude_profile_matrix, davenport_k_matrix, q_method
 from starsense.attitude.solution import Estimator
@@ -255,14 +257,14 @@ class QuestEstimator(Estimator):
     method = "quest"
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.max_iterations, int) and self.max_iterations >= 1):
+        if not isinstance(self.max_iterations, int):
             raise InputError(f"max_iterations = {self.max_iterations!r}; must be an integer >= 1")
-        if not (math.isfinite(self.tolerance) and self.tolerance > 0):
-            raise InputError(f"tolerance = {self.tolerance}; must be finite and > 0")
-        if not (0.0 < self.sequential_q4 < 1.0):
-            raise InputError(f"sequential_q4 = {self.sequential_q4}; must be in (0, 1)")
-        if not (self.max_error_bound_rad > 0):
-            raise InputError(f"max_error_bound_rad = {self.max_error_bound_rad}; must be > 0")
+        check_int(self.max_iterations, "max_iterations", 1)
+        check_scalar(self.tolerance, "tolerance", 0.0, None, lo_open=True)
+        check_scalar(self.sequential_q4, "sequential_q4", 0.0, 1.0, lo_open=True, hi_open=True)
+        check_scalar(
+            self.max_error_bound_rad, "max_error_bound_rad", 0.0, None, lo_open=True, allow_inf=True
+        )
 
     def _solve(self, body, reference, sigma):
         cov = fisher_covariance(body, sigma)

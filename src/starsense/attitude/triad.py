@@ -20,9 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from starsense._validate import check_scalar
 from starsense.attitude.covariance import fisher_covariance, triad_covariance
 from starsense.attitude.solution import Estimator, cross3
-from starsense.errors import InputError, SingularGeometryError
+from starsense.errors import SingularGeometryError
 
 __all__ = ["TriadEstimator", "triad"]
 
@@ -39,7 +40,7 @@ def triad(
     r1: NDArray[np.float64],
     r2: NDArray[np.float64],
 ) -> Rotation:
-    """The TRIAD attitude from two non-parallel unit vector pairs, ``b1`` the anchor.
+    """Compute the TRIAD attitude from two non-parallel unit vector pairs, ``b1`` the anchor.
 
     Parameters
     ----------
@@ -76,11 +77,14 @@ class TriadEstimator(Estimator):
     method = "triad"
 
     def __post_init__(self) -> None:
-        tol = self.parallel_tolerance_rad
-        if not (math.isfinite(tol) and 0.0 < tol < 0.5 * math.pi):
-            raise InputError(
-                f"parallel_tolerance_rad = {tol} is out of range; must be in (0, pi/2)"
-            )
+        check_scalar(
+            self.parallel_tolerance_rad,
+            "parallel_tolerance_rad",
+            0.0,
+            0.5 * math.pi,
+            lo_open=True,
+            hi_open=True,
+        )
 
     def _solve(self, body, reference, sigma):
         # Singular geometry of the whole set is reported first, as for the other methods.

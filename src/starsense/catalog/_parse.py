@@ -20,12 +20,6 @@ import numpy as np
 
 from starsense.errors import CatalogFormatError, InputError
 
-MAS_TO_RAD = np.pi / (180.0 * 3600.0 * 1000.0)
-"""Milliarcseconds to radians."""
-
-DEG_TO_RAD = np.pi / 180.0
-"""Degrees to radians."""
-
 _SPACE = ord(" ")
 _NEWLINE = ord("\n")
 _PIPE = ord("|")
@@ -61,8 +55,10 @@ def read_bytes(path: Path) -> bytes:
 
 @dataclass(frozen=True)
 class Field:
-    """One field of a fixed-width record, in the 1-based inclusive byte convention of the
-    CDS/VizieR ReadMe files ("Byte-by-byte Description").
+    """One field of a fixed-width record.
+
+    Bytes are in the 1-based inclusive convention of the CDS/VizieR ReadMe files
+    ("Byte-by-byte Description").
     """
 
     name: str
@@ -226,7 +222,7 @@ class FixedWidthRecords:
         return np.char.strip(np.char.decode(raw, "ascii", errors="replace"))
 
     def chars(self, f: Field) -> np.ndarray:
-        """A one-byte field as a uint8 array of character codes."""
+        """Return a one-byte field as a uint8 array of character codes."""
         return self.block[:, f.start - 1]
 
     def _numbers(
@@ -265,9 +261,10 @@ class FixedWidthRecords:
 
 
 def _arrow_parse(block: np.ndarray, blank: np.ndarray, dtype: type) -> np.ndarray:
-    """Parse the rows of a contiguous ``(N, width)`` byte block as numbers with Arrow's C++
-    parser (about twice as fast as NumPy's string cast). Blank rows are masked as null and
-    come back as 0; raises ValueError if any other row does not parse.
+    """Parse the rows of a contiguous ``(N, width)`` byte block as numbers with Arrow.
+
+    Arrow's C++ parser is about twice as fast as NumPy's string cast. Blank rows are masked
+    as null and come back as 0; raises ValueError if any other row does not parse.
     """
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -299,8 +296,9 @@ def check_range(
     hi_inclusive: bool = True,
     unit: str = "deg",
 ) -> None:
-    """Raise :class:`CatalogFormatError` at the first value outside ``[lo, hi]`` (or
-    ``[lo, hi)``); NaN counts as outside.
+    """Raise :class:`CatalogFormatError` at the first value outside ``[lo, hi]``.
+
+    With ``hi_inclusive=False`` the range is ``[lo, hi)``; NaN counts as outside.
     """
     with np.errstate(invalid="ignore"):
         ok = (values >= lo) & ((values <= hi) if hi_inclusive else (values < hi))
@@ -326,7 +324,7 @@ def open_text(path: Path):
 
 
 def head_lines(path: Path, n_bytes: int = 1 << 16) -> list[str]:
-    """The complete lines within the first ``n_bytes`` of a (possibly gzipped) text file."""
+    """Return the complete lines within the first ``n_bytes`` of a (possibly gzipped) text file."""
     try:
         with open_text(path) as f:
             text = f.read(n_bytes)
@@ -349,8 +347,9 @@ def locate_delimited_error(
     null_values: Sequence[str],
     quoting: bool,
 ) -> CatalogFormatError | None:
-    """Find the first malformed line of a delimited file (the slow, exact pass run only
-    after the fast reader failed).
+    """Find the first malformed line of a delimited file.
+
+    This is the slow, exact pass, run only after the fast reader failed.
 
     Parameters
     ----------

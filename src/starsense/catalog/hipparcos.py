@@ -24,7 +24,6 @@ from types import MappingProxyType
 import numpy as np
 
 from starsense.catalog._parse import (
-    MAS_TO_RAD,
     Field,
     FixedWidthRecords,
     check_range,
@@ -32,6 +31,7 @@ from starsense.catalog._parse import (
     read_bytes,
 )
 from starsense.catalog.table import Catalog
+from starsense.units import MAS
 
 READER_VERSION = 1
 """Bump when the output of these readers changes (invalidates cached catalogues)."""
@@ -274,9 +274,9 @@ def load_hip2(path: str | Path | None = None) -> Catalog:
         dec_rad=dec,
         mags={"Hp": hp, "V": v},
         colours={"B-V": bv, "V-I": vi},
-        pm_ra_rad_yr=rec.floats(f["pmRA"]) * MAS_TO_RAD,
-        pm_dec_rad_yr=rec.floats(f["pmDE"]) * MAS_TO_RAD,
-        parallax_rad=rec.floats(f["Plx"]) * MAS_TO_RAD,
+        pm_ra_rad_yr=rec.floats(f["pmRA"]) * MAS,
+        pm_dec_rad_yr=rec.floats(f["pmDE"]) * MAS,
+        parallax_rad=rec.floats(f["Plx"]) * MAS,
         extra={
             "e_Hpmag": rec.floats(f["e_Hpmag"]),
             "sHp": rec.floats(f["sHp"]),

@@ -55,8 +55,9 @@ def as_unit_vectors(centers: object, *, name: str = "center") -> np.ndarray:
 
 
 def chord_radius(radius_rad: object, *, name: str = "radius_rad") -> np.ndarray:
-    """Chord length ``2 sin(r / 2)`` for an angular radius ``r`` (radians, 0 <= r; radii above
-    pi are clamped to pi, the whole sphere).
+    """Return the chord length ``2 sin(r / 2)`` for an angular radius ``r`` (rad, >= 0).
+
+    Radii above pi are clamped to pi (the whole sphere).
     """
     try:
         r = np.asarray(radius_rad, dtype=np.float64)
@@ -68,14 +69,14 @@ def chord_radius(radius_rad: object, *, name: str = "radius_rad") -> np.ndarray:
 
 
 def build_tree(vectors: np.ndarray) -> cKDTree:
-    """A k-d tree over unit vectors ``(N, 3)`` for chord-distance queries."""
+    """Build a k-d tree over unit vectors ``(N, 3)`` for chord-distance queries."""
     from scipy.spatial import cKDTree
 
     return cKDTree(np.asarray(vectors, dtype=np.float64))
 
 
 def cone_query(tree: cKDTree, center: object, radius_rad: float) -> np.ndarray:
-    """Indices (ascending, int64) of the tree's points within ``radius_rad`` of ``center``."""
+    """Return the indices (ascending, int64) of the points within ``radius_rad`` of ``center``."""
     c = as_unit_vectors(center)
     if c.ndim != 1:
         raise InputError(f"center must be a single direction; got shape {c.shape} (use cones)")
@@ -85,7 +86,7 @@ def cone_query(tree: cKDTree, center: object, radius_rad: float) -> np.ndarray:
 
 
 def cones_query(tree: cKDTree, centers: object, radius_rad: object) -> list[np.ndarray]:
-    """Indices within each of ``M`` cones: a list of M ascending int64 arrays.
+    """Return the indices within each of ``M`` cones: a list of M ascending int64 arrays.
 
     ``radius_rad`` is a scalar or an ``(M,)`` array of radii.
     """
@@ -95,7 +96,7 @@ def cones_query(tree: cKDTree, centers: object, radius_rad: object) -> list[np.n
 
 
 def count_cones(tree: cKDTree, centers: object, radius_rad: object) -> np.ndarray:
-    """Number of points within each of ``M`` cones, ``(M,)`` int64."""
+    """Count the points within each of ``M`` cones, ``(M,)`` int64."""
     c, chord = _batch(centers, radius_rad)
     counts = tree.query_ball_point(c, chord, return_length=True, workers=-1)
     return np.asarray(counts, dtype=np.int64).reshape(len(c))

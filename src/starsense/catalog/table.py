@@ -14,14 +14,24 @@ import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from starsense._validate import finite_float
 from starsense.catalog import index as _index
+from starsense.catalog._columns import (
+    extra_columns,
+    float_column,
+    id_column,
+    named_columns,
+    position_columns,
+    readonly,
+)
+from starsense.catalog.propagate import propagate_columns
 from starsense.errors import InputError
-from starsense.geometry.projection import radec_to_vectors, vectors_to_radec
+from starsense.geometry.projection import radec_to_vectors
+from starsense.units import DEG, MAS
 
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
@@ -32,51 +42,6 @@ KNOWN_BANDS: tuple[str, ...] = ("V", "B", "I", "Hp", "BT", "VT", "J", "H", "Ks",
 
 KNOWN_COLOURS: tuple[str, ...] = ("B-V", "V-I", "BT-VT", "J-H", "J-Ks", "H-Ks", "BP-RP")
 """Allowed colour-index column names."""
-
-_MAS_TO_RAD = np.pi / (180.0 * 3600.0 * 1000.0)
-_TWO_PI = 2.0 * np.pi
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    view = a.view()
-    view.flags.writeable = False
-    return view
-
-
-def _finite_float(value: object, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise InputError(f"{name} must be a real number, got {value!r}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise InputError(f"{name} must be finite, got {value!r}")
-    return x
-
-
-def _float_column(name: str, values: object, n: int | None) -> np.ndarray:
-    try:
-        a = np.asarray(values, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"column {name} must be numeric: {exc}") from exc
-    if a.ndim != 1:
-        raise InputError(f"column {name} must be one-dimensional (N,), got shape {a.shape}")
-    if n is not None and a.shape[0] != n:
-        raise InputError(f"column {name} has {a.shape[0]} rows, expected {n} (length of ra_rad)")
-    return _readonly(a)
-
-
-def _named_columns(
-    kind: str, columns: Mapping[str, object] | None, allowed: tuple[str, ...], n: int
-) -> Mapping[str, np.ndarray]:
-    if columns is None:
-        columns = {}
-    if not isinstance(columns, Mapping):
-        raise InputError(f"{kind} must be a mapping of name -> (N,) array, got {type(columns)}")
-    out: dict[str, np.ndarray] = {}
-    for key, values in columns.items():
-        if key not in allowed:
-            raise InputError(f"unknown {kind[:-1]} name {key!r}; allowed: {', '.join(allowed)}")
-        out[key] = _float_column(f"{kind}[{key!r}]", values, n)
-    return MappingProxyType(out)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -148,61 +113,27 @@ class Catalog:
         if not isinstance(self.name, str) or not self.name:
             raise InputError(f"name must be a non-empty string, got {self.name!r}")
         put("source", str(self.source))
-        put("epoch_yr", _finite_float(self.epoch_yr, "epoch_yr"))
+        put("epoch_yr", finite_float(self.epoch_yr, "epoch_yr"))
 
-        ra = _float_column("ra_rad", self.ra_rad, None)
+        ra = float_column("ra_rad", self.ra_rad, None)
         n = ra.shape[0]
-        dec = _float_column("dec_rad", self.dec_rad, n)
-        ids = np.asarray(self.ids)
-        if ids.ndim != 1 or ids.shape[0] != n:
-            raise InputError(f"ids must have shape ({n},), got {ids.shape}")
-        if ids.size and not np.issubdtype(ids.dtype, np.integer):
-            raise InputError(f"ids must be integers, got dtype {ids.dtype}")
-        ids = _readonly(ids.astype(np.int64, copy=False))
-
-        bad = ~(np.isfinite(ra) & np.isfinite(dec))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(
-                f"RA/Dec must be finite: star {i} (id {ids[i]}) has ra_rad={ra[i]!r}, "
-                f"dec_rad={dec[i]!r}"
-            )
-        bad = np.abs(dec) > 0.5 * np.pi + 1e-12
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(
-                f"dec_rad must lie in [-pi/2, pi/2]: star {i} (id {ids[i]}) has {dec[i]!r}"
-            )
-        if n and ((ra < 0).any() or (ra >= _TWO_PI).any()):
-            wrapped = np.mod(ra, _TWO_PI)
-            wrapped[wrapped >= _TWO_PI] = 0.0
-            ra = _readonly(wrapped)
+        dec = float_column("dec_rad", self.dec_rad, n)
+        ids = id_column(self.ids, n)
+        ra, dec = position_columns(ra, dec, ids)
         put("ra_rad", ra)
-        put("dec_rad", _readonly(np.clip(dec, -0.5 * np.pi, 0.5 * np.pi)))
+        put("dec_rad", dec)
         put("ids", ids)
 
-        put("mags", _named_columns("mags", self.mags, KNOWN_BANDS, n))
-        put("colours", _named_columns("colours", self.colours, KNOWN_COLOURS, n))
+        put("mags", named_columns("mags", self.mags, KNOWN_BANDS, n))
+        put("colours", named_columns("colours", self.colours, KNOWN_COLOURS, n))
 
         if (self.pm_ra_rad_yr is None) != (self.pm_dec_rad_yr is None):
             raise InputError("give both pm_ra_rad_yr and pm_dec_rad_yr, or neither")
         for attr in ("pm_ra_rad_yr", "pm_dec_rad_yr", "parallax_rad", "radial_motion_per_yr"):
             value = getattr(self, attr)
             if value is not None:
-                put(attr, _float_column(attr, value, n))
-
-        extra = self.extra if self.extra is not None else {}
-        if not isinstance(extra, Mapping):
-            raise InputError(f"extra must be a mapping of name -> array, got {type(extra)}")
-        checked: dict[str, np.ndarray] = {}
-        for key, values in extra.items():
-            a = np.asarray(values)
-            if a.ndim < 1 or a.shape[0] != n:
-                raise InputError(f"extra[{key!r}] must have {n} rows, got shape {a.shape}")
-            if a.dtype == object:
-                raise InputError(f"extra[{key!r}] must not be an object array (use str/bytes)")
-            checked[str(key)] = _readonly(a)
-        put("extra", MappingProxyType(checked))
+                put(attr, float_column(attr, value, n))
+        put("extra", extra_columns(self.extra, n))
 
     @classmethod
     def from_columns(
@@ -243,13 +174,13 @@ class Catalog:
             source=source,
             epoch_yr=epoch_yr,
             ids=ids,
-            ra_rad=scaled(ra_deg, np.pi / 180.0),
-            dec_rad=scaled(dec_deg, np.pi / 180.0),
+            ra_rad=scaled(ra_deg, DEG),
+            dec_rad=scaled(dec_deg, DEG),
             mags=dict(mags or {}),
             colours=dict(colours or {}),
-            pm_ra_rad_yr=scaled(pm_ra_mas_yr, _MAS_TO_RAD),
-            pm_dec_rad_yr=scaled(pm_dec_mas_yr, _MAS_TO_RAD),
-            parallax_rad=scaled(parallax_mas, _MAS_TO_RAD),
+            pm_ra_rad_yr=scaled(pm_ra_mas_yr, MAS),
+            pm_dec_rad_yr=scaled(pm_dec_mas_yr, MAS),
+            parallax_rad=scaled(parallax_mas, MAS),
             extra=dict(extra or {}),
         )
 
@@ -272,7 +203,7 @@ class Catalog:
     @cached_property
     def vectors(self) -> np.ndarray:
         """ICRS unit vectors, shape (N, 3), read-only."""
-        return _readonly(radec_to_vectors(self.ra_rad, self.dec_rad))
+        return readonly(radec_to_vectors(self.ra_rad, self.dec_rad))
 
     @cached_property
     def _tree(self) -> cKDTree:
@@ -284,8 +215,10 @@ class Catalog:
 
     # -- selection -----------------------------------------------------------------------
     def subset(self, index_or_mask: object) -> Catalog:
-        """The stars selected by a boolean mask ``(N,)``, an integer index array or a slice,
-        with every column sliced consistently (same name, source and epoch).
+        """Return the stars selected by a boolean mask, an integer index array or a slice.
+
+        Every column is sliced consistently (same name, source and epoch); a mask has shape
+        ``(N,)``.
         """
         idx = self._normalise_index(index_or_mask)
 
@@ -308,7 +241,7 @@ class Catalog:
             radial_motion_per_yr=take(self.radial_motion_per_yr),
         )
         if "vectors" in self.__dict__:  # reuse computed unit vectors
-            new.__dict__["vectors"] = _readonly(self.vectors[idx])
+            new.__dict__["vectors"] = readonly(self.vectors[idx])
         return new
 
     def _normalise_index(self, index_or_mask: object) -> slice | np.ndarray:
@@ -362,8 +295,9 @@ class Catalog:
         return self.subset(mag <= max_mag)
 
     def brightest(self, n: int, band: str) -> Catalog:
-        """The ``n`` brightest stars in ``band``, sorted brightest first (fewer if fewer
-        stars have a magnitude in that band).
+        """Return the ``n`` brightest stars in ``band``, sorted brightest first.
+
+        Fewer if fewer stars have a magnitude in that band.
         """
         try:
             count = operator.index(n)
@@ -376,8 +310,9 @@ class Catalog:
         return self.subset(order[: min(count, n_with_mag)])
 
     def sorted_by(self, band: str) -> Catalog:
-        """All stars sorted by ``mags[band]``, brightest first; stars without a magnitude in
-        that band come last, in catalogue order.
+        """Return all stars sorted by ``mags[band]``, brightest first.
+
+        Stars without a magnitude in that band come last, in catalogue order.
         """
         return self.subset(self._sort_order(band))
 
@@ -406,7 +341,7 @@ class Catalog:
 
     # -- cone queries --------------------------------------------------------------------
     def cone(self, center: object, radius_rad: float) -> np.ndarray:
-        """Indices (ascending int64) of the stars within ``radius_rad`` of ``center``.
+        """Return the indices (ascending int64) of the stars within ``radius_rad`` of ``center``.
 
         Parameters
         ----------
@@ -423,7 +358,7 @@ class Catalog:
         return _index.cone_query(self._tree, center, radius_rad)
 
     def cones(self, centers: object, radius_rad: object) -> list[np.ndarray]:
-        """Indices within each of M cones (batched ``query_ball_point``).
+        """Return the indices within each of M cones (batched ``query_ball_point``).
 
         Parameters
         ----------
@@ -440,23 +375,18 @@ class Catalog:
         return _index.cones_query(self._tree, centers, radius_rad)
 
     def count_in_cones(self, centers: object, radius_rad: object) -> np.ndarray:
-        """Number of stars in each of M cones, ``(M,)`` int64 (arguments as :meth:`cones`)."""
+        """Count the stars in each of M cones, ``(M,)`` int64 (arguments as :meth:`cones`)."""
         return _index.count_cones(self._tree, centers, radius_rad)
 
     # -- epoch propagation ---------------------------------------------------------------
     def propagate(self, epoch_yr: float) -> Catalog:
-        """The catalogue with positions moved to another Julian epoch.
+        """Return the catalogue with positions moved to another Julian epoch.
 
         Each star moves uniformly on a straight line in space (ESA 1997, *The Hipparcos and
-        Tycho Catalogues*, Vol. 1, Sect. 1.5.5, "rigorous" propagation), written in units of
-        the star's distance at the catalogue epoch so that no parallax is needed:
-
-        ``r(t) = u0 + (mu_a* p0 + mu_d q0 + mu_r u0) t``,  ``u = r / |r|``
-
-        with ``p0 = (-sin a, cos a, 0)``, ``q0 = (-sin d cos a, -sin d sin a, cos d)`` and
-        ``t = epoch_yr - self.epoch_yr``. The proper motions, the radial motion ``mu_r`` and the
-        parallax are carried to the new epoch (velocity / |r| split into tangential and radial
-        parts; parallax / |r|), which makes the operation exactly reversible.
+        Tycho Catalogues*, Vol. 1, Sect. 1.5.5, "rigorous" propagation; the kernel and its
+        equations are in :mod:`starsense.catalog.propagate`). The proper motions, the radial
+        motion and the parallax are carried to the new epoch, which makes the operation
+        exactly reversible.
 
         Parameters
         ----------
@@ -480,7 +410,7 @@ class Catalog:
         perspective acceleration is below 0.02 arcsec over a decade even for Barnard's star.
         Stars whose proper motion is NaN keep their position.
         """
-        epoch = _finite_float(epoch_yr, "epoch_yr")
+        epoch = finite_float(epoch_yr, "epoch_yr")
         dt = epoch - self.epoch_yr
         if dt == 0.0:
             return self
@@ -489,60 +419,24 @@ class Catalog:
                 f"catalogue {self.name!r} has no proper motions: cannot propagate its "
                 f"positions from epoch {self.epoch_yr} to {epoch}"
             )
-        ra, dec = self.ra_rad, self.dec_rad
-        has_pm = np.isfinite(self.pm_ra_rad_yr) & np.isfinite(self.pm_dec_rad_yr)
-        pm_a = np.where(has_pm, self.pm_ra_rad_yr, 0.0)
-        pm_d = np.where(has_pm, self.pm_dec_rad_yr, 0.0)
-        mu_r = (
-            np.zeros(len(self))
-            if self.radial_motion_per_yr is None
-            else np.where(np.isfinite(self.radial_motion_per_yr), self.radial_motion_per_yr, 0.0)
-        )
-        u0 = self.vectors
-        p0, q0 = _local_axes(ra, dec)
-        velocity = pm_a[:, None] * p0 + pm_d[:, None] * q0 + mu_r[:, None] * u0
-        r = u0 + velocity * dt
-        norm = np.linalg.norm(r, axis=1)
-        u = r / norm[:, None]
-        new_ra, new_dec = vectors_to_radec(u)
-        p1, q1 = _local_axes(new_ra, new_dec)
-        w = velocity / norm[:, None]
-        radial = np.einsum("ij,ij->i", u, w)
-        tangential = w - u * radial[:, None]
-        new_pm_a = np.einsum("ij,ij->i", tangential, p1)
-        new_pm_d = np.einsum("ij,ij->i", tangential, q1)
-
-        keep = ~has_pm  # stars without proper motion stay exactly where they were
-        new_ra = np.where(keep, ra, new_ra)
-        new_dec = np.where(keep, dec, new_dec)
-        new_pm_a = np.where(keep, self.pm_ra_rad_yr, new_pm_a)
-        new_pm_d = np.where(keep, self.pm_dec_rad_yr, new_pm_d)
-        radial = np.where(keep, mu_r, radial)
-        parallax = (
-            None if self.parallax_rad is None else self.parallax_rad / np.where(keep, 1.0, norm)
+        moved = propagate_columns(
+            self.ra_rad,
+            self.dec_rad,
+            self.pm_ra_rad_yr,
+            self.pm_dec_rad_yr,
+            self.radial_motion_per_yr,
+            self.parallax_rad,
+            dt,
+            vectors=self.vectors,
         )
         return dataclasses.replace(
             self,
             epoch_yr=epoch,
-            ra_rad=new_ra,
-            dec_rad=new_dec,
-            pm_ra_rad_yr=new_pm_a,
-            pm_dec_rad_yr=new_pm_d,
-            parallax_rad=parallax,
-            radial_motion_per_yr=radial,
+            **moved,
             mags=dict(self.mags),
             colours=dict(self.colours),
             extra=dict(self.extra),
         )
-
-
-def _local_axes(ra: np.ndarray, dec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vectors towards increasing RA (p) and increasing Dec (q), each (N, 3)."""
-    sa, ca = np.sin(ra), np.cos(ra)
-    sd, cd = np.sin(dec), np.cos(dec)
-    p = np.stack([-sa, ca, np.zeros_like(ra)], axis=1)
-    q = np.stack([-sd * ca, -sd * sa, cd], axis=1)
-    return p, q
 
 
 def concat(catalogs: Sequence[Catalog], *, name: str | None = None) -> Catalog:

@@ -1,10 +1,9 @@
-"""Reader for the 2MASS All-Sky Point Source Catalog (Skrutskie et al. 2006; Cutri et al.
-2003).
+r"""Reader for the 2MASS All-Sky Point Source Catalog (Skrutskie et al. 2006; Cutri 2003).
 
 Two forms are accepted:
 
 * the distributed ``psc_aaa.gz`` ... ``psc_bcp.gz`` files: one source per line, 60 fields
-  separated by ``|``, no header, null written ``\\N`` (column list below, from the 2MASS
+  separated by ``|``, no header, null written ``\N`` (column list below, from the 2MASS
   All-Sky Data Release Explanatory Supplement, "format_psc");
 * a CSV with a header naming at least ``ra``, ``dec`` (or ``decl``), ``j_m``, ``h_m``, ``k_m``,
   as exported from IRSA; a ``pts_key`` or ``cntr`` column is used as the identifier if present.

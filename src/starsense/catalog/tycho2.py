@@ -77,8 +77,9 @@ B_MINUS_V_PER_BT_MINUS_VT = 0.850
 
 
 def pack_tyc(tyc1: np.ndarray, tyc2: np.ndarray, tyc3: np.ndarray) -> np.ndarray:
-    """Pack Tycho identifiers ``TYC1-TYC2-TYC3`` into one int64,
-    ``TYC1 * 1_000_000 + TYC2 * 10 + TYC3`` (TYC1 <= 9537, TYC2 <= 12121 < 10**5,
+    """Pack Tycho identifiers ``TYC1-TYC2-TYC3`` into one int64.
+
+    The packed id is ``TYC1 * 1_000_000 + TYC2 * 10 + TYC3`` (TYC1 <= 9537, TYC2 <= 12121 < 10**5,
     TYC3 <= 4 < 10), e.g. TYC 1-13-1 -> 1000131.
     """
     return (

@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+from starsense._validate import check_rotation, check_scalar
 from starsense.errors import InputError
 
 __all__ = ["CircularFov", "RectangularFov", "count_in_fov"]
@@ -42,16 +43,6 @@ _CHORD_ABS_MARGIN = 1e-12
 _CANDIDATE_BUDGET = 2_000_000
 
 
-def _positive_finite(value: object, name: str) -> float:
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a real number, got {value!r}") from exc
-    if not math.isfinite(x) or x <= 0.0:
-        raise InputError(f"{name} = {x} is out of range; must be a finite number > 0")
-    return x
-
-
 def _half_angle(value: object, name: str, upper: float, upper_inclusive: bool) -> float:
     bound = f"0 < {name} {'<=' if upper_inclusive else '<'} {upper}"
     try:
@@ -62,14 +53,6 @@ def _half_angle(value: object, name: str, upper: float, upper_inclusive: bool) -
     if not ok:  # also catches NaN
         raise InputError(f"{name} = {x} rad is out of range; must satisfy {bound} rad")
     return x
-
-
-def _check_rotation(rot: object, name: str) -> Rotation:
-    if not isinstance(rot, Rotation):
-        raise InputError(f"{name} must be a scipy Rotation, got {type(rot).__name__}")
-    if not rot.single and len(rot.shape) != 1:
-        raise InputError(f"{name} must be a single Rotation or a 1-D batch, got shape {rot.shape}")
-    return rot
 
 
 def _check_vectors(vectors: ArrayLike, name: str = "vectors") -> NDArray[np.float64]:
@@ -116,7 +99,7 @@ class _Fov:
         ndarray of bool, shape (N,) for a single attitude or (M, N) for a batch
             (the N axis is dropped when `vectors` has shape (3,)).
         """
-        rot = _check_rotation(attitude, "attitude")
+        rot = check_rotation(attitude, "attitude")
         v = _check_vectors(vectors)
         matrix = rot.as_matrix()  # (3, 3) or (M, 3, 3)
         v2 = np.atleast_2d(v)
@@ -196,7 +179,7 @@ class RectangularFov(_Fov):
     def from_detector(
         cls, columns: int, rows: int, pixel_pitch_m: float, focal_length_m: float
     ) -> RectangularFov:
-        """The field of a pinhole camera with a detector of ``columns x rows`` square pixels.
+        """Return the field of a pinhole camera with a detector of ``columns x rows`` square pixels.
 
         ``half_width = atan(columns * pixel_pitch_m / (2 focal_length_m))``, likewise for rows
         (measured to the outer edges of the detector).
@@ -230,8 +213,8 @@ class RectangularFov(_Fov):
             if n < 1:
                 raise InputError(f"{name} = {n} is out of range; must be an integer >= 1")
             sizes.append(n)
-        pitch = _positive_finite(pixel_pitch_m, "pixel_pitch_m")
-        focal = _positive_finite(focal_length_m, "focal_length_m")
+        pitch = check_scalar(pixel_pitch_m, "pixel_pitch_m", 0.0, None, lo_open=True)
+        focal = check_scalar(focal_length_m, "focal_length_m", 0.0, None, lo_open=True)
         return cls(
             half_width_rad=math.atan(0.5 * sizes[0] * pitch / focal),
             half_height_rad=math.atan(0.5 * sizes[1] * pitch / focal),
@@ -262,7 +245,7 @@ def count_in_fov(
     vectors: ArrayLike,
     tree: cKDTree | None = None,
 ) -> NDArray[np.intp]:
-    """Number of directions inside the field for each attitude.
+    """Count the directions inside the field for each attitude.
 
     A :class:`scipy.spatial.cKDTree` over `vectors` returns, for all boresights at once, the
     candidates within the chord ``2 sin(r / 2)`` of the field's enclosing radius ``r``; the
@@ -293,7 +276,7 @@ def count_in_fov(
     """
     if not isinstance(fov, _Fov):
         raise InputError(f"fov must be a CircularFov or RectangularFov, got {type(fov).__name__}")
-    rot = _check_rotation(attitudes, "attitudes")
+    rot = check_rotation(attitudes, "attitudes")
     v = _check_vectors(vectors)
     if v.ndim != 2:
         raise InputError(f"vectors must have shape (N, 3), got shape {v.shape}")

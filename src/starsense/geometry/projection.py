@@ -37,7 +37,7 @@ def _unpack(arr: NDArray[np.float64]) -> NDArray[np.float64] | np.float64:
 
 
 def radec_to_vectors(ra_rad: ArrayLike, dec_rad: ArrayLike) -> NDArray[np.float64]:
-    """Unit vectors from right ascension and declination.
+    """Compute unit vectors from right ascension and declination.
 
     Parameters
     ----------

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from starsense._validate import finite_array
 from starsense.errors import InputError
 
 __all__ = [
@@ -38,16 +39,6 @@ def _count(n: object, name: str, minimum: int = 1) -> int:
     if value < minimum:
         raise InputError(f"{name} = {value} is out of range; must be an integer >= {minimum}")
     return value
-
-
-def _finite_float(value: object, name: str) -> float:
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a real number, got {value!r}") from exc
-    if not np.isfinite(x):
-        raise InputError(f"{name} = {x} is not allowed; must be finite")
-    return x
 
 
 def fibonacci_sphere(n: int) -> NDArray[np.float64]:
@@ -144,14 +135,14 @@ def great_circle_track(
     InputError
         If the inclination is outside [-pi/2, pi/2] or not finite, or `n` < 1.
     """
-    inc = _finite_float(inclination_rad, "inclination_rad")
+    inc = float(finite_array(inclination_rad, "inclination_rad"))
     if abs(inc) > 0.5 * np.pi:
         raise InputError(
             f"inclination_rad = {inc} is out of range; must be in [-pi/2, pi/2] "
             f"([-1.5707963267948966, 1.5707963267948966])"
         )
     n = _count(n, "n")
-    node = _finite_float(ascending_node_rad, "ascending_node_rad")
+    node = float(finite_array(ascending_node_rad, "ascending_node_rad"))
     node_vec = np.array([np.cos(node), np.sin(node), 0.0])
     w_vec = np.array([-np.sin(node) * np.cos(inc), np.cos(node) * np.cos(inc), np.sin(inc)])
     t = 2.0 * np.pi * np.arange(n) / n

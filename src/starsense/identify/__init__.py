@@ -16,22 +16,12 @@ false match, timing).
 ==========================  ============================================================
 """
 
-from starsense.identify.database import (
-    DatabaseParams,
-    IdentificationDatabase,
-    build_database,
-    edge_ratios,
-    pattern_edges,
-    thin_by_region,
-)
+from starsense.identify.database import DatabaseParams, IdentificationDatabase, build_database
 from starsense.identify.hashing import HashIdentifier
+from starsense.identify.patterns import edge_ratios, pattern_edges, thin_by_region
+from starsense.identify.result import Identification, identify_ranked
 from starsense.identify.triangle import TriangleIdentifier
-from starsense.identify.verify import (
-    Identification,
-    Verifier,
-    false_match_probability,
-    identify_ranked,
-)
+from starsense.identify.verify import Verifier, false_match_probability
 
 __all__ = [
     "DatabaseParams",

@@ -1,7 +1,7 @@
 """The identification database: thinned catalogue stars plus the pattern indices of the solvers.
 
 A database is built once from a catalogue for a range of field sizes and a magnitude limit,
-then cached on disk. It holds
+then cached on disk (:mod:`starsense.identify.cache`). It holds
 
 * the *verification stars*: in every region of the sky (a cone of radius ``fov / 2`` around
   quasi-uniform lattice centres, :func:`~starsense.geometry.sampling.fibonacci_sphere`) the
@@ -15,26 +15,18 @@ then cached on disk. It holds
 * the star *pairs* of :mod:`starsense.identify.triangle`: every pair of pattern stars closer than
   the field diagonal, sorted by angle.
 
-When the field size is not known, give ``min_fov_rad < max_fov_rad``: patterns are then built
-at a geometric series of field sizes from the largest to the smallest (a multi-scale database,
-as tetra3 does), and a solver recovers the scale from the match.
-
-The cache key is a hash of the catalogue's name, source, size, the modification time of its
-source file (if it is one), a digest of its positions and magnitudes, and every build
-parameter; files are written to a temporary name and renamed into place.
+The pattern machinery is in :mod:`starsense.identify.patterns`. When the field size is not
+known, give ``min_fov_rad < max_fov_rad``: patterns are then built at a geometric series of
+field sizes from the largest to the smallest (a multi-scale database, as tetra3 does), and a
+solver recovers the scale from the match.
 """
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
-import itertools
 import json
 import logging
 import math
-import os
-import tempfile
-import zipfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,158 +34,33 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from starsense.catalog.cache import default_cache_dir
+from starsense._validate import check_int, check_scalar
 from starsense.catalog.table import Catalog
 from starsense.errors import InputError
-from starsense.geometry.sampling import fibonacci_sphere
+from starsense.identify.cache import (
+    DATABASE_FORMAT_VERSION,
+    database_cache_file,
+    read_npz,
+    write_npz,
+)
+from starsense.identify.patterns import (
+    field_sizes,
+    hash_patterns,
+    lattice_patterns,
+    star_pairs,
+    thin_by_region,
+)
+from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = [
     "DATABASE_FORMAT_VERSION",
     "DatabaseParams",
     "IdentificationDatabase",
     "build_database",
-    "edge_ratios",
-    "pattern_edges",
-    "thin_by_region",
+    "database_cache_file",
 ]
 
-DATABASE_FORMAT_VERSION = 1
-"""Version of the ``.npz`` layout; bump it when the layout or the build algorithm changes."""
-
 _log = logging.getLogger(__name__)
-
-# The 6 edges of a 4-star pattern, as index pairs into the pattern.
-_EDGE_PAIRS = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)], dtype=np.intp)
-
-
-def _breadth_first_combinations(n: int, k: int) -> NDArray[np.intp]:
-    """All k-combinations of range(n), those of the brightest stars first.
-
-    Ordered by the largest index in the combination (so all combinations of the first ``m``
-    stars come before any that uses star ``m``), then lexicographically.
-    """
-    combos = np.array(list(itertools.combinations(range(n), k)), dtype=np.intp).reshape(-1, k)
-    order = np.lexsort((*combos.T[::-1], combos.max(axis=1)))
-    return combos[order]
-
-
-def pattern_edges(vectors: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The six edge angles of 4-star patterns.
-
-    Parameters
-    ----------
-    vectors : ndarray, shape (P, 4, 3)
-        Unit vectors of the four stars of each pattern.
-
-    Returns
-    -------
-    ndarray, shape (P, 6)
-        Angles between the stars, rad, in the order (01, 02, 03, 12, 13, 23).
-    """
-    a = vectors[:, _EDGE_PAIRS[:, 0], :]
-    b = vectors[:, _EDGE_PAIRS[:, 1], :]
-    chord = np.linalg.norm(a - b, axis=-1)
-    return 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
-
-
-def edge_ratios(edges: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Scale-invariant pattern descriptor: the five smallest edges over the largest.
-
-    Parameters
-    ----------
-    edges : ndarray, shape (P, 6)
-        Edge angles, rad (:func:`pattern_edges`).
-
-    Returns
-    -------
-    ratios : ndarray, shape (P, 5)
-        Sorted edges divided by the largest, in (0, 1], ascending.
-    largest : ndarray, shape (P,)
-        The largest edge, rad.
-    """
-    s = np.sort(edges, axis=-1)
-    largest = s[:, -1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratios = s[:, :-1] / largest[:, None]
-    return ratios, largest
-
-
-def order_by_centroid_distance(vectors: NDArray[np.float64]) -> NDArray[np.intp]:
-    """Canonical order of pattern stars: increasing angular distance from the pattern centroid.
-
-    Parameters
-    ----------
-    vectors : ndarray, shape (P, K, 3)
-
-    Returns
-    -------
-    ndarray of int, shape (P, K)
-        Per pattern, the permutation putting its stars in canonical order.
-    """
-    centroid = vectors.mean(axis=1, keepdims=True)
-    centroid /= np.linalg.norm(centroid, axis=-1, keepdims=True)
-    dist = np.linalg.norm(vectors - centroid, axis=-1)
-    return np.argsort(dist, axis=1, kind="stable")
-
-
-def hash_keys(bins: NDArray[np.integer], n_bins: int) -> NDArray[np.int64]:
-    """Integer hash key of quantised ratios ``(P, 5)`` (mixed-radix number, base ``n_bins``)."""
-    weights = n_bins ** np.arange(bins.shape[-1], dtype=np.int64)
-    return (bins.astype(np.int64) * weights).sum(axis=-1)
-
-
-def thin_by_region(
-    vectors: NDArray[np.float64],
-    mags: NDArray[np.float64],
-    radius_rad: float,
-    n_per_region: int,
-    oversampling: float = 2.0,
-) -> NDArray[np.bool_]:
-    """Keep, in every region of the sky, its ``n_per_region`` brightest stars.
-
-    Regions are cones of radius `radius_rad` around ``oversampling**2 * 4 / radius_rad**2``
-    quasi-uniform centres (Fibonacci lattice); a star is kept if it is among the brightest of
-    at least one region.
-
-    Parameters
-    ----------
-    vectors : ndarray, shape (N, 3)
-        ICRS unit vectors.
-    mags : ndarray, shape (N,)
-        Magnitudes (smaller is brighter); NaN stars are never kept.
-    radius_rad : float
-        Region radius, rad (half the field of view).
-    n_per_region : int
-        Stars kept per region.
-    oversampling : float
-        Lattice density relative to one centre per cone area.
-
-    Returns
-    -------
-    ndarray of bool, shape (N,)
-    """
-    finite = np.flatnonzero(np.isfinite(mags))
-    keep = np.zeros(len(mags), dtype=bool)
-    if len(finite) == 0:
-        return keep
-    order = finite[np.argsort(mags[finite], kind="stable")]  # brightest first
-    tree = cKDTree(vectors[order])
-    n_centres = max(12, math.ceil(oversampling**2 * 4.0 / radius_rad**2))
-    centres = fibonacci_sphere(n_centres)
-    chord = 2.0 * math.sin(radius_rad / 2.0)
-    for members in tree.query_ball_point(centres, chord):
-        if members:
-            members = np.sort(np.asarray(members))[:n_per_region]
-            keep[order[members]] = True
-    return keep
-
-
-def _field_sizes(min_fov_rad: float, max_fov_rad: float, step: float = 1.4) -> list[float]:
-    """Geometric series of field sizes from the largest down to the smallest."""
-    if min_fov_rad >= max_fov_rad:
-        return [max_fov_rad]
-    n = math.ceil(math.log(max_fov_rad / min_fov_rad) / math.log(step)) + 1
-    return list(np.geomspace(max_fov_rad, min_fov_rad, n))
 
 
 @dataclass(frozen=True)
@@ -248,9 +115,9 @@ class DatabaseParams:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value)):
                 raise InputError(f"{name} must be a finite number, got {value!r}")
-            if not 0.1 * math.pi / 180 <= value <= math.radians(100):
+            if not 0.1 * DEG <= value <= 100 * DEG:
                 raise InputError(
-                    f"{name} = {value} rad ({math.degrees(value):.3g} deg) is out of range; "
+                    f"{name} = {value} rad ({value * RAD_TO_DEG:.3g} deg) is out of range; "
                     "must be in [0.1, 100] deg"
                 )
         if self.min_fov_rad > self.max_fov_rad:
@@ -259,29 +126,20 @@ class DatabaseParams:
             )
         if self.mag_limit is not None and not math.isfinite(self.mag_limit):
             raise InputError(f"mag_limit must be finite or None, got {self.mag_limit!r}")
-        if not 4 <= self.pattern_stars_per_fov <= 30:
-            raise InputError(
-                f"pattern_stars_per_fov = {self.pattern_stars_per_fov} is out of range [4, 30]"
-            )
+        check_int(self.pattern_stars_per_fov, "pattern_stars_per_fov", 4, 30)
         if self.verification_stars_per_fov < self.pattern_stars_per_fov:
             raise InputError(
                 f"verification_stars_per_fov ({self.verification_stars_per_fov}) must be at "
                 f"least pattern_stars_per_fov ({self.pattern_stars_per_fov})"
             )
-        if not 0.5 <= self.lattice_oversampling <= 8:
-            raise InputError(
-                f"lattice_oversampling = {self.lattice_oversampling} is out of range [0.5, 8]"
-            )
-        if not 0.5 <= self.field_oversampling <= 16:
-            raise InputError(
-                f"field_oversampling = {self.field_oversampling} is out of range [0.5, 16]"
-            )
-        if not 5 <= self.n_bins <= 1000:
-            raise InputError(f"n_bins = {self.n_bins} is out of range [5, 1000]")
-        if self.patterns_per_field is not None and self.patterns_per_field < 1:
-            raise InputError(f"patterns_per_field = {self.patterns_per_field} must be >= 1")
+        check_scalar(self.lattice_oversampling, "lattice_oversampling", 0.5, 8)
+        check_scalar(self.field_oversampling, "field_oversampling", 0.5, 16)
+        check_int(self.n_bins, "n_bins", 5, 1000)
+        if self.patterns_per_field is not None:
+            check_int(self.patterns_per_field, "patterns_per_field", 1)
 
     def to_json(self) -> str:
+        """Return the parameters as JSON (sorted keys), as they enter the cache key."""
         return json.dumps(self.__dict__, sort_keys=True)
 
 
@@ -352,8 +210,8 @@ class IdentificationDatabase:
     def __repr__(self) -> str:
         p = self.params
         return (
-            f"IdentificationDatabase({self.catalog_name}, fov {math.degrees(p.min_fov_rad):.3g}-"
-            f"{math.degrees(p.max_fov_rad):.3g} deg, {len(self)} stars, "
+            f"IdentificationDatabase({self.catalog_name}, fov {p.min_fov_rad * RAD_TO_DEG:.3g}-"
+            f"{p.max_fov_rad * RAD_TO_DEG:.3g} deg, {len(self)} stars, "
             f"{int(self.is_pattern_star.sum())} pattern stars, {len(self.patterns)} patterns, "
             f"{len(self.pairs)} pairs)"
         )
@@ -373,89 +231,53 @@ class IdentificationDatabase:
     )
 
     def save(self, path: str | Path, key: str = "") -> None:
-        """Write to ``path`` (``.npz``) atomically (temporary file, then rename)."""
-        target = Path(path)
-        target.parent.mkdir(parents=True, exist_ok=True)
+        """Write to ``path`` (``.npz``) atomically (:func:`starsense.identify.cache.write_npz`).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+        key : str
+            The cache key stored with it (:func:`database_cache_file`).
+        """
         meta = {
             "key": key,
-            "format": DATABASE_FORMAT_VERSION,
             "params": self.params.__dict__,
             "catalog_name": self.catalog_name,
             "build_time_s": self.build_time_s,
         }
-        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=".tmp-", suffix=".npz")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(
-                    f,
-                    meta=np.array(json.dumps(meta)),
-                    **{a: getattr(self, a) for a in self._ARRAYS},
-                )
-            os.replace(tmp, target)
-            tmp = ""
-        finally:
-            if tmp:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
+        write_npz(path, meta, {a: getattr(self, a) for a in self._ARRAYS})
 
     @classmethod
     def load(cls, path: str | Path, key: str | None = None) -> IdentificationDatabase | None:
-        """Read a database written by :meth:`save`; None if missing, unreadable or stale."""
-        path = Path(path)
-        if not path.is_file():
+        """Read a database written by :meth:`save`; None if missing, unreadable or stale.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to read.
+        key : str, optional
+            The expected cache key; a file with another key is stale.
+
+        Returns
+        -------
+        IdentificationDatabase or None
+            The database, or None.
+        """
+        stored = read_npz(path, cls._ARRAYS, key)
+        if stored is None:
             return None
+        meta, arrays = stored
         try:
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                if meta.get("format") != DATABASE_FORMAT_VERSION:
-                    return None
-                if key is not None and meta.get("key") != key:
-                    return None
-                arrays = {a: z[a] for a in cls._ARRAYS}
             return cls(
                 params=DatabaseParams(**meta["params"]),
                 catalog_name=meta["catalog_name"],
                 build_time_s=float(meta.get("build_time_s", 0.0)),
                 **arrays,
             )
-        except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        except (ValueError, KeyError, TypeError) as exc:
             _log.info("ignoring unreadable identification database %s: %s", path, exc)
             return None
-
-
-def _catalog_digest(catalog: Catalog, band: str) -> dict:
-    """What identifies a catalogue's content for the cache key."""
-    h = hashlib.sha256()
-    for arr in (catalog.ids, catalog.ra_rad, catalog.dec_rad, catalog.mags[band]):
-        h.update(np.ascontiguousarray(arr).tobytes())
-    info: dict = {
-        "name": catalog.name,
-        "source": str(catalog.source),
-        "n": len(catalog),
-        "digest": h.hexdigest()[:32],
-    }
-    with contextlib.suppress(OSError, ValueError):
-        st = Path(catalog.source).stat()
-        info["size"] = st.st_size
-        info["mtime_ns"] = st.st_mtime_ns
-    return info
-
-
-def database_cache_file(
-    catalog: Catalog, params: DatabaseParams, cache_dir: str | Path | None = None
-) -> tuple[Path, str]:
-    """Path and key of the cache file of ``build_database(catalog, params)``."""
-    key = json.dumps(
-        {
-            "catalog": _catalog_digest(catalog, params.band),
-            "params": json.loads(params.to_json()),
-            "format": DATABASE_FORMAT_VERSION,
-        },
-        sort_keys=True,
-    )
-    digest = hashlib.sha256(key.encode()).hexdigest()[:16]
-    directory = Path(cache_dir) if cache_dir is not None else default_cache_dir() / "identify"
-    return directory / f"iddb-{catalog.name}-{digest}.npz", key
 
 
 def build_database(
@@ -547,8 +369,7 @@ def build_database(
 
 
 def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
-    import time
-
+    """Build the database of ``catalog`` (no cache)."""
     t0 = time.perf_counter()
     mags_all = np.asarray(catalog.mags[params.band], dtype=np.float64)
     usable = np.isfinite(mags_all)
@@ -559,7 +380,7 @@ def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
     vec_all = catalog.vectors[idx]
     mag_all = mags_all[idx]
 
-    sizes = _field_sizes(params.min_fov_rad, params.max_fov_rad)
+    sizes = field_sizes(params.min_fov_rad, params.max_fov_rad)
     keep = thin_by_region(
         vec_all,
         mag_all,
@@ -581,47 +402,20 @@ def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
     is_pattern = np.logical_or.reduce(pattern_masks)[kept]
 
     # Patterns: per lattice field at each size, 4-combinations of its brightest pattern stars.
-    npf = params.pattern_stars_per_fov
-    combos = _breadth_first_combinations(npf, 4)[: params.patterns_per_field]
-    chunks = []
-    for size, mask in zip(sizes, pattern_masks, strict=True):
-        stars = new_index[np.flatnonzero(mask)]  # indices into `vectors`, brightest first
-        tree = cKDTree(vectors[stars])
-        n_centres = max(12, math.ceil(params.field_oversampling**2 * 16.0 / size**2))
-        centres = fibonacci_sphere(n_centres)
-        chord = 2.0 * math.sin(size / 4.0)
-        table = np.full((n_centres, npf), -1, dtype=np.int64)
-        for i, members in enumerate(tree.query_ball_point(centres, chord)):
-            m = np.sort(np.asarray(members, dtype=np.int64))[:npf]
-            table[i, : len(m)] = stars[m]
-        pats = table[:, combos].reshape(-1, 4)
-        chunks.append(pats[(pats >= 0).all(axis=1)])
-    patterns = np.sort(np.concatenate(chunks), axis=1)
-    if len(vectors) < 2**16:
-        packed = (patterns[:, 0] << 48) | (patterns[:, 1] << 32) | (patterns[:, 2] << 16)
-        _, first = np.unique(packed | patterns[:, 3], return_index=True)
-        patterns = patterns[first]
-    else:
-        patterns = np.unique(patterns, axis=0)
-    pvec = vectors[patterns]
-    order = order_by_centroid_distance(pvec)
-    patterns = np.take_along_axis(patterns, order, axis=1)
-    pvec = vectors[patterns]
-    ratios, largest = edge_ratios(pattern_edges(pvec))
-    bins = np.clip((ratios * params.n_bins).astype(np.int64), 0, params.n_bins - 1)
-    keys = hash_keys(bins, params.n_bins)
-    sort = np.argsort(keys, kind="stable")
+    patterns = lattice_patterns(
+        vectors,
+        [new_index[np.flatnonzero(mask)] for mask in pattern_masks],
+        sizes,
+        stars_per_field=params.pattern_stars_per_fov,
+        field_oversampling=params.field_oversampling,
+        patterns_per_field=params.patterns_per_field,
+    )
+    patterns, ratios, largest, keys = hash_patterns(vectors, patterns, params.n_bins)
 
     # Pairs of pattern stars within the field diagonal (rectangular fields up to 4:3 -> 1.25).
     # Only for a known field: the triangle algorithm needs the absolute scale.
     pstars = np.flatnonzero(is_pattern) if len(sizes) == 1 else np.zeros(0, dtype=np.int64)
-    diag = min(math.pi / 2, 1.3 * params.max_fov_rad)
-    ptree = cKDTree(vectors[pstars])
-    pairs_local = ptree.query_pairs(2.0 * math.sin(diag / 2.0), output_type="ndarray")
-    pairs = pstars[pairs_local.reshape(-1, 2)]
-    chord = np.linalg.norm(vectors[pairs[:, 0]] - vectors[pairs[:, 1]], axis=-1)
-    angles = 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
-    psort = np.argsort(angles, kind="stable")
+    pairs, angles = star_pairs(vectors, pstars, params.max_fov_rad)
 
     return IdentificationDatabase(
         params=params,
@@ -630,11 +424,11 @@ def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
         ids=np.asarray(catalog.ids)[idx[kept]].astype(np.int64),
         mags=mag_all[kept],
         is_pattern_star=is_pattern,
-        patterns=patterns[sort].astype(np.int32),
-        pattern_ratios=ratios[sort].astype(np.float32),
-        pattern_largest_rad=largest[sort].astype(np.float32),
-        pattern_keys=keys[sort],
-        pairs=pairs[psort].astype(np.int32),
-        pair_angles_rad=angles[psort],
+        patterns=patterns.astype(np.int32),
+        pattern_ratios=ratios.astype(np.float32),
+        pattern_largest_rad=largest.astype(np.float32),
+        pattern_keys=keys,
+        pairs=pairs.astype(np.int32),
+        pair_angles_rad=angles,
         build_time_s=time.perf_counter() - t0,
     )

@@ -23,16 +23,20 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
-from starsense.identify.database import (
-    IdentificationDatabase,
+from starsense.geometry.projection import vectors_to_tangent
+from starsense.identify.database import IdentificationDatabase
+from starsense.identify.patterns import (
     _breadth_first_combinations,
     edge_ratios,
     hash_keys,
     order_by_centroid_distance,
     pattern_edges,
 )
-from starsense.identify.verify import Identification, Verifier, result_builder, validate_vectors
+from starsense.identify.result import Identification, result_builder, validate_vectors
+from starsense.identify.verify import Verifier
+from starsense.units import RAD_TO_DEG
 
 __all__ = ["HashIdentifier"]
 
@@ -40,8 +44,10 @@ _NO_CANDIDATES = np.zeros(0, dtype=np.int64)
 
 
 def _descriptors(v: NDArray[np.float64], combos: NDArray[np.intp]):
-    """Yield (stars in canonical order, edge ratios, largest edge) of the patterns `combos` of
-    `v`, computed a block at a time (most frames solve on one of the first few patterns).
+    """Yield (stars in canonical order, edge ratios, largest edge) of the patterns `combos`.
+
+    The patterns of `v` are computed a block at a time (most frames solve on one of the first
+    few patterns).
     """
     start = 0
     for stop in (1, 15, 70, len(combos)):
@@ -100,14 +106,11 @@ class HashIdentifier:
             raise InputError(f"database must be an IdentificationDatabase, got {database!r}")
         if len(database.patterns) == 0:
             raise InputError("the database holds no 4-star patterns")
-        if not 0 < pattern_max_error < 0.1:
-            raise InputError(f"pattern_max_error = {pattern_max_error} is out of range (0, 0.1)")
-        if not 4 <= n_pattern_detections <= 30:
-            raise InputError(f"n_pattern_detections = {n_pattern_detections} is out of [4, 30]")
-        if not 0 < scale_tolerance < 0.5:
-            raise InputError(f"scale_tolerance = {scale_tolerance} is out of range (0, 0.5)")
-        if timeout_s is not None and not timeout_s > 0:
-            raise InputError(f"timeout_s = {timeout_s} must be positive or None")
+        check_scalar(pattern_max_error, "pattern_max_error", 0, 0.1, lo_open=True, hi_open=True)
+        check_int(n_pattern_detections, "n_pattern_detections", 4, 30)
+        check_scalar(scale_tolerance, "scale_tolerance", 0, 0.5, lo_open=True, hi_open=True)
+        if timeout_s is not None:
+            check_scalar(timeout_s, "timeout_s", 0, None, lo_open=True, allow_inf=True)
         self.database = database
         self.pattern_max_error = float(pattern_max_error)
         self.n_pattern_detections = int(n_pattern_detections)
@@ -130,8 +133,9 @@ class HashIdentifier:
         self._corner_keys = self._corners @ self._key_weights
 
     def _lookup(self, ratios: NDArray[np.float64]) -> NDArray[np.int64]:
-        """Database patterns whose hash bins overlap ``ratios +- pattern_max_error``, nearest
-        ratios first, those farther than the error dropped.
+        """Return the database patterns whose hash bins overlap ``ratios +- pattern_max_error``.
+
+        Nearest ratios first; those farther than the error are dropped.
         """
         db = self.database
         nb = db.params.n_bins
@@ -165,6 +169,18 @@ class HashIdentifier:
             return _NO_CANDIDATES
         cand, diff = cand[ok], diff[ok]
         return cand if len(cand) == 1 else cand[np.argsort(diff, kind="stable")]
+
+    def _check_fov(self, fov_rad: float) -> float:
+        """Return `fov_rad` as a float if the database covers it, else raise InputError."""
+        p = self.database.params
+        fov_rad = float(fov_rad)
+        if not (math.isfinite(fov_rad) and 0.75 * p.min_fov_rad <= fov_rad <= 1.25 * p.max_fov_rad):
+            raise InputError(
+                f"fov_rad = {fov_rad} ({fov_rad * RAD_TO_DEG:.3g} deg) is outside the "
+                f"database's range {p.min_fov_rad * RAD_TO_DEG:.3g}-"
+                f"{p.max_fov_rad * RAD_TO_DEG:.3g} deg"
+            )
+        return fov_rad
 
     def __call__(
         self,
@@ -205,15 +221,7 @@ class HashIdentifier:
         p = db.params
         known = fov_rad is not None
         if known:
-            fov_rad = float(fov_rad)
-            if not (
-                math.isfinite(fov_rad) and 0.75 * p.min_fov_rad <= fov_rad <= 1.25 * p.max_fov_rad
-            ):
-                raise InputError(
-                    f"fov_rad = {fov_rad} ({math.degrees(fov_rad):.3g} deg) is outside the "
-                    f"database's range {math.degrees(p.min_fov_rad):.3g}-"
-                    f"{math.degrees(p.max_fov_rad):.3g} deg"
-                )
+            fov_rad = self._check_fov(fov_rad)
         if assumed_fov_rad is not None and not (
             math.isfinite(assumed_fov_rad) and 0 < assumed_fov_rad < math.pi
         ):
@@ -237,7 +245,7 @@ class HashIdentifier:
                 0.5 * p.min_fov_rad / (2 * max_off + 1e-12),
                 4.0 * p.max_fov_rad / (2 * max_off + 1e-12),
             )
-        tangent = v[: self.verifier.max_detections, :2] / v[: self.verifier.max_detections, 2:3]
+        tangent = vectors_to_tangent(v[: self.verifier.max_detections])
         keep = self.max_candidates_per_pattern
         for det, ratios, largest in _descriptors(v, combos):
             if self.timeout_s is not None and time.perf_counter() - t0 > self.timeout_s:

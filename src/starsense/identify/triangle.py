@@ -20,16 +20,14 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
-from starsense.identify.database import IdentificationDatabase, _breadth_first_combinations
-from starsense.identify.verify import Identification, Verifier, result_builder, validate_vectors
+from starsense.identify.database import IdentificationDatabase
+from starsense.identify.patterns import _breadth_first_combinations, chord_angles
+from starsense.identify.result import Identification, result_builder, validate_vectors
+from starsense.identify.verify import Verifier
 
 __all__ = ["TriangleIdentifier"]
-
-
-def _angle(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    chord = np.linalg.norm(a - b, axis=-1)
-    return 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
 
 
 class TriangleIdentifier:
@@ -77,12 +75,11 @@ class TriangleIdentifier:
                 "the database has no star pairs: the triangle algorithm needs a database built "
                 "for one known field (min_fov_rad equal to max_fov_rad)"
             )
-        if tolerance_rad is not None and not (0 < tolerance_rad < 0.05):
-            raise InputError(f"tolerance_rad = {tolerance_rad} is out of range (0, 0.05)")
-        if not 3 <= n_pattern_detections <= 30:
-            raise InputError(f"n_pattern_detections = {n_pattern_detections} is out of [3, 30]")
-        if timeout_s is not None and not timeout_s > 0:
-            raise InputError(f"timeout_s = {timeout_s} must be positive or None")
+        if tolerance_rad is not None:
+            check_scalar(tolerance_rad, "tolerance_rad", 0, 0.05, lo_open=True, hi_open=True)
+        check_int(n_pattern_detections, "n_pattern_detections", 3, 30)
+        if timeout_s is not None:
+            check_scalar(timeout_s, "timeout_s", 0, None, lo_open=True, allow_inf=True)
         self.database = database
         self.tolerance_rad = tolerance_rad
         self.n_pattern_detections = int(n_pattern_detections)
@@ -109,9 +106,9 @@ class TriangleIdentifier:
     ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """Catalogue triangles (K, 3) matching the detected triangle ``tri`` (3, 3)."""
         db = self.database
-        a01 = float(_angle(tri[0], tri[1]))
-        a02 = float(_angle(tri[0], tri[2]))
-        a12 = float(_angle(tri[1], tri[2]))
+        a01 = float(chord_angles(tri[0], tri[1]))
+        a02 = float(chord_angles(tri[0], tri[2]))
+        a12 = float(chord_angles(tri[1], tri[2]))
         p01 = self._directed_pairs(a01, tol)
         p02 = self._directed_pairs(a02, tol)
         if len(p01) == 0 or len(p02) == 0:
@@ -129,15 +126,15 @@ class TriangleIdentifier:
         cand = np.column_stack([p01[rows, 0], p01[rows, 1], third])
         cand = cand[cand[:, 1] != cand[:, 2]]
         vec = db.vectors
-        d12 = np.abs(_angle(vec[cand[:, 1]], vec[cand[:, 2]]) - a12)
+        d12 = np.abs(chord_angles(vec[cand[:, 1]], vec[cand[:, 2]]) - a12)
         cand, d12 = cand[d12 <= tol], d12[d12 <= tol]
         handed = np.sign(np.linalg.det(tri))
         dets = np.linalg.det(vec[cand])
         keep = np.sign(dets) == handed
         cand = cand[keep]
         err = (
-            np.abs(_angle(vec[cand[:, 0]], vec[cand[:, 1]]) - a01)
-            + np.abs(_angle(vec[cand[:, 0]], vec[cand[:, 2]]) - a02)
+            np.abs(chord_angles(vec[cand[:, 0]], vec[cand[:, 1]]) - a01)
+            + np.abs(chord_angles(vec[cand[:, 0]], vec[cand[:, 2]]) - a02)
             + d12[keep]
         )
         order = np.argsort(err, kind="stable")

@@ -14,34 +14,29 @@ with ``N`` detections, ``n`` of them matched and ``k`` the stars of the hypothes
 (which match by construction). A solution is accepted only when ``P_false`` is below a
 threshold (default 1e-9).
 
-Also here: the :class:`Identification` result shared by all algorithms and the input
-validation they share.
+The :class:`~starsense.identify.result.Identification` result that the algorithms return is in
+:mod:`starsense.identify.result`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 from scipy.special import bdtrc
 
-from starsense.errors import InputError
+from starsense._validate import check_int, check_scalar
+from starsense.geometry.projection import tangent_to_vectors, vectors_to_tangent
 from starsense.identify.database import IdentificationDatabase
 
 __all__ = [
-    "STATUSES",
-    "Identification",
     "Verifier",
     "apply_scale",
     "false_match_probability",
 ]
-
-STATUSES = ("solved", "no_match", "ambiguous", "too_few_stars", "timeout")
-"""Possible values of :attr:`Identification.status`."""
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
 
@@ -53,131 +48,35 @@ except TypeError:  # scipy < 1.15
     _VALID_MATRIX = {}
 
 
-@dataclass(frozen=True, eq=False)
-class Identification:
-    """The answer of a lost-in-space identifier.
-
-    Attributes
-    ----------
-    status : str
-        ``"solved"``, ``"no_match"`` (no hypothesis passed verification),
-        ``"too_few_stars"`` or ``"timeout"``. (``"ambiguous"``, two different attitudes
-        passing, is reserved: the solvers accept the first hypothesis that passes.)
-    algorithm : str
-        ``"hashing"`` or ``"triangle"``.
-    rotation : Rotation or None
-        Attitude, ICRS -> camera (:mod:`starsense.geometry.attitude`), when solved.
-    fov_rad : float or None
-        Field of view (full width of the widest image axis), rad: the one given, or, when the
-        field was unknown and the caller said at which field the vectors were computed, the
-        one found.
-    scale : float
-        Factor applied to the tangent-plane coordinates ``(x/z, y/z)`` of the input vectors
-        to get true camera directions: 1 for a known field, the estimate otherwise (the true
-        focal length is the assumed one divided by `scale`).
-    detection_index : ndarray of int, shape (M,)
-        Matched detections (indices into the input vectors).
-    catalog_index : ndarray of int, shape (M,)
-        The database stars they match (indices into ``database.vectors``).
-    catalog_id : ndarray of int64, shape (M,)
-        Catalogue identifiers of those stars (HIP numbers for Hipparcos).
-    residual_rms_rad : float
-        RMS angle between matched detections and their catalogue stars after the fit, rad.
-    false_match_probability : float
-        Probability that a wrong attitude would match as many detections by chance.
-    n_detections : int
-        Detections given.
-    n_patterns_tried : int
-        Detection patterns (4-star or triangles) looked up.
-    n_candidates : int
-        Hypotheses verified.
-    time_ms : float
-        Wall time of the call, ms.
-    message : str
-        Why it failed, or a summary when solved.
-    """
-
-    status: str
-    algorithm: str
-    rotation: Rotation | None = None
-    fov_rad: float | None = None
-    scale: float = 1.0
-    detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
-    catalog_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
-    catalog_id: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
-    residual_rms_rad: float = math.nan
-    false_match_probability: float = 1.0
-    n_detections: int = 0
-    n_patterns_tried: int = 0
-    n_candidates: int = 0
-    time_ms: float = 0.0
-    message: str = ""
-
-    @property
-    def solved(self) -> bool:
-        """True when :attr:`status` is ``"solved"``."""
-        return self.status == "solved"
-
-    @property
-    def n_matches(self) -> int:
-        """Number of matched detections."""
-        return len(self.detection_index)
-
-    def __repr__(self) -> str:
-        if not self.solved:
-            return f"Identification({self.status}: {self.message})"
-        from starsense.geometry.attitude import radec_roll_from_attitude
-
-        ra, dec, roll = (math.degrees(a) for a in radec_roll_from_attitude(self.rotation))
-        return (
-            f"Identification(solved, RA {ra:.4f} Dec {dec:.4f} roll {roll:.3f} deg, "
-            f"{self.n_matches}/{self.n_detections} matched, rms "
-            f"{math.degrees(self.residual_rms_rad) * 3600:.1f} arcsec, P_false "
-            f"{self.false_match_probability:.1e}, {self.time_ms:.1f} ms)"
-        )
-
-
-def validate_vectors(vectors_cam: object) -> NDArray[np.float64]:
-    """Check and normalise detection directions ``(N, 3)``; raise :class:`InputError`."""
-    try:
-        v = np.asarray(vectors_cam, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"vectors_cam must be an (N, 3) array of numbers: {exc}") from None
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise InputError(f"vectors_cam must have shape (N, 3), got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        row = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
-        raise InputError(f"vectors_cam[{row}] = {v[row].tolist()} is not finite")
-    norm = np.linalg.norm(v, axis=1)
-    if np.any(norm == 0):
-        raise InputError(f"vectors_cam[{int(np.flatnonzero(norm == 0)[0])}] is a zero vector")
-    v = v / norm[:, None]
-    if np.any(v[:, 2] <= 0):
-        row = int(np.flatnonzero(v[:, 2] <= 0)[0])
-        raise InputError(
-            f"vectors_cam[{row}] = {v[row].tolist()} points behind the camera (z <= 0)"
-        )
-    return v
-
-
 def apply_scale(vectors_cam: NDArray[np.float64], scale: float) -> NDArray[np.float64]:
     """Scale the tangent-plane coordinates ``(x/z, y/z)`` of unit vectors by `scale`.
 
     This is what changing the focal length of a pinhole camera does to the directions
     computed from fixed pixel positions: ``f_true = f_assumed / scale``.
+
+    Parameters
+    ----------
+    vectors_cam : ndarray, shape (N, 3)
+        Camera-frame unit vectors with z > 0.
+    scale : float
+        Factor on the tangent-plane coordinates.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        The scaled directions, unit vectors.
     """
     if scale == 1.0:
         return vectors_cam
-    t = vectors_cam[:, :2] / vectors_cam[:, 2:3] * scale
-    v = np.concatenate([t, np.ones((len(t), 1))], axis=1)
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
+    return tangent_to_vectors(vectors_to_tangent(vectors_cam) * scale)
 
 
 def _estimate_matrix(
     body: NDArray[np.float64], ref: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Attitude matrix ``R`` (``body ~ R @ ref``) from paired unit vectors, and the residual
-    angles (rad): the SVD solution of Wahba's problem with equal weights (Kabsch).
+    """Return the attitude matrix ``R`` (``body ~ R @ ref``) and the residual angles (rad).
+
+    The SVD solution of Wahba's problem with equal weights (Kabsch) from paired unit vectors.
     """
     if len(body) == 2:  # align_vectors needs a weight on the primary for two pairs
         rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
@@ -192,21 +91,12 @@ def _estimate_matrix(
     return r, 2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0))
 
 
-def _estimate_attitude(
-    body: NDArray[np.float64], ref: NDArray[np.float64]
-) -> tuple[Rotation, NDArray[np.float64]]:
-    """Attitude (ICRS -> camera) from paired directions, and the residual angles (rad).
-
-    The one place to point at :func:`starsense.attitude.estimate_attitude` when it lands.
-    """
-    r, resid = _estimate_matrix(body, ref)
-    return Rotation.from_matrix(r), resid
-
-
 def false_match_probability(
     n_detections: int, n_matched: int, n_hypothesis: int, p_single: float
 ) -> float:
-    """Probability that at least ``n_matched - n_hypothesis`` of the other
+    """Return the probability that the extra matches of a hypothesis are chance.
+
+    The probability that at least ``n_matched - n_hypothesis`` of the other
     ``n_detections - n_hypothesis`` detections fall within the match radius of a catalogue
     star by chance (binomial tail; tetra3's test).
 
@@ -246,8 +136,10 @@ class _Verified:
 
 
 class _Field:
-    """Catalogue stars around a first attitude, fetched once per hypothesis and filtered to
-    the cone of each later attitude (which moves by much less than the margin).
+    """Catalogue stars around a first attitude, fetched once per hypothesis.
+
+    They are filtered to the cone of each later attitude (which moves by much less than the
+    margin).
     """
 
     __slots__ = ("centre", "cos_reach", "index", "vectors")
@@ -283,14 +175,11 @@ class Verifier:
         false_match_threshold: float = 1e-9,
         max_detections: int = 60,
     ) -> None:
-        if not 0 < match_radius < 0.2:
-            raise InputError(f"match_radius = {match_radius} is out of range (0, 0.2)")
-        if not 0 < false_match_threshold < 1:
-            raise InputError(
-                f"false_match_threshold = {false_match_threshold} is out of range (0, 1)"
-            )
-        if max_detections < 4:
-            raise InputError(f"max_detections = {max_detections} must be at least 4")
+        check_scalar(match_radius, "match_radius", 0, 0.2, lo_open=True, hi_open=True)
+        check_scalar(
+            false_match_threshold, "false_match_threshold", 0, 1, lo_open=True, hi_open=True
+        )
+        check_int(max_detections, "max_detections", 4)
         self.database = database
         self.match_radius = float(match_radius)
         self.false_match_threshold = float(false_match_threshold)
@@ -305,24 +194,27 @@ class Verifier:
         fit_scale: bool,
         vs: NDArray[np.float64] | None = None,
     ) -> tuple[NDArray[np.float64], float, NDArray[np.float64]]:
-        """Attitude matrix (and scale) from pairs; tangent = (x/z, y/z) of the input vectors;
-        `vs`, the unit vectors at `scale`, when already computed.
+        """Fit the attitude matrix (and scale) to pairs.
+
+        `tangent` holds (x/z, y/z) of the input vectors; `vs` the unit vectors at `scale`, when
+        already computed.
         """
         ref = self.database.vectors[cat]
         if not fit_scale:
-            body = vs[det] if vs is not None else _unit_from_tangent(tangent[det] * scale)
+            body = vs[det] if vs is not None else tangent_to_vectors(tangent[det] * scale)
             r, resid = _estimate_matrix(body, ref)
             return r, scale, resid
         t_det = tangent[det]
         denom = float(np.sum(t_det * t_det))
         for _ in range(4):
-            r, resid = _estimate_matrix(_unit_from_tangent(t_det * scale), ref)
+            r, resid = _estimate_matrix(tangent_to_vectors(t_det * scale), ref)
             c = ref @ r.T
+            # inline, not vectors_to_tangent: a wrong hypothesis may not raise on z <= 0
             t_cat = c[:, :2] / c[:, 2:3]
             if denom <= 0:
                 break
             scale = float(np.sum(t_det * t_cat)) / denom
-        r, resid = _estimate_matrix(_unit_from_tangent(t_det * scale), ref)
+        r, resid = _estimate_matrix(tangent_to_vectors(t_det * scale), ref)
         return r, scale, resid
 
     def __call__(
@@ -362,13 +254,13 @@ class Verifier:
         n = len(v)
         k = len(det)
         if tangent is None:
-            tangent = v[:, :2] / v[:, 2:3]
-        vs = v if scale == 1.0 and not fit_scale else _unit_from_tangent(tangent * scale)
+            tangent = vectors_to_tangent(v)
+        vs = v if scale == 1.0 and not fit_scale else tangent_to_vectors(tangent * scale)
         r, scale, resid = self._fit(tangent, det, cat, scale, fit_scale, vs)
         if not scale_range[0] <= scale <= scale_range[1]:
             return None
         if fit_scale:
-            vs = _unit_from_tangent(tangent * scale)
+            vs = tangent_to_vectors(tangent * scale)
         max_off = float(np.arccos(min(max(float(vs[:, 2].min()), -1.0), 1.0)))
         width = field_width_rad if field_width_rad is not None else 2.0 * max_off
         radius = self.match_radius * width
@@ -388,7 +280,7 @@ class Verifier:
             if not scale_range[0] <= scale <= scale_range[1]:
                 return None
             if fit_scale:
-                vs = _unit_from_tangent(tangent * scale)
+                vs = tangent_to_vectors(tangent * scale)
         # Final pairing with a radius matched to the residuals (5 robust sigma, at least 1/20
         # of the search radius): a false or unlisted star that fell near another catalogue
         # star inside the wide search radius would otherwise bias the attitude.
@@ -464,56 +356,3 @@ def _same_pairs(
     """Whether (det, cat) are the pairs of the last fit (then the fit would not change)."""
     d0, c0 = pairs
     return len(d0) == len(det) and bool(np.array_equal(d0, det) and np.array_equal(c0, cat))
-
-
-def _unit_from_tangent(t: NDArray[np.float64]) -> NDArray[np.float64]:
-    v = np.empty((len(t), 3))
-    v[:, :2] = t
-    v[:, 2] = 1.0
-    return v / np.sqrt(np.sum(v * v, axis=1))[:, None]
-
-
-def result_builder(algorithm: str, n_detections: int, t0: float):
-    """``result(status, message, **fields) -> Identification`` for one identifier call, stamping
-    the algorithm, the number of detections and the time since ``t0`` (perf_counter).
-    """
-    import time
-
-    def result(status: str, message: str, **kw) -> Identification:
-        return Identification(
-            status=status,
-            algorithm=algorithm,
-            n_detections=n_detections,
-            time_ms=(time.perf_counter() - t0) * 1e3,
-            message=message,
-            **kw,
-        )
-
-    return result
-
-
-def identify_ranked(identifier, vectors_cam, brightness, *args, **kwargs) -> Identification:
-    """Run ``identifier`` on detections given in any order, ranked here by ``brightness``.
-
-    The identifiers build their patterns from the first (brightest) detections; this makes the
-    result independent of the order the caller lists them in. ``detection_index`` of the result
-    refers to the caller's order.
-
-    Parameters
-    ----------
-    identifier : HashIdentifier or TriangleIdentifier
-    vectors_cam : array (N, 3)
-    brightness : array (N,)
-        Any measure that grows with brightness (integrated counts, electrons, flux).
-    *args, **kwargs
-        Passed on to the identifier (``fov_rad``, ``assumed_fov_rad``).
-    """
-    v = np.asarray(vectors_cam, dtype=float)
-    b = np.asarray(brightness, dtype=float)
-    if b.shape != (len(v),):
-        raise InputError(f"brightness must have one value per detection ({len(v)}), got {b.shape}")
-    order = np.argsort(-b, kind="stable")
-    result = identifier(v[order], *args, **kwargs)
-    if len(result.detection_index) == 0:
-        return result
-    return dataclasses.replace(result, detection_index=order[result.detection_index])

@@ -1,0 +1,182 @@
+"""What an identifier returns, and what every identifier does around its algorithm.
+
+:class:`Identification` is the result shared by all algorithms (status, attitude, matches,
+residual, probability of a false match, timing); :func:`validate_vectors` checks their input,
+:func:`result_builder` stamps their results and :func:`identify_ranked` runs any of them on
+detections given in any order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from starsense.errors import InputError
+from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
+
+__all__ = ["STATUSES", "Identification", "identify_ranked", "result_builder", "validate_vectors"]
+
+STATUSES = ("solved", "no_match", "ambiguous", "too_few_stars", "timeout")
+"""Possible values of :attr:`Identification.status`."""
+
+_EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class Identification:
+    """The answer of a lost-in-space identifier.
+
+    Attributes
+    ----------
+    status : str
+        ``"solved"``, ``"no_match"`` (no hypothesis passed verification),
+        ``"too_few_stars"`` or ``"timeout"``. (``"ambiguous"``, two different attitudes
+        passing, is reserved: the solvers accept the first hypothesis that passes.)
+    algorithm : str
+        ``"hashing"`` or ``"triangle"``.
+    rotation : Rotation or None
+        Attitude, ICRS -> camera (:mod:`starsense.geometry.attitude`), when solved.
+    fov_rad : float or None
+        Field of view (full width of the widest image axis), rad: the one given, or, when the
+        field was unknown and the caller said at which field the vectors were computed, the
+        one found.
+    scale : float
+        Factor applied to the tangent-plane coordinates ``(x/z, y/z)`` of the input vectors
+        to get true camera directions: 1 for a known field, the estimate otherwise (the true
+        focal length is the assumed one divided by `scale`).
+    detection_index : ndarray of int, shape (M,)
+        Matched detections (indices into the input vectors).
+    catalog_index : ndarray of int, shape (M,)
+        The database stars they match (indices into ``database.vectors``).
+    catalog_id : ndarray of int64, shape (M,)
+        Catalogue identifiers of those stars (HIP numbers for Hipparcos).
+    residual_rms_rad : float
+        RMS angle between matched detections and their catalogue stars after the fit, rad.
+    false_match_probability : float
+        Probability that a wrong attitude would match as many detections by chance.
+    n_detections : int
+        Detections given.
+    n_patterns_tried : int
+        Detection patterns (4-star or triangles) looked up.
+    n_candidates : int
+        Hypotheses verified.
+    time_ms : float
+        Wall time of the call, ms.
+    message : str
+        Why it failed, or a summary when solved.
+    """
+
+    status: str
+    algorithm: str
+    rotation: Rotation | None = None
+    fov_rad: float | None = None
+    scale: float = 1.0
+    detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    catalog_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    catalog_id: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    residual_rms_rad: float = math.nan
+    false_match_probability: float = 1.0
+    n_detections: int = 0
+    n_patterns_tried: int = 0
+    n_candidates: int = 0
+    time_ms: float = 0.0
+    message: str = ""
+
+    @property
+    def solved(self) -> bool:
+        """True when :attr:`status` is ``"solved"``."""
+        return self.status == "solved"
+
+    @property
+    def n_matches(self) -> int:
+        """Number of matched detections."""
+        return len(self.detection_index)
+
+    def __repr__(self) -> str:
+        if not self.solved:
+            return f"Identification({self.status}: {self.message})"
+        from starsense.geometry.attitude import radec_roll_from_attitude
+
+        ra, dec, roll = (a * RAD_TO_DEG for a in radec_roll_from_attitude(self.rotation))
+        return (
+            f"Identification(solved, RA {ra:.4f} Dec {dec:.4f} roll {roll:.3f} deg, "
+            f"{self.n_matches}/{self.n_detections} matched, rms "
+            f"{self.residual_rms_rad * RAD_TO_ARCSEC:.1f} arcsec, P_false "
+            f"{self.false_match_probability:.1e}, {self.time_ms:.1f} ms)"
+        )
+
+
+def validate_vectors(vectors_cam: object) -> NDArray[np.float64]:
+    """Check and normalise detection directions ``(N, 3)``; raise :class:`InputError`."""
+    try:
+        v = np.asarray(vectors_cam, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"vectors_cam must be an (N, 3) array of numbers: {exc}") from None
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise InputError(f"vectors_cam must have shape (N, 3), got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        row = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
+        raise InputError(f"vectors_cam[{row}] = {v[row].tolist()} is not finite")
+    norm = np.linalg.norm(v, axis=1)
+    if np.any(norm == 0):
+        raise InputError(f"vectors_cam[{int(np.flatnonzero(norm == 0)[0])}] is a zero vector")
+    v = v / norm[:, None]
+    if np.any(v[:, 2] <= 0):
+        row = int(np.flatnonzero(v[:, 2] <= 0)[0])
+        raise InputError(
+            f"vectors_cam[{row}] = {v[row].tolist()} points behind the camera (z <= 0)"
+        )
+    return v
+
+
+def result_builder(algorithm: str, n_detections: int, t0: float):
+    """Return ``result(status, message, **fields) -> Identification`` for one identifier call.
+
+    It stamps the algorithm, the number of detections and the time since ``t0``
+    (perf_counter).
+    """
+    import time
+
+    def result(status: str, message: str, **kw) -> Identification:
+        return Identification(
+            status=status,
+            algorithm=algorithm,
+            n_detections=n_detections,
+            time_ms=(time.perf_counter() - t0) * 1e3,
+            message=message,
+            **kw,
+        )
+
+    return result
+
+
+def identify_ranked(identifier, vectors_cam, brightness, *args, **kwargs) -> Identification:
+    """Run ``identifier`` on detections given in any order, ranked here by ``brightness``.
+
+    The identifiers build their patterns from the first (brightest) detections; this makes the
+    result independent of the order the caller lists them in. ``detection_index`` of the result
+    refers to the caller's order.
+
+    Parameters
+    ----------
+    identifier : HashIdentifier or TriangleIdentifier
+    vectors_cam : array (N, 3)
+    brightness : array (N,)
+        Any measure that grows with brightness (integrated counts, electrons, flux).
+    *args, **kwargs
+        Passed on to the identifier (``fov_rad``, ``assumed_fov_rad``).
+    """
+    v = np.asarray(vectors_cam, dtype=float)
+    b = np.asarray(brightness, dtype=float)
+    if b.shape != (len(v),):
+        raise InputError(f"brightness must have one value per detection ({len(v)}), got {b.shape}")
+    order = np.argsort(-b, kind="stable")
+    result = identifier(v[order], *args, **kwargs)
+    if len(result.detection_index) == 0:
+        return result
+    return dataclasses.replace(result, detection_index=order[result.detection_index])
