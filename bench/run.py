@@ -179,8 +179,8 @@ def _availability_dynamic() -> float:
 
     analysis, cat, fov = _availability_setup()
     # the Reed m_t(w) the paper's Table 2 implies on BSC5 (README); any curve costs the same
-    curve = ThresholdCurve([0, 1, 1.5, 2, 3], [5.75, 4.78, 4.40, 3.875, 3.60])
-    rates = np.linspace(0, 5, 20)
+    curve = ThresholdCurve(np.radians([0, 1, 1.5, 2, 3]), [5.75, 4.78, 4.40, 3.875, 3.60])
+    rates = np.radians(np.linspace(0, 5, 20))
     return best_of(lambda: analysis.from_catalog(cat, fov, 6.0).dynamic(curve, rates, 3))
 
 

@@ -15,13 +15,14 @@ from starsense.analysis.slew import (
     simulate_slew,
 )
 from starsense.errors import InputError
+from starsense.references import dzamba2014 as paper
 from starsense.sensor import load_sensor
 
 
 def test_default_grid_contains_the_quoted_magnitudes():
     mags = default_magnitudes()
     assert len(mags) == 20
-    for m in (3.0, 4.0, 5.0, 5.75):
+    for m in paper.QUOTED_MAGNITUDES:
         assert np.any(np.isclose(mags, m))
 
 
@@ -40,17 +41,18 @@ def test_tolerable_rate_rule():
 def _result(tol, capped, mags):
     n = len(mags)
     return SlewResult(
-        magnitudes=np.asarray(mags, float), rates_deg_s=np.array([0.0, 5.0]),
+        magnitudes=np.asarray(mags, float), rates_rad_s=np.radians([0.0, 5.0]),
         electrons=np.ones(n), detected_fraction=np.ones((n, 2)),
         mean_intensity_counts=np.ones((n, 2)), ideal_intensity_counts=np.ones(n),
-        tolerable_rate_deg_s=tol, capped=np.asarray(capped), model="reed", sensor_name="x",
+        tolerable_rate_rad_s=tol, capped=np.asarray(capped), model="reed", sensor_name="x",
         n_trials=1, criterion=0.5,
     )  # fmt: skip
 
 
 def test_magnitude_threshold_inverts_the_tolerance_curve():
-    res = _result([5.0, 3.0, 1.0, None], [True, False, False, False], [2.0, 3.0, 4.0, 5.0])
-    mt = magnitude_threshold(res, [0.0, 0.5, 1.0, 2.0, 3.5, 100.0])
+    tol = [*np.radians([5.0, 3.0, 1.0]), None]
+    res = _result(tol, [True, False, False, False], [2.0, 3.0, 4.0, 5.0])
+    mt = magnitude_threshold(res, np.radians([0.0, 0.5, 1.0, 2.0, 3.5, 100.0]))
     # m = 4 tolerates 1 deg/s, m = 3 3 deg/s, m = 2 every rate (capped); m = 5 never detected
     assert list(mt) == [4.0, 4.0, 4.0, 3.0, 2.0, 2.0]
 
@@ -58,8 +60,8 @@ def test_magnitude_threshold_inverts_the_tolerance_curve():
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"rates_deg_s": [0, -1]}, r"rates must be >= 0 deg/s"),
-        ({"rates_deg_s": [1, 0.5]}, "strictly increasing"),
+        ({"rates_rad_s": np.radians([0, -1])}, r"rates_rad_s must be >= 0"),
+        ({"rates_rad_s": np.radians([1, 0.5])}, "strictly increasing"),
         ({"n_trials": 0}, "n_trials must be an integer >= 1"),
         ({"criterion": 1.5}, r"criterion must be in \(0, 1\]"),
         ({"magnitudes": []}, "magnitudes must be a non-empty"),
@@ -75,7 +77,7 @@ def test_bad_input(kwargs, message):
 def test_rate_that_sweeps_off_the_detector():
     # 2592 columns of 2.2 um at f = 16 mm, t = 0.1 s: a 300 deg/s slew sweeps ~4,200 px
     with pytest.raises(InputError, match="longer than the detector's 2592 columns"):
-        simulate_slew(load_sensor("st16"), rates_deg_s=[0.0, 300.0], n_trials=1)
+        simulate_slew(load_sensor("st16"), rates_rad_s=np.radians([0.0, 300.0]), n_trials=1)
 
 
 @pytest.fixture(scope="module")
@@ -112,8 +114,9 @@ def test_faint_star_intensity_below_ideal_at_rest(st16_reed):
 
 def test_seeded_runs_are_reproducible():
     s = load_sensor("st16")
-    a = simulate_slew(s, "reed", magnitudes=[4.0], rates_deg_s=[0, 1, 2], n_trials=5, seed=7)
-    b = simulate_slew(s, "reed", magnitudes=[4.0], rates_deg_s=[0, 1, 2], n_trials=5, seed=7)
+    rates = np.radians([0, 1, 2])
+    a = simulate_slew(s, "reed", magnitudes=[4.0], rates_rad_s=rates, n_trials=5, seed=7)
+    b = simulate_slew(s, "reed", magnitudes=[4.0], rates_rad_s=rates, n_trials=5, seed=7)
     assert np.array_equal(a.mean_intensity_counts, b.mean_intensity_counts, equal_nan=True)
 
 
@@ -121,7 +124,11 @@ def test_detect_stack_matches_the_logic_on_crafted_stamps():
     from starsense.detect.stack import detect_stack
     from starsense.sensor import DetectionThresholds
 
-    logic = DetectionThresholds(lit_pixel_counts=120, min_pixels=6, min_integrated_counts=1000)
+    logic = DetectionThresholds(
+        lit_pixel_counts=paper.DETECTION_LIT_PIXEL_COUNTS,
+        min_pixels=paper.DETECTION_MIN_PIXELS,
+        min_integrated_counts=paper.DETECTION_INTEGRATED_COUNTS,
+    )
     stack = np.zeros((3, 8, 8))
     stack[0, 2, 1:7] = 200  # 6 lit pixels, 1200 counts: detected
     stack[1, 2, 1:6] = 300  # 5 lit pixels: rejected (min 6)
@@ -139,7 +146,12 @@ def test_blackbody_model_red_star_more_electrons_in_400_800nm():
     # A0 star (B-V 0): its red excess outweighs its blue deficit for a QE flat over 400-800 nm,
     # so it tolerates at least as fast a slew. Independent check of the colour-aware path.
     s = load_sensor("st16")
-    kw = {"magnitudes": [4.0], "rates_deg_s": [0.0, 1.0, 2.0, 3.0], "n_trials": 6, "seed": 2}
+    kw = {
+        "magnitudes": [4.0],
+        "rates_rad_s": np.radians([0.0, 1.0, 2.0, 3.0]),
+        "n_trials": 6,
+        "seed": 2,
+    }
     blue = simulate_slew(s, "blackbody", colour_index=0.0, **kw)
     red = simulate_slew(s, "blackbody", colour_index=1.5, **kw)
     assert red.electrons[0] > blue.electrons[0]

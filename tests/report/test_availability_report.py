@@ -14,7 +14,7 @@ from starsense.report.section import ReportContext
 from starsense.sensor import load_sensor
 
 PAPER_IMPLIED = ThresholdCurve(
-    [0.0, 1.0, 1.5, 2.0, 3.0], [5.75, 4.78, 4.40, 3.875, 3.60], label="paper-implied"
+    np.radians([0.0, 1.0, 1.5, 2.0, 3.0]), [5.75, 4.78, 4.40, 3.875, 3.60], label="paper-implied"
 )
 
 
@@ -76,3 +76,32 @@ def test_availability_section_fidelity_part(ctx, monkeypatch):
 def test_no_sensor(ctx):
     ctx.sensor = None
     assert "No sensor" in report_av.availability_section(ctx).html
+
+
+def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monkeypatch):
+    """Issue 11: the loaded catalogue travels in ReportContext, whatever the --catalog spec.
+
+    The report is built from ``bsc5:PATH`` through build_report (the availability section
+    only, a few frames at one rate, a given threshold curve): the full-fidelity check renders
+    from that catalogue instead of printing "Skipped".
+    """
+    from starsense.report import build
+
+    monkeypatch.setattr(build, "SECTION_BUILDERS", [report_av.availability_section])
+    monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
+    monkeypatch.setattr(report_av, "FIDELITY_FRAMES", 2)
+    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_av, "TRACK_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_av, "TRACK_NODES_DEG", (0.0,))
+    monkeypatch.setattr(report_av, "DYNAMIC_RATES_DEG_S", np.arange(0.0, 3.01, 1.0))
+    out = tmp_path / "report"
+    build.build_report(
+        out, catalog_spec=f"bsc5:{bsc5_path}", sensor=load_sensor("st16"), low_photon_trials=2
+    )
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "Full-fidelity check" in html
+    assert "Skipped" not in html
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    fidelity = data["sections"]["availability"]["fidelity"]
+    assert fidelity[0]["n_frames"] == 2
+    assert fidelity[0]["rate_deg_s"] == 1.0

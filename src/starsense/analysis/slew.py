@@ -9,7 +9,8 @@ Method, as implemented:
 
 * The slew is a pure cross-axis rotation about the camera y axis: the streak runs along +x (rows
   of the detector), of length f tan(|w| t_e) / pitch (eq. 1), starting at a random sub-pixel
-  position in each trial (the pixel phase changes which pixels light up).
+  position in each trial (the pixel phase changes which pixels light up). Rates are rad/s;
+  :class:`SlewResult` gives deg/s for output.
 * For each (rate, trial) one noiseless streak of unit flux is rendered (exactly integrated over
   pixel areas) and scaled by each magnitude's photoelectrons: the expected image is linear in the
   flux, so all magnitudes share the rendering.
@@ -28,25 +29,43 @@ Method, as implemented:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from starsense.analysis._angles import edge_degrees
 from starsense.errors import InputError
 from starsense.photometry.sensitivity import Sensitivity
+from starsense.units import DEG
 
-#: the paper's rate range (Figs. 9-10): 0 to 10 deg/s
-DEFAULT_MAX_RATE_DEG_S = 10.0
+__all__ = [
+    "DEFAULT_MAX_RATE_RAD_S",
+    "SlewResult",
+    "default_magnitudes",
+    "default_rates_rad_s",
+    "magnitude_threshold",
+    "simulate_slew",
+]
+
+#: the paper's rate range (Figs. 9-10): 0 to 10 deg/s, in deg/s as the paper gives it
+_PAPER_MAX_RATE_DEG_S = 10.0
+#: the paper's top rate, rad/s
+DEFAULT_MAX_RATE_RAD_S = _PAPER_MAX_RATE_DEG_S * DEG
 
 
-def default_rates_deg_s(n: int = 40, max_rate_deg_s: float = DEFAULT_MAX_RATE_DEG_S) -> np.ndarray:
-    """N rates from 0 to max_rate (inclusive), deg/s."""
-    return np.linspace(0.0, max_rate_deg_s, n)
+def default_rates_rad_s(n: int = 40, max_rate_rad_s: float | None = None) -> np.ndarray:
+    """Return `n` rates from 0 to `max_rate_rad_s` (inclusive), rad/s.
+
+    The default top rate is the paper's 10 deg/s; its grid is spaced in deg/s and converted,
+    so each rate is exactly ``k deg/s * DEG``.
+    """
+    if max_rate_rad_s is None:
+        return np.linspace(0.0, _PAPER_MAX_RATE_DEG_S, n) * DEG
+    return np.linspace(0.0, max_rate_rad_s, n)
 
 
 def default_magnitudes(n: int = 20) -> np.ndarray:
-    """N magnitudes in 0.25 mag steps ending at 6.0 (20 -> 1.25 ... 6.0, includes 3, 4, 5, 5.75)."""
+    """Return `n` magnitudes in 0.25 mag steps ending at 6.0 (20: 1.25 ... 6.0)."""
     return 6.0 - 0.25 * np.arange(n)[::-1]
 
 
@@ -57,7 +76,9 @@ class SlewResult:
     Attributes
     ----------
     magnitudes : array (M,)
-    rates_deg_s : array (R,)
+        Simulated magnitudes.
+    rates_rad_s : array (R,)
+        Simulated slew rates, rad/s.
     electrons : array (M,)
         Expected photoelectrons of each magnitude (sensitivity model).
     detected_fraction : array (M, R)
@@ -66,22 +87,29 @@ class SlewResult:
         Mean integrated intensity of the detected trials (NaN where none), counts.
     ideal_intensity_counts : array (M,)
         Electrons x gain: the integrated intensity without saturation or detection logic.
-    tolerable_rate_deg_s : list of float or None (M,)
+    tolerable_rate_rad_s : list of float or None (M,)
+        Fastest rate still detected, rad/s; None if not even at rest.
     capped : array (M,) bool
         Detected at every rate of the grid: the tolerable rate is at least the last rate.
     model, sensor_name : str
+        Sensitivity model and sensor.
     n_trials : int
+        Trials per (magnitude, rate).
     criterion : float
+        Detection fraction that counts as detected.
     seed : int or None
+        Root seed.
+    threshold_counts : float
+        The detection logic's integrated-intensity threshold, counts.
     """
 
     magnitudes: np.ndarray
-    rates_deg_s: np.ndarray
+    rates_rad_s: np.ndarray
     electrons: np.ndarray
     detected_fraction: np.ndarray
     mean_intensity_counts: np.ndarray
     ideal_intensity_counts: np.ndarray
-    tolerable_rate_deg_s: list
+    tolerable_rate_rad_s: list
     capped: np.ndarray
     model: str
     sensor_name: str
@@ -90,7 +118,18 @@ class SlewResult:
     seed: int | None = None
     threshold_counts: float = field(default=0.0)
 
+    @property
+    def rates_deg_s(self) -> np.ndarray:
+        """Simulated slew rates, deg/s (for output)."""
+        return edge_degrees(self.rates_rad_s)
+
+    @property
+    def tolerable_rate_deg_s(self) -> list[float | None]:
+        """Fastest rate still detected per magnitude, deg/s, None if never (for output)."""
+        return [None if r is None else float(edge_degrees(r)) for r in self.tolerable_rate_rad_s]
+
     def tolerance_dict(self) -> dict:
+        """Return the tolerable-rate curve as JSON-ready values (deg/s, Fig. 10)."""
         return {
             "sensor": self.sensor_name,
             "model": self.model,
@@ -106,6 +145,8 @@ class SlewResult:
         }
 
     def intensity_dict(self) -> dict:
+        """Return the integrated intensity against rate as JSON-ready values (Fig. 9)."""
+
         def clean(a):
             return [[None if not np.isfinite(v) else float(v) for v in row] for row in a]
 
@@ -123,17 +164,17 @@ class SlewResult:
         }
 
 
-def _validate(magnitudes, rates_deg_s, n_trials, criterion):
+def _validate(magnitudes, rates_rad_s, n_trials, criterion):
     mags = np.atleast_1d(np.asarray(magnitudes, dtype=float))
-    rates = np.atleast_1d(np.asarray(rates_deg_s, dtype=float))
+    rates = np.atleast_1d(np.asarray(rates_rad_s, dtype=float))
     if mags.size == 0 or not np.all(np.isfinite(mags)):
         raise InputError("magnitudes must be a non-empty list of finite numbers")
     if rates.size == 0 or not np.all(np.isfinite(rates)):
-        raise InputError("rates must be a non-empty list of finite numbers")
+        raise InputError("rates_rad_s must be a non-empty list of finite numbers")
     if np.any(rates < 0):
-        raise InputError(f"rates must be >= 0 deg/s, got {rates[rates < 0][0]:g}")
+        raise InputError(f"rates_rad_s must be >= 0, got {rates[rates < 0][0]:g}")
     if np.any(np.diff(rates) <= 0):
-        raise InputError("rates must be strictly increasing")
+        raise InputError("rates_rad_s must be strictly increasing")
     if int(n_trials) != n_trials or n_trials < 1:
         raise InputError(f"n_trials must be an integer >= 1, got {n_trials!r}")
     if not 0 < criterion <= 1:
@@ -158,23 +199,26 @@ def simulate_slew(
     sensor,
     model: str = "reed",
     magnitudes=None,
-    rates_deg_s=None,
+    rates_rad_s=None,
     n_trials: int = 20,
     criterion: float = 0.5,
     seed: int | None = 0,
     progress=None,
     colour_index: float = 0.0,
 ) -> SlewResult:
-    """Monte Carlo of detection against slew rate, for every magnitude and rate (Figs. 9-10).
+    """Simulate detection against slew rate, for every magnitude and rate (Figs. 9-10).
 
     Parameters
     ----------
     sensor : starsense.sensor.Sensor
+        The star tracker.
     model : {"reed", "liebe", "blackbody"}
         Sensitivity model (magnitude -> electrons). "blackbody" fits each star's black body from
         its V magnitude and ``colour_index`` (B-V) and integrates it through the sensor's QE.
-    magnitudes : array (M,), default :func:`default_magnitudes`
-    rates_deg_s : array (R,), increasing from rest, default :func:`default_rates_deg_s`
+    magnitudes : array (M,), optional
+        Magnitudes to simulate (default :func:`default_magnitudes`).
+    rates_rad_s : array (R,), optional
+        Slew rates, rad/s, increasing from rest (default :func:`default_rates_rad_s`).
     n_trials : int
         Monte Carlo repeats per (magnitude, rate), each with its own noise and pixel phase.
     criterion : float
@@ -182,9 +226,14 @@ def simulate_slew(
     seed : int
         Root seed; each rate derives its own child stream, so results are reproducible.
     progress : callable(int done, int total) or None
+        Called after each rate.
     colour_index : float
         B-V of the simulated stars for the "blackbody" model (default 0: an A0 star, the type of
         Reed's zero-magnitude reference).
+
+    Returns
+    -------
+    SlewResult
     """
     from starsense.detect.stack import detect_stack
     from starsense.render.noise import apply_noise
@@ -195,17 +244,18 @@ def simulate_slew(
     if not np.isfinite(colour_index):
         raise InputError(f"colour_index must be finite, got {colour_index!r}")
     mags = default_magnitudes() if magnitudes is None else magnitudes
-    rates = default_rates_deg_s() if rates_deg_s is None else rates_deg_s
+    rates = default_rates_rad_s() if rates_rad_s is None else rates_rad_s
     mags, rates = _validate(mags, rates, n_trials, criterion)
     det = sensor.detector
     colours = np.full(len(mags), float(colour_index)) if model == "blackbody" else None
     electrons = np.asarray(
         Sensitivity.for_sensor(sensor, model).electrons(mags, colours), dtype=float
     )
-    max_len = sensor.streak_length_px(math.radians(rates[-1]))
+    max_len = sensor.streak_length_px(rates[-1])
     if max_len + 10 * det.psf_sigma_px >= det.columns:
+        top_deg_s = float(edge_degrees(rates[-1]))
         raise InputError(
-            f"a {rates[-1]:g} deg/s slew sweeps a star {max_len:.0f} px in {sensor.exposure_s} s: "
+            f"a {top_deg_s:g} deg/s slew sweeps a star {max_len:.0f} px in {sensor.exposure_s} s: "
             f"longer than the detector's {det.columns} columns"
         )
     n_m, n_r = len(mags), len(rates)
@@ -214,7 +264,7 @@ def simulate_slew(
     children = np.random.SeedSequence(seed).spawn(n_r)
     for j, rate in enumerate(rates):
         rng = np.random.default_rng(children[j])
-        length = sensor.streak_length_px(math.radians(rate))
+        length = sensor.streak_length_px(rate)
         stamps = []
         for _ in range(n_trials):
             x0, y0 = rng.random(2)
@@ -239,12 +289,12 @@ def simulate_slew(
                       strict=True)  # fmt: skip
     return SlewResult(
         magnitudes=mags,
-        rates_deg_s=rates,
+        rates_rad_s=rates,
         electrons=electrons,
         detected_fraction=fraction,
         mean_intensity_counts=mean_int,
         ideal_intensity_counts=electrons * det.gain_counts_per_e,
-        tolerable_rate_deg_s=list(tol),
+        tolerable_rate_rad_s=list(tol),
         capped=np.array(capped),
         model=model,
         sensor_name=sensor.name,
@@ -255,16 +305,17 @@ def simulate_slew(
     )
 
 
-def magnitude_threshold(result: SlewResult, rates_deg_s) -> np.ndarray:
-    """m_t(w): the faintest magnitude still detected at each rate (Fig. 10 read sideways).
+def magnitude_threshold(result: SlewResult, rates_rad_s) -> np.ndarray:
+    """Return m_t(w), the faintest magnitude still detected at each rate (rad/s; Fig. 10).
 
-    Interpolates the tolerable-rate curve; used by the availability analysis (spatial dynamic
-    availability). Magnitudes whose tolerable rate is None are never detected; the curve is made
-    monotonic (a brighter star tolerates at least the rate of a fainter one) before inverting.
+    Reads the tolerable-rate curve sideways, magnitude by magnitude (the availability analysis
+    interpolates it: :class:`~starsense.analysis.availability.ThresholdCurve`). Magnitudes
+    whose tolerable rate is None are never detected; the curve is made monotonic (a brighter
+    star tolerates at least the rate of a fainter one) before inverting.
     """
-    rates = np.atleast_1d(np.asarray(rates_deg_s, dtype=float))
+    rates = np.atleast_1d(np.asarray(rates_rad_s, dtype=float))
     mags = np.asarray(result.magnitudes, dtype=float)
-    tol = np.array([-np.inf if r is None else r for r in result.tolerable_rate_deg_s])
+    tol = np.array([-np.inf if r is None else r for r in result.tolerable_rate_rad_s])
     tol[np.asarray(result.capped)] = np.inf
     order = np.argsort(mags)
     mags, tol = mags[order], tol[order]

@@ -9,15 +9,18 @@ line and exits 2.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
 import typer
 
+from starsense._validate import finite_float
 from starsense.cli.catalog import check_dask_option
 from starsense.cli.common import (
     CatalogOpt,
@@ -31,6 +34,7 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError
+from starsense.units import DEG
 
 availability_app = typer.Typer(
     help="Star-tracker availability: spatial static, spatial dynamic and along-track "
@@ -97,6 +101,85 @@ ToleranceOpt = Annotated[
 DEFAULT_DYNAMIC_RATES = "0,0.25,0.5,0.75,1,1.25,1.5,1.75,2,2.25,2.5,2.75,3,3.5,4,4.5,5"
 
 
+# -- the options, checked at the edge (messages name the option) -------------------------------
+
+
+def _check_n_min(n_min: int) -> int:
+    if n_min < 1:
+        raise InputError(
+            f"N_min (--n-min) = {n_min} is out of range; must be an integer >= 1 "
+            "(2 tracking, 3 lost-in-space, 4 conservative)"
+        )
+    return n_min
+
+
+def _check_count(n: int, label: str, option: str) -> int:
+    if n < 1:
+        raise InputError(f"{label} ({option}) = {n} is out of range; must be an integer >= 1")
+    return n
+
+
+def _check_rates_deg_s(values: list[float], option: str) -> np.ndarray:
+    """Slew rates given in deg/s, finite and >= 0, converted to rad/s."""
+    rates = np.asarray(values, dtype=np.float64)
+    if not np.all(np.isfinite(rates)):
+        raise InputError(f"slew rates ({option}) must be finite, got {rates.tolist()}")
+    if np.any(rates < 0):
+        bad = float(rates[rates < 0][0])
+        raise InputError(
+            f"slew rate ({option}) = {bad:g} deg/s is negative; rates are magnitudes |w| >= 0"
+        )
+    return rates * DEG
+
+
+def _check_max_mag(max_mag: float) -> float:
+    if math.isnan(max_mag) or max_mag == -math.inf:
+        raise InputError(f"magnitude limit (--max-mag) must be finite, got {max_mag!r}")
+    return max_mag
+
+
+def _field_of_view(sens, fov: str, half_fov_deg: float | None):
+    """Return the field of --fov / --half-fov-deg (deg, converted to rad)."""
+    from starsense.analysis.availability import field_of_view
+
+    if fov == "rectangular" and half_fov_deg is not None:
+        raise InputError(
+            "--half-fov-deg sets the circular field only; the rectangular field is the "
+            "detector's (drop --half-fov-deg or use --fov circular)"
+        )
+    if fov not in ("circular", "rectangular"):
+        raise InputError(f"field of view (--fov) must be 'circular' or 'rectangular', got {fov!r}")
+    if half_fov_deg is None:
+        return field_of_view(sens, fov)
+    a = finite_float(half_fov_deg, "--half-fov-deg")
+    if not 0.0 < a <= 90.0:
+        raise InputError(
+            f"half field (--half-fov-deg) = {a:g} deg is out of range; allowed (0, 90]"
+        )
+    return field_of_view(sens, fov, a * DEG)
+
+
+def _roll(roll_deg: float | None) -> float | None:
+    return None if roll_deg is None else finite_float(roll_deg, "--roll-deg") * DEG
+
+
+#: parameter names of the library -> the options that set them, for messages that depend on the
+#: data (a magnitude cut that leaves no star of the catalogue)
+_OPTIONS = {"max_mag": "--max-mag"}
+
+
+@contextlib.contextmanager
+def _as_options() -> Iterator[None]:
+    """Re-raise the library's user errors with its parameter names replaced by option names."""
+    try:
+        yield
+    except InputError as exc:
+        text = str(exc)
+        for name, option in _OPTIONS.items():
+            text = re.sub(rf"(?<![.\w]){name}\b", option, text)
+        raise InputError(text) from None
+
+
 def _setup(
     sensor: str,
     catalog: str,
@@ -109,35 +192,41 @@ def _setup(
     progress: Callable[[str, int, int], None] | None = None,
     band: str = "V",
 ):
-    """The options common to every command -> (sensor, catalogue, analysis)."""
-    from starsense.analysis.availability import AvailabilityAnalysis, field_of_view
+    """Return (sensor, catalogue, analysis) of the options every command shares."""
+    from starsense.analysis.availability import AvailabilityAnalysis
     from starsense.catalog import load_catalog
     from starsense.sensor import load_sensor
 
+    _check_max_mag(max_mag)
+    _check_count(n_orientations, "number of orientations", "--n-orientations")
+    roll = _roll(roll_deg)
     sens = load_sensor(sensor)
-    field = field_of_view(sens, fov, half_fov_deg)
+    field = _field_of_view(sens, fov, half_fov_deg)
     cat = load_catalog(catalog)
-    analysis = AvailabilityAnalysis.from_catalog(
-        cat, field, max_mag, band, n_orientations=n_orientations, roll_deg=roll_deg, seed=seed,
-        progress=progress,
-    )  # fmt: skip
+    with _as_options():
+        analysis = AvailabilityAnalysis.from_catalog(
+            cat, field, max_mag, band, n_orientations=n_orientations, roll=roll, seed=seed,
+            progress=progress,
+        )  # fmt: skip
     return sens, cat, analysis
 
 
 def _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min, n_orientations,
                  roll_deg, seed, band, as_json):  # fmt: skip
     """``availability static`` over a HATS catalogue on Dask (starsense.scale)."""
-    from starsense.analysis.availability import field_of_view
     from starsense.cli.catalog import hats_session
     from starsense.scale import static_availability
     from starsense.sensor import load_sensor
 
+    _check_max_mag(max_mag)
+    _check_count(n_orientations, "number of orientations", "--n-orientations")
+    roll = _roll(roll_deg)
     sens = load_sensor(sensor)
-    field = field_of_view(sens, fov, half_fov_deg)
-    with hats_session(catalog, dask, not as_json) as (cat, client, progress):
+    field = _field_of_view(sens, fov, half_fov_deg)
+    with hats_session(catalog, dask, not as_json) as (cat, client, progress), _as_options():
         res = static_availability(
             cat, field, max_mag, n_min, band=band, n_orientations=n_orientations,
-            roll_deg=roll_deg, seed=seed, client=client, progress=progress,
+            roll=roll, seed=seed, client=client, progress=progress,
         )  # fmt: skip
     return res, sens
 
@@ -211,6 +300,7 @@ def static(
     With --catalog hats:PATH_OR_URL the stars in the field are counted partition by partition on
     Dask (--dask), with the same kernels and results as in memory.
     """
+    _check_n_min(n_min)
     if check_dask_option(catalog, dask):
         res, sens = _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min,
                                  n_orientations, roll_deg, seed, band, as_json)  # fmt: skip
@@ -224,11 +314,11 @@ def static(
     lines = [f"{sens.name}: " + res.lines()[0], *res.lines()[1:]]
     figures = []
     if plot is not None:
-        from starsense.report.availability import save_figure, static_curve_figure
+        from starsense.plotting.availability import save_figure, static_curve_figure
 
         figures.append(save_figure(static_curve_figure(res), plot))
     if maps is not None:
-        from starsense.report.availability import save_figure, sky_map_figure
+        from starsense.plotting.availability import save_figure, sky_map_figure
 
         folder = _maps_dir(maps)
         figures.append(save_figure(sky_map_figure(
@@ -267,10 +357,8 @@ def dynamic(
     as_json: JsonOpt = False,
 ) -> None:
     """Spatial dynamic availability against slew rate, m_t = m_t(w) (Fig. 11)."""
-    from starsense.analysis.availability import check_n_min, check_rates
-
-    rates = check_rates(parse_floats(rates_deg_s, "--rates-deg-s"))
-    check_n_min(n_min)
+    rates = _check_rates_deg_s(parse_floats(rates_deg_s, "--rates-deg-s"), "--rates-deg-s")
+    _check_n_min(n_min)
     with progress_bar() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
                                    roll_deg, seed, progress)  # fmt: skip
@@ -280,11 +368,11 @@ def dynamic(
     lines = res.lines()
     figures = []
     if plot is not None:
-        from starsense.report.availability import dynamic_figure, save_figure
+        from starsense.plotting.availability import dynamic_figure, save_figure
 
         figures.append(save_figure(dynamic_figure([res]), plot))
     if maps is not None:
-        from starsense.report.availability import save_figure, sky_map_figure
+        from starsense.plotting.availability import save_figure, sky_map_figure
 
         folder = _maps_dir(maps)
         for w, m in zip(res.rates_deg_s, res.threshold_mag, strict=True):
@@ -332,36 +420,34 @@ def track(
     as_json: JsonOpt = False,
 ) -> None:
     """Along-track dynamic availability of great circles inclined -90 ... 90 deg (Table 2)."""
-    from starsense.analysis.availability import check_count, check_n_min, check_rates
-
-    check_rates([rate_deg_s], "--rate-deg-s")
-    check_n_min(n_min)
-    check_count(track_samples, "samples per track", "--track-samples")
+    rate = float(_check_rates_deg_s([rate_deg_s], "--rate-deg-s")[0])
+    _check_n_min(n_min)
+    _check_count(track_samples, "samples per track", "--track-samples")
+    node = finite_float(node_deg, "--node-deg") * DEG
     if not (math.isfinite(inclination_step_deg) and 0 < inclination_step_deg <= 180):
         raise InputError(
             f"--inclination-step-deg = {inclination_step_deg:g} is out of range; allowed (0, 180]"
         )
-    inclinations = np.arange(-90.0, 90.0 + 1e-9, inclination_step_deg)
+    inclinations = np.arange(-90.0, 90.0 + 1e-9, inclination_step_deg) * DEG
     with progress_bar() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
                                    roll_deg, seed, progress)  # fmt: skip
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
-        res = analysis.track(curve, rate_deg_s, n_min, inclinations, track_samples, node_deg)
+        res = analysis.track(curve, rate, n_min, inclinations, track_samples, node)
     payload = {**res.to_dict(), "sensor": sens.name, "model": model}
     lines = res.lines()
     figures = []
     if plot is not None:
-        from starsense.report.availability import save_figure, track_nmin_figure
+        from starsense.plotting.availability import save_figure, track_nmin_figure
 
         figures.append(save_figure(track_nmin_figure(res), plot))
     if maps is not None:
         from starsense.geometry.sampling import great_circle_track
-        from starsense.report.availability import save_figure, sky_map_figure
+        from starsense.plotting.availability import save_figure, sky_map_figure
 
         folder = _maps_dir(maps)
         shown = (-60.0, -30.0, 0.0, 30.0, 60.0, 90.0)
-        paths = [great_circle_track(math.radians(i), 721, math.radians(node_deg))[0]
-                 for i in shown]  # fmt: skip
+        paths = [great_circle_track(i * DEG, 721, node)[0] for i in shown]
         figures.append(save_figure(sky_map_figure(
             analysis.boresights, analysis.sky_counts(res.threshold_mag),
             f"{sens.name}: stars detectable at {res.rate_deg_s:g} deg/s; tracks i = "
@@ -390,18 +476,23 @@ def fidelity(
     tolerance_json: ToleranceOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
-    """Rendered frames through the detector against the threshold model (real detector field)."""
+    """Rendered frames through the detector against the threshold model (real detector field)."""  # noqa: D401
     from starsense.analysis.availability import fidelity_check
     from starsense.catalog import load_catalog
     from starsense.sensor import load_sensor
 
+    rate = float(_check_rates_deg_s([rate_deg_s], "--rate-deg-s")[0])
+    _check_n_min(n_min)
+    _check_count(frames, "number of frames", "--frames")
+    _check_max_mag(max_mag)
     sens = load_sensor(sensor)
     cat = load_catalog(catalog)
     with progress_bar() as progress:
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
-        res = fidelity_check(
-            sens, cat, curve, rate_deg_s, n_frames=frames, n_min=n_min, max_mag=max_mag,
-            model=model, seed=seed,
-            progress=lambda done, total: progress("rendering frames", done, total),
-        )  # fmt: skip
+        with _as_options():
+            res = fidelity_check(
+                sens, cat, curve, rate, n_frames=frames, n_min=n_min, max_mag=max_mag,
+                model=model, seed=seed,
+                progress=lambda done, total: progress("rendering frames", done, total),
+            )  # fmt: skip
     emit({**res.to_dict(), "sensor": sens.name}, as_json, res.lines())

@@ -10,11 +10,26 @@ import numpy as np
 import typer
 
 from starsense.cli.common import JsonOpt, ModelOpt, SeedOpt, SensorOpt, emit, parse_floats
+from starsense.errors import InputError
+from starsense.units import DEG
 
 slew_app = typer.Typer(
     help="Slew tolerance: detection of smeared stars (Dzamba & Enright 2014).",
     no_args_is_help=True,
 )
+
+
+def _rates_rad_s(text: str | None) -> np.ndarray | None:
+    """Return the --rates-deg-s grid in rad/s: >= 0 and increasing, or None for the default."""
+    values = parse_floats(text, "--rates-deg-s")
+    if values is None:
+        return None
+    rates = np.asarray(values, dtype=float)
+    if np.any(rates < 0):
+        raise InputError(f"rates must be >= 0 deg/s, got {rates[rates < 0][0]:g}")
+    if np.any(np.diff(rates) <= 0):
+        raise InputError("rates must be strictly increasing")
+    return rates * DEG
 
 
 def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
@@ -25,7 +40,7 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
 
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")
-    rate_values = parse_floats(rates, "--rates-deg-s")
+    rate_values = _rates_rad_s(rates)
     with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
         task = bar.add_task("slew Monte Carlo", total=None)
         result = simulate_slew(
@@ -78,9 +93,10 @@ def slew_tolerance(
         text = "not detected at rest" if r is None else f"{'>= ' if c else ''}{r:.2f} deg/s"
         lines.append(f"  m = {m:5.2f}: {text}")
     if plot is not None:
-        from starsense.report.slew import plot_tolerance
+        from starsense.plotting.figure import save_png
+        from starsense.plotting.slew import tolerance_figure
 
-        plot_tolerance([res], plot)
+        save_png(tolerance_figure([res]), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)
@@ -110,9 +126,10 @@ def slew_intensity(
         )
         lines.append(f"  {w:10.2f} {row}")
     if plot is not None:
-        from starsense.report.slew import plot_intensity
+        from starsense.plotting.figure import save_png
+        from starsense.plotting.slew import intensity_figure
 
-        plot_intensity(res, plot)
+        save_png(intensity_figure(res), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)

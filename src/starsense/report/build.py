@@ -116,7 +116,7 @@ def build_report(
         say(f"reading sensors table {sensors_table}")
         sensors = tuple(load_sensor_table(sensors_table))
 
-    name, n_catalog, star_sets = _load_stars(catalog_spec, catalog, stars, say)
+    name, n_catalog, star_sets, catalog = _load_stars(catalog_spec, catalog, stars, say)
 
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
@@ -134,6 +134,7 @@ def build_report(
             progress=say,
             sensor=sensor,
             slew_trials=slew_trials,
+            catalog=catalog,
         )
         sections = [builder(ctx) for builder in SECTION_BUILDERS]
         say("writing the report")
@@ -154,7 +155,10 @@ def build_report(
 
 
 def _load_stars(catalog_spec, catalog, stars, say):
-    """(catalogue name, catalogue rows, {colour: BlackBodyStars}) from whichever was given."""
+    """Return (catalogue name, rows, {colour: BlackBodyStars}, catalogue or None).
+
+    From whichever was given; the catalogue is the one loaded (or given), None for stars alone.
+    """
     if stars is not None:
         if isinstance(stars, BlackBodyStars):
             sets = [stars]
@@ -167,7 +171,7 @@ def _load_stars(catalog_spec, catalog, stars, say):
         name = getattr(catalog, "name", None) or "custom star set"
         by_colour = {s.colour: s for s in sets}
         first = sets[0]
-        return str(name), len(first) + first.n_skipped, by_colour
+        return str(name), len(first) + first.n_skipped, by_colour, catalog
     if catalog is None:
         say(f"loading catalogue {catalog_spec!r}")
         from starsense.catalog import load_catalog
@@ -185,7 +189,7 @@ def _load_stars(catalog_spec, catalog, stars, say):
             by_colour[colour] = BlackBodyStars.from_catalog(catalog, colour)
         except InputError:
             continue  # colour present but its magnitude band is not
-    return str(catalog.name), len(catalog), by_colour
+    return str(catalog.name), len(catalog), by_colour, catalog
 
 
 # ---------------------------------------------------------------------------------------------

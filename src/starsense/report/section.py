@@ -14,6 +14,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from starsense.catalog import Catalog
 from starsense.photometry.stars import BlackBodyStars
 from starsense.report.sensors import SensorSpec
 from starsense.sensor import Sensor
@@ -74,6 +75,9 @@ class ReportContext:
         Monte Carlo trials per (magnitude, rate) of the slew section.
     slew_results : dict of str -> SlewResult
         The slew section's results by sensitivity model, reused by later sections.
+    catalog : Catalog or None
+        The catalogue the report was built from, as loaded (any ``--catalog`` spec); None when
+        the report was given black-body stars alone. Sections that render frames need it.
     """
 
     work_dir: Path
@@ -89,9 +93,11 @@ class ReportContext:
     sensor: Sensor | None = None
     slew_trials: int = 20
     slew_results: dict = field(default_factory=dict)
+    catalog: Catalog | None = None
 
     @property
     def primary(self) -> BlackBodyStars:
+        """The primary star set: the first black-body fit."""
         return next(iter(self.stars.values()))
 
     def save_figure(self, fig: Figure, name: str, dpi: int = 110) -> str:

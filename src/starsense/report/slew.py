@@ -2,71 +2,22 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from starsense.analysis.slew import SlewResult, simulate_slew
-from starsense.report.page import esc, figure_html, fmt, new_figure, table
+from starsense.plotting.slew import intensity_figure, tolerance_figure
+from starsense.references.dzamba2014 import QUOTED_MAGNITUDES
+from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
 
-#: magnitudes of the paper's discussion, quoted in the section's table
-QUOTED_MAGNITUDES = (3.0, 4.0, 5.0, 5.75)
+__all__ = ["MODELS", "slew_section"]
+
+#: the sensitivity models of the section
 MODELS = ("reed", "liebe")
 
 
-def tolerance_figure(results: list[SlewResult]):
-    fig = new_figure(7.5, 4.8)
-    ax = fig.add_subplot()
-    for res, style in zip(results, ("o-", "s--", "^-."), strict=False):
-        tol = np.array([np.nan if r is None else r for r in res.tolerable_rate_deg_s])
-        ax.plot(res.magnitudes, tol, style, label=f"{res.model} model", ms=4)
-        capped = np.asarray(res.capped)
-        if capped.any():
-            ax.plot(res.magnitudes[capped], tol[capped], "k^", ms=6, mfc="none")
-    ax.set_xlabel("stellar magnitude m")
-    ax.set_ylabel("tolerable cross-axis slew rate (deg/s)")
-    name = results[0].sensor_name if results else ""
-    ax.set_title(f"{name}: fastest slew at which a star is still detected (cf. paper Fig. 10)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(title="open triangles: detected at every rate simulated", fontsize=8)
-    return fig
-
-
-def intensity_figure(res: SlewResult):
-    fig = new_figure(8.5, 4.8)
-    ax = fig.add_subplot()
-    cmap = __import__("matplotlib").colormaps["viridis"]
-    n = len(res.magnitudes)
-    step = max(1, n // 8)
-    for k, i in enumerate(range(0, n, step)):
-        ax.plot(
-            res.rates_deg_s, res.mean_intensity_counts[i], "-",
-            color=cmap(k / max(1, (n - 1) // step)), label=f"m = {res.magnitudes[i]:.2f}",
-        )  # fmt: skip
-    ax.axhline(res.threshold_counts, color="k", ls=":", lw=1, label="integrated threshold")
-    ax.set_yscale("log")
-    ax.set_xlabel("cross-axis slew rate (deg/s)")
-    ax.set_ylabel("integrated intensity of detections (counts)")
-    ax.set_title(f"{res.sensor_name}, {res.model} model: intensity against rate (cf. paper Fig. 9)")
-    ax.grid(True, which="both", alpha=0.3)
-    fig.legend(loc="outside right upper", fontsize=8)
-    return fig
-
-
-def plot_tolerance(results: list[SlewResult], path: Path) -> Path:
-    path = Path(path)
-    tolerance_figure(results).savefig(path, dpi=110, format="png")
-    return path
-
-
-def plot_intensity(res: SlewResult, path: Path) -> Path:
-    path = Path(path)
-    intensity_figure(res).savefig(path, dpi=110, format="png")
-    return path
-
-
 def _rate_at(res: SlewResult, m: float) -> str:
+    """Return the tolerable rate of magnitude `m` as text, deg/s."""
     i = int(np.argmin(np.abs(res.magnitudes - m)))
     if abs(res.magnitudes[i] - m) > 1e-9:
         return "-"

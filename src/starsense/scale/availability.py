@@ -17,18 +17,19 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from starsense._validate import check_int
 from starsense.analysis.availability import (
     DEFAULT_N_ORIENTATIONS,
     N_MIN_LOST_IN_SPACE,
     StaticAvailability,
-    _check_mag,
-    check_n_min,
+    check_fov,
+    check_mag,
     describe_fov,
     sky_attitudes,
     static_result,
 )
 from starsense.errors import InputError
-from starsense.geometry.fov import CircularFov, RectangularFov
+from starsense.geometry.fov import RectangularFov
 from starsense.scale import kernels
 from starsense.scale.hats import ColumnPlan, HatsCatalog
 from starsense.scale.run import Progress, client_or_local, run_partitions
@@ -38,7 +39,10 @@ DEFAULT_BANDS = ("V", "Hp", "VT", "G", "J", "H", "Ks")
 
 
 def band_plan(catalog: HatsCatalog, band: str | None) -> tuple[ColumnPlan, str]:
-    """Columns for positions and one magnitude band (default: the first of DEFAULT_BANDS)."""
+    """Return the columns for positions and one magnitude band (default: the first it has).
+
+    The bands are tried in the order of :data:`DEFAULT_BANDS`.
+    """
     plan = catalog.plan()
     have = dict(plan.mags)
     if band is None:
@@ -54,9 +58,8 @@ def _field(
     catalog: HatsCatalog, fov, attitudes: Rotation, max_mag: float, band: str | None, k: int,
     client: Any | None, progress: Progress | None, label: str,
 ):  # fmt: skip
-    if not isinstance(fov, CircularFov | RectangularFov):
-        raise InputError(f"fov must be a CircularFov or RectangularFov, got {type(fov).__name__}")
-    m = _check_mag(max_mag, allow_inf=True)
+    check_fov(fov)
+    m = check_mag(max_mag, "max_mag", allow_inf=True)
     plan, band = band_plan(catalog, band)
     with client_or_local(client) as c:
         counts, top, n, faintest = run_partitions(
@@ -65,8 +68,8 @@ def _field(
         )  # fmt: skip
     if n == 0:
         raise InputError(
-            f"magnitude limit --max-mag {m:g} leaves no stars of HATS catalogue "
-            f"{catalog.location} ({band}); raise --max-mag"
+            f"magnitude limit max_mag {m:g} leaves no stars of HATS catalogue "
+            f"{catalog.location} ({band}); raise max_mag"
         )
     return counts, top, n, faintest, band
 
@@ -81,7 +84,7 @@ def star_counts(
     client: Any | None = None,
     progress: Progress | None = None,
 ) -> NDArray[np.intp]:
-    """Stars ``<= max_mag`` in the field at each attitude, shape (M,).
+    """Return the stars ``<= max_mag`` in the field at each attitude, shape (M,).
 
     Equal to ``FieldStars.build(fov, attitudes, *catalog_stars(cat, max_mag, band)).counts()``
     on the whole catalogue in memory.
@@ -99,17 +102,18 @@ def static_availability(
     *,
     band: str | None = None,
     n_orientations: int = DEFAULT_N_ORIENTATIONS,
-    roll_deg: float | None = None,
+    roll: float | None = None,
     seed: int | None = 0,
     client: Any | None = None,
     progress: Progress | None = None,
 ) -> StaticAvailability:
-    """Compute the spatial static availability (sec. 1.2) over a HATS catalogue.
+    """Return the spatial static availability (sec. 1.2) of a HATS catalogue.
 
-    As ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``.
+    As ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``;
+    `roll` (rad, None: random from `seed`) matters only for a rectangular field.
     """
-    n_min = check_n_min(n_min)
-    roll = roll_deg if isinstance(fov, RectangularFov) else 0.0
+    n_min = check_int(n_min, "n_min", 1)
+    roll = roll if isinstance(fov, RectangularFov) else 0.0
     boresights, attitudes = sky_attitudes(n_orientations, roll, seed)
     counts, top, n, faintest, band = _field(
         catalog, fov, attitudes, max_mag, band, max(4, n_min), client, progress,

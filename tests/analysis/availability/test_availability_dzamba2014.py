@@ -7,10 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from starsense.analysis.availability import PAPER_TABLE2, AvailabilityAnalysis, ThresholdCurve
+from starsense.analysis.availability import (
+    AvailabilityAnalysis,
+    ThresholdCurve,
+    implied_threshold,
+)
 from starsense.catalog import load_catalog
 from starsense.geometry.fov import CircularFov
-from starsense.report.availability import implied_threshold
+from starsense.references import dzamba2014 as paper
+from starsense.references.dzamba2014 import TABLE2 as PAPER_TABLE2
 
 #: shared/data/catalogs/README.md: BSC5 stars with V <= 5.75 and a position
 BSC5_V575 = 3852
@@ -21,7 +26,10 @@ def st16_bsc5(bsc5_path):
     """The paper's set-up: BSC5, V <= 5.75, 7.5 deg half-axis circular field, 10,000 pointings."""
     catalog = load_catalog(f"bsc5:{bsc5_path}")
     return AvailabilityAnalysis.from_catalog(
-        catalog, CircularFov(math.radians(7.5)), 5.75, n_orientations=10_000
+        catalog,
+        CircularFov(math.radians(paper.HALF_FOV_DEG)),
+        paper.MAX_MAG,
+        n_orientations=paper.N_ORIENTATIONS,
     )
 
 
@@ -31,8 +39,8 @@ def test_dzamba2014_st16_static_availability(st16_bsc5):
     # the paper's count is not reproducible from the published file); 99.9 % is the claim.
     res = st16_bsc5.static(3)
     assert res.n_stars == BSC5_V575
-    assert res.n_orientations == 10_000
-    assert res.availability > 0.999
+    assert res.n_orientations == paper.N_ORIENTATIONS
+    assert res.availability > paper.STATIC_AVAILABILITY_N3
     # tracking needs fewer stars, the conservative definition more
     assert res.by_n_min[2] >= res.availability >= res.by_n_min[4]
     assert res.by_n_min[4] > 0.995
@@ -56,8 +64,8 @@ def test_dzamba2014_dynamic_with_paper_implied_curve(st16_bsc5):
     # our spatial dynamic availability is the paper's to within the threshold mismatch above
     # (3 points at 1-2 deg/s, 5 at 3 deg/s); the quoted Fig. 11 values (~90/80 % at 1 deg/s,
     # ~55/30 % at 2 deg/s) follow.
-    curve = ThresholdCurve([0.0, 1.0, 1.5, 2.0, 3.0], [5.75, 4.78, 4.40, 3.875, 3.60])
-    dyn = st16_bsc5.dynamic(curve, [1.0, 1.5, 2.0, 3.0], n_min=3)
+    curve = ThresholdCurve(np.radians([0.0, 1.0, 1.5, 2.0, 3.0]), [5.75, 4.78, 4.40, 3.875, 3.60])
+    dyn = st16_bsc5.dynamic(curve, np.radians([1.0, 1.5, 2.0, 3.0]), n_min=3)
     for j, rate in enumerate((1.0, 1.5, 2.0, 3.0)):
         n2, n3 = (v / 100 for v in PAPER_TABLE2[rate]["spatial"])
         tol = 0.05 if rate == 3.0 else 0.03
@@ -86,9 +94,10 @@ def test_dzamba2014_fig11_reed_1degs(st16_bsc5, slew_curves):
     # paper's values are read off a figure, and our m_t(1 deg/s) = 4.89 is 0.1 mag fainter than
     # the 4.78 the paper's Table 2 implies on our sky (PSF size and QE are assumptions of the
     # st16 preset: its comments give the reasons).
-    dyn = st16_bsc5.dynamic(slew_curves["reed"], [1.0], n_min=3)
-    assert dyn.by_n_min[3][0] == pytest.approx(0.80, abs=0.10)
-    assert dyn.by_n_min[2][0] == pytest.approx(0.90, abs=0.10)
+    dyn = st16_bsc5.dynamic(slew_curves["reed"], np.radians([1.0]), n_min=3)
+    n2, n3 = paper.FIG11_REED[1.0]
+    assert dyn.by_n_min[3][0] == pytest.approx(n3, abs=0.10)
+    assert dyn.by_n_min[2][0] == pytest.approx(n2, abs=0.10)
     assert dyn.by_n_min[2][0] > dyn.by_n_min[3][0]
 
 
@@ -100,16 +109,17 @@ def test_dzamba2014_fig11_reed_1degs(st16_bsc5, slew_curves):
     "availability count (see test_dzamba2014_table2_spatial_column_implies_one_threshold)",
 )
 def test_dzamba2014_fig11_reed_2degs(st16_bsc5, slew_curves):
-    dyn = st16_bsc5.dynamic(slew_curves["reed"], [2.0], n_min=3)
-    assert dyn.by_n_min[3][0] == pytest.approx(0.30, abs=0.07)
-    assert dyn.by_n_min[2][0] == pytest.approx(0.55, abs=0.07)
+    dyn = st16_bsc5.dynamic(slew_curves["reed"], np.radians([2.0]), n_min=3)
+    n2, n3 = paper.FIG11_REED[2.0]
+    assert dyn.by_n_min[3][0] == pytest.approx(n3, abs=0.07)
+    assert dyn.by_n_min[2][0] == pytest.approx(n2, abs=0.07)
 
 
 def test_dzamba2014_fig11_liebe(st16_bsc5, slew_curves):
     # Sec. 3.1: Liebe model "~100 % availability at 1 deg/s and > 90 % at 2 deg/s for both LIS
     # and tracking solutions", then a significant drop from 2 to 5 deg/s.
-    dyn = st16_bsc5.dynamic(slew_curves["liebe"], [1.0, 2.0, 5.0], n_min=3)
+    dyn = st16_bsc5.dynamic(slew_curves["liebe"], np.radians([1.0, 2.0, 5.0]), n_min=3)
     for k in (2, 3):
-        assert dyn.by_n_min[k][0] > 0.99
-        assert dyn.by_n_min[k][1] > 0.90
+        assert dyn.by_n_min[k][0] > paper.FIG11_LIEBE[1.0]
+        assert dyn.by_n_min[k][1] > paper.FIG11_LIEBE[2.0]
         assert dyn.by_n_min[k][2] < dyn.by_n_min[k][1] - 0.25

@@ -36,25 +36,25 @@ FLAT = ThresholdCurve.constant(5.0)
 
 @pytest.mark.parametrize("n_min", [0, -1])
 def test_n_min_below_one(analysis, n_min):
-    with pytest.raises(InputError, match=rf"N_min \(--n-min\) = {n_min} is out of range"):
+    with pytest.raises(InputError, match=rf"n_min must be >= 1, got {n_min}"):
         analysis.static(n_min)
-    with pytest.raises(InputError, match=r"--n-min"):
-        analysis.dynamic(FLAT, [1.0], n_min)
-    with pytest.raises(InputError, match=r"--n-min"):
-        analysis.track(FLAT, 1.0, n_min, n_samples=10)
+    with pytest.raises(InputError, match=r"n_min"):
+        analysis.dynamic(FLAT, np.radians([1.0]), n_min)
+    with pytest.raises(InputError, match=r"n_min"):
+        analysis.track(FLAT, np.radians(1.0), n_min, n_samples=10)
 
 
 @pytest.mark.parametrize("n_min", [2.5, "3", True])
 def test_n_min_not_an_integer(analysis, n_min):
-    with pytest.raises(InputError, match=r"N_min \(--n-min\) must be an integer >= 1"):
+    with pytest.raises(InputError, match=r"n_min must be an integer"):
         analysis.static(n_min)
 
 
 def test_negative_rate(analysis):
-    with pytest.raises(InputError, match=r"slew rate \(--rates-deg-s\) = -1 deg/s is negative"):
-        analysis.dynamic(FLAT, [1.0, -1.0])
-    with pytest.raises(InputError, match=r"slew rate \(--rate-deg-s\) = -0.5 deg/s is negative"):
-        analysis.track(FLAT, -0.5, n_samples=10)
+    with pytest.raises(InputError, match=r"rates_rad_s = -0.01745\d* is negative"):
+        analysis.dynamic(FLAT, np.radians([1.0, -1.0]))
+    with pytest.raises(InputError, match=r"rate_rad_s = -0.00872\d* is negative"):
+        analysis.track(FLAT, np.radians(-0.5), n_samples=10)
     with pytest.raises(InputError, match=r"must be finite"):
         analysis.dynamic(FLAT, [float("nan")])
     with pytest.raises(InputError, match=r"negative"):
@@ -62,13 +62,13 @@ def test_negative_rate(analysis):
 
 
 def test_zero_samples(analysis):
-    with pytest.raises(InputError, match=r"number of orientations \(--n-orientations\) = 0"):
+    with pytest.raises(InputError, match=r"n_orientations must be >= 1, got 0"):
         AvailabilityAnalysis(analysis.vectors, analysis.magnitudes, analysis.fov, n_orientations=0)
-    with pytest.raises(InputError, match=r"--n-orientations"):
+    with pytest.raises(InputError, match=r"n_orientations"):
         sky_attitudes(0)
-    with pytest.raises(InputError, match=r"samples per track \(--track-samples\) = 0"):
-        analysis.track(FLAT, 1.0, n_samples=0)
-    with pytest.raises(InputError, match=r"--track-samples"):
+    with pytest.raises(InputError, match=r"n_samples must be >= 1, got 0"):
+        analysis.track(FLAT, np.radians(1.0), n_samples=0)
+    with pytest.raises(InputError, match=r"n_samples"):
         track_family_attitudes([0.0], 0)
 
 
@@ -77,14 +77,14 @@ def test_magnitude_limit_leaving_no_stars(analysis):
         name="tiny", vectors=np.eye(3), mags={"V": np.array([1.0, 2.0, np.nan])}
     )
     with pytest.raises(
-        InputError, match=r"--max-mag -3 leaves no stars of catalogue 'tiny' \(brightest V = 1.00"
+        InputError, match=r"max_mag -3 leaves no stars of catalogue 'tiny' \(brightest V = 1.00"
     ):
         catalog_stars(catalog, -3.0)
-    with pytest.raises(InputError, match=r"--max-mag -3 leaves no stars"):
+    with pytest.raises(InputError, match=r"max_mag -3 leaves no stars"):
         AvailabilityAnalysis.from_catalog(catalog, CircularFov(0.1), -3.0)
-    with pytest.raises(InputError, match=r"--max-mag -3 leaves no stars"):
+    with pytest.raises(InputError, match=r"max_mag -3 leaves no stars"):
         AvailabilityAnalysis(analysis.vectors, analysis.magnitudes, analysis.fov, max_mag=-3)
-    with pytest.raises(InputError, match=r"magnitude limit \(--max-mag\) must be finite"):
+    with pytest.raises(InputError, match=r"max_mag must be finite"):
         catalog_stars(catalog, float("nan"))
     with pytest.raises(InputError, match=r"no B magnitudes"):
         catalog_stars(catalog, 5.0, band="B")
@@ -92,14 +92,14 @@ def test_magnitude_limit_leaving_no_stars(analysis):
 
 def test_bad_field_options():
     st16 = load_sensor("st16")
-    with pytest.raises(InputError, match=r"--fov\) must be 'circular' or 'rectangular'"):
+    with pytest.raises(InputError, match=r"kind must be 'circular' or 'rectangular'"):
         field_of_view(st16, "hexagonal")
-    with pytest.raises(InputError, match=r"--half-fov-deg sets the circular field only"):
-        field_of_view(st16, "rectangular", 7.5)
-    with pytest.raises(InputError, match=r"--half-fov-deg\) = 0 deg is out of range"):
+    with pytest.raises(InputError, match=r"half_fov sets the circular field only"):
+        field_of_view(st16, "rectangular", math.radians(7.5))
+    with pytest.raises(InputError, match=r"half_fov = 0.0 is out of range"):
         field_of_view(st16, "circular", 0.0)
     assert math.degrees(field_of_view(st16).half_angle_rad) == pytest.approx(7.61, abs=0.01)
-    assert field_of_view(st16, half_fov_deg=7.5).half_angle_rad == math.radians(7.5)
+    assert field_of_view(st16, half_fov=math.radians(7.5)).half_angle_rad == math.radians(7.5)
 
 
 def test_bad_threshold_curves():

@@ -92,7 +92,7 @@ def test_empty_fields_and_no_pairs():
 def test_availability_monotone(seed, n, m1, m2, half_deg, grow):
     vectors, mags = random_sky(n, seed)
     lo, hi = min(m1, m2), max(m1, m2)
-    _, attitudes = sky_attitudes(500, roll_deg=None, seed=seed)
+    _, attitudes = sky_attitudes(500, roll=None, seed=seed)
     small = FieldStars.build(CircularFov(math.radians(half_deg)), attitudes, vectors, mags)
     large = FieldStars.build(CircularFov(math.radians(half_deg * grow)), attitudes, vectors, mags)
     for k in (1, 2, 3, 4):
@@ -111,7 +111,7 @@ def test_availability_monotone(seed, n, m1, m2, half_deg, grow):
 
 def test_availability_monotone_in_rectangular_field_size():
     vectors, mags = random_sky(3000, seed=5)
-    _, attitudes = sky_attitudes(2000, roll_deg=None, seed=5)
+    _, attitudes = sky_attitudes(2000, roll=None, seed=5)
     a = FieldStars.build(RectangularFov(0.10, 0.08), attitudes, vectors, mags)
     b = FieldStars.build(RectangularFov(0.14, 0.08), attitudes, vectors, mags)
     c = FieldStars.build(RectangularFov(0.14, 0.12), attitudes, vectors, mags)
@@ -127,7 +127,7 @@ def test_roll_matters_only_for_rectangular_fields():
     for roll in (0.0, 37.0):
         for fov in (CircularFov(0.13), RectangularFov(0.17, 0.13)):
             an = AvailabilityAnalysis(vectors, mags, fov, max_mag=6.0, n_orientations=3000,
-                                      roll_deg=roll)  # fmt: skip
+                                      roll=np.radians(roll))  # fmt: skip
             res[roll, type(fov).__name__] = an.sky.counts()
     np.testing.assert_array_equal(res[0.0, "CircularFov"], res[37.0, "CircularFov"])
     assert np.any(res[0.0, "RectangularFov"] != res[37.0, "RectangularFov"])
@@ -137,47 +137,49 @@ def test_roll_matters_only_for_rectangular_fields():
 
 
 def test_threshold_curve_interpolates_and_clamps():
-    c = ThresholdCurve([0.0, 1.0, 2.0], [6.0, 5.0, 3.0], max_rate_deg_s=4.0)
-    np.testing.assert_allclose(c([0.0, 0.5, 1.5, 2.0, 3.0, 4.0]), [6, 5.5, 4, 3, 3, 3])
-    assert c([4.5])[0] == -np.inf
+    c = ThresholdCurve(np.radians([0.0, 1.0, 2.0]), [6.0, 5.0, 3.0], max_rate_rad_s=np.radians(4.0))
+    np.testing.assert_allclose(c(np.radians([0.0, 0.5, 1.5, 2.0, 3.0, 4.0])), [6, 5.5, 4, 3, 3, 3])
+    assert c(np.radians([4.5]))[0] == -np.inf
     assert ThresholdCurve.constant(5.75)([0.0, 3.0, 100.0]).tolist() == [5.75] * 3
 
 
 def test_threshold_curve_from_tolerance_inverts_fig10():
     # magnitude -> tolerable rate (a made-up Fig. 10): 3 -> 4 deg/s, 4 -> 2, 5 -> 1, 6 never
-    c = ThresholdCurve.from_tolerance([3.0, 4.0, 5.0, 6.0], [4.0, 2.0, 1.0, None])
-    np.testing.assert_allclose(c([1.0, 1.5, 2.0, 3.0, 4.0]), [5.0, 4.5, 4.0, 3.5, 3.0])
+    c = ThresholdCurve.from_tolerance([3.0, 4.0, 5.0, 6.0], [*np.radians([4.0, 2.0, 1.0]), None])
+    np.testing.assert_allclose(c(np.radians([1.0, 1.5, 2.0, 3.0, 4.0])), [5.0, 4.5, 4.0, 3.5, 3.0])
     assert c([0.0])[0] == 5.0  # below the faintest detected magnitude's rate: that magnitude
-    assert c([4.1])[0] == -np.inf  # faster than the brightest magnitude tolerates
+    assert c(np.radians([4.1]))[0] == -np.inf  # faster than the brightest magnitude tolerates
     # a fainter star that "tolerates" more than a brighter one (Monte Carlo noise) is lowered to
     # the brighter one's rate: conservative, as slew.magnitude_threshold
-    d = ThresholdCurve.from_tolerance([3.0, 4.0, 5.0], [1.5, 2.0, 1.0])
-    np.testing.assert_allclose(d([1.0, 1.5]), [5.0, 4.0])
-    assert d([2.0])[0] == -np.inf
+    d = ThresholdCurve.from_tolerance([3.0, 4.0, 5.0], np.radians([1.5, 2.0, 1.0]))
+    np.testing.assert_allclose(d(np.radians([1.0, 1.5])), [5.0, 4.0])
+    assert d(np.radians([2.0]))[0] == -np.inf
     # capped magnitudes (detected at every simulated rate) hold m_t beyond the grid
-    e = ThresholdCurve.from_tolerance([2.0, 4.0], [10.0, 2.0], [True, False], 10.0)
-    np.testing.assert_allclose(e([2.0, 6.0, 10.0, 50.0]), [4.0, 3.0, 2.0, 2.0])
+    e = ThresholdCurve.from_tolerance(
+        [2.0, 4.0], np.radians([10.0, 2.0]), [True, False], np.radians(10.0)
+    )
+    np.testing.assert_allclose(e(np.radians([2.0, 6.0, 10.0, 50.0])), [4.0, 3.0, 2.0, 2.0])
 
 
 def test_threshold_curve_from_slew_result():
     result = SimpleNamespace(
         magnitudes=np.array([2.0, 3.0, 4.0, 5.0, 6.0]),
-        rates_deg_s=np.linspace(0.0, 10.0, 41),
-        tolerable_rate_deg_s=[10.0, 5.0, 2.5, 1.2, None],
+        rates_rad_s=np.radians(np.linspace(0.0, 10.0, 41)),
+        tolerable_rate_rad_s=[*np.radians([10.0, 5.0, 2.5, 1.2]), None],
         capped=np.array([True, False, False, False, False]),
         sensor_name="st16",
         model="reed",
     )
     c = ThresholdCurve.from_slew(result)
     assert c.label == "st16, reed model"
-    assert c([1.2])[0] == pytest.approx(5.0)
-    assert c([2.5])[0] == pytest.approx(4.0)
-    assert c([20.0])[0] == 2.0
+    assert c(np.radians([1.2]))[0] == pytest.approx(5.0)
+    assert c(np.radians([2.5]))[0] == pytest.approx(4.0)
+    assert c(np.radians([20.0]))[0] == 2.0
     d = ThresholdCurve.from_tolerance_dict(
         {"magnitudes": [3, 4], "tolerable_rate_deg_s": [2.0, 1.0], "capped": [False, False],
          "rates_deg_s": [0, 5], "sensor": "x", "model": "reed"}
     )  # fmt: skip
-    assert d([1.5])[0] == pytest.approx(3.5)
+    assert d(np.radians([1.5]))[0] == pytest.approx(3.5)
 
 
 # -- spatial dynamic and along-track ----------------------------------------------------------
@@ -187,17 +189,17 @@ def test_dynamic_with_constant_curve_equals_static():
     vectors, mags = random_sky(4000, seed=7)
     an = AvailabilityAnalysis(vectors, mags, CircularFov(math.radians(7.5)), max_mag=5.0,
                               n_orientations=4000)  # fmt: skip
-    dyn = an.dynamic(ThresholdCurve.constant(4.0), [0.0, 1.0, 7.0], n_min=3)
+    dyn = an.dynamic(ThresholdCurve.constant(4.0), np.radians([0.0, 1.0, 7.0]), n_min=3)
     static = an.static(3, max_mag=4.0)
     np.testing.assert_array_equal(dyn.availability, [static.availability] * 3)
     # the catalogue cut caps the threshold
-    dyn = an.dynamic(ThresholdCurve.constant(9.0), [1.0], n_min=2)
+    dyn = an.dynamic(ThresholdCurve.constant(9.0), np.radians([1.0]), n_min=2)
     assert dyn.threshold_mag[0] == 5.0
     assert dyn.availability[0] == an.static(2).availability
 
 
 def test_track_family_geometry():
-    att = track_family_attitudes([-60.0, 0.0, 45.0], 360, node_deg=30.0)
+    att = track_family_attitudes(np.radians([-60.0, 0.0, 45.0]), 360, node=np.radians(30.0))
     assert len(att) == 3 * 360
     m = att.as_matrix().reshape(3, 360, 3, 3)
     boresight = m[:, :, 2, :]
@@ -216,21 +218,22 @@ def test_track_availability_in_unit_interval_and_rate_independent_for_constant_c
     vectors, mags = random_sky(3000, seed=8)
     an = AvailabilityAnalysis(vectors, mags, CircularFov(math.radians(7.5)), max_mag=6.0,
                               n_orientations=2000)  # fmt: skip
-    curve = ThresholdCurve([0.0, 2.0], [5.0, 2.0])
+    curve = ThresholdCurve(np.radians([0.0, 2.0]), [5.0, 2.0])
     incl = np.arange(-90.0, 90.1, 15.0)
     for rate in (0.0, 1.0, 3.0):
-        tr = an.track(curve, rate, n_min=3, inclinations_deg=incl, n_samples=200)
+        tr = an.track(curve, np.radians(rate), n_min=3, inclinations=np.radians(incl),
+                      n_samples=200)  # fmt: skip
         assert tr.availability.shape == (13,)
         assert np.all((tr.availability >= 0) & (tr.availability <= 1))
         assert tr.min <= tr.mean <= tr.max
         # per track: fraction of the samples seeing >= 3 stars <= m_t, counted by brute force
-        att = track_family_attitudes(incl, 200)
+        att = track_family_attitudes(np.radians(incl), 200)
         keep = mags <= tr.threshold_mag
         counts = count_in_fov(an.fov, att, vectors[keep]).reshape(13, 200)
         np.testing.assert_allclose(tr.availability, (counts >= 3).mean(axis=1))
     flat = ThresholdCurve.constant(3.0)
-    a = an.track(flat, 0.5, inclinations_deg=incl, n_samples=200).availability
-    b = an.track(flat, 3.0, inclinations_deg=incl, n_samples=200).availability
+    a = an.track(flat, np.radians(0.5), inclinations=np.radians(incl), n_samples=200).availability
+    b = an.track(flat, np.radians(3.0), inclinations=np.radians(incl), n_samples=200).availability
     np.testing.assert_array_equal(a, b)
 
 
@@ -254,11 +257,19 @@ def test_track_mean_approaches_spatial_for_constant_threshold():
     curve = ThresholdCurve.constant(1.1)  # ~3 stars per field: availability ~0.6
     spatial = an.static(3, max_mag=1.1).availability
     assert 0.4 < spatial < 0.8
-    one = an.track(curve, 1.0, 3, inclinations_deg=np.arange(-90, 91, 2.0), n_samples=500)
+    one = an.track(curve, np.radians(1.0), 3, inclinations=np.radians(np.arange(-90, 91, 2.0)),
+                   n_samples=500)  # fmt: skip
     assert one.spatial[3] == spatial
     assert one.mean == pytest.approx(spatial, abs=0.05)
     means = [
-        an.track(curve, 1.0, 3, np.arange(-90, 91, 10.0), 500, node_deg=node).mean
+        an.track(
+            curve,
+            np.radians(1.0),
+            3,
+            np.radians(np.arange(-90, 91, 10.0)),
+            500,
+            node=np.radians(node),
+        ).mean
         for node in np.arange(0.0, 180.0, 15.0)
     ]
     assert np.mean(means) == pytest.approx(spatial, abs=0.02)
