@@ -146,3 +146,14 @@ def test_bad_inputs_other():
         gs.error_norm(np.zeros(3), "roll")
     with pytest.raises(InputError, match="at least 3 guide stars"):
         gs.triangle_fov_ratio(np.zeros((2, 2)))
+
+
+def test_edge_units_read_back_as_given():
+    # radians inside; the arcsec and deg of the results (JSON, report) are the values given at
+    # the edge, not x * ARCSEC / ARCSEC (0.2 would read back as 0.20000000000000004)
+    sig = (0.2, 0.123456789, 0.1, 0.05)
+    tab = gs.simulate_table1([s * ARCSEC for s in sig], ["four"], n_trials=20, identify=False)
+    assert tab.sigma_arcsec == sig
+    assert tab.fov_deg == lin2024.CAMERA_FOV_DEG
+    assert tab.threshold_arcsec == lin2024.TABLE1_THRESHOLD_ARCSEC
+    assert gs.simulate_table1(n_trials=20, identify=False).as_dict()["paper_percent"] is not None
