@@ -236,8 +236,9 @@ def _guide_stars_table1() -> float:
 @bench("guide_stars_select", "choose 5 of 20 guide stars by covariance trace (15,504 sets)", 0.5)
 def _guide_stars_select() -> float:
     from starsense.analysis.guide_stars import lin_layout, select_guide_stars
+    from starsense.units import DEG
 
-    lay = lin_layout(1.6)
+    lay = lin_layout(1.6 * DEG)
     rng = np.random.default_rng(0)
     xy = rng.uniform(-lay.lens_radius, lay.lens_radius, (400, 2))
     xy = xy[lay.index(xy) > 0][:20]

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 import starsense.report.guide_stars as report_gs
+from starsense.geometry.areas import polygon_area, polygon_centroid
 from starsense.photometry.stars import BlackBodyStars
+from starsense.plotting.guide_stars import field_angle_deg
+from starsense.references import lin2024
 from starsense.report.build import SECTION_BUILDERS
-from starsense.report.guide_star_figures import field_angle_deg, polygon_area, polygon_centroid
 from starsense.report.section import ReportContext
 from starsense.sensor import load_sensor
 
@@ -67,8 +69,10 @@ def test_section_builds_and_writes_pngs(lin_section):
 def test_table_has_paper_values(lin_section):
     section = lin_section[1]
     # the paper's Table 1 beside ours: four areas at 0.3", one area at 0.01", its saturation
-    for paper in ("84.90", "73.45", "99.87", "95.89", "11.08"):
-        assert f">{paper}<" in section.html
+    t1 = lin2024.TABLE1_PERCENT
+    for paper in (t1["four"][0], t1["one"][-1], t1["four"][-1], t1["two_symmetric"][-1],
+                  t1["two_adjacent"][0]):  # fmt: skip
+        assert f">{paper:.2f}<" in section.html
     assert "400 random placements" in section.html
     assert "Cramér-Rao" in section.html and "3σ" in section.html
 
@@ -80,7 +84,7 @@ def test_data_is_json_and_has_no_per_trial_arrays(lin_section):
     d = section.data
     assert d["n_trials"] == 400
     assert set(d["probability"]) == {"one", "two_adjacent", "two_symmetric", "three", "four"}
-    assert d["paper_percent"]["four"][0] == pytest.approx(84.90)
+    assert d["paper_percent"]["four"][0] == pytest.approx(lin2024.TABLE1_PERCENT["four"][0])
     for series in d["probability"].values():
         assert all(0.0 <= p <= 1.0 for p in series)
     assert len(d["four_3sigma"]["probability"]) == 7
@@ -104,7 +108,8 @@ def test_summary_rows(lin_section):
     section = lin_section[1]
     labels = [label for label, _ in section.summary]
     assert any("σ = 0.1″" in label for label in labels)
-    assert any("paper 99.87 %" in value for _, value in section.summary)
+    saturation = lin2024.TABLE1_PERCENT["four"][-1]
+    assert any(f"paper {saturation:.2f} %" in value for _, value in section.summary)
 
 
 def test_sensor_without_areas_draws_the_paper_layout(tmp_path, monkeypatch):

@@ -1,1 +1,1 @@
-"""starsense.analysis"""
+"""Analyses composed from the chain: limits, slew, availability, guide stars, Monte Carlo."""

@@ -1,6 +1,7 @@
 """``starsense guide-stars simulate|select|field``: Lin et al. 2024, Tables 1, 3 and 4.
 
-Thin: parse, call :func:`starsense.analysis.guide_stars.simulate_table1`, print. User errors are
+Thin: parse, check the options (messages name the option), convert degrees and arcseconds to
+radians, call :mod:`starsense.analysis.guide_stars`, print. User errors are
 :class:`~starsense.errors.InputError`; the main app prints them as one line and exits 2.
 """
 
@@ -11,8 +12,11 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._validate import check_int, check_scalar, positive_float
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
 from starsense.errors import InputError
+from starsense.references import lin2024
+from starsense.units import ARCSEC, DEG
 
 guide_stars_app = typer.Typer(
     help="Guide-star distribution for multi-area attitude determination (Lin et al. 2024).",
@@ -44,10 +48,10 @@ def simulate(
     trials: Annotated[int, typer.Option("--trials", help="Placements per configuration.")] = 10_000,
     fov_deg: Annotated[
         float, typer.Option("--fov-deg", help="Science field side V, deg (paper: 1.138).")
-    ] = 2048 * 2.0 / 3600.0,
+    ] = lin2024.CAMERA_FOV_DEG,
     threshold: Annotated[
         float, typer.Option("--threshold-arcsec", help="Accuracy requirement, arcsec.")
-    ] = 0.1,
+    ] = lin2024.TABLE1_THRESHOLD_ARCSEC,
     metric: Annotated[
         str,
         typer.Option("--metric", help="pointing: cross-boresight error norm; total: with roll."),
@@ -70,21 +74,21 @@ def simulate(
     as_json: JsonOpt = False,
 ) -> None:
     """Table 1: probability of accuracy better than the threshold, Monte Carlo and analytic."""
-    from starsense.analysis.guide_stars import PAPER_SIGMAS_ARCSEC, simulate_table1
+    from starsense.analysis.guide_stars import simulate_table1
 
-    sig = parse_floats(sigmas, "--sigmas-arcsec") or list(PAPER_SIGMAS_ARCSEC)
-    configs = (
-        None
-        if configurations is None
-        else [c.strip() for c in configurations.split(",") if c.strip()]
-    )
+    sig = _sigmas(sigmas, list(lin2024.TABLE1_SIGMAS_ARCSEC))
+    configs = _configs(configurations)
+    _check_choices(configs, metric, sigma_kind)
+    check_int(trials, "--trials", 1)
+    check_scalar(fov_deg, "--fov-deg", 0, 90, lo_open=True, hi_open=True)
+    positive_float(threshold, "--threshold-arcsec")
     with progress_bar() as update:
         tab = simulate_table1(
-            sig,
+            [s * ARCSEC for s in sig],
             configs,
             n_trials=trials,
-            fov_deg=fov_deg,
-            threshold_arcsec=threshold,
+            fov_rad=fov_deg * DEG,
+            threshold_rad=threshold * ARCSEC,
             metric=metric,
             seed=seed,
             identify=identify,
@@ -141,12 +145,45 @@ MaxMagOpt = Annotated[
 
 
 def _center(text: str) -> tuple[float, float]:
+    """Return the (RA, Dec) of ``--center-deg``, deg, checked."""
     ra, dec = parse_floats(text, "--center-deg", 2)
+    check_scalar(dec, "--center-deg Dec", -90, 90)
     return ra, dec
 
 
 def _configs(text: str | None) -> list[str] | None:
+    """Return the configuration names of ``--configurations`` (None: all)."""
     return None if text is None else [c.strip() for c in text.split(",") if c.strip()]
+
+
+def _sigmas(text: str | None, default: list[float] | None = None) -> list[float]:
+    """Return the values of ``--sigmas-arcsec``, arcsec, each checked > 0."""
+    sig = parse_floats(text, "--sigmas-arcsec") or default
+    for s in sig:
+        positive_float(s, "--sigmas-arcsec")
+    return sig
+
+
+def _choice(value: str, allowed, option: str) -> None:
+    """Raise InputError naming ``option`` unless ``value`` is one of ``allowed``."""
+    if value not in allowed:
+        raise InputError(f"{option} {value!r} is not known; choose one of {', '.join(allowed)}")
+
+
+def _check_choices(configs: list[str] | None, metric: str, sigma_kind: str) -> None:
+    """Check ``--configurations``, ``--metric`` and ``--sigma-kind``."""
+    from starsense.analysis.guide_stars import CONFIGURATIONS, METRICS, SIGMA_KINDS
+
+    for c in configs or ():
+        _choice(c, CONFIGURATIONS, "--configurations")
+    _choice(metric, METRICS, "--metric")
+    _choice(sigma_kind, SIGMA_KINDS, "--sigma-kind")
+
+
+def _check_lens(lens_fov_deg: float | None) -> None:
+    """Check ``--lens-fov-deg`` (the analysis accepts (0, 60) deg)."""
+    if lens_fov_deg is not None:
+        check_scalar(lens_fov_deg, "--lens-fov-deg", 0, 60, lo_open=True, hi_open=True)
 
 
 @guide_stars_app.command()
@@ -173,7 +210,7 @@ def select(
 ) -> None:
     """Choose guide stars in the attitude-determination areas of one pointing."""
     from starsense.analysis.guide_stars import (
-        ARCSEC_RAD,
+        CRITERIA,
         field_stars,
         lin_layout,
         select_guide_stars,
@@ -184,6 +221,12 @@ def select(
         raise InputError("--center-deg RA,DEC is required")
     if (sensor is None) == (lens_fov_deg is None):
         raise InputError("give exactly one of --lens-fov-deg and --sensor")
+    ra, dec = _center(center)
+    _check_lens(lens_fov_deg)
+    _choice(criterion, CRITERIA, "--criterion")
+    check_int(n_stars, "--n-stars", 3)
+    positive_float(sigma, "--sigma-arcsec")
+    check_scalar(roll_deg, "--roll-deg")
     if sensor is not None:
         from starsense.sensor import load_sensor
 
@@ -192,7 +235,7 @@ def select(
             raise InputError(f"sensor {sens.name!r} defines no [attitude_areas]")
         layout = sens.attitude_areas
     else:
-        layout = lin_layout(lens_fov_deg)
+        layout = lin_layout(lens_fov_deg * DEG)
     wanted = None
     if areas is not None:
         try:
@@ -200,8 +243,8 @@ def select(
         except ValueError:
             raise InputError(f"--areas expects comma-separated integers, got {areas!r}") from None
     cat = load_catalog(catalog)
-    rows, xy, mag, band = field_stars(cat, _center(center), layout, roll_deg, max_mag)
-    sel = select_guide_stars(xy, mag, layout, wanted, n_stars, criterion, sigma * ARCSEC_RAD)
+    rows, xy, mag, band = field_stars(cat, (ra * DEG, dec * DEG), layout, roll_deg * DEG, max_mag)
+    sel = select_guide_stars(xy, mag, layout, wanted, n_stars, criterion, sigma * ARCSEC)
     which = layout.index(xy) if len(xy) else []
     stars = [
         {
@@ -222,7 +265,7 @@ def select(
         "n_candidates": sel.n_candidates,
         "areas_covered": sel.areas_covered,
         "triangle_ratio": None if not sel.ok else sel.triangle_ratio,
-        "predicted_arcsec": None if not sel.ok else sel.predicted_rad / ARCSEC_RAD,
+        "predicted_arcsec": None if not sel.ok else sel.predicted_rad / ARCSEC,
         "sigma_arcsec": sigma,
         "guide_stars": stars,
     }
@@ -233,7 +276,7 @@ def select(
     if sel.ok:
         lines.append(
             f"areas covered {sel.areas_covered}, triangle ratio {sel.triangle_ratio:.3f}, "
-            f"predicted accuracy {sel.predicted_rad / ARCSEC_RAD:.3g} arcsec rms at "
+            f"predicted accuracy {sel.predicted_rad / ARCSEC:.3g} arcsec rms at "
             f"sigma {sigma:g} arcsec"
         )
     for st in stars:
@@ -274,19 +317,20 @@ def field_cmd(
 
     Without --center-deg, the paper's four patterns: (150, 0) and (240, -80) at 1.6 and 0.4 deg.
     """
-    from starsense.analysis.guide_stars import (
-        PAPER_FIELDS,
-        PAPER_PATTERN_FOVS_DEG,
-        field_accuracy,
-    )
+    from starsense.analysis.guide_stars import CRITERIA, field_accuracy
     from starsense.catalog import load_catalog
 
-    sig = parse_floats(sigmas, "--sigmas-arcsec")
+    sig = _sigmas(sigmas)
     if center is None:
-        centers = [t["center_deg"] for t in PAPER_FIELDS.values()]
+        centers = [t["center_deg"] for t in lin2024.FIELD_TABLES.values()]
     else:
         centers = [_center(center)]
-    fovs = PAPER_PATTERN_FOVS_DEG if lens_fov_deg is None else (lens_fov_deg,)
+    _check_lens(lens_fov_deg)
+    _check_choices(_configs(configurations), metric, sigma_kind)
+    _choice(criterion, CRITERIA, "--criterion")
+    check_int(n_stars, "--n-stars", 3)
+    check_int(trials, "--trials", 1)
+    fovs = lin2024.PATTERN_FOVS_DEG if lens_fov_deg is None else (lens_fov_deg,)
     cat = load_catalog(catalog)
     results = []
     lines = []
@@ -294,9 +338,9 @@ def field_cmd(
         for fov in fovs:
             res = field_accuracy(
                 cat,
-                c,
-                fov,
-                sig,
+                (c[0] * DEG, c[1] * DEG),
+                fov * DEG,
+                [s * ARCSEC for s in sig],
                 _configs(configurations),
                 n_stars,
                 criterion,
@@ -308,11 +352,12 @@ def field_cmd(
             )
             d = res.as_dict()
             paper = next(
-                (t for t in PAPER_FIELDS.values() if tuple(t["center_deg"]) == tuple(c)), None
+                (t for t in lin2024.FIELD_TABLES.values() if tuple(t["center_deg"]) == tuple(c)),
+                None,
             )
             d["paper_accuracy_arcsec"] = (
                 {str(k): v for k, v in paper["accuracy_arcsec"].items()}
-                if paper is not None and fov == 1.6
+                if paper is not None and fov == lin2024.PATTERN_FOVS_DEG[0]
                 else None
             )
             results.append(d)

@@ -6,9 +6,11 @@ good-image circle (Lin et al. 2024, sec. 2.2), or any rectangles and polygons a 
 
 Coordinates
     Gnomonic tangent-plane coordinates ``(x, y) = (v_x / v_z, v_y / v_z)`` of camera-frame
-    directions (:mod:`starsense.geometry.attitude`): dimensionless, the tangent of the field
-    angle along each axis. A focal-plane position in millimetres divided by the focal length in
-    millimetres is this coordinate (pinhole).
+    directions (:mod:`starsense.geometry.attitude`; the projection itself is
+    :func:`starsense.geometry.projection.vectors_to_tangent` and its inverse
+    :func:`~starsense.geometry.projection.tangent_to_vectors`): dimensionless, the tangent of
+    the field angle along each axis. A focal-plane position in metres divided by the focal
+    length in metres is this coordinate (pinhole). Areas are in the square of these units.
 """
 
 from __future__ import annotations
@@ -19,10 +21,52 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from starsense._validate import check_scalar, positive_float
 from starsense.errors import InputError
-from starsense.geometry.projection import _points, tangent_to_vectors, vectors_to_tangent
+from starsense.geometry.projection import _points
 
-__all__ = ["AreaLayout", "FocalArea", "tangent_to_vectors", "vectors_to_tangent"]
+__all__ = ["AreaLayout", "FocalArea", "polygon_area", "polygon_centroid"]
+
+
+def polygon_area(vertices: ArrayLike) -> float:
+    """Return the area of a simple polygon (shoelace formula).
+
+    Parameters
+    ----------
+    vertices : array_like, shape (K, 2)
+        Vertices in order (either sense); the polygon closes itself.
+
+    Returns
+    -------
+    float
+        Area, in the square of the vertices' units.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    x, y = v[:, 0], v[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def polygon_centroid(vertices: ArrayLike) -> NDArray[np.float64]:
+    """Return the centroid of a simple polygon (area-weighted, not the vertices' mean).
+
+    Parameters
+    ----------
+    vertices : array_like, shape (K, 2)
+        Vertices in order (either sense).
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        Centroid, in the vertices' units (the vertices' mean for a degenerate polygon).
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    x, y = v[:, 0], v[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    a = 0.5 * cross.sum()
+    if a == 0:
+        return v.mean(axis=0)
+    return np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6.0 * a)
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,8 +76,10 @@ class FocalArea:
     Attributes
     ----------
     name : str
+        The area's name (the report and the CLI print it).
     vertices : ndarray, shape (K, 2)
-        Vertices in order (either sense), K >= 3; the polygon closes itself.
+        Vertices in order (either sense), K >= 3, tangent-plane units; the polygon closes
+        itself.
     """
 
     name: str
@@ -51,12 +97,21 @@ class FocalArea:
 
     @property
     def area(self) -> float:
-        """Area in tangent-plane units (shoelace formula)."""
-        x, y = self.vertices[:, 0], self.vertices[:, 1]
-        return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        """Area, square tangent-plane units (shoelace formula)."""
+        return polygon_area(self.vertices)
 
     def contains(self, xy: ArrayLike) -> NDArray[np.bool_]:
-        """Points inside the polygon (even-odd rule), shape (...)."""
+        """Return which points lie inside the polygon (even-odd rule).
+
+        Parameters
+        ----------
+        xy : array_like, shape (..., 2)
+            Tangent-plane points.
+
+        Returns
+        -------
+        ndarray of bool, shape (...)
+        """
         p = _points(xy)
         x, y = p[..., 0], p[..., 1]
         inside = np.zeros(x.shape, dtype=bool)
@@ -69,10 +124,21 @@ class FocalArea:
         return inside
 
     def contains_grid(self, xs: ArrayLike, ys: ArrayLike) -> NDArray[np.bool_]:
-        """:meth:`contains` for every point of the grid ``xs`` x ``ys``, shape (len(ys), len(xs)).
+        """Return :meth:`contains` for every point of the grid ``xs`` x ``ys``.
 
         Scanline form of the same even-odd rule: the edge crossings of each row are found
         once, so the cost is O(rows x vertices + points) instead of O(points x vertices).
+
+        Parameters
+        ----------
+        xs : array_like, shape (nx,)
+            Tangent-plane x of the grid's columns.
+        ys : array_like, shape (ny,)
+            Tangent-plane y of the grid's rows.
+
+        Returns
+        -------
+        ndarray of bool, shape (ny, nx)
         """
         xs = np.asarray(xs, dtype=np.float64)
         ys = np.asarray(ys, dtype=np.float64)
@@ -119,9 +185,7 @@ class AreaLayout:
         if len(set(names)) != len(names):
             raise InputError(f"attitude-determination area names must be unique, got {names}")
         if self.lens_radius is not None:
-            r = self.lens_radius
-            if not (math.isfinite(r) and r > 0):
-                raise InputError(f"lens radius = {r!r} must be finite and > 0")
+            r = positive_float(self.lens_radius, "lens_radius")
             for a in self.areas:
                 d = np.hypot(a.vertices[:, 0], a.vertices[:, 1])
                 k = int(np.argmax(d))
@@ -134,18 +198,23 @@ class AreaLayout:
 
     @classmethod
     def lin2024(cls, science_half: float, n_arc: int = 256) -> AreaLayout:
-        """The four circular segments around a square science field (Lin et al. 2024, Fig. 1).
+        """Return the four circular segments around a square science field.
+
+        Lin et al. 2024, Fig. 1: the lens circle of radius ``sqrt(2) science_half`` around the
+        square, areas numbered counter-clockwise from +x.
 
         Parameters
         ----------
         science_half : float
-            Half side of the science square, tangent-plane units (``tan(V / 2)``).
+            Half side of the science square, tangent-plane units (``tan(V / 2)``), in (0, 1).
         n_arc : int
             Vertices along each arc (the polygon's area is short by ~2e-5 relative at 256).
+
+        Returns
+        -------
+        AreaLayout
         """
-        h = float(science_half)
-        if not (math.isfinite(h) and 0 < h < 1):
-            raise InputError(f"science_half = {science_half!r} must be in (0, 1)")
+        h = check_scalar(science_half, "science_half", 0, 1, lo_open=True, hi_open=True)
         r = h * math.sqrt(2.0)
         t = np.linspace(-math.pi / 4, math.pi / 4, n_arc)
         arc = np.stack([r * np.cos(t), r * np.sin(t)], axis=-1)  # the x > h segment, area 1
@@ -158,14 +227,26 @@ class AreaLayout:
 
     @property
     def names(self) -> tuple[str, ...]:
+        """The areas' names, in number order."""
         return tuple(a.name for a in self.areas)
 
     @property
     def total_area(self) -> float:
+        """Total area of all the areas, square tangent-plane units."""
         return float(sum(a.area for a in self.areas))
 
     def index(self, xy: ArrayLike) -> NDArray[np.int_]:
-        """Area number (1-based) of each point, 0 outside every area, shape (...)."""
+        """Return the area number (1-based) of each point, 0 outside every area.
+
+        Parameters
+        ----------
+        xy : array_like, shape (..., 2)
+            Tangent-plane points.
+
+        Returns
+        -------
+        ndarray of int, shape (...)
+        """
         p = _points(xy)
         out = np.zeros(p.shape[:-1], dtype=int)
         for k, a in enumerate(self.areas, start=1):
@@ -173,7 +254,19 @@ class AreaLayout:
         return out
 
     def index_grid(self, xs: ArrayLike, ys: ArrayLike) -> NDArray[np.int_]:
-        """:meth:`index` on the grid ``xs`` x ``ys``, shape (len(ys), len(xs)) (scanline)."""
+        """Return :meth:`index` on the grid ``xs`` x ``ys`` (scanline form).
+
+        Parameters
+        ----------
+        xs : array_like, shape (nx,)
+            Tangent-plane x of the grid's columns.
+        ys : array_like, shape (ny,)
+            Tangent-plane y of the grid's rows.
+
+        Returns
+        -------
+        ndarray of int, shape (ny, nx)
+        """
         xs = np.asarray(xs, dtype=np.float64)
         ys = np.asarray(ys, dtype=np.float64)
         out = np.zeros((len(ys), len(xs)), dtype=int)
@@ -182,5 +275,5 @@ class AreaLayout:
         return out
 
     def subset_area(self, numbers: tuple[int, ...]) -> float:
-        """Total area of the areas with these 1-based numbers."""
+        """Return the total area of the areas numbered ``numbers`` (1-based), square units."""
         return float(sum(self.areas[k - 1].area for k in numbers))

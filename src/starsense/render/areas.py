@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from starsense.errors import InputError
+from starsense.geometry.projection import vectors_to_tangent
 
 __all__ = ["AreaFrame", "area_pixel_index", "focal_plane_sensor", "render_areas"]
 
@@ -30,10 +31,20 @@ def _layout(sensor):
 
 
 def focal_plane_sensor(sensor):
-    """The sensor with a square detector grown to cover all its attitude-determination areas.
+    """Return the sensor with a square detector grown to cover all its attitude areas.
 
     Same focal length, pixel pitch, noise and detection logic; ``columns = rows`` = twice the
     largest distance of an area vertex from the optical axis, in pixels, plus a margin of 8.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        With ``attitude_areas`` (:class:`starsense.geometry.areas.AreaLayout`).
+
+    Returns
+    -------
+    Sensor
+        The focal-plane sensor, named ``"<name> (focal plane)"``.
     """
     layout = _layout(sensor)
     reach = max(float(np.hypot(*a.vertices.T).max()) for a in layout.areas)
@@ -48,13 +59,20 @@ def focal_plane_sensor(sensor):
 
 
 def area_pixel_index(fp_sensor) -> NDArray[np.int8]:
-    """Area number (1-based, 0 = no detector) of every pixel of a focal-plane sensor.
+    """Return the area number (1-based, 0 = no detector) of every pixel of a sensor.
 
     A pixel belongs to the area holding its centre (pixel-centre convention, distortion
     included through :meth:`Sensor.unproject`).
-    """
-    from starsense.geometry.areas import vectors_to_tangent
 
+    Parameters
+    ----------
+    fp_sensor : Sensor
+        A focal-plane sensor (:func:`focal_plane_sensor`).
+
+    Returns
+    -------
+    ndarray of int8, shape (rows, columns)
+    """
     layout = _layout(fp_sensor)
     rows, cols = fp_sensor.detector.rows, fp_sensor.detector.columns
     if not (fp_sensor.optics.distortion_k1 or fp_sensor.optics.distortion_k2):
@@ -101,8 +119,14 @@ def render_areas(sensor, attitude, catalog, **kwargs) -> AreaFrame:
     attitude : Rotation
         ICRS -> camera.
     catalog : Catalog
+        The stars.
     **kwargs
         Passed to :func:`starsense.render.render_frame` (rate, model, band, max_mag, rng, ...).
+
+    Returns
+    -------
+    AreaFrame
+        The frame on the focal-plane sensor, pixels outside the areas at the bias level.
     """
     from starsense.render.scene import render_frame
 

@@ -11,8 +11,10 @@ from starsense.analysis import guide_stars as gs
 from starsense.attitude.covariance import covariance, fisher_matrix
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
+from starsense.references import lin2024
+from starsense.units import ARCSEC, DEG
 
-FOV_RAD = math.radians(gs.PAPER_FOV_DEG)
+FOV_RAD = lin2024.CAMERA_FOV_DEG * DEG
 
 
 def test_lin2024_segment_area_057():
@@ -60,7 +62,7 @@ def test_triangle_ratio_right_triangle():
 
 def test_batch_covariance_matches_limits():
     vec = gs.focal_to_vectors(gs.sample_placements("three", 4, rng=2), FOV_RAD)
-    s = 0.1 * gs.ARCSEC_RAD
+    s = 0.1 * ARCSEC
     for k in range(4):
         ref = covariance(fisher_matrix(vec[k], np.full(5, s**-2)))
         np.testing.assert_allclose(gs.batch_covariance(vec, s)[k], ref, rtol=1e-9)
@@ -70,7 +72,7 @@ def test_batched_svd_matches_estimate_attitude():
     vec = gs.focal_to_vectors(gs.sample_placements("two_adjacent", 20, rng=3), FOV_RAD)
     z = np.random.default_rng(4).standard_normal((20, 5, 2))
     att = random_attitudes(20, 5)
-    s = 0.2 * gs.ARCSEC_RAD
+    s = 0.2 * ARCSEC
     fast = gs.monte_carlo_errors(vec, s, noise=z, attitudes=att)
     slow = gs.monte_carlo_errors(vec, s, noise=z, attitudes=att, batched=False)
     np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-11)
@@ -88,12 +90,14 @@ def test_probability_within_isotropic_closed_forms():
 
 @pytest.mark.parametrize(("config", "sigma"), [("two_symmetric", 0.1), ("one", 0.05)])
 def test_mc_agrees_with_analytic_10000(config, sigma):
-    tab = gs.simulate_table1([sigma], [config], n_trials=10_000, seed=7)
+    tab = gs.simulate_table1([sigma * ARCSEC], [config], n_trials=10_000, seed=7)
     assert abs(tab.probability_mc[config][0] - tab.probability_analytic[config][0]) < 0.03
 
 
 def test_mc_agrees_with_analytic_total_metric():
-    tab = gs.simulate_table1([0.02], ["four"], n_trials=4000, fov_deg=8.5, metric="total", seed=3)
+    tab = gs.simulate_table1(
+        [0.02 * ARCSEC], ["four"], n_trials=4000, fov_rad=8.5 * DEG, metric="total", seed=3
+    )
     assert abs(tab.probability_mc["four"][0] - tab.probability_analytic["four"][0]) < 0.03
 
 
@@ -102,26 +106,26 @@ def test_lin2024_table1_ordering(sigma):
     # paper, Table 1 (%): sigma 0.2: one 0.44, adj 24.45, sym 46.10, three 39.18, four 98.99;
     # sigma 0.1: one 1.65, adj 54.67, sym 94.21, three 90.94, four 99.87. Four highest, one
     # lowest, the two-area layouts and three between.
-    tab = gs.simulate_table1([sigma], n_trials=5000, seed=11)
+    tab = gs.simulate_table1([sigma * ARCSEC], n_trials=5000, seed=11)
     for p in (tab.probability_mc, tab.probability_analytic):
         v = {k: p[k][0] for k in p}
         assert v["one"] < min(v["two_adjacent"], v["two_symmetric"], v["three"])
         assert v["four"] > max(v["two_adjacent"], v["two_symmetric"], v["three"])
-        paper = {k: gs.PAPER_TABLE1_PERCENT[k][gs.PAPER_SIGMAS_ARCSEC.index(sigma)] for k in v}
+        paper = {k: lin2024.TABLE1_PERCENT[k][lin2024.TABLE1_SIGMAS_ARCSEC.index(sigma)] for k in v}
         assert min(paper, key=paper.get) == min(v, key=v.get) == "one"
         assert max(paper, key=paper.get) == max(v, key=v.get) == "four"
 
 
 def test_reproducible():
-    a = gs.simulate_table1([0.1], ["three"], n_trials=300, seed=5)
-    b = gs.simulate_table1([0.1], ["three"], n_trials=300, seed=5)
+    a = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=300, seed=5)
+    b = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=300, seed=5)
     assert a.probability_mc["three"][0] == b.probability_mc["three"][0]
 
 
 @pytest.mark.parametrize("sigma", [0.0, -0.1, float("nan")])
 def test_bad_sigma(sigma):
-    with pytest.raises(InputError, match="sigma_arcsec"):
-        gs.simulate_table1([sigma], n_trials=10)
+    with pytest.raises(InputError, match="sigma_rad"):
+        gs.simulate_table1([sigma * ARCSEC], n_trials=10)
     with pytest.raises(InputError, match="sigma_rad"):
         gs.batch_covariance(np.tile([0.0, 0.0, 1.0], (1, 3, 1)), sigma)
 
@@ -142,3 +146,14 @@ def test_bad_inputs_other():
         gs.error_norm(np.zeros(3), "roll")
     with pytest.raises(InputError, match="at least 3 guide stars"):
         gs.triangle_fov_ratio(np.zeros((2, 2)))
+
+
+def test_edge_units_read_back_as_given():
+    # radians inside; the arcsec and deg of the results (JSON, report) are the values given at
+    # the edge, not x * ARCSEC / ARCSEC (0.2 would read back as 0.20000000000000004)
+    sig = (0.2, 0.123456789, 0.1, 0.05)
+    tab = gs.simulate_table1([s * ARCSEC for s in sig], ["four"], n_trials=20, identify=False)
+    assert tab.sigma_arcsec == sig
+    assert tab.fov_deg == lin2024.CAMERA_FOV_DEG
+    assert tab.threshold_arcsec == lin2024.TABLE1_THRESHOLD_ARCSEC
+    assert gs.simulate_table1(n_trials=20, identify=False).as_dict()["paper_percent"] is not None
