@@ -15,14 +15,23 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["atomic_path", "atomic_write", "file_mode"]
+__all__ = ["atomic_path", "atomic_write", "dir_mode", "file_mode"]
 
 
 def file_mode() -> int:
     """Permissions of a new file under the current umask (``0o666 & ~umask``)."""
+    return 0o666 & ~_umask()
+
+
+def dir_mode() -> int:
+    """Permissions of a new directory under the current umask (``0o777 & ~umask``)."""
+    return 0o777 & ~_umask()
+
+
+def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
-    return 0o666 & ~mask
+    return mask
 
 
 def _fsync(path: str) -> None:

@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
 import typer
 
-from starsense.cli.common import JsonOpt, ModelOpt, SeedOpt, SensorOpt, emit, parse_floats
+from starsense.cli.common import (
+    JsonOpt,
+    ModelOpt,
+    SeedOpt,
+    SensorOpt,
+    emit,
+    parse_floats,
+    progress_bar,
+)
 from starsense.errors import InputError
 from starsense.units import DEG
 
@@ -33,19 +40,16 @@ def _rates_rad_s(text: str | None) -> np.ndarray | None:
 
 
 def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
-    from rich.progress import Progress
-
     from starsense.analysis.slew import simulate_slew
     from starsense.sensor import load_sensor
 
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")
     rate_values = _rates_rad_s(rates)
-    with Progress(transient=True, disable=not sys.stderr.isatty()) as bar:
-        task = bar.add_task("slew Monte Carlo", total=None)
+    with progress_bar() as bar:
         result = simulate_slew(
             sensor, model, mags, rate_values, trials, criterion, seed,
-            progress=lambda done, total: bar.update(task, completed=done, total=total),
+            progress=bar.task("slew Monte Carlo"),
             colour_index=colour_index,
         )  # fmt: skip
     return sensor, result

@@ -17,12 +17,12 @@ from collections.abc import Sequence
 import matplotlib
 import numpy as np
 from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
 
 from starsense.analysis.guide_stars import GuideStarTable
 from starsense.geometry.areas import AreaLayout, polygon_centroid
+from starsense.plotting.figure import new_figure
 from starsense.units import ARCSEC
 
 __all__ = ["CONFIG_LABELS", "area_layout_figure", "field_angle_deg", "triangle_ratio_figure"]
@@ -36,13 +36,6 @@ CONFIG_LABELS = {
 }
 """Legend labels of the configurations of Lin et al. 2024, Table 1."""
 _MARKERS = ("v", "s", "D", "^", "o")
-
-
-def _new_figure(width_in: float, height_in: float) -> Figure:
-    """Return a figure on the Agg canvas, outside pyplot (no display, no global state)."""
-    fig = Figure(figsize=(width_in, height_in), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def field_angle_deg(xy: ArrayLike) -> NDArray[np.float64]:
@@ -90,7 +83,7 @@ def triangle_ratio_figure(
     Figure
     """
     if ax is None:
-        fig = _new_figure(10.0, 4.3)
+        fig = new_figure(10.0, 4.3)
         axes = fig.subplots(1, len(sigmas_rad), sharey=True, squeeze=False)[0]
     else:
         axes = list(ax)
@@ -144,7 +137,7 @@ def area_layout_figure(layout: AreaLayout, title: str, ax: Axes | None = None) -
     Figure
     """
     if ax is None:
-        fig = _new_figure(5.4, 5.0)
+        fig = new_figure(5.4, 5.0)
         ax = fig.add_subplot()
     else:
         fig = ax.figure

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import starsense
+from starsense._io import dir_mode
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
@@ -141,7 +142,7 @@ def build_report(
         elapsed = time.perf_counter() - t0
         _write_index(work, ctx, sections, elapsed)
         _write_json(work, ctx, sections, elapsed)
-        os.chmod(work, 0o755)  # mkdtemp makes it 0700
+        os.chmod(work, dir_mode())  # mkdtemp makes it 0700; a directory the user makes
         _swap_into_place(work, out_dir)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)

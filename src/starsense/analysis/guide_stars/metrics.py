@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense._validate import positive_float
 from starsense.analysis.guide_stars._common import as_generator, check_metric
+from starsense.attitude.covariance import fisher_matrix
 from starsense.attitude.svd import batch_svd_attitude
 from starsense.geometry.sampling import fibonacci_sphere, random_attitudes
 
@@ -37,9 +38,8 @@ _N_CIRCLE = 256
 def batch_covariance(vectors: ArrayLike, sigma_rad: float) -> NDArray[np.float64]:
     """Return the attitude covariance P = F^-1 of many star sets at once (eqs. 1-3).
 
-    Lin et al. 2024, eqs. 1-3; the same formula as :func:`starsense.attitude.covariance.
-    fisher_matrix` and :func:`~starsense.attitude.covariance.covariance`, batched:
-    F = sum_i sigma^-2 (I - r_i r_i^T).
+    Lin et al. 2024, eqs. 1-3: F = sum_i sigma^-2 (I - r_i r_i^T), the batched form of
+    :func:`starsense.attitude.covariance.fisher_matrix` (Fialho & Mortari 2019, eq. 21).
 
     Parameters
     ----------
@@ -55,8 +55,7 @@ def batch_covariance(vectors: ArrayLike, sigma_rad: float) -> NDArray[np.float64
     """
     s = positive_float(sigma_rad, "sigma_rad")
     r = np.asarray(vectors, dtype=np.float64)
-    n = r.shape[-2]
-    f = (n * np.eye(3) - np.einsum("mni,mnj->mij", r, r)) / s**2
+    f = fisher_matrix(r, np.full(r.shape[:-1], s**-2.0))
     return np.linalg.inv(f)
 
 
