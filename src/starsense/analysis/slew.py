@@ -33,10 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from starsense.analysis._angles import edge_degrees
 from starsense.errors import InputError
 from starsense.photometry.sensitivity import Sensitivity
-from starsense.units import DEG
+from starsense.units import DEG, to_edge
 
 __all__ = [
     "DEFAULT_MAX_RATE_RAD_S",
@@ -121,12 +120,12 @@ class SlewResult:
     @property
     def rates_deg_s(self) -> np.ndarray:
         """Simulated slew rates, deg/s (for output)."""
-        return edge_degrees(self.rates_rad_s)
+        return to_edge(self.rates_rad_s, DEG)
 
     @property
     def tolerable_rate_deg_s(self) -> list[float | None]:
         """Fastest rate still detected per magnitude, deg/s, None if never (for output)."""
-        return [None if r is None else float(edge_degrees(r)) for r in self.tolerable_rate_rad_s]
+        return [None if r is None else float(to_edge(r, DEG)) for r in self.tolerable_rate_rad_s]
 
     def tolerance_dict(self) -> dict:
         """Return the tolerable-rate curve as JSON-ready values (deg/s, Fig. 10)."""
@@ -253,7 +252,7 @@ def simulate_slew(
     )
     max_len = sensor.streak_length_px(rates[-1])
     if max_len + 10 * det.psf_sigma_px >= det.columns:
-        top_deg_s = float(edge_degrees(rates[-1]))
+        top_deg_s = float(to_edge(rates[-1], DEG))
         raise InputError(
             f"a {top_deg_s:g} deg/s slew sweeps a star {max_len:.0f} px in {sensor.exposure_s} s: "
             f"longer than the detector's {det.columns} columns"

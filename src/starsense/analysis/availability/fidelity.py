@@ -17,11 +17,11 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import check_int
-from starsense.analysis._angles import edge_degrees
 from starsense.analysis.availability.checks import check_rates
 from starsense.analysis.availability.field import FieldStars, catalog_stars
 from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, _pct
 from starsense.analysis.availability.threshold import ThresholdCurve
+from starsense.units import DEG, to_edge
 
 __all__ = ["FidelityCheck", "fidelity_check"]
 
@@ -62,7 +62,7 @@ class FidelityCheck:
     @property
     def rate_deg_s(self) -> float:
         """Slew rate, deg/s (for output)."""
-        return float(edge_degrees(self.rate_rad_s))
+        return float(to_edge(self.rate_rad_s, DEG))
 
     @property
     def n_frames(self) -> int:

@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from starsense.analysis._angles import edge_degrees
 from starsense.analysis.availability.field import BrightestInField, FieldStars
 from starsense.analysis.availability.threshold import ThresholdCurve
+from starsense.units import DEG, to_edge
 
 __all__ = [
     "N_MIN_CONSERVATIVE",
@@ -151,7 +151,7 @@ class DynamicAvailability:
     @property
     def rates_deg_s(self) -> NDArray[np.float64]:
         """Slew rates, deg/s (for output)."""
-        return edge_degrees(self.rates_rad_s)
+        return to_edge(self.rates_rad_s, DEG)
 
     def to_dict(self) -> dict:
         """Return the numbers as JSON-ready values (rates in deg/s)."""
@@ -232,17 +232,17 @@ class TrackAvailability:
     @property
     def rate_deg_s(self) -> float:
         """Slew rate, deg/s (for output)."""
-        return float(edge_degrees(self.rate_rad_s))
+        return float(to_edge(self.rate_rad_s, DEG))
 
     @property
     def inclinations_deg(self) -> NDArray[np.float64]:
         """Track inclinations, deg (for output)."""
-        return edge_degrees(self.inclinations)
+        return to_edge(self.inclinations, DEG)
 
     @property
     def node_deg(self) -> float:
         """RA of the tracks' common node, deg (for output)."""
-        return float(edge_degrees(self.node))
+        return float(to_edge(self.node, DEG))
 
     @property
     def mean(self) -> float:

@@ -14,10 +14,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from starsense.analysis._angles import edge_degrees
 from starsense.analysis.availability.checks import check_mag, check_rates
 from starsense.errors import InputError
-from starsense.units import DEG
+from starsense.units import DEG, to_edge
 
 __all__ = ["ThresholdCurve"]
 
@@ -86,12 +85,12 @@ class ThresholdCurve:
     @property
     def rates_deg_s(self) -> NDArray[np.float64]:
         """Knot rates, deg/s (for output)."""
-        return edge_degrees(self.rates_rad_s)
+        return to_edge(self.rates_rad_s, DEG)
 
     @property
     def max_rate_deg_s(self) -> float:
         """Rate above which no star is detected, deg/s (for output)."""
-        return float(edge_degrees(self.max_rate_rad_s))
+        return float(to_edge(self.max_rate_rad_s, DEG))
 
     @classmethod
     def constant(cls, max_mag: float, label: str = "") -> ThresholdCurve:

@@ -53,21 +53,3 @@ def check_sigmas(sigmas_rad: ArrayLike, sigma_kind: str) -> tuple[NDArray[np.flo
 def as_generator(rng: np.random.Generator | int | None) -> np.random.Generator:
     """Return ``rng`` itself if it is a Generator, else a new one seeded with it."""
     return rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-
-
-def edge_value(value_rad: float, unit: float) -> float:
-    """Return an angle in the edge unit ``unit`` (e.g. ``ARCSEC``), as the user wrote it.
-
-    The shortest decimal ``x`` with ``x * unit == value_rad``: the inverse of the conversion
-    ``x * unit`` done at the edge, so an angle given as 0.2 arcsec reads back as 0.2, not
-    0.20000000000000004. Falls back to ``value_rad / unit``.
-    """
-    v = float(value_rad)
-    plain = v / unit
-    if not np.isfinite(plain):
-        return plain
-    for digits in range(1, 18):
-        x = float(f"{plain:.{digits}g}")
-        if x * unit == v:
-            return x
-    return plain

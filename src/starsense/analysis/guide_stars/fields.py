@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from starsense._validate import check_int, check_scalar, finite_float
-from starsense.analysis.guide_stars._common import check_metric, check_sigmas, edge_value
+from starsense.analysis.guide_stars._common import check_metric, check_sigmas
 from starsense.analysis.guide_stars.focal_plane import CONFIGURATIONS, configuration_areas
 from starsense.analysis.guide_stars.metrics import (
     batch_covariance,
@@ -24,7 +24,7 @@ from starsense.geometry.attitude import attitude_from_radec_roll
 from starsense.geometry.projection import tangent_to_vectors, vectors_to_tangent
 from starsense.geometry.sampling import random_attitudes
 from starsense.references import lin2024
-from starsense.units import ARCSEC, DEG
+from starsense.units import ARCSEC, DEG, to_edge
 
 __all__ = [
     "LAYOUT_COMBINATIONS",
@@ -108,17 +108,17 @@ class FieldAccuracy:
     @property
     def center_deg(self) -> tuple[float, float]:
         """Boresight (RA, Dec), deg."""
-        return (edge_value(self.center_rad[0], DEG), edge_value(self.center_rad[1], DEG))
+        return (to_edge(self.center_rad[0], DEG), to_edge(self.center_rad[1], DEG))
 
     @property
     def lens_fov_deg(self) -> float:
         """Lens-circle diameter, deg."""
-        return edge_value(self.lens_fov_rad, DEG)
+        return to_edge(self.lens_fov_rad, DEG)
 
     @property
     def sigma_arcsec(self) -> tuple[float, ...]:
         """Quoted measurement errors, arcsec."""
-        return tuple(edge_value(s, ARCSEC) for s in self.sigmas_rad)
+        return tuple(to_edge(s, ARCSEC) for s in self.sigmas_rad)
 
     @property
     def accuracy_arcsec(self) -> dict[str, NDArray[np.float64]]:

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from starsense._validate import check_int, check_scalar, positive_float
-from starsense.analysis.guide_stars._common import check_metric, check_sigmas, edge_value
+from starsense.analysis.guide_stars._common import check_metric, check_sigmas
 from starsense.analysis.guide_stars.focal_plane import (
     CONFIGURATIONS,
     PAPER_STEP,
@@ -30,7 +30,7 @@ from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
 from starsense.identify.batch import ID_CORRECT, identify_triangles
 from starsense.references import lin2024
-from starsense.units import ARCSEC, DEG
+from starsense.units import ARCSEC, DEG, to_edge
 
 __all__ = [
     "ID_TOLERANCE_SIGMA",
@@ -104,17 +104,17 @@ class GuideStarTable:
     @property
     def sigma_arcsec(self) -> tuple[float, ...]:
         """Quoted measurement errors, arcsec (as given at the edge)."""
-        return tuple(edge_value(s, ARCSEC) for s in self.sigmas_rad)
+        return tuple(to_edge(s, ARCSEC) for s in self.sigmas_rad)
 
     @property
     def threshold_arcsec(self) -> float:
         """Accuracy requirement, arcsec."""
-        return edge_value(self.threshold_rad, ARCSEC)
+        return to_edge(self.threshold_rad, ARCSEC)
 
     @property
     def fov_deg(self) -> float:
         """Science field side V, deg."""
-        return edge_value(self.fov_rad, DEG)
+        return to_edge(self.fov_rad, DEG)
 
     def by_triangle_ratio(
         self, configuration: str, sigma_rad: float, n_bins: int = 10
