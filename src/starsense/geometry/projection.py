@@ -58,17 +58,23 @@ def radec_to_vectors(ra_rad: ArrayLike, dec_rad: ArrayLike) -> NDArray[np.float6
     """
     ra = _finite_array(ra_rad, "ra_rad")
     dec = _finite_array(dec_rad, "dec_rad")
-    if np.any(np.abs(dec) > HALF_PI):
+    # |dec| <= pi/2 from the extremes (finite already checked): no |dec| temporary
+    if dec.size and max(-float(dec.min()), float(dec.max())) > HALF_PI:
         bad = dec[np.abs(dec) > HALF_PI].flat[0]
         raise InputError(f"dec_rad = {bad} is out of range; must be in [-pi/2, pi/2]")
     try:
-        ra, dec = np.broadcast_arrays(ra, dec)
+        shape = np.broadcast_shapes(ra.shape, dec.shape)
     except ValueError as exc:
         raise InputError(
             f"ra_rad (shape {ra.shape}) and dec_rad (shape {dec.shape}) do not broadcast"
         ) from exc
+    # written into one (..., 3) buffer: catalogues of millions of stars pass through here
+    out = np.empty((*shape, 3))
     cos_dec = np.cos(dec)
-    return np.stack([cos_dec * np.cos(ra), cos_dec * np.sin(ra), np.sin(dec)], axis=-1)
+    out[..., 0] = cos_dec * np.cos(ra)
+    out[..., 1] = cos_dec * np.sin(ra)
+    out[..., 2] = np.sin(dec)
+    return out
 
 
 def vectors_to_radec(

@@ -157,3 +157,15 @@ def test_edge_units_read_back_as_given():
     assert tab.fov_deg == lin2024.CAMERA_FOV_DEG
     assert tab.threshold_arcsec == lin2024.TABLE1_THRESHOLD_ARCSEC
     assert gs.simulate_table1(n_trials=20, identify=False).as_dict()["paper_percent"] is not None
+
+
+def test_chi_cdf_is_scipy_stats():
+    # an independent computation: scipy.stats' chi (3 dof) and Rayleigh (chi, 2 dof) CDFs;
+    # agreement to a few ulp of 1 (the closed form and the incomplete gamma are both exact)
+    from scipy import stats
+
+    from starsense.analysis.guide_stars.metrics import chi_cdf
+
+    x = np.linspace(0.0, 8.0, 4001)
+    np.testing.assert_allclose(chi_cdf(x, 2), stats.rayleigh.cdf(x), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(chi_cdf(x, 3), stats.chi(3).cdf(x), rtol=0, atol=1e-15)

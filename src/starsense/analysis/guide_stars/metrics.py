@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
+from scipy import special
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import positive_float
@@ -64,6 +64,32 @@ def metric_block(cov: NDArray[np.float64], metric: str) -> NDArray[np.float64]:
     return cov[..., :2, :2] if metric == "pointing" else cov
 
 
+def chi_cdf(x: ArrayLike, dof: int) -> NDArray[np.float64]:
+    """Return the CDF of the chi distribution with ``dof`` degrees of freedom (2: Rayleigh).
+
+    ``P(dof / 2, x^2 / 2)``, the regularised lower incomplete gamma function of
+    :func:`scipy.special.gammainc`, and for 2 dof its closed form ``-expm1(-x^2 / 2)``: the
+    values ``scipy.stats.chi(dof).cdf`` and ``scipy.stats.rayleigh.cdf`` return (tested), without
+    their per-call argument handling, which tripled the cost of Table 1's analytic column.
+
+    Parameters
+    ----------
+    x : array_like
+        Argument, >= 0.
+    dof : int
+        Degrees of freedom.
+
+    Returns
+    -------
+    ndarray
+        Same shape as ``x``.
+    """
+    half_x2 = 0.5 * np.square(np.asarray(x, dtype=np.float64))
+    if dof == 2:
+        return -np.expm1(-half_x2)
+    return special.gammainc(0.5 * dof, half_x2)
+
+
 def probability_within(
     cov_rad2: ArrayLike, threshold_rad: float, metric: str = "pointing"
 ) -> NDArray[np.float64]:
@@ -103,7 +129,7 @@ def probability_within(
     lam = np.linalg.eigvalsh(p)
     q = lam @ u2.T
     a = t / np.sqrt(q)
-    cdf = stats.rayleigh.cdf(a) if metric == "pointing" else stats.chi.cdf(a, 3)
+    cdf = chi_cdf(a, 2 if metric == "pointing" else 3)
     return cdf.mean(axis=-1)
 
 
