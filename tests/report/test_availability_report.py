@@ -105,3 +105,17 @@ def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monke
     fidelity = data["sections"]["availability"]["fidelity"]
     assert fidelity[0]["n_frames"] == 2
     assert fidelity[0]["rate_deg_s"] == 1.0
+
+
+@pytest.mark.slow
+def test_report_command_from_bsc5_path_runs_every_part(bsc5_path, tmp_path):
+    """Issue 11, as a user runs it: `starsense report --catalog bsc5:PATH --out DIR` (~1 min)."""
+    from starsense.cli import main
+
+    out = tmp_path / "report"
+    assert main(["report", "--catalog", f"bsc5:{bsc5_path}", "--out", str(out)]) == 0
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "Full-fidelity check" in html
+    assert "Skipped" not in html
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert data["sections"]["availability"]["fidelity"]
