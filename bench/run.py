@@ -377,6 +377,8 @@ def _scale_vectors(n: int) -> np.ndarray:
 
 
 def main(selected: list[str]) -> int:
+    from starsense._io import atomic_write
+
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()
     rows = []
@@ -397,9 +399,8 @@ def main(selected: list[str]) -> int:
             "machine": info,
             "date": time.strftime("%Y-%m-%d"),
         }
-        with tempfile.NamedTemporaryFile("w", dir=RESULTS, suffix=".tmp", delete=False) as f:
+        with atomic_write(RESULTS / f"{name}.json") as f:
             json.dump(record, f, indent=2)
-        os.replace(f.name, RESULTS / f"{name}.json")
         print(
             f"{name:24s} {seconds * 1e3:10.1f} ms   target {target * 1e3:8.0f} ms   "
             f"{'ok' if ok else 'SLOW'}   {description}",

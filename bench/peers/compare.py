@@ -330,9 +330,10 @@ def main(argv=None) -> int:
         "date": time.strftime("%Y-%m-%d"),
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile("w", dir=RESULTS, suffix=".tmp", delete=False) as f:
+    from starsense._io import atomic_write
+
+    with atomic_write(RESULTS / "peer_cedar.json") as f:
         json.dump(record, f, indent=2)
-    os.replace(f.name, RESULTS / "peer_cedar.json")
     print(f"written {RESULTS / 'peer_cedar.json'}")
     return 0
 
