@@ -77,12 +77,18 @@ def catalog_import(
     from starsense.scale import dask_client, import_catalog, open_hats
 
     option_int(pixel_threshold, "--pixel-threshold", 1)
+    from starsense.scale.errors import MissingColumnsError
+
     with dask_client(dask) as client:
-        out = import_catalog(
-            input_path, output, ra_column=ra_column, dec_column=dec_column,
-            pixel_threshold=pixel_threshold, client=client,
-            progress=not as_json and sys.stderr.isatty(),
-        )  # fmt: skip
+        try:
+            out = import_catalog(
+                input_path, output, ra_column=ra_column, dec_column=dec_column,
+                pixel_threshold=pixel_threshold, client=client,
+                progress=not as_json and sys.stderr.isatty(),
+            )  # fmt: skip
+        except MissingColumnsError as exc:  # the library names parameters; say the options
+            text = str(exc).replace("ra_column / dec_column", "--ra-column / --dec-column")
+            raise MissingColumnsError(text) from None
     cat = open_hats(str(out))
     payload = {
         "output": str(out),

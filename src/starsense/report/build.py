@@ -202,7 +202,9 @@ def _check_replaceable(out_dir: Path) -> None:
     if not out_dir.exists():
         return
     if not out_dir.is_dir():
-        raise InputError(f"{out_dir}: exists and is not a directory; choose another --out")
+        raise InputError(
+            f"{out_dir}: exists and is not a directory; choose another output directory"
+        )
     if not any(out_dir.iterdir()):
         return
     marker = out_dir / JSON_NAME

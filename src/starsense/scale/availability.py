@@ -50,7 +50,7 @@ def band_plan(catalog: HatsCatalog, band: str | None) -> tuple[ColumnPlan, str]:
         if band is None:
             raise catalog.missing("a magnitude (V, Hp, VT, G, J, H or Ks)")
     elif band not in have:
-        raise catalog.missing(f"the {band} magnitude (--band {band})")
+        raise catalog.missing(f"the {band} magnitude (band {band!r})")
     return plan.restrict([band], []), band
 
 

@@ -14,6 +14,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from starsense._validate import check_int
 from starsense.errors import InputError
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import CatalogUnavailableError, MissingColumnsError
@@ -87,14 +88,13 @@ def import_catalog(
     fmt = input_format(src)
     if dst.exists():
         raise InputError(f"output {dst} already exists; remove it or choose another name")
-    if isinstance(pixel_threshold, bool) or int(pixel_threshold) < 1:
-        raise InputError(f"--pixel-threshold must be an integer >= 1, got {pixel_threshold!r}")
+    check_int(pixel_threshold, "pixel_threshold", 1)
     columns = input_columns(src, fmt)
     missing = [c for c in (ra_column, dec_column) if c not in columns]
     if missing:
         raise MissingColumnsError(
             f"{src}: position column(s) {', '.join(missing)} missing (columns: "
-            f"{', '.join(columns)}); name them with --ra-column / --dec-column"
+            f"{', '.join(columns)}); name them with ra_column / dec_column"
         )
     require("hats_import", "distributed")
     from hats_import.catalog.arguments import ImportArguments
