@@ -29,7 +29,6 @@ import secrets
 
 import numpy as np
 
-from starsense._validate import check_scalar
 from starsense.errors import InputError
 
 __all__ = ["apply_noise", "as_generator", "count_dtype", "quantise"]
@@ -127,13 +126,7 @@ def apply_noise(expected_e, sensor, rng=None, *, exposure_s: float | None = None
     det = sensor.detector
     gen, _ = as_generator(rng)
     e = _check_expected(expected_e)
-    te = check_scalar(
-        sensor.exposure_s if exposure_s is None else exposure_s,
-        "exposure_s",
-        0.0,
-        None,
-        lo_open=True,
-    )
+    te = sensor.exposure_or(exposure_s)
     wdt = _work_dtype(det.bit_depth)
     if det.read_noise_e > 0:
         work = gen.standard_normal(e.shape, dtype=wdt)

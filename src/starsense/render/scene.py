@@ -131,13 +131,7 @@ def render_star_stamp(
     e = check_scalar(electrons, "electrons", 0.0)
     if rate_rad_s is not None and streak_px is not None:
         raise InputError("give rate_rad_s or streak_px, not both")
-    te = check_scalar(
-        sensor.exposure_s if exposure_s is None else exposure_s,
-        "exposure_s",
-        0.0,
-        None,
-        lo_open=True,
-    )
+    te = sensor.exposure_or(exposure_s)
     ox, oy = (float(v) for v in offset_px)
     cx, cy = sensor.principal_point_px
     x, y = cx + ox, cy + oy
@@ -370,13 +364,7 @@ def render_frame(
         attitude, or a catalogue without the needed band / colour.
     """
     w = check_rate(rate_rad_s)
-    te = check_scalar(
-        sensor.exposure_s if exposure_s is None else exposure_s,
-        "exposure_s",
-        0.0,
-        None,
-        lo_open=True,
-    )
+    te = sensor.exposure_or(exposure_s)
     _check_render_options(attitude, model, method, max_mag)
     gen, seed = as_generator(rng)
     if te != sensor.exposure_s:

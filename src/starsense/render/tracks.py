@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import check_scalar, finite_array
+from starsense._validate import finite_array
 from starsense.errors import InputError
 
 __all__ = ["Tracks", "check_rate", "star_tracks"]
@@ -124,13 +124,7 @@ def star_tracks(
     Tracks
     """
     w = check_rate(rate_rad_s)
-    te = check_scalar(
-        sensor.exposure_s if exposure_s is None else exposure_s,
-        "exposure_s",
-        0.0,
-        None,
-        lo_open=True,
-    )
+    te = sensor.exposure_or(exposure_s)
     v = np.asarray(vectors_cam, dtype=float).reshape(-1, 3)
     n = v.shape[0]
     sub = 8

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from starsense._validate import check_scalar
 from starsense.errors import InputError
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.sensor._fields import check_field
@@ -179,6 +180,23 @@ class Sensor:
             scale = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
             u, w = u * scale, w * scale
         return tangent_to_vectors(np.stack([u, w], axis=-1))
+
+    def exposure_or(self, exposure_s: float | None = None) -> float:
+        """Return the exposure to use: ``exposure_s`` if given, else the sensor's own, s.
+
+        Parameters
+        ----------
+        exposure_s : float or None
+            An exposure that overrides the sensor's, s (> 0, finite).
+
+        Raises
+        ------
+        InputError
+            If the given exposure is not a finite number > 0.
+        """
+        if exposure_s is None:
+            return self.exposure_s
+        return check_scalar(exposure_s, "exposure_s", 0.0, None, lo_open=True)
 
     def streak_length_px(self, rate_rad_s: float) -> float:
         """Length of a cross-axis streak, f tan(|w| t_e) / pitch (Dzamba & Enright eq. 1), px.
