@@ -19,7 +19,7 @@ from astropy.time import Time
 from numpy.typing import NDArray
 
 from starsense._validate import check_scalar, finite_float
-from starsense.analysis.mission.timegrid import TimeGrid, mean_sun_ra, parse_time
+from starsense.analysis.mission.timegrid import TimeGrid, mean_sun_ra, parse_time, quiet_future
 from starsense.errors import InputError
 
 __all__ = [
@@ -144,7 +144,8 @@ class KeplerOrbit:
 
     def state(self, grid: TimeGrid) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return GCRS positions (m) and velocities (m/s) at the steps, each (n_steps, 3)."""
-        dt = grid.t_s + float((grid.start - self.epoch).to_value("s"))
+        with quiet_future():
+            dt = grid.t_s + float((grid.start - self.epoch).to_value("s"))
         d_raan, d_argp, d_m = self.secular_rates()
         e = self.eccentricity
         ecc = _eccentric_anomaly(self.mean_anomaly + d_m * dt, e)

@@ -13,13 +13,17 @@ steps:
 
 from __future__ import annotations
 
+import contextlib
 import math
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 
 import erfa
 import numpy as np
 from astropy.time import Time
+from erfa import ErfaWarning
 from numpy.typing import NDArray
 
 from starsense._validate import check_scalar
@@ -31,6 +35,7 @@ __all__ = [
     "TimeGrid",
     "mean_sun_ra",
     "parse_time",
+    "quiet_future",
 ]
 
 #: Earth's rotation rate, rad/s (IERS Conventions 2010, Table 1.1)
@@ -40,8 +45,25 @@ MAX_STEPS = 20_000_000
 _DAY_S = 86400.0
 
 
+@contextlib.contextmanager
+def quiet_future() -> Iterator[None]:
+    """Silence ERFA's "dubious year" for times past the leap-second table (the future).
+
+    Leap seconds not yet announced move UTC against TT by a second or two: nothing at the
+    scale of this analysis.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*dubious year", category=ErfaWarning)
+        yield
+
+
 def parse_time(text: object, name: str = "start") -> Time:
     """Return a UTC :class:`Time` from an ISO 8601 text (or a Time), naming `name` if bad."""
+    with quiet_future():
+        return _parse_time(text, name)
+
+
+def _parse_time(text: object, name: str) -> Time:
     if isinstance(text, Time):
         if not text.isscalar:
             raise InputError(f"{name} must be a single time")
@@ -110,7 +132,8 @@ class TimeGrid:
 
     def jd(self, scale: str = "utc") -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the two-part Julian dates of the steps in `scale` (``utc`` or ``tt``)."""
-        t = getattr(self.start, scale)
+        with quiet_future():
+            t = getattr(self.start, scale)
         return np.full(self.n_steps, t.jd1), t.jd2 + self.t_s / _DAY_S
 
     def times(self, t_s: NDArray[np.float64] | None = None) -> Time:
@@ -118,7 +141,8 @@ class TimeGrid:
         from astropy import units as u
 
         offsets = self.t_s if t_s is None else np.asarray(t_s, dtype=np.float64)
-        return self.start + offsets * u.s
+        with quiet_future():
+            return self.start + offsets * u.s
 
     def gcrs_from_itrs(self) -> NDArray[np.float64]:
         """Return the rotation matrices GCRS <- ITRS at every step, (n_steps, 3, 3)."""
@@ -149,7 +173,8 @@ def mean_sun_ra(t: Time) -> float:
     Julian centuries of TT from J2000) is the right ascension of the fictitious mean Sun that
     defines mean local solar time, to a few arcseconds.
     """
-    tt = t.tt
+    with quiet_future():
+        tt = t.tt
     centuries = ((tt.jd1 - 2451545.0) + tt.jd2) / 36525.0
     deg = 280.46646 + 36000.76983 * centuries + 0.0003032 * centuries**2
     return math.radians(deg % 360.0)

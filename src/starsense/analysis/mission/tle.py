@@ -20,7 +20,7 @@ import numpy as np
 from astropy.time import Time
 from numpy.typing import NDArray
 
-from starsense.analysis.mission.timegrid import TimeGrid
+from starsense.analysis.mission.timegrid import TimeGrid, quiet_future
 from starsense.errors import InputError
 
 __all__ = ["TLE_VALID_DAYS", "TleAgeWarning", "TleOrbit", "parse_tle", "teme_to_gcrs_matrix"]
@@ -123,7 +123,8 @@ def parse_tle(text: str, source: str = "TLE") -> tuple[str, str, str]:
 
 def teme_to_gcrs_matrix(t: Time) -> NDArray[np.float64]:
     """Return the TEME -> GCRS rotation at `t` (3, 3): ``NPB^T R3(-EqE)``."""
-    tt = t.tt
+    with quiet_future():
+        tt = t.tt
     npb = erfa.pnm06a(tt.jd1, tt.jd2)  # GCRS -> true equator and equinox of date
     eqe = erfa.ee06a(tt.jd1, tt.jd2)  # true minus mean equinox along the equator
     c, s = np.cos(eqe), np.sin(eqe)
@@ -171,7 +172,8 @@ class TleOrbit:
     def epoch(self) -> Time:
         """The TLE's epoch, UTC."""
         sat = self.satrec
-        return Time(sat.jdsatepoch, sat.jdsatepochF, format="jd", scale="utc")
+        with quiet_future():
+            return Time(sat.jdsatepoch, sat.jdsatepochF, format="jd", scale="utc")
 
     @property
     def label(self) -> str:
@@ -185,8 +187,9 @@ class TleOrbit:
         the epoch; raises :class:`InputError` when SGP4 fails (decay, eccentricity out of range).
         """
         epoch = self.epoch
-        ages = [(grid.start - epoch).to_value("day"),
-                (grid.start - epoch).to_value("day") + grid.duration_s / 86400.0]  # fmt: skip
+        with quiet_future():
+            age0 = (grid.start - epoch).to_value("day")
+        ages = [age0, age0 + grid.duration_s / 86400.0]
         worst = max(ages, key=abs)
         if abs(worst) > TLE_VALID_DAYS:
             warnings.warn(
