@@ -158,7 +158,7 @@ class KeplerOrbit:
         vqw = np.stack([-speed * sin_e, speed * root * cos_e, np.zeros_like(ecc)], axis=1)
         m = _rotation_pqw(self.raan + d_raan * dt, np.full_like(dt, self.inclination),
                           self.arg_perigee + d_argp * dt)  # fmt: skip
-        return np.einsum("nij,nj->ni", m, pqw), np.einsum("nij,nj->ni", m, vqw)
+        return (m @ pqw[:, :, None])[:, :, 0], (m @ vqw[:, :, None])[:, :, 0]
 
 
 def sun_synchronous(altitude_m: float, ltan_h: float, epoch: object,

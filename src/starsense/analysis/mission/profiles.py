@@ -46,8 +46,8 @@ def _unit(v: NDArray[np.float64], what: str) -> NDArray[np.float64]:
     return v / n
 
 
-def triad(z: NDArray[np.float64], x_hint: NDArray[np.float64]) -> Rotation:
-    """Return attitudes with +z along `z` and +x along the part of `x_hint` normal to it.
+def triad(z: NDArray[np.float64], x_hint: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return attitude matrices with +z along `z` and +x along the part of `x_hint` normal to it.
 
     Parameters
     ----------
@@ -56,26 +56,45 @@ def triad(z: NDArray[np.float64], x_hint: NDArray[np.float64]) -> Rotation:
 
     Returns
     -------
-    Rotation, batch of N
-        ICRS -> body.
+    ndarray, shape (N, 3, 3)
+        ICRS -> body (rows: the body axes in ICRS), orthonormal to rounding.
     """
     zu = _unit(z, "the +z axis")
     x = _unit(x_hint - np.sum(x_hint * zu, axis=1, keepdims=True) * zu,
               "the secondary axis (parallel to +z)")  # fmt: skip
     y = np.cross(zu, x)
-    return Rotation.from_matrix(np.stack([x, y, zu], axis=1))
+    return np.stack([x, y, zu], axis=1)
 
 
-def body_rates(attitudes: Rotation, step_s: float) -> NDArray[np.float64]:
+def body_rates(matrices: NDArray[np.float64], step_s: float) -> NDArray[np.float64]:
     """Return the body angular velocity at each step, rad/s, in body axes, (N, 3).
 
-    ``A_{k+1} = exp(-[w x] dt) A_k`` for an attitude ``A`` (ICRS -> body), so the rotation
-    vector of ``A_{k+1} A_k^-1`` is ``-w dt``; the two neighbouring intervals are averaged.
+    ``A_{k+1} = exp(-[w x] dt) A_k`` for an attitude matrix ``A`` (ICRS -> body), so the
+    rotation vector of ``D = A_{k+1} A_k^T`` is ``-w dt``: its axis times ``sin(angle)`` is the
+    antisymmetric part of ``D`` and ``cos(angle) = (tr D - 1) / 2``. The two neighbouring
+    intervals are averaged.
+
+    Parameters
+    ----------
+    matrices : ndarray, shape (N, 3, 3)
+        Attitudes, ICRS -> body, N >= 2.
+    step_s : float
+        Time step, s.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
     """
-    if len(attitudes) < 2:
+    if len(matrices) < 2:
         raise InputError("body rates need at least 2 steps")
-    seg = -(attitudes[1:] * attitudes[:-1].inv()).as_rotvec() / step_s  # (N-1, 3)
-    w = np.empty((len(attitudes), 3))
+    d = matrices[1:] @ matrices[:-1].transpose(0, 2, 1)
+    vee = 0.5 * np.stack([d[:, 2, 1] - d[:, 1, 2], d[:, 0, 2] - d[:, 2, 0],
+                          d[:, 1, 0] - d[:, 0, 1]], axis=1)  # fmt: skip
+    sin = np.linalg.norm(vee, axis=1)
+    angle = np.arctan2(sin, 0.5 * (np.trace(d, axis1=1, axis2=2) - 1.0))
+    scale = np.where(sin > 1e-300, angle / np.maximum(sin, 1e-300), 1.0)
+    seg = -vee * scale[:, None] / step_s  # (N-1, 3)
+    w = np.empty((len(matrices), 3))
     w[0], w[-1] = seg[0], seg[-1]
     w[1:-1] = 0.5 * (seg[1:] + seg[:-1])
     return w
@@ -187,7 +206,7 @@ class AttitudeProfile:
         return "sun-pointing"
 
     def attitudes(self, grid: TimeGrid, r: NDArray[np.float64], v: NDArray[np.float64],
-                  sun: NDArray[np.float64]) -> Rotation:  # fmt: skip
+                  sun: NDArray[np.float64]) -> NDArray[np.float64]:  # fmt: skip
         """Return the body attitudes (ICRS -> body) at the steps.
 
         Parameters
@@ -201,12 +220,13 @@ class AttitudeProfile:
 
         Returns
         -------
-        Rotation, batch of N
+        ndarray, shape (N, 3, 3)
+            ICRS -> body.
         """
         n = grid.n_steps
         if self.kind == "inertial":
             one = attitude_from_radec_roll(self.ra, self.dec, self.roll)
-            return Rotation.from_quat(np.tile(one.as_quat(), (n, 1)))
+            return np.broadcast_to(one.as_matrix(), (n, 3, 3)).copy()
         if self.kind == "nadir":
             hint = v
             if self.yaw_steering:
@@ -224,4 +244,4 @@ class AttitudeProfile:
                 f"{self.path}: the quaternions cover t_s {t_s[0]:g} ... {t_s[-1]:g} s; the "
                 f"span needs 0 ... {grid.t_s[-1]:g} s"
             )
-        return Slerp(t_s, quats)(grid.t_s)
+        return Slerp(t_s, quats)(grid.t_s).as_matrix()
