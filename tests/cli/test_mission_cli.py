@@ -148,6 +148,7 @@ def test_malformed_tle_cli_one_line(capsys, tmp_path):
         (["--heads", "st16@0,0,0,2"], "norm 2: not a rotation"),
         (["--heads", "st16@0,0,0"], "expects 4 finite numbers"),
         (["--heads", "st16@xyz:90,0"], "expects 3 finite numbers"),
+        (["--heads", "st16@xq:90,0"], "Euler sequence must be 1-3 of xyz"),
         (["--heads", "st16", "--step-s", "0"], r"--step-s = 0\.0 is out of range"),
         (["--heads", "st16", "--duration-h", "-1"], r"--duration-h = -1\.0 is out of range"),
         (["--heads", "st16", "--attitude", "spin"], "--attitude"),

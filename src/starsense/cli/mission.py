@@ -44,7 +44,7 @@ ATTITUDE_HELP = (
 START_HELP = "Start, ISO 8601 UTC (default: the TLE epoch, else 2025-03-20T12:00)."
 HEADS_HELP = (
     "Heads: SENSOR[@qx,qy,qz,qw] (mounting body -> head, scalar last) or "
-    "SENSOR@SEQ:A,B,C (Euler angles, deg, scipy sequence such as xyz or ZYX); no mounting: "
+    "SENSOR@SEQ:A[,B[,C]] (Euler angles, deg, a scipy sequence: x, xyz, ZYX...); no mounting: "
     "the head looks along body +z. Append =NAME to name the head (e.g. st16@0.7071068,0,0,"
     "0.7071068=+Y). Give several after one --heads, or repeat --heads."
 )
@@ -123,7 +123,7 @@ def _mounting(spec: str, text: str):
     where = f"--heads {spec}"
     seq, colon, angles = text.partition(":")
     if colon:
-        vals = _numbers(angles, where, 3, 3)
+        vals = _numbers(angles, where, len(seq), len(seq))
         return mounting_from_euler(seq, [v * DEG for v in vals], where)
     return mounting_from_quaternion(_numbers(text, where, 4, 4), where)
 

@@ -49,14 +49,14 @@ def mounting_from_quaternion(q: Any, name: str = "mounting") -> Rotation:
 def mounting_from_euler(seq: str, angles: Any, name: str = "mounting") -> Rotation:
     """Return the mounting body -> head from Euler angles, rad, in scipy's `seq` convention.
 
-    ``seq`` is three of ``xyz`` (extrinsic) or ``XYZ`` (intrinsic), as
+    ``seq`` is one to three of ``xyz`` (extrinsic) or ``XYZ`` (intrinsic), one angle each, as
     :meth:`scipy.spatial.transform.Rotation.from_euler`.
     """
-    a = finite_array(angles, name)
-    if not (len(seq) == 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))):
-        raise InputError(f"{name}: Euler sequence must be 3 of xyz or XYZ, got {seq!r}")
-    if a.shape != (3,):
-        raise InputError(f"{name}: Euler angles must be 3 numbers, got shape {a.shape}")
+    a = np.atleast_1d(finite_array(angles, name))
+    if not (1 <= len(seq) <= 3 and (set(seq) <= set("xyz") or set(seq) <= set("XYZ"))):
+        raise InputError(f"{name}: Euler sequence must be 1-3 of xyz or of XYZ, got {seq!r}")
+    if a.shape != (len(seq),):
+        raise InputError(f"{name}: {len(seq)} Euler angle(s) for {seq!r}, got {a.size}")
     return Rotation.from_euler(seq, a)
 
 
