@@ -149,3 +149,44 @@ def test_two_heads_opposite_never_both_sun_blinded_and_sun_profile():
     # sun-pointing: body +z on the Sun to rounding (arccos of a dot product: 1.5e-8 rad)
     sun = mission_geometry(grid, orbit, AttitudeProfile("sun"))
     assert np.max(_angle(sun.body[:, 2, :], sun.sun)) < 1e-7
+
+
+def test_ground_point_in_gcrs_matches_astropy_and_target_profile():
+    # GCRS <- ITRS from ERFA (UT1 taken as UTC, no polar motion) against astropy's
+    # EarthLocation.get_gcrs (IERS-B, 2020: no download). UT1 - UTC was -0.18 s in June 2020:
+    # 0.18 s x 465 m/s x cos(45 deg) = 60 m; tolerance 150 m (0.0013 deg seen from the centre).
+    import erfa
+    from astropy.coordinates import EarthLocation
+
+    grid = TimeGrid.span("2020-06-01T00:00:00", 86400.0, 3600.0)
+    lat, lon = 45.0, 7.0
+    ours = np.einsum("nij,j->ni", grid.gcrs_from_itrs(),
+                     np.asarray(erfa.gd2gc(1, lon * DEG, lat * DEG, 0.0)))  # fmt: skip
+    with iers.conf.set_temp("auto_download", False), iers.conf.set_temp("auto_max_age", None):
+        site = EarthLocation.from_geodetic(lon * u.deg, lat * u.deg, 0.0 * u.m)
+        ref = site.get_gcrs(grid.times()).cartesian.xyz.to_value(u.m).T
+    assert np.max(np.linalg.norm(ours - ref, axis=1)) < 150.0
+    # the target profile's +z passes through that ground point
+    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    geo = mission_geometry(grid, orbit, AttitudeProfile("target", lat=lat * DEG, lon=lon * DEG))
+    to_site = ours - geo.r
+    to_site /= np.linalg.norm(to_site, axis=1, keepdims=True)
+    assert np.max(_angle(geo.body[:, 2, :], to_site)) < 1e-7
+
+
+def test_yaw_steering_aligns_ground_velocity_with_body_x():
+    # With yaw steering the velocity relative to the rotating ground, v - w_E x r, has no body
+    # +y component (to rounding). Without it, at the equator crossings the ground's eastward
+    # w_E a is almost across the near-polar track: the ratio peaks at w_E a sin(i) / v
+    # (0.066, the ~3.8 deg yaw-steering amplitude of a sun-synchronous orbit); 3 % tolerance
+    # (the relative velocity's own change of length).
+    grid = TimeGrid.span("2025-06-01T00:00:00", 6000.0, 20.0)
+    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    w_e = 7.292115e-5 * grid.earth_axis()
+    a = orbit.semi_major_axis_m
+    peak = 7.292115e-5 * a * math.sin(orbit.inclination) / math.sqrt(GM_EARTH_M3_S2 / a)
+    for yaw, lo, hi in ((True, 0.0, 1e-9), (False, 0.97 * peak, 1.03 * peak)):
+        geo = mission_geometry(grid, orbit, AttitudeProfile("nadir", yaw_steering=yaw))
+        ground = geo.v - np.cross(w_e, geo.r)
+        y = np.einsum("nj,nj->n", geo.body[:, 1, :], ground) / np.linalg.norm(ground, axis=1)
+        assert lo <= np.max(np.abs(y)) < hi, (yaw, np.max(np.abs(y)))
