@@ -7,7 +7,6 @@ group by :mod:`starsense.cli.app`.
 
 from __future__ import annotations
 
-import math
 import warnings
 from pathlib import Path
 from typing import Annotated
@@ -28,10 +27,10 @@ from starsense.cli.availability import (
 )
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, option_float, progress_bar
 from starsense.errors import InputError
-from starsense.units import DEG
 
 __all__ = ["mission"]
 
+# the forms of starsense.analysis.mission.specs (imported when the command runs, not at start-up)
 ORBIT_HELP = (
     "sso:ALT_KM[:LTAN_H] (sun-synchronous, circular; LTAN default 6 = dawn-dusk), "
     "circular:ALT_KM:INC_DEG[:RAAN_DEG[:ARGLAT_DEG]], or "
@@ -50,21 +49,10 @@ HEADS_HELP = (
 )
 
 
-def _numbers(text: str, option: str, n_lo: int, n_hi: int) -> list[float]:
-    parts = [p for p in text.split(",") if p.strip()] if text else []
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        raise InputError(f"{option} expects numbers, got {text!r}") from None
-    if not n_lo <= len(values) <= n_hi or not all(math.isfinite(v) for v in values):
-        want = f"{n_lo}" if n_lo == n_hi else f"{n_lo} to {n_hi}"
-        raise InputError(f"{option} expects {want} finite numbers, got {text!r}")
-    return values
-
-
 def _orbit(orbit: str | None, tle: Path | None, start: str | None):
     """Return (orbit, start) from --orbit / --tle / --start."""
-    from starsense.analysis.mission import KeplerOrbit, TleOrbit, parse_time, sun_synchronous
+    from starsense.analysis.mission import TleOrbit, parse_time
+    from starsense.analysis.mission.specs import parse_orbit
 
     if (orbit is None) == (tle is None):
         raise InputError("give exactly one of --orbit and --tle")
@@ -72,85 +60,28 @@ def _orbit(orbit: str | None, tle: Path | None, start: str | None):
         orb = TleOrbit.from_file(tle)
         return orb, parse_time(start, "--start") if start else orb.epoch
     t0 = parse_time(start or "2025-03-20T12:00:00", "--start")
-    kind, _, rest = orbit.partition(":")
-    if kind == "sso":
-        vals = [float(v) for v in _numbers(rest.replace(":", ","), "--orbit sso", 1, 2)]
-        alt = option_float(vals[0], "--orbit sso altitude (km)", 100.0, 6000.0)
-        ltan = option_float(vals[1] if len(vals) > 1 else 6.0, "--orbit sso LTAN (h)", 0.0, 24.0,
-                            hi_open=True)  # fmt: skip
-        return sun_synchronous(alt * 1e3, ltan, t0), t0
-    if kind == "circular":
-        vals = [*_numbers(rest.replace(":", ","), "--orbit circular", 2, 4), 0.0, 0.0]
-        alt = option_float(vals[0], "--orbit circular altitude (km)", 100.0, None)
-        inc = option_float(vals[1], "--orbit circular inclination (deg)", 0.0, 180.0)
-        label = f"circular {alt:g} km, i = {inc:g} deg"
-        return KeplerOrbit(6378.137e3 + alt * 1e3, 0.0, inc * DEG, vals[2] * DEG, 0.0,
-                           vals[3] * DEG, t0, label=label), t0  # fmt: skip
-    if kind == "kepler":
-        a, e, i, raan, argp, m = _numbers(rest, "--orbit kepler", 6, 6)
-        option_float(e, "--orbit kepler eccentricity", 0.0, 1.0, hi_open=True)
-        option_float(i, "--orbit kepler inclination (deg)", 0.0, 180.0)
-        label = f"Keplerian a = {a:g} km, e = {e:g}, i = {i:g} deg"
-        return KeplerOrbit(a * 1e3, e, i * DEG, raan * DEG, argp * DEG, m * DEG, t0,
-                           label=label), t0  # fmt: skip
-    raise InputError(f"--orbit must be sso:..., circular:... or kepler:..., got {orbit!r}")
-
-
-def _profile(attitude: str):
-    from starsense.analysis.mission import AttitudeProfile
-
-    kind, _, rest = attitude.partition(":")
-    if kind == "inertial":
-        ra, dec, roll = _numbers(rest, "--attitude inertial:RA,DEC,ROLL", 3, 3)
-        option_float(dec, "--attitude inertial Dec (deg)", -90.0, 90.0)
-        return AttitudeProfile("inertial", ra=ra * DEG, dec=dec * DEG, roll=roll * DEG)
-    if kind == "nadir" and rest in ("", "yaw"):
-        return AttitudeProfile("nadir", yaw_steering=rest == "yaw")
-    if kind == "sun" and not rest:
-        return AttitudeProfile("sun")
-    if kind == "target":
-        lat, lon = _numbers(rest, "--attitude target:LAT,LON", 2, 2)
-        option_float(lat, "--attitude target latitude (deg)", -90.0, 90.0)
-        return AttitudeProfile("target", lat=lat * DEG, lon=lon * DEG)
-    if kind == "quaternions" and rest:
-        return AttitudeProfile("quaternions", path=rest)
-    raise InputError(f"--attitude: {ATTITUDE_HELP} Got {attitude!r}")
-
-
-def _mounting(spec: str, text: str):
-    from starsense.analysis.mission import mounting_from_euler, mounting_from_quaternion
-
-    where = f"--heads {spec}"
-    seq, colon, angles = text.partition(":")
-    if colon:
-        vals = _numbers(angles, where, len(seq), len(seq))
-        return mounting_from_euler(seq, [v * DEG for v in vals], where)
-    return mounting_from_quaternion(_numbers(text, where, 4, 4), where)
+    return parse_orbit(orbit, t0, "--orbit"), t0
 
 
 def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolerance_json, bar):
     from starsense.analysis.mission import Head
+    from starsense.analysis.mission.specs import parse_head
     from starsense.sensor import load_sensor
 
     if not specs:
         raise InputError("give at least one head: --heads st16[@qx,qy,qz,qw] ...")
-    sensors, curves, heads, seen = {}, {}, [], {}
-    for spec in specs:
-        body, _, given = spec.partition("=")
-        name, at, mount = body.partition("@")
-        if name not in sensors:
-            sensors[name] = load_sensor(name)
-            curves[name] = _threshold_curve(sensors[name], model, trials, seed, tolerance_json,
-                                            bar.callback)  # fmt: skip
-        sens = sensors[name]
-        mounting = _mounting(spec, mount) if at else None
-        base = given or spec
-        seen[base] = seen.get(base, 0) + 1
-        label = base if seen[base] == 1 else f"{base}#{seen[base]}"
-        kwargs = {} if mounting is None else {"mounting": mounting}
-        heads.append(Head(label, _field_of_view(sens, fov, half_fov_deg), curves[name],
-                          exclusion=sens.exclusion, **kwargs))  # fmt: skip
-    return heads
+    parsed, seen = [], {}
+    for spec in specs:  # every mounting checked before any slow work
+        name, label, mounting = parse_head(spec, "--heads")
+        seen[label] = seen.get(label, 0) + 1
+        label = label if seen[label] == 1 else f"{label}#{seen[label]}"
+        parsed.append((name, label, {} if mounting is None else {"mounting": mounting}))
+    sensors = {name: load_sensor(name) for name, _, _ in parsed}
+    curves = {name: _threshold_curve(sens, model, trials, seed, tolerance_json, bar.callback)
+              for name, sens in sensors.items()}  # fmt: skip
+    return [Head(label, _field_of_view(sensors[name], fov, half_fov_deg), curves[name],
+                 exclusion=sensors[name].exclusion, **kwargs)
+            for name, label, kwargs in parsed]  # fmt: skip
 
 
 def mission(
@@ -179,13 +110,14 @@ def mission(
     """Availability along a mission: orbit, attitude profile, bright bodies, several heads."""
     from starsense.analysis.availability import catalog_stars
     from starsense.analysis.mission import TimeGrid, mission_availability, mission_geometry
+    from starsense.analysis.mission.specs import parse_attitude
     from starsense.catalog import load_catalog
 
     _check_n_min(n_min)
     hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
     specs = [tok for value in [*(heads or []), *(more_heads or [])] for tok in value.split()]
-    profile = _profile(attitude)
+    profile = parse_attitude(attitude, "--attitude")
     orb, t0 = _orbit(orbit, tle, start)
     with warnings.catch_warnings(record=True) as caught, progress_bar(not as_json) as bar:
         warnings.simplefilter("always", UserWarning)
