@@ -101,7 +101,7 @@ def test_inertial_without_bright_bodies_equals_static_availability(stars):
         outcome.append(bool(h.available.all()))
         assert h.available.all() == h.available.any()
     assert np.mean(outcome) == pytest.approx(field.availability(m_t, 3))
-    assert 0 < sum(outcome) < len(outcome) or sum(outcome) == len(outcome)
+    assert static_counts.max() > static_counts.min()  # distinct fields, not one repeated
 
 
 def test_ecliptic_pole_head_never_sun_blinded():
@@ -136,7 +136,9 @@ def test_nadir_head_always_earth_blinded_and_zenith_never(stars):
     assert d["combined"]["available_fraction"] == d["heads"][1]["available_fraction"]
 
 
-def test_no_warnings_from_astropy_on_a_plain_run(stars):
+def test_future_dates_do_not_warn(stars):
+    # 2030 is past astropy's leap-second table: ERFA's "dubious year" is silenced (a leap
+    # second or two of UTC - TT does not matter here); any other warning fails
     v, m = stars
     grid = TimeGrid.span("2030-01-01T00:00:00", 1200.0, 10.0)
     with warnings.catch_warnings():
