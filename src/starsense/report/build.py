@@ -29,6 +29,7 @@ from starsense.report import page
 from starsense.report.availability import availability_section
 from starsense.report.guide_stars import guide_stars_section
 from starsense.report.limits import limit_section
+from starsense.report.mission import mission_section
 from starsense.report.section import ReportContext, Section
 from starsense.report.sensors import SensorSpec, load_sensor_table
 from starsense.report.slew import slew_section
@@ -39,6 +40,7 @@ SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [
     slew_section,
     availability_section,
     guide_stars_section,
+    mission_section,
 ]
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,

@@ -79,6 +79,12 @@ class Sensor:
     attitude_areas : AreaLayout or None
         Attitude-determination areas in the focal plane (Lin et al. 2024), tangent-plane units
         (:class:`starsense.geometry.areas.AreaLayout`); None when the whole detector is used.
+    exclusion : Exclusion or None
+        Sun, Moon and Earth-limb exclusion half-angles (:mod:`starsense.sensor.exclusion`);
+        None when the TOML has no ``[exclusion]`` table.
+    mission : MissionPlan or None
+        The mission the TOML's ``[mission]`` table names (:mod:`starsense.sensor.mission_plan`),
+        for the report's mission section.
     """
 
     name: str
@@ -88,6 +94,8 @@ class Sensor:
     detection: DetectionThresholds = field(default_factory=DetectionThresholds)
     description: str = ""
     attitude_areas: Any = None
+    exclusion: Any = None
+    mission: Any = None
 
     def __post_init__(self) -> None:
         check_field("sensor", "exposure_s", self.exposure_s, 0, 1e5, lo_open=True)
