@@ -142,7 +142,7 @@ class Solution:
             return None
         return tuple(float(s * RAD_TO_ARCSEC) for s in self.sigma_rad)
 
-    def wcs(self, sip_order: int = 5):
+    def wcs(self, sip_order: int | None = None):
         """Return an astropy WCS of the solved frame: TAN, or TAN-SIP when the sensor distorts.
 
         See :func:`starsense.solve.wcs.solution_wcs`.
@@ -151,7 +151,7 @@ class Solution:
 
         return solution_wcs(self, sip_order)
 
-    def write_wcs(self, path: str | Path, sip_order: int = 5) -> Path:
+    def write_wcs(self, path: str | Path, sip_order: int | None = None) -> Path:
         """Write the WCS as a FITS header (:func:`~starsense.solve.wcs.write_solution_wcs`)."""
         from starsense.solve.wcs import write_solution_wcs
 

@@ -6,8 +6,9 @@ CRPIX the principal point. A sensor with Brown-Conrady distortion
 (:mod:`starsense.geometry.distortion`) adds SIP polynomials (Shupe et al. 2005, ASP Conf. Ser.
 347, 491): A, B take the measured pixel offsets ``(u, v)`` from CRPIX to the pinhole ones,
 ``u + A(u, v)``, and AP, BP go back. Both are least-squares fits of the exact model on a grid
-over the detector, of total degree ``order`` (default 5: k1 is cubic, k2 quintic); the largest
-fit error, in pixels, goes into the header.
+over the detector, of total degree ``order``: by default the lowest odd degree (3..9) whose
+largest error on the grid is below :data:`SIP_TOLERANCE_PX` (the inverse of a 10 % distortion
+at the corner needs 9); that error goes into the header.
 """
 
 from __future__ import annotations
@@ -20,9 +21,11 @@ from starsense._io import atomic_path
 from starsense.errors import InputError
 from starsense.geometry.distortion import distort, undistort
 
-__all__ = ["sip_coefficients", "solution_wcs", "write_solution_wcs"]
+__all__ = ["SIP_TOLERANCE_PX", "sip_coefficients", "solution_wcs", "write_solution_wcs"]
 
 _GRID = 41  # grid points per axis for the SIP fits
+#: largest SIP fit error the automatic order aims for, px
+SIP_TOLERANCE_PX = 0.01
 
 
 def _monomials(u: np.ndarray, v: np.ndarray, order: int) -> tuple[np.ndarray, list]:
@@ -81,7 +84,18 @@ def sip_coefficients(sensor, order: int = 5) -> tuple[np.ndarray, ...]:
     return a, b, ap, bp, max(err_fwd, err_inv)
 
 
-def solution_wcs(solution, sip_order: int = 5):
+def _auto_sip(sensor, order: int | None) -> tuple[int, tuple]:
+    """Return the SIP order to use (lowest odd one within tolerance if None) and its fit."""
+    if order is not None:
+        return order, sip_coefficients(sensor, order)
+    for k in (3, 5, 7, 9):
+        fit = sip_coefficients(sensor, k)
+        if fit[-1] <= SIP_TOLERANCE_PX:
+            break
+    return k, fit
+
+
+def solution_wcs(solution, sip_order: int | None = None):
     """Return an astropy WCS of a solved frame: TAN, or TAN-SIP when its sensor distorts.
 
     Parameters
@@ -89,8 +103,9 @@ def solution_wcs(solution, sip_order: int = 5):
     solution : Solution
         A solved frame (:class:`starsense.solve.solver.Solution`); its ``sensor`` (or None for
         a pinhole at the image centre) gives the principal point and distortion.
-    sip_order : int
-        Degree of the SIP polynomials.
+    sip_order : int, optional
+        Degree of the SIP polynomials (default: the lowest odd one within
+        :data:`SIP_TOLERANCE_PX`).
 
     Returns
     -------
@@ -127,13 +142,13 @@ def solution_wcs(solution, sip_order: int = 5):
     w.wcs.radesys = "ICRS"
     w.pixel_shape = (cols, rows)
     if sensor is not None and sensor.optics.has_distortion:
-        a, b, ap, bp, _ = sip_coefficients(sensor, sip_order)
+        _, (a, b, ap, bp, _) = _auto_sip(sensor, sip_order)
         w.wcs.ctype = ["RA---TAN-SIP", "DEC--TAN-SIP"]
         w.sip = Sip(a, b, ap, bp, w.wcs.crpix)
     return w
 
 
-def write_solution_wcs(solution, path: str | Path, sip_order: int = 5) -> Path:
+def write_solution_wcs(solution, path: str | Path, sip_order: int | None = None) -> Path:
     """Write a solved frame's WCS as a FITS header (no data), atomically (:mod:`starsense._io`).
 
     Parameters
@@ -142,8 +157,8 @@ def write_solution_wcs(solution, path: str | Path, sip_order: int = 5) -> Path:
         A solved frame.
     path : path-like
         The FITS file to create or replace; its directory must exist.
-    sip_order : int
-        Degree of the SIP polynomials (when the sensor distorts).
+    sip_order : int, optional
+        Degree of the SIP polynomials (when the sensor distorts; default automatic).
 
     Returns
     -------
@@ -157,8 +172,8 @@ def write_solution_wcs(solution, path: str | Path, sip_order: int = 5) -> Path:
     header = w.to_header(relax=True)
     header["COMMENT"] = "starsense solution: " + solution.message
     if w.sip is not None:
-        *_, err = sip_coefficients(solution.sensor, sip_order)
-        header["COMMENT"] = f"SIP order {sip_order}: largest fit error {err:.2e} px"
+        order, fit = _auto_sip(solution.sensor, sip_order)
+        header["COMMENT"] = f"SIP order {order}: largest fit error {fit[-1]:.2e} px"
     with atomic_path(path, suffix=".tmp") as tmp:
         fits.PrimaryHDU(header=header).writeto(tmp, overwrite=True)
     return path
