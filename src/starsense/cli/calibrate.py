@@ -24,17 +24,24 @@ def calibrate(
         ),
     ] = "focal_length,principal_point,k1,k2,p1,p2",
     catalog: CatalogOpt = "hipparcos",
+    time: Annotated[
+        str | None,
+        typer.Option("--time", help="UTC time of the frames (ISO 8601); else from each header."),
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Fit focal length, principal point and Brown-Conrady distortion to the frames' stars.
 
     Every frame is solved with --sensor; the matched stars of those that solve are fitted
     jointly, each frame's attitude a nuisance parameter. The result is written to --out as a
-    sensor TOML that `solve --sensor FILE` uses. Exit status 2 when no frame solves or a
-    parameter cannot be fitted (hold it fixed by leaving it out of --fit).
+    sensor TOML that `solve --sensor FILE` uses. With a time (--time, FITS DATE-OBS, EXIF) the
+    stars are fitted at their apparent places (proper motion, parallax, aberration). Exit
+    status 2 when no frame solves or a parameter cannot be fitted (hold it fixed by leaving it
+    out of --fit).
     """
     from starsense._io import atomic_write
     from starsense.catalog import load_catalog
+    from starsense.geometry.apparent import parse_time
     from starsense.sensor.dump import sensor_to_toml
     from starsense.solve.calibration import PARAMETERS, calibrate, frame_stars
     from starsense.solve.solver import Solver
@@ -47,11 +54,12 @@ def calibrate(
         raise InputError(f"--out must be a .toml file, got {str(out)!r}")
     if not out.parent.is_dir():
         raise InputError(f"--out: directory {str(out.parent)!r} not found")
+    when = None if time is None else parse_time(time, "--time")
     solver = Solver(sensor, catalog=catalog)
     cat = load_catalog(catalog)
     stars, skipped = [], {}
     for path in frames:
-        sol = solver.solve_file(path)
+        sol = solver.solve_file(path, when)
         if sol.solved:
             stars.append(frame_stars(sol, cat, str(path)))
         else:
