@@ -13,7 +13,8 @@ The optics are known three ways, from best to least:
 
 The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
 (:mod:`starsense.attitude`), which also gives its covariance (Fialho & Mortari eq. 21) for a
-centroid noise of ``centroid_sigma_px``.
+centroid noise of ``centroid_sigma_px``; against the stars' apparent places when the frame's
+time is known (:mod:`starsense.catalog.apparent`), so that it is the true ICRS attitude.
 """
 
 from __future__ import annotations
@@ -330,7 +331,9 @@ class Solver:
         from starsense.catalog import load_catalog
         from starsense.catalog.apparent import apparent_places
 
-        cat = load_catalog(self.catalog_spec)
+        if getattr(self, "_catalog", None) is None:  # loaded once per solver
+            self._catalog = load_catalog(self.catalog_spec)
+        cat = self._catalog
         index = cat.index_of(np.asarray(catalog_ids, dtype=np.int64))
         places = apparent_places(cat, index, obs_time, self.observer_velocity_m_s)
         return places.vectors, places.to_dict()
