@@ -93,3 +93,19 @@ def test_time_option_and_bad_time(scene, tmp_path, capsys):
     assert main(["solve", str(path), "--sensor", "st16", "--time", "noon"]) == 2
     err = capsys.readouterr().err
     assert "ISO 8601" in err and "Traceback" not in err
+
+
+def test_render_time_option_writes_the_time(tmp_path, capsys):
+    out = tmp_path / "f.fits"
+    args = ["render", "--sensor", "st16", "--ra-deg", "83.8", "--dec-deg", "-5.4", "--seed", "1"]
+    assert main([*args, "--time", T, "--out", str(out)]) == 0
+    from astropy.io import fits
+
+    assert fits.getheader(out)["DATE-OBS"].startswith(T)
+    truth = json.loads((tmp_path / "f.fits.json").read_text())
+    assert truth["apparent_places"]["applied"] and truth["apparent_places"]["aberration"]
+    capsys.readouterr()
+    bad = tmp_path / "g.fits"
+    assert main([*args, "--time", "2026-13-01T00:00:00", "--out", str(bad)]) == 2
+    assert "--time must be an ISO 8601" in capsys.readouterr().err
+    assert not bad.exists()
