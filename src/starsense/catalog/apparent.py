@@ -17,6 +17,7 @@ fitted to these directions is the observer's true ICRS attitude.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +25,7 @@ import numpy as np
 from starsense.errors import InputError
 from starsense.geometry.apparent import AU_M, aberrate, observer_state, parse_time
 
-__all__ = ["ApparentPlaces", "apparent_places"]
+__all__ = ["ApparentPlaces", "apparent_places", "apparent_places_of"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,3 +112,33 @@ def apparent_places(catalog, index, time, observer_velocity_m_s=None) -> Apparen
         proper_motion=moved,
         parallax=has_plx,
     )
+
+
+@functools.lru_cache(maxsize=4)
+def _loaded(spec: str):
+    from starsense.catalog import load_catalog
+
+    return load_catalog(spec)
+
+
+def apparent_places_of(spec: str, ids, time, observer_velocity_m_s=None) -> ApparentPlaces:
+    """Return the apparent places of the stars ``ids`` of catalogue ``spec`` (loaded once).
+
+    Parameters
+    ----------
+    spec : str
+        Catalogue specification (:func:`starsense.catalog.load_catalog`).
+    ids : array_like of int, shape (N,)
+        Catalogue identifiers.
+    time : str or astropy.time.Time
+        Observation time.
+    observer_velocity_m_s : array_like, shape (3,), optional
+        As for :func:`apparent_places`.
+
+    Returns
+    -------
+    ApparentPlaces
+    """
+    cat = _loaded(spec)
+    index = cat.index_of(np.asarray(ids, dtype=np.int64))
+    return apparent_places(cat, index, time, observer_velocity_m_s)

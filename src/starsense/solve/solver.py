@@ -208,9 +208,7 @@ class Solver:
         "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
         subtracts the sensor's bias and applies its detection logic as is (simulated frames).
     apparent : bool
-        When the frame's time is known, fit the attitude to the matched stars' apparent places
-        (proper motion, parallax, aberration: :mod:`starsense.catalog.apparent`), so that it
-        is the true ICRS attitude (default True).
+        Fit the attitude to the stars' apparent places when the frame's time is known (default).
     observer_velocity_m_s : array_like, shape (3,), optional
         The observer's velocity relative to the geocentre (orbit), ICRS axes, m/s.
     """
@@ -326,17 +324,11 @@ class Solver:
     def _reference(self, ref, catalog_ids, obs_time) -> tuple[np.ndarray, dict]:
         """Return the matched stars' reference vectors: apparent places when a time is known."""
         if obs_time is None or not self.apparent:
-            why = "no frame time" if obs_time is None else "off"
-            return ref, {"applied": False, "reason": why}
-        from starsense.catalog import load_catalog
-        from starsense.catalog.apparent import apparent_places
+            return ref, {"applied": False, "reason": "no frame time" if obs_time is None else "off"}
+        from starsense.catalog.apparent import apparent_places_of
 
-        if getattr(self, "_catalog", None) is None:  # loaded once per solver
-            self._catalog = load_catalog(self.catalog_spec)
-        cat = self._catalog
-        index = cat.index_of(np.asarray(catalog_ids, dtype=np.int64))
-        places = apparent_places(cat, index, obs_time, self.observer_velocity_m_s)
-        return places.vectors, places.to_dict()
+        p = apparent_places_of(self.catalog_spec, catalog_ids, obs_time, self.observer_velocity_m_s)
+        return p.vectors, p.to_dict()
 
     def __call__(self, image, obs_time=None) -> Solution:
         """Solve one frame: detect, identify and estimate the attitude with its covariance.
