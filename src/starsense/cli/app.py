@@ -23,6 +23,7 @@ app = typer.Typer(
 
 def _register_subapps() -> None:
     from starsense.cli.availability import availability_app
+    from starsense.cli.calibrate import calibrate
     from starsense.cli.catalog import catalog_app
     from starsense.cli.frames import montecarlo, render, solve
     from starsense.cli.guide_stars import guide_stars_app
@@ -35,6 +36,7 @@ def _register_subapps() -> None:
     app.add_typer(slew_app, name="slew")
     app.command("render")(render)
     app.command("solve")(solve)
+    app.command("calibrate")(calibrate)
     app.command("montecarlo")(montecarlo)
     app.command("report")(report)
     availability_app.command("mission")(mission)
