@@ -59,9 +59,9 @@ QE_SENSIBLE_RANGE = (0.20, 0.55)
 SIGMA_SENSIBLE_RANGE_PX = (0.5, 3.0)
 
 #: Monte Carlo standard deviation of one m_t with 20 trials per point on the 0.05 mag grid, mag:
-#: the seed-to-seed spread over seeds 0-4 at sigma = 1, 1.5 and 2.5 px is 0.01-0.03 mag
-#: (tests/analysis/test_slew_study.py checks it); it scales as 1/sqrt(trials)
-MC_NOISE_MAG_20 = 0.03
+#: the seed-to-seed standard deviation over seeds 0-4 at sigma = 1, 1.5 and 2.5 px is
+#: 0.008-0.032 mag (tests/analysis/test_slew_study.py checks it); it scales as 1/sqrt(trials)
+MC_NOISE_MAG_20 = 0.035
 
 
 def study_magnitudes(step: float = 0.05, lo: float = 1.5, hi: float = 7.5) -> np.ndarray:

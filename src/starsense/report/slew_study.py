@@ -27,7 +27,7 @@ __all__ = ["REPORT_SIGMAS_PX", "REPORT_TRIALS", "slew_study_part"]
 #: PSF widths of the report's coarse study, px
 REPORT_SIGMAS_PX = (1.0, 1.5, 2.0, 3.0)
 #: trials per point of the report's coarse study
-REPORT_TRIALS = 10
+REPORT_TRIALS = 20
 #: magnitude grid of the report's coarse study: 2.5-7.0 in 0.1 mag brackets every m_t of
 #: sigma = 1-3 px at 0-3 deg/s for the st16 preset's QE (5.6 at rest to 3.1 at 3 deg/s)
 _REPORT_MAGS = (0.1, 2.5, 7.0)
