@@ -21,6 +21,11 @@ Method, as implemented:
   at every rate: the QE shifts the whole curve by one offset, and only the PSF width changes its
   shape. For each width the best QE is the one whose offset centres the mismatches; what is left,
   half their spread, is the shape mismatch no QE can remove.
+
+Checked once, outside the report (seed 0, sigma = 1-3 px, 20 trials): detecting with 4- instead
+of 8-connected pixels, or counting a magnitude as detected at 10 % or 95 % of the trials instead
+of half, leaves every width's shape mismatch at 0.10-0.17 mag, against 0.11-0.14 with the
+defaults.
 """
 
 from __future__ import annotations
