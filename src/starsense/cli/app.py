@@ -29,12 +29,14 @@ def _register_subapps() -> None:
     from starsense.cli.limit import limit_app
     from starsense.cli.report import report
     from starsense.cli.slew import slew_app
+    from starsense.cli.track import track
 
     app.add_typer(limit_app, name="limit")
     app.add_typer(slew_app, name="slew")
     app.command("render")(render)
     app.command("solve")(solve)
     app.command("montecarlo")(montecarlo)
+    app.command("track")(track)
     app.command("report")(report)
     app.add_typer(availability_app, name="availability")
     app.add_typer(guide_stars_app, name="guide-stars")

@@ -126,6 +126,9 @@ class FrameTruth:
     method : str
         Pixel quadrature of the smeared PSF.
     stars : StarTruth
+    time_s : float or None
+        Mid-exposure time of the frame in its sequence, s (None for a lone frame;
+        :func:`starsense.render.sequence.render_sequence`).
     """
 
     sensor: str
@@ -144,6 +147,7 @@ class FrameTruth:
     noise: bool
     method: str
     stars: StarTruth
+    time_s: float | None = None
 
     def to_dict(self) -> dict:
         """JSON-able dictionary (angles also in degrees, quaternion scalar-last)."""
@@ -169,6 +173,7 @@ class FrameTruth:
             "max_mag": self.max_mag,
             "noise": self.noise,
             "method": self.method,
+            "time_s": self.time_s,
             "n_stars": len(self.stars),
             "stars": self.stars.to_dict(),
         }
