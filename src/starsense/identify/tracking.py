@@ -168,6 +168,7 @@ class TrackingIdentifier:
         field_radius_rad: float,
         *,
         region: tuple[float, int] | None = None,
+        candidates=None,
     ) -> TrackingMatch:
         """Match detections to the stars predicted by ``prior``.
 
@@ -186,6 +187,10 @@ class TrackingIdentifier:
         region : (float, int), optional
             Solid angle the detections were searched in, sr, and the predicted stars in it (the
             detection windows); default the cone of the field and every star predicted in it.
+        candidates : array_like of int, optional
+            The database stars to predict (e.g. the brightest on the detector: a frame that
+            shows few stars shows the brightest, and fewer candidates leave fewer ambiguous
+            pairs); default every database star in the cone.
 
         Returns
         -------
@@ -198,8 +203,11 @@ class TrackingIdentifier:
         db = self.database
         cone = min(field_r + r_s, math.pi / 2)
         centre = prior.inv().apply([0.0, 0.0, 1.0])
-        near = np.asarray(db.tree.query_ball_point(centre, _chord(cone)), dtype=np.int64)
-        near.sort()
+        if candidates is None:
+            near = np.asarray(db.tree.query_ball_point(centre, _chord(cone)), dtype=np.int64)
+            near.sort()
+        else:
+            near = np.asarray(candidates, dtype=np.int64).reshape(-1)
         if region is None:
             region = (2 * math.pi * (1 - math.cos(cone)), len(near))
 

@@ -149,11 +149,17 @@ def _sigma_rad(solver, det, matched, vectors, rate) -> np.ndarray:
         return np.full(len(matched), solver.centroid_sigma_px / f)
     from starsense.solve.windows import streak_px
 
+    detector = solver.sensor.detector
     margin = 2 if solver.background != "known" else solver._detector().margin_px
-    var = _cog_sigma_px(det, matched, solver.sensor.detector, margin) ** 2
+    var = _cog_sigma_px(det, matched, detector, margin) ** 2
+    spread = det.extra.get("spread_px2", np.full(len(det), np.nan))[matched]
+    n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1)
+    streak = np.isfinite(spread)  # centroided over the streak's own window
+    var[streak] = (detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2)[
+        streak
+    ]
     # a streak of length L spreads each photon's position by L^2 / 12 along it: half of it on
     # the mean of the two axes (the convention of _cog_sigma_px)
-    n_e = np.maximum(det.integrated_counts[matched] / solver.sensor.detector.gain_counts_per_e, 1)
     length = streak_px(solver.sensor, rate, vectors[matched])
     return np.sqrt(var + length**2 / 24.0 / n_e) / f
 
@@ -163,6 +169,29 @@ def _search_radius(cov: np.ndarray, field_radius: float) -> float:
     cross = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
     roll = math.sqrt(max(cov[2, 2], 0.0)) * math.sin(field_radius)
     return N_SIGMA_SEARCH * (cross + roll)
+
+
+def _predicted_field(sensor, db, rot, r_s, field_r, rate):
+    """Database stars near the field, brightest first: their predicted pixel positions.
+
+    Returns the database indices, x, y (px), whether each lies on the detector or within the
+    search radius of it, and the streak (start to end, px) of each at the rate (None without
+    a rate).
+    """
+    centre = rot.inv().apply([0.0, 0.0, 1.0])
+    near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2)))
+    near = np.asarray(near, dtype=np.intp)
+    cam = db.vectors[near] @ rot.as_matrix().T
+    x, y = sensor.project(cam)
+    m = r_s * sensor.focal_length_px
+    det = sensor.detector
+    margin_on = (x >= -m) & (x <= det.columns - 1 + m) & (y >= -m) & (y <= det.rows - 1 + m)
+    if rate is None or not np.any(rate):
+        return near, x, y, margin_on, None
+    half_turn = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
+    xs, ys = sensor.project(half_turn.apply(cam))  # start: b(0) = R(w t_e / 2) b_mid
+    xe, ye = sensor.project(half_turn.inv().apply(cam))
+    return near, x, y, margin_on, np.column_stack([xe - xs, ye - ys])
 
 
 def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
@@ -179,25 +208,25 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     r_s = max(_search_radius(cov_pred, field_r), MIN_SEARCH_PX / f)
     if r_s > MAX_SEARCH_RAD:
         return None, f"prior uncertainty {r_s * RAD_TO_DEG:.2f} deg exceeds tracking's reach"
-    centre = rot_pred.inv().apply([0.0, 0.0, 1.0])
-    near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2)))
-    cam = db.vectors[np.asarray(near, dtype=np.intp)] @ rot_pred.as_matrix().T
-    x, y = sensor.project(cam)
+    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r, rate)
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
     reach_px = r_s * f + 0.5 * streak_px(sensor, rate) + 4 * sensor.detector.psf_sigma_px
-    half = math.ceil(reach_px + 4)
     centres = np.column_stack([x[on], y[on]])[:MAX_WINDOWS]
-    found = detect_in_windows(solver, np.asarray(image), centres, half)
+    found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
+                              None if streaks is None else streaks[on][:MAX_WINDOWS])  # fmt: skip
     det = found.detections
     stages = {"detect_ms": (time.perf_counter() - t0) * 1e3}
     if len(det) < 2:
         return None, f"{len(det)} star(s) found where the prior puts them"
     vectors = sensor.unproject(det.x, det.y)
-    n_in = found.count_inside(x, y)
+    # the brightest stars that may be on the detector: a frame showing N stars shows about
+    # the N brightest, and fewer candidates leave fewer ambiguous pairs
+    cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
+    n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
     ident = TrackingIdentifier(db, min_match_radius_rad=2.0 / f)
-    match = ident(vectors, rot_pred, r_s, field_r, region=region)
+    match = ident(vectors, rot_pred, r_s, field_r, region=region, candidates=near[cand])
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
     matched = match.detection_index
@@ -306,7 +335,11 @@ class Tracker:
         self.max_rate_rad_s = positive_float(max_rate_rad_s, "max_rate_rad_s")
         self._prior = prior
         self._last = None  # (time, rotation, covariance)
-        self._rate = None  # (rate, covariance)
+        self._rate = None  # (rate, covariance): the prior's (a gyro's) until one is measured
+        if prior is not None and prior.rate_rad_s is not None:
+            cov = prior.rate_cov_rad2_s2
+            cov = np.zeros((3, 3)) if cov is None else np.asarray(cov, dtype=float)
+            self._rate = (np.asarray(prior.rate_rad_s, dtype=float), cov)
         self._index = 0
 
     def _prior_at(self, t: float | None) -> Prior | None:

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 __all__ = ["WindowDetections", "detect_in_windows", "streak_px"]
 
@@ -89,40 +90,200 @@ def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
     return scale * np.linalg.norm(np.cross(w, b)[:, :2], axis=1)
 
 
-def _window_detector(solver, window: np.ndarray):
-    from starsense.detect import StarDetector
+def _segment_mask(shape, x, y, streak, radius):
+    """Pixels of ``shape`` within ``radius`` px of the segment centred on (x, y), its box."""
+    sx, sy = 0.5 * float(streak[0]), 0.5 * float(streak[1])
+    rows, cols = shape
+    r0 = max(math.floor(y - abs(sy) - radius), 0)
+    r1 = min(math.ceil(y + abs(sy) + radius) + 1, rows)
+    c0 = max(math.floor(x - abs(sx) - radius), 0)
+    c1 = min(math.ceil(x + abs(sx) + radius) + 1, cols)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    py, px = np.mgrid[r0:r1, c0:c1]
+    ax, ay = px - (x - sx), py - (y - sy)
+    length2 = 4.0 * (sx * sx + sy * sy)
+    t = np.clip((ax * 2 * sx + ay * 2 * sy) / max(length2, 1e-12), 0.0, 1.0)
+    inside = (ax - t * 2 * sx) ** 2 + (ay - t * 2 * sy) ** 2 <= radius * radius
+    return inside, (r0, r1, c0, c1)
 
+
+def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
+    """Centre of gravity of a streak of known shape, started from a point on it.
+
+    The CoG is taken over the pixels within ``radius`` of a segment of the predicted streak
+    (start to end) centred on the current estimate, and the segment moved there, until it
+    stays (at most 6 times). A faint streak breaks into pieces above the threshold, and a piece's
+    own centroid is off the star's mid-exposure position by up to half the streak; this
+    window, which spans the whole streak, is not.
+
+    Parameters
+    ----------
+    sub : ndarray, shape (rows, columns)
+        Background-subtracted counts of the window.
+    x, y : float
+        Starting point (a piece's centroid), px in the window.
+    streak : (float, float)
+        Predicted streak, start to end, px.
+    radius : float
+        Half-width of the window across the streak, px (a few PSF sigmas).
+
+    Returns
+    -------
+    (x, y, counts, (r0, r1, c0, c1), spread) or None
+        The centroid, px, the counts summed over the window, the window's bounding box, and
+        the mean over the two axes of the sum of (pixel - centroid)^2 over the window, px^2
+        (a read noise sigma_r adds sigma_r^2 spread / counts^2 to the centroid's variance).
+    """
+    out = None
+    for _ in range(6):
+        got = _segment_mask(sub.shape, x, y, streak, radius)
+        if got is None:
+            return out
+        inside, (r0, r1, c0, c1) = got
+        w = np.where(inside, sub[r0:r1, c0:c1], 0.0)
+        total = float(w.sum())
+        if not total > 0:
+            return out
+        py, px = np.mgrid[r0:r1, c0:c1]
+        nx, ny = float((w * px).sum() / total), float((w * py).sum() / total)
+        spread = 0.5 * float(np.sum(inside * ((px - nx) ** 2 + (py - ny) ** 2)))
+        out = (nx, ny, total, (r0, r1, c0, c1), spread)
+        if math.hypot(nx - x, ny - y) < 0.01:
+            break
+        x, y = nx, ny
+    return out
+
+
+def _structure(connectivity: int) -> np.ndarray:
+    """3-D structuring element that connects pixels only within one window of the stack."""
+    plane = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
+    out = np.zeros((3, 3, 3), dtype=bool)
+    out[1] = plane
+    return out
+
+
+def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
+    """Square windows (K, h, w) around the centres, moved inside the frame; their corners."""
+    rows, cols = image.shape
+    h, w = min(2 * half + 1, rows), min(2 * half + 1, cols)
+    cx = np.rint(centres_px[:, 0]).astype(int)
+    cy = np.rint(centres_px[:, 1]).astype(int)
+    r0 = np.clip(cy - half, 0, rows - h)
+    c0 = np.clip(cx - half, 0, cols - w)
+    windows = [image[a : a + h, c : c + w] for a, c in zip(r0.tolist(), c0.tolist(), strict=True)]
+    return np.stack(windows).astype(np.float32), r0, c0
+
+
+def _levels(solver, stack: np.ndarray):
+    """Background level, noise and lit threshold of each window, counts, shape (K,) each."""
+    logic = solver.logic
+    k = len(stack)
     if solver.background == "known":
-        return StarDetector.for_sensor(solver.sensor)
-    level = float(np.median(window))
-    noise = 1.4826 * float(np.median(np.abs(window - level)))
-    return StarDetector(
-        solver.logic, "cog", background=level, noise_counts=max(noise, 1e-6),
-        threshold_sigma=solver.threshold_sigma, remove_hot_pixels=False,
+        det = solver.sensor.detector
+        level = np.full(k, float(det.bias_counts))
+        noise = np.full(k, det.read_noise_e * det.gain_counts_per_e)
+        return level, noise, np.full(k, float(logic.lit_pixel_counts))
+    flat = stack.reshape(k, -1)
+    level = np.median(flat, axis=1)
+    noise = 1.4826 * np.median(np.abs(flat - level[:, None]), axis=1)
+    threshold = np.maximum(float(logic.lit_pixel_counts), solver.threshold_sigma * noise)
+    return level, noise, threshold
+
+
+def _region_centroid(plane, box, margin, streak, sigma):
+    """Centroid, counts, box and read-noise spread of one region of a window (window px).
+
+    With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
+    streak (:func:`streak_centroid`); else the CoG over the region's box plus the margin, as
+    the full-frame detector does.
+    """
+    from starsense.detect.centroid import cog
+
+    a, b, c, d = box
+    rows, cols = plane.shape
+    wa, wb, wc, wd = (
+        max(a - margin, 0),
+        min(b + margin, rows),
+        max(c - margin, 0),
+        min(d + margin, cols),
+    )
+    x, y = cog(plane[wa:wb, wc:wd], wa, wc)
+    if streak is not None and float(np.hypot(*streak)) >= 2.0 * sigma and np.isfinite(x):
+        got = streak_centroid(plane, x, y, streak, 2.5 * sigma + 1.0)
+        if got is not None:
+            return got
+    return x, y, None, box, np.nan
+
+
+def _detect_stack(solver, stack, r0, c0, shape, streaks):
+    """Apply the detection logic to every window at once; return frame-pixel detection rows."""
+    logic = solver.logic
+    level, noise, threshold = _levels(solver, stack)
+    sub = stack - level[:, None, None].astype(np.float32)
+    lit = sub > threshold[:, None, None]
+    labels, n = ndimage.label(lit, structure=_structure(logic.connectivity))
+    if n == 0:
+        return [], float(np.median(noise)), 0
+    idx = np.flatnonzero(lit)
+    lab = labels.ravel()[idx]
+    sizes = np.bincount(lab, minlength=n + 1)
+    sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
+    ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
+    ok[0] = False
+    rows, cols = shape
+    _, h, w = stack.shape
+    sigma = float(solver.sensor.detector.psf_sigma_px)
+    found = []
+    slices = ndimage.find_objects(labels)
+    for k in np.flatnonzero(ok).tolist():
+        sl = slices[k - 1]
+        p = sl[0].start
+        a, b, c, d = sl[1].start, sl[1].stop, sl[2].start, sl[2].stop
+        # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
+        if (
+            (a == 0 < r0[p])
+            or (b == h and r0[p] + h < rows)
+            or (c == 0 < c0[p])
+            or (d == w and c0[p] + w < cols)
+        ):
+            continue
+        x, y, counts, box, spread = _region_centroid(
+            sub[p], (a, b, c, d), 2, None if streaks is None else streaks[p], sigma
+        )
+        if not np.isfinite(x):
+            continue
+        peak = float(stack[p, a:b, c:d][labels[p, a:b, c:d] == k].max())
+        found.append((x + c0[p], y + r0[p], sums[k] if counts is None else counts, sizes[k],
+                      peak, (box[0] + r0[p], box[1] + r0[p], box[2] + c0[p], box[3] + c0[p]),
+                      spread))  # fmt: skip
+    return found, float(np.median(noise)), n
+
+
+def _detections(found, noise: float, n_candidates: int, saturation):
+    """Build Detections from :func:`_detect_stack` rows: brightest first, one per 2 px."""
+    from starsense.detect.threshold import Detections
+
+    found = sorted(found, key=lambda row: -row[2])
+    keep: list = []
+    for row in found:  # overlapping windows and pieces of one streak give the same centre
+        if all(math.hypot(row[0] - k[0], row[1] - k[1]) >= 2.0 for k in keep):
+            keep.append(row)
+    cols = list(zip(*keep, strict=True)) if keep else [()] * 7
+    peak = np.asarray(cols[4], dtype=float)
+    return Detections(
+        x=np.asarray(cols[0], dtype=float), y=np.asarray(cols[1], dtype=float),
+        integrated_counts=np.asarray(cols[2], dtype=float),
+        n_pixels=np.asarray(cols[3], dtype=int), peak_counts=peak,
+        saturated=peak >= saturation if saturation is not None else np.zeros(len(keep), bool),
+        bbox=np.asarray(cols[5], dtype=int).reshape(-1, 4), fit_ok=np.ones(len(keep), bool),
+        n_candidates=int(n_candidates), noise_counts=noise, method="cog",
+        extra={"spread_px2": np.asarray(cols[6], dtype=float)},
     )  # fmt: skip
 
 
-def _merge(parts, empty):
-    """Concatenate Detections of the windows; drop duplicates (< 1 px apart), brightest first."""
-    import dataclasses
-
-    if not parts:
-        return empty
-    names = ("x", "y", "integrated_counts", "n_pixels", "peak_counts", "saturated", "bbox",
-             "fit_ok")  # fmt: skip
-    cols = {n: np.concatenate([getattr(p, n) for p in parts]) for n in names}
-    order = np.argsort(-cols["integrated_counts"], kind="stable")
-    keep: list[int] = []
-    for i in order.tolist():
-        if all(math.hypot(cols["x"][i] - cols["x"][j], cols["y"][i] - cols["y"][j]) >= 1.0
-               for j in keep):  # fmt: skip
-            keep.append(i)
-    k = np.asarray(keep, dtype=np.intp)
-    return dataclasses.replace(empty, **{n: v[k] for n, v in cols.items()})
-
-
 def detect_in_windows(
-    solver, image: np.ndarray, centres_px: np.ndarray, half_px: int
+    solver, image: np.ndarray, centres_px: np.ndarray, half_px: int, streaks_px=None
 ) -> WindowDetections:
     """Detect stars in square windows around predicted positions (or in the whole frame).
 
@@ -136,42 +297,24 @@ def detect_in_windows(
         Predicted star positions (x = column, y = row), px, on the detector.
     half_px : int
         Half-width of each window, px.
+    streaks_px : ndarray, shape (K, 2), optional
+        Predicted streak (start to end) of each window's star, px: each detection is
+        centroided over the whole streak (:func:`streak_centroid`).
 
     Returns
     -------
     WindowDetections
     """
-    import dataclasses
-
     rows, cols = image.shape
     n = len(centres_px)
     if n == 0 or n * (2 * half_px + 1) ** 2 > MAX_WINDOW_FRACTION * rows * cols:
         det = solver._detector()(image)
         return WindowDetections(det, 0, rows * cols, None)
-    cx = np.rint(centres_px[:, 0]).astype(int)
-    cy = np.rint(centres_px[:, 1]).astype(int)
-    r0, r1 = np.maximum(cy - half_px, 0), np.minimum(cy + half_px + 1, rows)
-    c0, c1 = np.maximum(cx - half_px, 0), np.minimum(cx + half_px + 1, cols)
+    stack, r0, c0 = _stack(image, np.asarray(centres_px, dtype=float), half_px)
+    found, noise, n_cand = _detect_stack(solver, stack, r0, c0, image.shape, streaks_px)
+    det = _detections(found, noise, n_cand, solver.sensor.detector.saturation_counts)
     mask = np.zeros((rows, cols), dtype=bool)
-    parts = []
-    empty = None
-    for a, b, c, d in zip(r0.tolist(), r1.tolist(), c0.tolist(), c1.tolist(), strict=True):
-        mask[a:b, c:d] = True
-        window = np.asarray(image[a:b, c:d])
-        det = _window_detector(solver, window)(window)
-        empty = det if empty is None else empty
-        if len(det) == 0:
-            continue
-        box = det.bbox + np.array([a, a, c, c])
-        # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
-        cut = (
-            ((box[:, 0] == a) & (a > 0)) | ((box[:, 1] == b) & (b < rows))
-            | ((box[:, 2] == c) & (c > 0)) | ((box[:, 3] == d) & (d < cols))
-        )  # fmt: skip
-        ok = ~cut
-        parts.append(dataclasses.replace(
-            det, x=det.x[ok] + c, y=det.y[ok] + a, integrated_counts=det.integrated_counts[ok],
-            n_pixels=det.n_pixels[ok], peak_counts=det.peak_counts[ok],
-            saturated=det.saturated[ok], bbox=box[ok], fit_ok=det.fit_ok[ok],
-        ))  # fmt: skip
-    return WindowDetections(_merge(parts, empty), n, int(mask.sum()), mask)
+    _, h, w = stack.shape
+    for a, c in zip(r0.tolist(), c0.tolist(), strict=True):
+        mask[a : a + h, c : c + w] = True
+    return WindowDetections(det, n, int(mask.sum()), mask)
