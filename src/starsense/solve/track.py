@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError, StarsenseError
-from starsense.solve.solver import Solution, _cog_sigma_px
+from starsense.solve.solver import Solution
 from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = ["Prior", "TrackSolution", "Tracker", "track_frame"]
@@ -142,28 +142,6 @@ class TrackSolution:
         }
 
 
-def _sigma_rad(solver, det, matched, vectors, rate) -> np.ndarray:
-    """Per-star centroid noise of the matched detections, rad (smear included for "snr")."""
-    f = solver.sensor.focal_length_px
-    if solver.centroid_sigma_px != "snr":
-        return np.full(len(matched), solver.centroid_sigma_px / f)
-    from starsense.solve.windows import streak_px
-
-    detector = solver.sensor.detector
-    margin = 2 if solver.background != "known" else solver._detector().margin_px
-    var = _cog_sigma_px(det, matched, detector, margin) ** 2
-    spread = det.extra.get("spread_px2", np.full(len(det), np.nan))[matched]
-    n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1)
-    streak = np.isfinite(spread)  # centroided over the streak's own window
-    var[streak] = (detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2)[
-        streak
-    ]
-    # a streak of length L spreads each photon's position by L^2 / 12 along it: half of it on
-    # the mean of the two axes (the convention of _cog_sigma_px)
-    length = streak_px(solver.sensor, rate, vectors[matched])
-    return np.sqrt(var + length**2 / 24.0 / n_e) / f
-
-
 def _search_radius(cov: np.ndarray, field_radius: float) -> float:
     """Return a star's possible displacement at the field edge, N_SIGMA_SEARCH sigma, rad."""
     cross = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
@@ -194,11 +172,28 @@ def _predicted_field(sensor, db, rot, r_s, field_r, rate):
     return near, x, y, margin_on, np.column_stack([xe - xs, ye - ys])
 
 
+def _unblended(cat_index, near, x, y, blend_px: float) -> np.ndarray:
+    """Return whether each matched star has no other database star within ``blend_px``.
+
+    A double star (two catalogue stars a few pixels apart) is detected as one blended spot
+    whose centroid lies between them: it is left out of the fit when others remain.
+    """
+    from scipy.spatial import cKDTree
+
+    ok = np.isfinite(x) & np.isfinite(y)
+    pos = np.column_stack([x[ok], y[ok]])
+    if len(pos) < 2:
+        return np.ones(len(cat_index), bool)
+    where = np.searchsorted(near[ok], cat_index)
+    dist, _ = cKDTree(pos).query(pos[np.minimum(where, len(pos) - 1)], k=2)
+    return dist[:, 1] > blend_px
+
+
 def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     """Window detection, matching and the attitude fit; (Solution, covariance) or a failure."""
-    from starsense.attitude import estimate_attitude
     from starsense.geometry.attitude import radec_roll_from_attitude
     from starsense.identify.tracking import TrackingIdentifier
+    from starsense.solve.star_noise import fit_robust, star_noise
     from starsense.solve.windows import detect_in_windows, streak_px
 
     sensor = solver.sensor
@@ -229,26 +224,33 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     match = ident(vectors, rot_pred, r_s, field_r, region=region, candidates=near[cand])
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
-    matched = match.detection_index
-    sigma = _sigma_rad(solver, det, matched, vectors, rate)
-    att = estimate_attitude(vectors[matched], db.vectors[match.catalog_index], sigma, "svd")
+    matched, cat_index, cat_ids = match.detection_index, match.catalog_index, match.catalog_id
+    blend_px = 2.0 * (2.5 * sensor.detector.psf_sigma_px + 1.0) + streak_px(sensor, rate)
+    alone = _unblended(cat_index, near, x, y, blend_px)
+    if alone.sum() >= 2:
+        matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
+    noise = star_noise(solver, det, matched, rate)
+    att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
+    matched, cat_ids = matched[keep], cat_ids[keep]
+    covariance = noise.subset(keep).attitude_covariance(vectors[matched])
     stages["match_ms"] = match.time_ms
     ra, dec, roll = radec_roll_from_attitude(att.rotation)
     where = f"{found.n_windows} windows" if found.n_windows else "the whole frame"
     sol = Solution(
         "solved" if match.status == "verified" else "unverified",
-        f"tracked: {match.n_matches} of {len(det)} detections ({where}) matched, "
+        f"tracked: {len(matched)} of {len(det)} detections ({where}) matched, "
         f"P_false {match.false_match_probability:.1e}",
         ra_rad=float(ra), dec_rad=float(dec), roll_rad=float(roll),
         fov_rad=2.0 * sensor.half_fov_rad[0], n_detections=len(det),
-        n_matched=match.n_matches, rmse_rad=float(att.residual_rms_rad),
+        n_matched=len(matched), rmse_rad=float(att.residual_rms_rad),
         false_match_probability=float(match.false_match_probability),
-        sigma_rad=tuple(float(s) for s in att.sigma_axes_rad), time_ms=0.0, stage_ms=stages,
+        sigma_rad=tuple(float(s) for s in np.sqrt(np.diag(covariance))), time_ms=0.0,
+        stage_ms=stages,
         rotation=att.rotation,
-        matches=tuple((int(d), int(c)) for d, c in zip(matched, match.catalog_id, strict=True)),
+        matches=tuple((int(d), int(c)) for d, c in zip(matched, cat_ids, strict=True)),
         centroids_px=np.column_stack([det.x, det.y]), image_shape=np.shape(image), focal_px=f,
     )  # fmt: skip
-    return (sol, att.covariance_rad2), ""
+    return (sol, covariance), ""
 
 
 def _done(sol: Solution, t0: float) -> Solution:
@@ -341,10 +343,18 @@ class Tracker:
             cov = np.zeros((3, 3)) if cov is None else np.asarray(cov, dtype=float)
             self._rate = (np.asarray(prior.rate_rad_s, dtype=float), cov)
         self._index = 0
+        self._t_first = None
 
     def _prior_at(self, t: float | None) -> Prior | None:
         if self._last is None:
-            return self._prior
+            if self._prior is None:
+                return None
+            # the given prior holds at the first frame: carried to this one (first frame lost)
+            if self._t_first is None:
+                self._t_first = t
+            if t is None or self._t_first is None:
+                return self._prior
+            return dataclasses.replace(self._prior, dt_s=self._prior.dt_s + t - self._t_first)
         t_last, rot, cov = self._last
         dt = 0.0 if t is None or t_last is None else t - t_last
         if self._rate is not None:

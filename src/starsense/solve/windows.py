@@ -132,8 +132,8 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
     -------
     (x, y, counts, (r0, r1, c0, c1), spread) or None
         The centroid, px, the counts summed over the window, the window's bounding box, and
-        the mean over the two axes of the sum of (pixel - centroid)^2 over the window, px^2
-        (a read noise sigma_r adds sigma_r^2 spread / counts^2 to the centroid's variance).
+        the 2 x 2 sum over the window of (pixel - centroid)(pixel - centroid)^T, px^2 (a read
+        noise sigma_r adds sigma_r^2 spread / counts^2 to the centroid's covariance).
     """
     out = None
     for _ in range(6):
@@ -147,7 +147,8 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
             return out
         py, px = np.mgrid[r0:r1, c0:c1]
         nx, ny = float((w * px).sum() / total), float((w * py).sum() / total)
-        spread = 0.5 * float(np.sum(inside * ((px - nx) ** 2 + (py - ny) ** 2)))
+        dx, dy = (px - nx)[inside], (py - ny)[inside]
+        spread = np.array([[dx @ dx, dx @ dy], [dx @ dy, dy @ dy]])
         out = (nx, ny, total, (r0, r1, c0, c1), spread)
         if math.hypot(nx - x, ny - y) < 0.01:
             break
@@ -213,7 +214,15 @@ def _region_centroid(plane, box, margin, streak, sigma):
         got = streak_centroid(plane, x, y, streak, 2.5 * sigma + 1.0)
         if got is not None:
             return got
-    return x, y, None, box, np.nan
+    return x, y, None, box, np.full((2, 2), np.nan)
+
+
+def _inside(x: float, y: float, streak, sigma: float, shape) -> bool:
+    """Whether the whole streak centred on (x, y), with its PSF radius, lies on the frame."""
+    reach = 2.5 * sigma + 1.0
+    hx, hy = 0.5 * abs(float(streak[0])) + reach, 0.5 * abs(float(streak[1])) + reach
+    rows, cols = shape
+    return hx <= x <= cols - 1 - hx and hy <= y <= rows - 1 - hy
 
 
 def _detect_stack(solver, stack, r0, c0, shape, streaks):
@@ -253,6 +262,10 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
         )
         if not np.isfinite(x):
             continue
+        if np.isfinite(spread[0, 0]) and not _inside(
+            x + c0[p], y + r0[p], streaks[p], sigma, shape
+        ):
+            continue  # a streak running off the frame: its centroid is pulled inwards
         peak = float(stack[p, a:b, c:d][labels[p, a:b, c:d] == k].max())
         found.append((x + c0[p], y + r0[p], sums[k] if counts is None else counts, sizes[k],
                       peak, (box[0] + r0[p], box[1] + r0[p], box[2] + c0[p], box[3] + c0[p]),
@@ -278,7 +291,7 @@ def _detections(found, noise: float, n_candidates: int, saturation):
         saturated=peak >= saturation if saturation is not None else np.zeros(len(keep), bool),
         bbox=np.asarray(cols[5], dtype=int).reshape(-1, 4), fit_ok=np.ones(len(keep), bool),
         n_candidates=int(n_candidates), noise_counts=noise, method="cog",
-        extra={"spread_px2": np.asarray(cols[6], dtype=float)},
+        extra={"spread_px2": np.asarray(cols[6], dtype=float).reshape(-1, 2, 2)},
     )  # fmt: skip
 
 
