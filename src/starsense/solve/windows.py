@@ -8,8 +8,9 @@ centroid margin. When the windows would cover more than a quarter of the frame t
 is searched instead.
 
 With a known background (simulated frames) each window uses the sensor's own detection logic
-on its bias; otherwise each window's background is its median and its noise the scaled median
-absolute deviation (the window is mostly sky), with the Solver's sigma threshold.
+on its bias; otherwise each window's background is the median of its two-pixel border and its
+noise the border's scaled median absolute deviation (sky around the star), with the Solver's
+sigma threshold.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["WindowDetections", "detect_in_windows", "streak_px"]
+__all__ = ["WindowDetections", "detect_in_windows", "streak_centroid", "streak_px", "union_area"]
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
@@ -37,27 +38,40 @@ class WindowDetections:
     n_windows : int
         Windows searched (0: the whole frame).
     region_px : int
-        Pixels searched.
-    mask : ndarray of bool, shape (rows, columns) or None
-        The pixels searched (None: the whole frame).
+        Pixels searched (the union of the windows).
+    boxes : ndarray of int, shape (K, 4) or None
+        Row0, row1, col0, col1 (half-open) of each window (None: the whole frame).
     """
 
     detections: object
     n_windows: int
     region_px: int
-    mask: np.ndarray | None = None
+    boxes: np.ndarray | None = None
 
     def count_inside(self, x, y) -> int:
-        """Return how many of the positions (x, y), px, lie in the searched pixels."""
-        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-        if self.mask is None:
+        """Return how many of the positions (x, y), px, lie in a window (-1: whole frame)."""
+        if self.boxes is None:
             return -1
-        rows, cols = self.mask.shape
-        ok = np.isfinite(x) & np.isfinite(y)
-        xi = np.rint(x[ok]).astype(int)
-        yi = np.rint(y[ok]).astype(int)
-        on = (xi >= 0) & (xi < cols) & (yi >= 0) & (yi < rows)
-        return int(self.mask[yi[on], xi[on]].sum())
+        xi = np.rint(np.asarray(x, dtype=float))[:, None]
+        yi = np.rint(np.asarray(y, dtype=float))[:, None]
+        r0, r1, c0, c1 = self.boxes.T
+        inside = (yi >= r0) & (yi < r1) & (xi >= c0) & (xi < c1)
+        return int(np.sum(inside.any(axis=1)))
+
+
+def union_area(boxes: np.ndarray) -> int:
+    """Return the pixels covered by the union of boxes (row0, row1, col0, col1), exactly.
+
+    The box edges cut the plane into cells; a cell is covered when any box holds it.
+    """
+    rows = np.unique(boxes[:, :2])
+    cols = np.unique(boxes[:, 2:])
+    rc = 0.5 * (rows[:-1] + rows[1:])
+    cc = 0.5 * (cols[:-1] + cols[1:])
+    r0, r1, c0, c1 = (v[:, None, None] for v in boxes.T)
+    covered = ((rc[None, :, None] > r0) & (rc[None, :, None] < r1)
+               & (cc[None, None, :] > c0) & (cc[None, None, :] < c1)).any(axis=0)  # fmt: skip
+    return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
 
 
 def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
@@ -100,8 +114,8 @@ def _segment_mask(shape, x, y, streak, radius):
     c1 = min(math.ceil(x + abs(sx) + radius) + 1, cols)
     if r0 >= r1 or c0 >= c1:
         return None
-    py, px = np.mgrid[r0:r1, c0:c1]
-    ax, ay = px - (x - sx), py - (y - sy)
+    ax = np.arange(c0, c1, dtype=float)[None, :] - (x - sx)
+    ay = np.arange(r0, r1, dtype=float)[:, None] - (y - sy)
     length2 = 4.0 * (sx * sx + sy * sy)
     t = np.clip((ax * 2 * sx + ay * 2 * sy) / max(length2, 1e-12), 0.0, 1.0)
     inside = (ax - t * 2 * sx) ** 2 + (ay - t * 2 * sy) ** 2 <= radius * radius
@@ -145,9 +159,11 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
         total = float(w.sum())
         if not total > 0:
             return out
-        py, px = np.mgrid[r0:r1, c0:c1]
-        nx, ny = float((w * px).sum() / total), float((w * py).sum() / total)
-        dx, dy = (px - nx)[inside], (py - ny)[inside]
+        px = np.arange(c0, c1, dtype=float)
+        py = np.arange(r0, r1, dtype=float)
+        nx, ny = float(w.sum(axis=0) @ px / total), float(w.sum(axis=1) @ py / total)
+        rr, cc = np.nonzero(inside)
+        dx, dy = px[cc] - nx, py[rr] - ny
         spread = np.array([[dx @ dx, dx @ dy], [dx @ dy, dy @ dy]])
         out = (nx, ny, total, (r0, r1, c0, c1), spread)
         if math.hypot(nx - x, ny - y) < 0.01:
@@ -185,9 +201,13 @@ def _levels(solver, stack: np.ndarray):
         level = np.full(k, float(det.bias_counts))
         noise = np.full(k, det.read_noise_e * det.gain_counts_per_e)
         return level, noise, np.full(k, float(logic.lit_pixel_counts))
-    flat = stack.reshape(k, -1)
-    level = np.median(flat, axis=1)
-    noise = 1.4826 * np.median(np.abs(flat - level[:, None]), axis=1)
+    # the window's border (two pixels wide): sky around the star, a fraction of the pixels
+    border = np.concatenate(
+        [stack[:, :2].reshape(k, -1), stack[:, -2:].reshape(k, -1),
+         stack[:, 2:-2, :2].reshape(k, -1), stack[:, 2:-2, -2:].reshape(k, -1)], axis=1
+    )  # fmt: skip
+    level = np.median(border, axis=1)
+    noise = 1.4826 * np.median(np.abs(border - level[:, None]), axis=1)
     threshold = np.maximum(float(logic.lit_pixel_counts), solver.threshold_sigma * noise)
     return level, noise, threshold
 
@@ -326,8 +346,6 @@ def detect_in_windows(
     stack, r0, c0 = _stack(image, np.asarray(centres_px, dtype=float), half_px)
     found, noise, n_cand = _detect_stack(solver, stack, r0, c0, image.shape, streaks_px)
     det = _detections(found, noise, n_cand, solver.sensor.detector.saturation_counts)
-    mask = np.zeros((rows, cols), dtype=bool)
     _, h, w = stack.shape
-    for a, c in zip(r0.tolist(), c0.tolist(), strict=True):
-        mask[a : a + h, c : c + w] = True
-    return WindowDetections(det, n, int(mask.sum()), mask)
+    boxes = np.column_stack([r0, r0 + h, c0, c0 + w])
+    return WindowDetections(det, n, union_area(boxes), boxes)
