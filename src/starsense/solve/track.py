@@ -54,6 +54,9 @@ class Prior:
         Its covariance, (rad/s)^2.
     dt_s : float
         Time from the prior to the frame, s.
+    rate_sign_known : bool
+        False for a rate from one frame's streaks (:mod:`starsense.solve.streak_rate`), which
+        fix the rate up to its sign: both signs are tried.
     """
 
     rotation: Rotation
@@ -61,6 +64,7 @@ class Prior:
     rate_rad_s: np.ndarray | None = None
     rate_cov_rad2_s2: np.ndarray | None = None
     dt_s: float = 0.0
+    rate_sign_known: bool = True
 
     @classmethod
     def from_radec_roll(cls, ra_rad: float, dec_rad: float, roll_rad: float,
@@ -281,11 +285,15 @@ def track_frame(solver, image, prior: Prior | None) -> TrackSolution:
     image = np.asarray(image)
     reason = "no prior"
     if prior is not None:
-        rot_pred, cov_pred = prior.predicted()
-        rate = prior.rate_rad_s
-        out, reason = _track_core(solver, image, rot_pred, cov_pred, rate, t0)
-        if out is not None and out[0].status == "solved":
-            return TrackSolution(_done(out[0], t0), "tracking", out[1])
+        priors = [prior]
+        if not prior.rate_sign_known and prior.rate_rad_s is not None:
+            priors.append(dataclasses.replace(prior, rate_rad_s=-np.asarray(prior.rate_rad_s)))
+        for candidate in priors:
+            rot_pred, cov_pred = candidate.predicted()
+            rate = candidate.rate_rad_s
+            out, reason = _track_core(solver, image, rot_pred, cov_pred, rate, t0)
+            if out is not None and out[0].status == "solved":
+                return TrackSolution(_done(out[0], t0), "tracking", out[1])
         unverified = out
         reason = reason or "tracking unverified: " + out[0].message
     else:
@@ -344,6 +352,7 @@ class Tracker:
             self._rate = (np.asarray(prior.rate_rad_s, dtype=float), cov)
         self._index = 0
         self._t_first = None
+        self._streak_rate = None  # (rate, covariance) from one frame's streaks, sign unknown
 
     def _prior_at(self, t: float | None) -> Prior | None:
         if self._last is None:
@@ -359,6 +368,8 @@ class Tracker:
         dt = 0.0 if t is None or t_last is None else t - t_last
         if self._rate is not None:
             return Prior(rot, cov, self._rate[0], self._rate[1], dt)
+        if self._streak_rate is not None:  # from the last frame's streaks, sign unknown
+            return Prior(rot, cov, *self._streak_rate, dt, rate_sign_known=False)
         # no rate yet: anything up to the largest expected rate
         span = self.max_rate_rad_s * (dt if dt > 0 else 1.0)
         return Prior(rot, cov + np.eye(3) * (span / N_SIGMA_SEARCH) ** 2)
@@ -382,8 +393,33 @@ class Tracker:
                                                          self._last[2], cov)  # fmt: skip
                     self._rate = (rate, rate_cov)
             self._last = (t, sol.rotation, cov)
+            if self._rate is None:
+                self._streak_rate = self._rate_from_streaks(np.asarray(image), sol)
         return dataclasses.replace(result, rate_rad_s=rate, rate_cov_rad2_s2=rate_cov,
                                    time_s=t, image=name)  # fmt: skip
+
+    def _rate_from_streaks(self, image: np.ndarray, sol: Solution):
+        """Rate (sign unknown) and covariance from the streaks of the 5 brightest matched stars."""
+        from starsense.solve.streak_rate import rate_from_streaks, streak_axes
+        from starsense.solve.windows import streak_px
+
+        solver, sensor = self.solver, self.solver.sensor
+        index = sorted(d for d, _ in sol.matches)[:5]
+        if len(index) < 3 or sol.centroids_px is None:
+            return None
+        xy = sol.centroids_px[index]
+        reach = 0.5 * streak_px(sensor, [self.max_rate_rad_s, 0.0, 0.0])
+        half = math.ceil(reach + 3.0 * sensor.detector.psf_sigma_px + 4.0)
+        known = solver.background == "known"
+        axes = streak_axes(
+            image, xy[:, 0], xy[:, 1], half, solver.logic.lit_pixel_counts,
+            level=float(sensor.detector.bias_counts) if known else None,
+            threshold_sigma=None if known else solver.threshold_sigma,
+        )  # fmt: skip
+        try:
+            return rate_from_streaks(sensor, xy[:, 0], xy[:, 1], axes)
+        except InputError:
+            return None
 
     def track_file(self, path, time_s: float | None = None) -> TrackSolution:
         """Track a frame read from ``path``; an unreadable frame gets status "unreadable"."""
