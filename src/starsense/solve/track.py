@@ -94,7 +94,8 @@ class TrackSolution:
         Attitude, matches, residuals (``status`` "solved" when verified, "unverified" for a
         two-star or unverified track, else why not).
     mode : str
-        "tracking" or "lost_in_space".
+        "tracking" or "lost_in_space" (for an unreadable frame, the mode it would have been
+        processed in).
     covariance_rad2 : ndarray, shape (3, 3) or None
         Camera-frame attitude covariance, rad^2.
     rate_rad_s, rate_cov_rad2_s2 : ndarray or None
@@ -432,6 +433,8 @@ class Tracker:
             if t is None and self.interval_s is not None:
                 t = self._index * self.interval_s
             self._index += 1
-            return TrackSolution(Solution("unreadable", str(exc)), "none", time_s=t,
+            # the mode the frame would have been processed in
+            mode = "lost_in_space" if self._prior_at(t) is None else "tracking"
+            return TrackSolution(Solution("unreadable", str(exc)), mode, time_s=t,
                                  image=str(path))  # fmt: skip
         return self(image, time_s, str(path))
