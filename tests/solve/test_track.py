@@ -336,3 +336,19 @@ def test_track_esa_frames_from_a_close_prior(shared_dir):
         diff = small_rotation_angles(lis.rotation, r.solution.rotation)
         assert np.all(np.abs(diff) < 3 * np.asarray(r.solution.sigma_rad)), (name, diff)
         assert r.solution.time_ms < lis.time_ms
+
+
+def test_cli_track_from_a_given_prior(tmp_path, capsys):
+    out = tmp_path / "f.tiff"
+    args = ["render", "--sensor", "st16", "--ra-deg", "84", "--dec-deg", "-2", "--roll-deg",
+            "30", "--rate-deg-s", "0.1,0,0", "--sequence", "1", "--interval-s", "1",
+            "--max-mag", "6", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    capsys.readouterr()
+    code = main(["track", str(tmp_path / "f_000.tiff"), "--sensor", "st16",
+                 "--prior-radec-roll-deg", "84.02,-2.01,30.05", "--prior-sigma-deg", "0.05",
+                 "--json"])  # fmt: skip
+    line = json.loads(capsys.readouterr().out)
+    assert code == 0 and line["mode"] == "tracking" and line["status"] == "solved"
+    assert line["ra_deg"] == pytest.approx(84, abs=10 / 3600)
+    assert line["rate_deg_s"] is None  # one frame: no rate from attitudes
