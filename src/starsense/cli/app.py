@@ -31,6 +31,7 @@ def _register_subapps() -> None:
     from starsense.cli.mission import mission
     from starsense.cli.report import report
     from starsense.cli.slew import slew_app
+    from starsense.cli.track import track
 
     app.add_typer(limit_app, name="limit")
     app.add_typer(slew_app, name="slew")
@@ -38,6 +39,7 @@ def _register_subapps() -> None:
     app.command("solve")(solve)
     app.command("calibrate")(calibrate)
     app.command("montecarlo")(montecarlo)
+    app.command("track")(track)
     app.command("report")(report)
     availability_app.command("mission")(mission)
     app.add_typer(availability_app, name="availability")
