@@ -7,6 +7,7 @@ import os
 import pytest
 
 from starsense._io import atomic_path, atomic_write, file_mode
+from starsense.errors import OutputError
 
 
 @pytest.fixture(params=[0o022, 0o077, 0o002], ids=["umask022", "umask077", "umask002"])
@@ -103,6 +104,9 @@ def test_bad_mode_is_refused(tmp_path):
 
 
 def test_missing_directory_is_an_error_without_leftovers(tmp_path):
-    with pytest.raises(FileNotFoundError), atomic_write(tmp_path / "nosuch" / "x.txt") as fh:
+    with (
+        pytest.raises(OutputError, match=r"nosuch/x\.txt: directory .*nosuch does not exist"),
+        atomic_write(tmp_path / "nosuch" / "x.txt") as fh,
+    ):
         fh.write("x")
     assert list(tmp_path.iterdir()) == []

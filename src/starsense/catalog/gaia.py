@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from starsense._io import read_bytes
 from starsense.catalog._parse import (
     check_range,
     existing_file,
@@ -89,7 +90,7 @@ def _read_binary(source: Path) -> Catalog:
     J2016.0), G, pmra, pmdec (mas/yr). Hipparcos stars brighter than Gaia's bright limit are
     merged in with their own ids.
     """
-    raw = source.read_bytes()
+    raw = read_bytes(source, "catalogue file")
     if len(raw) < 16 or raw[:4] != _BINARY_MAGIC:
         raise CatalogFormatError(str(source), None, None, "not a GDR3 binary file (bad magic)")
     version = int(np.frombuffer(raw, "<u4", 1, 4)[0])
@@ -240,8 +241,10 @@ def _read_parquet(source: Path) -> dict[str, np.ndarray]:
         schema = pq.read_schema(source)
         present = _check_columns(source, list(schema.names), None)
         table = pq.read_table(source, columns=present)
-    except (pa.ArrowException, OSError) as exc:
-        raise CatalogFormatError(str(source), None, None, f"cannot read Parquet: {exc}") from exc
+    except (pa.ArrowException, OSError, UnicodeDecodeError) as exc:
+        # UnicodeDecodeError: a column name that is not UTF-8 (pyarrow decodes the schema)
+        detail = f"cannot read Parquet: {exc}".replace("\n", " ")
+        raise CatalogFormatError(str(source), None, None, detail) from None
     cols: dict[str, np.ndarray] = {}
     for name in present:
         column = table.column(name)
