@@ -169,7 +169,8 @@ def check_output(
     what : str
         What the output is, for the message ("--out").
     directory : bool
-        ``target`` is a directory to create or replace (a report), not a file.
+        ``target`` is a directory to create or replace (a report), not a file; missing
+        directories above it will be created, so the nearest existing one is checked.
 
     Returns
     -------
@@ -187,6 +188,9 @@ def check_output(
     p = Path(text).expanduser()
     parent = p.absolute().parent
     shown = f"cannot write {what} {p}"
+    if directory:  # missing folders on the way are created: the nearest existing one counts
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
     if not parent.exists():
         raise OutputError(f"{shown}: directory {parent} does not exist")
     if not parent.is_dir():

@@ -30,6 +30,8 @@ from starsense.cli.common import (
     SeedOpt,
     SensorOpt,
     emit,
+    output_dir,
+    output_file,
     parse_floats,
     progress_bar,
 )
@@ -81,9 +83,14 @@ RollOpt = Annotated[
         "random from --seed).",
     ),
 ]
-PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write the curve (PNG) here.")]
+PlotOpt = Annotated[
+    Path | None, typer.Option("--plot", help="Write the curve (PNG) here.", callback=output_file)
+]
 MapsOpt = Annotated[
-    Path | None, typer.Option("--maps", help="Write Mollweide sky maps (PNG) into this folder.")
+    Path | None,
+    typer.Option(
+        "--maps", help="Write Mollweide sky maps (PNG) into this folder.", callback=output_dir
+    ),
 ]
 ModelOpt = Annotated[str, typer.Option("--model", help="Sensitivity model: reed or liebe.")]
 TrialsOpt = Annotated[

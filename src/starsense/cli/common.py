@@ -15,11 +15,13 @@ import contextlib
 import json
 import sys
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
 import typer
 
+from starsense._io import check_output
 from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
 
@@ -38,6 +40,8 @@ __all__ = [
     "emit",
     "option_float",
     "option_int",
+    "output_dir",
+    "output_file",
     "parse_floats",
     "progress_bar",
 ]
@@ -183,6 +187,34 @@ def parse_floats(
 
 
 # -- output -------------------------------------------------------------------------------------
+
+
+def output_file(param: typer.CallbackParam, value: Path | None) -> Path | None:
+    """Option callback: check an output file's place before any work (``callback=output_file``).
+
+    Raises
+    ------
+    OutputError
+        Naming the option and the path: a missing or read-only directory, a directory given
+        where a file goes.
+    """
+    if value is not None:
+        check_output(value, param.opts[0] if param.opts else param.name)
+    return value
+
+
+def output_dir(param: typer.CallbackParam, value: Path | None) -> Path | None:
+    """Option callback: check an output directory's place before any work (``--out``, ``--maps``).
+
+    Raises
+    ------
+    OutputError
+        Naming the option and the path: a file where the directory goes, or no writable
+        directory above it.
+    """
+    if value is not None:
+        check_output(value, param.opts[0] if param.opts else param.name, directory=True)
+    return value
 
 
 def emit(payload: dict, as_json: bool, lines: list[str]) -> None:

@@ -17,6 +17,7 @@ from starsense.cli.common import (
     emit,
     option_float,
     option_int,
+    output_file,
     parse_floats,
     progress_bar,
 )
@@ -25,7 +26,10 @@ from starsense.units import DEG
 
 
 def render(
-    out: Annotated[Path, typer.Option("--out", help="Frame to write (.tiff, .png, .fits).")],
+    out: Annotated[
+        Path,
+        typer.Option("--out", help="Frame to write (.tiff, .png, .fits).", callback=output_file),
+    ],
     sensor: SensorOpt = "st16",
     ra_deg: Annotated[float, typer.Option("--ra-deg", help="Boresight RA, deg.")] = 0.0,
     dec_deg: Annotated[float, typer.Option("--dec-deg", help="Boresight Dec, deg.")] = 0.0,
@@ -94,7 +98,10 @@ def solve(
     ] = "hashing",
     catalog: CatalogOpt = "hipparcos",
     wcs: Annotated[
-        Path | None, typer.Option("--wcs", help="Write the solution's TAN WCS (FITS header).")
+        Path | None,
+        typer.Option(
+            "--wcs", help="Write the solution's TAN WCS (FITS header).", callback=output_file
+        ),
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:

@@ -23,6 +23,7 @@ from starsense.cli.common import (
     JsonOpt,
     ScaleCatalogOpt,
     emit,
+    output_file,
 )
 from starsense.errors import InputError
 from starsense.units import DEG, RAD_TO_ARCSEC
@@ -257,7 +258,9 @@ def limit_curve(
     extrapolate_to: Annotated[
         float, typer.Option("--extrapolate-to", help="N stars to extrapolate to (paper: 3e11).")
     ] = 3e11,
-    plot: Annotated[Path | None, typer.Option("--plot", help="Write a PNG of the curve.")] = None,
+    plot: Annotated[
+        Path | None, typer.Option("--plot", help="Write a PNG of the curve.", callback=output_file)
+    ] = None,
     dask: DaskOpt = None,
     as_json: JsonOpt = False,
 ) -> None:

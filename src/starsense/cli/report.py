@@ -14,11 +14,14 @@ from starsense.cli.common import (
     SensorOpt,
     option_float,
     option_int,
+    output_dir,
 )
 
 
 def report(
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("report"),
+    out: Annotated[
+        Path, typer.Option("--out", help="Output directory.", callback=output_dir)
+    ] = Path("report"),
     catalog: CatalogOpt = "hipparcos",
     diameter_m: DiameterOpt = 0.1,
     exposure_s: ExposureOpt = 0.01,

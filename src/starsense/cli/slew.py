@@ -14,6 +14,7 @@ from starsense.cli.common import (
     SeedOpt,
     SensorOpt,
     emit,
+    output_file,
     parse_floats,
     progress_bar,
 )
@@ -67,7 +68,9 @@ TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo trials per
 CriterionOpt = Annotated[
     float, typer.Option("--criterion", help="Detection fraction that counts as detected.")
 ]
-PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write a PNG figure here.")]
+PlotOpt = Annotated[
+    Path | None, typer.Option("--plot", help="Write a PNG figure here.", callback=output_file)
+]
 BvOpt = Annotated[
     float, typer.Option("--b-v", help="B-V of the simulated star (blackbody model; 0 = A0).")
 ]

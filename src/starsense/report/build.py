@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import starsense
-from starsense._io import dir_mode
+from starsense._io import check_output, dir_mode, sweep_stale, temp_prefix
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
@@ -110,7 +110,7 @@ def build_report(
     t0 = time.perf_counter()
     say = progress or _noop
     check_aperture(diameter_m, exposure_s)
-    out_dir = Path(out_dir).resolve()
+    out_dir = check_output(out_dir, "report directory", directory=True).resolve()
     _check_replaceable(out_dir)
     sensors: tuple[SensorSpec, ...] = ()
     if sensors_table is not None:
@@ -120,7 +120,8 @@ def build_report(
     name, n_catalog, star_sets, catalog = _load_stars(catalog_spec, catalog, stars, say)
 
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    sweep_stale(out_dir)  # what a killed run left beside the report
+    work = Path(tempfile.mkdtemp(prefix=f"{temp_prefix(out_dir)}tmp-", dir=out_dir.parent))
     try:
         ctx = ReportContext(
             work_dir=work,
@@ -224,7 +225,7 @@ def _swap_into_place(work: Path, out_dir: Path) -> None:
     if not out_dir.exists():
         work.rename(out_dir)
         return
-    old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
+    old = Path(tempfile.mkdtemp(prefix=f"{temp_prefix(out_dir)}old-", dir=out_dir.parent))
     old.rmdir()
     out_dir.rename(old)
     try:
