@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import check_range, existing_file, read_bytes
 from starsense.catalog.table import Catalog
 from starsense.errors import CatalogFormatError
@@ -136,7 +137,7 @@ def load_bsc5(path: str | Path) -> Catalog:
     check_range(name, rec["SDEC0"], -0.5 * np.pi, 0.5 * np.pi, "SDEC0", record_no, unit="rad")
 
     spectral = np.char.strip(np.char.decode(rec["IS"], "ascii", errors="replace"))
-    return Catalog(
+    catalog = Catalog(
         name="bsc5",
         source=name,
         epoch_yr=BSC5_EPOCH_YR,
@@ -148,3 +149,4 @@ def load_bsc5(path: str | Path) -> Catalog:
         pm_dec_rad_yr=rec["XDPM"].astype(np.float64),
         extra={"spectral_type": spectral},
     )
+    return check_unique_ids(catalog, "HR number")

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from starsense._io import read_bytes
+from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import (
     check_range,
     existing_file,
@@ -111,7 +112,7 @@ def _read_binary(source: Path) -> Catalog:
     row = np.arange(1, count + 1, dtype=np.int64)
     check_range(source, rec["ra"], 0.0, 360.0, "ra", row, hi_inclusive=False)
     check_range(source, rec["dec"], -90.0, 90.0, "dec", row)
-    return Catalog.from_columns(
+    catalog = Catalog.from_columns(
         name="gaia_dr3",
         source=str(source),
         epoch_yr=GAIA_DR3_EPOCH_YR,
@@ -123,6 +124,7 @@ def _read_binary(source: Path) -> Catalog:
         pm_ra_mas_yr=rec["pmra"].astype(np.float64),
         pm_dec_mas_yr=rec["pmdec"].astype(np.float64),
     )
+    return check_unique_ids(catalog, "source_id")
 
 
 def load_gaia(path: str | Path) -> Catalog:
@@ -205,7 +207,7 @@ def load_gaia(path: str | Path) -> Catalog:
             usable, cols["radial_velocity"] * catalog.parallax_rad / AU_KM_YR_PER_S, np.nan
         )
         catalog = dataclasses.replace(catalog, radial_motion_per_yr=mu_r)
-    return catalog
+    return check_unique_ids(catalog, "source_id")
 
 
 def _read_csv(source: Path) -> tuple[dict[str, np.ndarray], int]:
