@@ -30,6 +30,7 @@ from starsense.cli.common import (
     SeedOpt,
     SensorOpt,
     emit,
+    option_float,
     output_dir,
     output_file,
     parse_floats,
@@ -275,6 +276,22 @@ def _maps_dir(maps: Path) -> Path:
     return maps
 
 
+#: the finest --inclination-step-deg: 0.001 deg, 180,001 tracks
+MIN_INCLINATION_STEP_DEG = 1e-3
+
+
+def _inclinations_deg(step_deg: float) -> np.ndarray:
+    """Inclinations -90, -90 + step, ... up to 90 deg (90 itself when the step divides 180).
+
+    Built from a count, like ``linspace``: no floating end point past 90, no giant allocation.
+    """
+    step = option_float(step_deg, "--inclination-step-deg", MIN_INCLINATION_STEP_DEG, 180.0)
+    n = round(180.0 / step)
+    if not math.isclose(n * step, 180.0, rel_tol=1e-9):
+        n = math.floor(180.0 / step)
+    return np.clip(-90.0 + step * np.arange(n + 1), -90.0, 90.0)
+
+
 # -- commands ---------------------------------------------------------------------------------
 
 
@@ -431,11 +448,7 @@ def track(
     _check_n_min(n_min)
     _check_count(track_samples, "samples per track", "--track-samples")
     node = finite_float(node_deg, "--node-deg") * DEG
-    if not (math.isfinite(inclination_step_deg) and 0 < inclination_step_deg <= 180):
-        raise InputError(
-            f"--inclination-step-deg = {inclination_step_deg:g} is out of range; allowed (0, 180]"
-        )
-    inclinations = np.arange(-90.0, 90.0 + 1e-9, inclination_step_deg) * DEG
+    inclinations = _inclinations_deg(inclination_step_deg) * DEG
     with progress_bar() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
                                    roll_deg, seed, progress)  # fmt: skip

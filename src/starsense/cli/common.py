@@ -44,6 +44,7 @@ __all__ = [
     "output_file",
     "parse_floats",
     "progress_bar",
+    "seed_option",
 ]
 
 # -- options ------------------------------------------------------------------------------------
@@ -52,7 +53,25 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JS
 SensorOpt = Annotated[
     str, typer.Option("--sensor", help="Sensor preset (st16, esa_blackfly) or a TOML file.")
 ]
-SeedOpt = Annotated[int, typer.Option("--seed", help="Root seed (results are reproducible).")]
+
+
+def seed_option(value: int) -> int:
+    """Option callback of every ``--seed``: an integer >= 0, checked before any work.
+
+    Raises
+    ------
+    InputError
+        Naming ``--seed`` and the value (NumPy's generators refuse negative seeds).
+    """
+    return check_int(value, "--seed", 0)
+
+
+SeedOpt = Annotated[
+    int,
+    typer.Option(
+        "--seed", help="Root seed, >= 0 (results are reproducible).", callback=seed_option
+    ),
+]
 CatalogOpt = Annotated[
     str,
     typer.Option(
@@ -171,8 +190,11 @@ def parse_floats(
     """
     if text is None:
         return None
+    parts = text.split(",")
+    if text.strip() and any(not p.strip() for p in parts):  # "1,,2", "1,2,": a lost value
+        raise InputError(f"{option} has an empty element in {text!r}; give numbers between commas")
     try:
-        values = [float(p) for p in text.split(",") if p.strip() != ""]
+        values = [float(p) for p in parts if p.strip() != ""]
     except ValueError:
         raise InputError(f"{option} expects comma-separated numbers, got {text!r}") from None
     if not values or (n is not None and len(values) != n):

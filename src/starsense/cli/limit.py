@@ -13,6 +13,7 @@ import numpy as np
 import typer
 
 from starsense._validate import check_int, check_scalar, finite_float
+from starsense.catalog._columns import MAG_RANGE
 from starsense.cli.catalog import check_dask_option
 from starsense.cli.common import (
     CatalogOpt,
@@ -22,7 +23,9 @@ from starsense.cli.common import (
     ExposureOpt,
     JsonOpt,
     ScaleCatalogOpt,
+    SeedOpt,
     emit,
+    option_float,
     output_file,
 )
 from starsense.errors import InputError
@@ -102,18 +105,21 @@ def limit_star(
     if mag_v is not None or b_v is not None:
         if mag_v is None or b_v is None:
             raise InputError("--mag-v and --b-v must be given together")
-        m, ci, system = mag_v, b_v, "B-V"
+        m, ci, system, names = mag_v, b_v, "B-V", ("--mag-v", "--b-v")
     elif mag_h is not None or h_ks is not None:
         if mag_h is None or h_ks is None:
             raise InputError("--mag-h and --h-ks must be given together")
-        m, ci, system = mag_h, h_ks, "H-Ks"
+        m, ci, system, names = mag_h, h_ks, "H-Ks", ("--mag-h", "--h-ks")
     elif mag is not None and colour_index is not None and colour is not None:
-        m, ci, system = mag, colour_index, colour
+        m, ci, system, names = mag, colour_index, colour, ("--mag", "--colour-index")
     else:
         raise InputError(
             "give --mag-v and --b-v, or --mag-h and --h-ks, or --mag, --colour-index and --colour"
         )
+    option_float(m, names[0], *MAG_RANGE)
+    option_float(ci, names[1])
     t, c = fit_star(m, ci, system)
+    clamped = _colour_clamp_note(system, ci, names[1], t)
     f = float(centroid_fisher(c, t, diameter_m, exposure_s))
     photons = float(total_photons(c, t, diameter_m, exposure_s))
     sigma = 1.0 / np.sqrt(f)
@@ -127,7 +133,10 @@ def limit_star(
         "magnitude_band": ColourModel(system).magnitude_band,
         "diameter_m": diameter_m,
         "exposure_s": exposure_s,
+        "colour_clamped": clamped is not None,
     }
+    if clamped is not None:
+        typer.echo(f"warning: {clamped}", err=True)
     emit(
         payload,
         as_json,
@@ -136,6 +145,21 @@ def limit_star(
             f"photons collected (D = {diameter_m} m, t = {exposure_s} s): {photons:.4g}",
             f"centroid bound sigma_min: {_rad(sigma)}",
         ],
+    )
+
+
+def _colour_clamp_note(system: str, ci: float, option: str, t: float) -> str | None:
+    """Say what was clamped when a colour lies outside the paper's clamp (sec. 2.5), else None."""
+    from starsense.photometry import ColourModel
+
+    model = ColourModel(system)
+    lo, hi = model.colour_limits
+    if lo <= ci <= hi:
+        return None
+    return (
+        f"{option} {ci:g} is outside [{lo:.4f}, {hi:.4f}], the {system} of black bodies at "
+        f"{model.t_max_k:,.0f} K and {model.t_min_k:,.0f} K; the temperature is clamped to "
+        f"{t:,.0f} K (Fialho & Mortari 2019, sec. 2.5)"
     )
 
 
@@ -318,7 +342,7 @@ def limit_photons(
     catalog: CatalogOpt = "hipparcos",
     colour: ColourOpt = None,
     trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws.")] = 200,
-    seed: Annotated[int, typer.Option("--seed")] = 0,
+    seed: SeedOpt = 0,
     as_json: JsonOpt = False,
 ) -> None:
     """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
