@@ -20,11 +20,15 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import json
+import math
 import os
 import re
 import shutil
+import socket
 import tempfile
-from collections.abc import Iterator
+import time
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
 
@@ -36,6 +40,9 @@ __all__ = [
     "check_output",
     "dir_mode",
     "file_mode",
+    "json_text",
+    "jsonable",
+    "probe_tcp",
     "read_bytes",
     "read_text",
     "readable_file",
@@ -64,6 +71,91 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+# -- network ------------------------------------------------------------------------------------
+
+
+def probe_tcp(host: str, port: int, timeout_s: float, what: str) -> None:
+    """Open and close a TCP connection to ``host:port``: fail at once when nothing listens.
+
+    A refused connection is reported immediately (not after the timeout); a silent host after
+    ``timeout_s``, saying how long it waited.
+
+    Parameters
+    ----------
+    host : str
+        Name or address.
+    port : int
+        1-65535.
+    timeout_s : float
+        How long to wait for an answer, s.
+    what : str
+        What is being reached, for the message ("HATS catalogue http://...").
+
+    Raises
+    ------
+    InputError
+        ``refused``, ``no answer after N s``, an unknown host, or another socket error; the
+        message names ``what``.
+    """
+    if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
+        raise InputError(f"{what}: port {port!r} is not a port number (1-65535)")
+    t0 = time.monotonic()
+    try:
+        socket.create_connection((host, port), timeout=timeout_s).close()
+    except ConnectionRefusedError:
+        raise InputError(
+            f"{what}: connection refused by {host}:{port} (nothing listens there)"
+        ) from None
+    except TimeoutError:
+        raise InputError(
+            f"{what}: no answer from {host}:{port} after {time.monotonic() - t0:.1f} s"
+        ) from None
+    except socket.gaierror as exc:
+        raise InputError(f"{what}: unknown host {host!r} ({exc.strerror or exc})") from None
+    except OSError as exc:
+        raise InputError(
+            f"{what}: cannot connect to {host}:{port}: {exc.strerror or exc}"
+        ) from None
+
+
+# -- JSON ---------------------------------------------------------------------------------------
+
+
+def jsonable(x: Any) -> Any:
+    """Return ``x`` with NumPy scalars and arrays as Python values and NaN/inf as None.
+
+    JSON has no NaN or infinity: a missing or unbounded number is written ``null``.
+    """
+    if isinstance(x, Mapping):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple | set | frozenset):
+        return [jsonable(v) for v in x]
+    if hasattr(x, "tolist") and hasattr(x, "dtype"):  # numpy arrays and scalars
+        return jsonable(x.tolist())
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, os.PathLike):
+        return os.fspath(x)
+    return x
+
+
+def json_text(x: Any, indent: int | None = 2) -> str:
+    """Return ``x`` as valid JSON text (:func:`jsonable` first; ``allow_nan=False`` then holds).
+
+    Parameters
+    ----------
+    x : object
+        Dicts, lists, numbers, strings, NumPy values, paths.
+    indent : int or None
+        As for :func:`json.dumps`.
+
+    Returns
+    -------
+    str
+    """
+    return json.dumps(jsonable(x), indent=indent, allow_nan=False)
 
 
 # -- reading ------------------------------------------------------------------------------------

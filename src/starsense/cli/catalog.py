@@ -32,7 +32,9 @@ def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterato
     stderr not a terminal).
     """
     from starsense.scale import dask_client, open_hats
+    from starsense.scale.cluster import check_scheduler
 
+    check_scheduler(dask)  # a malformed or refused --dask fails before the catalogue is opened
     cat = open_hats(catalog)
     with dask_client(dask) as client, progress_bar(show_progress, unit="partitions") as bar:
         yield cat, client, bar.callback

@@ -12,7 +12,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -21,7 +20,7 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
-from starsense._io import check_output
+from starsense._io import check_output, json_text
 from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
 
@@ -240,9 +239,9 @@ def output_dir(param: typer.CallbackParam, value: Path | None) -> Path | None:
 
 
 def emit(payload: dict, as_json: bool, lines: list[str]) -> None:
-    """Print ``payload`` as JSON, or the human-readable ``lines``."""
+    """Print ``payload`` as JSON (NaN and inf as ``null``), or the human-readable ``lines``."""
     if as_json:
-        typer.echo(json.dumps(payload, indent=2))
+        typer.echo(json_text(payload))  # NaN and inf as null: always valid JSON
     else:
         for line in lines:
             typer.echo(line)

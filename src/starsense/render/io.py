@@ -24,14 +24,13 @@ viewers conventionally display the first row at the bottom).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
 
 import numpy as np
 
-from starsense._io import atomic_path
+from starsense._io import atomic_path, json_text
 from starsense.errors import InputError
 
 __all__ = ["FORMATS", "write_frame"]
@@ -125,7 +124,7 @@ def write_frame(path: str | os.PathLike, frame) -> Path:
     if not directory.is_dir():
         raise InputError(f"cannot write {str(target)!r}: directory {str(directory)!r} not found")
     json_path = target.with_name(target.name + ".json")
-    text = json.dumps(frame.truth_dict(), indent=1, allow_nan=False)
+    text = json_text(frame.truth_dict(), indent=1)
 
     # the image is renamed into place first, then the JSON; neither before both are complete
     with atomic_path(json_path, ".json") as tmp_json:

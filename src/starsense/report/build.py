@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import datetime
 import json
-import math
 import os
 import shutil
 import tempfile
@@ -17,10 +16,8 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-import numpy as np
-
 import starsense
-from starsense._io import check_output, dir_mode, sweep_stale, temp_prefix
+from starsense._io import check_output, dir_mode, json_text, sweep_stale, temp_prefix
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
@@ -272,21 +269,6 @@ def _write_index(work: Path, ctx: ReportContext, sections: Sequence[Section], el
     (work / INDEX).write_text(text, encoding="utf-8")
 
 
-def _jsonable(x):
-    """Numpy scalars/arrays -> Python; NaN and inf -> None (JSON has neither)."""
-    if isinstance(x, Mapping):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple | np.ndarray):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.bool_ | bool):
-        return bool(x)
-    if isinstance(x, np.integer | int):
-        return int(x)
-    if isinstance(x, np.floating | float):
-        return float(x) if math.isfinite(x) else None
-    return x
-
-
 def _write_json(work: Path, ctx: ReportContext, sections: Sequence[Section], elapsed: float):
     doc = {
         "generator": GENERATOR,
@@ -306,6 +288,4 @@ def _write_json(work: Path, ctx: ReportContext, sections: Sequence[Section], ela
             s.key: {"title": s.title, "figures": list(s.figures), **s.data} for s in sections
         },
     }
-    (work / JSON_NAME).write_text(
-        json.dumps(_jsonable(doc), indent=1, allow_nan=False), encoding="utf-8"
-    )
+    (work / JSON_NAME).write_text(json_text(doc, indent=1), encoding="utf-8")

@@ -14,9 +14,11 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import time
 from collections.abc import Iterator
 from typing import Any
 
+from starsense._io import probe_tcp
 from starsense.errors import InputError
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import SchedulerUnreachableError
@@ -50,7 +52,44 @@ def parse_address(address: str | None) -> tuple[str, int | None]:
             f"--dask {address!r} is not a scheduler address; expected local, local:N or "
             "tcp://HOST:PORT"
         )
+    if scheme != "inproc" and not (port.isdigit() and 1 <= int(port) <= 65535):
+        raise InputError(f"--dask {address!r}: port {port!r} is not a number in 1-65535")
     return "remote", text
+
+
+def check_scheduler(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -> tuple:
+    """Parse ``address`` and, for a TCP scheduler, check that something listens there.
+
+    Cheap (no Dask import): commands call it before any other work, so a malformed address or
+    a refused connection is reported at once.
+
+    Parameters
+    ----------
+    address : str or None
+        As for :func:`dask_client`.
+    timeout_s : float
+        How long to wait for the scheduler's port to answer, s.
+
+    Returns
+    -------
+    tuple
+        What :func:`parse_address` returns.
+
+    Raises
+    ------
+    InputError
+        A malformed address (a port outside 1-65535).
+    SchedulerUnreachableError
+        The connection is refused (at once) or not answered within ``timeout_s``.
+    """
+    kind, value = parse_address(address)
+    if kind == "remote" and value.startswith(("tcp://", "tls://")):
+        host, _, port = value.partition("://")[2].rpartition(":")
+        try:  # a refusal is known at once, not after the timeout
+            probe_tcp(host.strip("[]"), int(port), timeout_s, f"no Dask scheduler at {value}")
+        except InputError as exc:
+            raise SchedulerUnreachableError(str(exc)) from None
+    return kind, value
 
 
 @contextlib.contextmanager
@@ -80,8 +119,8 @@ def dask_client(
     SchedulerUnreachableError
         Nothing answers at the address within ``timeout_s``.
     """
+    kind, value = check_scheduler(address, timeout_s)
     (distributed,) = require("distributed")
-    kind, value = parse_address(address)
     if kind == "local":
         n = value or n_workers or os.cpu_count() or 1
         cluster = distributed.LocalCluster(
@@ -107,11 +146,13 @@ def dask_client(
         finally:
             cluster.close()
         return
+    t0 = time.monotonic()
     try:
         client = distributed.Client(value, timeout=f"{timeout_s}s")
     except (OSError, TimeoutError) as exc:
         raise SchedulerUnreachableError(
-            f"no Dask scheduler answers at {value} (gave up after {timeout_s:g} s): {exc}"
+            f"no Dask scheduler answers at {value} (waited {time.monotonic() - t0:.1f} s): "
+            f"{' '.join(str(exc).split())}"
         ) from None
     client.run(quiet_third_party_warnings)
     try:

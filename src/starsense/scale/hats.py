@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 import urllib.error
+import urllib.parse
 import urllib.request
 import warnings
 from dataclasses import dataclass
@@ -35,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from starsense._io import probe_tcp
 from starsense.catalog.table import Catalog
 from starsense.errors import InputError
 from starsense.photometry.colour import COLOUR_SYSTEMS
@@ -282,9 +285,28 @@ def _lsdb_catalog(lsdb: Any, location: str, dataset: Any, columns: list[str]) ->
 
 
 def _probe_url(url: str, timeout_s: float) -> None:
-    """Fail fast, with a specific error, when a catalogue URL does not answer."""
+    """Fail fast, with a specific error, when a catalogue URL does not answer.
+
+    The address is checked first (a port outside 1-65535 is refused before connecting), then
+    one TCP connection says at once whether anything listens (:func:`starsense._io.probe_tcp`),
+    then the catalogue's properties file is asked for.
+    """
+    parts = urllib.parse.urlsplit(url)
+    try:
+        port = parts.port or (443 if parts.scheme == "https" else 80)
+    except ValueError:  # "Port out of range 0-65535", "Port could not be cast to integer"
+        raise CatalogUnavailableError(
+            f"HATS catalogue {url}: the port is not a number in 1-65535"
+        ) from None
+    if not parts.hostname:
+        raise CatalogUnavailableError(f"HATS catalogue {url}: the URL names no host")
+    try:
+        probe_tcp(parts.hostname, port, timeout_s, f"cannot reach HATS catalogue {url}")
+    except InputError as exc:
+        raise CatalogUnavailableError(str(exc)) from None
     base = url.rstrip("/")
     last = None
+    t0 = time.monotonic()
     for leaf in ("collection.properties", "hats.properties", "properties"):
         try:
             with urllib.request.urlopen(f"{base}/{leaf}", timeout=timeout_s) as response:
@@ -295,8 +317,13 @@ def _probe_url(url: str, timeout_s: float) -> None:
             continue
         except (urllib.error.URLError, OSError, ValueError) as exc:
             reason = getattr(exc, "reason", exc)
+            waited = (
+                f" (no answer after {time.monotonic() - t0:.1f} s)"
+                if isinstance(reason, TimeoutError)
+                else ""
+            )
             raise CatalogUnavailableError(
-                f"cannot reach HATS catalogue {url} (gave up after {timeout_s:g} s): {reason}"
+                f"cannot reach HATS catalogue {url}{waited}: {reason}"
             ) from None
     raise CatalogUnavailableError(
         f"{url} is not a HATS catalogue: no collection.properties, hats.properties or "
@@ -318,11 +345,12 @@ def open_hats(spec: str, timeout_s: float = URL_TIMEOUT_S) -> HatsCatalog:
     location = hats_location(spec) if is_hats_spec(spec) else str(spec).strip()
     if not math.isfinite(timeout_s) or timeout_s <= 0:
         raise InputError(f"timeout must be > 0 s, got {timeout_s!r}")
-    hats, _lsdb = require("hats", "lsdb")
     lower = location.lower()
-    if lower.startswith(("http://", "https://")):
-        _probe_url(location, timeout_s)
-    elif not lower.startswith(_URL_SCHEMES):
+    is_http = lower.startswith(("http://", "https://"))
+    if is_http:
+        _probe_url(location, timeout_s)  # before importing lsdb: a refusal is known at once
+    hats, _lsdb = require("hats", "lsdb")
+    if not is_http and not lower.startswith(_URL_SCHEMES):
         path = Path(location).expanduser()
         if not path.exists():
             raise CatalogUnavailableError(f"HATS catalogue not found: {path}")

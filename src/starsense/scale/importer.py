@@ -8,9 +8,11 @@ positions, magnitudes and colours by name.
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import tempfile
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +49,66 @@ def input_columns(path: Path, fmt: str) -> list[str]:
             return list(reader.schema.names)
     except (pa.ArrowException, OSError) as exc:
         raise CatalogUnavailableError(f"cannot read {path}: {exc}") from None
+
+
+def _check_positions(src: Path, fmt: str, ra: str, dec: str) -> None:
+    """Read a CSV's position columns once (streamed): name a non-number before workers start."""
+    if fmt != "csv":
+        return
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    convert = pcsv.ConvertOptions(
+        include_columns=[ra, dec], column_types={ra: pa.float64(), dec: pa.float64()}
+    )
+    try:
+        with pcsv.open_csv(src, convert_options=convert) as reader:
+            for _ in reader:
+                pass
+    except (pa.ArrowInvalid, OSError) as exc:
+        detail = _failure_detail(src, fmt, ra, dec, " ".join(str(exc).split()))
+        raise InputError(f"cannot import {src}: {detail}") from None
+
+
+@contextlib.contextmanager
+def _collect_worker_prints(client: Any) -> Iterator[list[str]]:
+    """Yield a list collecting what tasks print through Dask, instead of the client's stdout.
+
+    hats-import prints each failed task (worker address, message) that way; the command's
+    output stays clean and the error names the cause in one line.
+    """
+    printed: list[str] = []
+
+    def collect(event: Any) -> None:
+        msg = event[1] if isinstance(event, tuple) and len(event) == 2 else event
+        args = msg.get("args", ()) if isinstance(msg, dict) else (msg,)
+        printed.append(" ".join(str(a) for a in args))
+
+    handlers = getattr(client, "_event_handlers", {})
+    previous = handlers.get("print") if isinstance(handlers, dict) else None
+    client.subscribe_topic("print", collect)
+    try:
+        yield printed
+    finally:
+        if previous is not None:
+            client.subscribe_topic("print", previous)
+        else:
+            client.unsubscribe_topic("print")
+
+
+def _failure_detail(src: Path, fmt: str, ra: str, dec: str, printed: str) -> str:
+    """Say why hats-import failed: a CSV's first bad position, else its workers' last message."""
+    from starsense.catalog._parse import locate_delimited_error
+
+    if fmt == "csv":
+        found = locate_delimited_error(
+            src, delimiter=",", names=None, skip_lines=0, numeric={ra: float, dec: float},
+            required=(ra, dec), null_values=("",), quoting=True,
+        )  # fmt: skip
+        if found is not None:
+            return f"line {found.line}, column {found.field}: {found.detail}"
+    lines = [ln.strip() for ln in printed.splitlines() if ln.strip()]
+    return lines[-1] if lines else "a hats-import task failed"
 
 
 def import_catalog(
@@ -96,6 +158,7 @@ def import_catalog(
             f"{src}: position column(s) {', '.join(missing)} missing (columns: "
             f"{', '.join(columns)}); name them with ra_column / dec_column"
         )
+    _check_positions(src, fmt, ra_column, dec_column)
     require("hats_import", "distributed")
     from hats_import.catalog.arguments import ImportArguments
     from hats_import.pipeline import pipeline_with_client
@@ -117,12 +180,15 @@ def import_catalog(
                 resume=False,
                 progress_bar=progress,
             )
-            with client_or_local(client) as c:
+            with client_or_local(client) as c, _collect_worker_prints(c) as printed:
                 pipeline_with_client(args, c)
         shutil.rmtree(work / "intermediate", ignore_errors=True)
         (work / dst.name).rename(dst)
     except (ValueError, KeyError) as exc:
         raise InputError(f"hats-import could not import {src}: {exc}") from None
+    except RuntimeError:  # "Some mapping stages failed. See above Exceptions."
+        detail = _failure_detail(src, fmt, ra_column, dec_column, "\n".join(printed))
+        raise InputError(f"hats-import could not import {src}: {detail}") from None
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return dst
