@@ -140,7 +140,7 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(
 def test_read_only_output_directory(tmp_path, capsys, monkeypatch):
     # the tests may run as root, for whom every directory is writable: the permission is
     # refused the way the kernel would refuse it to a user
-    import starsense._io as io_mod
+    import starsense._io.files as io_mod
 
     locked = tmp_path / "locked"
     locked.mkdir()
@@ -158,7 +158,7 @@ def test_read_only_output_directory(tmp_path, capsys, monkeypatch):
 
 
 def test_unreadable_files_are_named(bad_dir, tmp_path, capsys, monkeypatch):
-    import starsense._io as io_mod
+    import starsense._io.files as io_mod
 
     secret = tmp_path / "secret.toml"
     secret.write_text("name = 'x'\n")
@@ -175,7 +175,10 @@ def test_unreadable_files_are_named(bad_dir, tmp_path, capsys, monkeypatch):
 def test_valid_fine_inclination_steps_are_accepted():
     # 0.01, 0.03, 0.001 deg were refused (a floating end point past 90 deg); the grid is now
     # built from a count: it starts at -90, ends at 90 and never passes it
-    from starsense.cli.availability import _inclinations_deg
+    from starsense.cli.common import step_grid
+
+    def _inclinations_deg(step):
+        return step_grid(-90.0, 90.0, step, "--inclination-step-deg", 1e-3)
 
     for step, n in ((0.01, 18_001), (0.03, 6_001), (0.001, 180_001), (0.7, 258)):
         grid = _inclinations_deg(step)

@@ -30,11 +30,11 @@ from starsense.cli.common import (
     SeedOpt,
     SensorOpt,
     emit,
-    option_float,
     output_dir,
     output_file,
     parse_floats,
     progress_bar,
+    step_grid,
 )
 from starsense.errors import InputError
 from starsense.units import DEG
@@ -88,10 +88,7 @@ PlotOpt = Annotated[
     Path | None, typer.Option("--plot", help="Write the curve (PNG) here.", callback=output_file)
 ]
 MapsOpt = Annotated[
-    Path | None,
-    typer.Option(
-        "--maps", help="Write Mollweide sky maps (PNG) into this folder.", callback=output_dir
-    ),
+    Path | None, typer.Option("--maps", help="Mollweide sky maps (PNG) here.", callback=output_dir)
 ]
 ModelOpt = Annotated[str, typer.Option("--model", help="Sensitivity model: reed or liebe.")]
 TrialsOpt = Annotated[
@@ -269,27 +266,9 @@ def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: P
 
 
 def _maps_dir(maps: Path) -> Path:
-    maps = Path(maps)
-    if maps.exists() and not maps.is_dir():
-        raise InputError(f"--maps {maps}: exists and is not a folder")
+    maps = Path(maps)  # checked by its option's callback (output_dir)
     maps.mkdir(parents=True, exist_ok=True)
     return maps
-
-
-#: the finest --inclination-step-deg: 0.001 deg, 180,001 tracks
-MIN_INCLINATION_STEP_DEG = 1e-3
-
-
-def _inclinations_deg(step_deg: float) -> np.ndarray:
-    """Inclinations -90, -90 + step, ... up to 90 deg (90 itself when the step divides 180).
-
-    Built from a count, like ``linspace``: no floating end point past 90, no giant allocation.
-    """
-    step = option_float(step_deg, "--inclination-step-deg", MIN_INCLINATION_STEP_DEG, 180.0)
-    n = round(180.0 / step)
-    if not math.isclose(n * step, 180.0, rel_tol=1e-9):
-        n = math.floor(180.0 / step)
-    return np.clip(-90.0 + step * np.arange(n + 1), -90.0, 90.0)
 
 
 # -- commands ---------------------------------------------------------------------------------
@@ -448,7 +427,8 @@ def track(
     _check_n_min(n_min)
     _check_count(track_samples, "samples per track", "--track-samples")
     node = finite_float(node_deg, "--node-deg") * DEG
-    inclinations = _inclinations_deg(inclination_step_deg) * DEG
+    # from a count (0.01 deg: 18,001 tracks ending at 90); finer than 0.001 deg is refused
+    inclinations = DEG * step_grid(-90, 90, inclination_step_deg, "--inclination-step-deg", 1e-3)
     with progress_bar() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
                                    roll_deg, seed, progress)  # fmt: skip

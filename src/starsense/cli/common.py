@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -44,6 +45,7 @@ __all__ = [
     "parse_floats",
     "progress_bar",
     "seed_option",
+    "step_grid",
 ]
 
 # -- options ------------------------------------------------------------------------------------
@@ -205,6 +207,36 @@ def parse_floats(
         for v in values:
             check_scalar(v, option, lo, hi)
     return values
+
+
+def step_grid(lo: float, hi: float, step: object, option: str, min_step: float) -> np.ndarray:
+    """Return ``lo, lo + step, ...`` up to ``hi`` (``hi`` itself when the step divides the span).
+
+    Built from a count, like :func:`numpy.linspace`: no floating end point past ``hi`` (as
+    ``arange`` gives for 0.01 over [-90, 90]), and a step below ``min_step`` is refused in one
+    line before anything is allocated.
+
+    Parameters
+    ----------
+    lo, hi : float
+        The ends, in the option's unit.
+    step : object
+        The option's value.
+    option : str
+        The option, for the message.
+    min_step : float
+        The finest step allowed.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    span = hi - lo
+    step = option_float(step, option, min_step, span)
+    n = round(span / step)
+    if not math.isclose(n * step, span, rel_tol=1e-9):
+        n = math.floor(span / step)
+    return np.clip(lo + step * np.arange(n + 1), lo, hi)
 
 
 # -- output -------------------------------------------------------------------------------------

@@ -17,7 +17,14 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import starsense
-from starsense._io import check_output, dir_mode, json_text, sweep_stale, temp_prefix
+from starsense._io import (
+    check_output,
+    deferred_signals,
+    dir_mode,
+    json_text,
+    sweep_stale,
+    temp_prefix,
+)
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
@@ -141,7 +148,8 @@ def build_report(
         _write_index(work, ctx, sections, elapsed)
         _write_json(work, ctx, sections, elapsed)
         os.chmod(work, dir_mode())  # mkdtemp makes it 0700; a directory the user makes
-        _swap_into_place(work, out_dir)
+        with deferred_signals():  # the old report, or the new one: never neither
+            _swap_into_place(work, out_dir)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise

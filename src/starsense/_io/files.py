@@ -20,15 +20,13 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import json
-import math
 import os
 import re
 import shutil
-import socket
+import signal
 import tempfile
-import time
-from collections.abc import Iterator, Mapping
+import threading
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -36,13 +34,12 @@ from starsense.errors import InputError, OutputError
 
 __all__ = [
     "atomic_path",
+    "atomic_paths",
     "atomic_write",
     "check_output",
+    "deferred_signals",
     "dir_mode",
     "file_mode",
-    "json_text",
-    "jsonable",
-    "probe_tcp",
     "read_bytes",
     "read_text",
     "readable_file",
@@ -71,91 +68,6 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-# -- network ------------------------------------------------------------------------------------
-
-
-def probe_tcp(host: str, port: int, timeout_s: float, what: str) -> None:
-    """Open and close a TCP connection to ``host:port``: fail at once when nothing listens.
-
-    A refused connection is reported immediately (not after the timeout); a silent host after
-    ``timeout_s``, saying how long it waited.
-
-    Parameters
-    ----------
-    host : str
-        Name or address.
-    port : int
-        1-65535.
-    timeout_s : float
-        How long to wait for an answer, s.
-    what : str
-        What is being reached, for the message ("HATS catalogue http://...").
-
-    Raises
-    ------
-    InputError
-        ``refused``, ``no answer after N s``, an unknown host, or another socket error; the
-        message names ``what``.
-    """
-    if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
-        raise InputError(f"{what}: port {port!r} is not a port number (1-65535)")
-    t0 = time.monotonic()
-    try:
-        socket.create_connection((host, port), timeout=timeout_s).close()
-    except ConnectionRefusedError:
-        raise InputError(
-            f"{what}: connection refused by {host}:{port} (nothing listens there)"
-        ) from None
-    except TimeoutError:
-        raise InputError(
-            f"{what}: no answer from {host}:{port} after {time.monotonic() - t0:.1f} s"
-        ) from None
-    except socket.gaierror as exc:
-        raise InputError(f"{what}: unknown host {host!r} ({exc.strerror or exc})") from None
-    except OSError as exc:
-        raise InputError(
-            f"{what}: cannot connect to {host}:{port}: {exc.strerror or exc}"
-        ) from None
-
-
-# -- JSON ---------------------------------------------------------------------------------------
-
-
-def jsonable(x: Any) -> Any:
-    """Return ``x`` with NumPy scalars and arrays as Python values and NaN/inf as None.
-
-    JSON has no NaN or infinity: a missing or unbounded number is written ``null``.
-    """
-    if isinstance(x, Mapping):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple | set | frozenset):
-        return [jsonable(v) for v in x]
-    if hasattr(x, "tolist") and hasattr(x, "dtype"):  # numpy arrays and scalars
-        return jsonable(x.tolist())
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, os.PathLike):
-        return os.fspath(x)
-    return x
-
-
-def json_text(x: Any, indent: int | None = 2) -> str:
-    """Return ``x`` as valid JSON text (:func:`jsonable` first; ``allow_nan=False`` then holds).
-
-    Parameters
-    ----------
-    x : object
-        Dicts, lists, numbers, strings, NumPy values, paths.
-    indent : int or None
-        As for :func:`json.dumps`.
-
-    Returns
-    -------
-    str
-    """
-    return json.dumps(jsonable(x), indent=indent, allow_nan=False)
 
 
 # -- reading ------------------------------------------------------------------------------------
@@ -365,6 +277,89 @@ def _output_error(target: Path, exc: OSError) -> OutputError:
 
 
 @contextlib.contextmanager
+def deferred_signals() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back while the block runs (the commit of an output).
+
+    A signal arriving meanwhile is delivered when the block ends, so renames that belong
+    together (an image and its truth, a report swapped for the old one) happen all or none.
+    Outside the main thread, or without ``pthread_sigmask``, the block runs as is.
+    """
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+        signal, "pthread_sigmask"
+    ):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextlib.contextmanager
+def atomic_paths(
+    targets: Sequence[str | os.PathLike[str]], suffixes: Sequence[str] | None = None
+) -> Iterator[list[Path]]:
+    """Yield temporary paths beside ``targets``; rename them all into place on success.
+
+    The renames run with SIGINT and SIGTERM held back (:func:`deferred_signals`): after an
+    interrupt every target holds its old content, or every target its new one.
+
+    Parameters
+    ----------
+    targets : sequence of path-like
+        The files to create or replace, renamed in this order.
+    suffixes : sequence of str, optional
+        Ending of each temporary name (default ``.tmp``).
+
+    Yields
+    ------
+    list of pathlib.Path
+        Where to write, one per target.
+
+    Raises
+    ------
+    OutputError
+        A directory is missing or read-only, a target is a directory, or the disk refused
+        the write (full, read-only): the message names the target.
+    """
+    paths = [check_output(t) for t in targets]
+    suffixes = list(suffixes) if suffixes is not None else [".tmp"] * len(paths)
+    tmps: list[str] = []
+    try:
+        for target, suffix in zip(paths, suffixes, strict=True):
+            sweep_stale(target)
+            try:
+                fd, tmp = tempfile.mkstemp(
+                    prefix=temp_prefix(target), suffix=suffix, dir=target.parent
+                )
+            except OSError as exc:
+                raise _output_error(target, exc) from None
+            os.close(fd)
+            tmps.append(tmp)
+        current = paths[0]
+        try:
+            yield [Path(t) for t in tmps]
+            with deferred_signals():
+                for target, tmp in zip(paths, tmps, strict=True):
+                    current = target
+                    os.chmod(tmp, file_mode())
+                    _fsync(tmp)
+                for target, tmp in zip(paths, tmps, strict=True):
+                    current = target
+                    os.replace(tmp, target)
+        except OSError as exc:
+            ours = exc.filename in (*tmps, *map(str, paths))
+            if ours or (exc.filename is None and exc.errno in _DISK_ERRNOS):
+                raise _output_error(current, exc) from None
+            raise
+    finally:
+        for tmp in tmps:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(tmp)
+
+
+@contextlib.contextmanager
 def atomic_path(target: str | os.PathLike[str], suffix: str = ".tmp") -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it to ``target`` on success.
 
@@ -390,26 +385,8 @@ def atomic_path(target: str | os.PathLike[str], suffix: str = ".tmp") -> Iterato
         The directory is missing or read-only, ``target`` is a directory, or the disk refused
         the write (full, read-only): the message names ``target``.
     """
-    target = check_output(target)
-    sweep_stale(target)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=temp_prefix(target), suffix=suffix, dir=target.parent)
-    except OSError as exc:
-        raise _output_error(target, exc) from None
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, file_mode())
-        _fsync(tmp)
-        os.replace(tmp, target)
-    except OSError as exc:
-        ours = exc.filename in (tmp, str(target))
-        if ours or (exc.filename is None and exc.errno in _DISK_ERRNOS):
-            raise _output_error(target, exc) from None
-        raise
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(tmp)
+    with atomic_paths([target], [suffix]) as (tmp,):
+        yield tmp
 
 
 @contextlib.contextmanager
