@@ -280,20 +280,25 @@ def _output_error(target: Path, exc: OSError) -> OutputError:
 def deferred_signals() -> Iterator[None]:
     """Hold SIGINT and SIGTERM back while the block runs (the commit of an output).
 
-    A signal arriving meanwhile is delivered when the block ends, so renames that belong
-    together (an image and its truth, a report swapped for the old one) happen all or none.
-    Outside the main thread, or without ``pthread_sigmask``, the block runs as is.
+    A signal arriving meanwhile is noted and raised again when the block ends, for the
+    handler that was in place, so renames that belong together (an image and its truth, a
+    report swapped for the old one) happen all or none. (The Python-level handlers are swapped
+    rather than the thread's signal mask: a process-directed signal may land on any thread.)
+    Outside the main thread, where handlers cannot be set, the block runs as is.
     """
-    if threading.current_thread() is not threading.main_thread() or not hasattr(
-        signal, "pthread_sigmask"
-    ):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    pending: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in held}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(pending):
+            signal.raise_signal(s)
 
 
 @contextlib.contextmanager
