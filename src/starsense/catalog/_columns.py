@@ -72,14 +72,14 @@ def position_columns(
     if bad.any():
         i = int(np.argmax(bad))
         raise InputError(
-            f"RA/Dec must be finite: star {i} (id {ids[i]}) has ra_rad={ra[i]!r}, "
-            f"dec_rad={dec[i]!r}"
+            f"RA/Dec must be finite: star {i} (id {ids[i]}) has ra_rad={float(ra[i])!r}, "
+            f"dec_rad={float(dec[i])!r}"
         )
     bad = np.abs(dec) > 0.5 * np.pi + 1e-12
     if bad.any():
         i = int(np.argmax(bad))
         raise InputError(
-            f"dec_rad must lie in [-pi/2, pi/2]: star {i} (id {ids[i]}) has {dec[i]!r}"
+            f"dec_rad must lie in [-pi/2, pi/2]: star {i} (id {ids[i]}) has {float(dec[i])!r}"
         )
     if n and ((ra < 0).any() or (ra >= _TWO_PI).any()):
         wrapped = np.mod(ra, _TWO_PI)

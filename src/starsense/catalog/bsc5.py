@@ -122,12 +122,14 @@ def load_bsc5(path: str | Path) -> Catalog:
         bad = ~np.isfinite(rec[field])
         if bad.any():
             i = int(np.argmax(bad))
-            raise CatalogFormatError(name, i + 1, field, f"value {rec[field][i]!r} is not finite")
+            raise CatalogFormatError(
+                name, i + 1, field, f"value {float(rec[field][i])!r} is not finite"
+            )
     xno = rec["XNO"].astype(np.float64)
-    bad = (xno != np.round(xno)) | (xno < 1)
+    bad = (xno != np.round(xno)) | (xno < 1) | (xno > 2**31 - 1)  # an int32 catalogue number
     if bad.any():
         i = int(np.argmax(bad))
-        raise CatalogFormatError(name, i + 1, "XNO", f"{xno[i]!r} is not a catalogue number")
+        raise CatalogFormatError(name, i + 1, "XNO", f"{float(xno[i])!r} is not a catalogue number")
 
     keep = ~((rec["SRA0"] == 0.0) & (rec["SDEC0"] == 0.0))
     rec, record_no = rec[keep], record_no[keep]

@@ -14,6 +14,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
+import threading
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -93,6 +95,23 @@ def check_scheduler(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -
 
 
 @contextlib.contextmanager
+def _children_ignore_sigint() -> Iterator[None]:
+    """Start processes with SIGINT ignored (it stays ignored across exec, and Python keeps it so).
+
+    A terminal's Ctrl-C goes to the whole process group: without this each local worker would
+    print its own KeyboardInterrupt traceback while the command shuts the cluster down.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+@contextlib.contextmanager
 def dask_client(
     address: str | None = None,
     *,
@@ -123,19 +142,20 @@ def dask_client(
     (distributed,) = require("distributed")
     if kind == "local":
         n = value or n_workers or os.cpu_count() or 1
-        cluster = distributed.LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=processes,
-            # TCP on the loopback even for thread workers: the scheduler can then be shared
-            # by address (tcp://127.0.0.1:PORT) with other clients of this machine
-            protocol="tcp://",
-            host="127.0.0.1",
-            dashboard_address=None,
-            # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
-            # a traceback; task failures still reach the client as exceptions
-            silence_logs=logging.CRITICAL,
-        )
+        with _children_ignore_sigint():  # Ctrl-C is the command's, not each worker's
+            cluster = distributed.LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=processes,
+                # TCP on the loopback even for thread workers: the scheduler can then be shared
+                # by address (tcp://127.0.0.1:PORT) with other clients of this machine
+                protocol="tcp://",
+                host="127.0.0.1",
+                dashboard_address=None,
+                # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
+                # a traceback; task failures still reach the client as exceptions
+                silence_logs=logging.CRITICAL,
+            )
         try:
             client = distributed.Client(cluster)
             client.run(quiet_third_party_warnings)
