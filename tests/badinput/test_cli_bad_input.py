@@ -79,6 +79,13 @@ CASES = [
      ["--inclination-step-deg", "1e-09", "0.001"]),
     (["availability", "track", "--inclination-step-deg", "0"], ["--inclination-step-deg", "0"]),
     (["availability", "static", "--half-fov-deg", "nan"], ["--half-fov-deg", "nan"]),
+    (["availability", "static", "--max-mag", "nan"], ["--max-mag", "nan"]),
+    (["limit", "photons", "--diameter-m", "nan"], ["--diameter-m", "nan"]),
+    (["montecarlo", "--max-mag", "nan"], ["--max-mag", "nan"]),
+    (["render", "--out", "{out}/f.png", "--max-mag", "inf"], ["--max-mag", "inf"]),
+    (["slew", "tolerance", "--b-v", "nan"], ["--b-v", "nan"]),
+    (["guide-stars", "select", "--center-deg", "10,,10", "--lens-fov-deg", "20"],
+     ["--center-deg", "'10,,10'"]),
     (["guide-stars", "select", "--center-deg", "10,10", "--lens-fov-deg", "20",
       "--sigma-arcsec", "nan"], ["--sigma-arcsec", "nan"]),
     # -- C: outputs checked before the work ---------------------------------------------------

@@ -64,6 +64,8 @@ def render(
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
     option_float(roll_deg, "--roll-deg")
     rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
+    if max_mag is not None:
+        option_float(max_mag, "--max-mag")
     sens = load_sensor(sensor)
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
     kwargs = {"rate_rad_s": rate, "model": model, "max_mag": max_mag, "rng": seed,
@@ -163,6 +165,8 @@ def montecarlo(
 
     option_int(trials, "--trials", 1)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
+    if max_mag is not None:
+        option_float(max_mag, "--max-mag")
     cat = load_catalog("hipparcos")
     with progress_bar(not as_json) as bar:
         res = run_montecarlo(

@@ -349,6 +349,8 @@ def limit_photons(
     from starsense.analysis.limits.photons import low_photon_degradation
 
     check_int(trials, "--trials", 1)
+    option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
+    option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     cat, stars = _load_stars(catalog, None, colour)
     res = low_photon_degradation(stars, diameter_m, exposure_s, trials, seed)
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}

@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._validate import finite_float
 from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
@@ -44,6 +45,7 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
     from starsense.analysis.slew import simulate_slew
     from starsense.sensor import load_sensor
 
+    finite_float(colour_index, "--b-v")
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")
     rate_values = _rates_rad_s(rates)
