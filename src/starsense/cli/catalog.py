@@ -79,18 +79,22 @@ def catalog_import(
     from starsense.scale import dask_client, import_catalog, open_hats
 
     option_int(pixel_threshold, "--pixel-threshold", 1)
+    from starsense.scale.cluster import check_scheduler
     from starsense.scale.errors import MissingColumnsError
+    from starsense.scale.importer import check_import
 
+    check_scheduler(dask)  # a bad --dask, a bad input or output: before any worker starts
+    try:
+        check_import(input_path, output, ra_column, dec_column, pixel_threshold)
+    except MissingColumnsError as exc:  # the library names parameters; say the options
+        text = str(exc).replace("ra_column / dec_column", "--ra-column / --dec-column")
+        raise MissingColumnsError(text) from None
     with dask_client(dask) as client:
-        try:
-            out = import_catalog(
-                input_path, output, ra_column=ra_column, dec_column=dec_column,
-                pixel_threshold=pixel_threshold, client=client,
-                progress=not as_json and sys.stderr.isatty(),
-            )  # fmt: skip
-        except MissingColumnsError as exc:  # the library names parameters; say the options
-            text = str(exc).replace("ra_column / dec_column", "--ra-column / --dec-column")
-            raise MissingColumnsError(text) from None
+        out = import_catalog(
+            input_path, output, ra_column=ra_column, dec_column=dec_column,
+            pixel_threshold=pixel_threshold, client=client,
+            progress=not as_json and sys.stderr.isatty(),
+        )  # fmt: skip
     cat = open_hats(str(out))
     payload = {
         "output": str(out),

@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from starsense._io import check_output, sweep_stale, temp_prefix
 from starsense._validate import check_int
 from starsense.errors import InputError
 from starsense.scale._deps import quiet_third_party_warnings, require
@@ -111,6 +112,42 @@ def _failure_detail(src: Path, fmt: str, ra: str, dec: str, printed: str) -> str
     return lines[-1] if lines else "a hats-import task failed"
 
 
+def check_import(
+    input_path: str | Path,
+    output: str | Path,
+    ra_column: str = "ra",
+    dec_column: str = "dec",
+    pixel_threshold: int = 1_000_000,
+) -> tuple[Path, Path, str]:
+    """Check an import before any worker starts; return (input, output, format).
+
+    The input exists and its format is known, the output does not exist and its directory is
+    writable, the position columns are there and (CSV) every position is a number.
+
+    Raises
+    ------
+    InputError
+        Naming the file, and for a bad position the line, column and value.
+    """
+    src = Path(input_path).expanduser()
+    if not src.is_file():
+        raise CatalogUnavailableError(f"input catalogue not found: {src}")
+    dst = check_output(output, "output", directory=True)
+    fmt = input_format(src)
+    if dst.exists():
+        raise InputError(f"output {dst} already exists; remove it or choose another name")
+    check_int(pixel_threshold, "pixel_threshold", 1)
+    columns = input_columns(src, fmt)
+    missing = [c for c in (ra_column, dec_column) if c not in columns]
+    if missing:
+        raise MissingColumnsError(
+            f"{src}: position column(s) {', '.join(missing)} missing (columns: "
+            f"{', '.join(columns)}); name them with ra_column / dec_column"
+        )
+    _check_positions(src, fmt, ra_column, dec_column)
+    return src, dst, fmt
+
+
 def import_catalog(
     input_path: str | Path,
     output: str | Path,
@@ -143,28 +180,14 @@ def import_catalog(
     InputError
         Missing input, unknown format, existing output, missing position columns.
     """
-    src = Path(input_path).expanduser()
-    dst = Path(output).expanduser()
-    if not src.is_file():
-        raise CatalogUnavailableError(f"input catalogue not found: {src}")
-    fmt = input_format(src)
-    if dst.exists():
-        raise InputError(f"output {dst} already exists; remove it or choose another name")
-    check_int(pixel_threshold, "pixel_threshold", 1)
-    columns = input_columns(src, fmt)
-    missing = [c for c in (ra_column, dec_column) if c not in columns]
-    if missing:
-        raise MissingColumnsError(
-            f"{src}: position column(s) {', '.join(missing)} missing (columns: "
-            f"{', '.join(columns)}); name them with ra_column / dec_column"
-        )
-    _check_positions(src, fmt, ra_column, dec_column)
+    src, dst, fmt = check_import(input_path, output, ra_column, dec_column, pixel_threshold)
     require("hats_import", "distributed")
     from hats_import.catalog.arguments import ImportArguments
     from hats_import.pipeline import pipeline_with_client
 
     dst.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent))
+    sweep_stale(dst)  # what a killed import left beside the output
+    work = Path(tempfile.mkdtemp(prefix=temp_prefix(dst), suffix=".tmp", dir=dst.parent))
     try:
         with warnings.catch_warnings():
             quiet_third_party_warnings()
