@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import socket
+import time
 from pathlib import Path
 
 import pytest
@@ -214,3 +215,23 @@ def test_colour_clamp_is_said(capsys):
 def test_case_count():
     # the note quotes the size of this table; keep it honest
     assert len(CASES) >= 50
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["limit", "sky", "--catalog", "hats:http://127.0.0.1:9/x"],
+        ["limit", "sky", "--dask", "tcp://127.0.0.1:9", "--catalog", "hats:http://127.0.0.1:9/x"],
+        ["limit", "sky", "--dask", "tcp://127.0.0.1:9", "--catalog", "hats:{bad}"],
+    ],
+    ids=["hats-url", "dask+url", "dask"],
+)
+def test_refused_addresses_fail_at_once(argv, bad_dir, capsys):
+    # the acceptance: the discard port 9 refuses; no 10 s timeout, no lsdb import, no
+    # cluster (measured in-process: the interpreter's start-up is not the command's doing)
+    t0 = time.perf_counter()
+    code = main([a.replace("{bad}", str(bad_dir)) for a in argv])
+    elapsed = time.perf_counter() - t0
+    err = capsys.readouterr().err
+    assert code == 2 and "connection refused by 127.0.0.1:9" in err
+    assert elapsed < 2.0

@@ -31,10 +31,13 @@ def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterato
     The callback is None when the bar of partitions done is hidden (``show_progress`` false, or
     stderr not a terminal).
     """
-    from starsense.scale import dask_client, open_hats
     from starsense.scale.cluster import check_scheduler
+    from starsense.scale.location import check_url
 
     check_scheduler(dask)  # a malformed or refused --dask fails before the catalogue is opened
+    check_url(catalog)  # a refused URL too: both before lsdb is imported
+    from starsense.scale import dask_client, open_hats
+
     cat = open_hats(catalog)
     with dask_client(dask) as client, progress_bar(show_progress, unit="partitions") as bar:
         yield cat, client, bar.callback
@@ -43,7 +46,7 @@ def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterato
 def check_dask_option(catalog: str, dask: str | None) -> bool:
     """Return True for a ``hats:`` catalogue; --dask with any other catalogue is an error."""
     from starsense.errors import InputError
-    from starsense.scale.hats import is_hats_spec
+    from starsense.scale.location import is_hats_spec
 
     is_hats = is_hats_spec(catalog)
     if dask is not None and not is_hats:

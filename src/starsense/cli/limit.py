@@ -13,7 +13,6 @@ import numpy as np
 import typer
 
 from starsense._validate import check_int, check_scalar, finite_float
-from starsense.catalog._columns import MAG_RANGE
 from starsense.cli.catalog import check_dask_option
 from starsense.cli.common import (
     CatalogOpt,
@@ -116,6 +115,9 @@ def limit_star(
         raise InputError(
             "give --mag-v and --b-v, or --mag-h and --h-ks, or --mag, --colour-index and --colour"
         )
+    from starsense.catalog._columns import MAG_RANGE  # here: the CLI starts without numpy's
+    # scientific stack, and a refused address or bad option is known in well under a second
+
     option_float(m, names[0], *MAG_RANGE)
     option_float(ci, names[1])
     t, c = fit_star(m, ci, system)
@@ -187,8 +189,6 @@ def limit_sky(
     With --catalog hats:PATH_OR_URL the catalogue is processed partition by partition on Dask
     (--dask), with the same kernels and results as in memory.
     """
-    from starsense.analysis.limits.sky import fov_limit, sky_limit
-
     if (fov_deg is None) != (not target_deg):
         raise InputError("--fov-deg and --target-deg go together (one or more targets)")
     if fov_deg is not None:
@@ -199,6 +199,8 @@ def limit_sky(
         _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg,
                         radec, as_json)  # fmt: skip
         return
+    from starsense.analysis.limits.sky import fov_limit, sky_limit
+
     cat, stars = _load_stars(catalog, max_mag, colour)
     common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
     if fov_deg is None:
@@ -247,9 +249,10 @@ def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_
                     as_json) -> None:  # fmt: skip
     """Run ``limit sky`` over a HATS catalogue on Dask (starsense.scale)."""
     from starsense.cli.catalog import hats_session
-    from starsense.scale import fov_limit, sky_limit
 
     with hats_session(catalog, dask, not as_json) as (cat, client, progress):
+        from starsense.scale import fov_limit, sky_limit  # after the address checks: fast fail
+
         opts = {"colour": colour, "max_mag": max_mag, "client": client, "progress": progress}
         if fov_deg is None:
             res, used = sky_limit(cat, diameter_m, exposure_s, **opts)
