@@ -110,3 +110,27 @@ def test_missing_directory_is_an_error_without_leftovers(tmp_path):
     ):
         fh.write("x")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_names_the_users_path_not_the_temporary(tmp_path):
+    import errno
+
+    target = tmp_path / "out.txt"
+    with pytest.raises(OutputError) as info, atomic_path(target) as tmp:
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp))
+    assert str(info.value) == f"cannot write {target}: No space left on device"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_unrelated_error_inside_the_block_is_not_rewritten(tmp_path):
+    with pytest.raises(FileNotFoundError), atomic_path(tmp_path / "out.txt"):
+        open(tmp_path / "some-input-that-is-missing")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_target_that_is_a_directory_is_refused_before_anything_is_written(tmp_path):
+    (tmp_path / "out").mkdir()
+    with pytest.raises(OutputError, match=r"cannot write output .*out: it is a directory"):
+        with atomic_write(tmp_path / "out") as fh:
+            fh.write("x")  # pragma: no cover
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
