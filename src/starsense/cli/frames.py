@@ -17,6 +17,7 @@ from starsense.cli.common import (
     emit,
     option_float,
     option_int,
+    output_file,
     parse_floats,
     progress_bar,
 )
@@ -25,7 +26,10 @@ from starsense.units import DEG
 
 
 def render(
-    out: Annotated[Path, typer.Option("--out", help="Frame to write (.tiff, .png, .fits).")],
+    out: Annotated[
+        Path,
+        typer.Option("--out", help="Frame to write (.tiff, .png, .fits).", callback=output_file),
+    ],
     sensor: SensorOpt = "st16",
     ra_deg: Annotated[float, typer.Option("--ra-deg", help="Boresight RA, deg.")] = 0.0,
     dec_deg: Annotated[float, typer.Option("--dec-deg", help="Boresight Dec, deg.")] = 0.0,
@@ -76,6 +80,8 @@ def render(
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
     option_float(roll_deg, "--roll-deg")
     rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
+    if max_mag is not None:
+        option_float(max_mag, "--max-mag")
     sens = load_sensor(sensor)
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
     if sequence is not None or interval_s is not None:
@@ -152,7 +158,11 @@ def solve(
     catalog: CatalogOpt = "hipparcos",
     wcs: Annotated[
         Path | None,
-        typer.Option("--wcs", help="Write the solution's WCS (FITS header; TAN-SIP if distorted)."),
+        typer.Option(
+            "--wcs",
+            help="Write the solution's WCS (FITS header; TAN-SIP if distorted).",
+            callback=output_file,
+        ),
     ] = None,
     time: Annotated[
         str | None,
@@ -241,6 +251,8 @@ def montecarlo(
 
     option_int(trials, "--trials", 1)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
+    if max_mag is not None:
+        option_float(max_mag, "--max-mag")
     cat = load_catalog("hipparcos")
     with progress_bar(not as_json) as bar:
         res = run_montecarlo(
