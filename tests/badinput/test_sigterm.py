@@ -56,7 +56,7 @@ def test_render_terminated_while_rendering(old_frame, monkeypatch, capsys):
 def test_render_terminated_while_writing_the_image(old_frame, monkeypatch, capsys):
     import starsense.render.io as rio
 
-    def half_written(target, image, fmt):
+    def half_written(target, image, fmt, when=None):
         Path(target).write_bytes(b"half an image")
         _term()
 

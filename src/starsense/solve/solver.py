@@ -437,10 +437,11 @@ class Solver:
         """
         from starsense.solve.frames import frame_time, load_image
 
+        image = load_image(path)  # first: its checks (size, header) come before any other read
         source = "obs_time"
         if obs_time is None:
             obs_time, source = frame_time(path)
-        sol = self(load_image(path), obs_time)
+        sol = self(image, obs_time)
         if sol.apparent is not None and sol.apparent.get("applied"):
             sol = dataclasses.replace(sol, apparent={**sol.apparent, "time_source": source})
         return sol
