@@ -24,6 +24,7 @@ app = typer.Typer(
 def _register_subapps() -> None:
     from starsense.cli.availability import availability_app
     from starsense.cli.catalog import catalog_app
+    from starsense.cli.datasheet import datasheet
     from starsense.cli.frames import montecarlo, render, solve
     from starsense.cli.guide_stars import guide_stars_app
     from starsense.cli.limit import limit_app
@@ -35,6 +36,7 @@ def _register_subapps() -> None:
     app.command("render")(render)
     app.command("solve")(solve)
     app.command("montecarlo")(montecarlo)
+    app.command("datasheet")(datasheet)
     app.command("report")(report)
     app.add_typer(availability_app, name="availability")
     app.add_typer(guide_stars_app, name="guide-stars")

@@ -22,6 +22,7 @@ from starsense.errors import InputError
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
 from starsense.sensor.optics import Optics
+from starsense.sensor.quoted import parse_budget, parse_quoted
 from starsense.sensor.sensor import DetectionThresholds, Sensor
 
 __all__ = ["load_sensor", "preset_names", "sensor_from_dict"]
@@ -31,7 +32,15 @@ _SECTIONS: dict[str, type] = {
     "detector": Detector,
     "detection": DetectionThresholds,
 }
-_TOP_KEYS = {"name", "description", "exposure_s", "attitude_areas", *(_SECTIONS)}
+_TOP_KEYS = {
+    "name",
+    "description",
+    "exposure_s",
+    "attitude_areas",
+    "quoted",
+    "budget",
+    *(_SECTIONS),
+}
 _AREA_KEYS = {"layout", "image_circle_diameter_mm", "area"}
 _AREA_SHAPES = ("rectangle_mm", "polygon_mm")
 _TUPLE_FIELDS = {"qe_curve_nm", "qe_curve", "passband_nm"}
@@ -186,6 +195,8 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
             description=str(data.get("description", "")),
             exposure_s=data["exposure_s"],
             attitude_areas=areas,
+            quoted=parse_quoted(data["quoted"], source) if "quoted" in data else (),
+            budget=parse_budget(data["budget"], source) if "budget" in data else (),
             **parts,
         )
     except InputError as exc:

@@ -79,6 +79,9 @@ class Sensor:
     attitude_areas : AreaLayout or None
         Attitude-determination areas in the focal plane (Lin et al. 2024), tangent-plane units
         (:class:`starsense.geometry.areas.AreaLayout`); None when the whole detector is used.
+    quoted, budget : tuple of (key, value)
+        The TOML's ``[quoted]`` and ``[budget]`` tables (:mod:`starsense.sensor.quoted`), for the
+        datasheet.
     """
 
     name: str
@@ -88,6 +91,8 @@ class Sensor:
     detection: DetectionThresholds = field(default_factory=DetectionThresholds)
     description: str = ""
     attitude_areas: Any = None
+    quoted: tuple = ()
+    budget: tuple = ()
 
     def __post_init__(self) -> None:
         check_field("sensor", "exposure_s", self.exposure_s, 0, 1e5, lo_open=True)
