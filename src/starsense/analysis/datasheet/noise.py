@@ -56,9 +56,9 @@ def clipped_moments(mu, sigma, lo: float, hi: float) -> tuple[np.ndarray, np.nda
     db = np.exp(-0.5 * np.where(np.isfinite(b), b, 0.0) ** 2) / _SQRT2PI
     db = np.where(np.isfinite(b), db, 0.0)
     mid = pb - pa
-    top = np.where(np.isfinite(b), hi * (1.0 - pb), 0.0)
-    top2 = np.where(np.isfinite(b), hi * hi * (1.0 - pb), 0.0)
     hi_f = np.where(np.isfinite(b), hi, 0.0)
+    top = hi_f * (1.0 - pb)
+    top2 = hi_f * hi_f * (1.0 - pb)
     mean = lo * pa + top + mu * mid + sigma * (da - db)
     second = (
         lo * lo * pa + top2 + (mu * mu + sigma * sigma) * mid
@@ -85,6 +85,10 @@ class CentroidNoise:
         this model), rms and largest, from the expected image.
     window_px : ndarray (K,)
         Mean side of the centroid window, pixels.
+    window_model_px : ndarray (K,)
+        The CoG noise of the linearised model (the window of the expected image, clipped pixel
+        moments), for comparison: it misses the window's own noise, which matters for faint
+        stars.
     """
 
     electrons: np.ndarray
@@ -93,6 +97,7 @@ class CentroidNoise:
     bias_rms_px: np.ndarray
     bias_max_px: np.ndarray
     window_px: np.ndarray
+    window_model_px: np.ndarray
 
     def _interp(self, values: np.ndarray, electrons) -> np.ndarray:
         e = np.clip(np.asarray(electrons, dtype=float), self.electrons[0], self.electrons[-1])
@@ -233,10 +238,10 @@ def centroid_noise(
     offsets = (np.arange(n_phase) + 0.5) / n_phase - 0.5
     phases = [(float(a), float(b)) for a in offsets for b in offsets]
     rng = np.random.default_rng(seed)
-    out = np.empty((len(grid), 5))
+    out = np.empty((len(grid), 6))
     for k, n_e in enumerate(grid):
         res = np.array([_one(float(n_e), ph, sensor, margin_px) for ph in phases])
-        _, info, bx, by, side = res.T
+        var, info, bx, by, side = res.T
         bias = np.concatenate([bx, by])
         out[k] = (
             _measured_sigma(sensor, float(n_e), rng, n_stamps),
@@ -244,5 +249,6 @@ def centroid_noise(
             math.sqrt(np.mean(bias**2)),
             np.max(np.abs(bias)),
             np.mean(side),
+            math.sqrt(np.mean(var)),
         )
-    return CentroidNoise(grid, out[:, 0], out[:, 1], out[:, 2], out[:, 3], out[:, 4])
+    return CentroidNoise(grid, *out.T)

@@ -363,9 +363,7 @@ def build_datasheet(
         runs.append(res)
         tick(key.replace("_", " "))
     data["availability"] = avail
-    data["slew"] = {"magnitudes": [float(m) for m in slew.magnitudes],
-                    "tolerable_rate_deg_s": slew.tolerable_rate_deg_s,
-                    "capped": [bool(c) for c in slew.capped]}  # fmt: skip
+    data["slew"] = slew.tolerance_dict()  # the JSON of `starsense slew tolerance`
     pse = np.nanmax(model.pixel_bias.rms_px) if np.isfinite(model.pixel_bias.rms_px).any() else None
     data["budget"] = _budget(sensor, nea, sig["pixel"], pse)
     data["quoted"] = _quoted(sensor, data)

@@ -52,9 +52,13 @@ class PixelSpatialError:
 
     def rms(self, electrons) -> np.ndarray:
         """Return the rms bias (px) of stars of ``electrons`` (log-log interpolation)."""
-        e = np.clip(np.asarray(electrons, dtype=float), self.electrons[0], self.electrons[-1])
-        r = np.maximum(self.rms_px, 1e-6)
-        return np.exp(np.interp(np.log(e), np.log(self.electrons), np.log(r)))
+        ok = np.isfinite(self.rms_px)
+        e = np.asarray(electrons, dtype=float)
+        if not ok.any():
+            return np.full(e.shape, np.nan)
+        grid, r = self.electrons[ok], np.maximum(self.rms_px[ok], 1e-6)
+        e = np.clip(e, grid[0], grid[-1])  # held at the ends of the measured range
+        return np.exp(np.interp(np.log(e), np.log(grid), np.log(r)))
 
 
 def pixel_spatial_error(sensor, electrons, n_side: int = 8) -> PixelSpatialError:
