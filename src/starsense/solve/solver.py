@@ -362,7 +362,7 @@ class Solver:
         Solution
             Solved, or the reason why not (no exception for a frame that does not solve).
         """
-        from starsense.attitude import estimate_attitude
+        from starsense.attitude.robust import robust_attitude
         from starsense.geometry.attitude import radec_roll_from_attitude
 
         t0 = time.perf_counter()
@@ -401,7 +401,7 @@ class Solver:
         else:
             sigma_px = self.centroid_sigma_px
         pixel_rad = fov / a.shape[1]
-        att = estimate_attitude(vectors[matched], ref, sigma_px * pixel_rad, method="svd")
+        att, _ = robust_attitude(vectors[matched], ref, sigma_px * pixel_rad)  # drops blends
         stages["attitude_ms"] = _ms(t3)
         ra, dec, roll = radec_roll_from_attitude(att.rotation)
         return Solution(
