@@ -65,6 +65,19 @@ def test_interface_keys(st16_sheet):
     assert ratio["nea"] == pytest.approx(ratio["geometry"], rel=0.25)
 
 
+def _schema():
+    from importlib import resources
+
+    return json.loads((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
+
+
+def test_datasheet_matches_its_schema(st16_sheet, capsys):
+    jsonschema = pytest.importorskip("jsonschema")
+    jsonschema.validate(st16_sheet, _schema())
+    out, _ = run(capsys, "datasheet", "--schema")
+    assert json.loads(out) == _schema()
+
+
 def test_availability_agrees_with_availability_dynamic(st16_sheet, capsys, tmp_path):
     d = st16_sheet
     tol = tmp_path / "tol.json"
@@ -138,6 +151,7 @@ def test_sensor_that_sees_nothing_says_so(capsys, tmp_path):
     d = _no_nan(out)
     assert d["limiting_magnitude"] is None
     assert "detects no star" in d["warnings"][0]
+    pytest.importorskip("jsonschema").validate(d, _schema())
     out, _ = run(capsys, "datasheet", "--sensor", str(blind), *LIGHT)
     assert "detects no star" in out
 

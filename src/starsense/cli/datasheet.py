@@ -160,6 +160,9 @@ def datasheet(
         Path | None, typer.Option("--out", help="Folder for the JSON and the figures.")
     ] = None,
     as_json: JsonOpt = False,
+    schema: Annotated[
+        bool, typer.Option("--schema", help="Print the JSON schema of the datasheet and exit.")
+    ] = False,
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
@@ -167,6 +170,11 @@ def datasheet(
     from starsense.catalog import load_catalog
     from starsense.sensor import load_sensor
 
+    if schema:
+        from importlib import resources
+
+        typer.echo((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
+        return
     option_int(trials, "--trials", 1)
     option_int(n_orientations, "--n-orientations", 1)
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
