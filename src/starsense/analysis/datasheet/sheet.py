@@ -49,6 +49,8 @@ class DatasheetSettings:
         Renders per (magnitude, rate) of the slew-tolerance Monte Carlo.
     model : str
         Sensitivity model (magnitude -> photo-electrons).
+    rate_trials : int or None
+        Frames of the run at ``rate_rad_s`` (None: ``trials``).
     """
 
     trials: int = 100
@@ -57,6 +59,7 @@ class DatasheetSettings:
     n_orientations: int = 2000
     slew_trials: int = 20
     model: str = "reed"
+    rate_trials: int | None = None
 
 
 @dataclass
@@ -356,8 +359,10 @@ def build_datasheet(
     }  # fmt: skip
     data["roll_over_cross"] = _roll_factor(nea, vectors, mats, fov)
     runs = []
-    for key, rate in (("monte_carlo", 0.0), ("monte_carlo_at_rate", st.rate_rad_s)):
-        res = run_montecarlo(sensor, st.trials, rate_rad_s=rate, catalog=cat, seed=st.seed,
+    rate_trials = st.trials if st.rate_trials is None else st.rate_trials
+    for key, rate, n in (("monte_carlo", 0.0, st.trials),
+                         ("monte_carlo_at_rate", st.rate_rad_s, rate_trials)):  # fmt: skip
+        res = run_montecarlo(sensor, n, rate_rad_s=rate, catalog=cat, seed=st.seed,
                              model=st.model, client=client)  # fmt: skip
         data[key] = score_montecarlo(res, model, fov, vectors, mags, predict=rate == 0.0)
         runs.append(res)
