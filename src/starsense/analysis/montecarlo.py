@@ -188,9 +188,18 @@ def _dask_trials(client, args: tuple, n_trials: int, progress) -> list[tuple]:
 
     chunk = max(1, math.ceil(n_trials / (8 * max(1, len(client.scheduler_info()["workers"])))))
     starts = list(range(0, n_trials, chunk))
+    # the sensor and the catalogue go to the workers once, not inside every task
+    sensor_f, catalog_f = client.scatter(list(args[:2]), broadcast=True)
     futures = [
         client.submit(
-            _trials, *args[:3], n_trials, range(s, min(s + chunk, n_trials)), *args[3:], pure=False
+            _trials,
+            sensor_f,
+            catalog_f,
+            args[2],
+            n_trials,
+            range(s, min(s + chunk, n_trials)),
+            *args[3:],
+            pure=False,
         )
         for s in starts
     ]
