@@ -364,6 +364,7 @@ class Solver:
         """
         from starsense.attitude.robust import robust_attitude
         from starsense.geometry.attitude import radec_roll_from_attitude
+        from starsense.solve.blends import blend_radius_px, photocentres
 
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
@@ -395,7 +396,12 @@ class Solver:
         if fov_known is None:  # re-unproject with the field found
             vectors = pinhole_vectors(det.x, det.y, a.shape, fov)
         matched = np.asarray(ident.detection_index)
-        ref = identifier.database.vectors[np.asarray(ident.catalog_index)]
+        db = identifier.database
+        if self.sensor is not None:  # blended close doubles: their photocentre, not one star
+            radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / a.shape[1]
+            ref = photocentres(db.vectors, db.mags, db.tree, ident.catalog_index, radius)
+        else:
+            ref = db.vectors[np.asarray(ident.catalog_index)]
         if self.centroid_sigma_px == "snr":
             sigma_px = _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
         else:
