@@ -28,6 +28,7 @@ def _register_subapps() -> None:
     from starsense.cli.frames import montecarlo, render, solve
     from starsense.cli.guide_stars import guide_stars_app
     from starsense.cli.limit import limit_app
+    from starsense.cli.mission import mission
     from starsense.cli.report import report
     from starsense.cli.slew import slew_app
 
@@ -38,6 +39,7 @@ def _register_subapps() -> None:
     app.command("montecarlo")(montecarlo)
     app.command("datasheet")(datasheet)
     app.command("report")(report)
+    availability_app.command("mission")(mission)
     app.add_typer(availability_app, name="availability")
     app.add_typer(guide_stars_app, name="guide-stars")
     app.add_typer(catalog_app, name="catalog")

@@ -30,6 +30,7 @@ from starsense.report.availability import availability_section
 from starsense.report.datasheet import datasheet_section
 from starsense.report.guide_stars import guide_stars_section
 from starsense.report.limits import limit_section
+from starsense.report.mission import mission_section
 from starsense.report.section import ReportContext, Section
 from starsense.report.sensors import SensorSpec, load_sensor_table
 from starsense.report.slew import slew_section
@@ -43,6 +44,7 @@ SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [
     availability_section,
     limit_section,
     guide_stars_section,
+    mission_section,
 ]
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,

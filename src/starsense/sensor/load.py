@@ -2,7 +2,9 @@
 
 The TOML has the top-level keys ``name``, ``description`` and ``exposure_s`` and the tables
 ``[optics]``, ``[detector]`` and ``[detection]`` (the fields of :class:`Optics`,
-:class:`Detector` and :class:`DetectionThresholds`), optionally ``[attitude_areas]``. Copy a
+:class:`Detector` and :class:`DetectionThresholds`), optionally ``[attitude_areas]`` and
+``[exclusion]`` (bright-body exclusion, :mod:`starsense.sensor.exclusion`) and ``[mission]``
+(a mission for the report, :mod:`starsense.sensor.mission_plan`). Copy a
 preset and edit it to describe your own sensor. A bad value raises
 :class:`~starsense.errors.InputError` naming the file, the field, the value and the allowed range.
 """
@@ -21,6 +23,8 @@ import numpy as np
 from starsense.errors import InputError
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
+from starsense.sensor.exclusion import exclusion_from_table
+from starsense.sensor.mission_plan import mission_from_table
 from starsense.sensor.optics import Optics
 from starsense.sensor.quoted import parse_budget, parse_quoted
 from starsense.sensor.sensor import DetectionThresholds, Sensor
@@ -33,14 +37,9 @@ _SECTIONS: dict[str, type] = {
     "detection": DetectionThresholds,
 }
 _TOP_KEYS = {
-    "name",
-    "description",
-    "exposure_s",
-    "attitude_areas",
-    "quoted",
-    "budget",
-    *(_SECTIONS),
-}
+    "name", "description", "exposure_s", "attitude_areas", "exclusion", "mission", "quoted",
+    "budget", *(_SECTIONS),
+}  # fmt: skip
 _AREA_KEYS = {"layout", "image_circle_diameter_mm", "area"}
 _AREA_SHAPES = ("rectangle_mm", "polygon_mm")
 _TUPLE_FIELDS = {"qe_curve_nm", "qe_curve", "passband_nm"}
@@ -189,6 +188,12 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
         areas = _areas_from_table(
             data["attitude_areas"], parts["detector"], parts["optics"], source
         )
+    exclusion = None
+    if "exclusion" in data:
+        exclusion = exclusion_from_table(data["exclusion"], source)
+    mission = None
+    if "mission" in data:
+        mission = mission_from_table(data["mission"], source)
     try:
         return Sensor(
             name=str(data.get("name", Path(source).stem)),
@@ -197,6 +202,8 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
             attitude_areas=areas,
             quoted=parse_quoted(data["quoted"], source) if "quoted" in data else (),
             budget=parse_budget(data["budget"], source) if "budget" in data else (),
+            exclusion=exclusion,
+            mission=mission,
             **parts,
         )
     except InputError as exc:

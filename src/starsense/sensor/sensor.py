@@ -82,6 +82,12 @@ class Sensor:
     quoted, budget : tuple of (key, value)
         The TOML's ``[quoted]`` and ``[budget]`` tables (:mod:`starsense.sensor.quoted`), for the
         datasheet.
+    exclusion : Exclusion or None
+        Sun, Moon and Earth-limb exclusion half-angles (:mod:`starsense.sensor.exclusion`);
+        None when the TOML has no ``[exclusion]`` table.
+    mission : MissionPlan or None
+        The mission the TOML's ``[mission]`` table names (:mod:`starsense.sensor.mission_plan`),
+        for the report's mission section.
     """
 
     name: str
@@ -93,6 +99,8 @@ class Sensor:
     attitude_areas: Any = None
     quoted: tuple = ()
     budget: tuple = ()
+    exclusion: Any = None
+    mission: Any = None
 
     def __post_init__(self) -> None:
         check_field("sensor", "exposure_s", self.exposure_s, 0, 1e5, lo_open=True)

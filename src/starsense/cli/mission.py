@@ -1,0 +1,142 @@
+"""``starsense availability mission``: availability along an orbit, with the Sun, Moon and Earth.
+
+Thin: parse the orbit, the attitude profile and the heads (degrees and km at this edge),
+build the geometry, count the stars, print or write. Registered on the ``availability``
+group by :mod:`starsense.cli.app`.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from starsense.cli.availability import (
+    FovOpt,
+    HalfFovOpt,
+    MaxMagOpt,
+    ModelOpt,
+    NMinOpt,
+    ToleranceOpt,
+    TrialsOpt,
+    _check_n_min,
+    _field_of_view,
+    _threshold_curve,
+)
+from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, option_float, progress_bar
+from starsense.errors import InputError
+
+__all__ = ["mission"]
+
+# the forms of starsense.analysis.mission.specs (imported when the command runs, not at start-up)
+ORBIT_HELP = (
+    "sso:ALT_KM[:LTAN_H] (sun-synchronous, circular; LTAN default 6 = dawn-dusk), "
+    "circular:ALT_KM:INC_DEG[:RAAN_DEG[:ARGLAT_DEG]], or "
+    "kepler:A_KM,E,INC_DEG,RAAN_DEG,ARGP_DEG,MEAN_ANOMALY_DEG (elements at --start)."
+)
+ATTITUDE_HELP = (
+    "inertial:RA,DEC,ROLL (deg) | nadir | nadir:yaw (yaw steering on) | sun | "
+    "target:LAT,LON (deg, geodetic) | quaternions:FILE (CSV t_s,qx,qy,qz,qw, ICRS -> body)."
+)
+START_HELP = "Start, ISO 8601 UTC (default: the TLE epoch, else 2025-03-20T12:00)."
+HEADS_HELP = (
+    "Heads: SENSOR[@qx,qy,qz,qw] (mounting body -> head, scalar last) or "
+    "SENSOR@SEQ:A[,B[,C]] (Euler angles, deg, a scipy sequence: x, xyz, ZYX...); no mounting: "
+    "the head looks along body +z. Append =NAME to name the head (e.g. st16@0.7071068,0,0,"
+    "0.7071068=+Y). Give several after one --heads, or repeat --heads."
+)
+
+
+def _orbit(orbit: str | None, tle: Path | None, start: str | None):
+    """Return (orbit, start) from --orbit / --tle / --start."""
+    from starsense.analysis.mission import TleOrbit, parse_time
+    from starsense.analysis.mission.specs import parse_orbit
+
+    if (orbit is None) == (tle is None):
+        raise InputError("give exactly one of --orbit and --tle")
+    if tle is not None:
+        orb = TleOrbit.from_file(tle)
+        return orb, parse_time(start, "--start") if start else orb.epoch
+    t0 = parse_time(start or "2025-03-20T12:00:00", "--start")
+    return parse_orbit(orbit, t0, "--orbit"), t0
+
+
+def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolerance_json, bar):
+    from starsense.analysis.mission import Head
+    from starsense.analysis.mission.specs import parse_head
+    from starsense.sensor import load_sensor
+
+    if not specs:
+        raise InputError("give at least one head: --heads st16[@qx,qy,qz,qw] ...")
+    parsed, seen = [], {}
+    for spec in specs:  # every mounting checked before any slow work
+        name, label, mounting = parse_head(spec, "--heads")
+        seen[label] = seen.get(label, 0) + 1
+        label = label if seen[label] == 1 else f"{label}#{seen[label]}"
+        parsed.append((name, label, {} if mounting is None else {"mounting": mounting}))
+    sensors = {name: load_sensor(name) for name, _, _ in parsed}
+    curves = {name: _threshold_curve(sens, model, trials, seed, tolerance_json, bar.callback)
+              for name, sens in sensors.items()}  # fmt: skip
+    return [Head(label, _field_of_view(sensors[name], fov, half_fov_deg), curves[name],
+                 exclusion=sensors[name].exclusion, **kwargs)
+            for name, label, kwargs in parsed]  # fmt: skip
+
+
+def mission(
+    heads: Annotated[list[str] | None, typer.Option("--heads", help=HEADS_HELP)] = None,
+    more_heads: Annotated[
+        list[str] | None, typer.Argument(help="More heads (after --heads).", show_default=False)
+    ] = None,
+    orbit: Annotated[str | None, typer.Option("--orbit", help=ORBIT_HELP)] = None,
+    tle: Annotated[Path | None, typer.Option("--tle", help="TLE file (2 or 3 lines).")] = None,
+    attitude: Annotated[str, typer.Option("--attitude", help=ATTITUDE_HELP)] = "nadir",
+    start: Annotated[str | None, typer.Option("--start", help=START_HELP)] = None,
+    duration_h: Annotated[float, typer.Option("--duration-h", help="Span, hours.")] = 24.0,
+    step_s: Annotated[float, typer.Option("--step-s", help="Time step, seconds.")] = 1.0,
+    catalog: CatalogOpt = "hipparcos",
+    max_mag: MaxMagOpt = 5.75,
+    n_min: NMinOpt = 3,
+    fov: FovOpt = "circular",
+    half_fov_deg: HalfFovOpt = None,
+    model: ModelOpt = "reed",
+    trials: TrialsOpt = 20,
+    tolerance_json: ToleranceOpt = None,
+    seed: SeedOpt = 0,
+    plot: Annotated[Path | None, typer.Option("--plot", help="Write the timeline (PNG).")] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Availability along a mission: orbit, attitude profile, bright bodies, several heads."""
+    from starsense.analysis.availability import catalog_stars
+    from starsense.analysis.mission import TimeGrid, mission_availability, mission_geometry
+    from starsense.analysis.mission.specs import parse_attitude
+    from starsense.catalog import load_catalog
+
+    _check_n_min(n_min)
+    hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
+    step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
+    specs = [tok for value in [*(heads or []), *(more_heads or [])] for tok in value.split()]
+    profile = parse_attitude(attitude, "--attitude")
+    orb, t0 = _orbit(orbit, tle, start)
+    with warnings.catch_warnings(record=True) as caught, progress_bar(not as_json) as bar:
+        warnings.simplefilter("always", UserWarning)
+        head_list = _heads(specs, fov, half_fov_deg, model, trials, seed, tolerance_json, bar)
+        grid = TimeGrid.span(t0, hours * 3600.0, step)
+        geo = mission_geometry(grid, orb, profile)
+        vectors, mags = catalog_stars(load_catalog(catalog), max_mag)
+        meta = {"start": t0.isot, "orbit": getattr(orb, "label", ""), "attitude": profile.label,
+                "duration_h": hours, "catalog": catalog, "max_mag": max_mag}  # fmt: skip
+        res = mission_availability(geo, head_list, vectors, mags, n_min, meta)
+    for w in caught:
+        if issubclass(w.category, UserWarning):
+            typer.echo(f"warning: {w.message}", err=True)
+    payload, lines = res.to_dict(), res.lines()
+    if plot is not None:
+        from starsense.plotting.availability import save_figure
+        from starsense.plotting.mission import mission_timeline_figure
+
+        path = save_figure(mission_timeline_figure(res), plot)
+        payload["figures"] = [str(path)]
+        lines.append(f"figure: {path}")
+    emit(payload, as_json, lines)
