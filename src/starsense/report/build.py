@@ -36,15 +36,16 @@ from starsense.report.sensors import SensorSpec, load_sensor_table
 from starsense.report.slew import slew_section
 
 #: the section builders, in page order: ``builder(ctx) -> Section``. The datasheet first (what
-#: the sensor does), then how its numbers were obtained (slew tolerance, availability), then the
+#: the sensor does), then how its numbers were obtained (slew tolerance, availability, over a
+#: mission when the sensor TOML names one), then the
 #: papers' reproductions as the validation appendix (the limit, the guide stars).
 SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [
     datasheet_section,
     slew_section,
     availability_section,
+    mission_section,
     limit_section,
     guide_stars_section,
-    mission_section,
 ]
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,
