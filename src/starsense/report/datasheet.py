@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
 
@@ -52,6 +54,21 @@ def _main_rows(d: dict) -> list[list[str]]:
     return rows
 
 
+def _share_slew(ctx: ReportContext, slew) -> None:
+    """Hand the datasheet's slew run to the slew section when it is the run that section makes."""
+    from starsense.analysis.slew import default_magnitudes, default_rates_rad_s
+
+    if (
+        slew is not None
+        and slew.model == "reed"
+        and slew.n_trials == ctx.slew_trials
+        and slew.seed == ctx.seed
+        and np.array_equal(slew.magnitudes, default_magnitudes())
+        and np.array_equal(slew.rates_rad_s, default_rates_rad_s())
+    ):
+        ctx.slew_results["reed"] = slew
+
+
 def datasheet_section(ctx: ReportContext) -> Section:
     """Return the datasheet of the report's sensor (analysis.datasheet.build_datasheet)."""
     from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
@@ -64,6 +81,7 @@ def datasheet_section(ctx: ReportContext) -> Section:
     settings = DatasheetSettings(trials=ctx.datasheet_trials, seed=ctx.seed,
                                  slew_trials=ctx.slew_trials)  # fmt: skip
     sheet = build_datasheet(sensor, ctx.catalog, settings)
+    _share_slew(ctx, sheet.slew)
     d = sheet.to_dict()
     if d.get("limiting_magnitude") is None:
         html = "".join(f"<p>{esc(w)}</p>" for w in d["warnings"])

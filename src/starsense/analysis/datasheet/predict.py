@@ -70,7 +70,11 @@ def slew_grids(sensor, static_limit: float, n_mag: int = 20, n_rate: int = 40):
     mags = top - 0.25 * np.arange(n_mag)[::-1]
     det = sensor.detector
     half_width = 0.5 * det.columns * det.pixel_pitch_m / sensor.optics.focal_length_m
-    max_rate = min(10.0 * DEG, math.atan(half_width) / sensor.exposure_s)
+    from starsense.analysis.slew import default_rates_rad_s
+
+    max_rate = math.atan(half_width) / sensor.exposure_s
+    if max_rate >= 10.0 * DEG:  # the paper's grid, built as the slew analysis builds it
+        return mags, default_rates_rad_s(n_rate)
     return mags, np.linspace(0.0, max_rate, n_rate)
 
 
