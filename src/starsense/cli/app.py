@@ -23,6 +23,7 @@ app = typer.Typer(
 
 def _register_subapps() -> None:
     from starsense.cli.availability import availability_app
+    from starsense.cli.calibrate import calibrate
     from starsense.cli.catalog import catalog_app
     from starsense.cli.datasheet import datasheet
     from starsense.cli.frames import montecarlo, render, solve
@@ -36,6 +37,7 @@ def _register_subapps() -> None:
     app.add_typer(slew_app, name="slew")
     app.command("render")(render)
     app.command("solve")(solve)
+    app.command("calibrate")(calibrate)
     app.command("montecarlo")(montecarlo)
     app.command("datasheet")(datasheet)
     app.command("report")(report)

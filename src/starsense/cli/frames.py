@@ -40,6 +40,10 @@ def render(
     ] = None,
     seed: SeedOpt = 0,
     no_noise: Annotated[bool, typer.Option("--no-noise", help="Expected image only.")] = False,
+    time: Annotated[
+        str | None,
+        typer.Option("--time", help="UTC time (ISO 8601): stars at their apparent places."),
+    ] = None,
     areas: Annotated[
         bool,
         typer.Option(
@@ -64,6 +68,12 @@ def render(
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
     kwargs = {"rate_rad_s": rate, "model": model, "max_mag": max_mag, "rng": seed,
               "noise": not no_noise}  # fmt: skip
+    if time is not None:
+        from starsense.geometry.apparent import parse_time
+
+        if areas:
+            raise InputError("--time is not available with --areas")
+        kwargs["obs_time"] = parse_time(time, "--time")
     if areas:
         from starsense.render.areas import render_areas
 
@@ -94,15 +104,30 @@ def solve(
     ] = "hashing",
     catalog: CatalogOpt = "hipparcos",
     wcs: Annotated[
-        Path | None, typer.Option("--wcs", help="Write the solution's TAN WCS (FITS header).")
+        Path | None,
+        typer.Option("--wcs", help="Write the solution's WCS (FITS header; TAN-SIP if distorted)."),
+    ] = None,
+    time: Annotated[
+        str | None,
+        typer.Option("--time", help="UTC time of the frame (ISO 8601); else from its header."),
+    ] = None,
+    no_apparent: Annotated[
+        bool, typer.Option("--no-apparent", help="Catalogue places, even when a time is known.")
+    ] = False,
+    observer_velocity_km_s: Annotated[
+        str | None,
+        typer.Option("--observer-velocity-km-s", help="Observer's geocentric velocity X,Y,Z."),
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Solve a frame lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
 
-    Without --sensor or --fov-deg the field is searched over 5-30 deg. Exit status 0 when solved,
+    Without --sensor or --fov-deg the field is searched over 5-30 deg. When the frame's time is
+    known (--time, FITS DATE-OBS, EXIF) the attitude is fitted to the stars' apparent places
+    (proper motion, parallax, aberration): the true ICRS attitude. Exit status 0 when solved,
     1 when the frame does not solve, 2 for bad input (including a frame with no stars).
     """
+    from starsense.geometry.apparent import parse_time
     from starsense.solve.solver import Solver
 
     if sensor is not None and fov_deg is not None:
@@ -112,8 +137,18 @@ def solve(
     if sensor is None and fov_deg is None and algorithm == "triangle":
         raise InputError("the triangle algorithm needs a known field: give --sensor or --fov-deg")
     fov_rad = None if fov_deg is None else fov_deg * DEG
-    sol = Solver(sensor, fov_rad, catalog, algorithm).solve_file(image)
+    when = None if time is None else parse_time(time, "--time")
+    v_obs = None
+    if observer_velocity_km_s is not None:
+        v_obs = 1e3 * np.asarray(
+            parse_floats(observer_velocity_km_s, "--observer-velocity-km-s", 3)
+        )
+    solver = Solver(sensor, fov_rad, catalog, algorithm, apparent=not no_apparent,
+                    observer_velocity_m_s=v_obs)  # fmt: skip
+    sol = solver.solve_file(image, when)
     payload = {"image": str(image), **sol.to_dict()}
+    if when is not None and sol.apparent and sol.apparent.get("applied"):
+        payload["apparent_places"]["time_source"] = "--time"
     if sol.solved:
         lines = [
             f"{image}: solved in {sol.time_ms:.0f} ms - RA {sol.ra_deg:.4f} deg, "
@@ -122,6 +157,9 @@ def solve(
             f"{sol.rmse_arcsec:.1f} arcsec rms, false-match probability "
             f"{sol.false_match_probability:.1e}",
         ]
+        ap = payload["apparent_places"]
+        if ap and ap.get("applied"):
+            lines.append(f"  apparent places at {ap['time_utc']} ({ap['time_source']})")
         if wcs is not None:
             payload["wcs"] = str(sol.write_wcs(wcs))
             lines.append(f"  WCS written: {wcs}")

@@ -137,3 +137,91 @@ def slew_intensity(
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)
+
+
+SigmasOpt = Annotated[
+    str | None,
+    typer.Option("--sigmas-px", help="Comma-separated PSF sigmas, px (default 0.8..3, 8 values)."),
+]
+QesOpt = Annotated[
+    str | None,
+    typer.Option("--qe", help="Comma-separated mean QEs in (0, 1] (default 0.25..0.70 by 0.05)."),
+]
+MagStepOpt = Annotated[
+    float, typer.Option("--mag-step", help="Magnitude grid step of the Monte Carlo, mag.")
+]
+
+
+def _study_lines(study, best: dict) -> list[str]:
+    """Return the human-readable summary of a slew study."""
+    from starsense.references.dzamba2014 import MAX_MAG
+    from starsense.units import DEG, to_edge
+
+    rates = to_edge(study.rates_rad_s, DEG)
+    qe, shape = study.best_qe()
+    paper = [MAX_MAG, *study.paper_threshold]  # sec. 1.2 static threshold, then Table 2
+
+    def row(label, q, values, last=""):
+        cells = "".join("      -" if not np.isfinite(m) else f"{m:7.2f}" for m in values)
+        return f"  {label:>8} {q:>5} {cells}  {last}".rstrip()
+
+    lines = [
+        f"{study.sensor_name}, {study.model} model: threshold m_t against slew rate, each PSF "
+        f"width at its best mean QE ({study.n_trials} trials per point, seed {study.seed})",
+        row("sigma px", "QE", [], "".join(f"{w:7.2f}" for w in rates) + " deg/s: m_t; worst"),
+        row("paper", "", paper),
+    ]
+    for i, sigma in enumerate(study.sigmas_px):
+        curve = study.threshold_ref[i] + 2.5 * np.log10(qe[i] / study.qe_ref)
+        lines.append(row(f"{sigma:.2f}", f"{qe[i]:.2f}", curve, f"{shape[i]:.2f}"))
+    verdict = "reproduces" if best["reproduces"] else "does not reproduce"
+    lines.append(
+        f"best physically sensible pair: sigma {best['sigma_px']:g} px, QE {best['qe_mean']:.2f}: "
+        f"worst mismatch {best['worst_mismatch_mag']:.2f} mag; it {verdict} the paper at every "
+        f"rate within 2 sigma ({', '.join(f'{t:.2f}' for t in best['tolerance_mag'])} mag)"
+    )
+    return lines
+
+
+@slew_app.command("study")
+def slew_study(
+    sensor: SensorOpt = "st16",
+    model: ModelOpt = "reed",
+    sigmas_px: SigmasOpt = None,
+    qe: QesOpt = None,
+    trials: TrialsOpt = 20,
+    mag_step: MagStepOpt = 0.05,
+    seed: SeedOpt = 0,
+    plot: PlotOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Sweep PSF sigma and mean QE: m_t at the paper's rates against its Table 2 (Dzamba 2014)."""
+    from starsense.analysis.slew_study import (
+        DEFAULT_QE_MEANS,
+        DEFAULT_SIGMAS_PX,
+        study_magnitudes,
+        study_slew,
+    )
+    from starsense.sensor import load_sensor
+
+    sigmas = parse_floats(sigmas_px, "--sigmas-px", lo=0.1, hi=20.0) or DEFAULT_SIGMAS_PX
+    qes = parse_floats(qe, "--qe", lo=0.01, hi=1.0) or DEFAULT_QE_MEANS
+    if not 0.005 <= mag_step <= 0.5:
+        raise InputError(f"--mag-step must be within [0.005, 0.5] mag, got {mag_step:g}")
+    if trials < 1:
+        raise InputError(f"--trials must be >= 1, got {trials}")
+    sens = load_sensor(sensor)
+    with progress_bar(not as_json) as bar:
+        study = study_slew(sens, sigmas, qes, model, study_magnitudes(mag_step), trials, 0.5,
+                           seed, progress=bar.task("PSF widths"))  # fmt: skip
+    payload = study.to_dict()
+    lines = _study_lines(study, payload["best"])
+    if plot is not None:
+        from starsense.plotting.figure import save_png
+        from starsense.plotting.slew_study import study_figure
+
+        ref = (sens.detector.psf_sigma_px, sens.detector.mean_qe)
+        save_png(study_figure(study, ref), plot)
+        payload["plot"] = str(plot)
+        lines.append(f"figure: {plot}")
+    emit(payload, as_json, lines)

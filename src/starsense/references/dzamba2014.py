@@ -2,8 +2,10 @@
 
 Dzamba, T.; Enright, J. "Ground Testing Strategies for Verifying the Slew Rate Tolerance of Star
 Trackers", *Sensors* 14, 3939 (2014); plain text in ``shared/papers/001_8e2672462af8c6b1.txt``.
-The report prints these beside its own numbers and the tests check against them; nothing here is
-computed. Angles are given in the paper's units (degrees, deg/s), as the paper prints them.
+The report prints these beside its own numbers and the tests check against them. Nothing here is
+computed at import; the one derived table (:data:`TABLE2_IMPLIED_MT`) says how it was obtained
+and a test recomputes it. Angles are given in the paper's units (degrees, deg/s), as the paper
+prints them.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ __all__ = [
     "QUOTED_MAGNITUDES",
     "STATIC_AVAILABILITY_N3",
     "TABLE2",
+    "TABLE2_IMPLIED_MT",
     "TABLE2_RATES_DEG_S",
     "TRACK_SAMPLES",
 ]
@@ -72,3 +75,17 @@ TABLE2: dict[float, dict[str, tuple[float, float]]] = {
 }  # fmt: skip
 #: the slew rates of Table 2 and Figs. 16-17, deg/s
 TABLE2_RATES_DEG_S = tuple(TABLE2)
+
+#: Derived from Table 2, not printed in the paper: rate (deg/s) -> (m_t implied by the N_min = 2
+#: spatial value, m_t implied by the N_min = 3 value), mag. Each is the threshold at which the
+#: spatial availability on BSC5 (V <= 5.75, the 7.5 deg half-axis field, 10,000 pointings: the
+#: paper's sec. 1.2 set-up) equals Table 2's percentage
+#: (starsense.analysis.availability.implied_threshold; tests/analysis/test_slew_study.py
+#: recomputes them). That the two agree (to 0.02 mag at 1-2 deg/s, 0.12 at 3 deg/s) says our
+#: sky is the paper's; their mean is the paper's threshold curve m_t(w) read back from Table 2.
+TABLE2_IMPLIED_MT: dict[float, tuple[float, float]] = {
+    1.0: (4.78, 4.76),
+    1.5: (4.39, 4.39),
+    2.0: (3.86, 3.87),
+    3.0: (3.65, 3.53),
+}

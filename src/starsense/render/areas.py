@@ -75,7 +75,7 @@ def area_pixel_index(fp_sensor) -> NDArray[np.int8]:
     """
     layout = _layout(fp_sensor)
     rows, cols = fp_sensor.detector.rows, fp_sensor.detector.columns
-    if not (fp_sensor.optics.distortion_k1 or fp_sensor.optics.distortion_k2):
+    if not fp_sensor.optics.has_distortion:
         # pinhole: the pixel centres are a regular grid of the tangent plane (scanline fill)
         cx, cy = fp_sensor.principal_point_px
         f = fp_sensor.focal_length_px

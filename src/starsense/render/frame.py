@@ -126,6 +126,9 @@ class FrameTruth:
     method : str
         Pixel quadrature of the smeared PSF.
     stars : StarTruth
+    apparent : dict or None
+        The apparent places the stars were rendered at (time, observer speed;
+        :meth:`starsense.catalog.apparent.ApparentPlaces.to_dict`); None for catalogue places.
     """
 
     sensor: str
@@ -144,6 +147,7 @@ class FrameTruth:
     noise: bool
     method: str
     stars: StarTruth
+    apparent: dict | None = None
 
     def to_dict(self) -> dict:
         """JSON-able dictionary (angles also in degrees, quaternion scalar-last)."""
@@ -169,6 +173,7 @@ class FrameTruth:
             "max_mag": self.max_mag,
             "noise": self.noise,
             "method": self.method,
+            "apparent_places": self.apparent,
             "n_stars": len(self.stars),
             "stars": self.stars.to_dict(),
         }

@@ -18,6 +18,10 @@ Formats, chosen by the (case-insensitive) extension:
     Primary HDU via astropy (unsigned integers stored with the standard BZERO offset), with
     the exposure, sensor and mid-exposure attitude in the header.
 
+A frame rendered at a time (apparent places) carries it as FITS ``DATE-OBS`` or, in TIFF and
+PNG, as EXIF ``DateTime`` (whole seconds), where :func:`starsense.solve.frames.frame_time`
+finds it.
+
 Rows are written in array order, row 0 first (the top of the image for TIFF / PNG; FITS
 viewers conventionally display the first row at the bottom).
 """
@@ -46,7 +50,7 @@ FORMATS = {
 }
 
 
-def _write_pillow(target: str, image: np.ndarray, fmt: str) -> None:
+def _write_pillow(target: str, image: np.ndarray, fmt: str, time_utc: str | None) -> None:
     from PIL import Image
 
     if image.dtype == np.uint16:
@@ -55,6 +59,10 @@ def _write_pillow(target: str, image: np.ndarray, fmt: str) -> None:
         pil = Image.fromarray(image.astype(np.int32))  # mode I (checked < 2^31 by the caller)
     # PNG: zlib level 1, ~4x faster than the default 6 on noisy frames, a few % larger
     options = {"compress_level": 1} if fmt == "PNG" else {}
+    if time_utc is not None:  # EXIF DateTime (tag 306), 'YYYY:MM:DD HH:MM:SS', as cameras write
+        exif = Image.Exif()
+        exif[306] = time_utc[:19].replace("-", ":").replace("T", " ")
+        options["exif"] = exif
     pil.save(target, format=fmt, **options)
 
 
@@ -75,6 +83,8 @@ def _write_fits(target: str, frame) -> None:
     if t.seed is not None and 0 <= t.seed < 2**63:
         h["SEED"] = (t.seed, "noise seed (numpy default_rng)")
     h["NSTARS"] = (len(t.stars), "stars rendered; truth in .json")
+    if t.apparent is not None:
+        h["DATE-OBS"] = (t.apparent["time_utc"], "mid-exposure, UTC")
     hdu.writeto(target, overwrite=True)
 
 
@@ -133,7 +143,8 @@ def write_frame(path: str | os.PathLike, frame) -> Path:
             if fmt == "FITS":
                 _write_fits(str(tmp_image), frame)
             else:
-                _write_pillow(str(tmp_image), image, fmt)
+                when = None if frame.truth.apparent is None else frame.truth.apparent["time_utc"]
+                _write_pillow(str(tmp_image), image, fmt, when)
             with open(tmp_json, "w", encoding="utf-8") as fh:
                 fh.write(text)
                 fh.write("\n")

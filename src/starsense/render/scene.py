@@ -318,6 +318,8 @@ def render_frame(
     exposure_s: float | None = None,
     keep_expected: bool = True,
     method: str = "track",
+    obs_time=None,
+    observer_velocity_m_s=None,
 ) -> Frame:
     """Render one detector frame of a catalogue at an attitude and body rate.
 
@@ -349,6 +351,12 @@ def render_frame(
         Keep the float32 expected-electron image in the frame (default True).
     method : {"track", "closed-form"}
         Pixel quadrature of the smeared PSF (:mod:`starsense.render.smear`).
+    obs_time : str or astropy.time.Time, optional
+        When the frame is taken (ISO 8601 UTC): the stars are then rendered at their apparent
+        places (proper motion, parallax, aberration; :mod:`starsense.catalog.apparent`), as a
+        real camera sees them.
+    observer_velocity_m_s : array_like, shape (3,), optional
+        The observer's velocity relative to the geocentre, ICRS axes, m/s (with ``obs_time``).
 
     Returns
     -------
@@ -375,7 +383,15 @@ def render_frame(
     stars = _with_electrons(stars, sensor, model, col)
     idx, electrons = stars[0], stars[3]
     # 3. tracks and the expected image
-    vectors = attitude.apply(catalog.vectors[idx]) if idx.size else np.zeros((0, 3))
+    sky, apparent = catalog.vectors[idx], None
+    if obs_time is not None and idx.size:
+        from starsense.catalog.apparent import apparent_places
+
+        places = apparent_places(catalog, idx, obs_time, observer_velocity_m_s)
+        sky, apparent = places.vectors, places.to_dict()
+    elif observer_velocity_m_s is not None:
+        raise InputError("observer_velocity_m_s needs obs_time")
+    vectors = attitude.apply(sky) if idx.size else np.zeros((0, 3))
     tracks = star_tracks(sensor, vectors, w, te)
     expected, rendered = _expected_image(sensor, tracks, electrons, method)
     truth_stars = _star_truth(catalog, stars, tracks, rendered, model)
@@ -403,5 +419,6 @@ def render_frame(
         noise=bool(noise),
         method=method,
         stars=truth_stars,
+        apparent=apparent,
     )
     return Frame(image=image, expected_e=expected if keep_expected else None, truth=truth)

@@ -9,6 +9,7 @@ from starsense.plotting.slew import intensity_figure, tolerance_figure
 from starsense.references.dzamba2014 import QUOTED_MAGNITUDES
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
+from starsense.report.slew_study import slew_study_part
 
 __all__ = ["MODELS", "slew_section"]
 
@@ -25,6 +26,14 @@ def _rate_at(res: SlewResult, m: float) -> str:
     if r is None:
         return "not detected at rest"
     return (">= " if res.capped[i] else "") + f"{r:.2f}"
+
+
+def _study(ctx: ReportContext, sensor):
+    """Run the validation of the slew model on the paper's sensor (the st16 preset)."""
+    from starsense.sensor import load_sensor
+
+    reference = sensor if sensor.name == "st16" else load_sensor("st16")
+    return slew_study_part(ctx, reference)
 
 
 def slew_section(ctx: ReportContext) -> Section:
@@ -51,6 +60,8 @@ def slew_section(ctx: ReportContext) -> Section:
     ]
     det = sensor.detector
     logic = sensor.detection
+    study_html, study_fig, study_data = _study(ctx, sensor)
+    figures.append(study_fig)
     html = f"""
 <p>Sensor <b>{esc(sensor.name)}</b>: {det.columns} x {det.rows} pixels of
 {det.pixel_pitch_m * 1e6:.2f} um, f = {sensor.optics.focal_length_m * 1e3:.1f} mm,
@@ -91,11 +102,22 @@ fraction first drops below one half.</p>
             "integrated intensity against rate, Liebe",
         )
     }
+{study_html}
 """
     summary = tuple(
         (f"{esc(sensor.name)} tolerable slew, m = 5, {r.model}", _rate_at(r, 5.0) + " deg/s")
         for r in results
     )
     data = {r.model: {**r.tolerance_dict(), **r.intensity_dict()} for r in results}
+    data["psf_qe_study"] = study_data
+    best = study_data["best"]
+    summary += (
+        (
+            "ST-16 slew curve against the paper, best (PSF sigma, QE)",
+            f"{best['worst_mismatch_mag']:.2f} mag worst at ({best['sigma_px']:g} px, "
+            f"{best['qe_mean']:.2f}): "
+            + ("reproduced" if best["reproduces"] else "not reproduced"),
+        ),
+    )
     return Section("slew", "Slew tolerance (Dzamba & Enright 2014)", html, tuple(figures),
                    summary, data)  # fmt: skip

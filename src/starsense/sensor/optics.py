@@ -1,4 +1,4 @@
-"""The sensor's optics: pinhole focal length, aperture, throughput and radial distortion."""
+"""The sensor's optics: focal length, aperture, throughput, principal point and distortion."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ __all__ = ["Optics"]
 
 @dataclass(frozen=True)
 class Optics:
-    """Pinhole optics with optional radial distortion.
+    """Pinhole optics with optional Brown-Conrady distortion and a principal-point offset.
 
     Attributes
     ----------
@@ -24,6 +24,12 @@ class Optics:
     distortion_k1, distortion_k2 : float
         Radial distortion r_d = r (1 + k1 r^2 + k2 r^4), r the ideal image radius in units of
         the focal length (tan of the off-axis angle).
+    distortion_p1, distortion_p2 : float
+        Decentring (tangential) distortion, Brown-Conrady
+        (:mod:`starsense.geometry.distortion`).
+    principal_offset_x_px, principal_offset_y_px : float
+        Offset of the principal point (where the optical axis meets the detector, the centre
+        of the distortion) from the detector centre, along columns and rows, px.
     """
 
     focal_length_m: float
@@ -31,6 +37,10 @@ class Optics:
     transmission: float = 1.0
     distortion_k1: float = 0.0
     distortion_k2: float = 0.0
+    distortion_p1: float = 0.0
+    distortion_p2: float = 0.0
+    principal_offset_x_px: float = 0.0
+    principal_offset_y_px: float = 0.0
 
     def __post_init__(self) -> None:
         check_field("optics", "focal_length_m", self.focal_length_m, 0, 10, lo_open=True)
@@ -38,3 +48,17 @@ class Optics:
         check_field("optics", "transmission", self.transmission, 0, 1, lo_open=True)
         check_field("optics", "distortion_k1", self.distortion_k1, -10, 10)
         check_field("optics", "distortion_k2", self.distortion_k2, -10, 10)
+        check_field("optics", "distortion_p1", self.distortion_p1, -1, 1)
+        check_field("optics", "distortion_p2", self.distortion_p2, -1, 1)
+        check_field("optics", "principal_offset_x_px", self.principal_offset_x_px, -1e5, 1e5)
+        check_field("optics", "principal_offset_y_px", self.principal_offset_y_px, -1e5, 1e5)
+
+    @property
+    def distortion(self) -> tuple[float, float, float, float]:
+        """(k1, k2, p1, p2), Brown-Conrady (:mod:`starsense.geometry.distortion`)."""
+        return (self.distortion_k1, self.distortion_k2, self.distortion_p1, self.distortion_p2)
+
+    @property
+    def has_distortion(self) -> bool:
+        """Whether any distortion coefficient is non-zero."""
+        return any(self.distortion)

@@ -6,8 +6,9 @@ file, when loaded from TOML by :mod:`starsense.sensor.load`).
 
 Pixel convention (shared with rendering and detection): pixel centres are at integer
 coordinates; pixel (row r, column c) covers x in [c - 0.5, c + 0.5), y in [r - 0.5, r + 0.5).
-The boresight (principal point) falls on the centre of the detector,
-((columns - 1) / 2, (rows - 1) / 2). Camera frame: +z boresight, +x increasing column,
+The principal point falls on the centre of the detector,
+((columns - 1) / 2, (rows - 1) / 2), plus the optics' principal-point offset (zero unless
+calibrated). Camera frame: +z boresight, +x increasing column,
 +y increasing row (see :mod:`starsense.geometry.attitude`).
 """
 
@@ -22,6 +23,7 @@ import numpy as np
 
 from starsense._validate import check_scalar
 from starsense.errors import InputError
+from starsense.geometry.distortion import distort, undistort
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
@@ -116,8 +118,11 @@ class Sensor:
 
     @property
     def principal_point_px(self) -> tuple[float, float]:
-        """(x, y) of the boresight on the detector, pixel-centre convention."""
-        return (self.detector.columns - 1) / 2.0, (self.detector.rows - 1) / 2.0
+        """(x, y) of the principal point on the detector, pixel-centre convention."""
+        return (
+            (self.detector.columns - 1) / 2.0 + self.optics.principal_offset_x_px,
+            (self.detector.rows - 1) / 2.0 + self.optics.principal_offset_y_px,
+        )
 
     @property
     def half_fov_rad(self) -> tuple[float, float]:
@@ -158,11 +163,8 @@ class Sensor:
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.where(z > 0, v[..., 0] / z, np.nan)
             w = np.where(z > 0, v[..., 1] / z, np.nan)
-        k1, k2 = self.optics.distortion_k1, self.optics.distortion_k2
-        if k1 or k2:
-            r2 = u * u + w * w
-            s = 1.0 + k1 * r2 + k2 * r2 * r2
-            u, w = u * s, w * s
+        if self.optics.has_distortion:
+            u, w = distort(u, w, *self.optics.distortion)
         cx, cy = self.principal_point_px
         fp = self.focal_length_px
         return cx + fp * u, cy + fp * w
@@ -184,14 +186,12 @@ class Sensor:
         fp = self.focal_length_px
         u = (np.asarray(x_px, dtype=float) - cx) / fp
         w = (np.asarray(y_px, dtype=float) - cy) / fp
-        k1, k2 = self.optics.distortion_k1, self.optics.distortion_k2
-        if k1 or k2:
-            rd = np.hypot(u, w)
-            r = rd.copy()
-            for _ in range(20):  # fixed-point on r (1 + k1 r^2 + k2 r^4) = rd
-                r = rd / (1.0 + k1 * r**2 + k2 * r**4)
-            scale = np.divide(r, rd, out=np.ones_like(rd), where=rd > 0)
-            u, w = u * scale, w * scale
+        if self.optics.has_distortion:
+            u, w = undistort(u, w, *self.optics.distortion)
+            if not (np.all(np.isfinite(u)) and np.all(np.isfinite(w))):
+                raise InputError(
+                    "pixel position beyond the fold of the distortion model (optics.distortion_*)"
+                )
         return tangent_to_vectors(np.stack([u, w], axis=-1))
 
     def exposure_or(self, exposure_s: float | None = None) -> float:

@@ -72,3 +72,51 @@ def load_image(path: str | Path) -> np.ndarray:
     if a.size == 0:
         raise InputError(f"{p}: image is empty")
     return a
+
+
+#: EXIF tags holding the time a frame was taken: DateTimeOriginal (Exif IFD), DateTime (IFD0)
+_EXIF_IFD, _EXIF_DATETIME_ORIGINAL, _EXIF_DATETIME = 0x8769, 36867, 306
+
+
+def frame_time(path: str | Path) -> tuple[str | None, str | None]:
+    """Return the time a frame was taken, from its header, and where it was found.
+
+    FITS: ``DATE-OBS`` (ISO 8601, UTC by the FITS standard), of the first HDU that has it.
+    TIFF / JPEG / PNG: EXIF ``DateTimeOriginal``, else ``DateTime`` (``YYYY:MM:DD HH:MM:SS``;
+    EXIF gives no time zone, so the camera clock is taken as UTC).
+
+    Parameters
+    ----------
+    path : path-like
+        The frame.
+
+    Returns
+    -------
+    time, source : str or None
+        The time as written (ISO 8601 or EXIF form) and ``"FITS DATE-OBS"``,
+        ``"EXIF DateTimeOriginal"`` or ``"EXIF DateTime"``; (None, None) when there is none.
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    try:
+        if suffix in FITS_SUFFIXES:
+            from astropy.io import fits
+
+            with fits.open(p) as hdul:
+                for hdu in hdul:
+                    value = hdu.header.get("DATE-OBS")
+                    if value:
+                        return str(value), "FITS DATE-OBS"
+        elif suffix in PILLOW_SUFFIXES:
+            from PIL import Image
+
+            with Image.open(p) as im:
+                exif = im.getexif()
+                original = exif.get_ifd(_EXIF_IFD).get(_EXIF_DATETIME_ORIGINAL)
+                if original:
+                    return str(original).strip("\x00 "), "EXIF DateTimeOriginal"
+                if exif.get(_EXIF_DATETIME):
+                    return str(exif[_EXIF_DATETIME]).strip("\x00 "), "EXIF DateTime"
+    except (OSError, ValueError):
+        return None, None  # unreadable headers: load_image reports an unreadable frame
+    return None, None

@@ -13,11 +13,13 @@ The optics are known three ways, from best to least:
 
 The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
 (:mod:`starsense.attitude`), which also gives its covariance (Fialho & Mortari eq. 21) for a
-centroid noise of ``centroid_sigma_px``.
+centroid noise of ``centroid_sigma_px``; against the stars' apparent places when the frame's
+time is known (:mod:`starsense.catalog.apparent`), so that it is the true ICRS attitude.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -26,7 +28,6 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense._io import atomic_path
 from starsense.errors import InputError
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.units import DEG, RAD_TO_ARCSEC
@@ -82,6 +83,11 @@ class Solution:
         Rows, columns of the frame.
     focal_px : float or None
         Focal length, pixels.
+    apparent : dict or None
+        The apparent-place correction applied to the matched stars
+        (:meth:`starsense.catalog.apparent.ApparentPlaces.to_dict`), or why none was.
+    sensor : Sensor or None
+        The sensor model the centroids were unprojected with (principal point, distortion).
     """
 
     status: str
@@ -102,6 +108,8 @@ class Solution:
     centroids_px: np.ndarray | None = field(default=None, repr=False)
     image_shape: tuple[int, int] | None = None
     focal_px: float | None = None
+    apparent: dict | None = None
+    sensor: object = field(default=None, repr=False)
 
     @property
     def ra_deg(self) -> float | None:
@@ -135,65 +143,20 @@ class Solution:
             return None
         return tuple(float(s * RAD_TO_ARCSEC) for s in self.sigma_rad)
 
-    def wcs(self):
-        """Return an astropy TAN WCS of the solved frame (FITS 1-based pixels).
+    def wcs(self, sip_order: int | None = None):
+        """Return an astropy WCS of the solved frame: TAN, or TAN-SIP when the sensor distorts.
 
-        A pinhole frame is exactly a gnomonic (TAN) projection: with the camera axes x, y in ICRS
-        and east, north at the boresight, the CD matrix is (180/pi) / f_px
-        [[e.x, e.y], [n.x, n.y]]. Lens distortion, where the sensor has any, is not carried
-        (no SIP terms).
-
-        Returns
-        -------
-        astropy.wcs.WCS
-
-        Raises
-        ------
-        InputError
-            The frame is not solved.
+        See :func:`starsense.solve.wcs.solution_wcs`.
         """
-        from astropy.wcs import WCS
+        from starsense.solve.wcs import solution_wcs
 
-        from starsense.geometry.attitude import east_north
+        return solution_wcs(self, sip_order)
 
-        if not self.solved:
-            raise InputError(f"no WCS for an unsolved frame (status {self.status})")
-        rows, cols = self.image_shape
-        axes = self.rotation.as_matrix()  # rows: camera x, y, z in ICRS
-        east, north = east_north(np.radians(self.ra_deg), np.radians(self.dec_deg))
-        cd = np.degrees(1.0 / self.focal_px) * np.array(
-            [[east @ axes[0], east @ axes[1]], [north @ axes[0], north @ axes[1]]]
-        )
-        w = WCS(naxis=2)
-        w.wcs.ctype = ["RA---TAN", "DEC--TAN"]
-        w.wcs.crval = [self.ra_deg, self.dec_deg]
-        w.wcs.crpix = [(cols - 1) / 2.0 + 1.0, (rows - 1) / 2.0 + 1.0]
-        w.wcs.cd = cd
-        w.wcs.radesys = "ICRS"
-        w.pixel_shape = (cols, rows)
-        return w
+    def write_wcs(self, path: str | Path, sip_order: int | None = None) -> Path:
+        """Write the WCS as a FITS header (:func:`~starsense.solve.wcs.write_solution_wcs`)."""
+        from starsense.solve.wcs import write_solution_wcs
 
-    def write_wcs(self, path: str | Path) -> Path:
-        """Write the WCS as a FITS header (no data), atomically (:mod:`starsense._io`).
-
-        Parameters
-        ----------
-        path : path-like
-            The FITS file to create or replace; its directory must exist.
-
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
-        """
-        from astropy.io import fits
-
-        path = Path(path)
-        header = self.wcs().to_header()
-        header["COMMENT"] = "starsense solution: " + self.message
-        with atomic_path(path, suffix=".tmp") as tmp:
-            fits.PrimaryHDU(header=header).writeto(tmp, overwrite=True)
-        return path
+        return write_solution_wcs(self, path, sip_order)
 
     @property
     def solved(self) -> bool:
@@ -217,6 +180,7 @@ class Solution:
             "sigma_arcsec": None if sigma is None else list(sigma),
             "time_ms": self.time_ms,
             "stage_ms": self.stage_ms,
+            "apparent_places": self.apparent,
         }
 
 
@@ -243,6 +207,10 @@ class Solver:
     background : {"auto", "known"}
         "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
         subtracts the sensor's bias and applies its detection logic as is (simulated frames).
+    apparent : bool
+        Fit the attitude to the stars' apparent places when the frame's time is known (default).
+    observer_velocity_m_s : array_like, shape (3,), optional
+        The observer's velocity relative to the geocentre (orbit), ICRS axes, m/s.
     """
 
     def __init__(
@@ -254,6 +222,8 @@ class Solver:
         threshold_sigma: float = 5.0,
         centroid_sigma_px: float | str = 0.3,
         background: str = "auto",
+        apparent: bool = True,
+        observer_velocity_m_s=None,
     ) -> None:
         from starsense._validate import check_scalar, show
         from starsense.sensor import DetectionThresholds, Sensor, load_sensor
@@ -291,6 +261,8 @@ class Solver:
             else DetectionThresholds(lit_pixel_counts=1e-6, min_pixels=3, min_integrated_counts=0)
         )
         self._identifiers: dict = {}
+        self.apparent = bool(apparent)
+        self.observer_velocity_m_s = observer_velocity_m_s
 
     # -- optics -----------------------------------------------------------------------------
 
@@ -349,13 +321,25 @@ class Solver:
             return identifier, ident, None
         return identifier, ident, fov_known
 
-    def __call__(self, image) -> Solution:
+    def _reference(self, ref, catalog_ids, obs_time) -> tuple[np.ndarray, dict]:
+        """Return the matched stars' reference vectors: apparent places when a time is known."""
+        if obs_time is None or not self.apparent:
+            return ref, {"applied": False, "reason": "no frame time" if obs_time is None else "off"}
+        from starsense.catalog.apparent import apparent_places_of
+
+        p = apparent_places_of(self.catalog_spec, catalog_ids, obs_time, self.observer_velocity_m_s)
+        return p.vectors, p.to_dict()
+
+    def __call__(self, image, obs_time=None) -> Solution:
         """Solve one frame: detect, identify and estimate the attitude with its covariance.
 
         Parameters
         ----------
         image : array_like, shape (rows, columns)
             The frame, counts.
+        obs_time : str or astropy.time.Time, optional
+            When the frame was taken (ISO 8601 UTC): the attitude is then fitted to the stars'
+            apparent places (unless the solver was built with ``apparent=False``).
 
         Returns
         -------
@@ -397,11 +381,13 @@ class Solver:
             vectors = pinhole_vectors(det.x, det.y, a.shape, fov)
         matched = np.asarray(ident.detection_index)
         db = identifier.database
+        plain = db.vectors[np.asarray(ident.catalog_index)]
+        ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
         if self.sensor is not None:  # blended close doubles: their photocentre, not one star
             radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / a.shape[1]
-            ref = photocentres(db.vectors, db.mags, db.tree, ident.catalog_index, radius)
-        else:
-            ref = db.vectors[np.asarray(ident.catalog_index)]
+            ref = ref + photocentres(db.vectors, db.mags, db.tree, ident.catalog_index, radius)
+            ref = ref - plain
+            ref /= np.linalg.norm(ref, axis=1)[:, None]
         if self.centroid_sigma_px == "snr":
             sigma_px = _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
         else:
@@ -436,13 +422,25 @@ class Solver:
                 if self.sensor is not None
                 else a.shape[1] / 2.0 / math.tan(fov / 2.0)
             ),
+            apparent=apparent,
+            sensor=self.sensor,
         )
 
-    def solve_file(self, path: str | Path) -> Solution:
-        """Load a frame (:func:`starsense.solve.frames.load_image`) and solve it."""
-        from starsense.solve.frames import load_image
+    def solve_file(self, path: str | Path, obs_time=None) -> Solution:
+        """Load a frame (:func:`starsense.solve.frames.load_image`) and solve it.
 
-        return self(load_image(path))
+        The frame's time is ``obs_time`` if given, else its FITS DATE-OBS or EXIF
+        DateTimeOriginal / DateTime (:func:`starsense.solve.frames.frame_time`), else unknown.
+        """
+        from starsense.solve.frames import frame_time, load_image
+
+        source = "obs_time"
+        if obs_time is None:
+            obs_time, source = frame_time(path)
+        sol = self(load_image(path), obs_time)
+        if sol.apparent is not None and sol.apparent.get("applied"):
+            sol = dataclasses.replace(sol, apparent={**sol.apparent, "time_source": source})
+        return sol
 
 
 def _cog_sigma_px(det, index, detector, margin_px: int) -> np.ndarray:

@@ -1,0 +1,92 @@
+"""`starsense calibrate`: fit the camera model to solved frames and write a sensor TOML."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from starsense.cli.common import CatalogOpt, JsonOpt, SensorOpt, emit
+from starsense.errors import InputError
+
+
+def calibrate(
+    frames: Annotated[list[Path], typer.Argument(help="Frames to solve and fit jointly.")],
+    out: Annotated[Path, typer.Option("--out", help="Calibrated sensor TOML to write.")],
+    sensor: SensorOpt = "st16",
+    fit: Annotated[
+        str,
+        typer.Option(
+            "--fit",
+            help="Parameters to fit, comma-separated: focal_length, principal_point, k1, k2, "
+            "p1, p2.",
+        ),
+    ] = "focal_length,principal_point,k1,k2,p1,p2",
+    catalog: CatalogOpt = "hipparcos",
+    time: Annotated[
+        str | None,
+        typer.Option("--time", help="UTC time of the frames (ISO 8601); else from each header."),
+    ] = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Fit focal length, principal point and Brown-Conrady distortion to the frames' stars.
+
+    Every frame is solved with --sensor; the matched stars of those that solve are fitted
+    jointly, each frame's attitude a nuisance parameter. The result is written to --out as a
+    sensor TOML that `solve --sensor FILE` uses. With a time (--time, FITS DATE-OBS, EXIF) the
+    stars are fitted at their apparent places (proper motion, parallax, aberration). Exit
+    status 2 when no frame solves or a parameter cannot be fitted (hold it fixed by leaving it
+    out of --fit).
+    """
+    from starsense._io import atomic_write
+    from starsense.catalog import load_catalog
+    from starsense.geometry.apparent import parse_time
+    from starsense.sensor.dump import sensor_to_toml
+    from starsense.solve.calibration import PARAMETERS, calibrate, frame_stars
+    from starsense.solve.solver import Solver
+
+    names = [p.strip() for p in fit.split(",") if p.strip()]
+    bad = [p for p in names if p not in PARAMETERS]
+    if bad or not names:
+        raise InputError(f"--fit must name some of {', '.join(PARAMETERS)}; got {fit!r}")
+    if out.suffix.lower() != ".toml":
+        raise InputError(f"--out must be a .toml file, got {str(out)!r}")
+    if not out.parent.is_dir():
+        raise InputError(f"--out: directory {str(out.parent)!r} not found")
+    when = None if time is None else parse_time(time, "--time")
+    solver = Solver(sensor, catalog=catalog)
+    cat = load_catalog(catalog)
+    stars, skipped = [], {}
+    for path in frames:
+        sol = solver.solve_file(path, when)
+        if sol.solved:
+            stars.append(frame_stars(sol, cat, str(path)))
+        else:
+            skipped[str(path)] = sol.status
+    if not stars:
+        raise InputError(f"no frame solved with sensor {sensor!r}: {skipped}")
+    result = calibrate(stars, solver.sensor, fit=names)
+    header = (
+        f"starsense calibrate: {result.n_frames} frame(s), {result.n_stars} stars; residual rms "
+        f"{result.rms_arcsec_before:.2f} -> {result.rms_arcsec_after:.2f} arcsec\n"
+        f"fitted: {', '.join(result.fitted)}, from sensor {solver.sensor.name}"
+    )
+    with atomic_write(out) as fh:
+        fh.write(sensor_to_toml(result.sensor.with_(name=out.stem), header))
+    payload = {**result.to_dict(), "skipped": skipped, "out": str(out)}
+    d, s = result.values, result.sigmas
+    emit(
+        payload,
+        as_json,
+        [
+            f"{result.n_frames} frame(s), {result.n_stars} stars ({result.n_rejected} rejected)"
+            + (f"; not solved: {', '.join(skipped)}" if skipped else ""),
+            f"  focal length {d['focal_length_px']:.2f} +- {s['focal_length_px']:.2f} px, "
+            f"principal point offset ({d['principal_x_px']:.1f} +- {s['principal_x_px']:.1f}, "
+            f"{d['principal_y_px']:.1f} +- {s['principal_y_px']:.1f}) px",
+            "  " + ", ".join(f"{k} {d[k]:.3g} +- {s[k]:.2g}" for k in ("k1", "k2", "p1", "p2")),
+            f"  residual rms {result.rms_arcsec_before:.2f} -> {result.rms_arcsec_after:.2f} "
+            f"arcsec; sensor written: {out}",
+        ],
+    )
