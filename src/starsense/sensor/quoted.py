@@ -31,6 +31,16 @@ BUDGET_KEYS: dict[str, tuple[str, float, float]] = {
     "bias_roll_arcsec": ("bias about the boresight, arcsec", 0.0, 36000.0),
     "thermoelastic_cross_arcsec": ("thermo-elastic error cross-boresight, arcsec", 0.0, 3600.0),
     "thermoelastic_roll_arcsec": ("thermo-elastic error about the boresight, arcsec", 0.0, 36000.0),
+    "fov_spatial_cross_arcsec": (
+        "distortion residual after calibration, cross, arcsec",
+        0.0,
+        3600.0,
+    ),
+    "fov_spatial_roll_arcsec": (
+        "distortion residual after calibration, roll, arcsec",
+        0.0,
+        36000.0,
+    ),
     "orbital_speed_m_s": ("observer's orbital speed for the aberration term, m/s", 0.0, 1e5),
 }
 _FLAGS = {"aberration_corrected": "the tracker corrects stellar aberration (true/false)"}

@@ -194,8 +194,7 @@ def _budget(sensor, nea: dict, pixel: tuple, pse_px: float | None) -> list[dict]
          "pixel spatial error", "cross_arcsec": _stat(pixel[0] * RAD_TO_ARCSEC, 50),
          "roll_arcsec": _stat(pixel[1] * RAD_TO_ARCSEC, 50),
          "source": "measured in this run (noiseless renders)"},
-        {"term": "field-of-view spatial error (distortion residual)", "cross_arcsec": 0.0,
-         "roll_arcsec": 0.0, "source": "modelled: pinhole camera, no distortion to leave"},
+        _fov_spatial(sensor, given),
     ]  # fmt: skip
     if not given.get("aberration_corrected", False):
         speeds = [("annual", EARTH_ORBITAL_SPEED_M_S)]
@@ -220,6 +219,23 @@ def _budget(sensor, nea: dict, pixel: tuple, pse_px: float | None) -> list[dict]
         "source": "combined",
     })  # fmt: skip
     return rows
+
+
+def _fov_spatial(sensor, given: dict) -> dict:
+    """Return the field-of-view spatial error row: given, zero for a pinhole, or unknown."""
+    term = "field-of-view spatial error (distortion residual)"
+    if "fov_spatial_cross_arcsec" in given or "fov_spatial_roll_arcsec" in given:
+        return {"term": term, "cross_arcsec": given.get("fov_spatial_cross_arcsec", 0.0),
+                "roll_arcsec": given.get("fov_spatial_roll_arcsec", 0.0),
+                "source": "given (sensor TOML [budget], the calibration residual)"}  # fmt: skip
+    if not any(sensor.optics.distortion):
+        return {"term": term, "cross_arcsec": 0.0, "roll_arcsec": 0.0,
+                "source": "modelled: pinhole camera, no distortion to leave"}  # fmt: skip
+    why = (
+        "not known: the sensor has distortion; give fov_spatial_cross_arcsec and "
+        "fov_spatial_roll_arcsec in [budget] (the residual of `starsense calibrate`)"
+    )
+    return {"term": term, "cross_arcsec": None, "roll_arcsec": None, "source": why}
 
 
 def _quoted(sensor, data: dict) -> list[dict]:
