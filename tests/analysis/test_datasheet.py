@@ -168,3 +168,40 @@ def test_quoted_table_checked():
         sensor_from_dict(_toml({"quoted": {"nea_cross_arcsec": 7.0}}))
     with pytest.raises(InputError, match="bias_cross_arcsec = -1"):
         sensor_from_dict(_toml({"budget": {"bias_cross_arcsec": -1}}))
+
+
+def _sky_nea(sens, n=60):
+    from starsense.analysis.availability.field import catalog_stars
+    from starsense.analysis.datasheet.predict import StarModel, nea_at
+    from starsense.catalog import load_catalog
+
+    vectors, mags = catalog_stars(load_catalog("hipparcos"), 4.0, "V")  # the same stars for all
+    model = StarModel.build(sens, "reed", float(mags.min()), 4.0)
+    att = random_attitudes(n, np.random.default_rng(8)).as_matrix()
+    sig, _ = nea_at(model, sens.fov(), att, vectors, mags)
+    return float(np.nanmedian(sig["nea"][0])), float(np.nanmedian(sig["nea"][1]))
+
+
+def _aperture(sens, d):
+    return dataclasses.replace(sens, optics=dataclasses.replace(sens.optics, aperture_m=d))
+
+
+@pytest.mark.slow
+def test_datasheet_nea_scales_with_aperture_over_the_sky():
+    # the datasheet's NEA (per-star noise through eq. 21) of two sensors differing only in
+    # aperture, over the same stars (V <= 4, detected by both): photon-limited ~ 1/D (ratio 2
+    # for 2D, within 15 %: the measured noise table); read-noise-limited steeper, between the
+    # CoG's growing window (~1/D^1.5) and a fixed window's 1/D^2
+    photon = _ideal(0.0)
+    small, large = _sky_nea(_aperture(photon, 0.012)), _sky_nea(_aperture(photon, 0.024))
+    assert small[0] / large[0] == pytest.approx(2.0, rel=0.15)
+    assert small[1] / large[1] == pytest.approx(2.0, rel=0.15)
+    read = _ideal(30.0)
+    read = dataclasses.replace(
+        read,
+        detector=dataclasses.replace(read.detector, gain_counts_per_e=1.0),
+        detection=dataclasses.replace(read.detection, lit_pixel_counts=150.0, min_pixels=3,
+                                      min_integrated_counts=500.0),
+    )  # fmt: skip
+    small, large = _sky_nea(_aperture(read, 0.006)), _sky_nea(_aperture(read, 0.012))
+    assert 2.0**1.5 <= small[0] / large[0] <= 4.0 * 1.1
