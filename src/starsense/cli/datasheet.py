@@ -122,8 +122,6 @@ def _write_out(out: Path, sheet, payload: dict) -> list[str]:
     from starsense.plotting.datasheet import nea_sky_figure
     from starsense.plotting.figure import save_png
 
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     name = payload["sensor"]
     path = out / f"{name}_datasheet.json"
@@ -180,6 +178,8 @@ def datasheet(
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
     if seed < 0:
         raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
+    if out is not None and Path(out).exists() and not Path(out).is_dir():
+        raise InputError(f"--out {out}: exists and is not a folder")  # before any work
     names = list(compare) if compare else [sensor]
     sensors = [load_sensor(n) for n in names]
     cat = load_catalog(catalog)
