@@ -216,6 +216,40 @@ def _solve_esa() -> float:
 
 
 # ---------------------------------------------------------------------------------------------
+# issue 14: tracking
+
+
+@bench(
+    "track_frame_st16",
+    "tracking one ST-16 frame from a prior (windows, match, attitude + covariance); vs LiS",
+    0.02,
+)
+def _track_frame() -> float:
+    from starsense.render.scene import render_frame
+    from starsense.solve.solver import Solver
+    from starsense.solve.track import Prior
+
+    sensor, cat, att, rate = _st16_frame_inputs()
+    image = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1).image
+    # the prior a tracker has from its last frame: 0.01 deg, the rate to 0.005 deg/s
+    prior = Prior(att, np.eye(3) * np.radians(0.01) ** 2, rate, np.eye(3) * np.radians(0.005) ** 2)
+    out = []
+    for background, sigma in (("auto", 0.3), ("known", "snr")):
+        solver = Solver(sensor, background=background, centroid_sigma_px=sigma)
+        lis, tracked = solver(image), solver.track(image, prior)
+        assert lis.solved and tracked.mode == "tracking" and tracked.solution.solved
+        t_lis = best_of(lambda solver=solver: solver(image))
+        t_track = best_of(lambda solver=solver: solver.track(image, prior))
+        out.append(t_track)
+        print(
+            f"    (background {background}: lost-in-space {t_lis * 1e3:.1f} ms, tracking "
+            f"{t_track * 1e3:.1f} ms, {t_lis / t_track:.0f}x; {tracked.solution.n_matched} stars)",
+            flush=True,
+        )
+    return out[0]
+
+
+# ---------------------------------------------------------------------------------------------
 # issue 6: guide-star distribution (Lin et al. 2024)
 
 

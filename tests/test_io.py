@@ -7,6 +7,7 @@ import os
 import pytest
 
 from starsense._io import atomic_path, atomic_write, file_mode
+from starsense.errors import OutputError
 
 
 @pytest.fixture(params=[0o022, 0o077, 0o002], ids=["umask022", "umask077", "umask002"])
@@ -103,6 +104,33 @@ def test_bad_mode_is_refused(tmp_path):
 
 
 def test_missing_directory_is_an_error_without_leftovers(tmp_path):
-    with pytest.raises(FileNotFoundError), atomic_write(tmp_path / "nosuch" / "x.txt") as fh:
+    with (
+        pytest.raises(OutputError, match=r"nosuch/x\.txt: directory .*nosuch does not exist"),
+        atomic_write(tmp_path / "nosuch" / "x.txt") as fh,
+    ):
         fh.write("x")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_full_disk_names_the_users_path_not_the_temporary(tmp_path):
+    import errno
+
+    target = tmp_path / "out.txt"
+    with pytest.raises(OutputError) as info, atomic_path(target) as tmp:
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp))
+    assert str(info.value) == f"cannot write {target}: No space left on device"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_unrelated_error_inside_the_block_is_not_rewritten(tmp_path):
+    with pytest.raises(FileNotFoundError), atomic_path(tmp_path / "out.txt"):
+        open(tmp_path / "some-input-that-is-missing")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_target_that_is_a_directory_is_refused_before_anything_is_written(tmp_path):
+    (tmp_path / "out").mkdir()
+    with pytest.raises(OutputError, match=r"cannot write output .*out: it is a directory"):
+        with atomic_write(tmp_path / "out") as fh:
+            fh.write("x")  # pragma: no cover
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]

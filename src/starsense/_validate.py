@@ -28,13 +28,18 @@ __all__ = [
 ]
 
 
+#: longest value a message quotes (an array or a long string is cut, never megabytes)
+_SHOW_MAX = 200
+
+
 def show(value: object) -> str:
-    """Return plain text for a value in a message (no ``np.float64(...)`` reprs)."""
+    """Return plain text for a value in a message: no ``np.float64(...)``, at most 200 chars."""
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and value.is_integer() and abs(value) < 1e15:
         return repr(value)
-    return repr(value) if isinstance(value, str) else str(value)
+    text = repr(value) if isinstance(value, str) else str(value)
+    return text if len(text) <= _SHOW_MAX else text[: _SHOW_MAX - 3] + "..."
 
 
 def finite_float(value: object, name: str) -> float:

@@ -49,3 +49,12 @@ class SingularGeometryError(StarsenseError, ValueError):
 
     Too few stars, or all on one great circle: the Fisher information matrix is singular.
     """
+
+
+class OutputError(StarsenseError, OSError):
+    """An output cannot be written where the user asked.
+
+    A missing or read-only directory, a directory where a file should go, a full disk. The
+    message names the user's path, never a temporary one. Also an :class:`OSError`, so code that
+    treats a failed optional write (a cache) as harmless still catches it.
+    """

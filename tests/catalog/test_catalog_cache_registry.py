@@ -153,7 +153,7 @@ def test_registry_errors(spec: str, message: str) -> None:
 def test_missing_file_error_names_the_path(tmp_path: Path) -> None:
     with pytest.raises(InputError, match=str(tmp_path / "missing.dat")):
         load_catalog(f"hip_main:{tmp_path / 'missing.dat'}")
-    with pytest.raises(InputError, match="not a regular file"):
+    with pytest.raises(InputError, match="is a directory, not a file"):
         load_catalog(f"hip2:{tmp_path}")
 
 

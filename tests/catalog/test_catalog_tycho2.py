@@ -32,7 +32,8 @@ TYC_1_33_1 = (  # pflag X: no mean position, no proper motion, BT only
     "  0.94286667|1.69|1.58|115.5|125.1| | 0.0"
 )
 # A Hipparcos star (HIP field filled), built from TYC 1-13-1 in the same layout.
-WITH_HIP = TYC_1_13_1[:142] + "    12  " + TYC_1_13_1[150:]
+# a second component (TYC3 = 2) of TYC 1-13 with a HIP number: ids are unique in Tycho-2
+WITH_HIP = "0001 00013 2" + TYC_1_13_1[12:142] + "    12  " + TYC_1_13_1[150:]
 
 
 def write(tmp_path: Path, lines: list[str], name: str = "tyc2.dat") -> Path:

@@ -50,7 +50,7 @@ def test_limit_star_table1_vega_hks_json(capsys):
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--mag-v", "1", "--b-v", "nan"], "colour index must be a finite number"),
+        (["--mag-v", "1", "--b-v", "nan"], "--b-v must be finite, got nan"),
         (["--mag-v", "1", "--b-v", "0.5", "--diameter-m", "0"], "diameter_m must be"),
         (["--mag-v", "1", "--b-v", "0.5", "--exposure-s", "-1"], "exposure_s must be"),
         (["--mag-v", "1"], "--mag-v and --b-v must be given together"),

@@ -72,14 +72,14 @@ def position_columns(
     if bad.any():
         i = int(np.argmax(bad))
         raise InputError(
-            f"RA/Dec must be finite: star {i} (id {ids[i]}) has ra_rad={ra[i]!r}, "
-            f"dec_rad={dec[i]!r}"
+            f"RA/Dec must be finite: star {i} (id {ids[i]}) has ra_rad={float(ra[i])!r}, "
+            f"dec_rad={float(dec[i])!r}"
         )
     bad = np.abs(dec) > 0.5 * np.pi + 1e-12
     if bad.any():
         i = int(np.argmax(bad))
         raise InputError(
-            f"dec_rad must lie in [-pi/2, pi/2]: star {i} (id {ids[i]}) has {dec[i]!r}"
+            f"dec_rad must lie in [-pi/2, pi/2]: star {i} (id {ids[i]}) has {float(dec[i])!r}"
         )
     if n and ((ra < 0).any() or (ra >= _TWO_PI).any()):
         wrapped = np.mod(ra, _TWO_PI)
@@ -102,3 +102,51 @@ def extra_columns(extra: object, n: int) -> Mapping[str, np.ndarray]:
             raise InputError(f"extra[{key!r}] must not be an object array (use str/bytes)")
         checked[str(key)] = readonly(a)
     return MappingProxyType(checked)
+
+
+#: magnitudes a catalogue may hold: the Sun is -26.7, the deepest surveys reach ~30; anything
+#: outside (BSC5's 327.67, a G of 1e300) is a sentinel or a corrupt value, never a star
+MAG_RANGE = (-30.0, 35.0)
+
+
+def check_magnitudes(mags: Mapping[str, np.ndarray], ids: np.ndarray, source: str) -> None:
+    """Raise :class:`InputError` at the first magnitude outside :data:`MAG_RANGE` (NaN: missing).
+
+    The message names the source, the band, the star (row and identifier) and the value.
+    """
+    lo, hi = MAG_RANGE
+    for band, values in mags.items():
+        with np.errstate(invalid="ignore"):
+            bad = (values < lo) | (values > hi)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{source}: magnitude {band} = {float(values[i]):g} of star {i + 1} (id "
+                f"{int(ids[i])}) is outside [{lo:g}, {hi:g}] (a missing-value sentinel?)"
+            )
+
+
+def check_unique_ids(catalog, id_name: str = "id"):
+    """Return ``catalog`` if no identifier appears twice; else raise naming the first repeat.
+
+    Readers call it on what they read: a star listed twice would be counted twice by every
+    analysis. (Catalogues stacked with ``concat`` may share identifiers and are not checked.)
+
+    Raises
+    ------
+    InputError
+        Naming the source, the identifier, how often it appears and the first two rows.
+    """
+    ids = catalog.ids
+    order = np.argsort(ids, kind="stable")
+    same = ids[order[1:]] == ids[order[:-1]]
+    if same.any():
+        k = int(np.argmax(same))
+        first, second = int(order[k]), int(order[k + 1])
+        value = ids[first]
+        n_dup = int(same.sum())
+        raise InputError(
+            f"{catalog.source}: {id_name} {int(value)} appears more than once (stars {first + 1} "
+            f"and {second + 1}; {n_dup:,} repeated rows in all): each star must be listed once"
+        )
+    return catalog

@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from starsense.errors import CatalogFormatError, InputError
+from starsense._io import readable_file
+from starsense.errors import CatalogFormatError
 
 _SPACE = ord(" ")
 _NEWLINE = ord("\n")
@@ -33,13 +34,12 @@ _INT_OK[np.frombuffer(b"0123456789+- ", dtype=np.uint8)] = True
 
 
 def existing_file(path: str | Path) -> Path:
-    """Return ``path`` as a :class:`Path`, raising :class:`InputError` if it is not a file."""
-    p = Path(path).expanduser()
-    if not p.exists():
-        raise InputError(f"catalogue file not found: {p}")
-    if not p.is_file():
-        raise InputError(f"catalogue path is not a regular file: {p}")
-    return p
+    """Return ``path`` as a :class:`Path`, raising :class:`InputError` if it is not a file.
+
+    An empty path, a directory and a file the user may not read are named as such
+    (:func:`starsense._io.readable_file`).
+    """
+    return readable_file(path, "catalogue file")
 
 
 def read_bytes(path: Path) -> bytes:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import check_range, existing_file, read_bytes
 from starsense.catalog.table import Catalog
 from starsense.errors import CatalogFormatError
@@ -121,12 +122,14 @@ def load_bsc5(path: str | Path) -> Catalog:
         bad = ~np.isfinite(rec[field])
         if bad.any():
             i = int(np.argmax(bad))
-            raise CatalogFormatError(name, i + 1, field, f"value {rec[field][i]!r} is not finite")
+            raise CatalogFormatError(
+                name, i + 1, field, f"value {float(rec[field][i])!r} is not finite"
+            )
     xno = rec["XNO"].astype(np.float64)
-    bad = (xno != np.round(xno)) | (xno < 1)
+    bad = (xno != np.round(xno)) | (xno < 1) | (xno > 2**31 - 1)  # an int32 catalogue number
     if bad.any():
         i = int(np.argmax(bad))
-        raise CatalogFormatError(name, i + 1, "XNO", f"{xno[i]!r} is not a catalogue number")
+        raise CatalogFormatError(name, i + 1, "XNO", f"{float(xno[i])!r} is not a catalogue number")
 
     keep = ~((rec["SRA0"] == 0.0) & (rec["SDEC0"] == 0.0))
     rec, record_no = rec[keep], record_no[keep]
@@ -136,7 +139,7 @@ def load_bsc5(path: str | Path) -> Catalog:
     check_range(name, rec["SDEC0"], -0.5 * np.pi, 0.5 * np.pi, "SDEC0", record_no, unit="rad")
 
     spectral = np.char.strip(np.char.decode(rec["IS"], "ascii", errors="replace"))
-    return Catalog(
+    catalog = Catalog(
         name="bsc5",
         source=name,
         epoch_yr=BSC5_EPOCH_YR,
@@ -148,3 +151,4 @@ def load_bsc5(path: str | Path) -> Catalog:
         pm_dec_rad_yr=rec["XDPM"].astype(np.float64),
         extra={"spectral_type": spectral},
     )
+    return check_unique_ids(catalog, "HR number")

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from starsense._io import read_bytes
+from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import (
     check_range,
     existing_file,
@@ -89,7 +91,7 @@ def _read_binary(source: Path) -> Catalog:
     J2016.0), G, pmra, pmdec (mas/yr). Hipparcos stars brighter than Gaia's bright limit are
     merged in with their own ids.
     """
-    raw = source.read_bytes()
+    raw = read_bytes(source, "catalogue file")
     if len(raw) < 16 or raw[:4] != _BINARY_MAGIC:
         raise CatalogFormatError(str(source), None, None, "not a GDR3 binary file (bad magic)")
     version = int(np.frombuffer(raw, "<u4", 1, 4)[0])
@@ -110,7 +112,7 @@ def _read_binary(source: Path) -> Catalog:
     row = np.arange(1, count + 1, dtype=np.int64)
     check_range(source, rec["ra"], 0.0, 360.0, "ra", row, hi_inclusive=False)
     check_range(source, rec["dec"], -90.0, 90.0, "dec", row)
-    return Catalog.from_columns(
+    catalog = Catalog.from_columns(
         name="gaia_dr3",
         source=str(source),
         epoch_yr=GAIA_DR3_EPOCH_YR,
@@ -122,6 +124,7 @@ def _read_binary(source: Path) -> Catalog:
         pm_ra_mas_yr=rec["pmra"].astype(np.float64),
         pm_dec_mas_yr=rec["pmdec"].astype(np.float64),
     )
+    return check_unique_ids(catalog, "source_id")
 
 
 def load_gaia(path: str | Path) -> Catalog:
@@ -204,7 +207,7 @@ def load_gaia(path: str | Path) -> Catalog:
             usable, cols["radial_velocity"] * catalog.parallax_rad / AU_KM_YR_PER_S, np.nan
         )
         catalog = dataclasses.replace(catalog, radial_motion_per_yr=mu_r)
-    return catalog
+    return check_unique_ids(catalog, "source_id")
 
 
 def _read_csv(source: Path) -> tuple[dict[str, np.ndarray], int]:
@@ -240,8 +243,10 @@ def _read_parquet(source: Path) -> dict[str, np.ndarray]:
         schema = pq.read_schema(source)
         present = _check_columns(source, list(schema.names), None)
         table = pq.read_table(source, columns=present)
-    except (pa.ArrowException, OSError) as exc:
-        raise CatalogFormatError(str(source), None, None, f"cannot read Parquet: {exc}") from exc
+    except (pa.ArrowException, OSError, UnicodeDecodeError) as exc:
+        # UnicodeDecodeError: a column name that is not UTF-8 (pyarrow decodes the schema)
+        detail = f"cannot read Parquet: {exc}".replace("\n", " ")
+        raise CatalogFormatError(str(source), None, None, detail) from None
     cols: dict[str, np.ndarray] = {}
     for name in present:
         column = table.column(name)

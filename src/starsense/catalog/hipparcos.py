@@ -23,6 +23,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import (
     Field,
     FixedWidthRecords,
@@ -265,7 +266,7 @@ def load_hip2(path: str | Path | None = None) -> Catalog:
     v[rows[present]] = lit_v[present]
     literature[rows[present]] = True
 
-    return Catalog(
+    catalog = Catalog(
         name="hip2",
         source=str(source),
         epoch_yr=HIPPARCOS_EPOCH_YR,
@@ -284,6 +285,7 @@ def load_hip2(path: str | Path | None = None) -> Catalog:
             "V_from_literature": literature,
         },
     )
+    return check_unique_ids(catalog, "HIP number")
 
 
 # -- hip_main.dat (VizieR I/239 ReadMe, "Byte-by-byte Description of file: hip_main.dat") --
@@ -403,7 +405,7 @@ def load_hip_main(path: str | Path) -> Catalog:
         return rec.floats(f[name])[has_position]
 
     bt, vt = col("BTmag (H32)"), col("VTmag (H34)")
-    return Catalog.from_columns(
+    catalog = Catalog.from_columns(
         name="hip_main",
         source=str(source),
         epoch_yr=HIPPARCOS_EPOCH_YR,
@@ -417,6 +419,7 @@ def load_hip_main(path: str | Path) -> Catalog:
         parallax_mas=col("Plx (H11)"),
         extra={"spectral_type": rec.strings(f["SpType (H76)"])[has_position]},
     )
+    return check_unique_ids(catalog, "HIP number")
 
 
 __all__ = [

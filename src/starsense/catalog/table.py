@@ -21,6 +21,7 @@ import numpy as np
 from starsense._validate import finite_float
 from starsense.catalog import index as _index
 from starsense.catalog._columns import (
+    check_magnitudes,
     extra_columns,
     float_column,
     id_column,
@@ -125,6 +126,7 @@ class Catalog:
         put("ids", ids)
 
         put("mags", named_columns("mags", self.mags, KNOWN_BANDS, n))
+        check_magnitudes(self.mags, ids, self.source)
         put("colours", named_columns("colours", self.colours, KNOWN_COLOURS, n))
 
         if (self.pm_ra_rad_yr is None) != (self.pm_dec_rad_yr is None):

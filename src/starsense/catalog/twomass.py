@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import check_range, existing_file, head_lines, read_delimited
 from starsense.catalog.table import Catalog
 from starsense.errors import CatalogFormatError
@@ -156,7 +157,7 @@ def _catalog(
     check_range(source, ra, 0.0, 360.0, ra_name, line_no, hi_inclusive=False)
     check_range(source, dec, -90.0, 90.0, dec_name, line_no)
     j, h, k = cols["j_m"], cols["h_m"], cols["k_m"]
-    return Catalog.from_columns(
+    catalog = Catalog.from_columns(
         name="twomass",
         source=str(source),
         epoch_yr=TWOMASS_EPOCH_YR,
@@ -166,3 +167,4 @@ def _catalog(
         mags={"J": j, "H": h, "Ks": k},
         colours={"J-H": j - h, "J-Ks": j - k, "H-Ks": h - k},
     )
+    return check_unique_ids(catalog, "id")

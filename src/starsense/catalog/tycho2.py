@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import (
     Field,
     FixedWidthRecords,
@@ -185,7 +186,7 @@ def load_tycho2(path: str | Path) -> Catalog:
     bt_vt = bt - vt
     pm_ra = rec.floats(f["pmRA"])
     pm_dec = rec.floats(f["pmDE"])
-    return Catalog.from_columns(
+    catalog = Catalog.from_columns(
         name="tycho2",
         source=str(source),
         epoch_yr=TYCHO2_EPOCH_YR,
@@ -198,3 +199,4 @@ def load_tycho2(path: str | Path) -> Catalog:
         pm_dec_mas_yr=np.where(no_mean, np.nan, pm_dec),
         extra={"HIP": rec.ints(f["HIP"], required=False), "has_mean_position": ~no_mean},
     )
+    return check_unique_ids(catalog, "TYC number")

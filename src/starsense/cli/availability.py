@@ -30,8 +30,11 @@ from starsense.cli.common import (
     SeedOpt,
     SensorOpt,
     emit,
+    output_dir,
+    output_file,
     parse_floats,
     progress_bar,
+    step_grid,
 )
 from starsense.errors import InputError
 from starsense.units import DEG
@@ -81,9 +84,11 @@ RollOpt = Annotated[
         "random from --seed).",
     ),
 ]
-PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write the curve (PNG) here.")]
+PlotOpt = Annotated[
+    Path | None, typer.Option("--plot", help="Write the curve (PNG) here.", callback=output_file)
+]
 MapsOpt = Annotated[
-    Path | None, typer.Option("--maps", help="Write Mollweide sky maps (PNG) into this folder.")
+    Path | None, typer.Option("--maps", help="Mollweide sky maps (PNG) here.", callback=output_dir)
 ]
 ModelOpt = Annotated[str, typer.Option("--model", help="Sensitivity model: reed or liebe.")]
 TrialsOpt = Annotated[
@@ -261,9 +266,7 @@ def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: P
 
 
 def _maps_dir(maps: Path) -> Path:
-    maps = Path(maps)
-    if maps.exists() and not maps.is_dir():
-        raise InputError(f"--maps {maps}: exists and is not a folder")
+    maps = Path(maps)  # checked by its option's callback (output_dir)
     maps.mkdir(parents=True, exist_ok=True)
     return maps
 
@@ -424,11 +427,8 @@ def track(
     _check_n_min(n_min)
     _check_count(track_samples, "samples per track", "--track-samples")
     node = finite_float(node_deg, "--node-deg") * DEG
-    if not (math.isfinite(inclination_step_deg) and 0 < inclination_step_deg <= 180):
-        raise InputError(
-            f"--inclination-step-deg = {inclination_step_deg:g} is out of range; allowed (0, 180]"
-        )
-    inclinations = np.arange(-90.0, 90.0 + 1e-9, inclination_step_deg) * DEG
+    # from a count (0.01 deg: 18,001 tracks ending at 90); finer than 0.001 deg is refused
+    inclinations = DEG * step_grid(-90, 90, inclination_step_deg, "--inclination-step-deg", 1e-3)
     with progress_bar() as progress:
         sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
                                    roll_deg, seed, progress)  # fmt: skip

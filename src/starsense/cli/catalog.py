@@ -31,6 +31,11 @@ def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterato
     The callback is None when the bar of partitions done is hidden (``show_progress`` false, or
     stderr not a terminal).
     """
+    from starsense.scale.cluster import check_scheduler
+    from starsense.scale.location import check_url
+
+    check_scheduler(dask)  # a malformed or refused --dask fails before the catalogue is opened
+    check_url(catalog)  # a refused URL too: both before lsdb is imported
     from starsense.scale import dask_client, open_hats
 
     cat = open_hats(catalog)
@@ -41,7 +46,7 @@ def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterato
 def check_dask_option(catalog: str, dask: str | None) -> bool:
     """Return True for a ``hats:`` catalogue; --dask with any other catalogue is an error."""
     from starsense.errors import InputError
-    from starsense.scale.hats import is_hats_spec
+    from starsense.scale.location import is_hats_spec
 
     is_hats = is_hats_spec(catalog)
     if dask is not None and not is_hats:
@@ -77,18 +82,22 @@ def catalog_import(
     from starsense.scale import dask_client, import_catalog, open_hats
 
     option_int(pixel_threshold, "--pixel-threshold", 1)
+    from starsense.scale.cluster import check_scheduler
     from starsense.scale.errors import MissingColumnsError
+    from starsense.scale.importer import check_import
 
+    check_scheduler(dask)  # a bad --dask, a bad input or output: before any worker starts
+    try:
+        check_import(input_path, output, ra_column, dec_column, pixel_threshold)
+    except MissingColumnsError as exc:  # the library names parameters; say the options
+        text = str(exc).replace("ra_column / dec_column", "--ra-column / --dec-column")
+        raise MissingColumnsError(text) from None
     with dask_client(dask) as client:
-        try:
-            out = import_catalog(
-                input_path, output, ra_column=ra_column, dec_column=dec_column,
-                pixel_threshold=pixel_threshold, client=client,
-                progress=not as_json and sys.stderr.isatty(),
-            )  # fmt: skip
-        except MissingColumnsError as exc:  # the library names parameters; say the options
-            text = str(exc).replace("ra_column / dec_column", "--ra-column / --dec-column")
-            raise MissingColumnsError(text) from None
+        out = import_catalog(
+            input_path, output, ra_column=ra_column, dec_column=dec_column,
+            pixel_threshold=pixel_threshold, client=client,
+            progress=not as_json and sys.stderr.isatty(),
+        )  # fmt: skip
     cat = open_hats(str(out))
     payload = {
         "output": str(out),

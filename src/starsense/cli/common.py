@@ -12,14 +12,16 @@
 from __future__ import annotations
 
 import contextlib
-import json
+import math
 import sys
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
 import typer
 
+from starsense._io import check_output, json_text
 from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
 
@@ -38,8 +40,12 @@ __all__ = [
     "emit",
     "option_float",
     "option_int",
+    "output_dir",
+    "output_file",
     "parse_floats",
     "progress_bar",
+    "seed_option",
+    "step_grid",
 ]
 
 # -- options ------------------------------------------------------------------------------------
@@ -48,7 +54,25 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JS
 SensorOpt = Annotated[
     str, typer.Option("--sensor", help="Sensor preset (st16, esa_blackfly) or a TOML file.")
 ]
-SeedOpt = Annotated[int, typer.Option("--seed", help="Root seed (results are reproducible).")]
+
+
+def seed_option(value: int) -> int:
+    """Option callback of every ``--seed``: an integer >= 0, checked before any work.
+
+    Raises
+    ------
+    InputError
+        Naming ``--seed`` and the value (NumPy's generators refuse negative seeds).
+    """
+    return check_int(value, "--seed", 0)
+
+
+SeedOpt = Annotated[
+    int,
+    typer.Option(
+        "--seed", help="Root seed, >= 0 (results are reproducible).", callback=seed_option
+    ),
+]
 CatalogOpt = Annotated[
     str,
     typer.Option(
@@ -167,8 +191,11 @@ def parse_floats(
     """
     if text is None:
         return None
+    parts = text.split(",")
+    if text.strip() and any(not p.strip() for p in parts):  # "1,,2", "1,2,": a lost value
+        raise InputError(f"{option} has an empty element in {text!r}; give numbers between commas")
     try:
-        values = [float(p) for p in text.split(",") if p.strip() != ""]
+        values = [float(p) for p in parts if p.strip() != ""]
     except ValueError:
         raise InputError(f"{option} expects comma-separated numbers, got {text!r}") from None
     if not values or (n is not None and len(values) != n):
@@ -182,13 +209,71 @@ def parse_floats(
     return values
 
 
+def step_grid(lo: float, hi: float, step: object, option: str, min_step: float) -> np.ndarray:
+    """Return ``lo, lo + step, ...`` up to ``hi`` (``hi`` itself when the step divides the span).
+
+    Built from a count, like :func:`numpy.linspace`: no floating end point past ``hi`` (as
+    ``arange`` gives for 0.01 over [-90, 90]), and a step below ``min_step`` is refused in one
+    line before anything is allocated.
+
+    Parameters
+    ----------
+    lo, hi : float
+        The ends, in the option's unit.
+    step : object
+        The option's value.
+    option : str
+        The option, for the message.
+    min_step : float
+        The finest step allowed.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    span = hi - lo
+    step = option_float(step, option, min_step, span)
+    n = round(span / step)
+    if not math.isclose(n * step, span, rel_tol=1e-9):
+        n = math.floor(span / step)
+    return np.clip(lo + step * np.arange(n + 1), lo, hi)
+
+
 # -- output -------------------------------------------------------------------------------------
 
 
+def output_file(param: typer.CallbackParam, value: Path | None) -> Path | None:
+    """Option callback: check an output file's place before any work (``callback=output_file``).
+
+    Raises
+    ------
+    OutputError
+        Naming the option and the path: a missing or read-only directory, a directory given
+        where a file goes.
+    """
+    if value is not None:
+        check_output(value, param.opts[0] if param.opts else param.name)
+    return value
+
+
+def output_dir(param: typer.CallbackParam, value: Path | None) -> Path | None:
+    """Option callback: check an output directory's place before any work (``--out``, ``--maps``).
+
+    Raises
+    ------
+    OutputError
+        Naming the option and the path: a file where the directory goes, or no writable
+        directory above it.
+    """
+    if value is not None:
+        check_output(value, param.opts[0] if param.opts else param.name, directory=True)
+    return value
+
+
 def emit(payload: dict, as_json: bool, lines: list[str]) -> None:
-    """Print ``payload`` as JSON, or the human-readable ``lines``."""
+    """Print ``payload`` as JSON (NaN and inf as ``null``), or the human-readable ``lines``."""
     if as_json:
-        typer.echo(json.dumps(payload, indent=2))
+        typer.echo(json_text(payload))  # NaN and inf as null: always valid JSON
     else:
         for line in lines:
             typer.echo(line)

@@ -17,6 +17,7 @@ from starsense.cli.common import (
     emit,
     option_float,
     option_int,
+    output_file,
     parse_floats,
     progress_bar,
 )
@@ -25,7 +26,10 @@ from starsense.units import DEG
 
 
 def render(
-    out: Annotated[Path, typer.Option("--out", help="Frame to write (.tiff, .png, .fits).")],
+    out: Annotated[
+        Path,
+        typer.Option("--out", help="Frame to write (.tiff, .png, .fits).", callback=output_file),
+    ],
     sensor: SensorOpt = "st16",
     ra_deg: Annotated[float, typer.Option("--ra-deg", help="Boresight RA, deg.")] = 0.0,
     dec_deg: Annotated[float, typer.Option("--dec-deg", help="Boresight Dec, deg.")] = 0.0,
@@ -52,6 +56,18 @@ def render(
             "level outside the areas) instead of its detector.",
         ),
     ] = False,
+    sequence: Annotated[
+        int | None,
+        typer.Option(
+            "--sequence",
+            help="Render N frames, the attitude carried on by the rate: --out DIR/frame.tiff "
+            "writes DIR/frame_000.tiff ... (each with its truth JSON).",
+        ),
+    ] = None,
+    interval_s: Annotated[
+        float | None,
+        typer.Option("--interval-s", help="Time between frames of a --sequence, s."),
+    ] = None,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
     from starsense.catalog import load_catalog
@@ -64,8 +80,17 @@ def render(
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
     option_float(roll_deg, "--roll-deg")
     rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
+    if max_mag is not None:
+        option_float(max_mag, "--max-mag")
     sens = load_sensor(sensor)
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
+    if sequence is not None or interval_s is not None:
+        if areas:
+            raise InputError("--sequence renders detector frames: it does not take --areas")
+        _render_sequence(out, sens, att, rate, sequence, interval_s, seed,
+                         model=model, catalog=load_catalog(catalog), max_mag=max_mag,
+                         noise=not no_noise)  # fmt: skip
+        return
     kwargs = {"rate_rad_s": rate, "model": model, "max_mag": max_mag, "rng": seed,
               "noise": not no_noise}  # fmt: skip
     if time is not None:
@@ -91,6 +116,34 @@ def render(
     typer.echo(f"frame written: {written} ({n} stars{note}; truth in {written}.json)")
 
 
+def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kwargs) -> None:
+    """``render --sequence N --interval-s DT``: frames DIR/stem_000.ext ..., checked first."""
+    from starsense.render.io import FORMATS, write_frame
+    from starsense.render.sequence import render_sequence, sequence_paths
+
+    if n is None or interval_s is None:
+        raise InputError("--sequence and --interval-s go together: give both")
+    option_int(n, "--sequence", 1, 10000)
+    option_float(interval_s, "--interval-s", 0.0)
+    if interval_s <= 0 or interval_s < sens.exposure_s:
+        raise InputError(
+            f"--interval-s must be at least the exposure ({sens.exposure_s:g} s), got {interval_s}"
+        )
+    if out.suffix.lower() not in FORMATS:
+        raise InputError(f"--out {out}: unknown image extension; use one of {', '.join(FORMATS)}")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise InputError(f"--out {out}: directory {str(out.parent)!r} not found")
+    paths = sequence_paths(out, n)
+    frames = render_sequence(sens, att, catalog, n, interval_s, rate_rad_s=rate, seed=seed,
+                             **kwargs)  # fmt: skip
+    for path, frame in zip(paths, frames, strict=True):
+        write_frame(path, frame)
+        typer.echo(
+            f"frame written: {path} (t = {frame.truth.time_s:g} s, {len(frame.truth.stars)} "
+            f"stars; truth in {path}.json)"
+        )
+
+
 def solve(
     image: Annotated[Path, typer.Argument(help="Frame: TIFF, PNG, JPEG or FITS (8-32 bit).")],
     sensor: Annotated[
@@ -105,7 +158,11 @@ def solve(
     catalog: CatalogOpt = "hipparcos",
     wcs: Annotated[
         Path | None,
-        typer.Option("--wcs", help="Write the solution's WCS (FITS header; TAN-SIP if distorted)."),
+        typer.Option(
+            "--wcs",
+            help="Write the solution's WCS (FITS header; TAN-SIP if distorted).",
+            callback=output_file,
+        ),
     ] = None,
     time: Annotated[
         str | None,
@@ -194,6 +251,8 @@ def montecarlo(
 
     option_int(trials, "--trials", 1)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
+    if max_mag is not None:
+        option_float(max_mag, "--max-mag")
     cat = load_catalog("hipparcos")
     with progress_bar(not as_json) as bar:
         res = run_montecarlo(

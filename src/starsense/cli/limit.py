@@ -22,7 +22,10 @@ from starsense.cli.common import (
     ExposureOpt,
     JsonOpt,
     ScaleCatalogOpt,
+    SeedOpt,
     emit,
+    option_float,
+    output_file,
 )
 from starsense.errors import InputError
 from starsense.units import DEG, RAD_TO_ARCSEC
@@ -101,18 +104,24 @@ def limit_star(
     if mag_v is not None or b_v is not None:
         if mag_v is None or b_v is None:
             raise InputError("--mag-v and --b-v must be given together")
-        m, ci, system = mag_v, b_v, "B-V"
+        m, ci, system, names = mag_v, b_v, "B-V", ("--mag-v", "--b-v")
     elif mag_h is not None or h_ks is not None:
         if mag_h is None or h_ks is None:
             raise InputError("--mag-h and --h-ks must be given together")
-        m, ci, system = mag_h, h_ks, "H-Ks"
+        m, ci, system, names = mag_h, h_ks, "H-Ks", ("--mag-h", "--h-ks")
     elif mag is not None and colour_index is not None and colour is not None:
-        m, ci, system = mag, colour_index, colour
+        m, ci, system, names = mag, colour_index, colour, ("--mag", "--colour-index")
     else:
         raise InputError(
             "give --mag-v and --b-v, or --mag-h and --h-ks, or --mag, --colour-index and --colour"
         )
+    from starsense.catalog._columns import MAG_RANGE  # here: the CLI starts without numpy's
+    # scientific stack, and a refused address or bad option is known in well under a second
+
+    option_float(m, names[0], *MAG_RANGE)
+    option_float(ci, names[1])
     t, c = fit_star(m, ci, system)
+    clamped = _colour_clamp_note(system, ci, names[1], t)
     f = float(centroid_fisher(c, t, diameter_m, exposure_s))
     photons = float(total_photons(c, t, diameter_m, exposure_s))
     sigma = 1.0 / np.sqrt(f)
@@ -126,7 +135,10 @@ def limit_star(
         "magnitude_band": ColourModel(system).magnitude_band,
         "diameter_m": diameter_m,
         "exposure_s": exposure_s,
+        "colour_clamped": clamped is not None,
     }
+    if clamped is not None:
+        typer.echo(f"warning: {clamped}", err=True)
     emit(
         payload,
         as_json,
@@ -135,6 +147,21 @@ def limit_star(
             f"photons collected (D = {diameter_m} m, t = {exposure_s} s): {photons:.4g}",
             f"centroid bound sigma_min: {_rad(sigma)}",
         ],
+    )
+
+
+def _colour_clamp_note(system: str, ci: float, option: str, t: float) -> str | None:
+    """Say what was clamped when a colour lies outside the paper's clamp (sec. 2.5), else None."""
+    from starsense.photometry import ColourModel
+
+    model = ColourModel(system)
+    lo, hi = model.colour_limits
+    if lo <= ci <= hi:
+        return None
+    return (
+        f"{option} {ci:g} is outside [{lo:.4f}, {hi:.4f}], the {system} of black bodies at "
+        f"{model.t_max_k:,.0f} K and {model.t_min_k:,.0f} K; the temperature is clamped to "
+        f"{t:,.0f} K (Fialho & Mortari 2019, sec. 2.5)"
     )
 
 
@@ -162,8 +189,6 @@ def limit_sky(
     With --catalog hats:PATH_OR_URL the catalogue is processed partition by partition on Dask
     (--dask), with the same kernels and results as in memory.
     """
-    from starsense.analysis.limits.sky import fov_limit, sky_limit
-
     if (fov_deg is None) != (not target_deg):
         raise InputError("--fov-deg and --target-deg go together (one or more targets)")
     if fov_deg is not None:
@@ -174,6 +199,8 @@ def limit_sky(
         _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg,
                         radec, as_json)  # fmt: skip
         return
+    from starsense.analysis.limits.sky import fov_limit, sky_limit
+
     cat, stars = _load_stars(catalog, max_mag, colour)
     common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
     if fov_deg is None:
@@ -222,9 +249,10 @@ def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_
                     as_json) -> None:  # fmt: skip
     """Run ``limit sky`` over a HATS catalogue on Dask (starsense.scale)."""
     from starsense.cli.catalog import hats_session
-    from starsense.scale import fov_limit, sky_limit
 
     with hats_session(catalog, dask, not as_json) as (cat, client, progress):
+        from starsense.scale import fov_limit, sky_limit  # after the address checks: fast fail
+
         opts = {"colour": colour, "max_mag": max_mag, "client": client, "progress": progress}
         if fov_deg is None:
             res, used = sky_limit(cat, diameter_m, exposure_s, **opts)
@@ -257,7 +285,9 @@ def limit_curve(
     extrapolate_to: Annotated[
         float, typer.Option("--extrapolate-to", help="N stars to extrapolate to (paper: 3e11).")
     ] = 3e11,
-    plot: Annotated[Path | None, typer.Option("--plot", help="Write a PNG of the curve.")] = None,
+    plot: Annotated[
+        Path | None, typer.Option("--plot", help="Write a PNG of the curve.", callback=output_file)
+    ] = None,
     dask: DaskOpt = None,
     as_json: JsonOpt = False,
 ) -> None:
@@ -315,13 +345,15 @@ def limit_photons(
     catalog: CatalogOpt = "hipparcos",
     colour: ColourOpt = None,
     trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws.")] = 200,
-    seed: Annotated[int, typer.Option("--seed")] = 0,
+    seed: SeedOpt = 0,
     as_json: JsonOpt = False,
 ) -> None:
     """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
     from starsense.analysis.limits.photons import low_photon_degradation
 
     check_int(trials, "--trials", 1)
+    option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
+    option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     cat, stars = _load_stars(catalog, None, colour)
     res = low_photon_degradation(stars, diameter_m, exposure_s, trials, seed)
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}

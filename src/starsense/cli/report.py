@@ -14,11 +14,15 @@ from starsense.cli.common import (
     SensorOpt,
     option_float,
     option_int,
+    output_dir,
+    seed_option,
 )
 
 
 def report(
-    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("report"),
+    out: Annotated[
+        Path, typer.Option("--out", help="Output directory.", callback=output_dir)
+    ] = Path("report"),
     catalog: CatalogOpt = "hipparcos",
     diameter_m: DiameterOpt = 0.1,
     exposure_s: ExposureOpt = 0.01,
@@ -26,7 +30,10 @@ def report(
         Path | None,
         typer.Option("--sensors", help="CSV of real sensors to plot against the limit (Fig. 8)."),
     ] = None,
-    seed: Annotated[int, typer.Option("--seed", help="Root seed of the Monte Carlo parts.")] = 0,
+    seed: Annotated[
+        int,
+        typer.Option("--seed", help="Root seed of the Monte Carlo parts.", callback=seed_option),
+    ] = 0,
     sensor: SensorOpt = "st16",
     slew_trials: Annotated[
         int, typer.Option("--slew-trials", help="Monte Carlo trials per slew point.")

@@ -8,12 +8,14 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._validate import finite_float
 from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
     SeedOpt,
     SensorOpt,
     emit,
+    output_file,
     parse_floats,
     progress_bar,
 )
@@ -43,6 +45,7 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
     from starsense.analysis.slew import simulate_slew
     from starsense.sensor import load_sensor
 
+    finite_float(colour_index, "--b-v")
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")
     rate_values = _rates_rad_s(rates)
@@ -67,7 +70,9 @@ TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo trials per
 CriterionOpt = Annotated[
     float, typer.Option("--criterion", help="Detection fraction that counts as detected.")
 ]
-PlotOpt = Annotated[Path | None, typer.Option("--plot", help="Write a PNG figure here.")]
+PlotOpt = Annotated[
+    Path | None, typer.Option("--plot", help="Write a PNG figure here.", callback=output_file)
+]
 BvOpt = Annotated[
     float, typer.Option("--b-v", help="B-V of the simulated star (blackbody model; 0 = A0).")
 ]

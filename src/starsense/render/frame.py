@@ -129,6 +129,9 @@ class FrameTruth:
     apparent : dict or None
         The apparent places the stars were rendered at (time, observer speed;
         :meth:`starsense.catalog.apparent.ApparentPlaces.to_dict`); None for catalogue places.
+    time_s : float or None
+        Mid-exposure time of the frame in its sequence, s (None for a lone frame;
+        :func:`starsense.render.sequence.render_sequence`).
     """
 
     sensor: str
@@ -148,6 +151,7 @@ class FrameTruth:
     method: str
     stars: StarTruth
     apparent: dict | None = None
+    time_s: float | None = None
 
     def to_dict(self) -> dict:
         """JSON-able dictionary (angles also in degrees, quaternion scalar-last)."""
@@ -174,6 +178,7 @@ class FrameTruth:
             "noise": self.noise,
             "method": self.method,
             "apparent_places": self.apparent,
+            "time_s": self.time_s,
             "n_stars": len(self.stars),
             "stars": self.stars.to_dict(),
         }

@@ -2,7 +2,7 @@
 
 ``write_frame("frame.tif", frame)`` writes ``frame.tif`` and ``frame.tif.json`` (the truth,
 :meth:`Frame.truth_dict`). Both are written to temporary names in the target directory
-(:func:`starsense._io.atomic_path`, one inside the other) and renamed into place only when both
+(:func:`starsense._io.atomic_paths`, renamed together) and renamed into place only when both
 are complete: an error leaves no partial file behind. They get the permissions of any file the
 user creates (``0666`` less the umask).
 
@@ -28,14 +28,13 @@ viewers conventionally display the first row at the bottom).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
 
 import numpy as np
 
-from starsense._io import atomic_path
+from starsense._io import atomic_paths, json_text
 from starsense.errors import InputError
 
 __all__ = ["FORMATS", "write_frame"]
@@ -135,17 +134,16 @@ def write_frame(path: str | os.PathLike, frame) -> Path:
     if not directory.is_dir():
         raise InputError(f"cannot write {str(target)!r}: directory {str(directory)!r} not found")
     json_path = target.with_name(target.name + ".json")
-    text = json.dumps(frame.truth_dict(), indent=1, allow_nan=False)
+    text = json_text(frame.truth_dict(), indent=1)
 
-    # the image is renamed into place first, then the JSON; neither before both are complete
-    with atomic_path(json_path, ".json") as tmp_json:
-        with atomic_path(target, ext) as tmp_image:
-            if fmt == "FITS":
-                _write_fits(str(tmp_image), frame)
-            else:
-                when = None if frame.truth.apparent is None else frame.truth.apparent["time_utc"]
-                _write_pillow(str(tmp_image), image, fmt, when)
-            with open(tmp_json, "w", encoding="utf-8") as fh:
-                fh.write(text)
-                fh.write("\n")
+    # both renamed into place together (signals held back), neither before both are complete
+    with atomic_paths([target, json_path], [ext, ".json"]) as (tmp_image, tmp_json):
+        if fmt == "FITS":
+            _write_fits(str(tmp_image), frame)
+        else:
+            when = None if frame.truth.apparent is None else frame.truth.apparent["time_utc"]
+            _write_pillow(str(tmp_image), image, fmt, when)
+        with open(tmp_json, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.write("\n")
     return target

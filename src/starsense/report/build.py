@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import datetime
 import json
-import math
 import os
 import shutil
 import tempfile
@@ -17,10 +16,15 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
-import numpy as np
-
 import starsense
-from starsense._io import dir_mode
+from starsense._io import (
+    check_output,
+    deferred_signals,
+    dir_mode,
+    json_text,
+    sweep_stale,
+    temp_prefix,
+)
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
@@ -120,7 +124,7 @@ def build_report(
     t0 = time.perf_counter()
     say = progress or _noop
     check_aperture(diameter_m, exposure_s)
-    out_dir = Path(out_dir).resolve()
+    out_dir = check_output(out_dir, "report directory", directory=True).resolve()
     _check_replaceable(out_dir)
     sensors: tuple[SensorSpec, ...] = ()
     if sensors_table is not None:
@@ -130,7 +134,8 @@ def build_report(
     name, n_catalog, star_sets, catalog = _load_stars(catalog_spec, catalog, stars, say)
 
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.tmp-", dir=out_dir.parent))
+    sweep_stale(out_dir)  # what a killed run left beside the report
+    work = Path(tempfile.mkdtemp(prefix=f"{temp_prefix(out_dir)}tmp-", dir=out_dir.parent))
     try:
         ctx = ReportContext(
             work_dir=work,
@@ -154,7 +159,8 @@ def build_report(
         _write_index(work, ctx, sections, elapsed)
         _write_json(work, ctx, sections, elapsed)
         os.chmod(work, dir_mode())  # mkdtemp makes it 0700; a directory the user makes
-        _swap_into_place(work, out_dir)
+        with deferred_signals():  # the old report, or the new one: never neither
+            _swap_into_place(work, out_dir)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
@@ -235,7 +241,7 @@ def _swap_into_place(work: Path, out_dir: Path) -> None:
     if not out_dir.exists():
         work.rename(out_dir)
         return
-    old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old-", dir=out_dir.parent))
+    old = Path(tempfile.mkdtemp(prefix=f"{temp_prefix(out_dir)}old-", dir=out_dir.parent))
     old.rmdir()
     out_dir.rename(old)
     try:
@@ -282,21 +288,6 @@ def _write_index(work: Path, ctx: ReportContext, sections: Sequence[Section], el
     (work / INDEX).write_text(text, encoding="utf-8")
 
 
-def _jsonable(x):
-    """Numpy scalars/arrays -> Python; NaN and inf -> None (JSON has neither)."""
-    if isinstance(x, Mapping):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple | np.ndarray):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.bool_ | bool):
-        return bool(x)
-    if isinstance(x, np.integer | int):
-        return int(x)
-    if isinstance(x, np.floating | float):
-        return float(x) if math.isfinite(x) else None
-    return x
-
-
 def _write_json(work: Path, ctx: ReportContext, sections: Sequence[Section], elapsed: float):
     doc = {
         "generator": GENERATOR,
@@ -316,6 +307,4 @@ def _write_json(work: Path, ctx: ReportContext, sections: Sequence[Section], ela
             s.key: {"title": s.title, "figures": list(s.figures), **s.data} for s in sections
         },
     }
-    (work / JSON_NAME).write_text(
-        json.dumps(_jsonable(doc), indent=1, allow_nan=False), encoding="utf-8"
-    )
+    (work / JSON_NAME).write_text(json_text(doc, indent=1), encoding="utf-8")

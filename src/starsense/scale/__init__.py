@@ -31,8 +31,8 @@ from starsense.scale.errors import (
 _LAZY = {
     "open_hats": "starsense.scale.hats",
     "HatsCatalog": "starsense.scale.hats",
-    "PUBLISHED_HATS": "starsense.scale.hats",
-    "is_hats_spec": "starsense.scale.hats",
+    "PUBLISHED_HATS": "starsense.scale.location",
+    "is_hats_spec": "starsense.scale.location",
     "sky_limit": "starsense.scale.limits",
     "fov_limit": "starsense.scale.limits",
     "brightest_curve": "starsense.scale.limits",

@@ -14,9 +14,13 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
+import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
+from starsense._io import probe_tcp
 from starsense.errors import InputError
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import SchedulerUnreachableError
@@ -50,7 +54,61 @@ def parse_address(address: str | None) -> tuple[str, int | None]:
             f"--dask {address!r} is not a scheduler address; expected local, local:N or "
             "tcp://HOST:PORT"
         )
+    if scheme != "inproc" and not (port.isdigit() and 1 <= int(port) <= 65535):
+        raise InputError(f"--dask {address!r}: port {port!r} is not a number in 1-65535")
     return "remote", text
+
+
+def check_scheduler(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -> tuple:
+    """Parse ``address`` and, for a TCP scheduler, check that something listens there.
+
+    Cheap (no Dask import): commands call it before any other work, so a malformed address or
+    a refused connection is reported at once.
+
+    Parameters
+    ----------
+    address : str or None
+        As for :func:`dask_client`.
+    timeout_s : float
+        How long to wait for the scheduler's port to answer, s.
+
+    Returns
+    -------
+    tuple
+        What :func:`parse_address` returns.
+
+    Raises
+    ------
+    InputError
+        A malformed address (a port outside 1-65535).
+    SchedulerUnreachableError
+        The connection is refused (at once) or not answered within ``timeout_s``.
+    """
+    kind, value = parse_address(address)
+    if kind == "remote" and value.startswith(("tcp://", "tls://")):
+        host, _, port = value.partition("://")[2].rpartition(":")
+        try:  # a refusal is known at once, not after the timeout
+            probe_tcp(host.strip("[]"), int(port), timeout_s, f"no Dask scheduler at {value}")
+        except InputError as exc:
+            raise SchedulerUnreachableError(str(exc)) from None
+    return kind, value
+
+
+@contextlib.contextmanager
+def _children_ignore_sigint() -> Iterator[None]:
+    """Start processes with SIGINT ignored (it stays ignored across exec, and Python keeps it so).
+
+    A terminal's Ctrl-C goes to the whole process group: without this each local worker would
+    print its own KeyboardInterrupt traceback while the command shuts the cluster down.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 @contextlib.contextmanager
@@ -80,26 +138,27 @@ def dask_client(
     SchedulerUnreachableError
         Nothing answers at the address within ``timeout_s``.
     """
+    kind, value = check_scheduler(address, timeout_s)
     (distributed,) = require("distributed")
-    kind, value = parse_address(address)
     if kind == "local":
         n = value or n_workers or os.cpu_count() or 1
-        cluster = distributed.LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=processes,
-            # TCP on the loopback even for thread workers: the scheduler can then be shared
-            # by address (tcp://127.0.0.1:PORT) with other clients of this machine
-            protocol="tcp://",
-            host="127.0.0.1",
-            # no dashboard: None would mean distributed's default, port 8787, and a second
-            # starsense run on the same machine would then fail to start its cluster
-            dashboard_address=":0",
-            scheduler_kwargs={"dashboard": False},
-            # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
-            # a traceback; task failures still reach the client as exceptions
-            silence_logs=logging.CRITICAL,
-        )
+        with _children_ignore_sigint():  # Ctrl-C is the command's, not each worker's
+            cluster = distributed.LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=processes,
+                # TCP on the loopback even for thread workers: the scheduler can then be shared
+                # by address (tcp://127.0.0.1:PORT) with other clients of this machine
+                protocol="tcp://",
+                host="127.0.0.1",
+                # no dashboard: None would mean distributed's default, port 8787, and a
+                # second starsense run on the same machine would then fail to start its cluster
+                dashboard_address=":0",
+                scheduler_kwargs={"dashboard": False},
+                # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
+                # a traceback; task failures still reach the client as exceptions
+                silence_logs=logging.CRITICAL,
+            )
         try:
             client = distributed.Client(cluster)
             client.run(quiet_third_party_warnings)
@@ -110,11 +169,13 @@ def dask_client(
         finally:
             cluster.close()
         return
+    t0 = time.monotonic()
     try:
         client = distributed.Client(value, timeout=f"{timeout_s}s")
     except (OSError, TimeoutError) as exc:
         raise SchedulerUnreachableError(
-            f"no Dask scheduler answers at {value} (gave up after {timeout_s:g} s): {exc}"
+            f"no Dask scheduler answers at {value} (waited {time.monotonic() - t0:.1f} s): "
+            f"{' '.join(str(exc).split())}"
         ) from None
     client.run(quiet_third_party_warnings)
     try:

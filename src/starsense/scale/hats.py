@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import urllib.error
-import urllib.request
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,15 +38,14 @@ from starsense.errors import InputError
 from starsense.photometry.colour import COLOUR_SYSTEMS
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import CatalogUnavailableError, MissingColumnsError
-
-#: published HATS catalogues (module notes)
-PUBLISHED_HATS: dict[str, str] = {
-    "gaia_dr3": "https://data.lsdb.io/hats/gaia_dr3",
-    "two_mass": "https://data.lsdb.io/hats/two_mass",
-}
-
-#: seconds to wait for a catalogue URL to answer
-URL_TIMEOUT_S = 10.0
+from starsense.scale.location import (  # noqa: F401 - PUBLISHED_HATS, is_hats_spec: public here too
+    _URL_SCHEMES,
+    PUBLISHED_HATS,
+    URL_TIMEOUT_S,
+    hats_location,
+    is_hats_spec,
+)
+from starsense.scale.location import probe_url as _probe_url
 
 #: band -> accepted column names, in order of preference
 MAG_ALIASES: dict[str, tuple[str, ...]] = {
@@ -76,25 +73,6 @@ COLOUR_ALIASES: dict[str, tuple[str, ...]] = {
     "H-Ks": ("H-Ks", "h_ks", "h_k", "H_Ks"),
     "BP-RP": ("BP-RP", "bp_rp", "BP_RP"),
 }
-
-_URL_SCHEMES = ("http://", "https://", "s3://", "gs://", "gcs://", "abfs://", "az://", "file://")
-
-
-def is_hats_spec(spec: str | None) -> bool:
-    """Return whether ``spec`` is a ``hats:PATH_OR_URL`` catalogue specification."""
-    return isinstance(spec, str) and spec.strip().lower().startswith("hats:")
-
-
-def hats_location(spec: str) -> str:
-    """PATH_OR_URL of ``hats:PATH_OR_URL`` (a known name such as ``hats:gaia_dr3`` -> its URL)."""
-    text = spec.strip()
-    if text.lower().startswith("hats:"):
-        text = text[5:].strip()
-    if not text:
-        raise InputError(
-            "hats: needs a path or URL, e.g. hats:./my_hats or hats:" + PUBLISHED_HATS["gaia_dr3"]
-        )
-    return PUBLISHED_HATS.get(text, text)
 
 
 @dataclass(frozen=True)
@@ -281,29 +259,6 @@ def _lsdb_catalog(lsdb: Any, location: str, dataset: Any, columns: list[str]) ->
     return lsdb.open_catalog(location, columns=columns)  # pragma: no cover
 
 
-def _probe_url(url: str, timeout_s: float) -> None:
-    """Fail fast, with a specific error, when a catalogue URL does not answer."""
-    base = url.rstrip("/")
-    last = None
-    for leaf in ("collection.properties", "hats.properties", "properties"):
-        try:
-            with urllib.request.urlopen(f"{base}/{leaf}", timeout=timeout_s) as response:
-                if response.status == 200:
-                    return
-        except urllib.error.HTTPError as exc:  # the server answers: try the next file
-            last = exc
-            continue
-        except (urllib.error.URLError, OSError, ValueError) as exc:
-            reason = getattr(exc, "reason", exc)
-            raise CatalogUnavailableError(
-                f"cannot reach HATS catalogue {url} (gave up after {timeout_s:g} s): {reason}"
-            ) from None
-    raise CatalogUnavailableError(
-        f"{url} is not a HATS catalogue: no collection.properties, hats.properties or "
-        f"properties file ({last})"
-    )
-
-
 def open_hats(spec: str, timeout_s: float = URL_TIMEOUT_S) -> HatsCatalog:
     """Open a HATS catalogue (or collection) from ``hats:PATH_OR_URL`` or a bare path / URL.
 
@@ -318,11 +273,12 @@ def open_hats(spec: str, timeout_s: float = URL_TIMEOUT_S) -> HatsCatalog:
     location = hats_location(spec) if is_hats_spec(spec) else str(spec).strip()
     if not math.isfinite(timeout_s) or timeout_s <= 0:
         raise InputError(f"timeout must be > 0 s, got {timeout_s!r}")
-    hats, _lsdb = require("hats", "lsdb")
     lower = location.lower()
-    if lower.startswith(("http://", "https://")):
-        _probe_url(location, timeout_s)
-    elif not lower.startswith(_URL_SCHEMES):
+    is_http = lower.startswith(("http://", "https://"))
+    if is_http:
+        _probe_url(location, timeout_s)  # before importing lsdb: a refusal is known at once
+    hats, _lsdb = require("hats", "lsdb")
+    if not is_http and not lower.startswith(_URL_SCHEMES):
         path = Path(location).expanduser()
         if not path.exists():
             raise CatalogUnavailableError(f"HATS catalogue not found: {path}")

@@ -8,12 +8,15 @@ positions, magnitudes and colours by name.
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import tempfile
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from starsense._io import check_output, sweep_stale, temp_prefix
 from starsense._validate import check_int
 from starsense.errors import InputError
 from starsense.scale._deps import quiet_third_party_warnings, require
@@ -49,6 +52,102 @@ def input_columns(path: Path, fmt: str) -> list[str]:
         raise CatalogUnavailableError(f"cannot read {path}: {exc}") from None
 
 
+def _check_positions(src: Path, fmt: str, ra: str, dec: str) -> None:
+    """Read a CSV's position columns once (streamed): name a non-number before workers start."""
+    if fmt != "csv":
+        return
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+
+    convert = pcsv.ConvertOptions(
+        include_columns=[ra, dec], column_types={ra: pa.float64(), dec: pa.float64()}
+    )
+    try:
+        with pcsv.open_csv(src, convert_options=convert) as reader:
+            for _ in reader:
+                pass
+    except (pa.ArrowInvalid, OSError) as exc:
+        detail = _failure_detail(src, fmt, ra, dec, " ".join(str(exc).split()))
+        raise InputError(f"cannot import {src}: {detail}") from None
+
+
+@contextlib.contextmanager
+def _collect_worker_prints(client: Any) -> Iterator[list[str]]:
+    """Yield a list collecting what tasks print through Dask, instead of the client's stdout.
+
+    hats-import prints each failed task (worker address, message) that way; the command's
+    output stays clean and the error names the cause in one line.
+    """
+    printed: list[str] = []
+
+    def collect(event: Any) -> None:
+        msg = event[1] if isinstance(event, tuple) and len(event) == 2 else event
+        args = msg.get("args", ()) if isinstance(msg, dict) else (msg,)
+        printed.append(" ".join(str(a) for a in args))
+
+    handlers = getattr(client, "_event_handlers", {})
+    previous = handlers.get("print") if isinstance(handlers, dict) else None
+    client.subscribe_topic("print", collect)
+    try:
+        yield printed
+    finally:
+        if previous is not None:
+            client.subscribe_topic("print", previous)
+        else:
+            client.unsubscribe_topic("print")
+
+
+def _failure_detail(src: Path, fmt: str, ra: str, dec: str, printed: str) -> str:
+    """Say why hats-import failed: a CSV's first bad position, else its workers' last message."""
+    from starsense.catalog._parse import locate_delimited_error
+
+    if fmt == "csv":
+        found = locate_delimited_error(
+            src, delimiter=",", names=None, skip_lines=0, numeric={ra: float, dec: float},
+            required=(ra, dec), null_values=("",), quoting=True,
+        )  # fmt: skip
+        if found is not None:
+            return f"line {found.line}, column {found.field}: {found.detail}"
+    lines = [ln.strip() for ln in printed.splitlines() if ln.strip()]
+    return lines[-1] if lines else "a hats-import task failed"
+
+
+def check_import(
+    input_path: str | Path,
+    output: str | Path,
+    ra_column: str = "ra",
+    dec_column: str = "dec",
+    pixel_threshold: int = 1_000_000,
+) -> tuple[Path, Path, str]:
+    """Check an import before any worker starts; return (input, output, format).
+
+    The input exists and its format is known, the output does not exist and its directory is
+    writable, the position columns are there and (CSV) every position is a number.
+
+    Raises
+    ------
+    InputError
+        Naming the file, and for a bad position the line, column and value.
+    """
+    src = Path(input_path).expanduser()
+    if not src.is_file():
+        raise CatalogUnavailableError(f"input catalogue not found: {src}")
+    dst = check_output(output, "output", directory=True)
+    fmt = input_format(src)
+    if dst.exists():
+        raise InputError(f"output {dst} already exists; remove it or choose another name")
+    check_int(pixel_threshold, "pixel_threshold", 1)
+    columns = input_columns(src, fmt)
+    missing = [c for c in (ra_column, dec_column) if c not in columns]
+    if missing:
+        raise MissingColumnsError(
+            f"{src}: position column(s) {', '.join(missing)} missing (columns: "
+            f"{', '.join(columns)}); name them with ra_column / dec_column"
+        )
+    _check_positions(src, fmt, ra_column, dec_column)
+    return src, dst, fmt
+
+
 def import_catalog(
     input_path: str | Path,
     output: str | Path,
@@ -81,27 +180,14 @@ def import_catalog(
     InputError
         Missing input, unknown format, existing output, missing position columns.
     """
-    src = Path(input_path).expanduser()
-    dst = Path(output).expanduser()
-    if not src.is_file():
-        raise CatalogUnavailableError(f"input catalogue not found: {src}")
-    fmt = input_format(src)
-    if dst.exists():
-        raise InputError(f"output {dst} already exists; remove it or choose another name")
-    check_int(pixel_threshold, "pixel_threshold", 1)
-    columns = input_columns(src, fmt)
-    missing = [c for c in (ra_column, dec_column) if c not in columns]
-    if missing:
-        raise MissingColumnsError(
-            f"{src}: position column(s) {', '.join(missing)} missing (columns: "
-            f"{', '.join(columns)}); name them with ra_column / dec_column"
-        )
+    src, dst, fmt = check_import(input_path, output, ra_column, dec_column, pixel_threshold)
     require("hats_import", "distributed")
     from hats_import.catalog.arguments import ImportArguments
     from hats_import.pipeline import pipeline_with_client
 
     dst.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent))
+    sweep_stale(dst)  # what a killed import left beside the output
+    work = Path(tempfile.mkdtemp(prefix=temp_prefix(dst), suffix=".tmp", dir=dst.parent))
     try:
         with warnings.catch_warnings():
             quiet_third_party_warnings()
@@ -117,12 +203,15 @@ def import_catalog(
                 resume=False,
                 progress_bar=progress,
             )
-            with client_or_local(client) as c:
+            with client_or_local(client) as c, _collect_worker_prints(c) as printed:
                 pipeline_with_client(args, c)
         shutil.rmtree(work / "intermediate", ignore_errors=True)
         (work / dst.name).rename(dst)
     except (ValueError, KeyError) as exc:
         raise InputError(f"hats-import could not import {src}: {exc}") from None
+    except RuntimeError:  # "Some mapping stages failed. See above Exceptions."
+        detail = _failure_detail(src, fmt, ra_column, dec_column, "\n".join(printed))
+        raise InputError(f"hats-import could not import {src}: {detail}") from None
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return dst

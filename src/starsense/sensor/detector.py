@@ -31,7 +31,7 @@ class Detector:
     full_well_e : float
         Full-well capacity, electrons (signal clips here before the ADC).
     gain_counts_per_e : float
-        Conversion gain, counts per electron.
+        Conversion gain, counts per electron, within [1e-4, 1e4].
     read_noise_e : float
         Read noise, electrons rms.
     dark_current_e_s : float
@@ -63,7 +63,8 @@ class Detector:
         check_field("detector", "columns", self.columns, 1, 100_000, integer=True)
         check_field("detector", "rows", self.rows, 1, 100_000, integer=True)
         check_field("detector", "pixel_pitch_m", self.pixel_pitch_m, 0, 1e-3, lo_open=True)
-        check_field("detector", "gain_counts_per_e", self.gain_counts_per_e, 0, 1e4, lo_open=True)
+        # 1e-4 counts/e (10,000 e per count) to 1e4: beyond any CCD/CMOS/EMCCD; 1e-30 is a typo
+        check_field("detector", "gain_counts_per_e", self.gain_counts_per_e, 1e-4, 1e4)
         check_field("detector", "read_noise_e", self.read_noise_e, 0, 1e4)
         check_field("detector", "bit_depth", self.bit_depth, 1, 32, integer=True)
         check_field("detector", "psf_sigma_px", self.psf_sigma_px, 0, 100, lo_open=True)

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from starsense._io import read_text
 from starsense.errors import InputError
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
@@ -229,14 +230,16 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
     Sensor
     """
     text = str(name_or_path)
-    path = Path(text)
+    path = Path(text).expanduser()
+    if not text.strip():
+        raise InputError(
+            f"sensor is empty: give a preset ({', '.join(preset_names())}) or a TOML file"
+        )
     if text in preset_names():
         resource = resources.files("starsense.sensor") / "presets" / f"{text}.toml"
         raw, source = resource.read_text(encoding="utf-8"), f"preset {text}"
     elif path.suffix == ".toml" or path.exists():
-        if not path.is_file():
-            raise InputError(f"sensor file not found: {path}")
-        raw, source = path.read_text(encoding="utf-8"), str(path)
+        raw, source = read_text(path, "sensor file"), str(path)
     else:
         raise InputError(
             f"unknown sensor {text!r}: not a preset ({', '.join(preset_names())}) nor a TOML file"

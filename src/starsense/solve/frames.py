@@ -2,22 +2,73 @@
 
 Colour frames are converted to luminance with the ITU-R BT.601 weights (0.299 R + 0.587 G +
 0.114 B), as Pillow's "L" mode does, but in floating point so 16-bit colour keeps its depth.
+
+Every problem with the file is an :class:`~starsense.errors.InputError` naming it: missing or
+unreadable, a size past the pixel limit (:data:`DEFAULT_MAX_PIXELS`, raised with the
+environment variable ``STARSENSE_MAX_PIXELS`` or ``max_pixels=``) checked from the header before
+any pixel is decoded, a FITS header with no or a blank ``BITPIX`` or promising more data than
+the file holds, 1-bit frames, and NaN or infinite pixels.
 """
 
 from __future__ import annotations
 
+import math
+import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from starsense._io import readable_file
 from starsense.errors import InputError
 
 LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114])
 FITS_SUFFIXES = {".fits", ".fit", ".fts"}
 PILLOW_SUFFIXES = {".tif", ".tiff", ".png", ".jpg", ".jpeg"}
 
+#: frames larger than this many pixels are refused before decoding (2^28: 16384 x 16384, 512 MB
+#: as 16-bit counts and 2 GB once converted to float for detection); the environment variable
+#: ``STARSENSE_MAX_PIXELS`` or the ``max_pixels`` argument raises it
+DEFAULT_MAX_PIXELS = 1 << 28
+MAX_PIXELS_ENV = "STARSENSE_MAX_PIXELS"
+_FITS_BITPIX = (8, 16, 32, 64, -32, -64)
 
-def load_image(path: str | Path) -> np.ndarray:
+
+def max_pixels(value: int | None = None) -> int:
+    """Return the pixel limit: ``value`` if given, else ``$STARSENSE_MAX_PIXELS``, else default.
+
+    Raises
+    ------
+    InputError
+        The limit given (or the environment variable) is not a positive integer.
+    """
+    if value is None:
+        text = os.environ.get(MAX_PIXELS_ENV, "").strip()
+        if not text:
+            return DEFAULT_MAX_PIXELS
+        try:
+            value = int(text)
+        except ValueError:
+            raise InputError(f"{MAX_PIXELS_ENV} must be a positive integer, got {text!r}") from None
+        name = MAX_PIXELS_ENV
+    else:
+        name = "max_pixels"
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InputError(f"{name} must be a positive integer, got {value!r}")
+    return value
+
+
+def _check_size(p: Path, shape: tuple[int, ...], limit: int) -> None:
+    n = math.prod(shape[-2:]) if len(shape) >= 2 else math.prod(shape)
+    if n > limit:
+        dims = " x ".join(str(s) for s in shape)
+        raise InputError(
+            f"{p}: image of {dims} pixels ({n:,}) is larger than the limit of {limit:,} pixels; "
+            f"set {MAX_PIXELS_ENV} to raise it"
+        )
+
+
+def load_image(path: str | Path, max_pixels: int | None = None) -> np.ndarray:
     """Load a frame as a 2-D array (rows, columns).
 
     Monochrome frames keep their integer type; colour frames are converted to luminance
@@ -27,6 +78,9 @@ def load_image(path: str | Path) -> np.ndarray:
     ----------
     path : path-like
         TIFF, PNG, JPEG or FITS file.
+    max_pixels : int, optional
+        Refuse frames with more pixels (rows x columns) than this; default
+        ``$STARSENSE_MAX_PIXELS`` or :data:`DEFAULT_MAX_PIXELS`.
 
     Returns
     -------
@@ -35,34 +89,23 @@ def load_image(path: str | Path) -> np.ndarray:
     Raises
     ------
     InputError
-        The file is missing, of an unknown type, unreadable, or not a 2-D image.
+        The file is missing, of an unknown type, unreadable, past the pixel limit, 1-bit, holds
+        NaN or infinite pixels, or is not a 2-D image. The message names the file.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"image not found: {p}")
+    limit = _limit(max_pixels)
+    p = readable_file(path, "image")
     suffix = p.suffix.lower()
     if suffix in FITS_SUFFIXES:
-        from astropy.io import fits
-
-        try:
-            with fits.open(p) as hdul:
-                data = next((h.data for h in hdul if getattr(h, "data", None) is not None), None)
-                a = None if data is None else np.array(data)
-        except (OSError, ValueError) as exc:
-            raise InputError(f"{p}: not a readable FITS file ({exc})") from None
-        if a is None:
-            raise InputError(f"{p}: FITS file holds no image data")
+        a = _load_fits(p, limit)
     elif suffix in PILLOW_SUFFIXES:
-        from PIL import Image, UnidentifiedImageError
-
-        try:
-            with Image.open(p) as im:
-                a = np.array(im)
-        except (OSError, UnidentifiedImageError) as exc:
-            raise InputError(f"{p}: not a readable image ({exc})") from None
+        a = _load_pillow(p, limit)
     else:
         known = ", ".join(sorted(FITS_SUFFIXES | PILLOW_SUFFIXES))
         raise InputError(f"{p}: unknown image type {suffix!r}; known: {known}")
+    if a.dtype == bool:
+        raise InputError(f"{p}: 1-bit image; a star frame needs 8 bits or more per pixel")
+    if a.dtype.kind not in "uif":
+        raise InputError(f"{p}: pixels of type {a.dtype} are not numbers")
     if a.ndim == 3 and a.shape[-1] in (3, 4):  # RGB(A): luminance, alpha dropped
         a = a[..., :3].astype(float) @ LUMA_WEIGHTS
     elif a.ndim == 3 and a.shape[0] in (3, 4):  # FITS planes first
@@ -71,6 +114,14 @@ def load_image(path: str | Path) -> np.ndarray:
         raise InputError(f"{p}: expected a 2-D (monochrome or colour) image, got shape {a.shape}")
     if a.size == 0:
         raise InputError(f"{p}: image is empty")
+    if a.dtype.kind == "f":
+        bad = ~np.isfinite(a)
+        if bad.any():
+            row, col = np.argwhere(bad)[0]
+            raise InputError(
+                f"{p}: {int(bad.sum()):,} pixels are NaN or infinite (the first at row {row}, "
+                f"column {col}); a frame needs finite values"
+            )
     return a
 
 
@@ -120,3 +171,84 @@ def frame_time(path: str | Path) -> tuple[str | None, str | None]:
     except (OSError, ValueError):
         return None, None  # unreadable headers: load_image reports an unreadable frame
     return None, None
+
+
+_limit = max_pixels  # the argument of load_image shadows the function's name
+
+
+def _load_pillow(p: Path, limit: int) -> np.ndarray:
+    from PIL import Image
+
+    old = Image.MAX_IMAGE_PIXELS
+    try:
+        Image.MAX_IMAGE_PIXELS = None  # Pillow's own check is replaced by ours, stated exactly:
+        with Image.open(p) as im:  # opening reads the header only
+            _check_size(p, (im.height, im.width), limit)
+            return np.array(im)
+    except InputError:
+        raise
+    except Exception as exc:  # a decoder's view of a damaged file: OSError, SyntaxError, ...
+        raise InputError(f"{p}: not a readable image ({_one_line(exc)})") from None
+    finally:
+        Image.MAX_IMAGE_PIXELS = old
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+def _check_fits_header(p: Path, header, limit: int) -> tuple[int, tuple[int, ...]]:
+    """Return (BITPIX, shape) of an image header, or raise InputError naming what is wrong."""
+    bitpix = header.get("BITPIX")
+    if "BITPIX" not in header:
+        raise InputError(f"{p}: FITS header has no BITPIX")
+    if isinstance(bitpix, bool) or not isinstance(bitpix, int) or bitpix not in _FITS_BITPIX:
+        shown = "blank" if bitpix is None or not str(bitpix).strip() else repr(bitpix)
+        raise InputError(
+            f"{p}: FITS BITPIX is {shown}; must be one of {', '.join(map(str, _FITS_BITPIX))}"
+        )
+    naxis = header.get("NAXIS")
+    if isinstance(naxis, bool) or not isinstance(naxis, int) or not 0 <= naxis <= 999:
+        raise InputError(f"{p}: FITS NAXIS is {naxis!r}; must be an integer 0-999")
+    dims = []
+    for i in range(1, naxis + 1):
+        n = header.get(f"NAXIS{i}")
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise InputError(f"{p}: FITS NAXIS{i} is {n!r}; must be an integer >= 0")
+        dims.append(n)
+    shape = tuple(reversed(dims))  # FITS lists the fastest axis first
+    if naxis:
+        _check_size(p, shape, limit)
+    return bitpix, shape
+
+
+def _load_fits(p: Path, limit: int) -> np.ndarray:
+    from astropy.io import fits
+
+    size = p.stat().st_size
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # astropy's truncation warnings: checked below, named
+        try:
+            _check_fits_header(p, fits.Header.fromfile(p), limit)
+            with fits.open(p, memmap=False, lazy_load_hdus=True) as hdul:
+                for hdu in hdul:
+                    if not hdu.header.get("NAXIS"):
+                        continue
+                    bitpix, shape = _check_fits_header(p, hdu.header, limit)
+                    need = abs(bitpix) // 8 * math.prod(shape)
+                    start = hdu.fileinfo()["datLoc"]
+                    if start + need > size:
+                        raise InputError(
+                            f"{p}: FITS header promises {need:,} bytes of data "
+                            f"({' x '.join(map(str, shape))}, BITPIX {bitpix}) but the file "
+                            f"holds {max(size - start, 0):,} after the header (truncated?)"
+                        )
+                    data = hdu.data
+                    if data is not None:
+                        return np.array(data)
+        except InputError:
+            raise
+        except Exception as exc:  # astropy's view of a damaged file
+            raise InputError(f"{p}: not a readable FITS file ({_one_line(exc)})") from None
+    raise InputError(f"{p}: FITS file holds no image data")

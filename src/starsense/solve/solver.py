@@ -426,6 +426,16 @@ class Solver:
             sensor=self.sensor,
         )
 
+    def track(self, image, prior=None):
+        """Track a frame from a prior attitude (:func:`starsense.solve.track.track_frame`).
+
+        Falls back to lost-in-space when the prior's match fails or is ambiguous, and says so;
+        returns a :class:`~starsense.solve.track.TrackSolution`.
+        """
+        from starsense.solve.track import track_frame
+
+        return track_frame(self, image, prior)
+
     def solve_file(self, path: str | Path, obs_time=None) -> Solution:
         """Load a frame (:func:`starsense.solve.frames.load_image`) and solve it.
 

@@ -1,0 +1,424 @@
+"""File input and output: the one way the package reads a user's file and writes an output.
+
+Reading (:func:`readable_file`, :func:`read_bytes`, :func:`read_text`): a missing file, an empty
+path, a directory, a file the user may not read or text that is not UTF-8 raise
+:class:`~starsense.errors.InputError` naming the path, never an ``OSError`` or
+``UnicodeDecodeError``.
+
+Writing (:func:`atomic_path`, :func:`atomic_write`): the output's directory is checked first
+(:func:`check_output`: it exists, is a directory, may be written; the target is not a
+directory), then the file is written to a temporary name in that directory, flushed to disk,
+given the permissions any file the user creates would get (``0666`` less the umask, not
+``mkstemp``'s ``0600``) and renamed into place. An error, an interrupt or SIGTERM leaves neither
+a partial file nor the temporary one behind; a write failure is reported as
+:class:`~starsense.errors.OutputError` naming the user's path. Temporaries carry the writing
+process's id (:func:`temp_prefix`), so those of a run killed outright (SIGKILL, power loss) are
+removed by the next write into the same place (:func:`sweep_stale`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import re
+import shutil
+import signal
+import tempfile
+import threading
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import IO, Any
+
+from starsense.errors import InputError, OutputError
+
+__all__ = [
+    "atomic_path",
+    "atomic_paths",
+    "atomic_write",
+    "check_output",
+    "deferred_signals",
+    "dir_mode",
+    "file_mode",
+    "read_bytes",
+    "read_text",
+    "readable_file",
+    "sweep_stale",
+    "temp_prefix",
+]
+
+#: marks a temporary name as ours: ``.{target}.starsense-{pid}-...``
+_TMP_TAG = "starsense-"
+_TMP_PID = re.compile(r"^(\d+)-")
+#: errors of the disk, not of the program: reported against the user's path
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM}
+
+
+def file_mode() -> int:
+    """Permissions of a new file under the current umask (``0o666 & ~umask``)."""
+    return 0o666 & ~_umask()
+
+
+def dir_mode() -> int:
+    """Permissions of a new directory under the current umask (``0o777 & ~umask``)."""
+    return 0o777 & ~_umask()
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# -- reading ------------------------------------------------------------------------------------
+
+
+def readable_file(path: str | os.PathLike[str], what: str = "file") -> Path:
+    """Return ``path`` as a :class:`~pathlib.Path` after checking it names a readable file.
+
+    Parameters
+    ----------
+    path : path-like
+        What the user gave (``~`` is expanded).
+    what : str
+        What the file is, for the message ("sensor file", "image").
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    InputError
+        An empty path, no such file, a directory, not a regular file, or not readable; the
+        message names ``what`` and the path.
+    """
+    text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
+    if not isinstance(text, str) or not text.strip():
+        raise InputError(f"{what} path is empty (got {path!r})")
+    p = Path(text).expanduser()
+    try:
+        p.stat()
+    except FileNotFoundError:
+        raise InputError(f"{what} not found: {p}") from None
+    except OSError as exc:  # permission on a parent, name too long, a loop of links
+        raise InputError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+    if p.is_dir():
+        raise InputError(f"{what} {p} is a directory, not a file")
+    if not p.is_file():
+        raise InputError(f"{what} {p} is not a regular file")
+    if not os.access(p, os.R_OK):
+        raise InputError(f"cannot read {what} {p}: permission denied")
+    return p
+
+
+def read_bytes(path: str | os.PathLike[str], what: str = "file") -> bytes:
+    """Return the bytes of a file, with OS errors as :class:`InputError` naming the path.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    what : str
+        What the file is, for the message.
+
+    Returns
+    -------
+    bytes
+    """
+    p = readable_file(path, what)
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
+
+
+def read_text(path: str | os.PathLike[str], what: str = "file") -> str:
+    """Return a UTF-8 text file's content; OS and decoding errors raise :class:`InputError`.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    what : str
+        What the file is, for the message.
+
+    Returns
+    -------
+    str
+    """
+    raw = read_bytes(path, what)
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise InputError(
+            f"{what} {Path(path).expanduser()} is not UTF-8 text: byte 0x{raw[exc.start]:02x} "
+            f"at line {line}"
+        ) from None
+
+
+# -- writing ------------------------------------------------------------------------------------
+
+
+def check_output(
+    target: str | os.PathLike[str], what: str = "output", *, directory: bool = False
+) -> Path:
+    """Check, before any work, that ``target`` can be written; return it as a Path.
+
+    Parameters
+    ----------
+    target : path-like
+        The file (or, with ``directory``, the directory) to create or replace.
+    what : str
+        What the output is, for the message ("--out").
+    directory : bool
+        ``target`` is a directory to create or replace (a report), not a file; missing
+        directories above it will be created, so the nearest existing one is checked.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    OutputError
+        An empty path, a parent that is missing, not a directory or not writable, or a target
+        that is a directory when a file is wanted (a file when a directory is wanted).
+    """
+    text = os.fspath(target) if isinstance(target, str | os.PathLike) else None
+    if not isinstance(text, str) or not text.strip():
+        raise OutputError(f"{what} path is empty (got {target!r})")
+    p = Path(text).expanduser()
+    parent = p.absolute().parent
+    shown = f"cannot write {what} {p}"
+    if directory:  # missing folders on the way are created: the nearest existing one counts
+        while not parent.exists() and parent != parent.parent:
+            parent = parent.parent
+    if not parent.exists():
+        raise OutputError(f"{shown}: directory {parent} does not exist")
+    if not parent.is_dir():
+        raise OutputError(f"{shown}: {parent} is not a directory")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"{shown}: directory {parent} is not writable")
+    if not directory and p.is_dir():
+        raise OutputError(f"{shown}: it is a directory")
+    if directory and p.exists() and not p.is_dir():
+        raise OutputError(f"{shown}: it exists and is not a directory")
+    return p
+
+
+def temp_prefix(target: str | os.PathLike[str]) -> str:
+    """Return the start of the temporary names of ``target``: ``.{name}.starsense-{pid}-``."""
+    return f".{Path(target).name}.{_TMP_TAG}{os.getpid()}-"
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return True  # another user's process (or a number we cannot ask about): leave it
+    return True
+
+
+def sweep_stale(target: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temporaries a killed run left beside ``target``.
+
+    Only names this module makes (:func:`temp_prefix`) whose process no longer runs are
+    removed; a concurrent run's temporaries are left alone.
+
+    Parameters
+    ----------
+    target : path-like
+        The output about to be written.
+
+    Returns
+    -------
+    list of pathlib.Path
+        What was removed.
+    """
+    target = Path(target)
+    head = f".{target.name}.{_TMP_TAG}"
+    removed = []
+    try:
+        entries = [e for e in os.scandir(target.parent or ".") if e.name.startswith(head)]
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _TMP_PID.match(entry.name[len(head) :])
+        if m is None or _alive(int(m.group(1))):
+            continue
+        path = Path(entry.path)
+        with contextlib.suppress(OSError):
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+            removed.append(path)
+    return removed
+
+
+def _fsync(path: str) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    except OSError:  # some file systems refuse fsync on read-only descriptors
+        pass
+    finally:
+        os.close(fd)
+
+
+def _output_error(target: Path, exc: OSError) -> OutputError:
+    return OutputError(f"cannot write {target}: {exc.strerror or exc}")
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back while the block runs (the commit of an output).
+
+    A signal arriving meanwhile is noted and raised again when the block ends, for the
+    handler that was in place, so renames that belong together (an image and its truth, a
+    report swapped for the old one) happen all or none. (The Python-level handlers are swapped
+    rather than the thread's signal mask: a process-directed signal may land on any thread.)
+    Outside the main thread, where handlers cannot be set, the block runs as is.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(pending):
+            signal.raise_signal(s)
+
+
+@contextlib.contextmanager
+def atomic_paths(
+    targets: Sequence[str | os.PathLike[str]], suffixes: Sequence[str] | None = None
+) -> Iterator[list[Path]]:
+    """Yield temporary paths beside ``targets``; rename them all into place on success.
+
+    The renames run with SIGINT and SIGTERM held back (:func:`deferred_signals`): after an
+    interrupt every target holds its old content, or every target its new one.
+
+    Parameters
+    ----------
+    targets : sequence of path-like
+        The files to create or replace, renamed in this order.
+    suffixes : sequence of str, optional
+        Ending of each temporary name (default ``.tmp``).
+
+    Yields
+    ------
+    list of pathlib.Path
+        Where to write, one per target.
+
+    Raises
+    ------
+    OutputError
+        A directory is missing or read-only, a target is a directory, or the disk refused
+        the write (full, read-only): the message names the target.
+    """
+    paths = [check_output(t) for t in targets]
+    suffixes = list(suffixes) if suffixes is not None else [".tmp"] * len(paths)
+    tmps: list[str] = []
+    try:
+        for target, suffix in zip(paths, suffixes, strict=True):
+            sweep_stale(target)
+            try:
+                fd, tmp = tempfile.mkstemp(
+                    prefix=temp_prefix(target), suffix=suffix, dir=target.parent
+                )
+            except OSError as exc:
+                raise _output_error(target, exc) from None
+            os.close(fd)
+            tmps.append(tmp)
+        current = paths[0]
+        try:
+            yield [Path(t) for t in tmps]
+            with deferred_signals():
+                for target, tmp in zip(paths, tmps, strict=True):
+                    current = target
+                    os.chmod(tmp, file_mode())
+                    _fsync(tmp)
+                for target, tmp in zip(paths, tmps, strict=True):
+                    current = target
+                    os.replace(tmp, target)
+        except OSError as exc:
+            ours = exc.filename in (*tmps, *map(str, paths))
+            if ours or (exc.filename is None and exc.errno in _DISK_ERRNOS):
+                raise _output_error(current, exc) from None
+            raise
+    finally:
+        for tmp in tmps:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(tmp)
+
+
+@contextlib.contextmanager
+def atomic_path(target: str | os.PathLike[str], suffix: str = ".tmp") -> Iterator[Path]:
+    """Yield a temporary path beside ``target``; rename it to ``target`` on success.
+
+    For writers that take a file name (``fig.savefig``, ``fits.writeto``, Pillow). The
+    directory of ``target`` must exist (:func:`check_output`). ``suffix`` keeps the extension a
+    writer may look at.
+
+    Parameters
+    ----------
+    target : path-like
+        The file to create or replace.
+    suffix : str
+        Ending of the temporary name.
+
+    Yields
+    ------
+    pathlib.Path
+        Where to write.
+
+    Raises
+    ------
+    OutputError
+        The directory is missing or read-only, ``target`` is a directory, or the disk refused
+        the write (full, read-only): the message names ``target``.
+    """
+    with atomic_paths([target], [suffix]) as (tmp,):
+        yield tmp
+
+
+@contextlib.contextmanager
+def atomic_write(
+    target: str | os.PathLike[str], mode: str = "w", *, suffix: str = ".tmp", **kwargs: Any
+) -> Iterator[IO[Any]]:
+    """Open a temporary file beside ``target`` for writing; rename it into place on success.
+
+    Parameters
+    ----------
+    target : path-like
+        The file to create or replace.
+    mode : {"w", "wb"}
+        Text or binary.
+    suffix : str
+        Ending of the temporary name.
+    **kwargs
+        Passed to :func:`open` (``encoding``, ``newline``); text mode defaults to UTF-8.
+
+    Yields
+    ------
+    file object
+    """
+    if mode not in ("w", "wb"):
+        raise ValueError(f"atomic_write mode must be 'w' or 'wb', got {mode!r}")
+    if mode == "w":
+        kwargs.setdefault("encoding", "utf-8")
+    with atomic_path(target, suffix=suffix) as tmp, open(tmp, mode, **kwargs) as fh:
+        yield fh
+        fh.flush()

@@ -1,0 +1,260 @@
+"""Tracking-mode identification: match detections to the stars a prior attitude predicts.
+
+Given a prior attitude (from the last frame, propagated by the rate) and a search radius that
+covers its uncertainty, :class:`TrackingIdentifier`
+
+1. predicts the camera directions of the database stars in the field
+   (``scipy.spatial.cKDTree`` cone query on the ICRS unit vectors, chord distance);
+2. pairs every detection with its nearest predicted star within the search radius (a k-d tree on
+   the predicted directions, two nearest neighbours), and drops a pair as **ambiguous** when a
+   second predicted star is nearly as close (``d2 < ambiguity_ratio * d1``) or when two
+   detections claim the same star;
+3. fits the attitude to the pairs (SVD / Kabsch, as the lost-in-space verifier), checks that it
+   moves no star by more than the search radius from the prior (an innovation test), and pairs
+   again at a radius matched to the residuals (5 robust sigma, at least
+   ``min_match_radius_rad``), up to three times;
+4. computes the probability that the matches beyond the two that fix the attitude are chance,
+   with the verifier's binomial test (:func:`~starsense.identify.verify.false_match_probability`,
+   tetra3 / Mortari et al. 2004): ``p = (predicted stars in the searched region) x pi r^2 /
+   (solid angle of the searched region)``, ``P_false = P[X >= n - 2], X ~ B(N - 2, p)``.
+
+Two pairs determine the attitude (status ``"unverified"``: nothing is left to test it with);
+three or more with ``P_false`` at most the threshold make it ``"verified"``. Fewer than two
+pairs give ``"too_few_stars"`` (or ``"ambiguous"`` when pairs were dropped as ambiguous), a fit
+outside the prior's reach ``"no_match"``: the caller then falls back to lost-in-space.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from starsense._validate import check_scalar
+from starsense.identify.database import IdentificationDatabase
+from starsense.identify.result import validate_vectors
+from starsense.identify.verify import _estimate_matrix, false_match_probability
+
+__all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch"]
+
+#: Possible values of :attr:`TrackingMatch.status`.
+TRACKING_STATUSES = ("verified", "unverified", "too_few_stars", "ambiguous", "no_match")
+
+_EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+
+def _chord(angle_rad: float) -> float:
+    return 2.0 * math.sin(min(angle_rad, math.pi) / 2.0)
+
+
+@dataclass(frozen=True, eq=False)
+class TrackingMatch:
+    """The answer of :class:`TrackingIdentifier`.
+
+    Attributes
+    ----------
+    status : str
+        One of :data:`TRACKING_STATUSES`.
+    rotation : Rotation or None
+        Fitted attitude (ICRS -> camera) for "verified" and "unverified".
+    detection_index, catalog_index : ndarray of int, shape (M,)
+        Matched detections and their database stars (indices into ``database.vectors``).
+    catalog_id : ndarray of int64, shape (M,)
+        Catalogue identifiers of the matched stars.
+    residual_rms_rad : float
+        Rms angle between matched detections and their stars after the fit, rad.
+    false_match_probability : float
+        Probability that the matches beyond the two that fix the attitude are chance.
+    n_detections, n_predicted, n_ambiguous : int
+        Detections given, database stars predicted in the field, pairs dropped as ambiguous.
+    innovation_rad : float
+        How far the fit moved a star at the field edge from where the prior put it, rad
+        (cross-boresight angle plus roll angle x sin(field radius)).
+    time_ms : float
+    message : str
+    """
+
+    status: str
+    rotation: Rotation | None = None
+    detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    catalog_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    catalog_id: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
+    residual_rms_rad: float = math.nan
+    false_match_probability: float = 1.0
+    n_detections: int = 0
+    n_predicted: int = 0
+    n_ambiguous: int = 0
+    innovation_rad: float = math.nan
+    time_ms: float = 0.0
+    message: str = ""
+
+    @property
+    def solved(self) -> bool:
+        """Whether an attitude was found ("verified" or "unverified")."""
+        return self.status in ("verified", "unverified")
+
+    @property
+    def n_matches(self) -> int:
+        """Matched detections."""
+        return len(self.detection_index)
+
+
+class TrackingIdentifier:
+    """Configure with a database, then call with detections and a prior (module docstring).
+
+    Parameters
+    ----------
+    database : IdentificationDatabase
+    ambiguity_ratio : float
+        A pair is ambiguous when a second predicted star lies within ``ambiguity_ratio`` times
+        the nearest one's distance (and within the search radius); > 1.
+    false_match_threshold : float
+        Largest ``P_false`` of a verified match. Default 1e-3: the prior already confines the
+        answer to the search radius, which the lost-in-space default (1e-9) does not have.
+    min_match_radius_rad : float
+        Smallest radius of the final pairing, rad (e.g. a few centroid sigmas).
+    """
+
+    def __init__(
+        self,
+        database: IdentificationDatabase,
+        *,
+        ambiguity_ratio: float = 3.0,
+        false_match_threshold: float = 1e-3,
+        min_match_radius_rad: float = 1e-5,
+    ) -> None:
+        self.database = database
+        self.ambiguity_ratio = check_scalar(ambiguity_ratio, "ambiguity_ratio", 1.0, lo_open=True)
+        self.false_match_threshold = check_scalar(
+            false_match_threshold, "false_match_threshold", 0.0, 1.0, lo_open=True
+        )
+        self.min_match_radius_rad = check_scalar(
+            min_match_radius_rad, "min_match_radius_rad", 0.0, 0.1, lo_open=True
+        )
+
+    def _pair(self, vectors, cam, radius):
+        """Nearest predicted star of each detection within ``radius``; ambiguous ones dropped.
+
+        Returns (detection index, predicted index, number dropped as ambiguous).
+        """
+        if len(cam) == 0:
+            return _EMPTY_INT, _EMPTY_INT, 0
+        tree = cKDTree(cam)
+        k = 2 if len(cam) > 1 else 1
+        dist, idx = tree.query(vectors, k=k, distance_upper_bound=_chord(radius))
+        dist, idx = dist.reshape(len(vectors), k), idx.reshape(len(vectors), k)
+        found = np.isfinite(dist[:, 0])
+        clear = np.ones(len(vectors), bool)
+        if k == 2:
+            clear = ~np.isfinite(dist[:, 1]) | (dist[:, 1] >= self.ambiguity_ratio * dist[:, 0])
+        det = np.flatnonzero(found & clear)
+        star = idx[det, 0]
+        n_amb = int(np.sum(found & ~clear))
+        counts = np.bincount(star, minlength=len(cam))
+        unique = counts[star] == 1
+        n_amb += int(np.sum(~unique))
+        return det[unique].astype(np.int64), star[unique].astype(np.int64), n_amb
+
+    def __call__(
+        self,
+        vectors_cam,
+        prior: Rotation,
+        search_radius_rad: float,
+        field_radius_rad: float,
+        *,
+        region: tuple[float, int] | None = None,
+        candidates=None,
+    ) -> TrackingMatch:
+        """Match detections to the stars predicted by ``prior``.
+
+        Parameters
+        ----------
+        vectors_cam : array_like, shape (N, 3)
+            Detection directions in the camera frame (unit, z > 0), brightest first.
+        prior : Rotation
+            Predicted attitude, ICRS -> camera.
+        search_radius_rad : float
+            How far a star may be from its predicted position, rad (the prior's uncertainty
+            at the field edge, a few sigma).
+        field_radius_rad : float
+            Angle from the boresight to the farthest detection, rad (the cone of stars
+            predicted is this plus the search radius).
+        region : (float, int), optional
+            Solid angle the detections were searched in, sr, and the predicted stars in it (the
+            detection windows); default the cone of the field and every star predicted in it.
+        candidates : array_like of int, optional
+            The database stars to predict (e.g. the brightest on the detector: a frame that
+            shows few stars shows the brightest, and fewer candidates leave fewer ambiguous
+            pairs); default every database star in the cone.
+
+        Returns
+        -------
+        TrackingMatch
+        """
+        t0 = time.perf_counter()
+        v = validate_vectors(vectors_cam)
+        r_s = check_scalar(search_radius_rad, "search_radius_rad", 0.0, 0.5, lo_open=True)
+        field_r = check_scalar(field_radius_rad, "field_radius_rad", 0.0, math.pi / 2)
+        db = self.database
+        cone = min(field_r + r_s, math.pi / 2)
+        centre = prior.inv().apply([0.0, 0.0, 1.0])
+        if candidates is None:
+            near = np.asarray(db.tree.query_ball_point(centre, _chord(cone)), dtype=np.int64)
+            near.sort()
+        else:
+            near = np.asarray(candidates, dtype=np.int64).reshape(-1)
+        if region is None:
+            region = (2 * math.pi * (1 - math.cos(cone)), len(near))
+
+        def done(status, message, **kw):
+            return TrackingMatch(status, n_detections=len(v), n_predicted=len(near),
+                                 time_ms=(time.perf_counter() - t0) * 1e3, message=message,
+                                 **kw)  # fmt: skip
+
+        r = prior.as_matrix()
+        cam = db.vectors[near] @ r.T
+        det, star, n_amb = self._pair(v, cam, r_s)
+        if len(det) < 2:
+            why = "ambiguous" if n_amb else "too_few_stars"
+            return done(why, f"{len(det)} star(s) matched within {r_s:.2e} rad of the prior "
+                        f"({n_amb} ambiguous, {len(v)} detections, {len(near)} predicted)",
+                        n_ambiguous=n_amb)  # fmt: skip
+        radius = r_s
+        for _ in range(3):
+            r, resid = _estimate_matrix(v[det], db.vectors[near[star]])
+            sigma = 1.4826 * float(np.median(resid)) / math.sqrt(2 * math.log(2))
+            radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
+            det_new, star_new, n_amb = self._pair(v, db.vectors[near] @ r.T, radius)
+            if len(det_new) < 2:
+                break
+            same = np.array_equal(det_new, det) and np.array_equal(star_new, star)
+            det, star = det_new, star_new
+            if same:
+                break
+        r, resid = _estimate_matrix(v[det], db.vectors[near[star]])
+        rot = Rotation.from_matrix(r)
+        # the fit's departure from the prior, as the displacement of a star at the field edge
+        # (the measure of the search radius): cross-boresight plus roll x sin(field radius)
+        d = (rot * prior.inv()).as_rotvec()
+        innovation = float(math.hypot(d[0], d[1]) + abs(d[2]) * math.sin(field_r))
+        cat = near[star]
+        p_single = region[1] * math.pi * radius**2 / max(region[0], 1e-30)
+        p_false = false_match_probability(len(v), len(det), 2, p_single)
+        kw = {"detection_index": det, "catalog_index": cat, "catalog_id": db.ids[cat],
+              "residual_rms_rad": float(np.sqrt(np.mean(resid**2))), "n_ambiguous": n_amb,
+              "false_match_probability": p_false, "innovation_rad": innovation}  # fmt: skip
+        if innovation > r_s:
+            return done("no_match", f"the fit is {innovation:.2e} rad from the prior, beyond "
+                        f"the search radius {r_s:.2e} rad", **kw)  # fmt: skip
+        if len(det) < 3:
+            return done("unverified", "2 stars matched (3 are needed to verify)", rotation=rot,
+                        **kw)  # fmt: skip
+        verified = p_false <= self.false_match_threshold
+        status = "verified" if verified else "unverified"
+        return done(status, f"{len(det)} of {len(v)} detections matched, P_false "
+                    f"{p_false:.1e}", rotation=rot, **kw)  # fmt: skip

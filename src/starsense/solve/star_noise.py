@@ -1,0 +1,168 @@
+"""Centroid noise of tracked stars, a robust attitude fit, and the covariance of that fit.
+
+Each star's centroid error (pixels) has the covariance
+
+    C_i = (sigma_psf^2 / N_i) I_2 + (sigma_r^2 / N_i^2) S_i + (1 / (12 N_i)) l_i l_i^T
+
+with ``N_i`` the star's electrons: photon noise of the PSF; read noise ``sigma_r`` over the
+centroid window, ``S_i`` the 2 x 2 sum of (pixel - centroid)(pixel - centroid)^T over it (the
+window along the streak, :func:`starsense.solve.windows.streak_centroid`; for a static star
+the isotropic form of :func:`starsense.solve.solver._cog_sigma_px`); and the streak ``l_i``
+(start to end, px) adding l l^T / 12 per photon (a uniform spread along it). The SVD estimator
+weighs star ``i`` by the mean of the two axes, ``sigma_i^2 = tr(C_i) / 2``; the covariance of
+that estimator is the sandwich
+
+    P = F^-1 (sum_i w_i^2 J_i^T N_i J_i) F^-1,    F = sum_i w_i (I - b_i b_i^T),  w_i = sigma_i^-2
+
+with ``J_i = -[b_i]x`` and ``N_i = G_i C_i G_i^T`` the centroid covariance carried to the unit
+vector (``G_i`` the 3 x 2 derivative of the sensor's unprojection). For isotropic noise it is the
+inverse Fisher matrix of Fialho & Mortari 2019, eq. 21 (:mod:`starsense.attitude.covariance`);
+along a streak it is larger in the axis the streaks point along and smaller across it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from starsense.solve.solver import _cog_sigma_px
+
+__all__ = ["OUTLIER_SIGMA", "StarNoise", "fit_robust", "star_noise"]
+
+#: A star whose residual exceeds this many of its own sigmas is dropped from the fit (a 2-D
+#: residual goes past 4 sigma by chance with probability exp(-8) = 3e-4)
+OUTLIER_SIGMA = 4.0
+
+
+@dataclass(frozen=True)
+class StarNoise:
+    """Per-star centroid covariance of matched detections (module docstring).
+
+    Attributes
+    ----------
+    sensor : Sensor
+    x, y : ndarray, shape (N,)
+        Centroids, px.
+    cov_px2 : ndarray, shape (N, 2, 2)
+        ``C_i``, px^2 (x = column, y = row).
+    """
+
+    sensor: object
+    x: np.ndarray
+    y: np.ndarray
+    cov_px2: np.ndarray
+
+    @property
+    def sigma_rad(self) -> np.ndarray:
+        """Mean-of-axes 1-sigma of each star, rad (the estimator weighs by its inverse square)."""
+        trace = self.cov_px2[:, 0, 0] + self.cov_px2[:, 1, 1]
+        return np.sqrt(0.5 * trace) / self.sensor.focal_length_px
+
+    def subset(self, keep) -> StarNoise:
+        """Return the noise of the stars ``keep``."""
+        return StarNoise(self.sensor, self.x[keep], self.y[keep], self.cov_px2[keep])
+
+    def attitude_covariance(self, body: np.ndarray) -> np.ndarray:
+        """Return the covariance of the weighted SVD attitude from these stars, rad^2 (3, 3).
+
+        Parameters
+        ----------
+        body : ndarray, shape (N, 3)
+            The stars' measured camera-frame unit vectors.
+        """
+        h = 0.5
+        plus = self.sensor.unproject(np.r_[self.x + h, self.x], np.r_[self.y, self.y + h])
+        minus = self.sensor.unproject(np.r_[self.x - h, self.x], np.r_[self.y, self.y - h])
+        n = len(self.x)
+        g = np.stack([(plus[:n] - minus[:n]) / (2 * h), (plus[n:] - minus[n:]) / (2 * h)], axis=2)
+        noise = g @ self.cov_px2 @ np.transpose(g, (0, 2, 1))  # (N, 3, 3)
+        w = 1.0 / self.sigma_rad**2
+        skew = np.zeros((n, 3, 3))
+        skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -body[:, 2], body[:, 1], -body[:, 0]
+        skew -= np.transpose(skew, (0, 2, 1))
+        fisher = np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None, :])
+        middle = np.einsum("i,iaj,iab,ibk->jk", w**2, skew, noise, skew)
+        inv = np.linalg.inv(fisher)
+        return inv @ middle @ inv
+
+
+def star_noise(solver, det, matched, rate) -> StarNoise:
+    """Return the centroid noise of detections ``matched`` (module docstring).
+
+    With ``centroid_sigma_px`` a number, every star gets that isotropic sigma; with "snr" the
+    photon, read-noise and streak terms above.
+
+    Parameters
+    ----------
+    solver : Solver
+        With a sensor.
+    det : Detections
+        Frame detections (``extra["spread_px2"]``, shape (N, 2, 2), where centroided along a
+        streak).
+    matched : ndarray of int, shape (N,)
+        The detections used.
+    rate : array_like, shape (3,) or None
+        Body rate, camera frame, rad/s.
+    """
+    sensor = solver.sensor
+    x, y = det.x[matched], det.y[matched]
+    n = len(matched)
+    eye = np.broadcast_to(np.eye(2), (n, 2, 2))
+    if solver.centroid_sigma_px != "snr":
+        return StarNoise(sensor, x, y, float(solver.centroid_sigma_px) ** 2 * eye)
+    detector = sensor.detector
+    margin = 2 if solver.background != "known" else solver._detector().margin_px
+    cov = (_cog_sigma_px(det, matched, detector, margin) ** 2)[:, None, None] * eye
+    spread = det.extra.get("spread_px2", np.full((len(det), 2, 2), np.nan))[matched]
+    n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1.0)
+    along = np.isfinite(spread[:, 0, 0])  # centroided over the streak's own window
+    cov = np.array(cov)
+    cov[along] = (detector.psf_sigma_px**2 / n_e)[along, None, None] * eye[along] + (
+        detector.read_noise_e**2 / n_e**2
+    )[along, None, None] * spread[along]
+    if rate is None or not np.any(rate):
+        return StarNoise(sensor, x, y, cov)
+    from scipy.spatial.transform import Rotation
+
+    b = sensor.unproject(x, y)
+    half = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
+    xs, ys = sensor.project(half.apply(b))
+    xe, ye = sensor.project(half.inv().apply(b))
+    streak = np.column_stack([xe - xs, ye - ys])
+    # a uniform spread over the streak: L^2 / 12 per photon along it
+    cov += streak[:, :, None] * streak[:, None, :] / (12.0 * n_e)[:, None, None]
+    return StarNoise(sensor, x, y, cov)
+
+
+def fit_robust(body, ref, sigma):
+    """SVD attitude with the worst star dropped while its residual exceeds OUTLIER_SIGMA.
+
+    A blend with a faint neighbour or a cosmic-ray hit in a star's window biases its centroid
+    by many sigma; one such star would set the attitude error of the whole frame. At least
+    three stars are kept.
+
+    Parameters
+    ----------
+    body, ref : ndarray, shape (N, 3)
+        Measured camera-frame and catalogue ICRS unit vectors.
+    sigma : ndarray, shape (N,)
+        Per-star 1-sigma, rad (weights sigma^-2).
+
+    Returns
+    -------
+    AttitudeSolution, ndarray of int
+        The fit, and the indices of the stars kept.
+    """
+    from starsense.attitude import estimate_attitude
+
+    keep = np.arange(len(body))
+    att = estimate_attitude(body, ref, sigma, "svd")
+    while len(keep) > 3:
+        z = att.residuals_rad / sigma[keep]
+        worst = int(np.argmax(z))
+        if z[worst] <= OUTLIER_SIGMA:
+            break
+        keep = np.delete(keep, worst)
+        att = estimate_attitude(body[keep], ref[keep], sigma[keep], "svd")
+    return att, keep

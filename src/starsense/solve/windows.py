@@ -1,0 +1,351 @@
+"""Window detection for tracking: look for stars only where the prior attitude puts them.
+
+A tracker that knows where its stars are reads out small windows around them instead of the
+whole frame; here the detector runs on a window around each of the brightest database stars
+predicted on the detector. A window's half-width covers the search radius (the prior's
+uncertainty), half the streak the body rate draws in one exposure, and the PSF with the
+centroid margin. When the windows would cover more than a quarter of the frame the whole frame
+is searched instead.
+
+With a known background (simulated frames) each window uses the sensor's own detection logic
+on its bias; otherwise each window's background is the median of its two-pixel border and its
+noise the border's scaled median absolute deviation (sky around the star), with the Solver's
+sigma threshold.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+__all__ = ["WindowDetections", "detect_in_windows", "streak_centroid", "streak_px", "union_area"]
+
+#: Windows covering more than this fraction of the frame: search the whole frame.
+MAX_WINDOW_FRACTION = 0.25
+
+
+@dataclass(frozen=True)
+class WindowDetections:
+    """Detections from the windows (or the whole frame), and where they were searched.
+
+    Attributes
+    ----------
+    detections : Detections
+        Merged, in frame pixel coordinates, brightest first.
+    n_windows : int
+        Windows searched (0: the whole frame).
+    region_px : int
+        Pixels searched (the union of the windows).
+    boxes : ndarray of int, shape (K, 4) or None
+        Row0, row1, col0, col1 (half-open) of each window (None: the whole frame).
+    """
+
+    detections: object
+    n_windows: int
+    region_px: int
+    boxes: np.ndarray | None = None
+
+    def count_inside(self, x, y) -> int:
+        """Return how many of the positions (x, y), px, lie in a window (-1: whole frame)."""
+        if self.boxes is None:
+            return -1
+        xi = np.rint(np.asarray(x, dtype=float))[:, None]
+        yi = np.rint(np.asarray(y, dtype=float))[:, None]
+        r0, r1, c0, c1 = self.boxes.T
+        inside = (yi >= r0) & (yi < r1) & (xi >= c0) & (xi < c1)
+        return int(np.sum(inside.any(axis=1)))
+
+
+def union_area(boxes: np.ndarray) -> int:
+    """Return the pixels covered by the union of boxes (row0, row1, col0, col1), exactly.
+
+    The box edges cut the plane into cells; a cell is covered when any box holds it.
+    """
+    rows = np.unique(boxes[:, :2])
+    cols = np.unique(boxes[:, 2:])
+    rc = 0.5 * (rows[:-1] + rows[1:])
+    cc = 0.5 * (cols[:-1] + cols[1:])
+    r0, r1, c0, c1 = (v[:, None, None] for v in boxes.T)
+    covered = ((rc[None, :, None] > r0) & (rc[None, :, None] < r1)
+               & (cc[None, None, :] > c0) & (cc[None, None, :] < c1)).any(axis=0)  # fmt: skip
+    return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
+
+
+def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
+    """Return the streak length a body rate draws in one exposure, px.
+
+    The image of direction ``b`` moves at ``-w x b`` (camera frame); its length over the
+    exposure is ``t_e f |(w x b)_xy|`` to first order (pinhole).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    rate_rad_s : array_like, shape (3,)
+        Body rate, camera frame, rad/s.
+    vectors_cam : array_like, shape (N, 3), optional
+        Star directions; default the farthest field corner (the longest streak).
+
+    Returns
+    -------
+    float or ndarray, shape (N,)
+    """
+    w = np.zeros(3) if rate_rad_s is None else np.asarray(rate_rad_s, dtype=float)
+    scale = sensor.exposure_s * sensor.focal_length_px
+    if vectors_cam is None:
+        hx, hy = sensor.half_fov_rad
+        corner = np.array([math.tan(hx), math.tan(hy), 1.0])
+        b = np.array([corner * [sx, sy, 1.0] for sx in (-1, 1) for sy in (-1, 1)])
+        b /= np.linalg.norm(b, axis=1)[:, None]
+        return float(np.max(scale * np.linalg.norm(np.cross(w, b)[:, :2], axis=1)))
+    b = np.asarray(vectors_cam, dtype=float)
+    return scale * np.linalg.norm(np.cross(w, b)[:, :2], axis=1)
+
+
+def _segment_mask(shape, x, y, streak, radius):
+    """Pixels of ``shape`` within ``radius`` px of the segment centred on (x, y), its box."""
+    sx, sy = 0.5 * float(streak[0]), 0.5 * float(streak[1])
+    rows, cols = shape
+    r0 = max(math.floor(y - abs(sy) - radius), 0)
+    r1 = min(math.ceil(y + abs(sy) + radius) + 1, rows)
+    c0 = max(math.floor(x - abs(sx) - radius), 0)
+    c1 = min(math.ceil(x + abs(sx) + radius) + 1, cols)
+    if r0 >= r1 or c0 >= c1:
+        return None
+    ax = np.arange(c0, c1, dtype=float)[None, :] - (x - sx)
+    ay = np.arange(r0, r1, dtype=float)[:, None] - (y - sy)
+    length2 = 4.0 * (sx * sx + sy * sy)
+    t = np.clip((ax * 2 * sx + ay * 2 * sy) / max(length2, 1e-12), 0.0, 1.0)
+    inside = (ax - t * 2 * sx) ** 2 + (ay - t * 2 * sy) ** 2 <= radius * radius
+    return inside, (r0, r1, c0, c1)
+
+
+def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
+    """Centre of gravity of a streak of known shape, started from a point on it.
+
+    The CoG is taken over the pixels within ``radius`` of a segment of the predicted streak
+    (start to end) centred on the current estimate, and the segment moved there, until it
+    stays (at most 6 times). A faint streak breaks into pieces above the threshold, and a piece's
+    own centroid is off the star's mid-exposure position by up to half the streak; this
+    window, which spans the whole streak, is not.
+
+    Parameters
+    ----------
+    sub : ndarray, shape (rows, columns)
+        Background-subtracted counts of the window.
+    x, y : float
+        Starting point (a piece's centroid), px in the window.
+    streak : (float, float)
+        Predicted streak, start to end, px.
+    radius : float
+        Half-width of the window across the streak, px (a few PSF sigmas).
+
+    Returns
+    -------
+    (x, y, counts, (r0, r1, c0, c1), spread) or None
+        The centroid, px, the counts summed over the window, the window's bounding box, and
+        the 2 x 2 sum over the window of (pixel - centroid)(pixel - centroid)^T, px^2 (a read
+        noise sigma_r adds sigma_r^2 spread / counts^2 to the centroid's covariance).
+    """
+    out = None
+    for _ in range(6):
+        got = _segment_mask(sub.shape, x, y, streak, radius)
+        if got is None:
+            return out
+        inside, (r0, r1, c0, c1) = got
+        w = np.where(inside, sub[r0:r1, c0:c1], 0.0)
+        total = float(w.sum())
+        if not total > 0:
+            return out
+        px = np.arange(c0, c1, dtype=float)
+        py = np.arange(r0, r1, dtype=float)
+        nx, ny = float(w.sum(axis=0) @ px / total), float(w.sum(axis=1) @ py / total)
+        rr, cc = np.nonzero(inside)
+        dx, dy = px[cc] - nx, py[rr] - ny
+        spread = np.array([[dx @ dx, dx @ dy], [dx @ dy, dy @ dy]])
+        out = (nx, ny, total, (r0, r1, c0, c1), spread)
+        if math.hypot(nx - x, ny - y) < 0.01:
+            break
+        x, y = nx, ny
+    return out
+
+
+def _structure(connectivity: int) -> np.ndarray:
+    """3-D structuring element that connects pixels only within one window of the stack."""
+    plane = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
+    out = np.zeros((3, 3, 3), dtype=bool)
+    out[1] = plane
+    return out
+
+
+def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
+    """Square windows (K, h, w) around the centres, moved inside the frame; their corners."""
+    rows, cols = image.shape
+    h, w = min(2 * half + 1, rows), min(2 * half + 1, cols)
+    cx = np.rint(centres_px[:, 0]).astype(int)
+    cy = np.rint(centres_px[:, 1]).astype(int)
+    r0 = np.clip(cy - half, 0, rows - h)
+    c0 = np.clip(cx - half, 0, cols - w)
+    windows = [image[a : a + h, c : c + w] for a, c in zip(r0.tolist(), c0.tolist(), strict=True)]
+    return np.stack(windows).astype(np.float32), r0, c0
+
+
+def _levels(solver, stack: np.ndarray):
+    """Background level, noise and lit threshold of each window, counts, shape (K,) each."""
+    logic = solver.logic
+    k = len(stack)
+    if solver.background == "known":
+        det = solver.sensor.detector
+        level = np.full(k, float(det.bias_counts))
+        noise = np.full(k, det.read_noise_e * det.gain_counts_per_e)
+        return level, noise, np.full(k, float(logic.lit_pixel_counts))
+    # the window's border (two pixels wide): sky around the star, a fraction of the pixels
+    border = np.concatenate(
+        [stack[:, :2].reshape(k, -1), stack[:, -2:].reshape(k, -1),
+         stack[:, 2:-2, :2].reshape(k, -1), stack[:, 2:-2, -2:].reshape(k, -1)], axis=1
+    )  # fmt: skip
+    level = np.median(border, axis=1)
+    noise = 1.4826 * np.median(np.abs(border - level[:, None]), axis=1)
+    threshold = np.maximum(float(logic.lit_pixel_counts), solver.threshold_sigma * noise)
+    return level, noise, threshold
+
+
+def _region_centroid(plane, box, margin, streak, sigma):
+    """Centroid, counts, box and read-noise spread of one region of a window (window px).
+
+    With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
+    streak (:func:`streak_centroid`); else the CoG over the region's box plus the margin, as
+    the full-frame detector does.
+    """
+    from starsense.detect.centroid import cog
+
+    a, b, c, d = box
+    rows, cols = plane.shape
+    wa, wb, wc, wd = (
+        max(a - margin, 0),
+        min(b + margin, rows),
+        max(c - margin, 0),
+        min(d + margin, cols),
+    )
+    x, y = cog(plane[wa:wb, wc:wd], wa, wc)
+    if streak is not None and float(np.hypot(*streak)) >= 2.0 * sigma and np.isfinite(x):
+        got = streak_centroid(plane, x, y, streak, 2.5 * sigma + 1.0)
+        if got is not None:
+            return got
+    return x, y, None, box, np.full((2, 2), np.nan)
+
+
+def _inside(x: float, y: float, streak, sigma: float, shape) -> bool:
+    """Whether the whole streak centred on (x, y), with its PSF radius, lies on the frame."""
+    reach = 2.5 * sigma + 1.0
+    hx, hy = 0.5 * abs(float(streak[0])) + reach, 0.5 * abs(float(streak[1])) + reach
+    rows, cols = shape
+    return hx <= x <= cols - 1 - hx and hy <= y <= rows - 1 - hy
+
+
+def _detect_stack(solver, stack, r0, c0, shape, streaks):
+    """Apply the detection logic to every window at once; return frame-pixel detection rows."""
+    logic = solver.logic
+    level, noise, threshold = _levels(solver, stack)
+    sub = stack - level[:, None, None].astype(np.float32)
+    lit = sub > threshold[:, None, None]
+    labels, n = ndimage.label(lit, structure=_structure(logic.connectivity))
+    if n == 0:
+        return [], float(np.median(noise)), 0
+    idx = np.flatnonzero(lit)
+    lab = labels.ravel()[idx]
+    sizes = np.bincount(lab, minlength=n + 1)
+    sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
+    ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
+    ok[0] = False
+    rows, cols = shape
+    _, h, w = stack.shape
+    sigma = float(solver.sensor.detector.psf_sigma_px)
+    found = []
+    slices = ndimage.find_objects(labels)
+    for k in np.flatnonzero(ok).tolist():
+        sl = slices[k - 1]
+        p = sl[0].start
+        a, b, c, d = sl[1].start, sl[1].stop, sl[2].start, sl[2].stop
+        # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
+        if (
+            (a == 0 < r0[p])
+            or (b == h and r0[p] + h < rows)
+            or (c == 0 < c0[p])
+            or (d == w and c0[p] + w < cols)
+        ):
+            continue
+        x, y, counts, box, spread = _region_centroid(
+            sub[p], (a, b, c, d), 2, None if streaks is None else streaks[p], sigma
+        )
+        if not np.isfinite(x):
+            continue
+        if np.isfinite(spread[0, 0]) and not _inside(
+            x + c0[p], y + r0[p], streaks[p], sigma, shape
+        ):
+            continue  # a streak running off the frame: its centroid is pulled inwards
+        peak = float(stack[p, a:b, c:d][labels[p, a:b, c:d] == k].max())
+        found.append((x + c0[p], y + r0[p], sums[k] if counts is None else counts, sizes[k],
+                      peak, (box[0] + r0[p], box[1] + r0[p], box[2] + c0[p], box[3] + c0[p]),
+                      spread))  # fmt: skip
+    return found, float(np.median(noise)), n
+
+
+def _detections(found, noise: float, n_candidates: int, saturation):
+    """Build Detections from :func:`_detect_stack` rows: brightest first, one per 2 px."""
+    from starsense.detect.threshold import Detections
+
+    found = sorted(found, key=lambda row: -row[2])
+    keep: list = []
+    for row in found:  # overlapping windows and pieces of one streak give the same centre
+        if all(math.hypot(row[0] - k[0], row[1] - k[1]) >= 2.0 for k in keep):
+            keep.append(row)
+    cols = list(zip(*keep, strict=True)) if keep else [()] * 7
+    peak = np.asarray(cols[4], dtype=float)
+    return Detections(
+        x=np.asarray(cols[0], dtype=float), y=np.asarray(cols[1], dtype=float),
+        integrated_counts=np.asarray(cols[2], dtype=float),
+        n_pixels=np.asarray(cols[3], dtype=int), peak_counts=peak,
+        saturated=peak >= saturation if saturation is not None else np.zeros(len(keep), bool),
+        bbox=np.asarray(cols[5], dtype=int).reshape(-1, 4), fit_ok=np.ones(len(keep), bool),
+        n_candidates=int(n_candidates), noise_counts=noise, method="cog",
+        extra={"spread_px2": np.asarray(cols[6], dtype=float).reshape(-1, 2, 2)},
+    )  # fmt: skip
+
+
+def detect_in_windows(
+    solver, image: np.ndarray, centres_px: np.ndarray, half_px: int, streaks_px=None
+) -> WindowDetections:
+    """Detect stars in square windows around predicted positions (or in the whole frame).
+
+    Parameters
+    ----------
+    solver : Solver
+        Its sensor, detection logic, background mode and threshold are used.
+    image : ndarray, shape (rows, columns)
+        The frame, counts.
+    centres_px : ndarray, shape (K, 2)
+        Predicted star positions (x = column, y = row), px, on the detector.
+    half_px : int
+        Half-width of each window, px.
+    streaks_px : ndarray, shape (K, 2), optional
+        Predicted streak (start to end) of each window's star, px: each detection is
+        centroided over the whole streak (:func:`streak_centroid`).
+
+    Returns
+    -------
+    WindowDetections
+    """
+    rows, cols = image.shape
+    n = len(centres_px)
+    if n == 0 or n * (2 * half_px + 1) ** 2 > MAX_WINDOW_FRACTION * rows * cols:
+        det = solver._detector()(image)
+        return WindowDetections(det, 0, rows * cols, None)
+    stack, r0, c0 = _stack(image, np.asarray(centres_px, dtype=float), half_px)
+    found, noise, n_cand = _detect_stack(solver, stack, r0, c0, image.shape, streaks_px)
+    det = _detections(found, noise, n_cand, solver.sensor.detector.saturation_counts)
+    _, h, w = stack.shape
+    boxes = np.column_stack([r0, r0 + h, c0, c0 + w])
+    return WindowDetections(det, n, union_area(boxes), boxes)

@@ -1,0 +1,213 @@
+"""SIGTERM is handled like Ctrl-C: temporaries removed, exit 143, the previous output intact.
+
+In-process tests stop ``render`` and ``report`` at chosen points by sending SIGTERM to the test
+process itself from inside the pipeline (the handler raises at once); one slow test kills the
+real command at a few moments from outside.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from starsense.cli import main
+from starsense.cli.app import EXIT_TERMINATED
+
+
+def _term(*args, **kwargs):
+    os.kill(os.getpid(), signal.SIGTERM)
+    raise AssertionError("SIGTERM did not interrupt")  # pragma: no cover
+
+
+def _files(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir())
+
+
+@pytest.fixture
+def old_frame(tmp_path: Path) -> Path:
+    (tmp_path / "f.png").write_bytes(b"old image")
+    (tmp_path / "f.png.json").write_text('{"old": true}')
+    return tmp_path / "f.png"
+
+
+def _assert_old_frame(frame: Path, code: int, err: str) -> None:
+    assert code == EXIT_TERMINATED == 143
+    assert err.strip() == "error: terminated (SIGTERM); nothing written"
+    assert frame.read_bytes() == b"old image"
+    assert frame.with_name("f.png.json").read_text() == '{"old": true}'
+    assert _files(frame.parent) == ["f.png", "f.png.json"]  # no temporary left
+
+
+def test_render_terminated_while_rendering(old_frame, monkeypatch, capsys):
+    import starsense.render.scene as scene
+
+    monkeypatch.setattr(scene, "render_frame", _term)
+    code = main(["render", "--out", str(old_frame)])
+    _assert_old_frame(old_frame, code, capsys.readouterr().err)
+
+
+def test_render_terminated_while_writing_the_image(old_frame, monkeypatch, capsys):
+    import starsense.render.io as rio
+
+    def half_written(target, image, fmt):
+        Path(target).write_bytes(b"half an image")
+        _term()
+
+    monkeypatch.setattr(rio, "_write_pillow", half_written)
+    code = main(["render", "--out", str(old_frame), "--max-mag", "3"])
+    _assert_old_frame(old_frame, code, capsys.readouterr().err)
+
+
+def test_render_terminated_during_the_commit_finishes_it(old_frame, monkeypatch, capsys):
+    # SIGTERM while the image and its truth are renamed into place is held back until both
+    # are: the new pair is complete (never a new image with the old truth), then exit 143
+    import starsense._io.files as files
+
+    real = files._fsync
+    sent = []
+
+    def fsync_then_term(path):
+        real(path)
+        if not sent:
+            sent.append(path)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(files, "_fsync", fsync_then_term)
+    code = main(["render", "--out", str(old_frame), "--max-mag", "3"])
+    assert code == 143 and sent
+    from PIL import Image
+
+    from starsense.sensor import load_sensor
+
+    det = load_sensor("st16").detector
+    with Image.open(old_frame) as im:  # the new frame, complete: the st16 detector's size
+        assert im.size == (det.columns, det.rows)
+    assert "stars" in json.loads(old_frame.with_name("f.png.json").read_text())
+    assert _files(old_frame.parent) == ["f.png", "f.png.json"]
+
+
+@pytest.fixture
+def old_report(tmp_path: Path) -> Path:
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "report.json").write_text(json.dumps({"generator": "starsense.report"}))
+    (out / "index.html").write_text("old report")
+    return out
+
+
+def _assert_old_report(out: Path, code: int, err: str) -> None:
+    assert code == 143 and "terminated" in err
+    assert (out / "index.html").read_text() == "old report"
+    assert _files(out) == ["index.html", "report.json"]
+    assert _files(out.parent) == ["r"]  # no temporary or set-aside folder left
+
+
+def test_report_terminated_while_loading_stars(old_report, monkeypatch, capsys):
+    import starsense.report.build as build
+
+    monkeypatch.setattr(build, "_load_stars", _term)
+    code = main(["report", "--out", str(old_report)])
+    _assert_old_report(old_report, code, capsys.readouterr().err)
+
+
+def _fake_stars(monkeypatch):
+    import starsense.report.build as build
+
+    monkeypatch.setattr(build, "_load_stars", lambda *a: ("test stars", 1, {}, None))
+    return build
+
+
+def test_report_terminated_in_a_section(old_report, monkeypatch, capsys):
+    build = _fake_stars(monkeypatch)
+    monkeypatch.setattr(build, "SECTION_BUILDERS", [_term])
+    code = main(["report", "--out", str(old_report)])
+    _assert_old_report(old_report, code, capsys.readouterr().err)
+
+
+def test_report_terminated_while_writing(old_report, monkeypatch, capsys):
+    build = _fake_stars(monkeypatch)
+    monkeypatch.setattr(build, "SECTION_BUILDERS", [])
+
+    def half_index(work, *args):
+        (work / "index.html").write_text("half")
+        _term()
+
+    monkeypatch.setattr(build, "_write_index", half_index)
+    code = main(["report", "--out", str(old_report)])
+    _assert_old_report(old_report, code, capsys.readouterr().err)
+
+
+def test_report_terminated_during_the_swap_finishes_it(old_report, monkeypatch, capsys):
+    build = _fake_stars(monkeypatch)
+    monkeypatch.setattr(build, "SECTION_BUILDERS", [])
+    monkeypatch.setattr(
+        build, "_write_index", lambda work, *a: (work / "index.html").write_text("new")
+    )
+    monkeypatch.setattr(build, "_write_json", lambda work, *a: (work / "report.json").write_text(
+        json.dumps({"generator": "starsense.report"})))  # fmt: skip
+    real = build._swap_into_place
+
+    def swap_after_term(work, out):
+        os.kill(os.getpid(), signal.SIGTERM)  # held back until the swap is done
+        real(work, out)
+
+    monkeypatch.setattr(build, "_swap_into_place", swap_after_term)
+    code = main(["report", "--out", str(old_report)])
+    assert code == 143
+    assert (old_report / "index.html").read_text() == "new"
+    assert _files(old_report.parent) == ["r"]
+
+
+def test_stale_temporaries_of_a_killed_run_are_swept(tmp_path, monkeypatch, capsys):
+    # a run killed outright (SIGKILL) leaves its temporaries; the next run into the same place
+    # removes those of dead processes and leaves a live process's alone
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    live = os.getpid()
+    stale_file = tmp_path / f".f.png.starsense-{dead.pid}-abc123.png"
+    stale_dir = tmp_path / f".r.starsense-{dead.pid}-tmp-xyz"
+    busy = tmp_path / f".f.png.starsense-{live}-inuse.png"
+    stale_file.write_bytes(b"x")
+    stale_dir.mkdir()
+    (stale_dir / "index.html").write_text("x")
+    busy.write_bytes(b"x")
+
+    from starsense._io import atomic_write, sweep_stale
+
+    with atomic_write(tmp_path / "f.png", "wb") as fh:
+        fh.write(b"new")
+    assert not stale_file.exists() and busy.exists()
+    assert sweep_stale(tmp_path / "r") == [stale_dir]
+    assert _files(tmp_path) == sorted(["f.png", busy.name])
+
+
+@pytest.mark.slow
+def test_render_killed_from_outside_at_several_moments(tmp_path):
+    # the real command, SIGTERM at a few moments of its run (start-up, rendering, writing):
+    # each time exit 143 (or 0 when it had finished, or -15 before the handler was set), no
+    # temporary, and either the previous frame or a complete new one
+    frame = tmp_path / "f.png"
+    cmd = [sys.executable, "-c", "from starsense.cli import _console_main; _console_main()",
+           "render", "--out", str(frame), "--max-mag", "4"]  # fmt: skip
+    subprocess.run(cmd, check=True, capture_output=True, timeout=120)
+    previous = (frame.read_bytes(), frame.with_name("f.png.json").read_bytes())
+    for delay in (0.5, 1.5, 2.5, 3.5):
+        proc = subprocess.Popen([*cmd, "--seed", "7"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)  # fmt: skip
+        time.sleep(delay)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+        assert proc.returncode in (143, 0, -signal.SIGTERM), err
+        assert b"Traceback" not in err
+        assert _files(tmp_path) == ["f.png", "f.png.json"]
+        now = (frame.read_bytes(), frame.with_name("f.png.json").read_bytes())
+        if now != previous:  # replaced: the new pair is complete
+            assert "stars" in json.loads(now[1])
+            previous = now
