@@ -297,6 +297,16 @@ def _warnings(data: dict) -> list[str]:
                    f"{_N_MIN_LIS} lost in space needs")  # fmt: skip
     if data["availability"]["tracking"] == 0.0:
         out.append("no boresight of the sky holds the 2 stars an attitude needs")
+    mc, avail = data.get("monte_carlo") or {}, data["availability"]["lost_in_space"]
+    if mc.get("frames"):
+        solved = mc["solved"] / mc["frames"]
+        margin = 2.0 * math.sqrt(max(solved * (1 - solved), 1e-4) / mc["frames"])  # ~95 %
+        if solved < avail - margin:
+            out.append(
+                f"lost in space solved {solved:.1%} of the rendered frames at rest, below the "
+                f"{avail:.1%} of the sky with >= {_N_MIN_LIS} detectable stars: identification "
+                f"needs more than that (statuses {mc['statuses']})"
+            )
     for key in ("monte_carlo", "monte_carlo_at_rate"):
         mc = data.get(key) or {}
         if mc.get("wrong"):
