@@ -47,6 +47,8 @@ COMMANDS = [
     ["guide-stars", "select", "--center-deg", "10,10", "--lens-fov-deg", "20"],
     ["guide-stars", "field", "--trials", "5"],
     ["montecarlo", "--trials", "1", "--max-mag", "-5"],
+    pytest.param(["datasheet", "--trials", "2", "--n-orientations", "200"],
+                 marks=pytest.mark.slow),
 ]  # fmt: skip
 
 

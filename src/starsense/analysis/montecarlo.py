@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -55,6 +55,12 @@ class MonteCarloResult:
         Sensitivity model of the rendering.
     seed : int
         Root seed.
+    truth_quat : ndarray, shape (n_solved_right, 4)
+        True attitude (ICRS -> camera, scalar-last quaternion) of each right solution.
+    solve_ms : ndarray, shape (n_trials,)
+        Time of each solve (detection, identification, attitude; the database load excluded), ms.
+    n_matched : ndarray, shape (n_solved_right,)
+        Stars matched in each right solution.
     """
 
     sensor: str
@@ -68,6 +74,9 @@ class MonteCarloResult:
     rate_rad_s: float
     model: str
     seed: int
+    truth_quat: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    solve_ms: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    n_matched: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
     @property
     def solve_rate(self) -> float:
@@ -116,11 +125,94 @@ class MonteCarloResult:
             "rms_error_arcsec": [float(v) for v in self.rms_error_arcsec],
             "rms_predicted_arcsec": [float(v) for v in self.rms_predicted_arcsec],
             "time_ms": self.time_ms,
+            "solve_ms_median": _median(self.solve_ms),
+            "solve_ms_p95": _median(self.solve_ms, 95),
             "statuses": self.statuses,
             "rate_deg_s": self.rate_deg_s,
             "model": self.model,
             "seed": self.seed,
         }
+
+
+def _median(values: np.ndarray, q: float = 50) -> float | None:
+    """Return a percentile of ``values``, None when there are none."""
+    return float(np.percentile(values, q)) if len(values) else None
+
+
+def _trials(sensor, catalog, seed: int, n_trials: int, indices, rate_rad_s: float, model: str,
+            max_mag, wrong_rad: float, progress=None) -> list[tuple]:  # fmt: skip
+    """Run trials ``indices`` of a run of ``n_trials``; one record per trial (see below).
+
+    A top-level function so that a Dask worker can run a chunk: trial k always uses the k-th
+    child of ``SeedSequence(seed)``, wherever it runs. Record: (status, solved, wrong, error
+    (3,) or None, predicted sigma (3,) or None, truth quaternion (4,), render ms, solve ms,
+    matched stars).
+    """
+    from starsense.geometry.attitude import angular_separation, boresight, small_rotation_angles
+    from starsense.geometry.sampling import random_attitudes
+    from starsense.render.scene import render_frame
+    from starsense.solve.solver import Solver
+
+    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
+    children = np.random.SeedSequence(seed).spawn(int(n_trials))
+    out = []
+    for k in indices:
+        rng = np.random.default_rng(children[k])
+        truth = random_attitudes(1, rng)[0]
+        phi = rng.uniform(0, 2 * np.pi)
+        rate = rate_rad_s * np.array([math.cos(phi), math.sin(phi), 0.0])
+        t0 = time.perf_counter()
+        frame = render_frame(solver.sensor, truth, catalog, rate_rad_s=rate, model=model,
+                             max_mag=max_mag, rng=rng, keep_expected=False)  # fmt: skip
+        render_ms = (time.perf_counter() - t0) * 1e3
+        sol = solver(frame.image)
+        solve_ms = sol.time_ms - sol.stage_ms.get("database_ms", 0.0)
+        err = sig = None
+        wrong = False
+        if sol.solved:
+            miss = float(angular_separation(boresight(truth), boresight(sol.rotation)))
+            wrong = miss > wrong_rad
+            if not wrong:
+                err = small_rotation_angles(truth, sol.rotation)
+                sig = np.asarray(sol.sigma_rad)
+        out.append((sol.status, sol.solved, wrong, err, sig, truth.as_quat(), render_ms,
+                    solve_ms, sol.n_matched))  # fmt: skip
+        if progress is not None:
+            progress(1)
+    return out
+
+
+def _dask_trials(client, args: tuple, n_trials: int, progress) -> list[tuple]:
+    """Run the trials on a Dask cluster in chunks; records in trial order."""
+    from dask.distributed import as_completed
+
+    chunk = max(1, math.ceil(n_trials / (8 * max(1, len(client.scheduler_info()["workers"])))))
+    starts = list(range(0, n_trials, chunk))
+    # the sensor and the catalogue go to the workers once, not inside every task
+    sensor_f, catalog_f = client.scatter(list(args[:2]), broadcast=True)
+    futures = [
+        client.submit(
+            _trials,
+            sensor_f,
+            catalog_f,
+            args[2],
+            n_trials,
+            range(s, min(s + chunk, n_trials)),
+            *args[3:],
+            pure=False,
+        )
+        for s in starts
+    ]
+    index = {f.key: i for i, f in enumerate(futures)}
+    parts: list = [None] * len(futures)
+    done = 0
+    for fut in as_completed(futures):
+        part = fut.result()
+        parts[index[fut.key]] = part
+        done += len(part)
+        if progress is not None:
+            progress(done, n_trials)
+    return [r for part in parts for r in part]
 
 
 def run_montecarlo(
@@ -134,6 +226,7 @@ def run_montecarlo(
     seed: int = 0,
     wrong_rad: float = 60.0 * ARCSEC,
     progress: Callable[[int, int], None] | None = None,
+    client=None,
 ) -> MonteCarloResult:
     """Run the tracker ``n_trials`` times at random attitudes (see the module docstring).
 
@@ -158,69 +251,64 @@ def run_montecarlo(
         A solution whose boresight is farther than this from the truth is wrong, rad
         (default 60 arcsec).
     progress : callable(done, total), optional
-        Called after each trial.
+        Called after each trial (after each chunk on Dask).
+    client : dask.distributed.Client, optional
+        Run the trials on this cluster, in chunks; the result is identical to the in-process
+        run for the same seed (but for the times).
 
     Returns
     -------
     MonteCarloResult
     """
     from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import (
-        angular_separation,
-        boresight,
-        small_rotation_angles,
-    )
-    from starsense.geometry.sampling import random_attitudes
-    from starsense.render.scene import render_frame
-    from starsense.solve.solver import Solver
+    from starsense.sensor import Sensor, load_sensor
 
-    if int(n_trials) != n_trials or n_trials < 1:
+    if isinstance(n_trials, bool) or int(n_trials) != n_trials or n_trials < 1:
         raise InputError(f"n_trials must be an integer >= 1, got {show(n_trials)}")
+    n_trials = int(n_trials)
     rate_rad_s = finite_float(rate_rad_s, "rate_rad_s")
     if rate_rad_s < 0:
         raise InputError(f"rate_rad_s must be >= 0, got {show(rate_rad_s)}")
+    sens = sensor if isinstance(sensor, Sensor) else load_sensor(sensor)
     cat = load_catalog("hipparcos") if catalog is None else catalog
-    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
-    children = np.random.SeedSequence(seed).spawn(int(n_trials))
-    errors, predicted, statuses = [], [], {}
-    n_solved = n_wrong = 0
-    t_render = t_solve = 0.0
-    for k, child in enumerate(children):
-        rng = np.random.default_rng(child)
-        truth = random_attitudes(1, rng)[0]
-        phi = rng.uniform(0, 2 * np.pi)
-        rate = rate_rad_s * np.array([math.cos(phi), math.sin(phi), 0.0])
-        t0 = time.perf_counter()
-        frame = render_frame(solver.sensor, truth, cat, rate_rad_s=rate, model=model,
-                             max_mag=max_mag, rng=rng, keep_expected=False)  # fmt: skip
-        t1 = time.perf_counter()
-        sol = solver(frame.image)
-        t2 = time.perf_counter()
-        if k > 0:  # the first solve includes the database build or cache load
-            t_render += t1 - t0
-            t_solve += t2 - t1
-        statuses[sol.status] = statuses.get(sol.status, 0) + 1
-        if sol.solved:
-            n_solved += 1
-            miss = float(angular_separation(boresight(truth), boresight(sol.rotation)))
-            if miss > wrong_rad:
-                n_wrong += 1
-            else:
-                errors.append(small_rotation_angles(truth, sol.rotation))
-                predicted.append(np.asarray(sol.sigma_rad))
-        if progress is not None:
-            progress(k + 1, n_trials)
-    timed = max(1, n_trials - 1)
+    args = (sens, cat, int(seed), float(rate_rad_s), model, max_mag, float(wrong_rad))
+    if client is not None:
+        records = _dask_trials(client, args, n_trials, progress)
+    else:
+        done = [0]
+
+        def tick(_n: int) -> None:
+            done[0] += 1
+            if progress is not None:
+                progress(done[0], n_trials)
+
+        records = _trials(*args[:3], n_trials, range(n_trials), *args[3:], progress=tick)
+    return _result(sens.name, records, n_trials, rate_rad_s, model, int(seed))
+
+
+def _result(name: str, records: list[tuple], n_trials: int, rate_rad_s: float, model: str,
+            seed: int) -> MonteCarloResult:  # fmt: skip
+    """Gather the per-trial records into a :class:`MonteCarloResult`."""
+    statuses: dict = {}
+    for r in records:
+        statuses[r[0]] = statuses.get(r[0], 0) + 1
+    right = [r for r in records if r[3] is not None]
     return MonteCarloResult(
-        sensor=solver.sensor.name,
-        n_trials=int(n_trials),
-        n_solved=n_solved,
-        n_wrong=n_wrong,
-        errors_rad=np.array(errors).reshape(-1, 3),
-        predicted_sigma_rad=np.array(predicted).reshape(-1, 3),
-        time_ms={"render": t_render / timed * 1e3, "solve": t_solve / timed * 1e3},
+        sensor=name,
+        n_trials=n_trials,
+        n_solved=sum(bool(r[1]) for r in records),
+        n_wrong=sum(bool(r[2]) for r in records),
+        errors_rad=np.array([r[3] for r in right]).reshape(-1, 3),
+        predicted_sigma_rad=np.array([r[4] for r in right]).reshape(-1, 3),
+        time_ms={
+            "render": float(np.mean([r[6] for r in records])),
+            "solve": float(np.mean([r[7] for r in records])),
+        },
         statuses=statuses,
         rate_rad_s=float(rate_rad_s),
         model=model,
-        seed=int(seed),
+        seed=seed,
+        truth_quat=np.array([r[5] for r in right]).reshape(-1, 4),
+        solve_ms=np.array([r[7] for r in records], dtype=float),
+        n_matched=np.array([r[8] for r in right], dtype=int),
     )

@@ -30,6 +30,7 @@ def _register_subapps() -> None:
     from starsense.cli.availability import availability_app
     from starsense.cli.calibrate import calibrate
     from starsense.cli.catalog import catalog_app
+    from starsense.cli.datasheet import datasheet
     from starsense.cli.frames import montecarlo, render, solve
     from starsense.cli.guide_stars import guide_stars_app
     from starsense.cli.limit import limit_app
@@ -44,6 +45,7 @@ def _register_subapps() -> None:
     app.command("solve")(solve)
     app.command("calibrate")(calibrate)
     app.command("montecarlo")(montecarlo)
+    app.command("datasheet")(datasheet)
     app.command("track")(track)
     app.command("report")(report)
     availability_app.command("mission")(mission)

@@ -38,8 +38,11 @@ def report(
     slew_trials: Annotated[
         int, typer.Option("--slew-trials", help="Monte Carlo trials per slew point.")
     ] = 20,
+    trials: Annotated[
+        int, typer.Option("--trials", help="Datasheet check: rendered frames per rate.")
+    ] = 40,
 ) -> None:
-    """Write the performance report (HTML + PNG figures) to --out."""
+    """Write the performance report (HTML + PNG figures) to --out: the sensor's datasheet first."""
     from rich.console import Console
 
     from starsense.report import build_report
@@ -48,6 +51,7 @@ def report(
     option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
     option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     option_int(slew_trials, "--slew-trials", 1)
+    option_int(trials, "--trials", 1)
     sens = load_sensor(sensor)
 
     console = Console(stderr=True)
@@ -62,5 +66,6 @@ def report(
             seed=seed,
             sensor=sens,
             slew_trials=slew_trials,
+            datasheet_trials=trials,
         )
     typer.echo(f"report written: {index}")

@@ -31,6 +31,7 @@ from starsense.photometry import COLOUR_SYSTEMS
 from starsense.photometry.stars import BlackBodyStars
 from starsense.report import page
 from starsense.report.availability import availability_section
+from starsense.report.datasheet import datasheet_section
 from starsense.report.guide_stars import guide_stars_section
 from starsense.report.limits import limit_section
 from starsense.report.mission import mission_section
@@ -38,13 +39,17 @@ from starsense.report.section import ReportContext, Section
 from starsense.report.sensors import SensorSpec, load_sensor_table
 from starsense.report.slew import slew_section
 
-#: the section builders, in page order: ``builder(ctx) -> Section``. Later analyses append here.
+#: the section builders, in page order: ``builder(ctx) -> Section``. The datasheet first (what
+#: the sensor does), then how its numbers were obtained (slew tolerance, availability, over a
+#: mission when the sensor TOML names one), then the
+#: papers' reproductions as the validation appendix (the limit, the guide stars).
 SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [
-    limit_section,
+    datasheet_section,
     slew_section,
     availability_section,
-    guide_stars_section,
     mission_section,
+    limit_section,
+    guide_stars_section,
 ]
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,
@@ -78,6 +83,7 @@ def build_report(
     low_photon_trials: int = 100,
     sensor=None,
     slew_trials: int = 20,
+    datasheet_trials: int = 40,
 ) -> Path:
     """Write the performance report to ``out_dir`` (index.html, PNG figures, report.json).
 
@@ -107,6 +113,8 @@ def build_report(
         The star tracker of the slew section (none: the section says so).
     slew_trials : int
         Monte Carlo trials per (magnitude, rate) in the slew section.
+    datasheet_trials : int
+        Rendered frames per rate in the datasheet's Monte Carlo check.
 
     Returns
     -------
@@ -142,6 +150,7 @@ def build_report(
             progress=say,
             sensor=sensor,
             slew_trials=slew_trials,
+            datasheet_trials=datasheet_trials,
             catalog=catalog,
         )
         sections = [builder(ctx) for builder in SECTION_BUILDERS]

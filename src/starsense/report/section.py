@@ -92,6 +92,7 @@ class ReportContext:
     progress: Callable[[str], None] = lambda message: None
     sensor: Sensor | None = None
     slew_trials: int = 20
+    datasheet_trials: int = 40
     slew_results: dict = field(default_factory=dict)
     catalog: Catalog | None = None
 

@@ -151,7 +151,10 @@ def dask_client(
                 # by address (tcp://127.0.0.1:PORT) with other clients of this machine
                 protocol="tcp://",
                 host="127.0.0.1",
-                dashboard_address=None,
+                # no dashboard: None would mean distributed's default, port 8787, and a
+                # second starsense run on the same machine would then fail to start its cluster
+                dashboard_address=":0",
+                scheduler_kwargs={"dashboard": False},
                 # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
                 # a traceback; task failures still reach the client as exceptions
                 silence_logs=logging.CRITICAL,

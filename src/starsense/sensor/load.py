@@ -27,6 +27,7 @@ from starsense.sensor.detector import Detector
 from starsense.sensor.exclusion import exclusion_from_table
 from starsense.sensor.mission_plan import mission_from_table
 from starsense.sensor.optics import Optics
+from starsense.sensor.quoted import parse_budget, parse_quoted
 from starsense.sensor.sensor import DetectionThresholds, Sensor
 
 __all__ = ["load_sensor", "preset_names", "sensor_from_dict"]
@@ -37,7 +38,8 @@ _SECTIONS: dict[str, type] = {
     "detection": DetectionThresholds,
 }
 _TOP_KEYS = {
-    "name", "description", "exposure_s", "attitude_areas", "exclusion", "mission", *(_SECTIONS)
+    "name", "description", "exposure_s", "attitude_areas", "exclusion", "mission", "quoted",
+    "budget", *(_SECTIONS),
 }  # fmt: skip
 _AREA_KEYS = {"layout", "image_circle_diameter_mm", "area"}
 _AREA_SHAPES = ("rectangle_mm", "polygon_mm")
@@ -199,6 +201,8 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
             description=str(data.get("description", "")),
             exposure_s=data["exposure_s"],
             attitude_areas=areas,
+            quoted=parse_quoted(data["quoted"], source) if "quoted" in data else (),
+            budget=parse_budget(data["budget"], source) if "budget" in data else (),
             exclusion=exclusion,
             mission=mission,
             **parts,

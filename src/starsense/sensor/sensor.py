@@ -81,6 +81,9 @@ class Sensor:
     attitude_areas : AreaLayout or None
         Attitude-determination areas in the focal plane (Lin et al. 2024), tangent-plane units
         (:class:`starsense.geometry.areas.AreaLayout`); None when the whole detector is used.
+    quoted, budget : tuple of (key, value)
+        The TOML's ``[quoted]`` and ``[budget]`` tables (:mod:`starsense.sensor.quoted`), for the
+        datasheet.
     exclusion : Exclusion or None
         Sun, Moon and Earth-limb exclusion half-angles (:mod:`starsense.sensor.exclusion`);
         None when the TOML has no ``[exclusion]`` table.
@@ -96,6 +99,8 @@ class Sensor:
     detection: DetectionThresholds = field(default_factory=DetectionThresholds)
     description: str = ""
     attitude_areas: Any = None
+    quoted: tuple = ()
+    budget: tuple = ()
     exclusion: Any = None
     mission: Any = None
 

@@ -346,8 +346,9 @@ class Solver:
         Solution
             Solved, or the reason why not (no exception for a frame that does not solve).
         """
-        from starsense.attitude import estimate_attitude
+        from starsense.attitude.robust import robust_attitude
         from starsense.geometry.attitude import radec_roll_from_attitude
+        from starsense.solve.blends import blend_radius_px, photocentres
 
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
@@ -379,14 +380,20 @@ class Solver:
         if fov_known is None:  # re-unproject with the field found
             vectors = pinhole_vectors(det.x, det.y, a.shape, fov)
         matched = np.asarray(ident.detection_index)
-        ref = identifier.database.vectors[np.asarray(ident.catalog_index)]
-        ref, apparent = self._reference(ref, ident.catalog_id, obs_time)
+        db = identifier.database
+        plain = db.vectors[np.asarray(ident.catalog_index)]
+        ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
+        if self.sensor is not None:  # blended close doubles: their photocentre, not one star
+            radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / a.shape[1]
+            ref = ref + photocentres(db.vectors, db.mags, db.tree, ident.catalog_index, radius)
+            ref = ref - plain
+            ref /= np.linalg.norm(ref, axis=1)[:, None]
         if self.centroid_sigma_px == "snr":
             sigma_px = _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
         else:
             sigma_px = self.centroid_sigma_px
         pixel_rad = fov / a.shape[1]
-        att = estimate_attitude(vectors[matched], ref, sigma_px * pixel_rad, method="svd")
+        att, _ = robust_attitude(vectors[matched], ref, sigma_px * pixel_rad)  # drops blends
         stages["attitude_ms"] = _ms(t3)
         ra, dec, roll = radec_roll_from_attitude(att.rotation)
         return Solution(

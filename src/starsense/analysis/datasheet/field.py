@@ -1,0 +1,97 @@
+"""Attitude noise over the sky: per-star sigmas through eq. 21, pointing by pointing.
+
+For every attitude of a set (quasi-uniform boresights, or the Monte Carlo's true attitudes),
+the catalogue stars inside the sensor's rectangular field are found once
+(:func:`starsense.analysis.availability.field.field_pairs`), put in the camera frame, and
+their per-star information ``1 / sigma_i^2`` summed into the attitude Fisher matrix (Fialho &
+Mortari 2019, eq. 21, :func:`starsense.attitude.covariance.fisher_components`). The inverse,
+in the camera frame, gives the 1-sigma cross-boresight (rms of the x and y axes) and roll
+(about z) of that attitude.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from starsense.analysis.availability.field import field_pairs
+from starsense.attitude.covariance import SINGULAR_RCOND, fisher_components
+
+__all__ = ["FieldStarsCam", "axis_sigmas", "field_stars_cam", "fisher_per_pointing"]
+
+
+class FieldStarsCam:
+    """The (pointing, star) pairs of a set of attitudes, with camera-frame star vectors.
+
+    Parameters
+    ----------
+    point : ndarray (P,) of int
+        Pointing of each pair.
+    star : ndarray (P,) of int
+        Catalogue index of each pair.
+    v_cam : ndarray (P, 3)
+        Star unit vector in the camera frame.
+    n_pointings : int
+        Number of attitudes.
+    """
+
+    def __init__(self, point, star, v_cam, n_pointings: int) -> None:
+        self.point = point
+        self.star = star
+        self.v_cam = v_cam
+        self.n_pointings = int(n_pointings)
+
+    def counts(self, mask: NDArray[np.bool_] | None = None) -> NDArray[np.intp]:
+        """Return the stars per pointing (only the pairs in ``mask`` if given)."""
+        p = self.point if mask is None else self.point[mask]
+        return np.bincount(p, minlength=self.n_pointings)
+
+
+def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.float64], tree=None):
+    """Return the :class:`FieldStarsCam` of attitudes ``matrices`` (M, 3, 3), ICRS -> camera."""
+    point, star = field_pairs(fov, matrices, vectors, tree)
+    v_cam = np.einsum("kij,kj->ki", matrices[point], vectors[star])
+    return FieldStarsCam(point, star, v_cam, matrices.shape[0])
+
+
+def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> np.ndarray:
+    """Return eq. 21 per pointing, camera frame, (M, 3, 3) rad^-2.
+
+    Parameters
+    ----------
+    pairs : FieldStarsCam
+        Stars in the field of each attitude.
+    weights : ndarray (P,)
+        Information of each pair's star, ``1 / sigma^2``, rad^-2 (0 drops the pair).
+    """
+    from starsense.attitude.covariance import fisher_from_components
+
+    comp = fisher_components(pairs.v_cam, weights)
+    sums = np.zeros((pairs.n_pointings, 7))
+    np.add.at(sums, pairs.point, comp)
+    return fisher_from_components(sums)
+
+
+def axis_sigmas(fishers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return the 1-sigma cross-boresight (per axis, rms of x and y) and roll of each Fisher.
+
+    Parameters
+    ----------
+    fishers : ndarray (M, 3, 3)
+        Camera-frame attitude Fisher matrices, rad^-2.
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad; NaN where the matrix is singular (fewer than two usable stars).
+    """
+    f = np.asarray(fishers, dtype=float)
+    eig = np.linalg.eigvalsh(f)
+    ok = eig[:, 0] > SINGULAR_RCOND * np.maximum(eig[:, -1], np.finfo(float).tiny)
+    cross = np.full(len(f), np.nan)
+    roll = np.full(len(f), np.nan)
+    if ok.any():
+        p = np.linalg.inv(f[ok])
+        cross[ok] = np.sqrt(0.5 * (p[:, 0, 0] + p[:, 1, 1]))
+        roll[ok] = np.sqrt(p[:, 2, 2])
+    return cross, roll

@@ -1,0 +1,182 @@
+"""The datasheet's predictions: signal, detection, noise-equivalent angle, limit, availability.
+
+Everything here comes from the sensor model and the catalogue, without rendering a frame (but
+for the slew-tolerance Monte Carlo of :mod:`starsense.analysis.slew`, which renders single
+stars). :mod:`starsense.analysis.datasheet.verify` checks it against rendered frames.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
+from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
+from starsense.units import DEG
+
+__all__ = [
+    "DEFAULT_RATES_RAD_S",
+    "StarModel",
+    "fastest_rate",
+    "limiting_magnitude",
+    "nea_at",
+    "slew_grids",
+]
+
+#: the datasheet's availability rates: at rest and 0.5, 1, 2 deg/s (rad/s)
+DEFAULT_RATES_RAD_S = np.array([0.0, 0.5, 1.0, 2.0]) * DEG
+
+
+def limiting_magnitude(magnitudes, fraction, criterion: float = 0.5) -> float | None:
+    """Return the faintest magnitude detected in >= ``criterion`` of renders (interpolated).
+
+    Parameters
+    ----------
+    magnitudes : array (M,)
+        Increasing magnitudes.
+    fraction : array (M,)
+        Detection fraction of each at rest.
+    criterion : float
+        The fraction that counts as detected.
+
+    Returns
+    -------
+    float or None
+        The magnitude where the detection fraction crosses ``criterion`` on its way down
+        (linear interpolation); None when not even the brightest is detected.
+    """
+    m = np.asarray(magnitudes, dtype=float)
+    f = np.asarray(fraction, dtype=float)
+    ok = f >= criterion
+    if not ok[0]:
+        return None
+    fail = np.flatnonzero(~ok)
+    if fail.size == 0:
+        return float(m[-1])
+    j = fail[0]
+    t = (f[j - 1] - criterion) / (f[j - 1] - f[j]) if f[j - 1] != f[j] else 0.0
+    return float(m[j - 1] + t * (m[j] - m[j - 1]))
+
+
+def slew_grids(sensor, static_limit: float, n_mag: int = 20, n_rate: int = 40):
+    """Return the magnitudes (0.25 mag steps ending just past the limit) and rates to simulate.
+
+    The rates run from rest to 10 deg/s (the paper's range), or less when a faster slew would
+    sweep a star over more than half the detector's columns in one exposure.
+    """
+    top = math.ceil(static_limit * 4.0) / 4.0 + 0.25
+    mags = top - 0.25 * np.arange(n_mag)[::-1]
+    det = sensor.detector
+    half_width = 0.5 * det.columns * det.pixel_pitch_m / sensor.optics.focal_length_m
+    from starsense.analysis.slew import default_rates_rad_s
+
+    max_rate = math.atan(half_width) / sensor.exposure_s
+    if max_rate >= 10.0 * DEG:  # the paper's grid, built as the slew analysis builds it
+        return mags, default_rates_rad_s(n_rate)
+    return mags, np.linspace(0.0, max_rate, n_rate)
+
+
+def fastest_rate(rates, availability, target: float) -> float | None:
+    """Return the fastest rate (from rest) whose availability stays >= ``target``.
+
+    Linear interpolation between the last passing and the first failing rate; None when even
+    rest falls short; the top rate when every rate passes.
+    """
+    r = np.asarray(rates, dtype=float)
+    a = np.asarray(availability, dtype=float)
+    ok = a >= target
+    if not ok[0]:
+        return None
+    fail = np.flatnonzero(~ok)
+    if fail.size == 0:
+        return float(r[-1])
+    j = fail[0]
+    t = (a[j - 1] - target) / (a[j - 1] - a[j])
+    return float(r[j - 1] + t * (r[j] - r[j - 1]))
+
+
+@dataclass(frozen=True)
+class StarModel:
+    """Per-star noise of the sensor: photo-electrons -> centroid sigma, bound and bias (px).
+
+    Attributes
+    ----------
+    sensor : Sensor
+    sensitivity : Sensitivity
+        Magnitude -> photo-electrons (the rendering's model).
+    noise : CentroidNoise
+        Centroid noise table of the sensor's centroider.
+    pixel_bias : PixelSpatialError or None
+        The centroider's sub-pixel bias measured on noiseless renders.
+    """
+
+    sensor: object
+    sensitivity: object
+    noise: CentroidNoise
+    pixel_bias: object = None
+
+    @classmethod
+    def build(cls, sensor, model: str, bright_mag: float, faint_mag: float) -> StarModel:
+        """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``."""
+        from starsense.analysis.datasheet.terms import pixel_spatial_error
+        from starsense.photometry.sensitivity import Sensitivity
+
+        sens = Sensitivity.for_sensor(sensor, model)
+        e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))
+        noise = centroid_noise(sensor, 0.5 * e_lo, 2.0 * e_hi)
+        probe = np.geomspace(max(e_lo, 1.0), max(e_hi, 2.0), 5)
+        bias = pixel_spatial_error(sensor, probe)
+        return cls(sensor, sens, noise, bias)
+
+    @property
+    def pixel_rad(self) -> float:
+        """Angle of one pixel at the boresight, rad."""
+        return self.sensor.detector.pixel_pitch_m / self.sensor.optics.focal_length_m
+
+    def star_sigmas_rad(self, magnitudes, z_cam, kind: str = "nea") -> np.ndarray:
+        """Return each star's 1-sigma direction error, rad.
+
+        ``kind``: "nea" (the centroider's temporal noise), "crb" (the pixelated-Gaussian bound)
+        or "pixel" (the measured sub-pixel bias, rms). Off-axis stars scale by the
+        camera-frame z (the pinhole's angle per pixel, across the radial direction).
+        """
+        e = self.sensitivity.electrons(np.asarray(magnitudes, dtype=float))
+        if kind == "nea":
+            px = self.noise.sigma(e)
+        elif kind == "crb":
+            px = self.noise.crb(e)
+        else:
+            px = self.pixel_bias.rms(e)
+        px = np.where(np.isfinite(px), px, np.inf)
+        return px * self.pixel_rad * np.asarray(z_cam, dtype=float)
+
+
+def nea_at(model: StarModel, fov, matrices, vectors, magnitudes, kinds=("nea",), tree=None):
+    """Return {kind: (cross, roll)} per attitude, rad, from the stars in the field.
+
+    Parameters
+    ----------
+    model : StarModel
+    fov : RectangularFov
+        The sensor's field.
+    matrices : ndarray (M, 3, 3)
+        Attitudes, ICRS -> camera.
+    vectors, magnitudes : ndarray (N, 3), (N,)
+        The stars the tracker uses (detected at rest), ICRS.
+    kinds : sequence of str
+        Per-star error kinds of :meth:`StarModel.star_sigmas_rad`.
+    tree : cKDTree, optional
+        Built on ``vectors``.
+
+    Returns
+    -------
+    dict, and the stars in the field per attitude (M,)
+    """
+    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree)
+    out = {}
+    for kind in kinds:
+        sigma = model.star_sigmas_rad(np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2], kind)
+        out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
+    return out, pairs.counts()

@@ -1,0 +1,143 @@
+"""Error terms beside the temporal noise (ECSS-E-ST-60-20C names), measured or modelled.
+
+* **Pixel spatial error**: the centroider's deterministic error against the star's sub-pixel
+  position, measured by running the tracker's own detector on noiseless renders
+  (:func:`starsense.render.psf.gaussian_stamp`) over a grid of sub-pixel positions.
+* **Stellar aberration, if uncorrected**: the apparent displacement of every star by the
+  observer's velocity (first order: ``v/c sin(angle to the apex)``), fitted as a rotation over
+  the field: the common part is a cross-boresight error, the differential part is left over.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = [
+    "EARTH_ORBITAL_SPEED_M_S",
+    "SPEED_OF_LIGHT_M_S",
+    "PixelSpatialError",
+    "aberration_error",
+    "pixel_spatial_error",
+]
+
+#: speed of light, m/s (exact, SI)
+SPEED_OF_LIGHT_M_S = 299_792_458.0
+#: Earth's mean orbital speed, m/s: 2 pi AU / sidereal year (29.78 km/s), whose ratio to c is
+#: the constant of annual aberration, 20.4955 arcsec (IAU 1976)
+EARTH_ORBITAL_SPEED_M_S = 2.0 * math.pi * 149_597_870_700.0 / (365.256363004 * 86_400.0)
+
+
+@dataclass(frozen=True)
+class PixelSpatialError:
+    """The centroider's bias against sub-pixel position, per star brightness (pixels).
+
+    Attributes
+    ----------
+    electrons : ndarray (K,)
+        Photo-electrons of the rendered stars.
+    rms_px, max_px : ndarray (K,)
+        Rms and largest bias over the sub-pixel grid (both axes pooled).
+    n_positions : int
+        Sub-pixel positions per star brightness.
+    """
+
+    electrons: np.ndarray
+    rms_px: np.ndarray
+    max_px: np.ndarray
+    n_positions: int
+
+    def rms(self, electrons) -> np.ndarray:
+        """Return the rms bias (px) of stars of ``electrons`` (log-log interpolation)."""
+        ok = np.isfinite(self.rms_px)
+        e = np.asarray(electrons, dtype=float)
+        if not ok.any():
+            return np.full(e.shape, np.nan)
+        grid, r = self.electrons[ok], np.maximum(self.rms_px[ok], 1e-6)
+        e = np.clip(e, grid[0], grid[-1])  # held at the ends of the measured range
+        return np.exp(np.interp(np.log(e), np.log(grid), np.log(r)))
+
+
+def pixel_spatial_error(sensor, electrons, n_side: int = 8) -> PixelSpatialError:
+    """Measure the centroider's sub-pixel bias on noiseless renders of the sensor's PSF.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        PSF, gain, bias and detection logic (the detector used by the solver).
+    electrons : array_like (K,)
+        Star brightnesses to measure, photo-electrons (sorted ascending on return).
+    n_side : int
+        Sub-pixel positions per axis (``n_side^2`` per brightness).
+
+    Returns
+    -------
+    PixelSpatialError
+        Brightnesses that light too few pixels to be detected get NaN.
+    """
+    from starsense.detect.threshold import StarDetector
+    from starsense.render.psf import gaussian_stamp
+
+    det = sensor.detector
+    detector = StarDetector.for_sensor(sensor)
+    e_sorted = np.sort(np.asarray(electrons, dtype=float))
+    offsets = (np.arange(n_side) + 0.5) / n_side
+    rms, worst = [], []
+    for n_e in e_sorted:
+        reach = det.psf_sigma_px * math.sqrt(2.0 * math.log(max(n_e * det.gain_counts_per_e, 2.0)))
+        half = math.ceil(reach + 4.0 * det.psf_sigma_px) + 4
+        size = 2 * half + 1
+        errs = []
+        for dx in offsets:
+            for dy in offsets:
+                x, y = half + dx - 0.5, half + dy - 0.5
+                stamp, _, _ = gaussian_stamp(x, y, det.psf_sigma_px, n_e, (0, size, 0, size))
+                counts = np.minimum(stamp * det.gain_counts_per_e, det.saturation_counts)
+                found = detector(counts + det.bias_counts)
+                if len(found):
+                    errs += [found.x[0] - x, found.y[0] - y]
+        ok = len(errs) == 2 * n_side * n_side
+        e = np.asarray(errs)
+        rms.append(math.sqrt(np.mean(e**2)) if ok else math.nan)
+        worst.append(float(np.max(np.abs(e))) if ok else math.nan)
+    return PixelSpatialError(e_sorted, np.array(rms), np.array(worst), n_side * n_side)
+
+
+def aberration_error(sensor, speed_m_s: float, n_side: int = 9) -> tuple[float, float]:
+    """Return the worst attitude error (cross, roll; rad) of uncorrected stellar aberration.
+
+    Stars on an ``n_side`` x ``n_side`` grid over the detector are displaced by the observer's
+    velocity (first order, ``v/c (a - (a.r) r)`` for apex direction ``a``); the rotation that
+    best maps the true directions onto the displaced ones (Wahba, equal weights) is the error.
+    The apex is swept over directions; the largest cross-boresight and roll are returned.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        The field (pinhole geometry).
+    speed_m_s : float
+        Observer speed, m/s (>= 0).
+    n_side : int
+        Grid points per detector axis.
+    """
+    det = sensor.detector
+    xs = np.linspace(0.0, det.columns - 1.0, n_side)
+    ys = np.linspace(0.0, det.rows - 1.0, n_side)
+    gx, gy = np.meshgrid(xs, ys)
+    r = sensor.unproject(gx.ravel(), gy.ravel())
+    beta = float(speed_m_s) / SPEED_OF_LIGHT_M_S
+    cross = roll = 0.0
+    for theta in np.linspace(0.0, math.pi, 7):
+        for phi in np.linspace(0.0, math.pi, 5):
+            apex = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi),
+                             math.cos(theta)])  # fmt: skip
+            moved = r + beta * (apex - (r @ apex)[:, None] * r)
+            moved /= np.linalg.norm(moved, axis=1)[:, None]
+            rot, _ = Rotation.align_vectors(moved, r)
+            v = rot.as_rotvec()
+            cross = max(cross, float(math.hypot(v[0], v[1])))
+            roll = max(roll, float(abs(v[2])))
+    return cross, roll

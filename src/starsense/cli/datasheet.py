@@ -1,0 +1,217 @@
+"""``starsense datasheet``: what the given sensor will do, predicted and verified in one run."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from starsense.cli.common import (
+    JsonOpt,
+    ModelOpt,
+    SeedOpt,
+    SensorOpt,
+    emit,
+    option_float,
+    option_int,
+    progress_bar,
+)
+from starsense.errors import InputError
+from starsense.units import DEG
+
+__all__ = ["datasheet", "datasheet_lines"]
+
+
+def _f(value, fmt: str = ".2f", none: str = "n/a") -> str:
+    return none if value is None else format(value, fmt)
+
+
+def _pct(value) -> str:
+    return "n/a" if value is None else f"{value:.1%}"
+
+
+def datasheet_lines(d: dict) -> list[str]:
+    """Return the datasheet as text lines (what the command prints without ``--json``)."""
+    if d.get("limiting_magnitude") is None:
+        return [f"{d['sensor']}: {w}" for w in d.get("warnings", [])]
+    nea, lim, mc, av = d["nea_arcsec"], d["limit_arcsec"], d["monte_carlo"], d["availability"]
+    mr = d["monte_carlo_at_rate"]
+    fast = av["fastest_rate_deg_s"]
+    w, h = d["fov_deg"]
+    lines = [
+        f"{d['sensor']} datasheet ({d['schema']})",
+        f"  field {w:.2f} x {h:.2f} deg, {d['pixel_scale_arcsec']:.2f} arcsec/px; limiting "
+        f"magnitude {d['limiting_magnitude']:.2f} (50 % detected at rest)",
+        f"  stars in the field: median {d['stars_in_fov']['median']:g}, 5th percentile "
+        f"{d['stars_in_fov']['p05']:g}; photo-electrons: mag 0 {d['electrons']['magnitude_0']:.3g}"
+        f", limit {d['electrons']['limiting_magnitude']:.3g}",
+        f"  NEA (1 sigma) cross-boresight {_f(nea['cross']['median'])} arcsec (95 %: "
+        f"{_f(nea['cross']['p95'])}), roll {_f(nea['roll']['median'])} arcsec (95 %: "
+        f"{_f(nea['roll']['p95'])}); roll/cross {_f(d['roll_over_cross']['nea'])} (geometry "
+        f"{_f(d['roll_over_cross']['geometry'])})",
+        f"  physical limit (D, t, field of this sensor): cross {_f(lim['cross'], '.4f')}, roll "
+        f"{_f(lim['roll'], '.4f')} arcsec; NEA / limit {_f(d['nea_over_limit']['cross'], '.0f')}"
+        f" / {_f(d['nea_over_limit']['roll'], '.0f')}",
+    ]
+    for label, run in (("at rest", mc), (f"at {mr['rate_deg_s']:g} deg/s", mr)):
+        lines.append(
+            f"  lost in space {label}: {run['solved']}/{run['frames']} solved, {run['wrong']} "
+            f"wrong (rate < {run['wrong_rate_upper95']:.2g}, 95 %), {_f(run['median_ms'], '.0f')}"
+            f" ms median, {_f(run['p95_ms'], '.0f')} ms 95 %; rms cross "
+            f"{_f(run['cross_rms_arcsec'])} / roll {_f(run['roll_rms_arcsec'])} arcsec, "
+            f"measured/predicted {_f(run['cross_ratio'])} / {_f(run['roll_ratio'])}"
+        )
+    lines += [
+        "  availability (lost in space N>=3 / tracking N>=2): "
+        + ", ".join(
+            f"{r:g} deg/s {_pct(a)} / {_pct(t)}"
+            for r, a, t in zip(
+                av["rates_deg_s"], av["lost_in_space_at_rate"], av["tracking_at_rate"], strict=True
+            )
+        ),
+        "  fastest rate keeping 50/90/99 % (deg/s): lost in space "
+        + " / ".join(_f(fast["lost_in_space"][k]) for k in ("50", "90", "99"))
+        + ", tracking "
+        + " / ".join(_f(fast["tracking"][k]) for k in ("50", "90", "99")),
+        "  budget (arcsec, cross / roll):",
+    ]
+    lines += [
+        f"    {b['term']}: {_f(b['cross_arcsec'], '.3f')} / {_f(b['roll_arcsec'], '.3f')} "
+        f"[{b['source']}]"
+        for b in d["budget"]
+    ]
+    if d.get("quoted"):
+        lines.append(f"  predicted / quoted ({d.get('quoted_source')}):")
+        lines += [f"    {q['key']}: {_f(q['predicted'], '.3g')} / {q['quoted']:g} "
+                  f"(ratio {_f(q['ratio'])})" for q in d["quoted"]]  # fmt: skip
+    lines += [f"  note: {w}" for w in d.get("warnings", [])]
+    return lines
+
+
+def _compare_lines(sheets: list[dict]) -> list[str]:
+    """Datasheets side by side (one column per sensor)."""
+    rows = [
+        ("limiting magnitude", lambda d: d.get("limiting_magnitude"), ".2f"),
+        ("stars in field, median", lambda d: (d.get("stars_in_fov") or {}).get("median"), ".0f"),
+        ("NEA cross, arcsec", lambda d: d["nea_arcsec"]["cross"]["median"], ".3f"),
+        ("NEA roll, arcsec", lambda d: d["nea_arcsec"]["roll"]["median"], ".3f"),
+        ("limit cross, arcsec", lambda d: d["limit_arcsec"]["cross"], ".4f"),
+        ("LIS solved at rest", lambda d: d["monte_carlo"]["solved"] / d["monte_carlo"]["frames"],
+         ".3f"),
+        ("measured/predicted cross", lambda d: d["monte_carlo"]["cross_ratio"], ".2f"),
+        ("availability LIS at rest", lambda d: d["availability"]["lost_in_space"], ".3f"),
+    ]  # fmt: skip
+    width = max(12, *(len(d["sensor"]) for d in sheets))
+    out = [f"{'':28s}" + "".join(f"{d['sensor']:>{width + 2}s}" for d in sheets)]
+    for label, get, fmt in rows:
+        cells = []
+        for d in sheets:
+            try:
+                cells.append(_f(get(d), fmt))
+            except (KeyError, TypeError, ZeroDivisionError):
+                cells.append("n/a")
+        out.append(f"{label:28s}" + "".join(f"{c:>{width + 2}s}" for c in cells))
+    return out
+
+
+def _write_out(out: Path, sheet, payload: dict) -> list[str]:
+    """Write datasheet.json and the NEA sky map into ``out``; return the paths."""
+    from starsense._io import atomic_write
+    from starsense.plotting.datasheet import nea_sky_figure
+    from starsense.plotting.figure import save_png
+
+    out.mkdir(parents=True, exist_ok=True)
+    name = payload["sensor"]
+    path = out / f"{name}_datasheet.json"
+    atomic_write(path, json.dumps(payload, indent=1).encode())
+    written = [str(path)]
+    if sheet.boresights is not None:
+        written.append(str(save_png(nea_sky_figure(sheet), out / f"{name}_nea_sky.png")))
+    return written
+
+
+def datasheet(
+    sensor: SensorOpt = "st16",
+    compare: Annotated[
+        list[str] | None,
+        typer.Option("--compare", help="Sensors (presets or TOML) side by side; repeat it."),
+    ] = None,
+    catalog: Annotated[
+        str, typer.Option("--catalog", help="Catalogue (default: bundled Hipparcos).")
+    ] = "hipparcos",
+    rate_deg_s: Annotated[
+        float, typer.Option("--rate-deg-s", help="Rate of the second Monte Carlo, deg/s.")
+    ] = 1.0,
+    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo frames per rate.")] = 100,
+    n_orientations: Annotated[
+        int, typer.Option("--n-orientations", help="Boresights of the sky statistics.")
+    ] = 2000,
+    model: ModelOpt = "reed",
+    seed: SeedOpt = 0,
+    dask: Annotated[
+        str | None,
+        typer.Option("--dask", help="Run the Monte Carlo on this Dask scheduler (or local:N)."),
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", help="Folder for the JSON and the figures.")
+    ] = None,
+    as_json: JsonOpt = False,
+    schema: Annotated[
+        bool, typer.Option("--schema", help="Print the JSON schema of the datasheet and exit.")
+    ] = False,
+) -> None:
+    """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
+    verify it on rendered frames in the same run."""  # noqa: D205, D209
+    from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
+    from starsense.catalog import load_catalog
+    from starsense.sensor import load_sensor
+
+    if schema:
+        from importlib import resources
+
+        typer.echo((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
+        return
+    option_int(trials, "--trials", 1)
+    option_int(n_orientations, "--n-orientations", 1)
+    option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
+    if seed < 0:
+        raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
+    if out is not None and Path(out).exists() and not Path(out).is_dir():
+        raise InputError(f"--out {out}: exists and is not a folder")  # before any work
+    names = list(compare) if compare else [sensor]
+    sensors = [load_sensor(n) for n in names]
+    cat = load_catalog(catalog)
+    settings = DatasheetSettings(trials=trials, rate_rad_s=rate_deg_s * DEG, seed=seed,
+                                 n_orientations=n_orientations, model=model)  # fmt: skip
+    sheets = []
+    with progress_bar(not as_json) as bar, _client(dask) as client:
+        for sens in sensors:
+            sheets.append(build_datasheet(sens, cat, settings, client=client,
+                                          progress=bar.callback))  # fmt: skip
+    payloads = [s.to_dict() for s in sheets]
+    figures = []
+    if out is not None:
+        for s, p in zip(sheets, payloads, strict=True):
+            figures += _write_out(Path(out), s, p)
+    if compare:
+        payload = {"sensors": payloads}
+        lines = _compare_lines(payloads)
+    else:
+        payload = payloads[0]
+        lines = datasheet_lines(payload)
+    if figures:
+        payload = {**payload, "files": figures}
+        lines += [f"wrote {f}" for f in figures]
+    emit(payload, as_json, lines)
+
+
+def _client(address: str | None):
+    import contextlib
+
+    if address is None:
+        return contextlib.nullcontext(None)
+    from starsense.scale import dask_client
+
+    return dask_client(address)
