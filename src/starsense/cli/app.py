@@ -24,11 +24,12 @@ app = typer.Typer(
 def _register_subapps() -> None:
     from starsense.cli.availability import availability_app
     from starsense.cli.catalog import catalog_app
-    from starsense.cli.frames import montecarlo, render, solve
+    from starsense.cli.frames import montecarlo, render
     from starsense.cli.guide_stars import guide_stars_app
     from starsense.cli.limit import limit_app
     from starsense.cli.report import report
     from starsense.cli.slew import slew_app
+    from starsense.cli.solve import solve
 
     app.add_typer(limit_app, name="limit")
     app.add_typer(slew_app, name="slew")

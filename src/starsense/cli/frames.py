@@ -1,4 +1,4 @@
-"""`starsense render`, `solve` and `montecarlo`: frames rendered, frames solved."""
+"""`starsense render` and `montecarlo`: frames rendered (`solve` is in cli/solve.py)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,6 @@ from starsense.cli.common import (
     parse_floats,
     progress_bar,
 )
-from starsense.errors import InputError
 from starsense.units import DEG
 
 
@@ -79,58 +78,6 @@ def render(
     written = write_frame(out, frame)
     n = len(frame.truth.stars)
     typer.echo(f"frame written: {written} ({n} stars{note}; truth in {written}.json)")
-
-
-def solve(
-    image: Annotated[Path, typer.Argument(help="Frame: TIFF, PNG, JPEG or FITS (8-32 bit).")],
-    sensor: Annotated[
-        str | None, typer.Option("--sensor", help="Sensor preset or TOML (known optics).")
-    ] = None,
-    fov_deg: Annotated[
-        float | None, typer.Option("--fov-deg", help="Horizontal field, deg (pinhole).")
-    ] = None,
-    algorithm: Annotated[
-        str, typer.Option("--algorithm", help="hashing (default, FOV-free) or triangle.")
-    ] = "hashing",
-    catalog: CatalogOpt = "hipparcos",
-    wcs: Annotated[
-        Path | None, typer.Option("--wcs", help="Write the solution's TAN WCS (FITS header).")
-    ] = None,
-    as_json: JsonOpt = False,
-) -> None:
-    """Solve a frame lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
-
-    Without --sensor or --fov-deg the field is searched over 5-30 deg. Exit status 0 when solved,
-    1 when the frame does not solve, 2 for bad input (including a frame with no stars).
-    """
-    from starsense.solve.solver import Solver
-
-    if sensor is not None and fov_deg is not None:
-        raise InputError("give --sensor or --fov-deg, not both")
-    if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
-        raise InputError(f"--fov-deg must be within [0.5, 120] deg, got {fov_deg}")
-    if sensor is None and fov_deg is None and algorithm == "triangle":
-        raise InputError("the triangle algorithm needs a known field: give --sensor or --fov-deg")
-    fov_rad = None if fov_deg is None else fov_deg * DEG
-    sol = Solver(sensor, fov_rad, catalog, algorithm).solve_file(image)
-    payload = {"image": str(image), **sol.to_dict()}
-    if sol.solved:
-        lines = [
-            f"{image}: solved in {sol.time_ms:.0f} ms - RA {sol.ra_deg:.4f} deg, "
-            f"Dec {sol.dec_deg:.4f} deg, roll {sol.roll_deg:.3f} deg, FOV {sol.fov_deg:.3f} deg",
-            f"  {sol.n_matched} of {sol.n_detections} stars matched, residual "
-            f"{sol.rmse_arcsec:.1f} arcsec rms, false-match probability "
-            f"{sol.false_match_probability:.1e}",
-        ]
-        if wcs is not None:
-            payload["wcs"] = str(sol.write_wcs(wcs))
-            lines.append(f"  WCS written: {wcs}")
-        emit(payload, as_json, lines)
-        return
-    if sol.status == "no_stars":
-        raise InputError(f"{image}: {sol.message}")
-    emit(payload, as_json, [f"{image}: not solved ({sol.status}): {sol.message}"])
-    raise typer.Exit(1)
 
 
 def montecarlo(

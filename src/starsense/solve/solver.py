@@ -116,17 +116,18 @@ class Solver:
 
     # -- optics -----------------------------------------------------------------------------
 
-    def _unproject(self, x, y, shape) -> tuple[np.ndarray, float | None, float]:
+    def _unproject(self, x, y, shape, fov_rad=None) -> tuple[np.ndarray, float | None, float]:
         """Return the centroids' unit vectors, the known horizontal FOV and the assumed one.
 
         The known field is None when it is to be found; the assumed one is the field the
-        vectors were computed with. Both in rad.
+        vectors were computed with. Both in rad. ``fov_rad`` replaces the Solver's field.
         """
         if self.sensor is not None:
             fov = 2.0 * self.sensor.half_fov_rad[0]
             return self.sensor.unproject(x, y), fov, fov
-        fov = self.fov_rad if self.fov_rad is not None else NOMINAL_FOV_RAD
-        return pinhole_vectors(x, y, shape, fov), self.fov_rad, fov
+        known = fov_rad if fov_rad is not None else self.fov_rad
+        fov = known if known is not None else NOMINAL_FOV_RAD
+        return pinhole_vectors(x, y, shape, fov), known, fov
 
     def _identifier(self, fov_rad: float | None):
         from starsense.catalog import load_catalog
@@ -186,9 +187,6 @@ class Solver:
         Solution
             Solved, or the reason why not (no exception for a frame that does not solve).
         """
-        from starsense.attitude import estimate_attitude
-        from starsense.geometry.attitude import radec_roll_from_attitude
-
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
         a = np.asarray(image)
@@ -198,53 +196,127 @@ class Solver:
         if len(det) == 0:
             return Solution("no_stars", "no star passed the detection logic", time_ms=_ms(t0),
                             stage_ms=stages)  # fmt: skip
-        if len(det) < 3:
-            return Solution("too_few_stars", f"{len(det)} star(s) detected; 3 are needed",
-                            n_detections=len(det), time_ms=_ms(t0), stage_ms=stages)  # fmt: skip
-        vectors, fov_known, fov_assumed = self._unproject(det.x, det.y, a.shape)
+
+        def sigma_px(matched):
+            if self.centroid_sigma_px == "snr":
+                return _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
+            return self.centroid_sigma_px
+
+        return self._solve_points(
+            det.x, det.y, det.integrated_counts, a.shape, t0, stages, sigma_px, None, "detections"
+        )
+
+    def solve_centroids(self, xy, image_size, fov=None, brightness=None) -> Solution:
+        """Solve a list of centroids measured by any centroider (no image needed).
+
+        Pixel convention (that of :mod:`starsense.detect`): (0, 0) is the centre of the top-left
+        pixel, x runs along the columns (to the right) and y along the rows (down); the image
+        spans x in [-0.5, width - 0.5). The optics are the Solver's (sensor or ``fov_rad``),
+        or ``fov`` for this call, or unknown (the scale is then searched).
+
+        Parameters
+        ----------
+        xy : array_like, shape (N, 2)
+            Centroids (x = column, y = row), pixels.
+        image_size : (int, int)
+            Width and height of the image, pixels (columns, rows).
+        fov : float, optional
+            Horizontal field across the image width (pinhole), rad, in [0.5, 120] deg: for
+            this call, in place of the Solver's (not with a sensor).
+        brightness : array_like, shape (N,), optional
+            Anything that grows with brightness (flux, counts); when omitted the centroids are
+            taken as listed brightest first.
+
+        Returns
+        -------
+        Solution
+            The same object as an image solve (``centroids_px`` are the given ones, ``matches``
+            index them); "too_few_stars" for fewer than 3 centroids.
+
+        Raises
+        ------
+        InputError
+            Centroids not (N, 2) finite numbers, a bad image size or field, brightness not one
+            finite value per centroid, an image size that is not the sensor's.
+        """
+        from starsense._validate import check_scalar
+
+        t0 = time.perf_counter()
+        pts = _check_centroids(xy)
+        shape = _check_image_size(image_size)
+        if fov is not None:
+            if self.sensor is not None:
+                raise InputError("give fov only to a Solver without a sensor")
+            fov = check_scalar(fov, "fov", *FOV_RANGE_RAD)
+        if self.sensor is not None:
+            det = self.sensor.detector
+            if shape != (det.rows, det.columns):
+                raise InputError(
+                    f"image_size {shape[1]} x {shape[0]} is not the sensor's "
+                    f"{det.columns} x {det.rows}"
+                )
+        if brightness is None:
+            flux = np.arange(len(pts), 0, -1, dtype=float)  # as listed: brightest first
+        else:
+            flux = np.asarray(brightness, dtype=float)
+            if flux.shape != (len(pts),) or not np.all(np.isfinite(flux)):
+                raise InputError(
+                    f"brightness must be {len(pts)} finite numbers (one per centroid), "
+                    f"got shape {flux.shape}"
+                )
+        sigma = self.centroid_sigma_px if self.centroid_sigma_px != "snr" else 0.3
+        return self._solve_points(
+            pts[:, 0], pts[:, 1], flux, shape, t0, {}, lambda _: sigma, fov, "centroids"
+        )
+
+    def _solve_points(self, x, y, flux, shape, t0, stages, sigma_px, fov_given, what):
+        """Identify centroids (x, y) of an image of ``shape`` and fit the attitude."""
+        from starsense.attitude import estimate_attitude
+        from starsense.geometry.attitude import radec_roll_from_attitude
+
+        n = len(x)
+        if n < 3:
+            said = f"{n} centroid(s) given" if what == "centroids" else f"{n} star(s) detected"
+            return Solution("too_few_stars", f"{said}; 3 are needed", n_detections=n,
+                            time_ms=_ms(t0), stage_ms=stages)  # fmt: skip
+        vectors, fov_known, fov_assumed = self._unproject(x, y, shape, fov_given)
         t1 = time.perf_counter()
         self._identifier(fov_known)  # database build or cache load, timed on its own
         stages["database_ms"] = _ms(t1)
         t2 = time.perf_counter()
-        identifier, ident, fov_known = self._identify(
-            vectors, det.integrated_counts, fov_known, fov_assumed
-        )
+        identifier, ident, fov_known = self._identify(vectors, flux, fov_known, fov_assumed)
         stages["identify_ms"] = _ms(t2)
         if not ident.solved:
             status, message = ident.status, ident.message
-            limit = max_candidates(a.shape)
-            if len(det) > limit:
+            limit = max_candidates(shape)
+            if n > limit:
                 status = "too_many_candidates"
                 message = (
-                    f"{len(det)} candidates, more than a frame of {a.shape[1]} x {a.shape[0]} "
+                    f"{n} candidates, more than a frame of {shape[1]} x {shape[0]} "
                     f"pixels can hold as stars ({limit}): noise or clutter passed the detection "
                     f"(then: {message})"
                 )
-            return Solution(status, message, n_detections=len(det), time_ms=_ms(t0),
+            return Solution(status, message, n_detections=n, time_ms=_ms(t0),
                             stage_ms=stages)  # fmt: skip
         # final attitude from all matches, with its covariance
         t3 = time.perf_counter()
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
         if fov_known is None:  # re-unproject with the field found
-            vectors = pinhole_vectors(det.x, det.y, a.shape, fov)
+            vectors = pinhole_vectors(x, y, shape, fov)
         matched = np.asarray(ident.detection_index)
         ref = identifier.database.vectors[np.asarray(ident.catalog_index)]
-        if self.centroid_sigma_px == "snr":
-            sigma_px = _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
-        else:
-            sigma_px = self.centroid_sigma_px
-        pixel_rad = fov / a.shape[1]
-        att = estimate_attitude(vectors[matched], ref, sigma_px * pixel_rad, method="svd")
+        pixel_rad = fov / shape[1]
+        att = estimate_attitude(vectors[matched], ref, sigma_px(matched) * pixel_rad, method="svd")
         stages["attitude_ms"] = _ms(t3)
         ra, dec, roll = radec_roll_from_attitude(att.rotation)
         return Solution(
             "solved",
-            f"{ident.n_matches} of {len(det)} detections matched ({ident.algorithm})",
+            f"{ident.n_matches} of {n} {what} matched ({ident.algorithm})",
             ra_rad=float(ra),
             dec_rad=float(dec),
             roll_rad=float(roll),
             fov_rad=float(fov),
-            n_detections=len(det),
+            n_detections=n,
             n_matched=int(ident.n_matches),
             rmse_rad=float(att.residual_rms_rad),
             false_match_probability=float(ident.false_match_probability),
@@ -256,14 +328,24 @@ class Solver:
                 (int(d), int(c))
                 for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
             ),
-            centroids_px=np.column_stack([det.x, det.y]),
-            image_shape=a.shape,
+            centroids_px=np.column_stack([x, y]),
+            image_shape=tuple(shape),
             focal_px=(
                 self.sensor.focal_length_px
                 if self.sensor is not None
-                else a.shape[1] / 2.0 / math.tan(fov / 2.0)
+                else shape[1] / 2.0 / math.tan(fov / 2.0)
             ),
         )
+
+    def prepare(self) -> None:
+        """Build (or load from the cache) the database of the Solver's field now, once.
+
+        A batch calls it before its first frame, so that no frame's time holds the load.
+        """
+        if self.sensor is not None:
+            self._identifier(2.0 * self.sensor.half_fov_rad[0])
+        else:
+            self._identifier(self.fov_rad)
 
     def solve_file(self, path: str | Path) -> Solution:
         """Load a frame (:func:`starsense.solve.frames.load_image`) and solve it."""
@@ -313,6 +395,32 @@ def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:
     u = (np.asarray(x, dtype=float) - (cols - 1) / 2.0) / f_px
     w = (np.asarray(y, dtype=float) - (rows - 1) / 2.0) / f_px
     return tangent_to_vectors(np.column_stack([u, w]))
+
+
+def _check_centroids(xy) -> np.ndarray:
+    try:
+        pts = np.asarray(xy, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("centroids must be numbers, shape (N, 2)") from None
+    if pts.size == 0:
+        return np.zeros((0, 2))
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise InputError(f"centroids must have shape (N, 2) (x, y), got {pts.shape}")
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if bad.size:
+        raise InputError(f"centroid {bad[0]} is not finite: {pts[bad[0]].tolist()}")
+    return pts
+
+
+def _check_image_size(image_size) -> tuple[int, int]:
+    """(width, height) -> (rows, columns), both integers >= 1."""
+    from starsense._validate import check_int
+
+    try:
+        width, height = image_size
+    except (TypeError, ValueError):
+        raise InputError(f"image_size must be (width, height), got {image_size!r}") from None
+    return check_int(height, "image height", 1), check_int(width, "image width", 1)
 
 
 def max_candidates(shape) -> int:
