@@ -53,12 +53,23 @@ def load_image(path: str | Path) -> np.ndarray:
         if a is None:
             raise InputError(f"{p}: FITS file holds no image data")
     elif suffix in PILLOW_SUFFIXES:
+        import struct
+        import warnings
+
         from PIL import Image, UnidentifiedImageError
 
+        # a corrupt file makes Pillow warn ("Corrupt EXIF data") before it fails: the warnings
+        # are kept out of the user's way; the failure is reported, with its reason
+        # (the warning filters are process-wide: a warning turned into an error elsewhere, as
+        # in the test run, is a failure to read like the others)
+        failures = (OSError, UnidentifiedImageError, ValueError, SyntaxError, struct.error,
+                    UserWarning)  # fmt: skip
         try:
-            with Image.open(p) as im:
-                a = np.array(im)
-        except (OSError, UnidentifiedImageError) as exc:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                with Image.open(p) as im:
+                    a = np.array(im)
+        except failures as exc:
             raise InputError(f"{p}: not a readable image ({exc})") from None
     else:
         known = ", ".join(sorted(FITS_SUFFIXES | PILLOW_SUFFIXES))
