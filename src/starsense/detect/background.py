@@ -258,7 +258,7 @@ def _quantised_step(cells: np.ndarray, keep: np.ndarray) -> float | None:
     step = quantisation_step(cells[:, :, ::7])
     if step is None:
         return None
-    mad = np.nanmedian(_robust_sigma(cells, keep))
+    mad = np.nanmedian(_robust_sigma(cells[:, :, ::7], keep[:, :, ::7]))
     return step if not mad >= QUANTISED_BELOW_STEPS * step else None
 
 

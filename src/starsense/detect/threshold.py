@@ -240,18 +240,18 @@ class StarDetector:
     def _sharp(self, sub, filtered, idx, lab, n, a) -> np.ndarray:
         """Whether each region 0..n is point-like (matched filter; module docstring).
 
-        The peak of the PSF-filtered frame over that of a box filter of side 2 ceil(3 sigma)+1
-        (over the region's lit pixels ``idx``, labels ``lab``): w^2 / (4 pi sigma^2) for a
+        The peak of the PSF-filtered frame over a box filter of side 2 ceil(3 sigma)+1 at that
+        peak (over the region's lit pixels ``idx``, labels ``lab``): w^2 / (4 pi sigma^2) for a
         point source (3.9 at sigma = 1 px), ~2 for a 20-pixel streak, 1 for a plateau or a
         step wider than the box (JPEG's flattened 8 x 8 blocks, a gradient cut by
         compression). Regions holding the frame's largest value (saturated stars, flat-topped)
         are kept.
         """
-        side = 2 * int(np.ceil(3.0 * self.psf_sigma_px)) + 1
-        box = ndimage.uniform_filter(sub, side, mode="nearest").ravel()[idx]
+        half = int(np.ceil(3.0 * self.psf_sigma_px))
         peak_f, peak_b, top = (np.full(n + 1, -np.inf) for _ in range(3))
-        np.maximum.at(peak_f, lab, filtered.ravel()[idx])
-        np.maximum.at(peak_b, lab, box)
+        if idx.size:
+            where, peak_f_at, box_at = _box_mean_at_peaks(sub, filtered, idx, lab, half)
+            peak_f[where], peak_b[where] = peak_f_at, box_at
         np.maximum.at(top, lab, a.ravel()[idx])
         with np.errstate(invalid="ignore"):
             return (peak_f >= MIN_SHARPNESS * peak_b) | (top >= a.max())
@@ -351,6 +351,24 @@ class StarDetector:
             n_candidates=int(n), noise_counts=float(bg.noise), method=self.centroid,
         )  # fmt: skip
         return _timed(det, t0)
+
+
+def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
+    """Return, per region, its label, its filtered peak and the box mean of ``sub`` there.
+
+    The peak is the region's lit pixel where ``filtered`` is largest; the box is
+    (2 half + 1)^2 pixels around it, edge pixels repeated beyond the frame (as
+    ``ndimage.uniform_filter(mode="nearest")``), evaluated at the peaks only.
+    """
+    values = filtered.ravel()[idx]
+    order = np.lexsort((values, lab))  # by region, then by filtered value
+    last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
+    rows, cols = sub.shape
+    r, c = np.divmod(idx[last], cols)
+    off = np.arange(-half, half + 1)
+    rr = np.clip(r[:, None, None] + off[None, :, None], 0, rows - 1)
+    cc = np.clip(c[:, None, None] + off[None, None, :], 0, cols - 1)
+    return lab[last], values[last], sub[rr, cc].mean(axis=(1, 2), dtype=np.float64)
 
 
 def _core_slices(sl: tuple[slice, slice], inside: np.ndarray) -> tuple[slice, slice]:
