@@ -167,7 +167,12 @@ class Solver:
             ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
             return identifier, ident, None
         ident = identify_ranked(identifier, vectors, flux, fov_known)
-        if not ident.solved and self.sensor is None and self.algorithm == "hashing":
+        if (
+            not ident.solved
+            and self.sensor is None
+            and self.algorithm == "hashing"
+            and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
+        ):
             # a given field is an estimate: search the scale around it, which refines the field
             identifier = self._identifier(None)
             ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
