@@ -103,3 +103,16 @@ def test_esa_frames_keep_the_mad_estimate(shared_dir):
     folder = shared_dir / "data" / "images" / "esa"
     bg = estimate_background(load_image(next(iter(sorted(folder.glob("*.tiff"))))))
     assert bg.step is None and bg.noise > 50
+
+
+def test_12bit_data_in_16bit_words_with_low_noise():
+    # 12-bit counts stored as 16-bit (steps of 16), noise 1.2 steps at 1.5 steps of bias, clipped
+    # at zero: the step is found and the noise is 16 x the closed-form std in steps (3 %, as above)
+    rng = np.random.default_rng(8)
+    steps = np.maximum(np.rint(rng.normal(1.5, 1.2, (768, 1024))), 0)
+    image = (16 * steps).astype(np.uint16)
+    mean, std = _clipped_moments(1.5, 1.2)
+    bg = estimate_background(image)
+    assert bg.step == 16.0
+    assert bg.noise == pytest.approx(16 * std, rel=0.03)
+    assert float(np.median(bg.level)) == pytest.approx(16 * mean, abs=16 * 0.02)
