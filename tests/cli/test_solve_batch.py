@@ -84,3 +84,15 @@ def test_batch_refuses_wcs_and_missing_paths(batch_dir, tmp_path, capsys):
     assert code == 2 and "image not found" in err
     code, _, err = _run(["solve"], capsys)
     assert code == 2 and "give a frame, a folder of frames or --centroids FILE" in err
+
+
+def test_progress_bar_on_a_terminal_leaves_stdout_alone(batch_dir, capsys, monkeypatch):
+    # stderr a terminal: the rich bar is drawn there; stdout still holds only the JSON lines
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    code, out, _ = _run(["solve", str(batch_dir), "--sensor", "esa_blackfly", "--json"], capsys)
+    assert [json.loads(line)["status"] for line in out.splitlines()] == [
+        "solved", "solved", "unreadable",
+    ]  # fmt: skip
+    assert code == 1
