@@ -41,12 +41,16 @@ def _separation_arcsec(sol, ref) -> float:
     ids=["sensor", "fov", "none"],
 )
 def test_esa_frames_solve_within_15_arcsec(esa, optics):
+    # issue 13 (matched-filter detection): with the optics known, every boresight within
+    # 6 arcsec (measured: 4.2 with the sensor); found by the scale search, within 15 (6.0;
+    # 6.6 before issue 13)
     folder, reference = esa
     solver = Solver(**optics)
+    bound = 6 if optics else 15
     for name, ref in reference.items():
         sol = solver.solve_file(folder / name).to_dict()
         assert sol["status"] == "solved", (name, sol["message"])
-        assert _separation_arcsec(sol, ref) < 15, name
+        assert _separation_arcsec(sol, ref) < bound, name
         droll = (sol["roll_deg"] - ref["roll_deg"] + 180) % 360 - 180
         assert abs(droll) < 0.05, name  # 0.05 deg = 3 arcmin: roll is the weak axis
         # the field: the reference fits give 11.422-11.425 deg; 0.1 % when it is searched

@@ -31,12 +31,13 @@ def _register_subapps() -> None:
     from starsense.cli.calibrate import calibrate
     from starsense.cli.catalog import catalog_app
     from starsense.cli.datasheet import datasheet
-    from starsense.cli.frames import montecarlo, render, solve
+    from starsense.cli.frames import montecarlo, render
     from starsense.cli.guide_stars import guide_stars_app
     from starsense.cli.limit import limit_app
     from starsense.cli.mission import mission
     from starsense.cli.report import report
     from starsense.cli.slew import slew_app
+    from starsense.cli.solve import solve
     from starsense.cli.track import track
 
     app.add_typer(limit_app, name="limit")

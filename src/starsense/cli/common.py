@@ -348,11 +348,13 @@ def progress_bar(enabled: bool = True, *, unit: str | None = None) -> Iterator[P
     if not enabled or not sys.stderr.isatty():
         yield ProgressBar(None)
         return
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
     columns: tuple = ()
     if unit is not None:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TextColumn(unit))  # fmt: skip
-    with Progress(*columns, transient=True) as bar:
+    # on stderr, as documented (rich's default console is stdout, where --json output goes)
+    with Progress(*columns, transient=True, console=Console(stderr=True)) as bar:
         yield ProgressBar(bar)

@@ -1,4 +1,4 @@
-"""`starsense render`, `solve` and `montecarlo`: frames rendered, frames solved."""
+"""`starsense render` and `montecarlo`: frames rendered (`solve` is in cli/solve.py)."""
 
 from __future__ import annotations
 
@@ -142,90 +142,6 @@ def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kw
             f"frame written: {path} (t = {frame.truth.time_s:g} s, {len(frame.truth.stars)} "
             f"stars; truth in {path}.json)"
         )
-
-
-def solve(
-    image: Annotated[Path, typer.Argument(help="Frame: TIFF, PNG, JPEG or FITS (8-32 bit).")],
-    sensor: Annotated[
-        str | None, typer.Option("--sensor", help="Sensor preset or TOML (known optics).")
-    ] = None,
-    fov_deg: Annotated[
-        float | None, typer.Option("--fov-deg", help="Horizontal field, deg (pinhole).")
-    ] = None,
-    algorithm: Annotated[
-        str, typer.Option("--algorithm", help="hashing (default, FOV-free) or triangle.")
-    ] = "hashing",
-    catalog: CatalogOpt = "hipparcos",
-    wcs: Annotated[
-        Path | None,
-        typer.Option(
-            "--wcs",
-            help="Write the solution's WCS (FITS header; TAN-SIP if distorted).",
-            callback=output_file,
-        ),
-    ] = None,
-    time: Annotated[
-        str | None,
-        typer.Option("--time", help="UTC time of the frame (ISO 8601); else from its header."),
-    ] = None,
-    no_apparent: Annotated[
-        bool, typer.Option("--no-apparent", help="Catalogue places, even when a time is known.")
-    ] = False,
-    observer_velocity_km_s: Annotated[
-        str | None,
-        typer.Option("--observer-velocity-km-s", help="Observer's geocentric velocity X,Y,Z."),
-    ] = None,
-    as_json: JsonOpt = False,
-) -> None:
-    """Solve a frame lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
-
-    Without --sensor or --fov-deg the field is searched over 5-30 deg. When the frame's time is
-    known (--time, FITS DATE-OBS, EXIF) the attitude is fitted to the stars' apparent places
-    (proper motion, parallax, aberration): the true ICRS attitude. Exit status 0 when solved,
-    1 when the frame does not solve, 2 for bad input (including a frame with no stars).
-    """
-    from starsense.geometry.apparent import parse_time
-    from starsense.solve.solver import Solver
-
-    if sensor is not None and fov_deg is not None:
-        raise InputError("give --sensor or --fov-deg, not both")
-    if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
-        raise InputError(f"--fov-deg must be within [0.5, 120] deg, got {fov_deg}")
-    if sensor is None and fov_deg is None and algorithm == "triangle":
-        raise InputError("the triangle algorithm needs a known field: give --sensor or --fov-deg")
-    fov_rad = None if fov_deg is None else fov_deg * DEG
-    when = None if time is None else parse_time(time, "--time")
-    v_obs = None
-    if observer_velocity_km_s is not None:
-        v_obs = 1e3 * np.asarray(
-            parse_floats(observer_velocity_km_s, "--observer-velocity-km-s", 3)
-        )
-    solver = Solver(sensor, fov_rad, catalog, algorithm, apparent=not no_apparent,
-                    observer_velocity_m_s=v_obs)  # fmt: skip
-    sol = solver.solve_file(image, when)
-    payload = {"image": str(image), **sol.to_dict()}
-    if when is not None and sol.apparent and sol.apparent.get("applied"):
-        payload["apparent_places"]["time_source"] = "--time"
-    if sol.solved:
-        lines = [
-            f"{image}: solved in {sol.time_ms:.0f} ms - RA {sol.ra_deg:.4f} deg, "
-            f"Dec {sol.dec_deg:.4f} deg, roll {sol.roll_deg:.3f} deg, FOV {sol.fov_deg:.3f} deg",
-            f"  {sol.n_matched} of {sol.n_detections} stars matched, residual "
-            f"{sol.rmse_arcsec:.1f} arcsec rms, false-match probability "
-            f"{sol.false_match_probability:.1e}",
-        ]
-        ap = payload["apparent_places"]
-        if ap and ap.get("applied"):
-            lines.append(f"  apparent places at {ap['time_utc']} ({ap['time_source']})")
-        if wcs is not None:
-            payload["wcs"] = str(sol.write_wcs(wcs))
-            lines.append(f"  WCS written: {wcs}")
-        emit(payload, as_json, lines)
-        return
-    if sol.status == "no_stars":
-        raise InputError(f"{image}: {sol.message}")
-    emit(payload, as_json, [f"{image}: not solved ({sol.status}): {sol.message}"])
-    raise typer.Exit(1)
 
 
 def montecarlo(

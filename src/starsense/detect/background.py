@@ -40,6 +40,11 @@ from scipy import ndimage
 from scipy.interpolate import CubicSpline
 
 from starsense._validate import check_scalar, finite_float, positive_float
+from starsense.detect.quantised import (
+    QUANTISED_BELOW_STEPS,
+    quantisation_step,
+    quantised_box_stats,
+)
 from starsense.errors import InputError
 
 #: 1 / Phi^-1(3/4): the standard deviation of a Gaussian over its median absolute deviation.
@@ -72,6 +77,9 @@ class Background:
         The filtered box levels the map was interpolated from (counts).
     box_px : int or None
         Nominal box size of the mesh, pixels.
+    step : float or None
+        Quantisation step of a coarsely quantised frame (noise below 3 steps: 8-bit, low bias,
+        JPEG), counts; None otherwise (:mod:`starsense.detect.quantised`).
     """
 
     level: float | np.ndarray
@@ -79,6 +87,7 @@ class Background:
     noise_map: np.ndarray | None = None
     level_mesh: np.ndarray | None = None
     box_px: int | None = None
+    step: float | None = None
 
     def threshold_counts(self, sigma: float) -> float | np.ndarray:
         """``sigma`` times the noise: per pixel when there is a noise map, else one number."""
@@ -244,6 +253,24 @@ def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return MAD_TO_SIGMA * _ranked(dev, zero, n)
 
 
+def _quantised_step(cells: np.ndarray, keep: np.ndarray) -> float | None:
+    """Return the quantisation step when the frame's noise is below a few steps, else None."""
+    step = quantisation_step(cells[:, :, ::7])
+    if step is None:
+        return None
+    mad = np.nanmedian(_robust_sigma(cells[:, :, ::7], keep[:, :, ::7]))
+    return step if not mad >= QUANTISED_BELOW_STEPS * step else None
+
+
+def _masked_std(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Return the std of the samples ``keep`` of every box (NaN where fewer than 2)."""
+    n = keep.sum(axis=-1)
+    x = np.where(keep, cells, 0.0).astype(np.float64)
+    mean = x.sum(-1) / np.maximum(n, 1)
+    var = np.where(keep, (x - mean[..., None]) ** 2, 0.0).sum(-1) / np.maximum(n - 1, 1)
+    return np.where(n >= 2, np.sqrt(var), np.nan)
+
+
 def estimate_background(
     image: ArrayLike,
     *,
@@ -324,6 +351,12 @@ def estimate_background(
     n_samples = ok.sum(axis=-1)
 
     med, low, high, kept = _sigma_clip_boxes(cells, float(sigma_clip))
+    with np.errstate(invalid="ignore"):
+        keep = ok & (cells >= low[..., None]) & (cells <= high[..., None])
+    step = _quantised_step(cells, keep)
+    if step is not None:  # 8-bit-like data: box means and standard deviations (quantised.py)
+        med, _, keep = quantised_box_stats(cells, med, step)
+        kept = keep.sum(-1)
     trusted = kept >= np.maximum(1, _MIN_VALID_FRACTION * n_samples.max())
     if not trusted.any():
         raise InputError("no box of the image has enough unmasked pixels for a background")
@@ -334,10 +367,12 @@ def estimate_background(
     wx = _interpolation_matrix(cc, cols, interpolation)
     level = (wy @ level_mesh @ wx.T).astype(np.float32)
 
-    # noise: MAD of the clipped samples about the smooth map (not quantised like the raw MAD)
-    with np.errstate(invalid="ignore"):
-        keep = ok & (cells >= low[..., None]) & (cells <= high[..., None])
-    noise_mesh = _robust_sigma(cells - gather(level), keep)
+    # noise: MAD of the clipped samples about the smooth map (not quantised like the raw MAD);
+    # for coarsely quantised data their standard deviation, at least the quantisation noise
+    if step is None:
+        noise_mesh = _robust_sigma(cells - gather(level), keep)
+    else:
+        noise_mesh = np.maximum(_masked_std(cells - gather(level), keep), step / np.sqrt(12.0))
     noise_mesh[~trusted] = np.nan
     noise_mesh = _median_filter_mesh(_fill_from_nearest(noise_mesh), filter_px)
     noise_map = (wy @ noise_mesh @ wx.T).astype(np.float32)
@@ -349,6 +384,7 @@ def estimate_background(
         noise_map=noise_map,
         level_mesh=level_mesh,
         box_px=box_px,
+        step=step,
     )
 
 

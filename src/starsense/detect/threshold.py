@@ -31,6 +31,10 @@ from starsense.detect.centroid import METHODS, cog, gauss_fit
 from starsense.errors import InputError
 from starsense.sensor import DetectionThresholds
 
+#: on quantised data (Background.step), a star's peak must be this many steps above background
+MIN_PEAK_STEPS = 1.5
+#: matched filter: least ratio of a star's PSF-filtered peak to its box-filtered peak
+MIN_SHARPNESS = 1.6
 #: the detection logic is the sensor's configuration
 DetectionLogic = DetectionThresholds
 
@@ -134,6 +138,14 @@ class StarDetector:
     max_pixels : int or None
         Optional upper bound on a star's lit pixels (rejects large blobs: the Moon's limb, a
         satellite streak, a light leak); None for no bound.
+    matched_filter : bool
+        Detect on the frame correlated with the PSF (:mod:`starsense.detect.matched`): a pixel
+        is lit when the filtered frame exceeds ``threshold_sigma`` (default 5) times *its*
+        noise; single-pixel noise spikes do not become stars. ``logic.lit_pixel_counts`` is
+        then not used; ``min_pixels`` and ``min_integrated_counts`` apply to the lit region.
+    min_snr : float or None
+        Minimum significance of a star's integrated counts: their sum over the lit pixels over
+        the noise of that sum (sqrt of the summed noise variances); None for no test.
     """
 
     def __init__(
@@ -149,6 +161,8 @@ class StarDetector:
         margin_px: int = 2,
         psf_sigma_px: float = 1.5,
         max_pixels: int | None = None,
+        matched_filter: bool = False,
+        min_snr: float | None = None,
     ) -> None:
         self.logic = logic if logic is not None else DetectionThresholds()
         if centroid not in METHODS:
@@ -182,6 +196,8 @@ class StarDetector:
         self.margin_px = int(margin_px)
         self.psf_sigma_px = float(psf_sigma_px)
         self.max_pixels = None if max_pixels is None else int(max_pixels)
+        self.matched_filter = bool(matched_filter)
+        self.min_snr = None if min_snr is None else positive_float(min_snr, "min_snr")
 
     @classmethod
     def for_sensor(cls, sensor, centroid: str = "cog", **kwargs) -> StarDetector:
@@ -200,6 +216,45 @@ class StarDetector:
             return estimate_background(a)
         level = 0.0 if self.background is None else float(self.background)
         return constant_background(level, self.noise_counts)
+
+    def _lit(self, sub: np.ndarray, bg: Background):
+        """Lit pixels, and the pixels bright enough to bound a centroid window (or None).
+
+        Without the matched filter the lit pixels bound the window; with it, the lit region
+        (the star's light spread by the filter) is wider than the star, so the window is
+        bounded by its pixels above the raw threshold where there are any.
+        """
+        if self.matched_filter:
+            from starsense.detect.matched import matched_filter
+
+            noise = bg.noise_map if bg.noise_map is not None else bg.noise
+            filtered, filtered_noise, _ = matched_filter(sub, noise, self.psf_sigma_px)
+            k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
+            core = sub > bg.threshold_counts(k)
+            return filtered > np.float32(k) * filtered_noise, core, filtered
+        threshold = self.logic.lit_pixel_counts
+        if self.threshold_sigma is not None:
+            threshold = np.maximum(np.float32(threshold), bg.threshold_counts(self.threshold_sigma))
+        return sub > threshold, None, None
+
+    def _sharp(self, sub, filtered, idx, lab, n, a) -> np.ndarray:
+        """Whether each region 0..n is point-like (matched filter; module docstring).
+
+        The peak of the PSF-filtered frame over a box filter of side 2 ceil(3 sigma)+1 at that
+        peak (over the region's lit pixels ``idx``, labels ``lab``): w^2 / (4 pi sigma^2) for a
+        point source (3.9 at sigma = 1 px), ~2 for a 20-pixel streak, 1 for a plateau or a
+        step wider than the box (JPEG's flattened 8 x 8 blocks, a gradient cut by
+        compression). Regions holding the frame's largest value (saturated stars, flat-topped)
+        are kept.
+        """
+        half = int(np.ceil(3.0 * self.psf_sigma_px))
+        peak_f, peak_b, top = (np.full(n + 1, -np.inf) for _ in range(3))
+        if idx.size:
+            where, peak_f_at, box_at = _box_mean_at_peaks(sub, filtered, idx, lab, half)
+            peak_f[where], peak_b[where] = peak_f_at, box_at
+        np.maximum.at(top, lab, a.ravel()[idx])
+        with np.errstate(invalid="ignore"):
+            return (peak_f >= MIN_SHARPNESS * peak_b) | (top >= a.max())
 
     def __call__(self, image) -> Detections:
         """Detect and centroid the stars of one image.
@@ -222,10 +277,7 @@ class StarDetector:
         if self.background == "auto" and self.remove_hot_pixels:
             hot = hot_pixel_mask(a, bg)
             sub[hot] = 0.0
-        threshold = self.logic.lit_pixel_counts
-        if self.threshold_sigma is not None:
-            threshold = np.maximum(np.float32(threshold), bg.threshold_counts(self.threshold_sigma))
-        lit = sub > threshold
+        lit, core, filtered = self._lit(sub, bg)
         structure = ndimage.generate_binary_structure(2, 1 if self.logic.connectivity == 4 else 2)
         labels, n = ndimage.label(lit, structure=structure)
         empty = Detections(
@@ -240,9 +292,22 @@ class StarDetector:
         sizes = np.bincount(lab, minlength=n + 1)
         sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
         ok = (sizes >= self.logic.min_pixels) & (sums >= self.logic.min_integrated_counts)
+        if bg.step is not None:
+            # quantised data: a star rises at least two steps above the background somewhere
+            # (a plateau one step up, JPEG's flattened 8 x 8 blocks, is not a star)
+            peak = np.full(n + 1, -np.inf)
+            np.maximum.at(peak, lab, sub.ravel()[idx])
+            ok &= peak >= np.float32(MIN_PEAK_STEPS * bg.step)
+        if self.min_snr is not None:
+            noise = bg.noise_map.ravel()[idx] if bg.noise_map is not None else bg.noise
+            var = np.bincount(lab, weights=np.broadcast_to(noise, idx.shape) ** 2, minlength=n + 1)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ok &= sums >= self.min_snr * np.sqrt(var)
         if self.max_pixels is not None:
             ok &= sizes <= self.max_pixels
         ok[0] = False
+        if filtered is not None:
+            ok &= self._sharp(sub, filtered, idx, lab, n, a)
         keep = np.flatnonzero(ok)
         if keep.size == 0:
             return _timed(empty, t0)
@@ -253,6 +318,8 @@ class StarDetector:
         xs, ys, peaks, boxes, fits = [], [], [], [], []
         for k in keep:
             sl = slices[k - 1]
+            if core is not None:
+                sl = _core_slices(sl, (labels[sl] == k) & core[sl])
             r0, r1, c0, c1 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
             boxes.append((r0, r1, c0, c1))
             peaks.append(float(a[sl][labels[sl] == k].max()))
@@ -284,6 +351,37 @@ class StarDetector:
             n_candidates=int(n), noise_counts=float(bg.noise), method=self.centroid,
         )  # fmt: skip
         return _timed(det, t0)
+
+
+def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
+    """Return, per region, its label, its filtered peak and the box mean of ``sub`` there.
+
+    The peak is the region's lit pixel where ``filtered`` is largest; the box is
+    (2 half + 1)^2 pixels around it, edge pixels repeated beyond the frame (as
+    ``ndimage.uniform_filter(mode="nearest")``), evaluated at the peaks only.
+    """
+    values = filtered.ravel()[idx]
+    order = np.lexsort((values, lab))  # by region, then by filtered value
+    last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
+    rows, cols = sub.shape
+    r, c = np.divmod(idx[last], cols)
+    off = np.arange(-half, half + 1)
+    rr = np.clip(r[:, None, None] + off[None, :, None], 0, rows - 1)
+    cc = np.clip(c[:, None, None] + off[None, None, :], 0, cols - 1)
+    return lab[last], values[last], sub[rr, cc].mean(axis=(1, 2), dtype=np.float64)
+
+
+def _core_slices(sl: tuple[slice, slice], inside: np.ndarray) -> tuple[slice, slice]:
+    """Return the bounding box of the pixels ``inside`` a region's box ``sl`` (``sl`` if none)."""
+    rows = np.flatnonzero(inside.any(axis=1))
+    if rows.size == 0:
+        return sl
+    cols = np.flatnonzero(inside.any(axis=0))
+    r0, c0 = sl[0].start, sl[1].start
+    return (
+        slice(r0 + rows[0], r0 + rows[-1] + 1),
+        slice(c0 + cols[0], c0 + cols[-1] + 1),
+    )
 
 
 def _timed(det: Detections, t0: float) -> Detections:

@@ -182,9 +182,13 @@ def _load_pillow(p: Path, limit: int) -> np.ndarray:
     old = Image.MAX_IMAGE_PIXELS
     try:
         Image.MAX_IMAGE_PIXELS = None  # Pillow's own check is replaced by ours, stated exactly:
-        with Image.open(p) as im:  # opening reads the header only
-            _check_size(p, (im.height, im.width), limit)
-            return np.array(im)
+        # a corrupt file makes Pillow warn ("Corrupt EXIF data") before it fails: the warnings
+        # are kept out of the user's way; the failure is reported, with its reason
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with Image.open(p) as im:  # opening reads the header only
+                _check_size(p, (im.height, im.width), limit)
+                return np.array(im)
     except InputError:
         raise
     except Exception as exc:  # a decoder's view of a damaged file: OSError, SyntaxError, ...

@@ -22,15 +22,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError
 from starsense.geometry.projection import tangent_to_vectors
-from starsense.units import DEG, RAD_TO_ARCSEC
+from starsense.solve.solution import Solution
+from starsense.units import DEG
 
 __all__ = ["NOMINAL_FOV_RAD", "UNKNOWN_FOV_RANGE_RAD", "Solution", "Solver", "pinhole_vectors"]
 
@@ -38,150 +37,11 @@ __all__ = ["NOMINAL_FOV_RAD", "UNKNOWN_FOV_RANGE_RAD", "Solution", "Solver", "pi
 UNKNOWN_FOV_RANGE_RAD = (5.0 * DEG, 30.0 * DEG)
 #: the field the centroids are unprojected with before the scale is found, rad (15 deg)
 NOMINAL_FOV_RAD = 15.0 * DEG
+#: PSF sigma of the matched filter when no sensor is given, px (a focused star tracker:
+#: 0.7-1.5 px; the filter's gain is within 10 % of optimal for 0.6-1.6 px)
+DEFAULT_PSF_SIGMA_PX = 1.0
 #: the Solver's accepted range of a given horizontal field, rad (0.5-120 deg)
 FOV_RANGE_RAD = (0.5 * DEG, 120.0 * DEG)
-
-
-def _deg(angle_rad: float | None) -> float | None:
-    return None if angle_rad is None else float(np.degrees(angle_rad))
-
-
-@dataclass(frozen=True)
-class Solution:
-    """The answer for one frame, with what is needed to judge it.
-
-    ``status`` is "solved" or says why not ("no_stars", "too_few_stars", "no_match", ...);
-    angles follow :mod:`starsense.geometry.attitude` (roll as in the ESA reference.json). The
-    angles are stored in radians; ``ra_deg``, ``rmse_arcsec`` ... give them in the units of the
-    command line and of :meth:`to_dict`.
-
-    Attributes
-    ----------
-    status, message : str
-        Outcome, and a sentence about it.
-    ra_rad, dec_rad, roll_rad : float or None
-        Boresight and roll of the attitude, rad.
-    fov_rad : float or None
-        Horizontal field across the image width, rad (given, or found by the scale search).
-    n_detections, n_matched : int
-        Stars detected, and identified.
-    rmse_rad : float or None
-        Rms residual of the matched stars after the fit, rad.
-    false_match_probability : float or None
-        Probability that the identification is a chance match.
-    sigma_rad : tuple of 3 float or None
-        1-sigma attitude error about the camera x, y (cross-boresight) and z (roll) axes, rad.
-    time_ms : float
-        Wall time of the whole solve, ms; ``stage_ms`` per stage.
-    rotation : Rotation or None
-        The attitude, ICRS -> camera.
-    matches : tuple of (int, int)
-        (detection index, catalogue id) of every matched star.
-    centroids_px : ndarray, shape (N, 2) or None
-        Detected centroids (x = column, y = row), pixels.
-    image_shape : (int, int) or None
-        Rows, columns of the frame.
-    focal_px : float or None
-        Focal length, pixels.
-    apparent : dict or None
-        The apparent-place correction applied to the matched stars
-        (:meth:`starsense.catalog.apparent.ApparentPlaces.to_dict`), or why none was.
-    sensor : Sensor or None
-        The sensor model the centroids were unprojected with (principal point, distortion).
-    """
-
-    status: str
-    message: str = ""
-    ra_rad: float | None = None
-    dec_rad: float | None = None
-    roll_rad: float | None = None
-    fov_rad: float | None = None
-    n_detections: int = 0
-    n_matched: int = 0
-    rmse_rad: float | None = None
-    false_match_probability: float | None = None
-    sigma_rad: tuple[float, float, float] | None = None
-    time_ms: float = 0.0
-    stage_ms: dict = field(default_factory=dict)
-    rotation: Rotation | None = field(default=None, repr=False)
-    matches: tuple[tuple[int, int], ...] = field(default=(), repr=False)
-    centroids_px: np.ndarray | None = field(default=None, repr=False)
-    image_shape: tuple[int, int] | None = None
-    focal_px: float | None = None
-    apparent: dict | None = None
-    sensor: object = field(default=None, repr=False)
-
-    @property
-    def ra_deg(self) -> float | None:
-        """Right ascension of the boresight, deg."""
-        return _deg(self.ra_rad)
-
-    @property
-    def dec_deg(self) -> float | None:
-        """Declination of the boresight, deg."""
-        return _deg(self.dec_rad)
-
-    @property
-    def roll_deg(self) -> float | None:
-        """Roll about the boresight, deg."""
-        return _deg(self.roll_rad)
-
-    @property
-    def fov_deg(self) -> float | None:
-        """Horizontal field across the image width, deg."""
-        return _deg(self.fov_rad)
-
-    @property
-    def rmse_arcsec(self) -> float | None:
-        """Rms residual of the matched stars, arcsec."""
-        return None if self.rmse_rad is None else float(self.rmse_rad * RAD_TO_ARCSEC)
-
-    @property
-    def sigma_arcsec(self) -> tuple[float, float, float] | None:
-        """1-sigma attitude error about the camera x, y and z axes, arcsec."""
-        if self.sigma_rad is None:
-            return None
-        return tuple(float(s * RAD_TO_ARCSEC) for s in self.sigma_rad)
-
-    def wcs(self, sip_order: int | None = None):
-        """Return an astropy WCS of the solved frame: TAN, or TAN-SIP when the sensor distorts.
-
-        See :func:`starsense.solve.wcs.solution_wcs`.
-        """
-        from starsense.solve.wcs import solution_wcs
-
-        return solution_wcs(self, sip_order)
-
-    def write_wcs(self, path: str | Path, sip_order: int | None = None) -> Path:
-        """Write the WCS as a FITS header (:func:`~starsense.solve.wcs.write_solution_wcs`)."""
-        from starsense.solve.wcs import write_solution_wcs
-
-        return write_solution_wcs(self, path, sip_order)
-
-    @property
-    def solved(self) -> bool:
-        """Whether the frame solved."""
-        return self.status == "solved"
-
-    def to_dict(self) -> dict:
-        """Return the solution as JSON-ready values (degrees and arcseconds, as the CLI prints)."""
-        sigma = self.sigma_arcsec
-        return {
-            "status": self.status,
-            "message": self.message,
-            "ra_deg": self.ra_deg,
-            "dec_deg": self.dec_deg,
-            "roll_deg": self.roll_deg,
-            "fov_deg": self.fov_deg,
-            "n_detections": self.n_detections,
-            "n_matched": self.n_matched,
-            "rmse_arcsec": self.rmse_arcsec,
-            "false_match_probability": self.false_match_probability,
-            "sigma_arcsec": None if sigma is None else list(sigma),
-            "time_ms": self.time_ms,
-            "stage_ms": self.stage_ms,
-            "apparent_places": self.apparent,
-        }
 
 
 class Solver:
@@ -266,17 +126,18 @@ class Solver:
 
     # -- optics -----------------------------------------------------------------------------
 
-    def _unproject(self, x, y, shape) -> tuple[np.ndarray, float | None, float]:
+    def _unproject(self, x, y, shape, fov_rad=None) -> tuple[np.ndarray, float | None, float]:
         """Return the centroids' unit vectors, the known horizontal FOV and the assumed one.
 
         The known field is None when it is to be found; the assumed one is the field the
-        vectors were computed with. Both in rad.
+        vectors were computed with. Both in rad. ``fov_rad`` replaces the Solver's field.
         """
         if self.sensor is not None:
             fov = 2.0 * self.sensor.half_fov_rad[0]
             return self.sensor.unproject(x, y), fov, fov
-        fov = self.fov_rad if self.fov_rad is not None else NOMINAL_FOV_RAD
-        return pinhole_vectors(x, y, shape, fov), self.fov_rad, fov
+        known = fov_rad if fov_rad is not None else self.fov_rad
+        fov = known if known is not None else NOMINAL_FOV_RAD
+        return pinhole_vectors(x, y, shape, fov), known, fov
 
     def _identifier(self, fov_rad: float | None):
         from starsense.catalog import load_catalog
@@ -301,9 +162,11 @@ class Solver:
 
         if self.background == "known":
             return StarDetector.for_sensor(self.sensor)
+        psf = self.sensor.detector.psf_sigma_px if self.sensor is not None else DEFAULT_PSF_SIGMA_PX
         return StarDetector(
-            self.logic, "cog", background="auto", threshold_sigma=self.threshold_sigma
-        )
+            self.logic, "cog", background="auto", threshold_sigma=self.threshold_sigma,
+            matched_filter=True, min_snr=self.threshold_sigma, psf_sigma_px=psf,
+        )  # fmt: skip
 
     def _identify(self, vectors, flux, fov_known, fov_assumed):
         """Return (identifier, identification, known field or None after a scale search)."""
@@ -314,7 +177,12 @@ class Solver:
             ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
             return identifier, ident, None
         ident = identify_ranked(identifier, vectors, flux, fov_known)
-        if not ident.solved and self.sensor is None and self.algorithm == "hashing":
+        if (
+            not ident.solved
+            and self.sensor is None
+            and self.algorithm == "hashing"
+            and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
+        ):
             # a given field is an estimate: search the scale around it, which refines the field
             identifier = self._identifier(None)
             ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
@@ -346,10 +214,6 @@ class Solver:
         Solution
             Solved, or the reason why not (no exception for a frame that does not solve).
         """
-        from starsense.attitude.robust import robust_attitude
-        from starsense.geometry.attitude import radec_roll_from_attitude
-        from starsense.solve.blends import blend_radius_px, photocentres
-
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
         a = np.asarray(image)
@@ -359,51 +223,145 @@ class Solver:
         if len(det) == 0:
             return Solution("no_stars", "no star passed the detection logic", time_ms=_ms(t0),
                             stage_ms=stages)  # fmt: skip
-        if len(det) < 3:
-            return Solution("too_few_stars", f"{len(det)} star(s) detected; 3 are needed",
-                            n_detections=len(det), time_ms=_ms(t0), stage_ms=stages)  # fmt: skip
-        vectors, fov_known, fov_assumed = self._unproject(det.x, det.y, a.shape)
+
+        def sigma_px(matched):
+            if self.centroid_sigma_px == "snr":
+                return _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
+            return self.centroid_sigma_px
+
+        return self._solve_points(
+            det.x,
+            det.y,
+            det.integrated_counts,
+            a.shape,
+            t0,
+            stages,
+            sigma_px,
+            None,
+            "detections",
+            obs_time,
+        )
+
+    def solve_centroids(self, xy, image_size, fov=None, brightness=None) -> Solution:
+        """Solve a list of centroids measured by any centroider (no image needed).
+
+        Pixel convention (that of :mod:`starsense.detect`): (0, 0) is the centre of the top-left
+        pixel, x runs along the columns (to the right) and y along the rows (down); the image
+        spans x in [-0.5, width - 0.5). The optics are the Solver's (sensor or ``fov_rad``),
+        or ``fov`` for this call, or unknown (the scale is then searched).
+
+        Parameters
+        ----------
+        xy : array_like, shape (N, 2)
+            Centroids (x = column, y = row), pixels.
+        image_size : (int, int)
+            Width and height of the image, pixels (columns, rows).
+        fov : float, optional
+            Horizontal field across the image width (pinhole), rad, in [0.5, 120] deg: for
+            this call, in place of the Solver's (not with a sensor).
+        brightness : array_like, shape (N,), optional
+            Anything that grows with brightness (flux, counts); when omitted the centroids are
+            taken as listed brightest first.
+
+        Returns
+        -------
+        Solution
+            The same object as an image solve (``centroids_px`` are the given ones, ``matches``
+            index them); "too_few_stars" for fewer than 3 centroids.
+
+        Raises
+        ------
+        InputError
+            Centroids not (N, 2) finite numbers, a bad image size or field, brightness not one
+            finite value per centroid, an image size that is not the sensor's.
+        """
+        from starsense._validate import check_scalar
+
+        t0 = time.perf_counter()
+        pts = _check_centroids(xy)
+        shape = _check_image_size(image_size)
+        if fov is not None:
+            if self.sensor is not None:
+                raise InputError("give fov only to a Solver without a sensor")
+            fov = check_scalar(fov, "fov", *FOV_RANGE_RAD)
+        if self.sensor is not None:
+            det = self.sensor.detector
+            if shape != (det.rows, det.columns):
+                raise InputError(
+                    f"image_size {shape[1]} x {shape[0]} is not the sensor's "
+                    f"{det.columns} x {det.rows}"
+                )
+        if brightness is None:
+            flux = np.arange(len(pts), 0, -1, dtype=float)  # as listed: brightest first
+        else:
+            flux = np.asarray(brightness, dtype=float)
+            if flux.shape != (len(pts),) or not np.all(np.isfinite(flux)):
+                raise InputError(
+                    f"brightness must be {len(pts)} finite numbers (one per centroid), "
+                    f"got shape {flux.shape}"
+                )
+        sigma = self.centroid_sigma_px if self.centroid_sigma_px != "snr" else 0.3
+        return self._solve_points(
+            pts[:, 0], pts[:, 1], flux, shape, t0, {}, lambda _: sigma, fov, "centroids"
+        )
+
+    def _solve_points(self, x, y, flux, shape, t0, stages, sigma_px, fov_given, what,
+                      obs_time=None):  # fmt: skip
+        """Identify centroids (x, y) of an image of ``shape`` and fit the attitude."""
+        from starsense.attitude.robust import robust_attitude
+        from starsense.geometry.attitude import radec_roll_from_attitude
+        from starsense.solve.blends import blend_radius_px, photocentres
+
+        n = len(x)
+        if n < 3:
+            said = f"{n} centroid(s) given" if what == "centroids" else f"{n} star(s) detected"
+            return Solution("too_few_stars", f"{said}; 3 are needed", n_detections=n,
+                            time_ms=_ms(t0), stage_ms=stages)  # fmt: skip
+        vectors, fov_known, fov_assumed = self._unproject(x, y, shape, fov_given)
         t1 = time.perf_counter()
         self._identifier(fov_known)  # database build or cache load, timed on its own
         stages["database_ms"] = _ms(t1)
         t2 = time.perf_counter()
-        identifier, ident, fov_known = self._identify(
-            vectors, det.integrated_counts, fov_known, fov_assumed
-        )
+        identifier, ident, fov_known = self._identify(vectors, flux, fov_known, fov_assumed)
         stages["identify_ms"] = _ms(t2)
         if not ident.solved:
-            return Solution(ident.status, ident.message, n_detections=len(det), time_ms=_ms(t0),
+            status, message = ident.status, ident.message
+            limit = max_candidates(shape)
+            if n > limit:
+                status = "too_many_candidates"
+                message = (
+                    f"{n} candidates, more than a frame of {shape[1]} x {shape[0]} "
+                    f"pixels can hold as stars ({limit}): noise or clutter passed the detection "
+                    f"(then: {message})"
+                )
+            return Solution(status, message, n_detections=n, time_ms=_ms(t0),
                             stage_ms=stages)  # fmt: skip
         # final attitude from all matches, with its covariance
         t3 = time.perf_counter()
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
         if fov_known is None:  # re-unproject with the field found
-            vectors = pinhole_vectors(det.x, det.y, a.shape, fov)
+            vectors = pinhole_vectors(x, y, shape, fov)
         matched = np.asarray(ident.detection_index)
         db = identifier.database
         plain = db.vectors[np.asarray(ident.catalog_index)]
         ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
         if self.sensor is not None:  # blended close doubles: their photocentre, not one star
-            radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / a.shape[1]
+            radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / shape[1]
             ref = ref + photocentres(db.vectors, db.mags, db.tree, ident.catalog_index, radius)
             ref = ref - plain
             ref /= np.linalg.norm(ref, axis=1)[:, None]
-        if self.centroid_sigma_px == "snr":
-            sigma_px = _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
-        else:
-            sigma_px = self.centroid_sigma_px
-        pixel_rad = fov / a.shape[1]
-        att, _ = robust_attitude(vectors[matched], ref, sigma_px * pixel_rad)  # drops blends
+        pixel_rad = fov / shape[1]
+        att, _ = robust_attitude(vectors[matched], ref, sigma_px(matched) * pixel_rad)
         stages["attitude_ms"] = _ms(t3)
         ra, dec, roll = radec_roll_from_attitude(att.rotation)
         return Solution(
             "solved",
-            f"{ident.n_matches} of {len(det)} detections matched ({ident.algorithm})",
+            f"{ident.n_matches} of {n} {what} matched ({ident.algorithm})",
             ra_rad=float(ra),
             dec_rad=float(dec),
             roll_rad=float(roll),
             fov_rad=float(fov),
-            n_detections=len(det),
+            n_detections=n,
             n_matched=int(ident.n_matches),
             rmse_rad=float(att.residual_rms_rad),
             false_match_probability=float(ident.false_match_probability),
@@ -415,16 +373,26 @@ class Solver:
                 (int(d), int(c))
                 for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
             ),
-            centroids_px=np.column_stack([det.x, det.y]),
-            image_shape=a.shape,
+            centroids_px=np.column_stack([x, y]),
+            image_shape=tuple(shape),
             focal_px=(
                 self.sensor.focal_length_px
                 if self.sensor is not None
-                else a.shape[1] / 2.0 / math.tan(fov / 2.0)
+                else shape[1] / 2.0 / math.tan(fov / 2.0)
             ),
             apparent=apparent,
             sensor=self.sensor,
         )
+
+    def prepare(self) -> None:
+        """Build (or load from the cache) the database of the Solver's field now, once.
+
+        A batch calls it before its first frame, so that no frame's time holds the load.
+        """
+        if self.sensor is not None:
+            self._identifier(2.0 * self.sensor.half_fov_rad[0])
+        else:
+            self._identifier(self.fov_rad)
 
     def track(self, image, prior=None):
         """Track a frame from a prior attitude (:func:`starsense.solve.track.track_frame`).
@@ -495,6 +463,42 @@ def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:
     u = (np.asarray(x, dtype=float) - (cols - 1) / 2.0) / f_px
     w = (np.asarray(y, dtype=float) - (rows - 1) / 2.0) / f_px
     return tangent_to_vectors(np.column_stack([u, w]))
+
+
+def _check_centroids(xy) -> np.ndarray:
+    try:
+        pts = np.asarray(xy, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("centroids must be numbers, shape (N, 2)") from None
+    if pts.size == 0:
+        return np.zeros((0, 2))
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise InputError(f"centroids must have shape (N, 2) (x, y), got {pts.shape}")
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if bad.size:
+        raise InputError(f"centroid {bad[0]} is not finite: {pts[bad[0]].tolist()}")
+    return pts
+
+
+def _check_image_size(image_size) -> tuple[int, int]:
+    """(width, height) -> (rows, columns), both integers >= 1."""
+    from starsense._validate import check_int
+
+    try:
+        width, height = image_size
+    except (TypeError, ValueError):
+        raise InputError(f"image_size must be (width, height), got {image_size!r}") from None
+    return check_int(height, "image height", 1), check_int(width, "image width", 1)
+
+
+def max_candidates(shape) -> int:
+    """Return the most detections a frame of ``shape`` can hold as stars.
+
+    One per 1,000 pixels, at least 500: 786 for a 1024 x 768 frame, where the ESA frames give
+    22-313 (matched filter, no known optics); real stars closer than ~30 pixels on average
+    blend, and identification uses only the brightest tens.
+    """
+    return max(500, int(shape[0]) * int(shape[1]) // 1000)
 
 
 def _ms(t0: float) -> float:

@@ -1,0 +1,263 @@
+"""`starsense solve`: one frame, a batch of frames and folders, or a list of centroids."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from starsense.cli.common import (
+    CatalogOpt,
+    JsonOpt,
+    emit,
+    option_int,
+    output_file,
+    parse_floats,
+    progress_bar,
+)
+from starsense.errors import InputError, StarsenseError
+from starsense.units import DEG
+
+#: the columns of the batch CSV table (without --json), in order
+CSV_FIELDS = (
+    "image", "status", "ra_deg", "dec_deg", "roll_deg", "fov_deg", "n_detections", "n_matched",
+    "rmse_arcsec", "false_match_probability", "time_ms", "message",
+)  # fmt: skip
+
+
+def _image_suffixes() -> set[str]:
+    from starsense.solve.frames import FITS_SUFFIXES, PILLOW_SUFFIXES
+
+    return FITS_SUFFIXES | PILLOW_SUFFIXES
+
+
+def expand_frames(paths: list[Path]) -> list[Path]:
+    """Return the frames named: files as given, folders as their images (sorted, not recursive).
+
+    Raises
+    ------
+    InputError
+        A path that does not exist, or a folder holding no image.
+    """
+    suffixes = _image_suffixes()
+    frames: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            found = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in suffixes)
+            if not found:
+                known = ", ".join(sorted(suffixes))
+                raise InputError(f"{p}: no images in this folder (looked for {known})")
+            frames.extend(found)
+        elif p.exists():
+            frames.append(p)
+        else:
+            raise InputError(f"image not found: {p}")
+    return frames
+
+
+def parse_image_size(text: str) -> tuple[int, int]:
+    """Parse "WxH" (e.g. 1024x768) into (width, height), pixels."""
+    parts = text.lower().replace(" ", "").split("x")
+    if len(parts) != 2 or not all(p.isdigit() and int(p) > 0 for p in parts):
+        raise InputError(
+            f"--image-size must be WIDTHxHEIGHT in pixels (e.g. 1024x768), got {text!r}"
+        )
+    return int(parts[0]), int(parts[1])
+
+
+def _solver(sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocity_km_s=None):
+    import numpy as np
+
+    from starsense.solve.solver import Solver
+
+    if sensor is not None and fov_deg is not None:
+        raise InputError("give --sensor or --fov-deg, not both")
+    if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
+        raise InputError(f"--fov-deg must be within [0.5, 120] deg, got {fov_deg}")
+    if sensor is None and fov_deg is None and algorithm == "triangle":
+        raise InputError("the triangle algorithm needs a known field: give --sensor or --fov-deg")
+    v_obs = None
+    if observer_velocity_km_s is not None:
+        v_obs = 1e3 * np.asarray(
+            parse_floats(observer_velocity_km_s, "--observer-velocity-km-s", 3)
+        )
+    return Solver(sensor, None if fov_deg is None else fov_deg * DEG, catalog, algorithm,
+                  apparent=apparent, observer_velocity_m_s=v_obs)  # fmt: skip
+
+
+def _summary(name: str, sol) -> list[str]:
+    return [
+        f"{name}: solved in {sol.time_ms:.0f} ms - RA {sol.ra_deg:.4f} deg, "
+        f"Dec {sol.dec_deg:.4f} deg, roll {sol.roll_deg:.3f} deg, FOV {sol.fov_deg:.3f} deg",
+        f"  {sol.n_matched} of {sol.n_detections} stars matched, residual "
+        f"{sol.rmse_arcsec:.1f} arcsec rms, false-match probability "
+        f"{sol.false_match_probability:.1e}",
+    ]
+
+
+def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None) -> None:
+    sol = solver.solve_file(image, when)
+    payload = {"image": str(image), **sol.to_dict()}
+    if when is not None and sol.apparent and sol.apparent.get("applied"):
+        payload["apparent_places"]["time_source"] = "--time"
+    if sol.solved:
+        lines = _summary(str(image), sol)
+        ap = payload.get("apparent_places")
+        if ap and ap.get("applied"):
+            lines.append(f"  apparent places at {ap['time_utc']} ({ap['time_source']})")
+        if wcs is not None:
+            payload["wcs"] = str(sol.write_wcs(wcs))
+            lines.append(f"  WCS written: {wcs}")
+        emit(payload, as_json, lines)
+        return
+    if sol.status == "no_stars":
+        raise InputError(f"{image}: {sol.message}")
+    emit(payload, as_json, [f"{image}: not solved ({sol.status}): {sol.message}"])
+    raise typer.Exit(1)
+
+
+def _batch_row(solver, image: Path, when=None) -> dict:
+    """Solve one frame of a batch; a frame that cannot be read gets status "unreadable"."""
+    t0 = time.perf_counter()
+    try:
+        sol = solver.solve_file(image, when)
+    except StarsenseError as exc:
+        return {"image": str(image), "status": "unreadable", "message": str(exc),
+                "time_ms": (time.perf_counter() - t0) * 1e3}  # fmt: skip
+    return {"image": str(image), **sol.to_dict()}
+
+
+def _csv_line(row: dict) -> str:
+    import csv
+    import io
+
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="")
+    writer.writerow(["" if row.get(k) is None else row.get(k) for k in CSV_FIELDS])
+    return buf.getvalue()
+
+
+def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None) -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    solver.prepare()  # the database, once, before the first frame
+    if not as_json:
+        typer.echo(",".join(CSV_FIELDS))
+    n_solved = 0
+    with progress_bar(True) as bar, ThreadPoolExecutor(max_workers=jobs) as pool:
+        progress = bar.task("Solving", total=len(frames))
+        for done, row in enumerate(
+            pool.map(lambda f: _batch_row(solver, f, when), frames), start=1
+        ):
+            n_solved += row["status"] == "solved"
+            typer.echo(json.dumps(row) if as_json else _csv_line(row))
+            progress(done, len(frames))
+    if n_solved < len(frames):
+        raise typer.Exit(1)
+
+
+def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bool) -> None:
+    from starsense.solve.centroids import read_centroids
+
+    cents = read_centroids(path)
+    if image_size is not None:
+        size = parse_image_size(image_size)
+    elif cents.image_size is not None:
+        size = cents.image_size
+    else:
+        raise InputError("--image-size WIDTHxHEIGHT is needed with --centroids")
+    sol = solver.solve_centroids(cents.xy, size, brightness=cents.flux)
+    payload = {"centroids": str(path), **sol.to_dict()}
+    if sol.solved:
+        emit(payload, as_json, _summary(str(path), sol))
+        return
+    emit(payload, as_json, [f"{path}: not solved ({sol.status}): {sol.message}"])
+    raise typer.Exit(1)
+
+
+def solve(
+    images: Annotated[
+        list[Path] | None,
+        typer.Argument(help="Frames (TIFF, PNG, JPEG, FITS; 8-32 bit) and folders of frames."),
+    ] = None,
+    sensor: Annotated[
+        str | None, typer.Option("--sensor", help="Sensor preset or TOML (known optics).")
+    ] = None,
+    fov_deg: Annotated[
+        float | None, typer.Option("--fov-deg", help="Horizontal field, deg (pinhole).")
+    ] = None,
+    algorithm: Annotated[
+        str, typer.Option("--algorithm", help="hashing (default, FOV-free) or triangle.")
+    ] = "hashing",
+    catalog: CatalogOpt = "hipparcos",
+    wcs: Annotated[
+        Path | None,
+        typer.Option(
+            "--wcs",
+            help="Write the solution's WCS (FITS header; TAN-SIP if distorted); one frame only.",
+            callback=output_file,
+        ),
+    ] = None,
+    time_utc: Annotated[
+        str | None,
+        typer.Option("--time", help="UTC time of the frame (ISO 8601); else from its header."),
+    ] = None,
+    no_apparent: Annotated[
+        bool, typer.Option("--no-apparent", help="Catalogue places, even when a time is known.")
+    ] = False,
+    observer_velocity_km_s: Annotated[
+        str | None,
+        typer.Option("--observer-velocity-km-s", help="Observer's geocentric velocity X,Y,Z."),
+    ] = None,
+    centroids: Annotated[
+        Path | None,
+        typer.Option(
+            "--centroids",
+            help="Solve a centroid list instead of a frame: CSV (x, y[, flux]; (0, 0) is the "
+            "centre of the top-left pixel, x along columns) or astrometry.net xylist FITS "
+            "(X, Y[, FLUX], 1-based FITS pixels, converted). Brightest first unless a flux "
+            "column is given.",
+        ),
+    ] = None,
+    image_size: Annotated[
+        str | None,
+        typer.Option("--image-size", help="WIDTHxHEIGHT of the centroids' image, pixels."),
+    ] = None,
+    jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,
+    as_json: JsonOpt = False,
+) -> None:
+    """Solve frames lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
+
+    One frame prints its solution; several frames or folders are a batch (the database is
+    loaded once): one JSON object per line and frame with --json, else a CSV table, and a frame
+    that fails gets its status while the batch goes on. Without --sensor or --fov-deg the field
+    is searched over 5-30 deg. When a frame's time is known (--time, FITS DATE-OBS, EXIF) the
+    attitude is fitted to the stars' apparent places (proper motion, parallax, aberration): the
+    true ICRS attitude. Exit status 0 when every frame solved, 1 when one does not
+    solve, 2 for bad input (including a single frame with no stars, a folder with no images).
+    """
+    images = list(images or [])
+    option_int(jobs, "--jobs", 1, 64)
+    from starsense.geometry.apparent import parse_time
+
+    when = None if time_utc is None else parse_time(time_utc, "--time")
+    solver = _solver(sensor, fov_deg, catalog, algorithm, not no_apparent, observer_velocity_km_s)
+    if centroids is not None:
+        if images:
+            raise InputError("give frames or --centroids, not both")
+        _solve_centroid_file(solver, centroids, image_size, as_json)
+        return
+    if image_size is not None:
+        raise InputError("--image-size goes with --centroids")
+    if not images:
+        raise InputError("give a frame, a folder of frames or --centroids FILE")
+    frames = expand_frames(images)
+    if len(images) == 1 and len(frames) == 1 and not images[0].is_dir():
+        _solve_one(solver, frames[0], wcs, as_json, when)
+        return
+    if wcs is not None:
+        raise InputError("--wcs writes one frame's WCS: give a single frame")
+    _solve_batch(solver, frames, jobs, as_json, when)

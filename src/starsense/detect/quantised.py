@@ -1,0 +1,148 @@
+"""Background statistics of coarsely quantised frames (8-bit, low bias, noise clipped at zero).
+
+The mesh background of :mod:`starsense.detect.background` measures the noise as 1.4826 MAD.
+When the noise is comparable to one quantisation step that fails: a dark 8-bit frame whose
+background sits at 0-2 counts has a median absolute deviation of 0 or 1 count, whatever the
+noise, and the noise clipped at zero is not even symmetric (a MAD of 0 made every non-zero pixel
+a "star": ~20,000 detections per frame). Such frames are treated here.
+
+1. **Step.** The quantisation step ``q`` is the greatest common divisor of the sampled values
+   (12-bit data stored as 16-bit: 16; 8-bit: 1); float frames with non-integer values have none.
+2. **Underlying Gaussian.** A quantised, zero-clipped Gaussian N(mu, s) has, at every bin edge
+   e = k + q/2 of a value k, the exact cumulative fraction F(e) = Phi((e - mu) / s): rounding
+   and clipping at zero both keep the mass below an edge below it. So the probits
+   z = Phi^-1(F) of the empirical fractions lie on the line e = mu + s z; a weighted least-squares
+   line through the edges with 0.001 < F < 0.999 (weights n phi(z)^2 / (F (1 - F)), the inverse
+   variance of z) gives mu and s per box. Stars add a fraction of ~1e-3 to the top of a box and
+   barely move the fractions near the median.
+3. **Pixel statistics.** What a detection threshold needs is the mean and standard deviation of
+   the *pixel values* (a matched filter sums pixels; the sum of a clipped, skewed distribution
+   centres on its mean, not its median). They are the mean and standard deviation of the
+   samples within ``median +- (5 s + q/2)``: the star pixels above are left out, the noise is
+   kept.
+4. **Floor.** A noiseless box (all samples equal) has no spread to fit; the noise is then the
+   quantisation noise q / sqrt(12), never zero.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import ndtri
+
+__all__ = [
+    "QUANTISED_BELOW_STEPS",
+    "clipped_gaussian_sigma",
+    "quantisation_step",
+    "quantised_box_stats",
+]
+
+#: a frame is treated as quantised when its MAD noise is below this many steps
+QUANTISED_BELOW_STEPS = 3.0
+#: bin edges used each side of the median by the probit fit
+_EDGES_EACH_SIDE = 12
+#: fractions kept for the probit fit
+_F_RANGE = (1e-3, 1.0 - 1e-3)
+
+
+def quantisation_step(values: np.ndarray) -> float | None:
+    """Return the quantisation step of integer-valued data, or None when there is none.
+
+    Parameters
+    ----------
+    values : ndarray
+        Sampled pixel values, counts (NaN ignored).
+
+    Returns
+    -------
+    float or None
+        The greatest common divisor of the values' differences from their minimum (1 for
+        8-bit data, 16 for 12-bit data stored as 16-bit), or None for non-integer data or a
+        constant frame.
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0 or not np.all(v == np.round(v)):
+        return None
+    d = np.unique(v - v.min()).astype(np.int64)
+    d = d[d > 0]
+    if d.size == 0:
+        return None
+    return float(np.gcd.reduce(d))
+
+
+def clipped_gaussian_sigma(cells: np.ndarray, median: np.ndarray, step: float) -> np.ndarray:
+    """Fit the Gaussian behind quantised, clipped samples: its sigma per box (probit line).
+
+    Parameters
+    ----------
+    cells : ndarray, shape (..., samples)
+        Samples of every box, counts; NaN for missing samples.
+    median : ndarray, shape (...)
+        Median of every box, counts.
+    step : float
+        Quantisation step ``q``, counts.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Sigma of the underlying Gaussian, counts; NaN where fewer than two bin edges have
+        fractions inside (0.001, 0.999) (a noiseless box).
+    """
+    n = np.isfinite(cells).sum(axis=-1).astype(np.float64)
+    base = np.round(median / step) * step
+    offsets = (np.arange(-_EDGES_EACH_SIDE, _EDGES_EACH_SIDE) + 0.5) * step
+    edges = base[..., None] + offsets  # (..., E)
+    s = np.sort(cells, axis=-1)  # NaN last
+    count = np.empty(edges.shape)
+    flat_s = s.reshape(-1, s.shape[-1])
+    flat_e = edges.reshape(-1, edges.shape[-1])
+    for i in range(flat_s.shape[0]):  # searchsorted is per row; boxes are few (hundreds)
+        count.reshape(-1, edges.shape[-1])[i] = np.searchsorted(flat_s[i], flat_e[i], "right")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = count / n[..., None]
+        use = (frac > _F_RANGE[0]) & (frac < _F_RANGE[1])
+        z = ndtri(np.where(use, frac, 0.5))
+        phi = np.exp(-0.5 * z**2) / np.sqrt(2 * np.pi)
+        w = np.where(use, n[..., None] * phi**2 / (frac * (1 - frac)), 0.0)
+        sw = w.sum(-1)
+        zm = (w * z).sum(-1) / sw
+        em = (w * edges).sum(-1) / sw
+        szz = (w * (z - zm[..., None]) ** 2).sum(-1)
+        sze = (w * (z - zm[..., None]) * (edges - em[..., None])).sum(-1)
+        sigma = sze / szz
+    ok = (use.sum(-1) >= 2) & np.isfinite(sigma) & (sigma > 0)
+    return np.where(ok, sigma, np.nan)
+
+
+def quantised_box_stats(cells, median, step):
+    """Mean and standard deviation of the background pixels of every box (module steps 2-4).
+
+    Parameters
+    ----------
+    cells : ndarray, shape (..., samples)
+        Samples of every box, counts; NaN for missing samples.
+    median : ndarray, shape (...)
+        Median of every box, counts.
+    step : float
+        Quantisation step, counts.
+
+    Returns
+    -------
+    mean, std : ndarray, shape (...)
+        Mean and standard deviation of the samples within median +- (5 s + q/2), counts; the
+        standard deviation is at least q / sqrt(12).
+    keep : ndarray of bool, shape (..., samples)
+        The samples used.
+    """
+    sigma = clipped_gaussian_sigma(cells, median, step)
+    floor = step / np.sqrt(12.0)
+    half = 5.0 * np.where(np.isfinite(sigma), np.maximum(sigma, floor), floor) + 0.5 * step
+    with np.errstate(invalid="ignore"):
+        keep = np.abs(cells - median[..., None]) <= half[..., None]
+    k = keep.sum(-1)
+    safe = np.where(keep, cells, 0.0).astype(np.float64)
+    mean = safe.sum(-1) / np.maximum(k, 1)
+    var = (np.where(keep, (cells - mean[..., None]) ** 2, 0.0)).sum(-1) / np.maximum(k - 1, 1)
+    std = np.maximum(np.sqrt(var), floor)
+    mean = np.where(k > 0, mean, np.nan)
+    return mean, np.where(k > 0, std, np.nan), keep

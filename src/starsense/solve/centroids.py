@@ -1,0 +1,166 @@
+"""Centroid lists from other centroiders: CSV (x, y[, flux]) and astrometry.net xylists (FITS).
+
+Pixel convention of starsense (:mod:`starsense.detect`): (0, 0) is the centre of the top-left
+pixel, x runs along the columns and y along the rows. astrometry.net's xylists follow FITS,
+where the centre of the first pixel is (1, 1): their X and Y are converted by subtracting 1.
+CSV files are taken in starsense's convention as they are.
+
+CSV: one centroid per line, "x, y" or "x, y, flux" (commas, or blanks), an optional header
+line (names x, y and flux, in any case, in any column order; without a header the columns are
+x, y[, flux] in that order), lines starting with "#" ignored. Without a flux column the
+centroids are taken as listed, brightest first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from starsense.errors import InputError
+
+__all__ = ["CentroidList", "read_centroids"]
+
+FITS_SUFFIXES = {".fits", ".fit", ".fts", ".xyls", ".axy"}
+
+
+@dataclass(frozen=True)
+class CentroidList:
+    """Centroids read from a file.
+
+    Attributes
+    ----------
+    xy : ndarray, shape (N, 2)
+        Centroids (x = column, y = row), pixels, starsense convention (0-based centres).
+    flux : ndarray, shape (N,), or None
+        Brightness per centroid when the file gives one.
+    image_size : (int, int) or None
+        Width and height of the image, pixels, when the file records them (xylist IMAGEW,
+        IMAGEH).
+    """
+
+    xy: np.ndarray
+    flux: np.ndarray | None = None
+    image_size: tuple[int, int] | None = None
+
+
+def read_centroids(path: str | Path) -> CentroidList:
+    """Read a centroid list: CSV or astrometry.net xylist (FITS BINTABLE with X, Y[, FLUX]).
+
+    Parameters
+    ----------
+    path : path-like
+        ``.csv``/``.txt`` (or any other suffix): CSV; ``.fits``, ``.fit``, ``.fts``,
+        ``.xyls``, ``.axy``: xylist.
+
+    Returns
+    -------
+    CentroidList
+
+    Raises
+    ------
+    InputError
+        Missing or empty file, a non-number (named by line and column), missing columns.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"centroid file not found: {p}")
+    if p.suffix.lower() in FITS_SUFFIXES:
+        return _read_xylist(p)
+    return _read_csv(p)
+
+
+def _split(line: str) -> list[str]:
+    return [f.strip() for f in line.split(",")] if "," in line else line.split()
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _columns(header: list[str], p: Path) -> tuple[int, int, int | None]:
+    names = [h.strip().strip('"').lower() for h in header]
+    for need in ("x", "y"):
+        if need not in names:
+            raise InputError(f"{p}: line 1: header {header} has no {need!r} column")
+    flux = names.index("flux") if "flux" in names else None
+    return names.index("x"), names.index("y"), flux
+
+
+def _read_csv(p: Path) -> CentroidList:
+    try:
+        text = p.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{p}: not a readable text file ({exc})") from None
+    rows = [
+        (number, _split(line))
+        for number, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not rows:
+        raise InputError(f"{p}: no centroids (the file is empty)")
+    cols: tuple[int, int, int | None] | None = None
+    if not all(_is_number(f) for f in rows[0][1]):
+        cols = _columns(rows[0][1], p)
+        rows = rows[1:]
+        if not rows:
+            raise InputError(f"{p}: no centroids (a header only)")
+    if cols is None:
+        width = len(rows[0][1])
+        if width not in (2, 3):
+            raise InputError(
+                f"{p}: line {rows[0][0]}: expected 2 or 3 columns (x, y[, flux]), got {width}"
+            )
+        cols = (0, 1, 2 if width == 3 else None)
+    used = [c for c in cols if c is not None]
+    values = np.empty((len(rows), len(used)))
+    for i, (number, fields) in enumerate(rows):
+        if len(fields) <= max(used):
+            raise InputError(f"{p}: line {number}: expected {max(used) + 1} columns, got {fields}")
+        for j, c in enumerate(used):
+            try:
+                values[i, j] = float(fields[c])
+            except ValueError:
+                raise InputError(
+                    f"{p}: line {number}, column {c + 1}: not a number: {fields[c]!r}"
+                ) from None
+            if not np.isfinite(values[i, j]):
+                raise InputError(f"{p}: line {number}, column {c + 1}: not finite: {fields[c]!r}")
+    flux = values[:, 2] if cols[2] is not None else None
+    return CentroidList(values[:, :2].copy(), flux)
+
+
+def _read_xylist(p: Path) -> CentroidList:
+    from astropy.io import fits
+
+    try:
+        with fits.open(p) as hdul:
+            table = next((h for h in hdul if isinstance(h, fits.BinTableHDU)), None)
+            if table is None:
+                raise InputError(f"{p}: no BINTABLE extension (an xylist has X, Y[, FLUX])")
+            names = {n.upper(): n for n in table.columns.names}
+            for need in ("X", "Y"):
+                if need not in names:
+                    raise InputError(f"{p}: the table has no {need} column ({table.columns.names})")
+            data = table.data
+            x = np.array(data[names["X"]], dtype=float)
+            y = np.array(data[names["Y"]], dtype=float)
+            flux = np.array(data[names["FLUX"]], dtype=float) if "FLUX" in names else None
+            size = None
+            header = table.header
+            if "IMAGEW" in header and "IMAGEH" in header:
+                size = (int(header["IMAGEW"]), int(header["IMAGEH"]))
+    except (OSError, ValueError, TypeError) as exc:
+        raise InputError(f"{p}: not a readable FITS xylist ({exc})") from None
+    if x.size == 0:
+        raise InputError(f"{p}: no centroids (the table is empty)")
+    xy = np.column_stack([x, y]) - 1.0  # FITS: first pixel centre at (1, 1)
+    bad = np.flatnonzero(~np.isfinite(xy).all(axis=1))
+    if bad.size:
+        raise InputError(f"{p}: row {bad[0] + 1}: X, Y not finite")
+    return CentroidList(xy, flux, size)

@@ -1,0 +1,157 @@
+"""The answer of a solve: :class:`Solution` (attitude, matches, residuals, WCS)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from starsense.units import RAD_TO_ARCSEC
+
+__all__ = ["Solution"]
+
+
+def _deg(angle_rad: float | None) -> float | None:
+    return None if angle_rad is None else float(np.degrees(angle_rad))
+
+
+@dataclass(frozen=True)
+class Solution:
+    """The answer for one frame, with what is needed to judge it.
+
+    ``status`` is "solved" or says why not ("no_stars", "too_few_stars", "no_match",
+    "too_many_candidates" when a frame that did not solve gave more detections than
+    :func:`~starsense.solve.solver.max_candidates`, ...);
+    angles follow :mod:`starsense.geometry.attitude` (roll as in the ESA reference.json). The
+    angles are stored in radians; ``ra_deg``, ``rmse_arcsec`` ... give them in the units of the
+    command line and of :meth:`to_dict`.
+
+    Attributes
+    ----------
+    status, message : str
+        Outcome, and a sentence about it.
+    ra_rad, dec_rad, roll_rad : float or None
+        Boresight and roll of the attitude, rad.
+    fov_rad : float or None
+        Horizontal field across the image width, rad (given, or found by the scale search).
+    n_detections, n_matched : int
+        Stars detected, and identified.
+    rmse_rad : float or None
+        Rms residual of the matched stars after the fit, rad.
+    false_match_probability : float or None
+        Probability that the identification is a chance match.
+    sigma_rad : tuple of 3 float or None
+        1-sigma attitude error about the camera x, y (cross-boresight) and z (roll) axes, rad.
+    time_ms : float
+        Wall time of the whole solve, ms; ``stage_ms`` per stage.
+    rotation : Rotation or None
+        The attitude, ICRS -> camera.
+    matches : tuple of (int, int)
+        (detection index, catalogue id) of every matched star.
+    centroids_px : ndarray, shape (N, 2) or None
+        Detected centroids (x = column, y = row), pixels.
+    image_shape : (int, int) or None
+        Rows, columns of the frame.
+    focal_px : float or None
+        Focal length, pixels.
+    apparent : dict or None
+        The apparent-place correction applied to the matched stars
+        (:meth:`starsense.catalog.apparent.ApparentPlaces.to_dict`), or why none was.
+    sensor : Sensor or None
+        The sensor model the centroids were unprojected with (principal point, distortion).
+    """
+
+    status: str
+    message: str = ""
+    ra_rad: float | None = None
+    dec_rad: float | None = None
+    roll_rad: float | None = None
+    fov_rad: float | None = None
+    n_detections: int = 0
+    n_matched: int = 0
+    rmse_rad: float | None = None
+    false_match_probability: float | None = None
+    sigma_rad: tuple[float, float, float] | None = None
+    time_ms: float = 0.0
+    stage_ms: dict = field(default_factory=dict)
+    rotation: Rotation | None = field(default=None, repr=False)
+    matches: tuple[tuple[int, int], ...] = field(default=(), repr=False)
+    centroids_px: np.ndarray | None = field(default=None, repr=False)
+    image_shape: tuple[int, int] | None = None
+    focal_px: float | None = None
+    apparent: dict | None = None
+    sensor: object = field(default=None, repr=False)
+
+    @property
+    def ra_deg(self) -> float | None:
+        """Right ascension of the boresight, deg."""
+        return _deg(self.ra_rad)
+
+    @property
+    def dec_deg(self) -> float | None:
+        """Declination of the boresight, deg."""
+        return _deg(self.dec_rad)
+
+    @property
+    def roll_deg(self) -> float | None:
+        """Roll about the boresight, deg."""
+        return _deg(self.roll_rad)
+
+    @property
+    def fov_deg(self) -> float | None:
+        """Horizontal field across the image width, deg."""
+        return _deg(self.fov_rad)
+
+    @property
+    def rmse_arcsec(self) -> float | None:
+        """Rms residual of the matched stars, arcsec."""
+        return None if self.rmse_rad is None else float(self.rmse_rad * RAD_TO_ARCSEC)
+
+    @property
+    def sigma_arcsec(self) -> tuple[float, float, float] | None:
+        """1-sigma attitude error about the camera x, y and z axes, arcsec."""
+        if self.sigma_rad is None:
+            return None
+        return tuple(float(s * RAD_TO_ARCSEC) for s in self.sigma_rad)
+
+    def wcs(self, sip_order: int | None = None):
+        """Return an astropy WCS of the solved frame: TAN, or TAN-SIP when the sensor distorts.
+
+        See :func:`starsense.solve.wcs.solution_wcs`.
+        """
+        from starsense.solve.wcs import solution_wcs
+
+        return solution_wcs(self, sip_order)
+
+    def write_wcs(self, path: str | Path, sip_order: int | None = None) -> Path:
+        """Write the WCS as a FITS header (:func:`~starsense.solve.wcs.write_solution_wcs`)."""
+        from starsense.solve.wcs import write_solution_wcs
+
+        return write_solution_wcs(self, path, sip_order)
+
+    @property
+    def solved(self) -> bool:
+        """Whether the frame solved."""
+        return self.status == "solved"
+
+    def to_dict(self) -> dict:
+        """Return the solution as JSON-ready values (degrees and arcseconds, as the CLI prints)."""
+        sigma = self.sigma_arcsec
+        return {
+            "status": self.status,
+            "message": self.message,
+            "ra_deg": self.ra_deg,
+            "dec_deg": self.dec_deg,
+            "roll_deg": self.roll_deg,
+            "fov_deg": self.fov_deg,
+            "n_detections": self.n_detections,
+            "n_matched": self.n_matched,
+            "rmse_arcsec": self.rmse_arcsec,
+            "false_match_probability": self.false_match_probability,
+            "sigma_arcsec": None if sigma is None else list(sigma),
+            "time_ms": self.time_ms,
+            "stage_ms": self.stage_ms,
+            "apparent_places": self.apparent,
+        }
