@@ -114,7 +114,7 @@ def test_report_figure_writer(tmp_path, umask):
 @pytest.mark.slow
 def test_report_out(tmp_path, capsys, umask):
     # ~1 min: every section of the report, with the fewest slew trials
-    _run(capsys, "report", "--out", tmp_path / "report", "--slew-trials", "2")
+    _run(capsys, "report", "--out", tmp_path / "report", "--slew-trials", "2", "--trials", "2")
     files = _written(tmp_path)
     assert {"report", "index.html", "report.json"} <= {p.name for p in files}
     _assert_modes(files, umask)

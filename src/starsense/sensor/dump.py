@@ -64,4 +64,30 @@ def sensor_to_toml(sensor, header: str = "") -> str:
         lines += ["", f"[{section}]"]
         for f in dataclasses.fields(part):
             lines.append(f"{f.name} = {_value(getattr(part, f.name))}")
+    lines += _extra_tables(sensor)
     return "\n".join(lines) + "\n"
+
+
+def _extra_tables(sensor) -> list[str]:
+    """Return the optional tables: [exclusion] (degrees read back exactly), [quoted], [budget]."""
+    from starsense.units import DEG, to_edge
+
+    if getattr(sensor, "mission", None) is not None:
+        raise InputError(
+            f"sensor {sensor.name!r} names a mission, which is not written to TOML; "
+            "copy its [mission] table by hand"
+        )
+    lines = []
+    ex = getattr(sensor, "exclusion", None)
+    if ex is not None:
+        lines += ["", "[exclusion]"]
+        for key, rad in (("sun_deg", ex.sun_rad), ("moon_deg", ex.moon_rad),
+                         ("earth_limb_deg", ex.earth_limb_rad)):  # fmt: skip
+            if rad is not None:
+                lines.append(f"{key} = {_value(float(to_edge(rad, DEG)))}")
+        lines.append(f"atmosphere_km = {_value(float(to_edge(ex.atmosphere_m, 1e3)))}")
+    for table in ("quoted", "budget"):
+        pairs = getattr(sensor, table, ())
+        if pairs:
+            lines += ["", f"[{table}]"] + [f"{k} = {_value(v)}" for k, v in pairs]
+    return lines

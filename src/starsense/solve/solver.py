@@ -29,6 +29,7 @@ import numpy as np
 from starsense.errors import InputError
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.solve.solution import Solution
+from starsense.solve.star_noise import cog_sigma_px as _cog_sigma_px
 from starsense.units import DEG
 
 __all__ = ["NOMINAL_FOV_RAD", "UNKNOWN_FOV_RANGE_RAD", "Solution", "Solver", "pinhole_vectors"]
@@ -420,22 +421,6 @@ class Solver:
         if sol.apparent is not None and sol.apparent.get("applied"):
             sol = dataclasses.replace(sol, apparent={**sol.apparent, "time_source": source})
         return sol
-
-
-def _cog_sigma_px(det, index, detector, margin_px: int) -> np.ndarray:
-    """Return the per-axis noise of a centre-of-gravity centroid, pixels, of detections ``index``.
-
-    Photon noise: sigma_psf^2 / N_e (N_e = integrated counts / gain). Read noise: each pixel of
-    the CoG window adds sigma_read^2 (x - x_c)^2 / N_e^2; over a w x h window centred on the star
-    the sum of (x - x_c)^2 is h w (w^2 - 1) / 12 (the mean of the two axes is used).
-    """
-    n_e = np.maximum(det.integrated_counts[index] / detector.gain_counts_per_e, 1.0)
-    r0, r1, c0, c1 = det.bbox[index].T
-    w = (c1 - c0 + 2 * margin_px).astype(float)
-    h = (r1 - r0 + 2 * margin_px).astype(float)
-    spread = 0.5 * (h * w * (w**2 - 1) + w * h * (h**2 - 1)) / 12.0
-    var = detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2
-    return np.sqrt(var)
 
 
 def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:

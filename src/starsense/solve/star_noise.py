@@ -7,7 +7,7 @@ Each star's centroid error (pixels) has the covariance
 with ``N_i`` the star's electrons: photon noise of the PSF; read noise ``sigma_r`` over the
 centroid window, ``S_i`` the 2 x 2 sum of (pixel - centroid)(pixel - centroid)^T over it (the
 window along the streak, :func:`starsense.solve.windows.streak_centroid`; for a static star
-the isotropic form of :func:`starsense.solve.solver._cog_sigma_px`); and the streak ``l_i``
+the isotropic form of :func:`cog_sigma_px`); and the streak ``l_i``
 (start to end, px) adding l l^T / 12 per photon (a uniform spread along it). The SVD estimator
 weighs star ``i`` by the mean of the two axes, ``sigma_i^2 = tr(C_i) / 2``; the covariance of
 that estimator is the sandwich
@@ -26,13 +26,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from starsense.solve.solver import _cog_sigma_px
 
-__all__ = ["OUTLIER_SIGMA", "StarNoise", "fit_robust", "star_noise"]
+__all__ = ["OUTLIER_SIGMA", "StarNoise", "cog_sigma_px", "fit_robust", "star_noise"]
 
 #: A star whose residual exceeds this many of its own sigmas is dropped from the fit (a 2-D
 #: residual goes past 4 sigma by chance with probability exp(-8) = 3e-4)
 OUTLIER_SIGMA = 4.0
+
+
+def cog_sigma_px(det, index, detector, margin_px: int) -> np.ndarray:
+    """Return the per-axis noise of a centre-of-gravity centroid, pixels, of detections ``index``.
+
+    Photon noise: sigma_psf^2 / N_e (N_e = integrated counts / gain). Read noise: each pixel of
+    the CoG window adds sigma_read^2 (x - x_c)^2 / N_e^2; over a w x h window centred on the star
+    the sum of (x - x_c)^2 is h w (w^2 - 1) / 12 (the mean of the two axes is used).
+    """
+    n_e = np.maximum(det.integrated_counts[index] / detector.gain_counts_per_e, 1.0)
+    r0, r1, c0, c1 = det.bbox[index].T
+    w = (c1 - c0 + 2 * margin_px).astype(float)
+    h = (r1 - r0 + 2 * margin_px).astype(float)
+    spread = 0.5 * (h * w * (w**2 - 1) + w * h * (h**2 - 1)) / 12.0
+    var = detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2
+    return np.sqrt(var)
 
 
 @dataclass(frozen=True)
@@ -113,7 +128,7 @@ def star_noise(solver, det, matched, rate) -> StarNoise:
         return StarNoise(sensor, x, y, float(solver.centroid_sigma_px) ** 2 * eye)
     detector = sensor.detector
     margin = 2 if solver.background != "known" else solver._detector().margin_px
-    cov = (_cog_sigma_px(det, matched, detector, margin) ** 2)[:, None, None] * eye
+    cov = (cog_sigma_px(det, matched, detector, margin) ** 2)[:, None, None] * eye
     spread = det.extra.get("spread_px2", np.full((len(det), 2, 2), np.nan))[matched]
     n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1.0)
     along = np.isfinite(spread[:, 0, 0])  # centroided over the streak's own window
