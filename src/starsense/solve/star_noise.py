@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 __all__ = ["OUTLIER_SIGMA", "StarNoise", "cog_sigma_px", "fit_robust", "star_noise"]
 
 #: A star whose residual exceeds this many of its own sigmas is dropped from the fit (a 2-D
