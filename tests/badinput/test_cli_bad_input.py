@@ -48,7 +48,8 @@ CASES = [
     (["solve", "{bad}/onebit.png"], ["onebit.png", "1-bit"]),
     # a folder is a batch of frames (issue 13): an empty one is named as such
     (["solve", "{bad}/adir.png"], ["adir.png", "no images in this folder"]),
-X
+    # typer turns '' into Path('.'): the working folder, a batch with no image in it
+    (["solve", ""], [".: no images in this folder"]),
     (["render", "--out", "{out}/f.png", "--catalog", "gaia:{bad}/badschema.parquet"],
      ["badschema.parquet", "cannot read Parquet", "utf-8"]),
     (["render", "--out", "{out}/f.png", "--catalog", "gaia:{bad}/dup.csv"],
