@@ -42,6 +42,7 @@ __all__ = [
     "SlewResult",
     "default_magnitudes",
     "default_rates_rad_s",
+    "last_above",
     "magnitude_threshold",
     "simulate_slew",
 ]
@@ -181,17 +182,39 @@ def _validate(magnitudes, rates_rad_s, n_trials, criterion):
     return mags, rates
 
 
-def _tolerable(fraction_row: np.ndarray, rates: np.ndarray, criterion: float):
-    ok = fraction_row >= criterion
+def last_above(x, y, level: float) -> float | None:
+    """Return where ``y`` first falls below ``level``, walking ``x`` upwards (interpolated).
+
+    The last ``x`` before ``y`` first drops under ``level``, moved linearly towards the first
+    failing point; ``x[-1]`` when ``y`` never drops; None when ``y[0]`` is already below. Used
+    for the tolerable rate (detection fraction against rate), the limiting magnitude (against
+    magnitude) and the fastest rate that keeps an availability.
+
+    Parameters
+    ----------
+    x : array (K,)
+        Increasing abscissae.
+    y : array (K,)
+        Values at ``x``.
+    level : float
+        The threshold.
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    ok = y >= level
     if not ok[0]:
-        return None, False
+        return None
     fail = np.flatnonzero(~ok)
     if fail.size == 0:
-        return float(rates[-1]), True
-    j = fail[0]  # first failing rate; j - 1 passes
-    f0, f1 = fraction_row[j - 1], fraction_row[j]
-    t = (f0 - criterion) / (f0 - f1) if f0 != f1 else 0.0
-    return float(rates[j - 1] + t * (rates[j] - rates[j - 1])), False
+        return float(x[-1])
+    j = fail[0]  # first failing point; j - 1 passes
+    t = (y[j - 1] - level) / (y[j - 1] - y[j]) if y[j - 1] != y[j] else 0.0
+    return float(x[j - 1] + t * (x[j] - x[j - 1]))
+
+
+def _tolerable(fraction_row: np.ndarray, rates: np.ndarray, criterion: float):
+    rate = last_above(rates, fraction_row, criterion)
+    return rate, bool(rate is not None and np.all(fraction_row >= criterion))
 
 
 def simulate_slew(

@@ -47,17 +47,9 @@ def limiting_magnitude(magnitudes, fraction, criterion: float = 0.5) -> float | 
         The magnitude where the detection fraction crosses ``criterion`` on its way down
         (linear interpolation); None when not even the brightest is detected.
     """
-    m = np.asarray(magnitudes, dtype=float)
-    f = np.asarray(fraction, dtype=float)
-    ok = f >= criterion
-    if not ok[0]:
-        return None
-    fail = np.flatnonzero(~ok)
-    if fail.size == 0:
-        return float(m[-1])
-    j = fail[0]
-    t = (f[j - 1] - criterion) / (f[j - 1] - f[j]) if f[j - 1] != f[j] else 0.0
-    return float(m[j - 1] + t * (m[j] - m[j - 1]))
+    from starsense.analysis.slew import last_above
+
+    return last_above(magnitudes, fraction, criterion)
 
 
 def slew_grids(sensor, static_limit: float, n_mag: int = 20, n_rate: int = 40):
@@ -84,17 +76,9 @@ def fastest_rate(rates, availability, target: float) -> float | None:
     Linear interpolation between the last passing and the first failing rate; None when even
     rest falls short; the top rate when every rate passes.
     """
-    r = np.asarray(rates, dtype=float)
-    a = np.asarray(availability, dtype=float)
-    ok = a >= target
-    if not ok[0]:
-        return None
-    fail = np.flatnonzero(~ok)
-    if fail.size == 0:
-        return float(r[-1])
-    j = fail[0]
-    t = (a[j - 1] - target) / (a[j - 1] - a[j])
-    return float(r[j - 1] + t * (r[j] - r[j - 1]))
+    from starsense.analysis.slew import last_above
+
+    return last_above(rates, availability, target)
 
 
 @dataclass(frozen=True)
