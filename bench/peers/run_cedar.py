@@ -66,15 +66,17 @@ def main(inputs: str, out: str) -> int:
     # (a) synthetic centroid sets
     height, width = (int(v) for v in data["synth_size"])
     fov_deg = float(data["synth_fov_deg"])
-    xy, offsets = data["synth_xy"], data["synth_offsets"]
-    synth = []
-    for i in range(len(offsets) - 1):
-        pts = xy[offsets[i] : offsets[i + 1]]
-        yx = np.column_stack([pts[:, 1], pts[:, 0]]) + 0.5  # cedar: (y, x), pixel-corner origin
-        res, ms = _timed(
-            lambda yx=yx: t3.solve_from_centroids(yx, (height, width), fov_estimate=fov_deg)
-        )
-        synth.append(_record(res, ms))
+    synth = {}
+    for key in (str(k) for k in data["synth_names"]):
+        xy, offsets = data[f"{key}_xy"], data[f"{key}_offsets"]
+        synth[key] = []
+        for i in range(len(offsets) - 1):
+            pts = xy[offsets[i] : offsets[i + 1]]
+            yx = np.column_stack([pts[:, 1], pts[:, 0]]) + 0.5  # cedar: (y, x), corner origin
+            res, ms = _timed(
+                lambda yx=yx: t3.solve_from_centroids(yx, (height, width), fov_estimate=fov_deg)
+            )
+            synth[key].append(_record(res, ms))
 
     # (b) ESA frames: starsense's centroids, and cedar's own extraction on the image
     esa_size = tuple(int(v) for v in data["esa_size"])
@@ -106,7 +108,7 @@ def main(inputs: str, out: str) -> int:
             "platform": platform.platform(),
             "threads": os.environ.get("OMP_NUM_THREADS"),
         },
-        "synthetic": synth,
+        **synth,
         "esa_same_centroids": same,
         "esa_own_extraction": own,
     }
