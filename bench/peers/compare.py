@@ -155,12 +155,39 @@ def starsense_side(synth_sets, esa):
     own = []
     for image in images:
         sol, ms = _best_of(lambda image=image: solver(image), 3)
-        own.append(
-            {"solved": sol.solved, "status": sol.status, "ra_deg": sol.ra_deg,
-             "dec_deg": sol.dec_deg, "roll_deg": sol.roll_deg, "ms": ms}
-        )  # fmt: skip
+        own.append(_solution_record(sol, ms))
     return {"database_load_s": db_s, **synth, "esa_same_centroids": same,
             "esa_own_extraction": own}  # fmt: skip
+
+
+def _solution_record(sol, ms) -> dict:
+    """A Solver solution as compare.py scores it, with its stage times (ms)."""
+    return {"solved": sol.solved, "status": sol.status, "ra_deg": sol.ra_deg,
+            "dec_deg": sol.dec_deg, "roll_deg": sol.roll_deg, "fov_deg": sol.fov_deg, "ms": ms,
+            "stage_ms": dict(sol.stage_ms)}  # fmt: skip
+
+
+def starsense_frames(images) -> list[dict]:
+    """``--frames DIR``: the Solver with nothing known (field found by the scale search)."""
+    from starsense.solve.solver import Solver
+
+    solver = Solver()
+    out = []
+    for image in images:
+        solver(image)  # database build or load, not timed
+        sol, ms = _best_of(lambda image=image: solver(image), 2)
+        out.append(_solution_record(sol, ms))
+    return out
+
+
+def astrometry_side(paths, fov_deg) -> tuple[list[dict] | None, str]:
+    """solve-field on each frame (run_astrometry.py), or (None, why it is unavailable)."""
+    import run_astrometry
+
+    ok, what = run_astrometry.available()
+    if not ok:
+        return None, what
+    return [run_astrometry.solve(p, fov_deg) for p in paths], what
 
 
 # ---------------------------------------------------------------------------------------------
@@ -224,11 +251,64 @@ def score(records, truth_vectors, limit_rad) -> dict:
     }
 
 
+def frames_dir(folder: Path) -> tuple[list[Path], list]:
+    """The images of ``--frames DIR`` (every file :func:`load_image` reads), sorted by name."""
+    from starsense.errors import InputError
+    from starsense.solve.frames import load_image
+
+    if not folder.is_dir():
+        raise SystemExit(f"--frames: {folder} is not a directory")
+    paths, images = [], []
+    for path in sorted(p for p in folder.iterdir() if p.is_file()):
+        try:
+            images.append(load_image(path))
+        except (InputError, OSError, ValueError):
+            continue
+        paths.append(path)
+    if not paths:
+        raise SystemExit(f"--frames: no image in {folder}")
+    return paths, images
+
+
+def whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths) -> dict:
+    """Print and return the whole-frame figures: time per stage, agreement with references."""
+    import agreement as ag
+
+    own = "esa_own_extraction"
+    split = ag.stage_split(ours[own], theirs[own] if theirs else None)
+    ag.print_stage_split(split)
+    solvers = {"starsense": ours[own]}
+    if theirs is not None:
+        solvers["cedar"] = theirs[own]
+    if astro is not None:
+        solvers["astrometry.net"] = astro[own]
+    else:
+        print(f"astrometry.net unavailable: {astro_why}")
+    esa = ag.agreement(solvers, [reference[n] for n in names])
+    ag.print_agreement("ESA frames, each solver's own extraction (boresights):", esa, solvers)
+    out = {"stage_split": split, "esa_agreement": esa, "astrometry": astro_why}
+    if frame_paths:
+        fsolvers = {"starsense": ours["frames"]}
+        if theirs is not None and theirs.get("frames"):
+            fsolvers["cedar"] = theirs["frames"]
+        if astro is not None:
+            fsolvers["astrometry.net"] = astro["frames"]
+        table = ag.agreement(fsolvers)
+        ag.print_agreement(f"--frames {frame_paths[0].parent}, nothing known:", table, fsolvers)
+        out["frames_agreement"] = table
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cedar-python", type=Path, default=HERE / ".venv" / "bin" / "python")
     parser.add_argument("-n", type=int, default=2001, help="Fibonacci boresights (default 2001)")
+    parser.add_argument(
+        "--frames", type=Path, help="also solve every image of this folder with each solver"
+    )
+    parser.add_argument("--no-astrometry", action="store_true", help="skip solve-field")
     args = parser.parse_args(argv)
+    frame_paths, frame_images = frames_dir(args.frames) if args.frames else ([], [])
 
     print(f"generating inputs: {args.n} synthetic centroid sets, 8 ESA frames ...", flush=True)
     synth = {key: synthetic_inputs(args.n, **kw) for key, (_label, kw) in SYNTH_SETS.items()}
@@ -247,11 +327,22 @@ def main(argv=None) -> int:
             esa_offsets=eoff, esa_size=np.array([sensor.detector.rows, sensor.detector.columns]),
             esa_fov_deg=math.degrees(2.0 * sensor.half_fov_rad[0]),
             **{f"esa_image_{i}": np.asarray(im) for i, im in enumerate(images)},
+            frames_names=np.array([p.name for p in frame_paths]),
+            **{f"frames_image_{i}": np.asarray(im) for i, im in enumerate(frame_images)},
         )  # fmt: skip
         print("starsense ...", flush=True)
         ours = starsense_side(synth, esa)
+        ours["frames"] = starsense_frames(frame_images)
         print("cedar-solve (subprocess in the peers venv) ...", flush=True)
         theirs, why = cedar_side(args.cedar_python, npz)
+    astro, astro_why = None, "skipped (--no-astrometry)"
+    if not args.no_astrometry:
+        print("astrometry.net solve-field ...", flush=True)
+        esa_fov_deg = math.degrees(2.0 * sensor.half_fov_rad[0])
+        astro, astro_why = astrometry_side([ESA_DIR / n for n in names], esa_fov_deg)
+        if astro is not None:
+            astro = {"esa_own_extraction": astro,
+                     "frames": astrometry_side(frame_paths, None)[0]}  # fmt: skip
 
     sets = [
         *((key, label, synth[key][2], ARCMIN) for key, (label, _kw) in SYNTH_SETS.items()),
@@ -287,11 +378,13 @@ def main(argv=None) -> int:
             )
     if theirs is None:
         print(f"cedar-solve unavailable: {why}")
+    whole = whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths)
 
     record = {
         "name": "peer_cedar",
         "description": "starsense vs cedar-solve on the same inputs (bench/peers/compare.py)",
         "results": results,
+        "whole_frames": whole,
         "starsense": {"database_load_s": ours["database_load_s"], "machine": machine()},
         "cedar": (
             {k: theirs[k] for k in ("version", "database", "database_load_s", "machine")}
@@ -320,6 +413,10 @@ def main(argv=None) -> int:
                 if theirs is not None
                 else {}
             ),
+            "frames_names": [p.name for p in frame_paths],
+            "starsense_frames": ours["frames"],
+            **({"cedar_frames": theirs.get("frames", [])} if theirs is not None else {}),
+            **({f"astrometry_{k}": v for k, v in astro.items()} if astro else {}),
         },
         "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),

@@ -33,6 +33,8 @@ warnings.filterwarnings("ignore", category=DeprecationWarning)  # np.math in ced
 def _record(result: dict, ms: float) -> dict:
     ok = result.get("RA") is not None
     return {
+        "t_extract_ms": _plain(result.get("T_extract")),
+        "t_solve_ms": _plain(result.get("T_solve")),
         "solved": bool(ok),
         "status": str(result.get("status")),
         "ra_deg": float(result["RA"]) if ok else None,
@@ -97,6 +99,12 @@ def main(inputs: str, out: str) -> int:
         res, ms = _timed(lambda image=image: t3.solve_from_image(image, fov_estimate=esa_fov), 3)
         own.append(_record(res, ms))
 
+    frames = []  # compare.py --frames DIR: nothing known
+    for i in range(len(data["frames_names"])):
+        image = Image.fromarray(data[f"frames_image_{i}"])
+        res, ms = _timed(lambda image=image: t3.solve_from_image(image), 1)
+        frames.append(_record(res, ms))
+
     record = {
         "solver": "cedar-solve",
         "version": _version(),
@@ -111,6 +119,7 @@ def main(inputs: str, out: str) -> int:
         **synth,
         "esa_same_centroids": same,
         "esa_own_extraction": own,
+        "frames": frames,
     }
     with open(out, "w") as f:
         json.dump(record, f, default=lambda o: o.item() if hasattr(o, "item") else str(o))
