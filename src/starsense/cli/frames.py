@@ -100,7 +100,7 @@ def solve(
 ) -> None:
     """Solve a frame lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
 
-    Without --sensor or --fov-deg the field is searched over 5-30 deg. Exit status 0 when solved,
+    Without --sensor or --fov-deg the field is searched over 2.8-70 deg. Exit status 0 when solved,
     1 when the frame does not solve, 2 for bad input (including a frame with no stars).
     """
     from starsense.solve.solver import Solver

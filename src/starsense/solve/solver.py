@@ -7,9 +7,11 @@ The optics are known three ways, from best to least:
 * a sensor (preset or TOML): its pinhole + distortion model unprojects the centroids;
 * a horizontal field of view (``fov_rad``): a pinhole with the principal point at the centre;
   when the frame does not solve at that field, it is taken as an estimate and the scale is
-  searched (5-30 deg), which refines the field;
+  searched as below, which refines the field;
 * nothing: the centroids are unprojected with a nominal field and the FOV-free pattern hashing
-  (edge ratios are scale-invariant) finds the scale, searching fields of 5-30 deg.
+  (edge ratios are scale-invariant) finds the scale, searching fields of 5-30 deg, then 25-70
+  deg, then 2.8-6 deg (with the Gaia catalogue when installed;
+  :func:`starsense.identify.fields.unknown_field_plan`).
 
 The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
 (:mod:`starsense.attitude`), which also gives its covariance (Fialho & Mortari eq. 21) for a
@@ -33,8 +35,8 @@ from starsense.units import DEG, RAD_TO_ARCSEC
 
 __all__ = ["NOMINAL_FOV_RAD", "UNKNOWN_FOV_RANGE_RAD", "Solution", "Solver", "pinhole_vectors"]
 
-#: field range searched when the optics are unknown, rad (issue 5: 5-30 deg)
-UNKNOWN_FOV_RANGE_RAD = (5.0 * DEG, 30.0 * DEG)
+#: field range searched when the optics are unknown, rad (5-30, 25-70, then 2.8-6 deg)
+UNKNOWN_FOV_RANGE_RAD = (2.8 * DEG, 70.0 * DEG)
 #: the field the centroids are unprojected with before the scale is found, rad (15 deg)
 NOMINAL_FOV_RAD = 15.0 * DEG
 #: the Solver's accepted range of a given horizontal field, rad (0.5-120 deg)
@@ -291,6 +293,7 @@ class Solver:
             else DetectionThresholds(lit_pixel_counts=1e-6, min_pixels=3, min_integrated_counts=0)
         )
         self._identifiers: dict = {}
+        self._plan = None
 
     # -- optics -----------------------------------------------------------------------------
 
@@ -306,21 +309,46 @@ class Solver:
         fov = self.fov_rad if self.fov_rad is not None else NOMINAL_FOV_RAD
         return pinhole_vectors(x, y, shape, fov), self.fov_rad, fov
 
-    def _identifier(self, fov_rad: float | None):
+    def _identifier(self, fov_rad: float | None, field_range=None):
+        """Return the identifier of a known field, or of one range of the unknown-field search."""
         from starsense.catalog import load_catalog
         from starsense.identify import HashIdentifier, TriangleIdentifier, build_database
 
-        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9))
+        if fov_rad is None and field_range is None:
+            field_range = self._field_plan()[0]
+        fr = field_range
+        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9), fr)
         if key not in self._identifiers:
-            cat = load_catalog(self.catalog_spec)
             if fov_rad is None:
-                lo, hi = UNKNOWN_FOV_RANGE_RAD
-                db = build_database(cat, hi, lo, patterns_per_field=50)
+                db = build_database(
+                    load_catalog(fr.catalog), fr.max_fov_rad, fr.min_fov_rad, band=fr.band,
+                    field_oversampling=fr.field_oversampling,
+                    patterns_per_field=fr.patterns_per_field,
+                )  # fmt: skip
             else:
-                db = build_database(cat, fov_rad)
+                db = build_database(load_catalog(self.catalog_spec), fov_rad)
             cls = HashIdentifier if self.algorithm == "hashing" else TriangleIdentifier
             self._identifiers[key] = cls(db)
         return self._identifiers[key]
+
+    def _field_plan(self):
+        """Return the field ranges searched in turn when the field is unknown (identify.fields)."""
+        from starsense.identify.fields import unknown_field_plan
+
+        if self._plan is None:
+            self._plan = unknown_field_plan(self.catalog_spec)
+        return self._plan
+
+    def _search_fields(self, vectors, flux, fov_assumed):
+        """Identify with the field unknown: each range of the plan in turn until one solves."""
+        from starsense.identify import identify_ranked
+
+        for field_range in self._field_plan():
+            identifier = self._identifier(None, field_range)
+            ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
+            if ident.solved:
+                break
+        return identifier, ident, None
 
     # -- the pipeline -----------------------------------------------------------------------
 
@@ -337,16 +365,13 @@ class Solver:
         """Return (identifier, identification, known field or None after a scale search)."""
         from starsense.identify import identify_ranked
 
-        identifier = self._identifier(fov_known)
         if fov_known is None:
-            ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
-            return identifier, ident, None
+            return self._search_fields(vectors, flux, fov_assumed)
+        identifier = self._identifier(fov_known)
         ident = identify_ranked(identifier, vectors, flux, fov_known)
         if not ident.solved and self.sensor is None and self.algorithm == "hashing":
             # a given field is an estimate: search the scale around it, which refines the field
-            identifier = self._identifier(None)
-            ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
-            return identifier, ident, None
+            return self._search_fields(vectors, flux, fov_assumed)
         return identifier, ident, fov_known
 
     def __call__(self, image) -> Solution:
