@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from starsense.errors import InputError
 from starsense.units import DEG
 
-__all__ = ["FieldRange", "deep_catalog_available", "unknown_field_plan"]
+__all__ = ["FieldRange", "deep_catalog_available", "identifier_for", "unknown_field_plan"]
 
 
 @dataclass(frozen=True)
@@ -94,3 +94,41 @@ def unknown_field_plan(catalog: str = "hipparcos") -> list[FieldRange]:
     else:
         plan.append(FieldRange(*NARROW_RANGE_RAD, catalog, band, **_NARROW_LATTICE))
     return plan
+
+
+def identifier_for(
+    catalog: str, algorithm: str, fov_rad: float | None, field_range: FieldRange | None
+):
+    """Build (or load from the disk cache) the identifier of a known field or of a field range.
+
+    Parameters
+    ----------
+    catalog : str
+        Catalogue spec for a known field (a range carries its own).
+    algorithm : {"hashing", "triangle"}
+        Identification algorithm (triangle needs a known field).
+    fov_rad : float or None
+        The known field (full width), rad; None to use `field_range`.
+    field_range : FieldRange or None
+        The range of the unknown-field search, when `fov_rad` is None.
+
+    Returns
+    -------
+    HashIdentifier or TriangleIdentifier
+    """
+    from starsense.catalog import load_catalog
+    from starsense.identify.database import build_database
+    from starsense.identify.hashing import HashIdentifier
+    from starsense.identify.triangle import TriangleIdentifier
+
+    if fov_rad is not None:
+        db = build_database(load_catalog(catalog), fov_rad)
+    elif field_range is not None:
+        fr = field_range
+        db = build_database(
+            load_catalog(fr.catalog), fr.max_fov_rad, fr.min_fov_rad, band=fr.band,
+            field_oversampling=fr.field_oversampling, patterns_per_field=fr.patterns_per_field,
+        )  # fmt: skip
+    else:
+        raise InputError("give fov_rad or field_range")
+    return (HashIdentifier if algorithm == "hashing" else TriangleIdentifier)(db)

@@ -310,40 +310,26 @@ class Solver:
         return pinhole_vectors(x, y, shape, fov), self.fov_rad, fov
 
     def _identifier(self, fov_rad: float | None, field_range=None):
-        """Return the identifier of a known field, or of one range of the unknown-field search."""
-        from starsense.catalog import load_catalog
-        from starsense.identify import HashIdentifier, TriangleIdentifier, build_database
-
-        if fov_rad is None and field_range is None:
-            field_range = self._field_plan()[0]
-        fr = field_range
-        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9), fr)
-        if key not in self._identifiers:
-            if fov_rad is None:
-                db = build_database(
-                    load_catalog(fr.catalog), fr.max_fov_rad, fr.min_fov_rad, band=fr.band,
-                    field_oversampling=fr.field_oversampling,
-                    patterns_per_field=fr.patterns_per_field,
-                )  # fmt: skip
-            else:
-                db = build_database(load_catalog(self.catalog_spec), fov_rad)
-            cls = HashIdentifier if self.algorithm == "hashing" else TriangleIdentifier
-            self._identifiers[key] = cls(db)
-        return self._identifiers[key]
-
-    def _field_plan(self):
-        """Return the field ranges searched in turn when the field is unknown (identify.fields)."""
-        from starsense.identify.fields import unknown_field_plan
+        """Return the identifier of a known field or of one range of the unknown-field search."""
+        from starsense.identify.fields import identifier_for, unknown_field_plan
 
         if self._plan is None:
             self._plan = unknown_field_plan(self.catalog_spec)
-        return self._plan
+        if fov_rad is None and field_range is None:
+            field_range = self._plan[0]
+        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9), field_range)
+        if key not in self._identifiers:
+            self._identifiers[key] = identifier_for(
+                self.catalog_spec, self.algorithm, fov_rad, field_range
+            )
+        return self._identifiers[key]
 
     def _search_fields(self, vectors, flux, fov_assumed):
         """Identify with the field unknown: each range of the plan in turn until one solves."""
         from starsense.identify import identify_ranked
 
-        for field_range in self._field_plan():
+        self._identifier(None)  # makes the plan; its first range is searched first
+        for field_range in self._plan:
             identifier = self._identifier(None, field_range)
             ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
             if ident.solved:
