@@ -89,3 +89,31 @@ def test_plan_uses_gaia_for_narrow_fields_only_when_installed():
     assert plan[2].catalog == ("gaia" if deep_catalog_available() else "hipparcos")
     # a catalogue the user chose is used for every range, in its own band
     assert {(f.catalog, f.band) for f in unknown_field_plan("gaia")} == {("gaia", "G")}
+
+
+@pytest.mark.slow  # searches every range, the narrow Gaia database included (~100 MB to load)
+def test_no_wrong_answer_on_noise_or_a_mirrored_sky(solver):
+    """Every range of the search is tried on these, and none may return an attitude.
+
+    Random points are pure noise; a mirrored (parity-flipped) frame has the same edge ratios
+    as the sky, so it reaches verification, where no proper rotation fits it.
+    """
+    import numpy as np
+
+    from starsense.identify import identify_ranked
+    from starsense.solve.solver import pinhole_vectors
+
+    rng = np.random.default_rng(13)
+    plan = unknown_field_plan()
+    for _ in range(5):
+        xy = rng.uniform((0, 0), (1023, 767), size=(20, 2))
+        v = pinhole_vectors(xy[:, 0], xy[:, 1], (768, 1024), math.radians(15.0))
+        for field_range in plan:
+            ident = identify_ranked(solver._identifier(None, field_range), v, -np.arange(20.0),
+                                    None, assumed_fov_rad=math.radians(15.0))  # fmt: skip
+            assert not ident.solved, (field_range, ident)
+    sensor = _sensor(20.0)
+    truth = attitude_from_radec_roll(*(math.radians(a) for a in POINTINGS[0]))
+    frame = render_frame(sensor, truth, load_catalog("hipparcos"), max_mag=8.0, rng=3)
+    assert solver(frame.image).solved  # the frame itself solves ...
+    assert not solver(frame.image[:, ::-1]).solved  # ... its mirror image does not
