@@ -31,6 +31,11 @@ class FieldRange:
     ----------
     min_fov_rad, max_fov_rad : float
         Field range (full width of the widest image axis), rad.
+    nominal_fov_rad : float
+        The field the centroids are unprojected with before the scale is fitted, rad. The edge
+        ratios are ratios of angles, which a wrong focal length distorts more the wider the
+        field: unprojected at 15 deg, a quarter of 60 deg frames found no pattern within the
+        ratio tolerance; at the wide range's own nominal field all solve.
     catalog : str
         Catalogue spec (:func:`starsense.catalog.load_catalog`).
     band : str
@@ -43,6 +48,7 @@ class FieldRange:
 
     min_fov_rad: float
     max_fov_rad: float
+    nominal_fov_rad: float
     catalog: str
     band: str = "V"
     field_oversampling: float = 4.0
@@ -50,9 +56,10 @@ class FieldRange:
 
 
 #: the common range (issue 5), then wide fields, then narrow ones, rad
-COMMON_RANGE_RAD = (5.0 * DEG, 30.0 * DEG)
-WIDE_RANGE_RAD = (25.0 * DEG, 70.0 * DEG)
-NARROW_RANGE_RAD = (2.8 * DEG, 6.0 * DEG)
+#: (min, max, nominal) field of each range
+COMMON_RANGE_RAD = (5.0 * DEG, 30.0 * DEG, 15.0 * DEG)
+WIDE_RANGE_RAD = (25.0 * DEG, 70.0 * DEG, 50.0 * DEG)
+NARROW_RANGE_RAD = (2.8 * DEG, 6.0 * DEG, 4.0 * DEG)
 #: the narrow database's lattice: at the common range's density (16 fields per field area, 50
 #: patterns each) Gaia at 2.5-6 deg made 8.3 M patterns (400 MB, 4 min to build); 4 fields per
 #: field area and 35 patterns (the 4-subsets of the 7 brightest stars) make ~20x fewer

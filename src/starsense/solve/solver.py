@@ -327,11 +327,14 @@ class Solver:
     def _search_fields(self, vectors, flux, fov_assumed):
         """Identify with the field unknown: each range of the plan in turn until one solves."""
         from starsense.identify import identify_ranked
+        from starsense.identify.verify import apply_scale
 
         self._identifier(None)  # makes the plan; its first range is searched first
         for field_range in self._plan:
             identifier = self._identifier(None, field_range)
-            ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
+            nominal = field_range.nominal_fov_rad  # re-unproject at the range's own field
+            v = apply_scale(vectors, math.tan(nominal / 2) / math.tan(fov_assumed / 2))
+            ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
             if ident.solved:
                 break
         return identifier, ident, None
