@@ -52,42 +52,30 @@ ARCSEC = math.radians(1.0 / 3600.0)
 # inputs
 
 
-def synthetic_inputs(n: int, seed: int = 20240605):
-    """Centroid sets (x, y) in pixels, pixel-centre convention, brightest first; truth attitudes."""
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import attitude_from_radec_roll, vectors_to_radec
-    from starsense.geometry.sampling import fibonacci_sphere
+#: the synthetic centroid sets: key -> (label, centroid_sets keyword arguments)
+SYNTH_SETS = {
+    "synthetic": ("synthetic 15 deg, 20 stars + 2 false, 0.3 px", {"noise_px": 0.3, "n_false": 2}),
+    "synthetic_hard": (
+        "synthetic 15 deg, 14 of 20 stars + 6 false, 1 px",
+        {"noise_px": 1.0, "n_false": 6, "drop_fraction": 0.3},
+    ),
+}
 
-    cat = load_catalog("hipparcos")
-    mags = cat.mags["V"]
-    ok = np.flatnonzero(np.isfinite(mags) & (mags <= 9.0))
-    ok = ok[np.argsort(mags[ok], kind="stable")]
-    stars = cat.vectors[ok]
-    rows, cols = SYNTH_SIZE
-    f_px = cols / 2.0 / math.tan(math.radians(SYNTH_FOV_DEG) / 2.0)
-    cx, cy = (cols - 1) / 2.0, (rows - 1) / 2.0
-    rng = np.random.default_rng(seed)
-    bores = fibonacci_sphere(n)
-    ra, dec = vectors_to_radec(bores)
-    roll = rng.uniform(0.0, 2.0 * math.pi, n)
-    truth = attitude_from_radec_roll(ra, dec, roll)
-    cos_lim = math.cos(math.radians(12.0))  # > half the 15 x 11.3 deg diagonal
-    xy, offsets = [], [0]
-    for i in range(n):
-        near = np.flatnonzero(stars @ bores[i] > cos_lim)  # keeps brightness order
-        cam = truth[i].apply(stars[near])
-        x = cx + f_px * cam[:, 0] / cam[:, 2]
-        y = cy + f_px * cam[:, 1] / cam[:, 2]
-        inside = np.flatnonzero((x >= 0) & (x <= cols - 1) & (y >= 0) & (y <= rows - 1))[:20]
-        xs = x[inside] + rng.normal(0.0, 0.3, len(inside))
-        ys = y[inside] + rng.normal(0.0, 0.3, len(inside))
-        for _ in range(2):
-            pos = int(rng.integers(0, len(xs) + 1))
-            xs = np.insert(xs, pos, rng.uniform(0, cols - 1))
-            ys = np.insert(ys, pos, rng.uniform(0, rows - 1))
-        xy.append(np.column_stack([xs, ys]))
-        offsets.append(offsets[-1] + len(xs))
-    return np.concatenate(xy), np.asarray(offsets), bores
+
+def synthetic_inputs(n: int, seed: int = 20240605, **kwargs):
+    """Centroid sets (x, y) in pixels, pixel-centre convention, brightest first; truth boresights.
+
+    :func:`starsense.identify.centroid_sets.centroid_sets` on the bundled Hipparcos (V <= 9),
+    15 deg across a 1280 x 960 pinhole detector, Fibonacci boresights, random roll.
+    """
+    from starsense.catalog import load_catalog
+    from starsense.identify.centroid_sets import centroid_sets
+
+    sets = centroid_sets(
+        load_catalog("hipparcos"), n, fov_rad=math.radians(SYNTH_FOV_DEG),
+        image_size=SYNTH_SIZE, seed=seed, **kwargs,
+    )  # fmt: skip
+    return sets.xy, sets.offsets, sets.boresights
 
 
 def esa_inputs():
@@ -114,15 +102,18 @@ def esa_inputs():
 
 
 def _best_of(fn, repeat):
+    """(result of the fastest call, its time in ms): stage times then come from the same call."""
     best, out = float("inf"), None
     for _ in range(repeat):
         t0 = time.perf_counter()
-        out = fn()
-        best = min(best, (time.perf_counter() - t0) * 1e3)
+        result = fn()
+        ms = (time.perf_counter() - t0) * 1e3
+        if ms < best:
+            best, out = ms, result
     return out, best
 
 
-def starsense_side(xy, offsets, esa):
+def starsense_side(synth_sets, esa):
     from starsense.catalog import load_catalog
     from starsense.geometry.attitude import radec_roll_from_attitude
     from starsense.identify import HashIdentifier, build_database
@@ -141,14 +132,16 @@ def starsense_side(xy, offsets, esa):
         ra, dec, roll = (math.degrees(float(a)) for a in radec_roll_from_attitude(ident.rotation))
         return {"solved": True, "ra_deg": ra, "dec_deg": dec, "roll_deg": roll, "ms": ms}
 
-    synth = []
-    for i in range(len(offsets) - 1):
-        pts = xy[offsets[i] : offsets[i + 1]]
+    synth = {}
+    for key, (xy, offsets, _bores) in synth_sets.items():
+        synth[key] = []
+        for i in range(len(offsets) - 1):
+            pts = xy[offsets[i] : offsets[i + 1]]
 
-        def solve(pts=pts):
-            return identify(pinhole_vectors(pts[:, 0], pts[:, 1], SYNTH_SIZE, fov), fov)
+            def solve(pts=pts):
+                return identify(pinhole_vectors(pts[:, 0], pts[:, 1], SYNTH_SIZE, fov), fov)
 
-        synth.append(record(*_best_of(solve, 1)))
+            synth[key].append(record(*_best_of(solve, 1)))
 
     esa_fov = 2.0 * sensor.half_fov_rad[0]
     identify_esa = HashIdentifier(build_database(cat, esa_fov))
@@ -165,12 +158,39 @@ def starsense_side(xy, offsets, esa):
     own = []
     for image in images:
         sol, ms = _best_of(lambda image=image: solver(image), 3)
-        own.append(
-            {"solved": sol.solved, "status": sol.status, "ra_deg": sol.ra_deg,
-             "dec_deg": sol.dec_deg, "roll_deg": sol.roll_deg, "ms": ms}
-        )  # fmt: skip
-    return {"database_load_s": db_s, "synthetic": synth, "esa_same_centroids": same,
+        own.append(_solution_record(sol, ms))
+    return {"database_load_s": db_s, **synth, "esa_same_centroids": same,
             "esa_own_extraction": own}  # fmt: skip
+
+
+def _solution_record(sol, ms) -> dict:
+    """A Solver solution as compare.py scores it, with its stage times (ms)."""
+    return {"solved": sol.solved, "status": sol.status, "ra_deg": sol.ra_deg,
+            "dec_deg": sol.dec_deg, "roll_deg": sol.roll_deg, "fov_deg": sol.fov_deg, "ms": ms,
+            "stage_ms": dict(sol.stage_ms)}  # fmt: skip
+
+
+def starsense_frames(images) -> list[dict]:
+    """``--frames DIR``: the Solver with nothing known (field found by the scale search)."""
+    from starsense.solve.solver import Solver
+
+    solver = Solver()
+    out = []
+    for image in images:
+        solver(image)  # database build or load, not timed
+        sol, ms = _best_of(lambda image=image: solver(image), 2)
+        out.append(_solution_record(sol, ms))
+    return out
+
+
+def astrometry_side(paths, fov_deg) -> tuple[list[dict] | None, str]:
+    """solve-field on each frame (run_astrometry.py), or (None, why it is unavailable)."""
+    import run_astrometry
+
+    ok, what = run_astrometry.available()
+    if not ok:
+        return None, what
+    return [run_astrometry.solve(p, fov_deg) for p in paths], what
 
 
 # ---------------------------------------------------------------------------------------------
@@ -234,14 +254,67 @@ def score(records, truth_vectors, limit_rad) -> dict:
     }
 
 
+def frames_dir(folder: Path) -> tuple[list[Path], list]:
+    """The images of ``--frames DIR`` (every file :func:`load_image` reads), sorted by name."""
+    from starsense.errors import InputError
+    from starsense.solve.frames import load_image
+
+    if not folder.is_dir():
+        raise SystemExit(f"--frames: {folder} is not a directory")
+    paths, images = [], []
+    for path in sorted(p for p in folder.iterdir() if p.is_file()):
+        try:
+            images.append(load_image(path))
+        except (InputError, OSError, ValueError):
+            continue
+        paths.append(path)
+    if not paths:
+        raise SystemExit(f"--frames: no image in {folder}")
+    return paths, images
+
+
+def whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths) -> dict:
+    """Print and return the whole-frame figures: time per stage, agreement with references."""
+    import agreement as ag
+
+    own = "esa_own_extraction"
+    split = ag.stage_split(ours[own], theirs[own] if theirs else None)
+    ag.print_stage_split(split)
+    solvers = {"starsense": ours[own]}
+    if theirs is not None:
+        solvers["cedar"] = theirs[own]
+    if astro is not None:
+        solvers["astrometry.net"] = astro[own]
+    else:
+        print(f"astrometry.net unavailable: {astro_why}")
+    esa = ag.agreement(solvers, [reference[n] for n in names])
+    ag.print_agreement("ESA frames, each solver's own extraction (boresights):", esa, solvers)
+    out = {"stage_split": split, "esa_agreement": esa, "astrometry": astro_why}
+    if frame_paths:
+        fsolvers = {"starsense": ours["frames"]}
+        if theirs is not None and theirs.get("frames"):
+            fsolvers["cedar"] = theirs["frames"]
+        if astro is not None:
+            fsolvers["astrometry.net"] = astro["frames"]
+        table = ag.agreement(fsolvers)
+        ag.print_agreement(f"--frames {frame_paths[0].parent}, nothing known:", table, fsolvers)
+        out["frames_agreement"] = table
+    return out
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cedar-python", type=Path, default=HERE / ".venv" / "bin" / "python")
     parser.add_argument("-n", type=int, default=2001, help="Fibonacci boresights (default 2001)")
+    parser.add_argument(
+        "--frames", type=Path, help="also solve every image of this folder with each solver"
+    )
+    parser.add_argument("--no-astrometry", action="store_true", help="skip solve-field")
     args = parser.parse_args(argv)
+    frame_paths, frame_images = frames_dir(args.frames) if args.frames else ([], [])
 
     print(f"generating inputs: {args.n} synthetic centroid sets, 8 ESA frames ...", flush=True)
-    xy, offsets, bores = synthetic_inputs(args.n)
+    synth = {key: synthetic_inputs(args.n, **kw) for key, (_label, kw) in SYNTH_SETS.items()}
     esa = esa_inputs()
     names, images, exy, eoff, reference, sensor = esa
     esa_truth = [_vec(reference[n]["ra_deg"], reference[n]["dec_deg"]) for n in names]
@@ -250,24 +323,37 @@ def main(argv=None) -> int:
         npz = Path(tmp) / "inputs.npz"
         np.savez(
             npz,
-            synth_xy=xy, synth_offsets=offsets, synth_size=np.array(SYNTH_SIZE),
+            synth_names=np.array(list(synth)), synth_size=np.array(SYNTH_SIZE),
             synth_fov_deg=SYNTH_FOV_DEG, esa_names=np.array(names), esa_xy=exy,
+            **{f"{k}_xy": v[0] for k, v in synth.items()},
+            **{f"{k}_offsets": v[1] for k, v in synth.items()},
             esa_offsets=eoff, esa_size=np.array([sensor.detector.rows, sensor.detector.columns]),
             esa_fov_deg=math.degrees(2.0 * sensor.half_fov_rad[0]),
             **{f"esa_image_{i}": np.asarray(im) for i, im in enumerate(images)},
+            frames_names=np.array([p.name for p in frame_paths]),
+            **{f"frames_image_{i}": np.asarray(im) for i, im in enumerate(frame_images)},
         )  # fmt: skip
         print("starsense ...", flush=True)
-        ours = starsense_side(xy, offsets, esa)
+        ours = starsense_side(synth, esa)
+        ours["frames"] = starsense_frames(frame_images)
         print("cedar-solve (subprocess in the peers venv) ...", flush=True)
         theirs, why = cedar_side(args.cedar_python, npz)
+    astro, astro_why = None, "skipped (--no-astrometry)"
+    if not args.no_astrometry:
+        print("astrometry.net solve-field ...", flush=True)
+        esa_fov_deg = math.degrees(2.0 * sensor.half_fov_rad[0])
+        astro, astro_why = astrometry_side([ESA_DIR / n for n in names], esa_fov_deg)
+        if astro is not None:
+            astro = {"esa_own_extraction": astro,
+                     "frames": astrometry_side(frame_paths, None)[0]}  # fmt: skip
 
     sets = [
-        ("synthetic", "synthetic 15 deg, 20 stars + 2 false, 0.3 px", bores, ARCMIN),
+        *((key, label, synth[key][2], ARCMIN) for key, (label, _kw) in SYNTH_SETS.items()),
         ("esa_same_centroids", "ESA frames, starsense's centroids", esa_truth, 15 * ARCSEC),
         ("esa_own_extraction", "ESA frames, each its own extraction", esa_truth, 15 * ARCSEC),
     ]
     results = {}
-    header = f"{'input':46s} {'solver':12s} {'solved':>8s} {'wrong':>6s} {'mean ms':>9s} "
+    header = f"{'input':50s} {'solver':12s} {'solved':>8s} {'wrong':>6s} {'mean ms':>9s} "
     print(header + f"{'median ms':>10s} {'err as':>7s}")
     for key, label, truth, limit in sets:
         entry = {"starsense": score(ours[key], truth, limit)}
@@ -284,22 +370,24 @@ def main(argv=None) -> int:
             r = entry[who]
             err = "-" if r["median_error_arcsec"] is None else f"{r['median_error_arcsec']:.1f}"
             print(
-                f"{label:46s} {who:12s} {r['solved']:>4d}/{r['n']:<4d}{r['wrong']:>5d} "
+                f"{label:50s} {who:12s} {r['solved']:>4d}/{r['n']:<4d}{r['wrong']:>5d} "
                 f"{r['mean_ms']:9.2f} {r['median_ms']:10.2f} {err:>7s}"
             )
         if theirs is not None:
             print(
-                f"{'':46s} {'ratio':12s} cedar/starsense time: mean "
+                f"{'':50s} {'ratio':12s} cedar/starsense time: mean "
                 f"{entry['ratio_mean_ms_cedar_over_starsense']:.2f}x, median "
                 f"{entry['ratio_median_ms_cedar_over_starsense']:.2f}x"
             )
     if theirs is None:
         print(f"cedar-solve unavailable: {why}")
+    whole = whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths)
 
     record = {
         "name": "peer_cedar",
         "description": "starsense vs cedar-solve on the same inputs (bench/peers/compare.py)",
         "results": results,
+        "whole_frames": whole,
         "starsense": {"database_load_s": ours["database_load_s"], "machine": machine()},
         "cedar": (
             {k: theirs[k] for k in ("version", "database", "database_load_s", "machine")}
@@ -307,16 +395,19 @@ def main(argv=None) -> int:
             else {"unavailable": why}
         ),
         "per_case": {
-            "synthetic_unsolved": {
-                who: [
-                    {"index": i, "status": r.get("status")}
-                    for i, r in enumerate(recs)
-                    if not r["solved"]
-                ]
-                for who, recs in (
-                    ("starsense", ours["synthetic"]),
-                    ("cedar", theirs["synthetic"] if theirs else []),
-                )
+            **{
+                f"{key}_unsolved": {
+                    who: [
+                        {"index": i, "status": r.get("status")}
+                        for i, r in enumerate(recs)
+                        if not r["solved"]
+                    ]
+                    for who, recs in (
+                        ("starsense", ours[key]),
+                        ("cedar", theirs[key] if theirs else []),
+                    )
+                }
+                for key in SYNTH_SETS
             },
             "esa_names": names,
             **{f"starsense_{k}": ours[k] for k in ("esa_same_centroids", "esa_own_extraction")},
@@ -325,6 +416,10 @@ def main(argv=None) -> int:
                 if theirs is not None
                 else {}
             ),
+            "frames_names": [p.name for p in frame_paths],
+            "starsense_frames": ours["frames"],
+            **({"cedar_frames": theirs.get("frames", [])} if theirs is not None else {}),
+            **({f"astrometry_{k}": v for k, v in astro.items()} if astro else {}),
         },
         "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),

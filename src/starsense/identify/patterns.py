@@ -57,7 +57,8 @@ def _breadth_first_combinations(n: int, k: int) -> NDArray[np.intp]:
 
 def chord_angles(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the angles between unit vectors ``a`` and ``b`` (..., 3), rad (chord formula)."""
-    chord = np.linalg.norm(a - b, axis=-1)
+    d = a - b
+    chord = np.sqrt(np.einsum("...i,...i->...", d, d))
     return 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
 
 
@@ -112,10 +113,11 @@ def order_by_centroid_distance(vectors: NDArray[np.float64]) -> NDArray[np.intp]
     ndarray of int, shape (P, K)
         Per pattern, the permutation putting its stars in canonical order.
     """
-    centroid = vectors.mean(axis=1, keepdims=True)
-    centroid /= np.linalg.norm(centroid, axis=-1, keepdims=True)
-    dist = np.linalg.norm(vectors - centroid, axis=-1)
-    return np.argsort(dist, axis=1, kind="stable")
+    centroid = vectors.sum(axis=1, keepdims=True)
+    centroid /= np.sqrt(np.einsum("pki,pki->pk", centroid, centroid))[..., None]
+    d = vectors - centroid
+    dist2 = np.einsum("pki,pki->pk", d, d)  # squared chords: the same order as the angles
+    return np.argsort(dist2, axis=1, kind="stable")
 
 
 def hash_keys(bins: NDArray[np.integer], n_bins: int) -> NDArray[np.int64]:

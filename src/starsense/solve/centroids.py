@@ -20,7 +20,7 @@ import numpy as np
 
 from starsense.errors import InputError
 
-__all__ = ["CentroidList", "read_centroids"]
+__all__ = ["CentroidList", "check_centroids", "check_image_size", "read_centroids"]
 
 FITS_SUFFIXES = {".fits", ".fit", ".fts", ".xyls", ".axy"}
 
@@ -164,3 +164,30 @@ def _read_xylist(p: Path) -> CentroidList:
     if bad.size:
         raise InputError(f"{p}: row {bad[0] + 1}: X, Y not finite")
     return CentroidList(xy, flux, size)
+
+
+def check_centroids(xy) -> np.ndarray:
+    """Return centroids as a (N, 2) float array of finite (x, y), pixels; InputError if not."""
+    try:
+        pts = np.asarray(xy, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("centroids must be numbers, shape (N, 2)") from None
+    if pts.size == 0:
+        return np.zeros((0, 2))
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise InputError(f"centroids must have shape (N, 2) (x, y), got {pts.shape}")
+    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+    if bad.size:
+        raise InputError(f"centroid {bad[0]} is not finite: {pts[bad[0]].tolist()}")
+    return pts
+
+
+def check_image_size(image_size) -> tuple[int, int]:
+    """Return (rows, columns) of an image size given as (width, height), integers >= 1."""
+    from starsense._validate import check_int
+
+    try:
+        width, height = image_size
+    except (TypeError, ValueError):
+        raise InputError(f"image_size must be (width, height), got {image_size!r}") from None
+    return check_int(height, "image height", 1), check_int(width, "image width", 1)

@@ -7,9 +7,11 @@ The optics are known three ways, from best to least:
 * a sensor (preset or TOML): its pinhole + distortion model unprojects the centroids;
 * a horizontal field of view (``fov_rad``): a pinhole with the principal point at the centre;
   when the frame does not solve at that field, it is taken as an estimate and the scale is
-  searched (5-30 deg), which refines the field;
+  searched as below, which refines the field;
 * nothing: the centroids are unprojected with a nominal field and the FOV-free pattern hashing
-  (edge ratios are scale-invariant) finds the scale, searching fields of 5-30 deg.
+  (edge ratios are scale-invariant) finds the scale, searching fields of 5-30 deg, then 25-70
+  deg, then 2.8-6 deg (with the Gaia catalogue when installed;
+  :func:`starsense.identify.fields.unknown_field_plan`).
 
 The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
 (:mod:`starsense.attitude`), which also gives its covariance (Fialho & Mortari eq. 21) for a
@@ -34,8 +36,8 @@ from starsense.units import DEG
 
 __all__ = ["NOMINAL_FOV_RAD", "UNKNOWN_FOV_RANGE_RAD", "Solution", "Solver", "pinhole_vectors"]
 
-#: field range searched when the optics are unknown, rad (issue 5: 5-30 deg)
-UNKNOWN_FOV_RANGE_RAD = (5.0 * DEG, 30.0 * DEG)
+#: field range searched when the optics are unknown, rad (5-30, 25-70, then 2.8-6 deg)
+UNKNOWN_FOV_RANGE_RAD = (2.8 * DEG, 70.0 * DEG)
 #: the field the centroids are unprojected with before the scale is found, rad (15 deg)
 NOMINAL_FOV_RAD = 15.0 * DEG
 #: PSF sigma of the matched filter when no sensor is given, px (a focused star tracker:
@@ -124,6 +126,7 @@ class Solver:
         self._identifiers: dict = {}
         self.apparent = bool(apparent)
         self.observer_velocity_m_s = observer_velocity_m_s
+        self._plan = None
 
     # -- optics -----------------------------------------------------------------------------
 
@@ -140,21 +143,35 @@ class Solver:
         fov = known if known is not None else NOMINAL_FOV_RAD
         return pinhole_vectors(x, y, shape, fov), known, fov
 
-    def _identifier(self, fov_rad: float | None):
-        from starsense.catalog import load_catalog
-        from starsense.identify import HashIdentifier, TriangleIdentifier, build_database
+    def _identifier(self, fov_rad: float | None, field_range=None):
+        """Return the identifier of a known field or of one range of the unknown-field search."""
+        from starsense.identify.fields import identifier_for, unknown_field_plan
 
-        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9))
+        if self._plan is None:
+            self._plan = unknown_field_plan(self.catalog_spec)
+        if fov_rad is None and field_range is None:
+            field_range = self._plan[0]
+        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9), field_range)
         if key not in self._identifiers:
-            cat = load_catalog(self.catalog_spec)
-            if fov_rad is None:
-                lo, hi = UNKNOWN_FOV_RANGE_RAD
-                db = build_database(cat, hi, lo, patterns_per_field=50)
-            else:
-                db = build_database(cat, fov_rad)
-            cls = HashIdentifier if self.algorithm == "hashing" else TriangleIdentifier
-            self._identifiers[key] = cls(db)
+            self._identifiers[key] = identifier_for(
+                self.catalog_spec, self.algorithm, fov_rad, field_range
+            )
         return self._identifiers[key]
+
+    def _search_fields(self, vectors, flux, fov_assumed):
+        """Identify with the field unknown: each range of the plan in turn until one solves."""
+        from starsense.identify import identify_ranked
+        from starsense.identify.verify import apply_scale
+
+        self._identifier(None)  # makes the plan; its first range is searched first
+        for field_range in self._plan:
+            identifier = self._identifier(None, field_range)
+            nominal = field_range.nominal_fov_rad  # re-unproject at the range's own field
+            v = apply_scale(vectors, math.tan(nominal / 2) / math.tan(fov_assumed / 2))
+            ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+            if ident.solved:
+                break
+        return identifier, ident, None
 
     # -- the pipeline -----------------------------------------------------------------------
 
@@ -173,10 +190,9 @@ class Solver:
         """Return (identifier, identification, known field or None after a scale search)."""
         from starsense.identify import identify_ranked
 
-        identifier = self._identifier(fov_known)
         if fov_known is None:
-            ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
-            return identifier, ident, None
+            return self._search_fields(vectors, flux, fov_assumed)
+        identifier = self._identifier(fov_known)
         ident = identify_ranked(identifier, vectors, flux, fov_known)
         if (
             not ident.solved
@@ -185,9 +201,7 @@ class Solver:
             and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
         ):
             # a given field is an estimate: search the scale around it, which refines the field
-            identifier = self._identifier(None)
-            ident = identify_ranked(identifier, vectors, flux, None, assumed_fov_rad=fov_assumed)
-            return identifier, ident, None
+            return self._search_fields(vectors, flux, fov_assumed)
         return identifier, ident, fov_known
 
     def _reference(self, ref, catalog_ids, obs_time) -> tuple[np.ndarray, dict]:
@@ -230,18 +244,8 @@ class Solver:
                 return _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
             return self.centroid_sigma_px
 
-        return self._solve_points(
-            det.x,
-            det.y,
-            det.integrated_counts,
-            a.shape,
-            t0,
-            stages,
-            sigma_px,
-            None,
-            "detections",
-            obs_time,
-        )
+        return self._solve_points(det.x, det.y, det.integrated_counts, a.shape, t0, stages,
+                                  sigma_px, None, "detections", obs_time)  # fmt: skip
 
     def solve_centroids(self, xy, image_size, fov=None, brightness=None) -> Solution:
         """Solve a list of centroids measured by any centroider (no image needed).
@@ -279,8 +283,10 @@ class Solver:
         from starsense._validate import check_scalar
 
         t0 = time.perf_counter()
-        pts = _check_centroids(xy)
-        shape = _check_image_size(image_size)
+        from starsense.solve.centroids import check_centroids, check_image_size
+
+        pts = check_centroids(xy)
+        shape = check_image_size(image_size)
         if fov is not None:
             if self.sensor is not None:
                 raise InputError("give fov only to a Solver without a sensor")
@@ -448,32 +454,6 @@ def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:
     u = (np.asarray(x, dtype=float) - (cols - 1) / 2.0) / f_px
     w = (np.asarray(y, dtype=float) - (rows - 1) / 2.0) / f_px
     return tangent_to_vectors(np.column_stack([u, w]))
-
-
-def _check_centroids(xy) -> np.ndarray:
-    try:
-        pts = np.asarray(xy, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError("centroids must be numbers, shape (N, 2)") from None
-    if pts.size == 0:
-        return np.zeros((0, 2))
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise InputError(f"centroids must have shape (N, 2) (x, y), got {pts.shape}")
-    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-    if bad.size:
-        raise InputError(f"centroid {bad[0]} is not finite: {pts[bad[0]].tolist()}")
-    return pts
-
-
-def _check_image_size(image_size) -> tuple[int, int]:
-    """(width, height) -> (rows, columns), both integers >= 1."""
-    from starsense._validate import check_int
-
-    try:
-        width, height = image_size
-    except (TypeError, ValueError):
-        raise InputError(f"image_size must be (width, height), got {image_size!r}") from None
-    return check_int(height, "image height", 1), check_int(width, "image width", 1)
 
 
 def max_candidates(shape) -> int:
