@@ -116,4 +116,5 @@ def test_no_wrong_answer_on_noise_or_a_mirrored_sky(solver):
     truth = attitude_from_radec_roll(*(math.radians(a) for a in POINTINGS[0]))
     frame = render_frame(sensor, truth, load_catalog("hipparcos"), max_mag=8.0, rng=3)
     assert solver(frame.image).solved  # the frame itself solves ...
-    assert not solver(frame.image[:, ::-1]).solved  # ... its mirror image does not
+    mirrored = solver(frame.image[:, ::-1])  # ... its mirror image does not: the parity check
+    assert not mirrored.solved and mirrored.status == "mirrored", mirrored.status  # says so

@@ -115,8 +115,20 @@ def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None) 
         return
     if sol.status == "no_stars":
         raise InputError(f"{image}: {sol.message}")
-    emit(payload, as_json, [f"{image}: not solved ({sol.status}): {sol.message}"])
+    emit(payload, as_json, _not_solved(str(image), sol))
     raise typer.Exit(1)
+
+
+def _not_solved(name: str, sol) -> list[str]:
+    """Lines for a frame that did not solve; a mirrored one also gets its flipped attitude."""
+    lines = [f"{name}: not solved ({sol.status}): {sol.message}"]
+    if sol.status == "mirrored":
+        lines.append(
+            f"  flipped frame: RA {sol.ra_deg:.4f} deg, Dec {sol.dec_deg:.4f} deg, roll "
+            f"{sol.roll_deg:.3f} deg, FOV {sol.fov_deg:.3f} deg, {sol.n_matched} of "
+            f"{sol.n_detections} stars matched"
+        )
+    return lines
 
 
 def _batch_row(solver, image: Path, when=None) -> dict:
@@ -174,7 +186,7 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
     if sol.solved:
         emit(payload, as_json, _summary(str(path), sol))
         return
-    emit(payload, as_json, [f"{path}: not solved ({sol.status}): {sol.message}"])
+    emit(payload, as_json, _not_solved(str(path), sol))
     raise typer.Exit(1)
 
 
@@ -236,8 +248,10 @@ def solve(
     that fails gets its status while the batch goes on. Without --sensor or --fov-deg the field
     is searched over 2.8-70 deg. When a frame's time is known (--time, FITS DATE-OBS, EXIF) the
     attitude is fitted to the stars' apparent places (proper motion, parallax, aberration): the
-    true ICRS attitude. Exit status 0 when every frame solved, 1 when one does not
-    solve, 2 for bad input (including a single frame with no stars, a folder with no images).
+    true ICRS attitude. A frame whose mirror image solves gets status "mirrored" (a camera read
+    out flipped) and the flipped frame's attitude. Exit status 0 when every frame solved, 1
+    when one does not solve (mirrored included), 2 for bad input (including a single frame
+    with no stars, a folder with no images).
     """
     images = list(images or [])
     option_int(jobs, "--jobs", 1, 64)

@@ -23,7 +23,9 @@ class Solution:
 
     ``status`` is "solved" or says why not ("no_stars", "too_few_stars", "no_match",
     "too_many_candidates" when a frame that did not solve gave more detections than
-    :func:`~starsense.solve.solver.max_candidates`, ...);
+    :func:`~starsense.solve.solver.max_candidates`, "mirrored" when only the frame's
+    left-right mirror image solves: a camera read out flipped; the attitude is then that of the
+    flipped frame, see :mod:`starsense.solve.parity`, ...);
     angles follow :mod:`starsense.geometry.attitude` (roll as in the ESA reference.json). The
     angles are stored in radians; ``ra_deg``, ``rmse_arcsec`` ... give them in the units of the
     command line and of :meth:`to_dict`.

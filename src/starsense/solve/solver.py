@@ -313,8 +313,12 @@ class Solver:
         )
 
     def _solve_points(self, x, y, flux, shape, t0, stages, sigma_px, fov_given, what,
-                      obs_time=None):  # fmt: skip
-        """Identify centroids (x, y) of an image of ``shape`` and fit the attitude."""
+                      obs_time=None, parity=True):  # fmt: skip
+        """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
+
+        When they do not solve (and are not clutter), their mirror image is tried
+        (:func:`starsense.solve.parity.solve_mirrored`, unless ``parity`` is False).
+        """
         from starsense.attitude.robust import robust_attitude
         from starsense.geometry.attitude import radec_roll_from_attitude
         from starsense.solve.blends import blend_radius_px, photocentres
@@ -334,6 +338,14 @@ class Solver:
         if not ident.solved:
             status, message = ident.status, ident.message
             limit = max_candidates(shape)
+            if parity and n <= limit:  # a mirrored frame fails identification: flip, retry
+                from starsense.solve.parity import solve_mirrored
+
+                mirrored = solve_mirrored(x, y, flux, shape, lambda mx, my, f: (
+                    self._solve_points(mx, my, f, shape, t0, stages, sigma_px, fov_given, what,
+                                       obs_time, parity=False)))  # fmt: skip
+                if mirrored is not None:
+                    return mirrored
             if n > limit:
                 status = "too_many_candidates"
                 message = (
