@@ -447,11 +447,16 @@ def hot_pixel_mask(
         if sub.shape != np.shape(image):
             raise InputError(f"subtracted has shape {sub.shape}, the image {np.shape(image)}")
     noise = background.noise_map if background.noise_map is not None else background.noise
-    noise = np.maximum(noise, np.float32(1e-12))
-    hot = sub > threshold_sigma * noise
-    r, c = np.nonzero(hot)
+    floor = np.maximum(np.min(noise), np.float32(1e-12))
+    # candidates above the threshold at the lowest noise (one pass, no float frame), then the
+    # exact per-pixel test on those only
+    r, c = np.nonzero(sub > threshold_sigma * floor)
+    hot = np.zeros(sub.shape, dtype=bool)
     if r.size == 0:
         return hot
+    n_here = np.maximum(np.broadcast_to(noise, sub.shape)[r, c], np.float32(1e-12))
+    above = sub[r, c] > threshold_sigma * n_here
+    r, c, n_here = r[above], c[above], n_here[above]
     rows, cols = sub.shape
     # the largest of the 8 neighbours; outside the frame counts as "no neighbour" (repeating
     # the edge would make the pixel its own neighbour and hide every hot pixel on the border)
@@ -464,7 +469,6 @@ def hot_pixel_mask(
             inside = (rr >= 0) & (rr < rows) & (cc >= 0) & (cc < cols)
             np.maximum(neighbours, sub[rr.clip(0, rows - 1), cc.clip(0, cols - 1)], out=neighbours,
                        where=inside)  # fmt: skip
-    n_here = np.broadcast_to(noise, sub.shape)[r, c]
     quiet = neighbours < np.maximum(3.0 * n_here, 0.15 * sub[r, c])
-    hot[r[~quiet], c[~quiet]] = False
+    hot[r[quiet], c[quiet]] = True
     return hot
