@@ -8,6 +8,7 @@ from scipy import ndimage
 
 from starsense.detect import estimate_background, hot_pixel_mask
 from starsense.detect.background import _interpolate_mesh, _interpolation_matrix
+from starsense.detect.clip import _ranked, _run_mad
 from starsense.errors import InputError
 
 
@@ -61,3 +62,28 @@ def test_interpolate_mesh_is_the_matrix_product(rows, cols, kind):
     assert got.dtype == np.float32 and got.shape == (rows, cols)
     # one float64 product then one rounding to float32: equal to within a float32 ulp
     np.testing.assert_allclose(got, (wy @ mesh @ wx.T).astype(np.float32), rtol=2e-7, atol=0)
+
+
+@pytest.mark.parametrize("integer", [False, True])
+def test_run_mad_is_the_median_of_the_sorted_deviations(integer):
+    """Bisection over the run's two halves against sorting the deviations (ties, NaN, empty)."""
+    rng = np.random.default_rng(7)
+    cells = rng.normal(0.0, 3.0, (40, 9, 50)).astype(np.float32)
+    if integer:
+        cells = np.round(cells).astype(np.float32)  # many ties, as in quantised frames
+    cells[rng.random(cells.shape) < 0.2] = np.nan
+    s = np.sort(cells, axis=-1)
+    n = np.isfinite(s).sum(-1)
+    lo = rng.integers(0, np.maximum(n // 3, 1))
+    hi = np.maximum(lo, n - rng.integers(0, np.maximum(n // 3, 1)))
+    hi[0, 0] = lo[0, 0]  # an empty run
+    med = _ranked(s, lo, hi - lo)
+    got = _run_mad(s, lo, hi, med)
+    for idx in np.ndindex(lo.shape):
+        run = s[idx][lo[idx] : hi[idx]]
+        if run.size == 0:
+            assert np.isnan(got[idx])
+            continue
+        dev = np.sort(np.abs(run - np.float32(med[idx])))  # float32, as the clipping computes it
+        expected = 0.5 * (float(dev[(run.size - 1) // 2]) + float(dev[run.size // 2]))
+        assert got[idx] == expected  # the same float32 values are picked: exact

@@ -40,6 +40,8 @@ from scipy import ndimage
 from scipy.interpolate import CubicSpline
 
 from starsense._validate import check_scalar, finite_float, positive_float
+from starsense.detect.clip import MAD_TO_SIGMA as MAD_TO_SIGMA  # re-exported
+from starsense.detect.clip import _robust_sigma, _sigma_clip_boxes
 from starsense.detect.quantised import (
     QUANTISED_BELOW_STEPS,
     quantisation_step,
@@ -47,15 +49,11 @@ from starsense.detect.quantised import (
 )
 from starsense.errors import InputError
 
-#: 1 / Phi^-1(3/4): the standard deviation of a Gaussian over its median absolute deviation.
-MAD_TO_SIGMA = 1.482602218505602
-
 # Boxes of at least this size are sampled at every second pixel each way.
 _SUBSAMPLE_MIN_BOX_PX = 32
 # A box keeping fewer valid samples than this fraction (masked, clipped) takes its value from the
 # nearest box that kept enough.
 _MIN_VALID_FRACTION = 0.1
-_MAX_CLIP_ITERATIONS = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -218,61 +216,6 @@ def _interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.nd
     for r0 in range(0, out.shape[0], block):
         out[r0 : r0 + block] = left[r0 : r0 + block] @ right
     return out
-
-
-def _ranked(sorted_rows: np.ndarray, start: np.ndarray, count: np.ndarray) -> np.ndarray:
-    """Median of ``sorted_rows[..., start:start + count]`` per row (NaN where count is 0)."""
-    last = sorted_rows.shape[-1] - 1
-    i0 = np.clip(start + (count - 1) // 2, 0, last)[..., None]
-    i1 = np.clip(start + count // 2, 0, last)[..., None]
-    a = np.take_along_axis(sorted_rows, i0, axis=-1)[..., 0]
-    b = np.take_along_axis(sorted_rows, i1, axis=-1)[..., 0]
-    return np.where(count > 0, 0.5 * (a.astype(np.float64) + b), np.nan)
-
-
-def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
-    """Sigma-clipped median of every box at once.
-
-    ``cells`` (..., samples) holds NaN for missing samples. The samples are sorted once; the kept
-    samples of a box are then a contiguous run ``[lo, hi)`` of its sorted row, so the median is a
-    rank lookup and each clipping pass costs one sort of the deviations (for the MAD).
-
-    Returns the median, the lowest and highest kept values and the number kept, per box.
-    """
-    s = np.sort(cells, axis=-1)  # NaN last
-    lo = np.zeros(cells.shape[:-1], dtype=np.intp)
-    hi = np.isfinite(s).sum(axis=-1)
-    positions = np.arange(s.shape[-1])
-    med = _ranked(s, lo, hi - lo)
-    for _ in range(_MAX_CLIP_ITERATIONS):
-        inside = (positions >= lo[..., None]) & (positions < hi[..., None])
-        dev = np.where(inside, np.abs(s - med[..., None].astype(np.float32)), np.inf)
-        dev.sort(axis=-1)
-        scale = MAD_TO_SIGMA * _ranked(dev, np.zeros_like(lo), hi - lo)
-        # a zero scale (noiseless box) would clip everything off the median: do not clip
-        half = np.where(scale > 0, sigma_clip * scale, np.inf)
-        with np.errstate(invalid="ignore"):
-            new_lo = np.maximum(lo, (s < (med - half)[..., None]).sum(axis=-1))
-            new_hi = np.minimum(hi, (s <= (med + half)[..., None]).sum(axis=-1))
-        new_hi = np.maximum(new_hi, new_lo)
-        if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
-            break
-        lo, hi = new_lo, new_hi
-        med = _ranked(s, lo, hi - lo)
-    last = s.shape[-1] - 1
-    low = np.take_along_axis(s, np.clip(lo, 0, last)[..., None], axis=-1)[..., 0]
-    high = np.take_along_axis(s, np.clip(hi - 1, 0, last)[..., None], axis=-1)[..., 0]
-    return med, low, high, hi - lo
-
-
-def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """1.4826 MAD over the samples ``keep`` of every box (NaN where none)."""
-    n = keep.sum(axis=-1)
-    zero = np.zeros(n.shape, dtype=np.intp)
-    v = np.sort(np.where(keep, cells, np.inf), axis=-1)
-    med = _ranked(v, zero, n)
-    dev = np.sort(np.where(keep, np.abs(cells - med[..., None].astype(np.float32)), np.inf), -1)
-    return MAD_TO_SIGMA * _ranked(dev, zero, n)
 
 
 def _quantised_step(cells: np.ndarray, keep: np.ndarray) -> float | None:
