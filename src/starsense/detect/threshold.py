@@ -275,7 +275,7 @@ class StarDetector:
         sub = a.astype(np.float32)
         sub -= np.asarray(bg.level, dtype=np.float32)
         if self.background == "auto" and self.remove_hot_pixels:
-            hot = hot_pixel_mask(a, bg)
+            hot = hot_pixel_mask(a, bg, subtracted=sub)
             sub[hot] = 0.0
         lit, core, filtered = self._lit(sub, bg)
         structure = ndimage.generate_binary_structure(2, 1 if self.logic.connectivity == 4 else 2)

@@ -1,0 +1,89 @@
+"""The fast paths of the background and hot-pixel code against their plain whole-frame forms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from starsense.detect import estimate_background, hot_pixel_mask
+from starsense.detect.background import _interpolate_mesh, _interpolation_matrix
+from starsense.detect.clip import _ranked, _run_mad
+from starsense.errors import InputError
+
+
+def _hot_reference(image, bg, threshold_sigma=8.0):
+    """The definition over the whole frame: scipy's 8-neighbour maximum filter, -inf outside."""
+    sub = np.asarray(image, np.float32) - np.asarray(bg.level, np.float32)
+    footprint = np.ones((3, 3), bool)
+    footprint[1, 1] = False
+    neighbours = ndimage.maximum_filter(sub, footprint=footprint, mode="constant", cval=-np.inf)
+    noise = np.maximum(bg.noise_map if bg.noise_map is not None else bg.noise, np.float32(1e-12))
+    return (sub > threshold_sigma * noise) & (neighbours < np.maximum(3.0 * noise, 0.15 * sub))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_hot_pixel_mask_matches_the_whole_frame_definition(seed):
+    rng = np.random.default_rng(seed)
+    img = 200.0 + 8.0 * rng.standard_normal((97, 131))
+    img += np.linspace(0, 60, 131)[None, :]  # a glow, so the noise map varies
+    spots = rng.integers(0, [97, 131], (60, 2))
+    img[spots[:, 0], spots[:, 1]] += rng.uniform(0, 2000, 60)  # isolated and touching spikes
+    img[0, 0] += 900.0  # corner
+    img[50, 130] += 900.0  # edge
+    img[20, 20:22] += 900.0  # a pair: neither is isolated
+    img[60:63, 60:63] += 400.0  # a flat blob
+    bg = estimate_background(img, box_px=16)
+    expected = _hot_reference(img, bg)
+    assert expected.sum() >= 10  # the test exercises real hot pixels
+    assert np.array_equal(hot_pixel_mask(img, bg), expected)
+    sub = img.astype(np.float32) - bg.level
+    assert np.array_equal(hot_pixel_mask(img, bg, subtracted=sub), expected)
+    strict = hot_pixel_mask(img, bg, threshold_sigma=20.0)
+    assert np.array_equal(strict, _hot_reference(img, bg, 20.0))
+
+
+def test_hot_pixel_mask_without_candidates_and_bad_subtracted():
+    img = np.full((20, 30), 100.0)
+    bg = estimate_background(img + np.random.default_rng(0).normal(0, 1, img.shape), box_px=10)
+    assert not hot_pixel_mask(img, bg).any()
+    with pytest.raises(InputError, match="subtracted has shape"):
+        hot_pixel_mask(img, bg, subtracted=np.zeros((20, 29), np.float32))
+
+
+@pytest.mark.parametrize(("rows", "cols", "kind"), [(768, 1024, "cubic"), (101, 37, "linear")])
+def test_interpolate_mesh_is_the_matrix_product(rows, cols, kind):
+    rng = np.random.default_rng(1)
+    ny, nx = 12, 7
+    mesh = 1000.0 + 50.0 * rng.standard_normal((ny, nx))
+    wy = _interpolation_matrix(np.linspace(4, rows - 5, ny), rows, kind)
+    wx = _interpolation_matrix(np.linspace(3, cols - 4, nx), cols, kind)
+    got = _interpolate_mesh(wy, mesh, wx)
+    assert got.dtype == np.float32 and got.shape == (rows, cols)
+    # one float64 product then one rounding to float32: equal to within a float32 ulp
+    np.testing.assert_allclose(got, (wy @ mesh @ wx.T).astype(np.float32), rtol=2e-7, atol=0)
+
+
+@pytest.mark.parametrize("integer", [False, True])
+def test_run_mad_is_the_median_of_the_sorted_deviations(integer):
+    """Bisection over the run's two halves against sorting the deviations (ties, NaN, empty)."""
+    rng = np.random.default_rng(7)
+    cells = rng.normal(0.0, 3.0, (40, 9, 50)).astype(np.float32)
+    if integer:
+        cells = np.round(cells).astype(np.float32)  # many ties, as in quantised frames
+    cells[rng.random(cells.shape) < 0.2] = np.nan
+    s = np.sort(cells, axis=-1)
+    n = np.isfinite(s).sum(-1)
+    lo = rng.integers(0, np.maximum(n // 3, 1))
+    hi = np.maximum(lo, n - rng.integers(0, np.maximum(n // 3, 1)))
+    hi[0, 0] = lo[0, 0]  # an empty run
+    med = _ranked(s, lo, hi - lo)
+    got = _run_mad(s, lo, hi, med)
+    for idx in np.ndindex(lo.shape):
+        run = s[idx][lo[idx] : hi[idx]]
+        if run.size == 0:
+            assert np.isnan(got[idx])
+            continue
+        dev = np.sort(np.abs(run - np.float32(med[idx])))  # float32, as the clipping computes it
+        expected = 0.5 * (float(dev[(run.size - 1) // 2]) + float(dev[run.size // 2]))
+        assert got[idx] == expected  # the same float32 values are picked: exact
