@@ -21,7 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["WindowDetections", "detect_in_windows", "streak_centroid", "streak_px", "union_area"]
+__all__ = [
+    "WindowDetections",
+    "detect_in_windows",
+    "streak_centroid",
+    "streak_centroids",
+    "streak_px",
+    "union_area",
+]
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
@@ -212,41 +219,139 @@ def _levels(solver, stack: np.ndarray):
     return level, noise, threshold
 
 
-def _region_centroid(plane, box, margin, streak, sigma):
-    """Centroid, counts, box and read-noise spread of one region of a window (window px).
-
-    With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
-    streak (:func:`streak_centroid`); else the CoG over the region's box plus the margin, as
-    the full-frame detector does.
-    """
-    from starsense.detect.centroid import cog
-
-    a, b, c, d = box
-    rows, cols = plane.shape
-    wa, wb, wc, wd = (
-        max(a - margin, 0),
-        min(b + margin, rows),
-        max(c - margin, 0),
-        min(d + margin, cols),
-    )
-    x, y = cog(plane[wa:wb, wc:wd], wa, wc)
-    if streak is not None and float(np.hypot(*streak)) >= 2.0 * sigma and np.isfinite(x):
-        got = streak_centroid(plane, x, y, streak, 2.5 * sigma + 1.0)
-        if got is not None:
-            return got
-    return x, y, None, box, np.full((2, 2), np.nan)
-
-
-def _inside(x: float, y: float, streak, sigma: float, shape) -> bool:
-    """Whether the whole streak centred on (x, y), with its PSF radius, lies on the frame."""
-    reach = 2.5 * sigma + 1.0
-    hx, hy = 0.5 * abs(float(streak[0])) + reach, 0.5 * abs(float(streak[1])) + reach
+def _boxes(x, y, sx, sy, radius, shape):
+    """Bounding boxes (row0, row1, col0, col1) of the segments' capsules on the plane, (R, 4)."""
     rows, cols = shape
-    return hx <= x <= cols - 1 - hx and hy <= y <= rows - 1 - hy
+    r0 = np.maximum(np.floor(y - np.abs(sy) - radius), 0)
+    r1 = np.minimum(np.ceil(y + np.abs(sy) + radius) + 1, rows)
+    c0 = np.maximum(np.floor(x - np.abs(sx) - radius), 0)
+    c1 = np.minimum(np.ceil(x + np.abs(sx) + radius) + 1, cols)
+    return np.column_stack([r0, r1, c0, c1]).astype(int)
+
+
+def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
+    """:func:`streak_centroid` of many regions at once (each on its own plane).
+
+    The capsule around the segment lies inside its bounding box, so the mask is taken over the
+    whole plane; every region iterates until it stays (at most 6 times), as one would alone.
+
+    Parameters
+    ----------
+    planes : ndarray, shape (R, rows, columns)
+        Background-subtracted counts of each region's window.
+    x, y : array_like, shape (R,)
+        Starting points, px in the windows.
+    streaks : array_like, shape (R, 2)
+        Predicted streaks, start to end, px.
+    radius : float
+        Half-width across the streak, px.
+
+    Returns
+    -------
+    x, y, counts : ndarray, shape (R,)
+        Centroids, px, and counts summed over the capsule (NaN where no centroid was found).
+    boxes : ndarray of int, shape (R, 4)
+        Row0, row1, col0, col1 of each capsule's bounding box.
+    spread : ndarray, shape (R, 2, 2)
+        Sum over the capsule of (pixel - centroid)(pixel - centroid)^T, px^2.
+    """
+    planes = np.asarray(planes)
+    n, rows, cols = planes.shape
+    x, y = np.array(x, dtype=float), np.array(y, dtype=float)
+    sx, sy = 0.5 * np.asarray(streaks, dtype=float).T
+    length2 = np.maximum(4.0 * (sx * sx + sy * sy), 1e-12)
+    out_x, out_y, total = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    boxes, spread = np.zeros((n, 4), dtype=int), np.full((n, 2, 2), np.nan)
+    live = np.arange(n)
+    for _ in range(6):
+        box = _boxes(x[live], y[live], sx[live], sy[live], radius, (rows, cols))
+        some = (box[:, 0] < box[:, 1]) & (box[:, 2] < box[:, 3])
+        live, box = live[some], box[some]
+        if len(live) == 0:
+            break
+        # one crop size holding every box (outside its box no pixel is within the radius)
+        h, w = int(np.max(box[:, 1] - box[:, 0])), int(np.max(box[:, 3] - box[:, 2]))
+        py = np.minimum(box[:, 0], rows - h)[:, None] + np.arange(h)  # (L, h) rows
+        px = np.minimum(box[:, 2], cols - w)[:, None] + np.arange(w)  # (L, w) columns
+        ax = px[:, None, :] - (x[live] - sx[live])[:, None, None]
+        ay = py[:, :, None] - (y[live] - sy[live])[:, None, None]
+        a2x, a2y = (2 * sx[live])[:, None, None], (2 * sy[live])[:, None, None]
+        t = np.clip((ax * a2x + ay * a2y) / length2[live, None, None], 0.0, 1.0)
+        inside = (ax - t * a2x) ** 2 + (ay - t * a2y) ** 2 <= radius * radius
+        crop = planes[live[:, None, None], py[:, :, None], px[:, None, :]]
+        wt = np.where(inside, crop, 0.0)
+        tot = wt.sum(axis=(1, 2)).astype(float)
+        good = tot > 0
+        live, box, inside, tot = live[good], box[good], inside[good], tot[good]
+        wt, px, py = wt[good], px[good].astype(float), py[good].astype(float)
+        nx = np.einsum("kj,kj->k", wt.sum(axis=1), px) / tot
+        ny = np.einsum("ki,ki->k", wt.sum(axis=2), py) / tot
+        dx = np.where(inside, px[:, None, :] - nx[:, None, None], 0.0)
+        dy = np.where(inside, py[:, :, None] - ny[:, None, None], 0.0)
+        sxy = np.einsum("kij,kij->k", dx, dy)
+        sxx, syy = np.einsum("kij,kij->k", dx, dx), np.einsum("kij,kij->k", dy, dy)
+        spread[live] = np.stack([sxx, sxy, sxy, syy], axis=1).reshape(-1, 2, 2)
+        out_x[live], out_y[live], total[live], boxes[live] = nx, ny, tot, box
+        moving = np.hypot(nx - x[live], ny - y[live]) >= 0.01
+        x[live], y[live] = nx, ny
+        live = live[moving]
+        if len(live) == 0:
+            break
+    return out_x, out_y, total, boxes, spread
+
+
+def _cogs(sub, p, boxes, margin):
+    """CoG of each region over its box plus the margin on its plane, px; NaN where empty."""
+    _, rows, cols = sub.shape
+    a = np.maximum(boxes[:, 0] - margin, 0)[:, None, None]
+    b = np.minimum(boxes[:, 1] + margin, rows)[:, None, None]
+    c = np.maximum(boxes[:, 2] - margin, 0)[:, None, None]
+    d = np.minimum(boxes[:, 3] + margin, cols)[:, None, None]
+    rr, cc = np.arange(rows)[None, :, None], np.arange(cols)[None, None, :]
+    w = np.where((rr >= a) & (rr < b) & (cc >= c) & (cc < d), sub[p].astype(float), 0.0)
+    total = w.sum(axis=(1, 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = w.sum(axis=1) @ np.arange(cols, dtype=float) / total
+        y = w.sum(axis=2) @ np.arange(rows, dtype=float) / total
+    bad = ~(total > 0)
+    x[bad], y[bad] = np.nan, np.nan
+    return x, y
+
+
+def _inside(x, y, streaks, sigma: float, shape) -> np.ndarray:
+    """Whether each whole streak centred on (x, y), with its PSF radius, lies on the frame."""
+    reach = 2.5 * sigma + 1.0
+    hx = 0.5 * np.abs(streaks[:, 0]) + reach
+    hy = 0.5 * np.abs(streaks[:, 1]) + reach
+    rows, cols = shape
+    return (hx <= x) & (x <= cols - 1 - hx) & (hy <= y) & (y <= rows - 1 - hy)
+
+
+def _regions(labels, n, ok, r0, c0, shape):
+    """Plane and box (a, b, c, d) of every kept label, dropping those cut by a window edge."""
+    slices = ndimage.find_objects(labels)
+    keep = np.flatnonzero(ok)
+    if len(keep) == 0:
+        return keep, np.zeros(0, int), np.zeros((0, 4), int)
+    sl = [slices[k - 1] for k in keep.tolist()]
+    p = np.array([s[0].start for s in sl])
+    box = np.array([(s[1].start, s[1].stop, s[2].start, s[2].stop) for s in sl])
+    _, h, w = labels.shape
+    rows, cols = shape
+    a, b, c, d = box.T
+    # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
+    cut = ((a == 0) & (0 < r0[p])) | ((b == h) & (r0[p] + h < rows))
+    cut |= ((c == 0) & (0 < c0[p])) | ((d == w) & (c0[p] + w < cols))
+    return keep[~cut], p[~cut], box[~cut]
 
 
 def _detect_stack(solver, stack, r0, c0, shape, streaks):
-    """Apply the detection logic to every window at once; return frame-pixel detection rows."""
+    """Apply the detection logic to every window at once; return frame-pixel detection rows.
+
+    With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
+    streak (:func:`streak_centroids`), started from the region's CoG; else the CoG over the
+    region's box plus a 2 px margin, as the full-frame detector does.
+    """
     logic = solver.logic
     level, noise, threshold = _levels(solver, stack)
     sub = stack - level[:, None, None].astype(np.float32)
@@ -258,38 +363,32 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     lab = labels.ravel()[idx]
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
+    peaks = np.full(n + 1, -np.inf)
+    np.maximum.at(peaks, lab, stack.ravel()[idx])
     ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
     ok[0] = False
-    rows, cols = shape
-    _, h, w = stack.shape
+    k, p, box = _regions(labels, n, ok, r0, c0, shape)
     sigma = float(solver.sensor.detector.psf_sigma_px)
-    found = []
-    slices = ndimage.find_objects(labels)
-    for k in np.flatnonzero(ok).tolist():
-        sl = slices[k - 1]
-        p = sl[0].start
-        a, b, c, d = sl[1].start, sl[1].stop, sl[2].start, sl[2].stop
-        # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
-        if (
-            (a == 0 < r0[p])
-            or (b == h and r0[p] + h < rows)
-            or (c == 0 < c0[p])
-            or (d == w and c0[p] + w < cols)
-        ):
-            continue
-        x, y, counts, box, spread = _region_centroid(
-            sub[p], (a, b, c, d), 2, None if streaks is None else streaks[p], sigma
-        )
-        if not np.isfinite(x):
-            continue
-        if np.isfinite(spread[0, 0]) and not _inside(
-            x + c0[p], y + r0[p], streaks[p], sigma, shape
-        ):
-            continue  # a streak running off the frame: its centroid is pulled inwards
-        peak = float(stack[p, a:b, c:d][labels[p, a:b, c:d] == k].max())
-        found.append((x + c0[p], y + r0[p], sums[k] if counts is None else counts, sizes[k],
-                      peak, (box[0] + r0[p], box[1] + r0[p], box[2] + c0[p], box[3] + c0[p]),
-                      spread))  # fmt: skip
+    x, y = _cogs(sub, p, box, 2)
+    counts, spread = sums[k].astype(float), np.full((len(k), 2, 2), np.nan)
+    if streaks is not None and len(k):
+        st = np.asarray(streaks, dtype=float)[p]
+        use = np.flatnonzero((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x))
+        gx, gy, gc, gb, gs = streak_centroids(sub[p[use]], x[use], y[use], st[use],
+                                              2.5 * sigma + 1.0)  # fmt: skip
+        got = use[np.isfinite(gx)]
+        x[got], y[got], counts[got] = gx[np.isfinite(gx)], gy[np.isfinite(gx)], gc[np.isfinite(gx)]
+        box[got], spread[got] = gb[np.isfinite(gx)], gs[np.isfinite(gx)]
+        # a streak running off the frame: its centroid is pulled inwards
+        off = np.zeros(len(k), bool)
+        off[got] = ~_inside(x[got] + c0[p[got]], y[got] + r0[p[got]], st[got], sigma, shape)
+    else:
+        off = np.zeros(len(k), bool)
+    fine = np.flatnonzero(np.isfinite(x) & ~off)
+    found = [(float(x[i] + c0[p[i]]), float(y[i] + r0[p[i]]), counts[i], sizes[k[i]],
+              float(peaks[k[i]]), (box[i, 0] + r0[p[i]], box[i, 1] + r0[p[i]],
+                                   box[i, 2] + c0[p[i]], box[i, 3] + c0[p[i]]), spread[i])
+             for i in fine.tolist()]  # fmt: skip
     return found, float(np.median(noise)), n
 
 
