@@ -54,3 +54,21 @@ def test_streak_centroids_equal_the_one_region_loop(st16):
         np.testing.assert_allclose(spread[i], ref[4], rtol=1e-9)
     assert np.isnan(x[-2]) and np.isnan(x[-1])
     assert np.all(np.isfinite(x[:-2]))
+
+
+def test_union_area_counts_the_covered_pixels():
+    # the exact union of overlapping, nested, touching and disjoint boxes against a raster
+    # of the pixels (an independent count: a boolean image with each box painted in)
+    from starsense.solve.windows import union_area
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 5, 30):
+        r0, c0 = rng.integers(0, 80, n), rng.integers(0, 80, n)
+        boxes = np.column_stack([r0, r0 + rng.integers(1, 30, n), c0, c0 + rng.integers(1, 30, n)])
+        if n == 5:
+            boxes[1] = [boxes[0, 0] + 1, boxes[0, 1], boxes[0, 2], boxes[0, 3]]  # nested
+            boxes[2] = [boxes[0, 1], boxes[0, 1] + 4, boxes[0, 2], boxes[0, 3]]  # touching
+        paint = np.zeros((120, 120), bool)
+        for a, b, c, d in boxes:
+            paint[a:b, c:d] = True
+        assert union_area(boxes) == paint.sum()

@@ -69,15 +69,20 @@ class WindowDetections:
 def union_area(boxes: np.ndarray) -> int:
     """Return the pixels covered by the union of boxes (row0, row1, col0, col1), exactly.
 
-    The box edges cut the plane into cells; a cell is covered when any box holds it.
+    The box edges cut the plane into cells; a cell is covered when any box holds it (the
+    boxes' corners summed into a difference array, then integrated along both axes).
     """
+    boxes = np.asarray(boxes, dtype=int)
+    if len(boxes) == 0:
+        return 0
     rows = np.unique(boxes[:, :2])
     cols = np.unique(boxes[:, 2:])
-    rc = 0.5 * (rows[:-1] + rows[1:])
-    cc = 0.5 * (cols[:-1] + cols[1:])
-    r0, r1, c0, c1 = (v[:, None, None] for v in boxes.T)
-    covered = ((rc[None, :, None] > r0) & (rc[None, :, None] < r1)
-               & (cc[None, None, :] > c0) & (cc[None, None, :] < c1)).any(axis=0)  # fmt: skip
+    i0, i1 = np.searchsorted(rows, boxes[:, 0]), np.searchsorted(rows, boxes[:, 1])
+    j0, j1 = np.searchsorted(cols, boxes[:, 2]), np.searchsorted(cols, boxes[:, 3])
+    corners = np.zeros((len(rows), len(cols)), dtype=np.int64)
+    np.add.at(corners, (np.r_[i0, i0, i1, i1], np.r_[j0, j1, j0, j1]),
+              np.repeat([1, -1, -1, 1], len(boxes)))  # fmt: skip
+    covered = np.cumsum(np.cumsum(corners, axis=0), axis=1)[:-1, :-1] > 0
     return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
 
 
@@ -103,12 +108,18 @@ def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
     scale = sensor.exposure_s * sensor.focal_length_px
     if vectors_cam is None:
         hx, hy = sensor.half_fov_rad
-        corner = np.array([math.tan(hx), math.tan(hy), 1.0])
-        b = np.array([corner * [sx, sy, 1.0] for sx in (-1, 1) for sy in (-1, 1)])
-        b /= np.linalg.norm(b, axis=1)[:, None]
-        return float(np.max(scale * np.linalg.norm(np.cross(w, b)[:, :2], axis=1)))
-    b = np.asarray(vectors_cam, dtype=float)
-    return scale * np.linalg.norm(np.cross(w, b)[:, :2], axis=1)
+        tx, ty = math.tan(hx), math.tan(hy)
+        b = np.array([[-tx, -ty, 1.0], [-tx, ty, 1.0], [tx, -ty, 1.0], [tx, ty, 1.0]])
+        b /= math.sqrt(tx * tx + ty * ty + 1.0)
+        return float(np.max(scale * _cross_xy(w, b)))
+    return scale * _cross_xy(w, np.asarray(vectors_cam, dtype=float))
+
+
+def _cross_xy(w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Length of the x, y part of the cross product w x b of each row of b, shape (N,)."""
+    cx = w[1] * b[:, 2] - w[2] * b[:, 1]
+    cy = w[2] * b[:, 0] - w[0] * b[:, 2]
+    return np.hypot(cx, cy)
 
 
 def _segment_mask(shape, x, y, streak, radius):
@@ -327,22 +338,34 @@ def _inside(x, y, streaks, sigma: float, shape) -> np.ndarray:
     return (hx <= x) & (x <= cols - 1 - hx) & (hy <= y) & (y <= rows - 1 - hy)
 
 
-def _regions(labels, n, ok, r0, c0, shape):
-    """Plane and box (a, b, c, d) of every kept label, dropping those cut by a window edge."""
-    slices = ndimage.find_objects(labels)
-    keep = np.flatnonzero(ok)
-    if len(keep) == 0:
-        return keep, np.zeros(0, int), np.zeros((0, 4), int)
-    sl = [slices[k - 1] for k in keep.tolist()]
-    p = np.array([s[0].start for s in sl])
-    box = np.array([(s[1].start, s[1].stop, s[2].start, s[2].stop) for s in sl])
-    _, h, w = labels.shape
+def _label_extents(idx, lab, sizes, values, shape):
+    """Plane, box (a, b, c, d) and peak value of every label 1..n from its lit pixels.
+
+    ``idx`` are the flat indices of the lit pixels in the (K, h, w) stack, ``lab`` their
+    labels and ``values`` their counts; every label has ``sizes`` pixels (at least one).
+    """
+    _, h, w = shape
+    order = np.argsort(lab, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(sizes[1:])[:-1]])
+    plane, rest = np.divmod(idx[order], h * w)
+    row, col = np.divmod(rest, w)
+    low, high = np.minimum.reduceat, np.maximum.reduceat
+    box = np.column_stack([low(row, starts), high(row, starts) + 1, low(col, starts),
+                           high(col, starts) + 1])  # fmt: skip
+    return plane[starts], box, np.maximum.reduceat(values[order], starts)
+
+
+def _regions(p, box, ok, r0, c0, shape, window):
+    """Labels, planes and boxes of the kept regions, dropping those cut by a window edge."""
+    keep = np.flatnonzero(ok[1:])
+    p, box = p[keep], box[keep]
+    h, w = window
     rows, cols = shape
     a, b, c, d = box.T
     # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
     cut = ((a == 0) & (0 < r0[p])) | ((b == h) & (r0[p] + h < rows))
     cut |= ((c == 0) & (0 < c0[p])) | ((d == w) & (c0[p] + w < cols))
-    return keep[~cut], p[~cut], box[~cut]
+    return keep[~cut] + 1, p[~cut], box[~cut]
 
 
 def _detect_stack(solver, stack, r0, c0, shape, streaks):
@@ -363,11 +386,10 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     lab = labels.ravel()[idx]
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
-    peaks = np.full(n + 1, -np.inf)
-    np.maximum.at(peaks, lab, stack.ravel()[idx])
+    plane, extent, peak = _label_extents(idx, lab, sizes, stack.ravel()[idx], stack.shape)
+    peaks = np.concatenate([[-np.inf], peak])
     ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
-    ok[0] = False
-    k, p, box = _regions(labels, n, ok, r0, c0, shape)
+    k, p, box = _regions(plane, extent, ok, r0, c0, shape, stack.shape[1:])
     sigma = float(solver.sensor.detector.psf_sigma_px)
     x, y = _cogs(sub, p, box, 2)
     counts, spread = sums[k].astype(float), np.full((len(k), 2, 2), np.nan)
