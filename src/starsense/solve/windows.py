@@ -240,6 +240,24 @@ def _boxes(x, y, sx, sy, radius, shape):
     return np.column_stack([r0, r1, c0, c1]).astype(int)
 
 
+def _capsules(x, y, sx, sy, length2, radius, box, shape):
+    """Pixels within ``radius`` of each segment centred on (x, y), on one crop holding each box.
+
+    Returns the mask (L, h, w) and the crops' columns (L, w) and rows (L, h), px (int); a
+    crop is the box grown to the largest box's size (outside its box no pixel is in reach).
+    """
+    rows, cols = shape
+    h, w = int(np.max(box[:, 1] - box[:, 0])), int(np.max(box[:, 3] - box[:, 2]))
+    py = np.minimum(box[:, 0], rows - h)[:, None] + np.arange(h)
+    px = np.minimum(box[:, 2], cols - w)[:, None] + np.arange(w)
+    ax = px[:, None, :] - (x - sx)[:, None, None]
+    ay = py[:, :, None] - (y - sy)[:, None, None]
+    a2x, a2y = (2 * sx)[:, None, None], (2 * sy)[:, None, None]
+    # clamped to the segment (np.clip's result, without its overhead)
+    t = np.minimum(np.maximum((ax * a2x + ay * a2y) / length2[:, None, None], 0.0), 1.0)
+    return (ax - t * a2x) ** 2 + (ay - t * a2y) ** 2 <= radius * radius, px, py
+
+
 def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     """:func:`streak_centroid` of many regions at once (each on its own plane).
 
@@ -273,6 +291,7 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     length2 = np.maximum(4.0 * (sx * sx + sy * sy), 1e-12)
     out_x, out_y, total = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     boxes, spread = np.zeros((n, 4), dtype=int), np.full((n, 2, 2), np.nan)
+    last_x, last_y = np.full(n, np.nan), np.full(n, np.nan)  # where the kept capsule was
     live = np.arange(n)
     for _ in range(6):
         box = _boxes(x[live], y[live], sx[live], sy[live], radius, (rows, cols))
@@ -280,34 +299,30 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
         live, box = live[some], box[some]
         if len(live) == 0:
             break
-        # one crop size holding every box (outside its box no pixel is within the radius)
-        h, w = int(np.max(box[:, 1] - box[:, 0])), int(np.max(box[:, 3] - box[:, 2]))
-        py = np.minimum(box[:, 0], rows - h)[:, None] + np.arange(h)  # (L, h) rows
-        px = np.minimum(box[:, 2], cols - w)[:, None] + np.arange(w)  # (L, w) columns
-        ax = px[:, None, :] - (x[live] - sx[live])[:, None, None]
-        ay = py[:, :, None] - (y[live] - sy[live])[:, None, None]
-        a2x, a2y = (2 * sx[live])[:, None, None], (2 * sy[live])[:, None, None]
-        t = np.clip((ax * a2x + ay * a2y) / length2[live, None, None], 0.0, 1.0)
-        inside = (ax - t * a2x) ** 2 + (ay - t * a2y) ** 2 <= radius * radius
-        crop = planes[live[:, None, None], py[:, :, None], px[:, None, :]]
-        wt = np.where(inside, crop, 0.0)
+        inside, px, py = _capsules(x[live], y[live], sx[live], sy[live], length2[live], radius,
+                                   box, (rows, cols))  # fmt: skip
+        wt = np.where(inside, planes[live[:, None, None], py[:, :, None], px[:, None, :]], 0.0)
         tot = wt.sum(axis=(1, 2)).astype(float)
         good = tot > 0
-        live, box, inside, tot = live[good], box[good], inside[good], tot[good]
-        wt, px, py = wt[good], px[good].astype(float), py[good].astype(float)
-        nx = np.einsum("kj,kj->k", wt.sum(axis=1), px) / tot
-        ny = np.einsum("ki,ki->k", wt.sum(axis=2), py) / tot
-        dx = np.where(inside, px[:, None, :] - nx[:, None, None], 0.0)
-        dy = np.where(inside, py[:, :, None] - ny[:, None, None], 0.0)
-        sxy = np.einsum("kij,kij->k", dx, dy)
-        sxx, syy = np.einsum("kij,kij->k", dx, dx), np.einsum("kij,kij->k", dy, dy)
-        spread[live] = np.stack([sxx, sxy, sxy, syy], axis=1).reshape(-1, 2, 2)
+        live, box, wt, tot = live[good], box[good], wt[good], tot[good]
+        nx = np.einsum("kj,kj->k", wt.sum(axis=1), px[good].astype(float)) / tot
+        ny = np.einsum("ki,ki->k", wt.sum(axis=2), py[good].astype(float)) / tot
         out_x[live], out_y[live], total[live], boxes[live] = nx, ny, tot, box
+        last_x[live], last_y[live] = x[live], y[live]
         moving = np.hypot(nx - x[live], ny - y[live]) >= 0.01
         x[live], y[live] = nx, ny
         live = live[moving]
         if len(live) == 0:
             break
+    done = np.flatnonzero(np.isfinite(out_x))
+    if len(done):  # the spread about the centroid over the capsule it was taken from
+        inside, px, py = _capsules(last_x[done], last_y[done], sx[done], sy[done],
+                                   length2[done], radius, boxes[done], (rows, cols))  # fmt: skip
+        dx = np.where(inside, px[:, None, :] - out_x[done, None, None], 0.0)
+        dy = np.where(inside, py[:, :, None] - out_y[done, None, None], 0.0)
+        sxy = np.einsum("kij,kij->k", dx, dy)
+        sxx, syy = np.einsum("kij,kij->k", dx, dx), np.einsum("kij,kij->k", dy, dy)
+        spread[done] = np.stack([sxx, sxy, sxy, syy], axis=1).reshape(-1, 2, 2)
     return out_x, out_y, total, boxes, spread
 
 
