@@ -72,3 +72,21 @@ def test_union_area_counts_the_covered_pixels():
         for a, b, c, d in boxes:
             paint[a:b, c:d] = True
         assert union_area(boxes) == paint.sum()
+
+
+@pytest.mark.parametrize("connectivity", [4, 8])
+def test_window_labels_equal_a_3d_labelling(connectivity):
+    # the windows labelled as one tall 2-D image must give scipy's 3-D labelling with a
+    # structure that connects only within a window: same labels, same order, none across
+    from scipy import ndimage
+
+    from starsense.solve.windows import _label
+
+    lit = np.random.default_rng(5).random((12, 21, 17)) > 0.8
+    lit[3, -1, :] = lit[4, 0, :] = True  # touching rows of neighbouring windows
+    structure = np.zeros((3, 3, 3), bool)
+    structure[1] = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
+    ref, n_ref = ndimage.label(lit, structure=structure)
+    got, n = _label(lit, connectivity)
+    assert n == n_ref
+    np.testing.assert_array_equal(got, ref)

@@ -190,12 +190,19 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
     return out
 
 
-def _structure(connectivity: int) -> np.ndarray:
-    """3-D structuring element that connects pixels only within one window of the stack."""
+def _label(lit: np.ndarray, connectivity: int):
+    """Label the lit pixels of each window of the stack (K, h, w), never across windows.
+
+    The windows are labelled as one 2-D image, one above the other with an empty row between
+    them (cheaper than a 3-D structuring element, and the same labels in the same raster
+    order).
+    """
+    k, h, w = lit.shape
+    tall = np.zeros((k, h + 1, w), dtype=bool)
+    tall[:, :h] = lit
     plane = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
-    out = np.zeros((3, 3, 3), dtype=bool)
-    out[1] = plane
-    return out
+    labels, n = ndimage.label(tall.reshape(k * (h + 1), w), structure=plane)
+    return labels.reshape(k, h + 1, w)[:, :h], n
 
 
 def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
@@ -394,7 +401,7 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     level, noise, threshold = _levels(solver, stack)
     sub = stack - level[:, None, None].astype(np.float32)
     lit = sub > threshold[:, None, None]
-    labels, n = ndimage.label(lit, structure=_structure(logic.connectivity))
+    labels, n = _label(lit, logic.connectivity)
     if n == 0:
         return [], float(np.median(noise)), 0
     idx = np.flatnonzero(lit)
