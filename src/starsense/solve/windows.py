@@ -79,9 +79,9 @@ def union_area(boxes: np.ndarray) -> int:
     cols = np.unique(boxes[:, 2:])
     i0, i1 = np.searchsorted(rows, boxes[:, 0]), np.searchsorted(rows, boxes[:, 1])
     j0, j1 = np.searchsorted(cols, boxes[:, 2]), np.searchsorted(cols, boxes[:, 3])
-    corners = np.zeros((len(rows), len(cols)), dtype=np.int64)
-    np.add.at(corners, (np.r_[i0, i0, i1, i1], np.r_[j0, j1, j0, j1]),
-              np.repeat([1, -1, -1, 1], len(boxes)))  # fmt: skip
+    flat = np.r_[i0, i0, i1, i1] * len(cols) + np.r_[j0, j1, j0, j1]
+    sign = np.repeat([1, -1, -1, 1], len(boxes))
+    corners = np.bincount(flat, sign, len(rows) * len(cols)).reshape(len(rows), len(cols))
     covered = np.cumsum(np.cumsum(corners, axis=0), axis=1)[:-1, :-1] > 0
     return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
 
@@ -334,18 +334,28 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
 
 
 def _cogs(sub, p, boxes, margin):
-    """CoG of each region over its box plus the margin on its plane, px; NaN where empty."""
+    """CoG of each region over its box plus the margin on its plane, px; NaN where empty.
+
+    Each region is read from a crop of its plane that holds the grown box (one crop size for
+    all: the largest grown box); pixels outside the grown box weigh nothing.
+    """
     _, rows, cols = sub.shape
-    a = np.maximum(boxes[:, 0] - margin, 0)[:, None, None]
-    b = np.minimum(boxes[:, 1] + margin, rows)[:, None, None]
-    c = np.maximum(boxes[:, 2] - margin, 0)[:, None, None]
-    d = np.minimum(boxes[:, 3] + margin, cols)[:, None, None]
-    rr, cc = np.arange(rows)[None, :, None], np.arange(cols)[None, None, :]
-    w = np.where((rr >= a) & (rr < b) & (cc >= c) & (cc < d), sub[p].astype(float), 0.0)
-    total = w.sum(axis=(1, 2))
+    if len(p) == 0:
+        return np.zeros(0), np.zeros(0)
+    a = np.maximum(boxes[:, 0] - margin, 0)[:, None]
+    b = np.minimum(boxes[:, 1] + margin, rows)[:, None]
+    c = np.maximum(boxes[:, 2] - margin, 0)[:, None]
+    d = np.minimum(boxes[:, 3] + margin, cols)[:, None]
+    h, w = int(np.max(b - a)), int(np.max(d - c))
+    rr = np.minimum(a, rows - h) + np.arange(h)  # (L, h) rows of each crop
+    cc = np.minimum(c, cols - w) + np.arange(w)  # (L, w) columns
+    keep = ((rr >= a) & (rr < b))[:, :, None] & ((cc >= c) & (cc < d))[:, None, :]
+    crop = sub[p[:, None, None], rr[:, :, None], cc[:, None, :]].astype(float)
+    wt = np.where(keep, crop, 0.0)
+    total = wt.sum(axis=(1, 2))
     with np.errstate(invalid="ignore", divide="ignore"):
-        x = w.sum(axis=1) @ np.arange(cols, dtype=float) / total
-        y = w.sum(axis=2) @ np.arange(rows, dtype=float) / total
+        x = np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)) / total
+        y = np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)) / total
     bad = ~(total > 0)
     x[bad], y[bad] = np.nan, np.nan
     return x, y
