@@ -202,8 +202,9 @@ class TrackingIdentifier:
         field_r = check_scalar(field_radius_rad, "field_radius_rad", 0.0, math.pi / 2)
         db = self.database
         cone = min(field_r + r_s, math.pi / 2)
-        centre = prior.inv().apply([0.0, 0.0, 1.0])
+        r = prior.as_matrix()
         if candidates is None:
+            centre = r[2]  # the boresight in ICRS: R^T z
             near = np.asarray(db.tree.query_ball_point(centre, _chord(cone)), dtype=np.int64)
             near.sort()
         else:
@@ -216,7 +217,6 @@ class TrackingIdentifier:
                                  time_ms=(time.perf_counter() - t0) * 1e3, message=message,
                                  **kw)  # fmt: skip
 
-        r = prior.as_matrix()
         cam = db.vectors[near] @ r.T
         det, star, n_amb = self._pair(v, cam, r_s)
         if len(det) < 2:

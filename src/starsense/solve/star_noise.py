@@ -141,8 +141,9 @@ def star_noise(solver, det, matched, rate) -> StarNoise:
 
     b = sensor.unproject(x, y)
     half = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
-    xs, ys = sensor.project(half.apply(b))
-    xe, ye = sensor.project(half.inv().apply(b))
+    h = half.as_matrix()
+    xs, ys = sensor.project(b @ h.T)
+    xe, ye = sensor.project(b @ h)
     streak = np.column_stack([xe - xs, ye - ys])
     # a uniform spread over the streak: L^2 / 12 per photon along it
     cov += streak[:, :, None] * streak[:, None, :] / (12.0 * n_e)[:, None, None]

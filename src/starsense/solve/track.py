@@ -161,10 +161,11 @@ def _predicted_field(sensor, db, rot, r_s, field_r, rate):
     search radius of it, and the streak (start to end, px) of each at the rate (None without
     a rate).
     """
-    centre = rot.inv().apply([0.0, 0.0, 1.0])
+    r = rot.as_matrix()
+    centre = r[2]  # the boresight in ICRS: R^T z
     near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2)))
     near = np.asarray(near, dtype=np.intp)
-    cam = db.vectors[near] @ rot.as_matrix().T
+    cam = db.vectors[near] @ r.T
     x, y = sensor.project(cam)
     m = r_s * sensor.focal_length_px
     det = sensor.detector
@@ -172,8 +173,9 @@ def _predicted_field(sensor, db, rot, r_s, field_r, rate):
     if rate is None or not np.any(rate):
         return near, x, y, margin_on, None
     half_turn = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
-    xs, ys = sensor.project(half_turn.apply(cam))  # start: b(0) = R(w t_e / 2) b_mid
-    xe, ye = sensor.project(half_turn.inv().apply(cam))
+    h = half_turn.as_matrix()
+    xs, ys = sensor.project(cam @ h.T)  # start: b(0) = R(w t_e / 2) b_mid
+    xe, ye = sensor.project(cam @ h)  # end: R(w t_e / 2)^T b_mid
     return near, x, y, margin_on, np.column_stack([xe - xs, ye - ys])
 
 
@@ -211,7 +213,8 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r, rate)
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
-    reach_px = r_s * f + 0.5 * streak_px(sensor, rate) + 4 * sensor.detector.psf_sigma_px
+    longest = streak_px(sensor, rate)
+    reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
     centres = np.column_stack([x[on], y[on]])[:MAX_WINDOWS]
     found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
                               None if streaks is None else streaks[on][:MAX_WINDOWS])  # fmt: skip
@@ -230,7 +233,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
     matched, cat_index, cat_ids = match.detection_index, match.catalog_index, match.catalog_id
-    blend_px = 2.0 * (2.5 * sensor.detector.psf_sigma_px + 1.0) + streak_px(sensor, rate)
+    blend_px = 2.0 * (2.5 * sensor.detector.psf_sigma_px + 1.0) + longest
     alone = _unblended(cat_index, near, x, y, blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]

@@ -21,7 +21,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["WindowDetections", "detect_in_windows", "streak_centroid", "streak_px", "union_area"]
+from starsense.solve.streak_centroid import streak_centroid, streak_centroids
+
+__all__ = [
+    "WindowDetections",
+    "detect_in_windows",
+    "streak_centroid",
+    "streak_centroids",
+    "streak_px",
+    "union_area",
+]
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
@@ -62,15 +71,20 @@ class WindowDetections:
 def union_area(boxes: np.ndarray) -> int:
     """Return the pixels covered by the union of boxes (row0, row1, col0, col1), exactly.
 
-    The box edges cut the plane into cells; a cell is covered when any box holds it.
+    The box edges cut the plane into cells; a cell is covered when any box holds it (the
+    boxes' corners summed into a difference array, then integrated along both axes).
     """
+    boxes = np.asarray(boxes, dtype=int)
+    if len(boxes) == 0:
+        return 0
     rows = np.unique(boxes[:, :2])
     cols = np.unique(boxes[:, 2:])
-    rc = 0.5 * (rows[:-1] + rows[1:])
-    cc = 0.5 * (cols[:-1] + cols[1:])
-    r0, r1, c0, c1 = (v[:, None, None] for v in boxes.T)
-    covered = ((rc[None, :, None] > r0) & (rc[None, :, None] < r1)
-               & (cc[None, None, :] > c0) & (cc[None, None, :] < c1)).any(axis=0)  # fmt: skip
+    i0, i1 = np.searchsorted(rows, boxes[:, 0]), np.searchsorted(rows, boxes[:, 1])
+    j0, j1 = np.searchsorted(cols, boxes[:, 2]), np.searchsorted(cols, boxes[:, 3])
+    flat = np.r_[i0, i0, i1, i1] * len(cols) + np.r_[j0, j1, j0, j1]
+    sign = np.repeat([1, -1, -1, 1], len(boxes))
+    corners = np.bincount(flat, sign, len(rows) * len(cols)).reshape(len(rows), len(cols))
+    covered = np.cumsum(np.cumsum(corners, axis=0), axis=1)[:-1, :-1] > 0
     return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
 
 
@@ -96,88 +110,33 @@ def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
     scale = sensor.exposure_s * sensor.focal_length_px
     if vectors_cam is None:
         hx, hy = sensor.half_fov_rad
-        corner = np.array([math.tan(hx), math.tan(hy), 1.0])
-        b = np.array([corner * [sx, sy, 1.0] for sx in (-1, 1) for sy in (-1, 1)])
-        b /= np.linalg.norm(b, axis=1)[:, None]
-        return float(np.max(scale * np.linalg.norm(np.cross(w, b)[:, :2], axis=1)))
-    b = np.asarray(vectors_cam, dtype=float)
-    return scale * np.linalg.norm(np.cross(w, b)[:, :2], axis=1)
+        tx, ty = math.tan(hx), math.tan(hy)
+        b = np.array([[-tx, -ty, 1.0], [-tx, ty, 1.0], [tx, -ty, 1.0], [tx, ty, 1.0]])
+        b /= math.sqrt(tx * tx + ty * ty + 1.0)
+        return float(np.max(scale * _cross_xy(w, b)))
+    return scale * _cross_xy(w, np.asarray(vectors_cam, dtype=float))
 
 
-def _segment_mask(shape, x, y, streak, radius):
-    """Pixels of ``shape`` within ``radius`` px of the segment centred on (x, y), its box."""
-    sx, sy = 0.5 * float(streak[0]), 0.5 * float(streak[1])
-    rows, cols = shape
-    r0 = max(math.floor(y - abs(sy) - radius), 0)
-    r1 = min(math.ceil(y + abs(sy) + radius) + 1, rows)
-    c0 = max(math.floor(x - abs(sx) - radius), 0)
-    c1 = min(math.ceil(x + abs(sx) + radius) + 1, cols)
-    if r0 >= r1 or c0 >= c1:
-        return None
-    ax = np.arange(c0, c1, dtype=float)[None, :] - (x - sx)
-    ay = np.arange(r0, r1, dtype=float)[:, None] - (y - sy)
-    length2 = 4.0 * (sx * sx + sy * sy)
-    t = np.clip((ax * 2 * sx + ay * 2 * sy) / max(length2, 1e-12), 0.0, 1.0)
-    inside = (ax - t * 2 * sx) ** 2 + (ay - t * 2 * sy) ** 2 <= radius * radius
-    return inside, (r0, r1, c0, c1)
+def _cross_xy(w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Length of the x, y part of the cross product w x b of each row of b, shape (N,)."""
+    cx = w[1] * b[:, 2] - w[2] * b[:, 1]
+    cy = w[2] * b[:, 0] - w[0] * b[:, 2]
+    return np.hypot(cx, cy)
 
 
-def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
-    """Centre of gravity of a streak of known shape, started from a point on it.
+def _label(lit: np.ndarray, connectivity: int):
+    """Label the lit pixels of each window of the stack (K, h, w), never across windows.
 
-    The CoG is taken over the pixels within ``radius`` of a segment of the predicted streak
-    (start to end) centred on the current estimate, and the segment moved there, until it
-    stays (at most 6 times). A faint streak breaks into pieces above the threshold, and a piece's
-    own centroid is off the star's mid-exposure position by up to half the streak; this
-    window, which spans the whole streak, is not.
-
-    Parameters
-    ----------
-    sub : ndarray, shape (rows, columns)
-        Background-subtracted counts of the window.
-    x, y : float
-        Starting point (a piece's centroid), px in the window.
-    streak : (float, float)
-        Predicted streak, start to end, px.
-    radius : float
-        Half-width of the window across the streak, px (a few PSF sigmas).
-
-    Returns
-    -------
-    (x, y, counts, (r0, r1, c0, c1), spread) or None
-        The centroid, px, the counts summed over the window, the window's bounding box, and
-        the 2 x 2 sum over the window of (pixel - centroid)(pixel - centroid)^T, px^2 (a read
-        noise sigma_r adds sigma_r^2 spread / counts^2 to the centroid's covariance).
+    The windows are labelled as one 2-D image, one above the other with an empty row between
+    them (cheaper than a 3-D structuring element, and the same labels in the same raster
+    order).
     """
-    out = None
-    for _ in range(6):
-        got = _segment_mask(sub.shape, x, y, streak, radius)
-        if got is None:
-            return out
-        inside, (r0, r1, c0, c1) = got
-        w = np.where(inside, sub[r0:r1, c0:c1], 0.0)
-        total = float(w.sum())
-        if not total > 0:
-            return out
-        px = np.arange(c0, c1, dtype=float)
-        py = np.arange(r0, r1, dtype=float)
-        nx, ny = float(w.sum(axis=0) @ px / total), float(w.sum(axis=1) @ py / total)
-        rr, cc = np.nonzero(inside)
-        dx, dy = px[cc] - nx, py[rr] - ny
-        spread = np.array([[dx @ dx, dx @ dy], [dx @ dy, dy @ dy]])
-        out = (nx, ny, total, (r0, r1, c0, c1), spread)
-        if math.hypot(nx - x, ny - y) < 0.01:
-            break
-        x, y = nx, ny
-    return out
-
-
-def _structure(connectivity: int) -> np.ndarray:
-    """3-D structuring element that connects pixels only within one window of the stack."""
+    k, h, w = lit.shape
+    tall = np.zeros((k, h + 1, w), dtype=bool)
+    tall[:, :h] = lit
     plane = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
-    out = np.zeros((3, 3, 3), dtype=bool)
-    out[1] = plane
-    return out
+    labels, n = ndimage.label(tall.reshape(k * (h + 1), w), structure=plane)
+    return labels.reshape(k, h + 1, w)[:, :h], n
 
 
 def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
@@ -212,84 +171,116 @@ def _levels(solver, stack: np.ndarray):
     return level, noise, threshold
 
 
-def _region_centroid(plane, box, margin, streak, sigma):
-    """Centroid, counts, box and read-noise spread of one region of a window (window px).
+def _cogs(sub, p, boxes, margin):
+    """CoG of each region over its box plus the margin on its plane, px; NaN where empty.
 
-    With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
-    streak (:func:`streak_centroid`); else the CoG over the region's box plus the margin, as
-    the full-frame detector does.
+    Each region is read from a crop of its plane that holds the grown box (one crop size for
+    all: the largest grown box); pixels outside the grown box weigh nothing.
     """
-    from starsense.detect.centroid import cog
+    _, rows, cols = sub.shape
+    if len(p) == 0:
+        return np.zeros(0), np.zeros(0)
+    a = np.maximum(boxes[:, 0] - margin, 0)[:, None]
+    b = np.minimum(boxes[:, 1] + margin, rows)[:, None]
+    c = np.maximum(boxes[:, 2] - margin, 0)[:, None]
+    d = np.minimum(boxes[:, 3] + margin, cols)[:, None]
+    h, w = int(np.max(b - a)), int(np.max(d - c))
+    rr = np.minimum(a, rows - h) + np.arange(h)  # (L, h) rows of each crop
+    cc = np.minimum(c, cols - w) + np.arange(w)  # (L, w) columns
+    keep = ((rr >= a) & (rr < b))[:, :, None] & ((cc >= c) & (cc < d))[:, None, :]
+    crop = sub[p[:, None, None], rr[:, :, None], cc[:, None, :]].astype(float)
+    wt = np.where(keep, crop, 0.0)
+    total = wt.sum(axis=(1, 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)) / total
+        y = np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)) / total
+    bad = ~(total > 0)
+    x[bad], y[bad] = np.nan, np.nan
+    return x, y
 
-    a, b, c, d = box
-    rows, cols = plane.shape
-    wa, wb, wc, wd = (
-        max(a - margin, 0),
-        min(b + margin, rows),
-        max(c - margin, 0),
-        min(d + margin, cols),
-    )
-    x, y = cog(plane[wa:wb, wc:wd], wa, wc)
-    if streak is not None and float(np.hypot(*streak)) >= 2.0 * sigma and np.isfinite(x):
-        got = streak_centroid(plane, x, y, streak, 2.5 * sigma + 1.0)
-        if got is not None:
-            return got
-    return x, y, None, box, np.full((2, 2), np.nan)
 
-
-def _inside(x: float, y: float, streak, sigma: float, shape) -> bool:
-    """Whether the whole streak centred on (x, y), with its PSF radius, lies on the frame."""
+def _inside(x, y, streaks, sigma: float, shape) -> np.ndarray:
+    """Whether each whole streak centred on (x, y), with its PSF radius, lies on the frame."""
     reach = 2.5 * sigma + 1.0
-    hx, hy = 0.5 * abs(float(streak[0])) + reach, 0.5 * abs(float(streak[1])) + reach
+    hx = 0.5 * np.abs(streaks[:, 0]) + reach
+    hy = 0.5 * np.abs(streaks[:, 1]) + reach
     rows, cols = shape
-    return hx <= x <= cols - 1 - hx and hy <= y <= rows - 1 - hy
+    return (hx <= x) & (x <= cols - 1 - hx) & (hy <= y) & (y <= rows - 1 - hy)
+
+
+def _label_extents(idx, lab, sizes, values, shape):
+    """Plane, box (a, b, c, d) and peak value of every label 1..n from its lit pixels.
+
+    ``idx`` are the flat indices of the lit pixels in the (K, h, w) stack, ``lab`` their
+    labels and ``values`` their counts; every label has ``sizes`` pixels (at least one).
+    """
+    _, h, w = shape
+    order = np.argsort(lab, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(sizes[1:])[:-1]])
+    plane, rest = np.divmod(idx[order], h * w)
+    row, col = np.divmod(rest, w)
+    low, high = np.minimum.reduceat, np.maximum.reduceat
+    box = np.column_stack([low(row, starts), high(row, starts) + 1, low(col, starts),
+                           high(col, starts) + 1])  # fmt: skip
+    return plane[starts], box, np.maximum.reduceat(values[order], starts)
+
+
+def _regions(p, box, ok, r0, c0, shape, window):
+    """Labels, planes and boxes of the kept regions, dropping those cut by a window edge."""
+    keep = np.flatnonzero(ok[1:])
+    p, box = p[keep], box[keep]
+    h, w = window
+    rows, cols = shape
+    a, b, c, d = box.T
+    # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
+    cut = ((a == 0) & (0 < r0[p])) | ((b == h) & (r0[p] + h < rows))
+    cut |= ((c == 0) & (0 < c0[p])) | ((d == w) & (c0[p] + w < cols))
+    return keep[~cut] + 1, p[~cut], box[~cut]
 
 
 def _detect_stack(solver, stack, r0, c0, shape, streaks):
-    """Apply the detection logic to every window at once; return frame-pixel detection rows."""
+    """Apply the detection logic to every window at once; return frame-pixel detection rows.
+
+    With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
+    streak (:func:`streak_centroids`), started from the region's CoG; else the CoG over the
+    region's box plus a 2 px margin, as the full-frame detector does.
+    """
     logic = solver.logic
     level, noise, threshold = _levels(solver, stack)
     sub = stack - level[:, None, None].astype(np.float32)
     lit = sub > threshold[:, None, None]
-    labels, n = ndimage.label(lit, structure=_structure(logic.connectivity))
+    labels, n = _label(lit, logic.connectivity)
     if n == 0:
         return [], float(np.median(noise)), 0
     idx = np.flatnonzero(lit)
     lab = labels.ravel()[idx]
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
+    plane, extent, peak = _label_extents(idx, lab, sizes, stack.ravel()[idx], stack.shape)
+    peaks = np.concatenate([[-np.inf], peak])
     ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
-    ok[0] = False
-    rows, cols = shape
-    _, h, w = stack.shape
+    k, p, box = _regions(plane, extent, ok, r0, c0, shape, stack.shape[1:])
     sigma = float(solver.sensor.detector.psf_sigma_px)
-    found = []
-    slices = ndimage.find_objects(labels)
-    for k in np.flatnonzero(ok).tolist():
-        sl = slices[k - 1]
-        p = sl[0].start
-        a, b, c, d = sl[1].start, sl[1].stop, sl[2].start, sl[2].stop
-        # a star cut by the window's edge (not the frame's) has a biased centroid: drop it
-        if (
-            (a == 0 < r0[p])
-            or (b == h and r0[p] + h < rows)
-            or (c == 0 < c0[p])
-            or (d == w and c0[p] + w < cols)
-        ):
-            continue
-        x, y, counts, box, spread = _region_centroid(
-            sub[p], (a, b, c, d), 2, None if streaks is None else streaks[p], sigma
-        )
-        if not np.isfinite(x):
-            continue
-        if np.isfinite(spread[0, 0]) and not _inside(
-            x + c0[p], y + r0[p], streaks[p], sigma, shape
-        ):
-            continue  # a streak running off the frame: its centroid is pulled inwards
-        peak = float(stack[p, a:b, c:d][labels[p, a:b, c:d] == k].max())
-        found.append((x + c0[p], y + r0[p], sums[k] if counts is None else counts, sizes[k],
-                      peak, (box[0] + r0[p], box[1] + r0[p], box[2] + c0[p], box[3] + c0[p]),
-                      spread))  # fmt: skip
+    x, y = _cogs(sub, p, box, 2)
+    counts, spread = sums[k].astype(float), np.full((len(k), 2, 2), np.nan)
+    if streaks is not None and len(k):
+        st = np.asarray(streaks, dtype=float)[p]
+        use = np.flatnonzero((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x))
+        gx, gy, gc, gb, gs = streak_centroids(sub[p[use]], x[use], y[use], st[use],
+                                              2.5 * sigma + 1.0)  # fmt: skip
+        got = use[np.isfinite(gx)]
+        x[got], y[got], counts[got] = gx[np.isfinite(gx)], gy[np.isfinite(gx)], gc[np.isfinite(gx)]
+        box[got], spread[got] = gb[np.isfinite(gx)], gs[np.isfinite(gx)]
+        # a streak running off the frame: its centroid is pulled inwards
+        off = np.zeros(len(k), bool)
+        off[got] = ~_inside(x[got] + c0[p[got]], y[got] + r0[p[got]], st[got], sigma, shape)
+    else:
+        off = np.zeros(len(k), bool)
+    fine = np.flatnonzero(np.isfinite(x) & ~off)
+    found = [(float(x[i] + c0[p[i]]), float(y[i] + r0[p[i]]), counts[i], sizes[k[i]],
+              float(peaks[k[i]]), (box[i, 0] + r0[p[i]], box[i, 1] + r0[p[i]],
+                                   box[i, 2] + c0[p[i]], box[i, 3] + c0[p[i]]), spread[i])
+             for i in fine.tolist()]  # fmt: skip
     return found, float(np.median(noise)), n
 
 
