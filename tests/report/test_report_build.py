@@ -207,3 +207,11 @@ def test_plot_brightest_curves_writes_png(tmp_path):
     path = plot_brightest_curves([curve], tmp_path / "fig7.png", diameter_m=0.1, exposure_s=0.01)
     assert path.read_bytes()[:8] == PNG_SIGNATURE
     assert [p.name for p in tmp_path.iterdir()] == ["fig7.png"]
+
+
+def test_datasheet_first_papers_last(report):
+    # issue 12: the datasheet opens the report; the papers' reproductions close it as the
+    # validation appendix
+    _out, html, doc, _ = report
+    assert list(doc["sections"])[0] == "datasheet"
+    assert html.index('id="datasheet"') < html.index('id="validation"') < html.index('id="limit"')

@@ -51,6 +51,8 @@ SECTION_BUILDERS: list[Callable[[ReportContext], Section]] = [
     limit_section,
     guide_stars_section,
 ]
+#: the sections of the validation appendix (the first opens it)
+APPENDIX_KEYS = ("limit", "guide_stars")
 
 #: the default sensor of the report: the ideal sensor of the paper's Table 2 (D = 10 cm,
 #: t = 10 ms)
@@ -269,10 +271,18 @@ def _write_index(work: Path, ctx: ReportContext, sections: Sequence[Section], el
     ]
     for s in sections:
         summary.extend(s.summary)
-    body = "\n".join(
-        f'<section id="{page.esc(s.key)}">\n<h2>{page.esc(s.title)}</h2>\n{s.html}\n</section>'
-        for s in sections
-    )
+    parts = []
+    for s in sections:
+        if s.key == APPENDIX_KEYS[0]:
+            parts.append(
+                '<h1 id="validation">Validation appendix: the papers\' reproductions</h1>\n'
+                "<p>The sections below reproduce the published analyses the datasheet is built "
+                "on, beside the published values.</p>"
+            )
+        parts.append(
+            f'<section id="{page.esc(s.key)}">\n<h2>{page.esc(s.title)}</h2>\n{s.html}\n</section>'
+        )
+    body = "\n".join(parts)
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     meta = (
         f"starsense {page.esc(starsense.__version__)} · generated {now} in {elapsed:.1f} s · "
