@@ -213,5 +213,5 @@ def test_datasheet_first_papers_last(report):
     # issue 12: the datasheet opens the report; the papers' reproductions close it as the
     # validation appendix
     _out, html, doc, _ = report
-    assert list(doc["sections"])[0] == "datasheet"
+    assert next(iter(doc["sections"])) == "datasheet"
     assert html.index('id="datasheet"') < html.index('id="validation"') < html.index('id="limit"')
