@@ -96,3 +96,25 @@ def test_min_snr_rejects_faint_regions():
     assert len(loose) == 2
     # the faint star: 150 counts over ~9 lit pixels of noise 5 -> SNR ~ 8; the bright ~ 150
     assert len(strict) == 1 and strict.x[0] == pytest.approx(150, abs=0.2)
+
+
+@pytest.mark.parametrize("sigma", [0.3, 0.8, 1.0, 1.5, 2.7])
+@pytest.mark.parametrize("shape", [(97, 131), (3, 3), (1, 9), (9, 1)])
+def test_gaussian_correlate_is_scipys_gaussian_filter(shape, sigma):
+    # scipy's gaussian_filter (float64 arithmetic, "nearest" edges, truncate 3) as the reference,
+    # on frames smaller than the kernel too; the float32 sums round to within a few float32
+    # ulps of the largest value (4.9e-4 at 6,000): 4 ulps allowed
+    from scipy import ndimage
+
+    from starsense.detect.matched import gaussian_correlate
+
+    rng = np.random.default_rng(5)
+    frame = (1000.0 + rng.normal(0, 10.0, shape)).astype(np.float32)
+    frame[rng.random(shape) < 0.05] += 5000.0  # sharp features
+    expected = ndimage.gaussian_filter(
+        frame.astype(np.float64), sigma, mode="nearest", truncate=3.0
+    )
+    got = gaussian_correlate(frame, sigma)
+    assert got.dtype == np.float32 and got.shape == shape
+    ulp = float(np.spacing(frame.max()))
+    np.testing.assert_allclose(got, expected, rtol=0, atol=4 * ulp)

@@ -32,6 +32,7 @@ Simulated frames with a known bias use :func:`constant_background` instead.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -205,17 +206,44 @@ _GEMM_SINGLE_THREAD = 65536 * 4
 def _interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.ndarray:
     """Return ``wy @ mesh @ wx.T`` as float32 (rows, columns), in row blocks of small products.
 
-    The product is a bicubic (or bilinear) interpolation of a small mesh to every pixel; it is
-    evaluated in blocks of rows each small enough for a single-threaded GEMM, written straight
-    into the float32 result (no float64 frame).
+    The product is a bicubic (or bilinear) interpolation of a small mesh to every pixel.
+    ``wy @ mesh`` (rows x mesh columns) is formed in float64; its product with ``wx.T``, the
+    whole-frame one, in float32 (SGEMM, twice the speed of DGEMM, no float64 frame), in blocks
+    of rows each small enough for a single-threaded GEMM. Each pixel is a sum of a few terms
+    (4 bilinear, one per mesh column for the cubic spline), so it is exact to within a few
+    float32 ulps of the mesh's largest term.
     """
-    left = wy @ mesh  # (rows, mesh columns): small
-    right = np.ascontiguousarray(wx.T)
+    # the mesh's mean is taken out and added back: a flat mesh (a constant frame) then gives
+    # exactly its value, not one float32 rounding away from it (which would light every pixel
+    # of a frame whose noise is zero), and the products round on the deviations only
+    centre = float(np.mean(mesh))
+    left = (wy @ (mesh - centre)).astype(np.float32)  # (rows, mesh columns): small
+    right = np.ascontiguousarray(wx.T, dtype=np.float32)
     out = np.empty((wy.shape[0], wx.shape[0]), dtype=np.float32)
     block = max(1, _GEMM_SINGLE_THREAD // max(1, right.size))
     for r0 in range(0, out.shape[0], block):
-        out[r0 : r0 + block] = left[r0 : r0 + block] @ right
+        np.matmul(left[r0 : r0 + block], right, out=out[r0 : r0 + block])
+    out += np.float32(centre)
     return out
+
+
+def _is_regular(index: np.ndarray, step: int) -> bool:
+    """Whether the mesh samples of one axis are every ``step``-th pixel from 0, box by box."""
+    return bool(np.array_equal(index.ravel(), step * np.arange(index.size)))
+
+
+@functools.lru_cache(maxsize=16)
+def _mesh_plan(n: int, box_px: int, step: int, interpolation: str):
+    """One axis's mesh samples and interpolation matrix, computed once per frame geometry.
+
+    Returns ``(index, valid, centres, weights)`` of :func:`_mesh_axis` and
+    :func:`_interpolation_matrix` (read-only arrays: a camera's frames all share them).
+    """
+    index, valid, centres = _mesh_axis(n, box_px, step)
+    weights = _interpolation_matrix(centres, n, interpolation)
+    for arr in (index, valid, centres, weights):
+        arr.flags.writeable = False
+    return index, valid, centres, weights
 
 
 def _quantised_step(cells: np.ndarray, keep: np.ndarray) -> float | None:
@@ -298,17 +326,27 @@ def estimate_background(
             )
     box_px, filter_px = int(box_px), int(filter_px)
     rows, cols = a.shape
-    step = 2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1
-    ri, rvalid, rc = _mesh_axis(rows, box_px, step)
-    ci, cvalid, cc = _mesh_axis(cols, box_px, step)
+    every = 2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1
+    ri, rvalid, rc, wy = _mesh_plan(rows, box_px, every, interpolation)
+    ci, cvalid, cc, wx = _mesh_plan(cols, box_px, every, interpolation)
     ny, nx = len(rc), len(cc)
 
-    def gather(values: np.ndarray) -> np.ndarray:
-        """(ny, nx, samples) view of ``values`` at the mesh samples."""
-        g = values[ri[:, :, None, None], ci[None, None, :, :]]  # (ny, my, nx, mx)
-        return g.transpose(0, 2, 1, 3).reshape(ny, nx, -1)
+    my, mx = ri.shape[1], ci.shape[1]
+    # equal boxes that tile the frame: the samples are a strided view, gathered by one copy
+    regular = _is_regular(ri, every) and _is_regular(ci, every)
 
-    cells = gather(a).astype(np.float32)
+    def gather(values: np.ndarray, dtype=None) -> np.ndarray:
+        """(ny, nx, samples) array of ``values`` at the mesh samples."""
+        if not regular:
+            g = values[ri[:, :, None, None], ci[None, None, :, :]]  # (ny, my, nx, mx)
+            g = g.transpose(0, 2, 1, 3).reshape(ny, nx, -1)
+            return g if dtype is None else g.astype(dtype)
+        view = values[: ny * my * every : every, : nx * mx * every : every]
+        out = np.empty((ny, nx, my * mx), dtype=values.dtype if dtype is None else dtype)
+        out.reshape(ny, nx, my, mx)[...] = view.reshape(ny, my, nx, mx).transpose(0, 2, 1, 3)
+        return out
+
+    cells = gather(a, np.float32)
     ok = (rvalid[:, None, :, None] & cvalid[None, :, None, :]).reshape(ny, nx, -1)
     if bad is not None:
         ok &= ~gather(bad)
@@ -328,8 +366,6 @@ def estimate_background(
     med[~trusted] = np.nan
     level_mesh = _median_filter_mesh(_fill_from_nearest(med), filter_px)
 
-    wy = _interpolation_matrix(rc, rows, interpolation)
-    wx = _interpolation_matrix(cc, cols, interpolation)
     level = _interpolate_mesh(wy, level_mesh, wx)
 
     # noise: MAD of the clipped samples about the smooth map (not quantised like the raw MAD);
@@ -342,7 +378,8 @@ def estimate_background(
     noise_mesh = _median_filter_mesh(_fill_from_nearest(noise_mesh), filter_px)
     noise_map = _interpolate_mesh(wy, noise_mesh, wx)
     # extrapolation and spline overshoot must not leave the range that was measured
-    np.clip(noise_map, noise_mesh.min(), noise_mesh.max(), out=noise_map)
+    np.maximum(noise_map, np.float32(noise_mesh.min()), out=noise_map)
+    np.minimum(noise_map, np.float32(noise_mesh.max()), out=noise_map)
     return Background(
         level=level,
         noise=float(np.median(noise_mesh)),
@@ -393,7 +430,7 @@ def hot_pixel_mask(
     floor = np.maximum(np.min(noise), np.float32(1e-12))
     # candidates above the threshold at the lowest noise (one pass, no float frame), then the
     # exact per-pixel test on those only
-    r, c = np.nonzero(sub > threshold_sigma * floor)
+    r, c = np.divmod(np.flatnonzero(sub > threshold_sigma * floor), sub.shape[1])
     hot = np.zeros(sub.shape, dtype=bool)
     if r.size == 0:
         return hot

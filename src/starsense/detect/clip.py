@@ -17,13 +17,29 @@ MAD_TO_SIGMA = 1.482602218505602
 _MAX_CLIP_ITERATIONS = 10
 
 
-def _ranked(sorted_rows: np.ndarray, start: np.ndarray, count: np.ndarray) -> np.ndarray:
+def _rows_at(sorted_rows: np.ndarray):
+    """Return ``at(i)``: the ``i``-th value of every row of ``sorted_rows`` (i clipped to a row).
+
+    Flat indexing with precomputed row offsets: the bisections below call this a few hundred
+    times on arrays of a few hundred rows, where ``np.take_along_axis`` and ``np.clip`` cost
+    more in building their index arrays than in the gather itself.
+    """
+    m = sorted_rows.shape[-1]
+    flat = np.ascontiguousarray(sorted_rows).reshape(-1)
+    base = np.arange(0, flat.size, m, dtype=np.intp).reshape(sorted_rows.shape[:-1])
+    last = m - 1
+
+    def at(i):
+        return flat[base + np.minimum(np.maximum(i, 0), last)]
+
+    return at
+
+
+def _ranked(sorted_rows: np.ndarray, start: np.ndarray, count: np.ndarray, at=None) -> np.ndarray:
     """Median of ``sorted_rows[..., start:start + count]`` per row (NaN where count is 0)."""
-    last = sorted_rows.shape[-1] - 1
-    i0 = np.clip(start + (count - 1) // 2, 0, last)[..., None]
-    i1 = np.clip(start + count // 2, 0, last)[..., None]
-    a = np.take_along_axis(sorted_rows, i0, axis=-1)[..., 0]
-    b = np.take_along_axis(sorted_rows, i1, axis=-1)[..., 0]
+    at = _rows_at(sorted_rows) if at is None else at
+    a = at(start + (count - 1) // 2)
+    b = at(start + count // 2)
     return np.where(count > 0, 0.5 * (a.astype(np.float64) + b), np.nan)
 
 
@@ -36,12 +52,15 @@ def _kth_of_two(left, right, n_left, n_right, k):
     """
     lo = np.maximum(0, k + 1 - n_right)
     hi = np.minimum(k + 1, n_left)
-    top = hi.copy()
-    while np.any(lo < hi):
-        mid = (lo + hi) // 2
+    top_1 = hi - 1
+    for _ in range(64):  # ceil(log2(row length)) + 1 steps; the bound only guards the loop
         active = lo < hi
+        if not active.any():
+            break
+        mid = (lo + hi) >> 1
         # taking mid from left: is its next value no smaller than the last one from right?
-        done = active & (left(np.minimum(mid, top - 1)) >= right(np.maximum(k - mid, 0)))
+        done = left(np.minimum(mid, top_1)) >= right(np.maximum(k - mid, 0))
+        done &= active
         hi = np.where(done, mid, hi)
         lo = np.where(active & ~done, mid + 1, lo)
     a, b = lo, k + 1 - lo
@@ -50,32 +69,30 @@ def _kth_of_two(left, right, n_left, n_right, k):
     return np.maximum(from_left, from_right)
 
 
-def _run_mad(s: np.ndarray, lo: np.ndarray, hi: np.ndarray, med: np.ndarray) -> np.ndarray:
+def _run_mad(s: np.ndarray, lo: np.ndarray, hi: np.ndarray, med: np.ndarray, at=None) -> np.ndarray:
     """Median of ``|s[..., lo:hi] - med|`` per row of the ascending rows ``s`` (NaN if empty).
 
     The deviations of a sorted run about its median are two ascending sequences (below and
     above the median); their median is found by :func:`_kth_of_two` instead of sorting them.
     Same float32 arithmetic as ``np.abs(s - med)``, so the same values.
     """
+    at = _rows_at(s) if at is None else at
     m32 = med.astype(np.float32)
-    last = s.shape[-1] - 1
     with np.errstate(invalid="ignore"):
-        split = np.clip((s < m32[..., None]).sum(axis=-1), lo, hi)
-
-    def at(i):
-        return np.take_along_axis(s, np.clip(i, 0, last)[..., None], axis=-1)[..., 0]
+        split = np.minimum(np.maximum(np.count_nonzero(s < m32[..., None], axis=-1), lo), hi)
+    split_1 = split - 1
 
     def below(i):
-        return m32 - at(split - 1 - i)
+        return m32 - at(split_1 - i)
 
     def above(j):
         return at(split + j) - m32
 
     count = hi - lo
     n_below, n_above = split - lo, hi - split
-    k0 = np.maximum((count - 1) // 2, 0)
-    a = _kth_of_two(below, above, n_below, n_above, k0)
-    b = _kth_of_two(below, above, n_below, n_above, count // 2)
+    # both middle ranks in one bisection (the index arrays broadcast over the leading 2)
+    k = np.stack([np.maximum((count - 1) // 2, 0), count // 2])
+    a, b = _kth_of_two(below, above, n_below, n_above, k)
     with np.errstate(invalid="ignore"):
         return np.where(count > 0, 0.5 * (a.astype(np.float64) + b), np.nan)
 
@@ -90,32 +107,30 @@ def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
     Returns the median, the lowest and highest kept values and the number kept, per box.
     """
     s = np.sort(cells, axis=-1)  # NaN last
+    at = _rows_at(s)
     lo = np.zeros(cells.shape[:-1], dtype=np.intp)
-    hi = np.isfinite(s).sum(axis=-1)
-    med = _ranked(s, lo, hi - lo)
+    hi = np.count_nonzero(np.isfinite(s), axis=-1)
+    med = _ranked(s, lo, hi - lo, at)
     for _ in range(_MAX_CLIP_ITERATIONS):
-        scale = MAD_TO_SIGMA * _run_mad(s, lo, hi, med)
+        scale = MAD_TO_SIGMA * _run_mad(s, lo, hi, med, at)
         # a zero scale (noiseless box) would clip everything off the median: do not clip
         half = np.where(scale > 0, sigma_clip * scale, np.inf)
         with np.errstate(invalid="ignore"):
-            new_lo = np.maximum(lo, (s < (med - half)[..., None]).sum(axis=-1))
-            new_hi = np.minimum(hi, (s <= (med + half)[..., None]).sum(axis=-1))
+            new_lo = np.maximum(lo, np.count_nonzero(s < (med - half)[..., None], axis=-1))
+            new_hi = np.minimum(hi, np.count_nonzero(s <= (med + half)[..., None], axis=-1))
         new_hi = np.maximum(new_hi, new_lo)
         if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
             break
         lo, hi = new_lo, new_hi
-        med = _ranked(s, lo, hi - lo)
-    last = s.shape[-1] - 1
-    low = np.take_along_axis(s, np.clip(lo, 0, last)[..., None], axis=-1)[..., 0]
-    high = np.take_along_axis(s, np.clip(hi - 1, 0, last)[..., None], axis=-1)[..., 0]
-    return med, low, high, hi - lo
+        med = _ranked(s, lo, hi - lo, at)
+    return med, at(lo), at(hi - 1), hi - lo
 
 
 def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """1.4826 MAD over the samples ``keep`` of every box (NaN where none)."""
-    n = keep.sum(axis=-1)
+    n = np.count_nonzero(keep, axis=-1)
     zero = np.zeros(n.shape, dtype=np.intp)
-    v = np.sort(np.where(keep, cells, np.inf), axis=-1)
-    med = _ranked(v, zero, n)
-    dev = np.sort(np.where(keep, np.abs(cells - med[..., None].astype(np.float32)), np.inf), -1)
-    return MAD_TO_SIGMA * _ranked(dev, zero, n)
+    v = np.sort(np.where(keep, cells, np.inf), axis=-1)  # the kept samples first, ascending
+    at = _rows_at(v)
+    med = _ranked(v, zero, n, at)
+    return MAD_TO_SIGMA * _run_mad(v, zero, n, med, at)

@@ -17,17 +17,82 @@ fraction), and never below the white-noise value.
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
-__all__ = ["matched_filter"]
+from starsense.detect.workspace import scratch
+
+__all__ = ["filtered_noise_ratio", "gaussian_correlate", "matched_filter"]
 
 #: 1 / Phi^-1(3/4)
 _MAD_TO_SIGMA = 1.482602218505602
 #: the kernel is cut at this many sigma
 _TRUNCATE = 3.0
+#: the filtered noise is measured on every this-many-th pixel each way (87,000 of 768 x 1024:
+#: the MAD's relative scatter is ~0.4 %)
+_NOISE_STEP = 3
 
 
-def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float):
+def gaussian_correlate(
+    frame: np.ndarray, sigma_px: float, truncate: float = _TRUNCATE, out: np.ndarray | None = None
+) -> np.ndarray:
+    """Correlate a frame with the unit-sum Gaussian of ``sigma_px``, in float32.
+
+    The same sampled, truncated and normalised kernel as ``scipy.ndimage.gaussian_filter``
+    (radius ``int(truncate sigma + 0.5)``, edge pixels repeated beyond the frame, "nearest"),
+    applied separably by rows then columns as whole-frame float32 array operations, pairing the
+    symmetric taps. scipy filters the columns one at a time, which strides across the frame: on
+    a 768 x 1024 frame this is ~3x faster, and equal to within float32 rounding.
+
+    Parameters
+    ----------
+    frame : ndarray, shape (rows, columns)
+        Image, any real dtype (computed in float32).
+    sigma_px : float
+        Gaussian sigma, pixels (> 0).
+    truncate : float
+        The kernel is cut at this many sigma.
+    out : ndarray, shape (rows, columns), float32, optional
+        Where to write the result (a new array by default).
+
+    Returns
+    -------
+    ndarray, shape (rows, columns), float32
+        ``out`` when given.
+    """
+    a = np.asarray(frame, dtype=np.float32)
+    radius = int(truncate * float(sigma_px) + 0.5)
+    taps = np.exp(-0.5 * (np.arange(radius + 1) / float(sigma_px)) ** 2)
+    taps = (taps / (2.0 * taps.sum() - taps[0])).astype(np.float32)
+    rows, cols = a.shape
+    out = np.empty((rows, cols), np.float32) if out is None else out
+    if radius == 0:
+        out[...] = a
+        return out
+    # rows: pad the columns by edge repetition, then the taps in symmetric pairs
+    padded = scratch("gauss_padded", (rows, cols + 2 * radius))
+    padded[:, radius : radius + cols] = a
+    padded[:, :radius] = a[:, :1]
+    padded[:, radius + cols :] = a[:, -1:]
+    # the row pass is written into the middle of a frame padded by rows, for the column pass
+    tall = scratch("gauss_tall", (rows + 2 * radius, cols))
+    across = tall[radius : radius + rows]
+    pair = scratch("gauss_pair", (rows, cols))
+    np.multiply(padded[:, radius : radius + cols], taps[0], out=across)
+    for j in range(1, radius + 1):
+        np.add(padded[:, radius - j : radius - j + cols], padded[:, radius + j : radius + j + cols],
+               out=pair)  # fmt: skip
+        pair *= taps[j]
+        across += pair
+    tall[:radius] = across[:1]
+    tall[radius + rows :] = across[-1:]
+    np.multiply(across, taps[0], out=out)
+    for j in range(1, radius + 1):
+        np.add(tall[radius - j : radius - j + rows], tall[radius + j : radius + j + rows], out=pair)
+        pair *= taps[j]
+        out += pair
+    return out
+
+
+def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float, out: np.ndarray | None = None):
     """Correlate a frame with its PSF and return it with the noise of the result.
 
     Parameters
@@ -38,6 +103,8 @@ def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float):
         Pixel noise of the background, counts rms (a number or a map).
     psf_sigma_px : float
         Sigma of the (Gaussian) PSF, pixels.
+    out : ndarray, shape (rows, columns), float32, optional
+        Where to write the filtered frame (a new array by default).
 
     Returns
     -------
@@ -48,20 +115,37 @@ def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float):
     ratio : float
         ``filtered_noise / noise``.
     """
-    filtered = ndimage.gaussian_filter(
-        np.asarray(sub, dtype=np.float32), psf_sigma_px, mode="nearest", truncate=_TRUNCATE
-    )
+    filtered = gaussian_correlate(sub, psf_sigma_px, out=out)
+    noise_arr = np.asarray(noise, dtype=np.float32)
+    ratio = filtered_noise_ratio(filtered, noise_arr, psf_sigma_px)
+    return filtered, noise_arr * np.float32(ratio), ratio
+
+
+def filtered_noise_ratio(filtered: np.ndarray, noise, psf_sigma_px: float) -> float:
+    """Noise of a PSF-filtered frame over its pixel noise: measured, at least the white value.
+
+    Parameters
+    ----------
+    filtered : ndarray, shape (rows, columns)
+        Background-subtracted frame correlated with the PSF (:func:`gaussian_correlate`).
+    noise : float or ndarray, shape (rows, columns)
+        Pixel noise of the background, counts rms.
+    psf_sigma_px : float
+        Sigma of the PSF, pixels.
+
+    Returns
+    -------
+    float
+        1.4826 MAD of ``filtered / noise`` over every third pixel each way, or
+        ``1 / (2 sqrt(pi) sigma)`` (white noise) if that is larger.
+    """
     white = 1.0 / (2.0 * np.sqrt(np.pi) * psf_sigma_px)
     noise_arr = np.asarray(noise, dtype=np.float32)
-    step = 3
-    if noise_arr.ndim:
-        n_s = noise_arr[::step, ::step]
-    else:
-        n_s = noise_arr
+    step = _NOISE_STEP
+    n_s = noise_arr[::step, ::step] if noise_arr.ndim else noise_arr
     f_s = filtered[::step, ::step]
     with np.errstate(invalid="ignore", divide="ignore"):
         z = (f_s / np.maximum(n_s, np.float32(1e-12))).ravel()
     z = z[np.isfinite(z)]
     measured = _MAD_TO_SIGMA * float(np.median(np.abs(z - np.median(z)))) if z.size else 0.0
-    ratio = max(measured, white)
-    return filtered, noise_arr * np.float32(ratio), ratio
+    return max(measured, white)

@@ -18,7 +18,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
 
 from starsense._validate import check_int, finite_float, positive_float, show
 from starsense.detect.background import (
@@ -27,7 +26,9 @@ from starsense.detect.background import (
     estimate_background,
     hot_pixel_mask,
 )
-from starsense.detect.centroid import METHODS, cog, gauss_fit
+from starsense.detect.centroid import METHODS, gauss_fit
+from starsense.detect.regions import label_pixels, region_centroids
+from starsense.detect.workspace import scratch
 from starsense.errors import InputError
 from starsense.sensor import DetectionThresholds
 
@@ -225,13 +226,21 @@ class StarDetector:
         bounded by its pixels above the raw threshold where there are any.
         """
         if self.matched_filter:
-            from starsense.detect.matched import matched_filter
+            from starsense.detect.matched import filtered_noise_ratio, gaussian_correlate
 
             noise = bg.noise_map if bg.noise_map is not None else bg.noise
-            filtered, filtered_noise, _ = matched_filter(sub, noise, self.psf_sigma_px)
+            filtered = scratch("filtered", sub.shape)
+            gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
+            ratio = filtered_noise_ratio(filtered, noise, self.psf_sigma_px)
             k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
-            core = sub > bg.threshold_counts(k)
-            return filtered > np.float32(k) * filtered_noise, core, filtered
+            cut = scratch("threshold", sub.shape)
+            lit = scratch("lit", sub.shape, bool)
+            np.multiply(noise, np.float32(k * ratio), out=cut)
+            np.greater(filtered, cut, out=lit)
+            core = scratch("core", sub.shape, bool)
+            np.multiply(noise, np.float32(k), out=cut)
+            np.greater(sub, cut, out=core)
+            return lit, core, filtered
         threshold = self.logic.lit_pixel_counts
         if self.threshold_sigma is not None:
             threshold = np.maximum(np.float32(threshold), bg.threshold_counts(self.threshold_sigma))
@@ -256,6 +265,22 @@ class StarDetector:
         with np.errstate(invalid="ignore"):
             return (peak_f >= MIN_SHARPNESS * peak_b) | (top >= a.max())
 
+    def _gauss(self, sub, boxes, xs, ys, fits) -> None:
+        """Replace the CoGs by Gaussian fits over the same windows, in place (``fits`` too).
+
+        Where a fit fails it keeps the CoG, flagged in ``fits``; where the window's CoG failed
+        too, it keeps the fallback of :func:`~starsense.detect.regions.region_centroids`.
+        """
+        rows, cols = sub.shape
+        m = self.margin_px
+        for i, (r0, r1, c0, c1) in enumerate(boxes):
+            wr0, wc0 = max(r0 - m, 0), max(c0 - m, 0)
+            window = sub[wr0 : min(r1 + m, rows), wc0 : min(c1 + m, cols)]
+            x, y, _, fit_ok = gauss_fit(window, wr0, wc0, self.psf_sigma_px)
+            if np.isfinite(x):
+                xs[i], ys[i] = x, y
+            fits[i] = fit_ok
+
     def __call__(self, image) -> Detections:
         """Detect and centroid the stars of one image.
 
@@ -272,14 +297,14 @@ class StarDetector:
         t0 = time.perf_counter()
         a = _check_image(image)
         bg = self._background(a)
-        sub = a.astype(np.float32)
-        sub -= np.asarray(bg.level, dtype=np.float32)
+        sub = scratch("sub", a.shape)
+        np.subtract(a, np.asarray(bg.level, dtype=np.float32), out=sub, dtype=np.float32)
         if self.background == "auto" and self.remove_hot_pixels:
             hot = hot_pixel_mask(a, bg, subtracted=sub)
             sub[hot] = 0.0
         lit, core, filtered = self._lit(sub, bg)
-        structure = ndimage.generate_binary_structure(2, 1 if self.logic.connectivity == 4 else 2)
-        labels, n = ndimage.label(lit, structure=structure)
+        idx = np.flatnonzero(lit)
+        lab, n = label_pixels(idx, a.shape, 4 if self.logic.connectivity == 4 else 8)
         empty = Detections(
             np.empty(0), np.empty(0), np.empty(0), np.empty(0, int), np.empty(0),
             np.empty(0, bool), np.empty((0, 4), int), np.empty(0, bool), int(n),
@@ -287,8 +312,6 @@ class StarDetector:
         )  # fmt: skip
         if n == 0:
             return _timed(empty, t0)
-        idx = np.flatnonzero(lit)
-        lab = labels.ravel()[idx]
         sizes = np.bincount(lab, minlength=n + 1)
         sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
         ok = (sizes >= self.logic.min_pixels) & (sums >= self.logic.min_integrated_counts)
@@ -312,42 +335,21 @@ class StarDetector:
         if keep.size == 0:
             return _timed(empty, t0)
         keep = keep[np.argsort(-sums[keep], kind="stable")]
-        slices = ndimage.find_objects(labels)
-        rows, cols = a.shape
-        m = self.margin_px
-        xs, ys, peaks, boxes, fits = [], [], [], [], []
-        for k in keep:
-            sl = slices[k - 1]
-            if core is not None:
-                sl = _core_slices(sl, (labels[sl] == k) & core[sl])
-            r0, r1, c0, c1 = sl[0].start, sl[0].stop, sl[1].start, sl[1].stop
-            boxes.append((r0, r1, c0, c1))
-            peaks.append(float(a[sl][labels[sl] == k].max()))
-            wr0, wr1 = max(r0 - m, 0), min(r1 + m, rows)
-            wc0, wc1 = max(c0 - m, 0), min(c1 + m, cols)
-            window = sub[wr0:wr1, wc0:wc1]
-            if self.centroid == "gauss":
-                x, y, _, fit_ok = gauss_fit(window, wr0, wc0, self.psf_sigma_px)
-            else:
-                x, y = cog(window, wr0, wc0, 2 if self.centroid == "iwcog" else 1)
-                fit_ok = bool(np.isfinite(x))
-            if not np.isfinite(x):
-                # a faint region whose window sums to <= 0 (noise): the CoG of its lit pixels,
-                # which are all above the threshold, still places it (flagged by fit_ok)
-                x, y = cog(np.where(labels[sl] == k, sub[sl], 0.0), r0, c0)
-            xs.append(x)
-            ys.append(y)
-            fits.append(fit_ok)
-        peak_arr = np.array(peaks)
+        power = 2 if self.centroid == "iwcog" else 1
+        xs, ys, peak_arr, boxes, fits = region_centroids(
+            sub, a, idx, lab, keep, core, self.margin_px, power
+        )
+        if self.centroid == "gauss":
+            self._gauss(sub, boxes, xs, ys, fits)
         sat = (
             peak_arr >= self.saturation_counts
             if self.saturation_counts is not None
             else np.zeros(len(keep), bool)
         )
         det = Detections(
-            x=np.array(xs), y=np.array(ys), integrated_counts=sums[keep].astype(float),
+            x=xs, y=ys, integrated_counts=sums[keep].astype(float),
             n_pixels=sizes[keep].astype(int), peak_counts=peak_arr, saturated=sat,
-            bbox=np.array(boxes, dtype=int).reshape(-1, 4), fit_ok=np.array(fits, bool),
+            bbox=boxes, fit_ok=fits,
             n_candidates=int(n), noise_counts=float(bg.noise), method=self.centroid,
         )  # fmt: skip
         return _timed(det, t0)
@@ -369,19 +371,6 @@ def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
     rr = np.clip(r[:, None, None] + off[None, :, None], 0, rows - 1)
     cc = np.clip(c[:, None, None] + off[None, None, :], 0, cols - 1)
     return lab[last], values[last], sub[rr, cc].mean(axis=(1, 2), dtype=np.float64)
-
-
-def _core_slices(sl: tuple[slice, slice], inside: np.ndarray) -> tuple[slice, slice]:
-    """Return the bounding box of the pixels ``inside`` a region's box ``sl`` (``sl`` if none)."""
-    rows = np.flatnonzero(inside.any(axis=1))
-    if rows.size == 0:
-        return sl
-    cols = np.flatnonzero(inside.any(axis=0))
-    r0, c0 = sl[0].start, sl[1].start
-    return (
-        slice(r0 + rows[0], r0 + rows[-1] + 1),
-        slice(c0 + cols[0], c0 + cols[-1] + 1),
-    )
 
 
 def _timed(det: Detections, t0: float) -> Detections:
