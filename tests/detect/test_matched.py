@@ -118,3 +118,16 @@ def test_gaussian_correlate_is_scipys_gaussian_filter(shape, sigma):
     assert got.dtype == np.float32 and got.shape == shape
     ulp = float(np.spacing(frame.max()))
     np.testing.assert_allclose(got, expected, rtol=0, atol=4 * ulp)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 10, 11, 8_000, 8_001])
+def test_median_in_place_is_numpys_median(n):
+    # np.median is the reference: the same float32 value (ties included), for odd and even n
+    from starsense.detect.matched import _median_in_place
+
+    rng = np.random.default_rng(n)
+    z = rng.normal(0.0, 1.0, n).astype(np.float32)
+    z[::3] = np.round(z[::3])
+    expected = np.median(z)
+    got = _median_in_place(z.copy())
+    assert got == expected and got.dtype == expected.dtype

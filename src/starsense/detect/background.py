@@ -48,6 +48,7 @@ from starsense.detect.quantised import (
     quantisation_step,
     quantised_box_stats,
 )
+from starsense.detect.surface import NoiseSurface
 from starsense.errors import InputError
 
 # Boxes of at least this size are sampled at every second pixel each way.
@@ -79,6 +80,9 @@ class Background:
     step : float or None
         Quantisation step of a coarsely quantised frame (noise below 3 steps: 8-bit, low bias,
         JPEG), counts; None otherwise (:mod:`starsense.detect.quantised`).
+    surface : NoiseSurface or None
+        The noise map's interpolant, when the map itself was not built
+        (``estimate_background(noise_map=False)``): :meth:`noise_at` evaluates it per pixel.
     """
 
     level: float | np.ndarray
@@ -87,12 +91,44 @@ class Background:
     level_mesh: np.ndarray | None = None
     box_px: int | None = None
     step: float | None = None
+    surface: NoiseSurface | None = None
 
     def threshold_counts(self, sigma: float) -> float | np.ndarray:
         """``sigma`` times the noise: per pixel when there is a noise map, else one number."""
+        if self.noise_map is None and self.surface is not None:
+            return np.float32(sigma) * self.surface.grid(1)
         if self.noise_map is not None:
             return np.float32(sigma) * self.noise_map
         return sigma * self.noise
+
+    @property
+    def varies(self) -> bool:
+        """Whether the noise varies across the frame (a map or a surface)."""
+        return self.noise_map is not None or self.surface is not None
+
+    def noise_at(self, flat_idx: np.ndarray) -> np.ndarray | float:
+        """Noise at the pixels of flat indices ``flat_idx``, counts rms (one number if flat)."""
+        if self.noise_map is not None:
+            return self.noise_map.ravel()[flat_idx]
+        if self.surface is not None:
+            return self.surface.at(flat_idx)
+        return self.noise
+
+    def noise_floor(self) -> float | np.float32:
+        """Return the lowest noise anywhere in the frame, counts rms."""
+        if self.noise_map is not None:
+            return np.min(self.noise_map)
+        if self.surface is not None:
+            return self.surface.floor()
+        return self.noise
+
+    def noise_grid(self, step: int) -> np.ndarray | float:
+        """Noise at every ``step``-th pixel each way (one number if flat)."""
+        if self.noise_map is not None:
+            return self.noise_map[::step, ::step]
+        if self.surface is not None:
+            return self.surface.grid(step)
+        return self.noise
 
 
 def constant_background(level_counts: float, noise_counts: float) -> Background:
@@ -134,9 +170,9 @@ def _fill_from_nearest(mesh: np.ndarray) -> np.ndarray:
     return mesh[tuple(idx)]
 
 
-def _quadratic_trend(mesh: np.ndarray) -> np.ndarray:
-    """Least-squares quadratic surface through the mesh (linear or constant if it is small)."""
-    ny, nx = mesh.shape
+@functools.lru_cache(maxsize=16)
+def _quadratic_design(ny: int, nx: int) -> tuple[np.ndarray, np.ndarray]:
+    """Design matrix of the mesh's quadratic trend and its pseudo-inverse (once per shape)."""
     y, x = np.mgrid[0:ny, 0:nx].astype(np.float64)
     y = (y - (ny - 1) / 2) / max(ny - 1, 1)
     x = (x - (nx - 1) / 2) / max(nx - 1, 1)
@@ -152,8 +188,15 @@ def _quadratic_trend(mesh: np.ndarray) -> np.ndarray:
     if ny > 2 and nx > 2:
         terms.append(x * y)
     design = np.stack([t.ravel() for t in terms], axis=1)
-    coef, *_ = np.linalg.lstsq(design, mesh.ravel(), rcond=None)
-    return (design @ coef).reshape(mesh.shape)
+    pinv = np.linalg.pinv(design)
+    design.flags.writeable = pinv.flags.writeable = False
+    return design, pinv
+
+
+def _quadratic_trend(mesh: np.ndarray) -> np.ndarray:
+    """Least-squares quadratic surface through the mesh (linear or constant if it is small)."""
+    design, pinv = _quadratic_design(*mesh.shape)
+    return (design @ (pinv @ mesh.ravel())).reshape(mesh.shape)
 
 
 def _median_filter_mesh(mesh: np.ndarray, size: int) -> np.ndarray:
@@ -272,6 +315,7 @@ def estimate_background(
     sigma_clip: float = 3.0,
     mask: ArrayLike | None = None,
     interpolation: str = "cubic",
+    full_noise_map: bool = True,
 ) -> Background:
     """Smooth background map and robust noise map of a real frame.
 
@@ -294,6 +338,11 @@ def estimate_background(
         True for pixels to ignore (known bright stars, a vignetted border).
     interpolation : {"linear", "cubic"}
         Bilinear, or natural bicubic spline, between box centres.
+    full_noise_map : bool
+        Build the noise map over the whole frame (default); False leaves ``noise_map`` None and
+        gives its interpolant instead (``surface``, evaluated per pixel by
+        :meth:`Background.noise_at`), for a detector that needs the noise only where a pixel
+        is already above its threshold at the frame's lowest noise.
 
     Returns
     -------
@@ -376,10 +425,14 @@ def estimate_background(
         noise_mesh = np.maximum(_masked_std(cells - gather(level), keep), step / np.sqrt(12.0))
     noise_mesh[~trusted] = np.nan
     noise_mesh = _median_filter_mesh(_fill_from_nearest(noise_mesh), filter_px)
-    noise_map = _interpolate_mesh(wy, noise_mesh, wx)
-    # extrapolation and spline overshoot must not leave the range that was measured
-    np.maximum(noise_map, np.float32(noise_mesh.min()), out=noise_map)
-    np.minimum(noise_map, np.float32(noise_mesh.max()), out=noise_map)
+    noise_map, surface = None, None
+    if full_noise_map:
+        noise_map = _interpolate_mesh(wy, noise_mesh, wx)
+        # extrapolation and spline overshoot must not leave the range that was measured
+        np.maximum(noise_map, np.float32(noise_mesh.min()), out=noise_map)
+        np.minimum(noise_map, np.float32(noise_mesh.max()), out=noise_map)
+    else:
+        surface = NoiseSurface.from_mesh(wy, noise_mesh, wx)
     return Background(
         level=level,
         noise=float(np.median(noise_mesh)),
@@ -387,6 +440,7 @@ def estimate_background(
         level_mesh=level_mesh,
         box_px=box_px,
         step=step,
+        surface=surface,
     )
 
 
@@ -426,15 +480,15 @@ def hot_pixel_mask(
         sub = np.asarray(subtracted, dtype=np.float32)
         if sub.shape != np.shape(image):
             raise InputError(f"subtracted has shape {sub.shape}, the image {np.shape(image)}")
-    noise = background.noise_map if background.noise_map is not None else background.noise
-    floor = np.maximum(np.min(noise), np.float32(1e-12))
+    floor = np.maximum(background.noise_floor(), np.float32(1e-12))
     # candidates above the threshold at the lowest noise (one pass, no float frame), then the
     # exact per-pixel test on those only
-    r, c = np.divmod(np.flatnonzero(sub > threshold_sigma * floor), sub.shape[1])
+    flat = np.flatnonzero(sub > threshold_sigma * floor)
+    r, c = np.divmod(flat, sub.shape[1])
     hot = np.zeros(sub.shape, dtype=bool)
     if r.size == 0:
         return hot
-    n_here = np.maximum(np.broadcast_to(noise, sub.shape)[r, c], np.float32(1e-12))
+    n_here = np.maximum(np.broadcast_to(background.noise_at(flat), flat.shape), np.float32(1e-12))
     above = sub[r, c] > threshold_sigma * n_here
     r, c, n_here = r[above], c[above], n_here[above]
     rows, cols = sub.shape

@@ -20,7 +20,7 @@ import numpy as np
 
 from starsense.detect.workspace import scratch
 
-__all__ = ["filtered_noise_ratio", "gaussian_correlate", "matched_filter"]
+__all__ = ["NOISE_STEP", "filtered_noise_ratio", "gaussian_correlate", "matched_filter"]
 
 #: 1 / Phi^-1(3/4)
 _MAD_TO_SIGMA = 1.482602218505602
@@ -28,7 +28,7 @@ _MAD_TO_SIGMA = 1.482602218505602
 _TRUNCATE = 3.0
 #: the filtered noise is measured on every this-many-th pixel each way (87,000 of 768 x 1024:
 #: the MAD's relative scatter is ~0.4 %)
-_NOISE_STEP = 3
+NOISE_STEP = 3
 
 
 def gaussian_correlate(
@@ -121,7 +121,9 @@ def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float, out: np.ndarray 
     return filtered, noise_arr * np.float32(ratio), ratio
 
 
-def filtered_noise_ratio(filtered: np.ndarray, noise, psf_sigma_px: float) -> float:
+def filtered_noise_ratio(
+    filtered: np.ndarray, noise, psf_sigma_px: float, noise_grid: bool = False
+) -> float:
     """Noise of a PSF-filtered frame over its pixel noise: measured, at least the white value.
 
     Parameters
@@ -132,6 +134,9 @@ def filtered_noise_ratio(filtered: np.ndarray, noise, psf_sigma_px: float) -> fl
         Pixel noise of the background, counts rms.
     psf_sigma_px : float
         Sigma of the PSF, pixels.
+    noise_grid : bool
+        ``noise`` is already the noise at the sampled pixels (``map[::NOISE_STEP,
+        ::NOISE_STEP]``), not a whole-frame map.
 
     Returns
     -------
@@ -141,11 +146,31 @@ def filtered_noise_ratio(filtered: np.ndarray, noise, psf_sigma_px: float) -> fl
     """
     white = 1.0 / (2.0 * np.sqrt(np.pi) * psf_sigma_px)
     noise_arr = np.asarray(noise, dtype=np.float32)
-    step = _NOISE_STEP
-    n_s = noise_arr[::step, ::step] if noise_arr.ndim else noise_arr
+    step = NOISE_STEP
+    n_s = noise_arr[::step, ::step] if noise_arr.ndim and not noise_grid else noise_arr
     f_s = filtered[::step, ::step]
     with np.errstate(invalid="ignore", divide="ignore"):
-        z = (f_s / np.maximum(n_s, np.float32(1e-12))).ravel()
-    z = z[np.isfinite(z)]
-    measured = _MAD_TO_SIGMA * float(np.median(np.abs(z - np.median(z)))) if z.size else 0.0
-    return max(measured, white)
+        z = np.divide(f_s, np.maximum(n_s, np.float32(1e-12)), dtype=np.float32).ravel()
+    if not np.isfinite(z).all():
+        z = z[np.isfinite(z)]
+    if z.size == 0:
+        return white
+    # np.median(np.abs(z - np.median(z))) with the two selections done in place (no copies)
+    med = _median_in_place(z)
+    np.subtract(z, med, out=z)
+    np.abs(z, out=z)
+    return max(_MAD_TO_SIGMA * float(_median_in_place(z)), white)
+
+
+def _median_in_place(z: np.ndarray) -> np.float32:
+    """``np.median`` of a 1-D float32 array, reordering it in place (same float32 value).
+
+    One selection: for an even count the upper middle value is the least of those above the
+    lower one (NumPy's two-index ``partition``, which ``np.median`` uses, takes ~10x longer).
+    """
+    n = z.size
+    k = (n - 1) // 2
+    z.partition(k)
+    if n % 2:
+        return z[k]
+    return np.mean(np.array([z[k], z[k + 1 :].min()], dtype=z.dtype))

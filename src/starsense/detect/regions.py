@@ -118,9 +118,10 @@ def region_centroids(sub, a, idx, lab, keep, core, margin: int, power: int = 1):
         Their region labels (1..n).
     keep : ndarray of int, shape (N,)
         Labels of the regions to measure, in output order.
-    core : ndarray of bool, shape (rows, columns), or None
-        Pixels above the raw threshold: the box is the bounding box of a region's lit pixels
-        that are also core pixels, where it has any (matched filter); None for the lit pixels.
+    core : ndarray of bool, shape (P,), or None
+        Which lit pixels are above the raw threshold: the box is the bounding box of a region's
+        lit pixels that are also core pixels, where it has any (matched filter); None for the
+        lit pixels.
     margin : int
         Pixels added to each side of the box for the CoG window (cut at the frame's edges).
     power : {1, 2}
@@ -148,7 +149,7 @@ def region_centroids(sub, a, idx, lab, keep, core, margin: int, power: int = 1):
     r, c = np.divmod(idx, n_cols)
     r0, r1, c0, c1 = _extent(pos, r, c, n)
     if core is not None:
-        in_core = core.ravel()[idx]
+        in_core = core[mine]
         k0, k1, j0, j1 = _extent(pos[in_core], r[in_core], c[in_core], n)
         has = k1 > 0
         r0, r1 = np.where(has, k0, r0), np.where(has, k1, r1)

@@ -214,37 +214,46 @@ class StarDetector:
         if isinstance(self.background, Background):
             return self.background
         if self.background == "auto":
-            return estimate_background(a)
+            # the matched filter's thresholds evaluate the noise where needed (Background.noise_at)
+            return estimate_background(a, full_noise_map=not self.matched_filter)
         level = 0.0 if self.background is None else float(self.background)
         return constant_background(level, self.noise_counts)
 
     def _lit(self, sub: np.ndarray, bg: Background):
-        """Lit pixels, and the pixels bright enough to bound a centroid window (or None).
+        """Lit pixels (flat indices, ascending), which of them bound a centroid window, filtered.
 
-        Without the matched filter the lit pixels bound the window; with it, the lit region
-        (the star's light spread by the filter) is wider than the star, so the window is
-        bounded by its pixels above the raw threshold where there are any.
+        Without the matched filter the lit pixels bound the window (None). With it, the lit
+        region (the star's light spread by the filter) is wider than the star, so the window
+        is bounded by its pixels above the raw threshold where there are any. Only pixels above
+        the threshold at the frame's lowest noise can pass it at their own noise: the noise
+        map is evaluated at those (:meth:`Background.noise_at`), not over the whole frame.
         """
-        if self.matched_filter:
-            from starsense.detect.matched import filtered_noise_ratio, gaussian_correlate
+        if not self.matched_filter:
+            threshold = self.logic.lit_pixel_counts
+            if self.threshold_sigma is not None:
+                threshold = np.maximum(
+                    np.float32(threshold), bg.threshold_counts(self.threshold_sigma)
+                )
+            return np.flatnonzero(sub > threshold), None, None
+        from starsense.detect.matched import (
+            NOISE_STEP,
+            filtered_noise_ratio,
+            gaussian_correlate,
+        )
 
-            noise = bg.noise_map if bg.noise_map is not None else bg.noise
-            filtered = scratch("filtered", sub.shape)
-            gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
-            ratio = filtered_noise_ratio(filtered, noise, self.psf_sigma_px)
-            k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
-            cut = scratch("threshold", sub.shape)
-            lit = scratch("lit", sub.shape, bool)
-            np.multiply(noise, np.float32(k * ratio), out=cut)
-            np.greater(filtered, cut, out=lit)
-            core = scratch("core", sub.shape, bool)
-            np.multiply(noise, np.float32(k), out=cut)
-            np.greater(sub, cut, out=core)
-            return lit, core, filtered
-        threshold = self.logic.lit_pixel_counts
-        if self.threshold_sigma is not None:
-            threshold = np.maximum(np.float32(threshold), bg.threshold_counts(self.threshold_sigma))
-        return sub > threshold, None, None
+        filtered = scratch("filtered", sub.shape)
+        gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
+        grid = bg.noise_grid(NOISE_STEP)
+        ratio = filtered_noise_ratio(filtered, grid, self.psf_sigma_px, noise_grid=True)
+        k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
+        cut = np.float32(k * ratio)
+        above = scratch("lit", sub.shape, bool)
+        np.greater(filtered, cut * np.float32(bg.noise_floor()), out=above)
+        idx = np.flatnonzero(above)
+        if bg.varies:
+            idx = idx[filtered.ravel()[idx] > cut * bg.noise_at(idx)]
+        core_at = sub.ravel()[idx] > np.float32(k) * np.float32(bg.noise_at(idx))
+        return idx, core_at, filtered
 
     def _sharp(self, sub, filtered, idx, lab, n, a) -> np.ndarray:
         """Whether each region 0..n is point-like (matched filter; module docstring).
@@ -302,8 +311,7 @@ class StarDetector:
         if self.background == "auto" and self.remove_hot_pixels:
             hot = hot_pixel_mask(a, bg, subtracted=sub)
             sub[hot] = 0.0
-        lit, core, filtered = self._lit(sub, bg)
-        idx = np.flatnonzero(lit)
+        idx, core, filtered = self._lit(sub, bg)
         lab, n = label_pixels(idx, a.shape, 4 if self.logic.connectivity == 4 else 8)
         empty = Detections(
             np.empty(0), np.empty(0), np.empty(0), np.empty(0, int), np.empty(0),
@@ -322,7 +330,7 @@ class StarDetector:
             np.maximum.at(peak, lab, sub.ravel()[idx])
             ok &= peak >= np.float32(MIN_PEAK_STEPS * bg.step)
         if self.min_snr is not None:
-            noise = bg.noise_map.ravel()[idx] if bg.noise_map is not None else bg.noise
+            noise = bg.noise_at(idx)
             var = np.bincount(lab, weights=np.broadcast_to(noise, idx.shape) ** 2, minlength=n + 1)
             with np.errstate(invalid="ignore", divide="ignore"):
                 ok &= sums >= self.min_snr * np.sqrt(var)

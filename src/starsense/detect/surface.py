@@ -1,0 +1,71 @@
+"""A background noise map that is evaluated only where it is needed.
+
+The noise of a real frame varies smoothly across it (sky glow adds shot noise): it is a small
+mesh of box values interpolated to every pixel (:mod:`.background`). The detector compares
+pixels with a multiple of it, but only pixels already above that multiple of the *lowest* noise
+of the frame can pass: a few thousand of a million. :class:`NoiseSurface` keeps the mesh
+half-interpolated (``wy @ mesh``, one row per frame row) and evaluates the noise at given
+pixels, on a subsampled grid, or over the whole frame, with the same interpolant and the same
+clamp to the mesh's range as the whole-frame map.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["NoiseSurface"]
+
+
+@dataclass(frozen=True, eq=False)
+class NoiseSurface:
+    """Noise interpolated from a mesh: ``clip(centre + rows_w[r] . cols_w[c], low, high)``.
+
+    Attributes
+    ----------
+    rows_w : ndarray, shape (rows, mesh_columns), float64
+        ``wy @ (mesh - centre)``: the mesh interpolated along the rows.
+    cols_w : ndarray, shape (columns, mesh_columns), float64
+        The column interpolation weights ``wx``.
+    centre : float
+        The mesh's mean, counts rms.
+    low, high : float
+        The mesh's range, counts rms (the interpolant's overshoot is clamped to it).
+    """
+
+    rows_w: np.ndarray
+    cols_w: np.ndarray
+    centre: float
+    low: float
+    high: float
+
+    @classmethod
+    def from_mesh(cls, wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> NoiseSurface:
+        """Return the surface of ``mesh`` (ny, nx) for the weights ``wy`` (rows, ny), ``wx``."""
+        centre = float(np.mean(mesh))
+        return cls(wy @ (mesh - centre), wx, centre, float(mesh.min()), float(mesh.max()))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Frame shape (rows, columns)."""
+        return self.rows_w.shape[0], self.cols_w.shape[0]
+
+    def _clamp(self, values: np.ndarray) -> np.ndarray:
+        out = np.asarray(values + self.centre, dtype=np.float32)
+        np.maximum(out, np.float32(self.low), out=out)
+        np.minimum(out, np.float32(self.high), out=out)
+        return out
+
+    def at(self, flat_idx: np.ndarray) -> np.ndarray:
+        """Noise at the pixels of flat indices ``flat_idx``, counts rms (float32)."""
+        r, c = np.divmod(np.asarray(flat_idx, dtype=np.intp), self.shape[1])
+        return self._clamp(np.einsum("ij,ij->i", self.rows_w[r], self.cols_w[c]))
+
+    def grid(self, step: int) -> np.ndarray:
+        """Noise at every ``step``-th pixel each way (``map[::step, ::step]``), float32."""
+        return self._clamp(self.rows_w[::step] @ self.cols_w[::step].T)
+
+    def floor(self) -> np.float32:
+        """Return the lowest noise anywhere in the frame, counts rms."""
+        return np.float32(self.low)
