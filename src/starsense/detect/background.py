@@ -48,7 +48,8 @@ from starsense.detect.quantised import (
     quantisation_step,
     quantised_box_stats,
 )
-from starsense.detect.surface import NoiseSurface
+from starsense.detect.surface import NoiseSurface, matmul_single_thread
+from starsense.detect.workspace import scratch
 from starsense.errors import InputError
 
 # Boxes of at least this size are sampled at every second pixel each way.
@@ -240,12 +241,6 @@ def _interpolation_matrix(centres: np.ndarray, n: int, kind: str) -> np.ndarray:
     return w
 
 
-# Largest m * n * k of one matrix product in :func:`_interpolate_mesh`: OpenBLAS runs a GEMM
-# single-threaded up to 65536 x 4 (its GEMM_MULTITHREAD_THRESHOLD), and a threaded GEMM on a busy
-# machine waits for its second thread (~15 ms median instead of ~1 ms for a 768 x 1024 frame).
-_GEMM_SINGLE_THREAD = 65536 * 4
-
-
 def _interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.ndarray:
     """Return ``wy @ mesh @ wx.T`` as float32 (rows, columns), in row blocks of small products.
 
@@ -263,9 +258,7 @@ def _interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.nd
     left = (wy @ (mesh - centre)).astype(np.float32)  # (rows, mesh columns): small
     right = np.ascontiguousarray(wx.T, dtype=np.float32)
     out = np.empty((wy.shape[0], wx.shape[0]), dtype=np.float32)
-    block = max(1, _GEMM_SINGLE_THREAD // max(1, right.size))
-    for r0 in range(0, out.shape[0], block):
-        np.matmul(left[r0 : r0 + block], right, out=out[r0 : r0 + block])
+    matmul_single_thread(left, right, out)
     out += np.float32(centre)
     return out
 
@@ -384,27 +377,32 @@ def estimate_background(
     # equal boxes that tile the frame: the samples are a strided view, gathered by one copy
     regular = _is_regular(ri, every) and _is_regular(ci, every)
 
-    def gather(values: np.ndarray, dtype=None) -> np.ndarray:
-        """(ny, nx, samples) array of ``values`` at the mesh samples."""
+    def gather(values: np.ndarray, dtype=None, name: str | None = None) -> np.ndarray:
+        """(ny, nx, samples) array of ``values`` at the mesh samples (a work buffer if named)."""
         if not regular:
             g = values[ri[:, :, None, None], ci[None, None, :, :]]  # (ny, my, nx, mx)
             g = g.transpose(0, 2, 1, 3).reshape(ny, nx, -1)
             return g if dtype is None else g.astype(dtype)
         view = values[: ny * my * every : every, : nx * mx * every : every]
-        out = np.empty((ny, nx, my * mx), dtype=values.dtype if dtype is None else dtype)
+        shape, dtype = (ny, nx, my * mx), values.dtype if dtype is None else dtype
+        out = np.empty(shape, dtype) if name is None else scratch(name, shape, dtype)
         out.reshape(ny, nx, my, mx)[...] = view.reshape(ny, my, nx, mx).transpose(0, 2, 1, 3)
         return out
 
-    cells = gather(a, np.float32)
+    cells = gather(a, np.float32, "bg_cells")
     ok = (rvalid[:, None, :, None] & cvalid[None, :, None, :]).reshape(ny, nx, -1)
     if bad is not None:
         ok &= ~gather(bad)
-    cells[~ok] = np.nan
+    if not ok.all():
+        cells[~ok] = np.nan
     n_samples = ok.sum(axis=-1)
 
     med, low, high, kept = _sigma_clip_boxes(cells, float(sigma_clip))
+    keep = scratch("bg_keep", cells.shape, bool)
     with np.errstate(invalid="ignore"):
-        keep = ok & (cells >= low[..., None]) & (cells <= high[..., None])
+        np.greater_equal(cells, low[..., None], out=keep)
+        keep &= np.less_equal(cells, high[..., None], out=scratch("bg_mask", cells.shape, bool))
+        keep &= ok
     step = _quantised_step(cells, keep)
     if step is not None:  # 8-bit-like data: box means and standard deviations (quantised.py)
         med, _, keep = quantised_box_stats(cells, med, step)
@@ -420,7 +418,8 @@ def estimate_background(
     # noise: MAD of the clipped samples about the smooth map (not quantised like the raw MAD);
     # for coarsely quantised data their standard deviation, at least the quantisation noise
     if step is None:
-        noise_mesh = _robust_sigma(cells - gather(level), keep)
+        resid = gather(level, None, "bg_resid")
+        noise_mesh = _robust_sigma(np.subtract(cells, resid, out=resid), keep)
     else:
         noise_mesh = np.maximum(_masked_std(cells - gather(level), keep), step / np.sqrt(12.0))
     noise_mesh[~trusted] = np.nan

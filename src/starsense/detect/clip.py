@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from starsense.detect.workspace import scratch
+
 __all__ = ["MAD_TO_SIGMA"]
 
 #: 1 / Phi^-1(3/4): the standard deviation of a Gaussian over its median absolute deviation.
@@ -79,7 +81,8 @@ def _run_mad(s: np.ndarray, lo: np.ndarray, hi: np.ndarray, med: np.ndarray, at=
     at = _rows_at(s) if at is None else at
     m32 = med.astype(np.float32)
     with np.errstate(invalid="ignore"):
-        split = np.minimum(np.maximum(np.count_nonzero(s < m32[..., None], axis=-1), lo), hi)
+        below_med = np.less(s, m32[..., None], out=scratch("clip_mask", s.shape, bool))
+        split = np.minimum(np.maximum(np.count_nonzero(below_med, axis=-1), lo), hi)
     split_1 = split - 1
 
     def below(i):
@@ -106,18 +109,23 @@ def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
 
     Returns the median, the lowest and highest kept values and the number kept, per box.
     """
-    s = np.sort(cells, axis=-1)  # NaN last
+    s = scratch("clip_sorted", cells.shape, cells.dtype)
+    np.copyto(s, cells)
+    s.sort(axis=-1)  # NaN last
+    mask = scratch("clip_mask", s.shape, bool)
     at = _rows_at(s)
     lo = np.zeros(cells.shape[:-1], dtype=np.intp)
-    hi = np.count_nonzero(np.isfinite(s), axis=-1)
+    hi = np.count_nonzero(np.isfinite(s, out=mask), axis=-1)
     med = _ranked(s, lo, hi - lo, at)
     for _ in range(_MAX_CLIP_ITERATIONS):
         scale = MAD_TO_SIGMA * _run_mad(s, lo, hi, med, at)
         # a zero scale (noiseless box) would clip everything off the median: do not clip
         half = np.where(scale > 0, sigma_clip * scale, np.inf)
         with np.errstate(invalid="ignore"):
-            new_lo = np.maximum(lo, np.count_nonzero(s < (med - half)[..., None], axis=-1))
-            new_hi = np.minimum(hi, np.count_nonzero(s <= (med + half)[..., None], axis=-1))
+            new_lo = np.count_nonzero(np.less(s, (med - half)[..., None], out=mask), axis=-1)
+            new_lo = np.maximum(lo, new_lo)
+            new_hi = np.count_nonzero(np.less_equal(s, (med + half)[..., None], out=mask), -1)
+            new_hi = np.minimum(hi, new_hi)
         new_hi = np.maximum(new_hi, new_lo)
         if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
             break
@@ -130,7 +138,10 @@ def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """1.4826 MAD over the samples ``keep`` of every box (NaN where none)."""
     n = np.count_nonzero(keep, axis=-1)
     zero = np.zeros(n.shape, dtype=np.intp)
-    v = np.sort(np.where(keep, cells, np.inf), axis=-1)  # the kept samples first, ascending
+    v = scratch("robust_sorted", cells.shape, cells.dtype)
+    np.copyto(v, cells)
+    np.copyto(v, np.inf, where=np.logical_not(keep, out=scratch("robust_mask", keep.shape, bool)))
+    v.sort(axis=-1)  # the kept samples first, ascending
     at = _rows_at(v)
     med = _ranked(v, zero, n, at)
     return MAD_TO_SIGMA * _run_mad(v, zero, n, med, at)

@@ -15,7 +15,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NoiseSurface"]
+__all__ = ["NoiseSurface", "matmul_single_thread"]
+
+# Largest m * n * k of one matrix product: OpenBLAS runs a GEMM single-threaded up to 65536 x 4
+# (its GEMM_MULTITHREAD_THRESHOLD); a threaded GEMM on a busy machine waits for its second
+# thread (~15 ms median instead of ~1 ms for a 768 x 1024 frame), and its threads then spin.
+_GEMM_SINGLE_THREAD = 65536 * 4
+
+
+def matmul_single_thread(left: np.ndarray, right: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``out[...] = left @ right`` in blocks of rows, each small enough for a one-thread GEMM.
+
+    Parameters
+    ----------
+    left : ndarray, shape (m, k)
+    right : ndarray, shape (k, n), C-contiguous
+    out : ndarray, shape (m, n), of the operands' dtype
+
+    Returns
+    -------
+    ndarray
+        ``out``.
+    """
+    block = max(1, _GEMM_SINGLE_THREAD // max(1, right.size))
+    for r0 in range(0, out.shape[0], block):
+        np.matmul(left[r0 : r0 + block], right, out=out[r0 : r0 + block])
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,7 +89,10 @@ class NoiseSurface:
 
     def grid(self, step: int) -> np.ndarray:
         """Noise at every ``step``-th pixel each way (``map[::step, ::step]``), float32."""
-        return self._clamp(self.rows_w[::step] @ self.cols_w[::step].T)
+        left, right = self.rows_w[::step], np.ascontiguousarray(self.cols_w[::step].T)
+        return self._clamp(
+            matmul_single_thread(left, right, np.empty((left.shape[0], right.shape[1])))
+        )
 
     def floor(self) -> np.float32:
         """Return the lowest noise anywhere in the frame, counts rms."""
