@@ -37,6 +37,26 @@ def _rows_at(sorted_rows: np.ndarray):
     return at
 
 
+def _rank_of(at, lo: np.ndarray, hi: np.ndarray, x: np.ndarray, inclusive: bool) -> np.ndarray:
+    """Per row, ``lo`` plus how many of the ascending values ``[lo, hi)`` are < x (<= x).
+
+    A vectorised binary search in every row at once (``np.searchsorted`` per row, side "left"
+    or "right"), in place of comparing and counting all the row's samples: the same count,
+    clamped to ``[lo, hi]``, for ~log2(samples) small gathers.
+    """
+    left, right = lo.copy(), hi.copy()
+    for _ in range(64):  # ceil(log2(row length)) + 1 steps; the bound only guards the loop
+        active = left < right
+        if not active.any():
+            break
+        mid = (left + right) >> 1
+        value = at(mid)
+        go_right = (value <= x) if inclusive else (value < x)
+        right = np.where(active & ~go_right, mid, right)
+        left = np.where(active & go_right, mid + 1, left)
+    return left
+
+
 def _ranked(sorted_rows: np.ndarray, start: np.ndarray, count: np.ndarray, at=None) -> np.ndarray:
     """Median of ``sorted_rows[..., start:start + count]`` per row (NaN where count is 0)."""
     at = _rows_at(sorted_rows) if at is None else at
@@ -81,8 +101,7 @@ def _run_mad(s: np.ndarray, lo: np.ndarray, hi: np.ndarray, med: np.ndarray, at=
     at = _rows_at(s) if at is None else at
     m32 = med.astype(np.float32)
     with np.errstate(invalid="ignore"):
-        below_med = np.less(s, m32[..., None], out=scratch("clip_mask", s.shape, bool))
-        split = np.minimum(np.maximum(np.count_nonzero(below_med, axis=-1), lo), hi)
+        split = _rank_of(at, lo, hi, m32, inclusive=False)
     split_1 = split - 1
 
     def below(i):
@@ -122,10 +141,8 @@ def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
         # a zero scale (noiseless box) would clip everything off the median: do not clip
         half = np.where(scale > 0, sigma_clip * scale, np.inf)
         with np.errstate(invalid="ignore"):
-            new_lo = np.count_nonzero(np.less(s, (med - half)[..., None], out=mask), axis=-1)
-            new_lo = np.maximum(lo, new_lo)
-            new_hi = np.count_nonzero(np.less_equal(s, (med + half)[..., None], out=mask), -1)
-            new_hi = np.minimum(hi, new_hi)
+            new_lo = _rank_of(at, lo, hi, med - half, inclusive=False)
+            new_hi = _rank_of(at, lo, hi, med + half, inclusive=True)
         new_hi = np.maximum(new_hi, new_lo)
         if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
             break
