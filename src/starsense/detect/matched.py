@@ -38,9 +38,10 @@ def gaussian_correlate(
 
     The same sampled, truncated and normalised kernel as ``scipy.ndimage.gaussian_filter``
     (radius ``int(truncate sigma + 0.5)``, edge pixels repeated beyond the frame, "nearest"),
-    applied separably by rows then columns as whole-frame float32 array operations, pairing the
-    symmetric taps. scipy filters the columns one at a time, which strides across the frame: on
-    a 768 x 1024 frame this is ~3x faster, and equal to within float32 rounding.
+    applied separably by rows then columns as float32 array operations on bands of rows (each
+    band's work arrays stay in the cache), pairing the symmetric taps. scipy filters the
+    columns one at a time, which strides across the frame: on a 768 x 1024 frame this is ~4x
+    faster, and equal to within float32 rounding.
 
     Parameters
     ----------
@@ -67,29 +68,50 @@ def gaussian_correlate(
     if radius == 0:
         out[...] = a
         return out
-    # rows: pad the columns by edge repetition, then the taps in symmetric pairs
-    padded = scratch("gauss_padded", (rows, cols + 2 * radius))
-    padded[:, radius : radius + cols] = a
-    padded[:, :radius] = a[:, :1]
-    padded[:, radius + cols :] = a[:, -1:]
-    # the row pass is written into the middle of a frame padded by rows, for the column pass
-    tall = scratch("gauss_tall", (rows + 2 * radius, cols))
-    across = tall[radius : radius + rows]
-    pair = scratch("gauss_pair", (rows, cols))
-    np.multiply(padded[:, radius : radius + cols], taps[0], out=across)
-    for j in range(1, radius + 1):
-        np.add(padded[:, radius - j : radius - j + cols], padded[:, radius + j : radius + j + cols],
-               out=pair)  # fmt: skip
-        pair *= taps[j]
-        across += pair
-    tall[:radius] = across[:1]
-    tall[radius + rows :] = across[-1:]
-    np.multiply(across, taps[0], out=out)
-    for j in range(1, radius + 1):
-        np.add(tall[radius - j : radius - j + rows], tall[radius + j : radius + j + rows], out=pair)
-        pair *= taps[j]
-        out += pair
+    # bands of rows, so that a band's three work arrays stay in the cache between the passes
+    band = max(16, _BAND_FLOATS // cols)
+    r = radius
+    padded = scratch("gauss_padded", (band + 2 * r, cols + 2 * r))
+    across = scratch("gauss_across", (band + 2 * r, cols))
+    pair = scratch("gauss_pair", (band + 2 * r, cols))
+    for r0 in range(0, rows, band):
+        r1 = min(r0 + band, rows)
+        _band(a, r0, r1, r, taps, padded, across, pair, out)
     return out
+
+
+#: floats per work array of one band of :func:`gaussian_correlate` (512 kB: 128 rows of 1024)
+_BAND_FLOATS = 131072
+
+
+def _band(a, r0, r1, r, taps, padded, across, pair, out) -> None:
+    """Rows ``r0:r1`` of the separable correlation, edge pixels repeated ("nearest")."""
+    rows, cols = a.shape
+    n = r1 - r0
+    m = n + 2 * r
+    # the band's rows and r more each side (edge rows repeated), columns padded by r each side
+    lo, hi = max(r0 - r, 0), min(r1 + r, rows)
+    p = padded[:m]
+    top = lo - (r0 - r)
+    p[top : top + hi - lo, r : r + cols] = a[lo:hi]
+    p[:top, r : r + cols] = a[0]
+    p[top + hi - lo :, r : r + cols] = a[rows - 1]
+    p[:, :r] = p[:, r : r + 1]
+    p[:, r + cols :] = p[:, r + cols - 1 : r + cols]
+    # along the rows, the taps in symmetric pairs
+    acc, tmp = across[:m], pair[:m]
+    np.multiply(p[:, r : r + cols], taps[0], out=acc)
+    for j in range(1, r + 1):
+        np.add(p[:, r - j : r - j + cols], p[:, r + j : r + j + cols], out=tmp)
+        tmp *= taps[j]
+        acc += tmp
+    # then down the columns
+    o, tmp = out[r0:r1], pair[:n]
+    np.multiply(acc[r : r + n], taps[0], out=o)
+    for j in range(1, r + 1):
+        np.add(acc[r - j : r - j + n], acc[r + j : r + j + n], out=tmp)
+        tmp *= taps[j]
+        o += tmp
 
 
 def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float, out: np.ndarray | None = None):
