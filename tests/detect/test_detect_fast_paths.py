@@ -7,7 +7,7 @@ import pytest
 from scipy import ndimage
 
 from starsense.detect import estimate_background, hot_pixel_mask
-from starsense.detect.background import _interpolate_mesh, _interpolation_matrix
+from starsense.detect.mesh import _interpolate_mesh, _interpolation_matrix
 from starsense.detect.clip import _ranked, _run_mad
 from starsense.errors import InputError
 

@@ -119,10 +119,17 @@ class CentroidNoise:
 
 
 def _profile(centres: np.ndarray, offset: float, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel-integrated 1-d Gaussian and its derivative with respect to the star position."""
+    """Pixel-integrated 1-d Gaussian (the renderer's) and its derivative in the star position.
+
+    ``centres`` are consecutive integers; the profile is :func:`starsense.render.psf.
+    pixel_profile`, the one the frames are rendered with.
+    """
+    from starsense.render.psf import pixel_profile
+
+    c0 = int(centres[0])
+    p = pixel_profile(c0, c0 + len(centres), offset, sigma)[0]
     lo = (centres - 0.5 - offset) / sigma
     hi = (centres + 0.5 - offset) / sigma
-    p = ndtr(hi) - ndtr(lo)
     dp = (np.exp(-0.5 * lo * lo) - np.exp(-0.5 * hi * hi)) / (_SQRT2PI * sigma)
     return p, dp
 
