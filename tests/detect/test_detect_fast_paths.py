@@ -7,8 +7,8 @@ import pytest
 from scipy import ndimage
 
 from starsense.detect import estimate_background, hot_pixel_mask
-from starsense.detect.mesh import _interpolate_mesh, _interpolation_matrix
 from starsense.detect.clip import _ranked, _run_mad
+from starsense.detect.mesh import _interpolate_mesh, _interpolation_matrix
 from starsense.errors import InputError
 
 
