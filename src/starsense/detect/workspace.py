@@ -19,8 +19,9 @@ import numpy as np
 
 __all__ = ["MAX_KEPT_BUFFERS", "MAX_KEPT_PIXELS", "scratch"]
 
-#: frames up to this many pixels keep their buffers (4 Mpx: ~16 MB per float32 buffer)
-MAX_KEPT_PIXELS = 1 << 22
+#: frames up to this many pixels keep their buffers (8.4 Mpx: 34 MB per float32 buffer; the
+#: ST-16's 5 Mpx frames keep ~70 MB per thread with the matched filter, ~20 MB without)
+MAX_KEPT_PIXELS = 1 << 23
 #: buffers kept per thread (the least recently used beyond this are let go)
 MAX_KEPT_BUFFERS = 32
 
