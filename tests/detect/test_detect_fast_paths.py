@@ -98,3 +98,25 @@ def test_interpolate_flat_mesh_is_exact():
     wx = _interpolation_matrix(np.linspace(31.5, 992.5, 16), 1024, "cubic")
     got = _interpolate_mesh(wy, np.full((12, 16), 500.0), wx)
     assert np.all(got == np.float32(500.0))
+
+
+@pytest.mark.parametrize("inclusive", [False, True])
+def test_rank_of_is_searchsorted_in_the_run(inclusive):
+    """The blocked search against np.searchsorted per row, clamped to the run (ties, NaN)."""
+    from starsense.detect.clip import _rank_of, _rows_at
+
+    rng = np.random.default_rng(11)
+    cells = np.round(rng.normal(0.0, 20.0, (7, 5, 300))).astype(np.float32)  # many ties
+    cells[rng.random(cells.shape) < 0.1] = np.nan
+    s = np.sort(cells, axis=-1)  # NaN last
+    n = np.isfinite(s).sum(-1)
+    lo = rng.integers(0, np.maximum(n // 3, 1))
+    hi = np.maximum(lo, n - rng.integers(0, np.maximum(n // 3, 1)))
+    x = np.where(rng.random(lo.shape) < 0.5, rng.normal(0, 20, lo.shape), 0.0).astype(np.float32)
+    x[0, 0] = np.nan
+    got = _rank_of(_rows_at(s), lo, hi, x, inclusive)
+    side = "right" if inclusive else "left"
+    for idx in np.ndindex(lo.shape):
+        finite = s[idx][: n[idx]]
+        expected = 0 if np.isnan(x[idx]) else np.searchsorted(finite, x[idx], side=side)
+        assert got[idx] == min(max(expected, lo[idx]), hi[idx])
