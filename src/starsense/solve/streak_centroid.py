@@ -94,29 +94,51 @@ def _boxes(x, y, sx, sy, radius, shape):
     return np.column_stack([r0, r1, c0, c1]).astype(int)
 
 
-def _capsules(x, y, sx, sy, length2, radius, box, shape):
-    """Pixels within ``radius`` of each segment centred on (x, y), on one crop holding each box.
+def _capsules(x, y, sx, sy, length2, radius, r0, c0, size):
+    """Pixels within ``radius`` of each segment centred on (x, y), on a crop of each plane.
 
-    Returns the mask (L, h, w) and the crops' columns (L, w) and rows (L, h), px (int); a
-    crop is the box grown to the largest box's size (outside its box no pixel is in reach).
+    The crops are ``size`` (h, w) px from rows ``r0`` and columns ``c0`` (L,), each holding
+    the capsule's bounding box. Returns the mask (L, h, w) and the crops' columns (L, w) and
+    rows (L, h), px (int).
     """
-    rows, cols = shape
-    h, w = int(np.max(box[:, 1] - box[:, 0])), int(np.max(box[:, 3] - box[:, 2]))
-    py = np.minimum(box[:, 0], rows - h)[:, None] + np.arange(h)
-    px = np.minimum(box[:, 2], cols - w)[:, None] + np.arange(w)
+    py = r0[:, None] + np.arange(size[0])
+    px = c0[:, None] + np.arange(size[1])
     ax = px[:, None, :] - (x - sx)[:, None, None]
     ay = py[:, :, None] - (y - sy)[:, None, None]
     a2x, a2y = (2 * sx)[:, None, None], (2 * sy)[:, None, None]
-    # clamped to the segment (np.clip's result, without its overhead)
-    t = np.minimum(np.maximum((ax * a2x + ay * a2y) / length2[:, None, None], 0.0), 1.0)
-    return (ax - t * a2x) ** 2 + (ay - t * a2y) ** 2 <= radius * radius, px, py
+    # t = (a . a2) / |a2|^2 clamped to the segment; then |a - t a2|^2 (in place: no temporaries)
+    t = ax * a2x + ay * a2y
+    t /= length2[:, None, None]
+    np.maximum(t, 0.0, out=t)
+    np.minimum(t, 1.0, out=t)
+    ex = t * a2x
+    np.subtract(ax, ex, out=ex)
+    ex *= ex
+    np.multiply(t, a2y, out=t)
+    np.subtract(ay, t, out=t)
+    t *= t
+    t += ex
+    return t <= radius * radius, px, py
+
+
+def _origins(x, y, reach_x, reach_y, size, shape):
+    """First row and column of the crop of ``size`` holding each capsule's box, (L,) each.
+
+    A box (:func:`_boxes`) starts at ``floor(c - reach)`` (cut at 0) and spans at most
+    ``ceil(2 reach) + 2`` px, which ``size`` covers: the crop starts with the box, or ends
+    with the plane when the box reaches its far edge.
+    """
+    r0 = np.minimum(np.maximum(np.floor(y - reach_y), 0), shape[0] - size[0]).astype(np.intp)
+    c0 = np.minimum(np.maximum(np.floor(x - reach_x), 0), shape[1] - size[1]).astype(np.intp)
+    return r0, c0
 
 
 def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     """:func:`streak_centroid` of many regions at once (each on its own plane).
 
-    The capsule around the segment lies inside its bounding box, so the mask is taken over the
-    whole plane; every region iterates until it stays (at most 6 times), as one would alone.
+    The capsule around the segment lies inside its bounding box, so the mask is taken over a
+    crop of the plane holding that box (one crop size for all regions and iterations); every
+    region iterates until it stays (at most 6 times), as one would alone.
 
     Parameters
     ----------
@@ -146,32 +168,45 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     out_x, out_y, total = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     boxes, spread = np.zeros((n, 4), dtype=int), np.full((n, 2, 2), np.nan)
     last_x, last_y = np.full(n, np.nan), np.full(n, np.nan)  # where the kept capsule was
+    if n == 0:
+        return out_x, out_y, total, boxes, spread
+    reach_x, reach_y = np.abs(sx) + radius, np.abs(sy) + radius
+    size = (min(math.ceil(2 * float(np.max(reach_y))) + 2, rows),
+            min(math.ceil(2 * float(np.max(reach_x))) + 2, cols))  # fmt: skip
+    crops = np.lib.stride_tricks.sliding_window_view(planes, size, axis=(1, 2))
+    # the capsule each centroid was taken over: its mask, columns and rows
+    masks = np.zeros((n, *size), dtype=bool)
+    cols_px, rows_px = np.zeros((n, size[1]), np.intp), np.zeros((n, size[0]), np.intp)
     live = np.arange(n)
     for _ in range(6):
-        box = _boxes(x[live], y[live], sx[live], sy[live], radius, (rows, cols))
-        some = (box[:, 0] < box[:, 1]) & (box[:, 2] < box[:, 3])
-        live, box = live[some], box[some]
-        if len(live) == 0:
-            break
-        inside, px, py = _capsules(x[live], y[live], sx[live], sy[live], length2[live], radius,
-                                   box, (rows, cols))  # fmt: skip
-        wt = np.where(inside, planes[live[:, None, None], py[:, :, None], px[:, None, :]], 0.0)
+        xl, yl = x[live], y[live]
+        r0, c0 = _origins(xl, yl, reach_x[live], reach_y[live], size, (rows, cols))
+        inside, px, py = _capsules(xl, yl, sx[live], sy[live], length2[live], radius, r0, c0,
+                                   size)  # fmt: skip
+        # a capsule off its plane holds no pixel: no total, the region stops (as alone)
+        wt = np.where(inside, crops[live, r0, c0], 0.0)
         tot = wt.sum(axis=(1, 2)).astype(float)
         good = tot > 0
-        live, box, wt, tot = live[good], box[good], wt[good], tot[good]
-        nx = np.einsum("kj,kj->k", wt.sum(axis=1), px[good].astype(float)) / tot
-        ny = np.einsum("ki,ki->k", wt.sum(axis=2), py[good].astype(float)) / tot
-        out_x[live], out_y[live], total[live], boxes[live] = nx, ny, tot, box
-        last_x[live], last_y[live] = x[live], y[live]
-        moving = np.hypot(nx - x[live], ny - y[live]) >= 0.01
+        cut = not good.all()
+        if cut:
+            live, xl, yl, wt, tot = live[good], xl[good], yl[good], wt[good], tot[good]
+            px, py = px[good], py[good]
+        if len(live) == 0:
+            break
+        nx = np.einsum("kj,kj->k", wt.sum(axis=1), px.astype(float)) / tot
+        ny = np.einsum("ki,ki->k", wt.sum(axis=2), py.astype(float)) / tot
+        out_x[live], out_y[live], total[live] = nx, ny, tot
+        last_x[live], last_y[live] = xl, yl
+        masks[live], cols_px[live], rows_px[live] = inside[good] if cut else inside, px, py
         x[live], y[live] = nx, ny
-        live = live[moving]
+        live = live[np.hypot(nx - xl, ny - yl) >= 0.01]
         if len(live) == 0:
             break
     done = np.flatnonzero(np.isfinite(out_x))
     if len(done):  # the spread about the centroid over the capsule it was taken from
-        inside, px, py = _capsules(last_x[done], last_y[done], sx[done], sy[done],
-                                   length2[done], radius, boxes[done], (rows, cols))  # fmt: skip
+        boxes[done] = _boxes(last_x[done], last_y[done], sx[done], sy[done], radius,
+                             (rows, cols))  # fmt: skip
+        inside, px, py = masks[done], cols_px[done], rows_px[done]
         dx = np.where(inside, px[:, None, :] - out_x[done, None, None], 0.0)
         dy = np.where(inside, py[:, :, None] - out_y[done, None, None], 0.0)
         sxy = np.einsum("kij,kij->k", dx, dy)

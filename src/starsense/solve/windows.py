@@ -34,6 +34,8 @@ __all__ = [
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
+#: scipy's 2-D structuring elements, 8- and 4-connected (indexed by ``connectivity == 4``).
+_STRUCTURES = (ndimage.generate_binary_structure(2, 2), ndimage.generate_binary_structure(2, 1))
 
 
 @dataclass(frozen=True)
@@ -124,19 +126,55 @@ def _cross_xy(w: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.hypot(cx, cy)
 
 
+def _lit_labels(lit: np.ndarray, connectivity: int):
+    """Label the lit pixels of the stack (K, h, w), never across windows; labels of lit pixels.
+
+    The windows are labelled as one 2-D image of their rows that hold a lit pixel, in order,
+    with an empty row wherever two kept rows are not neighbours in one window (a row without
+    a lit pixel joins nothing, so the regions, their labels and scipy's raster order of them
+    are those of the windows stacked with an empty row between them, at a fraction of the
+    pixels).
+
+    Returns
+    -------
+    idx : ndarray of int, shape (M,)
+        Flat indices of the lit pixels in the stack, ascending.
+    lab : ndarray of int, shape (M,)
+        Their labels, 1..n.
+    n : int
+        Number of regions.
+    """
+    k, h, w = lit.shape
+    flat = lit.reshape(k * h, w)
+    idx = np.flatnonzero(lit)
+    if len(idx) == 0:
+        return idx, np.zeros(0, np.int32), 0
+    lit_rows = idx // w  # ascending
+    new = np.empty(len(idx), bool)  # the first lit pixel of its row
+    new[0] = True
+    np.not_equal(lit_rows[1:], lit_rows[:-1], out=new[1:])
+    rows = lit_rows[new]
+    # a break before each kept row that does not continue the row above it in its window
+    gap = np.ones(len(rows), np.intp)
+    gap[0] = 0
+    gap[1:] = (rows[1:] != rows[:-1] + 1) | (rows[1:] % h == 0)
+    pos = np.arange(len(rows)) + np.cumsum(gap)
+    compact = np.zeros((pos[-1] + 1, w), dtype=bool)
+    compact[pos] = flat[rows]
+    labels, n = ndimage.label(compact, structure=_STRUCTURES[connectivity == 4])
+    j = np.cumsum(new) - 1  # each lit pixel's kept row
+    return idx, labels[pos[j], idx - lit_rows * w], n
+
+
 def _label(lit: np.ndarray, connectivity: int):
     """Label the lit pixels of each window of the stack (K, h, w), never across windows.
 
-    The windows are labelled as one 2-D image, one above the other with an empty row between
-    them (cheaper than a 3-D structuring element, and the same labels in the same raster
-    order).
+    The labels of :func:`_lit_labels` put back on the stack (0 where unlit).
     """
-    k, h, w = lit.shape
-    tall = np.zeros((k, h + 1, w), dtype=bool)
-    tall[:, :h] = lit
-    plane = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
-    labels, n = ndimage.label(tall.reshape(k * (h + 1), w), structure=plane)
-    return labels.reshape(k, h + 1, w)[:, :h], n
+    idx, lab, n = _lit_labels(lit, connectivity)
+    labels = np.zeros(lit.shape, dtype=np.int32)
+    labels.reshape(-1)[idx] = lab
+    return labels, n
 
 
 def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
@@ -147,8 +185,9 @@ def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
     cy = np.rint(centres_px[:, 1]).astype(int)
     r0 = np.clip(cy - half, 0, rows - h)
     c0 = np.clip(cx - half, 0, cols - w)
-    windows = [image[a : a + h, c : c + w] for a, c in zip(r0.tolist(), c0.tolist(), strict=True)]
-    return np.stack(windows).astype(np.float32), r0, c0
+    # one gather from a strided view of every h x w window of the frame (no copy until here)
+    windows = np.lib.stride_tricks.sliding_window_view(image, (h, w))[r0, c0]
+    return windows.astype(np.float32), r0, c0
 
 
 def _levels(solver, stack: np.ndarray):
@@ -249,11 +288,9 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     level, noise, threshold = _levels(solver, stack)
     sub = stack - level[:, None, None].astype(np.float32)
     lit = sub > threshold[:, None, None]
-    labels, n = _label(lit, logic.connectivity)
+    idx, lab, n = _lit_labels(lit, logic.connectivity)
     if n == 0:
         return [], float(np.median(noise)), 0
-    idx = np.flatnonzero(lit)
-    lab = labels.ravel()[idx]
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
     plane, extent, peak = _label_extents(idx, lab, sizes, stack.ravel()[idx], stack.shape)
