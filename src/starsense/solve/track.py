@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -154,63 +155,106 @@ def _search_radius(cov: np.ndarray, field_radius: float) -> float:
     return N_SIGMA_SEARCH * (cross + roll)
 
 
-def _predicted_field(sensor, db, rot, r_s, field_r, rate):
+@dataclass(frozen=True)
+class _Setup:
+    """What tracking needs from a Solver that does not change between frames (cached)."""
+
+    sensor: object
+    background: str
+    db: object
+    identifier: object
+    field_r: float
+    margin_px: int
+
+
+_SETUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _setup(solver) -> _Setup:
+    """Return the solver's tracking set-up, built on first use and when its sensor changes."""
+    from starsense.identify.tracking import TrackingIdentifier
+
+    sensor = solver.sensor
+    db = solver._identifier(2.0 * sensor.half_fov_rad[0]).database
+    got = _SETUPS.get(solver)
+    if got is None or got.sensor is not sensor or got.db is not db \
+            or got.background != solver.background:  # fmt: skip
+        field_r = math.atan(math.hypot(*(math.tan(h) for h in sensor.half_fov_rad)))
+        margin = 2 if solver.background != "known" else solver._detector().margin_px
+        ident = TrackingIdentifier(db, min_match_radius_rad=2.0 / sensor.focal_length_px)
+        got = _Setup(sensor, solver.background, db, ident, field_r, margin)
+        _SETUPS[solver] = got
+    return got
+
+
+def _half_turn(sensor, rate) -> np.ndarray | None:
+    """Return the rotation over half the exposure at the body rate, (3, 3); None at rest."""
+    if rate is None or not np.any(rate):
+        return None
+    return Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0).as_matrix()
+
+
+def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):
     """Database stars near the field, brightest first: their predicted pixel positions.
 
     Returns the database indices, x, y (px), whether each lies on the detector or within the
-    search radius of it, and the streak (start to end, px) of each at the rate (None without
-    a rate).
+    search radius of it, and the streak (start to end, px) of each over the exposure (None
+    without a rate; ``half_turn`` the rotation over half the exposure, (3, 3)).
     """
     r = rot.as_matrix()
     centre = r[2]  # the boresight in ICRS: R^T z
     near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2)))
     near = np.asarray(near, dtype=np.intp)
     cam = db.vectors[near] @ r.T
-    x, y = sensor.project(cam)
+    n = len(near)
+    if half_turn is None:
+        x, y = sensor.project(cam)
+    else:  # mid-exposure, start b(0) = R(w t_e / 2) b_mid and end R(w t_e / 2)^T b_mid at once
+        px, py = sensor.project(np.concatenate([cam, cam @ half_turn.T, cam @ half_turn]))
+        x, y = px[:n], py[:n]
     m = r_s * sensor.focal_length_px
     det = sensor.detector
     margin_on = (x >= -m) & (x <= det.columns - 1 + m) & (y >= -m) & (y <= det.rows - 1 + m)
-    if rate is None or not np.any(rate):
+    if half_turn is None:
         return near, x, y, margin_on, None
-    half_turn = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
-    h = half_turn.as_matrix()
-    xs, ys = sensor.project(cam @ h.T)  # start: b(0) = R(w t_e / 2) b_mid
-    xe, ye = sensor.project(cam @ h)  # end: R(w t_e / 2)^T b_mid
-    return near, x, y, margin_on, np.column_stack([xe - xs, ye - ys])
+    streaks = np.column_stack([px[2 * n :] - px[n : 2 * n], py[2 * n :] - py[n : 2 * n]])
+    return near, x, y, margin_on, streaks
 
 
 def _unblended(cat_index, near, x, y, blend_px: float) -> np.ndarray:
     """Return whether each matched star has no other database star within ``blend_px``.
 
     A double star (two catalogue stars a few pixels apart) is detected as one blended spot
-    whose centroid lies between them: it is left out of the fit when others remain.
+    whose centroid lies between them: it is left out of the fit when others remain. The
+    nearest other predicted star of each, by direct comparison (a few dozen stars).
     """
-    from scipy.spatial import cKDTree
-
     ok = np.isfinite(x) & np.isfinite(y)
-    pos = np.column_stack([x[ok], y[ok]])
-    if len(pos) < 2:
+    xo, yo = x[ok], y[ok]
+    if len(xo) < 2:
         return np.ones(len(cat_index), bool)
-    where = np.searchsorted(near[ok], cat_index)
-    dist, _ = cKDTree(pos).query(pos[np.minimum(where, len(pos) - 1)], k=2)
-    return dist[:, 1] > blend_px
+    where = np.minimum(np.searchsorted(near[ok], cat_index), len(xo) - 1)
+    dx = xo[where][:, None] - xo[None, :]
+    dy = yo[where][:, None] - yo[None, :]
+    d2 = dx * dx + dy * dy
+    d2[np.arange(len(where)), where] = np.inf  # the star itself
+    return np.sqrt(np.min(d2, axis=1)) > blend_px
 
 
 def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     """Window detection, matching and the attitude fit; (Solution, covariance) or a failure."""
     from starsense.geometry.attitude import radec_roll_from_attitude
-    from starsense.identify.tracking import TrackingIdentifier
     from starsense.solve.star_noise import fit_robust, star_noise
     from starsense.solve.windows import detect_in_windows, streak_px
 
     sensor = solver.sensor
-    f = sensor.focal_length_px
-    db = solver._identifier(2.0 * sensor.half_fov_rad[0]).database
-    field_r = math.atan(math.hypot(*(math.tan(h) for h in sensor.half_fov_rad)))
+    setup = _setup(solver)
+    db, field_r, f = setup.db, setup.field_r, sensor.focal_length_px
     r_s = max(_search_radius(cov_pred, field_r), MIN_SEARCH_PX / f)
     if r_s > MAX_SEARCH_RAD:
         return None, f"prior uncertainty {r_s * RAD_TO_DEG:.2f} deg exceeds tracking's reach"
-    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r, rate)
+    half_turn = _half_turn(sensor, rate)
+    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r,
+                                                      half_turn)  # fmt: skip
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
     longest = streak_px(sensor, rate)
@@ -228,8 +272,8 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
-    ident = TrackingIdentifier(db, min_match_radius_rad=2.0 / f)
-    match = ident(vectors, rot_pred, r_s, field_r, region=region, candidates=near[cand])
+    match = setup.identifier(vectors, rot_pred, r_s, field_r, region=region,
+                             candidates=near[cand])  # fmt: skip
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
     matched, cat_index, cat_ids = match.detection_index, match.catalog_index, match.catalog_id
@@ -237,7 +281,8 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     alone = _unblended(cat_index, near, x, y, blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
-    noise = star_noise(solver, det, matched, rate)
+    noise = star_noise(solver, det, matched, rate, vectors=vectors[matched],
+                       half_turn=half_turn, margin_px=setup.margin_px)  # fmt: skip
     att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
     matched, cat_ids = matched[keep], cat_ids[keep]
     covariance = noise.subset(keep).attitude_covariance(vectors[matched])

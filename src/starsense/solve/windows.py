@@ -34,6 +34,7 @@ __all__ = [
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
+_CORNER_SIGNS = np.array([1, -1, -1, 1])
 #: scipy's 2-D structuring elements, 8- and 4-connected (indexed by ``connectivity == 4``).
 _STRUCTURES = (ndimage.generate_binary_structure(2, 2), ndimage.generate_binary_structure(2, 1))
 
@@ -83,8 +84,8 @@ def union_area(boxes: np.ndarray) -> int:
     cols = np.unique(boxes[:, 2:])
     i0, i1 = np.searchsorted(rows, boxes[:, 0]), np.searchsorted(rows, boxes[:, 1])
     j0, j1 = np.searchsorted(cols, boxes[:, 2]), np.searchsorted(cols, boxes[:, 3])
-    flat = np.r_[i0, i0, i1, i1] * len(cols) + np.r_[j0, j1, j0, j1]
-    sign = np.repeat([1, -1, -1, 1], len(boxes))
+    flat = np.concatenate([i0, i0, i1, i1]) * len(cols) + np.concatenate([j0, j1, j0, j1])
+    sign = np.repeat(_CORNER_SIGNS, len(boxes))
     corners = np.bincount(flat, sign, len(rows) * len(cols)).reshape(len(rows), len(cols))
     covered = np.cumsum(np.cumsum(corners, axis=0), axis=1)[:-1, :-1] > 0
     return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
