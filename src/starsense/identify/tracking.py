@@ -51,6 +51,13 @@ def _chord(angle_rad: float) -> float:
     return 2.0 * math.sin(min(angle_rad, math.pi) / 2.0)
 
 
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a 1-D array (the middle value, or the mean of the middle two)."""
+    s = np.sort(values)
+    h = len(s) // 2
+    return float(s[h]) if len(s) % 2 else float((s[h - 1] + s[h]) / 2)
+
+
 def _rotvec(m: np.ndarray) -> np.ndarray:
     """Rotation vector of a rotation matrix of angle below pi, rad (shape (3,)).
 
@@ -248,18 +255,21 @@ class TrackingIdentifier:
                         f"({n_amb} ambiguous, {len(v)} detections, {len(near)} predicted)",
                         n_ambiguous=n_amb)  # fmt: skip
         radius = r_s
+        fitted = False  # whether r, resid are the fit to the pairs (det, star)
         for _ in range(3):
             r, resid = _estimate_matrix(v[det], ref[star])
-            sigma = 1.4826 * float(np.median(resid)) / math.sqrt(2 * math.log(2))
+            fitted = True
+            sigma = 1.4826 * _median(resid) / math.sqrt(2 * math.log(2))
             radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
             det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
             if len(det_new) < 2:
                 break
-            same = np.array_equal(det_new, det) and np.array_equal(star_new, star)
+            fitted = np.array_equal(det_new, det) and np.array_equal(star_new, star)
             det, star = det_new, star_new
-            if same:
+            if fitted:
                 break
-        r, resid = _estimate_matrix(v[det], ref[star])
+        if not fitted:
+            r, resid = _estimate_matrix(v[det], ref[star])
         rot = Rotation.from_matrix(r, assume_valid=True)  # orthogonal: an SVD's U V^T
         # the fit's departure from the prior, as the displacement of a star at the field edge
         # (the measure of the search radius): cross-boresight plus roll x sin(field radius)

@@ -84,6 +84,20 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
     return out
 
 
+def windows_view(planes: np.ndarray, size) -> np.ndarray:
+    """Read-only view (K, rows - h + 1, columns - w + 1, h, w) of every h x w window of planes.
+
+    ``numpy.lib.stride_tricks.sliding_window_view`` over the last two axes, without its
+    argument handling (a gather ``view[k, r0, c0]`` then copies only the windows wanted).
+    """
+    k, rows, cols = planes.shape
+    h, w = size
+    s0, s1, s2 = planes.strides
+    return np.lib.stride_tricks.as_strided(
+        planes, (k, rows - h + 1, cols - w + 1, h, w), (s0, s1, s2, s1, s2), writeable=False
+    )
+
+
 def _boxes(x, y, sx, sy, radius, shape):
     """Bounding boxes (row0, row1, col0, col1) of the segments' capsules on the plane, (R, 4)."""
     rows, cols = shape
@@ -173,7 +187,7 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     reach_x, reach_y = np.abs(sx) + radius, np.abs(sy) + radius
     size = (min(math.ceil(2 * float(np.max(reach_y))) + 2, rows),
             min(math.ceil(2 * float(np.max(reach_x))) + 2, cols))  # fmt: skip
-    crops = np.lib.stride_tricks.sliding_window_view(planes, size, axis=(1, 2))
+    crops = windows_view(planes, size)
     # the capsule each centroid was taken over: its mask, columns and rows
     masks = np.zeros((n, *size), dtype=bool)
     cols_px, rows_px = np.zeros((n, size[1]), np.intp), np.zeros((n, size[0]), np.intp)

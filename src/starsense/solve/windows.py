@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from starsense.solve.streak_centroid import streak_centroid, streak_centroids
+from starsense.solve.streak_centroid import streak_centroid, streak_centroids, windows_view
 
 __all__ = [
     "WindowDetections",
@@ -187,7 +187,7 @@ def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
     r0 = np.clip(cy - half, 0, rows - h)
     c0 = np.clip(cx - half, 0, cols - w)
     # one gather from a strided view of every h x w window of the frame (no copy until here)
-    windows = np.lib.stride_tricks.sliding_window_view(image, (h, w))[r0, c0]
+    windows = windows_view(image[None], (h, w))[0, r0, c0]
     return windows.astype(np.float32), r0, c0
 
 
@@ -225,17 +225,18 @@ def _cogs(sub, p, boxes, margin):
     c = np.maximum(boxes[:, 2] - margin, 0)[:, None]
     d = np.minimum(boxes[:, 3] + margin, cols)[:, None]
     h, w = int(np.max(b - a)), int(np.max(d - c))
-    rr = np.minimum(a, rows - h) + np.arange(h)  # (L, h) rows of each crop
-    cc = np.minimum(c, cols - w) + np.arange(w)  # (L, w) columns
+    r0, c0 = np.minimum(a, rows - h), np.minimum(c, cols - w)  # (L, 1) first row, column
+    rr = r0 + np.arange(h)  # (L, h) rows of each crop
+    cc = c0 + np.arange(w)  # (L, w) columns
     keep = ((rr >= a) & (rr < b))[:, :, None] & ((cc >= c) & (cc < d))[:, None, :]
-    crop = sub[p[:, None, None], rr[:, :, None], cc[:, None, :]].astype(float)
+    crop = windows_view(sub, (h, w))[p, r0[:, 0], c0[:, 0]].astype(float)
     wt = np.where(keep, crop, 0.0)
     total = wt.sum(axis=(1, 2))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        x = np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)) / total
-        y = np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)) / total
-    bad = ~(total > 0)
-    x[bad], y[bad] = np.nan, np.nan
+    good = total > 0  # else NaN (an empty or negative region)
+    x = np.divide(np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)), total,
+                  out=np.full(len(p), np.nan), where=good)  # fmt: skip
+    y = np.divide(np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)), total,
+                  out=np.full(len(p), np.nan), where=good)  # fmt: skip
     return x, y
 
 
