@@ -77,13 +77,16 @@ class StarNoise:
         """Return the noise of the stars ``keep``."""
         return StarNoise(self.sensor, self.x[keep], self.y[keep], self.cov_px2[keep])
 
-    def attitude_covariance(self, body: np.ndarray) -> np.ndarray:
+    def attitude_covariance(self, body: np.ndarray, fisher_inv=None) -> np.ndarray:
         """Return the covariance of the weighted SVD attitude from these stars, rad^2 (3, 3).
 
         Parameters
         ----------
         body : ndarray, shape (N, 3)
             The stars' measured camera-frame unit vectors.
+        fisher_inv : ndarray, shape (3, 3), optional
+            ``F^-1`` of these stars and weights, rad^2, when already computed (the
+            ``covariance_rad2`` of :func:`fit_robust`'s solution).
         """
         h = 0.5
         x, y, n = self.x, self.y, len(self.x)
@@ -98,9 +101,11 @@ class StarNoise:
         skew = np.zeros((n, 3, 3))
         skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -body[:, 2], body[:, 1], -body[:, 0]
         skew -= np.transpose(skew, (0, 2, 1))
-        fisher = np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None, :])
         middle = np.einsum("i,iaj,iab,ibk->jk", w**2, skew, noise, skew)
-        inv = np.linalg.inv(fisher)
+        inv = fisher_inv
+        if inv is None:
+            fisher = np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None, :])
+            inv = np.linalg.inv(fisher)
         return inv @ middle @ inv
 
 

@@ -165,6 +165,7 @@ class _Setup:
     identifier: object
     field_r: float
     margin_px: int
+    corners: np.ndarray  # unit vectors of the field's corners, camera frame (4, 3)
 
 
 _SETUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -182,16 +183,28 @@ def _setup(solver) -> _Setup:
         field_r = math.atan(math.hypot(*(math.tan(h) for h in sensor.half_fov_rad)))
         margin = 2 if solver.background != "known" else solver._detector().margin_px
         ident = TrackingIdentifier(db, min_match_radius_rad=2.0 / sensor.focal_length_px)
-        got = _Setup(sensor, solver.background, db, ident, field_r, margin)
+        tx, ty = (math.tan(h) for h in sensor.half_fov_rad)
+        corners = np.array([[-tx, -ty, 1.0], [-tx, ty, 1.0], [tx, -ty, 1.0], [tx, ty, 1.0]])
+        corners /= math.sqrt(tx * tx + ty * ty + 1.0)
+        got = _Setup(sensor, solver.background, db, ident, field_r, margin, corners)
         _SETUPS[solver] = got
     return got
 
 
 def _half_turn(sensor, rate) -> np.ndarray | None:
-    """Return the rotation over half the exposure at the body rate, (3, 3); None at rest."""
+    """Return the rotation over half the exposure at the body rate, (3, 3); None at rest.
+
+    Rodrigues' formula for the rotation vector ``v = w t_e / 2`` (angle ``|v|``, axis ``k``):
+    ``R = I + sin|v| K + 2 sin^2(|v| / 2) K^2``, ``K`` the cross-product matrix of ``k``
+    (the matrix of ``Rotation.from_rotvec(v)`` to rounding, without building a Rotation).
+    """
     if rate is None or not np.any(rate):
         return None
-    return Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0).as_matrix()
+    v = np.asarray(rate, dtype=float) * (sensor.exposure_s / 2.0)
+    angle = math.sqrt(float(v @ v))
+    k1, k2, k3 = (v / angle).tolist()
+    kx = np.array([[0.0, -k3, k2], [k3, 0.0, -k1], [-k2, k1, 0.0]])
+    return np.eye(3) + math.sin(angle) * kx + 2.0 * math.sin(angle / 2) ** 2 * (kx @ kx)
 
 
 def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):
@@ -257,7 +270,8 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
                                                       half_turn)  # fmt: skip
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
-    longest = streak_px(sensor, rate)
+    # the longest streak: at a field corner (streak_px's default, corners computed once)
+    longest = 0.0 if half_turn is None else float(np.max(streak_px(sensor, rate, setup.corners)))
     reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
     centres = np.column_stack([x[on], y[on]])[:MAX_WINDOWS]
     found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
@@ -285,7 +299,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
                        half_turn=half_turn, margin_px=setup.margin_px)  # fmt: skip
     att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
     matched, cat_ids = matched[keep], cat_ids[keep]
-    covariance = noise.subset(keep).attitude_covariance(vectors[matched])
+    covariance = noise.subset(keep).attitude_covariance(vectors[matched], att.covariance_rad2)
     stages["match_ms"] = match.time_ms
     ra, dec, roll = radec_roll_from_attitude(att.rotation)
     where = f"{found.n_windows} windows" if found.n_windows else "the whole frame"
