@@ -79,7 +79,10 @@ class TrackingMatch:
     status : str
         One of :data:`TRACKING_STATUSES`.
     rotation : Rotation or None
-        Fitted attitude (ICRS -> camera) for "verified" and "unverified".
+        Fitted attitude (ICRS -> camera) for "verified" and "unverified" (built on access
+        from ``rotation_matrix``).
+    rotation_matrix : ndarray, shape (3, 3), or None
+        The same attitude as a matrix.
     detection_index, catalog_index : ndarray of int, shape (M,)
         Matched detections and their database stars (indices into ``database.vectors``).
     catalog_id : ndarray of int64, shape (M,)
@@ -98,7 +101,7 @@ class TrackingMatch:
     """
 
     status: str
-    rotation: Rotation | None = None
+    rotation_matrix: NDArray[np.float64] | None = field(default=None, repr=False)
     detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
     catalog_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
     catalog_id: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
@@ -110,6 +113,14 @@ class TrackingMatch:
     innovation_rad: float = math.nan
     time_ms: float = 0.0
     message: str = ""
+
+    @property
+    def rotation(self) -> Rotation | None:
+        """Fitted attitude (ICRS -> camera), or None."""
+        if self.rotation_matrix is None:
+            return None
+        # orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is not needed
+        return Rotation.from_matrix(self.rotation_matrix, assume_valid=True)
 
     @property
     def solved(self) -> bool:
@@ -270,7 +281,6 @@ class TrackingIdentifier:
                 break
         if not fitted:
             r, resid = _estimate_matrix(v[det], ref[star])
-        rot = Rotation.from_matrix(r, assume_valid=True)  # orthogonal: an SVD's U V^T
         # the fit's departure from the prior, as the displacement of a star at the field edge
         # (the measure of the search radius): cross-boresight plus roll x sin(field radius)
         d = _rotvec(r @ prior_matrix.T)
@@ -285,9 +295,9 @@ class TrackingIdentifier:
             return done("no_match", f"the fit is {innovation:.2e} rad from the prior, beyond "
                         f"the search radius {r_s:.2e} rad", **kw)  # fmt: skip
         if len(det) < 3:
-            return done("unverified", "2 stars matched (3 are needed to verify)", rotation=rot,
+            return done("unverified", "2 stars matched (3 are needed to verify)", rotation_matrix=r,
                         **kw)  # fmt: skip
         verified = p_false <= self.false_match_threshold
         status = "verified" if verified else "unverified"
         return done(status, f"{len(det)} of {len(v)} detections matched, P_false "
-                    f"{p_false:.1e}", rotation=rot, **kw)  # fmt: skip
+                    f"{p_false:.1e}", rotation_matrix=r, **kw)  # fmt: skip

@@ -211,6 +211,13 @@ def _levels(solver, stack: np.ndarray):
     return level, noise, threshold
 
 
+def _median_noise(solver, noise: np.ndarray) -> float:
+    """Median noise of the windows, counts (with a known background, the detector's own)."""
+    if solver.background == "known":  # every window has the same noise: that is the median
+        return float(noise[0])
+    return float(np.median(noise))
+
+
 def _cogs(sub, p, boxes, margin):
     """CoG of each region over its box plus the margin on its plane, px; NaN where empty.
 
@@ -292,7 +299,7 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     lit = sub > threshold[:, None, None]
     idx, lab, n = _lit_labels(lit, logic.connectivity)
     if n == 0:
-        return [], float(np.median(noise)), 0
+        return [], _median_noise(solver, noise), 0
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
     plane, extent, peak = _label_extents(idx, lab, sizes, stack.ravel()[idx], stack.shape)
@@ -320,7 +327,7 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
               float(peaks[k[i]]), (box[i, 0] + r0[p[i]], box[i, 1] + r0[p[i]],
                                    box[i, 2] + c0[p[i]], box[i, 3] + c0[p[i]]), spread[i])
              for i in fine.tolist()]  # fmt: skip
-    return found, float(np.median(noise)), n
+    return found, _median_noise(solver, noise), n
 
 
 def _detections(found, noise: float, n_candidates: int, saturation):
