@@ -171,12 +171,13 @@ def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
 
 
 def _svd_fit(body, ref, sigma):
-    """Weighted SVD attitude matrix (body ~ C ref) and the residual angles, rad.
+    """Weighted SVD attitude matrix (body ~ C ref), the residual angles, rad, and chords^2.
 
     The estimator of :class:`~starsense.attitude.svd.SvdEstimator` (Kabsch / Markley 1988:
     ``B = sum_i w_i b_i r_i^T = U S V^T``, ``C = U diag(1, 1, det U V^T) V^T``, weights
-    ``sigma^-2`` normalised to sum 1) and the residuals of
-    :func:`~starsense.attitude.solution.wahba_residuals`, on matrices: no Rotation per fit.
+    ``sigma^-2`` normalised to sum 1) and the residual angles of
+    :func:`~starsense.attitude.solution.wahba_residuals` (from the chord), on matrices: no
+    Rotation per fit.
     """
     w = sigma**-2.0
     w = w / w.sum()
@@ -184,13 +185,11 @@ def _svd_fit(body, ref, sigma):
     if np.linalg.det(u @ vh) < 0:  # an improper rotation: flip the last axis
         u[:, -1] = -u[:, -1]
     c = u @ vh
-    pred = ref @ c.T
-    cross = np.stack([body[:, 1] * pred[:, 2] - body[:, 2] * pred[:, 1],
-                      body[:, 2] * pred[:, 0] - body[:, 0] * pred[:, 2],
-                      body[:, 0] * pred[:, 1] - body[:, 1] * pred[:, 0]], axis=1)  # fmt: skip
-    resid = np.arctan2(np.sqrt(np.einsum("ij,ij->i", cross, cross)),
-                       np.einsum("ij,ij->i", body, pred))  # fmt: skip
-    return c, resid, pred
+    d = body - ref @ c.T
+    chord2 = np.einsum("ij,ij->i", d, d)
+    # the angle from the chord, 2 asin(|b - C r| / 2): as accurate as atan2(|b x Cr|, b . Cr)
+    resid = 2.0 * np.arcsin(np.minimum(np.sqrt(chord2) / 2.0, 1.0))
+    return c, resid, chord2
 
 
 def fit_robust(body, ref, sigma):
@@ -222,17 +221,16 @@ def fit_robust(body, ref, sigma):
     # subset dropped to is checked again at the end)
     cov = fisher_covariance(body, sigma)
     keep = np.arange(len(body))
-    c, resid, pred = _svd_fit(body, ref, sigma)
+    c, resid, chord2 = _svd_fit(body, ref, sigma)
     while len(keep) > 3:
         z = resid / sigma[keep]
         worst = int(np.argmax(z))
         if z[worst] <= OUTLIER_SIGMA:
             break
         keep = np.delete(keep, worst)
-        c, resid, pred = _svd_fit(body[keep], ref[keep], sigma[keep])
+        c, resid, chord2 = _svd_fit(body[keep], ref[keep], sigma[keep])
     if len(keep) < len(body):
         cov = fisher_covariance(body[keep], sigma[keep])
-    chord2 = np.sum((body[keep] - pred) ** 2, axis=1)
     att = AttitudeSolution(
         # c is orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped
         rotation=Rotation.from_matrix(c, assume_valid=True), covariance_rad2=cov,

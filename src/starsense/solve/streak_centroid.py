@@ -135,16 +135,16 @@ def _capsules(x, y, sx, sy, length2, radius, r0, c0, size):
     return t <= radius * radius, px, py
 
 
-def _origins(x, y, reach_x, reach_y, size, shape):
-    """First row and column of the crop of ``size`` holding each capsule's box, (L,) each.
+def _origins(y_x, reach, limit):
+    """First row and column of the crop of a given size holding each capsule's box, (L,) each.
 
-    A box (:func:`_boxes`) starts at ``floor(c - reach)`` (cut at 0) and spans at most
-    ``ceil(2 reach) + 2`` px, which ``size`` covers: the crop starts with the box, or ends
-    with the plane when the box reaches its far edge.
+    ``y_x`` (2, L) are the centres (rows, columns), ``reach`` (2, L) the capsules' half-spans
+    and ``limit`` (2, 1) the plane's size less the crop's. A box (:func:`_boxes`) starts at
+    ``floor(c - reach)`` (cut at 0) and spans at most ``ceil(2 reach) + 2`` px, which the crop
+    covers: the crop starts with the box, or ends with the plane when the box reaches its far
+    edge.
     """
-    r0 = np.minimum(np.maximum(np.floor(y - reach_y), 0), shape[0] - size[0]).astype(np.intp)
-    c0 = np.minimum(np.maximum(np.floor(x - reach_x), 0), shape[1] - size[1]).astype(np.intp)
-    return r0, c0
+    return np.minimum(np.maximum(np.floor(y_x - reach), 0), limit).astype(np.intp)
 
 
 def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
@@ -191,12 +191,17 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     # the capsule each centroid was taken over: its mask, columns and rows
     masks = np.zeros((n, *size), dtype=bool)
     cols_px, rows_px = np.zeros((n, size[1]), np.intp), np.zeros((n, size[0]), np.intp)
+    reach = np.stack([reach_y, reach_x])
+    limit = np.array([[rows - size[0]], [cols - size[1]]])
     live = np.arange(n)
     for _ in range(6):
         xl, yl = x[live], y[live]
-        r0, c0 = _origins(xl, yl, reach_x[live], reach_y[live], size, (rows, cols))
-        inside, px, py = _capsules(xl, yl, sx[live], sy[live], length2[live], radius, r0, c0,
-                                   size)  # fmt: skip
+        if len(live) == n:  # every region still moves: no selection of the constants
+            sxl, syl, l2, rch = sx, sy, length2, reach
+        else:
+            sxl, syl, l2, rch = sx[live], sy[live], length2[live], reach[:, live]
+        r0, c0 = _origins(np.stack([yl, xl]), rch, limit)
+        inside, px, py = _capsules(xl, yl, sxl, syl, l2, radius, r0, c0, size)
         # a capsule off its plane holds no pixel: no total, the region stops (as alone)
         wt = np.where(inside, crops[live, r0, c0], 0.0)
         tot = wt.sum(axis=(1, 2)).astype(float)

@@ -61,13 +61,20 @@ def _half_turn(sensor, rate) -> np.ndarray | None:
     ``R = I + sin|v| K + 2 sin^2(|v| / 2) K^2``, ``K`` the cross-product matrix of ``k``
     (the matrix of ``Rotation.from_rotvec(v)`` to rounding, without building a Rotation).
     """
-    if rate is None or not np.any(rate):
+    if rate is None:
         return None
-    v = np.asarray(rate, dtype=float) * (sensor.exposure_s / 2.0)
-    angle = math.sqrt(float(v @ v))
-    k1, k2, k3 = (v / angle).tolist()
-    kx = np.array([[0.0, -k3, k2], [k3, 0.0, -k1], [-k2, k1, 0.0]])
-    return np.eye(3) + math.sin(angle) * kx + 2.0 * math.sin(angle / 2) ** 2 * (kx @ kx)
+    half = sensor.exposure_s / 2.0
+    v1, v2, v3 = (float(r) * half for r in np.asarray(rate, dtype=float).reshape(3))
+    angle = math.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
+    if angle == 0.0:
+        return None
+    k1, k2, k3 = v1 / angle, v2 / angle, v3 / angle
+    s, c = math.sin(angle), 2.0 * math.sin(angle / 2) ** 2  # c = 1 - cos(angle)
+    return np.array([
+        [1.0 - c * (k2 * k2 + k3 * k3), c * k1 * k2 - s * k3, c * k1 * k3 + s * k2],
+        [c * k1 * k2 + s * k3, 1.0 - c * (k1 * k1 + k3 * k3), c * k2 * k3 - s * k1],
+        [c * k1 * k3 - s * k2, c * k2 * k3 + s * k1, 1.0 - c * (k1 * k1 + k2 * k2)],
+    ])  # fmt: skip
 
 
 def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):
