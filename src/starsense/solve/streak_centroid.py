@@ -15,6 +15,9 @@ import numpy as np
 
 __all__ = ["streak_centroid", "streak_centroids"]
 
+#: 0, 1, 2, ...: the rows and columns of a crop (larger crops make their own)
+_ARANGE = np.arange(4096)
+
 
 def _segment_mask(shape, x, y, streak, radius):
     """Pixels of ``shape`` within ``radius`` px of the segment centred on (x, y), its box."""
@@ -113,16 +116,17 @@ def _capsules(x, y, sx, sy, length2, radius, r0, c0, size):
 
     The crops are ``size`` (h, w) px from rows ``r0`` and columns ``c0`` (L,), each holding
     the capsule's bounding box. Returns the mask (L, h, w) and the crops' columns (L, w) and
-    rows (L, h), px (int).
+    rows (L, h), px (int). ``sx``, ``sy`` and ``length2`` are shaped (L, 1, 1).
     """
-    py = r0[:, None] + np.arange(size[0])
-    px = c0[:, None] + np.arange(size[1])
-    ax = px[:, None, :] - (x - sx)[:, None, None]
-    ay = py[:, :, None] - (y - sy)[:, None, None]
-    a2x, a2y = (2 * sx)[:, None, None], (2 * sy)[:, None, None]
+    ar = _ARANGE if max(size) <= len(_ARANGE) else np.arange(max(size))
+    py = r0[:, None] + ar[: size[0]]
+    px = c0[:, None] + ar[: size[1]]
+    ax = px[:, None, :] - (x[:, None, None] - sx)
+    ay = py[:, :, None] - (y[:, None, None] - sy)
+    a2x, a2y = 2 * sx, 2 * sy
     # t = (a . a2) / |a2|^2 clamped to the segment; then |a - t a2|^2 (in place: no temporaries)
     t = ax * a2x + ay * a2y
-    t /= length2[:, None, None]
+    t /= length2
     np.maximum(t, 0.0, out=t)
     np.minimum(t, 1.0, out=t)
     ex = t * a2x
@@ -191,16 +195,18 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     # the capsule each centroid was taken over: its mask, columns and rows
     masks = np.zeros((n, *size), dtype=bool)
     cols_px, rows_px = np.zeros((n, size[1]), np.intp), np.zeros((n, size[0]), np.intp)
-    reach = np.stack([reach_y, reach_x])
+    reach = np.array([reach_y, reach_x])
     limit = np.array([[rows - size[0]], [cols - size[1]]])
+    sx3, sy3, l3 = sx[:, None, None], sy[:, None, None], length2[:, None, None]
+    y_x = np.array([y, x])  # where each capsule is centred: rows, columns
     live = np.arange(n)
     for _ in range(6):
-        xl, yl = x[live], y[live]
         if len(live) == n:  # every region still moves: no selection of the constants
-            sxl, syl, l2, rch = sx, sy, length2, reach
+            yx, sxl, syl, l2, rch = y_x.copy(), sx3, sy3, l3, reach
         else:
-            sxl, syl, l2, rch = sx[live], sy[live], length2[live], reach[:, live]
-        r0, c0 = _origins(np.stack([yl, xl]), rch, limit)
+            yx, sxl, syl, l2, rch = y_x[:, live], sx3[live], sy3[live], l3[live], reach[:, live]
+        yl, xl = yx
+        r0, c0 = _origins(yx, rch, limit)
         inside, px, py = _capsules(xl, yl, sxl, syl, l2, radius, r0, c0, size)
         # a capsule off its plane holds no pixel: no total, the region stops (as alone)
         wt = np.where(inside, crops[live, r0, c0], 0.0)
@@ -217,11 +223,11 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
         out_x[live], out_y[live], total[live] = nx, ny, tot
         last_x[live], last_y[live] = xl, yl
         masks[live], cols_px[live], rows_px[live] = inside[good] if cut else inside, px, py
-        x[live], y[live] = nx, ny
+        y_x[0, live], y_x[1, live] = ny, nx
         live = live[np.hypot(nx - xl, ny - yl) >= 0.01]
         if len(live) == 0:
             break
-    done = np.flatnonzero(np.isfinite(out_x))
+    done = np.isfinite(out_x).nonzero()[0]
     if len(done):  # the spread about the centroid over the capsule it was taken from
         boxes[done] = _boxes(last_x[done], last_y[done], sx[done], sy[done], radius,
                              (rows, cols))  # fmt: skip

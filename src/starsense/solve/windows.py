@@ -34,7 +34,6 @@ __all__ = [
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
-_CORNER_SIGNS = np.array([1, -1, -1, 1])
 #: scipy's 2-D structuring elements, 8- and 4-connected (indexed by ``connectivity == 4``).
 _STRUCTURES = (ndimage.generate_binary_structure(2, 2), ndimage.generate_binary_structure(2, 1))
 
@@ -80,15 +79,28 @@ def union_area(boxes: np.ndarray) -> int:
     boxes = np.asarray(boxes, dtype=int)
     if len(boxes) == 0:
         return 0
-    rows = np.unique(boxes[:, :2])
-    cols = np.unique(boxes[:, 2:])
-    i0, i1 = np.searchsorted(rows, boxes[:, 0]), np.searchsorted(rows, boxes[:, 1])
-    j0, j1 = np.searchsorted(cols, boxes[:, 2]), np.searchsorted(cols, boxes[:, 3])
-    flat = np.concatenate([i0, i0, i1, i1]) * len(cols) + np.concatenate([j0, j1, j0, j1])
-    sign = np.repeat(_CORNER_SIGNS, len(boxes))
-    corners = np.bincount(flat, sign, len(rows) * len(cols)).reshape(len(rows), len(cols))
-    covered = np.cumsum(np.cumsum(corners, axis=0), axis=1)[:-1, :-1] > 0
-    return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
+    rows, cols = _edges(boxes[:, :2]), _edges(boxes[:, 2:])
+    i, j = rows.searchsorted(boxes[:, :2]), cols.searchsorted(boxes[:, 2:])
+    # the corners (i0, j0) and (i1, j1) count +1, (i0, j1) and (i1, j0) -1
+    n = len(rows) * len(cols)
+    plus = (i * len(cols) + j).ravel()
+    minus = (i * len(cols) + j[:, ::-1]).ravel()
+    corners = (np.bincount(plus, minlength=n) - np.bincount(minus, minlength=n)).reshape(
+        len(rows), len(cols)
+    )
+    covered = corners.cumsum(axis=0).cumsum(axis=1)[:-1, :-1] > 0
+    area = (rows[1:] - rows[:-1])[:, None] * (cols[1:] - cols[:-1])[None, :]
+    return int((covered * area).sum())
+
+
+def _edges(values: np.ndarray) -> np.ndarray:
+    """Return the distinct values, ascending (``np.unique`` without its overheads)."""
+    v = values.flatten()  # a copy, sorted in place
+    v.sort()
+    first = np.empty(len(v), bool)
+    first[0] = True
+    np.not_equal(v[1:], v[:-1], out=first[1:])
+    return v[first]
 
 
 def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
@@ -299,7 +311,7 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     lit = sub > threshold[:, None, None]
     idx, lab, n = _lit_labels(lit, logic.connectivity)
     if n == 0:
-        return [], _median_noise(solver, noise), 0
+        return _NO_ROWS, _median_noise(solver, noise), 0
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
     plane, extent, peak = _label_extents(idx, lab, sizes, stack.ravel()[idx], stack.shape)
@@ -323,32 +335,43 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     else:
         off = np.zeros(len(k), bool)
     fine = np.flatnonzero(np.isfinite(x) & ~off)
-    found = [(float(x[i] + c0[p[i]]), float(y[i] + r0[p[i]]), counts[i], sizes[k[i]],
-              float(peaks[k[i]]), (box[i, 0] + r0[p[i]], box[i, 1] + r0[p[i]],
-                                   box[i, 2] + c0[p[i]], box[i, 3] + c0[p[i]]), spread[i])
-             for i in fine.tolist()]  # fmt: skip
-    return found, _median_noise(solver, noise), n
+    pf, kf = p[fine], k[fine]
+    offset = np.stack([r0[pf], r0[pf], c0[pf], c0[pf]], axis=1)  # window -> frame
+    rows = (x[fine] + c0[pf], y[fine] + r0[pf], counts[fine], sizes[kf], peaks[kf],
+            box[fine] + offset, spread[fine])  # fmt: skip
+    return rows, _median_noise(solver, noise), n
 
 
-def _detections(found, noise: float, n_candidates: int, saturation):
+#: No detection rows: x, y, counts, pixels, peak, box (row0, row1, col0, col1), spread.
+_NO_ROWS = (np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), np.zeros(0),
+            np.zeros((0, 4), int), np.zeros((0, 2, 2)))  # fmt: skip
+
+
+def _detections(rows, noise: float, n_candidates: int, saturation):
     """Build Detections from :func:`_detect_stack` rows: brightest first, one per 2 px."""
     from starsense.detect.threshold import Detections
 
-    found = sorted(found, key=lambda row: -row[2])
-    keep: list = []
-    for row in found:  # overlapping windows and pieces of one streak give the same centre
-        if all(math.hypot(row[0] - k[0], row[1] - k[1]) >= 2.0 for k in keep):
-            keep.append(row)
-    cols = list(zip(*keep, strict=True)) if keep else [()] * 7
-    peak = np.asarray(cols[4], dtype=float)
+    x, y, counts, n_pixels, peak, box, spread = rows
+    order = np.argsort(-counts, kind="stable")
+    xs, ys = x[order].tolist(), y[order].tolist()
+    keep: list[int] = []
+    for i in range(len(xs)):  # overlapping windows and pieces of one streak: the same centre
+        xi, yi = xs[i], ys[i]
+        for j in keep:
+            if not math.hypot(xi - xs[j], yi - ys[j]) >= 2.0:
+                break
+        else:
+            keep.append(i)
+    sel = order[keep]
+    peak = peak[sel].astype(float)
     return Detections(
-        x=np.asarray(cols[0], dtype=float), y=np.asarray(cols[1], dtype=float),
-        integrated_counts=np.asarray(cols[2], dtype=float),
-        n_pixels=np.asarray(cols[3], dtype=int), peak_counts=peak,
-        saturated=peak >= saturation if saturation is not None else np.zeros(len(keep), bool),
-        bbox=np.asarray(cols[5], dtype=int).reshape(-1, 4), fit_ok=np.ones(len(keep), bool),
+        x=x[sel].astype(float), y=y[sel].astype(float),
+        integrated_counts=counts[sel].astype(float), n_pixels=n_pixels[sel].astype(int),
+        peak_counts=peak,
+        saturated=peak >= saturation if saturation is not None else np.zeros(len(sel), bool),
+        bbox=box[sel].astype(int).reshape(-1, 4), fit_ok=np.ones(len(sel), bool),
         n_candidates=int(n_candidates), noise_counts=noise, method="cog",
-        extra={"spread_px2": np.asarray(cols[6], dtype=float).reshape(-1, 2, 2)},
+        extra={"spread_px2": spread[sel].astype(float).reshape(-1, 2, 2)},
     )  # fmt: skip
 
 
