@@ -45,6 +45,7 @@ __all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch"]
 TRACKING_STATUSES = ("verified", "unverified", "too_few_stars", "ambiguous", "no_match")
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
+_ARANGE = np.arange(1024)
 
 
 def _chord(angle_rad: float) -> float:
@@ -180,24 +181,25 @@ class TrackingIdentifier:
             return _EMPTY_INT, _EMPTY_INT, 0
         n = len(vectors)
         diff = vectors[:, None, :] - cam[None, :, :]
-        d2 = np.einsum("ijk,ijk->ij", diff, diff)  # (N, M) squared chords
-        rows = np.arange(n)
-        first = np.argmin(d2, axis=1)
+        d2 = (diff * diff).sum(axis=2)  # (N, M) squared chords
+        rows = _ARANGE[:n] if n <= len(_ARANGE) else np.arange(n)
+        first = d2.argmin(axis=1)
         d1 = d2[rows, first]
         bound2 = _chord(radius) ** 2
         found = d1 < bound2
-        clear = np.ones(n, bool)
         if m > 1:
             d2[rows, first] = np.inf
-            second = d2[rows, np.argmin(d2, axis=1)]
-            near2 = second < bound2  # a second star within the search radius
-            clear = ~near2 | (np.sqrt(second) >= self.ambiguity_ratio * np.sqrt(d1))
-        det = np.flatnonzero(found & clear)
+            second = d2[rows, d2.argmin(axis=1)]
+            # clear: no second star within the search radius, or one much farther
+            clear = (second >= bound2) | (np.sqrt(second) >= self.ambiguity_ratio * np.sqrt(d1))
+        else:
+            clear = np.ones(n, bool)
+        det = (found & clear).nonzero()[0]
         star = first[det]
-        n_amb = int(np.sum(found & ~clear))
+        n_amb = int((found & ~clear).sum())
         counts = np.bincount(star, minlength=m)
         unique = counts[star] == 1
-        n_amb += int(np.sum(~unique))
+        n_amb += len(unique) - int(unique.sum())
         return det[unique].astype(np.int64), star[unique].astype(np.int64), n_amb
 
     def __call__(
@@ -288,8 +290,9 @@ class TrackingIdentifier:
         cat = near[star]
         p_single = region[1] * math.pi * radius**2 / max(region[0], 1e-30)
         p_false = false_match_probability(len(v), len(det), 2, p_single)
+        rms = math.sqrt(float(resid @ resid) / len(resid))
         kw = {"detection_index": det, "catalog_index": cat, "catalog_id": db.ids[cat],
-              "residual_rms_rad": float(np.sqrt(np.mean(resid**2))), "n_ambiguous": n_amb,
+              "residual_rms_rad": rms, "n_ambiguous": n_amb,
               "false_match_probability": p_false, "innovation_rad": innovation}  # fmt: skip
         if innovation > r_s:
             return done("no_match", f"the fit is {innovation:.2e} rad from the prior, beyond "

@@ -213,7 +213,8 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         fov_rad=2.0 * sensor.half_fov_rad[0], n_detections=len(det),
         n_matched=len(matched), rmse_rad=float(att.residual_rms_rad),
         false_match_probability=float(match.false_match_probability),
-        sigma_rad=tuple(float(s) for s in np.sqrt(np.diag(covariance))), time_ms=0.0,
+        sigma_rad=tuple(float(s) for s in np.sqrt(np.diag(covariance))),
+        time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
         rotation=att.rotation,
         matches=tuple((int(d), int(c)) for d, c in zip(matched, cat_ids, strict=True)),
@@ -258,7 +259,7 @@ def track_frame(solver, image, prior: Prior | None) -> TrackSolution:
             rate = candidate.rate_rad_s
             out, reason = _track_core(solver, image, rot_pred, cov_pred, rate, t0)
             if out is not None and out[0].status == "solved":
-                return TrackSolution(_done(out[0], t0), "tracking", out[1])
+                return TrackSolution(out[0], "tracking", out[1])  # timed from t0 in the core
         unverified = out
         reason = reason or "tracking unverified: " + out[0].message
     else:
