@@ -191,7 +191,10 @@ def _label(lit: np.ndarray, connectivity: int):
 
 
 def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
-    """Square windows (K, h, w) around the centres, moved inside the frame; their corners."""
+    """Square windows (K, h, w) around the centres, moved inside the frame; their corners.
+
+    The windows keep the frame's type (counts as read).
+    """
     rows, cols = image.shape
     h, w = min(2 * half + 1, rows), min(2 * half + 1, cols)
     cx = np.rint(centres_px[:, 0]).astype(int)
@@ -200,7 +203,7 @@ def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
     c0 = np.clip(cx - half, 0, cols - w)
     # one gather from a strided view of every h x w window of the frame (no copy until here)
     windows = windows_view(image[None], (h, w))[0, r0, c0]
-    return windows.astype(np.float32), r0, c0
+    return windows, r0, c0
 
 
 def _levels(solver, stack: np.ndarray):
@@ -221,6 +224,19 @@ def _levels(solver, stack: np.ndarray):
     noise = 1.4826 * np.median(np.abs(border - level[:, None]), axis=1)
     threshold = np.maximum(float(logic.lit_pixel_counts), solver.threshold_sigma * noise)
     return level, noise, threshold
+
+
+def _below(threshold: np.ndarray) -> np.ndarray:
+    """Return the largest float32 at most each threshold (float64), shape (K,).
+
+    For float32 ``x``, ``x > t`` equals ``x > _below(t)``: comparing float32 counts with
+    float32 thresholds, not float64 ones, halves the work.
+    """
+    t32 = threshold.astype(np.float32)
+    up = t32 > threshold
+    if up.any():
+        t32[up] = np.nextafter(t32[up], np.float32(-np.inf))
+    return t32
 
 
 def _median_noise(solver, noise: np.ndarray) -> float:
@@ -306,15 +322,19 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     region's box plus a 2 px margin, as the full-frame detector does.
     """
     logic = solver.logic
+    if solver.background != "known":  # the border statistics in float32, as the frame's
+        stack = stack.astype(np.float32)
     level, noise, threshold = _levels(solver, stack)
-    sub = stack - level[:, None, None].astype(np.float32)
-    lit = sub > threshold[:, None, None]
+    # counts less the level in float32 (the frame's integer counts are exact in it)
+    sub = np.subtract(stack, level[:, None, None].astype(np.float32), dtype=np.float32)
+    lit = sub > _below(threshold)[:, None, None]
     idx, lab, n = _lit_labels(lit, logic.connectivity)
     if n == 0:
         return _NO_ROWS, _median_noise(solver, noise), 0
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
-    plane, extent, peak = _label_extents(idx, lab, sizes, stack.ravel()[idx], stack.shape)
+    values = stack.ravel()[idx].astype(np.float32)
+    plane, extent, peak = _label_extents(idx, lab, sizes, values, stack.shape)
     peaks = np.concatenate([[-np.inf], peak])
     ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
     k, p, box = _regions(plane, extent, ok, r0, c0, shape, stack.shape[1:])
@@ -323,18 +343,19 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     counts, spread = sums[k].astype(float), np.full((len(k), 2, 2), np.nan)
     if streaks is not None and len(k):
         st = np.asarray(streaks, dtype=float)[p]
-        use = np.flatnonzero((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x))
+        use = ((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x)).nonzero()[0]
         gx, gy, gc, gb, gs = streak_centroids(sub[p[use]], x[use], y[use], st[use],
                                               2.5 * sigma + 1.0)  # fmt: skip
-        got = use[np.isfinite(gx)]
-        x[got], y[got], counts[got] = gx[np.isfinite(gx)], gy[np.isfinite(gx)], gc[np.isfinite(gx)]
-        box[got], spread[got] = gb[np.isfinite(gx)], gs[np.isfinite(gx)]
+        fin = np.isfinite(gx)
+        got = use[fin]
+        x[got], y[got], counts[got] = gx[fin], gy[fin], gc[fin]
+        box[got], spread[got] = gb[fin], gs[fin]
         # a streak running off the frame: its centroid is pulled inwards
         off = np.zeros(len(k), bool)
         off[got] = ~_inside(x[got] + c0[p[got]], y[got] + r0[p[got]], st[got], sigma, shape)
     else:
         off = np.zeros(len(k), bool)
-    fine = np.flatnonzero(np.isfinite(x) & ~off)
+    fine = (np.isfinite(x) & ~off).nonzero()[0]
     pf, kf = p[fine], k[fine]
     offset = np.stack([r0[pf], r0[pf], c0[pf], c0[pf]], axis=1)  # window -> frame
     rows = (x[fine] + c0[pf], y[fine] + r0[pf], counts[fine], sizes[kf], peaks[kf],
