@@ -28,6 +28,8 @@ import numpy as np
 
 __all__ = ["OUTLIER_SIGMA", "StarNoise", "cog_sigma_px", "fit_robust", "star_noise"]
 
+_EYE2 = np.eye(2)
+
 #: A star whose residual exceeds this many of its own sigmas is dropped from the fit (a 2-D
 #: residual goes past 4 sigma by chance with probability exp(-8) = 3e-4)
 OUTLIER_SIGMA = 4.0
@@ -95,12 +97,13 @@ class StarNoise:
                                   np.concatenate([y, y, y + h, y - h]))  # fmt: skip
         gx = (v[:n] - v[n : 2 * n]) / (2 * h)
         gy = (v[2 * n : 3 * n] - v[3 * n :]) / (2 * h)
-        g = np.stack([gx, gy], axis=2)
-        noise = g @ self.cov_px2 @ np.transpose(g, (0, 2, 1))  # (N, 3, 3)
+        g = np.empty((n, 3, 2))
+        g[:, :, 0], g[:, :, 1] = gx, gy
+        noise = g @ self.cov_px2 @ g.transpose(0, 2, 1)  # (N, 3, 3)
         w = 1.0 / self.sigma_rad**2
         skew = np.zeros((n, 3, 3))
         skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -body[:, 2], body[:, 1], -body[:, 0]
-        skew -= np.transpose(skew, (0, 2, 1))
+        skew -= skew.transpose(0, 2, 1)
         middle = np.einsum("i,iaj,iab,ibk->jk", w**2, skew, noise, skew)
         inv = fisher_inv
         if inv is None:
@@ -137,9 +140,10 @@ def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
     sensor = solver.sensor
     x, y = det.x[matched], det.y[matched]
     n = len(matched)
-    eye = np.broadcast_to(np.eye(2), (n, 2, 2))
+    eye = _EYE2  # broadcast over the stars
     if solver.centroid_sigma_px != "snr":
-        return StarNoise(sensor, x, y, float(solver.centroid_sigma_px) ** 2 * eye)
+        var = np.full((n, 1, 1), float(solver.centroid_sigma_px) ** 2)
+        return StarNoise(sensor, x, y, var * eye)
     detector = sensor.detector
     margin = margin_px
     if margin is None:
@@ -149,8 +153,7 @@ def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
     spread = np.full((n, 2, 2), np.nan) if spread is None else spread[matched]
     n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1.0)
     along = np.isfinite(spread[:, 0, 0])  # centroided over the streak's own window
-    cov = np.array(cov)
-    cov[along] = (detector.psf_sigma_px**2 / n_e)[along, None, None] * eye[along] + (
+    cov[along] = (detector.psf_sigma_px**2 / n_e)[along, None, None] * eye + (
         detector.read_noise_e**2 / n_e**2
     )[along, None, None] * spread[along]
     if rate is None or not np.any(rate):

@@ -86,7 +86,7 @@ def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):
     """
     r = rot.as_matrix()
     centre = r[2]  # the boresight in ICRS: R^T z
-    near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2)))
+    near = db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2), return_sorted=True)
     near = np.asarray(near, dtype=np.intp)
     cam = db.vectors[near] @ r.T
     n = len(near)
