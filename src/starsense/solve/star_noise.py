@@ -173,6 +173,12 @@ def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
     return StarNoise(sensor, x, y, cov)
 
 
+def _det3(m: np.ndarray) -> float:
+    """Return the determinant of a 3 x 3 matrix (cofactors: here +-1, an orthogonal matrix)."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
 def _svd_fit(body, ref, sigma):
     """Weighted SVD attitude matrix (body ~ C ref), the residual angles, rad, and chords^2.
 
@@ -185,9 +191,10 @@ def _svd_fit(body, ref, sigma):
     w = sigma**-2.0
     w = w / w.sum()
     u, _, vh = np.linalg.svd((w[:, None] * body).T @ ref)
-    if np.linalg.det(u @ vh) < 0:  # an improper rotation: flip the last axis
-        u[:, -1] = -u[:, -1]
     c = u @ vh
+    if _det3(c) < 0:  # an improper rotation (det -1): flip the last axis
+        u[:, -1] = -u[:, -1]
+        c = u @ vh
     d = body - ref @ c.T
     chord2 = np.einsum("ij,ij->i", d, d)
     # the angle from the chord, 2 asin(|b - C r| / 2): as accurate as atan2(|b x Cr|, b . Cr)

@@ -19,6 +19,11 @@ __all__ = ["streak_centroid", "streak_centroids"]
 _ARANGE = np.arange(4096)
 
 
+def _arange(n: int) -> np.ndarray:
+    """Return ``np.arange(n)`` (a slice of a kept one up to 4096)."""
+    return _ARANGE[:n] if n <= len(_ARANGE) else np.arange(n)
+
+
 def _segment_mask(shape, x, y, streak, radius):
     """Pixels of ``shape`` within ``radius`` px of the segment centred on (x, y), its box."""
     sx, sy = 0.5 * float(streak[0]), 0.5 * float(streak[1])
@@ -118,9 +123,8 @@ def _capsules(x, y, sx, sy, length2, radius, r0, c0, size):
     the capsule's bounding box. Returns the mask (L, h, w) and the crops' columns (L, w) and
     rows (L, h), px (int). ``sx``, ``sy`` and ``length2`` are shaped (L, 1, 1).
     """
-    ar = _ARANGE if max(size) <= len(_ARANGE) else np.arange(max(size))
-    py = r0[:, None] + ar[: size[0]]
-    px = c0[:, None] + ar[: size[1]]
+    py = r0[:, None] + _arange(size[0])
+    px = c0[:, None] + _arange(size[1])
     ax = px[:, None, :] - (x[:, None, None] - sx)
     ay = py[:, :, None] - (y[:, None, None] - sy)
     a2x, a2y = 2 * sx, 2 * sy
