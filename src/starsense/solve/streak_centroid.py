@@ -16,12 +16,13 @@ import numpy as np
 __all__ = ["streak_centroid", "streak_centroids"]
 
 #: 0, 1, 2, ...: the rows and columns of a crop (larger crops make their own)
-_ARANGE = np.arange(4096)
+_ARANGE = {int: np.arange(4096), float: np.arange(4096.0)}
 
 
-def _arange(n: int) -> np.ndarray:
-    """Return ``np.arange(n)`` (a slice of a kept one up to 4096)."""
-    return _ARANGE[:n] if n <= len(_ARANGE) else np.arange(n)
+def _arange(n: int, dtype=int) -> np.ndarray:
+    """Return ``np.arange(n)`` of int or float (a slice of a kept one up to 4096)."""
+    kept = _ARANGE[dtype]
+    return kept[:n] if n <= len(kept) else np.arange(n, dtype=dtype)
 
 
 def _segment_mask(shape, x, y, streak, radius):
@@ -121,10 +122,11 @@ def _capsules(x, y, sx, sy, length2, radius, r0, c0, size):
 
     The crops are ``size`` (h, w) px from rows ``r0`` and columns ``c0`` (L,), each holding
     the capsule's bounding box. Returns the mask (L, h, w) and the crops' columns (L, w) and
-    rows (L, h), px (int). ``sx``, ``sy`` and ``length2`` are shaped (L, 1, 1).
+    rows (L, h), px (whole numbers, as floats). ``sx``, ``sy`` and ``length2`` are shaped
+    (L, 1, 1).
     """
-    py = r0[:, None] + _arange(size[0])
-    px = c0[:, None] + _arange(size[1])
+    py = r0[:, None] + _arange(size[0], float)  # float: exact pixel indices
+    px = c0[:, None] + _arange(size[1], float)
     ax = px[:, None, :] - (x[:, None, None] - sx)
     ay = py[:, :, None] - (y[:, None, None] - sy)
     a2x, a2y = 2 * sx, 2 * sy
@@ -198,7 +200,7 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     crops = windows_view(planes, size)
     # the capsule each centroid was taken over: its mask, columns and rows
     masks = np.zeros((n, *size), dtype=bool)
-    cols_px, rows_px = np.zeros((n, size[1]), np.intp), np.zeros((n, size[0]), np.intp)
+    cols_px, rows_px = np.zeros((n, size[1])), np.zeros((n, size[0]))
     reach = np.array([reach_y, reach_x])
     limit = np.array([[rows - size[0]], [cols - size[1]]])
     sx3, sy3, l3 = sx[:, None, None], sy[:, None, None], length2[:, None, None]
@@ -214,7 +216,7 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
         inside, px, py = _capsules(xl, yl, sxl, syl, l2, radius, r0, c0, size)
         # a capsule off its plane holds no pixel: no total, the region stops (as alone)
         wt = np.where(inside, crops[live, r0, c0], 0.0)
-        tot = wt.sum(axis=(1, 2)).astype(float)
+        tot = np.add.reduce(wt, axis=(1, 2)).astype(float)  # wt.sum, without its wrapper
         good = tot > 0
         cut = not good.all()
         if cut:
@@ -222,8 +224,8 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
             px, py = px[good], py[good]
         if len(live) == 0:
             break
-        nx = np.einsum("kj,kj->k", wt.sum(axis=1), px.astype(float)) / tot
-        ny = np.einsum("ki,ki->k", wt.sum(axis=2), py.astype(float)) / tot
+        nx = np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), px) / tot
+        ny = np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), py) / tot
         out_x[live], out_y[live], total[live] = nx, ny, tot
         last_x[live], last_y[live] = xl, yl
         masks[live], cols_px[live], rows_px[live] = inside[good] if cut else inside, px, py
