@@ -52,6 +52,11 @@ def _chord(angle_rad: float) -> float:
     return 2.0 * math.sin(min(angle_rad, math.pi) / 2.0)
 
 
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.array_equal`` of two 1-D integer arrays, without its overheads."""
+    return len(a) == len(b) and bool((a == b).all())
+
+
 def _median(values: np.ndarray) -> float:
     """``np.median`` of a 1-D array (the middle value, or the mean of the middle two)."""
     s = np.sort(values)
@@ -277,7 +282,7 @@ class TrackingIdentifier:
             det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
             if len(det_new) < 2:
                 break
-            fitted = np.array_equal(det_new, det) and np.array_equal(star_new, star)
+            fitted = _same(det_new, det) and _same(star_new, star)
             det, star = det_new, star_new
             if fitted:
                 break

@@ -167,7 +167,7 @@ def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
         h = h.as_matrix()
     # start and end of each streak, projected at once
     px, py = sensor.project(np.concatenate([b @ h.T, b @ h]))
-    streak = np.column_stack([px[n:] - px[:n], py[n:] - py[:n]])
+    streak = np.stack([px[n:] - px[:n], py[n:] - py[:n]], axis=1)
     # a uniform spread over the streak: L^2 / 12 per photon along it
     cov += streak[:, :, None] * streak[:, None, :] / (12.0 * n_e)[:, None, None]
     return StarNoise(sensor, x, y, cov)

@@ -175,7 +175,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     # the longest streak: at a field corner (streak_px's default, corners computed once)
     longest = 0.0 if half_turn is None else float(np.max(streak_px(sensor, rate, setup.corners)))
     reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
-    centres = np.column_stack([x[on], y[on]])[:MAX_WINDOWS]
+    centres = np.stack([x[on], y[on]], axis=1)[:MAX_WINDOWS]
     found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
                               None if streaks is None else streaks[on][:MAX_WINDOWS])  # fmt: skip
     det = found.detections
@@ -213,12 +213,12 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         fov_rad=2.0 * sensor.half_fov_rad[0], n_detections=len(det),
         n_matched=len(matched), rmse_rad=float(att.residual_rms_rad),
         false_match_probability=float(match.false_match_probability),
-        sigma_rad=tuple(float(s) for s in np.sqrt(np.diag(covariance))),
+        sigma_rad=tuple(np.sqrt(covariance.diagonal()).tolist()),
         time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
         rotation=att.rotation,
         matches=tuple((int(d), int(c)) for d, c in zip(matched, cat_ids, strict=True)),
-        centroids_px=np.column_stack([det.x, det.y]), image_shape=np.shape(image), focal_px=f,
+        centroids_px=np.stack([det.x, det.y], axis=1), image_shape=image.shape, focal_px=f,
     )  # fmt: skip
     return (sol, covariance), ""
 

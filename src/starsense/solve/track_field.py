@@ -100,7 +100,7 @@ def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):
     margin_on = (x >= -m) & (x <= det.columns - 1 + m) & (y >= -m) & (y <= det.rows - 1 + m)
     if half_turn is None:
         return near, x, y, margin_on, None
-    streaks = np.column_stack([px[2 * n :] - px[n : 2 * n], py[2 * n :] - py[n : 2 * n]])
+    streaks = np.stack([px[2 * n :] - px[n : 2 * n], py[2 * n :] - py[n : 2 * n]], axis=1)
     return near, x, y, margin_on, streaks
 
 

@@ -433,5 +433,5 @@ def detect_in_windows(
     found, noise, n_cand = _detect_stack(solver, stack, r0, c0, image.shape, streaks_px)
     det = _detections(found, noise, n_cand, solver.sensor.detector.saturation_counts)
     _, h, w = stack.shape
-    boxes = np.column_stack([r0, r0 + h, c0, c0 + w])
+    boxes = np.stack([r0, r0 + h, c0, c0 + w], axis=1)
     return WindowDetections(det, n, union_area(boxes), boxes)
