@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense.solve.streak_centroid import columns
+
 __all__ = ["OUTLIER_SIGMA", "StarNoise", "cog_sigma_px", "fit_robust", "star_noise"]
 
 _EYE2 = np.eye(2)
@@ -167,7 +169,7 @@ def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
         h = h.as_matrix()
     # start and end of each streak, projected at once
     px, py = sensor.project(np.concatenate([b @ h.T, b @ h]))
-    streak = np.stack([px[n:] - px[:n], py[n:] - py[:n]], axis=1)
+    streak = columns(px[n:] - px[:n], py[n:] - py[:n])
     # a uniform spread over the streak: L^2 / 12 per photon along it
     cov += streak[:, :, None] * streak[:, None, :] / (12.0 * n_e)[:, None, None]
     return StarNoise(sensor, x, y, cov)

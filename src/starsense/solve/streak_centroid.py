@@ -19,6 +19,17 @@ __all__ = ["streak_centroid", "streak_centroids"]
 _ARANGE = {int: np.arange(4096), float: np.arange(4096.0)}
 
 
+def columns(*arrays: np.ndarray) -> np.ndarray:
+    """Return the 1-D arrays (N,) as the columns of one (N, K) array (``np.stack(axis=1)``).
+
+    Without ``np.stack``'s argument handling: these are called once or more per tracked frame.
+    """
+    out = np.empty((len(arrays[0]), len(arrays)), dtype=np.result_type(*arrays))
+    for j, a in enumerate(arrays):
+        out[:, j] = a
+    return out
+
+
 def _arange(n: int, dtype=int) -> np.ndarray:
     """Return ``np.arange(n)`` of int or float (a slice of a kept one up to 4096)."""
     kept = _ARANGE[dtype]
@@ -189,9 +200,9 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     x, y = np.array(x, dtype=float), np.array(y, dtype=float)
     sx, sy = 0.5 * np.asarray(streaks, dtype=float).T
     length2 = np.maximum(4.0 * (sx * sx + sy * sy), 1e-12)
-    out_x, out_y, total = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    # centroids, counts, and where the kept capsule was (NaN until found): rows of one array
+    out_x, out_y, total, last_x, last_y = np.full((5, n), np.nan)
     boxes, spread = np.zeros((n, 4), dtype=int), np.full((n, 2, 2), np.nan)
-    last_x, last_y = np.full(n, np.nan), np.full(n, np.nan)  # where the kept capsule was
     if n == 0:
         return out_x, out_y, total, boxes, spread
     reach_x, reach_y = np.abs(sx) + radius, np.abs(sy) + radius
@@ -242,5 +253,5 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
         dy = np.where(inside, py[:, :, None] - out_y[done, None, None], 0.0)
         sxy = np.einsum("kij,kij->k", dx, dy)
         sxx, syy = np.einsum("kij,kij->k", dx, dx), np.einsum("kij,kij->k", dy, dy)
-        spread[done] = np.stack([sxx, sxy, sxy, syy], axis=1).reshape(-1, 2, 2)
+        spread[done] = columns(sxx, sxy, sxy, syy).reshape(-1, 2, 2)
     return out_x, out_y, total, boxes, spread

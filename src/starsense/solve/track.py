@@ -24,6 +24,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError, StarsenseError
 from starsense.solve.solver import Solution
+from starsense.solve.streak_centroid import columns
 from starsense.solve.track_field import _half_turn, _predicted_field, _setup, _unblended
 from starsense.units import DEG, RAD_TO_DEG
 
@@ -175,7 +176,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     # the longest streak: at a field corner (streak_px's default, corners computed once)
     longest = 0.0 if half_turn is None else float(np.max(streak_px(sensor, rate, setup.corners)))
     reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
-    centres = np.stack([x[on], y[on]], axis=1)[:MAX_WINDOWS]
+    centres = columns(x[on], y[on])[:MAX_WINDOWS]
     found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
                               None if streaks is None else streaks[on][:MAX_WINDOWS])  # fmt: skip
     det = found.detections
@@ -218,7 +219,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         stage_ms=stages,
         rotation=att.rotation,
         matches=tuple((int(d), int(c)) for d, c in zip(matched, cat_ids, strict=True)),
-        centroids_px=np.stack([det.x, det.y], axis=1), image_shape=image.shape, focal_px=f,
+        centroids_px=columns(det.x, det.y), image_shape=image.shape, focal_px=f,
     )  # fmt: skip
     return (sol, covariance), ""
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense.solve.streak_centroid import columns
+
 __all__: list[str] = []
 
 
@@ -100,7 +102,7 @@ def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):
     margin_on = (x >= -m) & (x <= det.columns - 1 + m) & (y >= -m) & (y <= det.rows - 1 + m)
     if half_turn is None:
         return near, x, y, margin_on, None
-    streaks = np.stack([px[2 * n :] - px[n : 2 * n], py[2 * n :] - py[n : 2 * n]], axis=1)
+    streaks = columns(px[2 * n :] - px[n : 2 * n], py[2 * n :] - py[n : 2 * n])
     return near, x, y, margin_on, streaks
 
 

@@ -23,6 +23,7 @@ from scipy import ndimage
 
 from starsense.solve.streak_centroid import (
     _arange,
+    columns,
     streak_centroid,
     streak_centroids,
     windows_view,
@@ -362,7 +363,7 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
         off = np.zeros(len(k), bool)
     fine = (np.isfinite(x) & ~off).nonzero()[0]
     pf, kf = p[fine], k[fine]
-    offset = np.stack([r0[pf], r0[pf], c0[pf], c0[pf]], axis=1)  # window -> frame
+    offset = columns(r0[pf], r0[pf], c0[pf], c0[pf])  # window -> frame
     rows = (x[fine] + c0[pf], y[fine] + r0[pf], counts[fine], sizes[kf], peaks[kf],
             box[fine] + offset, spread[fine])  # fmt: skip
     return rows, _median_noise(solver, noise), n
@@ -433,5 +434,5 @@ def detect_in_windows(
     found, noise, n_cand = _detect_stack(solver, stack, r0, c0, image.shape, streaks_px)
     det = _detections(found, noise, n_cand, solver.sensor.detector.saturation_counts)
     _, h, w = stack.shape
-    boxes = np.stack([r0, r0 + h, c0, c0 + w], axis=1)
+    boxes = columns(r0, r0 + h, c0, c0 + w)
     return WindowDetections(det, n, union_area(boxes), boxes)
