@@ -125,7 +125,9 @@ def predict_attitude(
     w = np.zeros(3) if rate_rad_s is None else np.asarray(rate_rad_s, dtype=float)
     if w.shape != (3,) or not np.all(np.isfinite(w)):
         raise InputError(f"rate_rad_s must be 3 finite numbers, got {rate_rad_s!r}")
+    p0, p_w = _cov(cov_rad2, "cov_rad2"), _cov(rate_cov_rad2_s2, "rate_cov")
+    if not np.any(w * dt):  # no turn: M = I (the same covariance, no rotation to compose)
+        return a, p0 + dt**2 * p_w
     step = Rotation.from_rotvec(-w * dt)
     m = step.as_matrix()
-    cov = m @ _cov(cov_rad2, "cov_rad2") @ m.T + dt**2 * _cov(rate_cov_rad2_s2, "rate_cov")
-    return step * a, cov
+    return step * a, m @ p0 @ m.T + dt**2 * p_w

@@ -5,10 +5,10 @@ covers its uncertainty, :class:`TrackingIdentifier`
 
 1. predicts the camera directions of the database stars in the field
    (``scipy.spatial.cKDTree`` cone query on the ICRS unit vectors, chord distance);
-2. pairs every detection with its nearest predicted star within the search radius (a k-d tree on
-   the predicted directions, two nearest neighbours), and drops a pair as **ambiguous** when a
-   second predicted star is nearly as close (``d2 < ambiguity_ratio * d1``) or when two
-   detections claim the same star;
+2. pairs every detection with its nearest predicted star within the search radius (the two
+   nearest predicted directions by chord distance, compared directly: a few dozen stars), and
+   drops a pair as **ambiguous** when a second predicted star is nearly as close
+   (``d2 < ambiguity_ratio * d1``) or when two detections claim the same star;
 3. fits the attitude to the pairs (SVD / Kabsch, as the lost-in-space verifier), checks that it
    moves no star by more than the search radius from the prior (an innovation test), and pairs
    again at a radius matched to the residuals (5 robust sigma, at least
@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import check_scalar
@@ -46,10 +45,35 @@ __all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch"]
 TRACKING_STATUSES = ("verified", "unverified", "too_few_stars", "ambiguous", "no_match")
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
+_ARANGE = np.arange(1024)
 
 
 def _chord(angle_rad: float) -> float:
     return 2.0 * math.sin(min(angle_rad, math.pi) / 2.0)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.array_equal`` of two 1-D integer arrays, without its overheads."""
+    return len(a) == len(b) and bool((a == b).all())
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a 1-D array (the middle value, or the mean of the middle two)."""
+    s = np.sort(values)
+    h = len(s) // 2
+    return float(s[h]) if len(s) % 2 else float((s[h - 1] + s[h]) / 2)
+
+
+def _rotvec(m: np.ndarray) -> np.ndarray:
+    """Rotation vector of a rotation matrix of angle below pi, rad (shape (3,)).
+
+    ``sin(angle) axis`` is the antisymmetric part of ``m``, ``cos(angle) = (tr m - 1) / 2``;
+    the angle from both (atan2) is accurate from 0 to near pi.
+    """
+    s = 0.5 * np.array([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    sin = math.sqrt(float(s @ s))
+    angle = math.atan2(sin, 0.5 * (m[0, 0] + m[1, 1] + m[2, 2] - 1.0))
+    return s * (angle / sin) if sin > 0 else np.zeros(3)
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,7 +85,10 @@ class TrackingMatch:
     status : str
         One of :data:`TRACKING_STATUSES`.
     rotation : Rotation or None
-        Fitted attitude (ICRS -> camera) for "verified" and "unverified".
+        Fitted attitude (ICRS -> camera) for "verified" and "unverified" (built on access
+        from ``rotation_matrix``).
+    rotation_matrix : ndarray, shape (3, 3), or None
+        The same attitude as a matrix.
     detection_index, catalog_index : ndarray of int, shape (M,)
         Matched detections and their database stars (indices into ``database.vectors``).
     catalog_id : ndarray of int64, shape (M,)
@@ -80,7 +107,7 @@ class TrackingMatch:
     """
 
     status: str
-    rotation: Rotation | None = None
+    rotation_matrix: NDArray[np.float64] | None = field(default=None, repr=False)
     detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
     catalog_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
     catalog_id: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
@@ -92,6 +119,14 @@ class TrackingMatch:
     innovation_rad: float = math.nan
     time_ms: float = 0.0
     message: str = ""
+
+    @property
+    def rotation(self) -> Rotation | None:
+        """Fitted attitude (ICRS -> camera), or None."""
+        if self.rotation_matrix is None:
+            return None
+        # orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is not needed
+        return Rotation.from_matrix(self.rotation_matrix, assume_valid=True)
 
     @property
     def solved(self) -> bool:
@@ -140,24 +175,36 @@ class TrackingIdentifier:
     def _pair(self, vectors, cam, radius):
         """Nearest predicted star of each detection within ``radius``; ambiguous ones dropped.
 
+        The two nearest predicted stars of each detection by direct comparison (a few dozen
+        of each: cheaper than a k-d tree built per call), within the chord of ``radius``
+        (strictly, as ``cKDTree.query`` with ``distance_upper_bound``).
+
         Returns (detection index, predicted index, number dropped as ambiguous).
         """
-        if len(cam) == 0:
+        m = len(cam)
+        if m == 0:
             return _EMPTY_INT, _EMPTY_INT, 0
-        tree = cKDTree(cam)
-        k = 2 if len(cam) > 1 else 1
-        dist, idx = tree.query(vectors, k=k, distance_upper_bound=_chord(radius))
-        dist, idx = dist.reshape(len(vectors), k), idx.reshape(len(vectors), k)
-        found = np.isfinite(dist[:, 0])
-        clear = np.ones(len(vectors), bool)
-        if k == 2:
-            clear = ~np.isfinite(dist[:, 1]) | (dist[:, 1] >= self.ambiguity_ratio * dist[:, 0])
-        det = np.flatnonzero(found & clear)
-        star = idx[det, 0]
-        n_amb = int(np.sum(found & ~clear))
-        counts = np.bincount(star, minlength=len(cam))
+        n = len(vectors)
+        diff = vectors[:, None, :] - cam[None, :, :]
+        d2 = (diff * diff).sum(axis=2)  # (N, M) squared chords
+        rows = _ARANGE[:n] if n <= len(_ARANGE) else np.arange(n)
+        first = d2.argmin(axis=1)
+        d1 = d2[rows, first]
+        bound2 = _chord(radius) ** 2
+        found = d1 < bound2
+        if m > 1:
+            d2[rows, first] = np.inf
+            second = d2[rows, d2.argmin(axis=1)]
+            # clear: no second star within the search radius, or one much farther
+            clear = (second >= bound2) | (np.sqrt(second) >= self.ambiguity_ratio * np.sqrt(d1))
+        else:
+            clear = np.ones(n, bool)
+        det = (found & clear).nonzero()[0]
+        star = first[det]
+        n_amb = int((found & ~clear).sum())
+        counts = np.bincount(star, minlength=m)
         unique = counts[star] == 1
-        n_amb += int(np.sum(~unique))
+        n_amb += len(unique) - int(unique.sum())
         return det[unique].astype(np.int64), star[unique].astype(np.int64), n_amb
 
     def __call__(
@@ -217,44 +264,48 @@ class TrackingIdentifier:
                                  time_ms=(time.perf_counter() - t0) * 1e3, message=message,
                                  **kw)  # fmt: skip
 
-        cam = db.vectors[near] @ r.T
-        det, star, n_amb = self._pair(v, cam, r_s)
+        ref = db.vectors[near]
+        prior_matrix = r
+        det, star, n_amb = self._pair(v, ref @ r.T, r_s)
         if len(det) < 2:
             why = "ambiguous" if n_amb else "too_few_stars"
             return done(why, f"{len(det)} star(s) matched within {r_s:.2e} rad of the prior "
                         f"({n_amb} ambiguous, {len(v)} detections, {len(near)} predicted)",
                         n_ambiguous=n_amb)  # fmt: skip
         radius = r_s
+        fitted = False  # whether r, resid are the fit to the pairs (det, star)
         for _ in range(3):
-            r, resid = _estimate_matrix(v[det], db.vectors[near[star]])
-            sigma = 1.4826 * float(np.median(resid)) / math.sqrt(2 * math.log(2))
+            r, resid = _estimate_matrix(v[det], ref[star])
+            fitted = True
+            sigma = 1.4826 * _median(resid) / math.sqrt(2 * math.log(2))
             radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
-            det_new, star_new, n_amb = self._pair(v, db.vectors[near] @ r.T, radius)
+            det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
             if len(det_new) < 2:
                 break
-            same = np.array_equal(det_new, det) and np.array_equal(star_new, star)
+            fitted = _same(det_new, det) and _same(star_new, star)
             det, star = det_new, star_new
-            if same:
+            if fitted:
                 break
-        r, resid = _estimate_matrix(v[det], db.vectors[near[star]])
-        rot = Rotation.from_matrix(r)
+        if not fitted:
+            r, resid = _estimate_matrix(v[det], ref[star])
         # the fit's departure from the prior, as the displacement of a star at the field edge
         # (the measure of the search radius): cross-boresight plus roll x sin(field radius)
-        d = (rot * prior.inv()).as_rotvec()
+        d = _rotvec(r @ prior_matrix.T)
         innovation = float(math.hypot(d[0], d[1]) + abs(d[2]) * math.sin(field_r))
         cat = near[star]
         p_single = region[1] * math.pi * radius**2 / max(region[0], 1e-30)
         p_false = false_match_probability(len(v), len(det), 2, p_single)
+        rms = math.sqrt(float(resid @ resid) / len(resid))
         kw = {"detection_index": det, "catalog_index": cat, "catalog_id": db.ids[cat],
-              "residual_rms_rad": float(np.sqrt(np.mean(resid**2))), "n_ambiguous": n_amb,
+              "residual_rms_rad": rms, "n_ambiguous": n_amb,
               "false_match_probability": p_false, "innovation_rad": innovation}  # fmt: skip
         if innovation > r_s:
             return done("no_match", f"the fit is {innovation:.2e} rad from the prior, beyond "
                         f"the search radius {r_s:.2e} rad", **kw)  # fmt: skip
         if len(det) < 3:
-            return done("unverified", "2 stars matched (3 are needed to verify)", rotation=rot,
+            return done("unverified", "2 stars matched (3 are needed to verify)", rotation_matrix=r,
                         **kw)  # fmt: skip
         verified = p_false <= self.false_match_threshold
         status = "verified" if verified else "unverified"
         return done(status, f"{len(det)} of {len(v)} detections matched, P_false "
-                    f"{p_false:.1e}", rotation=rot, **kw)  # fmt: skip
+                    f"{p_false:.1e}", rotation_matrix=r, **kw)  # fmt: skip

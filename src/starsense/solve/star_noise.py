@@ -26,7 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense.solve.streak_centroid import columns
+
 __all__ = ["OUTLIER_SIGMA", "StarNoise", "cog_sigma_px", "fit_robust", "star_noise"]
+
+_EYE2 = np.eye(2)
 
 #: A star whose residual exceeds this many of its own sigmas is dropped from the fit (a 2-D
 #: residual goes past 4 sigma by chance with probability exp(-8) = 3e-4)
@@ -77,31 +81,41 @@ class StarNoise:
         """Return the noise of the stars ``keep``."""
         return StarNoise(self.sensor, self.x[keep], self.y[keep], self.cov_px2[keep])
 
-    def attitude_covariance(self, body: np.ndarray) -> np.ndarray:
+    def attitude_covariance(self, body: np.ndarray, fisher_inv=None) -> np.ndarray:
         """Return the covariance of the weighted SVD attitude from these stars, rad^2 (3, 3).
 
         Parameters
         ----------
         body : ndarray, shape (N, 3)
             The stars' measured camera-frame unit vectors.
+        fisher_inv : ndarray, shape (3, 3), optional
+            ``F^-1`` of these stars and weights, rad^2, when already computed (the
+            ``covariance_rad2`` of :func:`fit_robust`'s solution).
         """
         h = 0.5
-        plus = self.sensor.unproject(np.r_[self.x + h, self.x], np.r_[self.y, self.y + h])
-        minus = self.sensor.unproject(np.r_[self.x - h, self.x], np.r_[self.y, self.y - h])
-        n = len(self.x)
-        g = np.stack([(plus[:n] - minus[:n]) / (2 * h), (plus[n:] - minus[n:]) / (2 * h)], axis=2)
-        noise = g @ self.cov_px2 @ np.transpose(g, (0, 2, 1))  # (N, 3, 3)
+        x, y, n = self.x, self.y, len(self.x)
+        # x + h, x - h at y; then x at y + h, y - h: one unprojection
+        v = self.sensor.unproject(np.concatenate([x + h, x - h, x, x]),
+                                  np.concatenate([y, y, y + h, y - h]))  # fmt: skip
+        gx = (v[:n] - v[n : 2 * n]) / (2 * h)
+        gy = (v[2 * n : 3 * n] - v[3 * n :]) / (2 * h)
+        g = np.empty((n, 3, 2))
+        g[:, :, 0], g[:, :, 1] = gx, gy
+        noise = g @ self.cov_px2 @ g.transpose(0, 2, 1)  # (N, 3, 3)
         w = 1.0 / self.sigma_rad**2
         skew = np.zeros((n, 3, 3))
         skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -body[:, 2], body[:, 1], -body[:, 0]
-        skew -= np.transpose(skew, (0, 2, 1))
-        fisher = np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None, :])
+        skew -= skew.transpose(0, 2, 1)
         middle = np.einsum("i,iaj,iab,ibk->jk", w**2, skew, noise, skew)
-        inv = np.linalg.inv(fisher)
+        inv = fisher_inv
+        if inv is None:
+            fisher = np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None, :])
+            inv = np.linalg.inv(fisher)
         return inv @ middle @ inv
 
 
-def star_noise(solver, det, matched, rate) -> StarNoise:
+def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
+               margin_px=None) -> StarNoise:  # fmt: skip
     """Return the centroid noise of detections ``matched`` (module docstring).
 
     With ``centroid_sigma_px`` a number, every star gets that isotropic sigma; with "snr" the
@@ -118,36 +132,76 @@ def star_noise(solver, det, matched, rate) -> StarNoise:
         The detections used.
     rate : array_like, shape (3,) or None
         Body rate, camera frame, rad/s.
+    vectors : ndarray, shape (N, 3), optional
+        The detections' camera-frame unit vectors, when already computed.
+    half_turn : ndarray, shape (3, 3), optional
+        The rotation by ``rate x exposure / 2``, when already computed.
+    margin_px : int, optional
+        The CoG window's margin (default: the solver's detector's).
     """
     sensor = solver.sensor
     x, y = det.x[matched], det.y[matched]
     n = len(matched)
-    eye = np.broadcast_to(np.eye(2), (n, 2, 2))
+    eye = _EYE2  # broadcast over the stars
     if solver.centroid_sigma_px != "snr":
-        return StarNoise(sensor, x, y, float(solver.centroid_sigma_px) ** 2 * eye)
+        var = np.full((n, 1, 1), float(solver.centroid_sigma_px) ** 2)
+        return StarNoise(sensor, x, y, var * eye)
     detector = sensor.detector
-    margin = 2 if solver.background != "known" else solver._detector().margin_px
+    margin = margin_px
+    if margin is None:
+        margin = 2 if solver.background != "known" else solver._detector().margin_px
     cov = (cog_sigma_px(det, matched, detector, margin) ** 2)[:, None, None] * eye
-    spread = det.extra.get("spread_px2", np.full((len(det), 2, 2), np.nan))[matched]
+    spread = det.extra.get("spread_px2")
+    spread = np.full((n, 2, 2), np.nan) if spread is None else spread[matched]
     n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1.0)
     along = np.isfinite(spread[:, 0, 0])  # centroided over the streak's own window
-    cov = np.array(cov)
-    cov[along] = (detector.psf_sigma_px**2 / n_e)[along, None, None] * eye[along] + (
+    cov[along] = (detector.psf_sigma_px**2 / n_e)[along, None, None] * eye + (
         detector.read_noise_e**2 / n_e**2
     )[along, None, None] * spread[along]
     if rate is None or not np.any(rate):
         return StarNoise(sensor, x, y, cov)
-    from scipy.spatial.transform import Rotation
+    b = sensor.unproject(x, y) if vectors is None else vectors
+    h = half_turn
+    if h is None:
+        from scipy.spatial.transform import Rotation
 
-    b = sensor.unproject(x, y)
-    half = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
-    h = half.as_matrix()
-    xs, ys = sensor.project(b @ h.T)
-    xe, ye = sensor.project(b @ h)
-    streak = np.column_stack([xe - xs, ye - ys])
+        h = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
+        h = h.as_matrix()
+    # start and end of each streak, projected at once
+    px, py = sensor.project(np.concatenate([b @ h.T, b @ h]))
+    streak = columns(px[n:] - px[:n], py[n:] - py[:n])
     # a uniform spread over the streak: L^2 / 12 per photon along it
     cov += streak[:, :, None] * streak[:, None, :] / (12.0 * n_e)[:, None, None]
     return StarNoise(sensor, x, y, cov)
+
+
+def _det3(m: np.ndarray) -> float:
+    """Return the determinant of a 3 x 3 matrix (cofactors: here +-1, an orthogonal matrix)."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
+def _svd_fit(body, ref, sigma):
+    """Weighted SVD attitude matrix (body ~ C ref), the residual angles, rad, and chords^2.
+
+    The estimator of :class:`~starsense.attitude.svd.SvdEstimator` (Kabsch / Markley 1988:
+    ``B = sum_i w_i b_i r_i^T = U S V^T``, ``C = U diag(1, 1, det U V^T) V^T``, weights
+    ``sigma^-2`` normalised to sum 1) and the residual angles of
+    :func:`~starsense.attitude.solution.wahba_residuals` (from the chord), on matrices: no
+    Rotation per fit.
+    """
+    w = sigma**-2.0
+    w = w / w.sum()
+    u, _, vh = np.linalg.svd((w[:, None] * body).T @ ref)
+    c = u @ vh
+    if _det3(c) < 0:  # an improper rotation (det -1): flip the last axis
+        u[:, -1] = -u[:, -1]
+        c = u @ vh
+    d = body - ref @ c.T
+    chord2 = np.einsum("ij,ij->i", d, d)
+    # the angle from the chord, 2 asin(|b - C r| / 2): as accurate as atan2(|b x Cr|, b . Cr)
+    resid = 2.0 * np.arcsin(np.minimum(np.sqrt(chord2) / 2.0, 1.0))
+    return c, resid, chord2
 
 
 def fit_robust(body, ref, sigma):
@@ -167,17 +221,32 @@ def fit_robust(body, ref, sigma):
     Returns
     -------
     AttitudeSolution, ndarray of int
-        The fit, and the indices of the stars kept.
+        The fit (SVD, as :func:`~starsense.attitude.estimate_attitude` with "svd"), and the
+        indices of the stars kept.
     """
-    from starsense.attitude import estimate_attitude
+    from scipy.spatial.transform import Rotation
 
+    from starsense.attitude.covariance import fisher_covariance
+    from starsense.attitude.solution import AttitudeSolution
+
+    # the estimator's check first: SingularGeometryError for stars that fix no attitude (a
+    # subset dropped to is checked again at the end)
+    cov = fisher_covariance(body, sigma)
     keep = np.arange(len(body))
-    att = estimate_attitude(body, ref, sigma, "svd")
+    c, resid, chord2 = _svd_fit(body, ref, sigma)
     while len(keep) > 3:
-        z = att.residuals_rad / sigma[keep]
+        z = resid / sigma[keep]
         worst = int(np.argmax(z))
         if z[worst] <= OUTLIER_SIGMA:
             break
         keep = np.delete(keep, worst)
-        att = estimate_attitude(body[keep], ref[keep], sigma[keep], "svd")
+        c, resid, chord2 = _svd_fit(body[keep], ref[keep], sigma[keep])
+    if len(keep) < len(body):
+        cov = fisher_covariance(body[keep], sigma[keep])
+    att = AttitudeSolution(
+        # c is orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped
+        rotation=Rotation.from_matrix(c, assume_valid=True), covariance_rad2=cov,
+        residual_rms_rad=float(np.sqrt(np.mean(resid**2))), residuals_rad=resid, method="svd",
+        n_stars=len(keep), loss=0.5 * float(np.sum(chord2 / sigma[keep] ** 2)),
+    )  # fmt: skip
     return att, keep

@@ -15,6 +15,26 @@ import numpy as np
 
 __all__ = ["streak_centroid", "streak_centroids"]
 
+#: 0, 1, 2, ...: the rows and columns of a crop (larger crops make their own)
+_ARANGE = {int: np.arange(4096), float: np.arange(4096.0)}
+
+
+def columns(*arrays: np.ndarray) -> np.ndarray:
+    """Return the 1-D arrays (N,) as the columns of one (N, K) array (``np.stack(axis=1)``).
+
+    Without ``np.stack``'s argument handling: these are called once or more per tracked frame.
+    """
+    out = np.empty((len(arrays[0]), len(arrays)), dtype=np.result_type(*arrays))
+    for j, a in enumerate(arrays):
+        out[:, j] = a
+    return out
+
+
+def _arange(n: int, dtype=int) -> np.ndarray:
+    """Return ``np.arange(n)`` of int or float (a slice of a kept one up to 4096)."""
+    kept = _ARANGE[dtype]
+    return kept[:n] if n <= len(kept) else np.arange(n, dtype=dtype)
+
 
 def _segment_mask(shape, x, y, streak, radius):
     """Pixels of ``shape`` within ``radius`` px of the segment centred on (x, y), its box."""
@@ -84,6 +104,20 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
     return out
 
 
+def windows_view(planes: np.ndarray, size) -> np.ndarray:
+    """Read-only view (K, rows - h + 1, columns - w + 1, h, w) of every h x w window of planes.
+
+    ``numpy.lib.stride_tricks.sliding_window_view`` over the last two axes, without its
+    argument handling (a gather ``view[k, r0, c0]`` then copies only the windows wanted).
+    """
+    k, rows, cols = planes.shape
+    h, w = size
+    s0, s1, s2 = planes.strides
+    return np.lib.stride_tricks.as_strided(
+        planes, (k, rows - h + 1, cols - w + 1, h, w), (s0, s1, s2, s1, s2), writeable=False
+    )
+
+
 def _boxes(x, y, sx, sy, radius, shape):
     """Bounding boxes (row0, row1, col0, col1) of the segments' capsules on the plane, (R, 4)."""
     rows, cols = shape
@@ -94,29 +128,52 @@ def _boxes(x, y, sx, sy, radius, shape):
     return np.column_stack([r0, r1, c0, c1]).astype(int)
 
 
-def _capsules(x, y, sx, sy, length2, radius, box, shape):
-    """Pixels within ``radius`` of each segment centred on (x, y), on one crop holding each box.
+def _capsules(x, y, sx, sy, length2, radius, r0, c0, size):
+    """Pixels within ``radius`` of each segment centred on (x, y), on a crop of each plane.
 
-    Returns the mask (L, h, w) and the crops' columns (L, w) and rows (L, h), px (int); a
-    crop is the box grown to the largest box's size (outside its box no pixel is in reach).
+    The crops are ``size`` (h, w) px from rows ``r0`` and columns ``c0`` (L,), each holding
+    the capsule's bounding box. Returns the mask (L, h, w) and the crops' columns (L, w) and
+    rows (L, h), px (whole numbers, as floats). ``sx``, ``sy`` and ``length2`` are shaped
+    (L, 1, 1).
     """
-    rows, cols = shape
-    h, w = int(np.max(box[:, 1] - box[:, 0])), int(np.max(box[:, 3] - box[:, 2]))
-    py = np.minimum(box[:, 0], rows - h)[:, None] + np.arange(h)
-    px = np.minimum(box[:, 2], cols - w)[:, None] + np.arange(w)
-    ax = px[:, None, :] - (x - sx)[:, None, None]
-    ay = py[:, :, None] - (y - sy)[:, None, None]
-    a2x, a2y = (2 * sx)[:, None, None], (2 * sy)[:, None, None]
-    # clamped to the segment (np.clip's result, without its overhead)
-    t = np.minimum(np.maximum((ax * a2x + ay * a2y) / length2[:, None, None], 0.0), 1.0)
-    return (ax - t * a2x) ** 2 + (ay - t * a2y) ** 2 <= radius * radius, px, py
+    py = r0[:, None] + _arange(size[0], float)  # float: exact pixel indices
+    px = c0[:, None] + _arange(size[1], float)
+    ax = px[:, None, :] - (x[:, None, None] - sx)
+    ay = py[:, :, None] - (y[:, None, None] - sy)
+    a2x, a2y = 2 * sx, 2 * sy
+    # t = (a . a2) / |a2|^2 clamped to the segment; then |a - t a2|^2 (in place: no temporaries)
+    t = ax * a2x + ay * a2y
+    t /= length2
+    np.maximum(t, 0.0, out=t)
+    np.minimum(t, 1.0, out=t)
+    ex = t * a2x
+    np.subtract(ax, ex, out=ex)
+    ex *= ex
+    np.multiply(t, a2y, out=t)
+    np.subtract(ay, t, out=t)
+    t *= t
+    t += ex
+    return t <= radius * radius, px, py
+
+
+def _origins(y_x, reach, limit):
+    """First row and column of the crop of a given size holding each capsule's box, (L,) each.
+
+    ``y_x`` (2, L) are the centres (rows, columns), ``reach`` (2, L) the capsules' half-spans
+    and ``limit`` (2, 1) the plane's size less the crop's. A box (:func:`_boxes`) starts at
+    ``floor(c - reach)`` (cut at 0) and spans at most ``ceil(2 reach) + 2`` px, which the crop
+    covers: the crop starts with the box, or ends with the plane when the box reaches its far
+    edge.
+    """
+    return np.minimum(np.maximum(np.floor(y_x - reach), 0), limit).astype(np.intp)
 
 
 def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     """:func:`streak_centroid` of many regions at once (each on its own plane).
 
-    The capsule around the segment lies inside its bounding box, so the mask is taken over the
-    whole plane; every region iterates until it stays (at most 6 times), as one would alone.
+    The capsule around the segment lies inside its bounding box, so the mask is taken over a
+    crop of the plane holding that box (one crop size for all regions and iterations); every
+    region iterates until it stays (at most 6 times), as one would alone.
 
     Parameters
     ----------
@@ -143,38 +200,58 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     x, y = np.array(x, dtype=float), np.array(y, dtype=float)
     sx, sy = 0.5 * np.asarray(streaks, dtype=float).T
     length2 = np.maximum(4.0 * (sx * sx + sy * sy), 1e-12)
-    out_x, out_y, total = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    # centroids, counts, and where the kept capsule was (NaN until found): rows of one array
+    out_x, out_y, total, last_x, last_y = np.full((5, n), np.nan)
     boxes, spread = np.zeros((n, 4), dtype=int), np.full((n, 2, 2), np.nan)
-    last_x, last_y = np.full(n, np.nan), np.full(n, np.nan)  # where the kept capsule was
+    if n == 0:
+        return out_x, out_y, total, boxes, spread
+    reach_x, reach_y = np.abs(sx) + radius, np.abs(sy) + radius
+    size = (min(math.ceil(2 * float(np.max(reach_y))) + 2, rows),
+            min(math.ceil(2 * float(np.max(reach_x))) + 2, cols))  # fmt: skip
+    crops = windows_view(planes, size)
+    # the capsule each centroid was taken over: its mask, columns and rows
+    masks = np.zeros((n, *size), dtype=bool)
+    cols_px, rows_px = np.zeros((n, size[1])), np.zeros((n, size[0]))
+    reach = np.array([reach_y, reach_x])
+    limit = np.array([[rows - size[0]], [cols - size[1]]])
+    sx3, sy3, l3 = sx[:, None, None], sy[:, None, None], length2[:, None, None]
+    y_x = np.array([y, x])  # where each capsule is centred: rows, columns
     live = np.arange(n)
     for _ in range(6):
-        box = _boxes(x[live], y[live], sx[live], sy[live], radius, (rows, cols))
-        some = (box[:, 0] < box[:, 1]) & (box[:, 2] < box[:, 3])
-        live, box = live[some], box[some]
-        if len(live) == 0:
-            break
-        inside, px, py = _capsules(x[live], y[live], sx[live], sy[live], length2[live], radius,
-                                   box, (rows, cols))  # fmt: skip
-        wt = np.where(inside, planes[live[:, None, None], py[:, :, None], px[:, None, :]], 0.0)
-        tot = wt.sum(axis=(1, 2)).astype(float)
+        if len(live) == n:  # every region still moves: no selection of the constants
+            yx, sxl, syl, l2, rch = y_x.copy(), sx3, sy3, l3, reach
+        else:
+            yx, sxl, syl, l2, rch = y_x[:, live], sx3[live], sy3[live], l3[live], reach[:, live]
+        yl, xl = yx
+        r0, c0 = _origins(yx, rch, limit)
+        inside, px, py = _capsules(xl, yl, sxl, syl, l2, radius, r0, c0, size)
+        # a capsule off its plane holds no pixel: no total, the region stops (as alone)
+        wt = np.where(inside, crops[live, r0, c0], 0.0)
+        tot = np.add.reduce(wt, axis=(1, 2)).astype(float)  # wt.sum, without its wrapper
         good = tot > 0
-        live, box, wt, tot = live[good], box[good], wt[good], tot[good]
-        nx = np.einsum("kj,kj->k", wt.sum(axis=1), px[good].astype(float)) / tot
-        ny = np.einsum("ki,ki->k", wt.sum(axis=2), py[good].astype(float)) / tot
-        out_x[live], out_y[live], total[live], boxes[live] = nx, ny, tot, box
-        last_x[live], last_y[live] = x[live], y[live]
-        moving = np.hypot(nx - x[live], ny - y[live]) >= 0.01
-        x[live], y[live] = nx, ny
-        live = live[moving]
+        cut = not good.all()
+        if cut:
+            live, xl, yl, wt, tot = live[good], xl[good], yl[good], wt[good], tot[good]
+            px, py = px[good], py[good]
         if len(live) == 0:
             break
-    done = np.flatnonzero(np.isfinite(out_x))
+        nx = np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), px) / tot
+        ny = np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), py) / tot
+        out_x[live], out_y[live], total[live] = nx, ny, tot
+        last_x[live], last_y[live] = xl, yl
+        masks[live], cols_px[live], rows_px[live] = inside[good] if cut else inside, px, py
+        y_x[0, live], y_x[1, live] = ny, nx
+        live = live[np.hypot(nx - xl, ny - yl) >= 0.01]
+        if len(live) == 0:
+            break
+    done = np.isfinite(out_x).nonzero()[0]
     if len(done):  # the spread about the centroid over the capsule it was taken from
-        inside, px, py = _capsules(last_x[done], last_y[done], sx[done], sy[done],
-                                   length2[done], radius, boxes[done], (rows, cols))  # fmt: skip
+        boxes[done] = _boxes(last_x[done], last_y[done], sx[done], sy[done], radius,
+                             (rows, cols))  # fmt: skip
+        inside, px, py = masks[done], cols_px[done], rows_px[done]
         dx = np.where(inside, px[:, None, :] - out_x[done, None, None], 0.0)
         dy = np.where(inside, py[:, :, None] - out_y[done, None, None], 0.0)
         sxy = np.einsum("kij,kij->k", dx, dy)
         sxx, syy = np.einsum("kij,kij->k", dx, dx), np.einsum("kij,kij->k", dy, dy)
-        spread[done] = np.stack([sxx, sxy, sxy, syy], axis=1).reshape(-1, 2, 2)
+        spread[done] = columns(sxx, sxy, sxy, syy).reshape(-1, 2, 2)
     return out_x, out_y, total, boxes, spread

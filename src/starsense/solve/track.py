@@ -24,6 +24,8 @@ from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError, StarsenseError
 from starsense.solve.solver import Solution
+from starsense.solve.streak_centroid import columns
+from starsense.solve.track_field import _half_turn, _predicted_field, _setup, _unblended
 from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = ["Prior", "TrackSolution", "Tracker", "track_frame"]
@@ -154,68 +156,27 @@ def _search_radius(cov: np.ndarray, field_radius: float) -> float:
     return N_SIGMA_SEARCH * (cross + roll)
 
 
-def _predicted_field(sensor, db, rot, r_s, field_r, rate):
-    """Database stars near the field, brightest first: their predicted pixel positions.
-
-    Returns the database indices, x, y (px), whether each lies on the detector or within the
-    search radius of it, and the streak (start to end, px) of each at the rate (None without
-    a rate).
-    """
-    r = rot.as_matrix()
-    centre = r[2]  # the boresight in ICRS: R^T z
-    near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2)))
-    near = np.asarray(near, dtype=np.intp)
-    cam = db.vectors[near] @ r.T
-    x, y = sensor.project(cam)
-    m = r_s * sensor.focal_length_px
-    det = sensor.detector
-    margin_on = (x >= -m) & (x <= det.columns - 1 + m) & (y >= -m) & (y <= det.rows - 1 + m)
-    if rate is None or not np.any(rate):
-        return near, x, y, margin_on, None
-    half_turn = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
-    h = half_turn.as_matrix()
-    xs, ys = sensor.project(cam @ h.T)  # start: b(0) = R(w t_e / 2) b_mid
-    xe, ye = sensor.project(cam @ h)  # end: R(w t_e / 2)^T b_mid
-    return near, x, y, margin_on, np.column_stack([xe - xs, ye - ys])
-
-
-def _unblended(cat_index, near, x, y, blend_px: float) -> np.ndarray:
-    """Return whether each matched star has no other database star within ``blend_px``.
-
-    A double star (two catalogue stars a few pixels apart) is detected as one blended spot
-    whose centroid lies between them: it is left out of the fit when others remain.
-    """
-    from scipy.spatial import cKDTree
-
-    ok = np.isfinite(x) & np.isfinite(y)
-    pos = np.column_stack([x[ok], y[ok]])
-    if len(pos) < 2:
-        return np.ones(len(cat_index), bool)
-    where = np.searchsorted(near[ok], cat_index)
-    dist, _ = cKDTree(pos).query(pos[np.minimum(where, len(pos) - 1)], k=2)
-    return dist[:, 1] > blend_px
-
-
 def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     """Window detection, matching and the attitude fit; (Solution, covariance) or a failure."""
     from starsense.geometry.attitude import radec_roll_from_attitude
-    from starsense.identify.tracking import TrackingIdentifier
     from starsense.solve.star_noise import fit_robust, star_noise
     from starsense.solve.windows import detect_in_windows, streak_px
 
     sensor = solver.sensor
-    f = sensor.focal_length_px
-    db = solver._identifier(2.0 * sensor.half_fov_rad[0]).database
-    field_r = math.atan(math.hypot(*(math.tan(h) for h in sensor.half_fov_rad)))
+    setup = _setup(solver)
+    db, field_r, f = setup.db, setup.field_r, sensor.focal_length_px
     r_s = max(_search_radius(cov_pred, field_r), MIN_SEARCH_PX / f)
     if r_s > MAX_SEARCH_RAD:
         return None, f"prior uncertainty {r_s * RAD_TO_DEG:.2f} deg exceeds tracking's reach"
-    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r, rate)
+    half_turn = _half_turn(sensor, rate)
+    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r,
+                                                      half_turn)  # fmt: skip
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
-    longest = streak_px(sensor, rate)
+    # the longest streak: at a field corner (streak_px's default, corners computed once)
+    longest = 0.0 if half_turn is None else float(np.max(streak_px(sensor, rate, setup.corners)))
     reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
-    centres = np.column_stack([x[on], y[on]])[:MAX_WINDOWS]
+    centres = columns(x[on], y[on])[:MAX_WINDOWS]
     found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
                               None if streaks is None else streaks[on][:MAX_WINDOWS])  # fmt: skip
     det = found.detections
@@ -228,8 +189,8 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
-    ident = TrackingIdentifier(db, min_match_radius_rad=2.0 / f)
-    match = ident(vectors, rot_pred, r_s, field_r, region=region, candidates=near[cand])
+    match = setup.identifier(vectors, rot_pred, r_s, field_r, region=region,
+                             candidates=near[cand])  # fmt: skip
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
     matched, cat_index, cat_ids = match.detection_index, match.catalog_index, match.catalog_id
@@ -237,10 +198,11 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     alone = _unblended(cat_index, near, x, y, blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
-    noise = star_noise(solver, det, matched, rate)
+    noise = star_noise(solver, det, matched, rate, vectors=vectors[matched],
+                       half_turn=half_turn, margin_px=setup.margin_px)  # fmt: skip
     att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
     matched, cat_ids = matched[keep], cat_ids[keep]
-    covariance = noise.subset(keep).attitude_covariance(vectors[matched])
+    covariance = noise.subset(keep).attitude_covariance(vectors[matched], att.covariance_rad2)
     stages["match_ms"] = match.time_ms
     ra, dec, roll = radec_roll_from_attitude(att.rotation)
     where = f"{found.n_windows} windows" if found.n_windows else "the whole frame"
@@ -252,11 +214,12 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         fov_rad=2.0 * sensor.half_fov_rad[0], n_detections=len(det),
         n_matched=len(matched), rmse_rad=float(att.residual_rms_rad),
         false_match_probability=float(match.false_match_probability),
-        sigma_rad=tuple(float(s) for s in np.sqrt(np.diag(covariance))), time_ms=0.0,
+        sigma_rad=tuple(np.sqrt(covariance.diagonal()).tolist()),
+        time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
         rotation=att.rotation,
         matches=tuple((int(d), int(c)) for d, c in zip(matched, cat_ids, strict=True)),
-        centroids_px=np.column_stack([det.x, det.y]), image_shape=np.shape(image), focal_px=f,
+        centroids_px=columns(det.x, det.y), image_shape=image.shape, focal_px=f,
     )  # fmt: skip
     return (sol, covariance), ""
 
@@ -297,7 +260,7 @@ def track_frame(solver, image, prior: Prior | None) -> TrackSolution:
             rate = candidate.rate_rad_s
             out, reason = _track_core(solver, image, rot_pred, cov_pred, rate, t0)
             if out is not None and out[0].status == "solved":
-                return TrackSolution(_done(out[0], t0), "tracking", out[1])
+                return TrackSolution(out[0], "tracking", out[1])  # timed from t0 in the core
         unverified = out
         reason = reason or "tracking unverified: " + out[0].message
     else:

@@ -21,7 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from starsense.solve.streak_centroid import streak_centroid, streak_centroids
+from starsense.solve.streak_centroid import (
+    _arange,
+    columns,
+    streak_centroid,
+    streak_centroids,
+    windows_view,
+)
 
 __all__ = [
     "WindowDetections",
@@ -34,6 +40,8 @@ __all__ = [
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
+#: scipy's 2-D structuring elements, 8- and 4-connected (indexed by ``connectivity == 4``).
+_STRUCTURES = (ndimage.generate_binary_structure(2, 2), ndimage.generate_binary_structure(2, 1))
 
 
 @dataclass(frozen=True)
@@ -77,15 +85,28 @@ def union_area(boxes: np.ndarray) -> int:
     boxes = np.asarray(boxes, dtype=int)
     if len(boxes) == 0:
         return 0
-    rows = np.unique(boxes[:, :2])
-    cols = np.unique(boxes[:, 2:])
-    i0, i1 = np.searchsorted(rows, boxes[:, 0]), np.searchsorted(rows, boxes[:, 1])
-    j0, j1 = np.searchsorted(cols, boxes[:, 2]), np.searchsorted(cols, boxes[:, 3])
-    flat = np.r_[i0, i0, i1, i1] * len(cols) + np.r_[j0, j1, j0, j1]
-    sign = np.repeat([1, -1, -1, 1], len(boxes))
-    corners = np.bincount(flat, sign, len(rows) * len(cols)).reshape(len(rows), len(cols))
-    covered = np.cumsum(np.cumsum(corners, axis=0), axis=1)[:-1, :-1] > 0
-    return int(np.sum(covered * np.outer(np.diff(rows), np.diff(cols))))
+    rows, cols = _edges(boxes[:, :2]), _edges(boxes[:, 2:])
+    i, j = rows.searchsorted(boxes[:, :2]), cols.searchsorted(boxes[:, 2:])
+    # the corners (i0, j0) and (i1, j1) count +1, (i0, j1) and (i1, j0) -1
+    n = len(rows) * len(cols)
+    plus = (i * len(cols) + j).ravel()
+    minus = (i * len(cols) + j[:, ::-1]).ravel()
+    corners = (np.bincount(plus, minlength=n) - np.bincount(minus, minlength=n)).reshape(
+        len(rows), len(cols)
+    )
+    covered = corners.cumsum(axis=0).cumsum(axis=1)[:-1, :-1] > 0
+    area = (rows[1:] - rows[:-1])[:, None] * (cols[1:] - cols[:-1])[None, :]
+    return int((covered * area).sum())
+
+
+def _edges(values: np.ndarray) -> np.ndarray:
+    """Return the distinct values, ascending (``np.unique`` without its overheads)."""
+    v = values.flatten()  # a copy, sorted in place
+    v.sort()
+    first = np.empty(len(v), bool)
+    first[0] = True
+    np.not_equal(v[1:], v[:-1], out=first[1:])
+    return v[first]
 
 
 def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
@@ -124,31 +145,71 @@ def _cross_xy(w: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.hypot(cx, cy)
 
 
+def _lit_labels(lit: np.ndarray, connectivity: int):
+    """Label the lit pixels of the stack (K, h, w), never across windows; labels of lit pixels.
+
+    The windows are labelled as one 2-D image of their rows that hold a lit pixel, in order,
+    with an empty row wherever two kept rows are not neighbours in one window (a row without
+    a lit pixel joins nothing, so the regions, their labels and scipy's raster order of them
+    are those of the windows stacked with an empty row between them, at a fraction of the
+    pixels).
+
+    Returns
+    -------
+    idx : ndarray of int, shape (M,)
+        Flat indices of the lit pixels in the stack, ascending.
+    lab : ndarray of int, shape (M,)
+        Their labels, 1..n.
+    n : int
+        Number of regions.
+    """
+    k, h, w = lit.shape
+    flat = lit.reshape(k * h, w)
+    idx = np.flatnonzero(lit)
+    if len(idx) == 0:
+        return idx, np.zeros(0, np.int32), 0
+    lit_rows = idx // w  # ascending
+    new = np.empty(len(idx), bool)  # the first lit pixel of its row
+    new[0] = True
+    np.not_equal(lit_rows[1:], lit_rows[:-1], out=new[1:])
+    rows = lit_rows[new]
+    # a break before each kept row that does not continue the row above it in its window
+    gap = np.ones(len(rows), np.intp)
+    gap[0] = 0
+    gap[1:] = (rows[1:] != rows[:-1] + 1) | (rows[1:] % h == 0)
+    pos = np.arange(len(rows)) + np.cumsum(gap)
+    compact = np.zeros((pos[-1] + 1, w), dtype=bool)
+    compact[pos] = flat[rows]
+    labels, n = ndimage.label(compact, structure=_STRUCTURES[connectivity == 4])
+    j = np.cumsum(new) - 1  # each lit pixel's kept row
+    return idx, labels[pos[j], idx - lit_rows * w], n
+
+
 def _label(lit: np.ndarray, connectivity: int):
     """Label the lit pixels of each window of the stack (K, h, w), never across windows.
 
-    The windows are labelled as one 2-D image, one above the other with an empty row between
-    them (cheaper than a 3-D structuring element, and the same labels in the same raster
-    order).
+    The labels of :func:`_lit_labels` put back on the stack (0 where unlit).
     """
-    k, h, w = lit.shape
-    tall = np.zeros((k, h + 1, w), dtype=bool)
-    tall[:, :h] = lit
-    plane = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
-    labels, n = ndimage.label(tall.reshape(k * (h + 1), w), structure=plane)
-    return labels.reshape(k, h + 1, w)[:, :h], n
+    idx, lab, n = _lit_labels(lit, connectivity)
+    labels = np.zeros(lit.shape, dtype=np.int32)
+    labels.reshape(-1)[idx] = lab
+    return labels, n
 
 
 def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
-    """Square windows (K, h, w) around the centres, moved inside the frame; their corners."""
+    """Square windows (K, h, w) around the centres, moved inside the frame; their corners.
+
+    The windows keep the frame's type (counts as read).
+    """
     rows, cols = image.shape
     h, w = min(2 * half + 1, rows), min(2 * half + 1, cols)
     cx = np.rint(centres_px[:, 0]).astype(int)
     cy = np.rint(centres_px[:, 1]).astype(int)
-    r0 = np.clip(cy - half, 0, rows - h)
-    c0 = np.clip(cx - half, 0, cols - w)
-    windows = [image[a : a + h, c : c + w] for a, c in zip(r0.tolist(), c0.tolist(), strict=True)]
-    return np.stack(windows).astype(np.float32), r0, c0
+    r0 = np.minimum(np.maximum(cy - half, 0), rows - h)  # np.clip, without its overhead
+    c0 = np.minimum(np.maximum(cx - half, 0), cols - w)
+    # one gather from a strided view of every h x w window of the frame (no copy until here)
+    windows = windows_view(image[None], (h, w))[0, r0, c0]
+    return windows, r0, c0
 
 
 def _levels(solver, stack: np.ndarray):
@@ -171,6 +232,26 @@ def _levels(solver, stack: np.ndarray):
     return level, noise, threshold
 
 
+def _below(threshold: np.ndarray) -> np.ndarray:
+    """Return the largest float32 at most each threshold (float64), shape (K,).
+
+    For float32 ``x``, ``x > t`` equals ``x > _below(t)``: comparing float32 counts with
+    float32 thresholds, not float64 ones, halves the work.
+    """
+    t32 = threshold.astype(np.float32)
+    up = t32 > threshold
+    if up.any():
+        t32[up] = np.nextafter(t32[up], np.float32(-np.inf))
+    return t32
+
+
+def _median_noise(solver, noise: np.ndarray) -> float:
+    """Median noise of the windows, counts (with a known background, the detector's own)."""
+    if solver.background == "known":  # every window has the same noise: that is the median
+        return float(noise[0])
+    return float(np.median(noise))
+
+
 def _cogs(sub, p, boxes, margin):
     """CoG of each region over its box plus the margin on its plane, px; NaN where empty.
 
@@ -184,18 +265,19 @@ def _cogs(sub, p, boxes, margin):
     b = np.minimum(boxes[:, 1] + margin, rows)[:, None]
     c = np.maximum(boxes[:, 2] - margin, 0)[:, None]
     d = np.minimum(boxes[:, 3] + margin, cols)[:, None]
-    h, w = int(np.max(b - a)), int(np.max(d - c))
-    rr = np.minimum(a, rows - h) + np.arange(h)  # (L, h) rows of each crop
-    cc = np.minimum(c, cols - w) + np.arange(w)  # (L, w) columns
+    h, w = int((b - a).max()), int((d - c).max())
+    r0, c0 = np.minimum(a, rows - h), np.minimum(c, cols - w)  # (L, 1) first row, column
+    rr = r0 + _arange(h)  # (L, h) rows of each crop
+    cc = c0 + _arange(w)  # (L, w) columns
     keep = ((rr >= a) & (rr < b))[:, :, None] & ((cc >= c) & (cc < d))[:, None, :]
-    crop = sub[p[:, None, None], rr[:, :, None], cc[:, None, :]].astype(float)
+    crop = windows_view(sub, (h, w))[p, r0[:, 0], c0[:, 0]].astype(float)
     wt = np.where(keep, crop, 0.0)
     total = wt.sum(axis=(1, 2))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        x = np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)) / total
-        y = np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)) / total
-    bad = ~(total > 0)
-    x[bad], y[bad] = np.nan, np.nan
+    good = total > 0  # else NaN (an empty or negative region)
+    x = np.divide(np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)), total,
+                  out=np.full(len(p), np.nan), where=good)  # fmt: skip
+    y = np.divide(np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)), total,
+                  out=np.full(len(p), np.nan), where=good)  # fmt: skip
     return x, y
 
 
@@ -246,17 +328,19 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     region's box plus a 2 px margin, as the full-frame detector does.
     """
     logic = solver.logic
+    if solver.background != "known":  # the border statistics in float32, as the frame's
+        stack = stack.astype(np.float32)
     level, noise, threshold = _levels(solver, stack)
-    sub = stack - level[:, None, None].astype(np.float32)
-    lit = sub > threshold[:, None, None]
-    labels, n = _label(lit, logic.connectivity)
+    # counts less the level in float32 (the frame's integer counts are exact in it)
+    sub = np.subtract(stack, level[:, None, None].astype(np.float32), dtype=np.float32)
+    lit = sub > _below(threshold)[:, None, None]
+    idx, lab, n = _lit_labels(lit, logic.connectivity)
     if n == 0:
-        return [], float(np.median(noise)), 0
-    idx = np.flatnonzero(lit)
-    lab = labels.ravel()[idx]
+        return _NO_ROWS, _median_noise(solver, noise), 0
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
-    plane, extent, peak = _label_extents(idx, lab, sizes, stack.ravel()[idx], stack.shape)
+    values = stack.ravel()[idx].astype(np.float32)
+    plane, extent, peak = _label_extents(idx, lab, sizes, values, stack.shape)
     peaks = np.concatenate([[-np.inf], peak])
     ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
     k, p, box = _regions(plane, extent, ok, r0, c0, shape, stack.shape[1:])
@@ -265,44 +349,56 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     counts, spread = sums[k].astype(float), np.full((len(k), 2, 2), np.nan)
     if streaks is not None and len(k):
         st = np.asarray(streaks, dtype=float)[p]
-        use = np.flatnonzero((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x))
+        use = ((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x)).nonzero()[0]
         gx, gy, gc, gb, gs = streak_centroids(sub[p[use]], x[use], y[use], st[use],
                                               2.5 * sigma + 1.0)  # fmt: skip
-        got = use[np.isfinite(gx)]
-        x[got], y[got], counts[got] = gx[np.isfinite(gx)], gy[np.isfinite(gx)], gc[np.isfinite(gx)]
-        box[got], spread[got] = gb[np.isfinite(gx)], gs[np.isfinite(gx)]
+        fin = np.isfinite(gx)
+        got = use[fin]
+        x[got], y[got], counts[got] = gx[fin], gy[fin], gc[fin]
+        box[got], spread[got] = gb[fin], gs[fin]
         # a streak running off the frame: its centroid is pulled inwards
         off = np.zeros(len(k), bool)
         off[got] = ~_inside(x[got] + c0[p[got]], y[got] + r0[p[got]], st[got], sigma, shape)
     else:
         off = np.zeros(len(k), bool)
-    fine = np.flatnonzero(np.isfinite(x) & ~off)
-    found = [(float(x[i] + c0[p[i]]), float(y[i] + r0[p[i]]), counts[i], sizes[k[i]],
-              float(peaks[k[i]]), (box[i, 0] + r0[p[i]], box[i, 1] + r0[p[i]],
-                                   box[i, 2] + c0[p[i]], box[i, 3] + c0[p[i]]), spread[i])
-             for i in fine.tolist()]  # fmt: skip
-    return found, float(np.median(noise)), n
+    fine = (np.isfinite(x) & ~off).nonzero()[0]
+    pf, kf = p[fine], k[fine]
+    offset = columns(r0[pf], r0[pf], c0[pf], c0[pf])  # window -> frame
+    rows = (x[fine] + c0[pf], y[fine] + r0[pf], counts[fine], sizes[kf], peaks[kf],
+            box[fine] + offset, spread[fine])  # fmt: skip
+    return rows, _median_noise(solver, noise), n
 
 
-def _detections(found, noise: float, n_candidates: int, saturation):
+#: No detection rows: x, y, counts, pixels, peak, box (row0, row1, col0, col1), spread.
+_NO_ROWS = (np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), np.zeros(0),
+            np.zeros((0, 4), int), np.zeros((0, 2, 2)))  # fmt: skip
+
+
+def _detections(rows, noise: float, n_candidates: int, saturation):
     """Build Detections from :func:`_detect_stack` rows: brightest first, one per 2 px."""
     from starsense.detect.threshold import Detections
 
-    found = sorted(found, key=lambda row: -row[2])
-    keep: list = []
-    for row in found:  # overlapping windows and pieces of one streak give the same centre
-        if all(math.hypot(row[0] - k[0], row[1] - k[1]) >= 2.0 for k in keep):
-            keep.append(row)
-    cols = list(zip(*keep, strict=True)) if keep else [()] * 7
-    peak = np.asarray(cols[4], dtype=float)
+    x, y, counts, n_pixels, peak, box, spread = rows
+    order = np.argsort(-counts, kind="stable")
+    xs, ys = x[order].tolist(), y[order].tolist()
+    keep: list[int] = []
+    for i in range(len(xs)):  # overlapping windows and pieces of one streak: the same centre
+        xi, yi = xs[i], ys[i]
+        for j in keep:
+            if not math.hypot(xi - xs[j], yi - ys[j]) >= 2.0:
+                break
+        else:
+            keep.append(i)
+    sel = order[keep]
+    peak = peak[sel].astype(float)
     return Detections(
-        x=np.asarray(cols[0], dtype=float), y=np.asarray(cols[1], dtype=float),
-        integrated_counts=np.asarray(cols[2], dtype=float),
-        n_pixels=np.asarray(cols[3], dtype=int), peak_counts=peak,
-        saturated=peak >= saturation if saturation is not None else np.zeros(len(keep), bool),
-        bbox=np.asarray(cols[5], dtype=int).reshape(-1, 4), fit_ok=np.ones(len(keep), bool),
+        x=x[sel].astype(float), y=y[sel].astype(float),
+        integrated_counts=counts[sel].astype(float), n_pixels=n_pixels[sel].astype(int),
+        peak_counts=peak,
+        saturated=peak >= saturation if saturation is not None else np.zeros(len(sel), bool),
+        bbox=box[sel].astype(int).reshape(-1, 4), fit_ok=np.ones(len(sel), bool),
         n_candidates=int(n_candidates), noise_counts=noise, method="cog",
-        extra={"spread_px2": np.asarray(cols[6], dtype=float).reshape(-1, 2, 2)},
+        extra={"spread_px2": spread[sel].astype(float).reshape(-1, 2, 2)},
     )  # fmt: skip
 
 
@@ -338,5 +434,5 @@ def detect_in_windows(
     found, noise, n_cand = _detect_stack(solver, stack, r0, c0, image.shape, streaks_px)
     det = _detections(found, noise, n_cand, solver.sensor.detector.saturation_counts)
     _, h, w = stack.shape
-    boxes = np.column_stack([r0, r0 + h, c0, c0 + w])
+    boxes = columns(r0, r0 + h, c0, c0 + w)
     return WindowDetections(det, n, union_area(boxes), boxes)
