@@ -44,7 +44,8 @@ def _rank_of(at, lo: np.ndarray, hi: np.ndarray, x: np.ndarray, inclusive: bool)
     or "right"), in place of comparing and counting all the row's samples: the same count,
     clamped to ``[lo, hi]``, for ~log2(samples) small gathers.
     """
-    left, right = lo.copy(), hi.copy()
+    shape = np.broadcast_shapes(np.shape(lo), np.shape(x))  # x may stack several per row
+    left, right = np.broadcast_to(lo, shape).copy(), np.broadcast_to(hi, shape).copy()
     for _ in range(64):  # ceil(log2(row length)) + 1 steps; the bound only guards the loop
         active = left < right
         if not active.any():
@@ -140,9 +141,11 @@ def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
         scale = MAD_TO_SIGMA * _run_mad(s, lo, hi, med, at)
         # a zero scale (noiseless box) would clip everything off the median: do not clip
         half = np.where(scale > 0, sigma_clip * scale, np.inf)
+        # both bounds in one search: s <= x is s < the next float64 after x (s is float32,
+        # exact in float64)
+        bounds = np.stack([med - half, np.nextafter(med + half, np.inf)])
         with np.errstate(invalid="ignore"):
-            new_lo = _rank_of(at, lo, hi, med - half, inclusive=False)
-            new_hi = _rank_of(at, lo, hi, med + half, inclusive=True)
+            new_lo, new_hi = _rank_of(at, lo, hi, bounds, inclusive=False)
         new_hi = np.maximum(new_hi, new_lo)
         if np.array_equal(new_lo, lo) and np.array_equal(new_hi, hi):
             break
