@@ -20,19 +20,20 @@ _MAX_CLIP_ITERATIONS = 10
 
 
 def _rows_at(sorted_rows: np.ndarray):
-    """Return ``at(i)``: the ``i``-th value of every row of ``sorted_rows`` (i clipped to a row).
+    """Return ``at(i)``: the ``i``-th value of every row of ``sorted_rows``.
 
-    Flat indexing with precomputed row offsets: the bisections below call this a few hundred
+    Flat indexing with precomputed row offsets: the searches below call this a few hundred
     times on arrays of a few hundred rows, where ``np.take_along_axis`` and ``np.clip`` cost
-    more in building their index arrays than in the gather itself.
+    more in building their index arrays than in the gather itself. An index outside its row
+    reads a neighbouring row (or the array's first or last value): the searches only read
+    such indices for rows whose result they then discard (empty runs, finished searches).
     """
     m = sorted_rows.shape[-1]
     flat = np.ascontiguousarray(sorted_rows).reshape(-1)
     base = np.arange(0, flat.size, m, dtype=np.intp).reshape(sorted_rows.shape[:-1])
-    last = m - 1
 
     def at(i):
-        return flat[base + np.minimum(np.maximum(i, 0), last)]
+        return flat.take(base + i, mode="clip")
 
     return at
 
@@ -151,7 +152,9 @@ def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
             break
         lo, hi = new_lo, new_hi
         med = _ranked(s, lo, hi - lo, at)
-    return med, at(lo), at(hi - 1), hi - lo
+    last = s.shape[-1] - 1
+    low, high = at(np.minimum(lo, last)), at(np.maximum(hi - 1, 0))
+    return med, low, high, hi - lo
 
 
 def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
