@@ -120,3 +120,27 @@ def test_rank_of_is_searchsorted_in_the_run(inclusive):
         finite = s[idx][: n[idx]]
         expected = 0 if np.isnan(x[idx]) else np.searchsorted(finite, x[idx], side=side)
         assert got[idx] == min(max(expected, lo[idx]), hi[idx])
+
+
+@pytest.mark.parametrize("samples", [50, 300])
+def test_robust_sigma_is_the_mad_of_the_kept_samples(samples):
+    # both paths (short rows sort their deviations, long rows search for their median) against
+    # the definition, sample by sample: 1.4826 x the median of |x - median(x)| over the kept
+    from starsense.detect.clip import MAD_TO_SIGMA, _robust_sigma
+
+    rng = np.random.default_rng(samples)
+    cells = np.round(rng.normal(0.0, 4.0, (6, 5, samples))).astype(np.float32)
+    keep = rng.random(cells.shape) < 0.8
+    keep[0, 0] = False  # a box with nothing kept
+    got = _robust_sigma(cells, keep)
+    for idx in np.ndindex(keep.shape[:-1]):
+        x = cells[idx][keep[idx]]
+        if x.size == 0:
+            assert np.isnan(got[idx])
+            continue
+        med = np.float32(
+            0.5 * (float(np.sort(x)[(x.size - 1) // 2]) + float(np.sort(x)[x.size // 2]))
+        )
+        dev = np.sort(np.abs(x - med))
+        expected = MAD_TO_SIGMA * 0.5 * (float(dev[(x.size - 1) // 2]) + float(dev[x.size // 2]))
+        assert got[idx] == pytest.approx(expected, rel=1e-12)

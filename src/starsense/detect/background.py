@@ -243,19 +243,23 @@ def estimate_background(
                        interpolation)  # fmt: skip
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
     cells = gather(a, np.float32, "bg_cells")
-    ok = mesh.valid()
-    if bad is not None:
-        ok &= ~gather(bad)
-    if not ok.all():
-        cells[~ok] = np.nan
-    n_samples = ok.sum(axis=-1)
+    if mesh.regular and bad is None:  # every sample is inside its box and unmasked
+        ok, n_samples = True, np.full(mesh.boxes, cells.shape[-1])
+    else:
+        ok = mesh.valid()
+        if bad is not None:
+            ok &= ~gather(bad)
+        if not ok.all():
+            cells[~ok] = np.nan
+        n_samples = ok.sum(axis=-1)
 
     med, low, high, kept = _sigma_clip_boxes(cells, float(sigma_clip))
     keep = scratch("bg_keep", cells.shape, bool)
     with np.errstate(invalid="ignore"):
         np.greater_equal(cells, low[..., None], out=keep)
         keep &= np.less_equal(cells, high[..., None], out=scratch("bg_mask", cells.shape, bool))
-        keep &= ok
+        if ok is not True:
+            keep &= ok
     step = _quantised_step(cells, keep)
     if step is not None:  # 8-bit-like data: box means and standard deviations (quantised.py)
         med, _, keep = quantised_box_stats(cells, med, step)

@@ -17,6 +17,8 @@ __all__ = ["MAD_TO_SIGMA"]
 MAD_TO_SIGMA = 1.482602218505602
 
 _MAX_CLIP_ITERATIONS = 10
+#: rows of at most this many samples get their MAD by sorting the deviations (same values)
+_SORT_DEVIATIONS_BELOW = 256
 
 
 def _rows_at(sorted_rows: np.ndarray):
@@ -161,6 +163,12 @@ def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """1.4826 MAD over the samples ``keep`` of every box (NaN where none)."""
     n = np.count_nonzero(keep, axis=-1)
     zero = np.zeros(n.shape, dtype=np.intp)
+    if cells.shape[-1] <= _SORT_DEVIATIONS_BELOW:
+        # short rows: sorting the deviations costs less than searching for their median
+        v = np.sort(np.where(keep, cells, np.inf), axis=-1)
+        med = _ranked(v, zero, n)
+        dev = np.where(keep, np.abs(cells - med[..., None].astype(cells.dtype)), np.inf)
+        return MAD_TO_SIGMA * _ranked(np.sort(dev, axis=-1), zero, n)
     v = scratch("robust_sorted", cells.shape, cells.dtype)
     np.copyto(v, cells)
     np.copyto(v, np.inf, where=np.logical_not(keep, out=scratch("robust_mask", keep.shape, bool)))

@@ -63,8 +63,8 @@ def quantisation_step(values: np.ndarray) -> float | None:
     v = v[np.isfinite(v)]
     if v.size == 0 or not np.all(v == np.round(v)):
         return None
-    d = np.unique(v - v.min()).astype(np.int64)
-    d = d[d > 0]
+    d = (v - v.min()).astype(np.int64)
+    d = d[d > 0]  # the gcd of all the differences is that of the distinct ones
     if d.size == 0:
         return None
     return float(np.gcd.reduce(d))
