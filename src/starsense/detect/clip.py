@@ -37,7 +37,13 @@ def _rows_at(sorted_rows: np.ndarray):
     def at(i):
         return flat.take(base + i, mode="clip")
 
+    at.flat, at.base = flat, base  # for callers that fold their own offsets into ``base``
     return at
+
+
+def _steps(width: np.ndarray) -> int:
+    """Halvings that take every interval of ``width`` (>= 0) down to nothing."""
+    return int(np.max(width, initial=0)).bit_length()
 
 
 def _rank_of(at, lo: np.ndarray, hi: np.ndarray, x: np.ndarray, inclusive: bool) -> np.ndarray:
@@ -45,19 +51,17 @@ def _rank_of(at, lo: np.ndarray, hi: np.ndarray, x: np.ndarray, inclusive: bool)
 
     A vectorised binary search in every row at once (``np.searchsorted`` per row, side "left"
     or "right"), in place of comparing and counting all the row's samples: the same count,
-    clamped to ``[lo, hi]``, for ~log2(samples) small gathers.
+    clamped to ``[lo, hi]``, for ~log2(samples) small gathers. A finished row stays put
+    (``left == right``), so every row takes the same fixed number of steps, unmasked.
     """
     shape = np.broadcast_shapes(np.shape(lo), np.shape(x))  # x may stack several per row
     left, right = np.broadcast_to(lo, shape).copy(), np.broadcast_to(hi, shape).copy()
-    for _ in range(64):  # ceil(log2(row length)) + 1 steps; the bound only guards the loop
-        active = left < right
-        if not active.any():
-            break
+    less = np.less_equal if inclusive else np.less
+    for _ in range(_steps(right - left)):
         mid = (left + right) >> 1
-        value = at(mid)
-        go_right = (value <= x) if inclusive else (value < x)
-        right = np.where(active & ~go_right, mid, right)
-        left = np.where(active & go_right, mid + 1, left)
+        go = less(at(mid), x)
+        left = np.where(go, np.minimum(mid + 1, right), left)
+        right = np.where(go, right, mid)
     return left
 
 
@@ -79,16 +83,13 @@ def _kth_of_two(left, right, n_left, n_right, k):
     lo = np.maximum(0, k + 1 - n_right)
     hi = np.minimum(k + 1, n_left)
     top_1 = hi - 1
-    for _ in range(64):  # ceil(log2(row length)) + 1 steps; the bound only guards the loop
-        active = lo < hi
-        if not active.any():
-            break
+    # lo > hi only for an empty sequence pair (k = 0), whose result the caller discards
+    for _ in range(_steps(hi - lo)):
         mid = (lo + hi) >> 1
         # taking mid from left: is its next value no smaller than the last one from right?
         done = left(np.minimum(mid, top_1)) >= right(np.maximum(k - mid, 0))
-        done &= active
+        lo = np.where(done, lo, np.minimum(mid + 1, hi))
         hi = np.where(done, mid, hi)
-        lo = np.where(active & ~done, mid + 1, lo)
     a, b = lo, k + 1 - lo
     from_left = np.where(a > 0, left(np.maximum(a - 1, 0)), -np.inf)
     from_right = np.where(b > 0, right(np.maximum(b - 1, 0)), -np.inf)
@@ -106,13 +107,14 @@ def _run_mad(s: np.ndarray, lo: np.ndarray, hi: np.ndarray, med: np.ndarray, at=
     m32 = med.astype(np.float32)
     with np.errstate(invalid="ignore"):
         split = _rank_of(at, lo, hi, m32, inclusive=False)
-    split_1 = split - 1
+    flat = at.flat
+    from_split_1, from_split = at.base + (split - 1), at.base + split
 
     def below(i):
-        return m32 - at(split_1 - i)
+        return m32 - flat.take(from_split_1 - i, mode="clip")
 
     def above(j):
-        return at(split + j) - m32
+        return flat.take(from_split + j, mode="clip") - m32
 
     count = hi - lo
     n_below, n_above = split - lo, hi - split
