@@ -1,0 +1,87 @@
+"""The compiled clipping kernel (``starsense.detect._clipc``) against the NumPy form of clip.py.
+
+Both run the same algorithm on the same sorted rows with the same float32 / float64
+operations, so every value must be equal, bit for bit: no tolerance.
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from starsense.detect import clip
+
+
+def test_the_kernel_is_built_where_a_compiler_exists():
+    # setup.py builds it as an optional extension: a machine with a C compiler that ends up
+    # without it runs the slower NumPy form silently, which this makes visible
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler on this machine: the NumPy form is the one in use")
+    assert clip._clipc is not None
+
+
+needs_kernel = pytest.mark.skipif(clip._clipc is None, reason="compiled kernel not built")
+
+
+def _cells(seed: int, integer_step: int, missing: float, constant: bool) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    shape = (int(rng.integers(1, 5)), int(rng.integers(1, 5)), int(rng.integers(1, 600)))
+    cells = rng.normal(rng.uniform(-50, 3000), rng.uniform(0.2, 80), shape)
+    cells[rng.random(shape) < 0.04] += rng.uniform(10, 20000)  # stars
+    cells[rng.random(shape) < 0.01] -= rng.uniform(10, 500)  # cold pixels
+    if integer_step:
+        cells = np.round(cells / integer_step) * integer_step  # quantised: many ties
+    if constant:
+        cells[0, 0] = 42.0  # a noiseless box (zero MAD: nothing clipped)
+    cells = cells.astype(np.float32)
+    cells[rng.random(shape) < missing] = np.nan
+    cells[-1, -1, : shape[-1] // 2 + 1] = np.nan  # a box at least half missing
+    return cells
+
+
+@needs_kernel
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    step=st.sampled_from([0, 1, 16]),
+    missing=st.sampled_from([0.0, 0.1, 1.0]),
+    constant=st.booleans(),
+    k=st.sampled_from([1.0, 2.5, 3.0]),
+)
+def test_kernel_clipping_equals_the_numpy_form(seed, step, missing, constant, k):
+    cells = _cells(seed, step, missing, constant)
+    got = clip._sigma_clip_boxes(cells, k)
+    expected = clip._clip_sorted_numpy(np.sort(cells, axis=-1), k)
+    for name, g, e in zip(("median", "low", "high", "kept"), got, expected, strict=True):
+        assert g.dtype == e.dtype and g.shape == e.shape, name
+        np.testing.assert_array_equal(g, e, err_msg=name)
+
+
+@needs_kernel
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    step=st.sampled_from([0, 1, 16]),
+    kept=st.sampled_from([0.0, 0.5, 0.95, 1.0]),
+)
+def test_kernel_mad_equals_the_numpy_form(seed, step, kept):
+    # short rows (<= 256 samples, deviations sorted) and long rows (bisection) alike
+    cells = np.nan_to_num(_cells(seed, step, 0.0, False), nan=0.0)
+    keep = np.random.default_rng(seed + 1).random(cells.shape) < kept
+    got = clip._robust_sigma(cells, keep)
+    expected = clip._robust_sigma_numpy(cells, keep)
+    np.testing.assert_array_equal(got, expected)
+    assert np.isnan(got[keep.sum(-1) == 0]).all()  # nothing kept: no noise estimate
+
+
+@needs_kernel
+def test_kernel_refuses_buffers_of_the_wrong_size():
+    s = np.zeros((2, 10), np.float32)
+    med, kept = np.empty(3), np.empty(2, np.int64)  # med sized for 3 rows
+    low, high = np.empty(2, np.float32), np.empty(2, np.float32)
+    with pytest.raises(ValueError, match="med has 24 bytes, expected 16"):
+        clip._clipc.clip_sorted(s, 2, 10, 3.0, 10, med, low, high, kept)
