@@ -89,6 +89,17 @@ def test_console_script_exit_code_and_single_line():
     assert len(proc.stderr.strip().splitlines()) == 1
 
 
+def test_python_dash_m_starsense_is_the_command_line():
+    # `python -m starsense` runs the same command line as the script: same error, same exit
+    proc = subprocess.run(
+        [sys.executable, "-m", "starsense", "limit", "star", "--mag-v", "1", "--b-v", "0.2",
+         "--diameter-m", "-3"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert proc.returncode == 2
+    assert proc.stderr.strip().startswith("error: diameter_m must be")
+
+
 def test_fialho2019_sec33_g_interval_bundled_catalogue(capsys):
     # Acceptance: G over the bundled Hipparcos lies inside the paper's interval for G,
     # 7e-15 < G < 1e-13 rad m^2 s^1/2 (sec. 3.3). With D = 1 m, t = 1 s, theta_rms is G itself.
