@@ -84,7 +84,8 @@ def _estimate_matrix(
     else:
         u, _, vt = np.linalg.svd(body.T @ ref)
         r = u @ vt
-        if np.linalg.det(r) < 0:  # reflection -> the nearest proper rotation
+        (a, b, c), (d, e, f), (g, h, i) = r.tolist()  # its determinant (+-1), in scalars
+        if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0:  # reflection
             u[:, 2] = -u[:, 2]
             r = u @ vt
     chord = np.sqrt(np.sum((ref @ r.T - body) ** 2, axis=1))
