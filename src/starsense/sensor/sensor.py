@@ -160,9 +160,12 @@ class Sensor:
         """
         v = np.asarray(vectors_cam, dtype=float)
         z = v[..., 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = np.where(z > 0, v[..., 0] / z, np.nan)
-            w = np.where(z > 0, v[..., 1] / z, np.nan)
+        if (z > 0).all():  # every direction in front: no NaN to put in
+            u, w = v[..., 0] / z, v[..., 1] / z
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = np.where(z > 0, v[..., 0] / z, np.nan)
+                w = np.where(z > 0, v[..., 1] / z, np.nan)
         if self.optics.has_distortion:
             u, w = distort(u, w, *self.optics.distortion)
         cx, cy = self.principal_point_px
@@ -192,7 +195,14 @@ class Sensor:
                 raise InputError(
                     "pixel position beyond the fold of the distortion model (optics.distortion_*)"
                 )
-        return tangent_to_vectors(np.stack([u, w], axis=-1))
+        if u.ndim != 1 or u.shape != w.shape:
+            return tangent_to_vectors(np.stack([u, w], axis=-1))
+        # tangent_to_vectors for (N,) points, without its argument handling: [u, w, 1] / norm
+        if not (np.isfinite(u).all() and np.isfinite(w).all()):
+            raise InputError("xy has non-finite values")
+        v = np.empty((len(u), 3))
+        v[:, 0], v[:, 1], v[:, 2] = u, w, 1.0
+        return v / np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=True))
 
     def exposure_or(self, exposure_s: float | None = None) -> float:
         """Return the exposure to use: ``exposure_s`` if given, else the sensor's own, s.

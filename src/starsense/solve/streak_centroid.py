@@ -206,8 +206,8 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     if n == 0:
         return out_x, out_y, total, boxes, spread
     reach_x, reach_y = np.abs(sx) + radius, np.abs(sy) + radius
-    size = (min(math.ceil(2 * float(np.max(reach_y))) + 2, rows),
-            min(math.ceil(2 * float(np.max(reach_x))) + 2, cols))  # fmt: skip
+    size = (min(math.ceil(2 * float(reach_y.max())) + 2, rows),
+            min(math.ceil(2 * float(reach_x.max())) + 2, cols))  # fmt: skip
     crops = windows_view(planes, size)
     # the capsule each centroid was taken over: its mask, columns and rows
     masks = np.zeros((n, *size), dtype=bool)
