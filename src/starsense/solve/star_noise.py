@@ -241,7 +241,7 @@ def fit_robust(body, ref, sigma):
     c, resid, chord2 = _svd_fit(body, ref, sigma)
     while len(keep) > 3:
         z = resid / sigma[keep]
-        worst = int(np.argmax(z))
+        worst = int(z.argmax())
         if z[worst] <= OUTLIER_SIGMA:
             break
         keep = np.delete(keep, worst)

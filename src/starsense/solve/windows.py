@@ -73,7 +73,7 @@ class WindowDetections:
         yi = np.rint(np.asarray(y, dtype=float))[:, None]
         r0, r1, c0, c1 = self.boxes.T
         inside = (yi >= r0) & (yi < r1) & (xi >= c0) & (xi < c1)
-        return int(np.sum(inside.any(axis=1)))
+        return int(np.count_nonzero(inside.any(axis=1)))
 
 
 def union_area(boxes: np.ndarray) -> int:
@@ -267,11 +267,11 @@ def _cogs(sub, p, boxes, margin):
     keep = ((rr >= a) & (rr < b))[:, :, None] & ((cc >= c) & (cc < d))[:, None, :]
     crop = windows_view(sub, (h, w))[p, r0[:, 0], c0[:, 0]].astype(float)
     wt = np.where(keep, crop, 0.0)
-    total = wt.sum(axis=(1, 2))
+    total = np.add.reduce(wt, axis=(1, 2))  # wt.sum, without its wrapper
     good = total > 0  # else NaN (an empty or negative region)
-    x = np.divide(np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)), total,
+    x = np.divide(np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), cc.astype(float)), total,
                   out=np.full(len(p), np.nan), where=good)  # fmt: skip
-    y = np.divide(np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)), total,
+    y = np.divide(np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), rr.astype(float)), total,
                   out=np.full(len(p), np.nan), where=good)  # fmt: skip
     return x, y
 
