@@ -88,7 +88,7 @@ def _estimate_matrix(
         if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0:  # reflection
             u[:, 2] = -u[:, 2]
             r = u @ vt
-    chord = np.sqrt(np.sum((ref @ r.T - body) ** 2, axis=1))
+    chord = np.sqrt(np.add.reduce((ref @ r.T - body) ** 2, axis=1))  # np.sum, no wrapper
     return r, 2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0))
 
 

@@ -237,10 +237,11 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
             break
         nx = np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), px) / tot
         ny = np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), py) / tot
-        out_x[live], out_y[live], total[live] = nx, ny, tot
-        last_x[live], last_y[live] = xl, yl
-        masks[live], cols_px[live], rows_px[live] = inside[good] if cut else inside, px, py
-        y_x[0, live], y_x[1, live] = ny, nx
+        at = slice(None) if len(live) == n else live  # every region: plain copies
+        out_x[at], out_y[at], total[at] = nx, ny, tot
+        last_x[at], last_y[at] = xl, yl
+        masks[at], cols_px[at], rows_px[at] = inside[good] if cut else inside, px, py
+        y_x[0, at], y_x[1, at] = ny, nx
         live = live[np.hypot(nx - xl, ny - yl) >= 0.01]
         if len(live) == 0:
             break
