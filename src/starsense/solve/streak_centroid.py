@@ -113,9 +113,14 @@ def windows_view(planes: np.ndarray, size) -> np.ndarray:
     k, rows, cols = planes.shape
     h, w = size
     s0, s1, s2 = planes.strides
-    return np.lib.stride_tricks.as_strided(
-        planes, (k, rows - h + 1, cols - w + 1, h, w), (s0, s1, s2, s1, s2), writeable=False
-    )
+    shape, strides = (k, rows - h + 1, cols - w + 1, h, w), (s0, s1, s2, s1, s2)
+    if not planes.flags.c_contiguous:
+        return np.lib.stride_tricks.as_strided(planes, shape, strides, writeable=False)
+    # a contiguous array's own buffer, viewed directly (as_strided's array-interface detour
+    # costs more than the view)
+    view = np.ndarray(shape, planes.dtype, buffer=planes, strides=strides)
+    view.flags.writeable = False
+    return view
 
 
 def _boxes(x, y, sx, sy, radius, shape):
