@@ -195,14 +195,7 @@ class Sensor:
                 raise InputError(
                     "pixel position beyond the fold of the distortion model (optics.distortion_*)"
                 )
-        if u.ndim != 1 or u.shape != w.shape:
-            return tangent_to_vectors(np.stack([u, w], axis=-1))
-        # tangent_to_vectors for (N,) points, without its argument handling: [u, w, 1] / norm
-        if not (np.isfinite(u).all() and np.isfinite(w).all()):
-            raise InputError("xy has non-finite values")
-        v = np.empty((len(u), 3))
-        v[:, 0], v[:, 1], v[:, 2] = u, w, 1.0
-        return v / np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=True))
+        return tangent_to_vectors(np.stack([u, w], axis=-1))
 
     def exposure_or(self, exposure_s: float | None = None) -> float:
         """Return the exposure to use: ``exposure_s`` if given, else the sensor's own, s.

@@ -25,13 +25,7 @@ from scipy.spatial.transform import Rotation
 from starsense.errors import InputError, StarsenseError
 from starsense.solve.solver import Solution
 from starsense.solve.streak_centroid import columns
-from starsense.solve.track_field import (
-    _half_turn,
-    _predicted_field,
-    _radec_roll,
-    _setup,
-    _unblended,
-)
+from starsense.solve.track_field import _half_turn, _predicted_field, _setup, _unblended
 from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = ["Prior", "TrackSolution", "Tracker", "track_frame"]
@@ -164,6 +158,7 @@ def _search_radius(cov: np.ndarray, field_radius: float) -> float:
 
 def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     """Window detection, matching and the attitude fit; (Solution, covariance) or a failure."""
+    from starsense.geometry.attitude import radec_roll_from_attitude
     from starsense.solve.star_noise import fit_robust, star_noise
     from starsense.solve.windows import detect_in_windows, streak_px
 
@@ -209,7 +204,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     matched, cat_ids = matched[keep], cat_ids[keep]
     covariance = noise.subset(keep).attitude_covariance(vectors[matched], att.covariance_rad2)
     stages["match_ms"] = match.time_ms
-    ra, dec, roll = _radec_roll(att.rotation)
+    ra, dec, roll = radec_roll_from_attitude(att.rotation)
     where = f"{found.n_windows} windows" if found.n_windows else "the whole frame"
     sol = Solution(
         "solved" if match.status == "verified" else "unverified",

@@ -19,10 +19,6 @@ from starsense.solve.streak_centroid import columns
 
 __all__: list[str] = []
 
-_TWO_PI = 2.0 * math.pi
-#: Boresights this close to a pole get RA 0 (as :func:`starsense.geometry.vectors_to_radec`).
-_POLE_COS_DEC = 1e-15
-
 
 @dataclass(frozen=True)
 class _Setup:
@@ -108,29 +104,6 @@ def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):
         return near, x, y, margin_on, None
     streaks = columns(px[2 * n :] - px[n : 2 * n], py[2 * n :] - py[n : 2 * n])
     return near, x, y, margin_on, streaks
-
-
-def _wrap(angle: float) -> float:
-    """Wrap an angle to [0, 2 pi), rad (as :func:`starsense.geometry.projection._wrap_two_pi`)."""
-    wrapped = angle % _TWO_PI
-    return 0.0 if wrapped >= _TWO_PI else wrapped
-
-
-def _radec_roll(rotation) -> tuple[float, float, float]:
-    """:func:`~starsense.geometry.attitude.radec_roll_from_attitude` of one attitude, rad.
-
-    The same formulas on the matrix's nine numbers (no arrays: one call per tracked frame).
-    """
-    (x0, x1, x2), (y0, y1, y2), (z0, z1, z2) = rotation.as_matrix().tolist()
-    rho = math.hypot(z0, z1)
-    ra = 0.0 if rho <= _POLE_COS_DEC * abs(z2) else _wrap(math.atan2(z1, z0))
-    dec = math.atan2(z2, rho)
-    sin_ra, cos_ra, sin_dec = math.sin(ra), math.cos(ra), math.sin(dec)
-    # east (-sin ra, cos ra, 0), north (-sin dec cos ra, -sin dec sin ra, cos dec)
-    n0, n1, n2 = -sin_dec * cos_ra, -sin_dec * sin_ra, math.cos(dec)
-    x_north, y_north = x0 * n0 + x1 * n1 + x2 * n2, y0 * n0 + y1 * n1 + y2 * n2
-    x_east, y_east = -x0 * sin_ra + x1 * cos_ra, -y0 * sin_ra + y1 * cos_ra
-    return ra, dec, _wrap(math.atan2(y_east - x_north, -y_north - x_east))
 
 
 def _unblended(cat_index, near, x, y, blend_px: float) -> np.ndarray:
