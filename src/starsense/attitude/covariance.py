@@ -120,7 +120,7 @@ def covariance(fisher: np.ndarray, n_stars: int | None = None) -> np.ndarray:
     or antipodal points): a rotation about that axis moves none of them.
     """
     f = np.asarray(fisher, dtype=float)
-    if not np.all(np.isfinite(f)):
+    if not np.isfinite(f).all():
         raise InputError("Fisher matrix has non-finite entries (NaN or inf in the star data)")
     eig = np.linalg.eigvalsh(f)
     stars = "" if n_stars is None else f" ({n_stars} star{'s' if n_stars != 1 else ''})"

@@ -32,7 +32,7 @@ def _cov(value: ArrayLike | None, name: str) -> NDArray[np.float64]:
     if value is None:
         return np.zeros((3, 3))
     c = np.asarray(value, dtype=float)
-    if c.shape != (3, 3) or not np.all(np.isfinite(c)):
+    if c.shape != (3, 3) or not np.isfinite(c).all():
         raise InputError(f"{name} must be a finite 3 x 3 covariance, got shape {c.shape}")
     return c
 
@@ -123,10 +123,10 @@ def predict_attitude(
     if not np.isfinite(dt) or dt < 0:
         raise InputError(f"dt_s must be a finite number >= 0, got {dt_s!r}")
     w = np.zeros(3) if rate_rad_s is None else np.asarray(rate_rad_s, dtype=float)
-    if w.shape != (3,) or not np.all(np.isfinite(w)):
+    if w.shape != (3,) or not np.isfinite(w).all():
         raise InputError(f"rate_rad_s must be 3 finite numbers, got {rate_rad_s!r}")
     p0, p_w = _cov(cov_rad2, "cov_rad2"), _cov(rate_cov_rad2_s2, "rate_cov")
-    if not np.any(w * dt):  # no turn: M = I (the same covariance, no rotation to compose)
+    if not (w * dt).any():  # no turn: M = I (the same covariance, no rotation to compose)
         return a, p0 + dt**2 * p_w
     step = Rotation.from_rotvec(-w * dt)
     m = step.as_matrix()

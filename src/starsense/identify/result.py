@@ -119,14 +119,14 @@ def validate_vectors(vectors_cam: object) -> NDArray[np.float64]:
         raise InputError(f"vectors_cam must be an (N, 3) array of numbers: {exc}") from None
     if v.ndim != 2 or v.shape[1] != 3:
         raise InputError(f"vectors_cam must have shape (N, 3), got {v.shape}")
-    if not np.all(np.isfinite(v)):
+    if not np.isfinite(v).all():
         row = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise InputError(f"vectors_cam[{row}] = {v[row].tolist()} is not finite")
-    norm = np.linalg.norm(v, axis=1)
-    if np.any(norm == 0):
+    norm = np.sqrt(np.add.reduce(v * v, axis=1))  # np.linalg.norm(v, axis=1)
+    if (norm == 0).any():
         raise InputError(f"vectors_cam[{int(np.flatnonzero(norm == 0)[0])}] is a zero vector")
     v = v / norm[:, None]
-    if np.any(v[:, 2] <= 0):
+    if (v[:, 2] <= 0).any():
         row = int(np.flatnonzero(v[:, 2] <= 0)[0])
         raise InputError(
             f"vectors_cam[{row}] = {v[row].tolist()} points behind the camera (z <= 0)"

@@ -186,7 +186,7 @@ class TrackingIdentifier:
             return _EMPTY_INT, _EMPTY_INT, 0
         n = len(vectors)
         diff = vectors[:, None, :] - cam[None, :, :]
-        d2 = (diff * diff).sum(axis=2)  # (N, M) squared chords
+        d2 = np.add.reduce(diff * diff, axis=2)  # (N, M) squared chords
         rows = _ARANGE[:n] if n <= len(_ARANGE) else np.arange(n)
         first = d2.argmin(axis=1)
         d1 = d2[rows, first]
@@ -201,10 +201,10 @@ class TrackingIdentifier:
             clear = np.ones(n, bool)
         det = (found & clear).nonzero()[0]
         star = first[det]
-        n_amb = int((found & ~clear).sum())
+        n_amb = int(np.count_nonzero(found & ~clear))
         counts = np.bincount(star, minlength=m)
         unique = counts[star] == 1
-        n_amb += len(unique) - int(unique.sum())
+        n_amb += len(unique) - int(np.count_nonzero(unique))
         return det[unique].astype(np.int64), star[unique].astype(np.int64), n_amb
 
     def __call__(

@@ -84,10 +84,11 @@ def _estimate_matrix(
     else:
         u, _, vt = np.linalg.svd(body.T @ ref)
         r = u @ vt
-        if np.linalg.det(r) < 0:  # reflection -> the nearest proper rotation
+        (a, b, c), (d, e, f), (g, h, i) = r.tolist()  # its determinant (+-1), in scalars
+        if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0:  # reflection
             u[:, 2] = -u[:, 2]
             r = u @ vt
-    chord = np.sqrt(np.sum((ref @ r.T - body) ** 2, axis=1))
+    chord = np.sqrt(np.add.reduce((ref @ r.T - body) ** 2, axis=1))  # np.sum, no wrapper
     return r, 2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0))
 
 

@@ -160,9 +160,12 @@ class Sensor:
         """
         v = np.asarray(vectors_cam, dtype=float)
         z = v[..., 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = np.where(z > 0, v[..., 0] / z, np.nan)
-            w = np.where(z > 0, v[..., 1] / z, np.nan)
+        if (z > 0).all():  # every direction in front: no NaN to put in
+            u, w = v[..., 0] / z, v[..., 1] / z
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = np.where(z > 0, v[..., 0] / z, np.nan)
+                w = np.where(z > 0, v[..., 1] / z, np.nan)
         if self.optics.has_distortion:
             u, w = distort(u, w, *self.optics.distortion)
         cx, cy = self.principal_point_px

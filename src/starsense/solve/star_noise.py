@@ -22,6 +22,7 @@ along a streak it is larger in the axis the streaks point along and smaller acro
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -150,14 +151,18 @@ def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
     margin = margin_px
     if margin is None:
         margin = 2 if solver.background != "known" else solver._detector().margin_px
-    cov = (cog_sigma_px(det, matched, detector, margin) ** 2)[:, None, None] * eye
     spread = det.extra.get("spread_px2")
     spread = np.full((n, 2, 2), np.nan) if spread is None else spread[matched]
     n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1.0)
     along = np.isfinite(spread[:, 0, 0])  # centroided over the streak's own window
-    cov[along] = (detector.psf_sigma_px**2 / n_e)[along, None, None] * eye + (
+    # photon and read noise over the streak's window (NaN where there was none)
+    cov = (detector.psf_sigma_px**2 / n_e)[:, None, None] * eye + (
         detector.read_noise_e**2 / n_e**2
-    )[along, None, None] * spread[along]
+    )[:, None, None] * spread
+    if not along.all():  # the others: the CoG over the region's box
+        cog = (cog_sigma_px(det, matched, detector, margin) ** 2)[:, None, None] * eye
+        cog[along] = cov[along]
+        cov = cog
     if rate is None or not np.any(rate):
         return StarNoise(sensor, x, y, cov)
     b = sensor.unproject(x, y) if vectors is None else vectors
@@ -236,7 +241,7 @@ def fit_robust(body, ref, sigma):
     c, resid, chord2 = _svd_fit(body, ref, sigma)
     while len(keep) > 3:
         z = resid / sigma[keep]
-        worst = int(np.argmax(z))
+        worst = int(z.argmax())
         if z[worst] <= OUTLIER_SIGMA:
             break
         keep = np.delete(keep, worst)
@@ -246,7 +251,8 @@ def fit_robust(body, ref, sigma):
     att = AttitudeSolution(
         # c is orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped
         rotation=Rotation.from_matrix(c, assume_valid=True), covariance_rad2=cov,
-        residual_rms_rad=float(np.sqrt(np.mean(resid**2))), residuals_rad=resid, method="svd",
-        n_stars=len(keep), loss=0.5 * float(np.sum(chord2 / sigma[keep] ** 2)),
+        residual_rms_rad=math.sqrt(float(np.add.reduce(resid * resid)) / len(resid)),
+        residuals_rad=resid, method="svd", n_stars=len(keep),
+        loss=0.5 * float(np.add.reduce(chord2 / sigma[keep] ** 2)),
     )  # fmt: skip
     return att, keep

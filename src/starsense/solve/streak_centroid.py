@@ -113,9 +113,14 @@ def windows_view(planes: np.ndarray, size) -> np.ndarray:
     k, rows, cols = planes.shape
     h, w = size
     s0, s1, s2 = planes.strides
-    return np.lib.stride_tricks.as_strided(
-        planes, (k, rows - h + 1, cols - w + 1, h, w), (s0, s1, s2, s1, s2), writeable=False
-    )
+    shape, strides = (k, rows - h + 1, cols - w + 1, h, w), (s0, s1, s2, s1, s2)
+    if not planes.flags.c_contiguous:
+        return np.lib.stride_tricks.as_strided(planes, shape, strides, writeable=False)
+    # a contiguous array's own buffer, viewed directly (as_strided's array-interface detour
+    # costs more than the view)
+    view = np.ndarray(shape, planes.dtype, buffer=planes, strides=strides)
+    view.flags.writeable = False
+    return view
 
 
 def _boxes(x, y, sx, sy, radius, shape):
@@ -206,8 +211,8 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     if n == 0:
         return out_x, out_y, total, boxes, spread
     reach_x, reach_y = np.abs(sx) + radius, np.abs(sy) + radius
-    size = (min(math.ceil(2 * float(np.max(reach_y))) + 2, rows),
-            min(math.ceil(2 * float(np.max(reach_x))) + 2, cols))  # fmt: skip
+    size = (min(math.ceil(2 * float(reach_y.max())) + 2, rows),
+            min(math.ceil(2 * float(reach_x.max())) + 2, cols))  # fmt: skip
     crops = windows_view(planes, size)
     # the capsule each centroid was taken over: its mask, columns and rows
     masks = np.zeros((n, *size), dtype=bool)
@@ -237,10 +242,11 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
             break
         nx = np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), px) / tot
         ny = np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), py) / tot
-        out_x[live], out_y[live], total[live] = nx, ny, tot
-        last_x[live], last_y[live] = xl, yl
-        masks[live], cols_px[live], rows_px[live] = inside[good] if cut else inside, px, py
-        y_x[0, live], y_x[1, live] = ny, nx
+        at = slice(None) if len(live) == n else live  # every region: plain copies
+        out_x[at], out_y[at], total[at] = nx, ny, tot
+        last_x[at], last_y[at] = xl, yl
+        masks[at], cols_px[at], rows_px[at] = inside[good] if cut else inside, px, py
+        y_x[0, at], y_x[1, at] = ny, nx
         live = live[np.hypot(nx - xl, ny - yl) >= 0.01]
         if len(live) == 0:
             break

@@ -174,7 +174,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
     # the longest streak: at a field corner (streak_px's default, corners computed once)
-    longest = 0.0 if half_turn is None else float(np.max(streak_px(sensor, rate, setup.corners)))
+    longest = 0.0 if half_turn is None else float(streak_px(sensor, rate, setup.corners).max())
     reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
     centres = columns(x[on], y[on])[:MAX_WINDOWS]
     found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
@@ -218,7 +218,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
         rotation=att.rotation,
-        matches=tuple((int(d), int(c)) for d, c in zip(matched, cat_ids, strict=True)),
+        matches=tuple(zip(matched.tolist(), cat_ids.tolist(), strict=True)),
         centroids_px=columns(det.x, det.y), image_shape=image.shape, focal_px=f,
     )  # fmt: skip
     return (sol, covariance), ""

@@ -122,4 +122,4 @@ def _unblended(cat_index, near, x, y, blend_px: float) -> np.ndarray:
     dy = yo[where][:, None] - yo[None, :]
     d2 = dx * dx + dy * dy
     d2[np.arange(len(where)), where] = np.inf  # the star itself
-    return np.sqrt(np.min(d2, axis=1)) > blend_px
+    return np.sqrt(d2.min(axis=1)) > blend_px

@@ -73,30 +73,25 @@ class WindowDetections:
         yi = np.rint(np.asarray(y, dtype=float))[:, None]
         r0, r1, c0, c1 = self.boxes.T
         inside = (yi >= r0) & (yi < r1) & (xi >= c0) & (xi < c1)
-        return int(np.sum(inside.any(axis=1)))
+        return int(np.count_nonzero(inside.any(axis=1)))
 
 
 def union_area(boxes: np.ndarray) -> int:
     """Return the pixels covered by the union of boxes (row0, row1, col0, col1), exactly.
 
-    The box edges cut the plane into cells; a cell is covered when any box holds it (the
-    boxes' corners summed into a difference array, then integrated along both axes).
+    The box edges cut the plane into cells (at most 2K x 2K for K boxes); each box marks the
+    cells it spans, and the areas of the marked cells are summed.
     """
     boxes = np.asarray(boxes, dtype=int)
     if len(boxes) == 0:
         return 0
     rows, cols = _edges(boxes[:, :2]), _edges(boxes[:, 2:])
     i, j = rows.searchsorted(boxes[:, :2]), cols.searchsorted(boxes[:, 2:])
-    # the corners (i0, j0) and (i1, j1) count +1, (i0, j1) and (i1, j0) -1
-    n = len(rows) * len(cols)
-    plus = (i * len(cols) + j).ravel()
-    minus = (i * len(cols) + j[:, ::-1]).ravel()
-    corners = (np.bincount(plus, minlength=n) - np.bincount(minus, minlength=n)).reshape(
-        len(rows), len(cols)
-    )
-    covered = corners.cumsum(axis=0).cumsum(axis=1)[:-1, :-1] > 0
-    area = (rows[1:] - rows[:-1])[:, None] * (cols[1:] - cols[:-1])[None, :]
-    return int((covered * area).sum())
+    covered = np.zeros((len(rows) - 1, len(cols) - 1), bool)
+    for (i0, i1), (j0, j1) in zip(i.tolist(), j.tolist(), strict=True):
+        covered[i0:i1, j0:j1] = True
+    area = (rows[1:] - rows[:-1])[:, None] * (cols[1:] - cols[:-1])
+    return int(area[covered].sum())
 
 
 def _edges(values: np.ndarray) -> np.ndarray:
@@ -272,11 +267,11 @@ def _cogs(sub, p, boxes, margin):
     keep = ((rr >= a) & (rr < b))[:, :, None] & ((cc >= c) & (cc < d))[:, None, :]
     crop = windows_view(sub, (h, w))[p, r0[:, 0], c0[:, 0]].astype(float)
     wt = np.where(keep, crop, 0.0)
-    total = wt.sum(axis=(1, 2))
+    total = np.add.reduce(wt, axis=(1, 2))  # wt.sum, without its wrapper
     good = total > 0  # else NaN (an empty or negative region)
-    x = np.divide(np.einsum("kj,kj->k", wt.sum(axis=1), cc.astype(float)), total,
+    x = np.divide(np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), cc.astype(float)), total,
                   out=np.full(len(p), np.nan), where=good)  # fmt: skip
-    y = np.divide(np.einsum("ki,ki->k", wt.sum(axis=2), rr.astype(float)), total,
+    y = np.divide(np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), rr.astype(float)), total,
                   out=np.full(len(p), np.nan), where=good)  # fmt: skip
     return x, y
 
@@ -332,8 +327,13 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
         stack = stack.astype(np.float32)
     level, noise, threshold = _levels(solver, stack)
     # counts less the level in float32 (the frame's integer counts are exact in it)
-    sub = np.subtract(stack, level[:, None, None].astype(np.float32), dtype=np.float32)
-    lit = sub > _below(threshold)[:, None, None]
+    if solver.background == "known":  # one level and threshold for all: scalars, no broadcast
+        sub = stack.astype(np.float32)
+        sub -= np.float32(level[0])
+        lit = sub > _below(threshold[:1])[0]
+    else:
+        sub = np.subtract(stack, level[:, None, None].astype(np.float32), dtype=np.float32)
+        lit = sub > _below(threshold)[:, None, None]
     idx, lab, n = _lit_labels(lit, logic.connectivity)
     if n == 0:
         return _NO_ROWS, _median_noise(solver, noise), 0
