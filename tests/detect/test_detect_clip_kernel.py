@@ -84,4 +84,4 @@ def test_kernel_refuses_buffers_of_the_wrong_size():
     med, kept = np.empty(3), np.empty(2, np.int64)  # med sized for 3 rows
     low, high = np.empty(2, np.float32), np.empty(2, np.float32)
     with pytest.raises(ValueError, match="med has 24 bytes, expected 16"):
-        clip._clipc.clip_sorted(s, 2, 10, 3.0, 10, med, low, high, kept)
+        clip._clipc.clip_sorted(s, 2, 10, 3.0, clip.MAD_TO_SIGMA, 10, med, low, high, kept)

@@ -14,8 +14,6 @@
 #include <math.h>
 #include <stdint.h>
 
-static const double MAD_TO_SIGMA = 1.482602218505602;
-
 /* Median of s[lo:lo+count] (float32 values averaged in float64); NaN if empty. */
 static double ranked(const float *s, Py_ssize_t lo, Py_ssize_t count)
 {
@@ -112,15 +110,16 @@ static int check(Py_buffer *b, Py_ssize_t bytes, const char *what)
     return 0;
 }
 
-/* clip_sorted(sorted, rows, m, sigma, iterations, med, low, high, kept) */
+/* clip_sorted(sorted, rows, m, sigma, mad_to_sigma, iterations, med, low, high, kept):
+ * mad_to_sigma is clip.py's MAD_TO_SIGMA (its one copy). */
 static PyObject *clip_sorted(PyObject *self, PyObject *args)
 {
     Py_buffer sb, medb, lowb, highb, keptb;
     Py_ssize_t rows, m;
-    double sigma;
+    double sigma, mad_to_sigma;
     int iterations;
-    if (!PyArg_ParseTuple(args, "y*nndiw*w*w*w*", &sb, &rows, &m, &sigma, &iterations, &medb,
-                          &lowb, &highb, &keptb))
+    if (!PyArg_ParseTuple(args, "y*nnddiw*w*w*w*", &sb, &rows, &m, &sigma, &mad_to_sigma,
+                          &iterations, &medb, &lowb, &highb, &keptb))
         return NULL;
     PyObject *result = NULL;
     if (rows < 0 || m < 1 || check(&sb, rows * m * 4, "sorted") || check(&medb, rows * 8, "med")
@@ -140,7 +139,7 @@ static PyObject *clip_sorted(PyObject *self, PyObject *args)
         Py_ssize_t lo = 0, hi = finite_count(s, m);
         double med = ranked(s, lo, hi - lo);
         for (int it = 0; it < iterations; it++) {
-            double scale = MAD_TO_SIGMA * run_mad(s, lo, hi, med);
+            double scale = mad_to_sigma * run_mad(s, lo, hi, med);
             double half = scale > 0 ? sigma * scale : INFINITY;
             Py_ssize_t new_lo = rank_less_d(s, lo, hi, med - half);
             Py_ssize_t new_hi = rank_less_d(s, lo, hi, nextafter(med + half, INFINITY));
@@ -168,7 +167,7 @@ done:
     return result;
 }
 
-/* mad_sorted(sorted, rows, m, n, sigma_out): 1.4826 MAD of each row's first n[r] values. */
+/* mad_sorted(sorted, rows, m, n, out): the MAD of each row's first n[r] values. */
 static PyObject *mad_sorted(PyObject *self, PyObject *args)
 {
     Py_buffer sb, nb, outb;
@@ -191,7 +190,7 @@ static PyObject *mad_sorted(PyObject *self, PyObject *args)
         Py_ssize_t count = (Py_ssize_t)n[r];
         if (count > m)
             count = m;
-        out[r] = MAD_TO_SIGMA * run_mad(s, 0, count, ranked(s, 0, count));
+        out[r] = run_mad(s, 0, count, ranked(s, 0, count));
     }
     Py_END_ALLOW_THREADS
     result = Py_NewRef(Py_None);
@@ -204,7 +203,7 @@ done:
 
 static PyMethodDef methods[] = {
     {"clip_sorted", clip_sorted, METH_VARARGS, "Sigma-clip the sorted rows (see clip.py)."},
-    {"mad_sorted", mad_sorted, METH_VARARGS, "1.4826 MAD of the sorted rows' first n values."},
+    {"mad_sorted", mad_sorted, METH_VARARGS, "MAD of the sorted rows' first n values."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -154,7 +154,9 @@ def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
     rows = int(np.prod(lead))
     med, kept = np.empty(lead, np.float64), np.empty(lead, np.int64)
     low, high = np.empty(lead, np.float32), np.empty(lead, np.float32)
-    _clipc.clip_sorted(s, rows, m, float(sigma_clip), _MAX_CLIP_ITERATIONS, med, low, high, kept)
+    _clipc.clip_sorted(
+        s, rows, m, float(sigma_clip), MAD_TO_SIGMA, _MAX_CLIP_ITERATIONS, med, low, high, kept
+    )
     return med, low, high, kept.astype(np.intp, copy=False)
 
 
@@ -196,7 +198,7 @@ def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
         v.sort(axis=-1)  # the kept samples first, ascending
         out = np.empty(n.shape, np.float64)
         _clipc.mad_sorted(v, int(n.size), v.shape[-1], n.astype(np.int64), out)
-        return out
+        return MAD_TO_SIGMA * out
     return _robust_sigma_numpy(cells, keep, n)
 
 
