@@ -139,8 +139,18 @@ def _median(values: np.ndarray, q: float = 50) -> float | None:
     return float(np.percentile(values, q)) if len(values) else None
 
 
-def _trials(sensor, catalog, seed: int, n_trials: int, indices, rate_rad_s: float, model: str,
-            max_mag, wrong_rad: float, progress=None) -> list[tuple]:  # fmt: skip
+def _trials(
+    sensor,
+    catalog,
+    seed: int,
+    n_trials: int,
+    indices,
+    rate_rad_s: float,
+    model: str,
+    max_mag,
+    wrong_rad: float,
+    progress=None,
+) -> list[tuple]:
     """Run trials ``indices`` of a run of ``n_trials``; one record per trial (see below).
 
     A top-level function so that a Dask worker can run a chunk: trial k always uses the k-th
@@ -162,8 +172,16 @@ def _trials(sensor, catalog, seed: int, n_trials: int, indices, rate_rad_s: floa
         phi = rng.uniform(0, 2 * np.pi)
         rate = rate_rad_s * np.array([math.cos(phi), math.sin(phi), 0.0])
         t0 = time.perf_counter()
-        frame = render_frame(solver.sensor, truth, catalog, rate_rad_s=rate, model=model,
-                             max_mag=max_mag, rng=rng, keep_expected=False)  # fmt: skip
+        frame = render_frame(
+            solver.sensor,
+            truth,
+            catalog,
+            rate_rad_s=rate,
+            model=model,
+            max_mag=max_mag,
+            rng=rng,
+            keep_expected=False,
+        )
         render_ms = (time.perf_counter() - t0) * 1e3
         sol = solver(frame.image)
         solve_ms = sol.time_ms - sol.stage_ms.get("database_ms", 0.0)
@@ -175,8 +193,19 @@ def _trials(sensor, catalog, seed: int, n_trials: int, indices, rate_rad_s: floa
             if not wrong:
                 err = small_rotation_angles(truth, sol.rotation)
                 sig = np.asarray(sol.sigma_rad)
-        out.append((sol.status, sol.solved, wrong, err, sig, truth.as_quat(), render_ms,
-                    solve_ms, sol.n_matched))  # fmt: skip
+        out.append(
+            (
+                sol.status,
+                sol.solved,
+                wrong,
+                err,
+                sig,
+                truth.as_quat(),
+                render_ms,
+                solve_ms,
+                sol.n_matched,
+            )
+        )
         if progress is not None:
             progress(1)
     return out
@@ -286,8 +315,9 @@ def run_montecarlo(
     return _result(sens.name, records, n_trials, rate_rad_s, model, int(seed))
 
 
-def _result(name: str, records: list[tuple], n_trials: int, rate_rad_s: float, model: str,
-            seed: int) -> MonteCarloResult:  # fmt: skip
+def _result(
+    name: str, records: list[tuple], n_trials: int, rate_rad_s: float, model: str, seed: int
+) -> MonteCarloResult:
     """Gather the per-trial records into a :class:`MonteCarloResult`."""
     statuses: dict = {}
     for r in records:

@@ -307,8 +307,7 @@ def simulate_slew(
     n_det = detected.sum(axis=2)
     total = np.where(detected, intensity, 0.0).sum(axis=2)
     mean_int = np.where(n_det > 0, total / np.maximum(n_det, 1), np.nan)
-    tol, capped = zip(*(_tolerable(fraction[i], rates, criterion) for i in range(n_m)),
-                      strict=True)  # fmt: skip
+    tol, capped = zip(*(_tolerable(fraction[i], rates, criterion) for i in range(n_m)), strict=True)
     return SlewResult(
         magnitudes=mags,
         rates_rad_s=rates,

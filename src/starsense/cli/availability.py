@@ -210,14 +210,32 @@ def _setup(
     cat = load_catalog(catalog)
     with _as_options():
         analysis = AvailabilityAnalysis.from_catalog(
-            cat, field, max_mag, band, n_orientations=n_orientations, roll=roll, seed=seed,
+            cat,
+            field,
+            max_mag,
+            band,
+            n_orientations=n_orientations,
+            roll=roll,
+            seed=seed,
             progress=progress,
-        )  # fmt: skip
+        )
     return sens, cat, analysis
 
 
-def _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min, n_orientations,
-                 roll_deg, seed, band, as_json):  # fmt: skip
+def _static_hats(
+    sensor,
+    catalog,
+    dask,
+    fov,
+    half_fov_deg,
+    max_mag,
+    n_min,
+    n_orientations,
+    roll_deg,
+    seed,
+    band,
+    as_json,
+):
     """``availability static`` over a HATS catalogue on Dask (starsense.scale)."""
     from starsense.cli.catalog import hats_session
     from starsense.scale import static_availability
@@ -230,14 +248,28 @@ def _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min, n_ori
     field = _field_of_view(sens, fov, half_fov_deg)
     with hats_session(catalog, dask, not as_json) as (cat, client, progress), _as_options():
         res = static_availability(
-            cat, field, max_mag, n_min, band=band, n_orientations=n_orientations,
-            roll=roll, seed=seed, client=client, progress=progress,
-        )  # fmt: skip
+            cat,
+            field,
+            max_mag,
+            n_min,
+            band=band,
+            n_orientations=n_orientations,
+            roll=roll,
+            seed=seed,
+            client=client,
+            progress=progress,
+        )
     return res, sens
 
 
-def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: Path | None,
-                     progress: Callable[[str, int, int], None] | None):  # fmt: skip
+def _threshold_curve(
+    sens,
+    model: str,
+    trials: int,
+    seed: int,
+    tolerance_json: Path | None,
+    progress: Callable[[str, int, int], None] | None,
+):
     """m_t(w) from a saved tolerance JSON, or from the slew Monte Carlo."""
     from starsense.analysis.availability import ThresholdCurve
 
@@ -258,10 +290,14 @@ def _threshold_curve(sens, model: str, trials: int, seed: int, tolerance_json: P
     from starsense.analysis.slew import simulate_slew
 
     result = simulate_slew(
-        sens, model, n_trials=trials, seed=seed,
-        progress=None if progress is None else (
-            lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),
-    )  # fmt: skip
+        sens,
+        model,
+        n_trials=trials,
+        seed=seed,
+        progress=None
+        if progress is None
+        else (lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),
+    )
     return ThresholdCurve.from_slew(result)
 
 
@@ -305,13 +341,34 @@ def static(
     """
     _check_n_min(n_min)
     if check_dask_option(catalog, dask):
-        res, sens = _static_hats(sensor, catalog, dask, fov, half_fov_deg, max_mag, n_min,
-                                 n_orientations, roll_deg, seed, band, as_json)  # fmt: skip
+        res, sens = _static_hats(
+            sensor,
+            catalog,
+            dask,
+            fov,
+            half_fov_deg,
+            max_mag,
+            n_min,
+            n_orientations,
+            roll_deg,
+            seed,
+            band,
+            as_json,
+        )
     else:
         with progress_bar() as progress:
-            sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag,
-                                       n_orientations, roll_deg, seed, progress,
-                                       band or "V")  # fmt: skip
+            sens, _, analysis = _setup(
+                sensor,
+                catalog,
+                fov,
+                half_fov_deg,
+                max_mag,
+                n_orientations,
+                roll_deg,
+                seed,
+                progress,
+                band or "V",
+            )
             res = analysis.static(n_min)
     payload = {**res.to_dict(), "sensor": sens.name}
     lines = [f"{sens.name}: " + res.lines()[0], *res.lines()[1:]]
@@ -324,14 +381,28 @@ def static(
         from starsense.plotting.availability import save_figure, sky_map_figure
 
         folder = _maps_dir(maps)
-        figures.append(save_figure(sky_map_figure(
-            res.boresights, res.counts,
-            f"{sens.name}: stars in the field, m_t = {res.max_mag:g} ({res.fov})",
-        ), folder / "static_stars_in_field.png"))  # fmt: skip
-        figures.append(save_figure(sky_map_figure(
-            res.boresights, res.counts, f"{sens.name}: star-sparse regions, m_t = "
-            f"{res.max_mag:g}", sparse=True, n_min=res.n_min,
-        ), folder / "static_sparse.png"))  # fmt: skip
+        figures.append(
+            save_figure(
+                sky_map_figure(
+                    res.boresights,
+                    res.counts,
+                    f"{sens.name}: stars in the field, m_t = {res.max_mag:g} ({res.fov})",
+                ),
+                folder / "static_stars_in_field.png",
+            )
+        )
+        figures.append(
+            save_figure(
+                sky_map_figure(
+                    res.boresights,
+                    res.counts,
+                    f"{sens.name}: star-sparse regions, m_t = {res.max_mag:g}",
+                    sparse=True,
+                    n_min=res.n_min,
+                ),
+                folder / "static_sparse.png",
+            )
+        )
     if figures:
         payload["figures"] = [str(f) for f in figures]
         lines += [f"figure: {f}" for f in figures]
@@ -363,8 +434,9 @@ def dynamic(
     rates = _check_rates_deg_s(parse_floats(rates_deg_s, "--rates-deg-s"), "--rates-deg-s")
     _check_n_min(n_min)
     with progress_bar() as progress:
-        sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
-                                   roll_deg, seed, progress)  # fmt: skip
+        sens, _, analysis = _setup(
+            sensor, catalog, fov, half_fov_deg, max_mag, n_orientations, roll_deg, seed, progress
+        )
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
         res = analysis.dynamic(curve, rates, n_min)
     payload = {**res.to_dict(), "sensor": sens.name, "model": model}
@@ -380,11 +452,18 @@ def dynamic(
         folder = _maps_dir(maps)
         for w, m in zip(res.rates_deg_s, res.threshold_mag, strict=True):
             mt = f"{m:.2f}" if np.isfinite(m) else "none"
-            figures.append(save_figure(sky_map_figure(
-                analysis.boresights, analysis.sky_counts(m),
-                f"{sens.name}: stars detectable at {w:g} deg/s ({curve.label}, m_t = {mt})",
-                sparse=True, n_min=n_min,
-            ), folder / f"dynamic_{w:g}degs.png"))  # fmt: skip
+            figures.append(
+                save_figure(
+                    sky_map_figure(
+                        analysis.boresights,
+                        analysis.sky_counts(m),
+                        f"{sens.name}: stars detectable at {w:g} deg/s ({curve.label}, m_t = {mt})",
+                        sparse=True,
+                        n_min=n_min,
+                    ),
+                    folder / f"dynamic_{w:g}degs.png",
+                )
+            )
     if figures:
         payload["figures"] = [str(f) for f in figures]
         lines += [f"figure: {f}" for f in figures]
@@ -430,8 +509,9 @@ def track(
     # from a count (0.01 deg: 18,001 tracks ending at 90); finer than 0.001 deg is refused
     inclinations = DEG * step_grid(-90, 90, inclination_step_deg, "--inclination-step-deg", 1e-3)
     with progress_bar() as progress:
-        sens, _, analysis = _setup(sensor, catalog, fov, half_fov_deg, max_mag, n_orientations,
-                                   roll_deg, seed, progress)  # fmt: skip
+        sens, _, analysis = _setup(
+            sensor, catalog, fov, half_fov_deg, max_mag, n_orientations, roll_deg, seed, progress
+        )
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
         res = analysis.track(curve, rate, n_min, inclinations, track_samples, node)
     payload = {**res.to_dict(), "sensor": sens.name, "model": model}
@@ -448,12 +528,21 @@ def track(
         folder = _maps_dir(maps)
         shown = (-60.0, -30.0, 0.0, 30.0, 60.0, 90.0)
         paths = [great_circle_track(i * DEG, 721, node)[0] for i in shown]
-        figures.append(save_figure(sky_map_figure(
-            analysis.boresights, analysis.sky_counts(res.threshold_mag),
-            f"{sens.name}: stars detectable at {res.rate_deg_s:g} deg/s; tracks i = "
-            + ", ".join(f"{i:g}" for i in shown) + " deg",
-            sparse=True, n_min=n_min, tracks=paths,
-        ), folder / f"track_{res.rate_deg_s:g}degs.png"))  # fmt: skip
+        figures.append(
+            save_figure(
+                sky_map_figure(
+                    analysis.boresights,
+                    analysis.sky_counts(res.threshold_mag),
+                    f"{sens.name}: stars detectable at {res.rate_deg_s:g} deg/s; tracks i = "
+                    + ", ".join(f"{i:g}" for i in shown)
+                    + " deg",
+                    sparse=True,
+                    n_min=n_min,
+                    tracks=paths,
+                ),
+                folder / f"track_{res.rate_deg_s:g}degs.png",
+            )
+        )
     if figures:
         payload["figures"] = [str(f) for f in figures]
         lines += [f"figure: {f}" for f in figures]
@@ -491,8 +580,15 @@ def fidelity(
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
         with _as_options():
             res = fidelity_check(
-                sens, cat, curve, rate, n_frames=frames, n_min=n_min, max_mag=max_mag,
-                model=model, seed=seed,
+                sens,
+                cat,
+                curve,
+                rate,
+                n_frames=frames,
+                n_min=n_min,
+                max_mag=max_mag,
+                model=model,
+                seed=seed,
                 progress=lambda done, total: progress("rendering frames", done, total),
-            )  # fmt: skip
+            )
     emit({**res.to_dict(), "sensor": sens.name}, as_json, res.lines())

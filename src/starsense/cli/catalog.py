@@ -94,10 +94,14 @@ def catalog_import(
         raise MissingColumnsError(text) from None
     with dask_client(dask) as client:
         out = import_catalog(
-            input_path, output, ra_column=ra_column, dec_column=dec_column,
-            pixel_threshold=pixel_threshold, client=client,
+            input_path,
+            output,
+            ra_column=ra_column,
+            dec_column=dec_column,
+            pixel_threshold=pixel_threshold,
+            client=client,
             progress=not as_json and sys.stderr.isatty(),
-        )  # fmt: skip
+        )
     cat = open_hats(str(out))
     payload = {
         "output": str(out),
@@ -106,8 +110,12 @@ def catalog_import(
         "n_partitions": cat.n_partitions,
         "columns": list(cat.columns),
     }
-    emit(payload, as_json, [
-        f"HATS catalogue {out}: {cat.n_rows} rows in {cat.n_partitions} partitions",
-        f"  columns: {', '.join(cat.columns)}",
-        f"  use it with --catalog hats:{out}",
-    ])  # fmt: skip
+    emit(
+        payload,
+        as_json,
+        [
+            f"HATS catalogue {out}: {cat.n_rows} rows in {cat.n_partitions} partitions",
+            f"  columns: {', '.join(cat.columns)}",
+            f"  use it with --catalog hats:{out}",
+        ],
+    )

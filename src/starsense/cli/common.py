@@ -353,8 +353,12 @@ def progress_bar(enabled: bool = True, *, unit: str | None = None) -> Iterator[P
 
     columns: tuple = ()
     if unit is not None:
-        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TextColumn(unit))  # fmt: skip
+        columns = (
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn(unit),
+        )
     # on stderr, as documented (rich's default console is stdout, where --json output goes)
     with Progress(*columns, transient=True, console=Console(stderr=True)) as bar:
         yield ProgressBar(bar)

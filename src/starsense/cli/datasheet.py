@@ -84,8 +84,11 @@ def datasheet_lines(d: dict) -> list[str]:
     ]
     if d.get("quoted"):
         lines.append(f"  predicted / quoted ({d.get('quoted_source')}):")
-        lines += [f"    {q['key']}: {_f(q['predicted'], '.3g')} / {q['quoted']:g} "
-                  f"(ratio {_f(q['ratio'])})" for q in d["quoted"]]  # fmt: skip
+        lines += [
+            f"    {q['key']}: {_f(q['predicted'], '.3g')} / {q['quoted']:g} "
+            f"(ratio {_f(q['ratio'])})"
+            for q in d["quoted"]
+        ]
     lines += [f"  note: {w}" for w in d.get("warnings", [])]
     return lines
 
@@ -98,11 +101,14 @@ def _compare_lines(sheets: list[dict]) -> list[str]:
         ("NEA cross, arcsec", lambda d: d["nea_arcsec"]["cross"]["median"], ".3f"),
         ("NEA roll, arcsec", lambda d: d["nea_arcsec"]["roll"]["median"], ".3f"),
         ("limit cross, arcsec", lambda d: d["limit_arcsec"]["cross"], ".4f"),
-        ("LIS solved at rest", lambda d: d["monte_carlo"]["solved"] / d["monte_carlo"]["frames"],
-         ".3f"),
+        (
+            "LIS solved at rest",
+            lambda d: d["monte_carlo"]["solved"] / d["monte_carlo"]["frames"],
+            ".3f",
+        ),
         ("measured/predicted cross", lambda d: d["monte_carlo"]["cross_ratio"], ".2f"),
         ("availability LIS at rest", lambda d: d["availability"]["lost_in_space"], ".3f"),
-    ]  # fmt: skip
+    ]
     width = max(12, *(len(d["sensor"]) for d in sheets))
     out = [f"{'':28s}" + "".join(f"{d['sensor']:>{width + 2}s}" for d in sheets)]
     for label, get, fmt in rows:
@@ -183,13 +189,19 @@ def datasheet(
     names = list(compare) if compare else [sensor]
     sensors = [load_sensor(n) for n in names]
     cat = load_catalog(catalog)
-    settings = DatasheetSettings(trials=trials, rate_rad_s=rate_deg_s * DEG, seed=seed,
-                                 n_orientations=n_orientations, model=model)  # fmt: skip
+    settings = DatasheetSettings(
+        trials=trials,
+        rate_rad_s=rate_deg_s * DEG,
+        seed=seed,
+        n_orientations=n_orientations,
+        model=model,
+    )
     sheets = []
     with progress_bar(not as_json) as bar, _client(dask) as client:
         for sens in sensors:
-            sheets.append(build_datasheet(sens, cat, settings, client=client,
-                                          progress=bar.callback))  # fmt: skip
+            sheets.append(
+                build_datasheet(sens, cat, settings, client=client, progress=bar.callback)
+            )
     payloads = [s.to_dict() for s in sheets]
     figures = []
     if out is not None:

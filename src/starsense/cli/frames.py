@@ -87,12 +87,27 @@ def render(
     if sequence is not None or interval_s is not None:
         if areas:
             raise InputError("--sequence renders detector frames: it does not take --areas")
-        _render_sequence(out, sens, att, rate, sequence, interval_s, seed,
-                         model=model, catalog=load_catalog(catalog), max_mag=max_mag,
-                         noise=not no_noise)  # fmt: skip
+        _render_sequence(
+            out,
+            sens,
+            att,
+            rate,
+            sequence,
+            interval_s,
+            seed,
+            model=model,
+            catalog=load_catalog(catalog),
+            max_mag=max_mag,
+            noise=not no_noise,
+        )
         return
-    kwargs = {"rate_rad_s": rate, "model": model, "max_mag": max_mag, "rng": seed,
-              "noise": not no_noise}  # fmt: skip
+    kwargs = {
+        "rate_rad_s": rate,
+        "model": model,
+        "max_mag": max_mag,
+        "rng": seed,
+        "noise": not no_noise,
+    }
     if time is not None:
         from starsense.geometry.apparent import parse_time
 
@@ -134,8 +149,9 @@ def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kw
     if not (out.parent if str(out.parent) else Path(".")).is_dir():
         raise InputError(f"--out {out}: directory {str(out.parent)!r} not found")
     paths = sequence_paths(out, n)
-    frames = render_sequence(sens, att, catalog, n, interval_s, rate_rad_s=rate, seed=seed,
-                             **kwargs)  # fmt: skip
+    frames = render_sequence(
+        sens, att, catalog, n, interval_s, rate_rad_s=rate, seed=seed, **kwargs
+    )
     for path, frame in zip(paths, frames, strict=True):
         write_frame(path, frame)
         typer.echo(
@@ -172,9 +188,15 @@ def montecarlo(
     cat = load_catalog("hipparcos")
     with progress_bar(not as_json) as bar:
         res = run_montecarlo(
-            sensor, trials, rate_rad_s=rate_deg_s * DEG, model=model, catalog=cat,
-            max_mag=max_mag, seed=seed, progress=bar.task("Monte Carlo", total=trials),
-        )  # fmt: skip
+            sensor,
+            trials,
+            rate_rad_s=rate_deg_s * DEG,
+            model=model,
+            catalog=cat,
+            max_mag=max_mag,
+            seed=seed,
+            progress=bar.task("Monte Carlo", total=trials),
+        )
     err, pred = res.rms_error_arcsec, res.rms_predicted_arcsec
     payload = {**res.to_dict(), "rate_deg_s": float(rate_deg_s)}  # the option as given
     emit(

@@ -196,8 +196,9 @@ def limit_sky(
     radec = [_parse_target(t) for t in target_deg or []]
     _check_max_mag(max_mag)
     if check_dask_option(catalog, dask):
-        _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg,
-                        radec, as_json)  # fmt: skip
+        _limit_sky_hats(
+            catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, radec, as_json
+        )
         return
     from starsense.analysis.limits.sky import fov_limit, sky_limit
 
@@ -245,8 +246,9 @@ def _emit_fov(name, colour, common, fov_deg, radec, heads, merged, as_json) -> N
     emit(payload, as_json, lines)
 
 
-def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, radec,
-                    as_json) -> None:  # fmt: skip
+def _limit_sky_hats(
+    catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, radec, as_json
+) -> None:
     """Run ``limit sky`` over a HATS catalogue on Dask (starsense.scale)."""
     from starsense.cli.catalog import hats_session
 
@@ -260,20 +262,29 @@ def _limit_sky_hats(catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_
             heads, merged, used = fov_limit(
                 cat, _target_vectors(radec), fov_deg * DEG, diameter_m, exposure_s, **opts
             )
-    common = {"catalog": cat.name, "colour": used.colour, "n_skipped": used.n_skipped,
-              "source": cat.location}  # fmt: skip
+    common = {
+        "catalog": cat.name,
+        "colour": used.colour,
+        "n_skipped": used.n_skipped,
+        "source": cat.location,
+    }
     if fov_deg is not None:
         _emit_fov(cat.name, used.colour, common, fov_deg, radec, heads, merged, as_json)
         return
-    emit({**res.to_dict(), **common}, as_json, [
-        f"HATS catalogue {cat.name} ({cat.location}, {cat.n_partitions} partitions): "
-        f"{res.n_stars} stars ({used.colour}; {used.n_skipped} skipped without magnitude or "
-        "colour)",
-        f"theta_rms (D = {diameter_m} m, t = {exposure_s} s): {_rad(res.theta_rms_rad)}",
-        "per-axis sigma (ICRS x, y, z): " + ", ".join(f"{s:.3g}" for s in res.axis_sigma_rad)
-        + " rad",
-        f"G = {res.g_rad_m2_s05:.3e} rad m^2 s^1/2 (paper: 7e-15 < G < 1e-13)",
-    ])  # fmt: skip
+    emit(
+        {**res.to_dict(), **common},
+        as_json,
+        [
+            f"HATS catalogue {cat.name} ({cat.location}, {cat.n_partitions} partitions): "
+            f"{res.n_stars} stars ({used.colour}; {used.n_skipped} skipped without magnitude or "
+            "colour)",
+            f"theta_rms (D = {diameter_m} m, t = {exposure_s} s): {_rad(res.theta_rms_rad)}",
+            "per-axis sigma (ICRS x, y, z): "
+            + ", ".join(f"{s:.3g}" for s in res.axis_sigma_rad)
+            + " rad",
+            f"G = {res.g_rad_m2_s05:.3e} rad m^2 s^1/2 (paper: 7e-15 < G < 1e-13)",
+        ],
+    )
 
 
 @limit_app.command("curve")
@@ -305,9 +316,14 @@ def limit_curve(
 
         with hats_session(catalog, dask, not as_json) as (cat, client, progress):
             curve = hats_curve(
-                cat, diameter_m, exposure_s, n_extrapolated=extrapolate_to, colour=colour,
-                client=client, progress=progress,
-            )  # fmt: skip
+                cat,
+                diameter_m,
+                exposure_s,
+                n_extrapolated=extrapolate_to,
+                colour=colour,
+                client=client,
+                progress=progress,
+            )
     else:
         cat, stars = _load_stars(catalog, None, colour)
         curve = brightest_curve(stars, diameter_m, exposure_s, n_extrapolated=extrapolate_to)

@@ -77,11 +77,20 @@ def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolera
         label = label if seen[label] == 1 else f"{label}#{seen[label]}"
         parsed.append((name, label, {} if mounting is None else {"mounting": mounting}))
     sensors = {name: load_sensor(name) for name, _, _ in parsed}
-    curves = {name: _threshold_curve(sens, model, trials, seed, tolerance_json, bar.callback)
-              for name, sens in sensors.items()}  # fmt: skip
-    return [Head(label, _field_of_view(sensors[name], fov, half_fov_deg), curves[name],
-                 exclusion=sensors[name].exclusion, **kwargs)
-            for name, label, kwargs in parsed]  # fmt: skip
+    curves = {
+        name: _threshold_curve(sens, model, trials, seed, tolerance_json, bar.callback)
+        for name, sens in sensors.items()
+    }
+    return [
+        Head(
+            label,
+            _field_of_view(sensors[name], fov, half_fov_deg),
+            curves[name],
+            exclusion=sensors[name].exclusion,
+            **kwargs,
+        )
+        for name, label, kwargs in parsed
+    ]
 
 
 def mission(
@@ -125,8 +134,14 @@ def mission(
         grid = TimeGrid.span(t0, hours * 3600.0, step)
         geo = mission_geometry(grid, orb, profile)
         vectors, mags = catalog_stars(load_catalog(catalog), max_mag)
-        meta = {"start": t0.isot, "orbit": getattr(orb, "label", ""), "attitude": profile.label,
-                "duration_h": hours, "catalog": catalog, "max_mag": max_mag}  # fmt: skip
+        meta = {
+            "start": t0.isot,
+            "orbit": getattr(orb, "label", ""),
+            "attitude": profile.label,
+            "duration_h": hours,
+            "catalog": catalog,
+            "max_mag": max_mag,
+        }
         res = mission_availability(geo, head_list, vectors, mags, n_min, meta)
     for w in caught:
         if issubclass(w.category, UserWarning):

@@ -51,10 +51,16 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
     rate_values = _rates_rad_s(rates)
     with progress_bar() as bar:
         result = simulate_slew(
-            sensor, model, mags, rate_values, trials, criterion, seed,
+            sensor,
+            model,
+            mags,
+            rate_values,
+            trials,
+            criterion,
+            seed,
             progress=bar.task("slew Monte Carlo"),
             colour_index=colour_index,
-        )  # fmt: skip
+        )
     return sensor, result
 
 
@@ -217,8 +223,17 @@ def slew_study(
         raise InputError(f"--trials must be >= 1, got {trials}")
     sens = load_sensor(sensor)
     with progress_bar(not as_json) as bar:
-        study = study_slew(sens, sigmas, qes, model, study_magnitudes(mag_step), trials, 0.5,
-                           seed, progress=bar.task("PSF widths"))  # fmt: skip
+        study = study_slew(
+            sens,
+            sigmas,
+            qes,
+            model,
+            study_magnitudes(mag_step),
+            trials,
+            0.5,
+            seed,
+            progress=bar.task("PSF widths"),
+        )
     payload = study.to_dict()
     lines = _study_lines(study, payload["best"])
     if plot is not None:

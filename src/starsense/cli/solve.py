@@ -84,8 +84,14 @@ def _solver(sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocit
         v_obs = 1e3 * np.asarray(
             parse_floats(observer_velocity_km_s, "--observer-velocity-km-s", 3)
         )
-    return Solver(sensor, None if fov_deg is None else fov_deg * DEG, catalog, algorithm,
-                  apparent=apparent, observer_velocity_m_s=v_obs)  # fmt: skip
+    return Solver(
+        sensor,
+        None if fov_deg is None else fov_deg * DEG,
+        catalog,
+        algorithm,
+        apparent=apparent,
+        observer_velocity_m_s=v_obs,
+    )
 
 
 def _summary(name: str, sol) -> list[str]:
@@ -137,8 +143,12 @@ def _batch_row(solver, image: Path, when=None) -> dict:
     try:
         sol = solver.solve_file(image, when)
     except StarsenseError as exc:
-        return {"image": str(image), "status": "unreadable", "message": str(exc),
-                "time_ms": (time.perf_counter() - t0) * 1e3}  # fmt: skip
+        return {
+            "image": str(image),
+            "status": "unreadable",
+            "message": str(exc),
+            "time_ms": (time.perf_counter() - t0) * 1e3,
+        }
     return {"image": str(image), **sol.to_dict()}
 
 

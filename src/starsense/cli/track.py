@@ -19,9 +19,11 @@ def _line(r) -> str:
     head = f"{r.image}: {s.status} ({r.mode})"
     if s.rotation is None:
         return f"{head}: {s.message}"
-    rate = "rate n/a" if r.rate_rad_s is None else (
-        "rate " + ", ".join(f"{v:+.4f}" for v in np.degrees(r.rate_rad_s)) + " deg/s"
-    )  # fmt: skip
+    rate = (
+        "rate n/a"
+        if r.rate_rad_s is None
+        else ("rate " + ", ".join(f"{v:+.4f}" for v in np.degrees(r.rate_rad_s)) + " deg/s")
+    )
     return (
         f"{head}: RA {s.ra_deg:.5f} Dec {s.dec_deg:.5f} roll {s.roll_deg:.4f} deg, {rate}, "
         f"{s.n_matched} of {s.n_detections} stars, {s.time_ms:.0f} ms"

@@ -239,8 +239,7 @@ def estimate_background(
                 f"got {bad.dtype} {bad.shape}"
             )
     box_px, filter_px = int(box_px), int(filter_px)
-    mesh = MeshSampler(a.shape, box_px, 2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1,
-                       interpolation)  # fmt: skip
+    mesh = MeshSampler(a.shape, box_px, 2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1, interpolation)
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
     cells = gather(a, np.float32, "bg_cells")
     if mesh.regular and bad is None:  # every sample is inside its box and unmasked
@@ -357,8 +356,12 @@ def hot_pixel_mask(
                 continue
             rr, cc = r + dr, c + dc
             inside = (rr >= 0) & (rr < rows) & (cc >= 0) & (cc < cols)
-            np.maximum(neighbours, sub[rr.clip(0, rows - 1), cc.clip(0, cols - 1)], out=neighbours,
-                       where=inside)  # fmt: skip
+            np.maximum(
+                neighbours,
+                sub[rr.clip(0, rows - 1), cc.clip(0, cols - 1)],
+                out=neighbours,
+                where=inside,
+            )
     quiet = neighbours < np.maximum(3.0 * n_here, 0.15 * sub[r, c])
     hot[r[quiet], c[quiet]] = True
     return hot

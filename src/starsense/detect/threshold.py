@@ -314,10 +314,19 @@ class StarDetector:
         idx, core, filtered = self._lit(sub, bg)
         lab, n = label_pixels(idx, a.shape, 4 if self.logic.connectivity == 4 else 8)
         empty = Detections(
-            np.empty(0), np.empty(0), np.empty(0), np.empty(0, int), np.empty(0),
-            np.empty(0, bool), np.empty((0, 4), int), np.empty(0, bool), int(n),
-            float(bg.noise), 0.0, self.centroid,
-        )  # fmt: skip
+            np.empty(0),
+            np.empty(0),
+            np.empty(0),
+            np.empty(0, int),
+            np.empty(0),
+            np.empty(0, bool),
+            np.empty((0, 4), int),
+            np.empty(0, bool),
+            int(n),
+            float(bg.noise),
+            0.0,
+            self.centroid,
+        )
         if n == 0:
             return _timed(empty, t0)
         sizes = np.bincount(lab, minlength=n + 1)
@@ -355,11 +364,18 @@ class StarDetector:
             else np.zeros(len(keep), bool)
         )
         det = Detections(
-            x=xs, y=ys, integrated_counts=sums[keep].astype(float),
-            n_pixels=sizes[keep].astype(int), peak_counts=peak_arr, saturated=sat,
-            bbox=boxes, fit_ok=fits,
-            n_candidates=int(n), noise_counts=float(bg.noise), method=self.centroid,
-        )  # fmt: skip
+            x=xs,
+            y=ys,
+            integrated_counts=sums[keep].astype(float),
+            n_pixels=sizes[keep].astype(int),
+            peak_counts=peak_arr,
+            saturated=sat,
+            bbox=boxes,
+            fit_ok=fits,
+            n_candidates=int(n),
+            noise_counts=float(bg.noise),
+            method=self.centroid,
+        )
         return _timed(det, t0)
 
 

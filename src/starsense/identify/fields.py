@@ -133,9 +133,13 @@ def identifier_for(
     elif field_range is not None:
         fr = field_range
         db = build_database(
-            load_catalog(fr.catalog), fr.max_fov_rad, fr.min_fov_rad, band=fr.band,
-            field_oversampling=fr.field_oversampling, patterns_per_field=fr.patterns_per_field,
-        )  # fmt: skip
+            load_catalog(fr.catalog),
+            fr.max_fov_rad,
+            fr.min_fov_rad,
+            band=fr.band,
+            field_oversampling=fr.field_oversampling,
+            patterns_per_field=fr.patterns_per_field,
+        )
     else:
         raise InputError("give fov_rad or field_range")
     return (HashIdentifier if algorithm == "hashing" else TriangleIdentifier)(db)

@@ -260,18 +260,26 @@ class TrackingIdentifier:
             region = (2 * math.pi * (1 - math.cos(cone)), len(near))
 
         def done(status, message, **kw):
-            return TrackingMatch(status, n_detections=len(v), n_predicted=len(near),
-                                 time_ms=(time.perf_counter() - t0) * 1e3, message=message,
-                                 **kw)  # fmt: skip
+            return TrackingMatch(
+                status,
+                n_detections=len(v),
+                n_predicted=len(near),
+                time_ms=(time.perf_counter() - t0) * 1e3,
+                message=message,
+                **kw,
+            )
 
         ref = db.vectors[near]
         prior_matrix = r
         det, star, n_amb = self._pair(v, ref @ r.T, r_s)
         if len(det) < 2:
             why = "ambiguous" if n_amb else "too_few_stars"
-            return done(why, f"{len(det)} star(s) matched within {r_s:.2e} rad of the prior "
-                        f"({n_amb} ambiguous, {len(v)} detections, {len(near)} predicted)",
-                        n_ambiguous=n_amb)  # fmt: skip
+            return done(
+                why,
+                f"{len(det)} star(s) matched within {r_s:.2e} rad of the prior "
+                f"({n_amb} ambiguous, {len(v)} detections, {len(near)} predicted)",
+                n_ambiguous=n_amb,
+            )
         radius = r_s
         fitted = False  # whether r, resid are the fit to the pairs (det, star)
         for _ in range(3):
@@ -296,16 +304,31 @@ class TrackingIdentifier:
         p_single = region[1] * math.pi * radius**2 / max(region[0], 1e-30)
         p_false = false_match_probability(len(v), len(det), 2, p_single)
         rms = math.sqrt(float(resid @ resid) / len(resid))
-        kw = {"detection_index": det, "catalog_index": cat, "catalog_id": db.ids[cat],
-              "residual_rms_rad": rms, "n_ambiguous": n_amb,
-              "false_match_probability": p_false, "innovation_rad": innovation}  # fmt: skip
+        kw = {
+            "detection_index": det,
+            "catalog_index": cat,
+            "catalog_id": db.ids[cat],
+            "residual_rms_rad": rms,
+            "n_ambiguous": n_amb,
+            "false_match_probability": p_false,
+            "innovation_rad": innovation,
+        }
         if innovation > r_s:
-            return done("no_match", f"the fit is {innovation:.2e} rad from the prior, beyond "
-                        f"the search radius {r_s:.2e} rad", **kw)  # fmt: skip
+            return done(
+                "no_match",
+                f"the fit is {innovation:.2e} rad from the prior, beyond "
+                f"the search radius {r_s:.2e} rad",
+                **kw,
+            )
         if len(det) < 3:
-            return done("unverified", "2 stars matched (3 are needed to verify)", rotation_matrix=r,
-                        **kw)  # fmt: skip
+            return done(
+                "unverified", "2 stars matched (3 are needed to verify)", rotation_matrix=r, **kw
+            )
         verified = p_false <= self.false_match_threshold
         status = "verified" if verified else "unverified"
-        return done(status, f"{len(det)} of {len(v)} detections matched, P_false "
-                    f"{p_false:.1e}", rotation_matrix=r, **kw)  # fmt: skip
+        return done(
+            status,
+            f"{len(det)} of {len(v)} detections matched, P_false {p_false:.1e}",
+            rotation_matrix=r,
+            **kw,
+        )

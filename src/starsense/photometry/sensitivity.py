@@ -71,8 +71,14 @@ def liebe_zero_mag_electron_rate(qe: QeFunction, passband_nm=(400.0, 800.0)) -> 
     return float(np.trapezoid(qe(lam) * photons, lam))
 
 
-def liebe_electrons(magnitude, diameter_m, exposure_s, qe: QeFunction, passband_nm=(400.0, 800.0),
-                    transmission: float = 1.0):  # fmt: skip
+def liebe_electrons(
+    magnitude,
+    diameter_m,
+    exposure_s,
+    qe: QeFunction,
+    passband_nm=(400.0, 800.0),
+    transmission: float = 1.0,
+):
     """Photoelectrons by the Liebe model, eq. 6: (1/4) t_e pi D^2 S_0 / 2.5^m."""
     s0 = liebe_zero_mag_electron_rate(qe, passband_nm)
     m = np.asarray(magnitude, dtype=float)
@@ -92,8 +98,15 @@ def reed_electrons(magnitude, diameter_m, exposure_s, qe_mean, transmission: flo
     )
 
 
-def blackbody_electrons(dilution, temperature_k, diameter_m, exposure_s, qe: QeFunction,
-                        passband_nm=(400.0, 800.0), transmission: float = 1.0):  # fmt: skip
+def blackbody_electrons(
+    dilution,
+    temperature_k,
+    diameter_m,
+    exposure_s,
+    qe: QeFunction,
+    passband_nm=(400.0, 800.0),
+    transmission: float = 1.0,
+):
     """Photoelectrons from each star's own black body through the QE curve (eq. 12 x QE)."""
     lam = _grid(passband_nm, 801)
     n = photons_per_wavelength(dilution, temperature_k, lam, diameter_m, exposure_s)

@@ -162,13 +162,26 @@ def sky_map_figure(
         label = f"stars in field (>= {top} saturates)"
     bounds = np.arange(-0.5, top + 1.0, 1.0)
     norm = mpl.colors.BoundaryNorm(bounds, cmap.N, extend="max")
-    mesh = ax.pcolormesh(lon_edges, lat_edges, np.minimum(image, top), cmap=cmap, norm=norm,
-                         shading="flat", rasterized=True)  # fmt: skip
+    mesh = ax.pcolormesh(
+        lon_edges,
+        lat_edges,
+        np.minimum(image, top),
+        cmap=cmap,
+        norm=norm,
+        shading="flat",
+        rasterized=True,
+    )
     if sparse:
         ax.contour(lon_c, lat_c, image, levels=[n_min - 0.5], colors="k", linewidths=0.6)
     gx, gy = _broken_line(*galactic_plane_radec())
-    ax.plot(gx, gy, color="tab:red" if not sparse else "tab:cyan", lw=1.4, ls="--",
-            label="galactic plane (b = 0)")  # fmt: skip
+    ax.plot(
+        gx,
+        gy,
+        color="tab:red" if not sparse else "tab:cyan",
+        lw=1.4,
+        ls="--",
+        label="galactic plane (b = 0)",
+    )
     for k, track in enumerate(tracks):
         tx, ty = _broken_line(*vectors_to_radec(np.asarray(track, dtype=float)))
         ax.plot(tx, ty, color="lime", lw=1.0, label="tracks" if k == 0 else None)
@@ -176,8 +189,9 @@ def sky_map_figure(
     ax.grid(True, alpha=0.35)
     ax.set_title(title, fontsize=10)
     ticks = np.arange(0, top + 1, max(1, top // 10))
-    fig.colorbar(mesh, ax=ax, orientation="horizontal", shrink=0.6, pad=0.06, label=label,
-                 ticks=ticks)  # fmt: skip
+    fig.colorbar(
+        mesh, ax=ax, orientation="horizontal", shrink=0.6, pad=0.06, label=label, ticks=ticks
+    )
     ax.legend(loc="lower right", fontsize=7, framealpha=0.7)
     return fig
 
@@ -209,8 +223,13 @@ def dynamic_figure(results: Sequence[DynamicAvailability], ax: Axes | None = Non
     for res, colour in zip(results, colours, strict=False):
         for k, style in ((N_MIN_TRACKING, "--"), (N_MIN_LOST_IN_SPACE, "-")):
             if k in res.by_n_min:
-                ax.plot(res.rates_deg_s, 100 * res.by_n_min[k], style, color=colour,
-                        label=f"{res.curve.label}, N_min = {k}")  # fmt: skip
+                ax.plot(
+                    res.rates_deg_s,
+                    100 * res.by_n_min[k],
+                    style,
+                    color=colour,
+                    label=f"{res.curve.label}, N_min = {k}",
+                )
     ax.set_xlabel("slew rate |w| (deg/s)")
     ax.set_ylabel("spatial dynamic availability (%)")
     ax.set_ylim(0, 101)
@@ -231,8 +250,13 @@ def track_figure(
     cmap = mpl.colormaps["plasma"]
     for j, res in enumerate(results):
         colour = cmap(0.85 * j / max(1, len(results) - 1))
-        ax.plot(res.inclinations_deg, 100 * res.by_n_min[n_min], "-", color=colour,
-                label=f"{res.rate_deg_s:g} deg/s")  # fmt: skip
+        ax.plot(
+            res.inclinations_deg,
+            100 * res.by_n_min[n_min],
+            "-",
+            color=colour,
+            label=f"{res.rate_deg_s:g} deg/s",
+        )
         ax.axhline(100 * res.spatial[n_min], color=colour, ls=":", lw=1)
     ax.set_xlabel("track inclination i (deg)")
     ax.set_ylabel("along-track dynamic availability (%)")
@@ -256,10 +280,12 @@ def track_nmin_figure(res: TrackAvailability, ax: Axes | None = None) -> Figure:
     The spatial dynamic availability is a dotted horizontal line (one rate of Figs. 16-17).
     """
     fig, ax = figure_and_axes(ax, 7.5, 4.6)
-    for k, colour in zip(sorted(res.by_n_min), ("tab:blue", "tab:orange", "tab:green"),
-                         strict=False):  # fmt: skip
-        ax.plot(res.inclinations_deg, 100 * res.by_n_min[k], "-", color=colour,
-                label=f"N_min = {k}")  # fmt: skip
+    for k, colour in zip(
+        sorted(res.by_n_min), ("tab:blue", "tab:orange", "tab:green"), strict=False
+    ):
+        ax.plot(
+            res.inclinations_deg, 100 * res.by_n_min[k], "-", color=colour, label=f"N_min = {k}"
+        )
         ax.axhline(100 * res.spatial[k], color=colour, ls=":", lw=1)
     ax.set_xlabel("track inclination i (deg)")
     ax.set_ylabel("along-track dynamic availability (%)")

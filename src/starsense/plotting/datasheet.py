@@ -36,8 +36,14 @@ def nea_sky_figure(sheet, ax: Axes | None = None) -> Figure:
     if (~ok).any():
         ax.scatter(x[~ok], np.asarray(dec)[~ok], c="red", s=6, label="no attitude (< 2 stars)")
         ax.legend(loc="lower right", fontsize=8)
-    fig.colorbar(sc, ax=ax, orientation="horizontal", pad=0.06, shrink=0.6,
-                 label="NEA cross-boresight, 1 sigma (arcsec)")  # fmt: skip
+    fig.colorbar(
+        sc,
+        ax=ax,
+        orientation="horizontal",
+        pad=0.06,
+        shrink=0.6,
+        label="NEA cross-boresight, 1 sigma (arcsec)",
+    )
     ax.grid(True, alpha=0.3)
     ax.set_xticklabels([])
     ax.set_title(f"{sheet.data['sensor']}: noise-equivalent angle over the sky")

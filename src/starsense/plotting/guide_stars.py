@@ -91,8 +91,14 @@ def triangle_ratio_figure(
     for panel, sigma, fig_no in zip(axes, sigmas_rad, ("5", "6", "", ""), strict=False):
         for k, config in enumerate(table.probability_mc):
             ratio, prob, _count = table.by_triangle_ratio(config, sigma, n_bins)
-            panel.plot(ratio, 100.0 * prob, marker=_MARKERS[k % len(_MARKERS)], ms=4, lw=1.2,
-                       label=CONFIG_LABELS.get(config, config))  # fmt: skip
+            panel.plot(
+                ratio,
+                100.0 * prob,
+                marker=_MARKERS[k % len(_MARKERS)],
+                ms=4,
+                lw=1.2,
+                label=CONFIG_LABELS.get(config, config),
+            )
         panel.set_xlabel("average FOV ratio of the guide stars' triangles")
         panel.set_title(
             f"σ = {sigma / ARCSEC:g}″" + (f" (cf. paper Fig. {fig_no})" if fig_no else ""),

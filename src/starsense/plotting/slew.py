@@ -47,9 +47,12 @@ def intensity_figure(res: SlewResult, ax: Axes | None = None) -> Figure:
     step = max(1, n // 8)
     for k, i in enumerate(range(0, n, step)):
         ax.plot(
-            res.rates_deg_s, res.mean_intensity_counts[i], "-",
-            color=cmap(k / max(1, (n - 1) // step)), label=f"m = {res.magnitudes[i]:.2f}",
-        )  # fmt: skip
+            res.rates_deg_s,
+            res.mean_intensity_counts[i],
+            "-",
+            color=cmap(k / max(1, (n - 1) // step)),
+            label=f"m = {res.magnitudes[i]:.2f}",
+        )
     ax.axhline(res.threshold_counts, color="k", ls=":", lw=1, label="integrated threshold")
     ax.set_yscale("log")
     ax.set_xlabel("cross-axis slew rate (deg/s)")

@@ -27,20 +27,39 @@ def _curves(ax, study: SlewStudy, reference: tuple[float, float] | None) -> None
         if not np.isfinite(qe[i]):
             continue
         curve = study.thresholds([qe[i]])[i, 0]
-        ax.plot(rates, curve, "o-", ms=3, lw=1, color=cmap(i / max(1, n - 1)),
-                label=f"sigma {sigma:g} px, QE {qe[i]:.2f}: +/-{shape[i]:.2f} mag")  # fmt: skip
+        ax.plot(
+            rates,
+            curve,
+            "o-",
+            ms=3,
+            lw=1,
+            color=cmap(i / max(1, n - 1)),
+            label=f"sigma {sigma:g} px, QE {qe[i]:.2f}: +/-{shape[i]:.2f} mag",
+        )
     if reference is not None:
         sigma_ref, qe_ref = reference
         i = np.flatnonzero(np.isclose(study.sigmas_px, sigma_ref))
         if i.size:
-            ax.plot(rates, study.thresholds([qe_ref])[i[0], 0], "k-", lw=2,
-                    label=f"preset as is: sigma {sigma_ref:g} px, QE {qe_ref:.2f}")  # fmt: skip
+            ax.plot(
+                rates,
+                study.thresholds([qe_ref])[i[0], 0],
+                "k-",
+                lw=2,
+                label=f"preset as is: sigma {sigma_ref:g} px, QE {qe_ref:.2f}",
+            )
     paper_w = np.array(sorted(TABLE2_IMPLIED_MT))
     lo = np.array([min(TABLE2_IMPLIED_MT[w]) for w in paper_w])
     hi = np.array([max(TABLE2_IMPLIED_MT[w]) for w in paper_w])
     mid = study.paper_threshold
-    ax.errorbar(paper_w, mid, yerr=[mid - lo, hi - mid], fmt="rD", ms=7, capsize=4,
-                label="paper, implied by Table 2 (bar: N_min = 2 vs 3)")  # fmt: skip
+    ax.errorbar(
+        paper_w,
+        mid,
+        yerr=[mid - lo, hi - mid],
+        fmt="rD",
+        ms=7,
+        capsize=4,
+        label="paper, implied by Table 2 (bar: N_min = 2 vs 3)",
+    )
     ax.plot([0.0], [MAX_MAG], "r*", ms=11, label="paper, static threshold (sec. 1.2)")
     ax.set_xlabel("cross-axis slew rate (deg/s)")
     ax.set_ylabel("threshold magnitude m_t")
@@ -53,13 +72,26 @@ def _heat_map(fig, ax, study: SlewStudy) -> None:
     """Right panel: worst |mismatch| over the paper's rates on the (sigma, QE) grid."""
     worst = study.worst()
     sig, qe = study.sigmas_px, study.qe_means
-    mesh = ax.pcolormesh(np.arange(len(qe) + 1), np.arange(len(sig) + 1), worst,
-                         cmap="magma_r", vmin=0.0, vmax=min(1.0, np.nanmax(worst)))  # fmt: skip
+    mesh = ax.pcolormesh(
+        np.arange(len(qe) + 1),
+        np.arange(len(sig) + 1),
+        worst,
+        cmap="magma_r",
+        vmin=0.0,
+        vmax=min(1.0, np.nanmax(worst)),
+    )
     for i in range(len(sig)):
         for j in range(len(qe)):
             if np.isfinite(worst[i, j]):
-                ax.text(j + 0.5, i + 0.5, f"{worst[i, j]:.2f}", ha="center", va="center",
-                        fontsize=6, color="w" if worst[i, j] > 0.5 else "k")  # fmt: skip
+                ax.text(
+                    j + 0.5,
+                    i + 0.5,
+                    f"{worst[i, j]:.2f}",
+                    ha="center",
+                    va="center",
+                    fontsize=6,
+                    color="w" if worst[i, j] > 0.5 else "k",
+                )
     inside = np.flatnonzero((qe >= QE_SENSIBLE_RANGE[0]) & (qe <= QE_SENSIBLE_RANGE[1]))
     if inside.size:
         ax.axvline(inside[-1] + 1, color="c", lw=2, label=f"QE <= {QE_SENSIBLE_RANGE[1]:g}")
@@ -91,6 +123,8 @@ def study_figure(study: SlewStudy, reference: tuple[float, float] | None = (1.5,
     left, right = fig.subplots(1, 2, width_ratios=[1.1, 1.0])
     _curves(left, study, reference)
     _heat_map(fig, right, study)
-    fig.suptitle(f"{study.sensor_name}, {study.model} model: the unstated PSF width and QE "
-                 f"({study.n_trials} trials per point)")  # fmt: skip
+    fig.suptitle(
+        f"{study.sensor_name}, {study.model} model: the unstated PSF width and QE "
+        f"({study.n_trials} trials per point)"
+    )
     return fig

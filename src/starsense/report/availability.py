@@ -104,9 +104,14 @@ def _star_set(ctx: ReportContext, fov: CircularFov) -> tuple[AvailabilityAnalysi
         else ""
     )
     analysis = AvailabilityAnalysis(
-        stars.vectors, stars.magnitude, fov, max_mag=paper.MAX_MAG, seed=ctx.seed,
-        catalog=ctx.catalog_name, band="V" if stars.colour == "B-V" else stars.colour,
-    )  # fmt: skip
+        stars.vectors,
+        stars.magnitude,
+        fov,
+        max_mag=paper.MAX_MAG,
+        seed=ctx.seed,
+        catalog=ctx.catalog_name,
+        band="V" if stars.colour == "B-V" else stars.colour,
+    )
     return analysis, band, skipped_note
 
 
@@ -114,22 +119,37 @@ def _static_part(ctx: ReportContext, parts: _Parts, band: str, intro: str) -> st
     """Return the spatial static part (Figs. 4-6) and record its figures and numbers."""
     name = ctx.sensor.name
     static = parts.analysis.static(N_MIN_LOST_IN_SPACE)
-    parts.figures.append(ctx.save_figure(sky_map_figure(
-        static.boresights, static.counts,
-        f"{name}: stars in the field, static, m_t = {paper.MAX_MAG} (cf. Fig. 4)",
-    ), "availability_fig4_map.png"))  # fmt: skip
-    parts.figures.append(ctx.save_figure(sky_map_figure(
-        static.boresights, static.counts,
-        f"{name}: star-sparse regions, static (cf. Fig. 5)", sparse=True,
-    ), "availability_fig5_sparse.png"))  # fmt: skip
+    parts.figures.append(
+        ctx.save_figure(
+            sky_map_figure(
+                static.boresights,
+                static.counts,
+                f"{name}: stars in the field, static, m_t = {paper.MAX_MAG} (cf. Fig. 4)",
+            ),
+            "availability_fig4_map.png",
+        )
+    )
+    parts.figures.append(
+        ctx.save_figure(
+            sky_map_figure(
+                static.boresights,
+                static.counts,
+                f"{name}: star-sparse regions, static (cf. Fig. 5)",
+                sparse=True,
+            ),
+            "availability_fig5_sparse.png",
+        )
+    )
     parts.figures.append(ctx.save_figure(static_curve_figure(static), "availability_fig6_mt.png"))
     parts.data["static"] = static.to_dict()
     parts.data["fov"] = describe_fov(parts.analysis.fov)
-    parts.summary.append((
-        f"{esc(name)} static availability (N<sub>min</sub> = 3)",
-        f"{100 * static.availability:.2f} % ({static.n_stars:,} stars, paper &gt; "
-        f"{100 * paper.STATIC_AVAILABILITY_N3:.1f} %)",
-    ))  # fmt: skip
+    parts.summary.append(
+        (
+            f"{esc(name)} static availability (N<sub>min</sub> = 3)",
+            f"{100 * static.availability:.2f} % ({static.n_stars:,} stars, paper &gt; "
+            f"{100 * paper.STATIC_AVAILABILITY_N3:.1f} %)",
+        )
+    )
     return _static_html(static, parts.figures[-3:], intro)
 
 
@@ -145,20 +165,36 @@ brighter than the detection threshold m<sub>t</sub> lie in the field (paper sec.
 N<sub>min</sub> = 2 to track, 3 to solve lost-in-space, 4 as a conservative allowance for
 pattern ambiguity. {intro}</p>
 <h3>Spatial static availability</h3>
-{table(["N<sub>min</sub>", "ours (%)", "paper (%)"], rows,
-       classes=["num", "num", "num paper"])}
+{table(["N<sub>min</sub>", "ours (%)", "paper (%)"], rows, classes=["num", "num", "num paper"])}
 <p>Stars in the field: min {static.counts.min()}, mean {static.counts.mean():.1f},
 max {static.counts.max()}.</p>
-{figure_html(figures[0], "Stars in the field per boresight (static, m<sub>t</sub> = "
-             f"{paper.MAX_MAG}); Mollweide projection, RA increasing to the left with 0 h at "
-             "the centre (astronomical convention), dashed: the galactic plane. The paper's "
-             "Fig. 4.", "sky map of stars in the field")}
-{figure_html(figures[1], "The same with the colours reversed to show star-sparse regions; "
-             "black contours enclose boresights with fewer than 3 stars. The paper's Fig. 5.",
-             "sky map of star-sparse regions")}
-{figure_html(figures[2], "Spatial static availability against the detection threshold "
-             "m<sub>t</sub>; the paper's Fig. 6.", "availability against threshold")}
-"""  # fmt: skip
+{
+        figure_html(
+            figures[0],
+            "Stars in the field per boresight (static, m<sub>t</sub> = "
+            f"{paper.MAX_MAG}); Mollweide projection, RA increasing to the left with 0 h at "
+            "the centre (astronomical convention), dashed: the galactic plane. The paper's "
+            "Fig. 4.",
+            "sky map of stars in the field",
+        )
+    }
+{
+        figure_html(
+            figures[1],
+            "The same with the colours reversed to show star-sparse regions; "
+            "black contours enclose boresights with fewer than 3 stars. The paper's Fig. 5.",
+            "sky map of star-sparse regions",
+        )
+    }
+{
+        figure_html(
+            figures[2],
+            "Spatial static availability against the detection threshold "
+            "m<sub>t</sub>; the paper's Fig. 6.",
+            "availability against threshold",
+        )
+    }
+"""
 
 
 def _implied_part(analysis: AvailabilityAnalysis, curves: list[ThresholdCurve]) -> str:
@@ -167,10 +203,16 @@ def _implied_part(analysis: AvailabilityAnalysis, curves: list[ThresholdCurve]) 
     for rate, vals in paper.TABLE2.items():
         n2, n3 = (v / 100 for v in vals["spatial"])
         ours = [f"{float(c([rate * DEG])[0]):.2f}" for c in curves]
-        rows.append([
-            f"{rate:g}", _p(n2), fmt(implied_threshold(analysis, n2, 2), 3),
-            _p(n3), fmt(implied_threshold(analysis, n3, 3), 3), *ours,
-        ])  # fmt: skip
+        rows.append(
+            [
+                f"{rate:g}",
+                _p(n2),
+                fmt(implied_threshold(analysis, n2, 2), 3),
+                _p(n3),
+                fmt(implied_threshold(analysis, n3, 3), 3),
+                *ours,
+            ]
+        )
     return f"""
 <h3>Spatial dynamic availability</h3>
 <p>The threshold becomes m<sub>t</sub>(w), the faintest magnitude still detected at slew rate
@@ -182,11 +224,21 @@ distributions agree, the thresholds implied by the N<sub>min</sub> = 2 and 3 val
 each rate, and they are the paper's own m<sub>t</sub>(w). Where our m<sub>t</sub>(w) differs
 from the implied one, our availability differs from the paper's accordingly: the sky is the
 same, the tolerable-slew curve is not.</p>
-{table(["rate (deg/s)", "paper N<sub>min</sub>=2 (%)", "implied m<sub>t</sub>",
-        "paper N<sub>min</sub>=3 (%)", "implied m<sub>t</sub>",
-        *[f"our m<sub>t</sub>, {esc(c.label)}" for c in curves]],
-       rows, classes=["num"] * (5 + len(curves)))}
-"""  # fmt: skip
+{
+        table(
+            [
+                "rate (deg/s)",
+                "paper N<sub>min</sub>=2 (%)",
+                "implied m<sub>t</sub>",
+                "paper N<sub>min</sub>=3 (%)",
+                "implied m<sub>t</sub>",
+                *[f"our m<sub>t</sub>, {esc(c.label)}" for c in curves],
+            ],
+            rows,
+            classes=["num"] * (5 + len(curves)),
+        )
+    }
+"""
 
 
 def _dynamic_part(ctx: ReportContext, parts: _Parts, curves: list[ThresholdCurve]) -> str:
@@ -195,44 +247,86 @@ def _dynamic_part(ctx: ReportContext, parts: _Parts, curves: list[ThresholdCurve
     rates = np.asarray(DYNAMIC_RATES_DEG_S, dtype=float) * DEG
     dyn = [analysis.dynamic(c, rates, N_MIN_LOST_IN_SPACE) for c in curves]
     parts.data["dynamic"] = {c.label: d.to_dict() for c, d in zip(curves, dyn, strict=True)}
-    parts.figures.append(ctx.save_figure(threshold_figure(curves, rates),
-                                         "availability_threshold_curves.png"))  # fmt: skip
+    parts.figures.append(
+        ctx.save_figure(threshold_figure(curves, rates), "availability_threshold_curves.png")
+    )
     parts.figures.append(ctx.save_figure(dynamic_figure(dyn), "availability_fig11_dynamic.png"))
     reed = dyn[0]
     m1 = float(analysis.effective_threshold(curves[0]([1.0 * DEG]))[0])
-    parts.figures.append(ctx.save_figure(sky_map_figure(
-        analysis.boresights, analysis.sky_counts(m1),
-        f"{name}: stars detectable at 1 deg/s (reed, m_t = {m1:.2f}; cf. Fig. 14)",
-        sparse=True,
-    ), "availability_fig14_sparse_1degs.png"))  # fmt: skip
+    parts.figures.append(
+        ctx.save_figure(
+            sky_map_figure(
+                analysis.boresights,
+                analysis.sky_counts(m1),
+                f"{name}: stars detectable at 1 deg/s (reed, m_t = {m1:.2f}; cf. Fig. 14)",
+                sparse=True,
+            ),
+            "availability_fig14_sparse_1degs.png",
+        )
+    )
     quote_rows = []
     for rate, (p2, p3) in paper.FIG11_REED.items():
         j = int(np.argmin(np.abs(reed.rates_deg_s - rate)))
-        quote_rows.append([
-            f"{rate:g}", _p(reed.by_n_min[2][j]), f"≈ {100 * p2:.0f}",
-            _p(reed.by_n_min[3][j]), f"≈ {100 * p3:.0f}",
-        ])  # fmt: skip
+        quote_rows.append(
+            [
+                f"{rate:g}",
+                _p(reed.by_n_min[2][j]),
+                f"≈ {100 * p2:.0f}",
+                _p(reed.by_n_min[3][j]),
+                f"≈ {100 * p3:.0f}",
+            ]
+        )
     j1 = int(np.argmin(np.abs(reed.rates_deg_s - 1.0)))
     p2, p3 = paper.FIG11_REED[1.0]
-    parts.summary.append((
-        f"{esc(name)} spatial dynamic availability at 1 deg/s, Reed",
-        f"{_p(reed.by_n_min[3][j1])} % (N<sub>min</sub> = 3), "
-        f"{_p(reed.by_n_min[2][j1])} % (N<sub>min</sub> = 2); paper ≈ {100 * p3:.0f} / "
-        f"{100 * p2:.0f} %",
-    ))  # fmt: skip
+    parts.summary.append(
+        (
+            f"{esc(name)} spatial dynamic availability at 1 deg/s, Reed",
+            f"{_p(reed.by_n_min[3][j1])} % (N<sub>min</sub> = 3), "
+            f"{_p(reed.by_n_min[2][j1])} % (N<sub>min</sub> = 2); paper ≈ {100 * p3:.0f} / "
+            f"{100 * p2:.0f} %",
+        )
+    )
     figures = parts.figures
     return f"""
-{table(["rate (deg/s)", "Reed N<sub>min</sub>=2 (%)", "paper", "Reed N<sub>min</sub>=3 (%)",
-        "paper"], quote_rows, classes=["num", "num", "num paper", "num", "num paper"])}
-{figure_html(figures[-3], "Detection threshold m<sub>t</sub>(w) from the slew simulation, "
-             "for both sensitivity models.", "threshold against rate")}
-{figure_html(figures[-2], "Spatial dynamic availability against slew rate, N<sub>min</sub> = 2 "
-             "(dashed) and 3 (solid), Reed and Liebe models; the paper's Fig. 11.",
-             "availability against rate")}
-{figure_html(figures[-1], "Stars detectable in the field while slewing at 1 deg/s (Reed), "
-             "colours reversed as in Fig. 5; black contours enclose boresights with fewer than "
-             "3 stars. The paper's Fig. 14.", "sky map at 1 deg/s")}
-"""  # fmt: skip
+{
+        table(
+            [
+                "rate (deg/s)",
+                "Reed N<sub>min</sub>=2 (%)",
+                "paper",
+                "Reed N<sub>min</sub>=3 (%)",
+                "paper",
+            ],
+            quote_rows,
+            classes=["num", "num", "num paper", "num", "num paper"],
+        )
+    }
+{
+        figure_html(
+            figures[-3],
+            "Detection threshold m<sub>t</sub>(w) from the slew simulation, "
+            "for both sensitivity models.",
+            "threshold against rate",
+        )
+    }
+{
+        figure_html(
+            figures[-2],
+            "Spatial dynamic availability against slew rate, N<sub>min</sub> = 2 "
+            "(dashed) and 3 (solid), Reed and Liebe models; the paper's Fig. 11.",
+            "availability against rate",
+        )
+    }
+{
+        figure_html(
+            figures[-1],
+            "Stars detectable in the field while slewing at 1 deg/s (Reed), "
+            "colours reversed as in Fig. 5; black contours enclose boresights with fewer than "
+            "3 stars. The paper's Fig. 14.",
+            "sky map at 1 deg/s",
+        )
+    }
+"""
 
 
 def availability_section(ctx: ReportContext) -> Section:
@@ -286,18 +380,25 @@ def _node_table(ctx, analysis, curve, tracks, node0, other_nodes, data) -> str:
         cells = [f"{w:.2f}", f"{_p(t.stats(2)['mean'])} / {_p(t.stats(3)['mean'])}"]
         for node in other_nodes:
             st = by_node[f"{node:g}"][f"{w:g}"]
-            cells.append(f"{_p(st['2']['mean'])} / {_p(st['3']['mean'])} "
-                         f"({_p(st['2']['min'])} / {_p(st['3']['min'])} – "
-                         f"{_p(st['2']['max'])} / {_p(st['3']['max'])})")  # fmt: skip
+            cells.append(
+                f"{_p(st['2']['mean'])} / {_p(st['3']['mean'])} "
+                f"({_p(st['2']['min'])} / {_p(st['3']['min'])} – "
+                f"{_p(st['2']['max'])} / {_p(st['3']['max'])})"
+            )
         ref = paper.TABLE2.get(w)
         cells.append(f"{ref['mean'][0]:.1f} / {ref['mean'][1]:.1f}" if ref else "–")
         node_rows.append(cells)
     data["track_by_node"] = by_node
     return table(
-        ["rate (deg/s)", f"mean, node {node0:g} deg",
-         *[f"mean (min – max), node {n:g} deg" for n in other_nodes], "paper mean"],
-        node_rows, classes=["num"] * (2 + len(other_nodes)) + ["num paper"],
-    )  # fmt: skip
+        [
+            "rate (deg/s)",
+            f"mean, node {node0:g} deg",
+            *[f"mean (min – max), node {n:g} deg" for n in other_nodes],
+            "paper mean",
+        ],
+        node_rows,
+        classes=["num"] * (2 + len(other_nodes)) + ["num paper"],
+    )
 
 
 def _track_part(ctx, analysis, curve, figures, data) -> str:
@@ -310,8 +411,9 @@ def _track_part(ctx, analysis, curve, figures, data) -> str:
     ]
     data["track"] = {f"{t.rate_deg_s:g}": t.to_dict() for t in tracks}
     for k, fig_no in ((N_MIN_TRACKING, 16), (N_MIN_LOST_IN_SPACE, 17)):
-        figures.append(ctx.save_figure(track_figure(tracks, k),
-                                       f"availability_fig{fig_no}_track_n{k}.png"))  # fmt: skip
+        figures.append(
+            ctx.save_figure(track_figure(tracks, k), f"availability_fig{fig_no}_track_n{k}.png")
+        )
     rows = []
     for t in tracks:
         s2, s3 = t.stats(2), t.stats(3)
@@ -341,12 +443,22 @@ on where the node lies on the sky. The paper does not give its node (nor the inc
 its along-track means exceed its spatial values at every rate. The statistics for other nodes
 show how much the choice matters:</p>
 {node_table}
-{figure_html(figures[-2], "Along-track availability against inclination, N<sub>min</sub> = 2; "
-             "dotted lines: spatial dynamic availability at the same rate. The paper's Fig. 16.",
-             "along-track availability, N_min 2")}
-{figure_html(figures[-1], "The same for N<sub>min</sub> = 3; the paper's Fig. 17.",
-             "along-track availability, N_min 3")}
-"""  # fmt: skip
+{
+        figure_html(
+            figures[-2],
+            "Along-track availability against inclination, N<sub>min</sub> = 2; "
+            "dotted lines: spatial dynamic availability at the same rate. The paper's Fig. 16.",
+            "along-track availability, N_min 2",
+        )
+    }
+{
+        figure_html(
+            figures[-1],
+            "The same for N<sub>min</sub> = 3; the paper's Fig. 17.",
+            "along-track availability, N_min 3",
+        )
+    }
+"""
 
 
 def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
@@ -368,10 +480,17 @@ def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
     try:
         for rate in FIDELITY_RATES_DEG_S:
             ctx.progress(f"availability: rendered frames at {rate:g} deg/s")
-            checks.append(fidelity_check(
-                sensor, catalog, curve, rate * DEG, n_frames=FIDELITY_FRAMES,
-                max_mag=paper.MAX_MAG, seed=ctx.seed,
-            ))  # fmt: skip
+            checks.append(
+                fidelity_check(
+                    sensor,
+                    catalog,
+                    curve,
+                    rate * DEG,
+                    n_frames=FIDELITY_FRAMES,
+                    max_mag=paper.MAX_MAG,
+                    seed=ctx.seed,
+                )
+            )
     except InputError as exc:
         return f"<h3>Full-fidelity check</h3><p class='note'>Skipped: {esc(exc)}.</p>"
     data["fidelity"] = [c.to_dict() for c in checks]
@@ -388,9 +507,16 @@ def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
         ]
         for c in checks
     ]
-    header = ["rate (deg/s)", "m<sub>t</sub>", "model available (%)", "frames available (%)",
-              "model stars / field", "detected stars / frame", "model optimistic",
-              "model pessimistic"]  # fmt: skip
+    header = [
+        "rate (deg/s)",
+        "m<sub>t</sub>",
+        "model available (%)",
+        "frames available (%)",
+        "model stars / field",
+        "detected stars / frame",
+        "model optimistic",
+        "model pessimistic",
+    ]
     return f"""
 <h3>Full-fidelity check</h3>
 <p>{FIDELITY_FRAMES} frames per rate rendered at random attitudes while slewing about the camera
@@ -402,4 +528,4 @@ columns count the frames where the model calls the attitude available and the fr
 (optimistic) and the reverse (pessimistic); the model's counts miss partial stars at the edges,
 stars near the threshold that noise lifts over it or pushes under, and streaks that merge.</p>
 {table(header, rows, classes=["num"] * 8)}
-"""  # fmt: skip
+"""

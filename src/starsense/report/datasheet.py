@@ -26,31 +26,65 @@ def _main_rows(d: dict) -> list[list[str]]:
         ["Field of view", f"{w:.2f} x {h:.2f} deg", "", ""],
         ["Pixel scale", f"{d['pixel_scale_arcsec']:.2f} arcsec/px", "", ""],
         ["Limiting magnitude (50 % detected at rest)", _cell(d["limiting_magnitude"]), "", ""],
-        ["Stars in the field (median / 5th percentile)",
-         f"{stars['median']:g} / {stars['p05']:g}", "", ""],
-        ["NEA cross-boresight, 1 sigma (median / 95 %)",
-         f"{_cell(nea['cross']['median'])} / {_cell(nea['cross']['p95'])} arcsec",
-         f"{_cell(mc['cross_rms_arcsec'])} arcsec rms", _cell(mc["cross_ratio"], 2)],
-        ["NEA about the boresight, 1 sigma (median / 95 %)",
-         f"{_cell(nea['roll']['median'])} / {_cell(nea['roll']['p95'])} arcsec",
-         f"{_cell(mc['roll_rms_arcsec'])} arcsec rms", _cell(mc["roll_ratio"], 2)],
-        ["Physical limit for this D, t and field (cross / roll)",
-         f"{_cell(lim['cross'])} / {_cell(lim['roll'])} arcsec", "", ""],
-        ["Lost in space at rest: solved, wrong",
-         "", f"{mc['solved']}/{mc['frames']}, {mc['wrong']} wrong (rate &lt; "
-         f"{mc['wrong_rate_upper95']:.2g}, 95 %)", ""],
-        ["Lost in space time per frame (median / 95 %)", "",
-         f"{_cell(mc['median_ms'], 3)} / {_cell(mc['p95_ms'], 3)} ms", ""],
-    ]  # fmt: skip
+        [
+            "Stars in the field (median / 5th percentile)",
+            f"{stars['median']:g} / {stars['p05']:g}",
+            "",
+            "",
+        ],
+        [
+            "NEA cross-boresight, 1 sigma (median / 95 %)",
+            f"{_cell(nea['cross']['median'])} / {_cell(nea['cross']['p95'])} arcsec",
+            f"{_cell(mc['cross_rms_arcsec'])} arcsec rms",
+            _cell(mc["cross_ratio"], 2),
+        ],
+        [
+            "NEA about the boresight, 1 sigma (median / 95 %)",
+            f"{_cell(nea['roll']['median'])} / {_cell(nea['roll']['p95'])} arcsec",
+            f"{_cell(mc['roll_rms_arcsec'])} arcsec rms",
+            _cell(mc["roll_ratio"], 2),
+        ],
+        [
+            "Physical limit for this D, t and field (cross / roll)",
+            f"{_cell(lim['cross'])} / {_cell(lim['roll'])} arcsec",
+            "",
+            "",
+        ],
+        [
+            "Lost in space at rest: solved, wrong",
+            "",
+            f"{mc['solved']}/{mc['frames']}, {mc['wrong']} wrong (rate &lt; "
+            f"{mc['wrong_rate_upper95']:.2g}, 95 %)",
+            "",
+        ],
+        [
+            "Lost in space time per frame (median / 95 %)",
+            "",
+            f"{_cell(mc['median_ms'], 3)} / {_cell(mc['p95_ms'], 3)} ms",
+            "",
+        ],
+    ]
     av = d["availability"]
-    for r, a, t in zip(av["rates_deg_s"], av["lost_in_space_at_rate"], av["tracking_at_rate"],
-                       strict=True):  # fmt: skip
-        rows.append([f"Sky availability at {r:g} deg/s (lost in space / tracking)",
-                     f"{_pct(a)} / {_pct(t)}", "", ""])  # fmt: skip
+    for r, a, t in zip(
+        av["rates_deg_s"], av["lost_in_space_at_rate"], av["tracking_at_rate"], strict=True
+    ):
+        rows.append(
+            [
+                f"Sky availability at {r:g} deg/s (lost in space / tracking)",
+                f"{_pct(a)} / {_pct(t)}",
+                "",
+                "",
+            ]
+        )
     fast = av["fastest_rate_deg_s"]
-    rows.append(["Fastest rate keeping 90 % (lost in space / tracking)",
-                 f"{_cell(fast['lost_in_space']['90'])} / {_cell(fast['tracking']['90'])} deg/s",
-                 "", ""])  # fmt: skip
+    rows.append(
+        [
+            "Fastest rate keeping 90 % (lost in space / tracking)",
+            f"{_cell(fast['lost_in_space']['90'])} / {_cell(fast['tracking']['90'])} deg/s",
+            "",
+            "",
+        ]
+    )
     return rows
 
 
@@ -79,9 +113,12 @@ def datasheet_section(ctx: ReportContext) -> Section:
         return Section("datasheet", "Datasheet", "<p>No sensor or catalogue chosen.</p>")
     ctx.progress(f"datasheet of {sensor.name}")
     # half as many frames at the rate: the check of the prediction is the run at rest
-    settings = DatasheetSettings(trials=ctx.datasheet_trials, seed=ctx.seed,
-                                 slew_trials=ctx.slew_trials,
-                                 rate_trials=max(1, ctx.datasheet_trials // 2))  # fmt: skip
+    settings = DatasheetSettings(
+        trials=ctx.datasheet_trials,
+        seed=ctx.seed,
+        slew_trials=ctx.slew_trials,
+        rate_trials=max(1, ctx.datasheet_trials // 2),
+    )
     sheet = build_datasheet(sensor, ctx.catalog, settings)
     _share_slew(ctx, sheet.slew)
     d = sheet.to_dict()
@@ -92,39 +129,58 @@ def datasheet_section(ctx: ReportContext) -> Section:
     mc = d["monte_carlo"]
     budget = table(
         ["term", "cross-boresight (arcsec)", "about the boresight (arcsec)", "source"],
-        [[esc(b["term"]), _cell(b["cross_arcsec"]), _cell(b["roll_arcsec"]), esc(b["source"])]
-         for b in d["budget"]],
+        [
+            [esc(b["term"]), _cell(b["cross_arcsec"]), _cell(b["roll_arcsec"]), esc(b["source"])]
+            for b in d["budget"]
+        ],
         classes=["", "num", "num", ""],
-    )  # fmt: skip
+    )
     quoted = ""
     if d["quoted"]:
         quoted = f"<h3>Predicted / quoted ({esc(d['quoted_source'])})</h3>" + table(
             ["value", "predicted", "quoted", "ratio"],
-            [[esc(q["key"]), _cell(q["predicted"]), _cell(q["quoted"]), _cell(q["ratio"], 2)]
-             for q in d["quoted"]],
-        )  # fmt: skip
+            [
+                [esc(q["key"]), _cell(q["predicted"]), _cell(q["quoted"]), _cell(q["ratio"], 2)]
+                for q in d["quoted"]
+            ],
+        )
     warn = "".join(f'<p class="no">{esc(w)}</p>' for w in d["warnings"])
     html = f"""
 <p>What <b>{esc(sensor.name)}</b> does, predicted from the sensor model and the catalogue, and
-checked on {mc['frames']} rendered frames at random attitudes in the same run (render, detect,
+checked on {mc["frames"]} rendered frames at random attitudes in the same run (render, detect,
 identify, estimate). The ratio column is measured rms / predicted rms over the same frames
 (target 0.8-1.25). Terms follow ECSS-E-ST-60-20C. The sections after this one show how each
 number was obtained; the papers' reproductions close the report as its validation.</p>
 {warn}
-{table(["", "predicted", "measured (rendered frames)", "measured / predicted"],
-       _main_rows(d), classes=["", "num", "num", "num"])}
+{
+        table(
+            ["", "predicted", "measured (rendered frames)", "measured / predicted"],
+            _main_rows(d),
+            classes=["", "num", "num", "num"],
+        )
+    }
 <h3>Error budget</h3>
 {budget}
 {quoted}
-{figure_html(figures[0], "Noise-equivalent angle cross-boresight over the sky (median in the "
-             "table); red: no attitude (fewer than 2 stars).", "NEA sky map")}
-"""  # fmt: skip
+{
+        figure_html(
+            figures[0],
+            "Noise-equivalent angle cross-boresight over the sky (median in the "
+            "table); red: no attitude (fewer than 2 stars).",
+            "NEA sky map",
+        )
+    }
+"""
     nea = d["nea_arcsec"]
     summary = (
-        ("Datasheet", f"{esc(sensor.name)}: NEA {_cell(nea['cross']['median'])} arcsec cross, "
-         f"{_cell(nea['roll']['median'])} arcsec roll (1 sigma, sky median); measured / "
-         f"predicted {_cell(mc['cross_ratio'], 2)} / {_cell(mc['roll_ratio'], 2)}; lost in space "
-         f"{mc['solved']}/{mc['frames']} solved, {mc['wrong']} wrong"),
-    )  # fmt: skip
-    return Section("datasheet", f"Datasheet: {sensor.name}", html, tuple(figures), summary,
-                   {"datasheet": d})  # fmt: skip
+        (
+            "Datasheet",
+            f"{esc(sensor.name)}: NEA {_cell(nea['cross']['median'])} arcsec cross, "
+            f"{_cell(nea['roll']['median'])} arcsec roll (1 sigma, sky median); measured / "
+            f"predicted {_cell(mc['cross_ratio'], 2)} / {_cell(mc['roll_ratio'], 2)}; "
+            f"lost in space {mc['solved']}/{mc['frames']} solved, {mc['wrong']} wrong",
+        ),
+    )
+    return Section(
+        "datasheet", f"Datasheet: {sensor.name}", html, tuple(figures), summary, {"datasheet": d}
+    )

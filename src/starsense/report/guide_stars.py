@@ -228,21 +228,36 @@ four-area placements identified correctly, {ident_four:.2f} % (± {se_ident:.2f}
 level at which the paper's four-area column saturates, {PAPER_SATURATION_FOUR:.2f} %: the
 remaining placements are ambiguous for every triangle (collinear or congruent star sets on the
 lattice).</p>
-{table(["σ (″)", "four areas, σ per axis (%)", "four areas, σ as 3σ bound (%)", "paper (%)"],
-       rows_3s, classes=["num", "num", "num", "num paper"])}
-{figure_html(figures[0],
-             f"Probability of an accuracy better than {tab.threshold_arcsec:g}″ against the "
-             "average FOV ratio of the triangles formed by the guide stars (mean triangle area "
-             "over the configuration's own area), at σ = 0.1″ (left) and 0.3″ (right); each "
-             f"point is one of {FIG_BINS} equal-count bins of the placements. Counterpart: "
-             "paper Figs. 5 and 6.", "probability against triangle FOV ratio")}
-{figure_html(figures[1],
-             f"Attitude-determination areas of {esc(source)} in the focal plane, field angle "
-             "along each axis (atan of the tangent-plane coordinates): the square science "
-             "detector, the lens's good-image circle and the numbered areas. Counterpart: paper "
-             "Fig. 1.", "attitude-determination areas")}
+{
+        table(
+            ["σ (″)", "four areas, σ per axis (%)", "four areas, σ as 3σ bound (%)", "paper (%)"],
+            rows_3s,
+            classes=["num", "num", "num", "num paper"],
+        )
+    }
+{
+        figure_html(
+            figures[0],
+            f"Probability of an accuracy better than {tab.threshold_arcsec:g}″ against the "
+            "average FOV ratio of the triangles formed by the guide stars (mean triangle area "
+            "over the configuration's own area), at σ = 0.1″ (left) and 0.3″ (right); each "
+            f"point is one of {FIG_BINS} equal-count bins of the placements. Counterpart: "
+            "paper Figs. 5 and 6.",
+            "probability against triangle FOV ratio",
+        )
+    }
+{
+        figure_html(
+            figures[1],
+            f"Attitude-determination areas of {esc(source)} in the focal plane, field angle "
+            "along each axis (atan of the tangent-plane coordinates): the square science "
+            "detector, the lens's good-image circle and the numbered areas. Counterpart: paper "
+            "Fig. 1.",
+            "attitude-determination areas",
+        )
+    }
 {sizes}
-"""  # fmt: skip
+"""
 
 
 def _summary(tab: GuideStarTable, gap: _Gap) -> tuple[tuple[str, str], ...]:

@@ -49,49 +49,101 @@ def mission_section(ctx: ReportContext) -> Section:
     sensor = ctx.sensor
     plan = None if sensor is None else sensor.mission
     if plan is None:
-        return Section(KEY, TITLE, "<p>The sensor's TOML names no mission (no [mission] "
-                       "table): see <code>starsense availability mission</code>.</p>")  # fmt: skip
+        return Section(
+            KEY,
+            TITLE,
+            "<p>The sensor's TOML names no mission (no [mission] "
+            "table): see <code>starsense availability mission</code>.</p>",
+        )
     ctx.progress("availability over the mission")
     where = f"{sensor.name}: [mission]"
     start = parse_time(plan.start, f"{where} start")
     orbit = parse_orbit(plan.orbit, start, f"{where} orbit")
     profile = parse_attitude(plan.attitude, f"{where} attitude")
-    slew = ctx.slew_results.get("reed") or simulate_slew(sensor, "reed", n_trials=ctx.slew_trials,
-                                                         seed=ctx.seed)  # fmt: skip
+    slew = ctx.slew_results.get("reed") or simulate_slew(
+        sensor, "reed", n_trials=ctx.slew_trials, seed=ctx.seed
+    )
     curve = ThresholdCurve.from_slew(slew)
     heads = _heads(ctx, plan, curve)
     grid = TimeGrid.span(start, plan.duration_h * 3600.0, plan.step_s)
     stars = ctx.primary
     keep = stars.magnitude <= paper.MAX_MAG
-    meta = {"start": start.isot, "orbit": orbit.label, "attitude": profile.label,
-            "mission": plan.name}  # fmt: skip
-    res = mission_availability(mission_geometry(grid, orbit, profile), heads,
-                               stars.vectors[keep], stars.magnitude[keep], meta=meta)  # fmt: skip
+    meta = {
+        "start": start.isot,
+        "orbit": orbit.label,
+        "attitude": profile.label,
+        "mission": plan.name,
+    }
+    res = mission_availability(
+        mission_geometry(grid, orbit, profile),
+        heads,
+        stars.vectors[keep],
+        stars.magnitude[keep],
+        meta=meta,
+    )
     data = res.to_dict()
     figure = ctx.save_figure(mission_timeline_figure(res), "mission_timeline.png")
-    rows = [[esc(h["name"]), fmt(100 * h["available_fraction"], 4),
-             fmt(100 * h["sun_blinded_fraction"], 3), fmt(100 * h["moon_blinded_fraction"], 3),
-             fmt(100 * h["earth_blinded_fraction"], 3), str(h["outages"]),
-             f"{h['longest_outage_s']:.0f}", fmt(h["mean_stars"], 3)]
-            for h in data["heads"]]  # fmt: skip
+    rows = [
+        [
+            esc(h["name"]),
+            fmt(100 * h["available_fraction"], 4),
+            fmt(100 * h["sun_blinded_fraction"], 3),
+            fmt(100 * h["moon_blinded_fraction"], 3),
+            fmt(100 * h["earth_blinded_fraction"], 3),
+            str(h["outages"]),
+            f"{h['longest_outage_s']:.0f}",
+            fmt(h["mean_stars"], 3),
+        ]
+        for h in data["heads"]
+    ]
     c = data["combined"]
-    rows.append(["<b>any head</b>", fmt(100 * c["available_fraction"], 4), "", "", "",
-                 str(c["outages"]), f"{c['longest_outage_s']:.0f}", ""])  # fmt: skip
+    rows.append(
+        [
+            "<b>any head</b>",
+            fmt(100 * c["available_fraction"], 4),
+            "",
+            "",
+            "",
+            str(c["outages"]),
+            f"{c['longest_outage_s']:.0f}",
+            "",
+        ]
+    )
     mean_rate = float(np.mean([h.rate_rad_s.mean() for h in res.heads])) * 180.0 / np.pi
     html = f"""
 <p>Mission <b>{esc(plan.name or plan.orbit)}</b>: {esc(orbit.label)}; {esc(profile.label)};
 {res.steps:,} steps of {plan.step_s:g} s from {esc(start.isot)} UTC. Heads: {esc(sensor.name)}
-on the mountings of its [mission] table; exclusion {esc(str(sensor.exclusion and
-sensor.exclusion.to_dict()))}. Stars: {esc(ctx.catalog_name)} &le; {paper.MAX_MAG}; threshold
+on the mountings of its [mission] table; exclusion {
+        esc(str(sensor.exclusion and sensor.exclusion.to_dict()))
+    }. Stars: {esc(ctx.catalog_name)} &le; {paper.MAX_MAG}; threshold
 m<sub>t</sub>(w) from the Reed tolerable-slew curve at each head's cross-boresight rate (mean
 {mean_rate:.3f} deg/s). A head has an attitude from the first step with 3 detected stars
 (lost-in-space) until fewer than 2 are detected.</p>
-{table(["head", "available (%)", "Sun-blinded (%)", "Moon-blinded (%)", "Earth-blinded (%)",
-        "outages", "longest outage (s)", "mean stars"], rows,
-       classes=["", "num", "num", "num", "num", "num", "num", "num"])}
-{figure_html(figure, "Stars detected per head against time, with the intervals the Sun, the "
-             "Moon or the Earth blinds it, and which heads (and whether any) have an attitude "
-             "(the along-mission row of Dzamba &amp; Enright's Fig. 1).", "mission timeline")}
-"""  # fmt: skip
+{
+        table(
+            [
+                "head",
+                "available (%)",
+                "Sun-blinded (%)",
+                "Moon-blinded (%)",
+                "Earth-blinded (%)",
+                "outages",
+                "longest outage (s)",
+                "mean stars",
+            ],
+            rows,
+            classes=["", "num", "num", "num", "num", "num", "num", "num"],
+        )
+    }
+{
+        figure_html(
+            figure,
+            "Stars detected per head against time, with the intervals the Sun, the "
+            "Moon or the Earth blinds it, and which heads (and whether any) have an attitude "
+            "(the along-mission row of Dzamba &amp; Enright's Fig. 1).",
+            "mission timeline",
+        )
+    }
+"""
     summary = (("Mission availability (any head)", f"{100 * c['available_fraction']:.2f} %"),)
     return Section(KEY, TITLE, html, (figure,), summary, data)

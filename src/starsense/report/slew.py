@@ -119,5 +119,6 @@ fraction first drops below one half.</p>
             + ("reproduced" if best["reproduces"] else "not reproduced"),
         ),
     )
-    return Section("slew", "Slew tolerance (Dzamba & Enright 2014)", html, tuple(figures),
-                   summary, data)  # fmt: skip
+    return Section(
+        "slew", "Slew tolerance (Dzamba & Enright 2014)", html, tuple(figures), summary, data
+    )

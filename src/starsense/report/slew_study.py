@@ -51,8 +51,12 @@ def _table(study: SlewStudy, reference: tuple[float, float]) -> str:
     for i, sigma in enumerate(study.sigmas_px):
         curve = study.thresholds([qe[i]])[i, 0]
         rows.append([f"{sigma:g}", f"{qe[i]:.2f}", *(_f(m) for m in curve), _f(shape[i])])
-    headers = ["PSF sigma (px)", "mean QE", *(f"m<sub>t</sub> {w:g} deg/s" for w in rates),
-               "worst |mismatch|"]  # fmt: skip
+    headers = [
+        "PSF sigma (px)",
+        "mean QE",
+        *(f"m<sub>t</sub> {w:g} deg/s" for w in rates),
+        "worst |mismatch|",
+    ]
     return table(headers, rows, classes=["num"] * len(headers))
 
 
@@ -91,8 +95,13 @@ def _smear_sentence(study: SlewStudy, sensor) -> str:
 def slew_study_part(ctx: ReportContext, reference_sensor) -> tuple[str, str, dict]:
     """Run the coarse study on `reference_sensor` (the st16 preset); return html, figure, data."""
     ctx.progress("slew study: PSF width and QE of the ST-16")
-    study = study_slew(reference_sensor, REPORT_SIGMAS_PX, n_trials=REPORT_TRIALS, seed=ctx.seed,
-                       magnitudes=study_magnitudes(*_REPORT_MAGS))  # fmt: skip
+    study = study_slew(
+        reference_sensor,
+        REPORT_SIGMAS_PX,
+        n_trials=REPORT_TRIALS,
+        seed=ctx.seed,
+        magnitudes=study_magnitudes(*_REPORT_MAGS),
+    )
     det = reference_sensor.detector
     reference = (det.psf_sigma_px, det.mean_qe)
     figure = ctx.save_figure(study_figure(study, reference), "slew_study_psf_qe.png")

@@ -55,17 +55,30 @@ def band_plan(catalog: HatsCatalog, band: str | None) -> tuple[ColumnPlan, str]:
 
 
 def _field(
-    catalog: HatsCatalog, fov, attitudes: Rotation, max_mag: float, band: str | None, k: int,
-    client: Any | None, progress: Progress | None, label: str,
-):  # fmt: skip
+    catalog: HatsCatalog,
+    fov,
+    attitudes: Rotation,
+    max_mag: float,
+    band: str | None,
+    k: int,
+    client: Any | None,
+    progress: Progress | None,
+    label: str,
+):
     check_fov(fov)
     m = check_mag(max_mag, "max_mag", allow_inf=True)
     plan, band = band_plan(catalog, band)
     with client_or_local(client) as c:
         counts, top, n, faintest = run_partitions(
-            c, catalog, plan.columns, kernels.field_part, (plan, band, m, fov, attitudes, k),
-            kernels.combine_field, label, progress,
-        )  # fmt: skip
+            c,
+            catalog,
+            plan.columns,
+            kernels.field_part,
+            (plan, band, m, fov, attitudes, k),
+            kernels.combine_field,
+            label,
+            progress,
+        )
     if n == 0:
         raise InputError(
             f"magnitude limit max_mag {m:g} leaves no stars of HATS catalogue "
@@ -89,8 +102,9 @@ def star_counts(
     Equal to ``FieldStars.build(fov, attitudes, *catalog_stars(cat, max_mag, band)).counts()``
     on the whole catalogue in memory.
     """
-    counts, *_ = _field(catalog, fov, attitudes, max_mag, band, 0, client, progress,
-                        "stars in the field")  # fmt: skip
+    counts, *_ = _field(
+        catalog, fov, attitudes, max_mag, band, 0, client, progress, "stars in the field"
+    )
     return counts
 
 
@@ -116,10 +130,25 @@ def static_availability(
     roll = roll if isinstance(fov, RectangularFov) else 0.0
     boresights, attitudes = sky_attitudes(n_orientations, roll, seed)
     counts, top, n, faintest, band = _field(
-        catalog, fov, attitudes, max_mag, band, max(4, n_min), client, progress,
+        catalog,
+        fov,
+        attitudes,
+        max_mag,
+        band,
+        max(4, n_min),
+        client,
+        progress,
         "availability: stars in the field",
-    )  # fmt: skip
+    )
     m_t = float(max_mag) if math.isfinite(max_mag) else faintest
     return static_result(
-        top, counts, boresights, n_min, m_t, n, describe_fov(fov), catalog.name, band,
-    )  # fmt: skip
+        top,
+        counts,
+        boresights,
+        n_min,
+        m_t,
+        n,
+        describe_fov(fov),
+        catalog.name,
+        band,
+    )

@@ -143,10 +143,15 @@ class ColumnPlan:
         """Return a catalogue with this plan's columns and no rows (to validate choices early)."""
         z = np.zeros(0)
         return Catalog.from_columns(
-            name=self.name, source=self.source, epoch_yr=self.epoch_yr,
-            ids=np.zeros(0, dtype=np.int64), ra_deg=z, dec_deg=z,
-            mags={b: z for b, _ in self.mags}, colours={c: z for c, _ in self.colours},
-        )  # fmt: skip
+            name=self.name,
+            source=self.source,
+            epoch_yr=self.epoch_yr,
+            ids=np.zeros(0, dtype=np.int64),
+            ra_deg=z,
+            dec_deg=z,
+            mags={b: z for b, _ in self.mags},
+            colours={c: z for c, _ in self.colours},
+        )
 
     def restrict(self, bands=(), colours=()) -> ColumnPlan:
         """Return the plan reduced to these bands and colours (and the bands those colours need)."""
@@ -209,9 +214,14 @@ class HatsCatalog:
                 colours.append((colour, None))
         epoch = 2016.0 if "G" in have and have["G"] == "phot_g_mean_mag" else 2000.0
         return ColumnPlan(
-            self.ra_column, self.dec_column, mags, tuple(colours), self.name, self.location,
+            self.ra_column,
+            self.dec_column,
+            mags,
+            tuple(colours),
+            self.name,
+            self.location,
             epoch,
-        )  # fmt: skip
+        )
 
     def missing(self, what: str) -> MissingColumnsError:
         """Return the error for a catalogue without a column for ``what``."""

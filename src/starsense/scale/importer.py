@@ -103,9 +103,15 @@ def _failure_detail(src: Path, fmt: str, ra: str, dec: str, printed: str) -> str
 
     if fmt == "csv":
         found = locate_delimited_error(
-            src, delimiter=",", names=None, skip_lines=0, numeric={ra: float, dec: float},
-            required=(ra, dec), null_values=("",), quoting=True,
-        )  # fmt: skip
+            src,
+            delimiter=",",
+            names=None,
+            skip_lines=0,
+            numeric={ra: float, dec: float},
+            required=(ra, dec),
+            null_values=("",),
+            quoting=True,
+        )
         if found is not None:
             return f"line {found.line}, column {found.field}: {found.detail}"
     lines = [ln.strip() for ln in printed.splitlines() if ln.strip()]

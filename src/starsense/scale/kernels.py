@@ -52,10 +52,11 @@ def fov_part(frame, plan, colour, max_mag, targets, fov_diameter_rad, diameter_m
 def combine_sum(*parts):
     """Element-wise sum of tuples of arrays / numbers."""
     return tuple(
-        np.sum([p[i] for p in parts], axis=0) if isinstance(parts[0][i], np.ndarray)
+        np.sum([p[i] for p in parts], axis=0)
+        if isinstance(parts[0][i], np.ndarray)
         else sum(p[i] for p in parts)
         for i in range(len(parts[0]))
-    )  # fmt: skip
+    )
 
 
 # -- N brightest --------------------------------------------------------------------------------

@@ -140,10 +140,15 @@ def sky_limit(
     plan, chosen = limit_plan(catalog, colour)
     with client_or_local(client) as c:
         fisher, n, skipped = run_partitions(
-            c, catalog, plan.columns, kernels.sky_part,
+            c,
+            catalog,
+            plan.columns,
+            kernels.sky_part,
             (plan, chosen, max_mag, diameter_m, exposure_s),
-            kernels.combine_sum, "whole-sky limit", progress,
-        )  # fmt: skip
+            kernels.combine_sum,
+            "whole-sky limit",
+            progress,
+        )
     _enough(n, catalog, max_mag)
     return limit_from_fisher(fisher, n, diameter_m, exposure_s), StarSummary(chosen, n, skipped)
 
@@ -193,10 +198,15 @@ def fov_limit(
     plan, chosen = limit_plan(catalog, colour)
     with client_or_local(client) as c:
         fishers, counts, n, skipped = run_partitions(
-            c, catalog, plan.columns, kernels.fov_part,
+            c,
+            catalog,
+            plan.columns,
+            kernels.fov_part,
             (plan, chosen, max_mag, targets, fov_diameter_rad, diameter_m, exposure_s),
-            kernels.combine_sum, "FOV-limited limits", progress,
-        )  # fmt: skip
+            kernels.combine_sum,
+            "FOV-limited limits",
+            progress,
+        )
     heads, merged = fov_results(fishers, counts, targets, diameter_m, exposure_s)
     return heads, merged, StarSummary(chosen, n, skipped)
 
@@ -272,9 +282,15 @@ def brightest_curve(
 
         def histogram(e: np.ndarray, label: str) -> np.ndarray:
             counts, _ = run_partitions(
-                c, catalog, plan.columns, kernels.histogram_part, (plan, chosen, max_mag, e),
-                kernels.combine_sum, label, progress,
-            )  # fmt: skip
+                c,
+                catalog,
+                plan.columns,
+                kernels.histogram_part,
+                (plan, chosen, max_mag, e),
+                kernels.combine_sum,
+                label,
+                progress,
+            )
             return counts
 
         counts = histogram(edges, "N brightest: magnitude histogram")
@@ -295,10 +311,15 @@ def brightest_curve(
             counts = histogram(edges, "N brightest: finer histogram")
         b, before, bins, partial = _checkpoint_bins(counts, ns)
         rows, (mag, vec, w) = run_partitions(
-            c, catalog, plan.columns, kernels.brightest_part,
+            c,
+            catalog,
+            plan.columns,
+            kernels.brightest_part,
             (plan, chosen, max_mag, diameter_m, exposure_s, edges, bins, partial),
-            kernels.combine_brightest, "N brightest: sums", progress,
-        )  # fmt: skip
+            kernels.combine_brightest,
+            "N brightest: sums",
+            progress,
+        )
     order = brightest_order(mag, vec, w)
     cum_explicit = np.cumsum(fisher_components(vec[order], w[order]), axis=0)
     cum_rows = np.cumsum(rows, axis=0)

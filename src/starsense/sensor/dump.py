@@ -81,8 +81,11 @@ def _extra_tables(sensor) -> list[str]:
     ex = getattr(sensor, "exclusion", None)
     if ex is not None:
         lines += ["", "[exclusion]"]
-        for key, rad in (("sun_deg", ex.sun_rad), ("moon_deg", ex.moon_rad),
-                         ("earth_limb_deg", ex.earth_limb_rad)):  # fmt: skip
+        for key, rad in (
+            ("sun_deg", ex.sun_rad),
+            ("moon_deg", ex.moon_rad),
+            ("earth_limb_deg", ex.earth_limb_rad),
+        ):
             if rad is not None:
                 lines.append(f"{key} = {_value(float(to_edge(rad, DEG)))}")
         lines.append(f"atmosphere_km = {_value(float(to_edge(ex.atmosphere_m, 1e3)))}")

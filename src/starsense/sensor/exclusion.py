@@ -101,8 +101,9 @@ def exclusion_from_table(table: Any, source: str) -> Exclusion:
             if key in table:
                 check_field("exclusion", key, table[key], 0.0, 180.0)
         if "atmosphere_km" in table:
-            check_field("exclusion", "atmosphere_km", table["atmosphere_km"], 0.0,
-                        _MAX_ATMOSPHERE_KM)  # fmt: skip
+            check_field(
+                "exclusion", "atmosphere_km", table["atmosphere_km"], 0.0, _MAX_ATMOSPHERE_KM
+            )
     except InputError as exc:
         raise InputError(f"{source}: {exc}") from None
 

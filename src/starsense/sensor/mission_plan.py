@@ -62,8 +62,9 @@ def mission_from_table(table: Any, source: str) -> MissionPlan:
         raise InputError(f"{where} must be a table")
     unknown = sorted(set(table) - set(MISSION_KEYS))
     if unknown:
-        raise InputError(f"{where}: unknown key(s) {', '.join(unknown)}; "
-                         f"known: {', '.join(MISSION_KEYS)}")  # fmt: skip
+        raise InputError(
+            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(MISSION_KEYS)}"
+        )
     if "orbit" not in table:
         raise InputError(f'{where} needs orbit (e.g. orbit = "sso:550:6")')
     for key in ("name", "orbit", "attitude", "start"):

@@ -40,8 +40,14 @@ __all__ = ["PARAMETERS", "Calibration", "FrameStars", "calibrate", "frame_stars"
 #: the camera parameters that can be fitted, by the names ``fit`` takes
 PARAMETERS = ("focal_length", "principal_point", "k1", "k2", "p1", "p2")
 #: the scalar unknowns behind each name: index into (f_px, dx_px, dy_px, k1, k2, p1, p2)
-_SCALARS = {"focal_length": (0,), "principal_point": (1, 2), "k1": (3,), "k2": (4,),
-            "p1": (5,), "p2": (6,)}  # fmt: skip
+_SCALARS = {
+    "focal_length": (0,),
+    "principal_point": (1, 2),
+    "k1": (3,),
+    "k2": (4,),
+    "p1": (5,),
+    "p2": (6,),
+}
 _SCALAR_NAMES = ("focal_length_px", "principal_x_px", "principal_y_px", "k1", "k2", "p1", "p2")
 
 
@@ -168,9 +174,16 @@ class Calibration:
 def _initial(sensor) -> np.ndarray:
     o = sensor.optics
     return np.array(
-        [sensor.focal_length_px, o.principal_offset_x_px, o.principal_offset_y_px,
-         o.distortion_k1, o.distortion_k2, o.distortion_p1, o.distortion_p2]
-    )  # fmt: skip
+        [
+            sensor.focal_length_px,
+            o.principal_offset_x_px,
+            o.principal_offset_y_px,
+            o.distortion_k1,
+            o.distortion_k2,
+            o.distortion_p1,
+            o.distortion_p2,
+        ]
+    )
 
 
 def _sensor_with(sensor, cam: np.ndarray):

@@ -182,9 +182,14 @@ class Solver:
             return StarDetector.for_sensor(self.sensor)
         psf = self.sensor.detector.psf_sigma_px if self.sensor is not None else DEFAULT_PSF_SIGMA_PX
         return StarDetector(
-            self.logic, "cog", background="auto", threshold_sigma=self.threshold_sigma,
-            matched_filter=True, min_snr=self.threshold_sigma, psf_sigma_px=psf,
-        )  # fmt: skip
+            self.logic,
+            "cog",
+            background="auto",
+            threshold_sigma=self.threshold_sigma,
+            matched_filter=True,
+            min_snr=self.threshold_sigma,
+            psf_sigma_px=psf,
+        )
 
     def _identify(self, vectors, flux, fov_known, fov_assumed):
         """Return (identifier, identification, known field or None after a scale search)."""
@@ -236,16 +241,27 @@ class Solver:
         det = detector(a)
         stages["detect_ms"] = _ms(t0)
         if len(det) == 0:
-            return Solution("no_stars", "no star passed the detection logic", time_ms=_ms(t0),
-                            stage_ms=stages)  # fmt: skip
+            return Solution(
+                "no_stars", "no star passed the detection logic", time_ms=_ms(t0), stage_ms=stages
+            )
 
         def sigma_px(matched):
             if self.centroid_sigma_px == "snr":
                 return _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
             return self.centroid_sigma_px
 
-        return self._solve_points(det.x, det.y, det.integrated_counts, a.shape, t0, stages,
-                                  sigma_px, None, "detections", obs_time)  # fmt: skip
+        return self._solve_points(
+            det.x,
+            det.y,
+            det.integrated_counts,
+            a.shape,
+            t0,
+            stages,
+            sigma_px,
+            None,
+            "detections",
+            obs_time,
+        )
 
     def solve_centroids(self, xy, image_size, fov=None, brightness=None) -> Solution:
         """Solve a list of centroids measured by any centroider (no image needed).
@@ -312,8 +328,9 @@ class Solver:
             pts[:, 0], pts[:, 1], flux, shape, t0, {}, lambda _: sigma, fov, "centroids"
         )
 
-    def _solve_points(self, x, y, flux, shape, t0, stages, sigma_px, fov_given, what,
-                      obs_time=None, parity=True):  # fmt: skip
+    def _solve_points(
+        self, x, y, flux, shape, t0, stages, sigma_px, fov_given, what, obs_time=None, parity=True
+    ):
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
 
         When they do not solve (and are not clutter), their mirror image is tried
@@ -326,8 +343,13 @@ class Solver:
         n = len(x)
         if n < 3:
             said = f"{n} centroid(s) given" if what == "centroids" else f"{n} star(s) detected"
-            return Solution("too_few_stars", f"{said}; 3 are needed", n_detections=n,
-                            time_ms=_ms(t0), stage_ms=stages)  # fmt: skip
+            return Solution(
+                "too_few_stars",
+                f"{said}; 3 are needed",
+                n_detections=n,
+                time_ms=_ms(t0),
+                stage_ms=stages,
+            )
         vectors, fov_known, fov_assumed = self._unproject(x, y, shape, fov_given)
         t1 = time.perf_counter()
         self._identifier(fov_known)  # database build or cache load, timed on its own
@@ -341,9 +363,25 @@ class Solver:
             if parity and n <= limit:  # a mirrored frame fails identification: flip, retry
                 from starsense.solve.parity import solve_mirrored
 
-                mirrored = solve_mirrored(x, y, flux, shape, lambda mx, my, f: (
-                    self._solve_points(mx, my, f, shape, t0, stages, sigma_px, fov_given, what,
-                                       obs_time, parity=False)))  # fmt: skip
+                mirrored = solve_mirrored(
+                    x,
+                    y,
+                    flux,
+                    shape,
+                    lambda mx, my, f: self._solve_points(
+                        mx,
+                        my,
+                        f,
+                        shape,
+                        t0,
+                        stages,
+                        sigma_px,
+                        fov_given,
+                        what,
+                        obs_time,
+                        parity=False,
+                    ),
+                )
                 if mirrored is not None:
                     return mirrored
             if n > limit:
@@ -353,8 +391,7 @@ class Solver:
                     f"pixels can hold as stars ({limit}): noise or clutter passed the detection "
                     f"(then: {message})"
                 )
-            return Solution(status, message, n_detections=n, time_ms=_ms(t0),
-                            stage_ms=stages)  # fmt: skip
+            return Solution(status, message, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
         # final attitude from all matches, with its covariance
         t3 = time.perf_counter()
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)

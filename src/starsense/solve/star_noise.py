@@ -96,8 +96,9 @@ class StarNoise:
         h = 0.5
         x, y, n = self.x, self.y, len(self.x)
         # x + h, x - h at y; then x at y + h, y - h: one unprojection
-        v = self.sensor.unproject(np.concatenate([x + h, x - h, x, x]),
-                                  np.concatenate([y, y, y + h, y - h]))  # fmt: skip
+        v = self.sensor.unproject(
+            np.concatenate([x + h, x - h, x, x]), np.concatenate([y, y, y + h, y - h])
+        )
         gx = (v[:n] - v[n : 2 * n]) / (2 * h)
         gy = (v[2 * n : 3 * n] - v[3 * n :]) / (2 * h)
         g = np.empty((n, 3, 2))
@@ -115,8 +116,9 @@ class StarNoise:
         return inv @ middle @ inv
 
 
-def star_noise(solver, det, matched, rate, *, vectors=None, half_turn=None,
-               margin_px=None) -> StarNoise:  # fmt: skip
+def star_noise(
+    solver, det, matched, rate, *, vectors=None, half_turn=None, margin_px=None
+) -> StarNoise:
     """Return the centroid noise of detections ``matched`` (module docstring).
 
     With ``centroid_sigma_px`` a number, every star gets that isotropic sigma; with "snr" the
@@ -250,9 +252,12 @@ def fit_robust(body, ref, sigma):
         cov = fisher_covariance(body[keep], sigma[keep])
     att = AttitudeSolution(
         # c is orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped
-        rotation=Rotation.from_matrix(c, assume_valid=True), covariance_rad2=cov,
+        rotation=Rotation.from_matrix(c, assume_valid=True),
+        covariance_rad2=cov,
         residual_rms_rad=math.sqrt(float(np.add.reduce(resid * resid)) / len(resid)),
-        residuals_rad=resid, method="svd", n_stars=len(keep),
+        residuals_rad=resid,
+        method="svd",
+        n_stars=len(keep),
         loss=0.5 * float(np.add.reduce(chord2 / sigma[keep] ** 2)),
-    )  # fmt: skip
+    )
     return att, keep

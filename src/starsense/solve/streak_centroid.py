@@ -211,8 +211,10 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
     if n == 0:
         return out_x, out_y, total, boxes, spread
     reach_x, reach_y = np.abs(sx) + radius, np.abs(sy) + radius
-    size = (min(math.ceil(2 * float(reach_y.max())) + 2, rows),
-            min(math.ceil(2 * float(reach_x.max())) + 2, cols))  # fmt: skip
+    size = (
+        min(math.ceil(2 * float(reach_y.max())) + 2, rows),
+        min(math.ceil(2 * float(reach_x.max())) + 2, cols),
+    )
     crops = windows_view(planes, size)
     # the capsule each centroid was taken over: its mask, columns and rows
     masks = np.zeros((n, *size), dtype=bool)
@@ -252,8 +254,7 @@ def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
             break
     done = np.isfinite(out_x).nonzero()[0]
     if len(done):  # the spread about the centroid over the capsule it was taken from
-        boxes[done] = _boxes(last_x[done], last_y[done], sx[done], sy[done], radius,
-                             (rows, cols))  # fmt: skip
+        boxes[done] = _boxes(last_x[done], last_y[done], sx[done], sy[done], radius, (rows, cols))
         inside, px, py = masks[done], cols_px[done], rows_px[done]
         dx = np.where(inside, px[:, None, :] - out_x[done, None, None], 0.0)
         dy = np.where(inside, py[:, :, None] - out_y[done, None, None], 0.0)

@@ -34,9 +34,14 @@ SYSTEMATIC = 0.2
 
 
 def streak_axes(
-    image, x, y, half_px: int, threshold: float, level: float | None = 0.0,
+    image,
+    x,
+    y,
+    half_px: int,
+    threshold: float,
+    level: float | None = 0.0,
     threshold_sigma: float | None = None,
-) -> np.ndarray:  # fmt: skip
+) -> np.ndarray:
     """Return ``l l^T`` of the streak through each centroid, from its lit pixels, px^2.
 
     Parameters

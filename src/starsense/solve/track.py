@@ -69,8 +69,9 @@ class Prior:
     rate_sign_known: bool = True
 
     @classmethod
-    def from_radec_roll(cls, ra_rad: float, dec_rad: float, roll_rad: float,
-                        sigma_rad: float) -> Prior:  # fmt: skip
+    def from_radec_roll(
+        cls, ra_rad: float, dec_rad: float, roll_rad: float, sigma_rad: float
+    ) -> Prior:
         """Return a prior at (RA, Dec, roll), rad, with an isotropic 1-sigma ``sigma_rad``."""
         from starsense._validate import positive_float
         from starsense.geometry.attitude import attitude_from_radec_roll
@@ -82,8 +83,9 @@ class Prior:
         """Return the attitude and covariance at the frame (:func:`predict_attitude`)."""
         from starsense.attitude.rate import predict_attitude
 
-        return predict_attitude(self.rotation, self.dt_s, self.rate_rad_s, self.cov_rad2,
-                                self.rate_cov_rad2_s2)  # fmt: skip
+        return predict_attitude(
+            self.rotation, self.dt_s, self.rate_rad_s, self.cov_rad2, self.rate_cov_rad2_s2
+        )
 
 
 @dataclass(frozen=True)
@@ -169,16 +171,20 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     if r_s > MAX_SEARCH_RAD:
         return None, f"prior uncertainty {r_s * RAD_TO_DEG:.2f} deg exceeds tracking's reach"
     half_turn = _half_turn(sensor, rate)
-    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r,
-                                                      half_turn)  # fmt: skip
+    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r, half_turn)
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
     # the longest streak: at a field corner (streak_px's default, corners computed once)
     longest = 0.0 if half_turn is None else float(streak_px(sensor, rate, setup.corners).max())
     reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
     centres = columns(x[on], y[on])[:MAX_WINDOWS]
-    found = detect_in_windows(solver, np.asarray(image), centres, math.ceil(reach_px + 4),
-                              None if streaks is None else streaks[on][:MAX_WINDOWS])  # fmt: skip
+    found = detect_in_windows(
+        solver,
+        np.asarray(image),
+        centres,
+        math.ceil(reach_px + 4),
+        None if streaks is None else streaks[on][:MAX_WINDOWS],
+    )
     det = found.detections
     stages = {"detect_ms": (time.perf_counter() - t0) * 1e3}
     if len(det) < 2:
@@ -189,8 +195,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
-    match = setup.identifier(vectors, rot_pred, r_s, field_r, region=region,
-                             candidates=near[cand])  # fmt: skip
+    match = setup.identifier(vectors, rot_pred, r_s, field_r, region=region, candidates=near[cand])
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
     matched, cat_index, cat_ids = match.detection_index, match.catalog_index, match.catalog_id
@@ -198,8 +203,15 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     alone = _unblended(cat_index, near, x, y, blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
-    noise = star_noise(solver, det, matched, rate, vectors=vectors[matched],
-                       half_turn=half_turn, margin_px=setup.margin_px)  # fmt: skip
+    noise = star_noise(
+        solver,
+        det,
+        matched,
+        rate,
+        vectors=vectors[matched],
+        half_turn=half_turn,
+        margin_px=setup.margin_px,
+    )
     att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
     matched, cat_ids = matched[keep], cat_ids[keep]
     covariance = noise.subset(keep).attitude_covariance(vectors[matched], att.covariance_rad2)
@@ -210,17 +222,23 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         "solved" if match.status == "verified" else "unverified",
         f"tracked: {len(matched)} of {len(det)} detections ({where}) matched, "
         f"P_false {match.false_match_probability:.1e}",
-        ra_rad=float(ra), dec_rad=float(dec), roll_rad=float(roll),
-        fov_rad=2.0 * sensor.half_fov_rad[0], n_detections=len(det),
-        n_matched=len(matched), rmse_rad=float(att.residual_rms_rad),
+        ra_rad=float(ra),
+        dec_rad=float(dec),
+        roll_rad=float(roll),
+        fov_rad=2.0 * sensor.half_fov_rad[0],
+        n_detections=len(det),
+        n_matched=len(matched),
+        rmse_rad=float(att.residual_rms_rad),
         false_match_probability=float(match.false_match_probability),
         sigma_rad=tuple(np.sqrt(covariance.diagonal()).tolist()),
         time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
         rotation=att.rotation,
         matches=tuple(zip(matched.tolist(), cat_ids.tolist(), strict=True)),
-        centroids_px=columns(det.x, det.y), image_shape=image.shape, focal_px=f,
-    )  # fmt: skip
+        centroids_px=columns(det.x, det.y),
+        image_shape=image.shape,
+        focal_px=f,
+    )
     return (sol, covariance), ""
 
 
@@ -275,11 +293,13 @@ def track_frame(solver, image, prior: Prior | None) -> TrackSolution:
         else:
             sol, covariance = lis, np.diag(np.square(lis.sigma_rad))
         msg = f"{reason}; lost-in-space: {lis.message}"
-        return TrackSolution(_done(dataclasses.replace(sol, message=msg), t0), "lost_in_space",
-                             covariance)  # fmt: skip
+        return TrackSolution(
+            _done(dataclasses.replace(sol, message=msg), t0), "lost_in_space", covariance
+        )
     if unverified is not None:  # keep the unverified track rather than nothing
-        sol = dataclasses.replace(unverified[0], message=unverified[0].message
-                                  + f"; lost-in-space failed ({lis.status})")  # fmt: skip
+        sol = dataclasses.replace(
+            unverified[0], message=unverified[0].message + f"; lost-in-space failed ({lis.status})"
+        )
         return TrackSolution(_done(sol, t0), "tracking", unverified[1])
     msg = f"{reason}; lost-in-space: {lis.status}: {lis.message}"
     return TrackSolution(_done(dataclasses.replace(lis, message=msg), t0), "lost_in_space")
@@ -301,8 +321,14 @@ class Tracker:
         the second frame (default 3 deg/s).
     """
 
-    def __init__(self, solver, *, interval_s: float | None = None, prior: Prior | None = None,
-                 max_rate_rad_s: float = 3.0 * DEG) -> None:  # fmt: skip
+    def __init__(
+        self,
+        solver,
+        *,
+        interval_s: float | None = None,
+        prior: Prior | None = None,
+        max_rate_rad_s: float = 3.0 * DEG,
+    ) -> None:
         from starsense._validate import positive_float
 
         if solver.sensor is None:
@@ -356,14 +382,16 @@ class Tracker:
             if self._last is not None and t is not None and self._last[0] is not None:
                 dt = t - self._last[0]
                 if dt > 0:
-                    rate, rate_cov = rate_from_attitudes(self._last[1], sol.rotation, dt,
-                                                         self._last[2], cov)  # fmt: skip
+                    rate, rate_cov = rate_from_attitudes(
+                        self._last[1], sol.rotation, dt, self._last[2], cov
+                    )
                     self._rate = (rate, rate_cov)
             self._last = (t, sol.rotation, cov)
             if self._rate is None:
                 self._streak_rate = self._rate_from_streaks(np.asarray(image), sol)
-        return dataclasses.replace(result, rate_rad_s=rate, rate_cov_rad2_s2=rate_cov,
-                                   time_s=t, image=name)  # fmt: skip
+        return dataclasses.replace(
+            result, rate_rad_s=rate, rate_cov_rad2_s2=rate_cov, time_s=t, image=name
+        )
 
     def _rate_from_streaks(self, image: np.ndarray, sol: Solution):
         """Rate (sign unknown) and covariance from the streaks of the 5 brightest matched stars."""
@@ -379,10 +407,14 @@ class Tracker:
         half = math.ceil(reach + 3.0 * sensor.detector.psf_sigma_px + 4.0)
         known = solver.background == "known"
         axes = streak_axes(
-            image, xy[:, 0], xy[:, 1], half, solver.logic.lit_pixel_counts,
+            image,
+            xy[:, 0],
+            xy[:, 1],
+            half,
+            solver.logic.lit_pixel_counts,
             level=float(sensor.detector.bias_counts) if known else None,
             threshold_sigma=None if known else solver.threshold_sigma,
-        )  # fmt: skip
+        )
         try:
             return rate_from_streaks(sensor, xy[:, 0], xy[:, 1], axes)
         except InputError:
@@ -401,6 +433,5 @@ class Tracker:
             self._index += 1
             # the mode the frame would have been processed in
             mode = "lost_in_space" if self._prior_at(t) is None else "tracking"
-            return TrackSolution(Solution("unreadable", str(exc)), mode, time_s=t,
-                                 image=str(path))  # fmt: skip
+            return TrackSolution(Solution("unreadable", str(exc)), mode, time_s=t, image=str(path))
         return self(image, time_s, str(path))

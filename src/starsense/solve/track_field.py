@@ -43,8 +43,12 @@ def _setup(solver) -> _Setup:
     sensor = solver.sensor
     db = solver._identifier(2.0 * sensor.half_fov_rad[0]).database
     got = _SETUPS.get(solver)
-    if got is None or got.sensor is not sensor or got.db is not db \
-            or got.background != solver.background:  # fmt: skip
+    if (
+        got is None
+        or got.sensor is not sensor
+        or got.db is not db
+        or got.background != solver.background
+    ):
         field_r = math.atan(math.hypot(*(math.tan(h) for h in sensor.half_fov_rad)))
         margin = 2 if solver.background != "known" else solver._detector().margin_px
         ident = TrackingIdentifier(db, min_match_radius_rad=2.0 / sensor.focal_length_px)
@@ -72,11 +76,13 @@ def _half_turn(sensor, rate) -> np.ndarray | None:
         return None
     k1, k2, k3 = v1 / angle, v2 / angle, v3 / angle
     s, c = math.sin(angle), 2.0 * math.sin(angle / 2) ** 2  # c = 1 - cos(angle)
-    return np.array([
-        [1.0 - c * (k2 * k2 + k3 * k3), c * k1 * k2 - s * k3, c * k1 * k3 + s * k2],
-        [c * k1 * k2 + s * k3, 1.0 - c * (k1 * k1 + k3 * k3), c * k2 * k3 - s * k1],
-        [c * k1 * k3 - s * k2, c * k2 * k3 + s * k1, 1.0 - c * (k1 * k1 + k2 * k2)],
-    ])  # fmt: skip
+    return np.array(
+        [
+            [1.0 - c * (k2 * k2 + k3 * k3), c * k1 * k2 - s * k3, c * k1 * k3 + s * k2],
+            [c * k1 * k2 + s * k3, 1.0 - c * (k1 * k1 + k3 * k3), c * k2 * k3 - s * k1],
+            [c * k1 * k3 - s * k2, c * k2 * k3 + s * k1, 1.0 - c * (k1 * k1 + k2 * k2)],
+        ]
+    )
 
 
 def _predicted_field(sensor, db, rot, r_s, field_r, half_turn):

@@ -218,9 +218,14 @@ def _levels(solver, stack: np.ndarray):
         return level, noise, np.full(k, float(logic.lit_pixel_counts))
     # the window's border (two pixels wide): sky around the star, a fraction of the pixels
     border = np.concatenate(
-        [stack[:, :2].reshape(k, -1), stack[:, -2:].reshape(k, -1),
-         stack[:, 2:-2, :2].reshape(k, -1), stack[:, 2:-2, -2:].reshape(k, -1)], axis=1
-    )  # fmt: skip
+        [
+            stack[:, :2].reshape(k, -1),
+            stack[:, -2:].reshape(k, -1),
+            stack[:, 2:-2, :2].reshape(k, -1),
+            stack[:, 2:-2, -2:].reshape(k, -1),
+        ],
+        axis=1,
+    )
     level = np.median(border, axis=1)
     noise = 1.4826 * np.median(np.abs(border - level[:, None]), axis=1)
     threshold = np.maximum(float(logic.lit_pixel_counts), solver.threshold_sigma * noise)
@@ -269,10 +274,18 @@ def _cogs(sub, p, boxes, margin):
     wt = np.where(keep, crop, 0.0)
     total = np.add.reduce(wt, axis=(1, 2))  # wt.sum, without its wrapper
     good = total > 0  # else NaN (an empty or negative region)
-    x = np.divide(np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), cc.astype(float)), total,
-                  out=np.full(len(p), np.nan), where=good)  # fmt: skip
-    y = np.divide(np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), rr.astype(float)), total,
-                  out=np.full(len(p), np.nan), where=good)  # fmt: skip
+    x = np.divide(
+        np.einsum("kj,kj->k", np.add.reduce(wt, axis=1), cc.astype(float)),
+        total,
+        out=np.full(len(p), np.nan),
+        where=good,
+    )
+    y = np.divide(
+        np.einsum("ki,ki->k", np.add.reduce(wt, axis=2), rr.astype(float)),
+        total,
+        out=np.full(len(p), np.nan),
+        where=good,
+    )
     return x, y
 
 
@@ -297,8 +310,9 @@ def _label_extents(idx, lab, sizes, values, shape):
     plane, rest = np.divmod(idx[order], h * w)
     row, col = np.divmod(rest, w)
     low, high = np.minimum.reduceat, np.maximum.reduceat
-    box = np.column_stack([low(row, starts), high(row, starts) + 1, low(col, starts),
-                           high(col, starts) + 1])  # fmt: skip
+    box = np.column_stack(
+        [low(row, starts), high(row, starts) + 1, low(col, starts), high(col, starts) + 1]
+    )
     return plane[starts], box, np.maximum.reduceat(values[order], starts)
 
 
@@ -350,8 +364,9 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     if streaks is not None and len(k):
         st = np.asarray(streaks, dtype=float)[p]
         use = ((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x)).nonzero()[0]
-        gx, gy, gc, gb, gs = streak_centroids(sub[p[use]], x[use], y[use], st[use],
-                                              2.5 * sigma + 1.0)  # fmt: skip
+        gx, gy, gc, gb, gs = streak_centroids(
+            sub[p[use]], x[use], y[use], st[use], 2.5 * sigma + 1.0
+        )
         fin = np.isfinite(gx)
         got = use[fin]
         x[got], y[got], counts[got] = gx[fin], gy[fin], gc[fin]
@@ -364,14 +379,28 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     fine = (np.isfinite(x) & ~off).nonzero()[0]
     pf, kf = p[fine], k[fine]
     offset = columns(r0[pf], r0[pf], c0[pf], c0[pf])  # window -> frame
-    rows = (x[fine] + c0[pf], y[fine] + r0[pf], counts[fine], sizes[kf], peaks[kf],
-            box[fine] + offset, spread[fine])  # fmt: skip
+    rows = (
+        x[fine] + c0[pf],
+        y[fine] + r0[pf],
+        counts[fine],
+        sizes[kf],
+        peaks[kf],
+        box[fine] + offset,
+        spread[fine],
+    )
     return rows, _median_noise(solver, noise), n
 
 
 #: No detection rows: x, y, counts, pixels, peak, box (row0, row1, col0, col1), spread.
-_NO_ROWS = (np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, int), np.zeros(0),
-            np.zeros((0, 4), int), np.zeros((0, 2, 2)))  # fmt: skip
+_NO_ROWS = (
+    np.zeros(0),
+    np.zeros(0),
+    np.zeros(0),
+    np.zeros(0, int),
+    np.zeros(0),
+    np.zeros((0, 4), int),
+    np.zeros((0, 2, 2)),
+)
 
 
 def _detections(rows, noise: float, n_candidates: int, saturation):
@@ -392,14 +421,19 @@ def _detections(rows, noise: float, n_candidates: int, saturation):
     sel = order[keep]
     peak = peak[sel].astype(float)
     return Detections(
-        x=x[sel].astype(float), y=y[sel].astype(float),
-        integrated_counts=counts[sel].astype(float), n_pixels=n_pixels[sel].astype(int),
+        x=x[sel].astype(float),
+        y=y[sel].astype(float),
+        integrated_counts=counts[sel].astype(float),
+        n_pixels=n_pixels[sel].astype(int),
         peak_counts=peak,
         saturated=peak >= saturation if saturation is not None else np.zeros(len(sel), bool),
-        bbox=box[sel].astype(int).reshape(-1, 4), fit_ok=np.ones(len(sel), bool),
-        n_candidates=int(n_candidates), noise_counts=noise, method="cog",
+        bbox=box[sel].astype(int).reshape(-1, 4),
+        fit_ok=np.ones(len(sel), bool),
+        n_candidates=int(n_candidates),
+        noise_counts=noise,
+        method="cog",
         extra={"spread_px2": spread[sel].astype(float).reshape(-1, 2, 2)},
-    )  # fmt: skip
+    )
 
 
 def detect_in_windows(

@@ -160,9 +160,13 @@ class AvailabilityAnalysis:
         roll = self.roll if isinstance(self.fov, RectangularFov) else 0.0
         boresights, attitudes = sky_attitudes(self.n_orientations, roll, self.seed)
         stars = FieldStars.build(
-            self.fov, attitudes, self.vectors, self.magnitudes, self.tree,
+            self.fov,
+            attitudes,
+            self.vectors,
+            self.magnitudes,
+            self.tree,
             self._reporter("stars in the field, sky grid"),
-        )  # fmt: skip
+        )
         return boresights, stars
 
     @property
@@ -198,9 +202,18 @@ class AvailabilityAnalysis:
         if not math.isfinite(m_t):
             m_t = float(self.magnitudes.max())
         return static_result(
-            self.sky, self.sky.counts(m_t), self.boresights, n_min, m_t, self.n_stars,
-            describe_fov(self.fov), self.catalog, self.band, curve_span_mag, curve_step_mag,
-        )  # fmt: skip
+            self.sky,
+            self.sky.counts(m_t),
+            self.boresights,
+            n_min,
+            m_t,
+            self.n_stars,
+            describe_fov(self.fov),
+            self.catalog,
+            self.band,
+            curve_span_mag,
+            curve_step_mag,
+        )
 
     # -- spatial dynamic ---------------------------------------------------------------------
     def dynamic(
@@ -251,9 +264,13 @@ class AvailabilityAnalysis:
         if key not in self._tracks:
             attitudes = track_family_attitudes(incl, n_samples, node)
             self._tracks[key] = FieldStars.build(
-                self.fov, attitudes, self.vectors, self.magnitudes, self.tree,
+                self.fov,
+                attitudes,
+                self.vectors,
+                self.magnitudes,
+                self.tree,
                 self._reporter("stars in the field, tracks"),
-            )  # fmt: skip
+            )
         return self._tracks[key]
 
     def track(

@@ -234,10 +234,16 @@ def fidelity_check(
     spurious = np.zeros(n_frames, dtype=np.intp)
     for i in range(n_frames):
         frame = render_frame(
-            sensor, attitudes[i], catalog, rate_rad_s=np.array([0.0, w, 0.0]), model=model,
-            band=band, max_mag=max_mag, rng=np.random.default_rng(children[i]),
+            sensor,
+            attitudes[i],
+            catalog,
+            rate_rad_s=np.array([0.0, w, 0.0]),
+            model=model,
+            band=band,
+            max_mag=max_mag,
+            rng=np.random.default_rng(children[i]),
             keep_expected=False,
-        )  # fmt: skip
+        )
         truth_xy, truth_mag = _truth_xy_mag(frame)
         frame_counts[i], spurious[i] = _match(
             _detect(frame, sensor), truth_xy[truth_mag <= max_mag], radius

@@ -304,9 +304,9 @@ class TrackAvailability:
         for k in sorted(self.by_n_min):
             s = self.stats(k)
             out.append(
-                f"  {k:5d}  " + "  ".join(f"{100 * s[c]:6.2f}%" for c in ("spatial", "mean",
-                                                                          "max", "min"))
-            )  # fmt: skip
+                f"  {k:5d}  "
+                + "  ".join(f"{100 * s[c]:6.2f}%" for c in ("spatial", "mean", "max", "min"))
+            )
         return out
 
 

@@ -220,8 +220,11 @@ class ThresholdCurve:
                 "'magnitudes' and 'tolerable_rate_deg_s'"
             ) from None
         grid = data.get("rates_deg_s")
-        label = ", ".join(str(data[k]) + (" model" if k == "model" else "")
-                          for k in ("sensor", "model") if k in data)  # fmt: skip
+        label = ", ".join(
+            str(data[k]) + (" model" if k == "model" else "")
+            for k in ("sensor", "model")
+            if k in data
+        )
         try:
             tol_rad = [None if r is None else float(r) * DEG for r in tol]
             top = float(max(grid)) * DEG if grid else None

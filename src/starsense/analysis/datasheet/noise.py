@@ -61,9 +61,11 @@ def clipped_moments(mu, sigma, lo: float, hi: float) -> tuple[np.ndarray, np.nda
     top2 = hi_f * hi_f * (1.0 - pb)
     mean = lo * pa + top + mu * mid + sigma * (da - db)
     second = (
-        lo * lo * pa + top2 + (mu * mu + sigma * sigma) * mid
+        lo * lo * pa
+        + top2
+        + (mu * mu + sigma * sigma) * mid
         + sigma * ((lo + mu) * da - (hi_f + mu) * db)
-    )  # fmt: skip
+    )
     return mean, np.maximum(second - mean * mean, 0.0)
 
 
@@ -182,9 +184,9 @@ def _measured_sigma(sensor, n_e: float, rng, n_stamps: int) -> float:
     half = 6 + math.ceil(6.0 * det.psf_sigma_px)
     size = 2 * half + 1
     xy = half + rng.random((n_stamps, 2)) - 0.5
-    stack = np.stack([
-        gaussian_stamp(x, y, det.psf_sigma_px, n_e, (0, size, 0, size))[0] for x, y in xy
-    ])  # fmt: skip
+    stack = np.stack(
+        [gaussian_stamp(x, y, det.psf_sigma_px, n_e, (0, size, 0, size))[0] for x, y in xy]
+    )
     counts = apply_noise(stack, sensor, rng)
     finder = StarDetector.for_sensor(sensor)
     errs = []

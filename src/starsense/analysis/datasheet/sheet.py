@@ -110,15 +110,17 @@ def _detection(sensor, settings: DatasheetSettings, tick):
     from starsense.analysis.slew import simulate_slew
 
     wide = np.arange(-2.0, 16.0001, 0.25)
-    rest = simulate_slew(sensor, settings.model, wide, [0.0], n_trials=settings.slew_trials,
-                         seed=settings.seed)  # fmt: skip
+    rest = simulate_slew(
+        sensor, settings.model, wide, [0.0], n_trials=settings.slew_trials, seed=settings.seed
+    )
     rough = limiting_magnitude(wide, rest.detected_fraction[:, 0])
     tick("static limit")
     if rough is None:
         return None, None, None
     mags, rates = slew_grids(sensor, rough)
-    slew = simulate_slew(sensor, settings.model, mags, rates, n_trials=settings.slew_trials,
-                         seed=settings.seed)  # fmt: skip
+    slew = simulate_slew(
+        sensor, settings.model, mags, rates, n_trials=settings.slew_trials, seed=settings.seed
+    )
     limit = limiting_magnitude(mags, slew.detected_fraction[:, 0])
     tick("slew tolerance")
     return (rough if limit is None else limit), slew, ThresholdCurve.from_slew(slew)
@@ -187,37 +189,56 @@ def _budget(sensor, nea: dict, pixel: tuple, pse_px: float | None) -> list[dict]
 
     given = dict(sensor.budget)
     rows = [
-        {"term": "noise-equivalent angle (temporal, 1 sigma, sky median)",
-         "cross_arcsec": nea["cross"]["median"], "roll_arcsec": nea["roll"]["median"],
-         "source": "modelled (centroid noise through eq. 21)"},
-        {"term": f"pixel spatial error (centroid bias, rms {pse_px:.4f} px)" if pse_px else
-         "pixel spatial error", "cross_arcsec": _stat(pixel[0] * RAD_TO_ARCSEC, 50),
-         "roll_arcsec": _stat(pixel[1] * RAD_TO_ARCSEC, 50),
-         "source": "measured in this run (noiseless renders)"},
+        {
+            "term": "noise-equivalent angle (temporal, 1 sigma, sky median)",
+            "cross_arcsec": nea["cross"]["median"],
+            "roll_arcsec": nea["roll"]["median"],
+            "source": "modelled (centroid noise through eq. 21)",
+        },
+        {
+            "term": f"pixel spatial error (centroid bias, rms {pse_px:.4f} px)"
+            if pse_px
+            else "pixel spatial error",
+            "cross_arcsec": _stat(pixel[0] * RAD_TO_ARCSEC, 50),
+            "roll_arcsec": _stat(pixel[1] * RAD_TO_ARCSEC, 50),
+            "source": "measured in this run (noiseless renders)",
+        },
         _fov_spatial(sensor, given),
-    ]  # fmt: skip
+    ]
     if not given.get("aberration_corrected", False):
         speeds = [("annual", EARTH_ORBITAL_SPEED_M_S)]
         if "orbital_speed_m_s" in given:
             speeds.append(("orbital", given["orbital_speed_m_s"]))
         for name, v in speeds:
             c, r = aberration_error(sensor, v)
-            rows.append({"term": f"stellar aberration, {name}, if uncorrected (worst case)",
-                         "cross_arcsec": c * RAD_TO_ARCSEC, "roll_arcsec": r * RAD_TO_ARCSEC,
-                         "source": f"modelled (v = {v / 1e3:.2f} km/s)"})  # fmt: skip
+            rows.append(
+                {
+                    "term": f"stellar aberration, {name}, if uncorrected (worst case)",
+                    "cross_arcsec": c * RAD_TO_ARCSEC,
+                    "roll_arcsec": r * RAD_TO_ARCSEC,
+                    "source": f"modelled (v = {v / 1e3:.2f} km/s)",
+                }
+            )
     for key in ("bias", "thermoelastic"):
         c, r = given.get(f"{key}_cross_arcsec"), given.get(f"{key}_roll_arcsec")
         if c is not None or r is not None:
-            rows.append({"term": key.replace("thermoelastic", "thermo-elastic"),
-                         "cross_arcsec": c or 0.0, "roll_arcsec": r or 0.0,
-                         "source": "given (sensor TOML [budget])"})  # fmt: skip
+            rows.append(
+                {
+                    "term": key.replace("thermoelastic", "thermo-elastic"),
+                    "cross_arcsec": c or 0.0,
+                    "roll_arcsec": r or 0.0,
+                    "source": "given (sensor TOML [budget])",
+                }
+            )
     ok = [r for r in rows if r["cross_arcsec"] is not None and r["roll_arcsec"] is not None]
-    rows.append({
-        "term": "total (root sum square)",
-        "cross_arcsec": math.sqrt(sum(r["cross_arcsec"] ** 2 for r in ok)),
-        "roll_arcsec": math.sqrt(sum(r["roll_arcsec"] ** 2 for r in ok)),
-        "source": "combined",
-    })  # fmt: skip
+    rows.append(
+        {
+            "term": "total (root sum square)",
+            "cross_arcsec": math.sqrt(sum(r["cross_arcsec"] ** 2 for r in ok)),
+            "roll_arcsec": math.sqrt(sum(r["roll_arcsec"] ** 2 for r in ok)),
+            "source": "combined",
+        }
+    )
     return rows
 
 
@@ -225,12 +246,19 @@ def _fov_spatial(sensor, given: dict) -> dict:
     """Return the field-of-view spatial error row: given, zero for a pinhole, or unknown."""
     term = "field-of-view spatial error (distortion residual)"
     if "fov_spatial_cross_arcsec" in given or "fov_spatial_roll_arcsec" in given:
-        return {"term": term, "cross_arcsec": given.get("fov_spatial_cross_arcsec", 0.0),
-                "roll_arcsec": given.get("fov_spatial_roll_arcsec", 0.0),
-                "source": "given (sensor TOML [budget], the calibration residual)"}  # fmt: skip
+        return {
+            "term": term,
+            "cross_arcsec": given.get("fov_spatial_cross_arcsec", 0.0),
+            "roll_arcsec": given.get("fov_spatial_roll_arcsec", 0.0),
+            "source": "given (sensor TOML [budget], the calibration residual)",
+        }
     if not any(sensor.optics.distortion):
-        return {"term": term, "cross_arcsec": 0.0, "roll_arcsec": 0.0,
-                "source": "modelled: pinhole camera, no distortion to leave"}  # fmt: skip
+        return {
+            "term": term,
+            "cross_arcsec": 0.0,
+            "roll_arcsec": 0.0,
+            "source": "modelled: pinhole camera, no distortion to leave",
+        }
     why = (
         "not known: the sensor has distortion; give fov_spatial_cross_arcsec and "
         "fov_spatial_roll_arcsec in [budget] (the residual of `starsense calibrate`)"
@@ -269,8 +297,13 @@ def _no_stars(sensor, settings, catalog_name: str) -> Datasheet:
         f"needs {sensor.detection.min_pixels} pixels above {sensor.detection.lit_pixel_counts:g} "
         f"counts and {sensor.detection.min_integrated_counts:g} counts in all)"
     )
-    data = {"schema": SCHEMA, "sensor": sensor.name, "limiting_magnitude": None,
-            "warnings": [why], "settings": _settings(settings, catalog_name, None)}  # fmt: skip
+    data = {
+        "schema": SCHEMA,
+        "sensor": sensor.name,
+        "limiting_magnitude": None,
+        "warnings": [why],
+        "settings": _settings(settings, catalog_name, None),
+    }
     return Datasheet(data, warnings=[why])
 
 
@@ -293,8 +326,10 @@ def _warnings(data: dict) -> list[str]:
     out = []
     stars = data.get("stars_in_fov") or {}
     if (stars.get("median") or 0) < _N_MIN_LIS:
-        out.append(f"the median field holds {stars.get('median')} detectable stars, fewer than the "
-                   f"{_N_MIN_LIS} lost in space needs")  # fmt: skip
+        out.append(
+            f"the median field holds {stars.get('median')} detectable stars, fewer than the "
+            f"{_N_MIN_LIS} lost in space needs"
+        )
     if data["availability"]["tracking"] == 0.0:
         out.append("no boresight of the sky holds the 2 stars an attitude needs")
     mc, avail = data.get("monte_carlo") or {}, data["availability"]["lost_in_space"]
@@ -347,8 +382,14 @@ def build_datasheet(
 
     st = settings or DatasheetSettings()
     cat = load_catalog("hipparcos") if catalog is None else catalog
-    steps = ["static limit", "slew tolerance", "availability", "noise", "monte carlo",
-             "monte carlo at rate"]  # fmt: skip
+    steps = [
+        "static limit",
+        "slew tolerance",
+        "availability",
+        "noise",
+        "monte carlo",
+        "monte carlo at rate",
+    ]
 
     def tick(label: str) -> None:
         if progress is not None:
@@ -372,24 +413,32 @@ def build_datasheet(
     tick("noise")
     nea = _arcsec_stats(*sig["nea"])
     data = {"schema": SCHEMA, "sensor": sensor.name, **_geometry(sensor, limit_mag, model)}
-    data["stars_in_fov"] = {"median": float(np.median(counts)),
-                            "p05": float(np.percentile(counts, 5))}  # fmt: skip
+    data["stars_in_fov"] = {
+        "median": float(np.median(counts)),
+        "p05": float(np.percentile(counts, 5)),
+    }
     data["nea_arcsec"] = nea
     data["crb_arcsec"] = _arcsec_stats(*sig["crb"])
-    data["limit_arcsec"] = {"cross": _stat(lim[0] * RAD_TO_ARCSEC, 50),
-                            "roll": _stat(lim[1] * RAD_TO_ARCSEC, 50)}  # fmt: skip
+    data["limit_arcsec"] = {
+        "cross": _stat(lim[0] * RAD_TO_ARCSEC, 50),
+        "roll": _stat(lim[1] * RAD_TO_ARCSEC, 50),
+    }
     data["nea_over_limit"] = {
         k: (nea[k]["median"] / data["limit_arcsec"][k])
-        if nea[k]["median"] is not None and data["limit_arcsec"][k] else None
+        if nea[k]["median"] is not None and data["limit_arcsec"][k]
+        else None
         for k in ("cross", "roll")
-    }  # fmt: skip
+    }
     data["roll_over_cross"] = _roll_factor(nea, vectors, mats, fov)
     runs = []
     rate_trials = st.trials if st.rate_trials is None else st.rate_trials
-    for key, rate, n in (("monte_carlo", 0.0, st.trials),
-                         ("monte_carlo_at_rate", st.rate_rad_s, rate_trials)):  # fmt: skip
-        res = run_montecarlo(sensor, n, rate_rad_s=rate, catalog=cat, seed=st.seed,
-                             model=st.model, client=client)  # fmt: skip
+    for key, rate, n in (
+        ("monte_carlo", 0.0, st.trials),
+        ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
+    ):
+        res = run_montecarlo(
+            sensor, n, rate_rad_s=rate, catalog=cat, seed=st.seed, model=st.model, client=client
+        )
         data[key] = score_montecarlo(res, model, fov, vectors, mags, predict=rate == 0.0)
         runs.append(res)
         tick(key.replace("_", " "))

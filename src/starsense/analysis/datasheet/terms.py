@@ -132,8 +132,9 @@ def aberration_error(sensor, speed_m_s: float, n_side: int = 9) -> tuple[float, 
     cross = roll = 0.0
     for theta in np.linspace(0.0, math.pi, 7):
         for phi in np.linspace(0.0, math.pi, 5):
-            apex = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi),
-                             math.cos(theta)])  # fmt: skip
+            apex = np.array(
+                [math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)]
+            )
             moved = r + beta * (apex - (r @ apex)[:, None] * r)
             moved /= np.linalg.norm(moved, axis=1)[:, None]
             rot, _ = Rotation.align_vectors(moved, r)

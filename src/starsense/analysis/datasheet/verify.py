@@ -68,9 +68,17 @@ def score_montecarlo(res, model, fov, vectors, magnitudes, predict: bool = True)
         "statuses": dict(res.statuses),
     }
     if right == 0 or not predict:
-        keys = ("cross_rms_arcsec", "roll_rms_arcsec", "cross_predicted_arcsec",
-                "roll_predicted_arcsec", "cross_ratio", "roll_ratio", "cross_ratio_robust",
-                "roll_ratio_robust", "outliers_5sigma")  # fmt: skip
+        keys = (
+            "cross_rms_arcsec",
+            "roll_rms_arcsec",
+            "cross_predicted_arcsec",
+            "roll_predicted_arcsec",
+            "cross_ratio",
+            "roll_ratio",
+            "cross_ratio_robust",
+            "roll_ratio_robust",
+            "outliers_5sigma",
+        )
         out = {**out, **dict.fromkeys(keys)}
         if right:
             e = res.errors_rad

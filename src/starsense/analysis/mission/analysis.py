@@ -116,8 +116,20 @@ def _head_timeline(geo: Geometry, head: Head, vectors, magnitudes, tree, n_min: 
     stars = detected_counts(head.fov, mats, vectors, magnitudes, m_t, tree)
     lis = stars >= n_min
     available = tracking_state(stars >= N_MIN_TRACKING, lis)
-    return HeadTimeline(head.name, stars, rate, sun_sep, moon_sep, limb, sun_b, moon_b, earth_b,
-                        lis, available, head.describe())  # fmt: skip
+    return HeadTimeline(
+        head.name,
+        stars,
+        rate,
+        sun_sep,
+        moon_sep,
+        limb,
+        sun_b,
+        moon_b,
+        earth_b,
+        lis,
+        available,
+        head.describe(),
+    )
 
 
 def mission_availability(
@@ -163,5 +175,10 @@ def mission_availability(
     tree = cKDTree(v)
     timelines = [_head_timeline(geometry, h, v, m, tree, n_min) for h in heads]
     combined = np.logical_or.reduce([t.available for t in timelines])
-    return MissionResult(geometry.grid.t_s, geometry.grid.step_s, timelines, combined,
-                         {"n_min": n_min, **(meta or {})})  # fmt: skip
+    return MissionResult(
+        geometry.grid.t_s,
+        geometry.grid.step_s,
+        timelines,
+        combined,
+        {"n_min": n_min, **(meta or {})},
+    )

@@ -139,8 +139,11 @@ class KeplerOrbit:
         p = self.semi_major_axis_m * (1.0 - e2)
         k = 1.5 * n * J2_EARTH * (EARTH_RADIUS_M / p) ** 2
         ci = math.cos(self.inclination)
-        return (-k * ci, 0.5 * k * (5.0 * ci**2 - 1.0),
-                n + 0.5 * k * math.sqrt(1.0 - e2) * (3.0 * ci**2 - 1.0))  # fmt: skip
+        return (
+            -k * ci,
+            0.5 * k * (5.0 * ci**2 - 1.0),
+            n + 0.5 * k * math.sqrt(1.0 - e2) * (3.0 * ci**2 - 1.0),
+        )
 
     def state(self, grid: TimeGrid) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return GCRS positions (m) and velocities (m/s) at the steps, each (n_steps, 3)."""
@@ -156,13 +159,17 @@ class KeplerOrbit:
         pqw = np.stack([a * (cos_e - e), a * root * sin_e, np.zeros_like(ecc)], axis=1)
         speed = math.sqrt(GM_EARTH_M3_S2 * a) / r
         vqw = np.stack([-speed * sin_e, speed * root * cos_e, np.zeros_like(ecc)], axis=1)
-        m = _rotation_pqw(self.raan + d_raan * dt, np.full_like(dt, self.inclination),
-                          self.arg_perigee + d_argp * dt)  # fmt: skip
+        m = _rotation_pqw(
+            self.raan + d_raan * dt,
+            np.full_like(dt, self.inclination),
+            self.arg_perigee + d_argp * dt,
+        )
         return (m @ pqw[:, :, None])[:, :, 0], (m @ vqw[:, :, None])[:, :, 0]
 
 
-def sun_synchronous(altitude_m: float, ltan_h: float, epoch: object,
-                    arg_latitude: float = 0.0) -> KeplerOrbit:  # fmt: skip
+def sun_synchronous(
+    altitude_m: float, ltan_h: float, epoch: object, arg_latitude: float = 0.0
+) -> KeplerOrbit:
     """Return the circular sun-synchronous orbit at `altitude_m` with the node at `ltan_h`.
 
     The inclination makes the J2 node drift equal to the mean Sun's motion,
@@ -196,6 +203,12 @@ def sun_synchronous(altitude_m: float, ltan_h: float, epoch: object,
     )
     raan = (mean_sun_ra(t0) + (ltan - 12.0) * math.pi / 12.0) % (2.0 * math.pi)
     return KeplerOrbit(
-        a, 0.0, math.acos(cos_i), raan, 0.0, finite_float(arg_latitude, "arg_latitude"), t0,
+        a,
+        0.0,
+        math.acos(cos_i),
+        raan,
+        0.0,
+        finite_float(arg_latitude, "arg_latitude"),
+        t0,
         label=f"sun-synchronous {alt / 1e3:g} km, LTAN {ltan:g} h",
-    )  # fmt: skip
+    )

@@ -60,8 +60,10 @@ def triad(z: NDArray[np.float64], x_hint: NDArray[np.float64]) -> NDArray[np.flo
         ICRS -> body (rows: the body axes in ICRS), orthonormal to rounding.
     """
     zu = _unit(z, "the +z axis")
-    x = _unit(x_hint - np.sum(x_hint * zu, axis=1, keepdims=True) * zu,
-              "the secondary axis (parallel to +z)")  # fmt: skip
+    x = _unit(
+        x_hint - np.sum(x_hint * zu, axis=1, keepdims=True) * zu,
+        "the secondary axis (parallel to +z)",
+    )
     y = np.cross(zu, x)
     return np.stack([x, y, zu], axis=1)
 
@@ -88,8 +90,9 @@ def body_rates(matrices: NDArray[np.float64], step_s: float) -> NDArray[np.float
     if len(matrices) < 2:
         raise InputError("body rates need at least 2 steps")
     d = matrices[1:] @ matrices[:-1].transpose(0, 2, 1)
-    vee = 0.5 * np.stack([d[:, 2, 1] - d[:, 1, 2], d[:, 0, 2] - d[:, 2, 0],
-                          d[:, 1, 0] - d[:, 0, 1]], axis=1)  # fmt: skip
+    vee = 0.5 * np.stack(
+        [d[:, 2, 1] - d[:, 1, 2], d[:, 0, 2] - d[:, 2, 0], d[:, 1, 0] - d[:, 0, 1]], axis=1
+    )
     sin = np.linalg.norm(vee, axis=1)
     angle = np.arctan2(sin, 0.5 * (np.trace(d, axis1=1, axis2=2) - 1.0))
     scale = np.where(sin > 1e-300, angle / np.maximum(sin, 1e-300), 1.0)
@@ -131,8 +134,10 @@ def read_quaternions(path: str | Path) -> tuple[NDArray[np.float64], Rotation]:
             values.append([float(c) for c in row])
         except ValueError:
             col = next(i for i, c in enumerate(row, start=1) if not _is_float(c))
-            raise InputError(f"{p}, line {no}, column {col} ({want[col - 1]}): "
-                             f"{row[col - 1].strip()!r} is not a number") from None  # fmt: skip
+            raise InputError(
+                f"{p}, line {no}, column {col} ({want[col - 1]}): "
+                f"{row[col - 1].strip()!r} is not a number"
+            ) from None
     a = np.asarray(values, dtype=np.float64).reshape(-1, 5)
     if len(a) < 2 or not np.all(np.isfinite(a)):
         raise InputError(f"{p}: need at least 2 rows of finite numbers")
@@ -141,8 +146,9 @@ def read_quaternions(path: str | Path) -> tuple[NDArray[np.float64], Rotation]:
     norms = np.linalg.norm(a[:, 1:], axis=1)
     bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-3)
     if bad.size:
-        raise InputError(f"{p}, row {bad[0] + 1}: quaternion norm {norms[bad[0]]:.4g} is not 1: "
-                         "not a rotation")  # fmt: skip
+        raise InputError(
+            f"{p}, row {bad[0] + 1}: quaternion norm {norms[bad[0]]:.4g} is not 1: not a rotation"
+        )
     return a[:, 0], Rotation.from_quat(a[:, 1:] / norms[:, None])
 
 
@@ -183,8 +189,9 @@ class AttitudeProfile:
 
     def __post_init__(self) -> None:
         if self.kind not in PROFILES:
-            raise InputError(f"attitude profile must be one of {', '.join(PROFILES)}, "
-                             f"got {self.kind!r}")  # fmt: skip
+            raise InputError(
+                f"attitude profile must be one of {', '.join(PROFILES)}, got {self.kind!r}"
+            )
         finite_float(self.ra, "ra")
         check_scalar(self.dec, "dec", -math.pi / 2, math.pi / 2)
         finite_float(self.roll, "roll")
@@ -205,8 +212,13 @@ class AttitudeProfile:
             return f"quaternions from {self.path}"
         return "sun-pointing"
 
-    def attitudes(self, grid: TimeGrid, r: NDArray[np.float64], v: NDArray[np.float64],
-                  sun: NDArray[np.float64]) -> NDArray[np.float64]:  # fmt: skip
+    def attitudes(
+        self,
+        grid: TimeGrid,
+        r: NDArray[np.float64],
+        v: NDArray[np.float64],
+        sun: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
         """Return the body attitudes (ICRS -> body) at the steps.
 
         Parameters

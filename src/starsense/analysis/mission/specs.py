@@ -56,22 +56,38 @@ def parse_orbit(text: str, start: Any, where: str = "orbit") -> KeplerOrbit:
     if kind == "sso":
         vals = numbers(rest.replace(":", ","), f"{where} sso", 1, 2)
         alt = check_scalar(vals[0], f"{where} sso altitude (km)", 100.0, 6000.0)
-        ltan = check_scalar(vals[1] if len(vals) > 1 else 6.0, f"{where} sso LTAN (h)", 0.0,
-                            24.0, hi_open=True)  # fmt: skip
+        ltan = check_scalar(
+            vals[1] if len(vals) > 1 else 6.0, f"{where} sso LTAN (h)", 0.0, 24.0, hi_open=True
+        )
         return sun_synchronous(alt * 1e3, ltan, start)
     if kind == "circular":
         vals = [*numbers(rest.replace(":", ","), f"{where} circular", 2, 4), 0.0, 0.0]
         alt = check_scalar(vals[0], f"{where} circular altitude (km)", 100.0, None)
         inc = check_scalar(vals[1], f"{where} circular inclination (deg)", 0.0, 180.0)
-        return KeplerOrbit(EARTH_RADIUS_M + alt * 1e3, 0.0, inc * DEG, vals[2] * DEG, 0.0,
-                           vals[3] * DEG, start,
-                           label=f"circular {alt:g} km, i = {inc:g} deg")  # fmt: skip
+        return KeplerOrbit(
+            EARTH_RADIUS_M + alt * 1e3,
+            0.0,
+            inc * DEG,
+            vals[2] * DEG,
+            0.0,
+            vals[3] * DEG,
+            start,
+            label=f"circular {alt:g} km, i = {inc:g} deg",
+        )
     if kind == "kepler":
         a, e, i, raan, argp, m = numbers(rest, f"{where} kepler", 6, 6)
         check_scalar(e, f"{where} kepler eccentricity", 0.0, 1.0, hi_open=True)
         check_scalar(i, f"{where} kepler inclination (deg)", 0.0, 180.0)
-        return KeplerOrbit(a * 1e3, e, i * DEG, raan * DEG, argp * DEG, m * DEG, start,
-                           label=f"Keplerian a = {a:g} km, e = {e:g}, i = {i:g} deg")  # fmt: skip
+        return KeplerOrbit(
+            a * 1e3,
+            e,
+            i * DEG,
+            raan * DEG,
+            argp * DEG,
+            m * DEG,
+            start,
+            label=f"Keplerian a = {a:g} km, e = {e:g}, i = {i:g} deg",
+        )
     raise InputError(f"{where} must be {ORBIT_FORMS}; got {text!r}")
 
 

@@ -96,12 +96,15 @@ def parse_tle(text: str, source: str = "TLE") -> tuple[str, str, str]:
     body = lines[-2:]
     for want, (no, line) in enumerate(body, start=1):
         if line[:1] != str(want):
-            raise InputError(f"{source}, line {no}, column 1: expected line number {want}, "
-                             f"got {line[:1]!r}")  # fmt: skip
+            raise InputError(
+                f"{source}, line {no}, column 1: expected line number {want}, got {line[:1]!r}"
+            )
         if len(line) != 69:
             col = min(len(line), 69) + 1
-            raise InputError(f"{source}, line {no}, column {col}: a TLE line has 69 "
-                             f"characters, this one {len(line)}")  # fmt: skip
+            raise InputError(
+                f"{source}, line {no}, column {col}: a TLE line has 69 "
+                f"characters, this one {len(line)}"
+            )
     for want, first, last, label, kind in _FIELDS:
         no, line = body[want - 1]
         if not _check_field(line[first - 1 : last], kind):
@@ -116,8 +119,9 @@ def parse_tle(text: str, source: str = "TLE") -> tuple[str, str, str]:
                 f"line (expected {_checksum(line)})"
             )
     if body[0][1][2:7] != body[1][1][2:7]:
-        raise InputError(f"{source}, line {body[1][0]}, columns 3-7: satellite number "
-                         "differs from line 1")  # fmt: skip
+        raise InputError(
+            f"{source}, line {body[1][0]}, columns 3-7: satellite number differs from line 1"
+        )
     return name, body[0][1], body[1][1]
 
 
