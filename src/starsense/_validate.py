@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import secrets
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -17,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from starsense.errors import InputError
 
 __all__ = [
+    "as_generator",
     "check_int",
     "check_rotation",
     "check_scalar",
@@ -163,3 +165,20 @@ def check_rotation(rot: object, name: str):
     if not rot.single and len(rot.shape) != 1:
         raise InputError(f"{name} must be a single Rotation or a 1-D batch, got shape {rot.shape}")
     return rot
+
+
+def as_generator(rng=None) -> tuple[np.random.Generator, int | None]:
+    """Return a Generator and the seed it came from: the one reading of every ``rng`` argument.
+
+    ``None`` draws a fresh 63-bit seed from the OS entropy (recorded, so the run can be
+    repeated; 63 bits fit a FITS integer keyword), an int seeds a new ``default_rng``, a
+    Generator is used as is (seed ``None``: unknown).
+    """
+    if isinstance(rng, np.random.Generator):
+        return rng, None
+    if rng is None:
+        seed = secrets.randbits(63)
+        return np.random.default_rng(seed), seed
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, (int, np.integer)) or rng < 0:
+        raise InputError(f"rng must be None, a non-negative int seed or a Generator, got {rng!r}")
+    return np.random.default_rng(int(rng)), int(rng)

@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.detect.workspace import scratch
 
 __all__ = ["NOISE_STEP", "filtered_noise_ratio", "gaussian_correlate", "matched_filter"]
 
-#: 1 / Phi^-1(3/4)
-_MAD_TO_SIGMA = 1.482602218505602
 #: the kernel is cut at this many sigma
 _TRUNCATE = 3.0
 #: the filtered noise is measured on every this-many-th pixel each way (87,000 of 768 x 1024:
@@ -181,7 +180,7 @@ def filtered_noise_ratio(
     med = _median_in_place(z)
     np.subtract(z, med, out=z)
     np.abs(z, out=z)
-    return max(_MAD_TO_SIGMA * float(_median_in_place(z)), white)
+    return max(MAD_TO_SIGMA * float(_median_in_place(z)), white)
 
 
 def _median_in_place(z: np.ndarray) -> np.float32:

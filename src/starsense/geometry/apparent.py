@@ -20,6 +20,8 @@ Light deflection by the Sun (4 mas at 90 deg from it, more close to it) is not m
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from starsense._validate import finite_array, vectors3
@@ -63,37 +65,44 @@ def aberrate(vectors, velocity_m_s) -> np.ndarray:
 
 
 def parse_time(value, name: str = "time"):
-    """Return an astropy ``Time`` from a ``Time``, or an ISO 8601 string (UTC).
+    """Return a scalar UTC astropy ``Time`` from a ``Time`` or a text: the one time parser.
 
     Parameters
     ----------
     value : str or astropy.time.Time
-        ``"2019-07-29T20:47:26"``, ``"2019:07:29 20:47:26"`` (EXIF) or a Time.
+        ``"2019-07-29T20:47:26"`` (ISO 8601; any form astropy reads, such as
+        ``"2019-07-29 20:47:26"``), ``"2019:07:29 20:47:26"`` (EXIF) or a Time.
     name : str
-        Parameter name for the message.
+        Parameter (or option) name for the message.
 
     Returns
     -------
     astropy.time.Time
-        A scalar time.
+        A scalar time, UTC scale. Times past the leap-second table (the future) are accepted
+        without ERFA's "dubious year" warning: unannounced leap seconds move UTC by a second or
+        two.
     """
     from astropy.time import Time
+    from erfa import ErfaWarning
 
-    if isinstance(value, Time):
-        t = value
-    else:
-        text = str(value).strip()
-        if len(text) >= 19 and text[4] == ":" and text[7] == ":":  # EXIF 'YYYY:MM:DD HH:MM:SS'
-            text = text[:4] + "-" + text[5:7] + "-" + text[8:10] + "T" + text[11:]
-        try:
-            t = Time(text, format="isot", scale="utc")
-        except ValueError:
-            raise InputError(
-                f"{name} must be an ISO 8601 time such as 2019-07-29T20:47:26, got {value!r}"
-            ) from None
-    if not t.isscalar:
-        raise InputError(f"{name} must be a single time")
-    return t
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*dubious year", category=ErfaWarning)
+        if isinstance(value, Time):
+            t = value
+        else:
+            text = str(value).strip()
+            if len(text) >= 19 and text[4] == ":" and text[7] == ":":  # EXIF 'YYYY:MM:DD HH:MM:SS'
+                text = text[:4] + "-" + text[5:7] + "-" + text[8:10] + "T" + text[11:]
+            try:
+                t = Time(text, scale="utc")
+            except ValueError:
+                raise InputError(
+                    f"{name} must be an ISO 8601 time such as 2019-07-29T20:47:26 (UTC); "
+                    f"{value!r} is not an ISO 8601 time"
+                ) from None
+        if not t.isscalar:
+            raise InputError(f"{name} must be a single time")
+        return t.utc
 
 
 def observer_state(time, observer_velocity_m_s=None) -> tuple[np.ndarray, np.ndarray]:

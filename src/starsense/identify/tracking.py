@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import check_scalar
+from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.result import validate_vectors
 from starsense.identify.verify import _estimate_matrix, false_match_probability
@@ -285,7 +286,7 @@ class TrackingIdentifier:
         for _ in range(3):
             r, resid = _estimate_matrix(v[det], ref[star])
             fitted = True
-            sigma = 1.4826 * _median(resid) / math.sqrt(2 * math.log(2))
+            sigma = MAD_TO_SIGMA * _median(resid) / math.sqrt(2 * math.log(2))
             radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
             det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
             if len(det_new) < 2:

@@ -25,30 +25,12 @@ draw, ~130 ms more for 5 Mpixel).
 
 from __future__ import annotations
 
-import secrets
-
 import numpy as np
 
+from starsense._validate import as_generator
 from starsense.errors import InputError
 
-__all__ = ["apply_noise", "as_generator", "count_dtype", "quantise"]
-
-
-def as_generator(rng=None) -> tuple[np.random.Generator, int | None]:
-    """Return a Generator and the seed it came from.
-
-    ``None`` draws a fresh 63-bit seed from the OS entropy (recorded, so the run can be
-    repeated; 63 bits fit a FITS integer keyword), an int seeds a new ``default_rng``, a
-    Generator is used as is (seed ``None``: unknown).
-    """
-    if isinstance(rng, np.random.Generator):
-        return rng, None
-    if rng is None:
-        seed = secrets.randbits(63)
-        return np.random.default_rng(seed), seed
-    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, (int, np.integer)) or rng < 0:
-        raise InputError(f"rng must be None, a non-negative int seed or a Generator, got {rng!r}")
-    return np.random.default_rng(int(rng)), int(rng)
+__all__ = ["apply_noise", "as_generator", "count_dtype", "quantise"]  # as_generator: re-exported
 
 
 def count_dtype(bit_depth: int) -> type:

@@ -25,6 +25,7 @@ from scipy import ndimage
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.errors import InputError
 
 __all__ = ["SYSTEMATIC", "rate_from_streaks", "streak_axes"]
@@ -80,7 +81,7 @@ def streak_axes(
             border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
             base = float(np.median(border))
             if threshold_sigma is not None:
-                noise = 1.4826 * float(np.median(np.abs(border - base)))
+                noise = MAD_TO_SIGMA * float(np.median(np.abs(border - base)))
                 cut = max(threshold, threshold_sigma * noise)
             sub = sub - base
         else:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.solve.streak_centroid import (
     _arange,
     columns,
@@ -227,7 +228,7 @@ def _levels(solver, stack: np.ndarray):
         axis=1,
     )
     level = np.median(border, axis=1)
-    noise = 1.4826 * np.median(np.abs(border - level[:, None]), axis=1)
+    noise = MAD_TO_SIGMA * np.median(np.abs(border - level[:, None]), axis=1)
     threshold = np.maximum(float(logic.lit_pixel_counts), solver.threshold_sigma * noise)
     return level, noise, threshold
 

@@ -48,8 +48,3 @@ def check_sigmas(sigmas_rad: ArrayLike, sigma_kind: str) -> tuple[NDArray[np.flo
             f"sigma_kind = {sigma_kind!r} is not known; choose one of {', '.join(SIGMA_KINDS)}"
         )
     return sig, 1.0 / SIGMA_KINDS[sigma_kind]
-
-
-def as_generator(rng: np.random.Generator | int | None) -> np.random.Generator:
-    """Return ``rng`` itself if it is a Generator, else a new one seeded with it."""
-    return rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)

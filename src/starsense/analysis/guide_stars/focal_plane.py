@@ -12,8 +12,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from starsense._validate import check_int, check_scalar
-from starsense.analysis.guide_stars._common import as_generator
+from starsense._validate import as_generator, check_int, check_scalar
 from starsense.errors import InputError
 from starsense.geometry.projection import _points as xy_points
 from starsense.geometry.projection import tangent_to_vectors
@@ -186,7 +185,7 @@ def sample_placements(
     xy, area = xy[keep], area[keep]
     if n_stars > len(xy):
         raise InputError(f"n_stars = {n_stars} exceeds the {len(xy)} lattice points available")
-    gen = as_generator(rng)
+    gen, _ = as_generator(rng)
     chosen: list[NDArray[np.int_]] = []
     have = 0
     while have < n_trials:

@@ -14,8 +14,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import special
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import positive_float
-from starsense.analysis.guide_stars._common import as_generator, check_metric
+from starsense._validate import as_generator, positive_float
+from starsense.analysis.guide_stars._common import check_metric
 from starsense.attitude.covariance import fisher_matrix
 from starsense.attitude.svd import batch_svd_attitude
 from starsense.geometry.sampling import fibonacci_sphere, random_attitudes
@@ -219,7 +219,7 @@ def monte_carlo_errors(
     s = positive_float(sigma_rad, "sigma_rad")
     b_true = np.asarray(vectors, dtype=np.float64)
     m, n = b_true.shape[:2]
-    gen = as_generator(rng)
+    gen, _ = as_generator(rng)
     z = gen.standard_normal((m, n, 2)) if noise is None else np.asarray(noise, dtype=float)
     a_true = random_attitudes(m, gen) if attitudes is None else attitudes
     mats = a_true.as_matrix()  # rows: camera axes in ICRS; r = M^T b

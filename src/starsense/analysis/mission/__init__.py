@@ -31,8 +31,9 @@ from starsense.analysis.mission.results import (
     outages,
     tracking_state,
 )
-from starsense.analysis.mission.timegrid import TimeGrid, parse_time
+from starsense.analysis.mission.timegrid import TimeGrid
 from starsense.analysis.mission.tle import TleAgeWarning, TleOrbit, parse_tle
+from starsense.geometry.apparent import parse_time
 
 __all__ = [
     "EARTH_RADIUS_M",

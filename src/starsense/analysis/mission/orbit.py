@@ -19,8 +19,9 @@ from astropy.time import Time
 from numpy.typing import NDArray
 
 from starsense._validate import check_scalar, finite_float
-from starsense.analysis.mission.timegrid import TimeGrid, mean_sun_ra, parse_time, quiet_future
+from starsense.analysis.mission.timegrid import TimeGrid, mean_sun_ra, quiet_future
 from starsense.errors import InputError
+from starsense.geometry.apparent import parse_time
 
 __all__ = [
     "EARTH_RADIUS_M",

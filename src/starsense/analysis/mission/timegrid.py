@@ -28,13 +28,13 @@ from numpy.typing import NDArray
 
 from starsense._validate import check_scalar
 from starsense.errors import InputError
+from starsense.geometry.apparent import parse_time
 
 __all__ = [
     "EARTH_ROTATION_RAD_S",
     "MAX_STEPS",
     "TimeGrid",
     "mean_sun_ra",
-    "parse_time",
     "quiet_future",
 ]
 
@@ -55,28 +55,6 @@ def quiet_future() -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*dubious year", category=ErfaWarning)
         yield
-
-
-def parse_time(text: object, name: str = "start") -> Time:
-    """Return a UTC :class:`Time` from an ISO 8601 text (or a Time), naming `name` if bad."""
-    with quiet_future():
-        return _parse_time(text, name)
-
-
-def _parse_time(text: object, name: str) -> Time:
-    if isinstance(text, Time):
-        if not text.isscalar:
-            raise InputError(f"{name} must be a single time")
-        return text.utc
-    try:
-        t = Time(str(text), scale="utc")
-    except ValueError:
-        raise InputError(
-            f"{name} = {text!r} is not an ISO 8601 time (e.g. 2025-03-20T00:00:00)"
-        ) from None
-    if not t.isscalar:
-        raise InputError(f"{name} must be a single time")
-    return t
 
 
 @dataclass(frozen=True)
@@ -104,7 +82,7 @@ class TimeGrid:
         Each step stands for the interval ``[t_k, t_k + step_s)``: ``ceil(duration/step)``
         steps.
         """
-        t0 = parse_time(start)
+        t0 = parse_time(start, "start")
         step = check_scalar(step_s, "step_s", 0.0, None, lo_open=True)
         duration = check_scalar(duration_s, "duration_s", 0.0, None, lo_open=True)
         n = math.ceil(duration / step - 1e-9)
