@@ -1,4 +1,4 @@
-"""The package's shape (issue 11): modules and functions small enough to have one job each,
+"""The package's shape: modules and functions small enough to have one job each,
 and the stage order (the import-linter contract in pyproject.toml) kept."""
 
 from __future__ import annotations
@@ -63,3 +63,124 @@ def test_stage_order_contract():
         [str(exe), "--no-cache"], cwd=SRC.parents[1], capture_output=True, text=True, timeout=300
     )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+_NAMES = {_module_name(p): p for p in _modules()}
+
+
+def _resolve(module: str, name: str | None = None) -> str | None:
+    """The starsense module an import names (a submodule when ``name`` is one), else None."""
+    if name is not None and f"{module}.{name}" in _NAMES:
+        return f"{module}.{name}"
+    if name is not None and module in _NAMES and list(_NAMES[module].parent.glob(f"{name}.*")):
+        return f"{module}.{name}"  # a compiled submodule (detect/_clipc.c)
+    return module if module in _NAMES else None
+
+
+def _imports(path: Path):
+    """Yield (line, imported module, names) for every starsense import, at any depth."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    me = _module_name(path)
+    package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("starsense") and (m := _resolve(alias.name)):
+                    yield node.lineno, m, ()
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join([*up, base] if base else up)
+            if not base.startswith("starsense"):
+                continue
+            for alias in node.names:
+                if (m := _resolve(base, alias.name)) is not None:
+                    yield node.lineno, m, (() if m != base else (alias.name,))
+
+
+def test_no_import_circle():
+    """No chain of imports (at any depth, function-level included) leads back to its start."""
+    graph = {name: set() for name in _NAMES}
+    for name, path in _NAMES.items():
+        for _, target, _names in _imports(path):
+            if target != name:
+                graph[name].add(target)
+    # Tarjan's strongly connected components: any component of 2+ modules is a circle
+    index, low, stack, on, circles, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                circles.append(sorted(comp))
+
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert circles == [], "\n".join(map(str, circles))
+
+
+def _private_attributes_defined(tree: ast.Module) -> set[str]:
+    """Private names a module defines itself (functions, methods, attributes set on self)."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            out.add(node.name)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            out.add(node.attr)
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            out.add(node.target.id)
+        elif isinstance(node, ast.Assign):
+            out.update(t.id for t in node.targets if isinstance(t, ast.Name))
+    return {n for n in out if n.startswith("_")}
+
+
+def test_no_private_name_used_across_modules():
+    """A module uses only the public names of another: no ``from x import _y``, no ``obj._y``
+    on an object of another module's class (private modules such as ``_io`` are the package's
+    own: importing the module is fine, not its private names)."""
+    found = []
+    for name, path in _NAMES.items():
+        for line, target, names in _imports(path):
+            found += [
+                f"{name}:{line} imports {target}.{n}"
+                for n in names
+                if n.startswith("_") and not n.startswith("__") and target != name
+            ]
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        own = _private_attributes_defined(tree)
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+                and node.attr not in own
+                and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))
+            ):
+                found.append(f"{name}:{node.lineno} uses {ast.unparse(node)}")
+    assert found == [], "\n".join(found)
