@@ -9,6 +9,7 @@ to name the first bad line and field in a :class:`~starsense.errors.CatalogForma
 
 from __future__ import annotations
 
+import csv
 import gzip
 import math
 import zlib
@@ -362,8 +363,6 @@ def locate_delimited_error(
     required : sequence of str
         Columns that must not be null.
     """
-    import csv
-
     nulls = set(null_values)
     with open_text(path) as f:
         reader = csv.reader(

@@ -24,12 +24,14 @@ import numpy as np
 
 from starsense.errors import InputError
 from starsense.photometry.blackbody import (
+    BOLTZMANN_J_K,
     PLANCK_J_S,
     SPEED_OF_LIGHT_M_S,
     aperture_area_m2,
     photons_per_wavelength,
     spectral_exitance,
 )
+from starsense.photometry.colour import ColourModel
 
 #: Liebe (2002): the total irradiance of an m = 0 star, 2.96e-14 W per mm^2 = 2.96e-8 W m^-2.
 #: Dzamba & Enright print "2.96e-14 W/m^2", but their own derivation, the solar constant
@@ -55,8 +57,6 @@ def _grid(passband_nm: tuple[float, float], n: int = 2001) -> np.ndarray:
 @functools.cache
 def _liebe_reference_spectrum_shape() -> tuple[float, float]:
     """(scale, _) such that scale * M_e(5800 K, lambda) integrates to 2.96e-14 W m^-2."""
-    from starsense.photometry.blackbody import BOLTZMANN_J_K
-
     # integral of the black-body exitance over all wavelengths: sigma T^4 (Stefan-Boltzmann)
     sigma = 2 * np.pi**5 * BOLTZMANN_J_K**4 / (15 * PLANCK_J_S**3 * SPEED_OF_LIGHT_M_S**2)
     return LIEBE_ZERO_MAG_IRRADIANCE_W_M2 / (sigma * LIEBE_TEMPERATURE_K**4), 0.0
@@ -183,8 +183,6 @@ class Sensitivity:
             )
         if colour_index is None:
             raise InputError("the blackbody sensitivity model needs each star's colour index")
-        from starsense.photometry.colour import ColourModel
-
         t, c = ColourModel(self.colour).fit(m, colour_index)
         return blackbody_electrons(
             c, t, self.diameter_m, self.exposure_s, self.qe, self.passband_nm, self.transmission

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from starsense.errors import InputError
 from starsense.geometry.projection import vectors_to_tangent
+from starsense.render.scene import render_frame
 
 __all__ = ["AreaFrame", "area_pixel_index", "focal_plane_sensor", "render_areas"]
 
@@ -128,8 +129,6 @@ def render_areas(sensor, attitude, catalog, **kwargs) -> AreaFrame:
     AreaFrame
         The frame on the focal-plane sensor, pixels outside the areas at the bias level.
     """
-    from starsense.render.scene import render_frame
-
     fp = focal_plane_sensor(sensor)
     frame = render_frame(fp, attitude, catalog, **kwargs)
     pixel_area = area_pixel_index(fp)

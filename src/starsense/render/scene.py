@@ -32,8 +32,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import check_scalar, finite_array
+from starsense.catalog.apparent import apparent_places
 from starsense.errors import InputError
 from starsense.geometry.attitude import radec_roll_from_attitude
+from starsense.photometry.colour import ColourModel
+from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.frame import Frame, FrameTruth, StarTruth
 from starsense.render.noise import apply_noise, as_generator, quantise
 from starsense.render.psf import Box
@@ -168,8 +171,6 @@ def _field_radius_rad(sensor) -> float:
 def _band_and_colour(catalog, model: str, colour: str, band: str | None):
     """(band, magnitudes, colour name or None, colour indices or None) for the model."""
     if model == "blackbody":
-        from starsense.photometry.colour import ColourModel
-
         cm = ColourModel(colour)
         use_band = band or cm.magnitude_band
         if colour not in catalog.colours:
@@ -254,8 +255,6 @@ def _field_stars(sensor, attitude, catalog, w, te, mags_all, ci_all, max_mag):
 
 def _with_electrons(stars, sensor, model: str, col: str | None):
     """Step 2: the stars' electrons; those with none (or not finite) are dropped."""
-    from starsense.photometry.sensitivity import Sensitivity
-
     idx, mags, ci = stars
     sens = Sensitivity.for_sensor(sensor, model, col or "B-V")
     electrons = np.asarray(
@@ -385,8 +384,6 @@ def render_frame(
     # 3. tracks and the expected image
     sky, apparent = catalog.vectors[idx], None
     if obs_time is not None and idx.size:
-        from starsense.catalog.apparent import apparent_places
-
         places = apparent_places(catalog, idx, obs_time, observer_velocity_m_s)
         sky, apparent = places.vectors, places.to_dict()
     elif observer_velocity_m_s is not None:

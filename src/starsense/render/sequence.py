@@ -23,6 +23,7 @@ from scipy.spatial.transform import Rotation
 from starsense._validate import check_int, positive_float
 from starsense.errors import InputError
 from starsense.render.frame import Frame
+from starsense.render.scene import render_frame
 from starsense.render.tracks import check_rate
 
 __all__ = ["frame_seeds", "propagate_attitude", "render_sequence", "sequence_paths"]
@@ -131,8 +132,6 @@ def render_sequence(
     InputError
         Bad count, interval (not > 0, or shorter than the exposure), rate or seed.
     """
-    from starsense.render.scene import render_frame
-
     n = check_int(n_frames, "n_frames", 1)
     dt = positive_float(interval_s, "interval_s")
     te = sensor.exposure_or(kwargs.get("exposure_s"))

@@ -22,6 +22,7 @@ import numpy as np
 
 from starsense._io import read_text
 from starsense.errors import InputError
+from starsense.geometry.areas import AreaLayout, FocalArea
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
 from starsense.sensor.exclusion import exclusion_from_table
@@ -87,8 +88,6 @@ def _areas_from_table(table: Any, detector: Detector, optics: Optics, source: st
     (focal-plane millimetres from the optical axis, x along detector columns), optionally
     checked against ``image_circle_diameter_mm``. Tangent-plane units are mm / focal mm.
     """
-    from starsense.geometry.areas import AreaLayout, FocalArea
-
     where = f"{source}: [attitude_areas]"
     if not isinstance(table, dict):
         raise InputError(f"{where} must be a table")

@@ -24,6 +24,7 @@ import numpy as np
 from starsense._validate import check_scalar
 from starsense.errors import InputError
 from starsense.geometry.distortion import distort, undistort
+from starsense.geometry.fov import RectangularFov
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
@@ -136,8 +137,6 @@ class Sensor:
 
     def fov(self):
         """Return the rectangular field of view of the detector (geometry.fov.RectangularFov)."""
-        from starsense.geometry.fov import RectangularFov
-
         hx, hy = self.half_fov_rad
         return RectangularFov(hx, hy)
 
