@@ -63,10 +63,10 @@ from starsense._validate import finite_array as _finite_array
 from starsense._validate import vectors3 as _as_vectors
 from starsense.errors import InputError
 from starsense.geometry.projection import (
-    _unpack,
-    _wrap_two_pi,
     radec_to_vectors,
+    scalar_or_array,
     vectors_to_radec,
+    wrap_two_pi,
 )
 
 __all__ = [
@@ -217,8 +217,8 @@ def radec_roll_from_attitude(
     y_north = np.einsum("...i,...i->...", y, north)
     x_east = np.einsum("...i,...i->...", x, east)
     y_east = np.einsum("...i,...i->...", y, east)
-    roll = _wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
-    return ra, dec, _unpack(np.asarray(roll))
+    roll = wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
+    return ra, dec, scalar_or_array(np.asarray(roll))
 
 
 def angular_separation(u: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | np.float64:
@@ -238,7 +238,7 @@ def angular_separation(u: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | np.f
     b = _as_vectors(v, "v")
     cross = np.linalg.norm(np.cross(a, b), axis=-1)
     dot = np.einsum("...i,...i->...", a, b)
-    return _unpack(np.asarray(np.arctan2(cross, dot)))
+    return scalar_or_array(np.asarray(np.arctan2(cross, dot)))
 
 
 def small_rotation_angles(r_true: Rotation, r_est: Rotation) -> NDArray[np.float64]:
