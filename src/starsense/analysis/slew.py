@@ -290,7 +290,9 @@ def simulate_slew(
         stamps = []
         for _ in range(n_trials):
             x0, y0 = rng.random(2)
-            stamp, _, _ = streak_stamp_expected(sensor, x0, y0, x0 + length, y0, electrons=1.0)
+            stamp, _, _ = streak_stamp_expected(
+                sensor, x0=x0, y0=y0, x1=x0 + length, y1=y0, electrons=1.0
+            )
             stamps.append(stamp)
         shape = np.max([s.shape for s in stamps], axis=0)
         unit = np.zeros((n_trials, *shape))

@@ -14,7 +14,7 @@ __all__ = ["OUTLIER_SIGMA", "robust_attitude"]
 OUTLIER_SIGMA = 7.0
 
 
-def robust_attitude(body, reference, sigma_rad, max_drop: int = 5):
+def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
     """Estimate the attitude, dropping one by one the stars whose residual is an outlier.
 
     A blended or double star is identified right but centroided at the photocentre of the

@@ -155,6 +155,7 @@ def great_circle_track(
 def track_attitudes(
     inclination_rad: float,
     n: int,
+    *,
     ascending_node_rad: float = 0.0,
     along: Literal["x", "y"] = "x",
 ) -> Rotation:

@@ -73,20 +73,61 @@ def liebe_zero_mag_electron_rate(qe: QeFunction, passband_nm=(400.0, 800.0)) -> 
 
 def liebe_electrons(
     magnitude,
+    *,
     diameter_m,
     exposure_s,
     qe: QeFunction,
     passband_nm=(400.0, 800.0),
     transmission: float = 1.0,
 ):
-    """Photoelectrons by the Liebe model, eq. 6: (1/4) t_e pi D^2 S_0 / 2.5^m."""
+    """Photoelectrons by the Liebe model, eq. 6: (1/4) t_e pi D^2 S_0 / 2.5^m.
+
+    Parameters
+    ----------
+    magnitude : float or array_like
+        Visual magnitudes of the stars.
+    diameter_m : float
+        Aperture diameter, m.
+    exposure_s : float
+        Exposure, s.
+    qe : callable
+        Quantum efficiency as a function of wavelength (m).
+    passband_nm : (float, float)
+        Wavelength range integrated, nm.
+    transmission : float
+        Optical throughput (0-1].
+
+    Returns
+    -------
+    float or ndarray
+        Expected photoelectrons, same shape as ``magnitude``.
+    """
     s0 = liebe_zero_mag_electron_rate(qe, passband_nm)
     m = np.asarray(magnitude, dtype=float)
     return transmission * aperture_area_m2(diameter_m) * exposure_s * s0 / 2.5**m
 
 
-def reed_electrons(magnitude, diameter_m, exposure_s, qe_mean, transmission: float = 1.0):
-    """Photoelectrons by the Reed model, eq. 8: (1/4) eta_Q t_e pi D^2 phi_0 10^(-0.4 m)."""
+def reed_electrons(magnitude, *, diameter_m, exposure_s, qe_mean, transmission: float = 1.0):
+    """Photoelectrons by the Reed model, eq. 8: (1/4) eta_Q t_e pi D^2 phi_0 10^(-0.4 m).
+
+    Parameters
+    ----------
+    magnitude : float or array_like
+        Visual magnitudes of the stars.
+    diameter_m : float
+        Aperture diameter, m.
+    exposure_s : float
+        Exposure, s.
+    qe_mean : float
+        Mean quantum efficiency over the passband.
+    transmission : float
+        Optical throughput (0-1].
+
+    Returns
+    -------
+    float or ndarray
+        Expected photoelectrons, same shape as ``magnitude``.
+    """
     m = np.asarray(magnitude, dtype=float)
     return (
         transmission
@@ -101,19 +142,45 @@ def reed_electrons(magnitude, diameter_m, exposure_s, qe_mean, transmission: flo
 def blackbody_electrons(
     dilution,
     temperature_k,
+    *,
     diameter_m,
     exposure_s,
     qe: QeFunction,
     passband_nm=(400.0, 800.0),
     transmission: float = 1.0,
 ):
-    """Photoelectrons from each star's own black body through the QE curve (eq. 12 x QE)."""
+    """Photoelectrons from each star's own black body through the QE curve (eq. 12 x QE).
+
+    Parameters
+    ----------
+    dilution : float or array_like
+        Geometric dilution factor C of each star (dimensionless).
+    temperature_k : float or array_like
+        Black-body temperature of each star, K.
+    diameter_m : float
+        Aperture diameter, m.
+    exposure_s : float
+        Exposure, s.
+    qe : callable
+        Quantum efficiency as a function of wavelength (m).
+    passband_nm : (float, float)
+        Wavelength range integrated, nm.
+    transmission : float
+        Optical throughput (0-1].
+
+    Returns
+    -------
+    ndarray
+        Expected photoelectrons, the broadcast shape of ``dilution`` and ``temperature_k``.
+    """
     lam = _grid(passband_nm, 801)
-    n = photons_per_wavelength(dilution, temperature_k, lam, diameter_m, exposure_s)
+    n = photons_per_wavelength(
+        dilution, temperature_k, lam, diameter_m=diameter_m, exposure_s=exposure_s
+    )
     return transmission * np.trapezoid(n * qe(lam), lam, axis=-1)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Sensitivity:
     """Photoelectrons per star for one sensor and one model.
 
@@ -175,15 +242,30 @@ class Sensitivity:
         m = np.asarray(magnitude, dtype=float)
         if self.model == "reed":
             return reed_electrons(
-                m, self.diameter_m, self.exposure_s, self.qe_mean, self.transmission
+                m,
+                diameter_m=self.diameter_m,
+                exposure_s=self.exposure_s,
+                qe_mean=self.qe_mean,
+                transmission=self.transmission,
             )
         if self.model == "liebe":
             return liebe_electrons(
-                m, self.diameter_m, self.exposure_s, self.qe, self.passband_nm, self.transmission
+                m,
+                diameter_m=self.diameter_m,
+                exposure_s=self.exposure_s,
+                qe=self.qe,
+                passband_nm=self.passband_nm,
+                transmission=self.transmission,
             )
         if colour_index is None:
             raise InputError("the blackbody sensitivity model needs each star's colour index")
         t, c = ColourModel(self.colour).fit(m, colour_index)
         return blackbody_electrons(
-            c, t, self.diameter_m, self.exposure_s, self.qe, self.passband_nm, self.transmission
+            c,
+            t,
+            diameter_m=self.diameter_m,
+            exposure_s=self.exposure_s,
+            qe=self.qe,
+            passband_nm=self.passband_nm,
+            transmission=self.transmission,
         )

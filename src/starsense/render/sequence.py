@@ -94,11 +94,11 @@ def sequence_paths(out: str | Path, n: int) -> list[Path]:
 
 def render_sequence(
     sensor,
-    attitude: Rotation,
-    catalog,
+    rotation: Rotation,
+    catalog=None,
+    *,
     n_frames: int,
     interval_s: float,
-    *,
     rate_rad_s=(0.0, 0.0, 0.0),
     seed: int = 0,
     **kwargs,
@@ -108,9 +108,11 @@ def render_sequence(
     Parameters
     ----------
     sensor : Sensor
-    attitude : Rotation
+    rotation : Rotation
         Mid-exposure attitude of the first frame, ICRS -> camera.
-    catalog : Catalog
+    catalog : Catalog or str, optional
+        The stars (as in :func:`~starsense.render.scene.render_frame`; default the bundled
+        Hipparcos).
     n_frames : int
         Frames (>= 1).
     interval_s : float
@@ -145,7 +147,7 @@ def render_sequence(
     seeds = frame_seeds(seed, n)
     for k in range(n):
         t = k * dt
-        att = propagate_attitude(attitude, w, t)
+        att = propagate_attitude(rotation, w, t)
         frame = render_frame(sensor, att, catalog, rate_rad_s=w, rng=seeds[k], **kwargs)
         truth = dataclasses.replace(frame.truth, time_s=t)
         yield dataclasses.replace(frame, truth=truth)

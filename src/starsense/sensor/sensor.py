@@ -62,7 +62,7 @@ class DetectionThresholds:
             raise InputError(f"detection.connectivity must be 4 or 8, got {self.connectivity!r}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Sensor:
     """A star sensor: optics, detector, exposure and detection logic.
 
@@ -166,7 +166,7 @@ class Sensor:
                 u = np.where(z > 0, v[..., 0] / z, np.nan)
                 w = np.where(z > 0, v[..., 1] / z, np.nan)
         if self.optics.has_distortion:
-            u, w = distort(u, w, *self.optics.distortion)
+            u, w = distort(u, w, self.optics.distortion)
         cx, cy = self.principal_point_px
         fp = self.focal_length_px
         return cx + fp * u, cy + fp * w
@@ -189,7 +189,7 @@ class Sensor:
         u = (np.asarray(x_px, dtype=float) - cx) / fp
         w = (np.asarray(y_px, dtype=float) - cy) / fp
         if self.optics.has_distortion:
-            u, w = undistort(u, w, *self.optics.distortion)
+            u, w = undistort(u, w, self.optics.distortion)
             if not (np.all(np.isfinite(u)) and np.all(np.isfinite(w))):
                 raise InputError(
                     "pixel position beyond the fold of the distortion model (optics.distortion_*)"
