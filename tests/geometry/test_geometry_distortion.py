@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import tomllib
 
 import numpy as np
 import pytest
@@ -66,8 +67,6 @@ def test_sensor_project_unproject_round_trip_with_principal_point():
 
 def test_sensor_toml_round_trip_and_bad_values():
     s = _lens(distortion_k1=0.11, distortion_p2=3e-4, principal_offset_x_px=10.5)
-    import tomllib
-
     again = sensor_from_dict(tomllib.loads(sensor_to_toml(s, "calibrated")), "x.toml")
     assert again == s  # frozen dataclasses: every field equal, floats exactly (repr)
     with pytest.raises(InputError, match=r"optics.distortion_p1"):

@@ -10,6 +10,7 @@ import pytest
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+import starsense.geometry.fov as fov_module
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, radec_to_vectors
 from starsense.geometry.fov import CircularFov, RectangularFov, count_in_fov
@@ -152,8 +153,6 @@ def test_count_in_fov_with_stars_on_the_edge() -> None:
 
 
 def test_count_in_fov_blocks_large_candidate_sets(monkeypatch: pytest.MonkeyPatch) -> None:
-    import starsense.geometry.fov as fov_module
-
     monkeypatch.setattr(fov_module, "_CANDIDATE_BUDGET", 500)
     fov = CircularFov(30 * DEG)
     vectors = random_unit_vectors(2_000, 5)

@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense.cli import main
 from starsense.errors import InputError
+from starsense.geometry.attitude import angular_separation, radec_to_vectors
 from starsense.render.scene import render_frame
 from starsense.render.sequence import frame_seeds, render_sequence, sequence_paths
 
@@ -60,8 +61,6 @@ def test_cli_render_sequence_writes_frames_and_truth(tmp_path, capsys):
     assert truth[1]["rate_rad_s"] == pytest.approx(np.radians([0.5, 0.2, 0.1]).tolist())
     # the attitude of frame 1 is frame 0's turned by the rate over 0.5 s (0.28 deg): the
     # boresights differ by |w_xy| dt to first order (the roll part leaves the boresight)
-    from starsense.geometry.attitude import angular_separation, radec_to_vectors
-
     b = [radec_to_vectors(np.radians(t["attitude"]["ra_deg"]), np.radians(t["attitude"]["dec_deg"]))
          for t in truth]  # fmt: skip
     assert float(angular_separation(b[0], b[1])) == pytest.approx(
