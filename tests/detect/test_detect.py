@@ -105,7 +105,7 @@ def test_rendered_star_round_trip():
     s = load_sensor("st16")
     e = float(Sensitivity.for_sensor(s, "reed").electrons(3.0))
     stamp, r0, c0 = streak_stamp_expected(s, x0=30.3, y0=20.6, x1=30.3, y1=20.6, electrons=e)
-    counts = apply_noise(stamp, s, np.random.default_rng(0))
+    counts = apply_noise(stamp, s, rng=np.random.default_rng(0))
     det = StarDetector.for_sensor(s)(counts)
     assert len(det) == 1
     assert det.x[0] + c0 == pytest.approx(30.3, abs=0.1)

@@ -299,7 +299,7 @@ def simulate_slew(
         for k, s in enumerate(stamps):
             unit[k, : s.shape[0], : s.shape[1]] = s
         expected = electrons[:, None, None, None] * unit[None]  # (M, T, H, W)
-        counts = apply_noise(expected.reshape(-1, *shape), sensor, rng)
+        counts = apply_noise(expected.reshape(-1, *shape), sensor, rng=rng)
         found, integ = detect_stack(counts, sensor.detection, background_counts=det.bias_counts)
         detected[:, j, :] = found.reshape(n_m, n_trials)
         intensity[:, j, :] = integ.reshape(n_m, n_trials)

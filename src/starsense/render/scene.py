@@ -155,7 +155,7 @@ def render_star_stamp(
         xs, ys, sigma_px=_sigma(sensor), electrons=e, pad_sigma=pad, method=method
     )
     if noise:
-        return apply_noise(stamp, sensor, rng, exposure_s=te)
+        return apply_noise(stamp, sensor, rng=rng, exposure_s=te)
     return quantise(stamp, sensor)
 
 
@@ -388,8 +388,7 @@ def render_frame(
         Bad rate (not 3 finite numbers), exposure (not finite and > 0), model, method,
         attitude, or a catalogue without the needed band / colour.
     """
-    if catalog is None or isinstance(catalog, str):
-        catalog = load_catalog(DEFAULT_CATALOG if catalog is None else catalog)
+    catalog = load_catalog(DEFAULT_CATALOG if catalog is None else catalog)
     w = check_rate(rate_rad_s)
     te = sensor.exposure_or(exposure_s)
     _check_render_options(rotation, model, method, max_mag)
@@ -415,7 +414,7 @@ def render_frame(
 
     # 4. detector
     if noise:
-        image = apply_noise(expected, sensor, gen, exposure_s=te)
+        image = apply_noise(expected, sensor, rng=gen, exposure_s=te)
     else:
         image = quantise(expected, sensor)
     ra, dec, roll = radec_roll_from_attitude(rotation)

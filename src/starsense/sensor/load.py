@@ -219,6 +219,9 @@ def preset_names() -> list[str]:
 def load_sensor(name_or_path: str | Path) -> Sensor:
     """Load a sensor from a preset name (``st16``, ``esa_blackfly``, ...) or a TOML file path.
 
+    A preset is a TOML file inside the package (``starsense/sensor/presets``): copy one and
+    edit it to describe another sensor. Degrees in the TOML become radians here, once.
+
     Parameters
     ----------
     name_or_path : str or Path
@@ -227,6 +230,20 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
     Returns
     -------
     Sensor
+        The frozen, validated sensor (optics, detector, exposure, detection logic).
+
+    Raises
+    ------
+    InputError
+        An empty or unknown name, an unreadable file, invalid TOML, or a value out of range
+        (the message names the table, the key, the value and the allowed range).
+
+    Examples
+    --------
+    >>> from starsense.sensor import load_sensor
+    >>> sensor = load_sensor("st16")
+    >>> sensor.detector.columns, sensor.exposure_s
+    (2592, 0.1)
     """
     text = str(name_or_path)
     path = Path(text).expanduser()

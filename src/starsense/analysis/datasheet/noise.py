@@ -188,7 +188,7 @@ def _measured_sigma(sensor, n_e: float, rng, n_stamps: int) -> float:
     stack = np.stack(
         [gaussian_stamp(x, y, sigma_px=det.psf_sigma_px, electrons=n_e, box=box)[0] for x, y in xy]
     )
-    counts = apply_noise(stack, sensor, rng)
+    counts = apply_noise(stack, sensor, rng=rng)
     finder = StarDetector.for_sensor(sensor)
     errs = []
     for img, (x, y) in zip(counts, xy, strict=True):
