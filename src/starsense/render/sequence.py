@@ -53,14 +53,14 @@ def propagate_attitude(attitude: Rotation, rate_rad_s, time_s) -> Rotation:
     return Rotation.from_rotvec(-np.multiply.outer(t, w)) * attitude
 
 
-def frame_seeds(seed: int, n: int) -> list[int]:
-    """Return ``n`` child seeds of a root seed (``SeedSequence(seed).spawn``), one per frame.
+def frame_seeds(seed: int, n_frames: int) -> list[int]:
+    """Return ``n_frames`` child seeds of a root seed (``SeedSequence(seed).spawn``), one per frame.
 
     Parameters
     ----------
     seed : int
         Root seed (>= 0).
-    n : int
+    n_frames : int
         Frames.
 
     Returns
@@ -69,18 +69,18 @@ def frame_seeds(seed: int, n: int) -> list[int]:
         63-bit seeds (they fit a FITS integer keyword).
     """
     seed = check_int(seed, "seed", 0)
-    children = np.random.SeedSequence(seed).spawn(check_int(n, "n", 1))
+    children = np.random.SeedSequence(seed).spawn(check_int(n_frames, "n_frames", 1))
     return [int(c.generate_state(1, np.uint64)[0] >> np.uint64(1)) for c in children]
 
 
-def sequence_paths(out: str | Path, n: int) -> list[Path]:
+def sequence_paths(out: str | Path, n_frames: int) -> list[Path]:
     """Return the frame paths of a sequence: ``DIR/frame.tiff`` -> ``DIR/frame_000.tiff`` ...
 
     Parameters
     ----------
     out : path-like
         The pattern: its stem gets ``_000``, ``_001`` ... (at least three digits).
-    n : int
+    n_frames : int
         Frames.
 
     Returns
@@ -88,8 +88,8 @@ def sequence_paths(out: str | Path, n: int) -> list[Path]:
     list of Path
     """
     out = Path(out)
-    width = max(3, len(str(n - 1)))
-    return [out.with_name(f"{out.stem}_{k:0{width}d}{out.suffix}") for k in range(n)]
+    width = max(3, len(str(n_frames - 1)))
+    return [out.with_name(f"{out.stem}_{k:0{width}d}{out.suffix}") for k in range(n_frames)]
 
 
 def render_sequence(
@@ -120,7 +120,7 @@ def render_sequence(
     rate_rad_s : array_like, shape (3,)
         Constant body rate in the camera frame, rad/s.
     seed : int
-        Root seed; frame ``k`` uses child seed ``frame_seeds(seed, n)[k]``.
+        Root seed; frame ``k`` uses child seed ``frame_seeds(seed, n_frames)[k]``.
     **kwargs
         Passed to :func:`~starsense.render.scene.render_frame` (model, max_mag, noise, ...).
 
