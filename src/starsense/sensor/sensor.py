@@ -33,7 +33,7 @@ from starsense.sensor.optics import Optics
 __all__ = ["DetectionThresholds", "Sensor"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DetectionThresholds:
     """Star-detection logic (Dzamba & Enright 2014, sec. 1.2; ST-16 values by default).
 
