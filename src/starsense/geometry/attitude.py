@@ -142,6 +142,14 @@ def attitude_from_radec_roll(
     InputError
         If a value is not finite, a declination is outside [-pi/2, pi/2], or the shapes do not
         broadcast to a scalar or a 1-D batch.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_attitude
+    >>> rotation = attitude_from_radec_roll(np.radians(83.8), np.radians(-5.4), 0.0)
+    >>> np.degrees(radec_roll_from_attitude(rotation)[:2]).round(6).tolist()
+    [83.8, -5.4]
     """
     ra = _finite_array(ra_rad, "ra_rad")
     dec = _finite_array(dec_rad, "dec_rad")

@@ -91,6 +91,14 @@ class Sensor:
     mission : MissionPlan or None
         The mission the TOML's ``[mission]`` table names (:mod:`starsense.sensor.mission_plan`),
         for the report's mission section.
+
+    Examples
+    --------
+    >>> from starsense.sensor import load_sensor
+    >>> st16 = load_sensor("st16")
+    >>> round(st16.focal_length_px)
+    7273
+    >>> shorter = st16.with_(exposure_s=0.05)  # a changed copy; the sensor is frozen
     """
 
     name: str
