@@ -31,7 +31,7 @@ import numbers
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import check_scalar, finite_array
+from starsense._validate import as_generator, check_scalar, finite_array
 from starsense.catalog import DEFAULT_CATALOG, Catalog, load_catalog
 from starsense.catalog.apparent import apparent_places
 from starsense.errors import InputError
@@ -39,7 +39,7 @@ from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.photometry.colour import ColourModel
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.frame import Frame, FrameTruth, StarTruth
-from starsense.render.noise import apply_noise, as_generator, quantise
+from starsense.render.noise import apply_noise, quantise
 from starsense.render.psf import Box
 from starsense.render.smear import METHODS, pad_sigma_for, polyline_expected
 from starsense.render.tracks import Tracks, check_rate, star_tracks
