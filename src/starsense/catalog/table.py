@@ -89,7 +89,10 @@ class Catalog:
     Notes
     -----
     Columns are stored as read-only views (no copy is made of float64 input). Identity, not
-    value, equality applies (``eq=False``); compare columns with NumPy.
+    value, equality applies (``eq=False``); compare columns with NumPy. Build one with
+    :func:`starsense.catalog.load_catalog` (a file or the bundled Hipparcos) or with keywords
+    (every field is keyword-only).
+
     """
 
     name: str
