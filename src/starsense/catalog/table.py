@@ -92,7 +92,6 @@ class Catalog:
     value, equality applies (``eq=False``); compare columns with NumPy. Build one with
     :func:`starsense.catalog.load_catalog` (a file or the bundled Hipparcos) or with keywords
     (every field is keyword-only).
-
     """
 
     name: str
