@@ -106,7 +106,7 @@ class _ShearProblem(_Problem):
         x, y = c[:, 0] / c[:, 2], c[:, 1] / c[:, 2]
         a, b = shear[k, 0], shear[k, 1]
         x, y = x + a * x + b * y, y + b * x - a * y
-        xd, yd = distort(x, y, *cam[3:])
+        xd, yd = distort(x, y, cam[3:])
         return np.column_stack([xd, yd]) * cam[0] + self.centre + cam[1:3]
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 
 import pytest
@@ -113,8 +114,6 @@ def test_missing_directory_is_an_error_without_leftovers(tmp_path):
 
 
 def test_a_full_disk_names_the_users_path_not_the_temporary(tmp_path):
-    import errno
-
     target = tmp_path / "out.txt"
     with pytest.raises(OutputError) as info, atomic_path(target) as tmp:
         raise OSError(errno.ENOSPC, "No space left on device", str(tmp))

@@ -14,6 +14,7 @@ import secrets
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError
 
@@ -158,8 +159,6 @@ def vectors3(value: ArrayLike, name: str) -> NDArray[np.float64]:
 
 def check_rotation(rot: object, name: str):
     """Return a single :class:`~scipy.spatial.transform.Rotation` or a 1-D batch of them."""
-    from scipy.spatial.transform import Rotation
-
     if not isinstance(rot, Rotation):
         raise InputError(f"{name} must be a scipy Rotation, got {type(rot).__name__}")
     if not rot.single and len(rot.shape) != 1:

@@ -23,15 +23,17 @@ class CatalogFormatError(StarsenseError, ValueError):
     ----------
     path : str
         The file being read.
+    detail : str
+        What is wrong, e.g. ``"'abc' is not a number"``.
     line : int or None
         1-based line number (or record number for binary files), if known.
     field : str or None
-        The name of the field that could not be parsed.
-    detail : str
-        What is wrong, e.g. ``"'abc' is not a number"``.
+        The name of the field that could not be parsed, if known.
     """
 
-    def __init__(self, path: str, line: int | None, field: str | None, detail: str) -> None:
+    def __init__(
+        self, path: str, *, detail: str, line: int | None = None, field: str | None = None
+    ) -> None:
         self.path = str(path)
         self.line = line
         self.field = field

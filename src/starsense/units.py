@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 __all__ = [
     "ARCMIN",
     "ARCSEC",
@@ -59,8 +61,6 @@ def to_edge(value_rad, unit: float):
     float or ndarray
         A float for a scalar, else an array of the same shape.
     """
-    import numpy as np
-
     values = np.asarray(value_rad, dtype=np.float64)
     out = np.array(values / unit, dtype=np.float64)  # owned and contiguous: flat is a view
     flat = out.reshape(-1)

@@ -67,7 +67,7 @@ def frame8(
     r2 = ((x - COLUMNS / 2) ** 2 + (y - ROWS / 2) ** 2) / ((COLUMNS / 2) ** 2 + (ROWS / 2) ** 2)
     expected = (fr.expected_e + sky_e + gradient_e * x / COLUMNS) * (1 - vignetting * r2)
     rng = np.random.default_rng(seed + 1000)
-    image = apply_noise(expected, sensor, rng).astype(np.uint8)
+    image = apply_noise(expected, sensor, rng=rng).astype(np.uint8)
     if hot_pixels:
         rr = rng.integers(0, ROWS, hot_pixels)
         cc = rng.integers(0, COLUMNS, hot_pixels)

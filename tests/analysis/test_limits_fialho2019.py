@@ -121,8 +121,12 @@ def test_total_photons_matches_integral():
     lam = np.geomspace(1e-8, 1e-3, 200_000)
     from starsense.photometry import photons_per_wavelength
 
-    n = np.trapezoid(photons_per_wavelength(3e-17, 9000.0, lam, 0.1, 0.1), lam)
-    assert total_photons(3e-17, 9000.0, 0.1, 0.1) == pytest.approx(n, rel=1e-4)
+    n = np.trapezoid(
+        photons_per_wavelength(3e-17, 9000.0, lam, diameter_m=0.1, exposure_s=0.1), lam
+    )
+    assert total_photons(3e-17, 9000.0, diameter_m=0.1, exposure_s=0.1) == pytest.approx(
+        n, rel=1e-4
+    )
 
 
 def test_temperature_roundtrip_through_colour():
@@ -246,7 +250,7 @@ def test_low_photon_degradation_bright_and_faint():
     # faint: the expected number of stars seen is sum(1 - e^-iota), and the loss grows as the
     # photons per star shrink (Jensen: E tr F^-1 >= tr (E F)^-1). With 500 trials the Monte Carlo
     # noise on the degradation is ~0.002 (measured), far below the steps between these levels.
-    per_photon_c = 1e-17 / total_photons(1e-17, 9000.0, 0.1, 0.1)
+    per_photon_c = 1e-17 / total_photons(1e-17, 9000.0, diameter_m=0.1, exposure_s=0.1)
     deg = []
     for iota in (5.0, 1.0, 0.5):
         res = low_photon_degradation(_stars(v, c=iota * per_photon_c), 0.1, 0.1, 500, rng=1)

@@ -122,7 +122,7 @@ def test_triad_anchors_on_the_most_accurate_star() -> None:
     sol = TriadEstimator()(body, ref, sigma)
     assert "stars 2 (anchor) and 6" in sol.notes[0]
     assert error_angle(attitude, sol.rotation) < 1e-10  # the spoiled star is not used
-    expected = triad_covariance(body[2], body[6], ARCSEC, ARCSEC)
+    expected = triad_covariance(body[2], body[6], sigma1_rad=ARCSEC, sigma2_rad=ARCSEC)
     np.testing.assert_array_equal(sol.covariance_rad2, expected)
 
 

@@ -27,7 +27,7 @@ def test_rate_from_attitudes_inverts_the_render_convention():
         rate, cov = rate_from_attitudes(a0, a1, 0.5)
         np.testing.assert_allclose(rate, w, atol=1e-12)
         np.testing.assert_array_equal(cov, np.zeros((3, 3)))
-        pred, _ = predict_attitude(a0, 0.5, w)
+        pred, _ = predict_attitude(a0, 0.5, rate_rad_s=w)
         assert (pred * a1.inv()).magnitude() < 1e-12
 
 
@@ -48,7 +48,7 @@ def test_rate_covariance_against_monte_carlo():
     e0 = Rotation.from_rotvec(d0) * a0
     e1 = Rotation.from_rotvec(d1) * a1
     rates = -(e1 * e0.inv()).as_rotvec() / dt
-    _, cov = rate_from_attitudes(a0, a1, dt, p0, p1)
+    _, cov = rate_from_attitudes(a0, a1, dt, cov0_rad2=p0, cov1_rad2=p1)
     sample = np.cov(rates.T)
     np.testing.assert_allclose(np.diag(sample), np.diag(cov), rtol=0.05)
     scale = np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
@@ -63,7 +63,7 @@ def test_predicted_covariance_against_monte_carlo():
     w = np.radians([2.0, 0.5, -1.0])
     dt = 1.0
     p0, pw = _spd(rng, 1e-5), _spd(rng, 1e-5)
-    pred, cov = predict_attitude(a0, dt, w, p0, pw)
+    pred, cov = predict_attitude(a0, dt, rate_rad_s=w, cov_rad2=p0, rate_cov_rad2_s2=pw)
     n = 20000
     d0 = rng.multivariate_normal(np.zeros(3), p0, size=n)
     dw = rng.multivariate_normal(np.zeros(3), pw, size=n)
@@ -93,6 +93,6 @@ def test_predict_bad_input():
     with pytest.raises(InputError, match="dt_s"):
         predict_attitude(Rotation.identity(), -1.0)
     with pytest.raises(InputError, match="rate_rad_s"):
-        predict_attitude(Rotation.identity(), 1.0, [1.0, 2.0])
+        predict_attitude(Rotation.identity(), 1.0, rate_rad_s=[1.0, 2.0])
     with pytest.raises(InputError, match="attitude"):
         predict_attitude("north", 1.0)

@@ -57,7 +57,14 @@ def test_columns_and_vectors() -> None:
 
 
 def test_ra_is_wrapped_into_0_2pi() -> None:
-    cat = Catalog("w", "t", 2000.0, [1, 2], [-0.5, 2 * np.pi + 0.25], [0.0, 0.1])
+    cat = Catalog(
+        name="w",
+        source="t",
+        epoch_yr=2000.0,
+        ids=[1, 2],
+        ra_rad=[-0.5, 2 * np.pi + 0.25],
+        dec_rad=[0.0, 0.1],
+    )
     np.testing.assert_allclose(cat.ra_rad, [2 * np.pi - 0.5, 0.25], rtol=0, atol=1e-15)
 
 
@@ -264,7 +271,15 @@ def test_stars_without_proper_motion_stay_put() -> None:
 
 def test_concat() -> None:
     a = random_catalog(20, seed=1)
-    b = Catalog("b", "s", 2000.0, [1, 2], [0.1, 0.2], [0.0, 0.1], mags={"G": [3.0, 4.0]})
+    b = Catalog(
+        name="b",
+        source="s",
+        epoch_yr=2000.0,
+        ids=[1, 2],
+        ra_rad=[0.1, 0.2],
+        dec_rad=[0.0, 0.1],
+        mags={"G": [3.0, 4.0]},
+    )
     c = concat([a, b], name="ab")
     assert len(c) == 22 and c.name == "ab"
     assert set(c.mags) == {"V", "Hp", "G"}

@@ -54,8 +54,18 @@ def test_connectivity_4_versus_8():
     img = np.zeros((12, 12))
     for i in range(8):  # a diagonal line of 8 lit pixels
         img[2 + i, 2 + i] = 500
-    eight = detect_stars(img, DetectionThresholds(120, 6, 1000, connectivity=8))
-    four = detect_stars(img, DetectionThresholds(120, 6, 1000, connectivity=4))
+    eight = detect_stars(
+        img,
+        DetectionThresholds(
+            lit_pixel_counts=120, min_pixels=6, min_integrated_counts=1000, connectivity=8
+        ),
+    )
+    four = detect_stars(
+        img,
+        DetectionThresholds(
+            lit_pixel_counts=120, min_pixels=6, min_integrated_counts=1000, connectivity=4
+        ),
+    )
     assert len(eight) == 1 and eight.n_pixels[0] == 8
     assert len(four) == 0 and four.n_candidates == 8  # eight single-pixel regions
 
@@ -85,7 +95,11 @@ def test_background_gradient_hot_pixels_and_stars():
     assert np.median(np.abs(bg.level - truth_bg)) < 2.0
     assert bg.noise == pytest.approx(10, rel=0.15)
     assert hot_pixel_mask(img, bg)[hot[:, 1], hot[:, 0]].all()
-    det = StarDetector(DetectionThresholds(1, 4, 500), background="auto", threshold_sigma=5)(img)
+    det = StarDetector(
+        DetectionThresholds(lit_pixel_counts=1, min_pixels=4, min_integrated_counts=500),
+        background="auto",
+        threshold_sigma=5,
+    )(img)
     found = np.column_stack([det.x, det.y])
     d_star = np.min(np.linalg.norm(found[:, None] - pos[None], axis=2), axis=0)
     assert (d_star < 0.5).all()  # every star found
@@ -104,8 +118,8 @@ def test_rendered_star_round_trip():
 
     s = load_sensor("st16")
     e = float(Sensitivity.for_sensor(s, "reed").electrons(3.0))
-    stamp, r0, c0 = streak_stamp_expected(s, 30.3, 20.6, 30.3, 20.6, electrons=e)
-    counts = apply_noise(stamp, s, np.random.default_rng(0))
+    stamp, r0, c0 = streak_stamp_expected(s, x0=30.3, y0=20.6, x1=30.3, y1=20.6, electrons=e)
+    counts = apply_noise(stamp, s, rng=np.random.default_rng(0))
     det = StarDetector.for_sensor(s)(counts)
     assert len(det) == 1
     assert det.x[0] + c0 == pytest.approx(30.3, abs=0.1)

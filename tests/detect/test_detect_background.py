@@ -150,7 +150,7 @@ def test_noise_map_threshold_keeps_false_detections_down():
     rng = np.random.default_rng(12)
     sigma = 5.0 + 25.0 * np.arange(COLS) / (COLS - 1)
     img = 500.0 + sigma * rng.standard_normal((ROWS, COLS))
-    logic = DetectionThresholds(1.0, 1, 1.0)
+    logic = DetectionThresholds(lit_pixel_counts=1.0, min_pixels=1, min_integrated_counts=1.0)
     with_map = StarDetector(logic, background="auto", threshold_sigma=5)(img)
     assert len(with_map) <= 2
     bg = estimate_background(img)
@@ -196,7 +196,7 @@ def test_max_pixels_rejects_large_blobs():
     img = np.zeros((40, 40))
     img[5:8, 5:8] = 500.0  # 9 px, 4,500 counts
     img[20:30, 20:30] = 500.0  # 100 px
-    logic = DetectionThresholds(120, 6, 1000)
+    logic = DetectionThresholds(lit_pixel_counts=120, min_pixels=6, min_integrated_counts=1000)
     assert len(StarDetector(logic)(img)) == 2
     det = StarDetector(logic, max_pixels=50)(img)
     assert len(det) == 1 and det.n_pixels[0] == 9 and det.n_candidates == 2
@@ -266,7 +266,10 @@ def test_faint_region_in_a_negative_window_still_gets_a_centroid():
     img = np.full((9, 9), -40.0)
     img[4, 5] = 60.0
     for method in ("cog", "iwcog", "gauss"):
-        det = StarDetector(DetectionThresholds(50.0, 1, 10.0), method)(img)
+        det = StarDetector(
+            DetectionThresholds(lit_pixel_counts=50.0, min_pixels=1, min_integrated_counts=10.0),
+            method,
+        )(img)
         assert len(det) == 1
         if method == "cog":  # iwcog squares the (clipped) weights and gauss fits: both fine
             assert not det.fit_ok[0]

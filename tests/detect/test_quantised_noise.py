@@ -22,7 +22,7 @@ from starsense.render.noise import apply_noise
 def _dark_frame(bias: float, read_noise_e: float, seed: int = 3) -> np.ndarray:
     sensor = camera8(bias_counts=bias, read_noise_e=read_noise_e)
     rows, cols = sensor.detector.rows, sensor.detector.columns
-    return apply_noise(np.zeros((rows, cols)), sensor, seed).astype(np.uint8)
+    return apply_noise(np.zeros((rows, cols)), sensor, rng=seed).astype(np.uint8)
 
 
 def _clipped_moments(mu: float, s: float) -> tuple[float, float]:

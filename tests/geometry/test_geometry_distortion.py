@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import tomllib
 
 import numpy as np
 import pytest
@@ -19,18 +20,18 @@ COEFFS = (2.0, -3.0, 1e-3, -5e-4)  # 10 % radial at r = 0.22, decentring 1e-3
 def test_undistort_inverts_distort():
     rng = np.random.default_rng(0)
     x, y = rng.uniform(-0.2, 0.2, size=(2, 2000))
-    xd, yd = distort(x, y, *COEFFS)
-    xi, yi = undistort(xd, yd, *COEFFS)
+    xd, yd = distort(x, y, COEFFS)
+    xi, yi = undistort(xd, yd, COEFFS)
     assert np.max(np.hypot(xi - x, yi - y)) < 1e-14  # Newton converges to rounding
 
 
 def test_jacobian_matches_central_differences():
     rng = np.random.default_rng(1)
     x, y = rng.uniform(-0.2, 0.2, size=(2, 50))
-    j = distortion_jacobian(x, y, *COEFFS)
+    j = distortion_jacobian(x, y, COEFFS)
     h = 1e-6  # central differences: error ~ h^2 * third derivative ~ 1e-11
-    dx = (np.array(distort(x + h, y, *COEFFS)) - np.array(distort(x - h, y, *COEFFS))) / (2 * h)
-    dy = (np.array(distort(x, y + h, *COEFFS)) - np.array(distort(x, y - h, *COEFFS))) / (2 * h)
+    dx = (np.array(distort(x + h, y, COEFFS)) - np.array(distort(x - h, y, COEFFS))) / (2 * h)
+    dy = (np.array(distort(x, y + h, COEFFS)) - np.array(distort(x, y - h, COEFFS))) / (2 * h)
     assert np.allclose(j[:, :, 0], dx.T, atol=1e-8)
     assert np.allclose(j[:, :, 1], dy.T, atol=1e-8)
 
@@ -42,7 +43,7 @@ def test_opencv_convention_by_hand():
     k1, k2, p1, p2 = COEFFS
     want_x = x * (1 + k1 * r2 + k2 * r2**2) + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
     want_y = y * (1 + k1 * r2 + k2 * r2**2) + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-    got = distort(np.array([x]), np.array([y]), *COEFFS)
+    got = distort(np.array([x]), np.array([y]), COEFFS)
     assert got[0][0] == pytest.approx(want_x, rel=1e-15)
     assert got[1][0] == pytest.approx(want_y, rel=1e-15)
 
@@ -66,8 +67,6 @@ def test_sensor_project_unproject_round_trip_with_principal_point():
 
 def test_sensor_toml_round_trip_and_bad_values():
     s = _lens(distortion_k1=0.11, distortion_p2=3e-4, principal_offset_x_px=10.5)
-    import tomllib
-
     again = sensor_from_dict(tomllib.loads(sensor_to_toml(s, "calibrated")), "x.toml")
     assert again == s  # frozen dataclasses: every field equal, floats exactly (repr)
     with pytest.raises(InputError, match=r"optics.distortion_p1"):

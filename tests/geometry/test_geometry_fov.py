@@ -10,6 +10,7 @@ import pytest
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+import starsense.geometry.fov as fov_module
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, radec_to_vectors
 from starsense.geometry.fov import CircularFov, RectangularFov, count_in_fov
@@ -89,7 +90,7 @@ def test_rectangular_contains_edges_and_orientation() -> None:
 def test_from_detector() -> None:
     # ESA frames: 1024 x 768 binned pixels of 6.9 um behind a 35 mm lens; reference.json gives
     # a horizontal field of about 11.42 deg (the lens' real focal length differs slightly).
-    fov = RectangularFov.from_detector(1024, 768, 6.9e-6, 35e-3)
+    fov = RectangularFov.from_detector(1024, 768, pixel_pitch_m=6.9e-6, focal_length_m=35e-3)
     assert fov.half_width_rad == pytest.approx(math.atan(1024 * 6.9e-6 / 2 / 35e-3), rel=1e-15)
     assert fov.half_height_rad == pytest.approx(math.atan(768 * 6.9e-6 / 2 / 35e-3), rel=1e-15)
     assert 2 * fov.half_width_rad / DEG == pytest.approx(11.42, abs=0.2)
@@ -111,7 +112,7 @@ def test_contains_shapes() -> None:
     "fov",
     [
         RectangularFov(5 * DEG, 5 * DEG),
-        RectangularFov.from_detector(1024, 768, 6.9e-6, 35e-3),
+        RectangularFov.from_detector(1024, 768, pixel_pitch_m=6.9e-6, focal_length_m=35e-3),
         RectangularFov(60 * DEG, 30 * DEG),
         CircularFov(8 * DEG),
         CircularFov(math.pi),
@@ -152,8 +153,6 @@ def test_count_in_fov_with_stars_on_the_edge() -> None:
 
 
 def test_count_in_fov_blocks_large_candidate_sets(monkeypatch: pytest.MonkeyPatch) -> None:
-    import starsense.geometry.fov as fov_module
-
     monkeypatch.setattr(fov_module, "_CANDIDATE_BUDGET", 500)
     fov = CircularFov(30 * DEG)
     vectors = random_unit_vectors(2_000, 5)
@@ -180,10 +179,22 @@ def test_fov_is_frozen() -> None:
         (lambda: RectangularFov(math.pi / 2, 0.1), r"half_width_rad = 1\.57.* < 1\.57"),
         (lambda: RectangularFov(float("nan"), 0.1), r"half_width_rad = nan"),
         (lambda: RectangularFov("wide", 0.1), r"half_width_rad must be a real number"),
-        (lambda: RectangularFov.from_detector(0, 768, 6.9e-6, 0.035), r"columns = 0 .*>= 1"),
-        (lambda: RectangularFov.from_detector(1024, 768, -1.0, 0.035), r"pixel_pitch_m = -1\.0"),
         (
-            lambda: RectangularFov.from_detector(1024, 768, 6.9e-6, float("nan")),
+            lambda: RectangularFov.from_detector(
+                0, 768, pixel_pitch_m=6.9e-6, focal_length_m=0.035
+            ),
+            r"columns = 0 .*>= 1",
+        ),
+        (
+            lambda: RectangularFov.from_detector(
+                1024, 768, pixel_pitch_m=-1.0, focal_length_m=0.035
+            ),
+            r"pixel_pitch_m = -1\.0",
+        ),
+        (
+            lambda: RectangularFov.from_detector(
+                1024, 768, pixel_pitch_m=6.9e-6, focal_length_m=float("nan")
+            ),
             r"focal_length_m must be finite, got nan",
         ),
         (

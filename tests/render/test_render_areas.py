@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from starsense.catalog import load_catalog
+from starsense.cli import main
 from starsense.detect.areas import detect_in_areas
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll
@@ -68,8 +69,6 @@ def test_sensor_without_areas():
 
 
 def test_cli_render_areas(tmp_path, capsys):
-    from starsense.cli import main
-
     out = tmp_path / "areas.png"
     args = ["render", "--sensor", "lin2024", "--ra-deg", "240", "--dec-deg", "-80", "--areas"]
     assert main([*args, "--out", str(out)]) == 0

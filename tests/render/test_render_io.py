@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 
 import numpy as np
 import pytest
@@ -88,8 +89,6 @@ def test_failed_write_leaves_no_partial_files(tmp_path, frame, monkeypatch) -> N
 
 def test_written_files_are_readable_by_others(tmp_path, frame) -> None:
     # temporary files are created 0600; the written ones follow the umask like any file
-    import os
-
     mask = os.umask(0o022)
     try:
         path = write_frame(tmp_path / "frame.tif", frame)

@@ -28,7 +28,7 @@ def test_saturates_at_4095_for_12_bits(st16) -> None:
 @pytest.mark.parametrize(("bits", "dtype"), [(8, np.uint16), (16, np.uint16), (20, np.uint32)])
 def test_dtype_and_saturation_follow_the_bit_depth(st16, bits, dtype) -> None:
     sensor = with_detector(st16, bit_depth=bits, full_well_e=1e9)
-    counts = apply_noise(np.full((8, 8), 1e8), sensor, 1)
+    counts = apply_noise(np.full((8, 8), 1e8), sensor, rng=1)
     assert counts.dtype == dtype
     assert counts.max() == 2**bits - 1
     assert quantise(np.full((2, 2), 1e8), sensor).max() == 2**bits - 1
@@ -51,7 +51,7 @@ def test_shot_and_read_noise_statistics(st16) -> None:
     # Standard errors: mean 0.08 counts, variance 2630 x sqrt(2 / n) ~ 5.9 (Gaussian-like).
     # Ask 5 standard errors.
     n = 400_000
-    counts = apply_noise(np.full(n, 50.0), st16, 11).astype(float)
+    counts = apply_noise(np.full(n, 50.0), st16, rng=11).astype(float)
     assert counts.mean() == pytest.approx(325.0, abs=5 * 0.081)
     var = 6.5**2 * (50 + 3.5**2) + 1 / 12
     assert counts.var() == pytest.approx(var, abs=5 * var * np.sqrt(2 / n))
@@ -62,7 +62,7 @@ def test_background_is_read_noise_only_without_dark_current(st16) -> None:
     # 0: P(count = 0) = P(6.5 x N < 0.5) = Phi(0.5 / 22.75) = 0.5088; mean of the clipped
     # positive part 22.75 / sqrt(2 pi) = 9.076. With 1e6 pixels: tolerances of 5 standard errors
     # (0.0025 and 0.07 counts).
-    counts = apply_noise(np.zeros((1000, 1000), np.float32), st16, 5).astype(float)
+    counts = apply_noise(np.zeros((1000, 1000), np.float32), st16, rng=5).astype(float)
     assert (counts == 0).mean() == pytest.approx(0.5088, abs=0.0025)
     assert counts.mean() == pytest.approx(9.076, abs=0.07)
 
@@ -73,7 +73,7 @@ def test_dark_current_and_bias(st16) -> None:
     sensor = with_detector(
         st16, dark_current_e_s=200.0, bias_counts=100.0, read_noise_e=0.0, gain_counts_per_e=1.0
     )
-    counts = apply_noise(np.zeros(100_000), sensor, 2).astype(float)
+    counts = apply_noise(np.zeros(100_000), sensor, rng=2).astype(float)
     assert counts.mean() == pytest.approx(120.0, abs=5 * np.sqrt(20 / 1e5))
     assert counts.var() == pytest.approx(20 + 1 / 12, abs=5 * 20 * np.sqrt(2 / 1e5))
 
@@ -81,20 +81,20 @@ def test_dark_current_and_bias(st16) -> None:
 def test_seeded_noise_is_reproducible(st16) -> None:
     e = np.zeros((50, 60))
     e[20:30, 25:35] = 300.0
-    a = apply_noise(e, st16, 42)
-    assert np.array_equal(a, apply_noise(e, st16, np.random.default_rng(42)))
-    assert not np.array_equal(a, apply_noise(e, st16, 43))
+    a = apply_noise(e, st16, rng=42)
+    assert np.array_equal(a, apply_noise(e, st16, rng=np.random.default_rng(42)))
+    assert not np.array_equal(a, apply_noise(e, st16, rng=43))
 
 
 def test_bad_input(st16) -> None:
     with pytest.raises(InputError, match="finite and >= 0"):
-        apply_noise(np.array([1.0, -2.0]), st16, 0)
+        apply_noise(np.array([1.0, -2.0]), st16, rng=0)
     with pytest.raises(InputError, match="finite and >= 0"):
-        apply_noise(np.array([1.0, np.nan]), st16, 0)
+        apply_noise(np.array([1.0, np.nan]), st16, rng=0)
     with pytest.raises(InputError, match="finite and >= 0"):
         quantise(np.array([np.inf]), st16)
     with pytest.raises(InputError, match="exposure_s"):
-        apply_noise(np.zeros(3), st16, 0, exposure_s=-1.0)
+        apply_noise(np.zeros(3), st16, rng=0, exposure_s=-1.0)
     with pytest.raises(InputError, match="rng"):
         as_generator("seed")
     gen, seed = as_generator(None)

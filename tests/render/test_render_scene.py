@@ -127,7 +127,7 @@ def test_zero_rate_frame_is_the_static_gaussian(st16, attitude, make_catalog) ->
     cat = make_catalog(n=1, seed=3)
     f = render_frame(st16, attitude, cat, noise=False)
     s = f.truth.stars
-    ref, r0, c0 = gaussian_stamp(s.x_mid[0], s.y_mid[0], 1.5, s.electrons[0])
+    ref, r0, c0 = gaussian_stamp(s.x_mid[0], s.y_mid[0], sigma_px=1.5, electrons=s.electrons[0])
     got = f.expected_e[r0 : r0 + ref.shape[0], c0 : c0 + ref.shape[1]]
     np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-6)  # float32 storage
     assert np.array_equal(f.image, quantise(f.expected_e, st16))
@@ -211,8 +211,8 @@ def test_exposure_override_scales_electrons_and_streaks(st16, attitude, catalog)
 
 
 def test_streak_stamp_expected_is_linear_and_conserves_flux(st16) -> None:
-    unit, r0, c0 = streak_stamp_expected(st16, 10.2, 20.7, 22.9, 20.7)
-    big, r1, c1 = streak_stamp_expected(st16, 10.2, 20.7, 22.9, 20.7, electrons=5000.0)
+    unit, r0, c0 = streak_stamp_expected(st16, x0=10.2, y0=20.7, x1=22.9, y1=20.7)
+    big, r1, c1 = streak_stamp_expected(st16, x0=10.2, y0=20.7, x1=22.9, y1=20.7, electrons=5000.0)
     assert (r0, c0) == (r1, c1)
     np.testing.assert_allclose(big, 5000.0 * unit, rtol=1e-14)
     assert unit.sum() == pytest.approx(1.0, abs=2e-6)

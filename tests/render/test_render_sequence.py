@@ -6,28 +6,25 @@ import json
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from starsense.cli import main
 from starsense.errors import InputError
+from starsense.geometry.attitude import angular_separation, radec_to_vectors
 from starsense.render.scene import render_frame
 from starsense.render.sequence import frame_seeds, render_sequence, sequence_paths
 
 
 def test_sequence_frames_follow_the_rate(st16, attitude, catalog):
     w = np.radians([0.3, -0.2, 0.5])
-    frames = list(render_sequence(st16, attitude, catalog, 3, 0.5, rate_rad_s=w, seed=7,
-                                  noise=False))  # fmt: skip
+    frames = list(render_sequence(st16, attitude, catalog, n_frames=3, interval_s=0.5,
+                                  rate_rad_s=w, seed=7, noise=False))  # fmt: skip
     assert [f.truth.time_s for f in frames] == [0.0, 0.5, 1.0]
     seeds = [f.truth.seed for f in frames]
     assert seeds == frame_seeds(7, 3) and len(set(seeds)) == 3
     for k, f in enumerate(frames):
         # frame k is the lone frame rendered at A_k = R(-w t_k) A_0 (render/scene.py convention)
-        a_k = (
-            __import__("scipy.spatial.transform", fromlist=["Rotation"]).Rotation.from_rotvec(
-                -w * 0.5 * k
-            )
-            * attitude
-        )
+        a_k = Rotation.from_rotvec(-w * 0.5 * k) * attitude
         assert (f.truth.attitude * a_k.inv()).magnitude() < 1e-12
         lone = render_frame(st16, a_k, catalog, rate_rad_s=w, noise=False)
         np.testing.assert_array_equal(f.image, lone.image)
@@ -36,11 +33,11 @@ def test_sequence_frames_follow_the_rate(st16, attitude, catalog):
 
 def test_sequence_bad_input(st16, attitude, catalog):
     with pytest.raises(InputError, match="shorter than the exposure"):
-        next(render_sequence(st16, attitude, catalog, 2, 0.05))
+        next(render_sequence(st16, attitude, catalog, n_frames=2, interval_s=0.05))
     with pytest.raises(InputError, match="n_frames"):
-        next(render_sequence(st16, attitude, catalog, 0, 0.5))
+        next(render_sequence(st16, attitude, catalog, n_frames=0, interval_s=0.5))
     with pytest.raises(InputError, match="seed"):
-        next(render_sequence(st16, attitude, catalog, 2, 0.5, rng=3))
+        next(render_sequence(st16, attitude, catalog, n_frames=2, interval_s=0.5, rng=3))
 
 
 def test_sequence_paths():
@@ -64,8 +61,6 @@ def test_cli_render_sequence_writes_frames_and_truth(tmp_path, capsys):
     assert truth[1]["rate_rad_s"] == pytest.approx(np.radians([0.5, 0.2, 0.1]).tolist())
     # the attitude of frame 1 is frame 0's turned by the rate over 0.5 s (0.28 deg): the
     # boresights differ by |w_xy| dt to first order (the roll part leaves the boresight)
-    from starsense.geometry.attitude import angular_separation, radec_to_vectors
-
     b = [radec_to_vectors(np.radians(t["attitude"]["ra_deg"]), np.radians(t["attitude"]["dec_deg"]))
          for t in truth]  # fmt: skip
     assert float(angular_separation(b[0], b[1])) == pytest.approx(

@@ -53,7 +53,12 @@ def test_closed_form_is_eq20_divided_by_exposure() -> None:
     x0, y0, dbx, dby, sigma, s_e, t_e = 3.0, -2.0, 9.0, 4.0, 1.5, 800.0, 0.1
     px = rng.uniform(-5, 15, 200)
     py = rng.uniform(-8, 6, 200)
-    ours = smear_intensity(px, py, x0, y0, x0 + dbx, y0 + dby, sigma, s_e) * t_e
+    ours = (
+        smear_intensity(
+            px, py, x0=x0, y0=y0, x1=x0 + dbx, y1=y0 + dby, sigma_px=sigma, electrons=s_e
+        )
+        * t_e
+    )
     ref = paper_eq20(px, py, x0, y0, dbx, dby, sigma, s_e, t_e)
     np.testing.assert_allclose(ours, ref, rtol=1e-10, atol=1e-12 * ref.max())
 
@@ -72,7 +77,7 @@ def test_closed_form_equals_brute_force_time_integral(x0, y0, x1, y1, sigma) -> 
     g = np.linspace(-8, 8, 33)
     px = (x0 + x1) / 2 + g[:, None] * 2 + 0 * g[None, :]
     py = (y0 + y1) / 2 + g[None, :] * 2 + 0 * g[:, None]
-    ours = smear_intensity(px, py, x0, y0, x1, y1, sigma, 1000.0)
+    ours = smear_intensity(px, py, x0=x0, y0=y0, x1=x1, y1=y1, sigma_px=sigma, electrons=1000.0)
     ref = brute_force(px, py, x0, y0, x1, y1, sigma, 1000.0)
     peak = ref.max()
     np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-6 * peak)
@@ -87,7 +92,7 @@ def test_closed_form_keeps_relative_accuracy_far_in_the_tails() -> None:
     sigma, x0, x1 = 1.0, 0.0, 4.0
     px = np.array([-8.0, -9.0, 12.0, 13.0, -8.5])
     py = np.array([0.0, 1.0, 0.5, 2.0, -1.5])
-    ours = smear_intensity(px, py, x0, 0.0, x1, 0.0, sigma)
+    ours = smear_intensity(px, py, x0=x0, y0=0.0, x1=x1, y1=0.0, sigma_px=sigma)
     ref = brute_force(px, py, x0, 0.0, x1, 0.0, sigma, 1.0, steps=20000)
     assert np.all(ref > 0) and np.all(ref < 1e-14)
     np.testing.assert_allclose(ours, ref, rtol=1e-6)
@@ -97,13 +102,17 @@ def test_closed_form_keeps_relative_accuracy_far_in_the_tails() -> None:
 
 def test_zero_length_limit_is_eq9() -> None:
     px, py = np.meshgrid(np.linspace(-5, 5, 11), np.linspace(-4, 4, 9))
-    static = gaussian_intensity(px, py, 0.2, -0.3, 1.5, 10.0)
-    exact0 = smear_intensity(px, py, 0.2, -0.3, 0.2, -0.3, 1.5, 10.0)
+    static = gaussian_intensity(px, py, x=0.2, y=-0.3, sigma_px=1.5, electrons=10.0)
+    exact0 = smear_intensity(px, py, x0=0.2, y0=-0.3, x1=0.2, y1=-0.3, sigma_px=1.5, electrons=10.0)
     np.testing.assert_array_equal(exact0, static)
     # just above the switch to eq. 9 (L = 1e-6 sigma): continuous to ~1e-9
-    tiny = smear_intensity(px, py, 0.2, -0.3, 0.2 + 3e-6, -0.3, 1.5, 10.0)
+    tiny = smear_intensity(
+        px, py, x0=0.2, y0=-0.3, x1=0.2 + 3e-6, y1=-0.3, sigma_px=1.5, electrons=10.0
+    )
     np.testing.assert_allclose(
-        tiny, gaussian_intensity(px, py, 0.2 + 1.5e-6, -0.3, 1.5, 10.0), rtol=1e-8
+        tiny,
+        gaussian_intensity(px, py, x=0.2 + 1.5e-6, y=-0.3, sigma_px=1.5, electrons=10.0),
+        rtol=1e-8,
     )
 
 
@@ -117,7 +126,9 @@ def test_flux_is_conserved(method, dx, dy) -> None:
     # Ask 2e-6 (the brief asks 0.1 %), and that nothing is created: the sum never exceeds the
     # electrons (+ 1e-9 for the quadrature's ~1e-8 error).
     e = 5000.0
-    stamp, _ = polyline_expected([100.3, 100.3 + dx], [50.6, 50.6 + dy], 1.5, e, method=method)
+    stamp, _ = polyline_expected(
+        [100.3, 100.3 + dx], [50.6, 50.6 + dy], sigma_px=1.5, electrons=e, method=method
+    )
     assert stamp.sum() == pytest.approx(e, rel=2e-6)
     assert stamp.sum() <= e * (1 + 1e-9)
     assert stamp.min() >= 0
@@ -132,20 +143,22 @@ def test_flux_is_conserved(method, dx, dy) -> None:
     sigma=st.floats(0.6, 3.0),
 )
 def test_flux_is_conserved_property(x, y, dx, dy, sigma) -> None:
-    stamp, _ = polyline_expected([x, x + dx], [y, y + dy], sigma, 1.0)
+    stamp, _ = polyline_expected([x, x + dx], [y, y + dy], sigma_px=sigma, electrons=1.0)
     assert abs(stamp.sum() - 1.0) < 2e-6
 
 
 def test_zero_rate_gives_the_static_gaussian_exactly(st16) -> None:
     # Both quadratures fall back on the exact erf products for a track of zero length.
     for method in ("track", "closed-form"):
-        stamp, box = polyline_expected([12.3, 12.3], [40.8, 40.8], 1.5, 777.0, method=method)
-        ref, r0, c0 = gaussian_stamp(12.3, 40.8, 1.5, 777.0, box)
+        stamp, box = polyline_expected(
+            [12.3, 12.3], [40.8, 40.8], sigma_px=1.5, electrons=777.0, method=method
+        )
+        ref, r0, c0 = gaussian_stamp(12.3, 40.8, sigma_px=1.5, electrons=777.0, box=box)
         assert (r0, c0) == (box.row0, box.col0)
         np.testing.assert_allclose(stamp, ref, rtol=1e-15, atol=1e-15 * ref.max())
     # ... and so does a whole track at zero body rate
     v = st16.unproject([1000.25], [700.5])
-    tr = star_tracks(st16, v, (0.0, 0.0, 0.0))
+    tr = star_tracks(st16, v, rate_rad_s=(0.0, 0.0, 0.0))
     assert tr.n_segments.tolist() == [1]
     np.testing.assert_allclose(tr.vertices[0], [[1000.25, 700.5]] * 2, atol=1e-9)
 
@@ -159,9 +172,18 @@ def test_closed_form_pixel_quadrature_error_bound(sigma) -> None:
     assert gauss_legendre_order(sigma) == max(4, math.ceil(4 / sigma))
     worst = 0.0
     for x0, y0 in [(0.0, 0.0), (0.5, 0.25), (0.31, -0.47)]:
-        box = Box.around(x0, x0, y0, y0, 8 * sigma)
-        gl = segment_expected(x0, y0, x0 + 1e-5, y0, sigma, 1.0, box, method="closed-form")
-        exact = gaussian_stamp(x0 + 5e-6, y0, sigma, 1.0, box)[0]
+        box = Box.around(x_min=x0, x_max=x0, y_min=y0, y_max=y0, pad_px=8 * sigma)
+        gl = segment_expected(
+            x0=x0,
+            y0=y0,
+            x1=x0 + 1e-5,
+            y1=y0,
+            sigma_px=sigma,
+            electrons=1.0,
+            box=box,
+            method="closed-form",
+        )
+        exact = gaussian_stamp(x0 + 5e-6, y0, sigma_px=sigma, electrons=1.0, box=box)[0]
         worst = max(worst, np.abs(gl - exact).sum())
     assert worst < 1e-7
 
@@ -172,8 +194,10 @@ def test_the_two_quadratures_agree(sigma) -> None:
     # Gauss-Legendre in time, error < 1e-8) and "closed-form" (exact in time; Gauss-Legendre
     # in x, y, error < 1e-7). They must agree to the sum of their bounds.
     for xs, ys in [([0.2, 14.0], [0.1, 3.0]), ([0.0, 30.0], [0.0, 30.0]), ([5.0, 4.0], [0.0, 0.2])]:
-        a, box = polyline_expected(xs, ys, sigma, 1.0, method="track")
-        b, _ = polyline_expected(xs, ys, sigma, 1.0, box=box, method="closed-form")
+        a, box = polyline_expected(xs, ys, sigma_px=sigma, electrons=1.0, method="track")
+        b, _ = polyline_expected(
+            xs, ys, sigma_px=sigma, electrons=1.0, box=box, method="closed-form"
+        )
         assert np.abs(a - b).sum() < 1.1e-7
 
 
@@ -182,7 +206,9 @@ def test_long_streak_pieces_match_a_single_box() -> None:
     # evaluation of the whole streak over the whole box, within the flux beyond 5 sigma of
     # each piece (< 1e-6).
     xs, ys = [0.0, 150.0], [0.0, 110.0]
-    pieces, box = polyline_expected(xs, ys, 1.5, 1.0)
-    whole = segment_expected(0.0, 0.0, 150.0, 110.0, 1.5, 1.0, box)
+    pieces, box = polyline_expected(xs, ys, sigma_px=1.5, electrons=1.0)
+    whole = segment_expected(
+        x0=0.0, y0=0.0, x1=150.0, y1=110.0, sigma_px=1.5, electrons=1.0, box=box
+    )
     assert np.abs(pieces - whole).sum() < 2e-6
     assert pieces.sum() == pytest.approx(1.0, abs=2e-6)

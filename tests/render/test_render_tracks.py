@@ -21,7 +21,7 @@ def test_streak_length_eq1_for_a_star_starting_at_the_boresight(st16, w_deg_s) -
     # (eq. 1) exactly. (Our attitude is mid-exposure, so b_mid = R(-w t_e / 2) z.)
     w = np.array([w_deg_s[0], w_deg_s[1], 0.0]) * DEG
     b_mid = Rotation.from_rotvec(-w * st16.exposure_s / 2).apply([0.0, 0.0, 1.0])
-    tr = star_tracks(st16, b_mid, w)
+    tr = star_tracks(st16, b_mid, rate_rad_s=w)
     cx, cy = st16.principal_point_px
     np.testing.assert_allclose(tr.start[0], [cx, cy], atol=1e-9)
     v = tr.vertices[0]
@@ -45,7 +45,7 @@ def test_roll_arc_eq2_at_the_edge_of_the_minor_axis(st16, wz_deg_s) -> None:
     theta = abs(wz) * st16.exposure_s
     r = min(st16.detector.rows, st16.detector.columns) / 2
     cx, cy = st16.principal_point_px
-    tr = star_tracks(st16, st16.unproject([cx], [cy - r]), (0.0, 0.0, wz), tol_px=1e-4)
+    tr = star_tracks(st16, st16.unproject([cx], [cy - r]), rate_rad_s=(0.0, 0.0, wz), tol_px=1e-4)
     v = tr.vertices[0]
     np.testing.assert_allclose(np.hypot(v[:, 0] - cx, v[:, 1] - cy), r, rtol=1e-12)
     polyline = np.hypot(*np.diff(v, axis=0).T).sum()
@@ -61,7 +61,7 @@ def test_arcs_are_sub_stepped_to_one_hundredth_of_a_pixel(st16) -> None:
     w = np.array([2.0, -1.0, 40.0]) * DEG
     x, y = 50.0, 40.0
     v = st16.unproject([x], [y])
-    tr = star_tracks(st16, v, w)
+    tr = star_tracks(st16, v, rate_rad_s=w)
     k = int(tr.n_segments[0])
     assert k > 1
     f = np.linspace(0, 1, 4001)
@@ -80,10 +80,10 @@ def test_arcs_are_sub_stepped_to_one_hundredth_of_a_pixel(st16) -> None:
 def test_tracks_validate_rate_and_exposure(st16) -> None:
     v = np.array([[0.0, 0.0, 1.0]])
     with pytest.raises(InputError, match="3 components"):
-        star_tracks(st16, v, (0.1, 0.2))
+        star_tracks(st16, v, rate_rad_s=(0.1, 0.2))
     with pytest.raises(InputError, match="finite"):
-        star_tracks(st16, v, (0.1, float("nan"), 0.0))
+        star_tracks(st16, v, rate_rad_s=(0.1, float("nan"), 0.0))
     with pytest.raises(InputError, match="exposure_s"):
-        star_tracks(st16, v, (0.0, 0.0, 0.0), exposure_s=-0.1)
+        star_tracks(st16, v, rate_rad_s=(0.0, 0.0, 0.0), exposure_s=-0.1)
     with pytest.raises(InputError, match="method"):
-        polyline_expected([0.0], [0.0], 1.0, 1.0, method="simpson")
+        polyline_expected([0.0], [0.0], sigma_px=1.0, electrons=1.0, method="simpson")

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import math
+import tomllib
+from importlib import resources
 
 import numpy as np
 import pytest
+from scipy.integrate import quad
 
 from starsense.errors import InputError
 from starsense.photometry.sensitivity import (
@@ -17,9 +21,6 @@ from starsense.sensor import load_sensor, preset_names, sensor_from_dict
 
 
 def _st16_dict():
-    import tomllib
-    from importlib import resources
-
     text = (resources.files("starsense.sensor") / "presets" / "st16.toml").read_text()
     return tomllib.loads(text)
 
@@ -44,8 +45,6 @@ def test_dzamba2014_st16_geometry():
 
 
 def test_esa_blackfly_matches_reference_fov(shared_dir):
-    import json
-
     ref = json.loads((shared_dir / "data/images/esa/reference.json").read_text())
     s = load_sensor("esa_blackfly")
     fov_deg = 2 * math.degrees(s.half_fov_rad[0])
@@ -129,8 +128,6 @@ def test_load_sensor_errors(tmp_path):
 
 
 def test_user_toml_copy_of_preset(tmp_path):
-    from importlib import resources
-
     text = (resources.files("starsense.sensor") / "presets" / "st16.toml").read_text()
     path = tmp_path / "mine.toml"
     path.write_text(text.replace("exposure_s = 0.100", "exposure_s = 0.05"))
@@ -159,8 +156,6 @@ def test_dzamba2014_liebe_about_twice_reed():
 def test_liebe_flat_qe_equals_photon_count_of_scaled_blackbody():
     # Independent computation: photons of a 5800 K black body carrying 2.96e-8 W m^-2 in total,
     # between 400 and 800 nm, by a separate quadrature (QE = 1).
-    from scipy.integrate import quad
-
     h, c, k = 6.62607015e-34, 299792458.0, 1.380649e-23
 
     def planck(lam):

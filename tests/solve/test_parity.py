@@ -137,7 +137,7 @@ def test_wrong_field_given_never_gives_a_wrong_attitude(image, factor):
 
 def _noise_frames(sensor, n: int):
     shape = (sensor.detector.rows, sensor.detector.columns)
-    return [apply_noise(np.zeros(shape), sensor, np.random.default_rng(s)) for s in range(n)]
+    return [apply_noise(np.zeros(shape), sensor, rng=np.random.default_rng(s)) for s in range(n)]
 
 
 def _assert_no_attitude(sol) -> None:

@@ -60,8 +60,8 @@ def _gyro_prior(att, w):
 def _run(solver, st16, hipparcos, att, w, n, prior, seed, max_mag=6.5):
     tracker = Tracker(solver, interval_s=0.5, prior=prior)
     out = []
-    frames = render_sequence(st16, att, hipparcos, n, 0.5, rate_rad_s=w, seed=seed,
-                             max_mag=max_mag)  # fmt: skip
+    frames = render_sequence(st16, att, hipparcos, n_frames=n, interval_s=0.5, rate_rad_s=w,
+                             seed=seed, max_mag=max_mag)  # fmt: skip
     for frame in frames:
         out.append((frame, tracker(frame.image)))
     return out
@@ -104,8 +104,8 @@ def test_track_starts_lost_in_space_without_prior(solver, st16, hipparcos):
 
 def test_far_prior_falls_back_and_says_so(solver, st16, hipparcos):
     att, w = _scenario(3, 0.1)
-    frame = next(iter(render_sequence(st16, att, hipparcos, 1, 0.5, rate_rad_s=w, seed=5,
-                                      max_mag=6.5)))  # fmt: skip
+    frame = next(iter(render_sequence(st16, att, hipparcos, n_frames=1, interval_s=0.5,
+                                      rate_rad_s=w, seed=5, max_mag=6.5)))  # fmt: skip
     off = Rotation.from_rotvec([5 * DEG, 0.0, 0.0]) * att  # 5 deg off, claimed good to 0.05
     r = solver.track(frame.image, Prior(off, np.eye(3) * (0.05 * DEG) ** 2))
     assert r.mode == "lost_in_space"

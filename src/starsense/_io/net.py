@@ -10,7 +10,7 @@ from starsense.errors import InputError
 __all__ = ["probe_tcp"]
 
 
-def probe_tcp(host: str, port: int, timeout_s: float, what: str) -> None:
+def probe_tcp(host: str, port: int, *, timeout_s: float, what: str) -> None:
     """Open and close a TCP connection to ``host:port``: fail at once when nothing listens.
 
     A refused connection is reported immediately (not after the timeout); a silent host after

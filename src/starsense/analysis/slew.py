@@ -290,14 +290,16 @@ def simulate_slew(
         stamps = []
         for _ in range(n_trials):
             x0, y0 = rng.random(2)
-            stamp, _, _ = streak_stamp_expected(sensor, x0, y0, x0 + length, y0, electrons=1.0)
+            stamp, _, _ = streak_stamp_expected(
+                sensor, x0=x0, y0=y0, x1=x0 + length, y1=y0, electrons=1.0
+            )
             stamps.append(stamp)
         shape = np.max([s.shape for s in stamps], axis=0)
         unit = np.zeros((n_trials, *shape))
         for k, s in enumerate(stamps):
             unit[k, : s.shape[0], : s.shape[1]] = s
         expected = electrons[:, None, None, None] * unit[None]  # (M, T, H, W)
-        counts = apply_noise(expected.reshape(-1, *shape), sensor, rng)
+        counts = apply_noise(expected.reshape(-1, *shape), sensor, rng=rng)
         found, integ = detect_stack(counts, sensor.detection, background_counts=det.bias_counts)
         detected[:, j, :] = found.reshape(n_m, n_trials)
         intensity[:, j, :] = integ.reshape(n_m, n_trials)

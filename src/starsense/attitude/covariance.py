@@ -171,7 +171,7 @@ def fisher_covariance(
 
 
 def triad_covariance(
-    b1: NDArray[np.float64], b2: NDArray[np.float64], sigma1_rad: float, sigma2_rad: float
+    b1: NDArray[np.float64], b2: NDArray[np.float64], *, sigma1_rad: float, sigma2_rad: float
 ) -> NDArray[np.float64]:
     """Return the covariance of the TRIAD attitude with ``b1`` as the anchor (Shuster & Oh 1981).
 

@@ -225,7 +225,7 @@ def quest_kernel(
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class QuestEstimator(Estimator):
     """QUEST estimator with sequential rotations and a checked q-method fallback.
 

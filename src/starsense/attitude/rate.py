@@ -47,6 +47,7 @@ def rate_from_attitudes(
     attitude0: Rotation,
     attitude1: Rotation,
     dt_s: float,
+    *,
     cov0_rad2: ArrayLike | None = None,
     cov1_rad2: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -90,6 +91,7 @@ def rate_from_attitudes(
 def predict_attitude(
     attitude: Rotation,
     dt_s: float,
+    *,
     rate_rad_s: ArrayLike | None = None,
     cov_rad2: ArrayLike | None = None,
     rate_cov_rad2_s2: ArrayLike | None = None,

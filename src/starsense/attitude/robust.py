@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from starsense.attitude.estimate import estimate_attitude
+
 __all__ = ["OUTLIER_SIGMA", "robust_attitude"]
 
 
@@ -12,7 +14,7 @@ __all__ = ["OUTLIER_SIGMA", "robust_attitude"]
 OUTLIER_SIGMA = 7.0
 
 
-def robust_attitude(body, reference, sigma_rad, max_drop: int = 5):
+def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
     """Estimate the attitude, dropping one by one the stars whose residual is an outlier.
 
     A blended or double star is identified right but centroided at the photocentre of the
@@ -33,8 +35,6 @@ def robust_attitude(body, reference, sigma_rad, max_drop: int = 5):
     -------
     AttitudeSolution, and the mask of the stars kept (N,)
     """
-    from starsense.attitude import estimate_attitude
-
     sigma = np.broadcast_to(np.asarray(sigma_rad, dtype=float), (len(body),))
     keep = np.ones(len(body), dtype=bool)
     att = estimate_attitude(body, reference, sigma, method="svd")

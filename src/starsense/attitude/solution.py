@@ -185,7 +185,8 @@ def wahba_residuals(
     rotation: Rotation,
     body: NDArray[np.float64],
     reference: NDArray[np.float64],
-    sigma: NDArray[np.float64],
+    *,
+    sigma_rad: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], float]:
     """Per-star residual angles and the Wahba loss of an attitude.
 
@@ -195,7 +196,7 @@ def wahba_residuals(
         Attitude, ICRS -> camera.
     body, reference : ndarray, shape (N, 3)
         Unit camera-frame and ICRS vectors.
-    sigma : ndarray, shape (N,)
+    sigma_rad : ndarray, shape (N,)
         Per-star sigma, rad.
 
     Returns
@@ -210,7 +211,7 @@ def wahba_residuals(
     dot = np.einsum("ij,ij->i", body, predicted)
     residuals = np.arctan2(cross, dot)
     chord2 = np.sum((body - predicted) ** 2, axis=1)
-    loss = 0.5 * float(np.sum(chord2 / sigma**2))
+    loss = 0.5 * float(np.sum(chord2 / sigma_rad**2))
     return residuals, loss
 
 
@@ -259,7 +260,7 @@ class Estimator:
         start = time.perf_counter()
         body, ref, sigma, notes = validate_observations(body_vectors, reference_vectors, sigma_rad)
         rotation, cov, solve_notes, method = self._solve(body, ref, sigma)
-        residuals, loss = wahba_residuals(rotation, body, ref, sigma)
+        residuals, loss = wahba_residuals(rotation, body, ref, sigma_rad=sigma)
         return AttitudeSolution(
             rotation=rotation,
             covariance_rad2=cov,

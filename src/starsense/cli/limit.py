@@ -123,7 +123,7 @@ def limit_star(
     t, c = fit_star(m, ci, system)
     clamped = _colour_clamp_note(system, ci, names[1], t)
     f = float(centroid_fisher(c, t, diameter_m, exposure_s))
-    photons = float(total_photons(c, t, diameter_m, exposure_s))
+    photons = float(total_photons(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     sigma = 1.0 / np.sqrt(f)
     payload = {
         "temperature_k": t,

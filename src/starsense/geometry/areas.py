@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from starsense._validate import check_scalar, positive_float
 from starsense.errors import InputError
-from starsense.geometry.projection import _points
+from starsense.geometry.projection import xy_points
 
 __all__ = ["AreaLayout", "FocalArea", "polygon_area", "polygon_centroid"]
 
@@ -86,7 +86,7 @@ class FocalArea:
     vertices: NDArray[np.float64]
 
     def __post_init__(self) -> None:
-        v = _points(self.vertices, f"area {self.name!r} vertices")
+        v = xy_points(self.vertices, f"area {self.name!r} vertices")
         if v.ndim != 2 or len(v) < 3:
             raise InputError(f"area {self.name!r} needs at least 3 vertices, got {len(v)}")
         v = v.copy()
@@ -112,7 +112,7 @@ class FocalArea:
         -------
         ndarray of bool, shape (...)
         """
-        p = _points(xy)
+        p = xy_points(xy)
         x, y = p[..., 0], p[..., 1]
         inside = np.zeros(x.shape, dtype=bool)
         v = self.vertices
@@ -247,7 +247,7 @@ class AreaLayout:
         -------
         ndarray of int, shape (...)
         """
-        p = _points(xy)
+        p = xy_points(xy)
         out = np.zeros(p.shape[:-1], dtype=int)
         for k, a in enumerate(self.areas, start=1):
             out[(out == 0) & a.contains(p)] = k

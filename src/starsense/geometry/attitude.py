@@ -63,10 +63,10 @@ from starsense._validate import finite_array as _finite_array
 from starsense._validate import vectors3 as _as_vectors
 from starsense.errors import InputError
 from starsense.geometry.projection import (
-    _unpack,
-    _wrap_two_pi,
     radec_to_vectors,
+    scalar_or_array,
     vectors_to_radec,
+    wrap_two_pi,
 )
 
 __all__ = [
@@ -142,6 +142,14 @@ def attitude_from_radec_roll(
     InputError
         If a value is not finite, a declination is outside [-pi/2, pi/2], or the shapes do not
         broadcast to a scalar or a 1-D batch.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_attitude
+    >>> rotation = attitude_from_radec_roll(np.radians(83.8), np.radians(-5.4), 0.0)
+    >>> np.degrees(radec_roll_from_attitude(rotation)[:2]).round(6).tolist()
+    [83.8, -5.4]
     """
     ra = _finite_array(ra_rad, "ra_rad")
     dec = _finite_array(dec_rad, "dec_rad")
@@ -217,8 +225,8 @@ def radec_roll_from_attitude(
     y_north = np.einsum("...i,...i->...", y, north)
     x_east = np.einsum("...i,...i->...", x, east)
     y_east = np.einsum("...i,...i->...", y, east)
-    roll = _wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
-    return ra, dec, _unpack(np.asarray(roll))
+    roll = wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
+    return ra, dec, scalar_or_array(np.asarray(roll))
 
 
 def angular_separation(u: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | np.float64:
@@ -238,7 +246,7 @@ def angular_separation(u: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | np.f
     b = _as_vectors(v, "v")
     cross = np.linalg.norm(np.cross(a, b), axis=-1)
     dot = np.einsum("...i,...i->...", a, b)
-    return _unpack(np.asarray(np.arctan2(cross, dot)))
+    return scalar_or_array(np.asarray(np.arctan2(cross, dot)))
 
 
 def small_rotation_angles(r_true: Rotation, r_est: Rotation) -> NDArray[np.float64]:

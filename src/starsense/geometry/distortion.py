@@ -18,25 +18,28 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["distort", "distortion_jacobian", "undistort"]
+__all__ = ["NO_DISTORTION", "distort", "distortion_jacobian", "undistort"]
+
+#: ``(k1, k2, p1, p2)`` of a distortion-free lens
+NO_DISTORTION = (0.0, 0.0, 0.0, 0.0)
 
 
-def distort(x, y, k1=0.0, k2=0.0, p1=0.0, p2=0.0) -> tuple[np.ndarray, np.ndarray]:
+def distort(x, y, coefficients=NO_DISTORTION) -> tuple[np.ndarray, np.ndarray]:
     """Return distorted tangent-plane coordinates (module equations).
 
     Parameters
     ----------
     x, y : array_like, shape (N,)
         Ideal tangent-plane coordinates, units of the focal length.
-    k1, k2 : float
-        Radial coefficients (per r^2 and r^4, r in units of the focal length).
-    p1, p2 : float
-        Decentring coefficients.
+    coefficients : sequence of 4 floats
+        ``(k1, k2, p1, p2)``: the radial coefficients (per r^2 and r^4, r in units of the focal
+        length) and the decentring coefficients (``Optics.distortion``).
 
     Returns
     -------
     x_d, y_d : ndarray, shape (N,)
     """
+    k1, k2, p1, p2 = coefficients
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     r2 = x * x + y * y
@@ -46,21 +49,22 @@ def distort(x, y, k1=0.0, k2=0.0, p1=0.0, p2=0.0) -> tuple[np.ndarray, np.ndarra
     return xd, yd
 
 
-def distortion_jacobian(x, y, k1=0.0, k2=0.0, p1=0.0, p2=0.0) -> np.ndarray:
+def distortion_jacobian(x, y, coefficients=NO_DISTORTION) -> np.ndarray:
     """Return d(x_d, y_d) / d(x, y), shape (N, 2, 2), of :func:`distort`.
 
     Parameters
     ----------
     x, y : array_like, shape (N,)
         Ideal tangent-plane coordinates.
-    k1, k2, p1, p2 : float
-        Distortion coefficients.
+    coefficients : sequence of 4 floats
+        ``(k1, k2, p1, p2)``, as in :func:`distort`.
 
     Returns
     -------
     ndarray, shape (N, 2, 2)
         ``[[dxd/dx, dxd/dy], [dyd/dx, dyd/dy]]`` per point.
     """
+    k1, k2, p1, p2 = coefficients
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     r2 = x * x + y * y
@@ -75,7 +79,7 @@ def distortion_jacobian(x, y, k1=0.0, k2=0.0, p1=0.0, p2=0.0) -> np.ndarray:
 
 
 def undistort(
-    xd, yd, k1=0.0, k2=0.0, p1=0.0, p2=0.0, *, iterations: int = 20
+    xd, yd, coefficients=NO_DISTORTION, *, iterations: int = 20
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return the ideal coordinates whose :func:`distort` image is ``(xd, yd)`` (Newton).
 
@@ -83,8 +87,8 @@ def undistort(
     ----------
     xd, yd : array_like, shape (N,)
         Distorted tangent-plane coordinates, units of the focal length.
-    k1, k2, p1, p2 : float
-        Distortion coefficients.
+    coefficients : sequence of 4 floats
+        ``(k1, k2, p1, p2)``, as in :func:`distort`.
     iterations : int
         Largest number of Newton steps (it stops when the steps fall below 1e-15).
 
@@ -94,15 +98,16 @@ def undistort(
         NaN where the model cannot be inverted (a fold of the distortion, far outside a
         physical field).
     """
+    k1, k2, p1, p2 = coefficients
     xd = np.asarray(xd, dtype=float)
     yd = np.asarray(yd, dtype=float)
     if not (k1 or k2 or p1 or p2):
         return xd.copy(), yd.copy()
     x, y = xd.copy(), yd.copy()
     for _ in range(iterations):
-        fx, fy = distort(x, y, k1, k2, p1, p2)
+        fx, fy = distort(x, y, coefficients)
         rx, ry = fx - xd, fy - yd
-        j = distortion_jacobian(x, y, k1, k2, p1, p2)
+        j = distortion_jacobian(x, y, coefficients)
         det = j[..., 0, 0] * j[..., 1, 1] - j[..., 0, 1] * j[..., 1, 0]
         with np.errstate(divide="ignore", invalid="ignore"):
             dx = (j[..., 1, 1] * rx - j[..., 0, 1] * ry) / det
@@ -111,7 +116,7 @@ def undistort(
         step = np.nanmax(np.abs(np.concatenate([np.ravel(dx), np.ravel(dy)])), initial=0.0)
         if step < 1e-15:
             break
-    fx, fy = distort(x, y, k1, k2, p1, p2)
+    fx, fy = distort(x, y, coefficients)
     bad = ~(np.hypot(fx - xd, fy - yd) < 1e-9)
     if np.any(bad):
         x, y = np.where(bad, np.nan, x), np.where(bad, np.nan, y)

@@ -177,7 +177,7 @@ class RectangularFov(_Fov):
 
     @classmethod
     def from_detector(
-        cls, columns: int, rows: int, pixel_pitch_m: float, focal_length_m: float
+        cls, columns: int, rows: int, *, pixel_pitch_m: float, focal_length_m: float
     ) -> RectangularFov:
         """Return the field of a pinhole camera with a detector of ``columns x rows`` square pixels.
 
@@ -243,6 +243,7 @@ def count_in_fov(
     fov: CircularFov | RectangularFov,
     attitudes: Rotation,
     vectors: ArrayLike,
+    *,
     tree: cKDTree | None = None,
 ) -> NDArray[np.intp]:
     """Count the directions inside the field for each attitude.

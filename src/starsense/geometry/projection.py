@@ -15,7 +15,15 @@ from starsense._validate import finite_array as _finite_array
 from starsense._validate import vectors3 as _as_vectors
 from starsense.errors import InputError
 
-__all__ = ["radec_to_vectors", "tangent_to_vectors", "vectors_to_radec", "vectors_to_tangent"]
+__all__ = [
+    "radec_to_vectors",
+    "scalar_or_array",
+    "tangent_to_vectors",
+    "vectors_to_radec",
+    "vectors_to_tangent",
+    "wrap_two_pi",
+    "xy_points",
+]
 
 TWO_PI = 2.0 * np.pi
 HALF_PI = 0.5 * np.pi
@@ -25,14 +33,38 @@ HALF_PI = 0.5 * np.pi
 _POLE_COS_DEC = 1e-15
 
 
-def _wrap_two_pi(angle: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Wrap angles to [0, 2 pi) (``np.mod`` alone can return exactly 2 pi for tiny negatives)."""
-    wrapped = np.mod(angle, TWO_PI)
+def wrap_two_pi(angle_rad: ArrayLike) -> NDArray[np.float64]:
+    """Wrap angles to [0, 2 pi).
+
+    ``np.mod`` alone can return exactly 2 pi for tiny negative angles; those become 0.
+
+    Parameters
+    ----------
+    angle_rad : array_like
+        Angles, rad, any shape.
+
+    Returns
+    -------
+    ndarray
+        The angles in [0, 2 pi), rad, same shape.
+    """
+    wrapped = np.mod(angle_rad, TWO_PI)
     return np.where(wrapped >= TWO_PI, 0.0, wrapped)
 
 
-def _unpack(arr: NDArray[np.float64]) -> NDArray[np.float64] | np.float64:
-    """Return 0-d arrays as NumPy scalars and anything else unchanged."""
+def scalar_or_array(arr: NDArray[np.float64]) -> NDArray[np.float64] | np.float64:
+    """Return a 0-d array as a NumPy scalar and any other array unchanged.
+
+    Parameters
+    ----------
+    arr : ndarray
+        Any array.
+
+    Returns
+    -------
+    numpy.float64 or ndarray
+        ``arr[()]`` when ``arr`` is 0-d, else ``arr`` itself.
+    """
     return arr[()] if arr.ndim == 0 else arr
 
 
@@ -103,13 +135,32 @@ def vectors_to_radec(
     rho = np.hypot(v[..., 0], v[..., 1])
     if np.any((rho == 0.0) & (v[..., 2] == 0.0)):
         raise InputError("vectors contains a zero vector, which has no direction")
-    ra = _wrap_two_pi(np.arctan2(v[..., 1], v[..., 0]))
+    ra = wrap_two_pi(np.arctan2(v[..., 1], v[..., 0]))
     ra = np.where(rho <= _POLE_COS_DEC * np.abs(v[..., 2]), 0.0, ra)
     dec = np.arctan2(v[..., 2], rho)
-    return _unpack(ra), _unpack(dec)
+    return scalar_or_array(ra), scalar_or_array(dec)
 
 
-def _points(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
+def xy_points(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
+    """Check and return points of a plane (tangent plane or focal plane) as a float array.
+
+    Parameters
+    ----------
+    xy : array_like, shape (..., 2)
+        Points (x, y), in the caller's unit.
+    name : str
+        The argument's name, for the error message.
+
+    Returns
+    -------
+    ndarray, shape (..., 2)
+        The points as float64.
+
+    Raises
+    ------
+    InputError
+        If the last axis is not of length 2 or a value is not finite.
+    """
     arr = np.asarray(xy, dtype=np.float64)
     if arr.ndim < 1 or arr.shape[-1] != 2:
         raise InputError(f"{name} must have shape (..., 2), got shape {arr.shape}")
@@ -120,7 +171,7 @@ def _points(xy: ArrayLike, name: str = "xy") -> NDArray[np.float64]:
 
 def tangent_to_vectors(xy: ArrayLike) -> NDArray[np.float64]:
     """Camera-frame unit vectors (..., 3) of tangent-plane points (..., 2)."""
-    p = _points(xy)
+    p = xy_points(xy)
     v = np.concatenate([p, np.ones((*p.shape[:-1], 1))], axis=-1)
     # np.linalg.norm(v, axis=-1, keepdims=True) without its wrapper (the same reduction)
     return v / np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=True))

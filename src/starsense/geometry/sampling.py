@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import finite_array
+from starsense._validate import as_generator, finite_array
 from starsense.errors import InputError
 
 __all__ = [
@@ -80,7 +80,8 @@ def random_attitudes(n: int, rng: np.random.Generator | int | None = None) -> Ro
     n : int
         Number of attitudes, >= 1.
     rng : numpy.random.Generator, int or None
-        Random generator or seed (passed through :func:`numpy.random.default_rng`).
+        Random generator, seed, or None for a fresh seed (read by
+        :func:`starsense._validate.as_generator`).
 
     Returns
     -------
@@ -90,10 +91,11 @@ def random_attitudes(n: int, rng: np.random.Generator | int | None = None) -> Ro
     Raises
     ------
     InputError
-        If `n` is not an integer >= 1.
+        If `n` is not an integer >= 1, or `rng` not None, a seed >= 0 or a Generator.
     """
     n = _count(n, "n")
-    return Rotation.random(n, rng=np.random.default_rng(rng))
+    gen, _ = as_generator(rng)
+    return Rotation.random(n, rng=gen)
 
 
 def great_circle_track(
@@ -155,6 +157,7 @@ def great_circle_track(
 def track_attitudes(
     inclination_rad: float,
     n: int,
+    *,
     ascending_node_rad: float = 0.0,
     along: Literal["x", "y"] = "x",
 ) -> Rotation:

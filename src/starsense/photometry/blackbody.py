@@ -66,7 +66,7 @@ def aperture_area_m2(diameter_m):
     return np.pi * np.asarray(diameter_m, dtype=float) ** 2 / 4.0
 
 
-def photons_per_wavelength(dilution, temperature_k, wavelength_m, diameter_m, exposure_s):
+def photons_per_wavelength(dilution, temperature_k, wavelength_m, *, diameter_m, exposure_s):
     """Photons collected per unit wavelength, Fialho & Mortari 2019, eq. 12.
 
     Parameters
@@ -91,14 +91,28 @@ def photons_per_wavelength(dilution, temperature_k, wavelength_m, diameter_m, ex
     )
 
 
-def total_photons(dilution, temperature_k, diameter_m, exposure_s):
+def total_photons(dilution, temperature_k, *, diameter_m, exposure_s):
     """Return the expected photons over all wavelengths: eq. 12 integrated in closed form.
 
     With x = hc / (lambda k T), the integral of lambda^-4 / (e^x - 1) over lambda is
     2 zeta(3) (kT/hc)^3, so N = C t (pi D^2 / 4) 2 pi c 2 zeta(3) (kT/hc)^3
     = C t pi^2 D^2 c zeta(3) (kT/hc)^3.
 
-    Returns photons (the Poisson mean iota of sec. 2.9), same shape as the inputs.
+    Parameters
+    ----------
+    dilution : float or array_like
+        Geometric dilution factor C (dimensionless).
+    temperature_k : float or array_like
+        Black-body temperature, K.
+    diameter_m : float or array_like
+        Aperture diameter D, m.
+    exposure_s : float or array_like
+        Exposure t, s.
+
+    Returns
+    -------
+    ndarray
+        Photons (the Poisson mean iota of sec. 2.9), the broadcast shape of the inputs.
     """
     c = np.asarray(dilution, dtype=float)
     t = np.asarray(temperature_k, dtype=float)

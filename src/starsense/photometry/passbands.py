@@ -108,7 +108,7 @@ def sun_spectrum() -> tuple[np.ndarray, np.ndarray]:
     return wavelength_m[ok], irradiance[ok]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class Passband:
     """A photometric band resampled on a fine grid, with its zero point.
 

@@ -24,12 +24,14 @@ import numpy as np
 
 from starsense.errors import InputError
 from starsense.photometry.blackbody import (
+    BOLTZMANN_J_K,
     PLANCK_J_S,
     SPEED_OF_LIGHT_M_S,
     aperture_area_m2,
     photons_per_wavelength,
     spectral_exitance,
 )
+from starsense.photometry.colour import ColourModel
 
 #: Liebe (2002): the total irradiance of an m = 0 star, 2.96e-14 W per mm^2 = 2.96e-8 W m^-2.
 #: Dzamba & Enright print "2.96e-14 W/m^2", but their own derivation, the solar constant
@@ -55,8 +57,6 @@ def _grid(passband_nm: tuple[float, float], n: int = 2001) -> np.ndarray:
 @functools.cache
 def _liebe_reference_spectrum_shape() -> tuple[float, float]:
     """(scale, _) such that scale * M_e(5800 K, lambda) integrates to 2.96e-14 W m^-2."""
-    from starsense.photometry.blackbody import BOLTZMANN_J_K
-
     # integral of the black-body exitance over all wavelengths: sigma T^4 (Stefan-Boltzmann)
     sigma = 2 * np.pi**5 * BOLTZMANN_J_K**4 / (15 * PLANCK_J_S**3 * SPEED_OF_LIGHT_M_S**2)
     return LIEBE_ZERO_MAG_IRRADIANCE_W_M2 / (sigma * LIEBE_TEMPERATURE_K**4), 0.0
@@ -73,20 +73,61 @@ def liebe_zero_mag_electron_rate(qe: QeFunction, passband_nm=(400.0, 800.0)) -> 
 
 def liebe_electrons(
     magnitude,
+    *,
     diameter_m,
     exposure_s,
     qe: QeFunction,
     passband_nm=(400.0, 800.0),
     transmission: float = 1.0,
 ):
-    """Photoelectrons by the Liebe model, eq. 6: (1/4) t_e pi D^2 S_0 / 2.5^m."""
+    """Photoelectrons by the Liebe model, eq. 6: (1/4) t_e pi D^2 S_0 / 2.5^m.
+
+    Parameters
+    ----------
+    magnitude : float or array_like
+        Visual magnitudes of the stars.
+    diameter_m : float
+        Aperture diameter, m.
+    exposure_s : float
+        Exposure, s.
+    qe : callable
+        Quantum efficiency as a function of wavelength (m).
+    passband_nm : (float, float)
+        Wavelength range integrated, nm.
+    transmission : float
+        Optical throughput (0-1].
+
+    Returns
+    -------
+    float or ndarray
+        Expected photoelectrons, same shape as ``magnitude``.
+    """
     s0 = liebe_zero_mag_electron_rate(qe, passband_nm)
     m = np.asarray(magnitude, dtype=float)
     return transmission * aperture_area_m2(diameter_m) * exposure_s * s0 / 2.5**m
 
 
-def reed_electrons(magnitude, diameter_m, exposure_s, qe_mean, transmission: float = 1.0):
-    """Photoelectrons by the Reed model, eq. 8: (1/4) eta_Q t_e pi D^2 phi_0 10^(-0.4 m)."""
+def reed_electrons(magnitude, *, diameter_m, exposure_s, qe_mean, transmission: float = 1.0):
+    """Photoelectrons by the Reed model, eq. 8: (1/4) eta_Q t_e pi D^2 phi_0 10^(-0.4 m).
+
+    Parameters
+    ----------
+    magnitude : float or array_like
+        Visual magnitudes of the stars.
+    diameter_m : float
+        Aperture diameter, m.
+    exposure_s : float
+        Exposure, s.
+    qe_mean : float
+        Mean quantum efficiency over the passband.
+    transmission : float
+        Optical throughput (0-1].
+
+    Returns
+    -------
+    float or ndarray
+        Expected photoelectrons, same shape as ``magnitude``.
+    """
     m = np.asarray(magnitude, dtype=float)
     return (
         transmission
@@ -101,19 +142,45 @@ def reed_electrons(magnitude, diameter_m, exposure_s, qe_mean, transmission: flo
 def blackbody_electrons(
     dilution,
     temperature_k,
+    *,
     diameter_m,
     exposure_s,
     qe: QeFunction,
     passband_nm=(400.0, 800.0),
     transmission: float = 1.0,
 ):
-    """Photoelectrons from each star's own black body through the QE curve (eq. 12 x QE)."""
+    """Photoelectrons from each star's own black body through the QE curve (eq. 12 x QE).
+
+    Parameters
+    ----------
+    dilution : float or array_like
+        Geometric dilution factor C of each star (dimensionless).
+    temperature_k : float or array_like
+        Black-body temperature of each star, K.
+    diameter_m : float
+        Aperture diameter, m.
+    exposure_s : float
+        Exposure, s.
+    qe : callable
+        Quantum efficiency as a function of wavelength (m).
+    passband_nm : (float, float)
+        Wavelength range integrated, nm.
+    transmission : float
+        Optical throughput (0-1].
+
+    Returns
+    -------
+    ndarray
+        Expected photoelectrons, the broadcast shape of ``dilution`` and ``temperature_k``.
+    """
     lam = _grid(passband_nm, 801)
-    n = photons_per_wavelength(dilution, temperature_k, lam, diameter_m, exposure_s)
+    n = photons_per_wavelength(
+        dilution, temperature_k, lam, diameter_m=diameter_m, exposure_s=exposure_s
+    )
     return transmission * np.trapezoid(n * qe(lam), lam, axis=-1)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Sensitivity:
     """Photoelectrons per star for one sensor and one model.
 
@@ -175,17 +242,30 @@ class Sensitivity:
         m = np.asarray(magnitude, dtype=float)
         if self.model == "reed":
             return reed_electrons(
-                m, self.diameter_m, self.exposure_s, self.qe_mean, self.transmission
+                m,
+                diameter_m=self.diameter_m,
+                exposure_s=self.exposure_s,
+                qe_mean=self.qe_mean,
+                transmission=self.transmission,
             )
         if self.model == "liebe":
             return liebe_electrons(
-                m, self.diameter_m, self.exposure_s, self.qe, self.passband_nm, self.transmission
+                m,
+                diameter_m=self.diameter_m,
+                exposure_s=self.exposure_s,
+                qe=self.qe,
+                passband_nm=self.passband_nm,
+                transmission=self.transmission,
             )
         if colour_index is None:
             raise InputError("the blackbody sensitivity model needs each star's colour index")
-        from starsense.photometry.colour import ColourModel
-
         t, c = ColourModel(self.colour).fit(m, colour_index)
         return blackbody_electrons(
-            c, t, self.diameter_m, self.exposure_s, self.qe, self.passband_nm, self.transmission
+            c,
+            t,
+            diameter_m=self.diameter_m,
+            exposure_s=self.exposure_s,
+            qe=self.qe,
+            passband_nm=self.passband_nm,
+            transmission=self.transmission,
         )

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from starsense.errors import InputError
 from starsense.geometry.projection import vectors_to_tangent
+from starsense.render.scene import render_frame
 
 __all__ = ["AreaFrame", "area_pixel_index", "focal_plane_sensor", "render_areas"]
 
@@ -109,17 +110,17 @@ class AreaFrame:
     star_area: NDArray[np.int_]
 
 
-def render_areas(sensor, attitude, catalog, **kwargs) -> AreaFrame:
+def render_areas(sensor, rotation, catalog=None, **kwargs) -> AreaFrame:
     """Render what the attitude-determination areas of ``sensor`` see.
 
     Parameters
     ----------
     sensor : Sensor
         With ``attitude_areas``.
-    attitude : Rotation
-        ICRS -> camera.
-    catalog : Catalog
-        The stars.
+    rotation : Rotation
+        The attitude, ICRS -> camera.
+    catalog : Catalog or str, optional
+        The stars (as in :func:`starsense.render.render_frame`; default the bundled Hipparcos).
     **kwargs
         Passed to :func:`starsense.render.render_frame` (rate, model, band, max_mag, rng, ...).
 
@@ -128,10 +129,8 @@ def render_areas(sensor, attitude, catalog, **kwargs) -> AreaFrame:
     AreaFrame
         The frame on the focal-plane sensor, pixels outside the areas at the bias level.
     """
-    from starsense.render.scene import render_frame
-
     fp = focal_plane_sensor(sensor)
-    frame = render_frame(fp, attitude, catalog, **kwargs)
+    frame = render_frame(fp, rotation, catalog, **kwargs)
     pixel_area = area_pixel_index(fp)
     outside = pixel_area == 0
     bias = np.asarray(round(fp.detector.bias_counts)).astype(frame.image.dtype)

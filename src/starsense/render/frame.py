@@ -186,7 +186,7 @@ class FrameTruth:
 
 @dataclass(frozen=True, eq=False)
 class Frame:
-    """A rendered frame.
+    """A rendered frame (:func:`starsense.render.render_frame`): the image and its truth.
 
     Attributes
     ----------
@@ -197,6 +197,10 @@ class Frame:
         None when rendered with ``keep_expected=False`` (saves 4 bytes per pixel, 20 MB for
         the ST-16).
     truth : FrameTruth
+        What was rendered: sensor and catalogue names, attitude (``truth.attitude``, a
+        Rotation, and ``ra_rad`` / ``dec_rad`` / ``roll_rad``), rate, exposure, the seed of the
+        noise, and one row per rendered star (``truth.stars``: ids, magnitudes, electrons,
+        pixel tracks), so every later stage can be scored.
     """
 
     image: np.ndarray

@@ -80,7 +80,7 @@ def quantise(expected_e, sensor) -> np.ndarray:
     return _to_counts(work, det)
 
 
-def apply_noise(expected_e, sensor, rng=None, *, exposure_s: float | None = None) -> np.ndarray:
+def apply_noise(expected_e, sensor, *, rng=None, exposure_s: float | None = None) -> np.ndarray:
     """Noisy counts from expected electrons: shot, dark, read noise, gain, bias, ADC.
 
     Parameters

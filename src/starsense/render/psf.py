@@ -65,7 +65,9 @@ class Box(NamedTuple):
         return slice(self.row0, self.row1), slice(self.col0, self.col1)
 
     @classmethod
-    def around(cls, x_min: float, x_max: float, y_min: float, y_max: float, pad_px: float) -> Box:
+    def around(
+        cls, *, x_min: float, x_max: float, y_min: float, y_max: float, pad_px: float
+    ) -> Box:
         """Return the smallest box holding every pixel that meets the padded rectangle.
 
         The rectangle is ``[x_min - pad, x_max + pad] x [y_min - pad, y_max + pad]``, px
@@ -114,7 +116,7 @@ def erf_diff(a, b) -> np.ndarray:
     return out
 
 
-def pixel_profile(c0: int, c1: int, mu, sigma_px: float) -> np.ndarray:
+def pixel_profile(c0: int, c1: int, mu, *, sigma_px: float) -> np.ndarray:
     """Fraction of a 1-D Gaussian falling in each of the unit pixels ``c0 .. c1 - 1`` (exact).
 
     Parameters
@@ -145,7 +147,9 @@ def pixel_profile(c0: int, c1: int, mu, sigma_px: float) -> np.ndarray:
     return 0.5 * np.where(b >= 0, qb - qa, np.where(a <= 0, qa - qb, 2.0 - qa - qb))
 
 
-def gaussian_intensity(px, py, x, y, sigma_px: float, electrons: float = 1.0) -> np.ndarray:
+def gaussian_intensity(
+    px, py, *, x: float, y: float, sigma_px: float, electrons: float = 1.0
+) -> np.ndarray:
     """Eq. 9 at points: ``S_e / (2 pi sigma^2) exp(-r^2 / (2 sigma^2))``, electrons px^-2.
 
     Parameters
@@ -167,10 +171,10 @@ def gaussian_intensity(px, py, x, y, sigma_px: float, electrons: float = 1.0) ->
 def gaussian_stamp(
     x: float,
     y: float,
+    *,
     sigma_px: float,
     electrons: float = 1.0,
     box: Box | tuple[int, int, int, int] | None = None,
-    *,
     pad_sigma: float = 5.0,
 ) -> tuple[np.ndarray, int, int]:
     """Render a static star: eq. 9 integrated exactly over each pixel of a box.
@@ -199,9 +203,13 @@ def gaussian_stamp(
     s = positive_float(sigma_px, "sigma_px")
     if not (math.isfinite(x) and math.isfinite(y)):
         raise InputError(f"star position must be finite, got x={x!r}, y={y!r}")
-    b = Box.around(x, x, y, y, pad_sigma * s) if box is None else Box(*(int(v) for v in box))
+    b = (
+        Box.around(x_min=x, x_max=x, y_min=y, y_max=y, pad_px=pad_sigma * s)
+        if box is None
+        else Box(*(int(v) for v in box))
+    )
     if b.row1 <= b.row0 or b.col1 <= b.col0:
         raise InputError(f"box must be non-empty (row0 < row1, col0 < col1), got {tuple(b)}")
-    px = pixel_profile(b.col0, b.col1, [x], s)[0]
-    py = pixel_profile(b.row0, b.row1, [y], s)[0]
+    px = pixel_profile(b.col0, b.col1, [x], sigma_px=s)[0]
+    py = pixel_profile(b.row0, b.row1, [y], sigma_px=s)[0]
     return float(electrons) * np.outer(py, px), b.row0, b.col0

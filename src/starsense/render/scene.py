@@ -31,11 +31,15 @@ import numbers
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import check_scalar, finite_array
+from starsense._validate import as_generator, check_scalar, finite_array
+from starsense.catalog import DEFAULT_CATALOG, Catalog, load_catalog
+from starsense.catalog.apparent import apparent_places
 from starsense.errors import InputError
 from starsense.geometry.attitude import radec_roll_from_attitude
+from starsense.photometry.colour import ColourModel
+from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.frame import Frame, FrameTruth, StarTruth
-from starsense.render.noise import apply_noise, as_generator, quantise
+from starsense.render.noise import apply_noise, quantise
 from starsense.render.psf import Box
 from starsense.render.smear import METHODS, pad_sigma_for, polyline_expected
 from starsense.render.tracks import Tracks, check_rate, star_tracks
@@ -142,14 +146,16 @@ def render_star_stamp(
         what = f"streak of ({dx:g}, {dy:g}) px"
     else:
         w = check_rate((0.0, 0.0, 0.0) if rate_rad_s is None else rate_rad_s)
-        tracks = star_tracks(sensor, sensor.unproject([x], [y]), w, te)
+        tracks = star_tracks(sensor, sensor.unproject([x], [y]), rate_rad_s=w, exposure_s=te)
         xs, ys = tracks.vertices[0][:, 0], tracks.vertices[0][:, 1]
         what = f"star at rate {w.tolist()} rad/s over {te:g} s"
     check_on_detector(sensor, np.append(xs, x), np.append(ys, y), what=what)
     pad = float(pad_sigma_for(e, _sigma(sensor))) if pad_sigma is None else float(pad_sigma)
-    stamp, _ = polyline_expected(xs, ys, _sigma(sensor), e, pad_sigma=pad, method=method)
+    stamp, _ = polyline_expected(
+        xs, ys, sigma_px=_sigma(sensor), electrons=e, pad_sigma=pad, method=method
+    )
     if noise:
-        return apply_noise(stamp, sensor, rng, exposure_s=te)
+        return apply_noise(stamp, sensor, rng=rng, exposure_s=te)
     return quantise(stamp, sensor)
 
 
@@ -168,8 +174,6 @@ def _field_radius_rad(sensor) -> float:
 def _band_and_colour(catalog, model: str, colour: str, band: str | None):
     """(band, magnitudes, colour name or None, colour indices or None) for the model."""
     if model == "blackbody":
-        from starsense.photometry.colour import ColourModel
-
         cm = ColourModel(colour)
         use_band = band or cm.magnitude_band
         if colour not in catalog.colours:
@@ -254,8 +258,6 @@ def _field_stars(sensor, attitude, catalog, w, te, mags_all, ci_all, max_mag):
 
 def _with_electrons(stars, sensor, model: str, col: str | None):
     """Step 2: the stars' electrons; those with none (or not finite) are dropped."""
-    from starsense.photometry.sensitivity import Sensitivity
-
     idx, mags, ci = stars
     sens = Sensitivity.for_sensor(sensor, model, col or "B-V")
     electrons = np.asarray(
@@ -281,12 +283,20 @@ def _expected_image(sensor, tracks: Tracks, electrons: np.ndarray, method: str):
             continue
         v = tracks.vertices[i]
         xs, ys = v[:, 0], v[:, 1]
-        full = Box.around(xs.min(), xs.max(), ys.min(), ys.max(), pads[i])
+        full = Box.around(
+            x_min=xs.min(), x_max=xs.max(), y_min=ys.min(), y_max=ys.max(), pad_px=pads[i]
+        )
         box = full.clip(det.rows, det.columns)
         if box is None:
             continue
         stamp, _ = polyline_expected(
-            xs, ys, sigma, electrons[i], pad_sigma=pads[i] / sigma, box=box, method=method
+            xs,
+            ys,
+            sigma_px=sigma,
+            electrons=electrons[i],
+            pad_sigma=pads[i] / sigma,
+            box=box,
+            method=method,
         )
         expected[box.slices] += stamp
         rendered.append(i)
@@ -305,8 +315,8 @@ def _expected_image(sensor, tracks: Tracks, electrons: np.ndarray, method: str):
 
 def render_frame(
     sensor,
-    attitude: Rotation,
-    catalog,
+    rotation: Rotation,
+    catalog: Catalog | str | None = None,
     *,
     rate_rad_s=(0.0, 0.0, 0.0),
     model: str = "reed",
@@ -326,10 +336,15 @@ def render_frame(
     Parameters
     ----------
     sensor : Sensor
-    attitude : scipy.spatial.transform.Rotation
-        Mid-exposure attitude, ICRS -> camera (a single rotation).
-    catalog : Catalog
-        Stars (positions at the catalogue epoch).
+        The star tracker (optics, detector, exposure), e.g. from
+        :func:`starsense.sensor.load_sensor`.
+    rotation : scipy.spatial.transform.Rotation
+        Mid-exposure attitude, ICRS -> camera (a single rotation; see
+        :func:`starsense.geometry.attitude.attitude_from_radec_roll`).
+    catalog : Catalog or str, optional
+        Stars (positions at the catalogue epoch): a :class:`~starsense.catalog.Catalog`, or a
+        catalogue spec read by :func:`starsense.catalog.load_catalog` (default: the bundled
+        Hipparcos catalogue, ``"hipparcos"``).
     rate_rad_s : array_like, shape (3,)
         Constant body rate (wx, wy, wz) in the camera frame, rad/s.
     model : {"reed", "liebe", "blackbody"}
@@ -361,6 +376,8 @@ def render_frame(
     Returns
     -------
     Frame
+        The image (``image``), the expected electrons (``expected_e``) and the truth
+        (``truth``: attitude, rate, seed and the rendered stars).
         Stars without a magnitude (or colour) in the needed column, or with non-finite
         electrons, are skipped; a selection with no stars gives a frame of noise only and an
         empty truth table.
@@ -371,41 +388,40 @@ def render_frame(
         Bad rate (not 3 finite numbers), exposure (not finite and > 0), model, method,
         attitude, or a catalogue without the needed band / colour.
     """
+    catalog = load_catalog(DEFAULT_CATALOG if catalog is None else catalog)
     w = check_rate(rate_rad_s)
     te = sensor.exposure_or(exposure_s)
-    _check_render_options(attitude, model, method, max_mag)
+    _check_render_options(rotation, model, method, max_mag)
     gen, seed = as_generator(rng)
     if te != sensor.exposure_s:
         sensor = sensor.with_(exposure_s=te)
     use_band, mags_all, col, ci_all = _band_and_colour(catalog, model, colour, band)
     # 1. candidate stars, 2. their electrons
-    stars = _field_stars(sensor, attitude, catalog, w, te, mags_all, ci_all, max_mag)
+    stars = _field_stars(sensor, rotation, catalog, w, te, mags_all, ci_all, max_mag)
     stars = _with_electrons(stars, sensor, model, col)
     idx, electrons = stars[0], stars[3]
     # 3. tracks and the expected image
     sky, apparent = catalog.vectors[idx], None
     if obs_time is not None and idx.size:
-        from starsense.catalog.apparent import apparent_places
-
         places = apparent_places(catalog, idx, obs_time, observer_velocity_m_s)
         sky, apparent = places.vectors, places.to_dict()
     elif observer_velocity_m_s is not None:
         raise InputError("observer_velocity_m_s needs obs_time")
-    vectors = attitude.apply(sky) if idx.size else np.zeros((0, 3))
-    tracks = star_tracks(sensor, vectors, w, te)
+    vectors = rotation.apply(sky) if idx.size else np.zeros((0, 3))
+    tracks = star_tracks(sensor, vectors, rate_rad_s=w, exposure_s=te)
     expected, rendered = _expected_image(sensor, tracks, electrons, method)
     truth_stars = _star_truth(catalog, stars, tracks, rendered, model)
 
     # 4. detector
     if noise:
-        image = apply_noise(expected, sensor, gen, exposure_s=te)
+        image = apply_noise(expected, sensor, rng=gen, exposure_s=te)
     else:
         image = quantise(expected, sensor)
-    ra, dec, roll = radec_roll_from_attitude(attitude)
+    ra, dec, roll = radec_roll_from_attitude(rotation)
     truth = FrameTruth(
         sensor=sensor.name,
         catalog=catalog.name,
-        attitude=attitude,
+        attitude=rotation,
         ra_rad=float(ra),
         dec_rad=float(dec),
         roll_rad=float(roll),

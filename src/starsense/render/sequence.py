@@ -23,6 +23,7 @@ from scipy.spatial.transform import Rotation
 from starsense._validate import check_int, positive_float
 from starsense.errors import InputError
 from starsense.render.frame import Frame
+from starsense.render.scene import render_frame
 from starsense.render.tracks import check_rate
 
 __all__ = ["frame_seeds", "propagate_attitude", "render_sequence", "sequence_paths"]
@@ -52,14 +53,14 @@ def propagate_attitude(attitude: Rotation, rate_rad_s, time_s) -> Rotation:
     return Rotation.from_rotvec(-np.multiply.outer(t, w)) * attitude
 
 
-def frame_seeds(seed: int, n: int) -> list[int]:
-    """Return ``n`` child seeds of a root seed (``SeedSequence(seed).spawn``), one per frame.
+def frame_seeds(seed: int, n_frames: int) -> list[int]:
+    """Return ``n_frames`` child seeds of a root seed (``SeedSequence(seed).spawn``), one per frame.
 
     Parameters
     ----------
     seed : int
         Root seed (>= 0).
-    n : int
+    n_frames : int
         Frames.
 
     Returns
@@ -68,18 +69,18 @@ def frame_seeds(seed: int, n: int) -> list[int]:
         63-bit seeds (they fit a FITS integer keyword).
     """
     seed = check_int(seed, "seed", 0)
-    children = np.random.SeedSequence(seed).spawn(check_int(n, "n", 1))
+    children = np.random.SeedSequence(seed).spawn(check_int(n_frames, "n_frames", 1))
     return [int(c.generate_state(1, np.uint64)[0] >> np.uint64(1)) for c in children]
 
 
-def sequence_paths(out: str | Path, n: int) -> list[Path]:
+def sequence_paths(out: str | Path, n_frames: int) -> list[Path]:
     """Return the frame paths of a sequence: ``DIR/frame.tiff`` -> ``DIR/frame_000.tiff`` ...
 
     Parameters
     ----------
     out : path-like
         The pattern: its stem gets ``_000``, ``_001`` ... (at least three digits).
-    n : int
+    n_frames : int
         Frames.
 
     Returns
@@ -87,17 +88,17 @@ def sequence_paths(out: str | Path, n: int) -> list[Path]:
     list of Path
     """
     out = Path(out)
-    width = max(3, len(str(n - 1)))
-    return [out.with_name(f"{out.stem}_{k:0{width}d}{out.suffix}") for k in range(n)]
+    width = max(3, len(str(n_frames - 1)))
+    return [out.with_name(f"{out.stem}_{k:0{width}d}{out.suffix}") for k in range(n_frames)]
 
 
 def render_sequence(
     sensor,
-    attitude: Rotation,
-    catalog,
+    rotation: Rotation,
+    catalog=None,
+    *,
     n_frames: int,
     interval_s: float,
-    *,
     rate_rad_s=(0.0, 0.0, 0.0),
     seed: int = 0,
     **kwargs,
@@ -107,9 +108,11 @@ def render_sequence(
     Parameters
     ----------
     sensor : Sensor
-    attitude : Rotation
+    rotation : Rotation
         Mid-exposure attitude of the first frame, ICRS -> camera.
-    catalog : Catalog
+    catalog : Catalog or str, optional
+        The stars (as in :func:`~starsense.render.scene.render_frame`; default the bundled
+        Hipparcos).
     n_frames : int
         Frames (>= 1).
     interval_s : float
@@ -117,7 +120,7 @@ def render_sequence(
     rate_rad_s : array_like, shape (3,)
         Constant body rate in the camera frame, rad/s.
     seed : int
-        Root seed; frame ``k`` uses child seed ``frame_seeds(seed, n)[k]``.
+        Root seed; frame ``k`` uses child seed ``frame_seeds(seed, n_frames)[k]``.
     **kwargs
         Passed to :func:`~starsense.render.scene.render_frame` (model, max_mag, noise, ...).
 
@@ -131,8 +134,6 @@ def render_sequence(
     InputError
         Bad count, interval (not > 0, or shorter than the exposure), rate or seed.
     """
-    from starsense.render.scene import render_frame
-
     n = check_int(n_frames, "n_frames", 1)
     dt = positive_float(interval_s, "interval_s")
     te = sensor.exposure_or(kwargs.get("exposure_s"))
@@ -146,7 +147,7 @@ def render_sequence(
     seeds = frame_seeds(seed, n)
     for k in range(n):
         t = k * dt
-        att = propagate_attitude(attitude, w, t)
+        att = propagate_attitude(rotation, w, t)
         frame = render_frame(sensor, att, catalog, rate_rad_s=w, rng=seeds[k], **kwargs)
         truth = dataclasses.replace(frame.truth, time_s=t)
         yield dataclasses.replace(frame, truth=truth)

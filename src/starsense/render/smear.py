@@ -102,7 +102,15 @@ _MAX_PIECE_PX = 48.0
 
 
 def smear_intensity(
-    px, py, x0: float, y0: float, x1: float, y1: float, sigma_px: float, electrons: float = 1.0
+    px,
+    py,
+    *,
+    x0: float,
+    y0: float,
+    x1: float,
+    y1: float,
+    sigma_px: float,
+    electrons: float = 1.0,
 ) -> np.ndarray:
     """Time-averaged intensity of a star moving uniformly from p0 to p1 (eqs. 13-22 / t_e).
 
@@ -131,7 +139,9 @@ def smear_intensity(
     dx, dy = x1 - x0, y1 - y0
     length = math.hypot(dx, dy)
     if length <= _STATIC_LENGTH_SIGMA * s:
-        return gaussian_intensity(px, py, 0.5 * (x0 + x1), 0.5 * (y0 + y1), s, electrons)
+        return gaussian_intensity(
+            px, py, x=0.5 * (x0 + x1), y=0.5 * (y0 + y1), sigma_px=s, electrons=electrons
+        )
     ex, ey = dx / length, dy / length
     rx = np.asarray(px, dtype=float) - x0
     ry = np.asarray(py, dtype=float) - y0
@@ -200,6 +210,7 @@ def _pieces(xs: np.ndarray, ys: np.ndarray, electrons: float):
 
 
 def segment_expected(
+    *,
     x0: float,
     y0: float,
     x1: float,
@@ -207,7 +218,6 @@ def segment_expected(
     sigma_px: float,
     electrons: float,
     box: Box,
-    *,
     method: str = "track",
 ) -> np.ndarray:
     """Return the expected electrons in each pixel of ``box`` from one straight uniform streak.
@@ -243,12 +253,14 @@ def segment_expected(
             wt = np.tile(gw, panels) / panels
         xs = x0 + f * (x1 - x0)
         ys = y0 + f * (y1 - y0)
-        pxm = pixel_profile(box.col0, box.col1, xs, sigma)  # (J, w)
-        pym = pixel_profile(box.row0, box.row1, ys, sigma)  # (J, h)
+        pxm = pixel_profile(box.col0, box.col1, xs, sigma_px=sigma)  # (J, w)
+        pym = pixel_profile(box.row0, box.row1, ys, sigma_px=sigma)  # (J, h)
         return (pym * (electrons * wt)[:, None]).T @ pxm
     if method == "closed-form":
         if length <= _STATIC_LENGTH_SIGMA * sigma:
-            return gaussian_stamp(0.5 * (x0 + x1), 0.5 * (y0 + y1), sigma, electrons, box)[0]
+            return gaussian_stamp(
+                0.5 * (x0 + x1), 0.5 * (y0 + y1), sigma_px=sigma, electrons=electrons, box=box
+            )[0]
         n = gauss_legendre_order(sigma)
         t, gw = _gl_unit(n)
         ex, ey = (x1 - x0) / length, (y1 - y0) / length
@@ -264,9 +276,9 @@ def segment_expected(
 def polyline_expected(
     xs,
     ys,
+    *,
     sigma_px: float,
     electrons: float,
-    *,
     pad_sigma: float = 5.0,
     box: Box | None = None,
     method: str = "track",
@@ -314,13 +326,15 @@ def polyline_expected(
         xs, ys = np.repeat(xs, 2), np.repeat(ys, 2)
     pad = float(pad_sigma) * sigma
     if box is None:
-        box = Box.around(xs.min(), xs.max(), ys.min(), ys.max(), pad)
+        box = Box.around(x_min=xs.min(), x_max=xs.max(), y_min=ys.min(), y_max=ys.max(), pad_px=pad)
     if out is None:
         out = np.zeros(box.shape)
     elif out.shape != box.shape:
         raise InputError(f"out has shape {out.shape}, expected {box.shape}")
     for x0, y0, x1, y1, e in _pieces(xs, ys, electrons):
-        sub = Box.around(min(x0, x1), max(x0, x1), min(y0, y1), max(y0, y1), pad)
+        sub = Box.around(
+            x_min=min(x0, x1), x_max=max(x0, x1), y_min=min(y0, y1), y_max=max(y0, y1), pad_px=pad
+        )
         sub = Box(
             max(sub.row0, box.row0),
             min(sub.row1, box.row1),
@@ -329,7 +343,9 @@ def polyline_expected(
         )
         if sub.row0 >= sub.row1 or sub.col0 >= sub.col1:
             continue
-        vals = segment_expected(x0, y0, x1, y1, sigma, e, sub, method=method)
+        vals = segment_expected(
+            x0=x0, y0=y0, x1=x1, y1=y1, sigma_px=sigma, electrons=e, box=sub, method=method
+        )
         r0, c0 = sub.row0 - box.row0, sub.col0 - box.col0
         out[r0 : r0 + vals.shape[0], c0 : c0 + vals.shape[1]] += vals
     return out, box
@@ -337,13 +353,13 @@ def polyline_expected(
 
 def streak_stamp_expected(
     sensor,
+    *,
     x0: float,
     y0: float,
     x1: float,
     y1: float,
     electrons: float = 1.0,
     pad_sigma: float = 5.0,
-    *,
     method: str = "track",
 ) -> tuple[np.ndarray, int, int]:
     """Noiseless stamp of one straight uniform streak, expected electrons per pixel.
@@ -377,8 +393,8 @@ def streak_stamp_expected(
     stamp, box = polyline_expected(
         [x0, x1],
         [y0, y1],
-        float(sensor.detector.psf_sigma_px),
-        e,
+        sigma_px=float(sensor.detector.psf_sigma_px),
+        electrons=e,
         pad_sigma=pad_sigma,
         method=method,
     )

@@ -93,9 +93,9 @@ def _project_at(sensor, vectors, rate, exposure_s, fractions) -> tuple[np.ndarra
 def star_tracks(
     sensor,
     vectors_cam,
+    *,
     rate_rad_s=(0.0, 0.0, 0.0),
     exposure_s: float | None = None,
-    *,
     tol_px: float = 0.01,
     max_segments: int = 4096,
 ) -> Tracks:

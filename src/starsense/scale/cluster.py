@@ -88,7 +88,12 @@ def check_scheduler(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -
     if kind == "remote" and value.startswith(("tcp://", "tls://")):
         host, _, port = value.partition("://")[2].rpartition(":")
         try:  # a refusal is known at once, not after the timeout
-            probe_tcp(host.strip("[]"), int(port), timeout_s, f"no Dask scheduler at {value}")
+            probe_tcp(
+                host.strip("[]"),
+                int(port),
+                timeout_s=timeout_s,
+                what=f"no Dask scheduler at {value}",
+            )
         except InputError as exc:
             raise SchedulerUnreachableError(str(exc)) from None
     return kind, value

@@ -63,7 +63,9 @@ def probe_url(url: str, timeout_s: float) -> None:
     if not parts.hostname:
         raise CatalogUnavailableError(f"HATS catalogue {url}: the URL names no host")
     try:
-        probe_tcp(parts.hostname, port, timeout_s, f"cannot reach HATS catalogue {url}")
+        probe_tcp(
+            parts.hostname, port, timeout_s=timeout_s, what=f"cannot reach HATS catalogue {url}"
+        )
     except InputError as exc:
         raise CatalogUnavailableError(str(exc)) from None
     base = url.rstrip("/")

@@ -12,7 +12,7 @@ from starsense.sensor._fields import check_field
 __all__ = ["Detector"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Detector:
     """Image detector.
 

@@ -13,6 +13,7 @@ import json
 import math
 
 from starsense.errors import InputError
+from starsense.units import DEG, to_edge
 
 __all__ = ["sensor_to_toml"]
 
@@ -70,8 +71,6 @@ def sensor_to_toml(sensor, header: str = "") -> str:
 
 def _extra_tables(sensor) -> list[str]:
     """Return the optional tables: [exclusion] (degrees read back exactly), [quoted], [budget]."""
-    from starsense.units import DEG, to_edge
-
     if getattr(sensor, "mission", None) is not None:
         raise InputError(
             f"sensor {sensor.name!r} names a mission, which is not written to TOML; "

@@ -31,7 +31,7 @@ EXCLUSION_KEYS = {
 _MAX_ATMOSPHERE_KM = 1000.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Exclusion:
     """Exclusion half-angles of one head (None: that body is not considered).
 

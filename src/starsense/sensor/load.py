@@ -22,6 +22,7 @@ import numpy as np
 
 from starsense._io import read_text
 from starsense.errors import InputError
+from starsense.geometry.areas import AreaLayout, FocalArea
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
 from starsense.sensor.exclusion import exclusion_from_table
@@ -87,8 +88,6 @@ def _areas_from_table(table: Any, detector: Detector, optics: Optics, source: st
     (focal-plane millimetres from the optical axis, x along detector columns), optionally
     checked against ``image_circle_diameter_mm``. Tangent-plane units are mm / focal mm.
     """
-    from starsense.geometry.areas import AreaLayout, FocalArea
-
     where = f"{source}: [attitude_areas]"
     if not isinstance(table, dict):
         raise InputError(f"{where} must be a table")
@@ -220,6 +219,9 @@ def preset_names() -> list[str]:
 def load_sensor(name_or_path: str | Path) -> Sensor:
     """Load a sensor from a preset name (``st16``, ``esa_blackfly``, ...) or a TOML file path.
 
+    A preset is a TOML file inside the package (``starsense/sensor/presets``): copy one and
+    edit it to describe another sensor. Degrees in the TOML become radians here, once.
+
     Parameters
     ----------
     name_or_path : str or Path
@@ -228,6 +230,20 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
     Returns
     -------
     Sensor
+        The frozen, validated sensor (optics, detector, exposure, detection logic).
+
+    Raises
+    ------
+    InputError
+        An empty or unknown name, an unreadable file, invalid TOML, or a value out of range
+        (the message names the table, the key, the value and the allowed range).
+
+    Examples
+    --------
+    >>> from starsense.sensor import load_sensor
+    >>> sensor = load_sensor("st16")
+    >>> sensor.detector.columns, sensor.exposure_s
+    (2592, 0.1)
     """
     text = str(name_or_path)
     path = Path(text).expanduser()

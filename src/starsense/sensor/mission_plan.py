@@ -28,7 +28,7 @@ __all__ = ["MISSION_KEYS", "MissionPlan", "mission_from_table"]
 MISSION_KEYS = ("name", "orbit", "attitude", "heads", "start", "duration_h", "step_s")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MissionPlan:
     """A mission named by a sensor TOML (texts as written; hours and seconds).
 

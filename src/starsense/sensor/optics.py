@@ -9,7 +9,7 @@ from starsense.sensor._fields import check_field
 __all__ = ["Optics"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Optics:
     """Pinhole optics with optional Brown-Conrady distortion and a principal-point offset.
 

@@ -24,6 +24,7 @@ import numpy as np
 from starsense._validate import check_scalar
 from starsense.errors import InputError
 from starsense.geometry.distortion import distort, undistort
+from starsense.geometry.fov import RectangularFov
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
@@ -32,7 +33,7 @@ from starsense.sensor.optics import Optics
 __all__ = ["DetectionThresholds", "Sensor"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DetectionThresholds:
     """Star-detection logic (Dzamba & Enright 2014, sec. 1.2; ST-16 values by default).
 
@@ -61,7 +62,7 @@ class DetectionThresholds:
             raise InputError(f"detection.connectivity must be 4 or 8, got {self.connectivity!r}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Sensor:
     """A star sensor: optics, detector, exposure and detection logic.
 
@@ -90,6 +91,14 @@ class Sensor:
     mission : MissionPlan or None
         The mission the TOML's ``[mission]`` table names (:mod:`starsense.sensor.mission_plan`),
         for the report's mission section.
+
+    Examples
+    --------
+    >>> from starsense.sensor import load_sensor
+    >>> st16 = load_sensor("st16")
+    >>> round(st16.focal_length_px)
+    7273
+    >>> shorter = st16.with_(exposure_s=0.05)  # a changed copy; the sensor is frozen
     """
 
     name: str
@@ -136,8 +145,6 @@ class Sensor:
 
     def fov(self):
         """Return the rectangular field of view of the detector (geometry.fov.RectangularFov)."""
-        from starsense.geometry.fov import RectangularFov
-
         hx, hy = self.half_fov_rad
         return RectangularFov(hx, hy)
 
@@ -167,7 +174,7 @@ class Sensor:
                 u = np.where(z > 0, v[..., 0] / z, np.nan)
                 w = np.where(z > 0, v[..., 1] / z, np.nan)
         if self.optics.has_distortion:
-            u, w = distort(u, w, *self.optics.distortion)
+            u, w = distort(u, w, self.optics.distortion)
         cx, cy = self.principal_point_px
         fp = self.focal_length_px
         return cx + fp * u, cy + fp * w
@@ -190,7 +197,7 @@ class Sensor:
         u = (np.asarray(x_px, dtype=float) - cx) / fp
         w = (np.asarray(y_px, dtype=float) - cy) / fp
         if self.optics.has_distortion:
-            u, w = undistort(u, w, *self.optics.distortion)
+            u, w = undistort(u, w, self.optics.distortion)
             if not (np.all(np.isfinite(u)) and np.all(np.isfinite(w))):
                 raise InputError(
                     "pixel position beyond the fold of the distortion model (optics.distortion_*)"

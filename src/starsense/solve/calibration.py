@@ -230,7 +230,7 @@ class _Problem:
         k = self.frame_of[keep]
         rot = Rotation.from_rotvec(deltas[k]) * self.r0[k]
         c = rot.apply(self.v[keep])
-        xd, yd = distort(c[:, 0] / c[:, 2], c[:, 1] / c[:, 2], *cam[3:])
+        xd, yd = distort(c[:, 0] / c[:, 2], c[:, 1] / c[:, 2], cam[3:])
         return np.column_stack([xd, yd]) * cam[0] + self.centre + cam[1:3]
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:

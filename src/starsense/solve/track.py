@@ -84,7 +84,11 @@ class Prior:
         from starsense.attitude.rate import predict_attitude
 
         return predict_attitude(
-            self.rotation, self.dt_s, self.rate_rad_s, self.cov_rad2, self.rate_cov_rad2_s2
+            self.rotation,
+            self.dt_s,
+            rate_rad_s=self.rate_rad_s,
+            cov_rad2=self.cov_rad2,
+            rate_cov_rad2_s2=self.rate_cov_rad2_s2,
         )
 
 
@@ -383,7 +387,7 @@ class Tracker:
                 dt = t - self._last[0]
                 if dt > 0:
                     rate, rate_cov = rate_from_attitudes(
-                        self._last[1], sol.rotation, dt, self._last[2], cov
+                        self._last[1], sol.rotation, dt, cov0_rad2=self._last[2], cov1_rad2=cov
                     )
                     self._rate = (rate, rate_cov)
             self._last = (t, sol.rotation, cov)

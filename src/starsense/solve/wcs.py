@@ -74,12 +74,12 @@ def sip_coefficients(sensor, order: int = 5) -> tuple[np.ndarray, ...]:
     xs = np.linspace(-0.5, det.columns - 0.5, _GRID) - cx
     ys = np.linspace(-0.5, det.rows - 0.5, _GRID) - cy
     u, v = (g.ravel() for g in np.meshgrid(xs, ys))  # measured (distorted) offsets, px
-    xi, yi = undistort(u / f, v / f, *coeffs)
+    xi, yi = undistort(u / f, v / f, coeffs)
     ui, vi = xi * f, yi * f  # pinhole offsets, px
     scale = float(max(abs(xs).max(), abs(ys).max()))
     a, b, err_fwd = _fit_poly(u, v, ui - u, vi - v, order, scale)
     # inverse on a grid of pinhole offsets covering the detector's image
-    xd, yd = distort(ui / f, vi / f, *coeffs)
+    xd, yd = distort(ui / f, vi / f, coeffs)
     ap, bp, err_inv = _fit_poly(ui, vi, xd * f - ui, yd * f - vi, order, scale)
     return a, b, ap, bp, max(err_fwd, err_inv)
 

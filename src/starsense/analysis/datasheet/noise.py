@@ -129,7 +129,7 @@ def _profile(centres: np.ndarray, offset: float, sigma: float) -> tuple[np.ndarr
     from starsense.render.psf import pixel_profile
 
     c0 = int(centres[0])
-    p = pixel_profile(c0, c0 + len(centres), offset, sigma)[0]
+    p = pixel_profile(c0, c0 + len(centres), offset, sigma_px=sigma)[0]
     lo = (centres - 0.5 - offset) / sigma
     hi = (centres + 0.5 - offset) / sigma
     dp = (np.exp(-0.5 * lo * lo) - np.exp(-0.5 * hi * hi)) / (_SQRT2PI * sigma)
@@ -184,10 +184,11 @@ def _measured_sigma(sensor, n_e: float, rng, n_stamps: int) -> float:
     half = 6 + math.ceil(6.0 * det.psf_sigma_px)
     size = 2 * half + 1
     xy = half + rng.random((n_stamps, 2)) - 0.5
+    box = (0, size, 0, size)
     stack = np.stack(
-        [gaussian_stamp(x, y, det.psf_sigma_px, n_e, (0, size, 0, size))[0] for x, y in xy]
+        [gaussian_stamp(x, y, sigma_px=det.psf_sigma_px, electrons=n_e, box=box)[0] for x, y in xy]
     )
-    counts = apply_noise(stack, sensor, rng)
+    counts = apply_noise(stack, sensor, rng=rng)
     finder = StarDetector.for_sensor(sensor)
     errs = []
     for img, (x, y) in zip(counts, xy, strict=True):

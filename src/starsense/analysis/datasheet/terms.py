@@ -94,7 +94,9 @@ def pixel_spatial_error(sensor, electrons, n_side: int = 8) -> PixelSpatialError
         for dx in offsets:
             for dy in offsets:
                 x, y = half + dx - 0.5, half + dy - 0.5
-                stamp, _, _ = gaussian_stamp(x, y, det.psf_sigma_px, n_e, (0, size, 0, size))
+                stamp, _, _ = gaussian_stamp(
+                    x, y, sigma_px=det.psf_sigma_px, electrons=n_e, box=(0, size, 0, size)
+                )
                 counts = np.minimum(stamp * det.gain_counts_per_e, det.saturation_counts)
                 found = detector(counts + det.bias_counts)
                 if len(found):

@@ -14,8 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from starsense._validate import as_generator, check_int, check_scalar
 from starsense.errors import InputError
-from starsense.geometry.projection import _points as xy_points
-from starsense.geometry.projection import tangent_to_vectors
+from starsense.geometry.projection import tangent_to_vectors, xy_points
 from starsense.references import lin2024
 
 __all__ = [

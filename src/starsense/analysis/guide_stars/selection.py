@@ -13,8 +13,7 @@ from starsense.analysis.guide_stars._common import check_metric
 from starsense.analysis.guide_stars.focal_plane import attitude_area, triangle_fov_ratio
 from starsense.analysis.guide_stars.metrics import batch_covariance, metric_block
 from starsense.errors import InputError
-from starsense.geometry.projection import _points as xy_points
-from starsense.geometry.projection import tangent_to_vectors
+from starsense.geometry.projection import tangent_to_vectors, xy_points
 from starsense.units import ARCSEC
 
 __all__ = ["CRITERIA", "SELECTION_SIGMA", "GuideStarSelection", "select_guide_stars"]

@@ -96,7 +96,9 @@ def centroid_fisher_numeric(
     """
     check_aperture(diameter_m, exposure_s)
     lam = np.asarray(wavelength_m, dtype=float)
-    n = photons_per_wavelength(dilution, temperature_k, lam, diameter_m, exposure_s)
+    n = photons_per_wavelength(
+        dilution, temperature_k, lam, diameter_m=diameter_m, exposure_s=exposure_s
+    )
     q = 1.0 if response is None else np.asarray(response, dtype=float)
     return np.trapezoid(np.pi**2 * diameter_m**2 / lam**2 * n * q, lam, axis=-1)
 

@@ -101,7 +101,9 @@ def low_photon_degradation(
     check_aperture(diameter_m, exposure_s)
     check_int(n_trials, "n_trials", 1)
     rng = np.random.default_rng(rng)
-    iota = total_photons(stars.dilution, stars.temperature_k, diameter_m, exposure_s)
+    iota = total_photons(
+        stars.dilution, stars.temperature_k, diameter_m=diameter_m, exposure_s=exposure_s
+    )
     w = stars.fisher_unit * diameter_m**4 * exposure_s
     r = stars.vectors
     ideal = theta_rms(covariance(fisher_matrix(r, w), len(stars)))
