@@ -79,9 +79,11 @@ def _resolve(module: str, name: str | None = None) -> str | None:
     """The starsense module an import names (a submodule when ``name`` is one), else None."""
     if name is not None and f"{module}.{name}" in _NAMES:
         return f"{module}.{name}"
-    if name is not None and module in _NAMES and list(_NAMES[module].parent.glob(f"{name}.*")):
-        return f"{module}.{name}"  # a compiled submodule (detect/_clipc.c)
-    return module if module in _NAMES else None
+    path = _NAMES.get(module)
+    if name is not None and path is not None and path.name == "__init__.py":
+        if any(path.parent.glob(f"{name}.*")):
+            return f"{module}.{name}"  # a compiled submodule (detect/_clipc.c): a leaf
+    return module if path is not None else None
 
 
 def _imports(path: Path):
@@ -111,7 +113,7 @@ def test_no_import_circle():
     graph = {name: set() for name in _NAMES}
     for name, path in _NAMES.items():
         for _, target, _names in _imports(path):
-            if target != name:
+            if target != name and target in graph:
                 graph[name].add(target)
     # Tarjan's strongly connected components: any component of 2+ modules is a circle
     index, low, stack, on, circles, counter = {}, {}, [], set(), [], [0]
