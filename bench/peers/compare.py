@@ -117,7 +117,8 @@ def starsense_side(synth_sets, esa):
     from starsense.catalog import load_catalog
     from starsense.geometry.attitude import radec_roll_from_attitude
     from starsense.identify import HashIdentifier, build_database
-    from starsense.solve.solver import Solver, pinhole_vectors
+    from starsense.solve.pinhole import pinhole_vectors
+    from starsense.solve.solver import Solver
 
     names, images, exy, eoff, _reference, sensor = esa
     cat = load_catalog("hipparcos")

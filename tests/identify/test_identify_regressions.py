@@ -24,7 +24,7 @@ from starsense.geometry.attitude import (
 )
 from starsense.geometry.sampling import fibonacci_sphere
 from starsense.identify import HashIdentifier, build_database
-from starsense.solve.solver import pinhole_vectors
+from starsense.solve.pinhole import pinhole_vectors
 
 ARCMIN = math.radians(1.0 / 60.0)
 FOV_RAD = math.radians(15.0)

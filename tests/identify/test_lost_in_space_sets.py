@@ -27,7 +27,7 @@ from starsense.errors import InputError
 from starsense.geometry.attitude import angular_separation
 from starsense.identify import HashIdentifier, build_database
 from starsense.identify.centroid_sets import centroid_sets
-from starsense.solve.solver import pinhole_vectors
+from starsense.solve.pinhole import pinhole_vectors
 
 ARCMIN = math.radians(1.0 / 60.0)
 HARD = {"noise_px": 1.0, "n_false": 6, "drop_fraction": 0.3}

@@ -212,7 +212,7 @@ def test_pure_noise_frame_returns_no_solution(seed):
 def test_pinhole_vectors_centre_and_edge():
     # principal point at the image centre (pixel-centre convention); the left and right edges
     # of the image (x = -0.5 and cols - 0.5) lie at half the horizontal field from the boresight
-    from starsense.solve.solver import pinhole_vectors
+    from starsense.solve.pinhole import pinhole_vectors
 
     fov = math.radians(12.0)
     rows, cols = 480, 640

@@ -23,7 +23,7 @@ from starsense.identify.tracking import TrackingIdentifier
 from starsense.render.sequence import render_sequence
 from starsense.sensor import load_sensor
 from starsense.solve.solver import Solver
-from starsense.solve.track import Prior, Tracker
+from starsense.solve.tracking import Prior, Tracker, track_frame
 
 DEG = math.pi / 180
 
@@ -107,7 +107,7 @@ def test_far_prior_falls_back_and_says_so(solver, st16, hipparcos):
     frame = next(iter(render_sequence(st16, att, hipparcos, 1, 0.5, rate_rad_s=w, seed=5,
                                       max_mag=6.5)))  # fmt: skip
     off = Rotation.from_rotvec([5 * DEG, 0.0, 0.0]) * att  # 5 deg off, claimed good to 0.05
-    r = solver.track(frame.image, Prior(off, np.eye(3) * (0.05 * DEG) ** 2))
+    r = track_frame(solver, frame.image, Prior(off, np.eye(3) * (0.05 * DEG) ** 2))
     assert r.mode == "lost_in_space"
     assert r.solution.solved
     assert r.solution.message.startswith("tracking") and "lost-in-space" in r.solution.message
@@ -116,7 +116,7 @@ def test_far_prior_falls_back_and_says_so(solver, st16, hipparcos):
 
 
 def test_tracking_identifier_statuses(solver, st16):
-    db = solver._identifier(2 * st16.half_fov_rad[0]).database
+    db = solver.identifier(2 * st16.half_fov_rad[0]).database
     att, _ = _scenario(7, 0.0)
     centre = att.inv().apply([0, 0, 1])
     near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin(6 * DEG)))
@@ -156,7 +156,7 @@ def _close_pair(db, centre):
 
 def test_track_needs_a_sensor():
     with pytest.raises(InputError, match="sensor"):
-        Solver(fov_rad=0.2).track(np.zeros((10, 10)))
+        track_frame(Solver(fov_rad=0.2), np.zeros((10, 10)), None)
 
 
 def test_cli_track_sequence_with_corrupt_and_missing_frames(tmp_path, capsys):
@@ -205,7 +205,7 @@ def test_cli_track_bad_input(tmp_path, capsys, extra, match):
 
 def _stars_detected(solver, frame) -> int:
     """Distinct stars the full-frame detector finds (a broken streak counts once)."""
-    det = solver._detector()(frame.image)
+    det = solver.detector(frame.image)
     t = frame.truth.stars
     half = 0.5 * np.hypot(t.x_end - t.x_start, t.y_end - t.y_start) + 5.0
     found = set()
@@ -253,8 +253,8 @@ def test_streak_centroid_noise_model(st16, electrons, rate_deg_s):
     # with noise: the rms error per axis within 15 % of the predicted (the standard error of
     # an rms from 300 draws is 4 %; 15 % leaves room for the noiseless reference's own
     # sub-pixel discretisation)
+    from starsense.detect.streak import streak_centroid
     from starsense.render.scene import render_star_stamp
-    from starsense.solve.windows import streak_centroid
 
     w = np.array([0.0, rate_deg_s * DEG, 0.0])  # the streak runs along x
     length = rate_deg_s * DEG * st16.exposure_s * st16.focal_length_px
@@ -286,15 +286,17 @@ def test_rate_from_one_frame_of_streaks(solver, st16, hipparcos):
     # brightest streaks the rate comes out 0-16 % low on rendered frames, and the reported
     # covariance carries 20 % of |w| for it, so the cross-axis error stays within 3 sigma
     from starsense.render.scene import render_frame
-    from starsense.solve.streak_rate import rate_from_streaks, streak_axes
+    from starsense.solve.tracking.streak_rate import rate_from_streaks, streak_axes
 
     for seed, rate in ((21, 0.6), (22, 1.0), (23, 1.5)):
         att, w = _scenario(seed, rate)
         frame = render_frame(st16, att, hipparcos, rate_rad_s=w, rng=seed, max_mag=6.5)
-        det = solver._detector()(frame.image)
+        det = solver.detector(frame.image)
         n = min(len(det), 5)
-        axes = streak_axes(frame.image, det.x[:n], det.y[:n], 28, st16.detection.lit_pixel_counts)
-        got, cov = rate_from_streaks(st16, det.x[:n], det.y[:n], axes)
+        axes = streak_axes(
+            frame.image, det.x[:n], det.y[:n], half_px=28, threshold=st16.detection.lit_pixel_counts
+        )
+        got, cov = rate_from_streaks(st16, det.x[:n], det.y[:n], axes_px2=axes)
         got = got if got @ w > 0 else -got  # the sign is not in one frame
         z = (got - w) / np.sqrt(np.diag(cov))
         assert np.all(np.abs(z[:2]) < 3), (rate, z)
@@ -330,7 +332,7 @@ def test_track_esa_frames_from_a_close_prior(shared_dir):
             *np.radians([ref["ra_deg"], ref["dec_deg"], ref["roll_deg"]])
         )
         off = Rotation.from_rotvec(np.radians([0.003, -0.003, 0.01])) * att
-        r = solver.track(image, Prior(off, np.eye(3) * np.radians(0.005) ** 2))
+        r = track_frame(solver, image, Prior(off, np.eye(3) * np.radians(0.005) ** 2))
         assert r.mode == "tracking" and r.solution.solved, (name, r.solution.message)
         assert r.solution.n_matched >= 20
         diff = small_rotation_angles(lis.rotation, r.solution.rotation)

@@ -101,7 +101,7 @@ def test_no_wrong_answer_on_noise_or_a_mirrored_sky(solver):
     import numpy as np
 
     from starsense.identify import identify_ranked
-    from starsense.solve.solver import pinhole_vectors
+    from starsense.solve.pinhole import pinhole_vectors
 
     rng = np.random.default_rng(13)
     plan = unknown_field_plan()
@@ -109,7 +109,7 @@ def test_no_wrong_answer_on_noise_or_a_mirrored_sky(solver):
         xy = rng.uniform((0, 0), (1023, 767), size=(20, 2))
         v = pinhole_vectors(xy[:, 0], xy[:, 1], (768, 1024), math.radians(15.0))
         for field_range in plan:
-            ident = identify_ranked(solver._identifier(None, field_range), v, -np.arange(20.0),
+            ident = identify_ranked(solver.identifier(None, field_range), v, -np.arange(20.0),
                                     None, assumed_fov_rad=math.radians(15.0))  # fmt: skip
             assert not ident.solved, (field_range, ident)
     sensor = _sensor(20.0)

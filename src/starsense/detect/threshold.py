@@ -15,7 +15,7 @@ replaced by the background before labelling.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,6 +27,7 @@ from starsense.detect.background import (
     hot_pixel_mask,
 )
 from starsense.detect.centroid import METHODS, gauss_fit
+from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
 from starsense.detect.regions import label_pixels, region_centroids
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
@@ -235,12 +236,6 @@ class StarDetector:
                     np.float32(threshold), bg.threshold_counts(self.threshold_sigma)
                 )
             return np.flatnonzero(sub > threshold), None, None
-        from starsense.detect.matched import (
-            NOISE_STEP,
-            filtered_noise_ratio,
-            gaussian_correlate,
-        )
-
         filtered = scratch("filtered", sub.shape)
         gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
         grid = bg.noise_grid(NOISE_STEP)
@@ -398,8 +393,6 @@ def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
 
 
 def _timed(det: Detections, t0: float) -> Detections:
-    from dataclasses import replace
-
     return replace(det, time_ms=(time.perf_counter() - t0) * 1e3)
 
 

@@ -387,7 +387,9 @@ def render_frame(
     if obs_time is not None and idx.size:
         from starsense.catalog.apparent import apparent_places
 
-        places = apparent_places(catalog, idx, obs_time, observer_velocity_m_s)
+        places = apparent_places(
+            catalog, idx, obs_time, observer_velocity_m_s=observer_velocity_m_s
+        )
         sky, apparent = places.vectors, places.to_dict()
     elif observer_velocity_m_s is not None:
         raise InputError("observer_velocity_m_s needs obs_time")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from starsense.detect.streak import streak_centroid, streak_centroids
 from starsense.render.scene import render_star_stamp
 from starsense.sensor import load_sensor
-from starsense.solve.windows import streak_centroid, streak_centroids
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def test_streak_centroids_equal_the_one_region_loop(st16):
 def test_union_area_counts_the_covered_pixels():
     # the exact union of overlapping, nested, touching and disjoint boxes against a raster
     # of the pixels (an independent count: a boolean image with each box painted in)
-    from starsense.solve.windows import union_area
+    from starsense.detect.windows import union_area
 
     rng = np.random.default_rng(3)
     for n in (1, 2, 5, 30):
@@ -80,7 +80,7 @@ def test_window_labels_equal_a_3d_labelling(connectivity):
     # structure that connects only within a window: same labels, same order, none across
     from scipy import ndimage
 
-    from starsense.solve.windows import _label
+    from starsense.detect.windows import _label
 
     lit = np.random.default_rng(5).random((12, 21, 17)) > 0.8
     lit[3, -1, :] = lit[4, 0, :] = True  # touching rows of neighbouring windows
