@@ -12,8 +12,11 @@ import math
 import numpy as np
 import pytest
 
+from starsense.catalog import load_catalog
 from starsense.cli import main
 from starsense.geometry.attitude import angular_separation, radec_to_vectors
+from starsense.identify import fields
+from starsense.solve import identifiers
 from starsense.solve.solver import Solver
 
 ARCSEC_PER_RAD = 180 / math.pi * 3600
@@ -250,3 +253,29 @@ def test_solution_stores_radians_and_shows_degrees():
     assert d["sigma_arcsec"] == pytest.approx([s * ARCSEC_PER_RAD for s in sigma])
     empty = Solution("no_stars").to_dict()
     assert empty["ra_deg"] is None and empty["sigma_arcsec"] is None
+
+
+def test_solver_takes_a_catalog_object(esa, monkeypatch):
+    # a catalogue filtered in Python (V <= 6.5: 8,918 Hipparcos stars) is carried, not
+    # reloaded: every range of the unknown-field search uses it, and the ESA frames solve
+    # within the bounds of test_esa_frames_solve_within_15_arcsec without optics (measured:
+    # 0.4-5.3 arcsec)
+    hipparcos = load_catalog("hipparcos")
+    bright = hipparcos.subset(hipparcos.mags["V"] <= 6.5)
+
+    def no_reload(spec):
+        raise AssertionError(f"catalogue {spec!r} loaded again")
+
+    monkeypatch.setattr(fields, "load_catalog", no_reload)
+    monkeypatch.setattr(identifiers, "load_catalog", no_reload)
+    folder, reference = esa
+    solver = Solver(catalog=bright)
+    assert solver.catalog is bright and solver.settings.catalog is bright
+    assert all(r.catalog is bright for r in solver.field_plan())
+    for name, ref in reference.items():
+        sol = solver.solve_file(folder / name).to_dict()
+        assert sol["status"] == "solved", (name, sol["message"])
+        assert _separation_arcsec(sol, ref) < 15, name
+        droll = (sol["roll_deg"] - ref["roll_deg"] + 180) % 360 - 180
+        assert abs(droll) < 0.05, name
+        assert sol["fov_deg"] == pytest.approx(ref["fov_deg"], rel=1e-3)
