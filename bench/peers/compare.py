@@ -140,7 +140,9 @@ def starsense_side(synth_sets, esa):
             pts = xy[offsets[i] : offsets[i + 1]]
 
             def solve(pts=pts):
-                return identify(pinhole_vectors(pts[:, 0], pts[:, 1], SYNTH_SIZE, fov), fov)
+                return identify(
+                    pinhole_vectors(pts[:, 0], pts[:, 1], shape=SYNTH_SIZE, fov_rad=fov), fov
+                )
 
             synth[key].append(record(*_best_of(solve, 1)))
 

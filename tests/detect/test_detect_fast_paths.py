@@ -7,7 +7,15 @@ import pytest
 from scipy import ndimage
 
 from starsense.detect import estimate_background, hot_pixel_mask
-from starsense.detect.clip import _ranked, _run_mad
+from starsense.detect.clip import (
+    MAD_TO_SIGMA,
+    _rank_of,
+    _ranked,
+    _robust_sigma_numpy,
+    _rows_at,
+    _run_mad,
+    robust_sigma,
+)
 from starsense.detect.mesh import _interpolation_matrix, interpolate_mesh
 from starsense.errors import InputError
 
@@ -103,8 +111,6 @@ def test_interpolate_flat_mesh_is_exact():
 @pytest.mark.parametrize("inclusive", [False, True])
 def test_rank_of_is_searchsorted_in_the_run(inclusive):
     """The blocked search against np.searchsorted per row, clamped to the run (ties, NaN)."""
-    from starsense.detect.clip import _rank_of, _rows_at
-
     rng = np.random.default_rng(11)
     cells = np.round(rng.normal(0.0, 20.0, (7, 5, 300))).astype(np.float32)  # many ties
     cells[rng.random(cells.shape) < 0.1] = np.nan
@@ -128,8 +134,6 @@ def test_robust_sigma_is_the_mad_of_the_kept_samples(samples, form):
     # every path (the compiled kernel when built; in NumPy, short rows sort their deviations,
     # long rows search for their median) against the definition, sample by sample:
     # 1.4826 x the median of |x - median(x)| over the kept
-    from starsense.detect.clip import MAD_TO_SIGMA, _robust_sigma_numpy, robust_sigma
-
     robust = robust_sigma if form == "as used" else _robust_sigma_numpy
 
     rng = np.random.default_rng(samples)

@@ -59,7 +59,7 @@ def _peer_frames(catalog, wanted, n=2001, seed=20240605):
             xs = np.insert(xs, pos, rng.uniform(0, cols - 1))
             ys = np.insert(ys, pos, rng.uniform(0, rows - 1))
         if i in wanted:
-            frames[i] = (pinhole_vectors(xs, ys, SIZE, FOV_RAD), bores[i])
+            frames[i] = (pinhole_vectors(xs, ys, shape=SIZE, fov_rad=FOV_RAD), bores[i])
     return frames
 
 

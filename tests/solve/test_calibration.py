@@ -20,7 +20,8 @@ from starsense.geometry.sampling import random_attitudes
 from starsense.render.io import write_frame
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
-from starsense.solve.calibration import FrameStars, calibrate
+from starsense.solve.calibration import FrameStars, calibrate, frame_stars
+from starsense.solve.solver import Solver
 
 # ST-16: the detector corner is at r = tan(angle) = 0.2228, r^2 = 0.0496. k1 = 2 moves it by
 # k1 r^2 = 10 % (162 px): the "k1 up to 1e-1 at the field edge".
@@ -171,9 +172,6 @@ def test_calibrate_cli_bad_input_leaves_no_file(lens_frames, capsys, tmp_path):
 def test_esa_leave_one_out_improves_the_held_out_frame(shared_dir):
     # bench/esa_calibration.py runs all eight; here one: fit on seven, solve the eighth. The
     # bench measured 11.6 -> 9.3 arcsec for this frame (every frame improved, by 14-50 %).
-    from starsense.solve.calibration import frame_stars
-    from starsense.solve.solver import Solver
-
     folder = shared_dir / "data" / "images" / "esa"
     names = sorted(json.loads((folder / "reference.json").read_text())["frames"])
     held = "2019-07-29T204726_Alt40_Azi135_Try1.tiff"

@@ -16,8 +16,11 @@ import numpy as np
 import pytest
 from camera8 import COLUMNS, FOV_RAD, ROWS, camera8
 
+from starsense.catalog import load_catalog
 from starsense.cli import main
+from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, small_rotation_angles
+from starsense.render.scene import render_frame
 from starsense.solve.solver import Solver
 
 ARCSEC_PER_RAD = 180 / math.pi * 3600
@@ -28,9 +31,6 @@ EXACT_ARCSEC = 0.05
 
 @pytest.fixture(scope="module")
 def truth():
-    from starsense.catalog import load_catalog
-    from starsense.render.scene import render_frame
-
     att = attitude_from_radec_roll(*np.radians([250.0, 30.0, 40.0]))
     frame = render_frame(camera8(), att, load_catalog("hipparcos"), noise=False, rng=0)
     stars = frame.truth.stars
@@ -88,8 +88,6 @@ def test_fewer_than_three_centroids_is_a_status():
 
 
 def test_solve_centroids_checks_its_input():
-    from starsense.errors import InputError
-
     with pytest.raises(InputError, match=r"shape \(N, 2\)"):
         Solver().solve_centroids(np.zeros((4, 3)), (640, 480))
     with pytest.raises(InputError, match="centroid 1 is not finite"):

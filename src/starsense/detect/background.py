@@ -239,7 +239,12 @@ def estimate_background(
                 f"got {bad.dtype} {bad.shape}"
             )
     box_px, filter_px = int(box_px), int(filter_px)
-    mesh = MeshSampler(a.shape, box_px, 2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1, interpolation)
+    mesh = MeshSampler(
+        a.shape,
+        box_px=box_px,
+        every=2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1,
+        interpolation=interpolation,
+    )
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
     cells = gather(a, np.float32, "bg_cells")
     if mesh.regular and bad is None:  # every sample is inside its box and unmasked

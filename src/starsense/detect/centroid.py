@@ -28,7 +28,7 @@ def _grid(window: np.ndarray, row0: int, col0: int):
     return x, y
 
 
-def cog(window: np.ndarray, row0: int, col0: int, power: int = 1) -> tuple[float, float]:
+def cog(window: np.ndarray, row0: int, col0: int, *, power: int = 1) -> tuple[float, float]:
     """(Intensity-weighted) centre of gravity of a background-subtracted window."""
     w = np.asarray(window, dtype=float)
     if power != 1:
@@ -47,7 +47,7 @@ def _pixel_gauss(x, y, x0, y0, sigma, flux, offset):
     return flux * gx * gy + offset
 
 
-def gauss_fit(window: np.ndarray, row0: int, col0: int, sigma0: float = 1.5):
+def gauss_fit(window: np.ndarray, row0: int, col0: int, *, sigma0: float = 1.5):
     """Fit a pixel-integrated symmetric Gaussian + constant; returns (x, y, sigma, ok)."""
     w = np.asarray(window, dtype=float)
     x0, y0 = cog(w, row0, col0)

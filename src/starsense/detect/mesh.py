@@ -198,7 +198,7 @@ class MeshSampler:
     interpolation : {"linear", "cubic"}
     """
 
-    def __init__(self, shape: tuple[int, int], box_px: int, every: int, interpolation: str):
+    def __init__(self, shape: tuple[int, int], *, box_px: int, every: int, interpolation: str):
         rows, cols = shape
         self.ri, self.rvalid, self.rc, self.wy = _mesh_plan(rows, box_px, every, interpolation)
         self.ci, self.cvalid, self.cc, self.wx = _mesh_plan(cols, box_px, every, interpolation)

@@ -67,7 +67,7 @@ def _segment_mask(shape, x, y, streak, radius):
     return inside, (r0, r1, c0, c1)
 
 
-def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
+def streak_centroid(sub: np.ndarray, x: float, y: float, *, streak, radius: float):
     """Centre of gravity of a streak of known shape, started from a point on it.
 
     The CoG is taken over the pixels within ``radius`` of a segment of the predicted streak
@@ -186,7 +186,7 @@ def _origins(y_x, reach, limit):
     return np.minimum(np.maximum(np.floor(y_x - reach), 0), limit).astype(np.intp)
 
 
-def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
+def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
     """:func:`streak_centroid` of many regions at once (each on its own plane).
 
     The capsule around the segment lies inside its bounding box, so the mask is taken over a

@@ -239,7 +239,9 @@ class StarDetector:
         filtered = scratch("filtered", sub.shape)
         gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
         grid = bg.noise_grid(NOISE_STEP)
-        ratio = filtered_noise_ratio(filtered, grid, self.psf_sigma_px, noise_grid=True)
+        ratio = filtered_noise_ratio(
+            filtered, grid, psf_sigma_px=self.psf_sigma_px, noise_grid=True
+        )
         k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
         cut = np.float32(k * ratio)
         above = scratch("lit", sub.shape, bool)
@@ -280,7 +282,7 @@ class StarDetector:
         for i, (r0, r1, c0, c1) in enumerate(boxes):
             wr0, wc0 = max(r0 - m, 0), max(c0 - m, 0)
             window = sub[wr0 : min(r1 + m, rows), wc0 : min(c1 + m, cols)]
-            x, y, _, fit_ok = gauss_fit(window, wr0, wc0, self.psf_sigma_px)
+            x, y, _, fit_ok = gauss_fit(window, wr0, wc0, sigma0=self.psf_sigma_px)
             if np.isfinite(x):
                 xs[i], ys[i] = x, y
             fits[i] = fit_ok
@@ -349,7 +351,7 @@ class StarDetector:
         keep = keep[np.argsort(-sums[keep], kind="stable")]
         power = 2 if self.centroid == "iwcog" else 1
         xs, ys, peak_arr, boxes, fits = region_centroids(
-            sub, a, idx, lab, keep, core, self.margin_px, power
+            sub, a, idx=idx, lab=lab, keep=keep, core=core, margin=self.margin_px, power=power
         )
         if self.centroid == "gauss":
             self._gauss(sub, boxes, xs, ys, fits)

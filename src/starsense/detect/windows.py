@@ -358,7 +358,7 @@ def _detect_stack(cfg: WindowDetector, stack, r0, c0, shape, streaks):
         st = np.asarray(streaks, dtype=float)[p]
         use = ((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x)).nonzero()[0]
         gx, gy, gc, gb, gs = streak_centroids(
-            sub[p[use]], x[use], y[use], st[use], 2.5 * sigma + 1.0
+            sub[p[use]], x[use], y[use], streaks=st[use], radius=2.5 * sigma + 1.0
         )
         fin = np.isfinite(gx)
         got = use[fin]

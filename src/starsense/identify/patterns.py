@@ -141,6 +141,7 @@ def hash_keys(bins: NDArray[np.integer], n_bins: int) -> NDArray[np.int64]:
 def thin_by_region(
     vectors: NDArray[np.float64],
     mags: NDArray[np.float64],
+    *,
     radius_rad: float,
     n_per_region: int,
     oversampling: float = 2.0,

@@ -216,9 +216,9 @@ class TrackingIdentifier:
         self,
         vectors_cam,
         prior: Rotation,
+        *,
         search_radius_rad: float,
         field_radius_rad: float,
-        *,
         region: tuple[float, int] | None = None,
         candidates=None,
     ) -> TrackingMatch:
@@ -307,7 +307,7 @@ class TrackingIdentifier:
         innovation = float(math.hypot(d[0], d[1]) + abs(d[2]) * math.sin(field_r))
         cat = near[star]
         p_single = region[1] * math.pi * radius**2 / max(region[0], 1e-30)
-        p_false = false_match_probability(len(v), len(det), 2, p_single)
+        p_false = false_match_probability(len(v), len(det), n_hypothesis=2, p_single=p_single)
         rms = math.sqrt(float(resid @ resid) / len(resid))
         kw = {
             "detection_index": det,

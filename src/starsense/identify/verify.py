@@ -106,7 +106,7 @@ def estimate_matrix(
 
 
 def false_match_probability(
-    n_detections: int, n_matched: int, n_hypothesis: int, p_single: float
+    n_detections: int, n_matched: int, *, n_hypothesis: int, p_single: float
 ) -> float:
     """Return the probability that the extra matches of a hypothesis are chance.
 
@@ -312,7 +312,7 @@ class Verifier:
                 pairs = (det_m, cat_m)
                 if fit_scale:
                     vs = tangent_to_vectors(tangent * scale)
-        p_false = false_match_probability(n, len(det_m), k, p_single)
+        p_false = false_match_probability(n, len(det_m), n_hypothesis=k, p_single=p_single)
         if p_false > self.false_match_threshold:
             return None
         return _Verified(

@@ -11,7 +11,7 @@ from starsense.geometry.projection import tangent_to_vectors
 __all__ = ["pinhole_vectors"]
 
 
-def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:
+def pinhole_vectors(x, y, *, shape, fov_rad: float) -> np.ndarray:
     """Return camera-frame unit vectors of pixel positions seen through a pinhole.
 
     The horizontal field across the image width is ``fov_rad``, the principal point at the image

@@ -160,7 +160,7 @@ class Solver:
             return self.sensor.unproject(x, y), fov, fov
         known = fov_rad if fov_rad is not None else self.settings.fov_rad
         fov = known if known is not None else NOMINAL_FOV_RAD
-        return pinhole_vectors(x, y, shape, fov), known, fov
+        return pinhole_vectors(x, y, shape=shape, fov_rad=fov), known, fov
 
     # -- what tracking needs: the detector and the identifier of a field -------------------
 
@@ -353,7 +353,7 @@ class Solver:
         t3 = time.perf_counter()
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
         if fov_known is None:  # re-unproject with the field found
-            vectors = pinhole_vectors(points.x, points.y, points.shape, fov)
+            vectors = pinhole_vectors(points.x, points.y, shape=points.shape, fov_rad=fov)
         matched = np.asarray(ident.detection_index)
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
         pixel_rad = fov / points.shape[1]
@@ -371,8 +371,8 @@ class Solver:
                 points.x,
                 points.y,
                 points.flux,
-                shape,
-                lambda mx, my, f: self._solve_points(
+                shape=shape,
+                solve_points=lambda mx, my, f: self._solve_points(
                     _Points(mx, my, f, shape, points.what),
                     t0,
                     stages,
@@ -399,7 +399,9 @@ class Solver:
         ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
         if self.sensor is not None:  # blended close doubles: their photocentre, not one star
             radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / points.shape[1]
-            ref = ref + photocentres(db.vectors, db.mags, db.tree, ident.catalog_index, radius)
+            ref = ref + photocentres(
+                db.vectors, db.mags, db.tree, index=ident.catalog_index, radius_rad=radius
+            )
             ref = ref - plain
             ref /= np.linalg.norm(ref, axis=1)[:, None]
         return ref, apparent

@@ -184,7 +184,7 @@ def predicted_field(sensor, db, rot, *, r_s, field_r, half_turn_matrix):
     return near, x, y, margin_on, streaks
 
 
-def unblended(cat_index, near, x, y, *, blend_px: float) -> np.ndarray:
+def unblended(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
     """Return whether each matched star has no other database star within ``blend_px``.
 
     A double star (two catalogue stars a few pixels apart) is detected as one blended spot

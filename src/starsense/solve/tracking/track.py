@@ -64,7 +64,7 @@ class Prior:
     dt_s : float
         Time from the prior to the frame, s.
     rate_sign_known : bool
-        False for a rate from one frame's streaks (:mod:`starsense.solve.streak_rate`), which
+        False for a rate from one frame's streaks (:mod:`starsense.solve.tracking.streak_rate`), which
         fix the rate up to its sign: both signs are tried.
     """
 
@@ -199,12 +199,19 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
-    match = setup.identifier(vectors, rot_pred, r_s, field_r, region=region, candidates=near[cand])
+    match = setup.identifier(
+        vectors,
+        rot_pred,
+        search_radius_rad=r_s,
+        field_radius_rad=field_r,
+        region=region,
+        candidates=near[cand],
+    )
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
     matched, cat_index, cat_ids = match.detection_index, match.catalog_index, match.catalog_id
     blend_px = 2.0 * (2.5 * sensor.detector.psf_sigma_px + 1.0) + longest
-    alone = unblended(cat_index, near, x, y, blend_px=blend_px)
+    alone = unblended(cat_index, near, x=x, y=y, blend_px=blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
     noise = star_noise(
