@@ -64,8 +64,9 @@ class Prior:
     dt_s : float
         Time from the prior to the frame, s.
     rate_sign_known : bool
-        False for a rate from one frame's streaks (:mod:`starsense.solve.tracking.streak_rate`), which
-        fix the rate up to its sign: both signs are tried.
+        False for a rate from one frame's streaks
+        (:mod:`starsense.solve.tracking.streak_rate`), which fix the rate up to its sign: both
+        signs are tried.
     """
 
     rotation: Rotation
