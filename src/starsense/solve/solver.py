@@ -26,6 +26,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -43,7 +44,7 @@ from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
-from starsense.solve.settings import SolverSettings, solver_settings
+from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
 from starsense.units import DEG
 
@@ -113,10 +114,10 @@ class Solver:
         *,
         fov_rad: float | None = None,
         catalog: Catalog | str = "hipparcos",
-        algorithm: str = "hashing",
+        algorithm: Algorithm = "hashing",
         threshold_sigma: float = 5.0,
-        centroid_sigma_px: float | str = 0.3,
-        background: str = "auto",
+        centroid_sigma_px: float | Literal["snr"] = 0.3,
+        background: BackgroundMode = "auto",
         apparent: bool = True,
         observer_velocity_m_s=None,
     ) -> None:
