@@ -7,7 +7,7 @@ against reference.json. Twice: with catalogue places (the frame of reference.jso
 with apparent places at the time in the frames' names (proper motion over the 28 years since
 the Hipparcos epoch, parallax, aberration). Also prints the per-star centroid noise the sensor
 model predicts for the matched stars (centre-of-gravity noise with the frame's measured
-background noise, :func:`starsense.solve.solver._cog_sigma_px`), the residuals' yardstick.
+background noise, :func:`starsense.detect.centroid.cog_sigma_px`), the residuals' yardstick.
 
     PYTHONPATH=src .venv/bin/python bench/esa_calibration.py
 
@@ -30,11 +30,12 @@ from scipy.spatial.transform import Rotation
 from starsense._io import atomic_write
 from starsense.catalog import load_catalog
 from starsense.detect import StarDetector
+from starsense.detect.centroid import cog_sigma_px
 from starsense.geometry.attitude import angular_separation, radec_to_vectors
 from starsense.geometry.distortion import distort
 from starsense.solve.calibration import _Problem, calibrate, frame_stars
 from starsense.solve.frames import load_image
-from starsense.solve.solver import Solver, _cog_sigma_px
+from starsense.solve.solver import Solver
 from starsense.units import RAD_TO_ARCSEC
 
 ESA = Path(__file__).resolve().parents[2] / "shared" / "data" / "images" / "esa"
@@ -58,7 +59,7 @@ def predicted_sigma_px(solver: Solver, path: Path, sol) -> np.ndarray:
     idx = np.array([d for d, _ in sol.matches])
     gain = solver.sensor.detector.gain_counts_per_e
     model = dataclasses.replace(solver.sensor.detector, read_noise_e=det.noise_counts / gain)
-    return _cog_sigma_px(det, idx, model, detector.margin_px)
+    return cog_sigma_px(det, idx, detector=model, margin_px=detector.margin_px)
 
 
 def predicted_noise_arcsec(solver: Solver, path: Path, sol) -> float:

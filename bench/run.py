@@ -227,7 +227,7 @@ def _solve_esa() -> float:
 def _track_frame() -> float:
     from starsense.render.scene import render_frame
     from starsense.solve.solver import Solver
-    from starsense.solve.track import Prior
+    from starsense.solve.tracking import Prior, track_frame
 
     sensor, cat, att, rate = _st16_frame_inputs()
     image = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1).image
@@ -236,10 +236,10 @@ def _track_frame() -> float:
     out = []
     for background, sigma in (("auto", 0.3), ("known", "snr")):
         solver = Solver(sensor, background=background, centroid_sigma_px=sigma)
-        lis, tracked = solver(image), solver.track(image, prior)
+        lis, tracked = solver(image), track_frame(solver, image, prior)
         assert lis.solved and tracked.mode == "tracking" and tracked.solution.solved
         t_lis = best_of(lambda solver=solver: solver(image))
-        t_track = best_of(lambda solver=solver: solver.track(image, prior))
+        t_track = best_of(lambda solver=solver: track_frame(solver, image, prior))
         out.append(t_track)
         print(
             f"    (background {background}: lost-in-space {t_lis * 1e3:.1f} ms, tracking "

@@ -3,8 +3,8 @@
 ``bench/run.py track_frame_st16`` takes the best of 5 calls, which another job on the same cores
 can still double. This times blocks of calls in one process and prints the minimum and the
 median per call over the blocks, wall (``perf_counter``) and CPU (``process_time``), for
-``Solver.track(image, prior)`` and ``Solver(image)``, with the background estimated ("auto") or
-the sensor's known bias ("known")::
+``track_frame(solver, image, prior)`` and ``Solver(image)``, with the background estimated
+("auto") or the sensor's known bias ("known")::
 
     PYTHONPATH=src .venv/bin/python bench/track_vs_lis.py [auto|known] [--blocks 40]
 """
@@ -43,7 +43,7 @@ def main() -> None:
 
     from starsense.render.scene import render_frame
     from starsense.solve.solver import Solver
-    from starsense.solve.track import Prior
+    from starsense.solve.tracking import Prior, track_frame
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("background", nargs="?", default="known", choices=["auto", "known"])
@@ -55,9 +55,9 @@ def main() -> None:
     prior = Prior(att, np.eye(3) * np.radians(0.01) ** 2, rate, np.eye(3) * np.radians(0.005) ** 2)
     known = args.background == "known"
     solver = Solver(sensor, background=args.background, centroid_sigma_px="snr" if known else 0.3)
-    lis, tracked = solver(image), solver.track(image, prior)  # database and caches, once
+    lis, tracked = solver(image), track_frame(solver, image, prior)  # database and caches, once
     assert lis.solved and tracked.mode == "tracking" and tracked.solution.solved
-    track = _blocks(lambda: solver.track(image, prior), args.blocks, 10)
+    track = _blocks(lambda: track_frame(solver, image, prior), args.blocks, 10)
     solve = _blocks(lambda: solver(image), max(args.blocks // 3, 3), 2 if known else 1)
     t_ms, s_ms = [v * 1e3 for v in track], [v * 1e3 for v in solve]
     print(

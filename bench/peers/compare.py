@@ -117,7 +117,8 @@ def starsense_side(synth_sets, esa):
     from starsense.catalog import load_catalog
     from starsense.geometry.attitude import radec_roll_from_attitude
     from starsense.identify import HashIdentifier, build_database
-    from starsense.solve.solver import Solver, pinhole_vectors
+    from starsense.solve.pinhole import pinhole_vectors
+    from starsense.solve.solver import Solver
 
     names, images, exy, eoff, _reference, sensor = esa
     cat = load_catalog("hipparcos")
@@ -139,7 +140,9 @@ def starsense_side(synth_sets, esa):
             pts = xy[offsets[i] : offsets[i + 1]]
 
             def solve(pts=pts):
-                return identify(pinhole_vectors(pts[:, 0], pts[:, 1], SYNTH_SIZE, fov), fov)
+                return identify(
+                    pinhole_vectors(pts[:, 0], pts[:, 1], shape=SYNTH_SIZE, fov_rad=fov), fov
+                )
 
             synth[key].append(record(*_best_of(solve, 1)))
 

@@ -8,6 +8,9 @@ from scipy.special import erf
 
 from starsense.detect import StarDetector, detect_stars, estimate_background, hot_pixel_mask
 from starsense.errors import InputError
+from starsense.photometry.sensitivity import Sensitivity
+from starsense.render.noise import apply_noise
+from starsense.render.smear import streak_stamp_expected
 from starsense.sensor import DetectionThresholds, load_sensor
 
 
@@ -112,10 +115,6 @@ def test_rendered_star_round_trip():
     # noise. CoG noise: shot 1.5 px / sqrt(5,100) = 0.021 px; read noise 23 counts over the ~130
     # pixels of the window (lit radius ~3.6 px + 2 px margin) adds 23 sqrt(sum x^2) / 33,000
     # ~ 0.025 px: ~0.033 px in all, so 0.1 px is 3 sigma.
-    from starsense.photometry.sensitivity import Sensitivity
-    from starsense.render.noise import apply_noise
-    from starsense.render.smear import streak_stamp_expected
-
     s = load_sensor("st16")
     e = float(Sensitivity.for_sensor(s, "reed").electrons(3.0))
     stamp, r0, c0 = streak_stamp_expected(s, x0=30.3, y0=20.6, x1=30.3, y1=20.6, electrons=e)

@@ -7,8 +7,16 @@ import pytest
 from scipy import ndimage
 
 from starsense.detect import estimate_background, hot_pixel_mask
-from starsense.detect.clip import _ranked, _run_mad
-from starsense.detect.mesh import _interpolate_mesh, _interpolation_matrix
+from starsense.detect.clip import (
+    MAD_TO_SIGMA,
+    _rank_of,
+    _ranked,
+    _robust_sigma_numpy,
+    _rows_at,
+    _run_mad,
+    robust_sigma,
+)
+from starsense.detect.mesh import _interpolation_matrix, interpolate_mesh
 from starsense.errors import InputError
 
 
@@ -58,7 +66,7 @@ def test_interpolate_mesh_is_the_matrix_product(rows, cols, kind):
     mesh = 1000.0 + 50.0 * rng.standard_normal((ny, nx))
     wy = _interpolation_matrix(np.linspace(4, rows - 5, ny), rows, kind)
     wx = _interpolation_matrix(np.linspace(3, cols - 4, nx), cols, kind)
-    got = _interpolate_mesh(wy, mesh, wx)
+    got = interpolate_mesh(wy, mesh, wx)
     assert got.dtype == np.float32 and got.shape == (rows, cols)
     # the whole-frame product is float32: each pixel sums one term per mesh column (7), each
     # rounded to a float32 ulp of ~1,000 (6.1e-5), so 8 ulps of the mesh's scale are allowed
@@ -96,15 +104,13 @@ def test_interpolate_flat_mesh_is_exact():
     # light every pixel of a frame whose noise is zero
     wy = _interpolation_matrix(np.linspace(31.5, 736.5, 12), 768, "cubic")
     wx = _interpolation_matrix(np.linspace(31.5, 992.5, 16), 1024, "cubic")
-    got = _interpolate_mesh(wy, np.full((12, 16), 500.0), wx)
+    got = interpolate_mesh(wy, np.full((12, 16), 500.0), wx)
     assert np.all(got == np.float32(500.0))
 
 
 @pytest.mark.parametrize("inclusive", [False, True])
 def test_rank_of_is_searchsorted_in_the_run(inclusive):
     """The blocked search against np.searchsorted per row, clamped to the run (ties, NaN)."""
-    from starsense.detect.clip import _rank_of, _rows_at
-
     rng = np.random.default_rng(11)
     cells = np.round(rng.normal(0.0, 20.0, (7, 5, 300))).astype(np.float32)  # many ties
     cells[rng.random(cells.shape) < 0.1] = np.nan
@@ -128,9 +134,7 @@ def test_robust_sigma_is_the_mad_of_the_kept_samples(samples, form):
     # every path (the compiled kernel when built; in NumPy, short rows sort their deviations,
     # long rows search for their median) against the definition, sample by sample:
     # 1.4826 x the median of |x - median(x)| over the kept
-    from starsense.detect.clip import MAD_TO_SIGMA, _robust_sigma, _robust_sigma_numpy
-
-    robust = _robust_sigma if form == "as used" else _robust_sigma_numpy
+    robust = robust_sigma if form == "as used" else _robust_sigma_numpy
 
     rng = np.random.default_rng(samples)
     cells = np.round(rng.normal(0.0, 4.0, (6, 5, samples))).astype(np.float32)

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 from scipy.special import erf
 
 from starsense.detect import StarDetector
-from starsense.detect.matched import matched_filter
+from starsense.detect.matched import _median_in_place, gaussian_correlate, matched_filter
 from starsense.sensor import DetectionThresholds
 
 SIGMA_PX = 1.0
@@ -31,7 +32,7 @@ def test_filtered_noise_of_white_noise_is_the_closed_form():
     # (0.2821 at s = 1); the MAD over 87,000 samples scatters by ~0.4 %, 2 % allowed
     rng = np.random.default_rng(1)
     sub = rng.normal(0, 10.0, (768, 1024)).astype(np.float32)
-    _, noise, ratio = matched_filter(sub, 10.0, SIGMA_PX)
+    _, noise, ratio = matched_filter(sub, 10.0, psf_sigma_px=SIGMA_PX)
     assert ratio == pytest.approx(1 / (2 * np.sqrt(np.pi)), rel=0.02)
     assert float(noise) == pytest.approx(10.0 * ratio)
 
@@ -43,7 +44,7 @@ def test_correlated_noise_raises_the_filtered_noise():
     white = rng.normal(0, 1.0, (512, 512))
     corr = white + np.roll(white, 1, 0) + np.roll(white, 1, 1) + np.roll(white, (1, 1), (0, 1))
     corr /= corr.std()
-    _, _, ratio = matched_filter(corr.astype(np.float32), 1.0, SIGMA_PX)
+    _, _, ratio = matched_filter(corr.astype(np.float32), 1.0, psf_sigma_px=SIGMA_PX)
     assert ratio > 1.5 / (2 * np.sqrt(np.pi))
 
 
@@ -104,10 +105,6 @@ def test_gaussian_correlate_is_scipys_gaussian_filter(shape, sigma):
     # scipy's gaussian_filter (float64 arithmetic, "nearest" edges, truncate 3) as the reference,
     # on frames smaller than the kernel too; the float32 sums round to within a few float32
     # ulps of the largest value (4.9e-4 at 6,000): 4 ulps allowed
-    from scipy import ndimage
-
-    from starsense.detect.matched import gaussian_correlate
-
     rng = np.random.default_rng(5)
     frame = (1000.0 + rng.normal(0, 10.0, shape)).astype(np.float32)
     frame[rng.random(shape) < 0.05] += 5000.0  # sharp features
@@ -123,8 +120,6 @@ def test_gaussian_correlate_is_scipys_gaussian_filter(shape, sigma):
 @pytest.mark.parametrize("n", [1, 2, 3, 10, 11, 8_000, 8_001])
 def test_median_in_place_is_numpys_median(n):
     # np.median is the reference: the same float32 value (ties included), for odd and even n
-    from starsense.detect.matched import _median_in_place
-
     rng = np.random.default_rng(n)
     z = rng.normal(0.0, 1.0, n).astype(np.float32)
     z[::3] = np.round(z[::3])

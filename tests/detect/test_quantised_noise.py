@@ -17,6 +17,7 @@ from scipy.stats import norm
 from starsense.detect import estimate_background
 from starsense.detect.quantised import clipped_gaussian_sigma, quantisation_step
 from starsense.render.noise import apply_noise
+from starsense.solve.frames import load_image
 
 
 def _dark_frame(bias: float, read_noise_e: float, seed: int = 3) -> np.ndarray:
@@ -98,8 +99,6 @@ def test_quantisation_step():
 def test_esa_frames_keep_the_mad_estimate(shared_dir):
     # 12-bit data stored as 16-bit (steps of 16 counts) with 92-221 counts of noise: far from
     # quantised, so the MAD path of issue 5 applies unchanged
-    from starsense.solve.frames import load_image
-
     folder = shared_dir / "data" / "images" / "esa"
     bg = estimate_background(load_image(next(iter(sorted(folder.glob("*.tiff"))))))
     assert bg.step is None and bg.noise > 50

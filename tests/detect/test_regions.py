@@ -41,7 +41,9 @@ def test_region_centroids_is_the_per_window_cog():
     idx = np.flatnonzero(mask)
     lab, n = label_pixels(idx, sub.shape)
     keep = np.arange(n, 0, -1)  # any order
-    x, y, peaks, boxes, ok = region_centroids(sub, sub, idx, lab, keep, None, 2)
+    x, y, peaks, boxes, ok = region_centroids(
+        sub, sub, idx=idx, lab=lab, keep=keep, core=None, margin=2
+    )
     labels = ndimage.label(mask, structure=np.ones((3, 3)))[0]
     for i, k in enumerate(keep):
         rr, cc = np.nonzero(labels == k)

@@ -6,7 +6,7 @@ import threading
 
 import numpy as np
 
-from starsense.detect import workspace
+from starsense.detect import StarDetector, workspace
 from starsense.detect.workspace import MAX_KEPT_BUFFERS, MAX_KEPT_PIXELS, scratch
 
 
@@ -44,8 +44,6 @@ def test_each_thread_has_its_own_buffers():
 def test_detections_do_not_change_when_buffers_are_reused():
     # the same frame twice, with another frame in between: identical detections (nothing left
     # over in a reused buffer changes a result)
-    from starsense.detect import StarDetector
-
     rng = np.random.default_rng(0)
     yy, xx = np.mgrid[0:120, 0:160]
     frame = 100.0 + rng.normal(0, 3, (120, 160))

@@ -52,7 +52,7 @@ def test_ratios_invariant_under_scale():
 
 def test_thin_by_region_keeps_the_brightest(hipparcos):
     mags = np.asarray(hipparcos.mags["V"])
-    keep = thin_by_region(hipparcos.vectors, mags, math.radians(5), 10)
+    keep = thin_by_region(hipparcos.vectors, mags, radius_rad=math.radians(5), n_per_region=10)
     assert 0 < keep.sum() < 0.2 * len(mags)
     # The 100 brightest stars of the sky are each among the 10 brightest of their region.
     finite = np.flatnonzero(np.isfinite(mags))

@@ -24,7 +24,7 @@ from starsense.geometry.attitude import (
 )
 from starsense.geometry.sampling import fibonacci_sphere
 from starsense.identify import HashIdentifier, build_database
-from starsense.solve.solver import pinhole_vectors
+from starsense.solve.pinhole import pinhole_vectors
 
 ARCMIN = math.radians(1.0 / 60.0)
 FOV_RAD = math.radians(15.0)
@@ -59,7 +59,7 @@ def _peer_frames(catalog, wanted, n=2001, seed=20240605):
             xs = np.insert(xs, pos, rng.uniform(0, cols - 1))
             ys = np.insert(ys, pos, rng.uniform(0, rows - 1))
         if i in wanted:
-            frames[i] = (pinhole_vectors(xs, ys, SIZE, FOV_RAD), bores[i])
+            frames[i] = (pinhole_vectors(xs, ys, shape=SIZE, fov_rad=FOV_RAD), bores[i])
     return frames
 
 

@@ -120,7 +120,7 @@ def test_triangle_rejects_multiscale_database(hipparcos):
 
 def test_false_match_probability():
     # nothing beyond the hypothesis -> no evidence
-    assert false_match_probability(20, 4, 4, 0.01) == 1.0
+    assert false_match_probability(20, 4, n_hypothesis=4, p_single=0.01) == 1.0
     # binomial tail: P[X >= 2], X ~ Bin(3, 0.5) = 0.5
-    assert false_match_probability(7, 6, 4, 0.5) == pytest.approx(0.5)
-    assert false_match_probability(30, 20, 4, 0.01) < 1e-20
+    assert false_match_probability(7, 6, n_hypothesis=4, p_single=0.5) == pytest.approx(0.5)
+    assert false_match_probability(30, 20, n_hypothesis=4, p_single=0.01) < 1e-20

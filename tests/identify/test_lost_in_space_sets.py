@@ -27,7 +27,7 @@ from starsense.errors import InputError
 from starsense.geometry.attitude import angular_separation
 from starsense.identify import HashIdentifier, build_database
 from starsense.identify.centroid_sets import centroid_sets
-from starsense.solve.solver import pinhole_vectors
+from starsense.solve.pinhole import pinhole_vectors
 
 ARCMIN = math.radians(1.0 / 60.0)
 HARD = {"noise_px": 1.0, "n_false": 6, "drop_fraction": 0.3}
@@ -45,7 +45,7 @@ def _score(identify, sets):
     unsolved = []
     for i in range(len(sets)):
         pts = sets[i]
-        v = pinhole_vectors(pts[:, 0], pts[:, 1], sets.image_size, sets.fov_rad)
+        v = pinhole_vectors(pts[:, 0], pts[:, 1], shape=sets.image_size, fov_rad=sets.fov_rad)
         result = identify(v, sets.fov_rad)
         if not result.solved:
             unsolved.append((i, result.status))
@@ -85,7 +85,9 @@ def test_centroid_sets_carry_their_truth(hipparcos):
         assert len(pts) == 20 - 5 + 3  # round(0.25 * 20) dropped, 3 false
         assert (cid == -1).sum() == 3
         true = cid >= 0
-        cam = pinhole_vectors(pts[true, 0], pts[true, 1], sets.image_size, sets.fov_rad)
+        cam = pinhole_vectors(
+            pts[true, 0], pts[true, 1], shape=sets.image_size, fov_rad=sets.fov_rad
+        )
         sky = sets.rotations[i].inv().apply(cam)
         pos = order[np.searchsorted(ids, cid[true], sorter=order)]
         assert np.array_equal(ids[pos], cid[true])

@@ -18,14 +18,16 @@ def test_photocentre_of_equal_and_unequal_pairs():
     v = np.stack([base, off, far])
     tree = cKDTree(v)
     # equal pair: the midpoint (to first order in the 20 arcsec separation)
-    out = photocentres(v, np.array([5.0, 5.0, 5.0]), tree, [0, 2], 60 * ARCSEC)
+    out = photocentres(v, np.array([5.0, 5.0, 5.0]), tree, index=[0, 2], radius_rad=60 * ARCSEC)
     assert np.arctan2(out[0, 0], out[0, 2]) == pytest.approx(10 * ARCSEC, rel=1e-6)
     np.testing.assert_array_equal(out[1], far)  # no neighbour: unchanged
     # a companion 2.5 mag fainter carries 1/11 of the light: 20/11 arcsec towards it
-    out = photocentres(v, np.array([5.0, 7.5, 5.0]), tree, [0], 60 * ARCSEC)
+    out = photocentres(v, np.array([5.0, 7.5, 5.0]), tree, index=[0], radius_rad=60 * ARCSEC)
     assert np.arctan2(out[0, 0], out[0, 2]) == pytest.approx(20 * ARCSEC / 11, rel=1e-3)
     # outside the radius: unchanged
-    np.testing.assert_array_equal(photocentres(v, np.ones(3), tree, [0], 10 * ARCSEC)[0], base)
+    np.testing.assert_array_equal(
+        photocentres(v, np.ones(3), tree, index=[0], radius_rad=10 * ARCSEC)[0], base
+    )
 
 
 def test_blend_radius_grows_with_the_psf():

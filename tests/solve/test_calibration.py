@@ -14,13 +14,14 @@ from scipy.spatial.transform import Rotation
 from starsense.catalog import load_catalog
 from starsense.cli import main
 from starsense.detect import StarDetector
+from starsense.detect.centroid import cog_sigma_px
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
 from starsense.render.io import write_frame
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
-from starsense.solve.calibration import FrameStars, calibrate
-from starsense.solve.solver import _cog_sigma_px
+from starsense.solve.calibration import FrameStars, calibrate, frame_stars
+from starsense.solve.solver import Solver
 
 # ST-16: the detector corner is at r = tan(angle) = 0.2228, r^2 = 0.0496. k1 = 2 moves it by
 # k1 r^2 = 10 % (162 px): the "k1 up to 1e-1 at the field edge".
@@ -57,7 +58,9 @@ def rendered():
         vectors = cat.vectors[cat.index_of(st.ids[i[ok]])]
         frames.append(FrameStars(np.column_stack([det.x, det.y])[ok], vectors, start, f"f{k}"))
         err = np.column_stack([det.x - st.x_mid[i], det.y - st.y_mid[i]])[ok]
-        sigma = _cog_sigma_px(det, np.flatnonzero(ok), true.detector, detector.margin_px)
+        sigma = cog_sigma_px(
+            det, np.flatnonzero(ok), detector=true.detector, margin_px=detector.margin_px
+        )
         predicted.append((err, sigma))
     errors = np.concatenate([e for e, _ in predicted])
     return nominal, true, frames, errors, np.concatenate([s for _, s in predicted])
@@ -79,8 +82,8 @@ def test_recovers_known_distortion_within_3_sigma(rendered):
     dof = 1 - (7 + 3 * len(frames)) / (2 * cal.n_stars)
     ratio = cal.rms_px_after / np.sqrt(np.mean(errors**2) * dof)
     assert 0.85 < ratio < 1.15, ratio
-    # the sensor model's centre-of-gravity noise (solver._cog_sigma_px: photon + read noise over
-    # the whole window) is an upper bound: measured 0.59 of it here
+    # the sensor model's centre-of-gravity noise (detect.centroid.cog_sigma_px: photon + read
+    # noise over the whole window) is an upper bound: measured 0.59 of it here
     assert cal.rms_px_after < np.sqrt(np.mean(predicted**2))
     assert cal.rms_px_before > 50 * cal.rms_px_after  # the pinhole model is 10 % off at the edge
 
@@ -169,9 +172,6 @@ def test_calibrate_cli_bad_input_leaves_no_file(lens_frames, capsys, tmp_path):
 def test_esa_leave_one_out_improves_the_held_out_frame(shared_dir):
     # bench/esa_calibration.py runs all eight; here one: fit on seven, solve the eighth. The
     # bench measured 11.6 -> 9.3 arcsec for this frame (every frame improved, by 14-50 %).
-    from starsense.solve.calibration import frame_stars
-    from starsense.solve.solver import Solver
-
     folder = shared_dir / "data" / "images" / "esa"
     names = sorted(json.loads((folder / "reference.json").read_text())["frames"])
     held = "2019-07-29T204726_Alt40_Azi135_Try1.tiff"

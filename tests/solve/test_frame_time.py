@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
-from astropy.io import fits
-from PIL import Image
 
 from starsense.solve.frames import frame_time
 
 
 def test_exif_datetime_original_wins_over_datetime(tmp_path):
+    from PIL import Image
+
     exif = Image.Exif()
     exif[306] = "2020:01:01 00:00:00"  # DateTime (IFD0): when the file was last changed
     exif.get_ifd(0x8769)[36867] = "2019:07:29 20:47:26"  # DateTimeOriginal: the exposure
@@ -19,6 +19,9 @@ def test_exif_datetime_original_wins_over_datetime(tmp_path):
 
 
 def test_no_time_in_headers(tmp_path):
+    from astropy.io import fits
+    from PIL import Image
+
     fits.PrimaryHDU(np.zeros((8, 8), np.uint16)).writeto(tmp_path / "f.fits")
     Image.fromarray(np.zeros((8, 8), np.uint8)).save(tmp_path / "f.png")
     assert frame_time(tmp_path / "f.fits") == (None, None)

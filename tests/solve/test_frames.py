@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from starsense.errors import InputError
 from starsense.solve.frames import load_image
 
 
 def test_16bit_tiff_and_8bit_png_round_trip(tmp_path):
+    from PIL import Image
+
     a16 = (np.arange(12 * 10).reshape(12, 10) * 500).astype(np.uint16)
     Image.fromarray(a16).save(tmp_path / "f.tiff")
     assert np.array_equal(load_image(tmp_path / "f.tiff"), a16)
@@ -20,6 +21,8 @@ def test_16bit_tiff_and_8bit_png_round_trip(tmp_path):
 
 
 def test_colour_to_luminance(tmp_path):
+    from PIL import Image
+
     rgb = np.zeros((4, 5, 3), dtype=np.uint8)
     rgb[..., 0], rgb[..., 1], rgb[..., 2] = 100, 200, 50
     Image.fromarray(rgb).save(tmp_path / "c.png")

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from importlib.resources import files
 
 import numpy as np
 import pytest
@@ -28,7 +29,11 @@ from scipy.spatial.transform import Rotation
 
 from starsense.catalog import load_catalog
 from starsense.cli import main
-from starsense.geometry.attitude import angular_separation, attitude_from_radec_roll
+from starsense.geometry.attitude import (
+    angular_separation,
+    attitude_from_radec_roll,
+    radec_roll_from_attitude,
+)
 from starsense.render.noise import apply_noise
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
@@ -76,8 +81,6 @@ def _assert_attitude(sol, truth) -> None:
 
 
 def attitude_roll(rotation) -> float:
-    from starsense.geometry.attitude import radec_roll_from_attitude
-
     return float(radec_roll_from_attitude(rotation)[2])
 
 
@@ -172,8 +175,6 @@ def test_random_points_give_no_attitude(solvers, optics):
 
 
 def test_cli_prints_mirrored_and_exits_1(image, tmp_path, capsys):
-    from importlib.resources import files
-
     from PIL import Image
 
     # the test sensor as a TOML file: the preset with this focal length and bias

@@ -21,9 +21,11 @@ import math
 import numpy as np
 import pytest
 from camera8 import FOV_RAD, camera8, frame8
+from render_noise_only import dark_frame
 
+from starsense.catalog import load_catalog
 from starsense.geometry.attitude import small_rotation_angles
-from starsense.solve.solver import Solver
+from starsense.solve.solver import Solver, max_candidates
 
 ARCSEC_PER_RAD = 180 / math.pi * 3600
 POINTINGS = [(180.0, 60.0, 10.0), (10.0, -70.0, 100.0), (140.0, -20.0, 250.0)]
@@ -31,8 +33,6 @@ POINTINGS = [(180.0, 60.0, 10.0), (10.0, -70.0, 100.0), (140.0, -20.0, 250.0)]
 
 @pytest.fixture(scope="module")
 def catalog():
-    from starsense.catalog import load_catalog
-
     return load_catalog("hipparcos")
 
 
@@ -113,8 +113,6 @@ def test_harder_8bit_frames_are_never_wrong(catalog, solver, frame_kw):
 def test_8bit_pure_noise_frames_do_not_solve(field_solver, bias):
     # the same camera with the shutter closed: the clipped noise alone must give (almost) no
     # detection and never a solution (before issue 13: thousands, with only the field known)
-    from render_noise_only import dark_frame
-
     image = dark_frame(camera8(bias_counts=bias), seed=int(bias))
     sol = field_solver(image)
     assert sol.status in ("no_stars", "too_few_stars", "no_match")
@@ -124,8 +122,6 @@ def test_8bit_pure_noise_frames_do_not_solve(field_solver, bias):
 def test_too_many_candidates_has_its_own_status():
     # 3,000 star-like blobs at random places on a 1024 x 768 frame: more than a frame of that
     # size holds as stars (max_candidates: 786), and they match no sky: the status says so
-    from starsense.solve.solver import max_candidates
-
     rng = np.random.default_rng(7)
     image = rng.normal(100.0, 3.0, (768, 1024))
     ys, xs = rng.integers(3, 765, 3000), rng.integers(3, 1021, 3000)

@@ -18,6 +18,7 @@ from starsense.geometry.attitude import (
 )
 from starsense.render.io import write_frame
 from starsense.render.scene import render_frame
+from starsense.sensor import load_sensor
 from starsense.solve.solver import Solver
 from starsense.units import ARCSEC
 
@@ -39,8 +40,6 @@ def scene():
 
 
 def _st16():
-    from starsense.sensor import load_sensor
-
     return load_sensor("st16")
 
 

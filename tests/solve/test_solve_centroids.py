@@ -16,8 +16,11 @@ import numpy as np
 import pytest
 from camera8 import COLUMNS, FOV_RAD, ROWS, camera8
 
+from starsense.catalog import load_catalog
 from starsense.cli import main
+from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, small_rotation_angles
+from starsense.render.scene import render_frame
 from starsense.solve.solver import Solver
 
 ARCSEC_PER_RAD = 180 / math.pi * 3600
@@ -28,9 +31,6 @@ EXACT_ARCSEC = 0.05
 
 @pytest.fixture(scope="module")
 def truth():
-    from starsense.catalog import load_catalog
-    from starsense.render.scene import render_frame
-
     att = attitude_from_radec_roll(*np.radians([250.0, 30.0, 40.0]))
     frame = render_frame(camera8(), att, load_catalog("hipparcos"), noise=False, rng=0)
     stars = frame.truth.stars
@@ -52,7 +52,7 @@ def test_truth_centroids_give_the_truth_attitude(truth, how):
     if how == "sensor":
         sol = Solver(sensor=camera8()).solve_centroids(xy, (COLUMNS, ROWS), brightness=flux)
     elif how == "fov":
-        sol = Solver().solve_centroids(xy, (COLUMNS, ROWS), fov=FOV_RAD, brightness=flux)
+        sol = Solver().solve_centroids(xy, (COLUMNS, ROWS), fov_rad=FOV_RAD, brightness=flux)
     else:
         sol = Solver().solve_centroids(xy, (COLUMNS, ROWS), brightness=flux)
     assert sol.solved, sol.message
@@ -71,25 +71,23 @@ def test_truth_centroids_give_the_truth_attitude(truth, how):
 def test_half_pixel_slip_is_seen(truth):
     # the test above can fail: the same centroids moved by half a pixel give ~10 arcsec
     att, xy, flux = truth
-    sol = Solver().solve_centroids(xy + 0.5, (COLUMNS, ROWS), fov=FOV_RAD, brightness=flux)
+    sol = Solver().solve_centroids(xy + 0.5, (COLUMNS, ROWS), fov_rad=FOV_RAD, brightness=flux)
     assert sol.solved and _error_arcsec(att, sol) > 5.0
 
 
 def test_listed_order_is_brightest_first(truth):
     att, xy, _ = truth
-    sol = Solver().solve_centroids(xy[:25], (COLUMNS, ROWS), fov=FOV_RAD)
+    sol = Solver().solve_centroids(xy[:25], (COLUMNS, ROWS), fov_rad=FOV_RAD)
     assert sol.solved and _error_arcsec(att, sol) < EXACT_ARCSEC
 
 
 def test_fewer_than_three_centroids_is_a_status():
-    sol = Solver().solve_centroids([[10.0, 20.0], [30.0, 40.0]], (640, 480), fov=0.2)
+    sol = Solver().solve_centroids([[10.0, 20.0], [30.0, 40.0]], (640, 480), fov_rad=0.2)
     assert sol.status == "too_few_stars" and "2 centroid(s) given" in sol.message
     assert Solver().solve_centroids(np.zeros((0, 2)), (640, 480)).status == "too_few_stars"
 
 
 def test_solve_centroids_checks_its_input():
-    from starsense.errors import InputError
-
     with pytest.raises(InputError, match=r"shape \(N, 2\)"):
         Solver().solve_centroids(np.zeros((4, 3)), (640, 480))
     with pytest.raises(InputError, match="centroid 1 is not finite"):

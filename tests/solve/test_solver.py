@@ -8,13 +8,29 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
 
+from starsense.catalog import load_catalog
 from starsense.cli import main
-from starsense.geometry.attitude import angular_separation, radec_to_vectors
-from starsense.solve.solver import Solver
+from starsense.detect import StarDetector
+from starsense.errors import InputError
+from starsense.geometry.attitude import (
+    angular_separation,
+    attitude_from_radec_roll,
+    radec_to_vectors,
+    small_rotation_angles,
+)
+from starsense.identify import HashIdentifier, build_database, fields, identify_ranked
+from starsense.render.io import write_frame
+from starsense.render.scene import render_frame
+from starsense.sensor import load_sensor
+from starsense.solve import identifiers
+from starsense.solve.frames import load_image
+from starsense.solve.pinhole import pinhole_vectors
+from starsense.solve.solver import Solution, Solver
 
 ARCSEC_PER_RAD = 180 / math.pi * 3600
 INTERFACE_KEYS = {
@@ -72,12 +88,6 @@ def test_solve_cli_json_interface(esa, capsys):
 
 def test_solve_rendered_frame_round_trip(tmp_path, capsys):
     # render an ST-16 frame at a known attitude, write it, solve it from the file
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import attitude_from_radec_roll, small_rotation_angles
-    from starsense.render.io import write_frame
-    from starsense.render.scene import render_frame
-    from starsense.sensor import load_sensor
-
     sensor = load_sensor("st16")
     truth = attitude_from_radec_roll(math.radians(83.8), math.radians(-5.4), math.radians(30))
     frame = render_frame(sensor, truth, load_catalog("hipparcos"), max_mag=6.5, rng=5)
@@ -109,8 +119,6 @@ def test_solve_no_stars_is_a_one_line_error(tmp_path, capsys):
     ],
 )
 def test_solve_bad_options(tmp_path, capsys, argv, message):
-    import re
-
     code = main(["solve", str(tmp_path / "x.tiff"), *argv])
     assert code == 2
     assert re.search(message, capsys.readouterr().err)
@@ -137,9 +145,6 @@ def test_wcs_maps_matched_stars_onto_the_catalogue(esa, tmp_path, capsys):
     from astropy.io import fits
     from astropy.wcs import WCS
 
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import angular_separation, radec_to_vectors
-
     folder, reference = esa
     name = next(iter(reference))
     out = tmp_path / "sol.wcs.fits"
@@ -161,13 +166,6 @@ def test_wcs_maps_matched_stars_onto_the_catalogue(esa, tmp_path, capsys):
 def test_identification_does_not_depend_on_centroid_order(esa):
     # Shuffle the detections: the same stars must be identified and the same attitude found,
     # and the match indices must follow the shuffled order.
-    from starsense.catalog import load_catalog
-    from starsense.detect import StarDetector
-    from starsense.geometry.attitude import small_rotation_angles
-    from starsense.identify import HashIdentifier, build_database, identify_ranked
-    from starsense.sensor import load_sensor
-    from starsense.solve.frames import load_image
-
     folder, reference = esa
     sensor = load_sensor("esa_blackfly")
     det = StarDetector(sensor.detection, background="auto", threshold_sigma=5)(
@@ -212,11 +210,11 @@ def test_pure_noise_frame_returns_no_solution(seed):
 def test_pinhole_vectors_centre_and_edge():
     # principal point at the image centre (pixel-centre convention); the left and right edges
     # of the image (x = -0.5 and cols - 0.5) lie at half the horizontal field from the boresight
-    from starsense.solve.solver import pinhole_vectors
-
     fov = math.radians(12.0)
     rows, cols = 480, 640
-    v = pinhole_vectors([(cols - 1) / 2, -0.5, cols - 0.5], [(rows - 1) / 2] * 3, (rows, cols), fov)
+    v = pinhole_vectors(
+        [(cols - 1) / 2, -0.5, cols - 0.5], [(rows - 1) / 2] * 3, shape=(rows, cols), fov_rad=fov
+    )
     assert v.shape == (3, 3)
     np.testing.assert_allclose(np.linalg.norm(v, axis=1), 1.0, rtol=1e-15)
     np.testing.assert_allclose(v[0], [0.0, 0.0, 1.0], atol=1e-15)
@@ -225,8 +223,6 @@ def test_pinhole_vectors_centre_and_edge():
 
 
 def test_solver_checks_its_parameters_by_name():
-    from starsense.errors import InputError
-
     with pytest.raises(InputError, match="give sensor or fov_rad, not both"):
         Solver(sensor="st16", fov_rad=0.2)
     with pytest.raises(InputError, match=r"fov_rad = 5.0 is out of range"):
@@ -238,8 +234,6 @@ def test_solver_checks_its_parameters_by_name():
 
 
 def test_solution_stores_radians_and_shows_degrees():
-    from starsense.solve.solver import Solution
-
     sigma = (1e-5, 2e-5, 3e-5)
     sol = Solution("solved", ra_rad=math.pi / 2, dec_rad=-math.pi / 4, roll_rad=0.0,
                    fov_rad=math.radians(10), rmse_rad=1e-5, sigma_rad=sigma)  # fmt: skip
@@ -250,3 +244,29 @@ def test_solution_stores_radians_and_shows_degrees():
     assert d["sigma_arcsec"] == pytest.approx([s * ARCSEC_PER_RAD for s in sigma])
     empty = Solution("no_stars").to_dict()
     assert empty["ra_deg"] is None and empty["sigma_arcsec"] is None
+
+
+def test_solver_takes_a_catalog_object(esa, monkeypatch):
+    # a catalogue filtered in Python (V <= 6.5: 8,918 Hipparcos stars) is carried, not
+    # reloaded: every range of the unknown-field search uses it, and the ESA frames solve
+    # within the bounds of test_esa_frames_solve_within_15_arcsec without optics (measured:
+    # 0.4-5.3 arcsec)
+    hipparcos = load_catalog("hipparcos")
+    bright = hipparcos.subset(hipparcos.mags["V"] <= 6.5)
+
+    def no_reload(spec):
+        raise AssertionError(f"catalogue {spec!r} loaded again")
+
+    monkeypatch.setattr(fields, "load_catalog", no_reload)
+    monkeypatch.setattr(identifiers, "load_catalog", no_reload)
+    folder, reference = esa
+    solver = Solver(catalog=bright)
+    assert solver.catalog is bright and solver.settings.catalog is bright
+    assert all(r.catalog is bright for r in solver.field_plan())
+    for name, ref in reference.items():
+        sol = solver.solve_file(folder / name).to_dict()
+        assert sol["status"] == "solved", (name, sol["message"])
+        assert _separation_arcsec(sol, ref) < 15, name
+        droll = (sol["roll_deg"] - ref["roll_deg"] + 180) % 360 - 180
+        assert abs(droll) < 0.05, name
+        assert sol["fov_deg"] == pytest.approx(ref["fov_deg"], rel=1e-3)

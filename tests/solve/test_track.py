@@ -17,13 +17,17 @@ from scipy.spatial.transform import Rotation
 
 from starsense.catalog import load_catalog
 from starsense.cli import main
+from starsense.detect.streak import streak_centroid
 from starsense.errors import InputError
-from starsense.geometry.attitude import small_rotation_angles
+from starsense.geometry.attitude import attitude_from_radec_roll, small_rotation_angles
 from starsense.identify.tracking import TrackingIdentifier
+from starsense.render.scene import render_frame, render_star_stamp
 from starsense.render.sequence import render_sequence
 from starsense.sensor import load_sensor
+from starsense.solve.frames import load_image
 from starsense.solve.solver import Solver
-from starsense.solve.track import Prior, Tracker
+from starsense.solve.tracking import Prior, Tracker, track_frame
+from starsense.solve.tracking.streak_rate import rate_from_streaks, streak_axes
 
 DEG = math.pi / 180
 
@@ -107,7 +111,7 @@ def test_far_prior_falls_back_and_says_so(solver, st16, hipparcos):
     frame = next(iter(render_sequence(st16, att, hipparcos, n_frames=1, interval_s=0.5,
                                       rate_rad_s=w, seed=5, max_mag=6.5)))  # fmt: skip
     off = Rotation.from_rotvec([5 * DEG, 0.0, 0.0]) * att  # 5 deg off, claimed good to 0.05
-    r = solver.track(frame.image, Prior(off, np.eye(3) * (0.05 * DEG) ** 2))
+    r = track_frame(solver, frame.image, Prior(off, np.eye(3) * (0.05 * DEG) ** 2))
     assert r.mode == "lost_in_space"
     assert r.solution.solved
     assert r.solution.message.startswith("tracking") and "lost-in-space" in r.solution.message
@@ -116,7 +120,7 @@ def test_far_prior_falls_back_and_says_so(solver, st16, hipparcos):
 
 
 def test_tracking_identifier_statuses(solver, st16):
-    db = solver._identifier(2 * st16.half_fov_rad[0]).database
+    db = solver.identifier(2 * st16.half_fov_rad[0]).database
     att, _ = _scenario(7, 0.0)
     centre = att.inv().apply([0, 0, 1])
     near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin(6 * DEG)))
@@ -125,21 +129,31 @@ def test_tracking_identifier_statuses(solver, st16):
     on = near[(x > 50) & (x < 2540) & (y > 50) & (y < 1890)][:8]
     body = att.apply(db.vectors[on])
     ident = TrackingIdentifier(db)
-    r = ident(body, att, 20 / st16.focal_length_px, 0.2)
+    r = ident(body, att, search_radius_rad=20 / st16.focal_length_px, field_radius_rad=0.2)
     assert r.status == "verified"
     assert list(r.catalog_index) == list(on)
     assert (r.rotation * att.inv()).magnitude() < 1e-9
-    assert ident(body[:2], att, 20 / st16.focal_length_px, 0.2).status == "unverified"
+    assert (
+        ident(
+            body[:2], att, search_radius_rad=20 / st16.focal_length_px, field_radius_rad=0.2
+        ).status
+        == "unverified"
+    )
     # a prior 1 deg off searched over 2 deg: the pairs found re-pair to the right stars
     off = Rotation.from_rotvec([1.0 * DEG, 0.0, 0.0]) * att
-    r = ident(body, off, 2.0 * DEG, 0.2)
+    r = ident(body, off, search_radius_rad=2.0 * DEG, field_radius_rad=0.2)
     assert r.status == "verified" and (r.rotation * att.inv()).magnitude() < 1e-9
     # ambiguous: two detections on one star, and one midway between two stars 0.1-0.5 deg
     # apart; one clear pair is left, and one pair cannot fix an attitude
     a, b = _close_pair(db, centre)
     mid = att.apply(db.vectors[a] + db.vectors[b])
     mid /= np.linalg.norm(mid)
-    amb = ident(np.vstack([body[0], body[0], mid, body[1]]), att, 0.6 * DEG, 0.2)
+    amb = ident(
+        np.vstack([body[0], body[0], mid, body[1]]),
+        att,
+        search_radius_rad=0.6 * DEG,
+        field_radius_rad=0.2,
+    )
     assert amb.status == "ambiguous" and amb.n_ambiguous == 3 and amb.rotation is None
 
 
@@ -156,7 +170,7 @@ def _close_pair(db, centre):
 
 def test_track_needs_a_sensor():
     with pytest.raises(InputError, match="sensor"):
-        Solver(fov_rad=0.2).track(np.zeros((10, 10)))
+        track_frame(Solver(fov_rad=0.2), np.zeros((10, 10)), None)
 
 
 def test_cli_track_sequence_with_corrupt_and_missing_frames(tmp_path, capsys):
@@ -205,7 +219,7 @@ def test_cli_track_bad_input(tmp_path, capsys, extra, match):
 
 def _stars_detected(solver, frame) -> int:
     """Distinct stars the full-frame detector finds (a broken streak counts once)."""
-    det = solver._detector()(frame.image)
+    det = solver.detector(frame.image)
     t = frame.truth.stars
     half = 0.5 * np.hypot(t.x_end - t.x_start, t.y_end - t.y_start) + 5.0
     found = set()
@@ -253,9 +267,6 @@ def test_streak_centroid_noise_model(st16, electrons, rate_deg_s):
     # with noise: the rms error per axis within 15 % of the predicted (the standard error of
     # an rms from 300 draws is 4 %; 15 % leaves room for the noiseless reference's own
     # sub-pixel discretisation)
-    from starsense.render.scene import render_star_stamp
-    from starsense.solve.windows import streak_centroid
-
     w = np.array([0.0, rate_deg_s * DEG, 0.0])  # the streak runs along x
     length = rate_deg_s * DEG * st16.exposure_s * st16.focal_length_px
     streak = (length, 0.0)
@@ -268,8 +279,8 @@ def test_streak_centroid_noise_model(st16, electrons, rate_deg_s):
         image = render_star_stamp(st16, electrons, rng=int(rng.integers(1 << 30)), **kw)
         clean = render_star_stamp(st16, electrons, noise=False, **kw)
         c = ((image.shape[1] - 1) / 2, (image.shape[0] - 1) / 2)
-        got = streak_centroid(image.astype(float), *c, streak, radius)
-        ref = streak_centroid(clean.astype(float), *c, streak, radius)
+        got = streak_centroid(image.astype(float), *c, streak=streak, radius=radius)
+        ref = streak_centroid(clean.astype(float), *c, streak=streak, radius=radius)
         err.append(np.subtract(got[:2], ref[:2]))
         n_e = got[2] / st16.detector.gain_counts_per_e
         cov = st16.detector.psf_sigma_px**2 / n_e * np.eye(2)
@@ -285,16 +296,15 @@ def test_rate_from_one_frame_of_streaks(solver, st16, hipparcos):
     # region is shorter than the streak where its ends fall below the threshold: from the 5
     # brightest streaks the rate comes out 0-16 % low on rendered frames, and the reported
     # covariance carries 20 % of |w| for it, so the cross-axis error stays within 3 sigma
-    from starsense.render.scene import render_frame
-    from starsense.solve.streak_rate import rate_from_streaks, streak_axes
-
     for seed, rate in ((21, 0.6), (22, 1.0), (23, 1.5)):
         att, w = _scenario(seed, rate)
         frame = render_frame(st16, att, hipparcos, rate_rad_s=w, rng=seed, max_mag=6.5)
-        det = solver._detector()(frame.image)
+        det = solver.detector(frame.image)
         n = min(len(det), 5)
-        axes = streak_axes(frame.image, det.x[:n], det.y[:n], 28, st16.detection.lit_pixel_counts)
-        got, cov = rate_from_streaks(st16, det.x[:n], det.y[:n], axes)
+        axes = streak_axes(
+            frame.image, det.x[:n], det.y[:n], half_px=28, threshold=st16.detection.lit_pixel_counts
+        )
+        got, cov = rate_from_streaks(st16, det.x[:n], det.y[:n], axes_px2=axes)
         got = got if got @ w > 0 else -got  # the sign is not in one frame
         z = (got - w) / np.sqrt(np.diag(cov))
         assert np.all(np.abs(z[:2]) < 3), (rate, z)
@@ -317,9 +327,6 @@ def test_track_esa_frames_from_a_close_prior(shared_dir):
     # estimated in each window. The tracked attitude agrees with the lost-in-space one of the
     # same frame within 3 of its own sigmas (both rest on mostly the same stars, so their
     # difference is smaller than either's error), and takes a fraction of its time.
-    from starsense.geometry.attitude import attitude_from_radec_roll
-    from starsense.solve.frames import load_image
-
     folder = shared_dir / "data" / "images" / "esa"
     reference = json.loads((folder / "reference.json").read_text())["frames"]
     solver = Solver("esa_blackfly")
@@ -330,7 +337,7 @@ def test_track_esa_frames_from_a_close_prior(shared_dir):
             *np.radians([ref["ra_deg"], ref["dec_deg"], ref["roll_deg"]])
         )
         off = Rotation.from_rotvec(np.radians([0.003, -0.003, 0.01])) * att
-        r = solver.track(image, Prior(off, np.eye(3) * np.radians(0.005) ** 2))
+        r = track_frame(solver, image, Prior(off, np.eye(3) * np.radians(0.005) ** 2))
         assert r.mode == "tracking" and r.solution.solved, (name, r.solution.message)
         assert r.solution.n_matched >= 20
         diff = small_rotation_angles(lis.rotation, r.solution.rotation)

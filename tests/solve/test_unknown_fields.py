@@ -18,13 +18,16 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 
 from starsense.catalog import load_catalog
 from starsense.geometry.attitude import angular_separation, attitude_from_radec_roll
+from starsense.identify import identify_ranked
 from starsense.identify.fields import deep_catalog_available, unknown_field_plan
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
+from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.solver import Solver
 
 # (RA, Dec, roll) deg: Orion (dense, bright), near the north galactic pole (sparse)
@@ -98,18 +101,13 @@ def test_no_wrong_answer_on_noise_or_a_mirrored_sky(solver):
     Random points are pure noise; a mirrored (parity-flipped) frame has the same edge ratios
     as the sky, so it reaches verification, where no proper rotation fits it.
     """
-    import numpy as np
-
-    from starsense.identify import identify_ranked
-    from starsense.solve.solver import pinhole_vectors
-
     rng = np.random.default_rng(13)
     plan = unknown_field_plan()
     for _ in range(5):
         xy = rng.uniform((0, 0), (1023, 767), size=(20, 2))
-        v = pinhole_vectors(xy[:, 0], xy[:, 1], (768, 1024), math.radians(15.0))
+        v = pinhole_vectors(xy[:, 0], xy[:, 1], shape=(768, 1024), fov_rad=math.radians(15.0))
         for field_range in plan:
-            ident = identify_ranked(solver._identifier(None, field_range), v, -np.arange(20.0),
+            ident = identify_ranked(solver.identifier(None, field_range), v, -np.arange(20.0),
                                     None, assumed_fov_rad=math.radians(15.0))  # fmt: skip
             assert not ident.solved, (field_range, ident)
     sensor = _sensor(20.0)

@@ -6,8 +6,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from astropy.io import fits
-from astropy.wcs import WCS
 
 from starsense.geometry.attitude import (
     attitude_from_radec_roll,
@@ -34,6 +32,9 @@ def _solution(sensor):
 @pytest.mark.filterwarnings("ignore::astropy.wcs.FITSFixedWarning")
 @pytest.mark.parametrize("k1", [0.0, -0.4, 2.0])  # none, 2 % barrel, 10 % pincushion at corner
 def test_sip_wcs_reproduces_the_sensor_model(k1, tmp_path):
+    from astropy.io import fits
+    from astropy.wcs import WCS
+
     base = load_sensor("st16")
     s = base.with_(optics=dataclasses.replace(
         base.optics, distortion_k1=k1, distortion_p1=2e-4 if k1 else 0.0,

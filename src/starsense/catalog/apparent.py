@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense.catalog import load_catalog
+from starsense.catalog.table import Catalog
 from starsense.errors import InputError
 from starsense.geometry.apparent import AU_M, aberrate, observer_state, parse_time
 
@@ -68,7 +70,7 @@ class ApparentPlaces:
         }
 
 
-def apparent_places(catalog, index, time, observer_velocity_m_s=None) -> ApparentPlaces:
+def apparent_places(catalog, index, time, *, observer_velocity_m_s=None) -> ApparentPlaces:
     """Return the apparent directions of catalogue stars ``index`` at ``time`` (module steps).
 
     Parameters
@@ -115,19 +117,20 @@ def apparent_places(catalog, index, time, observer_velocity_m_s=None) -> Apparen
 
 
 @functools.lru_cache(maxsize=4)
-def _loaded(spec: str):
-    from starsense.catalog import load_catalog
-
+def _loaded(spec: str) -> Catalog:
     return load_catalog(spec)
 
 
-def apparent_places_of(spec: str, ids, time, observer_velocity_m_s=None) -> ApparentPlaces:
-    """Return the apparent places of the stars ``ids`` of catalogue ``spec`` (loaded once).
+def apparent_places_of(
+    catalog: Catalog | str, ids, time, *, observer_velocity_m_s=None
+) -> ApparentPlaces:
+    """Return the apparent places of the stars ``ids`` of a catalogue, by identifier.
 
     Parameters
     ----------
-    spec : str
-        Catalogue specification (:func:`starsense.catalog.load_catalog`).
+    catalog : Catalog or str
+        The catalogue, or its specification (:func:`starsense.catalog.load_catalog`; a spec
+        is loaded once and kept for later calls).
     ids : array_like of int, shape (N,)
         Catalogue identifiers.
     time : str or astropy.time.Time
@@ -139,6 +142,6 @@ def apparent_places_of(spec: str, ids, time, observer_velocity_m_s=None) -> Appa
     -------
     ApparentPlaces
     """
-    cat = _loaded(spec)
+    cat = catalog if isinstance(catalog, Catalog) else _loaded(catalog)
     index = cat.index_of(np.asarray(ids, dtype=np.int64))
-    return apparent_places(cat, index, time, observer_velocity_m_s)
+    return apparent_places(cat, index, time, observer_velocity_m_s=observer_velocity_m_s)

@@ -86,9 +86,9 @@ def _solver(sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocit
         )
     return Solver(
         sensor,
-        None if fov_deg is None else fov_deg * DEG,
-        catalog,
-        algorithm,
+        fov_rad=None if fov_deg is None else fov_deg * DEG,
+        catalog=catalog,
+        algorithm=algorithm,
         apparent=apparent,
         observer_velocity_m_s=v_obs,
     )

@@ -58,7 +58,7 @@ def track(
     when some frame has an attitude, 1 when none has, 2 for bad input.
     """
     from starsense.solve.solver import Solver
-    from starsense.solve.track import Prior, Tracker
+    from starsense.solve.tracking import Prior, Tracker
 
     if interval_s is not None:
         option_float(interval_s, "--interval-s", 0.0, lo_open=True)
@@ -67,7 +67,9 @@ def track(
     if prior_radec_roll_deg is not None:
         ra, dec, roll = parse_floats(prior_radec_roll_deg, "--prior-radec-roll-deg", 3)
         option_float(dec, "--prior-radec-roll-deg (Dec)", -90.0, 90.0)
-        prior = Prior.from_radec_roll(ra * DEG, dec * DEG, roll * DEG, prior_sigma_deg * DEG)
+        prior = Prior.from_radec_roll(
+            ra * DEG, dec * DEG, roll * DEG, sigma_rad=prior_sigma_deg * DEG
+        )
     if not frames:
         raise InputError("give at least one frame")
     tracker = Tracker(Solver(sensor, catalog=catalog), interval_s=interval_s, prior=prior)

@@ -39,12 +39,12 @@ from numpy.typing import ArrayLike
 
 from starsense._validate import check_scalar, finite_float, positive_float
 from starsense.detect.clip import MAD_TO_SIGMA as MAD_TO_SIGMA  # re-exported
-from starsense.detect.clip import _robust_sigma, _sigma_clip_boxes
+from starsense.detect.clip import robust_sigma, sigma_clip_boxes
 from starsense.detect.mesh import (
     MeshSampler,
-    _fill_from_nearest,
-    _interpolate_mesh,
-    _median_filter_mesh,
+    fill_from_nearest,
+    interpolate_mesh,
+    median_filter_mesh,
 )
 from starsense.detect.quantised import (
     QUANTISED_BELOW_STEPS,
@@ -159,7 +159,7 @@ def _quantised_step(cells: np.ndarray, keep: np.ndarray) -> float | None:
     step = quantisation_step(cells[:, :, ::7])
     if step is None:
         return None
-    mad = np.nanmedian(_robust_sigma(cells[:, :, ::7], keep[:, :, ::7]))
+    mad = np.nanmedian(robust_sigma(cells[:, :, ::7], keep[:, :, ::7]))
     return step if not mad >= QUANTISED_BELOW_STEPS * step else None
 
 
@@ -239,7 +239,12 @@ def estimate_background(
                 f"got {bad.dtype} {bad.shape}"
             )
     box_px, filter_px = int(box_px), int(filter_px)
-    mesh = MeshSampler(a.shape, box_px, 2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1, interpolation)
+    mesh = MeshSampler(
+        a.shape,
+        box_px=box_px,
+        every=2 if box_px >= _SUBSAMPLE_MIN_BOX_PX else 1,
+        interpolation=interpolation,
+    )
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
     cells = gather(a, np.float32, "bg_cells")
     if mesh.regular and bad is None:  # every sample is inside its box and unmasked
@@ -252,7 +257,7 @@ def estimate_background(
             cells[~ok] = np.nan
         n_samples = ok.sum(axis=-1)
 
-    med, low, high, kept = _sigma_clip_boxes(cells, float(sigma_clip))
+    med, low, high, kept = sigma_clip_boxes(cells, float(sigma_clip))
     keep = scratch("bg_keep", cells.shape, bool)
     with np.errstate(invalid="ignore"):
         np.greater_equal(cells, low[..., None], out=keep)
@@ -267,22 +272,22 @@ def estimate_background(
     if not trusted.any():
         raise InputError("no box of the image has enough unmasked pixels for a background")
     med[~trusted] = np.nan
-    level_mesh = _median_filter_mesh(_fill_from_nearest(med), filter_px)
+    level_mesh = median_filter_mesh(fill_from_nearest(med), filter_px)
 
-    level = _interpolate_mesh(wy, level_mesh, wx)
+    level = interpolate_mesh(wy, level_mesh, wx)
 
     # noise: MAD of the clipped samples about the smooth map (not quantised like the raw MAD);
     # for coarsely quantised data their standard deviation, at least the quantisation noise
     if step is None:
         resid = gather(level, None, "bg_resid")
-        noise_mesh = _robust_sigma(np.subtract(cells, resid, out=resid), keep)
+        noise_mesh = robust_sigma(np.subtract(cells, resid, out=resid), keep)
     else:
         noise_mesh = np.maximum(_masked_std(cells - gather(level), keep), step / np.sqrt(12.0))
     noise_mesh[~trusted] = np.nan
-    noise_mesh = _median_filter_mesh(_fill_from_nearest(noise_mesh), filter_px)
+    noise_mesh = median_filter_mesh(fill_from_nearest(noise_mesh), filter_px)
     noise_map, surface = None, None
     if full_noise_map:
-        noise_map = _interpolate_mesh(wy, noise_mesh, wx)
+        noise_map = interpolate_mesh(wy, noise_mesh, wx)
         # extrapolation and spline overshoot must not leave the range that was measured
         np.maximum(noise_map, np.float32(noise_mesh.min()), out=noise_map)
         np.minimum(noise_map, np.float32(noise_mesh.max()), out=noise_map)

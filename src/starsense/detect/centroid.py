@@ -28,7 +28,7 @@ def _grid(window: np.ndarray, row0: int, col0: int):
     return x, y
 
 
-def cog(window: np.ndarray, row0: int, col0: int, power: int = 1) -> tuple[float, float]:
+def cog(window: np.ndarray, row0: int, col0: int, *, power: int = 1) -> tuple[float, float]:
     """(Intensity-weighted) centre of gravity of a background-subtracted window."""
     w = np.asarray(window, dtype=float)
     if power != 1:
@@ -47,7 +47,7 @@ def _pixel_gauss(x, y, x0, y0, sigma, flux, offset):
     return flux * gx * gy + offset
 
 
-def gauss_fit(window: np.ndarray, row0: int, col0: int, sigma0: float = 1.5):
+def gauss_fit(window: np.ndarray, row0: int, col0: int, *, sigma0: float = 1.5):
     """Fit a pixel-integrated symmetric Gaussian + constant; returns (x, y, sigma, ok)."""
     w = np.asarray(window, dtype=float)
     x0, y0 = cog(w, row0, col0)
@@ -69,3 +69,35 @@ def gauss_fit(window: np.ndarray, row0: int, col0: int, sigma0: float = 1.5):
     if not res.success:
         return x0, y0, np.nan, False
     return float(res.x[0]), float(res.x[1]), float(res.x[2]), True
+
+
+def cog_sigma_px(det, index, *, detector, margin_px: int) -> np.ndarray:
+    """Return the per-axis noise of a centre-of-gravity centroid, pixels, of detections ``index``.
+
+    Photon noise: sigma_psf^2 / N_e (N_e = integrated counts / gain). Read noise: each pixel of
+    the CoG window adds sigma_read^2 (x - x_c)^2 / N_e^2; over a w x h window centred on the star
+    the sum of (x - x_c)^2 is h w (w^2 - 1) / 12 (the mean of the two axes is used).
+
+    Parameters
+    ----------
+    det : Detections
+        The frame's detections (integrated counts, bounding boxes).
+    index : array_like of int, shape (N,)
+        The detections to evaluate.
+    detector : starsense.sensor.Detector
+        The camera's detector: gain, read noise, PSF sigma.
+    margin_px : int
+        The CoG window's margin around each bounding box, px.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Centroid noise per axis, px.
+    """
+    n_e = np.maximum(det.integrated_counts[index] / detector.gain_counts_per_e, 1.0)
+    r0, r1, c0, c1 = det.bbox[index].T
+    w = (c1 - c0 + 2 * margin_px).astype(float)
+    h = (r1 - r0 + 2 * margin_px).astype(float)
+    spread = 0.5 * (h * w * (w**2 - 1) + w * h * (h**2 - 1)) / 12.0
+    var = detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2
+    return np.sqrt(var)

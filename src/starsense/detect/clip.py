@@ -18,11 +18,11 @@ import numpy as np
 from starsense.detect.workspace import scratch
 
 try:
-    from starsense.detect import _clipc
+    import starsense.detect._clipc as _clipc
 except ImportError:  # built without a C compiler: the NumPy form below
     _clipc = None
 
-__all__ = ["MAD_TO_SIGMA"]
+__all__ = ["MAD_TO_SIGMA", "robust_sigma", "sigma_clip_boxes"]
 
 #: 1 / Phi^-1(3/4): the standard deviation of a Gaussian over its median absolute deviation.
 MAD_TO_SIGMA = 1.482602218505602
@@ -136,14 +136,28 @@ def _run_mad(s: np.ndarray, lo: np.ndarray, hi: np.ndarray, med: np.ndarray, at=
         return np.where(count > 0, 0.5 * (a.astype(np.float64) + b), np.nan)
 
 
-def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
+def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
     """Sigma-clipped median of every box at once.
 
     ``cells`` (..., samples) holds NaN for missing samples. The samples are sorted once; the kept
     samples of a box are then a contiguous run ``[lo, hi)`` of its sorted row, so the median is a
     rank lookup and the MAD a bisection over the run's two halves (:func:`_run_mad`).
 
-    Returns the median, the lowest and highest kept values and the number kept, per box.
+    Parameters
+    ----------
+    cells : ndarray, shape (..., samples)
+        The samples of each box, counts; NaN where missing.
+    sigma_clip : float
+        Clip at this many robust sigmas (MAD_TO_SIGMA x MAD) from the median.
+
+    Returns
+    -------
+    median : ndarray, shape (...)
+        The clipped median of each box.
+    low, high : ndarray, shape (...)
+        The lowest and highest kept values.
+    kept : ndarray of int, shape (...)
+        The number of samples kept.
     """
     s = scratch("clip_sorted", cells.shape, cells.dtype)
     np.copyto(s, cells)
@@ -161,7 +175,7 @@ def _sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
 
 
 def _clip_sorted_numpy(s: np.ndarray, sigma_clip: float):
-    """Clip the sorted rows of :func:`_sigma_clip_boxes`, every box at once, in NumPy."""
+    """Clip the sorted rows of :func:`sigma_clip_boxes`, every box at once, in NumPy."""
     mask = scratch("clip_mask", s.shape, bool)
     at = _rows_at(s)
     lo = np.zeros(s.shape[:-1], dtype=np.intp)
@@ -186,8 +200,21 @@ def _clip_sorted_numpy(s: np.ndarray, sigma_clip: float):
     return med, low, high, hi - lo
 
 
-def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """1.4826 MAD over the samples ``keep`` of every box (NaN where none)."""
+def robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Return MAD_TO_SIGMA x MAD over the samples ``keep`` of every box (NaN where none).
+
+    Parameters
+    ----------
+    cells : ndarray, shape (..., samples)
+        The samples of each box, counts.
+    keep : ndarray of bool, shape (..., samples)
+        The samples to use.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The robust noise of each box, counts.
+    """
     n = np.count_nonzero(keep, axis=-1)
     if _clipc is not None and cells.dtype == np.float32:
         v = scratch("robust_sorted", cells.shape, cells.dtype)
@@ -203,7 +230,7 @@ def _robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
 
 
 def _robust_sigma_numpy(cells: np.ndarray, keep: np.ndarray, n: np.ndarray | None = None):
-    """:func:`_robust_sigma` every box at once, in NumPy."""
+    """:func:`robust_sigma` every box at once, in NumPy."""
     n = np.count_nonzero(keep, axis=-1) if n is None else n
     zero = np.zeros(n.shape, dtype=np.intp)
     if cells.shape[-1] <= _SORT_DEVIATIONS_BELOW:

@@ -31,7 +31,11 @@ NOISE_STEP = 3
 
 
 def gaussian_correlate(
-    frame: np.ndarray, sigma_px: float, truncate: float = _TRUNCATE, out: np.ndarray | None = None
+    frame: np.ndarray,
+    sigma_px: float,
+    *,
+    truncate: float = _TRUNCATE,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Correlate a frame with the unit-sum Gaussian of ``sigma_px``, in float32.
 
@@ -113,7 +117,7 @@ def _band(a, r0, r1, r, taps, padded, across, pair, out) -> None:
         o += tmp
 
 
-def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float, out: np.ndarray | None = None):
+def matched_filter(sub: np.ndarray, noise, *, psf_sigma_px: float, out: np.ndarray | None = None):
     """Correlate a frame with its PSF and return it with the noise of the result.
 
     Parameters
@@ -138,12 +142,12 @@ def matched_filter(sub: np.ndarray, noise, psf_sigma_px: float, out: np.ndarray 
     """
     filtered = gaussian_correlate(sub, psf_sigma_px, out=out)
     noise_arr = np.asarray(noise, dtype=np.float32)
-    ratio = filtered_noise_ratio(filtered, noise_arr, psf_sigma_px)
+    ratio = filtered_noise_ratio(filtered, noise_arr, psf_sigma_px=psf_sigma_px)
     return filtered, noise_arr * np.float32(ratio), ratio
 
 
 def filtered_noise_ratio(
-    filtered: np.ndarray, noise, psf_sigma_px: float, noise_grid: bool = False
+    filtered: np.ndarray, noise, *, psf_sigma_px: float, noise_grid: bool = False
 ) -> float:
     """Noise of a PSF-filtered frame over its pixel noise: measured, at least the white value.
 

@@ -3,7 +3,7 @@
 The geometry of :func:`starsense.detect.background.estimate_background`'s mesh (which pixels
 each box samples, the box centres and the interpolation weights) depends only on the frame's
 shape and is computed once per shape (:func:`_mesh_plan`); the filtered mesh is interpolated
-back to every pixel by two small matrix products (:func:`_interpolate_mesh`).
+back to every pixel by two small matrix products (:func:`interpolate_mesh`).
 """
 
 from __future__ import annotations
@@ -30,7 +30,19 @@ def _mesh_axis(n: int, box_px: int, step: int):
     return index, valid, centres
 
 
-def _fill_from_nearest(mesh: np.ndarray) -> np.ndarray:
+def fill_from_nearest(mesh: np.ndarray) -> np.ndarray:
+    """Return the mesh with each non-finite box replaced by its nearest finite one.
+
+    Parameters
+    ----------
+    mesh : ndarray, shape (rows, columns)
+        Box values; NaN where a box kept too few samples.
+
+    Returns
+    -------
+    ndarray, shape (rows, columns)
+        The same array when every box is finite.
+    """
     bad = ~np.isfinite(mesh)
     if not bad.any():
         return mesh
@@ -67,7 +79,7 @@ def _quadratic_trend(mesh: np.ndarray) -> np.ndarray:
     return (design @ (pinv @ mesh.ravel())).reshape(mesh.shape)
 
 
-def _median_filter_mesh(mesh: np.ndarray, size: int) -> np.ndarray:
+def median_filter_mesh(mesh: np.ndarray, size: int) -> np.ndarray:
     """Median filter over ``size`` x ``size`` boxes that leaves smooth trends alone.
 
     A median filter flattens the peak of a curved glow (by ~0.25 noise sigma at the centre of
@@ -75,6 +87,17 @@ def _median_filter_mesh(mesh: np.ndarray, size: int) -> np.ndarray:
     is then added back: a quadratic passes unchanged, a box spoilt by a bright star is still
     replaced by its neighbours. The residual is padded by point reflection ("odd"), which also
     continues a linear trend across the edges.
+
+    Parameters
+    ----------
+    mesh : ndarray, shape (rows, columns)
+        Box values (finite).
+    size : int
+        Filter width, boxes (1 or less: no filter).
+
+    Returns
+    -------
+    ndarray, shape (rows, columns)
     """
     if size <= 1:
         return mesh
@@ -108,7 +131,7 @@ def _interpolation_matrix(centres: np.ndarray, n: int, kind: str) -> np.ndarray:
     return w
 
 
-def _interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.ndarray:
+def interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.ndarray:
     """Return ``wy @ mesh @ wx.T`` as float32 (rows, columns), in row blocks of small products.
 
     The product is a bicubic (or bilinear) interpolation of a small mesh to every pixel.
@@ -117,6 +140,19 @@ def _interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.nd
     of rows each small enough for a single-threaded GEMM. Each pixel is a sum of a few terms
     (4 bilinear, one per mesh column for the cubic spline), so it is exact to within a few
     float32 ulps of the mesh's largest term.
+
+    Parameters
+    ----------
+    wy : ndarray, shape (rows, mesh rows)
+        Interpolation weights along the rows.
+    mesh : ndarray, shape (mesh rows, mesh columns)
+        Box values.
+    wx : ndarray, shape (columns, mesh columns)
+        Interpolation weights along the columns.
+
+    Returns
+    -------
+    ndarray of float32, shape (rows, columns)
     """
     # the mesh's mean is taken out and added back: a flat mesh (a constant frame) then gives
     # exactly its value, not one float32 rounding away from it (which would light every pixel
@@ -162,7 +198,7 @@ class MeshSampler:
     interpolation : {"linear", "cubic"}
     """
 
-    def __init__(self, shape: tuple[int, int], box_px: int, every: int, interpolation: str):
+    def __init__(self, shape: tuple[int, int], *, box_px: int, every: int, interpolation: str):
         rows, cols = shape
         self.ri, self.rvalid, self.rc, self.wy = _mesh_plan(rows, box_px, every, interpolation)
         self.ci, self.cvalid, self.cc, self.wx = _mesh_plan(cols, box_px, every, interpolation)

@@ -103,7 +103,7 @@ def _cog(box, rows, cols, weights, n):
     return x, y
 
 
-def region_centroids(sub, a, idx, lab, keep, core, margin: int, power: int = 1):
+def region_centroids(sub, a, *, idx, lab, keep, core, margin: int, power: int = 1):
     """Box, peak and CoG of each kept region, in the order of ``keep``.
 
     Parameters

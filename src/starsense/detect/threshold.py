@@ -15,7 +15,7 @@ replaced by the background before labelling.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,6 +27,7 @@ from starsense.detect.background import (
     hot_pixel_mask,
 )
 from starsense.detect.centroid import METHODS, gauss_fit
+from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
 from starsense.detect.regions import label_pixels, region_centroids
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
@@ -235,16 +236,12 @@ class StarDetector:
                     np.float32(threshold), bg.threshold_counts(self.threshold_sigma)
                 )
             return np.flatnonzero(sub > threshold), None, None
-        from starsense.detect.matched import (
-            NOISE_STEP,
-            filtered_noise_ratio,
-            gaussian_correlate,
-        )
-
         filtered = scratch("filtered", sub.shape)
         gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
         grid = bg.noise_grid(NOISE_STEP)
-        ratio = filtered_noise_ratio(filtered, grid, self.psf_sigma_px, noise_grid=True)
+        ratio = filtered_noise_ratio(
+            filtered, grid, psf_sigma_px=self.psf_sigma_px, noise_grid=True
+        )
         k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
         cut = np.float32(k * ratio)
         above = scratch("lit", sub.shape, bool)
@@ -285,7 +282,7 @@ class StarDetector:
         for i, (r0, r1, c0, c1) in enumerate(boxes):
             wr0, wc0 = max(r0 - m, 0), max(c0 - m, 0)
             window = sub[wr0 : min(r1 + m, rows), wc0 : min(c1 + m, cols)]
-            x, y, _, fit_ok = gauss_fit(window, wr0, wc0, self.psf_sigma_px)
+            x, y, _, fit_ok = gauss_fit(window, wr0, wc0, sigma0=self.psf_sigma_px)
             if np.isfinite(x):
                 xs[i], ys[i] = x, y
             fits[i] = fit_ok
@@ -354,7 +351,7 @@ class StarDetector:
         keep = keep[np.argsort(-sums[keep], kind="stable")]
         power = 2 if self.centroid == "iwcog" else 1
         xs, ys, peak_arr, boxes, fits = region_centroids(
-            sub, a, idx, lab, keep, core, self.margin_px, power
+            sub, a, idx=idx, lab=lab, keep=keep, core=core, margin=self.margin_px, power=power
         )
         if self.centroid == "gauss":
             self._gauss(sub, boxes, xs, ys, fits)
@@ -398,8 +395,6 @@ def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
 
 
 def _timed(det: Detections, t0: float) -> Detections:
-    from dataclasses import replace
-
     return replace(det, time_ms=(time.perf_counter() - t0) * 1e3)
 
 

@@ -14,7 +14,7 @@ import json
 import logging
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -23,9 +23,22 @@ from starsense.catalog.cache import default_cache_dir
 
 if TYPE_CHECKING:
     from starsense.catalog.table import Catalog
-    from starsense.identify.database import DatabaseParams
 
-__all__ = ["DATABASE_FORMAT_VERSION", "database_cache_file", "read_npz", "write_npz"]
+__all__ = ["DATABASE_FORMAT_VERSION", "BuildParams", "database_cache_file", "read_npz", "write_npz"]
+
+
+class BuildParams(Protocol):
+    """What the cache key needs of a database's build parameters.
+
+    :class:`starsense.identify.database.DatabaseParams` (which imports this module).
+    """
+
+    band: str
+
+    def to_json(self) -> str:
+        """Return the parameters as a JSON object (text)."""
+        ...
+
 
 DATABASE_FORMAT_VERSION = 1
 """Version of the ``.npz`` layout; bump it when the layout or the build algorithm changes."""
@@ -52,7 +65,7 @@ def _catalog_digest(catalog: Catalog, band: str) -> dict:
 
 
 def database_cache_file(
-    catalog: Catalog, params: DatabaseParams, cache_dir: str | Path | None = None
+    catalog: Catalog, params: BuildParams, cache_dir: str | Path | None = None
 ) -> tuple[Path, str]:
     """Return the path and key of the cache file of ``build_database(catalog, params)``.
 

@@ -389,13 +389,17 @@ def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
     keep = thin_by_region(
         vec_all,
         mag_all,
-        params.min_fov_rad / 2,
-        params.verification_stars_per_fov,
-        params.lattice_oversampling,
+        radius_rad=params.min_fov_rad / 2,
+        n_per_region=params.verification_stars_per_fov,
+        oversampling=params.lattice_oversampling,
     )
     pattern_masks = [
         thin_by_region(
-            vec_all, mag_all, s / 2, params.pattern_stars_per_fov, params.lattice_oversampling
+            vec_all,
+            mag_all,
+            radius_rad=s / 2,
+            n_per_region=params.pattern_stars_per_fov,
+            oversampling=params.lattice_oversampling,
         )
         for s in sizes
     ]

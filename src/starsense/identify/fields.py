@@ -17,10 +17,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from starsense.catalog import bundled_gaia_path, load_catalog
+from starsense.catalog.table import Catalog
 from starsense.errors import InputError
+from starsense.identify.database import build_database
+from starsense.identify.hashing import HashIdentifier
+from starsense.identify.triangle import TriangleIdentifier
 from starsense.units import DEG
 
-__all__ = ["FieldRange", "deep_catalog_available", "identifier_for", "unknown_field_plan"]
+__all__ = [
+    "FieldRange",
+    "deep_catalog_available",
+    "identifier_for",
+    "plan_band",
+    "unknown_field_plan",
+]
 
 
 @dataclass(frozen=True)
@@ -36,8 +47,9 @@ class FieldRange:
         ratios are ratios of angles, which a wrong focal length distorts more the wider the
         field: unprojected at 15 deg, a quarter of 60 deg frames found no pattern within the
         ratio tolerance; at the wide range's own nominal field all solve.
-    catalog : str
-        Catalogue spec (:func:`starsense.catalog.load_catalog`).
+    catalog : Catalog or str
+        The catalogue, or a spec loaded when the range is searched
+        (:func:`starsense.catalog.load_catalog`; the deep Gaia of the narrow range).
     band : str
         Magnitude band of that catalogue used for brightness order.
     field_oversampling : float
@@ -49,7 +61,7 @@ class FieldRange:
     min_fov_rad: float
     max_fov_rad: float
     nominal_fov_rad: float
-    catalog: str
+    catalog: Catalog | str
     band: str = "V"
     field_oversampling: float = 4.0
     patterns_per_field: int = 50
@@ -68,35 +80,59 @@ _NARROW_LATTICE = {"field_oversampling": 2.0, "patterns_per_field": 35}
 
 def deep_catalog_available() -> bool:
     """Whether the bundled Gaia catalogue (``pip install 'starsense[gaia]'``) is installed."""
-    from starsense.catalog import bundled_gaia_path
-
     try:
         return bundled_gaia_path().is_file()
     except InputError:
         return False
 
 
-def unknown_field_plan(catalog: str = "hipparcos") -> list[FieldRange]:
+def plan_band(catalog: Catalog | str) -> str:
+    """Return the band that orders a catalogue's stars by brightness for the databases.
+
+    V, or G for a catalogue without V (Gaia); for a spec, G for ``gaia...`` and V otherwise.
+
+    Parameters
+    ----------
+    catalog : Catalog or str
+        The catalogue or its spec.
+
+    Returns
+    -------
+    str
+    """
+    if isinstance(catalog, str):
+        return "G" if catalog.strip().lower().startswith("gaia") else "V"
+    return "G" if "V" not in catalog.bands and "G" in catalog.bands else "V"
+
+
+def unknown_field_plan(
+    catalog: Catalog | str = "hipparcos", *, deep_narrow: bool | None = None
+) -> list[FieldRange]:
     """Return the databases to try, in order, for a frame whose field is not known.
 
     Parameters
     ----------
-    catalog : str
-        The catalogue the user chose. With the default (``"hipparcos"``) the narrow range uses
-        Gaia to G = 10 when it is installed; any other choice is used for every range.
+    catalog : Catalog or str
+        The catalogue the user chose: an object, or a spec (kept as a spec in the ranges,
+        loaded when a range is searched).
+    deep_narrow : bool, optional
+        Search the narrow range in the bundled Gaia to G = 10 when it is installed. Default:
+        only for the spec ``"hipparcos"`` (the default catalogue); any other choice, and any
+        Catalog object, is used for every range.
 
     Returns
     -------
     list of FieldRange
         5-30 deg, 25-70 deg, 2.8-6 deg.
     """
-    spec = catalog.strip().lower()
-    band = "G" if spec.startswith("gaia") else "V"
+    if deep_narrow is None:
+        deep_narrow = isinstance(catalog, str) and catalog.strip().lower() == "hipparcos"
+    band = plan_band(catalog)
     plan = [
         FieldRange(*COMMON_RANGE_RAD, catalog, band),
         FieldRange(*WIDE_RANGE_RAD, catalog, band),
     ]
-    if spec == "hipparcos" and deep_catalog_available():
+    if deep_narrow and deep_catalog_available():
         plan.append(FieldRange(*NARROW_RANGE_RAD, "gaia", "G", **_NARROW_LATTICE))
     else:
         plan.append(FieldRange(*NARROW_RANGE_RAD, catalog, band, **_NARROW_LATTICE))
@@ -104,14 +140,18 @@ def unknown_field_plan(catalog: str = "hipparcos") -> list[FieldRange]:
 
 
 def identifier_for(
-    catalog: str, algorithm: str, fov_rad: float | None, field_range: FieldRange | None
+    catalog: Catalog | str,
+    *,
+    algorithm: str = "hashing",
+    fov_rad: float | None = None,
+    field_range: FieldRange | None = None,
 ):
     """Build (or load from the disk cache) the identifier of a known field or of a field range.
 
     Parameters
     ----------
-    catalog : str
-        Catalogue spec for a known field (a range carries its own).
+    catalog : Catalog or str
+        The catalogue (or its spec) for a known field (a range carries its own).
     algorithm : {"hashing", "triangle"}
         Identification algorithm (triangle needs a known field).
     fov_rad : float or None
@@ -123,17 +163,12 @@ def identifier_for(
     -------
     HashIdentifier or TriangleIdentifier
     """
-    from starsense.catalog import load_catalog
-    from starsense.identify.database import build_database
-    from starsense.identify.hashing import HashIdentifier
-    from starsense.identify.triangle import TriangleIdentifier
-
     if fov_rad is not None:
-        db = build_database(load_catalog(catalog), fov_rad)
+        db = build_database(_loaded(catalog), fov_rad)
     elif field_range is not None:
         fr = field_range
         db = build_database(
-            load_catalog(fr.catalog),
+            _loaded(fr.catalog),
             fr.max_fov_rad,
             fr.min_fov_rad,
             band=fr.band,
@@ -143,3 +178,7 @@ def identifier_for(
     else:
         raise InputError("give fov_rad or field_range")
     return (HashIdentifier if algorithm == "hashing" else TriangleIdentifier)(db)
+
+
+def _loaded(catalog: Catalog | str) -> Catalog:
+    return catalog if isinstance(catalog, Catalog) else load_catalog(catalog)

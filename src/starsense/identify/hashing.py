@@ -28,7 +28,7 @@ from starsense.errors import InputError
 from starsense.geometry.projection import vectors_to_tangent
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.patterns import (
-    _breadth_first_combinations,
+    breadth_first_combinations,
     edge_ratios,
     hash_keys,
     order_by_centroid_distance,
@@ -124,7 +124,7 @@ class HashIdentifier:
             false_match_threshold=false_match_threshold,
             max_detections=max_detections,
         )
-        self._combos = _breadth_first_combinations(self.n_pattern_detections, 4)
+        self._combos = breadth_first_combinations(self.n_pattern_detections, 4)
         nb = database.params.n_bins
         self._key_weights = nb ** np.arange(5, dtype=np.int64)
         # The 32 corners of a box of bins one bin wide in each ratio: when 2 x the pattern

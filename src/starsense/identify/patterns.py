@@ -28,6 +28,7 @@ from scipy.spatial import cKDTree
 from starsense.geometry.sampling import fibonacci_sphere
 
 __all__ = [
+    "breadth_first_combinations",
     "chord_angles",
     "edge_ratios",
     "field_sizes",
@@ -44,11 +45,22 @@ __all__ = [
 _EDGE_PAIRS = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)], dtype=np.intp)
 
 
-def _breadth_first_combinations(n: int, k: int) -> NDArray[np.intp]:
+def breadth_first_combinations(n: int, k: int) -> NDArray[np.intp]:
     """Return all k-combinations of range(n), those of the brightest stars first.
 
     Ordered by the largest index in the combination (so all combinations of the first ``m``
     stars come before any that uses star ``m``), then lexicographically.
+
+    Parameters
+    ----------
+    n : int
+        Number of stars (indices 0..n-1, brightest first).
+    k : int
+        Stars per combination.
+
+    Returns
+    -------
+    ndarray of int, shape (C(n, k), k)
     """
     combos = np.array(list(itertools.combinations(range(n), k)), dtype=np.intp).reshape(-1, k)
     order = np.lexsort((*combos.T[::-1], combos.max(axis=1)))
@@ -129,6 +141,7 @@ def hash_keys(bins: NDArray[np.integer], n_bins: int) -> NDArray[np.int64]:
 def thin_by_region(
     vectors: NDArray[np.float64],
     mags: NDArray[np.float64],
+    *,
     radius_rad: float,
     n_per_region: int,
     oversampling: float = 2.0,
@@ -216,7 +229,7 @@ def lattice_patterns(
         Distinct patterns (star indices), each in canonical order
         (:func:`order_by_centroid_distance`).
     """
-    combos = _breadth_first_combinations(stars_per_field, 4)[:patterns_per_field]
+    combos = breadth_first_combinations(stars_per_field, 4)[:patterns_per_field]
     chunks = []
     for size, stars in zip(sizes, pattern_stars, strict=True):
         tree = cKDTree(vectors[stars])

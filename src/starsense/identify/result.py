@@ -10,18 +10,32 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from dataclasses import dataclass, field
+from typing import Literal, TypeAlias, get_args
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError
+from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
-__all__ = ["STATUSES", "Identification", "identify_ranked", "result_builder", "validate_vectors"]
+__all__ = [
+    "STATUSES",
+    "Identification",
+    "IdentificationStatus",
+    "identify_ranked",
+    "result_builder",
+    "validate_vectors",
+]
 
-STATUSES = ("solved", "no_match", "ambiguous", "too_few_stars", "timeout")
+#: The values of :attr:`Identification.status`.
+IdentificationStatus: TypeAlias = Literal[
+    "solved", "no_match", "ambiguous", "too_few_stars", "timeout"
+]
+STATUSES = get_args(IdentificationStatus)
 """Possible values of :attr:`Identification.status`."""
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
@@ -33,7 +47,7 @@ class Identification:
 
     Attributes
     ----------
-    status : str
+    status : IdentificationStatus
         ``"solved"``, ``"no_match"`` (no hypothesis passed verification),
         ``"too_few_stars"`` or ``"timeout"``. (``"ambiguous"``, two different attitudes
         passing, is reserved: the solvers accept the first hypothesis that passes.)
@@ -71,7 +85,7 @@ class Identification:
         Why it failed, or a summary when solved.
     """
 
-    status: str
+    status: IdentificationStatus
     algorithm: str
     rotation: Rotation | None = None
     fov_rad: float | None = None
@@ -100,7 +114,6 @@ class Identification:
     def __repr__(self) -> str:
         if not self.solved:
             return f"Identification({self.status}: {self.message})"
-        from starsense.geometry.attitude import radec_roll_from_attitude
 
         ra, dec, roll = (a * RAD_TO_DEG for a in radec_roll_from_attitude(self.rotation))
         return (
@@ -140,7 +153,6 @@ def result_builder(algorithm: str, n_detections: int, t0: float):
     It stamps the algorithm, the number of detections and the time since ``t0``
     (perf_counter).
     """
-    import time
 
     def result(status: str, message: str, **kw) -> Identification:
         return Identification(

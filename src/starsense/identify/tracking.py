@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Literal, TypeAlias, get_args
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,12 +39,15 @@ from starsense._validate import check_scalar
 from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.result import validate_vectors
-from starsense.identify.verify import _estimate_matrix, false_match_probability
+from starsense.identify.verify import estimate_matrix, false_match_probability
 
-__all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch"]
+__all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch", "TrackingStatus"]
 
 #: Possible values of :attr:`TrackingMatch.status`.
-TRACKING_STATUSES = ("verified", "unverified", "too_few_stars", "ambiguous", "no_match")
+TrackingStatus: TypeAlias = Literal[
+    "verified", "unverified", "too_few_stars", "ambiguous", "no_match"
+]
+TRACKING_STATUSES = get_args(TrackingStatus)
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
 _ARANGE = np.arange(1024)
@@ -83,7 +87,7 @@ class TrackingMatch:
 
     Attributes
     ----------
-    status : str
+    status : TrackingStatus
         One of :data:`TRACKING_STATUSES`.
     rotation : Rotation or None
         Fitted attitude (ICRS -> camera) for "verified" and "unverified" (built on access
@@ -107,7 +111,7 @@ class TrackingMatch:
     message : str
     """
 
-    status: str
+    status: TrackingStatus
     rotation_matrix: NDArray[np.float64] | None = field(default=None, repr=False)
     detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
     catalog_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
@@ -212,9 +216,9 @@ class TrackingIdentifier:
         self,
         vectors_cam,
         prior: Rotation,
+        *,
         search_radius_rad: float,
         field_radius_rad: float,
-        *,
         region: tuple[float, int] | None = None,
         candidates=None,
     ) -> TrackingMatch:
@@ -284,7 +288,7 @@ class TrackingIdentifier:
         radius = r_s
         fitted = False  # whether r, resid are the fit to the pairs (det, star)
         for _ in range(3):
-            r, resid = _estimate_matrix(v[det], ref[star])
+            r, resid = estimate_matrix(v[det], ref[star])
             fitted = True
             sigma = MAD_TO_SIGMA * _median(resid) / math.sqrt(2 * math.log(2))
             radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
@@ -296,14 +300,14 @@ class TrackingIdentifier:
             if fitted:
                 break
         if not fitted:
-            r, resid = _estimate_matrix(v[det], ref[star])
+            r, resid = estimate_matrix(v[det], ref[star])
         # the fit's departure from the prior, as the displacement of a star at the field edge
         # (the measure of the search radius): cross-boresight plus roll x sin(field radius)
         d = _rotvec(r @ prior_matrix.T)
         innovation = float(math.hypot(d[0], d[1]) + abs(d[2]) * math.sin(field_r))
         cat = near[star]
         p_single = region[1] * math.pi * radius**2 / max(region[0], 1e-30)
-        p_false = false_match_probability(len(v), len(det), 2, p_single)
+        p_false = false_match_probability(len(v), len(det), n_hypothesis=2, p_single=p_single)
         rms = math.sqrt(float(resid @ resid) / len(resid))
         kw = {
             "detection_index": det,

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
 from starsense.identify.database import IdentificationDatabase
-from starsense.identify.patterns import _breadth_first_combinations, chord_angles
+from starsense.identify.patterns import breadth_first_combinations, chord_angles
 from starsense.identify.result import Identification, result_builder, validate_vectors
 from starsense.identify.verify import Verifier
 
@@ -91,7 +91,7 @@ class TriangleIdentifier:
             false_match_threshold=false_match_threshold,
             max_detections=max_detections,
         )
-        self._combos = _breadth_first_combinations(self.n_pattern_detections, 3)
+        self._combos = breadth_first_combinations(self.n_pattern_detections, 3)
 
     def _directed_pairs(self, angle: float, tol: float) -> NDArray[np.int64]:
         """Catalogue pairs (both orientations) whose angle is within `tol` of `angle`."""

@@ -35,6 +35,7 @@ from starsense.identify.database import IdentificationDatabase
 __all__ = [
     "Verifier",
     "apply_scale",
+    "estimate_matrix",
     "false_match_probability",
 ]
 
@@ -71,12 +72,24 @@ def apply_scale(vectors_cam: NDArray[np.float64], scale: float) -> NDArray[np.fl
     return tangent_to_vectors(vectors_to_tangent(vectors_cam) * scale)
 
 
-def _estimate_matrix(
+def estimate_matrix(
     body: NDArray[np.float64], ref: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return the attitude matrix ``R`` (``body ~ R @ ref``) and the residual angles (rad).
 
     The SVD solution of Wahba's problem with equal weights (Kabsch) from paired unit vectors.
+
+    Parameters
+    ----------
+    body, ref : ndarray, shape (N, 3)
+        Paired camera-frame and catalogue unit vectors, N >= 2.
+
+    Returns
+    -------
+    rotation_matrix : ndarray, shape (3, 3)
+        The attitude matrix.
+    residuals : ndarray, shape (N,)
+        Angle between each body vector and its rotated reference, rad.
     """
     if len(body) == 2:  # align_vectors needs a weight on the primary for two pairs
         rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
@@ -93,7 +106,7 @@ def _estimate_matrix(
 
 
 def false_match_probability(
-    n_detections: int, n_matched: int, n_hypothesis: int, p_single: float
+    n_detections: int, n_matched: int, *, n_hypothesis: int, p_single: float
 ) -> float:
     """Return the probability that the extra matches of a hypothesis are chance.
 
@@ -203,19 +216,19 @@ class Verifier:
         ref = self.database.vectors[cat]
         if not fit_scale:
             body = vs[det] if vs is not None else tangent_to_vectors(tangent[det] * scale)
-            r, resid = _estimate_matrix(body, ref)
+            r, resid = estimate_matrix(body, ref)
             return r, scale, resid
         t_det = tangent[det]
         denom = float(np.sum(t_det * t_det))
         for _ in range(4):
-            r, resid = _estimate_matrix(tangent_to_vectors(t_det * scale), ref)
+            r, resid = estimate_matrix(tangent_to_vectors(t_det * scale), ref)
             c = ref @ r.T
             # inline, not vectors_to_tangent: a wrong hypothesis may not raise on z <= 0
             t_cat = c[:, :2] / c[:, 2:3]
             if denom <= 0:
                 break
             scale = float(np.sum(t_det * t_cat)) / denom
-        r, resid = _estimate_matrix(tangent_to_vectors(t_det * scale), ref)
+        r, resid = estimate_matrix(tangent_to_vectors(t_det * scale), ref)
         return r, scale, resid
 
     def __call__(
@@ -299,7 +312,7 @@ class Verifier:
                 pairs = (det_m, cat_m)
                 if fit_scale:
                     vs = tangent_to_vectors(tangent * scale)
-        p_false = false_match_probability(n, len(det_m), k, p_single)
+        p_false = false_match_probability(n, len(det_m), n_hypothesis=k, p_single=p_single)
         if p_false > self.false_match_threshold:
             return None
         return _Verified(

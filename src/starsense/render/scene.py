@@ -403,7 +403,9 @@ def render_frame(
     # 3. tracks and the expected image
     sky, apparent = catalog.vectors[idx], None
     if obs_time is not None and idx.size:
-        places = apparent_places(catalog, idx, obs_time, observer_velocity_m_s)
+        places = apparent_places(
+            catalog, idx, obs_time, observer_velocity_m_s=observer_velocity_m_s
+        )
         sky, apparent = places.vectors, places.to_dict()
     elif observer_velocity_m_s is not None:
         raise InputError("observer_velocity_m_s needs obs_time")

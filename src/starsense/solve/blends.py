@@ -28,7 +28,7 @@ def blend_radius_px(psf_sigma_px: float) -> float:
     return 2.0 * float(psf_sigma_px) + 0.5
 
 
-def photocentres(vectors, mags, tree, index, radius_rad: float) -> np.ndarray:
+def photocentres(vectors, mags, tree, *, index, radius_rad: float) -> np.ndarray:
     """Return the reference directions of stars ``index``: photocentres with close neighbours.
 
     Parameters

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from starsense.catalog.apparent import apparent_places
 from starsense.errors import InputError
 from starsense.geometry.distortion import distort
 from starsense.units import RAD_TO_ARCSEC
@@ -96,8 +97,6 @@ def frame_stars(solution, catalog, name: str = "") -> FrameStars:
     vectors = np.asarray(catalog.vectors[idx], dtype=float)
     ap = solution.apparent or {}
     if ap.get("applied"):
-        from starsense.catalog.apparent import apparent_places
-
         vectors = apparent_places(catalog, idx, ap["time_utc"]).vectors
     return FrameStars(solution.centroids_px[det], vectors, solution.rotation, name)
 

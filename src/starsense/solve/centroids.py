@@ -18,9 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
+from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
+from starsense.solve.settings import FOV_RANGE_RAD
 
-__all__ = ["CentroidList", "check_centroids", "check_image_size", "read_centroids"]
+__all__ = [
+    "CentroidList",
+    "check_centroid_input",
+    "check_centroids",
+    "check_image_size",
+    "read_centroids",
+]
 
 FITS_SUFFIXES = {".fits", ".fit", ".fts", ".xyls", ".axy"}
 
@@ -184,10 +192,62 @@ def check_centroids(xy) -> np.ndarray:
 
 def check_image_size(image_size) -> tuple[int, int]:
     """Return (rows, columns) of an image size given as (width, height), integers >= 1."""
-    from starsense._validate import check_int
-
     try:
         width, height = image_size
     except (TypeError, ValueError):
         raise InputError(f"image_size must be (width, height), got {image_size!r}") from None
     return check_int(height, "image height", 1), check_int(width, "image width", 1)
+
+
+def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, sensor=None):
+    """Check the input of ``Solver.solve_centroids``; return it in the form the solver uses.
+
+    Parameters
+    ----------
+    xy : array_like, shape (N, 2)
+        Centroids (x = column, y = row), pixels.
+    image_size : (int, int)
+        Width and height of the image, pixels.
+    brightness : array_like, shape (N,), optional
+        Anything that grows with brightness; default: as listed, brightest first.
+    fov_rad : float, optional
+        Horizontal field, rad, in [0.5, 120] deg (not with a sensor).
+    sensor : Sensor, optional
+        The solver's sensor: the image size must be its detector's.
+
+    Returns
+    -------
+    pts : ndarray, shape (N, 2)
+    shape : (int, int)
+        Rows, columns.
+    flux : ndarray, shape (N,)
+    fov_rad : float or None
+
+    Raises
+    ------
+    InputError
+        Centroids not (N, 2) finite numbers, a bad image size or field, brightness not one
+        finite value per centroid, an image size that is not the sensor's.
+    """
+    pts = check_centroids(xy)
+    shape = check_image_size(image_size)
+    if fov_rad is not None:
+        if sensor is not None:
+            raise InputError("give fov_rad only to a Solver without a sensor")
+        fov_rad = check_scalar(fov_rad, "fov_rad", *FOV_RANGE_RAD)
+    if sensor is not None:
+        det = sensor.detector
+        if shape != (det.rows, det.columns):
+            raise InputError(
+                f"image_size {shape[1]} x {shape[0]} is not the sensor's {det.columns} x {det.rows}"
+            )
+    if brightness is None:
+        flux = np.arange(len(pts), 0, -1, dtype=float)  # as listed: brightest first
+    else:
+        flux = np.asarray(brightness, dtype=float)
+        if flux.shape != (len(pts),) or not np.all(np.isfinite(flux)):
+            raise InputError(
+                f"brightness must be {len(pts)} finite numbers (one per centroid), "
+                f"got shape {flux.shape}"
+            )
+    return pts, shape, flux, fov_rad

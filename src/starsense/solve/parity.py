@@ -46,7 +46,7 @@ def mirror_x(x, width: int) -> np.ndarray:
     return (int(width) - 1) - np.asarray(x, dtype=float)
 
 
-def solve_mirrored(x, y, flux, shape, solve_points):
+def solve_mirrored(x, y, flux, *, shape, solve_points):
     """Solve the mirror image of centroids that did not solve; return a "mirrored" Solution.
 
     Parameters

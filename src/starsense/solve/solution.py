@@ -4,13 +4,31 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, TypeAlias
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from starsense.solve.wcs import solution_wcs, write_solution_wcs
 from starsense.units import RAD_TO_ARCSEC
 
-__all__ = ["Solution"]
+__all__ = ["Solution", "SolveStatus"]
+
+#: The values of :attr:`Solution.status`: "solved", or why not (the identification's own
+#: reasons, :data:`starsense.identify.result.IdentificationStatus`, among them); tracking adds
+#: "unverified" (an attitude nothing was left to test) and "unreadable" (a frame's file).
+SolveStatus: TypeAlias = Literal[
+    "solved",
+    "no_stars",
+    "too_few_stars",
+    "no_match",
+    "ambiguous",
+    "timeout",
+    "too_many_candidates",
+    "mirrored",
+    "unverified",
+    "unreadable",
+]
 
 
 def _deg(angle_rad: float | None) -> float | None:
@@ -32,8 +50,10 @@ class Solution:
 
     Attributes
     ----------
-    status, message : str
-        Outcome, and a sentence about it.
+    status : SolveStatus
+        Outcome.
+    message : str
+        A sentence about the outcome.
     ra_rad, dec_rad, roll_rad : float or None
         Boresight and roll of the attitude, rad.
     fov_rad : float or None
@@ -65,7 +85,7 @@ class Solution:
         The sensor model the centroids were unprojected with (principal point, distortion).
     """
 
-    status: str
+    status: SolveStatus
     message: str = ""
     ra_rad: float | None = None
     dec_rad: float | None = None
@@ -123,14 +143,10 @@ class Solution:
 
         See :func:`starsense.solve.wcs.solution_wcs`.
         """
-        from starsense.solve.wcs import solution_wcs
-
         return solution_wcs(self, sip_order)
 
     def write_wcs(self, path: str | Path, sip_order: int | None = None) -> Path:
         """Write the WCS as a FITS header (:func:`~starsense.solve.wcs.write_solution_wcs`)."""
-        from starsense.solve.wcs import write_solution_wcs
-
         return write_solution_wcs(self, path, sip_order)
 
     @property

@@ -24,17 +24,39 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
-from starsense.errors import InputError
-from starsense.geometry.projection import tangent_to_vectors
+from starsense.attitude.robust import robust_attitude
+from starsense.catalog.apparent import apparent_places_of
+from starsense.catalog.table import Catalog
+from starsense.detect import StarDetector
+from starsense.detect.centroid import cog_sigma_px
+from starsense.geometry.attitude import radec_roll_from_attitude
+from starsense.identify.fields import FieldRange
+from starsense.sensor import DetectionThresholds, Sensor, load_sensor
+from starsense.solve.blends import blend_radius_px, photocentres
+from starsense.solve.centroids import check_centroid_input
+from starsense.solve.frames import frame_time, load_image
+from starsense.solve.identifiers import FieldIdentifiers
+from starsense.solve.parity import solve_mirrored
+from starsense.solve.pinhole import pinhole_vectors
+from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
-from starsense.solve.star_noise import cog_sigma_px as _cog_sigma_px
 from starsense.units import DEG
 
-__all__ = ["NOMINAL_FOV_RAD", "UNKNOWN_FOV_RANGE_RAD", "Solution", "Solver", "pinhole_vectors"]
+__all__ = [
+    "NOMINAL_FOV_RAD",
+    "UNKNOWN_FOV_RANGE_RAD",
+    "Solution",
+    "Solver",
+    "SolverSettings",
+    "max_candidates",
+    "pinhole_vectors",
+]
 
 #: field range searched when the optics are unknown, rad (5-30, 25-70, then 2.8-6 deg)
 UNKNOWN_FOV_RANGE_RAD = (2.8 * DEG, 70.0 * DEG)
@@ -43,8 +65,6 @@ NOMINAL_FOV_RAD = 15.0 * DEG
 #: PSF sigma of the matched filter when no sensor is given, px (a focused star tracker:
 #: 0.7-1.5 px; the filter's gain is within 10 % of optimal for 0.6-1.6 px)
 DEFAULT_PSF_SIGMA_PX = 1.0
-#: the Solver's accepted range of a given horizontal field, rad (0.5-120 deg)
-FOV_RANGE_RAD = (0.5 * DEG, 120.0 * DEG)
 
 
 class Solver:
@@ -57,16 +77,19 @@ class Solver:
     fov_rad : float, optional
         Horizontal field across the image width (pinhole), rad, in [0.5, 120] deg, when no
         sensor is given.
-    catalog : str
-        Catalogue spec for the database (default: the bundled Hipparcos).
+    catalog : Catalog or str
+        The catalogue of the database: an object (used for every field range, e.g. one
+        filtered in Python), or a spec (:func:`starsense.catalog.load_catalog`; default the
+        bundled Hipparcos, with the narrow range of an unknown field searched in the bundled
+        Gaia when installed). Loaded once, when first needed.
     algorithm : {"hashing", "triangle"}
         Lost-in-space algorithm (triangle needs a known field).
     threshold_sigma : float
         Lit-pixel threshold above the background map, in noise sigmas.
     centroid_sigma_px : float or "snr"
         Centroid noise assumed for the attitude covariance, pixels; "snr" (needs a sensor) uses
-        each star's own noise (:func:`_cog_sigma_px`: photon noise plus read noise over its
-        centroid window).
+        each star's own noise (:func:`starsense.detect.centroid.cog_sigma_px`: photon noise
+        plus read noise over its centroid window).
     background : {"auto", "known"}
         "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
         subtracts the sensor's bias and applies its detection logic as is (simulated frames).
@@ -74,59 +97,56 @@ class Solver:
         Fit the attitude to the stars' apparent places when the frame's time is known (default).
     observer_velocity_m_s : array_like, shape (3,), optional
         The observer's velocity relative to the geocentre (orbit), ICRS axes, m/s.
+
+    Attributes
+    ----------
+    sensor : Sensor or None
+        The sensor.
+    settings : SolverSettings
+        Everything else it was configured with.
+    logic : DetectionThresholds
+        The detection logic (the sensor's, else a permissive one).
     """
 
     def __init__(
         self,
         sensor=None,
+        *,
         fov_rad: float | None = None,
-        catalog: str = "hipparcos",
-        algorithm: str = "hashing",
+        catalog: Catalog | str = "hipparcos",
+        algorithm: Algorithm = "hashing",
         threshold_sigma: float = 5.0,
-        centroid_sigma_px: float | str = 0.3,
-        background: str = "auto",
+        centroid_sigma_px: float | Literal["snr"] = 0.3,
+        background: BackgroundMode = "auto",
         apparent: bool = True,
         observer_velocity_m_s=None,
     ) -> None:
-        from starsense._validate import check_scalar, show
-        from starsense.sensor import DetectionThresholds, Sensor, load_sensor
-
-        if sensor is not None and fov_rad is not None:
-            raise InputError("give sensor or fov_rad, not both")
-        if fov_rad is not None:
-            fov_rad = check_scalar(fov_rad, "fov_rad", *FOV_RANGE_RAD)
-        if algorithm not in ("hashing", "triangle"):
-            raise InputError(f"algorithm must be hashing or triangle, got {algorithm!r}")
-        if sensor is None and fov_rad is None and algorithm == "triangle":
-            raise InputError("the triangle algorithm needs a known field: give sensor or fov_rad")
-        if centroid_sigma_px != "snr" and not (
-            isinstance(centroid_sigma_px, (int, float)) and centroid_sigma_px > 0
-        ):
-            raise InputError(
-                f"centroid_sigma_px must be > 0 or 'snr', got {show(centroid_sigma_px)}"
-            )
-        if background not in ("auto", "known"):
-            raise InputError(f"background must be 'auto' or 'known', got {background!r}")
-        if sensor is None and (background == "known" or centroid_sigma_px == "snr"):
-            raise InputError("background='known' and centroid_sigma_px='snr' need a sensor")
-        self.background = background
+        self.settings: SolverSettings = solver_settings(
+            sensor,
+            catalog=catalog,
+            algorithm=algorithm,
+            threshold_sigma=threshold_sigma,
+            centroid_sigma_px=centroid_sigma_px,
+            background=background,
+            apparent=apparent,
+            observer_velocity_m_s=observer_velocity_m_s,
+            fov_rad=fov_rad,
+        )
         self.sensor = (
             sensor if (sensor is None or isinstance(sensor, Sensor)) else load_sensor(sensor)
         )
-        self.fov_rad = fov_rad
-        self.catalog_spec = catalog
-        self.algorithm = algorithm
-        self.threshold_sigma = threshold_sigma
-        self.centroid_sigma_px = centroid_sigma_px
         self.logic = (
             self.sensor.detection
             if self.sensor is not None
             else DetectionThresholds(lit_pixel_counts=1e-6, min_pixels=3, min_integrated_counts=0)
         )
-        self._identifiers: dict = {}
-        self.apparent = bool(apparent)
-        self.observer_velocity_m_s = observer_velocity_m_s
-        self._plan = None
+        self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
+        self._detector: StarDetector | None = None
+
+    @property
+    def catalog(self) -> Catalog:
+        """The catalogue of the database (a spec is loaded here, once)."""
+        return self._identifiers.catalog
 
     # -- optics -----------------------------------------------------------------------------
 
@@ -139,83 +159,79 @@ class Solver:
         if self.sensor is not None:
             fov = 2.0 * self.sensor.half_fov_rad[0]
             return self.sensor.unproject(x, y), fov, fov
-        known = fov_rad if fov_rad is not None else self.fov_rad
+        known = fov_rad if fov_rad is not None else self.settings.fov_rad
         fov = known if known is not None else NOMINAL_FOV_RAD
-        return pinhole_vectors(x, y, shape, fov), known, fov
+        return pinhole_vectors(x, y, shape=shape, fov_rad=fov), known, fov
 
-    def _identifier(self, fov_rad: float | None, field_range=None):
-        """Return the identifier of a known field or of one range of the unknown-field search."""
-        from starsense.identify.fields import identifier_for, unknown_field_plan
+    # -- what tracking needs: the detector and the identifier of a field -------------------
 
-        if self._plan is None:
-            self._plan = unknown_field_plan(self.catalog_spec)
-        if fov_rad is None and field_range is None:
-            field_range = self._plan[0]
-        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9), field_range)
-        if key not in self._identifiers:
-            self._identifiers[key] = identifier_for(
-                self.catalog_spec, self.algorithm, fov_rad, field_range
-            )
-        return self._identifiers[key]
+    @property
+    def detector(self) -> StarDetector:
+        """The full-frame star detector of this Solver (built once).
 
-    def _search_fields(self, vectors, flux, fov_assumed):
-        """Identify with the field unknown: each range of the plan in turn until one solves."""
-        from starsense.identify import identify_ranked
-        from starsense.identify.verify import apply_scale
+        With ``background="known"`` the sensor's own (:meth:`StarDetector.for_sensor`); else
+        a background map, a matched filter of the sensor's PSF (1 px without a sensor) and the
+        ``threshold_sigma`` threshold.
+        """
+        if self._detector is None:
+            s = self.settings
+            if s.background == "known":
+                self._detector = StarDetector.for_sensor(self.sensor)
+            else:
+                psf = (
+                    self.sensor.detector.psf_sigma_px
+                    if self.sensor is not None
+                    else DEFAULT_PSF_SIGMA_PX
+                )
+                self._detector = StarDetector(
+                    self.logic,
+                    "cog",
+                    background="auto",
+                    threshold_sigma=s.threshold_sigma,
+                    matched_filter=True,
+                    min_snr=s.threshold_sigma,
+                    psf_sigma_px=psf,
+                )
+        return self._detector
 
-        self._identifier(None)  # makes the plan; its first range is searched first
-        for field_range in self._plan:
-            identifier = self._identifier(None, field_range)
-            nominal = field_range.nominal_fov_rad  # re-unproject at the range's own field
-            v = apply_scale(vectors, math.tan(nominal / 2) / math.tan(fov_assumed / 2))
-            ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
-            if ident.solved:
-                break
-        return identifier, ident, None
+    def field_plan(self) -> list[FieldRange]:
+        """Return the field ranges searched, in order, when the field is not known.
+
+        :func:`starsense.identify.fields.unknown_field_plan` of the Solver's catalogue.
+        """
+        return self._identifiers.plan()
+
+    def identifier(self, fov_rad: float | None = None, field_range: FieldRange | None = None):
+        """Return the identifier of a known field or of one range of the unknown-field search.
+
+        Built (or loaded from the disk cache) once per field and kept.
+
+        Parameters
+        ----------
+        fov_rad : float, optional
+            The known field (full width), rad.
+        field_range : FieldRange, optional
+            A range of :meth:`field_plan`, when ``fov_rad`` is None (default: its first).
+
+        Returns
+        -------
+        HashIdentifier or TriangleIdentifier
+            Its ``database`` is the identification database.
+        """
+        return self._identifiers(fov_rad, field_range)
 
     # -- the pipeline -----------------------------------------------------------------------
 
-    def _detector(self):
-        from starsense.detect import StarDetector
-
-        if self.background == "known":
-            return StarDetector.for_sensor(self.sensor)
-        psf = self.sensor.detector.psf_sigma_px if self.sensor is not None else DEFAULT_PSF_SIGMA_PX
-        return StarDetector(
-            self.logic,
-            "cog",
-            background="auto",
-            threshold_sigma=self.threshold_sigma,
-            matched_filter=True,
-            min_snr=self.threshold_sigma,
-            psf_sigma_px=psf,
-        )
-
-    def _identify(self, vectors, flux, fov_known, fov_assumed):
-        """Return (identifier, identification, known field or None after a scale search)."""
-        from starsense.identify import identify_ranked
-
-        if fov_known is None:
-            return self._search_fields(vectors, flux, fov_assumed)
-        identifier = self._identifier(fov_known)
-        ident = identify_ranked(identifier, vectors, flux, fov_known)
-        if (
-            not ident.solved
-            and self.sensor is None
-            and self.algorithm == "hashing"
-            and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
-        ):
-            # a given field is an estimate: search the scale around it, which refines the field
-            return self._search_fields(vectors, flux, fov_assumed)
-        return identifier, ident, fov_known
-
     def _reference(self, ref, catalog_ids, obs_time) -> tuple[np.ndarray, dict]:
         """Return the matched stars' reference vectors: apparent places when a time is known."""
-        if obs_time is None or not self.apparent:
+        if obs_time is None or not self.settings.apparent:
             return ref, {"applied": False, "reason": "no frame time" if obs_time is None else "off"}
-        from starsense.catalog.apparent import apparent_places_of
-
-        p = apparent_places_of(self.catalog_spec, catalog_ids, obs_time, self.observer_velocity_m_s)
+        p = apparent_places_of(
+            self.catalog,
+            catalog_ids,
+            obs_time,
+            observer_velocity_m_s=self.settings.observer_velocity_m_s,
+        )
         return p.vectors, p.to_dict()
 
     def __call__(self, image, obs_time=None) -> Solution:
@@ -237,7 +253,7 @@ class Solver:
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
         a = np.asarray(image)
-        detector = self._detector()
+        detector = self.detector
         det = detector(a)
         stages["detect_ms"] = _ms(t0)
         if len(det) == 0:
@@ -246,30 +262,24 @@ class Solver:
             )
 
         def sigma_px(matched):
-            if self.centroid_sigma_px == "snr":
-                return _cog_sigma_px(det, matched, self.sensor.detector, detector.margin_px)
-            return self.centroid_sigma_px
+            if self.settings.centroid_sigma_px == "snr":
+                return cog_sigma_px(
+                    det, matched, detector=self.sensor.detector, margin_px=detector.margin_px
+                )
+            return self.settings.centroid_sigma_px
 
-        return self._solve_points(
-            det.x,
-            det.y,
-            det.integrated_counts,
-            a.shape,
-            t0,
-            stages,
-            sigma_px,
-            None,
-            "detections",
-            obs_time,
-        )
+        points = _Points(det.x, det.y, det.integrated_counts, a.shape, "detections")
+        return self._solve_points(points, t0, stages, sigma_px, None, obs_time)
 
-    def solve_centroids(self, xy, image_size, fov=None, brightness=None) -> Solution:
+    def solve_centroids(
+        self, xy, image_size, *, fov_rad: float | None = None, brightness=None
+    ) -> Solution:
         """Solve a list of centroids measured by any centroider (no image needed).
 
         Pixel convention (that of :mod:`starsense.detect`): (0, 0) is the centre of the top-left
         pixel, x runs along the columns (to the right) and y along the rows (down); the image
         spans x in [-0.5, width - 0.5). The optics are the Solver's (sensor or ``fov_rad``),
-        or ``fov`` for this call, or unknown (the scale is then searched).
+        or ``fov_rad`` for this call, or unknown (the scale is then searched).
 
         Parameters
         ----------
@@ -277,7 +287,7 @@ class Solver:
             Centroids (x = column, y = row), pixels.
         image_size : (int, int)
             Width and height of the image, pixels (columns, rows).
-        fov : float, optional
+        fov_rad : float, optional
             Horizontal field across the image width (pinhole), rad, in [0.5, 120] deg: for
             this call, in place of the Solver's (not with a sensor).
         brightness : array_like, shape (N,), optional
@@ -296,53 +306,26 @@ class Solver:
             Centroids not (N, 2) finite numbers, a bad image size or field, brightness not one
             finite value per centroid, an image size that is not the sensor's.
         """
-        from starsense._validate import check_scalar
-
         t0 = time.perf_counter()
-        from starsense.solve.centroids import check_centroids, check_image_size
-
-        pts = check_centroids(xy)
-        shape = check_image_size(image_size)
-        if fov is not None:
-            if self.sensor is not None:
-                raise InputError("give fov only to a Solver without a sensor")
-            fov = check_scalar(fov, "fov", *FOV_RANGE_RAD)
-        if self.sensor is not None:
-            det = self.sensor.detector
-            if shape != (det.rows, det.columns):
-                raise InputError(
-                    f"image_size {shape[1]} x {shape[0]} is not the sensor's "
-                    f"{det.columns} x {det.rows}"
-                )
-        if brightness is None:
-            flux = np.arange(len(pts), 0, -1, dtype=float)  # as listed: brightest first
-        else:
-            flux = np.asarray(brightness, dtype=float)
-            if flux.shape != (len(pts),) or not np.all(np.isfinite(flux)):
-                raise InputError(
-                    f"brightness must be {len(pts)} finite numbers (one per centroid), "
-                    f"got shape {flux.shape}"
-                )
-        sigma = self.centroid_sigma_px if self.centroid_sigma_px != "snr" else 0.3
-        return self._solve_points(
-            pts[:, 0], pts[:, 1], flux, shape, t0, {}, lambda _: sigma, fov, "centroids"
+        pts, shape, flux, fov_rad = check_centroid_input(
+            xy, image_size, brightness=brightness, fov_rad=fov_rad, sensor=self.sensor
         )
+        sigma = self.settings.centroid_sigma_px
+        sigma = sigma if sigma != "snr" else 0.3
+        points = _Points(pts[:, 0], pts[:, 1], flux, shape, "centroids")
+        return self._solve_points(points, t0, {}, lambda _: sigma, fov_rad)
 
-    def _solve_points(
-        self, x, y, flux, shape, t0, stages, sigma_px, fov_given, what, obs_time=None, parity=True
-    ):
+    def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True):
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
 
         When they do not solve (and are not clutter), their mirror image is tried
         (:func:`starsense.solve.parity.solve_mirrored`, unless ``parity`` is False).
         """
-        from starsense.attitude.robust import robust_attitude
-        from starsense.geometry.attitude import radec_roll_from_attitude
-        from starsense.solve.blends import blend_radius_px, photocentres
-
-        n = len(x)
+        n = len(points.x)
         if n < 3:
-            said = f"{n} centroid(s) given" if what == "centroids" else f"{n} star(s) detected"
+            said = (
+                f"{n} centroid(s) given" if points.what == "centroids" else f"{n} star(s) detected"
+            )
             return Solution(
                 "too_few_stars",
                 f"{said}; 3 are needed",
@@ -350,69 +333,87 @@ class Solver:
                 time_ms=_ms(t0),
                 stage_ms=stages,
             )
-        vectors, fov_known, fov_assumed = self._unproject(x, y, shape, fov_given)
+        vectors, fov_known, fov_assumed = self._unproject(
+            points.x, points.y, points.shape, fov_given
+        )
         t1 = time.perf_counter()
-        self._identifier(fov_known)  # database build or cache load, timed on its own
+        self.identifier(fov_known)  # database build or cache load, timed on its own
         stages["database_ms"] = _ms(t1)
         t2 = time.perf_counter()
-        identifier, ident, fov_known = self._identify(vectors, flux, fov_known, fov_assumed)
+        identifier, ident, fov_known = self._identifiers.identify(
+            vectors,
+            points.flux,
+            fov_known_rad=fov_known,
+            fov_assumed_rad=fov_assumed,
+            estimate=self.sensor is None,
+        )
         stages["identify_ms"] = _ms(t2)
         if not ident.solved:
-            status, message = ident.status, ident.message
-            limit = max_candidates(shape)
-            if parity and n <= limit:  # a mirrored frame fails identification: flip, retry
-                from starsense.solve.parity import solve_mirrored
-
-                mirrored = solve_mirrored(
-                    x,
-                    y,
-                    flux,
-                    shape,
-                    lambda mx, my, f: self._solve_points(
-                        mx,
-                        my,
-                        f,
-                        shape,
-                        t0,
-                        stages,
-                        sigma_px,
-                        fov_given,
-                        what,
-                        obs_time,
-                        parity=False,
-                    ),
-                )
-                if mirrored is not None:
-                    return mirrored
-            if n > limit:
-                status = "too_many_candidates"
-                message = (
-                    f"{n} candidates, more than a frame of {shape[1]} x {shape[0]} "
-                    f"pixels can hold as stars ({limit}): noise or clutter passed the detection "
-                    f"(then: {message})"
-                )
-            return Solution(status, message, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
+            return self._unsolved(points, ident, t0, stages, sigma_px, fov_given, obs_time, parity)
         # final attitude from all matches, with its covariance
         t3 = time.perf_counter()
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
         if fov_known is None:  # re-unproject with the field found
-            vectors = pinhole_vectors(x, y, shape, fov)
+            vectors = pinhole_vectors(points.x, points.y, shape=points.shape, fov_rad=fov)
         matched = np.asarray(ident.detection_index)
-        db = identifier.database
+        ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
+        pixel_rad = fov / points.shape[1]
+        att, _ = robust_attitude(vectors[matched], ref, sigma_px(matched) * pixel_rad)
+        stages["attitude_ms"] = _ms(t3)
+        return self._solution(points, ident, att, fov, apparent, t0, stages)
+
+    def _unsolved(self, points, ident, t0, stages, sigma_px, fov_given, obs_time, parity):
+        """Return the answer for centroids that did not solve: their mirror image, or why not."""
+        n, shape = len(points.x), points.shape
+        status, message = ident.status, ident.message
+        limit = max_candidates(shape)
+        if parity and n <= limit:  # a mirrored frame fails identification: flip, retry
+            mirrored = solve_mirrored(
+                points.x,
+                points.y,
+                points.flux,
+                shape=shape,
+                solve_points=lambda mx, my, f: self._solve_points(
+                    _Points(mx, my, f, shape, points.what),
+                    t0,
+                    stages,
+                    sigma_px,
+                    fov_given,
+                    obs_time,
+                    parity=False,
+                ),
+            )
+            if mirrored is not None:
+                return mirrored
+        if n > limit:
+            status = "too_many_candidates"
+            message = (
+                f"{n} candidates, more than a frame of {shape[1]} x {shape[0]} "
+                f"pixels can hold as stars ({limit}): noise or clutter passed the detection "
+                f"(then: {message})"
+            )
+        return Solution(status, message, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
+
+    def _matched_reference(self, db, ident, obs_time, fov, points):
+        """Return the matched stars' reference vectors (apparent places, blended photocentres)."""
         plain = db.vectors[np.asarray(ident.catalog_index)]
         ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
         if self.sensor is not None:  # blended close doubles: their photocentre, not one star
-            radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / shape[1]
-            ref = ref + photocentres(db.vectors, db.mags, db.tree, ident.catalog_index, radius)
+            radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / points.shape[1]
+            ref = ref + photocentres(
+                db.vectors, db.mags, db.tree, index=ident.catalog_index, radius_rad=radius
+            )
             ref = ref - plain
             ref /= np.linalg.norm(ref, axis=1)[:, None]
-        pixel_rad = fov / shape[1]
-        att, _ = robust_attitude(vectors[matched], ref, sigma_px(matched) * pixel_rad)
-        stages["attitude_ms"] = _ms(t3)
+        return ref, apparent
+
+    def _solution(self, points, ident, att, fov, apparent, t0, stages) -> Solution:
+        """Return the solved frame's Solution."""
+        n, shape = len(points.x), points.shape
         ra, dec, roll = radec_roll_from_attitude(att.rotation)
         return Solution(
             "solved",
-            f"{ident.n_matches} of {n} {what} matched ({ident.algorithm})",
+            f"{ident.n_matches} of {n} {points.what} matched ({ident.algorithm})",
             ra_rad=float(ra),
             dec_rad=float(dec),
             roll_rad=float(roll),
@@ -429,7 +430,7 @@ class Solver:
                 (int(d), int(c))
                 for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
             ),
-            centroids_px=np.column_stack([x, y]),
+            centroids_px=np.column_stack([points.x, points.y]),
             image_shape=tuple(shape),
             focal_px=(
                 self.sensor.focal_length_px
@@ -446,19 +447,9 @@ class Solver:
         A batch calls it before its first frame, so that no frame's time holds the load.
         """
         if self.sensor is not None:
-            self._identifier(2.0 * self.sensor.half_fov_rad[0])
+            self.identifier(2.0 * self.sensor.half_fov_rad[0])
         else:
-            self._identifier(self.fov_rad)
-
-    def track(self, image, prior=None):
-        """Track a frame from a prior attitude (:func:`starsense.solve.track.track_frame`).
-
-        Falls back to lost-in-space when the prior's match fails or is ambiguous, and says so;
-        returns a :class:`~starsense.solve.track.TrackSolution`.
-        """
-        from starsense.solve.track import track_frame
-
-        return track_frame(self, image, prior)
+            self.identifier(self.settings.fov_rad)
 
     def solve_file(self, path: str | Path, obs_time=None) -> Solution:
         """Load a frame (:func:`starsense.solve.frames.load_image`) and solve it.
@@ -466,8 +457,6 @@ class Solver:
         The frame's time is ``obs_time`` if given, else its FITS DATE-OBS or EXIF
         DateTimeOriginal / DateTime (:func:`starsense.solve.frames.frame_time`), else unknown.
         """
-        from starsense.solve.frames import frame_time, load_image
-
         image = load_image(path)  # first: its checks (size, header) come before any other read
         source = "obs_time"
         if obs_time is None:
@@ -478,31 +467,15 @@ class Solver:
         return sol
 
 
-def pinhole_vectors(x, y, shape, fov_rad: float) -> np.ndarray:
-    """Return camera-frame unit vectors of pixel positions seen through a pinhole.
+@dataclass(frozen=True)
+class _Points:
+    """Centroids to solve: x, y (px), brightness, the image's (rows, columns), what they are."""
 
-    The horizontal field across the image width is ``fov_rad``, the principal point at the image
-    centre (pixel-centre convention); the gnomonic inverse is
-    :func:`starsense.geometry.projection.tangent_to_vectors`.
-
-    Parameters
-    ----------
-    x, y : array_like, shape (N,)
-        Column and row of each position, pixels.
-    shape : (int, int)
-        Rows, columns of the image.
-    fov_rad : float
-        Horizontal field, rad.
-
-    Returns
-    -------
-    ndarray, shape (N, 3)
-    """
-    rows, cols = shape
-    f_px = cols / 2.0 / math.tan(fov_rad / 2.0)
-    u = (np.asarray(x, dtype=float) - (cols - 1) / 2.0) / f_px
-    w = (np.asarray(y, dtype=float) - (rows - 1) / 2.0) / f_px
-    return tangent_to_vectors(np.column_stack([u, w]))
+    x: np.ndarray
+    y: np.ndarray
+    flux: np.ndarray
+    shape: tuple
+    what: str
 
 
 def max_candidates(shape) -> int:

@@ -19,6 +19,7 @@ import numpy as np
 
 from starsense._io import atomic_path
 from starsense.errors import InputError
+from starsense.geometry.attitude import east_north
 from starsense.geometry.distortion import distort, undistort
 
 __all__ = ["SIP_TOLERANCE_PX", "sip_coefficients", "solution_wcs", "write_solution_wcs"]
@@ -117,8 +118,6 @@ def solution_wcs(solution, sip_order: int | None = None):
         The frame is not solved.
     """
     from astropy.wcs import WCS, Sip
-
-    from starsense.geometry.attitude import east_north
 
     if not solution.solved:
         raise InputError(f"no WCS for an unsolved frame (status {solution.status})")

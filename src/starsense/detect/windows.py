@@ -9,35 +9,27 @@ is searched instead.
 
 With a known background (simulated frames) each window uses the sensor's own detection logic
 on its bias; otherwise each window's background is the median of its two-pixel border and its
-noise the border's scaled median absolute deviation (sky around the star), with the Solver's
-sigma threshold.
+noise the border's scaled median absolute deviation (sky around the star), with a sigma
+threshold (:class:`WindowDetector`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import ndimage
 
 from starsense.detect.clip import MAD_TO_SIGMA
-from starsense.solve.streak_centroid import (
-    _arange,
-    columns,
-    streak_centroid,
-    streak_centroids,
-    windows_view,
-)
+from starsense.detect.streak import columns, kept_arange, streak_centroids, windows_view
+from starsense.detect.threshold import Detections, StarDetector
 
-__all__ = [
-    "WindowDetections",
-    "detect_in_windows",
-    "streak_centroid",
-    "streak_centroids",
-    "streak_px",
-    "union_area",
-]
+if TYPE_CHECKING:
+    from starsense.sensor import Detector
+
+__all__ = ["WindowDetections", "WindowDetector", "streak_px", "union_area"]
 
 #: Windows covering more than this fraction of the frame: search the whole frame.
 MAX_WINDOW_FRACTION = 0.25
@@ -208,12 +200,12 @@ def _stack(image: np.ndarray, centres_px: np.ndarray, half: int):
     return windows, r0, c0
 
 
-def _levels(solver, stack: np.ndarray):
+def _levels(cfg: WindowDetector, stack: np.ndarray):
     """Background level, noise and lit threshold of each window, counts, shape (K,) each."""
-    logic = solver.logic
+    logic = cfg.detector.logic
     k = len(stack)
-    if solver.background == "known":
-        det = solver.sensor.detector
+    if cfg.known_background:
+        det = cfg.camera
         level = np.full(k, float(det.bias_counts))
         noise = np.full(k, det.read_noise_e * det.gain_counts_per_e)
         return level, noise, np.full(k, float(logic.lit_pixel_counts))
@@ -229,7 +221,7 @@ def _levels(solver, stack: np.ndarray):
     )
     level = np.median(border, axis=1)
     noise = MAD_TO_SIGMA * np.median(np.abs(border - level[:, None]), axis=1)
-    threshold = np.maximum(float(logic.lit_pixel_counts), solver.threshold_sigma * noise)
+    threshold = np.maximum(float(logic.lit_pixel_counts), cfg.threshold_sigma * noise)
     return level, noise, threshold
 
 
@@ -246,9 +238,9 @@ def _below(threshold: np.ndarray) -> np.ndarray:
     return t32
 
 
-def _median_noise(solver, noise: np.ndarray) -> float:
+def _median_noise(cfg: WindowDetector, noise: np.ndarray) -> float:
     """Median noise of the windows, counts (with a known background, the detector's own)."""
-    if solver.background == "known":  # every window has the same noise: that is the median
+    if cfg.known_background:  # every window has the same noise: that is the median
         return float(noise[0])
     return float(np.median(noise))
 
@@ -268,8 +260,8 @@ def _cogs(sub, p, boxes, margin):
     d = np.minimum(boxes[:, 3] + margin, cols)[:, None]
     h, w = int((b - a).max()), int((d - c).max())
     r0, c0 = np.minimum(a, rows - h), np.minimum(c, cols - w)  # (L, 1) first row, column
-    rr = r0 + _arange(h)  # (L, h) rows of each crop
-    cc = c0 + _arange(w)  # (L, w) columns
+    rr = r0 + kept_arange(h)  # (L, h) rows of each crop
+    cc = c0 + kept_arange(w)  # (L, w) columns
     keep = ((rr >= a) & (rr < b))[:, :, None] & ((cc >= c) & (cc < d))[:, None, :]
     crop = windows_view(sub, (h, w))[p, r0[:, 0], c0[:, 0]].astype(float)
     wt = np.where(keep, crop, 0.0)
@@ -330,19 +322,19 @@ def _regions(p, box, ok, r0, c0, shape, window):
     return keep[~cut] + 1, p[~cut], box[~cut]
 
 
-def _detect_stack(solver, stack, r0, c0, shape, streaks):
+def _detect_stack(cfg: WindowDetector, stack, r0, c0, shape, streaks):
     """Apply the detection logic to every window at once; return frame-pixel detection rows.
 
     With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
     streak (:func:`streak_centroids`), started from the region's CoG; else the CoG over the
     region's box plus a 2 px margin, as the full-frame detector does.
     """
-    logic = solver.logic
-    if solver.background != "known":  # the border statistics in float32, as the frame's
+    logic = cfg.detector.logic
+    if not cfg.known_background:  # the border statistics in float32, as the frame's
         stack = stack.astype(np.float32)
-    level, noise, threshold = _levels(solver, stack)
+    level, noise, threshold = _levels(cfg, stack)
     # counts less the level in float32 (the frame's integer counts are exact in it)
-    if solver.background == "known":  # one level and threshold for all: scalars, no broadcast
+    if cfg.known_background:  # one level and threshold for all: scalars, no broadcast
         sub = stack.astype(np.float32)
         sub -= np.float32(level[0])
         lit = sub > _below(threshold[:1])[0]
@@ -351,7 +343,7 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
         lit = sub > _below(threshold)[:, None, None]
     idx, lab, n = _lit_labels(lit, logic.connectivity)
     if n == 0:
-        return _NO_ROWS, _median_noise(solver, noise), 0
+        return _NO_ROWS, _median_noise(cfg, noise), 0
     sizes = np.bincount(lab, minlength=n + 1)
     sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
     values = stack.ravel()[idx].astype(np.float32)
@@ -359,14 +351,14 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
     peaks = np.concatenate([[-np.inf], peak])
     ok = (sizes >= logic.min_pixels) & (sums >= logic.min_integrated_counts)
     k, p, box = _regions(plane, extent, ok, r0, c0, shape, stack.shape[1:])
-    sigma = float(solver.sensor.detector.psf_sigma_px)
+    sigma = float(cfg.camera.psf_sigma_px)
     x, y = _cogs(sub, p, box, 2)
     counts, spread = sums[k].astype(float), np.full((len(k), 2, 2), np.nan)
     if streaks is not None and len(k):
         st = np.asarray(streaks, dtype=float)[p]
         use = ((np.hypot(st[:, 0], st[:, 1]) >= 2.0 * sigma) & np.isfinite(x)).nonzero()[0]
         gx, gy, gc, gb, gs = streak_centroids(
-            sub[p[use]], x[use], y[use], st[use], 2.5 * sigma + 1.0
+            sub[p[use]], x[use], y[use], streaks=st[use], radius=2.5 * sigma + 1.0
         )
         fin = np.isfinite(gx)
         got = use[fin]
@@ -389,7 +381,7 @@ def _detect_stack(solver, stack, r0, c0, shape, streaks):
         box[fine] + offset,
         spread[fine],
     )
-    return rows, _median_noise(solver, noise), n
+    return rows, _median_noise(cfg, noise), n
 
 
 #: No detection rows: x, y, counts, pixels, peak, box (row0, row1, col0, col1), spread.
@@ -406,8 +398,6 @@ _NO_ROWS = (
 
 def _detections(rows, noise: float, n_candidates: int, saturation):
     """Build Detections from :func:`_detect_stack` rows: brightest first, one per 2 px."""
-    from starsense.detect.threshold import Detections
-
     x, y, counts, n_pixels, peak, box, spread = rows
     order = np.argsort(-counts, kind="stable")
     xs, ys = x[order].tolist(), y[order].tolist()
@@ -437,37 +427,63 @@ def _detections(rows, noise: float, n_candidates: int, saturation):
     )
 
 
-def detect_in_windows(
-    solver, image: np.ndarray, centres_px: np.ndarray, half_px: int, streaks_px=None
-) -> WindowDetections:
-    """Detect stars in square windows around predicted positions (or in the whole frame).
+@dataclass(frozen=True)
+class WindowDetector:
+    """Configure, then call: detect stars in windows around predicted positions.
 
-    Parameters
+    ``WindowDetector(detector, camera, known_background=..., threshold_sigma=...)(image,
+    centres_px, half_px=...)`` (module docstring).
+
+    Attributes
     ----------
-    solver : Solver
-        Its sensor, detection logic, background mode and threshold are used.
-    image : ndarray, shape (rows, columns)
-        The frame, counts.
-    centres_px : ndarray, shape (K, 2)
-        Predicted star positions (x = column, y = row), px, on the detector.
-    half_px : int
-        Half-width of each window, px.
-    streaks_px : ndarray, shape (K, 2), optional
-        Predicted streak (start to end) of each window's star, px: each detection is
-        centroided over the whole streak (:func:`streak_centroid`).
-
-    Returns
-    -------
-    WindowDetections
+    detector : StarDetector
+        The full-frame detector: its detection logic applies in each window, and it searches
+        the whole frame when the windows would cover too much of it.
+    camera : Detector
+        The sensor's detector (bias, read noise, gain, PSF sigma, saturation).
+    known_background : bool
+        True: each window's level is the bias and its threshold the logic's lit-pixel counts
+        (simulated frames); False: the border's median and scaled MAD, with
+        ``threshold_sigma``.
+    threshold_sigma : float
+        Lit threshold over the window's noise, sigmas (with ``known_background`` False).
     """
-    rows, cols = image.shape
-    n = len(centres_px)
-    if n == 0 or n * (2 * half_px + 1) ** 2 > MAX_WINDOW_FRACTION * rows * cols:
-        det = solver._detector()(image)
-        return WindowDetections(det, 0, rows * cols, None)
-    stack, r0, c0 = _stack(image, np.asarray(centres_px, dtype=float), half_px)
-    found, noise, n_cand = _detect_stack(solver, stack, r0, c0, image.shape, streaks_px)
-    det = _detections(found, noise, n_cand, solver.sensor.detector.saturation_counts)
-    _, h, w = stack.shape
-    boxes = columns(r0, r0 + h, c0, c0 + w)
-    return WindowDetections(det, n, union_area(boxes), boxes)
+
+    detector: StarDetector
+    camera: Detector
+    known_background: bool
+    threshold_sigma: float
+
+    def __call__(
+        self, image: np.ndarray, centres_px: np.ndarray, *, half_px: int, streaks_px=None
+    ) -> WindowDetections:
+        """Detect stars in square windows around predicted positions (or in the whole frame).
+
+        Parameters
+        ----------
+        image : ndarray, shape (rows, columns)
+            The frame, counts.
+        centres_px : ndarray, shape (K, 2)
+            Predicted star positions (x = column, y = row), px, on the detector.
+        half_px : int
+            Half-width of each window, px.
+        streaks_px : ndarray, shape (K, 2), optional
+            Predicted streak (start to end) of each window's star, px: each detection is
+            centroided over the whole streak
+            (:func:`~starsense.detect.streak.streak_centroid`).
+
+        Returns
+        -------
+        WindowDetections
+        """
+        rows, cols = image.shape
+        n = len(centres_px)
+        if n == 0 or n * (2 * half_px + 1) ** 2 > MAX_WINDOW_FRACTION * rows * cols:
+            det = self.detector(image)
+            return WindowDetections(det, 0, rows * cols, None)
+        stack, r0, c0 = _stack(image, np.asarray(centres_px, dtype=float), half_px)
+        found, noise, n_cand = _detect_stack(self, stack, r0, c0, image.shape, streaks_px)
+        det = _detections(found, noise, n_cand, self.camera.saturation_counts)
+        _, h, w = stack.shape
+        boxes = columns(r0, r0 + h, c0, c0 + w)
+        return WindowDetections(det, n, union_area(boxes), boxes)

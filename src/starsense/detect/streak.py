@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-__all__ = ["streak_centroid", "streak_centroids"]
+__all__ = ["columns", "kept_arange", "streak_centroid", "streak_centroids", "windows_view"]
 
 #: 0, 1, 2, ...: the rows and columns of a crop (larger crops make their own)
 _ARANGE = {int: np.arange(4096), float: np.arange(4096.0)}
@@ -30,8 +30,21 @@ def columns(*arrays: np.ndarray) -> np.ndarray:
     return out
 
 
-def _arange(n: int, dtype=int) -> np.ndarray:
-    """Return ``np.arange(n)`` of int or float (a slice of a kept one up to 4096)."""
+def kept_arange(n: int, dtype=int) -> np.ndarray:
+    """Return ``np.arange(n)`` of int or float (a slice of a kept one up to 4096).
+
+    Parameters
+    ----------
+    n : int
+        Length.
+    dtype : {int, float}
+        Element type.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Read-only when sliced from the kept array: do not write into it.
+    """
     kept = _ARANGE[dtype]
     return kept[:n] if n <= len(kept) else np.arange(n, dtype=dtype)
 
@@ -54,7 +67,7 @@ def _segment_mask(shape, x, y, streak, radius):
     return inside, (r0, r1, c0, c1)
 
 
-def streak_centroid(sub: np.ndarray, x: float, y: float, streak, radius: float):
+def streak_centroid(sub: np.ndarray, x: float, y: float, *, streak, radius: float):
     """Centre of gravity of a streak of known shape, started from a point on it.
 
     The CoG is taken over the pixels within ``radius`` of a segment of the predicted streak
@@ -141,8 +154,8 @@ def _capsules(x, y, sx, sy, length2, radius, r0, c0, size):
     rows (L, h), px (whole numbers, as floats). ``sx``, ``sy`` and ``length2`` are shaped
     (L, 1, 1).
     """
-    py = r0[:, None] + _arange(size[0], float)  # float: exact pixel indices
-    px = c0[:, None] + _arange(size[1], float)
+    py = r0[:, None] + kept_arange(size[0], float)  # float: exact pixel indices
+    px = c0[:, None] + kept_arange(size[1], float)
     ax = px[:, None, :] - (x[:, None, None] - sx)
     ay = py[:, :, None] - (y[:, None, None] - sy)
     a2x, a2y = 2 * sx, 2 * sy
@@ -173,7 +186,7 @@ def _origins(y_x, reach, limit):
     return np.minimum(np.maximum(np.floor(y_x - reach), 0), limit).astype(np.intp)
 
 
-def streak_centroids(planes: np.ndarray, x, y, streaks, radius: float):
+def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
     """:func:`streak_centroid` of many regions at once (each on its own plane).
 
     The capsule around the segment lies inside its bounding box, so the mask is taken over a

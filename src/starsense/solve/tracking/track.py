@@ -1,15 +1,13 @@
 """Tracking mode: a frame and a prior attitude in, an attitude (and over a sequence a rate) out.
 
-:func:`track_frame` (``Solver.track``) predicts where the database stars fall from the prior
+:func:`track_frame` predicts where the database stars fall from the prior
 (propagated by its rate, :func:`starsense.attitude.rate.predict_attitude`), detects stars only in
-windows around the brightest of them (:mod:`starsense.solve.windows`), matches and verifies with
+windows around the brightest of them (:mod:`starsense.detect.windows`), matches and verifies with
 :class:`~starsense.identify.tracking.TrackingIdentifier`, and estimates the attitude with its
 covariance from every matched star (SVD, Fialho & Mortari 2019 eq. 21). When the match fails or
 is ambiguous it falls back to lost-in-space (the Solver itself) and says so in the message.
 
-:class:`Tracker` runs a sequence: the first frame lost-in-space (unless a prior is given), each
-later one tracked from the last solved attitude, and the body rate from consecutive attitudes
-with its covariance (:func:`starsense.attitude.rate.rate_from_attitudes`).
+:class:`~starsense.solve.tracking.tracker.Tracker` runs a sequence of frames.
 """
 
 from __future__ import annotations
@@ -18,17 +16,26 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Literal, TypeAlias
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.errors import InputError, StarsenseError
-from starsense.solve.solver import Solution
-from starsense.solve.streak_centroid import columns
-from starsense.solve.track_field import _half_turn, _predicted_field, _setup, _unblended
+from starsense._validate import positive_float
+from starsense.attitude.rate import predict_attitude
+from starsense.detect.streak import columns
+from starsense.detect.windows import streak_px
+from starsense.errors import InputError
+from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_attitude
+from starsense.solve.solution import Solution, SolveStatus
+from starsense.solve.tracking.field import half_turn, predicted_field, tracking_setup, unblended
+from starsense.solve.tracking.star_noise import fit_robust, star_noise
 from starsense.units import DEG, RAD_TO_DEG
 
-__all__ = ["Prior", "TrackSolution", "Tracker", "track_frame"]
+__all__ = ["Prior", "TrackMode", "TrackSolution", "track_frame"]
+
+#: How a tracked frame was solved: from the prior, or lost-in-space (the prior failed or none).
+TrackMode: TypeAlias = Literal["tracking", "lost_in_space"]
 
 #: Prior uncertainty above which no windows are used (the whole frame is searched), rad.
 N_SIGMA_SEARCH = 5.0
@@ -57,8 +64,9 @@ class Prior:
     dt_s : float
         Time from the prior to the frame, s.
     rate_sign_known : bool
-        False for a rate from one frame's streaks (:mod:`starsense.solve.streak_rate`), which
-        fix the rate up to its sign: both signs are tried.
+        False for a rate from one frame's streaks
+        (:mod:`starsense.solve.tracking.streak_rate`), which fix the rate up to its sign: both
+        signs are tried.
     """
 
     rotation: Rotation
@@ -70,19 +78,14 @@ class Prior:
 
     @classmethod
     def from_radec_roll(
-        cls, ra_rad: float, dec_rad: float, roll_rad: float, sigma_rad: float
+        cls, ra_rad: float, dec_rad: float, roll_rad: float, *, sigma_rad: float
     ) -> Prior:
         """Return a prior at (RA, Dec, roll), rad, with an isotropic 1-sigma ``sigma_rad``."""
-        from starsense._validate import positive_float
-        from starsense.geometry.attitude import attitude_from_radec_roll
-
         s = positive_float(sigma_rad, "sigma_rad")
         return cls(attitude_from_radec_roll(ra_rad, dec_rad, roll_rad), np.eye(3) * s * s)
 
     def predicted(self) -> tuple[Rotation, np.ndarray]:
         """Return the attitude and covariance at the frame (:func:`predict_attitude`)."""
-        from starsense.attitude.rate import predict_attitude
-
         return predict_attitude(
             self.rotation,
             self.dt_s,
@@ -101,7 +104,7 @@ class TrackSolution:
     solution : Solution
         Attitude, matches, residuals (``status`` "solved" when verified, "unverified" for a
         two-star or unverified track, else why not).
-    mode : str
+    mode : TrackMode
         "tracking" or "lost_in_space" (for an unreadable frame, the mode it would have been
         processed in).
     covariance_rad2 : ndarray, shape (3, 3) or None
@@ -115,12 +118,17 @@ class TrackSolution:
     """
 
     solution: Solution
-    mode: str
+    mode: TrackMode
     covariance_rad2: np.ndarray | None = field(default=None, repr=False)
     rate_rad_s: np.ndarray | None = None
     rate_cov_rad2_s2: np.ndarray | None = field(default=None, repr=False)
     time_s: float | None = None
     image: str = ""
+
+    @property
+    def status(self) -> SolveStatus:
+        """The solution's status ("solved", "unverified", or why not)."""
+        return self.solution.status
 
     @property
     def has_attitude(self) -> bool:
@@ -164,30 +172,27 @@ def _search_radius(cov: np.ndarray, field_radius: float) -> float:
 
 def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     """Window detection, matching and the attitude fit; (Solution, covariance) or a failure."""
-    from starsense.geometry.attitude import radec_roll_from_attitude
-    from starsense.solve.star_noise import fit_robust, star_noise
-    from starsense.solve.windows import detect_in_windows, streak_px
-
     sensor = solver.sensor
-    setup = _setup(solver)
+    setup = tracking_setup(solver)
     db, field_r, f = setup.db, setup.field_r, sensor.focal_length_px
     r_s = max(_search_radius(cov_pred, field_r), MIN_SEARCH_PX / f)
     if r_s > MAX_SEARCH_RAD:
         return None, f"prior uncertainty {r_s * RAD_TO_DEG:.2f} deg exceeds tracking's reach"
-    half_turn = _half_turn(sensor, rate)
-    near, x, y, margin_on, streaks = _predicted_field(sensor, db, rot_pred, r_s, field_r, half_turn)
+    turn = half_turn(sensor, rate)
+    near, x, y, margin_on, streaks = predicted_field(
+        sensor, db, rot_pred, r_s=r_s, field_r=field_r, half_turn_matrix=turn
+    )
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
     # the longest streak: at a field corner (streak_px's default, corners computed once)
-    longest = 0.0 if half_turn is None else float(streak_px(sensor, rate, setup.corners).max())
+    longest = 0.0 if turn is None else float(streak_px(sensor, rate, setup.corners).max())
     reach_px = r_s * f + 0.5 * longest + 4 * sensor.detector.psf_sigma_px
     centres = columns(x[on], y[on])[:MAX_WINDOWS]
-    found = detect_in_windows(
-        solver,
+    found = setup.windows(
         np.asarray(image),
         centres,
-        math.ceil(reach_px + 4),
-        None if streaks is None else streaks[on][:MAX_WINDOWS],
+        half_px=math.ceil(reach_px + 4),
+        streaks_px=None if streaks is None else streaks[on][:MAX_WINDOWS],
     )
     det = found.detections
     stages = {"detect_ms": (time.perf_counter() - t0) * 1e3}
@@ -199,21 +204,28 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
-    match = setup.identifier(vectors, rot_pred, r_s, field_r, region=region, candidates=near[cand])
+    match = setup.identifier(
+        vectors,
+        rot_pred,
+        search_radius_rad=r_s,
+        field_radius_rad=field_r,
+        region=region,
+        candidates=near[cand],
+    )
     if not match.solved:
         return None, f"tracking {match.status}: {match.message}"
     matched, cat_index, cat_ids = match.detection_index, match.catalog_index, match.catalog_id
     blend_px = 2.0 * (2.5 * sensor.detector.psf_sigma_px + 1.0) + longest
-    alone = _unblended(cat_index, near, x, y, blend_px)
+    alone = unblended(cat_index, near, x=x, y=y, blend_px=blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
     noise = star_noise(
         solver,
         det,
         matched,
-        rate,
+        rate=rate,
         vectors=vectors[matched],
-        half_turn=half_turn,
+        half_turn=turn,
         margin_px=setup.margin_px,
     )
     att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
@@ -307,135 +319,3 @@ def track_frame(solver, image, prior: Prior | None) -> TrackSolution:
         return TrackSolution(_done(sol, t0), "tracking", unverified[1])
     msg = f"{reason}; lost-in-space: {lis.status}: {lis.message}"
     return TrackSolution(_done(dataclasses.replace(lis, message=msg), t0), "lost_in_space")
-
-
-class Tracker:
-    """Track a sequence of frames; the rate from consecutive attitudes (module docstring).
-
-    Parameters
-    ----------
-    solver : Solver
-        With a sensor.
-    interval_s : float, optional
-        Time between frames, s, when the frames do not say (needed for the rate).
-    prior : Prior, optional
-        Prior of the first frame (else it is solved lost-in-space).
-    max_rate_rad_s : float
-        Largest body rate expected before one is measured, rad/s: it sets the search radius of
-        the second frame (default 3 deg/s).
-    """
-
-    def __init__(
-        self,
-        solver,
-        *,
-        interval_s: float | None = None,
-        prior: Prior | None = None,
-        max_rate_rad_s: float = 3.0 * DEG,
-    ) -> None:
-        from starsense._validate import positive_float
-
-        if solver.sensor is None:
-            raise InputError("tracking needs a sensor (known optics)")
-        self.solver = solver
-        self.interval_s = None if interval_s is None else positive_float(interval_s, "interval_s")
-        self.max_rate_rad_s = positive_float(max_rate_rad_s, "max_rate_rad_s")
-        self._prior = prior
-        self._last = None  # (time, rotation, covariance)
-        self._rate = None  # (rate, covariance): the prior's (a gyro's) until one is measured
-        if prior is not None and prior.rate_rad_s is not None:
-            cov = prior.rate_cov_rad2_s2
-            cov = np.zeros((3, 3)) if cov is None else np.asarray(cov, dtype=float)
-            self._rate = (np.asarray(prior.rate_rad_s, dtype=float), cov)
-        self._index = 0
-        self._t_first = None
-        self._streak_rate = None  # (rate, covariance) from one frame's streaks, sign unknown
-
-    def _prior_at(self, t: float | None) -> Prior | None:
-        if self._last is None:
-            if self._prior is None:
-                return None
-            # the given prior holds at the first frame: carried to this one (first frame lost)
-            if self._t_first is None:
-                self._t_first = t
-            if t is None or self._t_first is None:
-                return self._prior
-            return dataclasses.replace(self._prior, dt_s=self._prior.dt_s + t - self._t_first)
-        t_last, rot, cov = self._last
-        dt = 0.0 if t is None or t_last is None else t - t_last
-        if self._rate is not None:
-            return Prior(rot, cov, self._rate[0], self._rate[1], dt)
-        if self._streak_rate is not None:  # from the last frame's streaks, sign unknown
-            return Prior(rot, cov, *self._streak_rate, dt, rate_sign_known=False)
-        # no rate yet: anything up to the largest expected rate
-        span = self.max_rate_rad_s * (dt if dt > 0 else 1.0)
-        return Prior(rot, cov + np.eye(3) * (span / N_SIGMA_SEARCH) ** 2)
-
-    def __call__(self, image, time_s: float | None = None, name: str = "") -> TrackSolution:
-        """Track the next frame (array); ``time_s`` default index x interval."""
-        from starsense.attitude.rate import rate_from_attitudes
-
-        t = time_s
-        if t is None and self.interval_s is not None:
-            t = self._index * self.interval_s
-        self._index += 1
-        result = track_frame(self.solver, image, self._prior_at(t))
-        rate = rate_cov = None
-        if result.has_attitude and result.covariance_rad2 is not None:
-            sol, cov = result.solution, result.covariance_rad2
-            if self._last is not None and t is not None and self._last[0] is not None:
-                dt = t - self._last[0]
-                if dt > 0:
-                    rate, rate_cov = rate_from_attitudes(
-                        self._last[1], sol.rotation, dt, cov0_rad2=self._last[2], cov1_rad2=cov
-                    )
-                    self._rate = (rate, rate_cov)
-            self._last = (t, sol.rotation, cov)
-            if self._rate is None:
-                self._streak_rate = self._rate_from_streaks(np.asarray(image), sol)
-        return dataclasses.replace(
-            result, rate_rad_s=rate, rate_cov_rad2_s2=rate_cov, time_s=t, image=name
-        )
-
-    def _rate_from_streaks(self, image: np.ndarray, sol: Solution):
-        """Rate (sign unknown) and covariance from the streaks of the 5 brightest matched stars."""
-        from starsense.solve.streak_rate import rate_from_streaks, streak_axes
-        from starsense.solve.windows import streak_px
-
-        solver, sensor = self.solver, self.solver.sensor
-        index = sorted(d for d, _ in sol.matches)[:5]
-        if len(index) < 3 or sol.centroids_px is None:
-            return None
-        xy = sol.centroids_px[index]
-        reach = 0.5 * streak_px(sensor, [self.max_rate_rad_s, 0.0, 0.0])
-        half = math.ceil(reach + 3.0 * sensor.detector.psf_sigma_px + 4.0)
-        known = solver.background == "known"
-        axes = streak_axes(
-            image,
-            xy[:, 0],
-            xy[:, 1],
-            half,
-            solver.logic.lit_pixel_counts,
-            level=float(sensor.detector.bias_counts) if known else None,
-            threshold_sigma=None if known else solver.threshold_sigma,
-        )
-        try:
-            return rate_from_streaks(sensor, xy[:, 0], xy[:, 1], axes)
-        except InputError:
-            return None
-
-    def track_file(self, path, time_s: float | None = None) -> TrackSolution:
-        """Track a frame read from ``path``; an unreadable frame gets status "unreadable"."""
-        from starsense.solve.frames import load_image
-
-        try:
-            image = load_image(path)
-        except (StarsenseError, OSError) as exc:
-            t = time_s
-            if t is None and self.interval_s is not None:
-                t = self._index * self.interval_s
-            self._index += 1
-            # the mode the frame would have been processed in
-            mode = "lost_in_space" if self._prior_at(t) is None else "tracking"
-            return TrackSolution(Solution("unreadable", str(exc)), mode, time_s=t, image=str(path))
-        return self(image, time_s, str(path))

@@ -6,8 +6,8 @@ Each star's centroid error (pixels) has the covariance
 
 with ``N_i`` the star's electrons: photon noise of the PSF; read noise ``sigma_r`` over the
 centroid window, ``S_i`` the 2 x 2 sum of (pixel - centroid)(pixel - centroid)^T over it (the
-window along the streak, :func:`starsense.solve.windows.streak_centroid`; for a static star
-the isotropic form of :func:`cog_sigma_px`); and the streak ``l_i``
+window along the streak, :func:`starsense.detect.streak.streak_centroid`; for a static star
+the isotropic form of :func:`starsense.detect.centroid.cog_sigma_px`); and the streak ``l_i``
 (start to end, px) adding l l^T / 12 per photon (a uniform spread along it). The SVD estimator
 weighs star ``i`` by the mean of the two axes, ``sigma_i^2 = tr(C_i) / 2``; the covariance of
 that estimator is the sandwich
@@ -26,32 +26,20 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from starsense.solve.streak_centroid import columns
+from starsense.attitude.covariance import fisher_covariance
+from starsense.attitude.solution import AttitudeSolution
+from starsense.detect.centroid import cog_sigma_px
+from starsense.detect.streak import columns
 
-__all__ = ["OUTLIER_SIGMA", "StarNoise", "cog_sigma_px", "fit_robust", "star_noise"]
+__all__ = ["OUTLIER_SIGMA", "StarNoise", "fit_robust", "star_noise"]
 
 _EYE2 = np.eye(2)
 
 #: A star whose residual exceeds this many of its own sigmas is dropped from the fit (a 2-D
 #: residual goes past 4 sigma by chance with probability exp(-8) = 3e-4)
 OUTLIER_SIGMA = 4.0
-
-
-def cog_sigma_px(det, index, detector, margin_px: int) -> np.ndarray:
-    """Return the per-axis noise of a centre-of-gravity centroid, pixels, of detections ``index``.
-
-    Photon noise: sigma_psf^2 / N_e (N_e = integrated counts / gain). Read noise: each pixel of
-    the CoG window adds sigma_read^2 (x - x_c)^2 / N_e^2; over a w x h window centred on the star
-    the sum of (x - x_c)^2 is h w (w^2 - 1) / 12 (the mean of the two axes is used).
-    """
-    n_e = np.maximum(det.integrated_counts[index] / detector.gain_counts_per_e, 1.0)
-    r0, r1, c0, c1 = det.bbox[index].T
-    w = (c1 - c0 + 2 * margin_px).astype(float)
-    h = (r1 - r0 + 2 * margin_px).astype(float)
-    spread = 0.5 * (h * w * (w**2 - 1) + w * h * (h**2 - 1)) / 12.0
-    var = detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2
-    return np.sqrt(var)
 
 
 @dataclass(frozen=True)
@@ -117,7 +105,7 @@ class StarNoise:
 
 
 def star_noise(
-    solver, det, matched, rate, *, vectors=None, half_turn=None, margin_px=None
+    solver, det, matched, *, rate, vectors=None, half_turn=None, margin_px=None
 ) -> StarNoise:
     """Return the centroid noise of detections ``matched`` (module docstring).
 
@@ -146,13 +134,14 @@ def star_noise(
     x, y = det.x[matched], det.y[matched]
     n = len(matched)
     eye = _EYE2  # broadcast over the stars
-    if solver.centroid_sigma_px != "snr":
-        var = np.full((n, 1, 1), float(solver.centroid_sigma_px) ** 2)
+    sigma_px = solver.settings.centroid_sigma_px
+    if sigma_px != "snr":
+        var = np.full((n, 1, 1), float(sigma_px) ** 2)
         return StarNoise(sensor, x, y, var * eye)
     detector = sensor.detector
     margin = margin_px
     if margin is None:
-        margin = 2 if solver.background != "known" else solver._detector().margin_px
+        margin = 2 if solver.settings.background != "known" else solver.detector.margin_px
     spread = det.extra.get("spread_px2")
     spread = np.full((n, 2, 2), np.nan) if spread is None else spread[matched]
     n_e = np.maximum(det.integrated_counts[matched] / detector.gain_counts_per_e, 1.0)
@@ -162,7 +151,8 @@ def star_noise(
         detector.read_noise_e**2 / n_e**2
     )[:, None, None] * spread
     if not along.all():  # the others: the CoG over the region's box
-        cog = (cog_sigma_px(det, matched, detector, margin) ** 2)[:, None, None] * eye
+        cog = (cog_sigma_px(det, matched, detector=detector, margin_px=margin) ** 2)[:, None, None]
+        cog = cog * eye
         cog[along] = cov[along]
         cov = cog
     if rate is None or not np.any(rate):
@@ -170,8 +160,6 @@ def star_noise(
     b = sensor.unproject(x, y) if vectors is None else vectors
     h = half_turn
     if h is None:
-        from scipy.spatial.transform import Rotation
-
         h = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
         h = h.as_matrix()
     # start and end of each streak, projected at once
@@ -231,11 +219,6 @@ def fit_robust(body, ref, sigma):
         The fit (SVD, as :func:`~starsense.attitude.estimate_attitude` with "svd"), and the
         indices of the stars kept.
     """
-    from scipy.spatial.transform import Rotation
-
-    from starsense.attitude.covariance import fisher_covariance
-    from starsense.attitude.solution import AttitudeSolution
-
     # the estimator's check first: SingularGeometryError for stars that fix no attitude (a
     # subset dropped to is checked again at the end)
     cov = fisher_covariance(body, sigma)

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
+from starsense.detect.streak import streak_centroid, streak_centroids
+from starsense.detect.windows import _label, union_area
 from starsense.render.scene import render_star_stamp
 from starsense.sensor import load_sensor
-from starsense.solve.windows import streak_centroid, streak_centroids
 
 
 @pytest.fixture(scope="module")
@@ -41,10 +43,11 @@ def test_streak_centroids_equal_the_one_region_loop(st16):
     starts.append(np.array([200.0, -150.0]))
     streaks.append((5.0, 0.0))
     starts = np.array(starts)
-    x, y, counts, boxes, spread = streak_centroids(np.stack(planes), starts[:, 0], starts[:, 1],
-                                                   np.array(streaks), radius)  # fmt: skip
+    x, y, counts, boxes, spread = streak_centroids(
+        np.stack(planes), starts[:, 0], starts[:, 1], streaks=np.array(streaks), radius=radius
+    )
     for i, plane in enumerate(planes):
-        ref = streak_centroid(plane, *starts[i], streaks[i], radius)
+        ref = streak_centroid(plane, *starts[i], streak=streaks[i], radius=radius)
         if ref is None:
             assert np.isnan(x[i]) and np.isnan(y[i]) and np.isnan(counts[i])
             continue
@@ -59,8 +62,6 @@ def test_streak_centroids_equal_the_one_region_loop(st16):
 def test_union_area_counts_the_covered_pixels():
     # the exact union of overlapping, nested, touching and disjoint boxes against a raster
     # of the pixels (an independent count: a boolean image with each box painted in)
-    from starsense.solve.windows import union_area
-
     rng = np.random.default_rng(3)
     for n in (1, 2, 5, 30):
         r0, c0 = rng.integers(0, 80, n), rng.integers(0, 80, n)
@@ -78,10 +79,6 @@ def test_union_area_counts_the_covered_pixels():
 def test_window_labels_equal_a_3d_labelling(connectivity):
     # the windows labelled as one tall 2-D image must give scipy's 3-D labelling with a
     # structure that connects only within a window: same labels, same order, none across
-    from scipy import ndimage
-
-    from starsense.solve.windows import _label
-
     lit = np.random.default_rng(5).random((12, 21, 17)) > 0.8
     lit[3, -1, :] = lit[4, 0, :] = True  # touching rows of neighbouring windows
     structure = np.zeros((3, 3, 3), bool)

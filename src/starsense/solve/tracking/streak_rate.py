@@ -38,6 +38,7 @@ def streak_axes(
     image,
     x,
     y,
+    *,
     half_px: int,
     threshold: float,
     level: float | None = 0.0,
@@ -112,7 +113,7 @@ def _streaks(sensor, b, w, exposure_s):
     return np.column_stack([xe - xs, ye - ys])
 
 
-def rate_from_streaks(sensor, x, y, axes_px2, exposure_s: float | None = None):
+def rate_from_streaks(sensor, x, y, *, axes_px2, exposure_s: float | None = None):
     """Fit the body rate (up to sign) to the streaks of one frame.
 
     Parameters

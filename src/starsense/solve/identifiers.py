@@ -1,0 +1,140 @@
+"""The identifiers of a Solver: one per known field or field range, of one catalogue, built once.
+
+A known field gets a database of its own size; an unknown one is searched through the ranges of
+:func:`starsense.identify.fields.unknown_field_plan`, each with its database, until one solves.
+The catalogue is loaded once (when given as a spec) and carried to every database and range.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from starsense.catalog import load_catalog
+from starsense.catalog.table import Catalog
+from starsense.identify import Identification, identify_ranked
+from starsense.identify.fields import FieldRange, identifier_for, unknown_field_plan
+from starsense.identify.verify import apply_scale
+
+__all__ = ["FieldIdentifiers"]
+
+
+class FieldIdentifiers:
+    """Configure, then ask: ``FieldIdentifiers(catalog, algorithm=...)(fov_rad)``.
+
+    Parameters
+    ----------
+    catalog : Catalog or str
+        The catalogue, or its spec (:func:`starsense.catalog.load_catalog`, loaded when first
+        needed). With the spec ``"hipparcos"`` the narrow range of an unknown field uses the
+        bundled Gaia when installed; a Catalog object is used for every range.
+    algorithm : {"hashing", "triangle"}
+        Identification algorithm.
+    """
+
+    def __init__(self, catalog: Catalog | str, *, algorithm: str) -> None:
+        self.spec = catalog
+        self.algorithm = algorithm
+        self._catalog: Catalog | None = catalog if isinstance(catalog, Catalog) else None
+        self._plan: list[FieldRange] | None = None
+        self._built: dict = {}
+
+    @property
+    def catalog(self) -> Catalog:
+        """The catalogue (a spec is loaded here, once)."""
+        if self._catalog is None:
+            self._catalog = load_catalog(self.spec)
+        return self._catalog
+
+    def plan(self) -> list[FieldRange]:
+        """Return the field ranges searched, in order, when the field is not known."""
+        if self._plan is None:
+            spec = self.spec
+            default = isinstance(spec, str) and spec.strip().lower() == "hipparcos"
+            self._plan = unknown_field_plan(self.catalog, deep_narrow=default)
+        return self._plan
+
+    def __call__(self, fov_rad: float | None = None, field_range: FieldRange | None = None):
+        """Return the identifier of a known field or of one range of the unknown-field search.
+
+        Built (or loaded from the disk cache) once per field and kept.
+
+        Parameters
+        ----------
+        fov_rad : float, optional
+            The known field (full width), rad.
+        field_range : FieldRange, optional
+            A range of :meth:`plan`, when ``fov_rad`` is None (default: its first).
+
+        Returns
+        -------
+        HashIdentifier or TriangleIdentifier
+            Its ``database`` is the identification database.
+        """
+        if fov_rad is None and field_range is None:
+            field_range = self.plan()[0]
+        key = (self.algorithm, None if fov_rad is None else round(fov_rad, 9), field_range)
+        if key not in self._built:
+            self._built[key] = identifier_for(
+                self.catalog, algorithm=self.algorithm, fov_rad=fov_rad, field_range=field_range
+            )
+        return self._built[key]
+
+    def search(self, vectors: np.ndarray, flux: np.ndarray, fov_assumed_rad: float):
+        """Identify with the field unknown: each range of the plan in turn until one solves.
+
+        Parameters
+        ----------
+        vectors : ndarray, shape (N, 3)
+            Camera-frame unit vectors, unprojected with the field ``fov_assumed_rad``.
+        flux : ndarray, shape (N,)
+            Brightness of each (larger is brighter).
+        fov_assumed_rad : float
+            The field the vectors were unprojected with, rad.
+
+        Returns
+        -------
+        identifier, Identification
+            The last range's identifier and its answer.
+        """
+        for field_range in self.plan():
+            identifier = self(None, field_range)
+            nominal = field_range.nominal_fov_rad  # re-unproject at the range's own field
+            v = apply_scale(vectors, math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))
+            ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+            if ident.solved:
+                break
+        return identifier, ident
+
+    def identify(
+        self, vectors, flux, *, fov_known_rad, fov_assumed_rad, estimate: bool
+    ) -> tuple[object, Identification, float | None]:
+        """Return (identifier, identification, known field or None after a scale search).
+
+        Parameters
+        ----------
+        vectors : ndarray, shape (N, 3)
+            Camera-frame unit vectors.
+        flux : ndarray, shape (N,)
+            Brightness of each.
+        fov_known_rad : float or None
+            The known field, rad; None to search the plan.
+        fov_assumed_rad : float
+            The field the vectors were unprojected with, rad.
+        estimate : bool
+            The known field is an estimate (no sensor): when it does not solve, the scale is
+            searched around it (hashing, 4 vectors or more), which refines the field.
+        """
+        if fov_known_rad is None:
+            return (*self.search(vectors, flux, fov_assumed_rad), None)
+        identifier = self(fov_known_rad)
+        ident = identify_ranked(identifier, vectors, flux, fov_known_rad)
+        if (
+            not ident.solved
+            and estimate
+            and self.algorithm == "hashing"
+            and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
+        ):
+            return (*self.search(vectors, flux, fov_assumed_rad), None)
+        return identifier, ident, fov_known_rad

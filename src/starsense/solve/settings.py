@@ -1,0 +1,103 @@
+"""A Solver's configuration: :class:`SolverSettings`, checked once when the Solver is built."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal, TypeAlias
+
+import numpy as np
+
+from starsense._validate import check_scalar, show
+from starsense.catalog.table import Catalog
+from starsense.errors import InputError
+from starsense.units import DEG
+
+if TYPE_CHECKING:
+    from starsense.sensor import Sensor
+
+__all__ = ["FOV_RANGE_RAD", "Algorithm", "BackgroundMode", "SolverSettings", "solver_settings"]
+
+#: the Solver's accepted range of a given horizontal field, rad (0.5-120 deg)
+FOV_RANGE_RAD = (0.5 * DEG, 120.0 * DEG)
+
+#: Lost-in-space identification algorithms.
+Algorithm: TypeAlias = Literal["hashing", "triangle"]
+#: "auto": a background map and noise estimated from the frame; "known": the sensor's bias.
+BackgroundMode: TypeAlias = Literal["auto", "known"]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class SolverSettings:
+    """How a :class:`~starsense.solve.solver.Solver` was configured (its sensor aside).
+
+    Built and checked by the Solver (:func:`solver_settings`); read by tracking.
+
+    Attributes
+    ----------
+    catalog : Catalog or str
+        The catalogue as given: an object, or a spec (:func:`starsense.catalog.load_catalog`).
+    algorithm : {"hashing", "triangle"}
+        Lost-in-space algorithm.
+    threshold_sigma : float
+        Lit-pixel threshold above the background map, noise sigmas.
+    centroid_sigma_px : float or "snr"
+        Centroid noise assumed for the attitude covariance, px, or "snr" (each star's own).
+    background : {"auto", "known"}
+        Background mode.
+    apparent : bool
+        Fit to the stars' apparent places when the frame's time is known.
+    observer_velocity_m_s : ndarray, shape (3,), or None
+        The observer's velocity relative to the geocentre, ICRS axes, m/s.
+    fov_rad : float or None
+        Horizontal field across the image width (pinhole), rad, when no sensor is given.
+    """
+
+    catalog: Catalog | str = "hipparcos"
+    algorithm: Algorithm = "hashing"
+    threshold_sigma: float = 5.0
+    centroid_sigma_px: float | Literal["snr"] = 0.3
+    background: BackgroundMode = "auto"
+    apparent: bool = True
+    observer_velocity_m_s: np.ndarray | None = None
+    fov_rad: float | None = None
+
+
+def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
+    """Check a Solver's options against each other and its sensor; return its settings.
+
+    Parameters
+    ----------
+    sensor : Sensor or None
+        The Solver's sensor (known optics and detection floors), None without one.
+    **options
+        The fields of :class:`SolverSettings`.
+
+    Returns
+    -------
+    SolverSettings
+
+    Raises
+    ------
+    InputError
+        A value out of range, or options that need a sensor given without one.
+    """
+    s = SolverSettings(**options)
+    fov_rad = s.fov_rad
+    if sensor is not None and fov_rad is not None:
+        raise InputError("give sensor or fov_rad, not both")
+    if fov_rad is not None:
+        fov_rad = check_scalar(fov_rad, "fov_rad", *FOV_RANGE_RAD)
+    if not isinstance(s.catalog, Catalog | str):
+        raise InputError(f"catalog must be a Catalog or a spec string, got {show(s.catalog)}")
+    if s.algorithm not in ("hashing", "triangle"):
+        raise InputError(f"algorithm must be hashing or triangle, got {s.algorithm!r}")
+    if sensor is None and fov_rad is None and s.algorithm == "triangle":
+        raise InputError("the triangle algorithm needs a known field: give sensor or fov_rad")
+    sigma = s.centroid_sigma_px
+    if sigma != "snr" and not (isinstance(sigma, (int, float)) and sigma > 0):
+        raise InputError(f"centroid_sigma_px must be > 0 or 'snr', got {show(sigma)}")
+    if s.background not in ("auto", "known"):
+        raise InputError(f"background must be 'auto' or 'known', got {s.background!r}")
+    if sensor is None and (s.background == "known" or sigma == "snr"):
+        raise InputError("background='known' and centroid_sigma_px='snr' need a sensor")
+    return SolverSettings(**{**options, "fov_rad": fov_rad, "apparent": bool(s.apparent)})
