@@ -79,7 +79,26 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "sky_limit": ("starsense.analysis.limits", "sky_limit"),
 }
 
-__all__ = ["__version__", *_EXPORTS]
+__all__ = [
+    "Catalog",
+    "Datasheet",
+    "Sensor",
+    "Solution",
+    "Solver",
+    "Tracker",
+    "__version__",
+    "attitude_from_radec_roll",
+    "availability",
+    "calibrate",
+    "compare",
+    "datasheet",
+    "load_catalog",
+    "load_sensor",
+    "montecarlo",
+    "render_frame",
+    "sky_limit",
+    "slew_tolerance",
+]
 
 if TYPE_CHECKING:  # what the names are, for editors and type checkers
     from starsense.analysis import availability
