@@ -151,7 +151,7 @@ def _slew_curve() -> float:
     from starsense.sensor import load_sensor
 
     sensor = load_sensor("st16")
-    return best_of(lambda: simulate_slew(sensor, "reed", n_trials=20, seed=0), repeat=2)
+    return best_of(lambda: simulate_slew(sensor, model="reed", n_trials=20, rng=0), repeat=2)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -39,7 +39,7 @@ def test_study_at_the_preset_is_simulate_slew(st16):
     # same magnitudes, rates, trials and seed, bit for bit (the study adds no randomness).
     mags = study_magnitudes(0.05, 3.0, 6.5)
     study = study_slew(st16, (1.0, 1.5), (0.40,), magnitudes=mags, n_trials=8, seed=3)
-    ref = simulate_slew(st16, "reed", mags, RATES, n_trials=8, seed=3)
+    ref = simulate_slew(st16, model="reed", magnitudes=mags, rates_rad_s=RATES, n_trials=8, rng=3)
     np.testing.assert_array_equal(study.detected_fraction[1], ref.detected_fraction)
     assert study.qe_ref == 0.40 and study.sensor_name == "st16"
 
@@ -51,7 +51,7 @@ def test_study_reads_the_st16_tolerance_curve_sideways(st16):
     # between that and the next grid magnitude (0.25 mag), give or take the Monte Carlo noise of
     # two independent runs (2 x MC_NOISE_MAG_20).
     study = study_slew(st16, (1.5,), (0.40,), n_trials=20, seed=0)
-    curve = magnitude_threshold(simulate_slew(st16, "reed", n_trials=20, seed=0), RATES)
+    curve = magnitude_threshold(simulate_slew(st16, model="reed", n_trials=20, rng=0), RATES)
     ours = study.threshold_ref[0]
     assert np.all(ours >= curve - 2 * MC_NOISE_MAG_20), (ours, curve)
     assert np.all(ours <= curve + 0.25 + 2 * MC_NOISE_MAG_20), (ours, curve)
@@ -66,8 +66,15 @@ def test_qe_enters_only_through_the_electrons(st16):
     # change of a Poisson mean may flip at most one trial).
     shift = 2.5 * math.log10(0.6 / 0.4)
     mags = np.array([4.0, 4.5, 5.0, 5.5])
-    a = simulate_slew(with_qe(st16, 0.6), "reed", mags + shift, RATES, n_trials=10, seed=5)
-    b = simulate_slew(st16, "reed", mags, RATES, n_trials=10, seed=5)
+    a = simulate_slew(
+        with_qe(st16, 0.6),
+        model="reed",
+        magnitudes=mags + shift,
+        rates_rad_s=RATES,
+        n_trials=10,
+        rng=5,
+    )
+    b = simulate_slew(st16, model="reed", magnitudes=mags, rates_rad_s=RATES, n_trials=10, rng=5)
     np.testing.assert_allclose(a.electrons, b.electrons, rtol=1e-12)
     assert np.abs(a.detected_fraction - b.detected_fraction).max() <= 1 / 10
 

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from starsense.analysis.slew import _tolerable, simulate_slew
+from starsense.analysis.slew import simulate_slew, tolerable_rate
 from starsense.errors import InputError
 from starsense.references.dzamba2014 import MAX_MAG, TABLE2_IMPLIED_MT
 from starsense.units import DEG, to_edge
@@ -307,10 +307,18 @@ def study_slew(
     fractions = []
     thresholds = np.full((len(sigmas), len(rates)), np.nan)
     for i, sigma in enumerate(sigmas):
-        res = simulate_slew(_with_psf(sensor, sigma), model, mags, rates, n_trials, criterion, seed)
+        res = simulate_slew(
+            _with_psf(sensor, sigma),
+            model=model,
+            magnitudes=mags,
+            rates_rad_s=rates,
+            n_trials=n_trials,
+            criterion=criterion,
+            rng=seed,
+        )
         fractions.append(res.detected_fraction)
         for j in range(len(rates)):
-            m_t, capped = _tolerable(res.detected_fraction[:, j], mags, criterion)
+            m_t, capped = tolerable_rate(res.detected_fraction[:, j], mags, criterion)
             if m_t is not None and not capped:
                 thresholds[i, j] = m_t
         if progress is not None:

@@ -291,9 +291,9 @@ def _threshold_curve(
 
     result = simulate_slew(
         sens,
-        model,
+        model=model,
         n_trials=trials,
-        seed=seed,
+        rng=seed,
         progress=None
         if progress is None
         else (lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),

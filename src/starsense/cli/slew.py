@@ -52,12 +52,12 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
     with progress_bar() as bar:
         result = simulate_slew(
             sensor,
-            model,
-            mags,
-            rate_values,
-            trials,
-            criterion,
-            seed,
+            model=model,
+            magnitudes=mags,
+            rates_rad_s=rate_values,
+            n_trials=trials,
+            criterion=criterion,
+            rng=seed,
             progress=bar.task("slew Monte Carlo"),
             colour_index=colour_index,
         )

@@ -75,7 +75,7 @@ def _slew_curve(ctx: ReportContext, model: str) -> ThresholdCurve:
 
     result = ctx.slew_results.get(model)
     if result is None:
-        result = simulate_slew(ctx.sensor, model, n_trials=ctx.slew_trials, seed=ctx.seed)
+        result = simulate_slew(ctx.sensor, model=model, n_trials=ctx.slew_trials, rng=ctx.seed)
         ctx.slew_results[model] = result
     return ThresholdCurve.from_slew(result)
 

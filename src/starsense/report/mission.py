@@ -61,7 +61,7 @@ def mission_section(ctx: ReportContext) -> Section:
     orbit = parse_orbit(plan.orbit, start, f"{where} orbit")
     profile = parse_attitude(plan.attitude, f"{where} attitude")
     slew = ctx.slew_results.get("reed") or simulate_slew(
-        sensor, "reed", n_trials=ctx.slew_trials, seed=ctx.seed
+        sensor, model="reed", n_trials=ctx.slew_trials, rng=ctx.seed
     )
     curve = ThresholdCurve.from_slew(slew)
     heads = _heads(ctx, plan, curve)

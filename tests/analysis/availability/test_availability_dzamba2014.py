@@ -83,7 +83,7 @@ def slew_curves():
 
     sensor = load_sensor("st16")
     return {
-        model: ThresholdCurve.from_slew(simulate_slew(sensor, model, n_trials=20, seed=0))
+        model: ThresholdCurve.from_slew(simulate_slew(sensor, model=model, n_trials=20, rng=0))
         for model in ("reed", "liebe")
     }
 

@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 from starsense._validate import check_int
 from starsense.analysis.availability.checks import check_rates
 from starsense.analysis.availability.field import FieldStars, catalog_stars
-from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, _pct
+from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, percent
 from starsense.analysis.availability.threshold import ThresholdCurve
 from starsense.units import DEG, to_edge
 
@@ -112,9 +112,9 @@ class FidelityCheck:
             f"full-fidelity check at {self.rate_deg_s:g} deg/s, N_min = {self.n_min}, "
             f"{self.n_frames} rendered frames ({self.model_name} model)",
             f"  threshold model (m_t = {self.threshold_mag:.2f}): "
-            f"{_pct(self.model_availability)} available, "
+            f"{percent(self.model_availability)} available, "
             f"{self.model_counts.mean():.2f} stars per field",
-            f"  rendered + detected: {_pct(self.frame_availability)} available, "
+            f"  rendered + detected: {percent(self.frame_availability)} available, "
             f"{self.frame_counts.mean():.2f} stars detected per frame "
             f"(+{self.n_spurious.mean():.2f} unmatched)",
             f"  model optimistic in {self.optimistic} frames, pessimistic in {self.pessimistic}",
