@@ -9,10 +9,10 @@ import pytest
 
 from starsense.analysis.slew import (
     SlewResult,
-    tolerable_rate,
     default_magnitudes,
     magnitude_threshold,
     simulate_slew,
+    tolerable_rate,
 )
 from starsense.errors import InputError
 from starsense.references import dzamba2014 as paper

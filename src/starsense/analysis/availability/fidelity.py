@@ -21,6 +21,8 @@ from starsense.analysis.availability.checks import check_rates
 from starsense.analysis.availability.field import FieldStars, catalog_stars
 from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, percent
 from starsense.analysis.availability.threshold import ThresholdCurve
+from starsense.detect import StarDetector
+from starsense.render.scene import render_frame
 from starsense.units import DEG, to_edge
 
 __all__ = ["FidelityCheck", "fidelity_check"]
@@ -126,8 +128,6 @@ def _detect(frame: Any, sensor: Any) -> NDArray[np.float64]:
 
     :class:`starsense.detect.StarDetector` with the sensor's logic, bias as background.
     """
-    from starsense.detect import StarDetector
-
     found = StarDetector.for_sensor(sensor)(frame.image)
     return np.stack([np.asarray(found.x, float), np.asarray(found.y, float)], axis=-1)
 
@@ -213,8 +213,6 @@ def fidelity_check(
     InputError
         On bad counts or rates.
     """
-    from starsense.render.scene import render_frame
-
     n_frames = check_int(n_frames, "n_frames", 1)
     n_min = check_int(n_min, "n_min", 1)
     w = float(check_rates(rate_rad_s, "rate_rad_s")[0])

@@ -15,7 +15,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from starsense.analysis.availability.field import field_pairs
-from starsense.attitude.covariance import SINGULAR_RCOND, fisher_components
+from starsense.attitude.covariance import (
+    SINGULAR_RCOND,
+    fisher_components,
+    fisher_from_components,
+)
 
 __all__ = ["FieldStarsCam", "axis_sigmas", "field_stars_cam", "fisher_per_pointing"]
 
@@ -64,8 +68,6 @@ def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> n
     weights : ndarray (P,)
         Information of each pair's star, ``1 / sigma^2``, rad^-2 (0 drops the pair).
     """
-    from starsense.attitude.covariance import fisher_from_components
-
     comp = fisher_components(pairs.v_cam, weights)
     sums = np.zeros((pairs.n_pointings, 7))
     np.add.at(sums, pairs.point, comp)

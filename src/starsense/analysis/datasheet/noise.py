@@ -27,6 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr
 
+from starsense.detect.threshold import StarDetector
+from starsense.render.noise import apply_noise
+from starsense.render.psf import gaussian_stamp, pixel_profile
+
 __all__ = ["CentroidNoise", "centroid_noise", "clipped_moments"]
 
 _SQRT2PI = math.sqrt(2.0 * math.pi)
@@ -126,8 +130,6 @@ def _profile(centres: np.ndarray, offset: float, sigma: float) -> tuple[np.ndarr
     ``centres`` are consecutive integers; the profile is :func:`starsense.render.psf.
     pixel_profile`, the one the frames are rendered with.
     """
-    from starsense.render.psf import pixel_profile
-
     c0 = int(centres[0])
     p = pixel_profile(c0, c0 + len(centres), offset, sigma)[0]
     lo = (centres - 0.5 - offset) / sigma
@@ -176,10 +178,6 @@ def _one(n_e: float, phase: tuple[float, float], sensor, margin_px: int) -> tupl
 
 def _measured_sigma(sensor, n_e: float, rng, n_stamps: int) -> float:
     """Centroid rms error (px, per axis) of the tracker's detector on noisy single-star renders."""
-    from starsense.detect.threshold import StarDetector
-    from starsense.render.noise import apply_noise
-    from starsense.render.psf import gaussian_stamp
-
     det = sensor.detector
     half = 6 + math.ceil(6.0 * det.psf_sigma_px)
     size = 2 * half + 1
