@@ -17,7 +17,7 @@ from starsense._validate import as_generator
 from starsense.catalog import Catalog, load_catalog
 from starsense.sensor import Sensor, load_sensor
 
-__all__ = ["as_catalog", "as_sensor", "root_seed"]
+__all__ = ["DEFAULT_CATALOG_SPEC", "as_catalog", "as_sensor", "root_seed"]
 
 #: the catalogue an analysis uses when given none
 DEFAULT_CATALOG_SPEC = "hipparcos"
