@@ -77,7 +77,9 @@ def _limit_sky_bundled() -> float:
 
     cat = load_catalog("hipparcos")
     BlackBodyStars.from_catalog(cat)  # builds the colour tables once (photometry set-up)
-    return best_of(lambda: sky_limit(BlackBodyStars.from_catalog(cat), 1.0, 1.0))
+    return best_of(
+        lambda: sky_limit(BlackBodyStars.from_catalog(cat), diameter_m=1.0, exposure_s=1.0)
+    )
 
 
 @bench("limit_sky_5M", "whole-sky limit, 5 million synthetic stars from V and B-V, one core", 1.0)
@@ -97,7 +99,7 @@ def _limit_sky_5m() -> float:
 
     def run():
         t, c = model.fit(mag, bv)
-        return sky_limit(BlackBodyStars(v, t, c, mag), 1.0, 1.0)
+        return sky_limit(BlackBodyStars(v, t, c, mag), diameter_m=1.0, exposure_s=1.0)
 
     return best_of(run, repeat=3)
 

@@ -183,8 +183,8 @@ def test_isotropic_stars_analytic():
 
 def test_scales_as_d_minus2_t_minus_half():
     stars = _stars(_random_unit(100, 3))
-    base = sky_limit(stars, 0.05, 0.2)
-    other = sky_limit(stars, 0.15, 1.8)
+    base = sky_limit(stars, diameter_m=0.05, exposure_s=0.2)
+    other = sky_limit(stars, diameter_m=0.15, exposure_s=1.8)
     assert other.theta_rms_rad == pytest.approx(base.theta_rms_rad / 9 / 3, rel=1e-12)
     assert other.g_rad_m2_s05 == pytest.approx(base.g_rad_m2_s05, rel=1e-12)
 
@@ -214,13 +214,17 @@ def test_great_circle_stars_are_not_singular():
 
 def test_fov_360_equals_sky_and_merged_never_worse():
     stars = _stars(_random_unit(3000, 4))
-    sky = sky_limit(stars, 0.1, 0.01)
+    sky = sky_limit(stars, diameter_m=0.1, exposure_s=0.01)
     targets = np.array([[1.0, 0, 0], [0, 1.0, 0]])
-    heads, merged = fov_limit(stars, targets, 2 * np.pi, 0.1, 0.01)
+    heads, merged = fov_limit(
+        stars, targets, fov_diameter_rad=2 * np.pi, diameter_m=0.1, exposure_s=0.01
+    )
     assert heads[0].theta_rms_rad == pytest.approx(sky.theta_rms_rad, rel=1e-12)
     assert merged.theta_rms_rad == pytest.approx(sky.theta_rms_rad / np.sqrt(2), rel=1e-12)
     for fov_deg in (90, 25, 10):
-        heads, merged = fov_limit(stars, targets, np.radians(fov_deg), 0.1, 0.01)
+        heads, merged = fov_limit(
+            stars, targets, fov_diameter_rad=np.radians(fov_deg), diameter_m=0.1, exposure_s=0.01
+        )
         assert merged.theta_rms_rad <= min(h.theta_rms_rad for h in heads)
         # a narrow field: roll about the boresight is the worst axis
         assert heads[0].axis_sigma_rad[2] > heads[0].axis_sigma_rad[:2].max()

@@ -136,7 +136,7 @@ def test_sky_limit_gaia_equals_in_memory(data, client):
     assert stars.colour == "BP-RP"
     # the table also has 2MASS columns, and J-H comes first in the default order: ask for BP-RP
     res, used = sky_limit(hats, 0.1, 0.2, colour="BP-RP", client=client)
-    _same_limit(res, mem.sky_limit(stars, 0.1, 0.2))
+    _same_limit(res, mem.sky_limit(stars, diameter_m=0.1, exposure_s=0.2))
     assert (used.colour, used.n_stars, used.n_skipped) == ("BP-RP", len(stars), stars.n_skipped)
     assert used.n_skipped > 0  # the NaN colours
 
@@ -161,7 +161,9 @@ def test_fov_limits_many_targets_equal_in_memory(data, client):
     heads, merged, _ = fov_limit(
         hats, targets, np.radians(20.0), 0.05, 0.1, colour="BP-RP", client=client
     )
-    heads0, merged0 = mem.fov_limit(stars, targets, np.radians(20.0), 0.05, 0.1)
+    heads0, merged0 = mem.fov_limit(
+        stars, targets, fov_diameter_rad=np.radians(20.0), diameter_m=0.05, exposure_s=0.1
+    )
     for h, h0 in zip(heads, heads0, strict=True):
         _same_limit(h, h0)
         assert h.n_stars > 100  # each 20 deg cone holds ~600 stars: a real sum, not a few terms
@@ -246,7 +248,7 @@ def test_cli_limit_sky_hats_by_scheduler_address(data, client, capsys):
     assert code == 0, err
     assert err == ""  # no progress bar or warnings: stderr is not a terminal
     payload = json.loads(out)  # --json output is pure JSON
-    ref = mem.sky_limit(mem.BlackBodyStars.from_catalog(gaia), 0.1, 0.1)
+    ref = mem.sky_limit(mem.BlackBodyStars.from_catalog(gaia), diameter_m=0.1, exposure_s=0.1)
     assert payload["n_stars"] == ref.n_stars
     assert payload["theta_rms_rad"] == pytest.approx(ref.theta_rms_rad, rel=REL)
 
@@ -277,7 +279,7 @@ def test_cli_limit_sky_hats_fov_heads(data, client, capsys):
         [radec_to_vectors(np.radians(a), np.radians(d)) for a, d in ((10, 20), (200, -40))]
     )
     heads, merged = mem.fov_limit(mem.BlackBodyStars.from_catalog(gaia), targets,
-                                  np.radians(20.0))  # fmt: skip
+                                  fov_diameter_rad=np.radians(20.0))  # fmt: skip
     assert [h["n_stars"] for h in payload["heads"]] == [h.n_stars for h in heads]
     assert payload["merged"]["theta_rms_rad"] == pytest.approx(merged.theta_rms_rad, rel=REL)
 

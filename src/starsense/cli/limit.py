@@ -205,7 +205,7 @@ def limit_sky(
     cat, stars = _load_stars(catalog, max_mag, colour)
     common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
     if fov_deg is None:
-        res = sky_limit(stars, diameter_m, exposure_s)
+        res = sky_limit(stars, diameter_m=diameter_m, exposure_s=exposure_s)
         payload = {**res.to_dict(), **common}
         lines = [
             f"catalogue {cat.name}: {res.n_stars} stars ({stars.colour}; "
@@ -218,7 +218,13 @@ def limit_sky(
         ]
         emit(payload, as_json, lines)
         return
-    heads, merged = fov_limit(stars, _target_vectors(radec), fov_deg * DEG, diameter_m, exposure_s)
+    heads, merged = fov_limit(
+        stars,
+        _target_vectors(radec),
+        fov_diameter_rad=fov_deg * DEG,
+        diameter_m=diameter_m,
+        exposure_s=exposure_s,
+    )
     _emit_fov(cat.name, stars.colour, common, fov_deg, radec, heads, merged, as_json)
 
 

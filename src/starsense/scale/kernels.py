@@ -45,7 +45,13 @@ def sky_part(frame, plan, colour, max_mag, diameter_m, exposure_s):
 def fov_part(frame, plan, colour, max_mag, targets, fov_diameter_rad, diameter_m, exposure_s):
     """(F per head (T, 3, 3), stars per head (T,), stars used, stars skipped) of one tile."""
     stars = limit_stars(frame, plan, colour, max_mag)
-    fishers, counts = fov_fishers(stars, targets, fov_diameter_rad, diameter_m, exposure_s)
+    fishers, counts = fov_fishers(
+        stars,
+        targets,
+        fov_diameter_rad=fov_diameter_rad,
+        diameter_m=diameter_m,
+        exposure_s=exposure_s,
+    )
     return fishers, counts, len(stars), stars.n_skipped
 
 

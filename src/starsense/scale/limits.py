@@ -207,7 +207,9 @@ def fov_limit(
             "FOV-limited limits",
             progress,
         )
-    heads, merged = fov_results(fishers, counts, targets, diameter_m, exposure_s)
+    heads, merged = fov_results(
+        fishers, counts, targets, diameter_m=diameter_m, exposure_s=exposure_s
+    )
     return heads, merged, StarSummary(chosen, n, skipped)
 
 

@@ -121,7 +121,7 @@ def brightest_part(ctx: ReportContext) -> tuple[Part, dict[str, BrightestCurve]]
 
 def sensor_part(ctx: ReportContext) -> tuple[Part, LimitResult]:
     """Compute this report's sensor as an ideal whole-sky sensor (numbers only, no HTML)."""
-    own = sky_limit(ctx.primary, ctx.diameter_m, ctx.exposure_s)
+    own = sky_limit(ctx.primary, diameter_m=ctx.diameter_m, exposure_s=ctx.exposure_s)
     fom = ctx.diameter_m**2 * math.sqrt(ctx.exposure_s)
     data = {
         "diameter_m": ctx.diameter_m,
