@@ -35,7 +35,7 @@ def test_clipped_moments_against_quadrature(mu, sigma, lo, hi):
     p_lo, p_hi = stats.norm.cdf(lo, mu, sigma), stats.norm.sf(top, mu, sigma)
     m1 = integrate.quad(lambda x: x * pdf(x), lo, top)[0] + lo * p_lo + top * p_hi
     m2 = integrate.quad(lambda x: x * x * pdf(x), lo, top)[0] + lo**2 * p_lo + top**2 * p_hi
-    mean, var = clipped_moments(mu, sigma, lo, hi)
+    mean, var = clipped_moments(mu, sigma, lo=lo, hi=hi)
     # quadrature is good to ~1e-10 here; 1e-8 leaves room for the 12-sigma truncation
     assert mean == pytest.approx(m1, abs=1e-8)
     assert var == pytest.approx(m2 - m1 * m1, abs=1e-8)
@@ -175,10 +175,12 @@ def _sky_nea(sens, n=60):
     from starsense.analysis.datasheet.predict import StarModel, nea_at
     from starsense.catalog import load_catalog
 
-    vectors, mags = catalog_stars(load_catalog("hipparcos"), 4.0, "V")  # the same stars for all
+    vectors, mags = catalog_stars(
+        load_catalog("hipparcos"), 4.0, band="V"
+    )  # the same stars for all
     model = StarModel.build(sens, "reed", float(mags.min()), 4.0)
     att = random_attitudes(n, np.random.default_rng(8)).as_matrix()
-    sig, _ = nea_at(model, sens.fov(), att, vectors, mags)
+    sig, _ = nea_at(model, sens.fov(), att, vectors=vectors, magnitudes=mags)
     return float(np.nanmedian(sig["nea"][0])), float(np.nanmedian(sig["nea"][1]))
 
 

@@ -36,7 +36,7 @@ TABLE1_HKS = list(paper.TABLE1_HKS)
 
 def _row(colour, mag, ci):
     t, c = fit_star(mag, ci, colour)
-    sigma = 1.0 / np.sqrt(centroid_fisher(c, t, D_TABLE1_M, T_TABLE1_S))
+    sigma = 1.0 / np.sqrt(centroid_fisher(c, t, diameter_m=D_TABLE1_M, exposure_s=T_TABLE1_S))
     return t, c, sigma
 
 
@@ -83,8 +83,12 @@ def test_fialho2019_table1_numeric_vega_and_sun():
     # Our spectra are CALSPEC stis_011 (paper: stis_008) and Kurucz 1993; 2 % covers both.
     lv, ev = vega_spectrum()
     ls, es = sun_spectrum()
-    s_vega = 1 / np.sqrt(centroid_fisher_spectrum(lv, ev, D_TABLE1_M, T_TABLE1_S))
-    s_sun = 1 / np.sqrt(centroid_fisher_spectrum(ls, es, D_TABLE1_M, T_TABLE1_S))
+    s_vega = 1 / np.sqrt(
+        centroid_fisher_spectrum(lv, ev, diameter_m=D_TABLE1_M, exposure_s=T_TABLE1_S)
+    )
+    s_sun = 1 / np.sqrt(
+        centroid_fisher_spectrum(ls, es, diameter_m=D_TABLE1_M, exposure_s=T_TABLE1_S)
+    )
     assert s_vega == pytest.approx(1.74e-10, rel=0.02)
     assert s_sun == pytest.approx(1.14e-15, rel=0.02)
 
@@ -113,8 +117,10 @@ def test_eq19_closed_form_equals_eq17_integral():
     lam = np.geomspace(1e-8, 1e-3, 200_000)
     t = np.array([2500.0, 5800.0, 13000.0, 30000.0])
     c = np.array([1e-20, 2e-17, 3e-15, 1e-18])
-    num = centroid_fisher_numeric(c, t, lam, None, 0.2, 0.5)
-    assert np.allclose(num, centroid_fisher(c, t, 0.2, 0.5), rtol=1e-4)
+    num = centroid_fisher_numeric(
+        c, t, wavelength_m=lam, response=None, diameter_m=0.2, exposure_s=0.5
+    )
+    assert np.allclose(num, centroid_fisher(c, t, diameter_m=0.2, exposure_s=0.5), rtol=1e-4)
 
 
 def test_total_photons_matches_integral():
@@ -143,9 +149,9 @@ def test_bad_star_input():
     with pytest.raises(InputError, match="unknown colour system 'U-Z'"):
         ColourModel("U-Z")
     with pytest.raises(InputError, match="diameter_m must be a finite number > 0"):
-        centroid_fisher(1e-17, 9000.0, 0.0, 1.0)
+        centroid_fisher(1e-17, 9000.0, diameter_m=0.0, exposure_s=1.0)
     with pytest.raises(InputError, match="exposure_s must be a finite number > 0"):
-        centroid_fisher(1e-17, 9000.0, 0.1, -1.0)
+        centroid_fisher(1e-17, 9000.0, diameter_m=0.1, exposure_s=-1.0)
 
 
 # --- invariants of the attitude bound -------------------------------------------------------
@@ -244,7 +250,7 @@ def test_brightest_curve_ends_at_sky_limit():
 def test_low_photon_degradation_bright_and_faint():
     v = _random_unit(60, 6)
     # bright: every star delivers > 1e4 photons -> treated as deterministic, no degradation
-    bright = low_photon_degradation(_stars(v, c=1e-15), 0.1, 0.1, n_trials=20)
+    bright = low_photon_degradation(_stars(v, c=1e-15), diameter_m=0.1, exposure_s=0.1, n_trials=20)
     assert bright.degradation == pytest.approx(1.0, rel=1e-12)
     assert bright.n_below_one_photon == 0
     # faint: the expected number of stars seen is sum(1 - e^-iota), and the loss grows as the
@@ -253,7 +259,9 @@ def test_low_photon_degradation_bright_and_faint():
     per_photon_c = 1e-17 / total_photons(1e-17, 9000.0, 0.1, 0.1)
     deg = []
     for iota in (5.0, 1.0, 0.5):
-        res = low_photon_degradation(_stars(v, c=iota * per_photon_c), 0.1, 0.1, 500, rng=1)
+        res = low_photon_degradation(
+            _stars(v, c=iota * per_photon_c), diameter_m=0.1, exposure_s=0.1, n_trials=500, rng=1
+        )
         assert res.expected_observed_stars == pytest.approx(60 * (1 - np.exp(-iota)), rel=1e-9)
         deg.append(res.degradation)
     assert 1.0 < deg[0] < deg[1] < deg[2]

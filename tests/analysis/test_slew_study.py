@@ -38,7 +38,9 @@ def test_study_at_the_preset_is_simulate_slew(st16):
     # The st16 preset (1.5 px, 0.40): the sweep's detection fractions are simulate_slew's for the
     # same magnitudes, rates, trials and seed, bit for bit (the study adds no randomness).
     mags = study_magnitudes(0.05, 3.0, 6.5)
-    study = study_slew(st16, (1.0, 1.5), (0.40,), magnitudes=mags, n_trials=8, seed=3)
+    study = study_slew(
+        st16, sigmas_px=(1.0, 1.5), qe_means=(0.40,), magnitudes=mags, n_trials=8, rng=3
+    )
     ref = simulate_slew(st16, model="reed", magnitudes=mags, rates_rad_s=RATES, n_trials=8, rng=3)
     np.testing.assert_array_equal(study.detected_fraction[1], ref.detected_fraction)
     assert study.qe_ref == 0.40 and study.sensor_name == "st16"
@@ -50,7 +52,7 @@ def test_study_reads_the_st16_tolerance_curve_sideways(st16):
     # rate, the faintest grid magnitude still tolerating it; the study's interpolated m_t lies
     # between that and the next grid magnitude (0.25 mag), give or take the Monte Carlo noise of
     # two independent runs (2 x MC_NOISE_MAG_20).
-    study = study_slew(st16, (1.5,), (0.40,), n_trials=20, seed=0)
+    study = study_slew(st16, sigmas_px=(1.5,), qe_means=(0.40,), n_trials=20, rng=0)
     curve = magnitude_threshold(simulate_slew(st16, model="reed", n_trials=20, rng=0), RATES)
     ours = study.threshold_ref[0]
     assert np.all(ours >= curve - 2 * MC_NOISE_MAG_20), (ours, curve)
@@ -83,8 +85,15 @@ def test_thresholds_shift_with_qe_as_a_direct_run(st16):
     # thresholds() at QE 0.55 against a study run directly at QE 0.55 (another seed): equal
     # within the noise of two independent m_t (3 x sqrt(2) x 0.035 mag at 20 trials).
     mags = study_magnitudes(0.05, 3.0, 7.0)
-    ref = study_slew(st16, (1.5,), (0.55,), magnitudes=mags, n_trials=20, seed=0)
-    direct = study_slew(with_qe(st16, 0.55), (1.5,), (0.55,), magnitudes=mags, n_trials=20, seed=9)
+    ref = study_slew(st16, sigmas_px=(1.5,), qe_means=(0.55,), magnitudes=mags, n_trials=20, rng=0)
+    direct = study_slew(
+        with_qe(st16, 0.55),
+        sigmas_px=(1.5,),
+        qe_means=(0.55,),
+        magnitudes=mags,
+        n_trials=20,
+        rng=9,
+    )
     np.testing.assert_allclose(
         ref.thresholds()[0, 0], direct.threshold_ref[0], atol=3 * math.sqrt(2) * MC_NOISE_MAG_20
     )
@@ -175,7 +184,7 @@ def test_monte_carlo_noise_of_one_threshold(st16):
     # sigma = 1, 1.5, 2.5 px, 20 trials, 0.05 mag grid, at rest and at every paper rate
     # (measured 0.008-0.032).
     mags = study_magnitudes(0.05, 3.0, 7.0)
-    runs = [study_slew(st16, (1.0, 1.5, 2.5), magnitudes=mags, seed=s).threshold_ref
+    runs = [study_slew(st16, sigmas_px=(1.0, 1.5, 2.5), magnitudes=mags, rng=s).threshold_ref
             for s in range(5)]  # fmt: skip
     spread = np.std(runs, axis=0, ddof=1)
     assert spread.max() <= MC_NOISE_MAG_20, spread
@@ -188,7 +197,7 @@ def test_dzamba2014_no_psf_qe_pair_reproduces_table2(st16):
     # mag; every width leaves 0.11-0.14 mag that no QE removes (0.11-0.15 over seeds 1-4 on
     # three widths), against a tolerance of 0.07-0.08 mag at 1-2 deg/s. Regression bounds:
     # 0.11 +/- 0.04 (about the seed-to-seed spread of the shape mismatch).
-    study = study_slew(st16, seed=0)
+    study = study_slew(st16, rng=0)
     best = study.best_pair()
     assert best["worst_mismatch_mag"] == pytest.approx(0.11, abs=0.04)
     assert not best["reproduces"]

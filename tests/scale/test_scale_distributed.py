@@ -206,7 +206,7 @@ def test_star_counts_per_boresight_equal_in_memory(data, client, fov):
     _, gaia, _, hats = data
     _, attitudes = sky_attitudes(1_000, None, seed=2)
     counts = star_counts(hats, fov, attitudes, 11.0, band="G", client=client)
-    counts0 = FieldStars.build(fov, attitudes, *catalog_stars(gaia, 11.0, "G")).counts()
+    counts0 = FieldStars.build(fov, attitudes, *catalog_stars(gaia, 11.0, band="G")).counts()
     np.testing.assert_array_equal(counts, counts0)
     assert counts.mean() > 5  # fields hold stars: the comparison is not of zeros
 

@@ -583,12 +583,12 @@ def fidelity(
                 sens,
                 cat,
                 curve,
-                rate,
+                rate_rad_s=rate,
                 n_frames=frames,
                 n_min=n_min,
                 max_mag=max_mag,
                 model=model,
-                seed=seed,
+                rng=seed,
                 progress=lambda done, total: progress("rendering frames", done, total),
             )
     emit({**res.to_dict(), "sensor": sens.name}, as_json, res.lines())

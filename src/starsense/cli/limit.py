@@ -122,7 +122,7 @@ def limit_star(
     option_float(ci, names[1])
     t, c = fit_star(m, ci, system)
     clamped = _colour_clamp_note(system, ci, names[1], t)
-    f = float(centroid_fisher(c, t, diameter_m, exposure_s))
+    f = float(centroid_fisher(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     photons = float(total_photons(c, t, diameter_m, exposure_s))
     sigma = 1.0 / np.sqrt(f)
     payload = {
@@ -377,7 +377,9 @@ def limit_photons(
     option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
     option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     cat, stars = _load_stars(catalog, None, colour)
-    res = low_photon_degradation(stars, diameter_m, exposure_s, trials, seed)
+    res = low_photon_degradation(
+        stars, diameter_m=diameter_m, exposure_s=exposure_s, n_trials=trials, rng=seed
+    )
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
     payload.update(res.to_dict())
     emit(

@@ -225,13 +225,13 @@ def slew_study(
     with progress_bar(not as_json) as bar:
         study = study_slew(
             sens,
-            sigmas,
-            qes,
-            model,
-            study_magnitudes(mag_step),
-            trials,
-            0.5,
-            seed,
+            sigmas_px=sigmas,
+            qe_means=qes,
+            model=model,
+            magnitudes=study_magnitudes(mag_step),
+            n_trials=trials,
+            criterion=0.5,
+            rng=seed,
             progress=bar.task("PSF widths"),
         )
     payload = study.to_dict()

@@ -485,10 +485,10 @@ def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
                     sensor,
                     catalog,
                     curve,
-                    rate * DEG,
+                    rate_rad_s=rate * DEG,
                     n_frames=FIDELITY_FRAMES,
                     max_mag=paper.MAX_MAG,
-                    seed=ctx.seed,
+                    rng=ctx.seed,
                 )
             )
     except InputError as exc:

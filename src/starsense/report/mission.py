@@ -77,8 +77,8 @@ def mission_section(ctx: ReportContext) -> Section:
     res = mission_availability(
         mission_geometry(grid, orbit, profile),
         heads,
-        stars.vectors[keep],
-        stars.magnitude[keep],
+        vectors=stars.vectors[keep],
+        magnitudes=stars.magnitude[keep],
         meta=meta,
     )
     data = res.to_dict()

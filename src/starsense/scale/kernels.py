@@ -138,7 +138,7 @@ def field_part(frame, plan, band, max_mag, fov, attitudes, k):
         None for k = 0), stars used, faintest magnitude used).
     """
     quiet_third_party_warnings()
-    vectors, mags = catalog_stars(plan.catalog(frame), max_mag, band, allow_empty=True)
+    vectors, mags = catalog_stars(plan.catalog(frame), max_mag, band=band, allow_empty=True)
     faintest = float(mags.max()) if len(mags) else -math.inf
     if not k:  # counts only: the in-memory count_in_fov, no per-pointing magnitude lists
         return count_in_fov(fov, attitudes, vectors), None, len(mags), faintest

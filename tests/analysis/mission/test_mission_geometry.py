@@ -58,7 +58,9 @@ def test_sun_and_moon_separation_match_astropy_over_a_day():
     # Tolerance 0.01 deg, the issue's; measured 2 arcsec (Sun) and 5 arcsec (Moon): aberration
     # by the spacecraft's 7.6 km/s and light time.
     grid = TimeGrid.span("2025-06-01T00:00:00", 86400.0, 600.0)
-    geo = mission_geometry(grid, sun_synchronous(550e3, 10.5, grid.start), AttitudeProfile("nadir"))
+    geo = mission_geometry(
+        grid, sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start), AttitudeProfile("nadir")
+    )
     head = Head("+Y", FOV, CURVE, PLUS_Y)
     b = geo.head_matrices(head)[:, 2, :]
     times = grid.times()
@@ -100,7 +102,7 @@ def test_sso_node_follows_the_mean_sun_and_circular_radius_constant():
     # Sun-synchronous: the orbit normal turns about the pole by 360 deg per tropical year,
     # 0.98565 deg/day (the definition; J2 secular rate, Vallado eq. 9-41). Tolerance 1e-6 deg.
     grid = TimeGrid.span("2025-03-20T00:00:00", 86400.0 + 1.0, 1.0)
-    orbit = sun_synchronous(550e3, 6.0, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start)
     r, v = orbit.state(grid)
     h0, h1 = np.cross(r[0], v[0]), np.cross(r[-1], v[-1])
     node0, node1 = math.atan2(h0[0], -h0[1]), math.atan2(h1[0], -h1[1])
@@ -139,7 +141,7 @@ def test_teme_to_gcrs_matches_astropy():
 def test_two_heads_opposite_never_both_sun_blinded_and_sun_profile():
     # Invariant: boresights 180 deg apart are never both within < 90 deg of the Sun.
     grid = TimeGrid.span("2025-06-01T00:00:00", 6 * 3600.0, 30.0)
-    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start)
     geo = mission_geometry(grid, orbit, AttitudeProfile("nadir", yaw_steering=True))
     minus_y = mounting_from_quaternion([-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])
     seps = [_angle(geo.head_matrices(Head(n, FOV, CURVE, m))[:, 2, :], geo.sun)
@@ -167,7 +169,7 @@ def test_ground_point_in_gcrs_matches_astropy_and_target_profile():
         ref = site.get_gcrs(grid.times()).cartesian.xyz.to_value(u.m).T
     assert np.max(np.linalg.norm(ours - ref, axis=1)) < 150.0
     # the target profile's +z passes through that ground point
-    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start)
     geo = mission_geometry(grid, orbit, AttitudeProfile("target", lat=lat * DEG, lon=lon * DEG))
     to_site = ours - geo.r
     to_site /= np.linalg.norm(to_site, axis=1, keepdims=True)
@@ -181,7 +183,7 @@ def test_yaw_steering_aligns_ground_velocity_with_body_x():
     # (0.066, the ~3.8 deg yaw-steering amplitude of a sun-synchronous orbit); 3 % tolerance
     # (the relative velocity's own change of length).
     grid = TimeGrid.span("2025-06-01T00:00:00", 6000.0, 20.0)
-    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start)
     w_e = 7.292115e-5 * grid.earth_axis()
     a = orbit.semi_major_axis_m
     peak = 7.292115e-5 * a * math.sin(orbit.inclination) / math.sqrt(GM_EARTH_M3_S2 / a)

@@ -135,7 +135,7 @@ class AvailabilityAnalysis:
         `catalog` is a :class:`~starsense.catalog.Catalog` or anything with ``vectors`` and
         ``mags[band]``; `kwargs` go to the constructor.
         """
-        vectors, mags = catalog_stars(catalog, max_mag, band)
+        vectors, mags = catalog_stars(catalog, max_mag, band=band)
         name = getattr(catalog, "name", "")
         return cls(vectors, mags, fov, max_mag=max_mag, catalog=name, band=band, **kwargs)
 
@@ -204,15 +204,15 @@ class AvailabilityAnalysis:
         return static_result(
             self.sky,
             self.sky.counts(m_t),
-            self.boresights,
-            n_min,
-            m_t,
-            self.n_stars,
-            describe_fov(self.fov),
-            self.catalog,
-            self.band,
-            curve_span_mag,
-            curve_step_mag,
+            boresights=self.boresights,
+            n_min=n_min,
+            m_t=m_t,
+            n_stars=self.n_stars,
+            fov=describe_fov(self.fov),
+            catalog=self.catalog,
+            band=self.band,
+            curve_span_mag=curve_span_mag,
+            curve_step_mag=curve_step_mag,
         )
 
     # -- spatial dynamic ---------------------------------------------------------------------

@@ -302,4 +302,6 @@ def mission(
         "catalog": _catalog_label(catalog, cat),
         "max_mag": max_mag,
     }
-    return mission_analysis.mission_availability(geo, head_list, vectors, mags, n_min, meta)
+    return mission_analysis.mission_availability(
+        geo, head_list, vectors=vectors, magnitudes=mags, n_min=n_min, meta=meta
+    )

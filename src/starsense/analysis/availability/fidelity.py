@@ -21,6 +21,7 @@ from starsense.analysis.availability.checks import check_rates
 from starsense.analysis.availability.field import FieldStars, catalog_stars
 from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, percent
 from starsense.analysis.availability.threshold import ThresholdCurve
+from starsense.analysis.inputs import root_seed
 from starsense.detect import StarDetector
 from starsense.render.scene import render_frame
 from starsense.units import DEG, to_edge
@@ -156,14 +157,14 @@ def fidelity_check(
     sensor: Any,
     catalog: Any,
     curve: ThresholdCurve,
-    rate_rad_s: float,
     *,
+    rate_rad_s: float,
     n_frames: int = 50,
     n_min: int = N_MIN_LOST_IN_SPACE,
     max_mag: float = 5.75,
     model: str = "reed",
     band: str = "V",
-    seed: int | None = 0,
+    rng: int | np.random.Generator | None = 0,
     match_radius_px: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> FidelityCheck:
@@ -197,8 +198,9 @@ def fidelity_check(
         Sensitivity model of the rendering.
     band : str
         Magnitude band.
-    seed : int or None
-        Root seed of the attitudes and the frames' noise.
+    rng : None, int or numpy.random.Generator
+        Root seed of the attitudes and the frames' noise (a Generator gives one seed drawn
+        from it).
     match_radius_px : float, optional
         Radius of a match, px.
     progress : callable(done, total), optional
@@ -216,8 +218,9 @@ def fidelity_check(
     n_frames = check_int(n_frames, "n_frames", 1)
     n_min = check_int(n_min, "n_min", 1)
     w = float(check_rates(rate_rad_s, "rate_rad_s")[0])
-    vectors, mags = catalog_stars(catalog, max_mag, band)
+    vectors, mags = catalog_stars(catalog, max_mag, band=band)
     m_t = float(min(curve([w])[0], max_mag))
+    seed = root_seed(rng)
     rng = np.random.default_rng(seed)
     attitudes = Rotation.random(n_frames, rng=rng)
     model_counts = FieldStars.build(sensor.fov(), attitudes, vectors, mags).counts(m_t)

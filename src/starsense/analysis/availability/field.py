@@ -63,6 +63,7 @@ def field_pairs(
     fov: Fov,
     matrices: NDArray[np.float64],
     vectors: NDArray[np.float64],
+    *,
     tree: cKDTree | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
@@ -206,7 +207,7 @@ class FieldStars:
         n_att, n = matrices.shape[0], v.shape[0]
         if tree is not None and (tree.n != n or tree.m != 3):
             raise InputError("tree must be a cKDTree built on exactly the star vectors")
-        points, stars = field_pairs(fov, matrices, v, tree, progress)
+        points, stars = field_pairs(fov, matrices, v, tree=tree, progress=progress)
         # sort by (pointing, magnitude): rank the stars by magnitude once, then one integer sort
         rank = np.empty(n, dtype=np.int64)
         order = np.argsort(mags, kind="stable")
@@ -330,7 +331,7 @@ class BrightestInField:
 
 
 def catalog_stars(
-    catalog: Any, max_mag: float, band: str = "V", allow_empty: bool = False
+    catalog: Any, max_mag: float, *, band: str = "V", allow_empty: bool = False
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return unit vectors and magnitudes of the catalogue stars with ``mag <= max_mag``.
 

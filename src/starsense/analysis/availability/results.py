@@ -316,6 +316,7 @@ class TrackAvailability:
 def static_result(
     field: FieldStars | BrightestInField,
     counts: NDArray[np.intp],
+    *,
     boresights: NDArray[np.float64],
     n_min: int,
     m_t: float,

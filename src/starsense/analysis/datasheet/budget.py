@@ -43,7 +43,7 @@ def sky_median(values: np.ndarray, q: float = 50) -> float | None:
     return float(np.percentile(v, q)) if v.size else None
 
 
-def error_budget(sensor, nea: AxisSpread, pixel: tuple, pse_px: float | None) -> list[BudgetRow]:
+def error_budget(sensor, nea: AxisSpread, *, pixel: tuple, pse_px: float | None) -> list[BudgetRow]:
     """Return the error budget rows: term, cross, roll (arcsec), source.
 
     Parameters
@@ -150,6 +150,7 @@ def fov_spatial_row(sensor, given: dict) -> BudgetRow:
 
 def quoted_values(
     sensor,
+    *,
     limit_mag: float,
     nea: AxisSpread,
     monte_carlo: MonteCarloCheck,

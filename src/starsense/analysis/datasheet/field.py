@@ -51,9 +51,9 @@ class FieldStarsCam:
         return np.bincount(p, minlength=self.n_pointings)
 
 
-def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.float64], tree=None):
+def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.float64], *, tree=None):
     """Return the :class:`FieldStarsCam` of attitudes ``matrices`` (M, 3, 3), ICRS -> camera."""
-    point, star = field_pairs(fov, matrices, vectors, tree)
+    point, star = field_pairs(fov, matrices, vectors, tree=tree)
     v_cam = np.einsum("kij,kj->ki", matrices[point], vectors[star])
     return FieldStarsCam(point, star, v_cam, matrices.shape[0])
 

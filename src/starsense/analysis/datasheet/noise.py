@@ -36,7 +36,7 @@ __all__ = ["CentroidNoise", "centroid_noise", "clipped_moments"]
 _SQRT2PI = math.sqrt(2.0 * math.pi)
 
 
-def clipped_moments(mu, sigma, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+def clipped_moments(mu, sigma, *, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
     """Return the mean and variance of ``clip(X, lo, hi)`` for X ~ N(mu, sigma^2).
 
     Parameters
@@ -155,7 +155,7 @@ def _one(n_e: float, phase: tuple[float, float], sensor, margin_px: int) -> tupl
     var_e = star_e + dark_e + det.read_noise_e**2
     mu_c = g * (star_e + dark_e) + det.bias_counts
     sd_c = np.sqrt(g * g * var_e + 1.0 / 12.0)
-    mean_c, var_c = clipped_moments(mu_c, sd_c, 0.0, float(det.saturation_counts))
+    mean_c, var_c = clipped_moments(mu_c, sd_c, lo=0.0, hi=float(det.saturation_counts))
     sub = mean_c - det.bias_counts
     lit = sub > logic.lit_pixel_counts
     info = float(np.sum((n_e * dpy[:, None] * px[None, :]) ** 2 / (var_e + 1.0 / (12 * g * g))))

@@ -53,7 +53,7 @@ def limiting_magnitude(magnitudes, fraction, criterion: float = 0.5) -> float | 
     return last_above(magnitudes, fraction, criterion)
 
 
-def slew_grids(sensor, static_limit: float, n_mag: int = 20, n_rate: int = 40):
+def slew_grids(sensor, static_limit: float, *, n_mag: int = 20, n_rate: int = 40):
     """Return the magnitudes (0.25 mag steps ending just past the limit) and rates to simulate.
 
     The rates run from rest to 10 deg/s (the paper's range), or less when a faster slew would
@@ -131,7 +131,7 @@ class StarModel:
         return px * self.pixel_rad * np.asarray(z_cam, dtype=float)
 
 
-def nea_at(model: StarModel, fov, matrices, vectors, magnitudes, kinds=("nea",), tree=None):
+def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea",), tree=None):
     """Return {kind: (cross, roll)} per attitude, rad, from the stars in the field.
 
     Parameters
@@ -152,7 +152,7 @@ def nea_at(model: StarModel, fov, matrices, vectors, magnitudes, kinds=("nea",),
     -------
     dict, and the stars in the field per attitude (M,)
     """
-    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree)
+    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree=tree)
     out = {}
     for kind in kinds:
         sigma = model.star_sigmas_rad(np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2], kind)

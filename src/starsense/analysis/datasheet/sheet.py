@@ -239,11 +239,13 @@ def _warnings(
 
 def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound."""
-    vectors, mags = catalog_stars(cat, limit_mag, "V")
+    vectors, mags = catalog_stars(cat, limit_mag, band="V")
     model = StarModel.build(sensor, st.model, float(np.min(mags)), limit_mag)
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
-    sig, counts = nea_at(model, fov, mats, vectors, mags, ("nea", "crb", "pixel"))
+    sig, counts = nea_at(
+        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=("nea", "crb", "pixel")
+    )
     lim = _limit(cat, sensor, fov, mats)
     return model, vectors, mags, boresights, mats, sig, counts, lim
 
@@ -341,8 +343,16 @@ def build_datasheet(
         **runs,
         availability=avail,
         slew=slew,  # its JSON is that of `starsense slew tolerance`
-        budget=tuple(error_budget(sensor, nea, sig["pixel"], pse)),
-        quoted=tuple(quoted_values(sensor, limit_mag, nea, runs["monte_carlo"], avail)),
+        budget=tuple(error_budget(sensor, nea, pixel=sig["pixel"], pse_px=pse)),
+        quoted=tuple(
+            quoted_values(
+                sensor,
+                limit_mag=limit_mag,
+                nea=nea,
+                monte_carlo=runs["monte_carlo"],
+                availability=avail,
+            )
+        ),
         quoted_source=dict(sensor.quoted).get("source"),
         settings=_settings(st, getattr(cat, "name", ""), limit_mag),
         warnings=tuple(_warnings(stars, avail, runs)),

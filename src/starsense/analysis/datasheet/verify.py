@@ -94,7 +94,9 @@ def score_montecarlo(
             out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
         return out
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
-    pred, _ = nea_at(model, fov, mats, vectors, magnitudes, kinds=("nea", "pixel"))
+    pred, _ = nea_at(
+        model, fov, mats, vectors=vectors, magnitudes=magnitudes, kinds=("nea", "pixel")
+    )
     cross = np.hypot(pred["nea"][0], pred["pixel"][0])
     roll = np.hypot(pred["nea"][1], pred["pixel"][1])
     e = res.errors_rad

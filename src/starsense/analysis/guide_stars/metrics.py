@@ -185,6 +185,7 @@ def tangent_noise(
 def monte_carlo_errors(
     vectors: ArrayLike,
     sigma_rad: float,
+    *,
     rng: np.random.Generator | int | None = None,
     batched: bool = True,
     noise: ArrayLike | None = None,

@@ -104,6 +104,7 @@ def _best_combination(p, which, idx, chosen_areas, criterion, sigma, metric, den
 def select_guide_stars(
     xy: ArrayLike,
     magnitude: ArrayLike,
+    *,
     layout,
     areas: tuple[int, ...] | None = None,
     n_stars: int = 5,

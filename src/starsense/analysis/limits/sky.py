@@ -104,7 +104,10 @@ def sky_limit(
         stars = BlackBodyStars.from_catalog(as_catalog(stars))
     check_aperture(diameter_m, exposure_s)
     return limit_from_fisher(
-        sky_fisher(stars, diameter_m, exposure_s), len(stars), diameter_m, exposure_s
+        sky_fisher(stars, diameter_m, exposure_s),
+        len(stars),
+        diameter_m=diameter_m,
+        exposure_s=exposure_s,
     )
 
 
@@ -172,13 +175,18 @@ def fov_results(
     """
     targets = np.atleast_2d(np.asarray(targets, dtype=float))
     heads = [
-        limit_from_fisher(f, int(n), diameter_m, exposure_s, boresight_frame(t))
+        limit_from_fisher(
+            f, int(n), diameter_m=diameter_m, exposure_s=exposure_s, frame_rows=boresight_frame(t)
+        )
         for f, n, t in zip(fishers, counts, targets, strict=True)
     ]
     merged = None
     if len(targets) > 1:
         merged = limit_from_fisher(
-            np.sum(fishers, axis=0), int(np.sum(counts)), diameter_m, exposure_s
+            np.sum(fishers, axis=0),
+            int(np.sum(counts)),
+            diameter_m=diameter_m,
+            exposure_s=exposure_s,
         )
     return heads, merged
 

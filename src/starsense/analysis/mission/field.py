@@ -49,6 +49,7 @@ def _block_candidates(boresights, radius, tree):
 def detected_counts(
     fov: Fov,
     matrices: NDArray[np.float64],
+    *,
     vectors: NDArray[np.float64],
     magnitudes: NDArray[np.float64],
     threshold_mag: NDArray[np.float64],

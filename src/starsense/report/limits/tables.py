@@ -87,7 +87,10 @@ def _merged(stars: BlackBodyStars, targets, fov_rad, diameter_m, exposure_s) -> 
     )
     n = int(counts.sum())
     try:
-        return FovCell(n, limit_from_fisher(fishers.sum(axis=0), n, diameter_m, exposure_s))
+        return FovCell(
+            n,
+            limit_from_fisher(fishers.sum(axis=0), n, diameter_m=diameter_m, exposure_s=exposure_s),
+        )
     except SingularGeometryError:
         return FovCell(n, None)
 
@@ -174,7 +177,9 @@ def table1_rows() -> list[Table1Row]:
     for colour, ref in (("B-V", paper.TABLE1_UBV), ("H-Ks", paper.TABLE1_HKS)):
         for name, mag, ci, t_ref, c_ref, s_ref in ref:
             t, c = fit_star(mag, ci, colour)
-            f = centroid_fisher(c, t, paper.TABLE1_DIAMETER_M, paper.TABLE1_EXPOSURE_S)
+            f = centroid_fisher(
+                c, t, diameter_m=paper.TABLE1_DIAMETER_M, exposure_s=paper.TABLE1_EXPOSURE_S
+            )
             rows.append(
                 Table1Row(colour, name, mag, ci, t, c, float(1 / np.sqrt(f)), (t_ref, c_ref, s_ref))
             )
