@@ -178,7 +178,7 @@ def _sky_nea(sens, n=60):
     vectors, mags = catalog_stars(
         load_catalog("hipparcos"), 4.0, band="V"
     )  # the same stars for all
-    model = StarModel.build(sens, "reed", float(mags.min()), 4.0)
+    model = StarModel.build(sens, model="reed", bright_mag=float(mags.min()), faint_mag=4.0)
     att = random_attitudes(n, np.random.default_rng(8)).as_matrix()
     sig, _ = nea_at(model, sens.fov(), att, vectors=vectors, magnitudes=mags)
     return float(np.nanmedian(sig["nea"][0])), float(np.nanmedian(sig["nea"][1]))

@@ -181,7 +181,7 @@ def test_brightest_curve_equals_in_memory(data, client, max_explicit):
         progress=lambda label, done, total: labels.add(label),
     )  # fmt: skip
     assert ("N brightest: finer histogram" in labels) == (max_explicit == 50)
-    curve0 = mem.brightest_curve(stars, 0.1, 0.1)
+    curve0 = mem.brightest_curve(stars, diameter_m=0.1, exposure_s=0.1)
     np.testing.assert_array_equal(curve.n_stars, curve0.n_stars)
     assert np.all(np.abs(curve.theta_rms_rad / curve0.theta_rms_rad - 1) <= REL)
     assert curve.slope == pytest.approx(curve0.slope, rel=1e-9)  # a fit through those points

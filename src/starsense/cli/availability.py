@@ -213,7 +213,7 @@ def _setup(
             cat,
             field,
             max_mag,
-            band,
+            band=band,
             n_orientations=n_orientations,
             roll=roll,
             seed=seed,
@@ -513,7 +513,9 @@ def track(
             sensor, catalog, fov, half_fov_deg, max_mag, n_orientations, roll_deg, seed, progress
         )
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
-        res = analysis.track(curve, rate, n_min, inclinations, track_samples, node)
+        res = analysis.track(
+            curve, rate, n_min=n_min, inclinations=inclinations, n_samples=track_samples, node=node
+        )
     payload = {**res.to_dict(), "sensor": sens.name, "model": model}
     lines = res.lines()
     figures = []

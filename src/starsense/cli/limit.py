@@ -332,7 +332,9 @@ def limit_curve(
             )
     else:
         cat, stars = _load_stars(catalog, None, colour)
-        curve = brightest_curve(stars, diameter_m, exposure_s, n_extrapolated=extrapolate_to)
+        curve = brightest_curve(
+            stars, diameter_m=diameter_m, exposure_s=exposure_s, n_extrapolated=extrapolate_to
+        )
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
     payload.update(curve.to_dict())
     lines = [

@@ -41,7 +41,7 @@ def test_n_min_below_one(analysis, n_min):
     with pytest.raises(InputError, match=r"n_min"):
         analysis.dynamic(FLAT, np.radians([1.0]), n_min)
     with pytest.raises(InputError, match=r"n_min"):
-        analysis.track(FLAT, np.radians(1.0), n_min, n_samples=10)
+        analysis.track(FLAT, np.radians(1.0), n_min=n_min, n_samples=10)
 
 
 @pytest.mark.parametrize("n_min", [2.5, "3", True])

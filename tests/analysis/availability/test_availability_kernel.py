@@ -156,7 +156,10 @@ def test_threshold_curve_from_tolerance_inverts_fig10():
     assert d(np.radians([2.0]))[0] == -np.inf
     # capped magnitudes (detected at every simulated rate) hold m_t beyond the grid
     e = ThresholdCurve.from_tolerance(
-        [2.0, 4.0], np.radians([10.0, 2.0]), [True, False], np.radians(10.0)
+        [2.0, 4.0],
+        np.radians([10.0, 2.0]),
+        capped=[True, False],
+        grid_max_rate_rad_s=np.radians(10.0),
     )
     np.testing.assert_allclose(e(np.radians([2.0, 6.0, 10.0, 50.0])), [4.0, 3.0, 2.0, 2.0])
 
@@ -257,7 +260,7 @@ def test_track_mean_approaches_spatial_for_constant_threshold():
     curve = ThresholdCurve.constant(1.1)  # ~3 stars per field: availability ~0.6
     spatial = an.static(3, max_mag=1.1).availability
     assert 0.4 < spatial < 0.8
-    one = an.track(curve, np.radians(1.0), 3, inclinations=np.radians(np.arange(-90, 91, 2.0)),
+    one = an.track(curve, np.radians(1.0), n_min=3, inclinations=np.radians(np.arange(-90, 91, 2.0)),
                    n_samples=500)  # fmt: skip
     assert one.spatial[3] == spatial
     assert one.mean == pytest.approx(spatial, abs=0.05)
@@ -265,9 +268,9 @@ def test_track_mean_approaches_spatial_for_constant_threshold():
         an.track(
             curve,
             np.radians(1.0),
-            3,
-            np.radians(np.arange(-90, 91, 10.0)),
-            500,
+            n_min=3,
+            inclinations=np.radians(np.arange(-90, 91, 10.0)),
+            n_samples=500,
             node=np.radians(node),
         ).mean
         for node in np.arange(0.0, 180.0, 15.0)

@@ -128,7 +128,7 @@ class AvailabilityAnalysis:
 
     @classmethod
     def from_catalog(
-        cls, catalog: Any, fov: Fov, max_mag: float, band: str = "V", **kwargs: Any
+        cls, catalog: Any, fov: Fov, max_mag: float, *, band: str = "V", **kwargs: Any
     ) -> AvailabilityAnalysis:
         """Build the analysis of a catalogue's stars with ``mag <= max_mag`` in `band`.
 
@@ -164,8 +164,8 @@ class AvailabilityAnalysis:
             attitudes,
             self.vectors,
             self.magnitudes,
-            self.tree,
-            self._reporter("stars in the field, sky grid"),
+            tree=self.tree,
+            progress=self._reporter("stars in the field, sky grid"),
         )
         return boresights, stars
 
@@ -187,6 +187,7 @@ class AvailabilityAnalysis:
     def static(
         self,
         n_min: int = N_MIN_LOST_IN_SPACE,
+        *,
         max_mag: float | None = None,
         curve_span_mag: float = 3.0,
         curve_step_mag: float = 0.05,
@@ -268,8 +269,8 @@ class AvailabilityAnalysis:
                 attitudes,
                 self.vectors,
                 self.magnitudes,
-                self.tree,
-                self._reporter("stars in the field, tracks"),
+                tree=self.tree,
+                progress=self._reporter("stars in the field, tracks"),
             )
         return self._tracks[key]
 
@@ -277,6 +278,7 @@ class AvailabilityAnalysis:
         self,
         curve: ThresholdCurve,
         rate_rad_s: float,
+        *,
         n_min: int = N_MIN_LOST_IN_SPACE,
         inclinations: ArrayLike = DEFAULT_INCLINATIONS,
         n_samples: int = DEFAULT_TRACK_SAMPLES,

@@ -58,7 +58,7 @@ def _analysis(
         cat,
         field,
         max_mag,
-        band,
+        band=band,
         n_orientations=n_orientations,
         roll=roll_rad,
         seed=root_seed(rng),

@@ -169,6 +169,7 @@ class FieldStars:
         attitudes: Rotation,
         vectors: ArrayLike,
         magnitudes: ArrayLike,
+        *,
         tree: cKDTree | None = None,
         progress: Callable[[int, int], None] | None = None,
     ) -> FieldStars:

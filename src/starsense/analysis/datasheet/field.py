@@ -39,7 +39,7 @@ class FieldStarsCam:
         Number of attitudes.
     """
 
-    def __init__(self, point, star, v_cam, n_pointings: int) -> None:
+    def __init__(self, point, star, v_cam, *, n_pointings: int) -> None:
         self.point = point
         self.star = star
         self.v_cam = v_cam
@@ -55,7 +55,7 @@ def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.floa
     """Return the :class:`FieldStarsCam` of attitudes ``matrices`` (M, 3, 3), ICRS -> camera."""
     point, star = field_pairs(fov, matrices, vectors, tree=tree)
     v_cam = np.einsum("kij,kj->ki", matrices[point], vectors[star])
-    return FieldStarsCam(point, star, v_cam, matrices.shape[0])
+    return FieldStarsCam(point, star, v_cam, n_pointings=matrices.shape[0])
 
 
 def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> np.ndarray:

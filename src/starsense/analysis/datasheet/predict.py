@@ -99,7 +99,7 @@ class StarModel:
     pixel_bias: object = None
 
     @classmethod
-    def build(cls, sensor, model: str, bright_mag: float, faint_mag: float) -> StarModel:
+    def build(cls, sensor, *, model: str, bright_mag: float, faint_mag: float) -> StarModel:
         """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``."""
         sens = Sensitivity.for_sensor(sensor, model)
         e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))

@@ -240,7 +240,9 @@ def _warnings(
 def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound."""
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
-    model = StarModel.build(sensor, st.model, float(np.min(mags)), limit_mag)
+    model = StarModel.build(
+        sensor, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag
+    )
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     sig, counts = nea_at(
@@ -297,7 +299,7 @@ def build_datasheet(
         return _no_stars(sensor, st, getattr(cat, "name", ""))
     fov = sensor.fov()
     analysis = AvailabilityAnalysis.from_catalog(
-        cat, fov, limit_mag, "V", n_orientations=st.n_orientations, roll=None, seed=st.seed
+        cat, fov, limit_mag, band="V", n_orientations=st.n_orientations, roll=None, seed=st.seed
     )
     avail, fine = _availability(analysis, curve, st.rate_rad_s)
     tick("availability")

@@ -79,6 +79,7 @@ class BrightestCurve:
 
 def brightest_curve(
     stars: BlackBodyStars,
+    *,
     diameter_m: float = 1.0,
     exposure_s: float = 1.0,
     points_per_decade: int = 20,

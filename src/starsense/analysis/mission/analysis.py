@@ -76,7 +76,7 @@ class Geometry:
         self.r, self.v = orbit.state(grid)
         self.sun = directions_from(body_positions(grid, "sun"), self.r)
         self.moon = directions_from(body_positions(grid, "moon"), self.r)
-        self.body = profile.attitudes(grid, self.r, self.v, self.sun)
+        self.body = profile.attitudes(grid, r=self.r, v=self.v, sun=self.sun)
         self.rate_body = body_rates(self.body, grid.step_s)
 
     def head_matrices(self, head: Head) -> NDArray[np.float64]:
