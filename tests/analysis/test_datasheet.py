@@ -4,14 +4,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import tomllib
+from importlib import resources
 
 import numpy as np
 import pytest
 from scipy import integrate, stats
 
+from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
 from starsense.analysis.datasheet.noise import centroid_noise, clipped_moments
-from starsense.analysis.datasheet.predict import fastest_rate, limiting_magnitude, slew_grids
+from starsense.analysis.datasheet.predict import (
+    StarModel,
+    fastest_rate,
+    limiting_magnitude,
+    nea_at,
+    slew_grids,
+)
 from starsense.analysis.datasheet.terms import (
     EARTH_ORBITAL_SPEED_M_S,
     aberration_error,
@@ -19,6 +28,7 @@ from starsense.analysis.datasheet.terms import (
 )
 from starsense.analysis.datasheet.verify import wrong_rate_upper
 from starsense.attitude.covariance import fisher_matrix
+from starsense.catalog import load_catalog
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
 from starsense.sensor import load_sensor, sensor_from_dict
@@ -152,9 +162,6 @@ def test_wrong_rate_upper_bound_zero_of_n():
 
 
 def _toml(extra: dict) -> dict:
-    import tomllib
-    from importlib import resources
-
     text = (resources.files("starsense.sensor") / "presets" / "st16.toml").read_text()
     return {**tomllib.loads(text), **extra}
 
@@ -171,10 +178,6 @@ def test_quoted_table_checked():
 
 
 def _sky_nea(sens, n=60):
-    from starsense.analysis.availability.field import catalog_stars
-    from starsense.analysis.datasheet.predict import StarModel, nea_at
-    from starsense.catalog import load_catalog
-
     vectors, mags = catalog_stars(
         load_catalog("hipparcos"), 4.0, band="V"
     )  # the same stars for all

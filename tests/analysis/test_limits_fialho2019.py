@@ -20,7 +20,13 @@ from starsense.attitude.covariance import (
     fisher_matrix,
 )
 from starsense.errors import InputError, SingularGeometryError
-from starsense.photometry import ColourModel, fit_star, passband, total_photons
+from starsense.photometry import (
+    ColourModel,
+    fit_star,
+    passband,
+    photons_per_wavelength,
+    total_photons,
+)
 from starsense.photometry.passbands import sun_spectrum, vega_spectrum
 from starsense.photometry.stars import BlackBodyStars
 from starsense.references import fialho2019 as paper
@@ -125,7 +131,6 @@ def test_eq19_closed_form_equals_eq17_integral():
 
 def test_total_photons_matches_integral():
     lam = np.geomspace(1e-8, 1e-3, 200_000)
-    from starsense.photometry import photons_per_wavelength
 
     n = np.trapezoid(photons_per_wavelength(3e-17, 9000.0, lam, 0.1, 0.1), lam)
     assert total_photons(3e-17, 9000.0, 0.1, 0.1) == pytest.approx(n, rel=1e-4)

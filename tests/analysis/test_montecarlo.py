@@ -7,6 +7,7 @@ import pytest
 
 from starsense.analysis.montecarlo import run_montecarlo
 from starsense.errors import InputError
+from starsense.scale import dask_client
 from starsense.sensor import load_sensor
 
 
@@ -50,7 +51,6 @@ def test_bad_input():
 def test_dask_run_identical_to_in_process():
     # trial k draws from the k-th child seed wherever it runs: the same frames, the same answers
     pytest.importorskip("distributed")
-    from starsense.scale import dask_client
 
     sensor = load_sensor("st16")
     local = run_montecarlo(sensor, n_trials=4, rng=21, max_mag=6.0)

@@ -14,9 +14,10 @@ from starsense.analysis.slew import (
     simulate_slew,
     tolerable_rate,
 )
+from starsense.detect.stack import detect_stack
 from starsense.errors import InputError
 from starsense.references import dzamba2014 as paper
-from starsense.sensor import load_sensor
+from starsense.sensor import DetectionThresholds, load_sensor
 
 
 def test_default_grid_contains_the_quoted_magnitudes():
@@ -121,9 +122,6 @@ def test_seeded_runs_are_reproducible():
 
 
 def test_detect_stack_matches_the_logic_on_crafted_stamps():
-    from starsense.detect.stack import detect_stack
-    from starsense.sensor import DetectionThresholds
-
     logic = DetectionThresholds(
         lit_pixel_counts=paper.DETECTION_LIT_PIXEL_COUNTS,
         min_pixels=paper.DETECTION_MIN_PIXELS,

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from starsense.analysis.availability import AvailabilityAnalysis, implied_threshold
 from starsense.analysis.slew import magnitude_threshold, simulate_slew
 from starsense.analysis.slew_study import (
     MC_NOISE_MAG_20,
@@ -15,7 +16,9 @@ from starsense.analysis.slew_study import (
     study_magnitudes,
     study_slew,
 )
+from starsense.catalog import load_catalog
 from starsense.errors import InputError
+from starsense.geometry.fov import CircularFov
 from starsense.references import dzamba2014 as paper
 from starsense.sensor import load_sensor
 
@@ -164,9 +167,6 @@ def test_table2_implied_thresholds_recomputed(bsc5_path):
     # references.dzamba2014.TABLE2_IMPLIED_MT: the m_t at which our spatial availability on BSC5
     # (the paper's set-up, sec. 1.2) equals Table 2's N_min = 2 and 3 values; the table holds
     # them rounded to 0.01 mag.
-    from starsense.analysis.availability import AvailabilityAnalysis, implied_threshold
-    from starsense.catalog import load_catalog
-    from starsense.geometry.fov import CircularFov
 
     analysis = AvailabilityAnalysis.from_catalog(
         load_catalog(f"bsc5:{bsc5_path}"), CircularFov(math.radians(paper.HALF_FOV_DEG)),

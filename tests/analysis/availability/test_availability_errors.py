@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from starsense.analysis.availability import (
     AvailabilityAnalysis,
@@ -116,8 +117,6 @@ def test_bad_threshold_curves():
 
 
 def test_field_stars_rejects_bad_arrays():
-    from scipy.spatial.transform import Rotation
-
     with pytest.raises(InputError, match=r"magnitudes must be finite"):
         FieldStars.build(CircularFov(0.1), Rotation.random(2), np.eye(3), [1, 2, np.nan])
     with pytest.raises(InputError, match=r"vectors must be \(N, 3\)"):

@@ -260,8 +260,8 @@ def test_track_mean_approaches_spatial_for_constant_threshold():
     curve = ThresholdCurve.constant(1.1)  # ~3 stars per field: availability ~0.6
     spatial = an.static(3, max_mag=1.1).availability
     assert 0.4 < spatial < 0.8
-    one = an.track(curve, np.radians(1.0), n_min=3, inclinations=np.radians(np.arange(-90, 91, 2.0)),
-                   n_samples=500)  # fmt: skip
+    one = an.track(curve, np.radians(1.0), n_min=3,
+                   inclinations=np.radians(np.arange(-90, 91, 2.0)), n_samples=500)  # fmt: skip
     assert one.spatial[3] == spatial
     assert one.mean == pytest.approx(spatial, abs=0.05)
     means = [

@@ -10,6 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from starsense.analysis import guide_stars as gs
+from starsense.catalog import load_catalog
 from starsense.cli import app, main
 from starsense.errors import InputError
 from starsense.geometry.areas import AreaLayout, FocalArea
@@ -268,8 +269,6 @@ def test_selection_statuses_and_errors():
 
 @pytest.fixture(scope="module")
 def hip():
-    from starsense.catalog import load_catalog
-
     return load_catalog("hipparcos")
 
 

@@ -6,8 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from starsense.analysis import guide_stars as gs
+from starsense.analysis.guide_stars.metrics import chi_cdf
 from starsense.attitude.covariance import covariance, fisher_matrix
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
@@ -162,9 +164,6 @@ def test_edge_units_read_back_as_given():
 def test_chi_cdf_is_scipy_stats():
     # an independent computation: scipy.stats' chi (3 dof) and Rayleigh (chi, 2 dof) CDFs;
     # agreement to a few ulp of 1 (the closed form and the incomplete gamma are both exact)
-    from scipy import stats
-
-    from starsense.analysis.guide_stars.metrics import chi_cdf
 
     x = np.linspace(0.0, 8.0, 4001)
     np.testing.assert_allclose(chi_cdf(x, 2), stats.rayleigh.cdf(x), rtol=0, atol=1e-15)

@@ -128,7 +128,8 @@ def test_nadir_head_always_earth_blinded_and_zenith_never(stars):
     exc = Exclusion(sun_rad=45 * DEG, moon_rad=10 * DEG, earth_limb_rad=0.0, atmosphere_m=0.0)
     zenith = Rotation.from_euler("x", 180.0, degrees=True)
     res = mission_availability(geo, [Head("nadir", FOV, CURVE, exclusion=exc),
-                                     Head("zenith", FOV, CURVE, zenith, exc)], vectors=v, magnitudes=m)  # fmt: skip
+                                     Head("zenith", FOV, CURVE, zenith, exc)],
+                               vectors=v, magnitudes=m)  # fmt: skip
     nadir, up = res.heads
     assert nadir.earth_blinded.all() and not nadir.available.any()
     assert np.all(nadir.stars == 0)

@@ -6,16 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from astropy import units as u
-from astropy.coordinates import (
-    GCRS,
-    TEME,
-    CartesianRepresentation,
-    SkyCoord,
-    angular_separation,
-    get_body,
-)
-from astropy.utils import iers
 
 from starsense.analysis.availability import ThresholdCurve
 from starsense.analysis.mission import (
@@ -46,6 +36,9 @@ PLUS_Y = mounting_from_quaternion([math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])  #
 
 
 def _separation_deg(a, b):
+    from astropy import units as u
+    from astropy.coordinates import angular_separation
+
     sa, sb = a.spherical, b.spherical
     return angular_separation(sa.lon, sa.lat, sb.lon, sb.lat).to_value(u.deg)
 
@@ -57,6 +50,9 @@ def test_sun_and_moon_separation_match_astropy_over_a_day():
     # formula of SkyCoord.separation (astropy's angular_separation, Vincenty), in that frame.
     # Tolerance 0.01 deg, the issue's; measured 2 arcsec (Sun) and 5 arcsec (Moon): aberration
     # by the spacecraft's 7.6 km/s and light time.
+    from astropy import units as u
+    from astropy.coordinates import GCRS, CartesianRepresentation, SkyCoord, get_body
+
     grid = TimeGrid.span("2025-06-01T00:00:00", 86400.0, 600.0)
     geo = mission_geometry(
         grid, sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start), AttitudeProfile("nadir")
@@ -126,6 +122,10 @@ def test_elliptical_orbit_vis_viva():
 def test_teme_to_gcrs_matches_astropy():
     # Our ERFA rotation (NPB^T R3(-EqE)) against astropy's TEME -> GCRS at the TLE's epoch
     # (inside the bundled IERS-B table: no download). 1 m on a 7000 km vector = 0.03 arcsec.
+    from astropy import units as u
+    from astropy.coordinates import GCRS, TEME, CartesianRepresentation
+    from astropy.utils import iers
+
     orbit = TleOrbit(*TLE5.splitlines())
     grid = TimeGrid.span(orbit.epoch, 120.0, 60.0)
     r, _ = orbit.state(grid)
@@ -158,7 +158,9 @@ def test_ground_point_in_gcrs_matches_astropy_and_target_profile():
     # EarthLocation.get_gcrs (IERS-B, 2020: no download). UT1 - UTC was -0.18 s in June 2020:
     # 0.18 s x 465 m/s x cos(45 deg) = 60 m; tolerance 150 m (0.0013 deg seen from the centre).
     import erfa
+    from astropy import units as u
     from astropy.coordinates import EarthLocation
+    from astropy.utils import iers
 
     grid = TimeGrid.span("2020-06-01T00:00:00", 86400.0, 3600.0)
     lat, lon = 45.0, 7.0
