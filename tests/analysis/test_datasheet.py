@@ -70,7 +70,7 @@ def test_measured_centroid_noise_photon_limited():
     # the tracker's CoG on a bright star with no read noise: ~ sqrt(sigma^2 + 1/12) / sqrt(N);
     # 300 renders give the rms to +-4 % (1 sigma), the window truncation a few % more: 15 %
     sens = _ideal(read_noise_e=0.0)
-    table = centroid_noise(sens, 2e5, 4e5, n_grid=2, n_stamps=300, seed=4)
+    table = centroid_noise(sens, 2e5, 4e5, n_grid=2, n_stamps=300, rng=4)
     expected = math.sqrt(1.5**2 + 1 / 12) / math.sqrt(2e5)
     assert table.sigma_px[0] == pytest.approx(expected, rel=0.15)
 
@@ -78,7 +78,7 @@ def test_measured_centroid_noise_photon_limited():
 def test_nea_photon_limited_scales_as_one_over_d():
     # photon-limited: sigma ~ 1/sqrt(N) ~ 1/D; the same star through apertures D and 2D (N x 4);
     # 300 renders per point give each rms to +-4 %, so the ratio to ~6 %: 15 %
-    table = centroid_noise(_ideal(0.0), 2e4, 8e4, n_grid=2, n_stamps=300, seed=5)
+    table = centroid_noise(_ideal(0.0), 2e4, 8e4, n_grid=2, n_stamps=300, rng=5)
     assert table.sigma_px[0] / table.sigma_px[1] == pytest.approx(2.0, rel=0.15)
 
 
@@ -92,7 +92,7 @@ def test_nea_read_noise_limited_scales_steeper():
     logic = dataclasses.replace(sens.detection, lit_pixel_counts=150.0, min_pixels=3,
                                 min_integrated_counts=500.0)  # fmt: skip
     sens = dataclasses.replace(sens, detector=det, detection=logic)
-    table = centroid_noise(sens, 2e4, 8e4, n_grid=2, n_stamps=300, seed=6)
+    table = centroid_noise(sens, 2e4, 8e4, n_grid=2, n_stamps=300, rng=6)
     measured = table.sigma_px[0] / table.sigma_px[1]
     model = table.window_model_px[0] / table.window_model_px[1]
     assert model > 2.8

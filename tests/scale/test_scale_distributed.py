@@ -204,7 +204,7 @@ def test_brightest_order_is_independent_of_row_order(data):
 )
 def test_star_counts_per_boresight_equal_in_memory(data, client, fov):
     _, gaia, _, hats = data
-    _, attitudes = sky_attitudes(1_000, None, seed=2)
+    _, attitudes = sky_attitudes(1_000, None, rng=2)
     counts = star_counts(hats, fov, attitudes, 11.0, band="G", client=client)
     counts0 = FieldStars.build(fov, attitudes, *catalog_stars(gaia, 11.0, band="G")).counts()
     np.testing.assert_array_equal(counts, counts0)

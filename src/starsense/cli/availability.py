@@ -215,8 +215,8 @@ def _setup(
             max_mag,
             band=band,
             n_orientations=n_orientations,
-            roll=roll,
-            seed=seed,
+            roll_rad=roll,
+            rng=seed,
             progress=progress,
         )
     return sens, cat, analysis
@@ -514,7 +514,12 @@ def track(
         )
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
         res = analysis.track(
-            curve, rate, n_min=n_min, inclinations=inclinations, n_samples=track_samples, node=node
+            curve,
+            rate,
+            n_min=n_min,
+            inclinations=inclinations,
+            n_samples=track_samples,
+            node_rad=node,
         )
     payload = {**res.to_dict(), "sensor": sens.name, "model": model}
     lines = res.lines()
@@ -586,7 +591,7 @@ def fidelity(
                 cat,
                 curve,
                 rate_rad_s=rate,
-                n_frames=frames,
+                n_trials=frames,
                 n_min=n_min,
                 max_mag=max_mag,
                 model=model,

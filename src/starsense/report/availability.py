@@ -108,7 +108,7 @@ def _star_set(ctx: ReportContext, fov: CircularFov) -> tuple[AvailabilityAnalysi
         stars.magnitude,
         fov,
         max_mag=paper.MAX_MAG,
-        seed=ctx.seed,
+        rng=ctx.seed,
         catalog=ctx.catalog_name,
         band="V" if stars.colour == "B-V" else stars.colour,
     )
@@ -371,7 +371,7 @@ def _node_table(ctx, analysis, curve, tracks, node0, other_nodes, data) -> str:
     for node in other_nodes:
         ctx.progress(f"availability: tracks through the node at RA {node:g} deg")
         for w in TRACK_RATES_DEG_S:
-            t = analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node=node * DEG)
+            t = analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node_rad=node * DEG)
             by_node.setdefault(f"{node:g}", {})[f"{w:g}"] = {
                 str(k): t.stats(k) for k in (N_MIN_TRACKING, N_MIN_LOST_IN_SPACE)
             }
@@ -406,7 +406,7 @@ def _track_part(ctx, analysis, curve, figures, data) -> str:
     ctx.progress("availability: along-track tracks")
     node0, *other_nodes = TRACK_NODES_DEG
     tracks = [
-        analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node=node0 * DEG)
+        analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node_rad=node0 * DEG)
         for w in TRACK_RATES_DEG_S
     ]
     data["track"] = {f"{t.rate_deg_s:g}": t.to_dict() for t in tracks}
@@ -486,7 +486,7 @@ def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
                     catalog,
                     curve,
                     rate_rad_s=rate * DEG,
-                    n_frames=FIDELITY_FRAMES,
+                    n_trials=FIDELITY_FRAMES,
                     max_mag=paper.MAX_MAG,
                     rng=ctx.seed,
                 )

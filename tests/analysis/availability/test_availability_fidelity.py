@@ -25,7 +25,7 @@ def test_fidelity_check_static_frames(modules):
     sensor = load_sensor("st16")
     catalog = load_catalog("hipparcos")
     res = fidelity_check(
-        sensor, catalog, ThresholdCurve.constant(5.75), rate_rad_s=0.0, n_frames=3, rng=1
+        sensor, catalog, ThresholdCurve.constant(5.75), rate_rad_s=0.0, n_trials=3, rng=1
     )
     assert res.n_frames == 3
     assert res.model_counts.shape == res.frame_counts.shape == (3,)

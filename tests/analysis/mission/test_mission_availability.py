@@ -84,7 +84,7 @@ def test_inertial_without_bright_bodies_equals_static_availability(stars):
     # with m_t = m_t(0). Per boresight the outcome equals the spatial analysis' (FieldStars
     # counts >= N_min), and the fraction over the boresights equals its availability.
     v, m = stars
-    _, attitudes = sky_attitudes(24, roll=0.3, seed=0)
+    _, attitudes = sky_attitudes(24, roll_rad=0.3, rng=0)
     ra, dec, roll = radec_roll_from_attitude(attitudes)
     grid = TimeGrid.span("2025-03-20T00:00:00", 600.0, 60.0)
     orbit = sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start)

@@ -60,8 +60,8 @@ def _analysis(
         max_mag,
         band=band,
         n_orientations=n_orientations,
-        roll=roll_rad,
-        seed=root_seed(rng),
+        roll_rad=roll_rad,
+        rng=root_seed(rng),
         progress=progress,
     )
     return sens, analysis

@@ -159,7 +159,7 @@ def fidelity_check(
     curve: ThresholdCurve,
     *,
     rate_rad_s: float,
-    n_frames: int = 50,
+    n_trials: int = 50,
     n_min: int = N_MIN_LOST_IN_SPACE,
     max_mag: float = 5.75,
     model: str = "reed",
@@ -188,7 +188,7 @@ def fidelity_check(
         The threshold model.
     rate_rad_s : float
         Cross-axis slew rate, rad/s.
-    n_frames : int
+    n_trials : int
         Frames to render.
     n_min : int
         Stars needed.
@@ -215,7 +215,7 @@ def fidelity_check(
     InputError
         On bad counts or rates.
     """
-    n_frames = check_int(n_frames, "n_frames", 1)
+    n_frames = check_int(n_trials, "n_trials", 1)
     n_min = check_int(n_min, "n_min", 1)
     w = float(check_rates(rate_rad_s, "rate_rad_s")[0])
     vectors, mags = catalog_stars(catalog, max_mag, band=band)

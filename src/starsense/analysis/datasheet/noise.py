@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr
 
+from starsense._validate import as_generator
 from starsense.detect.threshold import StarDetector
 from starsense.render.noise import apply_noise
 from starsense.render.psf import gaussian_stamp, pixel_profile
@@ -207,7 +208,7 @@ def centroid_noise(
     n_grid: int = 16,
     n_phase: int = 4,
     n_stamps: int = 200,
-    seed: int = 0,
+    rng: int | np.random.Generator | None = 0,
 ) -> CentroidNoise:
     """Tabulate the centroid noise of the sensor's centroider against photo-electrons.
 
@@ -231,8 +232,8 @@ def centroid_noise(
         Sub-pixel positions per axis of the analytic terms (``n_phase^2`` in all).
     n_stamps : int
         Noisy renders per table point.
-    seed : int
-        Seed of the renders.
+    rng : None, int or numpy.random.Generator
+        Randomness of the renders (an int: its seed).
 
     Returns
     -------
@@ -244,7 +245,7 @@ def centroid_noise(
     grid = np.geomspace(lo, hi, int(n_grid))
     offsets = (np.arange(n_phase) + 0.5) / n_phase - 0.5
     phases = [(float(a), float(b)) for a in offsets for b in offsets]
-    rng = np.random.default_rng(seed)
+    rng, _ = as_generator(rng)
     out = np.empty((len(grid), 6))
     for k, n_e in enumerate(grid):
         res = np.array([_one(float(n_e), ph, sensor, margin_px) for ph in phases])

@@ -299,7 +299,7 @@ def build_datasheet(
         return _no_stars(sensor, st, getattr(cat, "name", ""))
     fov = sensor.fov()
     analysis = AvailabilityAnalysis.from_catalog(
-        cat, fov, limit_mag, band="V", n_orientations=st.n_orientations, roll=None, seed=st.seed
+        cat, fov, limit_mag, band="V", n_orientations=st.n_orientations, roll_rad=None, rng=st.seed
     )
     avail, fine = _availability(analysis, curve, st.rate_rad_s)
     tick("availability")
