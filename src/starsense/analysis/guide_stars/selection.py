@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import combinations
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -17,12 +18,20 @@ from starsense.geometry.projection import _points as xy_points
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.units import ARCSEC
 
-__all__ = ["CRITERIA", "SELECTION_SIGMA", "GuideStarSelection", "select_guide_stars"]
+__all__ = [
+    "CRITERIA",
+    "SELECTION_SIGMA",
+    "GuideStarSelection",
+    "SelectionStatus",
+    "select_guide_stars",
+]
 
 CRITERIA = ("trace", "rules", "brightest")
 """Selection criteria of :func:`select_guide_stars`."""
 SELECTION_SIGMA = 0.1 * ARCSEC
 """Default per-axis measurement error of the trace criterion, rad (0.1 arcsec)."""
+SelectionStatus = Literal["ok", "no_stars", "too_few_stars"]
+"""What a guide-star selection found (:attr:`GuideStarSelection.status`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,7 +40,7 @@ class GuideStarSelection:
 
     Attributes
     ----------
-    status : str
+    status : SelectionStatus
         ``"ok"``, ``"no_stars"`` (no catalogue star in the areas) or ``"too_few_stars"`` (1-2:
         no triangle, no attitude).
     indices : ndarray of int
@@ -48,7 +57,7 @@ class GuideStarSelection:
         The criterion used.
     """
 
-    status: str
+    status: SelectionStatus
     indices: NDArray[np.int_]
     n_candidates: int
     areas_covered: int
