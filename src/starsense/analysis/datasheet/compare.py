@@ -93,7 +93,17 @@ class Comparison:
 
     @classmethod
     def from_sheets(cls, sheets: Sequence[Datasheet]) -> Comparison:
-        """Return the comparison of datasheets already built."""
+        """Return the comparison of datasheets already built.
+
+        Parameters
+        ----------
+        sheets : sequence of Datasheet
+            One per sensor, in the order of the columns.
+
+        Returns
+        -------
+        Comparison
+        """
         sheets = tuple(sheets)
         return cls(sheets, comparison_rows([s.to_dict() for s in sheets]))
 
