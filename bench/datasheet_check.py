@@ -38,8 +38,8 @@ def main(argv: list[str]) -> int:
     with dask_client(f"local:{os.cpu_count() or 1}") as client:
         for name in args.sensors:
             t0 = time.perf_counter()
-            settings = DatasheetSettings(trials=args.frames, rate_trials=100, seed=args.seed)
-            d = build_datasheet(load_sensor(name), cat, settings, client=client).to_dict()
+            settings = DatasheetSettings(n_trials=args.frames, n_rate_trials=100, seed=args.seed)
+            d = build_datasheet(load_sensor(name), cat, settings=settings, client=client).to_dict()
             mc = d["monte_carlo"]
             record = {
                 "sensor": name,

@@ -77,7 +77,9 @@ def _limit_sky_bundled() -> float:
 
     cat = load_catalog("hipparcos")
     BlackBodyStars.from_catalog(cat)  # builds the colour tables once (photometry set-up)
-    return best_of(lambda: sky_limit(BlackBodyStars.from_catalog(cat), 1.0, 1.0))
+    return best_of(
+        lambda: sky_limit(BlackBodyStars.from_catalog(cat), diameter_m=1.0, exposure_s=1.0)
+    )
 
 
 @bench("limit_sky_5M", "whole-sky limit, 5 million synthetic stars from V and B-V, one core", 1.0)
@@ -97,7 +99,7 @@ def _limit_sky_5m() -> float:
 
     def run():
         t, c = model.fit(mag, bv)
-        return sky_limit(BlackBodyStars(v, t, c, mag), 1.0, 1.0)
+        return sky_limit(BlackBodyStars(v, t, c, mag), diameter_m=1.0, exposure_s=1.0)
 
     return best_of(run, repeat=3)
 
@@ -151,7 +153,7 @@ def _slew_curve() -> float:
     from starsense.sensor import load_sensor
 
     sensor = load_sensor("st16")
-    return best_of(lambda: simulate_slew(sensor, "reed", n_trials=20, seed=0), repeat=2)
+    return best_of(lambda: simulate_slew(sensor, model="reed", n_trials=20, rng=0), repeat=2)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -261,7 +263,7 @@ def _track_frame() -> float:
 def _guide_stars_table1() -> float:
     from starsense.analysis.guide_stars import simulate_table1
 
-    tab = simulate_table1(n_trials=10_000, seed=0)
+    tab = simulate_table1(n_trials=10_000, rng=0)
     four = ", ".join(f"{100 * p:.2f}" for p in tab.probability_mc["four"])
     print(f"    (four areas, %: {four})", flush=True)
     return tab.elapsed_s
@@ -277,7 +279,7 @@ def _guide_stars_select() -> float:
     xy = rng.uniform(-lay.lens_radius, lay.lens_radius, (400, 2))
     xy = xy[lay.index(xy) > 0][:20]
     mag = rng.uniform(5, 10, len(xy))
-    return best_of(lambda: select_guide_stars(xy, mag, lay, criterion="trace"), repeat=5)
+    return best_of(lambda: select_guide_stars(xy, mag, layout=lay, criterion="trace"), repeat=5)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -444,11 +446,11 @@ def _mission_day() -> float:
     heads = [Head(n, fov, curve, Rotation.from_euler("x", a, degrees=True), sensor.exclusion)
              for n, a in tilts]  # fmt: skip
     grid = TimeGrid.span("2025-03-20T00:00:00", 86400.0, 1.0)
-    orbit = sun_synchronous(550e3, 6.0, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start)
 
     def run():
         geo = mission_geometry(grid, orbit, AttitudeProfile("nadir"))
-        return mission_availability(geo, heads, v, m)
+        return mission_availability(geo, heads, vectors=v, magnitudes=m)
 
     run()  # warm: astropy's ephemeris and ERFA tables
     return best_of(run, repeat=3)

@@ -4,14 +4,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import tomllib
+from importlib import resources
 
 import numpy as np
 import pytest
 from scipy import integrate, stats
 
+from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
 from starsense.analysis.datasheet.noise import centroid_noise, clipped_moments
-from starsense.analysis.datasheet.predict import fastest_rate, limiting_magnitude, slew_grids
+from starsense.analysis.datasheet.predict import (
+    StarModel,
+    fastest_rate,
+    limiting_magnitude,
+    nea_at,
+    slew_grids,
+)
 from starsense.analysis.datasheet.terms import (
     EARTH_ORBITAL_SPEED_M_S,
     aberration_error,
@@ -19,6 +28,7 @@ from starsense.analysis.datasheet.terms import (
 )
 from starsense.analysis.datasheet.verify import wrong_rate_upper
 from starsense.attitude.covariance import fisher_matrix
+from starsense.catalog import load_catalog
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
 from starsense.sensor import load_sensor, sensor_from_dict
@@ -35,7 +45,7 @@ def test_clipped_moments_against_quadrature(mu, sigma, lo, hi):
     p_lo, p_hi = stats.norm.cdf(lo, mu, sigma), stats.norm.sf(top, mu, sigma)
     m1 = integrate.quad(lambda x: x * pdf(x), lo, top)[0] + lo * p_lo + top * p_hi
     m2 = integrate.quad(lambda x: x * x * pdf(x), lo, top)[0] + lo**2 * p_lo + top**2 * p_hi
-    mean, var = clipped_moments(mu, sigma, lo, hi)
+    mean, var = clipped_moments(mu, sigma, lo=lo, hi=hi)
     # quadrature is good to ~1e-10 here; 1e-8 leaves room for the 12-sigma truncation
     assert mean == pytest.approx(m1, abs=1e-8)
     assert var == pytest.approx(m2 - m1 * m1, abs=1e-8)
@@ -60,7 +70,7 @@ def test_measured_centroid_noise_photon_limited():
     # the tracker's CoG on a bright star with no read noise: ~ sqrt(sigma^2 + 1/12) / sqrt(N);
     # 300 renders give the rms to +-4 % (1 sigma), the window truncation a few % more: 15 %
     sens = _ideal(read_noise_e=0.0)
-    table = centroid_noise(sens, 2e5, 4e5, n_grid=2, n_stamps=300, seed=4)
+    table = centroid_noise(sens, 2e5, 4e5, n_grid=2, n_stamps=300, rng=4)
     expected = math.sqrt(1.5**2 + 1 / 12) / math.sqrt(2e5)
     assert table.sigma_px[0] == pytest.approx(expected, rel=0.15)
 
@@ -68,7 +78,7 @@ def test_measured_centroid_noise_photon_limited():
 def test_nea_photon_limited_scales_as_one_over_d():
     # photon-limited: sigma ~ 1/sqrt(N) ~ 1/D; the same star through apertures D and 2D (N x 4);
     # 300 renders per point give each rms to +-4 %, so the ratio to ~6 %: 15 %
-    table = centroid_noise(_ideal(0.0), 2e4, 8e4, n_grid=2, n_stamps=300, seed=5)
+    table = centroid_noise(_ideal(0.0), 2e4, 8e4, n_grid=2, n_stamps=300, rng=5)
     assert table.sigma_px[0] / table.sigma_px[1] == pytest.approx(2.0, rel=0.15)
 
 
@@ -82,7 +92,7 @@ def test_nea_read_noise_limited_scales_steeper():
     logic = dataclasses.replace(sens.detection, lit_pixel_counts=150.0, min_pixels=3,
                                 min_integrated_counts=500.0)  # fmt: skip
     sens = dataclasses.replace(sens, detector=det, detection=logic)
-    table = centroid_noise(sens, 2e4, 8e4, n_grid=2, n_stamps=300, seed=6)
+    table = centroid_noise(sens, 2e4, 8e4, n_grid=2, n_stamps=300, rng=6)
     measured = table.sigma_px[0] / table.sigma_px[1]
     model = table.window_model_px[0] / table.window_model_px[1]
     assert model > 2.8
@@ -152,9 +162,6 @@ def test_wrong_rate_upper_bound_zero_of_n():
 
 
 def _toml(extra: dict) -> dict:
-    import tomllib
-    from importlib import resources
-
     text = (resources.files("starsense.sensor") / "presets" / "st16.toml").read_text()
     return {**tomllib.loads(text), **extra}
 
@@ -171,14 +178,12 @@ def test_quoted_table_checked():
 
 
 def _sky_nea(sens, n=60):
-    from starsense.analysis.availability.field import catalog_stars
-    from starsense.analysis.datasheet.predict import StarModel, nea_at
-    from starsense.catalog import load_catalog
-
-    vectors, mags = catalog_stars(load_catalog("hipparcos"), 4.0, "V")  # the same stars for all
-    model = StarModel.build(sens, "reed", float(mags.min()), 4.0)
+    vectors, mags = catalog_stars(
+        load_catalog("hipparcos"), 4.0, band="V"
+    )  # the same stars for all
+    model = StarModel.build(sens, model="reed", bright_mag=float(mags.min()), faint_mag=4.0)
     att = random_attitudes(n, np.random.default_rng(8)).as_matrix()
-    sig, _ = nea_at(model, sens.fov(), att, vectors, mags)
+    sig, _ = nea_at(model, sens.fov(), att, vectors=vectors, magnitudes=mags)
     return float(np.nanmedian(sig["nea"][0])), float(np.nanmedian(sig["nea"][1]))
 
 

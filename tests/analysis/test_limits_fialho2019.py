@@ -20,7 +20,13 @@ from starsense.attitude.covariance import (
     fisher_matrix,
 )
 from starsense.errors import InputError, SingularGeometryError
-from starsense.photometry import ColourModel, fit_star, passband, total_photons
+from starsense.photometry import (
+    ColourModel,
+    fit_star,
+    passband,
+    photons_per_wavelength,
+    total_photons,
+)
 from starsense.photometry.passbands import sun_spectrum, vega_spectrum
 from starsense.photometry.stars import BlackBodyStars
 from starsense.references import fialho2019 as paper
@@ -36,7 +42,7 @@ TABLE1_HKS = list(paper.TABLE1_HKS)
 
 def _row(colour, mag, ci):
     t, c = fit_star(mag, ci, colour)
-    sigma = 1.0 / np.sqrt(centroid_fisher(c, t, D_TABLE1_M, T_TABLE1_S))
+    sigma = 1.0 / np.sqrt(centroid_fisher(c, t, diameter_m=D_TABLE1_M, exposure_s=T_TABLE1_S))
     return t, c, sigma
 
 
@@ -83,8 +89,12 @@ def test_fialho2019_table1_numeric_vega_and_sun():
     # Our spectra are CALSPEC stis_011 (paper: stis_008) and Kurucz 1993; 2 % covers both.
     lv, ev = vega_spectrum()
     ls, es = sun_spectrum()
-    s_vega = 1 / np.sqrt(centroid_fisher_spectrum(lv, ev, D_TABLE1_M, T_TABLE1_S))
-    s_sun = 1 / np.sqrt(centroid_fisher_spectrum(ls, es, D_TABLE1_M, T_TABLE1_S))
+    s_vega = 1 / np.sqrt(
+        centroid_fisher_spectrum(lv, ev, diameter_m=D_TABLE1_M, exposure_s=T_TABLE1_S)
+    )
+    s_sun = 1 / np.sqrt(
+        centroid_fisher_spectrum(ls, es, diameter_m=D_TABLE1_M, exposure_s=T_TABLE1_S)
+    )
     assert s_vega == pytest.approx(1.74e-10, rel=0.02)
     assert s_sun == pytest.approx(1.14e-15, rel=0.02)
 
@@ -113,13 +123,14 @@ def test_eq19_closed_form_equals_eq17_integral():
     lam = np.geomspace(1e-8, 1e-3, 200_000)
     t = np.array([2500.0, 5800.0, 13000.0, 30000.0])
     c = np.array([1e-20, 2e-17, 3e-15, 1e-18])
-    num = centroid_fisher_numeric(c, t, lam, None, 0.2, 0.5)
-    assert np.allclose(num, centroid_fisher(c, t, 0.2, 0.5), rtol=1e-4)
+    num = centroid_fisher_numeric(
+        c, t, wavelength_m=lam, response=None, diameter_m=0.2, exposure_s=0.5
+    )
+    assert np.allclose(num, centroid_fisher(c, t, diameter_m=0.2, exposure_s=0.5), rtol=1e-4)
 
 
 def test_total_photons_matches_integral():
     lam = np.geomspace(1e-8, 1e-3, 200_000)
-    from starsense.photometry import photons_per_wavelength
 
     n = np.trapezoid(
         photons_per_wavelength(3e-17, 9000.0, lam, diameter_m=0.1, exposure_s=0.1), lam
@@ -147,9 +158,9 @@ def test_bad_star_input():
     with pytest.raises(InputError, match="unknown colour system 'U-Z'"):
         ColourModel("U-Z")
     with pytest.raises(InputError, match="diameter_m must be a finite number > 0"):
-        centroid_fisher(1e-17, 9000.0, 0.0, 1.0)
+        centroid_fisher(1e-17, 9000.0, diameter_m=0.0, exposure_s=1.0)
     with pytest.raises(InputError, match="exposure_s must be a finite number > 0"):
-        centroid_fisher(1e-17, 9000.0, 0.1, -1.0)
+        centroid_fisher(1e-17, 9000.0, diameter_m=0.1, exposure_s=-1.0)
 
 
 # --- invariants of the attitude bound -------------------------------------------------------
@@ -187,8 +198,8 @@ def test_isotropic_stars_analytic():
 
 def test_scales_as_d_minus2_t_minus_half():
     stars = _stars(_random_unit(100, 3))
-    base = sky_limit(stars, 0.05, 0.2)
-    other = sky_limit(stars, 0.15, 1.8)
+    base = sky_limit(stars, diameter_m=0.05, exposure_s=0.2)
+    other = sky_limit(stars, diameter_m=0.15, exposure_s=1.8)
     assert other.theta_rms_rad == pytest.approx(base.theta_rms_rad / 9 / 3, rel=1e-12)
     assert other.g_rad_m2_s05 == pytest.approx(base.g_rad_m2_s05, rel=1e-12)
 
@@ -218,13 +229,17 @@ def test_great_circle_stars_are_not_singular():
 
 def test_fov_360_equals_sky_and_merged_never_worse():
     stars = _stars(_random_unit(3000, 4))
-    sky = sky_limit(stars, 0.1, 0.01)
+    sky = sky_limit(stars, diameter_m=0.1, exposure_s=0.01)
     targets = np.array([[1.0, 0, 0], [0, 1.0, 0]])
-    heads, merged = fov_limit(stars, targets, 2 * np.pi, 0.1, 0.01)
+    heads, merged = fov_limit(
+        stars, targets, fov_diameter_rad=2 * np.pi, diameter_m=0.1, exposure_s=0.01
+    )
     assert heads[0].theta_rms_rad == pytest.approx(sky.theta_rms_rad, rel=1e-12)
     assert merged.theta_rms_rad == pytest.approx(sky.theta_rms_rad / np.sqrt(2), rel=1e-12)
     for fov_deg in (90, 25, 10):
-        heads, merged = fov_limit(stars, targets, np.radians(fov_deg), 0.1, 0.01)
+        heads, merged = fov_limit(
+            stars, targets, fov_diameter_rad=np.radians(fov_deg), diameter_m=0.1, exposure_s=0.01
+        )
         assert merged.theta_rms_rad <= min(h.theta_rms_rad for h in heads)
         # a narrow field: roll about the boresight is the worst axis
         assert heads[0].axis_sigma_rad[2] > heads[0].axis_sigma_rad[:2].max()
@@ -244,7 +259,7 @@ def test_brightest_curve_ends_at_sky_limit():
 def test_low_photon_degradation_bright_and_faint():
     v = _random_unit(60, 6)
     # bright: every star delivers > 1e4 photons -> treated as deterministic, no degradation
-    bright = low_photon_degradation(_stars(v, c=1e-15), 0.1, 0.1, n_trials=20)
+    bright = low_photon_degradation(_stars(v, c=1e-15), diameter_m=0.1, exposure_s=0.1, n_trials=20)
     assert bright.degradation == pytest.approx(1.0, rel=1e-12)
     assert bright.n_below_one_photon == 0
     # faint: the expected number of stars seen is sum(1 - e^-iota), and the loss grows as the
@@ -253,7 +268,9 @@ def test_low_photon_degradation_bright_and_faint():
     per_photon_c = 1e-17 / total_photons(1e-17, 9000.0, diameter_m=0.1, exposure_s=0.1)
     deg = []
     for iota in (5.0, 1.0, 0.5):
-        res = low_photon_degradation(_stars(v, c=iota * per_photon_c), 0.1, 0.1, 500, rng=1)
+        res = low_photon_degradation(
+            _stars(v, c=iota * per_photon_c), diameter_m=0.1, exposure_s=0.1, n_trials=500, rng=1
+        )
         assert res.expected_observed_stars == pytest.approx(60 * (1 - np.exp(-iota)), rel=1e-9)
         deg.append(res.degradation)
     assert 1.0 < deg[0] < deg[1] < deg[2]

@@ -7,13 +7,14 @@ import pytest
 
 from starsense.analysis.montecarlo import run_montecarlo
 from starsense.errors import InputError
+from starsense.scale import dask_client
 from starsense.sensor import load_sensor
 
 
 @pytest.fixture(scope="module")
 def st16_static():
     # 24 random attitudes, static, all Hipparcos stars rendered: ~4 s
-    return run_montecarlo(load_sensor("st16"), 24, seed=3)
+    return run_montecarlo(load_sensor("st16"), n_trials=24, rng=3)
 
 
 def test_st16_static_solves_every_frame_and_never_wrongly(st16_static):
@@ -35,27 +36,26 @@ def test_errors_agree_with_predicted_covariance(st16_static):
 
 
 def test_reproducible():
-    a = run_montecarlo(load_sensor("st16"), 2, seed=11, max_mag=6.0)
-    b = run_montecarlo(load_sensor("st16"), 2, seed=11, max_mag=6.0)
+    a = run_montecarlo(load_sensor("st16"), n_trials=2, rng=11, max_mag=6.0)
+    b = run_montecarlo(load_sensor("st16"), n_trials=2, rng=11, max_mag=6.0)
     assert np.array_equal(a.errors_arcsec, b.errors_arcsec)
 
 
 def test_bad_input():
     with pytest.raises(InputError, match="n_trials must be an integer >= 1"):
-        run_montecarlo(load_sensor("st16"), 0)
+        run_montecarlo(load_sensor("st16"), n_trials=0)
     with pytest.raises(InputError, match="rate_rad_s must be >= 0"):
-        run_montecarlo(load_sensor("st16"), 1, rate_rad_s=np.radians(-1))
+        run_montecarlo(load_sensor("st16"), n_trials=1, rate_rad_s=np.radians(-1))
 
 
 def test_dask_run_identical_to_in_process():
     # trial k draws from the k-th child seed wherever it runs: the same frames, the same answers
     pytest.importorskip("distributed")
-    from starsense.scale import dask_client
 
     sensor = load_sensor("st16")
-    local = run_montecarlo(sensor, 4, seed=21, max_mag=6.0)
+    local = run_montecarlo(sensor, n_trials=4, rng=21, max_mag=6.0)
     with dask_client("local:2", processes=False) as client:
-        remote = run_montecarlo(sensor, 4, seed=21, max_mag=6.0, client=client)
+        remote = run_montecarlo(sensor, n_trials=4, rng=21, max_mag=6.0, client=client)
     assert np.array_equal(local.errors_rad, remote.errors_rad)
     assert np.array_equal(local.truth_quat, remote.truth_quat)
     assert local.statuses == remote.statuses

@@ -9,14 +9,15 @@ import pytest
 
 from starsense.analysis.slew import (
     SlewResult,
-    _tolerable,
     default_magnitudes,
     magnitude_threshold,
     simulate_slew,
+    tolerable_rate,
 )
+from starsense.detect.stack import detect_stack
 from starsense.errors import InputError
 from starsense.references import dzamba2014 as paper
-from starsense.sensor import load_sensor
+from starsense.sensor import DetectionThresholds, load_sensor
 
 
 def test_default_grid_contains_the_quoted_magnitudes():
@@ -29,13 +30,13 @@ def test_default_grid_contains_the_quoted_magnitudes():
 def test_tolerable_rate_rule():
     rates = np.array([0.0, 1.0, 2.0, 3.0])
     # detected at 0 and 1, fraction 0.75 -> 0.25 between 1 and 2: crosses 0.5 half-way
-    assert _tolerable(np.array([1.0, 0.75, 0.25, 0.0]), rates, 0.5) == (1.5, False)
+    assert tolerable_rate(np.array([1.0, 0.75, 0.25, 0.0]), rates, 0.5) == (1.5, False)
     # not detected at rest
-    assert _tolerable(np.array([0.4, 0.0, 0.0, 0.0]), rates, 0.5) == (None, False)
+    assert tolerable_rate(np.array([0.4, 0.0, 0.0, 0.0]), rates, 0.5) == (None, False)
     # detected at every rate: capped at the last one
-    assert _tolerable(np.ones(4), rates, 0.5) == (3.0, True)
+    assert tolerable_rate(np.ones(4), rates, 0.5) == (3.0, True)
     # the first failure counts, even if a later rate passes again (e.g. saturation recovery)
-    assert _tolerable(np.array([1.0, 0.0, 1.0, 1.0]), rates, 0.5) == (0.5, False)
+    assert tolerable_rate(np.array([1.0, 0.0, 1.0, 1.0]), rates, 0.5) == (0.5, False)
 
 
 def _result(tol, capped, mags):
@@ -83,10 +84,10 @@ def test_rate_that_sweeps_off_the_detector():
 @pytest.fixture(scope="module")
 def st16_reed():
     # 20 magnitudes x 40 rates x 10 trials: ~1 s
-    return simulate_slew(load_sensor("st16"), "reed", n_trials=10, seed=1)
+    return simulate_slew(load_sensor("st16"), model="reed", n_trials=10, rng=1)
 
 
-def test_dzamba2014_tolerable_rate_falls_with_magnitude(st16_reed):
+def test_dzamba2014tolerable_rate_rate_falls_with_magnitude(st16_reed):
     tol = [r for r in st16_reed.tolerable_rate_deg_s if r is not None]
     assert len(tol) >= 10
     # Monte Carlo noise can swap neighbours by a fraction of a grid step (0.26 deg/s)
@@ -115,15 +116,12 @@ def test_faint_star_intensity_below_ideal_at_rest(st16_reed):
 def test_seeded_runs_are_reproducible():
     s = load_sensor("st16")
     rates = np.radians([0, 1, 2])
-    a = simulate_slew(s, "reed", magnitudes=[4.0], rates_rad_s=rates, n_trials=5, seed=7)
-    b = simulate_slew(s, "reed", magnitudes=[4.0], rates_rad_s=rates, n_trials=5, seed=7)
+    a = simulate_slew(s, model="reed", magnitudes=[4.0], rates_rad_s=rates, n_trials=5, rng=7)
+    b = simulate_slew(s, model="reed", magnitudes=[4.0], rates_rad_s=rates, n_trials=5, rng=7)
     assert np.array_equal(a.mean_intensity_counts, b.mean_intensity_counts, equal_nan=True)
 
 
 def test_detect_stack_matches_the_logic_on_crafted_stamps():
-    from starsense.detect.stack import detect_stack
-    from starsense.sensor import DetectionThresholds
-
     logic = DetectionThresholds(
         lit_pixel_counts=paper.DETECTION_LIT_PIXEL_COUNTS,
         min_pixels=paper.DETECTION_MIN_PIXELS,
@@ -150,8 +148,8 @@ def test_blackbody_model_red_star_more_electrons_in_400_800nm():
         "magnitudes": [4.0],
         "rates_rad_s": np.radians([0.0, 1.0, 2.0, 3.0]),
         "n_trials": 6,
-        "seed": 2,
+        "rng": 2,
     }
-    blue = simulate_slew(s, "blackbody", colour_index=0.0, **kw)
-    red = simulate_slew(s, "blackbody", colour_index=1.5, **kw)
+    blue = simulate_slew(s, model="blackbody", colour_index=0.0, **kw)
+    red = simulate_slew(s, model="blackbody", colour_index=1.5, **kw)
     assert red.electrons[0] > blue.electrons[0]

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from starsense.analysis.availability import AvailabilityAnalysis, implied_threshold
 from starsense.analysis.slew import magnitude_threshold, simulate_slew
 from starsense.analysis.slew_study import (
     MC_NOISE_MAG_20,
@@ -15,7 +16,9 @@ from starsense.analysis.slew_study import (
     study_magnitudes,
     study_slew,
 )
+from starsense.catalog import load_catalog
 from starsense.errors import InputError
+from starsense.geometry.fov import CircularFov
 from starsense.references import dzamba2014 as paper
 from starsense.sensor import load_sensor
 
@@ -38,8 +41,10 @@ def test_study_at_the_preset_is_simulate_slew(st16):
     # The st16 preset (1.5 px, 0.40): the sweep's detection fractions are simulate_slew's for the
     # same magnitudes, rates, trials and seed, bit for bit (the study adds no randomness).
     mags = study_magnitudes(0.05, 3.0, 6.5)
-    study = study_slew(st16, (1.0, 1.5), (0.40,), magnitudes=mags, n_trials=8, seed=3)
-    ref = simulate_slew(st16, "reed", mags, RATES, n_trials=8, seed=3)
+    study = study_slew(
+        st16, sigmas_px=(1.0, 1.5), qe_means=(0.40,), magnitudes=mags, n_trials=8, rng=3
+    )
+    ref = simulate_slew(st16, model="reed", magnitudes=mags, rates_rad_s=RATES, n_trials=8, rng=3)
     np.testing.assert_array_equal(study.detected_fraction[1], ref.detected_fraction)
     assert study.qe_ref == 0.40 and study.sensor_name == "st16"
 
@@ -50,8 +55,8 @@ def test_study_reads_the_st16_tolerance_curve_sideways(st16):
     # rate, the faintest grid magnitude still tolerating it; the study's interpolated m_t lies
     # between that and the next grid magnitude (0.25 mag), give or take the Monte Carlo noise of
     # two independent runs (2 x MC_NOISE_MAG_20).
-    study = study_slew(st16, (1.5,), (0.40,), n_trials=20, seed=0)
-    curve = magnitude_threshold(simulate_slew(st16, "reed", n_trials=20, seed=0), RATES)
+    study = study_slew(st16, sigmas_px=(1.5,), qe_means=(0.40,), n_trials=20, rng=0)
+    curve = magnitude_threshold(simulate_slew(st16, model="reed", n_trials=20, rng=0), RATES)
     ours = study.threshold_ref[0]
     assert np.all(ours >= curve - 2 * MC_NOISE_MAG_20), (ours, curve)
     assert np.all(ours <= curve + 0.25 + 2 * MC_NOISE_MAG_20), (ours, curve)
@@ -66,8 +71,15 @@ def test_qe_enters_only_through_the_electrons(st16):
     # change of a Poisson mean may flip at most one trial).
     shift = 2.5 * math.log10(0.6 / 0.4)
     mags = np.array([4.0, 4.5, 5.0, 5.5])
-    a = simulate_slew(with_qe(st16, 0.6), "reed", mags + shift, RATES, n_trials=10, seed=5)
-    b = simulate_slew(st16, "reed", mags, RATES, n_trials=10, seed=5)
+    a = simulate_slew(
+        with_qe(st16, 0.6),
+        model="reed",
+        magnitudes=mags + shift,
+        rates_rad_s=RATES,
+        n_trials=10,
+        rng=5,
+    )
+    b = simulate_slew(st16, model="reed", magnitudes=mags, rates_rad_s=RATES, n_trials=10, rng=5)
     np.testing.assert_allclose(a.electrons, b.electrons, rtol=1e-12)
     assert np.abs(a.detected_fraction - b.detected_fraction).max() <= 1 / 10
 
@@ -76,8 +88,15 @@ def test_thresholds_shift_with_qe_as_a_direct_run(st16):
     # thresholds() at QE 0.55 against a study run directly at QE 0.55 (another seed): equal
     # within the noise of two independent m_t (3 x sqrt(2) x 0.035 mag at 20 trials).
     mags = study_magnitudes(0.05, 3.0, 7.0)
-    ref = study_slew(st16, (1.5,), (0.55,), magnitudes=mags, n_trials=20, seed=0)
-    direct = study_slew(with_qe(st16, 0.55), (1.5,), (0.55,), magnitudes=mags, n_trials=20, seed=9)
+    ref = study_slew(st16, sigmas_px=(1.5,), qe_means=(0.55,), magnitudes=mags, n_trials=20, rng=0)
+    direct = study_slew(
+        with_qe(st16, 0.55),
+        sigmas_px=(1.5,),
+        qe_means=(0.55,),
+        magnitudes=mags,
+        n_trials=20,
+        rng=9,
+    )
     np.testing.assert_allclose(
         ref.thresholds()[0, 0], direct.threshold_ref[0], atol=3 * math.sqrt(2) * MC_NOISE_MAG_20
     )
@@ -148,9 +167,6 @@ def test_table2_implied_thresholds_recomputed(bsc5_path):
     # references.dzamba2014.TABLE2_IMPLIED_MT: the m_t at which our spatial availability on BSC5
     # (the paper's set-up, sec. 1.2) equals Table 2's N_min = 2 and 3 values; the table holds
     # them rounded to 0.01 mag.
-    from starsense.analysis.availability import AvailabilityAnalysis, implied_threshold
-    from starsense.catalog import load_catalog
-    from starsense.geometry.fov import CircularFov
 
     analysis = AvailabilityAnalysis.from_catalog(
         load_catalog(f"bsc5:{bsc5_path}"), CircularFov(math.radians(paper.HALF_FOV_DEG)),
@@ -168,7 +184,7 @@ def test_monte_carlo_noise_of_one_threshold(st16):
     # sigma = 1, 1.5, 2.5 px, 20 trials, 0.05 mag grid, at rest and at every paper rate
     # (measured 0.008-0.032).
     mags = study_magnitudes(0.05, 3.0, 7.0)
-    runs = [study_slew(st16, (1.0, 1.5, 2.5), magnitudes=mags, seed=s).threshold_ref
+    runs = [study_slew(st16, sigmas_px=(1.0, 1.5, 2.5), magnitudes=mags, rng=s).threshold_ref
             for s in range(5)]  # fmt: skip
     spread = np.std(runs, axis=0, ddof=1)
     assert spread.max() <= MC_NOISE_MAG_20, spread
@@ -181,7 +197,7 @@ def test_dzamba2014_no_psf_qe_pair_reproduces_table2(st16):
     # mag; every width leaves 0.11-0.14 mag that no QE removes (0.11-0.15 over seeds 1-4 on
     # three widths), against a tolerance of 0.07-0.08 mag at 1-2 deg/s. Regression bounds:
     # 0.11 +/- 0.04 (about the seed-to-seed spread of the shape mismatch).
-    study = study_slew(st16, seed=0)
+    study = study_slew(st16, rng=0)
     best = study.best_pair()
     assert best["worst_mismatch_mag"] == pytest.approx(0.11, abs=0.04)
     assert not best["reproduces"]

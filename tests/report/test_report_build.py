@@ -203,7 +203,7 @@ def test_plot_brightest_curves_writes_png(tmp_path):
     from starsense.analysis.limits import brightest_curve
     from starsense.plotting.limits import plot_brightest_curves
 
-    curve = brightest_curve(_stars_away_from_equator(), 0.1, 0.01)
+    curve = brightest_curve(_stars_away_from_equator(), diameter_m=0.1, exposure_s=0.01)
     path = plot_brightest_curves([curve], tmp_path / "fig7.png", diameter_m=0.1, exposure_s=0.01)
     assert path.read_bytes()[:8] == PNG_SIGNATURE
     assert [p.name for p in tmp_path.iterdir()] == ["fig7.png"]

@@ -136,7 +136,7 @@ def test_sky_limit_gaia_equals_in_memory(data, client):
     assert stars.colour == "BP-RP"
     # the table also has 2MASS columns, and J-H comes first in the default order: ask for BP-RP
     res, used = sky_limit(hats, 0.1, 0.2, colour="BP-RP", client=client)
-    _same_limit(res, mem.sky_limit(stars, 0.1, 0.2))
+    _same_limit(res, mem.sky_limit(stars, diameter_m=0.1, exposure_s=0.2))
     assert (used.colour, used.n_stars, used.n_skipped) == ("BP-RP", len(stars), stars.n_skipped)
     assert used.n_skipped > 0  # the NaN colours
 
@@ -161,7 +161,9 @@ def test_fov_limits_many_targets_equal_in_memory(data, client):
     heads, merged, _ = fov_limit(
         hats, targets, np.radians(20.0), 0.05, 0.1, colour="BP-RP", client=client
     )
-    heads0, merged0 = mem.fov_limit(stars, targets, np.radians(20.0), 0.05, 0.1)
+    heads0, merged0 = mem.fov_limit(
+        stars, targets, fov_diameter_rad=np.radians(20.0), diameter_m=0.05, exposure_s=0.1
+    )
     for h, h0 in zip(heads, heads0, strict=True):
         _same_limit(h, h0)
         assert h.n_stars > 100  # each 20 deg cone holds ~600 stars: a real sum, not a few terms
@@ -179,7 +181,7 @@ def test_brightest_curve_equals_in_memory(data, client, max_explicit):
         progress=lambda label, done, total: labels.add(label),
     )  # fmt: skip
     assert ("N brightest: finer histogram" in labels) == (max_explicit == 50)
-    curve0 = mem.brightest_curve(stars, 0.1, 0.1)
+    curve0 = mem.brightest_curve(stars, diameter_m=0.1, exposure_s=0.1)
     np.testing.assert_array_equal(curve.n_stars, curve0.n_stars)
     assert np.all(np.abs(curve.theta_rms_rad / curve0.theta_rms_rad - 1) <= REL)
     assert curve.slope == pytest.approx(curve0.slope, rel=1e-9)  # a fit through those points
@@ -202,9 +204,9 @@ def test_brightest_order_is_independent_of_row_order(data):
 )
 def test_star_counts_per_boresight_equal_in_memory(data, client, fov):
     _, gaia, _, hats = data
-    _, attitudes = sky_attitudes(1_000, None, seed=2)
+    _, attitudes = sky_attitudes(1_000, None, rng=2)
     counts = star_counts(hats, fov, attitudes, 11.0, band="G", client=client)
-    counts0 = FieldStars.build(fov, attitudes, *catalog_stars(gaia, 11.0, "G")).counts()
+    counts0 = FieldStars.build(fov, attitudes, *catalog_stars(gaia, 11.0, band="G")).counts()
     np.testing.assert_array_equal(counts, counts0)
     assert counts.mean() > 5  # fields hold stars: the comparison is not of zeros
 
@@ -246,7 +248,7 @@ def test_cli_limit_sky_hats_by_scheduler_address(data, client, capsys):
     assert code == 0, err
     assert err == ""  # no progress bar or warnings: stderr is not a terminal
     payload = json.loads(out)  # --json output is pure JSON
-    ref = mem.sky_limit(mem.BlackBodyStars.from_catalog(gaia), 0.1, 0.1)
+    ref = mem.sky_limit(mem.BlackBodyStars.from_catalog(gaia), diameter_m=0.1, exposure_s=0.1)
     assert payload["n_stars"] == ref.n_stars
     assert payload["theta_rms_rad"] == pytest.approx(ref.theta_rms_rad, rel=REL)
 
@@ -277,7 +279,7 @@ def test_cli_limit_sky_hats_fov_heads(data, client, capsys):
         [radec_to_vectors(np.radians(a), np.radians(d)) for a, d in ((10, 20), (200, -40))]
     )
     heads, merged = mem.fov_limit(mem.BlackBodyStars.from_catalog(gaia), targets,
-                                  np.radians(20.0))  # fmt: skip
+                                  fov_diameter_rad=np.radians(20.0))  # fmt: skip
     assert [h["n_stars"] for h in payload["heads"]] == [h.n_stars for h in heads]
     assert payload["merged"]["theta_rms_rad"] == pytest.approx(merged.theta_rms_rad, rel=REL)
 

@@ -25,10 +25,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from starsense._validate import finite_float, show
+from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
 from starsense.errors import InputError
+from starsense.geometry.attitude import angular_separation, boresight, small_rotation_angles
+from starsense.geometry.sampling import random_attitudes
+from starsense.render.scene import render_frame
+from starsense.solve.solver import Solver
 from starsense.units import ARCSEC, RAD_TO_ARCSEC, RAD_TO_DEG
 
-__all__ = ["MonteCarloResult", "run_montecarlo"]
+__all__ = ["MonteCarloResult", "montecarlo", "run_montecarlo"]
 
 
 @dataclass(frozen=True)
@@ -158,11 +163,6 @@ def _trials(
     (3,) or None, predicted sigma (3,) or None, truth quaternion (4,), render ms, solve ms,
     matched stars).
     """
-    from starsense.geometry.attitude import angular_separation, boresight, small_rotation_angles
-    from starsense.geometry.sampling import random_attitudes
-    from starsense.render.scene import render_frame
-    from starsense.solve.solver import Solver
-
     solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
     children = np.random.SeedSequence(seed).spawn(int(n_trials))
     out = []
@@ -244,15 +244,15 @@ def _dask_trials(client, args: tuple, n_trials: int, progress) -> list[tuple]:
     return [r for part in parts for r in part]
 
 
-def run_montecarlo(
+def montecarlo(
     sensor,
-    n_trials: int = 100,
+    catalog=None,
     *,
+    n_trials: int = 100,
     rate_rad_s: float = 0.0,
     model: str = "reed",
-    catalog=None,
     max_mag: float | None = None,
-    seed: int = 0,
+    rng: int | np.random.Generator | None = 0,
     wrong_rad: float = 60.0 * ARCSEC,
     progress: Callable[[int, int], None] | None = None,
     client=None,
@@ -263,6 +263,9 @@ def run_montecarlo(
     ----------
     sensor : str, Path or Sensor
         Sensor preset, TOML file or object.
+    catalog : Catalog, str or None
+        Stars to render and identify: a catalogue, a specification (``"hipparcos"``,
+        ``"bsc5:PATH"``) or None for the bundled Hipparcos.
     n_trials : int
         Random attitudes to render and solve, >= 1.
     rate_rad_s : float
@@ -270,12 +273,11 @@ def run_montecarlo(
         axis.
     model : str
         Sensitivity model of the rendering ("reed", "liebe", "blackbody").
-    catalog : Catalog, optional
-        Stars to render and identify (default: the bundled Hipparcos).
     max_mag : float, optional
         Render only stars brighter than this.
-    seed : int
-        Root seed; trial k uses the k-th child of ``numpy.random.SeedSequence(seed)``.
+    rng : None, int or numpy.random.Generator
+        Root seed; trial k uses the k-th child of ``numpy.random.SeedSequence(seed)`` (a
+        Generator gives one seed drawn from it, None a fresh one; the result records it).
     wrong_rad : float
         A solution whose boresight is farther than this from the truth is wrong, rad
         (default 60 arcsec).
@@ -289,18 +291,16 @@ def run_montecarlo(
     -------
     MonteCarloResult
     """
-    from starsense.catalog import load_catalog
-    from starsense.sensor import Sensor, load_sensor
-
     if isinstance(n_trials, bool) or int(n_trials) != n_trials or n_trials < 1:
         raise InputError(f"n_trials must be an integer >= 1, got {show(n_trials)}")
     n_trials = int(n_trials)
     rate_rad_s = finite_float(rate_rad_s, "rate_rad_s")
     if rate_rad_s < 0:
         raise InputError(f"rate_rad_s must be >= 0, got {show(rate_rad_s)}")
-    sens = sensor if isinstance(sensor, Sensor) else load_sensor(sensor)
-    cat = load_catalog("hipparcos") if catalog is None else catalog
-    args = (sens, cat, int(seed), float(rate_rad_s), model, max_mag, float(wrong_rad))
+    sens = as_sensor(sensor)
+    cat = as_catalog(catalog)
+    seed = root_seed(rng)
+    args = (sens, cat, seed, float(rate_rad_s), model, max_mag, float(wrong_rad))
     if client is not None:
         records = _dask_trials(client, args, n_trials, progress)
     else:
@@ -312,7 +312,11 @@ def run_montecarlo(
                 progress(done[0], n_trials)
 
         records = _trials(*args[:3], n_trials, range(n_trials), *args[3:], progress=tick)
-    return _result(sens.name, records, n_trials, rate_rad_s, model, int(seed))
+    return _result(sens.name, records, n_trials, rate_rad_s, model, seed)
+
+
+#: the former name of :func:`montecarlo`
+run_montecarlo = montecarlo
 
 
 def _result(

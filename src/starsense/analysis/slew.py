@@ -33,8 +33,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from starsense._validate import as_generator
+from starsense.analysis.inputs import as_sensor
+from starsense.detect.stack import detect_stack
 from starsense.errors import InputError
 from starsense.photometry.sensitivity import Sensitivity
+from starsense.render.noise import apply_noise
+from starsense.render.smear import streak_stamp_expected
 from starsense.units import DEG, to_edge
 
 __all__ = [
@@ -45,6 +50,8 @@ __all__ = [
     "last_above",
     "magnitude_threshold",
     "simulate_slew",
+    "slew_tolerance",
+    "tolerable_rate",
 ]
 
 #: the paper's rate range (Figs. 9-10): 0 to 10 deg/s, in deg/s as the paper gives it
@@ -212,19 +219,40 @@ def last_above(x, y, level: float) -> float | None:
     return float(x[j - 1] + t * (x[j] - x[j - 1]))
 
 
-def _tolerable(fraction_row: np.ndarray, rates: np.ndarray, criterion: float):
+def tolerable_rate(
+    fraction_row: np.ndarray, rates: np.ndarray, criterion: float
+) -> tuple[float | None, bool]:
+    """Return the tolerable rate of one magnitude and whether it is capped by the grid.
+
+    Parameters
+    ----------
+    fraction_row : array (R,)
+        Detection fraction at each rate.
+    rates : array (R,)
+        Increasing rates (any unit; the result is in the same).
+    criterion : float
+        Detection fraction that counts as detected.
+
+    Returns
+    -------
+    rate : float or None
+        The fastest rate still detected (:func:`last_above`); None if not even at rest.
+    capped : bool
+        Detected at every rate of the grid.
+    """
     rate = last_above(rates, fraction_row, criterion)
     return rate, bool(rate is not None and np.all(fraction_row >= criterion))
 
 
 def simulate_slew(
     sensor,
+    *,
     model: str = "reed",
     magnitudes=None,
     rates_rad_s=None,
     n_trials: int = 20,
     criterion: float = 0.5,
-    seed: int | None = 0,
+    rng: int | np.random.Generator | None = 0,
     progress=None,
     colour_index: float = 0.0,
 ) -> SlewResult:
@@ -232,8 +260,8 @@ def simulate_slew(
 
     Parameters
     ----------
-    sensor : starsense.sensor.Sensor
-        The star tracker.
+    sensor : Sensor, str or Path
+        The star tracker (or a preset name, or a sensor TOML file).
     model : {"reed", "liebe", "blackbody"}
         Sensitivity model (magnitude -> electrons). "blackbody" fits each star's black body from
         its V magnitude and ``colour_index`` (B-V) and integrates it through the sensor's QE.
@@ -245,8 +273,9 @@ def simulate_slew(
         Monte Carlo repeats per (magnitude, rate), each with its own noise and pixel phase.
     criterion : float
         Detection fraction that counts as detected.
-    seed : int
-        Root seed; each rate derives its own child stream, so results are reproducible.
+    rng : None, int or numpy.random.Generator
+        Root seed; each rate derives its own child stream (``Generator.spawn``), so results are
+        reproducible. None draws a fresh seed (recorded in the result).
     progress : callable(int done, int total) or None
         Called after each rate.
     colour_index : float
@@ -257,10 +286,7 @@ def simulate_slew(
     -------
     SlewResult
     """
-    from starsense.detect.stack import detect_stack
-    from starsense.render.noise import apply_noise
-    from starsense.render.smear import streak_stamp_expected
-
+    sensor = as_sensor(sensor)
     if model not in ("reed", "liebe", "blackbody"):
         raise InputError(f"slew analysis model must be reed, liebe or blackbody, got {model!r}")
     if not np.isfinite(colour_index):
@@ -283,13 +309,14 @@ def simulate_slew(
     n_m, n_r = len(mags), len(rates)
     detected = np.zeros((n_m, n_r, n_trials), dtype=bool)
     intensity = np.full((n_m, n_r, n_trials), np.nan)
-    children = np.random.SeedSequence(seed).spawn(n_r)
+    root, seed = as_generator(rng)
+    streams = root.spawn(n_r)  # for an int seed: the children of SeedSequence(seed)
     for j, rate in enumerate(rates):
-        rng = np.random.default_rng(children[j])
+        gen = streams[j]
         length = sensor.streak_length_px(rate)
         stamps = []
         for _ in range(n_trials):
-            x0, y0 = rng.random(2)
+            x0, y0 = gen.random(2)
             stamp, _, _ = streak_stamp_expected(
                 sensor, x0=x0, y0=y0, x1=x0 + length, y1=y0, electrons=1.0
             )
@@ -299,7 +326,7 @@ def simulate_slew(
         for k, s in enumerate(stamps):
             unit[k, : s.shape[0], : s.shape[1]] = s
         expected = electrons[:, None, None, None] * unit[None]  # (M, T, H, W)
-        counts = apply_noise(expected.reshape(-1, *shape), sensor, rng=rng)
+        counts = apply_noise(expected.reshape(-1, *shape), sensor, rng=gen)
         found, integ = detect_stack(counts, sensor.detection, background_counts=det.bias_counts)
         detected[:, j, :] = found.reshape(n_m, n_trials)
         intensity[:, j, :] = integ.reshape(n_m, n_trials)
@@ -309,7 +336,9 @@ def simulate_slew(
     n_det = detected.sum(axis=2)
     total = np.where(detected, intensity, 0.0).sum(axis=2)
     mean_int = np.where(n_det > 0, total / np.maximum(n_det, 1), np.nan)
-    tol, capped = zip(*(_tolerable(fraction[i], rates, criterion) for i in range(n_m)), strict=True)
+    tol, capped = zip(
+        *(tolerable_rate(fraction[i], rates, criterion) for i in range(n_m)), strict=True
+    )
     return SlewResult(
         magnitudes=mags,
         rates_rad_s=rates,
@@ -348,3 +377,62 @@ def magnitude_threshold(result: SlewResult, rates_rad_s) -> np.ndarray:
         ok = tol >= w
         out[i] = mags[ok].max() if ok.any() else -np.inf
     return out
+
+
+def slew_tolerance(
+    sensor,
+    *,
+    model: str = "reed",
+    magnitudes=None,
+    rates_rad_s=None,
+    n_trials: int = 20,
+    criterion: float = 0.5,
+    rng: int | np.random.Generator | None = 0,
+    progress=None,
+    colour_index: float = 0.0,
+) -> SlewResult:
+    """Return the slew tolerance of a sensor: the fastest rate at which each magnitude is seen.
+
+    Dzamba & Enright 2014, Figs. 9-10: single stars smeared by a cross-axis slew are rendered
+    with noise and put through the sensor's detection logic (:func:`simulate_slew`, which this
+    calls; ``starsense slew tolerance``).
+
+    Parameters
+    ----------
+    sensor : Sensor, str or Path
+        The sensor, a preset name (``"st16"``) or a sensor TOML file.
+    model : {"reed", "liebe", "blackbody"}
+        Sensitivity model (magnitude -> photo-electrons).
+    magnitudes : array (M,), optional
+        Magnitudes (default :func:`default_magnitudes`: 1.25 ... 6.0).
+    rates_rad_s : array (R,), optional
+        Slew rates from rest, increasing, rad/s (default :func:`default_rates_rad_s`: 0-10
+        deg/s).
+    n_trials : int
+        Renders per (magnitude, rate).
+    criterion : float
+        Detection fraction that counts as detected.
+    rng : None, int or numpy.random.Generator
+        Root seed (recorded in the result).
+    progress : callable(done, total), optional
+        Called after each rate.
+    colour_index : float
+        B-V of the stars for the "blackbody" model.
+
+    Returns
+    -------
+    SlewResult
+        ``tolerable_rate_rad_s`` per magnitude (None: not detected at rest), ``capped``, the
+        detection fraction per (magnitude, rate); ``tolerance_dict()`` is the JSON.
+    """
+    return simulate_slew(
+        sensor,
+        model=model,
+        magnitudes=magnitudes,
+        rates_rad_s=rates_rad_s,
+        n_trials=n_trials,
+        criterion=criterion,
+        rng=rng,
+        progress=progress,
+        colour_index=colour_index,
+    )

@@ -35,7 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from starsense.analysis.slew import _tolerable, simulate_slew
+from starsense.analysis.inputs import root_seed
+from starsense.analysis.slew import simulate_slew, tolerable_rate
 from starsense.errors import InputError
 from starsense.references.dzamba2014 import MAX_MAG, TABLE2_IMPLIED_MT
 from starsense.units import DEG, to_edge
@@ -248,13 +249,14 @@ def _with_psf(sensor, sigma_px: float):
 
 def study_slew(
     sensor,
+    *,
     sigmas_px=DEFAULT_SIGMAS_PX,
     qe_means=DEFAULT_QE_MEANS,
     model: str = "reed",
     magnitudes=None,
     n_trials: int = 20,
     criterion: float = 0.5,
-    seed: int | None = 0,
+    rng: int | np.random.Generator | None = 0,
     progress=None,
 ) -> SlewStudy:
     """Sweep PSF sigma and mean QE; m_t at rest and at the paper's rates (Dzamba 2014 Table 2).
@@ -276,8 +278,9 @@ def study_slew(
         Trials per (width, magnitude, rate).
     criterion : float
         Detection fraction that counts as detected.
-    seed : int or None
-        Root seed, the same for every width (common random numbers).
+    rng : None, int or numpy.random.Generator
+        Root seed, the same for every width (common random numbers; a Generator gives one seed
+        drawn from it; the result records it).
     progress : callable(int done, int total) or None
         Called after each width.
 
@@ -304,13 +307,22 @@ def study_slew(
     paper_rates = paper_deg * DEG
     paper_mt = np.array([np.mean(TABLE2_IMPLIED_MT[w]) for w in paper_deg])
     rates = np.concatenate([[0.0], paper_rates])
+    seed = root_seed(rng)
     fractions = []
     thresholds = np.full((len(sigmas), len(rates)), np.nan)
     for i, sigma in enumerate(sigmas):
-        res = simulate_slew(_with_psf(sensor, sigma), model, mags, rates, n_trials, criterion, seed)
+        res = simulate_slew(
+            _with_psf(sensor, sigma),
+            model=model,
+            magnitudes=mags,
+            rates_rad_s=rates,
+            n_trials=n_trials,
+            criterion=criterion,
+            rng=seed,
+        )
         fractions.append(res.detected_fraction)
         for j in range(len(rates)):
-            m_t, capped = _tolerable(res.detected_fraction[:, j], mags, criterion)
+            m_t, capped = tolerable_rate(res.detected_fraction[:, j], mags, criterion)
             if m_t is not None and not capped:
                 thresholds[i, j] = m_t
         if progress is not None:

@@ -213,10 +213,10 @@ def _setup(
             cat,
             field,
             max_mag,
-            band,
+            band=band,
             n_orientations=n_orientations,
-            roll=roll,
-            seed=seed,
+            roll_rad=roll,
+            rng=seed,
             progress=progress,
         )
     return sens, cat, analysis
@@ -291,9 +291,9 @@ def _threshold_curve(
 
     result = simulate_slew(
         sens,
-        model,
+        model=model,
         n_trials=trials,
-        seed=seed,
+        rng=seed,
         progress=None
         if progress is None
         else (lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),
@@ -513,7 +513,14 @@ def track(
             sensor, catalog, fov, half_fov_deg, max_mag, n_orientations, roll_deg, seed, progress
         )
         curve = _threshold_curve(sens, model, trials, seed, tolerance_json, progress)
-        res = analysis.track(curve, rate, n_min, inclinations, track_samples, node)
+        res = analysis.track(
+            curve,
+            rate,
+            n_min=n_min,
+            inclinations=inclinations,
+            n_samples=track_samples,
+            node_rad=node,
+        )
     payload = {**res.to_dict(), "sensor": sens.name, "model": model}
     lines = res.lines()
     figures = []
@@ -583,12 +590,12 @@ def fidelity(
                 sens,
                 cat,
                 curve,
-                rate,
-                n_frames=frames,
+                rate_rad_s=rate,
+                n_trials=frames,
                 n_min=n_min,
                 max_mag=max_mag,
                 model=model,
-                seed=seed,
+                rng=seed,
                 progress=lambda done, total: progress("rendering frames", done, total),
             )
     emit({**res.to_dict(), "sensor": sens.name}, as_json, res.lines())

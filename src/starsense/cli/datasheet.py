@@ -93,32 +93,13 @@ def datasheet_lines(d: dict) -> list[str]:
     return lines
 
 
-def _compare_lines(sheets: list[dict]) -> list[str]:
+def _compare_lines(comparison) -> list[str]:
     """Datasheets side by side (one column per sensor)."""
-    rows = [
-        ("limiting magnitude", lambda d: d.get("limiting_magnitude"), ".2f"),
-        ("stars in field, median", lambda d: (d.get("stars_in_fov") or {}).get("median"), ".0f"),
-        ("NEA cross, arcsec", lambda d: d["nea_arcsec"]["cross"]["median"], ".3f"),
-        ("NEA roll, arcsec", lambda d: d["nea_arcsec"]["roll"]["median"], ".3f"),
-        ("limit cross, arcsec", lambda d: d["limit_arcsec"]["cross"], ".4f"),
-        (
-            "LIS solved at rest",
-            lambda d: d["monte_carlo"]["solved"] / d["monte_carlo"]["frames"],
-            ".3f",
-        ),
-        ("measured/predicted cross", lambda d: d["monte_carlo"]["cross_ratio"], ".2f"),
-        ("availability LIS at rest", lambda d: d["availability"]["lost_in_space"], ".3f"),
-    ]
-    width = max(12, *(len(d["sensor"]) for d in sheets))
-    out = [f"{'':28s}" + "".join(f"{d['sensor']:>{width + 2}s}" for d in sheets)]
-    for label, get, fmt in rows:
-        cells = []
-        for d in sheets:
-            try:
-                cells.append(_f(get(d), fmt))
-            except (KeyError, TypeError, ZeroDivisionError):
-                cells.append("n/a")
-        out.append(f"{label:28s}" + "".join(f"{c:>{width + 2}s}" for c in cells))
+    width = max(12, *(len(name) for name in comparison.sensors))
+    out = [f"{'':28s}" + "".join(f"{name:>{width + 2}s}" for name in comparison.sensors)]
+    for row in comparison.rows:
+        cells = [_f(v, row.fmt) for v in row.values]
+        out.append(f"{row.label:28s}" + "".join(f"{c:>{width + 2}s}" for c in cells))
     return out
 
 
@@ -170,7 +151,7 @@ def datasheet(
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
-    from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
+    from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
     from starsense.catalog import load_catalog
     from starsense.sensor import load_sensor
 
@@ -190,7 +171,7 @@ def datasheet(
     sensors = [load_sensor(n) for n in names]
     cat = load_catalog(catalog)
     settings = DatasheetSettings(
-        trials=trials,
+        n_trials=trials,
         rate_rad_s=rate_deg_s * DEG,
         seed=seed,
         n_orientations=n_orientations,
@@ -200,7 +181,7 @@ def datasheet(
     with progress_bar(not as_json) as bar, _client(dask) as client:
         for sens in sensors:
             sheets.append(
-                build_datasheet(sens, cat, settings, client=client, progress=bar.callback)
+                build_datasheet(sens, cat, settings=settings, client=client, progress=bar.callback)
             )
     payloads = [s.to_dict() for s in sheets]
     figures = []
@@ -209,7 +190,7 @@ def datasheet(
             figures += _write_out(Path(out), s, p)
     if compare:
         payload = {"sensors": payloads}
-        lines = _compare_lines(payloads)
+        lines = _compare_lines(Comparison.from_sheets(sheets))
     else:
         payload = payloads[0]
         lines = datasheet_lines(payload)

@@ -189,12 +189,12 @@ def montecarlo(
     with progress_bar(not as_json) as bar:
         res = run_montecarlo(
             sensor,
-            trials,
+            cat,
+            n_trials=trials,
             rate_rad_s=rate_deg_s * DEG,
             model=model,
-            catalog=cat,
             max_mag=max_mag,
-            seed=seed,
+            rng=seed,
             progress=bar.task("Monte Carlo", total=trials),
         )
     err, pred = res.rms_error_arcsec, res.rms_predicted_arcsec

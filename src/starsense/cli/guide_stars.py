@@ -90,7 +90,7 @@ def simulate(
             fov_rad=fov_deg * DEG,
             threshold_rad=threshold * ARCSEC,
             metric=metric,
-            seed=seed,
+            rng=seed,
             identify=identify,
             sigma_kind=sigma_kind,
             progress=None if as_json else update,
@@ -243,8 +243,18 @@ def select(
         except ValueError:
             raise InputError(f"--areas expects comma-separated integers, got {areas!r}") from None
     cat = load_catalog(catalog)
-    rows, xy, mag, band = field_stars(cat, (ra * DEG, dec * DEG), layout, roll_deg * DEG, max_mag)
-    sel = select_guide_stars(xy, mag, layout, wanted, n_stars, criterion, sigma * ARCSEC)
+    rows, xy, mag, band = field_stars(
+        cat, (ra * DEG, dec * DEG), layout=layout, roll_rad=roll_deg * DEG, max_mag=max_mag
+    )
+    sel = select_guide_stars(
+        xy,
+        mag,
+        layout=layout,
+        areas=wanted,
+        n_stars=n_stars,
+        criterion=criterion,
+        sigma_rad=sigma * ARCSEC,
+    )
     which = layout.index(xy) if len(xy) else []
     stars = [
         {
@@ -339,16 +349,16 @@ def field_cmd(
             res = field_accuracy(
                 cat,
                 (c[0] * DEG, c[1] * DEG),
-                fov * DEG,
-                [s * ARCSEC for s in sig],
-                _configs(configurations),
-                n_stars,
-                criterion,
-                max_mag,
-                trials,
-                metric,
-                sigma_kind,
-                seed=seed,
+                lens_fov_rad=fov * DEG,
+                sigmas_rad=[s * ARCSEC for s in sig],
+                configurations=_configs(configurations),
+                n_stars=n_stars,
+                criterion=criterion,
+                max_mag=max_mag,
+                n_trials=trials,
+                metric=metric,
+                sigma_kind=sigma_kind,
+                rng=seed,
             )
             d = res.as_dict()
             paper = next(

@@ -122,7 +122,7 @@ def limit_star(
     option_float(ci, names[1])
     t, c = fit_star(m, ci, system)
     clamped = _colour_clamp_note(system, ci, names[1], t)
-    f = float(centroid_fisher(c, t, diameter_m, exposure_s))
+    f = float(centroid_fisher(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     photons = float(total_photons(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     sigma = 1.0 / np.sqrt(f)
     payload = {
@@ -205,7 +205,7 @@ def limit_sky(
     cat, stars = _load_stars(catalog, max_mag, colour)
     common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
     if fov_deg is None:
-        res = sky_limit(stars, diameter_m, exposure_s)
+        res = sky_limit(stars, diameter_m=diameter_m, exposure_s=exposure_s)
         payload = {**res.to_dict(), **common}
         lines = [
             f"catalogue {cat.name}: {res.n_stars} stars ({stars.colour}; "
@@ -218,7 +218,13 @@ def limit_sky(
         ]
         emit(payload, as_json, lines)
         return
-    heads, merged = fov_limit(stars, _target_vectors(radec), fov_deg * DEG, diameter_m, exposure_s)
+    heads, merged = fov_limit(
+        stars,
+        _target_vectors(radec),
+        fov_diameter_rad=fov_deg * DEG,
+        diameter_m=diameter_m,
+        exposure_s=exposure_s,
+    )
     _emit_fov(cat.name, stars.colour, common, fov_deg, radec, heads, merged, as_json)
 
 
@@ -326,7 +332,9 @@ def limit_curve(
             )
     else:
         cat, stars = _load_stars(catalog, None, colour)
-        curve = brightest_curve(stars, diameter_m, exposure_s, n_extrapolated=extrapolate_to)
+        curve = brightest_curve(
+            stars, diameter_m=diameter_m, exposure_s=exposure_s, n_extrapolated=extrapolate_to
+        )
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
     payload.update(curve.to_dict())
     lines = [
@@ -371,7 +379,9 @@ def limit_photons(
     option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
     option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     cat, stars = _load_stars(catalog, None, colour)
-    res = low_photon_degradation(stars, diameter_m, exposure_s, trials, seed)
+    res = low_photon_degradation(
+        stars, diameter_m=diameter_m, exposure_s=exposure_s, n_trials=trials, rng=seed
+    )
     payload = {"catalog": cat.name, "diameter_m": diameter_m, "exposure_s": exposure_s}
     payload.update(res.to_dict())
     emit(

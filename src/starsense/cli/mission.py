@@ -142,7 +142,9 @@ def mission(
             "catalog": catalog,
             "max_mag": max_mag,
         }
-        res = mission_availability(geo, head_list, vectors, mags, n_min, meta)
+        res = mission_availability(
+            geo, head_list, vectors=vectors, magnitudes=mags, n_min=n_min, meta=meta
+        )
     for w in caught:
         if issubclass(w.category, UserWarning):
             typer.echo(f"warning: {w.message}", err=True)

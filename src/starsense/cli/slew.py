@@ -52,12 +52,12 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
     with progress_bar() as bar:
         result = simulate_slew(
             sensor,
-            model,
-            mags,
-            rate_values,
-            trials,
-            criterion,
-            seed,
+            model=model,
+            magnitudes=mags,
+            rates_rad_s=rate_values,
+            n_trials=trials,
+            criterion=criterion,
+            rng=seed,
             progress=bar.task("slew Monte Carlo"),
             colour_index=colour_index,
         )
@@ -225,13 +225,13 @@ def slew_study(
     with progress_bar(not as_json) as bar:
         study = study_slew(
             sens,
-            sigmas,
-            qes,
-            model,
-            study_magnitudes(mag_step),
-            trials,
-            0.5,
-            seed,
+            sigmas_px=sigmas,
+            qe_means=qes,
+            model=model,
+            magnitudes=study_magnitudes(mag_step),
+            n_trials=trials,
+            criterion=0.5,
+            rng=seed,
             progress=bar.task("PSF widths"),
         )
     payload = study.to_dict()

@@ -46,5 +46,5 @@ def nea_sky_figure(sheet, ax: Axes | None = None) -> Figure:
     )
     ax.grid(True, alpha=0.3)
     ax.set_xticklabels([])
-    ax.set_title(f"{sheet.data['sensor']}: noise-equivalent angle over the sky")
+    ax.set_title(f"{sheet.sensor}: noise-equivalent angle over the sky")
     return fig

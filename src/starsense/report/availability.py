@@ -75,7 +75,7 @@ def _slew_curve(ctx: ReportContext, model: str) -> ThresholdCurve:
 
     result = ctx.slew_results.get(model)
     if result is None:
-        result = simulate_slew(ctx.sensor, model, n_trials=ctx.slew_trials, seed=ctx.seed)
+        result = simulate_slew(ctx.sensor, model=model, n_trials=ctx.slew_trials, rng=ctx.seed)
         ctx.slew_results[model] = result
     return ThresholdCurve.from_slew(result)
 
@@ -108,7 +108,7 @@ def _star_set(ctx: ReportContext, fov: CircularFov) -> tuple[AvailabilityAnalysi
         stars.magnitude,
         fov,
         max_mag=paper.MAX_MAG,
-        seed=ctx.seed,
+        rng=ctx.seed,
         catalog=ctx.catalog_name,
         band="V" if stars.colour == "B-V" else stars.colour,
     )
@@ -371,7 +371,7 @@ def _node_table(ctx, analysis, curve, tracks, node0, other_nodes, data) -> str:
     for node in other_nodes:
         ctx.progress(f"availability: tracks through the node at RA {node:g} deg")
         for w in TRACK_RATES_DEG_S:
-            t = analysis.track(curve, w * DEG, N_MIN_LOST_IN_SPACE, node=node * DEG)
+            t = analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node_rad=node * DEG)
             by_node.setdefault(f"{node:g}", {})[f"{w:g}"] = {
                 str(k): t.stats(k) for k in (N_MIN_TRACKING, N_MIN_LOST_IN_SPACE)
             }
@@ -406,7 +406,7 @@ def _track_part(ctx, analysis, curve, figures, data) -> str:
     ctx.progress("availability: along-track tracks")
     node0, *other_nodes = TRACK_NODES_DEG
     tracks = [
-        analysis.track(curve, w * DEG, N_MIN_LOST_IN_SPACE, node=node0 * DEG)
+        analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node_rad=node0 * DEG)
         for w in TRACK_RATES_DEG_S
     ]
     data["track"] = {f"{t.rate_deg_s:g}": t.to_dict() for t in tracks}
@@ -485,10 +485,10 @@ def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
                     sensor,
                     catalog,
                     curve,
-                    rate * DEG,
-                    n_frames=FIDELITY_FRAMES,
+                    rate_rad_s=rate * DEG,
+                    n_trials=FIDELITY_FRAMES,
                     max_mag=paper.MAX_MAG,
-                    seed=ctx.seed,
+                    rng=ctx.seed,
                 )
             )
     except InputError as exc:

@@ -114,12 +114,12 @@ def datasheet_section(ctx: ReportContext) -> Section:
     ctx.progress(f"datasheet of {sensor.name}")
     # half as many frames at the rate: the check of the prediction is the run at rest
     settings = DatasheetSettings(
-        trials=ctx.datasheet_trials,
+        n_trials=ctx.datasheet_trials,
         seed=ctx.seed,
-        slew_trials=ctx.slew_trials,
-        rate_trials=max(1, ctx.datasheet_trials // 2),
+        n_slew_trials=ctx.slew_trials,
+        n_rate_trials=max(1, ctx.datasheet_trials // 2),
     )
-    sheet = build_datasheet(sensor, ctx.catalog, settings)
+    sheet = build_datasheet(sensor, ctx.catalog, settings=settings)
     _share_slew(ctx, sheet.slew)
     d = sheet.to_dict()
     if d.get("limiting_magnitude") is None:

@@ -294,10 +294,10 @@ def guide_stars_section(ctx: ReportContext) -> Section:
     if ctx.sensor is None:
         return Section(key, title, "<p>No sensor chosen.</p>")
     ctx.progress(f"guide stars: Table 1, {REPORT_TRIALS:,} placements per configuration")
-    tab = simulate_table1(n_trials=REPORT_TRIALS, seed=ctx.seed)
+    tab = simulate_table1(n_trials=REPORT_TRIALS, rng=ctx.seed)
     ctx.progress("guide stars: four areas, sigma read as a 3-sigma bound")
     tab3 = simulate_table1(
-        n_trials=REPORT_TRIALS, configurations=["four"], seed=ctx.seed, sigma_kind="3sigma"
+        n_trials=REPORT_TRIALS, configurations=["four"], rng=ctx.seed, sigma_kind="3sigma"
     )
     data: dict = tab.as_dict()
     gap = _gap_to_paper(tab, tab3, data)

@@ -61,7 +61,7 @@ def mission_section(ctx: ReportContext) -> Section:
     orbit = parse_orbit(plan.orbit, start, f"{where} orbit")
     profile = parse_attitude(plan.attitude, f"{where} attitude")
     slew = ctx.slew_results.get("reed") or simulate_slew(
-        sensor, "reed", n_trials=ctx.slew_trials, seed=ctx.seed
+        sensor, model="reed", n_trials=ctx.slew_trials, rng=ctx.seed
     )
     curve = ThresholdCurve.from_slew(slew)
     heads = _heads(ctx, plan, curve)
@@ -77,8 +77,8 @@ def mission_section(ctx: ReportContext) -> Section:
     res = mission_availability(
         mission_geometry(grid, orbit, profile),
         heads,
-        stars.vectors[keep],
-        stars.magnitude[keep],
+        vectors=stars.vectors[keep],
+        magnitudes=stars.magnitude[keep],
         meta=meta,
     )
     data = res.to_dict()

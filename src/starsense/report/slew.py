@@ -46,7 +46,7 @@ def slew_section(ctx: ReportContext) -> Section:
         ctx.progress(f"slew tolerance, {model} model")
         result = ctx.slew_results.get(model)  # the datasheet's run, when it is this one
         if result is None:
-            result = simulate_slew(sensor, model, n_trials=ctx.slew_trials, seed=ctx.seed)
+            result = simulate_slew(sensor, model=model, n_trials=ctx.slew_trials, rng=ctx.seed)
             ctx.slew_results[model] = result
         results.append(result)
     figures = [ctx.save_figure(tolerance_figure(results), "slew_fig10_tolerance.png")]

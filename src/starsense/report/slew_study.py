@@ -97,9 +97,9 @@ def slew_study_part(ctx: ReportContext, reference_sensor) -> tuple[str, str, dic
     ctx.progress("slew study: PSF width and QE of the ST-16")
     study = study_slew(
         reference_sensor,
-        REPORT_SIGMAS_PX,
+        sigmas_px=REPORT_SIGMAS_PX,
         n_trials=REPORT_TRIALS,
-        seed=ctx.seed,
+        rng=ctx.seed,
         magnitudes=study_magnitudes(*_REPORT_MAGS),
     )
     det = reference_sensor.detector

@@ -144,11 +144,11 @@ def static_availability(
     return static_result(
         top,
         counts,
-        boresights,
-        n_min,
-        m_t,
-        n,
-        describe_fov(fov),
-        catalog.name,
-        band,
+        boresights=boresights,
+        n_min=n_min,
+        m_t=m_t,
+        n_stars=n,
+        fov=describe_fov(fov),
+        catalog=catalog.name,
+        band=band,
     )

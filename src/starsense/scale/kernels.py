@@ -45,7 +45,13 @@ def sky_part(frame, plan, colour, max_mag, diameter_m, exposure_s):
 def fov_part(frame, plan, colour, max_mag, targets, fov_diameter_rad, diameter_m, exposure_s):
     """(F per head (T, 3, 3), stars per head (T,), stars used, stars skipped) of one tile."""
     stars = limit_stars(frame, plan, colour, max_mag)
-    fishers, counts = fov_fishers(stars, targets, fov_diameter_rad, diameter_m, exposure_s)
+    fishers, counts = fov_fishers(
+        stars,
+        targets,
+        fov_diameter_rad=fov_diameter_rad,
+        diameter_m=diameter_m,
+        exposure_s=exposure_s,
+    )
     return fishers, counts, len(stars), stars.n_skipped
 
 
@@ -132,7 +138,7 @@ def field_part(frame, plan, band, max_mag, fov, attitudes, k):
         None for k = 0), stars used, faintest magnitude used).
     """
     quiet_third_party_warnings()
-    vectors, mags = catalog_stars(plan.catalog(frame), max_mag, band, allow_empty=True)
+    vectors, mags = catalog_stars(plan.catalog(frame), max_mag, band=band, allow_empty=True)
     faintest = float(mags.max()) if len(mags) else -math.inf
     if not k:  # counts only: the in-memory count_in_fov, no per-pointing magnitude lists
         return count_in_fov(fov, attitudes, vectors), None, len(mags), faintest

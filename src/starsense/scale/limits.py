@@ -150,7 +150,9 @@ def sky_limit(
             progress,
         )
     _enough(n, catalog, max_mag)
-    return limit_from_fisher(fisher, n, diameter_m, exposure_s), StarSummary(chosen, n, skipped)
+    return limit_from_fisher(fisher, n, diameter_m=diameter_m, exposure_s=exposure_s), StarSummary(
+        chosen, n, skipped
+    )
 
 
 def fov_limit(
@@ -207,7 +209,9 @@ def fov_limit(
             "FOV-limited limits",
             progress,
         )
-    heads, merged = fov_results(fishers, counts, targets, diameter_m, exposure_s)
+    heads, merged = fov_results(
+        fishers, counts, targets, diameter_m=diameter_m, exposure_s=exposure_s
+    )
     return heads, merged, StarSummary(chosen, n, skipped)
 
 
@@ -331,4 +335,4 @@ def brightest_curve(
         j = int(np.searchsorted(bins, bk))
         take = explicit_before[j] + (n - before[k] if partial[j] else 0)
         sums[k] = cum_rows[2 * j + 1] + (cum_explicit[take - 1] if take > 0 else 0.0)
-    return brightest_from_sums(ns, sums, n_extrapolated, chosen)
+    return brightest_from_sums(ns, sums, n_extrapolated=n_extrapolated, colour=chosen)

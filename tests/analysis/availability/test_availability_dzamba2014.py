@@ -12,10 +12,12 @@ from starsense.analysis.availability import (
     ThresholdCurve,
     implied_threshold,
 )
+from starsense.analysis.slew import simulate_slew
 from starsense.catalog import load_catalog
 from starsense.geometry.fov import CircularFov
 from starsense.references import dzamba2014 as paper
 from starsense.references.dzamba2014 import TABLE2 as PAPER_TABLE2
+from starsense.sensor import load_sensor
 
 #: shared/data/catalogs/README.md: BSC5 stars with V <= 5.75 and a position
 BSC5_V575 = 3852
@@ -78,12 +80,10 @@ def test_dzamba2014_dynamic_with_paper_implied_curve(st16_bsc5):
 def slew_curves():
     """m_t(w) of the slew Monte Carlo (Fig. 10 read sideways), both sensitivity models."""
     pytest.importorskip("starsense.detect.stack")
-    from starsense.analysis.slew import simulate_slew
-    from starsense.sensor import load_sensor
 
     sensor = load_sensor("st16")
     return {
-        model: ThresholdCurve.from_slew(simulate_slew(sensor, model, n_trials=20, seed=0))
+        model: ThresholdCurve.from_slew(simulate_slew(sensor, model=model, n_trials=20, rng=0))
         for model in ("reed", "liebe")
     }
 

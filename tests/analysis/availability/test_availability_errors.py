@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from starsense.analysis.availability import (
     AvailabilityAnalysis,
@@ -41,7 +42,7 @@ def test_n_min_below_one(analysis, n_min):
     with pytest.raises(InputError, match=r"n_min"):
         analysis.dynamic(FLAT, np.radians([1.0]), n_min)
     with pytest.raises(InputError, match=r"n_min"):
-        analysis.track(FLAT, np.radians(1.0), n_min, n_samples=10)
+        analysis.track(FLAT, np.radians(1.0), n_min=n_min, n_samples=10)
 
 
 @pytest.mark.parametrize("n_min", [2.5, "3", True])
@@ -116,8 +117,6 @@ def test_bad_threshold_curves():
 
 
 def test_field_stars_rejects_bad_arrays():
-    from scipy.spatial.transform import Rotation
-
     with pytest.raises(InputError, match=r"magnitudes must be finite"):
         FieldStars.build(CircularFov(0.1), Rotation.random(2), np.eye(3), [1, 2, np.nan])
     with pytest.raises(InputError, match=r"vectors must be \(N, 3\)"):

@@ -24,7 +24,9 @@ def modules():
 def test_fidelity_check_static_frames(modules):
     sensor = load_sensor("st16")
     catalog = load_catalog("hipparcos")
-    res = fidelity_check(sensor, catalog, ThresholdCurve.constant(5.75), 0.0, n_frames=3, seed=1)
+    res = fidelity_check(
+        sensor, catalog, ThresholdCurve.constant(5.75), rate_rad_s=0.0, n_trials=3, rng=1
+    )
     assert res.n_frames == 3
     assert res.model_counts.shape == res.frame_counts.shape == (3,)
     assert 0.0 <= res.frame_availability <= 1.0

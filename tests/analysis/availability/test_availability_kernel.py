@@ -92,7 +92,7 @@ def test_empty_fields_and_no_pairs():
 def test_availability_monotone(seed, n, m1, m2, half_deg, grow):
     vectors, mags = random_sky(n, seed)
     lo, hi = min(m1, m2), max(m1, m2)
-    _, attitudes = sky_attitudes(500, roll=None, seed=seed)
+    _, attitudes = sky_attitudes(500, roll_rad=None, rng=seed)
     small = FieldStars.build(CircularFov(math.radians(half_deg)), attitudes, vectors, mags)
     large = FieldStars.build(CircularFov(math.radians(half_deg * grow)), attitudes, vectors, mags)
     for k in (1, 2, 3, 4):
@@ -111,7 +111,7 @@ def test_availability_monotone(seed, n, m1, m2, half_deg, grow):
 
 def test_availability_monotone_in_rectangular_field_size():
     vectors, mags = random_sky(3000, seed=5)
-    _, attitudes = sky_attitudes(2000, roll=None, seed=5)
+    _, attitudes = sky_attitudes(2000, roll_rad=None, rng=5)
     a = FieldStars.build(RectangularFov(0.10, 0.08), attitudes, vectors, mags)
     b = FieldStars.build(RectangularFov(0.14, 0.08), attitudes, vectors, mags)
     c = FieldStars.build(RectangularFov(0.14, 0.12), attitudes, vectors, mags)
@@ -127,7 +127,7 @@ def test_roll_matters_only_for_rectangular_fields():
     for roll in (0.0, 37.0):
         for fov in (CircularFov(0.13), RectangularFov(0.17, 0.13)):
             an = AvailabilityAnalysis(vectors, mags, fov, max_mag=6.0, n_orientations=3000,
-                                      roll=np.radians(roll))  # fmt: skip
+                                      roll_rad=np.radians(roll))  # fmt: skip
             res[roll, type(fov).__name__] = an.sky.counts()
     np.testing.assert_array_equal(res[0.0, "CircularFov"], res[37.0, "CircularFov"])
     assert np.any(res[0.0, "RectangularFov"] != res[37.0, "RectangularFov"])
@@ -156,7 +156,10 @@ def test_threshold_curve_from_tolerance_inverts_fig10():
     assert d(np.radians([2.0]))[0] == -np.inf
     # capped magnitudes (detected at every simulated rate) hold m_t beyond the grid
     e = ThresholdCurve.from_tolerance(
-        [2.0, 4.0], np.radians([10.0, 2.0]), [True, False], np.radians(10.0)
+        [2.0, 4.0],
+        np.radians([10.0, 2.0]),
+        capped=[True, False],
+        grid_max_rate_rad_s=np.radians(10.0),
     )
     np.testing.assert_allclose(e(np.radians([2.0, 6.0, 10.0, 50.0])), [4.0, 3.0, 2.0, 2.0])
 
@@ -199,7 +202,7 @@ def test_dynamic_with_constant_curve_equals_static():
 
 
 def test_track_family_geometry():
-    att = track_family_attitudes(np.radians([-60.0, 0.0, 45.0]), 360, node=np.radians(30.0))
+    att = track_family_attitudes(np.radians([-60.0, 0.0, 45.0]), 360, node_rad=np.radians(30.0))
     assert len(att) == 3 * 360
     m = att.as_matrix().reshape(3, 360, 3, 3)
     boresight = m[:, :, 2, :]
@@ -257,18 +260,18 @@ def test_track_mean_approaches_spatial_for_constant_threshold():
     curve = ThresholdCurve.constant(1.1)  # ~3 stars per field: availability ~0.6
     spatial = an.static(3, max_mag=1.1).availability
     assert 0.4 < spatial < 0.8
-    one = an.track(curve, np.radians(1.0), 3, inclinations=np.radians(np.arange(-90, 91, 2.0)),
-                   n_samples=500)  # fmt: skip
+    one = an.track(curve, np.radians(1.0), n_min=3,
+                   inclinations=np.radians(np.arange(-90, 91, 2.0)), n_samples=500)  # fmt: skip
     assert one.spatial[3] == spatial
     assert one.mean == pytest.approx(spatial, abs=0.05)
     means = [
         an.track(
             curve,
             np.radians(1.0),
-            3,
-            np.radians(np.arange(-90, 91, 10.0)),
-            500,
-            node=np.radians(node),
+            n_min=3,
+            inclinations=np.radians(np.arange(-90, 91, 10.0)),
+            n_samples=500,
+            node_rad=np.radians(node),
         ).mean
         for node in np.arange(0.0, 180.0, 15.0)
     ]

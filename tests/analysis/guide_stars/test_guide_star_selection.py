@@ -10,6 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from starsense.analysis import guide_stars as gs
+from starsense.catalog import load_catalog
 from starsense.cli import app, main
 from starsense.errors import InputError
 from starsense.geometry.areas import AreaLayout, FocalArea
@@ -79,7 +80,7 @@ def test_lin2024_four_area_saturation_matches_paper():
     # simulation the only losses at small sigma are lattice placements that the triangle
     # algorithm cannot identify. Binomial sd of a 0.13 % loss at 10,000 trials is 0.036 points;
     # 0.15 points allows ~4 sd.
-    tab = gs.simulate_table1([0.01 * ARCSEC], ["four"], n_trials=10_000, seed=1)
+    tab = gs.simulate_table1([0.01 * ARCSEC], ["four"], n_trials=10_000, rng=1)
     assert tab.identified["four"][0] == pytest.approx(0.9987, abs=0.0015)
     assert tab.probability_mc["four"][0] == pytest.approx(0.9987, abs=0.0015)
 
@@ -93,7 +94,7 @@ def test_lin2024_four_area_column_with_3sigma_reading():
     assert np.all(np.abs(tab.probability_mc["four"] - paper) < 0.10)
     # ... and the ordering of Table 1 at sigma 0.1 and 0.2 holds under that reading too
     full = gs.simulate_table1(
-        [0.2 * ARCSEC, 0.1 * ARCSEC], n_trials=3000, sigma_kind="3sigma", seed=2
+        [0.2 * ARCSEC, 0.1 * ARCSEC], n_trials=3000, sigma_kind="3sigma", rng=2
     )
     for i in range(2):
         v = {k: full.probability_mc[k][i] for k in full.probability_mc}
@@ -101,15 +102,15 @@ def test_lin2024_four_area_column_with_3sigma_reading():
 
 
 def test_identification_off_gives_pure_accuracy():
-    a = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=2000, seed=3, identify=False)
-    b = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=2000, seed=3)
+    a = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=2000, rng=3, identify=False)
+    b = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=2000, rng=3)
     assert a.identified["three"][0] == 1.0
     # identification can only remove successes
     assert np.all(b.success["three"] <= a.success["three"])
 
 
 def test_by_triangle_ratio_bins():
-    tab = gs.simulate_table1([0.1 * ARCSEC, 0.3 * ARCSEC], ["three"], n_trials=2000, seed=4)
+    tab = gs.simulate_table1([0.1 * ARCSEC, 0.3 * ARCSEC], ["three"], n_trials=2000, rng=4)
     ratio, prob, count = tab.by_triangle_ratio("three", 0.1 * ARCSEC, n_bins=8)
     assert count.sum() == 2000 and np.all(np.diff(ratio) > 0)
     assert np.all((prob >= 0) & (prob <= 1))
@@ -234,7 +235,9 @@ def test_trace_selection_is_best_by_its_criterion():
     lay = gs.lin_layout(1.6 * DEG)
     xy, mag = _stars(14, 1, lay)
     s = 0.1 * ARCSEC
-    by = {c: gs.select_guide_stars(xy, mag, lay, criterion=c, sigma_rad=s) for c in gs.CRITERIA}
+    by = {
+        c: gs.select_guide_stars(xy, mag, layout=lay, criterion=c, sigma_rad=s) for c in gs.CRITERIA
+    }
     assert all(v.ok and len(v.indices) == 5 for v in by.values())
     assert by["trace"].predicted_rad <= by["rules"].predicted_rad + 1e-15
     assert by["trace"].predicted_rad <= by["brightest"].predicted_rad + 1e-15
@@ -250,15 +253,15 @@ def test_trace_selection_is_best_by_its_criterion():
 def test_selection_statuses_and_errors():
     lay = gs.lin_layout(1.6 * DEG)
     xy, mag = _stars(2, 2, lay)
-    assert gs.select_guide_stars(xy, mag, lay).status == "too_few_stars"
-    empty = gs.select_guide_stars(np.zeros((0, 2)), np.zeros(0), lay)
+    assert gs.select_guide_stars(xy, mag, layout=lay).status == "too_few_stars"
+    empty = gs.select_guide_stars(np.zeros((0, 2)), np.zeros(0), layout=lay)
     assert empty.status == "no_stars" and not empty.ok
     with pytest.raises(InputError, match="n_stars"):
-        gs.select_guide_stars(xy, mag, lay, n_stars=2)
+        gs.select_guide_stars(xy, mag, layout=lay, n_stars=2)
     with pytest.raises(InputError, match="criterion"):
-        gs.select_guide_stars(xy, mag, lay, criterion="random")
+        gs.select_guide_stars(xy, mag, layout=lay, criterion="random")
     with pytest.raises(InputError, match="area number 5"):
-        gs.select_guide_stars(xy, mag, lay, areas=(5,))
+        gs.select_guide_stars(xy, mag, layout=lay, areas=(5,))
 
 
 # --------------------------------------------------------------------------- real fields
@@ -266,14 +269,12 @@ def test_selection_statuses_and_errors():
 
 @pytest.fixture(scope="module")
 def hip():
-    from starsense.catalog import load_catalog
-
     return load_catalog("hipparcos")
 
 
 def test_field_hipparcos_too_shallow_at_150_0(hip):
     # (150, 0), 1.6 deg: no Hipparcos star falls in the four segments (0.74 deg^2 in all)
-    res = gs.field_accuracy(hip, (150.0 * DEG, 0.0), 1.6 * DEG, n_trials=200)
+    res = gs.field_accuracy(hip, (150.0 * DEG, 0.0), lens_fov_rad=1.6 * DEG, n_trials=200)
     assert res.stars_per_area == (0, 0, 0, 0)
     assert all(u == 0 for u, _ in res.usable.values())
     assert all(np.all(np.isnan(v)) for v in res.accuracy_arcsec.values())
@@ -284,7 +285,7 @@ def test_field_mean_error_below_rms_prediction(hip):
     # (240, -80): four Hipparcos stars in areas 2 and 4. Jensen: the mean error norm is at most
     # the rms sqrt(trace P); for a 2-D Gaussian it is 0.886-1 times it. 2000 trials: the mean
     # is known to ~1.2 %.
-    res = gs.field_accuracy(hip, (240.0 * DEG, -80.0 * DEG), 1.6 * DEG, n_trials=2000)
+    res = gs.field_accuracy(hip, (240.0 * DEG, -80.0 * DEG), lens_fov_rad=1.6 * DEG, n_trials=2000)
     assert res.usable["four"] == (1, 1)
     ratio = res.accuracy_arcsec["four"] / res.predicted_arcsec["four"]
     assert np.all((ratio > 0.85) & (ratio < 1.01))
@@ -292,9 +293,9 @@ def test_field_mean_error_below_rms_prediction(hip):
 
 def test_field_bad_center(hip):
     with pytest.raises(InputError, match="Dec within"):
-        gs.field_accuracy(hip, (10.0 * DEG, 95.0 * DEG), 1.6 * DEG, n_trials=10)
+        gs.field_accuracy(hip, (10.0 * DEG, 95.0 * DEG), lens_fov_rad=1.6 * DEG, n_trials=10)
     with pytest.raises(InputError, match="lens_fov_rad"):
-        gs.field_accuracy(hip, (10.0 * DEG, 5.0 * DEG), 0.0, n_trials=10)
+        gs.field_accuracy(hip, (10.0 * DEG, 5.0 * DEG), lens_fov_rad=0.0, n_trials=10)
 
 
 # --------------------------------------------------------------------------- CLI

@@ -6,8 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from starsense.analysis import guide_stars as gs
+from starsense.analysis.guide_stars.metrics import chi_cdf
 from starsense.attitude.covariance import covariance, fisher_matrix
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
@@ -42,7 +44,7 @@ def test_lattice_symmetric_25_per_area():
 
 @pytest.mark.parametrize("config", list(gs.CONFIGURATIONS))
 def test_placements_in_configuration_and_cover_it(config):
-    xy = gs.sample_placements(config, 500, rng=1)
+    xy = gs.sample_placements(config, n_trials=500, rng=1)
     assert xy.shape == (500, 5, 2)
     assert np.all(gs.in_configuration(xy, config))
     area = gs.area_index(xy)
@@ -61,7 +63,7 @@ def test_triangle_ratio_right_triangle():
 
 
 def test_batch_covariance_matches_limits():
-    vec = gs.focal_to_vectors(gs.sample_placements("three", 4, rng=2), FOV_RAD)
+    vec = gs.focal_to_vectors(gs.sample_placements("three", n_trials=4, rng=2), FOV_RAD)
     s = 0.1 * ARCSEC
     for k in range(4):
         ref = covariance(fisher_matrix(vec[k], np.full(5, s**-2)))
@@ -69,7 +71,7 @@ def test_batch_covariance_matches_limits():
 
 
 def test_batched_svd_matches_estimate_attitude():
-    vec = gs.focal_to_vectors(gs.sample_placements("two_adjacent", 20, rng=3), FOV_RAD)
+    vec = gs.focal_to_vectors(gs.sample_placements("two_adjacent", n_trials=20, rng=3), FOV_RAD)
     z = np.random.default_rng(4).standard_normal((20, 5, 2))
     att = random_attitudes(20, 5)
     s = 0.2 * ARCSEC
@@ -90,13 +92,13 @@ def test_probability_within_isotropic_closed_forms():
 
 @pytest.mark.parametrize(("config", "sigma"), [("two_symmetric", 0.1), ("one", 0.05)])
 def test_mc_agrees_with_analytic_10000(config, sigma):
-    tab = gs.simulate_table1([sigma * ARCSEC], [config], n_trials=10_000, seed=7)
+    tab = gs.simulate_table1([sigma * ARCSEC], [config], n_trials=10_000, rng=7)
     assert abs(tab.probability_mc[config][0] - tab.probability_analytic[config][0]) < 0.03
 
 
 def test_mc_agrees_with_analytic_total_metric():
     tab = gs.simulate_table1(
-        [0.02 * ARCSEC], ["four"], n_trials=4000, fov_rad=8.5 * DEG, metric="total", seed=3
+        [0.02 * ARCSEC], ["four"], n_trials=4000, fov_rad=8.5 * DEG, metric="total", rng=3
     )
     assert abs(tab.probability_mc["four"][0] - tab.probability_analytic["four"][0]) < 0.03
 
@@ -106,7 +108,7 @@ def test_lin2024_table1_ordering(sigma):
     # paper, Table 1 (%): sigma 0.2: one 0.44, adj 24.45, sym 46.10, three 39.18, four 98.99;
     # sigma 0.1: one 1.65, adj 54.67, sym 94.21, three 90.94, four 99.87. Four highest, one
     # lowest, the two-area layouts and three between.
-    tab = gs.simulate_table1([sigma * ARCSEC], n_trials=5000, seed=11)
+    tab = gs.simulate_table1([sigma * ARCSEC], n_trials=5000, rng=11)
     for p in (tab.probability_mc, tab.probability_analytic):
         v = {k: p[k][0] for k in p}
         assert v["one"] < min(v["two_adjacent"], v["two_symmetric"], v["three"])
@@ -117,8 +119,8 @@ def test_lin2024_table1_ordering(sigma):
 
 
 def test_reproducible():
-    a = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=300, seed=5)
-    b = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=300, seed=5)
+    a = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=300, rng=5)
+    b = gs.simulate_table1([0.1 * ARCSEC], ["three"], n_trials=300, rng=5)
     assert a.probability_mc["three"][0] == b.probability_mc["three"][0]
 
 
@@ -134,14 +136,14 @@ def test_unknown_configuration():
     with pytest.raises(InputError, match="configuration = 'five'"):
         gs.simulate_table1(configurations=["five"], n_trials=10)
     with pytest.raises(InputError, match="not known"):
-        gs.sample_placements("diagonal", 10)
+        gs.sample_placements("diagonal", n_trials=10)
 
 
 def test_bad_inputs_other():
     with pytest.raises(InputError, match="n_stars"):
-        gs.sample_placements("one", 10, n_stars=2)
+        gs.sample_placements("one", n_trials=10, n_stars=2)
     with pytest.raises(InputError, match="cannot cover"):
-        gs.sample_placements("four", 10, n_stars=3)
+        gs.sample_placements("four", n_trials=10, n_stars=3)
     with pytest.raises(InputError, match="metric"):
         gs.error_norm(np.zeros(3), "roll")
     with pytest.raises(InputError, match="at least 3 guide stars"):
@@ -162,9 +164,6 @@ def test_edge_units_read_back_as_given():
 def test_chi_cdf_is_scipy_stats():
     # an independent computation: scipy.stats' chi (3 dof) and Rayleigh (chi, 2 dof) CDFs;
     # agreement to a few ulp of 1 (the closed form and the incomplete gamma are both exact)
-    from scipy import stats
-
-    from starsense.analysis.guide_stars.metrics import chi_cdf
 
     x = np.linspace(0.0, 8.0, 4001)
     np.testing.assert_allclose(chi_cdf(x, 2), stats.rayleigh.cdf(x), rtol=0, atol=1e-15)

@@ -66,11 +66,13 @@ def test_block_kernel_equals_spatial_field_stars(stars, fov):
     # analysis' FieldStars (one k-d tree query per pointing) at every step: exact, no tolerance.
     v, m = stars
     grid = TimeGrid.span("2025-03-20T00:00:00", 3000.0, 1.5)
-    geo = mission_geometry(grid, sun_synchronous(550e3, 6.0, grid.start), AttitudeProfile("nadir"))
+    geo = mission_geometry(
+        grid, sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start), AttitudeProfile("nadir")
+    )
     mats = geo.head_matrices(Head("z", fov, CURVE))
     thresholds = np.full(grid.n_steps, 5.0)
     thresholds[::7] = 4.0
-    got = detected_counts(fov, mats, v, m, thresholds)
+    got = detected_counts(fov, mats, vectors=v, magnitudes=m, threshold_mag=thresholds)
     field = FieldStars.build(fov, Rotation.from_matrix(mats), v, m)
     want = np.where(thresholds == 5.0, field.counts(5.0), field.counts(4.0))
     assert np.array_equal(got, want)
@@ -82,10 +84,10 @@ def test_inertial_without_bright_bodies_equals_static_availability(stars):
     # with m_t = m_t(0). Per boresight the outcome equals the spatial analysis' (FieldStars
     # counts >= N_min), and the fraction over the boresights equals its availability.
     v, m = stars
-    _, attitudes = sky_attitudes(24, roll=0.3, seed=0)
+    _, attitudes = sky_attitudes(24, roll_rad=0.3, rng=0)
     ra, dec, roll = radec_roll_from_attitude(attitudes)
     grid = TimeGrid.span("2025-03-20T00:00:00", 600.0, 60.0)
-    orbit = sun_synchronous(550e3, 6.0, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start)
     fov = RectangularFov(10.0 * DEG, 7.6 * DEG)
     field = FieldStars.build(fov, attitudes, v, m)
     m_t = float(CURVE([0.0])[0])
@@ -94,7 +96,7 @@ def test_inertial_without_bright_bodies_equals_static_availability(stars):
     for k in range(len(ra)):
         prof = AttitudeProfile("inertial", ra=ra[k], dec=dec[k], roll=roll[k])
         res = mission_availability(mission_geometry(grid, orbit, prof),
-                                   [Head("h", fov, CURVE)], v, m)  # fmt: skip
+                                   [Head("h", fov, CURVE)], vectors=v, magnitudes=m)  # fmt: skip
         h = res.heads[0]
         assert np.all(h.stars == static_counts[k])
         assert np.all(h.rate_rad_s < 1e-12)
@@ -109,9 +111,9 @@ def test_ecliptic_pole_head_never_sun_blinded():
     # the ecliptic pole is 90 deg from it all year: never inside a 45 deg exclusion.
     grid = TimeGrid.span("2025-01-01T00:00:00", 365.25 * 86400.0, 43200.0)
     pole = AttitudeProfile("inertial", ra=270.0 * DEG, dec=(90.0 - 23.4392911) * DEG)
-    geo = mission_geometry(grid, sun_synchronous(550e3, 6.0, grid.start), pole)
+    geo = mission_geometry(grid, sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start), pole)
     head = Head("pole", FOV, CURVE, exclusion=Exclusion(sun_rad=45.0 * DEG))
-    res = mission_availability(geo, [head], np.eye(3), np.zeros(3))
+    res = mission_availability(geo, [head], vectors=np.eye(3), magnitudes=np.zeros(3))
     h = res.heads[0]
     assert not h.sun_blinded.any()
     assert np.allclose(h.sun_sep, math.pi / 2, atol=0.01 * DEG)
@@ -120,11 +122,14 @@ def test_ecliptic_pole_head_never_sun_blinded():
 def test_nadir_head_always_earth_blinded_and_zenith_never(stars):
     v, m = stars
     grid = TimeGrid.span("2025-03-20T00:00:00", 6000.0, 5.0)
-    geo = mission_geometry(grid, sun_synchronous(550e3, 6.0, grid.start), AttitudeProfile("nadir"))
+    geo = mission_geometry(
+        grid, sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start), AttitudeProfile("nadir")
+    )
     exc = Exclusion(sun_rad=45 * DEG, moon_rad=10 * DEG, earth_limb_rad=0.0, atmosphere_m=0.0)
     zenith = Rotation.from_euler("x", 180.0, degrees=True)
     res = mission_availability(geo, [Head("nadir", FOV, CURVE, exclusion=exc),
-                                     Head("zenith", FOV, CURVE, zenith, exc)], v, m)  # fmt: skip
+                                     Head("zenith", FOV, CURVE, zenith, exc)],
+                               vectors=v, magnitudes=m)  # fmt: skip
     nadir, up = res.heads
     assert nadir.earth_blinded.all() and not nadir.available.any()
     assert np.all(nadir.stars == 0)
@@ -143,7 +148,7 @@ def test_future_dates_do_not_warn(stars):
     grid = TimeGrid.span("2030-01-01T00:00:00", 1200.0, 10.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        geo = mission_geometry(grid, sun_synchronous(700e3, 22.0, grid.start),
+        geo = mission_geometry(grid, sun_synchronous(700e3, ltan_h=22.0, epoch=grid.start),
                                AttitudeProfile("target", lat=45 * DEG, lon=7 * DEG))  # fmt: skip
-    res = mission_availability(geo, [Head("h", FOV, CURVE)], v, m)
+    res = mission_availability(geo, [Head("h", FOV, CURVE)], vectors=v, magnitudes=m)
     assert res.steps == 120

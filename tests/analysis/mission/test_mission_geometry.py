@@ -6,16 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from astropy import units as u
-from astropy.coordinates import (
-    GCRS,
-    TEME,
-    CartesianRepresentation,
-    SkyCoord,
-    angular_separation,
-    get_body,
-)
-from astropy.utils import iers
 
 from starsense.analysis.availability import ThresholdCurve
 from starsense.analysis.mission import (
@@ -46,6 +36,9 @@ PLUS_Y = mounting_from_quaternion([math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])  #
 
 
 def _separation_deg(a, b):
+    from astropy import units as u
+    from astropy.coordinates import angular_separation
+
     sa, sb = a.spherical, b.spherical
     return angular_separation(sa.lon, sa.lat, sb.lon, sb.lat).to_value(u.deg)
 
@@ -57,8 +50,13 @@ def test_sun_and_moon_separation_match_astropy_over_a_day():
     # formula of SkyCoord.separation (astropy's angular_separation, Vincenty), in that frame.
     # Tolerance 0.01 deg, the issue's; measured 2 arcsec (Sun) and 5 arcsec (Moon): aberration
     # by the spacecraft's 7.6 km/s and light time.
+    from astropy import units as u
+    from astropy.coordinates import GCRS, CartesianRepresentation, SkyCoord, get_body
+
     grid = TimeGrid.span("2025-06-01T00:00:00", 86400.0, 600.0)
-    geo = mission_geometry(grid, sun_synchronous(550e3, 10.5, grid.start), AttitudeProfile("nadir"))
+    geo = mission_geometry(
+        grid, sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start), AttitudeProfile("nadir")
+    )
     head = Head("+Y", FOV, CURVE, PLUS_Y)
     b = geo.head_matrices(head)[:, 2, :]
     times = grid.times()
@@ -100,7 +98,7 @@ def test_sso_node_follows_the_mean_sun_and_circular_radius_constant():
     # Sun-synchronous: the orbit normal turns about the pole by 360 deg per tropical year,
     # 0.98565 deg/day (the definition; J2 secular rate, Vallado eq. 9-41). Tolerance 1e-6 deg.
     grid = TimeGrid.span("2025-03-20T00:00:00", 86400.0 + 1.0, 1.0)
-    orbit = sun_synchronous(550e3, 6.0, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start)
     r, v = orbit.state(grid)
     h0, h1 = np.cross(r[0], v[0]), np.cross(r[-1], v[-1])
     node0, node1 = math.atan2(h0[0], -h0[1]), math.atan2(h1[0], -h1[1])
@@ -124,6 +122,10 @@ def test_elliptical_orbit_vis_viva():
 def test_teme_to_gcrs_matches_astropy():
     # Our ERFA rotation (NPB^T R3(-EqE)) against astropy's TEME -> GCRS at the TLE's epoch
     # (inside the bundled IERS-B table: no download). 1 m on a 7000 km vector = 0.03 arcsec.
+    from astropy import units as u
+    from astropy.coordinates import GCRS, TEME, CartesianRepresentation
+    from astropy.utils import iers
+
     orbit = TleOrbit(*TLE5.splitlines())
     grid = TimeGrid.span(orbit.epoch, 120.0, 60.0)
     r, _ = orbit.state(grid)
@@ -139,7 +141,7 @@ def test_teme_to_gcrs_matches_astropy():
 def test_two_heads_opposite_never_both_sun_blinded_and_sun_profile():
     # Invariant: boresights 180 deg apart are never both within < 90 deg of the Sun.
     grid = TimeGrid.span("2025-06-01T00:00:00", 6 * 3600.0, 30.0)
-    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start)
     geo = mission_geometry(grid, orbit, AttitudeProfile("nadir", yaw_steering=True))
     minus_y = mounting_from_quaternion([-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])
     seps = [_angle(geo.head_matrices(Head(n, FOV, CURVE, m))[:, 2, :], geo.sun)
@@ -156,7 +158,9 @@ def test_ground_point_in_gcrs_matches_astropy_and_target_profile():
     # EarthLocation.get_gcrs (IERS-B, 2020: no download). UT1 - UTC was -0.18 s in June 2020:
     # 0.18 s x 465 m/s x cos(45 deg) = 60 m; tolerance 150 m (0.0013 deg seen from the centre).
     import erfa
+    from astropy import units as u
     from astropy.coordinates import EarthLocation
+    from astropy.utils import iers
 
     grid = TimeGrid.span("2020-06-01T00:00:00", 86400.0, 3600.0)
     lat, lon = 45.0, 7.0
@@ -167,7 +171,7 @@ def test_ground_point_in_gcrs_matches_astropy_and_target_profile():
         ref = site.get_gcrs(grid.times()).cartesian.xyz.to_value(u.m).T
     assert np.max(np.linalg.norm(ours - ref, axis=1)) < 150.0
     # the target profile's +z passes through that ground point
-    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start)
     geo = mission_geometry(grid, orbit, AttitudeProfile("target", lat=lat * DEG, lon=lon * DEG))
     to_site = ours - geo.r
     to_site /= np.linalg.norm(to_site, axis=1, keepdims=True)
@@ -181,7 +185,7 @@ def test_yaw_steering_aligns_ground_velocity_with_body_x():
     # (0.066, the ~3.8 deg yaw-steering amplitude of a sun-synchronous orbit); 3 % tolerance
     # (the relative velocity's own change of length).
     grid = TimeGrid.span("2025-06-01T00:00:00", 6000.0, 20.0)
-    orbit = sun_synchronous(550e3, 10.5, grid.start)
+    orbit = sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start)
     w_e = 7.292115e-5 * grid.earth_axis()
     a = orbit.semi_major_axis_m
     peak = 7.292115e-5 * a * math.sin(orbit.inclination) / math.sqrt(GM_EARTH_M3_S2 / a)

@@ -24,6 +24,8 @@ The modules, along the seams of the computation:
 * :mod:`.analysis`: :class:`AvailabilityAnalysis`, configure then ask.
 * :mod:`.fidelity`: rendered frames through the detector against the threshold model.
 * :mod:`.checks`: the checks with rules of their own (rates, magnitude limits).
+* :mod:`.entry`: :func:`static`, :func:`dynamic` and :func:`mission`, each the whole analysis in
+  one call from a sensor and a catalogue.
 
 Angles are radians and rates rad/s; results give degrees for output. The catalogue's positions
 are used at its own epoch (proper motion over a few decades moves the bright stars by
@@ -42,6 +44,7 @@ from starsense.analysis.availability.analysis import (
     implied_threshold,
 )
 from starsense.analysis.availability.checks import Fov, check_fov, check_mag, check_rates
+from starsense.analysis.availability.entry import dynamic, mission, static
 from starsense.analysis.availability.fidelity import FidelityCheck, fidelity_check
 from starsense.analysis.availability.field import (
     BrightestInField,
@@ -87,11 +90,14 @@ __all__ = [
     "check_mag",
     "check_rates",
     "describe_fov",
+    "dynamic",
     "fidelity_check",
     "field_of_view",
     "field_pairs",
     "implied_threshold",
+    "mission",
     "sky_attitudes",
+    "static",
     "static_result",
     "track_family_attitudes",
 ]

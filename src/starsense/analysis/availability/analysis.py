@@ -32,6 +32,7 @@ from starsense.analysis.availability.results import (
     static_result,
 )
 from starsense.analysis.availability.threshold import ThresholdCurve
+from starsense.analysis.inputs import root_seed
 from starsense.errors import InputError
 from starsense.geometry.fov import RectangularFov
 from starsense.units import DEG
@@ -76,10 +77,10 @@ class AvailabilityAnalysis:
         Catalogue cut: no star fainter than this is ever counted (the on-board catalogue).
     n_orientations : int
         Spatial boresights (spherical Fibonacci lattice).
-    roll : float or None
-        Roll of the spatial attitudes, rad (None: uniform random from `seed`); matters only
+    roll_rad : float or None
+        Roll of the spatial attitudes, rad (None: uniform random from `rng`); matters only
         for a rectangular field.
-    seed : int or None
+    rng : None, int or numpy.random.Generator
         Seed of the random rolls.
     catalog, band : str
         Names for reports.
@@ -95,8 +96,8 @@ class AvailabilityAnalysis:
         *,
         max_mag: float = math.inf,
         n_orientations: int = DEFAULT_N_ORIENTATIONS,
-        roll: float | None = None,
-        seed: int | None = 0,
+        roll_rad: float | None = None,
+        rng: int | np.random.Generator | None = 0,
         catalog: str = "",
         band: str = "V",
         progress: Callable[[str, int, int], None] | None = None,
@@ -119,8 +120,8 @@ class AvailabilityAnalysis:
         self.magnitudes = m[keep]
         self.fov = fov
         self.n_orientations = check_int(n_orientations, "n_orientations", 1)
-        self.roll = None if roll is None else finite_float(roll, "roll")
-        self.seed = seed
+        self.roll_rad = None if roll_rad is None else finite_float(roll_rad, "roll_rad")
+        self.seed = root_seed(rng)  # recorded: the rolls are drawn from it
         self.catalog = catalog
         self.band = band
         self.progress = progress
@@ -128,14 +129,14 @@ class AvailabilityAnalysis:
 
     @classmethod
     def from_catalog(
-        cls, catalog: Any, fov: Fov, max_mag: float, band: str = "V", **kwargs: Any
+        cls, catalog: Any, fov: Fov, max_mag: float, *, band: str = "V", **kwargs: Any
     ) -> AvailabilityAnalysis:
         """Build the analysis of a catalogue's stars with ``mag <= max_mag`` in `band`.
 
         `catalog` is a :class:`~starsense.catalog.Catalog` or anything with ``vectors`` and
         ``mags[band]``; `kwargs` go to the constructor.
         """
-        vectors, mags = catalog_stars(catalog, max_mag, band)
+        vectors, mags = catalog_stars(catalog, max_mag, band=band)
         name = getattr(catalog, "name", "")
         return cls(vectors, mags, fov, max_mag=max_mag, catalog=name, band=band, **kwargs)
 
@@ -157,15 +158,15 @@ class AvailabilityAnalysis:
 
     @cached_property
     def _sky(self) -> tuple[NDArray[np.float64], FieldStars]:
-        roll = self.roll if isinstance(self.fov, RectangularFov) else 0.0
+        roll = self.roll_rad if isinstance(self.fov, RectangularFov) else 0.0
         boresights, attitudes = sky_attitudes(self.n_orientations, roll, self.seed)
         stars = FieldStars.build(
             self.fov,
             attitudes,
             self.vectors,
             self.magnitudes,
-            self.tree,
-            self._reporter("stars in the field, sky grid"),
+            tree=self.tree,
+            progress=self._reporter("stars in the field, sky grid"),
         )
         return boresights, stars
 
@@ -187,6 +188,7 @@ class AvailabilityAnalysis:
     def static(
         self,
         n_min: int = N_MIN_LOST_IN_SPACE,
+        *,
         max_mag: float | None = None,
         curve_span_mag: float = 3.0,
         curve_step_mag: float = 0.05,
@@ -204,15 +206,15 @@ class AvailabilityAnalysis:
         return static_result(
             self.sky,
             self.sky.counts(m_t),
-            self.boresights,
-            n_min,
-            m_t,
-            self.n_stars,
-            describe_fov(self.fov),
-            self.catalog,
-            self.band,
-            curve_span_mag,
-            curve_step_mag,
+            boresights=self.boresights,
+            n_min=n_min,
+            m_t=m_t,
+            n_stars=self.n_stars,
+            fov=describe_fov(self.fov),
+            catalog=self.catalog,
+            band=self.band,
+            curve_span_mag=curve_span_mag,
+            curve_step_mag=curve_step_mag,
         )
 
     # -- spatial dynamic ---------------------------------------------------------------------
@@ -253,23 +255,23 @@ class AvailabilityAnalysis:
         self,
         inclinations: ArrayLike = DEFAULT_INCLINATIONS,
         n_samples: int = DEFAULT_TRACK_SAMPLES,
-        node: float = 0.0,
+        node_rad: float = 0.0,
     ) -> FieldStars:
         """Return the stars in the field along every track (track-major, `n_samples` each).
 
         Inclinations and node in rad, as :func:`track_family_attitudes`.
         """
         incl = np.atleast_1d(finite_array(inclinations, "inclinations"))
-        key = (tuple(incl.tolist()), int(n_samples), float(node))
+        key = (tuple(incl.tolist()), int(n_samples), float(node_rad))
         if key not in self._tracks:
-            attitudes = track_family_attitudes(incl, n_samples, node)
+            attitudes = track_family_attitudes(incl, n_samples, node_rad)
             self._tracks[key] = FieldStars.build(
                 self.fov,
                 attitudes,
                 self.vectors,
                 self.magnitudes,
-                self.tree,
-                self._reporter("stars in the field, tracks"),
+                tree=self.tree,
+                progress=self._reporter("stars in the field, tracks"),
             )
         return self._tracks[key]
 
@@ -277,10 +279,11 @@ class AvailabilityAnalysis:
         self,
         curve: ThresholdCurve,
         rate_rad_s: float,
+        *,
         n_min: int = N_MIN_LOST_IN_SPACE,
         inclinations: ArrayLike = DEFAULT_INCLINATIONS,
         n_samples: int = DEFAULT_TRACK_SAMPLES,
-        node: float = 0.0,
+        node_rad: float = 0.0,
     ) -> TrackAvailability:
         """Return the along-track availability of each track at one constant slew rate.
 
@@ -296,7 +299,7 @@ class AvailabilityAnalysis:
             Track inclinations, rad.
         n_samples : int
             Orientations per track.
-        node : float
+        node_rad : float
             RA of the tracks' common node, rad.
 
         Returns
@@ -308,7 +311,7 @@ class AvailabilityAnalysis:
         n_samples = check_int(n_samples, "n_samples", 1)
         _check_curve(curve)
         incl = np.atleast_1d(finite_array(inclinations, "inclinations"))
-        tracks = self.track_field(incl, n_samples, node)
+        tracks = self.track_field(incl, n_samples, node_rad)
         m_t = float(self.effective_threshold(curve([rate]))[0])
         keys = sorted({N_MIN_TRACKING, N_MIN_LOST_IN_SPACE, n_min})
         by = {
@@ -326,7 +329,7 @@ class AvailabilityAnalysis:
             n_samples=n_samples,
             n_stars=self.n_stars,
             n_orientations=self.n_orientations,
-            node=float(node),
+            node=float(node_rad),
             fov=describe_fov(self.fov),
             catalog=self.catalog,
             band=self.band,

@@ -19,8 +19,11 @@ from scipy.spatial.transform import Rotation
 from starsense._validate import check_int
 from starsense.analysis.availability.checks import check_rates
 from starsense.analysis.availability.field import FieldStars, catalog_stars
-from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, _pct
+from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, percent
 from starsense.analysis.availability.threshold import ThresholdCurve
+from starsense.analysis.inputs import root_seed
+from starsense.detect import StarDetector
+from starsense.render.scene import render_frame
 from starsense.units import DEG, to_edge
 
 __all__ = ["FidelityCheck", "fidelity_check"]
@@ -112,9 +115,9 @@ class FidelityCheck:
             f"full-fidelity check at {self.rate_deg_s:g} deg/s, N_min = {self.n_min}, "
             f"{self.n_frames} rendered frames ({self.model_name} model)",
             f"  threshold model (m_t = {self.threshold_mag:.2f}): "
-            f"{_pct(self.model_availability)} available, "
+            f"{percent(self.model_availability)} available, "
             f"{self.model_counts.mean():.2f} stars per field",
-            f"  rendered + detected: {_pct(self.frame_availability)} available, "
+            f"  rendered + detected: {percent(self.frame_availability)} available, "
             f"{self.frame_counts.mean():.2f} stars detected per frame "
             f"(+{self.n_spurious.mean():.2f} unmatched)",
             f"  model optimistic in {self.optimistic} frames, pessimistic in {self.pessimistic}",
@@ -126,8 +129,6 @@ def _detect(frame: Any, sensor: Any) -> NDArray[np.float64]:
 
     :class:`starsense.detect.StarDetector` with the sensor's logic, bias as background.
     """
-    from starsense.detect import StarDetector
-
     found = StarDetector.for_sensor(sensor)(frame.image)
     return np.stack([np.asarray(found.x, float), np.asarray(found.y, float)], axis=-1)
 
@@ -156,14 +157,14 @@ def fidelity_check(
     sensor: Any,
     catalog: Any,
     curve: ThresholdCurve,
-    rate_rad_s: float,
     *,
-    n_frames: int = 50,
+    rate_rad_s: float,
+    n_trials: int = 50,
     n_min: int = N_MIN_LOST_IN_SPACE,
     max_mag: float = 5.75,
     model: str = "reed",
     band: str = "V",
-    seed: int | None = 0,
+    rng: int | np.random.Generator | None = 0,
     match_radius_px: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> FidelityCheck:
@@ -187,7 +188,7 @@ def fidelity_check(
         The threshold model.
     rate_rad_s : float
         Cross-axis slew rate, rad/s.
-    n_frames : int
+    n_trials : int
         Frames to render.
     n_min : int
         Stars needed.
@@ -197,8 +198,9 @@ def fidelity_check(
         Sensitivity model of the rendering.
     band : str
         Magnitude band.
-    seed : int or None
-        Root seed of the attitudes and the frames' noise.
+    rng : None, int or numpy.random.Generator
+        Root seed of the attitudes and the frames' noise (a Generator gives one seed drawn
+        from it).
     match_radius_px : float, optional
         Radius of a match, px.
     progress : callable(done, total), optional
@@ -213,13 +215,12 @@ def fidelity_check(
     InputError
         On bad counts or rates.
     """
-    from starsense.render.scene import render_frame
-
-    n_frames = check_int(n_frames, "n_frames", 1)
+    n_frames = check_int(n_trials, "n_trials", 1)
     n_min = check_int(n_min, "n_min", 1)
     w = float(check_rates(rate_rad_s, "rate_rad_s")[0])
-    vectors, mags = catalog_stars(catalog, max_mag, band)
+    vectors, mags = catalog_stars(catalog, max_mag, band=band)
     m_t = float(min(curve([w])[0], max_mag))
+    seed = root_seed(rng)
     rng = np.random.default_rng(seed)
     attitudes = Rotation.random(n_frames, rng=rng)
     model_counts = FieldStars.build(sensor.fov(), attitudes, vectors, mags).counts(m_t)

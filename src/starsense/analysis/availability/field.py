@@ -26,7 +26,7 @@ from starsense.analysis.availability.checks import Fov, check_fov, check_mag
 from starsense.errors import InputError
 from starsense.geometry.fov import CircularFov
 
-__all__ = ["BrightestInField", "FieldStars", "catalog_stars", "field_pairs"]
+__all__ = ["BrightestInField", "FieldStars", "catalog_stars", "field_pairs", "inside_camera"]
 
 # Margins on the prefilter chord so that rounding never drops a star the exact test accepts.
 _CHORD_REL_MARGIN = 1e-9
@@ -35,8 +35,20 @@ _CHORD_ABS_MARGIN = 1e-12
 _CANDIDATE_BUDGET = 2_000_000
 
 
-def _inside_camera(fov: Fov, v_cam: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Apply the exact field test to camera-frame vectors (..., 3) (the tests of geometry.fov)."""
+def inside_camera(fov: Fov, v_cam: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Return which camera-frame vectors are inside the field (the tests of geometry.fov).
+
+    Parameters
+    ----------
+    fov : CircularFov or RectangularFov
+        The field.
+    v_cam : ndarray (..., 3)
+        Unit vectors in the camera frame (+z the boresight).
+
+    Returns
+    -------
+    ndarray (...) of bool
+    """
     x, y, z = v_cam[..., 0], v_cam[..., 1], v_cam[..., 2]
     if isinstance(fov, CircularFov):
         return z >= math.cos(fov.half_angle_rad)
@@ -51,6 +63,7 @@ def field_pairs(
     fov: Fov,
     matrices: NDArray[np.float64],
     vectors: NDArray[np.float64],
+    *,
     tree: cKDTree | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
@@ -104,7 +117,7 @@ def field_pairs(
                 v_cam[:, 2] = np.einsum("kj,kj->k", mats[point_idx, 2, :], vectors[star_idx])
             else:
                 v_cam = np.einsum("kij,kj->ki", mats[point_idx], vectors[star_idx])
-            inside = _inside_camera(fov, v_cam)
+            inside = inside_camera(fov, v_cam)
             points.append(point_idx[inside] + start)
             stars.append(star_idx[inside])
         if progress is not None:
@@ -156,6 +169,7 @@ class FieldStars:
         attitudes: Rotation,
         vectors: ArrayLike,
         magnitudes: ArrayLike,
+        *,
         tree: cKDTree | None = None,
         progress: Callable[[int, int], None] | None = None,
     ) -> FieldStars:
@@ -194,7 +208,7 @@ class FieldStars:
         n_att, n = matrices.shape[0], v.shape[0]
         if tree is not None and (tree.n != n or tree.m != 3):
             raise InputError("tree must be a cKDTree built on exactly the star vectors")
-        points, stars = field_pairs(fov, matrices, v, tree, progress)
+        points, stars = field_pairs(fov, matrices, v, tree=tree, progress=progress)
         # sort by (pointing, magnitude): rank the stars by magnitude once, then one integer sort
         rank = np.empty(n, dtype=np.int64)
         order = np.argsort(mags, kind="stable")
@@ -318,7 +332,7 @@ class BrightestInField:
 
 
 def catalog_stars(
-    catalog: Any, max_mag: float, band: str = "V", allow_empty: bool = False
+    catalog: Any, max_mag: float, *, band: str = "V", allow_empty: bool = False
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return unit vectors and magnitudes of the catalogue stars with ``mag <= max_mag``.
 

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import check_int, check_scalar, finite_array, finite_float
+from starsense._validate import as_generator, check_int, check_scalar, finite_array, finite_float
 from starsense.analysis.availability.checks import Fov
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll
@@ -72,7 +72,7 @@ def describe_fov(fov: Fov) -> str:
 
 
 def sky_attitudes(
-    n: int, roll: float | None = None, seed: int | None = 0
+    n: int, roll_rad: float | None = None, rng: int | np.random.Generator | None = 0
 ) -> tuple[NDArray[np.float64], Rotation]:
     """Return quasi-uniform boresights (spherical Fibonacci lattice) and attitudes with a roll.
 
@@ -80,11 +80,11 @@ def sky_attitudes(
     ----------
     n : int
         Number of orientations (>= 1).
-    roll : float or None
+    roll_rad : float or None
         Roll of every attitude, rad (convention of :mod:`starsense.geometry.attitude`); None
-        draws each roll uniformly in [0, 2 pi) from `seed`. Irrelevant for a circular field.
-    seed : int or None
-        Seed of the random rolls.
+        draws each roll uniformly in [0, 2 pi) from `rng`. Irrelevant for a circular field.
+    rng : None, int or numpy.random.Generator
+        Source of the random rolls (an int: its seed).
 
     Returns
     -------
@@ -96,18 +96,20 @@ def sky_attitudes(
     n = check_int(n, "n_orientations", 1)
     boresights = fibonacci_sphere(n)
     ra, dec = vectors_to_radec(boresights)
-    if roll is None:
-        rolls = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, n)
+    if roll_rad is None:
+        rolls = as_generator(rng)[0].uniform(0.0, 2.0 * np.pi, n)
     else:
-        rolls = np.full(n, finite_float(roll, "roll"))
+        rolls = np.full(n, finite_float(roll_rad, "roll_rad"))
     return boresights, attitude_from_radec_roll(np.atleast_1d(ra), np.atleast_1d(dec), rolls)
 
 
-def track_family_attitudes(inclinations: ArrayLike, n_samples: int, node: float = 0.0) -> Rotation:
+def track_family_attitudes(
+    inclinations: ArrayLike, n_samples: int, node_rad: float = 0.0
+) -> Rotation:
     """Return attitudes along great-circle tracks, one block of `n_samples` per inclination.
 
     Each track (:func:`starsense.geometry.sampling.track_attitudes`) starts at the node (on the
-    equator at RA = `node`), has the given inclination to the celestial equator, and the
+    equator at RA = `node_rad`), has the given inclination to the celestial equator, and the
     camera +x axis points along the motion, so the streaks run along the detector rows as in
     the slew simulation.
 
@@ -117,7 +119,7 @@ def track_family_attitudes(inclinations: ArrayLike, n_samples: int, node: float 
         Track inclinations to the celestial equator, rad, in [-pi/2, pi/2].
     n_samples : int
         Orientations per track (>= 1).
-    node : float
+    node_rad : float
         Right ascension of the tracks' common ascending node, rad.
 
     Returns
@@ -131,6 +133,6 @@ def track_family_attitudes(inclinations: ArrayLike, n_samples: int, node: float 
     if np.any(np.abs(incl) > math.pi / 2):
         raise InputError(f"inclinations must lie in [-pi/2, pi/2] rad, got {incl.tolist()}")
     n = check_int(n_samples, "n_samples", 1)
-    node_rad = finite_float(node, "node")
-    mats = [track_attitudes(i, n, ascending_node_rad=node_rad).as_matrix() for i in incl.tolist()]
+    node = finite_float(node_rad, "node_rad")
+    mats = [track_attitudes(i, n, ascending_node_rad=node).as_matrix() for i in incl.tolist()]
     return Rotation.from_matrix(np.concatenate(mats, axis=0))

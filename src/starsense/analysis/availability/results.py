@@ -22,6 +22,7 @@ __all__ = [
     "DynamicAvailability",
     "StaticAvailability",
     "TrackAvailability",
+    "percent",
     "static_result",
 ]
 
@@ -33,7 +34,8 @@ N_MIN_LOST_IN_SPACE = 3
 N_MIN_CONSERVATIVE = 4
 
 
-def _pct(x: float) -> str:
+def percent(x: float) -> str:
+    """Return a fraction as a percentage with two decimals (``"99.50 %"``), for text output."""
     return f"{100.0 * x:.2f} %"
 
 
@@ -102,10 +104,11 @@ class StaticAvailability:
         """Return a human-readable summary."""
         return [
             f"spatial static availability, N_min = {self.n_min}, m_t = {self.max_mag:g}: "
-            f"{_pct(self.availability)}",
+            f"{percent(self.availability)}",
             f"  {self.n_orientations} orientations, {self.n_stars} stars used "
             f"({self.catalog}, {self.band} <= {self.max_mag:g}), field {self.fov}",
-            "  by N_min: " + ", ".join(f"{k}: {_pct(v)}" for k, v in sorted(self.by_n_min.items())),
+            "  by N_min: "
+            + ", ".join(f"{k}: {percent(v)}" for k, v in sorted(self.by_n_min.items())),
             f"  stars in field: min {self.counts.min()}, mean {self.counts.mean():.1f}, "
             f"max {self.counts.max()}",
         ]
@@ -313,6 +316,7 @@ class TrackAvailability:
 def static_result(
     field: FieldStars | BrightestInField,
     counts: NDArray[np.intp],
+    *,
     boresights: NDArray[np.float64],
     n_min: int,
     m_t: float,

@@ -103,6 +103,7 @@ class ThresholdCurve:
         cls,
         magnitudes: ArrayLike,
         tolerable_rate_rad_s: Sequence[float | None],
+        *,
         capped: ArrayLike | None = None,
         grid_max_rate_rad_s: float | None = None,
         label: str = "",
@@ -199,9 +200,9 @@ class ThresholdCurve:
         return cls.from_tolerance(
             result.magnitudes,
             result.tolerable_rate_rad_s,
-            result.capped,
-            float(rates[-1]) if rates.size else None,
-            label if label is not None else f"{result.sensor_name}, {result.model} model",
+            capped=result.capped,
+            grid_max_rate_rad_s=float(rates[-1]) if rates.size else None,
+            label=label if label is not None else f"{result.sensor_name}, {result.model} model",
         )
 
     @classmethod
@@ -231,7 +232,9 @@ class ThresholdCurve:
         except (TypeError, ValueError):
             raise InputError(f"{source}: rates must be numbers (or null)") from None
         try:
-            return cls.from_tolerance(mags, tol_rad, data.get("capped"), top, label)
+            return cls.from_tolerance(
+                mags, tol_rad, capped=data.get("capped"), grid_max_rate_rad_s=top, label=label
+            )
         except InputError as exc:
             raise InputError(f"{source}: {exc}") from None
 

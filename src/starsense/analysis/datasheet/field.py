@@ -15,7 +15,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from starsense.analysis.availability.field import field_pairs
-from starsense.attitude.covariance import SINGULAR_RCOND, fisher_components
+from starsense.attitude.covariance import (
+    SINGULAR_RCOND,
+    fisher_components,
+    fisher_from_components,
+)
 
 __all__ = ["FieldStarsCam", "axis_sigmas", "field_stars_cam", "fisher_per_pointing"]
 
@@ -35,7 +39,7 @@ class FieldStarsCam:
         Number of attitudes.
     """
 
-    def __init__(self, point, star, v_cam, n_pointings: int) -> None:
+    def __init__(self, point, star, v_cam, *, n_pointings: int) -> None:
         self.point = point
         self.star = star
         self.v_cam = v_cam
@@ -47,11 +51,11 @@ class FieldStarsCam:
         return np.bincount(p, minlength=self.n_pointings)
 
 
-def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.float64], tree=None):
+def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.float64], *, tree=None):
     """Return the :class:`FieldStarsCam` of attitudes ``matrices`` (M, 3, 3), ICRS -> camera."""
-    point, star = field_pairs(fov, matrices, vectors, tree)
+    point, star = field_pairs(fov, matrices, vectors, tree=tree)
     v_cam = np.einsum("kij,kj->ki", matrices[point], vectors[star])
-    return FieldStarsCam(point, star, v_cam, matrices.shape[0])
+    return FieldStarsCam(point, star, v_cam, n_pointings=matrices.shape[0])
 
 
 def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> np.ndarray:
@@ -64,8 +68,6 @@ def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> n
     weights : ndarray (P,)
         Information of each pair's star, ``1 / sigma^2``, rad^-2 (0 drops the pair).
     """
-    from starsense.attitude.covariance import fisher_from_components
-
     comp = fisher_components(pairs.v_cam, weights)
     sums = np.zeros((pairs.n_pointings, 7))
     np.add.at(sums, pairs.point, comp)

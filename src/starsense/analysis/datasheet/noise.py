@@ -27,12 +27,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr
 
+from starsense._validate import as_generator
+from starsense.detect.threshold import StarDetector
+from starsense.render.noise import apply_noise
+from starsense.render.psf import gaussian_stamp, pixel_profile
+
 __all__ = ["CentroidNoise", "centroid_noise", "clipped_moments"]
 
 _SQRT2PI = math.sqrt(2.0 * math.pi)
 
 
-def clipped_moments(mu, sigma, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+def clipped_moments(mu, sigma, *, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
     """Return the mean and variance of ``clip(X, lo, hi)`` for X ~ N(mu, sigma^2).
 
     Parameters
@@ -126,8 +131,6 @@ def _profile(centres: np.ndarray, offset: float, sigma: float) -> tuple[np.ndarr
     ``centres`` are consecutive integers; the profile is :func:`starsense.render.psf.
     pixel_profile`, the one the frames are rendered with.
     """
-    from starsense.render.psf import pixel_profile
-
     c0 = int(centres[0])
     p = pixel_profile(c0, c0 + len(centres), offset, sigma_px=sigma)[0]
     lo = (centres - 0.5 - offset) / sigma
@@ -153,7 +156,7 @@ def _one(n_e: float, phase: tuple[float, float], sensor, margin_px: int) -> tupl
     var_e = star_e + dark_e + det.read_noise_e**2
     mu_c = g * (star_e + dark_e) + det.bias_counts
     sd_c = np.sqrt(g * g * var_e + 1.0 / 12.0)
-    mean_c, var_c = clipped_moments(mu_c, sd_c, 0.0, float(det.saturation_counts))
+    mean_c, var_c = clipped_moments(mu_c, sd_c, lo=0.0, hi=float(det.saturation_counts))
     sub = mean_c - det.bias_counts
     lit = sub > logic.lit_pixel_counts
     info = float(np.sum((n_e * dpy[:, None] * px[None, :]) ** 2 / (var_e + 1.0 / (12 * g * g))))
@@ -176,10 +179,6 @@ def _one(n_e: float, phase: tuple[float, float], sensor, margin_px: int) -> tupl
 
 def _measured_sigma(sensor, n_e: float, rng, n_stamps: int) -> float:
     """Centroid rms error (px, per axis) of the tracker's detector on noisy single-star renders."""
-    from starsense.detect.threshold import StarDetector
-    from starsense.render.noise import apply_noise
-    from starsense.render.psf import gaussian_stamp
-
     det = sensor.detector
     half = 6 + math.ceil(6.0 * det.psf_sigma_px)
     size = 2 * half + 1
@@ -210,7 +209,7 @@ def centroid_noise(
     n_grid: int = 16,
     n_phase: int = 4,
     n_stamps: int = 200,
-    seed: int = 0,
+    rng: int | np.random.Generator | None = 0,
 ) -> CentroidNoise:
     """Tabulate the centroid noise of the sensor's centroider against photo-electrons.
 
@@ -234,8 +233,8 @@ def centroid_noise(
         Sub-pixel positions per axis of the analytic terms (``n_phase^2`` in all).
     n_stamps : int
         Noisy renders per table point.
-    seed : int
-        Seed of the renders.
+    rng : None, int or numpy.random.Generator
+        Randomness of the renders (an int: its seed).
 
     Returns
     -------
@@ -247,7 +246,7 @@ def centroid_noise(
     grid = np.geomspace(lo, hi, int(n_grid))
     offsets = (np.arange(n_phase) + 0.5) / n_phase - 0.5
     phases = [(float(a), float(b)) for a in offsets for b in offsets]
-    rng = np.random.default_rng(seed)
+    rng, _ = as_generator(rng)
     out = np.empty((len(grid), 6))
     for k, n_e in enumerate(grid):
         res = np.array([_one(float(n_e), ph, sensor, margin_px) for ph in phases])

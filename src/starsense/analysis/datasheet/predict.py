@@ -14,6 +14,9 @@ import numpy as np
 
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
+from starsense.analysis.datasheet.terms import pixel_spatial_error
+from starsense.analysis.slew import default_rates_rad_s, last_above
+from starsense.photometry.sensitivity import Sensitivity
 from starsense.units import DEG
 
 __all__ = [
@@ -47,12 +50,10 @@ def limiting_magnitude(magnitudes, fraction, criterion: float = 0.5) -> float | 
         The magnitude where the detection fraction crosses ``criterion`` on its way down
         (linear interpolation); None when not even the brightest is detected.
     """
-    from starsense.analysis.slew import last_above
-
     return last_above(magnitudes, fraction, criterion)
 
 
-def slew_grids(sensor, static_limit: float, n_mag: int = 20, n_rate: int = 40):
+def slew_grids(sensor, static_limit: float, *, n_mag: int = 20, n_rate: int = 40):
     """Return the magnitudes (0.25 mag steps ending just past the limit) and rates to simulate.
 
     The rates run from rest to 10 deg/s (the paper's range), or less when a faster slew would
@@ -62,8 +63,6 @@ def slew_grids(sensor, static_limit: float, n_mag: int = 20, n_rate: int = 40):
     mags = top - 0.25 * np.arange(n_mag)[::-1]
     det = sensor.detector
     half_width = 0.5 * det.columns * det.pixel_pitch_m / sensor.optics.focal_length_m
-    from starsense.analysis.slew import default_rates_rad_s
-
     max_rate = math.atan(half_width) / sensor.exposure_s
     if max_rate >= 10.0 * DEG:  # the paper's grid, built as the slew analysis builds it
         return mags, default_rates_rad_s(n_rate)
@@ -76,8 +75,6 @@ def fastest_rate(rates, availability, target: float) -> float | None:
     Linear interpolation between the last passing and the first failing rate; None when even
     rest falls short; the top rate when every rate passes.
     """
-    from starsense.analysis.slew import last_above
-
     return last_above(rates, availability, target)
 
 
@@ -102,11 +99,8 @@ class StarModel:
     pixel_bias: object = None
 
     @classmethod
-    def build(cls, sensor, model: str, bright_mag: float, faint_mag: float) -> StarModel:
+    def build(cls, sensor, *, model: str, bright_mag: float, faint_mag: float) -> StarModel:
         """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``."""
-        from starsense.analysis.datasheet.terms import pixel_spatial_error
-        from starsense.photometry.sensitivity import Sensitivity
-
         sens = Sensitivity.for_sensor(sensor, model)
         e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))
         noise = centroid_noise(sensor, 0.5 * e_lo, 2.0 * e_hi)
@@ -137,7 +131,7 @@ class StarModel:
         return px * self.pixel_rad * np.asarray(z_cam, dtype=float)
 
 
-def nea_at(model: StarModel, fov, matrices, vectors, magnitudes, kinds=("nea",), tree=None):
+def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea",), tree=None):
     """Return {kind: (cross, roll)} per attitude, rad, from the stars in the field.
 
     Parameters
@@ -158,7 +152,7 @@ def nea_at(model: StarModel, fov, matrices, vectors, magnitudes, kinds=("nea",),
     -------
     dict, and the stars in the field per attitude (M,)
     """
-    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree)
+    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree=tree)
     out = {}
     for kind in kinds:
         sigma = model.star_sigmas_rad(np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2], kind)

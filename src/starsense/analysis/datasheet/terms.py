@@ -16,6 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from starsense.detect.threshold import StarDetector
+from starsense.render.psf import gaussian_stamp
+
 __all__ = [
     "EARTH_ORBITAL_SPEED_M_S",
     "SPEED_OF_LIGHT_M_S",
@@ -78,9 +81,6 @@ def pixel_spatial_error(sensor, electrons, n_side: int = 8) -> PixelSpatialError
     PixelSpatialError
         Brightnesses that light too few pixels to be detected get NaN.
     """
-    from starsense.detect.threshold import StarDetector
-    from starsense.render.psf import gaussian_stamp
-
     det = sensor.detector
     detector = StarDetector.for_sensor(sensor)
     e_sorted = np.sort(np.asarray(electrons, dtype=float))

@@ -11,6 +11,7 @@ ratio measured rms / predicted rms is reported per axis.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -35,14 +36,19 @@ def _pct(values: np.ndarray, q: float) -> float | None:
     return float(np.percentile(values, q)) if len(values) else None
 
 
-def score_montecarlo(res, model, fov, vectors, magnitudes, predict: bool = True) -> dict:
+def score_montecarlo(
+    res, model, *, fov, vectors, magnitudes, predict: bool = True
+) -> dict[str, Any]:
     """Return the JSON-ready summary of a Monte Carlo run against the datasheet's prediction.
 
     Parameters
     ----------
     res : MonteCarloResult
+        The run.
     model : StarModel
+        The datasheet's star model.
     fov : RectangularFov
+        The sensor's field.
     vectors, magnitudes : ndarray
         The stars the prediction uses (those detected at rest).
     predict : bool
@@ -88,7 +94,9 @@ def score_montecarlo(res, model, fov, vectors, magnitudes, predict: bool = True)
             out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
         return out
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
-    pred, _ = nea_at(model, fov, mats, vectors, magnitudes, kinds=("nea", "pixel"))
+    pred, _ = nea_at(
+        model, fov, mats, vectors=vectors, magnitudes=magnitudes, kinds=("nea", "pixel")
+    )
     cross = np.hypot(pred["nea"][0], pred["pixel"][0])
     roll = np.hypot(pred["nea"][1], pred["pixel"][1])
     e = res.errors_rad

@@ -101,6 +101,7 @@ from starsense.analysis.guide_stars.selection import (
     CRITERIA,
     SELECTION_SIGMA,
     GuideStarSelection,
+    SelectionStatus,
     select_guide_stars,
 )
 from starsense.analysis.guide_stars.table1 import (
@@ -135,6 +136,7 @@ __all__ = [
     "FieldAccuracy",
     "GuideStarSelection",
     "GuideStarTable",
+    "SelectionStatus",
     "area_index",
     "attitude_area",
     "batch_covariance",

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from starsense._validate import check_int, check_scalar, finite_float
+from starsense._validate import as_generator, check_int, check_scalar, finite_float
 from starsense.analysis.guide_stars._common import check_metric, check_sigmas
 from starsense.analysis.guide_stars.focal_plane import CONFIGURATIONS, configuration_areas
 from starsense.analysis.guide_stars.metrics import (
@@ -188,6 +188,7 @@ def lin_layout(lens_fov_rad: float) -> AreaLayout:
 def field_stars(
     catalog,
     center_rad: tuple[float, float],
+    *,
     layout: AreaLayout,
     roll_rad: float = 0.0,
     max_mag: float | None = None,
@@ -261,6 +262,7 @@ def _combination_rows(xy, sel, sig, per_quoted, n_trials, metric, gen):
 def field_accuracy(
     catalog,
     center_rad: tuple[float, float],
+    *,
     lens_fov_rad: float = lin2024.PATTERN_FOVS_DEG[0] * DEG,
     sigmas_rad: ArrayLike = PAPER_FIELD_SIGMAS,
     configurations: tuple[str, ...] | list[str] | None = None,
@@ -271,7 +273,7 @@ def field_accuracy(
     metric: str = "pointing",
     sigma_kind: str = "1sigma",
     roll_rad: float = 0.0,
-    seed: int = 0,
+    rng: int | np.random.Generator | None = 0,
 ) -> FieldAccuracy:
     """Compute Lin et al. 2024, Tables 3-4: average accuracy of a real field per configuration.
 
@@ -308,8 +310,8 @@ def field_accuracy(
         What a quoted sigma is.
     roll_rad : float
         Roll about the boresight, rad.
-    seed : int
-        Root seed of the noise and the attitudes.
+    rng : None, int or numpy.random.Generator
+        Randomness of the noise and the attitudes (an int: the root seed).
 
     Returns
     -------
@@ -322,9 +324,11 @@ def field_accuracy(
     for c in configs:
         configuration_areas(c)
     layout = lin_layout(lens_fov_rad)
-    _, xy, mag, band = field_stars(catalog, center_rad, layout, roll_rad, max_mag)
+    _, xy, mag, band = field_stars(
+        catalog, center_rad, layout=layout, roll_rad=roll_rad, max_mag=max_mag
+    )
     which = layout.index(xy) if len(xy) else np.zeros(0, dtype=int)
-    gen = np.random.default_rng(seed)
+    gen, _ = as_generator(rng)
     errors: dict[str, NDArray[np.float64]] = {}
     pred: dict[str, NDArray[np.float64]] = {}
     usable: dict[str, tuple[int, int]] = {}
@@ -333,7 +337,14 @@ def field_accuracy(
         rows_acc, rows_pred, chosen = [], [], []
         for areas in LAYOUT_COMBINATIONS[c]:
             sel = select_guide_stars(
-                xy, mag, layout, areas, n_stars, criterion, SELECTION_SIGMA, metric
+                xy,
+                mag,
+                layout=layout,
+                areas=areas,
+                n_stars=n_stars,
+                criterion=criterion,
+                sigma_rad=SELECTION_SIGMA,
+                metric=metric,
             )
             chosen.append((areas, sel))
             if sel.ok:

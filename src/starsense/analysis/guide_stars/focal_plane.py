@@ -141,6 +141,7 @@ def lattice_points(step: float = PAPER_STEP) -> tuple[NDArray[np.float64], NDArr
 
 def sample_placements(
     configuration: str,
+    *,
     n_trials: int,
     n_stars: int = lin2024.N_GUIDE_STARS,
     step: float = PAPER_STEP,

@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense._validate import as_generator, positive_float
 from starsense.analysis.guide_stars._common import check_metric
+from starsense.attitude import estimate_attitude
 from starsense.attitude.covariance import fisher_matrix
 from starsense.attitude.svd import batch_svd_attitude
 from starsense.geometry.sampling import fibonacci_sphere, random_attitudes
@@ -184,6 +185,7 @@ def tangent_noise(
 def monte_carlo_errors(
     vectors: ArrayLike,
     sigma_rad: float,
+    *,
     rng: np.random.Generator | int | None = None,
     batched: bool = True,
     noise: ArrayLike | None = None,
@@ -228,8 +230,6 @@ def monte_carlo_errors(
     if batched:
         a_est = batch_svd_attitude(body, ref)
     else:
-        from starsense.attitude import estimate_attitude
-
         a_est = Rotation.concatenate(
             [estimate_attitude(body[k], ref[k], s, method="svd").rotation for k in range(m)]
         )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import combinations
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -16,12 +17,20 @@ from starsense.errors import InputError
 from starsense.geometry.projection import tangent_to_vectors, xy_points
 from starsense.units import ARCSEC
 
-__all__ = ["CRITERIA", "SELECTION_SIGMA", "GuideStarSelection", "select_guide_stars"]
+__all__ = [
+    "CRITERIA",
+    "SELECTION_SIGMA",
+    "GuideStarSelection",
+    "SelectionStatus",
+    "select_guide_stars",
+]
 
 CRITERIA = ("trace", "rules", "brightest")
 """Selection criteria of :func:`select_guide_stars`."""
 SELECTION_SIGMA = 0.1 * ARCSEC
 """Default per-axis measurement error of the trace criterion, rad (0.1 arcsec)."""
+SelectionStatus = Literal["ok", "no_stars", "too_few_stars"]
+"""What a guide-star selection found (:attr:`GuideStarSelection.status`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,7 +39,7 @@ class GuideStarSelection:
 
     Attributes
     ----------
-    status : str
+    status : SelectionStatus
         ``"ok"``, ``"no_stars"`` (no catalogue star in the areas) or ``"too_few_stars"`` (1-2:
         no triangle, no attitude).
     indices : ndarray of int
@@ -47,7 +56,7 @@ class GuideStarSelection:
         The criterion used.
     """
 
-    status: str
+    status: SelectionStatus
     indices: NDArray[np.int_]
     n_candidates: int
     areas_covered: int
@@ -103,6 +112,7 @@ def _best_combination(p, which, idx, chosen_areas, criterion, sigma, metric, den
 def select_guide_stars(
     xy: ArrayLike,
     magnitude: ArrayLike,
+    *,
     layout,
     areas: tuple[int, ...] | None = None,
     n_stars: int = 5,

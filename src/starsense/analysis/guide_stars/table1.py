@@ -26,6 +26,7 @@ from starsense.analysis.guide_stars.metrics import (
     probability_within,
     tangent_noise,
 )
+from starsense.analysis.inputs import root_seed
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
 from starsense.identify.batch import ID_CORRECT, identify_triangles
@@ -202,7 +203,7 @@ class _Cell:
 
 def _configuration_rows(c: str, gen: np.random.Generator, cfg: _Cell, tick) -> dict:
     """Simulate one configuration (one column of Table 1) over all sigmas."""
-    xy = sample_placements(c, cfg.n_trials, cfg.n_stars, cfg.step, gen)
+    xy = sample_placements(c, n_trials=cfg.n_trials, n_stars=cfg.n_stars, step=cfg.step, rng=gen)
     vec = focal_to_vectors(xy, cfg.fov)
     z = gen.standard_normal((cfg.n_trials, cfg.n_stars, 2))
     att = random_attitudes(cfg.n_trials, gen)
@@ -237,13 +238,14 @@ def _configuration_rows(c: str, gen: np.random.Generator, cfg: _Cell, tick) -> d
 def simulate_table1(
     sigmas_rad: ArrayLike = PAPER_SIGMAS,
     configurations: tuple[str, ...] | list[str] | None = None,
+    *,
     n_trials: int = 10_000,
     fov_rad: float = PAPER_FOV,
     threshold_rad: float = PAPER_THRESHOLD,
     n_stars: int = lin2024.N_GUIDE_STARS,
     step: float = PAPER_STEP,
     metric: str = "pointing",
-    seed: int = 0,
+    rng: int | np.random.Generator | None = 0,
     identify: bool = True,
     sigma_kind: str = "1sigma",
     id_tolerance_sigma: float = ID_TOLERANCE_SIGMA,
@@ -276,8 +278,8 @@ def simulate_table1(
         Lattice step, fraction of V (paper: 0.07).
     metric : {"total", "pointing"}
         Accuracy = norm of the whole error rotation vector, or of its cross-boresight part.
-    seed : int
-        Root seed.
+    rng : None, int or numpy.random.Generator
+        Root seed (a Generator gives one seed drawn from it; the result records it).
     identify : bool
         Run triangle identification in the loop
         (:func:`starsense.identify.batch.identify_triangles`); a trial succeeds only if its
@@ -306,6 +308,7 @@ def simulate_table1(
         configuration_areas(c)
     n_trials = check_int(n_trials, "n_trials", 1)
     cfg = _Cell(sig, per_quoted, thr, fov, n_trials, n_stars, step, metric, identify, k_tol)
+    seed = root_seed(rng)
     children = np.random.SeedSequence(seed).spawn(len(configs))
     done = [0]
 

@@ -79,6 +79,7 @@ class BrightestCurve:
 
 def brightest_curve(
     stars: BlackBodyStars,
+    *,
     diameter_m: float = 1.0,
     exposure_s: float = 1.0,
     points_per_decade: int = 20,
@@ -117,7 +118,7 @@ def brightest_curve(
     ns = brightest_checkpoints(n_total, points_per_decade)
     starts = np.concatenate([[0], ns[:-1]])
     sums = np.cumsum(np.add.reduceat(comps, starts, axis=0), axis=0)
-    return brightest_from_sums(ns, sums, n_extrapolated, stars.colour)
+    return brightest_from_sums(ns, sums, n_extrapolated=n_extrapolated, colour=stars.colour)
 
 
 def brightest_order(magnitude, vectors, weights) -> np.ndarray:
@@ -175,7 +176,7 @@ def brightest_checkpoints(n_total: int, points_per_decade: int = 20) -> np.ndarr
 
 
 def brightest_from_sums(
-    ns, sums, n_extrapolated: float = N_GALAXY, colour: str = ""
+    ns, sums, *, n_extrapolated: float = N_GALAXY, colour: str = ""
 ) -> BrightestCurve:
     """Build the curve from the summed components of the ``ns[k]`` brightest stars, ``sums[k]``.
 

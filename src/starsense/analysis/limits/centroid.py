@@ -42,7 +42,7 @@ def check_aperture(diameter_m: float, exposure_s: float) -> None:
             raise InputError(f"{name} must be a finite number > 0, got {value!r}")
 
 
-def centroid_fisher(dilution, temperature_k, diameter_m: float = 1.0, exposure_s: float = 1.0):
+def centroid_fisher(dilution, temperature_k, *, diameter_m: float = 1.0, exposure_s: float = 1.0):
     """Compute the per-star centroid Fisher information in closed form (eq. 19).
 
     Parameters
@@ -67,6 +67,7 @@ def centroid_fisher(dilution, temperature_k, diameter_m: float = 1.0, exposure_s
 def centroid_fisher_numeric(
     dilution,
     temperature_k,
+    *,
     wavelength_m,
     response=None,
     diameter_m: float = 1.0,
@@ -103,7 +104,7 @@ def centroid_fisher_numeric(
     return np.trapezoid(np.pi**2 * diameter_m**2 / lam**2 * n * q, lam, axis=-1)
 
 
-def centroid_fisher_spectrum(wavelength_m, irradiance, diameter_m: float, exposure_s: float):
+def centroid_fisher_spectrum(wavelength_m, irradiance, *, diameter_m: float, exposure_s: float):
     """Compute the centroid Fisher information of a measured spectrum (eq. 17; Table 1).
 
     Parameters

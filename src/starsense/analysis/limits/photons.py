@@ -71,6 +71,7 @@ class LowPhotonResult:
 
 def low_photon_degradation(
     stars: BlackBodyStars,
+    *,
     diameter_m: float,
     exposure_s: float,
     n_trials: int = 200,

@@ -74,7 +74,7 @@ class LimitResult:
         }
 
 
-def limit_from_fisher(fisher, n_stars, diameter_m, exposure_s, frame_rows=None) -> LimitResult:
+def limit_from_fisher(fisher, n_stars, *, diameter_m, exposure_s, frame_rows=None) -> LimitResult:
     """Return the :class:`LimitResult` of an attitude Fisher matrix (eqs. 20-23).
 
     The last step of every limit, shared by the in-memory and the distributed paths

@@ -9,13 +9,18 @@ results.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from starsense._validate import check_scalar
+from starsense.analysis.inputs import as_catalog, as_sensor
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.analysis.limits.result import LimitResult, boresight_frame, limit_from_fisher
 from starsense.attitude.covariance import fisher_matrix
+from starsense.catalog import Catalog
 from starsense.photometry.stars import BlackBodyStars
+from starsense.sensor import Sensor
 
 __all__ = [
     "fov_fishers",
@@ -61,33 +66,55 @@ def sky_fisher(stars: BlackBodyStars, diameter_m: float, exposure_s: float) -> n
 
 
 def sky_limit(
-    stars: BlackBodyStars,
-    diameter_m: float = 1.0,
-    exposure_s: float = 1.0,
+    stars: BlackBodyStars | Catalog | str | None = None,
+    *,
+    sensor: Sensor | str | Path | None = None,
+    diameter_m: float | None = None,
+    exposure_s: float | None = None,
 ) -> LimitResult:
     """Compute the limit of the ideal spherical sensor that sees the whole sky (eqs. 19-24).
 
+    The aperture and exposure are a sensor's (``sensor``), or given (``diameter_m``,
+    ``exposure_s``; either overrides the sensor's), or the unit aperture (1 m, 1 s) the paper
+    scales from (the limit goes as ``D^-2 t^-1/2``).
+
     Parameters
     ----------
-    stars : BlackBodyStars
-        The catalogue's stars.
-    diameter_m, exposure_s : float
-        Aperture D (m) and exposure t (s).
+    stars : BlackBodyStars, Catalog, str or None
+        The catalogue's stars as black bodies, a catalogue, a catalogue specification
+        (``"hipparcos"``) or None for the bundled Hipparcos.
+    sensor : Sensor, str or Path, optional
+        A sensor (object, preset name or TOML file): its aperture and exposure.
+    diameter_m : float, optional
+        Aperture D, m (default: the sensor's, else 1).
+    exposure_s : float, optional
+        Exposure t, s (default: the sensor's, else 1).
 
     Returns
     -------
     LimitResult
         Axes in ICRS.
     """
+    sens = None if sensor is None else as_sensor(sensor)
+    if diameter_m is None:
+        diameter_m = 1.0 if sens is None else sens.optics.aperture_m
+    if exposure_s is None:
+        exposure_s = 1.0 if sens is None else sens.exposure_s
+    if not isinstance(stars, BlackBodyStars):
+        stars = BlackBodyStars.from_catalog(as_catalog(stars))
     check_aperture(diameter_m, exposure_s)
     return limit_from_fisher(
-        sky_fisher(stars, diameter_m, exposure_s), len(stars), diameter_m, exposure_s
+        sky_fisher(stars, diameter_m, exposure_s),
+        len(stars),
+        diameter_m=diameter_m,
+        exposure_s=exposure_s,
     )
 
 
 def fov_fishers(
     stars: BlackBodyStars,
     targets,
+    *,
     fov_diameter_rad: float,
     diameter_m: float,
     exposure_s: float,
@@ -124,7 +151,7 @@ def fov_fishers(
 
 
 def fov_results(
-    fishers, counts, targets, diameter_m: float, exposure_s: float
+    fishers, counts, targets, *, diameter_m: float, exposure_s: float
 ) -> tuple[list[LimitResult], LimitResult | None]:
     """Return the heads and merged heads from the summed output of :func:`fov_fishers`.
 
@@ -148,13 +175,18 @@ def fov_results(
     """
     targets = np.atleast_2d(np.asarray(targets, dtype=float))
     heads = [
-        limit_from_fisher(f, int(n), diameter_m, exposure_s, boresight_frame(t))
+        limit_from_fisher(
+            f, int(n), diameter_m=diameter_m, exposure_s=exposure_s, frame_rows=boresight_frame(t)
+        )
         for f, n, t in zip(fishers, counts, targets, strict=True)
     ]
     merged = None
     if len(targets) > 1:
         merged = limit_from_fisher(
-            np.sum(fishers, axis=0), int(np.sum(counts)), diameter_m, exposure_s
+            np.sum(fishers, axis=0),
+            int(np.sum(counts)),
+            diameter_m=diameter_m,
+            exposure_s=exposure_s,
         )
     return heads, merged
 
@@ -162,6 +194,7 @@ def fov_results(
 def fov_limit(
     stars: BlackBodyStars,
     targets,
+    *,
     fov_diameter_rad: float,
     diameter_m: float = 1.0,
     exposure_s: float = 1.0,
@@ -191,5 +224,11 @@ def fov_limit(
         ICRS axes; None for a single target.
     """
     check_aperture(diameter_m, exposure_s)
-    fishers, counts = fov_fishers(stars, targets, fov_diameter_rad, diameter_m, exposure_s)
-    return fov_results(fishers, counts, targets, diameter_m, exposure_s)
+    fishers, counts = fov_fishers(
+        stars,
+        targets,
+        fov_diameter_rad=fov_diameter_rad,
+        diameter_m=diameter_m,
+        exposure_s=exposure_s,
+    )
+    return fov_results(fishers, counts, targets, diameter_m=diameter_m, exposure_s=exposure_s)

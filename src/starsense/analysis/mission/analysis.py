@@ -76,7 +76,7 @@ class Geometry:
         self.r, self.v = orbit.state(grid)
         self.sun = directions_from(body_positions(grid, "sun"), self.r)
         self.moon = directions_from(body_positions(grid, "moon"), self.r)
-        self.body = profile.attitudes(grid, self.r, self.v, self.sun)
+        self.body = profile.attitudes(grid, r=self.r, v=self.v, sun=self.sun)
         self.rate_body = body_rates(self.body, grid.step_s)
 
     def head_matrices(self, head: Head) -> NDArray[np.float64]:
@@ -113,7 +113,9 @@ def _head_timeline(geo: Geometry, head: Head, vectors, magnitudes, tree, n_min: 
         earth_b = never if exc.earth_limb_rad is None else limb < exc.earth_limb_rad
     m_t = head.curve(rate)
     m_t[sun_b | moon_b | earth_b] = -math.inf
-    stars = detected_counts(head.fov, mats, vectors, magnitudes, m_t, tree)
+    stars = detected_counts(
+        head.fov, mats, vectors=vectors, magnitudes=magnitudes, threshold_mag=m_t, tree=tree
+    )
     lis = stars >= n_min
     available = tracking_state(stars >= N_MIN_TRACKING, lis)
     return HeadTimeline(
@@ -135,6 +137,7 @@ def _head_timeline(geo: Geometry, head: Head, vectors, magnitudes, tree, n_min: 
 def mission_availability(
     geometry: Geometry,
     heads: Sequence[Head],
+    *,
     vectors: ArrayLike,
     magnitudes: ArrayLike,
     n_min: int = N_MIN_LOST_IN_SPACE,

@@ -16,6 +16,8 @@ degrees.
 from __future__ import annotations
 
 import numpy as np
+from astropy import units as u
+from astropy.coordinates import get_body, solar_system_ephemeris
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
@@ -41,9 +43,6 @@ def body_positions(grid: TimeGrid, body: str) -> NDArray[np.float64]:
     -------
     ndarray, shape (n_steps, 3)
     """
-    from astropy import units as u
-    from astropy.coordinates import get_body, solar_system_ephemeris
-
     end = grid.t_s[-1]
     n_knots = max(4, int(np.ceil(end / KNOT_S)) + 3)
     direct = grid.n_steps <= n_knots  # steps as coarse as the knots: evaluate at the steps

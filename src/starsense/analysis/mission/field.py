@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from starsense.analysis.availability.checks import Fov
-from starsense.analysis.availability.field import _inside_camera
+from starsense.analysis.availability.field import inside_camera
 from starsense.geometry.fov import CircularFov
 
 __all__ = ["BLOCK", "detected_counts"]
@@ -49,6 +49,7 @@ def _block_candidates(boresights, radius, tree):
 def detected_counts(
     fov: Fov,
     matrices: NDArray[np.float64],
+    *,
     vectors: NDArray[np.float64],
     magnitudes: NDArray[np.float64],
     threshold_mag: NDArray[np.float64],
@@ -101,11 +102,11 @@ def detected_counts(
     for b0 in range(0, n_blocks, per):
         sl = slice(b0, b0 + per)
         vt = vecs[sl].transpose(0, 2, 1)  # (b, 3, C)
-        if isinstance(fov, CircularFov):  # the same test as _inside_camera, on z alone
+        if isinstance(fov, CircularFov):  # the same test as inside_camera, on z alone
             inside = mats[sl, :, 2, :] @ vt >= math.cos(fov.half_angle_rad)  # (b, BLOCK, C)
         else:
             cam = (mats[sl].reshape(-1, BLOCK * 3, 3) @ vt).reshape(-1, BLOCK, 3, vt.shape[2])
-            inside = _inside_camera(fov, cam.transpose(0, 1, 3, 2))
+            inside = inside_camera(fov, cam.transpose(0, 1, 3, 2))
         bright = mags[sl, None, :] <= m_t[sl, :, None]
         counts[sl] = np.count_nonzero(inside & bright, axis=2)
     out[seeing] = counts.reshape(-1)[: seeing.size]

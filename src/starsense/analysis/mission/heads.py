@@ -14,8 +14,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import finite_array
-from starsense.analysis.availability import ThresholdCurve
 from starsense.analysis.availability.checks import Fov, check_fov
+from starsense.analysis.availability.threshold import ThresholdCurve
 from starsense.errors import InputError
 
 __all__ = ["QUATERNION_NORM_TOLERANCE", "Head", "mounting_from_euler", "mounting_from_quaternion"]

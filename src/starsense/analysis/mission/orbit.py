@@ -169,7 +169,7 @@ class KeplerOrbit:
 
 
 def sun_synchronous(
-    altitude_m: float, ltan_h: float, epoch: object, arg_latitude: float = 0.0
+    altitude_m: float, *, ltan_h: float, epoch: object, arg_latitude: float = 0.0
 ) -> KeplerOrbit:
     """Return the circular sun-synchronous orbit at `altitude_m` with the node at `ltan_h`.
 

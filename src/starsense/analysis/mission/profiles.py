@@ -215,6 +215,7 @@ class AttitudeProfile:
     def attitudes(
         self,
         grid: TimeGrid,
+        *,
         r: NDArray[np.float64],
         v: NDArray[np.float64],
         sun: NDArray[np.float64],

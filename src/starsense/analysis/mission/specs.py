@@ -37,7 +37,7 @@ ATTITUDE_FORMS = (
 )
 
 
-def numbers(text: str, where: str, n_lo: int, n_hi: int) -> list[float]:
+def numbers(text: str, where: str, *, n_lo: int, n_hi: int) -> list[float]:
     """Return the comma-separated finite numbers of `text`, between `n_lo` and `n_hi` of them."""
     parts = [p for p in text.split(",") if p.strip()] if text else []
     try:
@@ -54,14 +54,14 @@ def parse_orbit(text: str, start: Any, where: str = "orbit") -> KeplerOrbit:
     """Return the orbit written as `text`, with its elements at `start` (UTC)."""
     kind, _, rest = str(text).partition(":")
     if kind == "sso":
-        vals = numbers(rest.replace(":", ","), f"{where} sso", 1, 2)
+        vals = numbers(rest.replace(":", ","), f"{where} sso", n_lo=1, n_hi=2)
         alt = check_scalar(vals[0], f"{where} sso altitude (km)", 100.0, 6000.0)
         ltan = check_scalar(
             vals[1] if len(vals) > 1 else 6.0, f"{where} sso LTAN (h)", 0.0, 24.0, hi_open=True
         )
-        return sun_synchronous(alt * 1e3, ltan, start)
+        return sun_synchronous(alt * 1e3, ltan_h=ltan, epoch=start)
     if kind == "circular":
-        vals = [*numbers(rest.replace(":", ","), f"{where} circular", 2, 4), 0.0, 0.0]
+        vals = [*numbers(rest.replace(":", ","), f"{where} circular", n_lo=2, n_hi=4), 0.0, 0.0]
         alt = check_scalar(vals[0], f"{where} circular altitude (km)", 100.0, None)
         inc = check_scalar(vals[1], f"{where} circular inclination (deg)", 0.0, 180.0)
         return KeplerOrbit(
@@ -75,7 +75,7 @@ def parse_orbit(text: str, start: Any, where: str = "orbit") -> KeplerOrbit:
             label=f"circular {alt:g} km, i = {inc:g} deg",
         )
     if kind == "kepler":
-        a, e, i, raan, argp, m = numbers(rest, f"{where} kepler", 6, 6)
+        a, e, i, raan, argp, m = numbers(rest, f"{where} kepler", n_lo=6, n_hi=6)
         check_scalar(e, f"{where} kepler eccentricity", 0.0, 1.0, hi_open=True)
         check_scalar(i, f"{where} kepler inclination (deg)", 0.0, 180.0)
         return KeplerOrbit(
@@ -95,7 +95,7 @@ def parse_attitude(text: str, where: str = "attitude") -> AttitudeProfile:
     """Return the attitude profile written as `text` (angles in degrees)."""
     kind, _, rest = str(text).partition(":")
     if kind == "inertial":
-        ra, dec, roll = numbers(rest, f"{where} inertial:RA,DEC,ROLL", 3, 3)
+        ra, dec, roll = numbers(rest, f"{where} inertial:RA,DEC,ROLL", n_lo=3, n_hi=3)
         check_scalar(dec, f"{where} inertial Dec (deg)", -90.0, 90.0)
         return AttitudeProfile("inertial", ra=ra * DEG, dec=dec * DEG, roll=roll * DEG)
     if kind == "nadir" and rest in ("", "yaw"):
@@ -103,7 +103,7 @@ def parse_attitude(text: str, where: str = "attitude") -> AttitudeProfile:
     if kind == "sun" and not rest:
         return AttitudeProfile("sun")
     if kind == "target":
-        lat, lon = numbers(rest, f"{where} target:LAT,LON", 2, 2)
+        lat, lon = numbers(rest, f"{where} target:LAT,LON", n_lo=2, n_hi=2)
         check_scalar(lat, f"{where} target latitude (deg)", -90.0, 90.0)
         return AttitudeProfile("target", lat=lat * DEG, lon=lon * DEG)
     if kind == "quaternions" and rest:
@@ -127,6 +127,10 @@ def parse_head(spec: str, where: str = "heads") -> tuple[str, str, Any]:
     here = f"{where} {spec}"
     seq, colon, angles = mount.partition(":")
     if colon:
-        vals = numbers(angles, here, len(seq), len(seq))
+        vals = numbers(angles, here, n_lo=len(seq), n_hi=len(seq))
         return sensor, name or spec, mounting_from_euler(seq, [v * DEG for v in vals], here)
-    return sensor, name or spec, mounting_from_quaternion(numbers(mount, here, 4, 4), here)
+    return (
+        sensor,
+        name or spec,
+        mounting_from_quaternion(numbers(mount, here, n_lo=4, n_hi=4), here),
+    )

@@ -22,6 +22,7 @@ from functools import cached_property
 
 import erfa
 import numpy as np
+from astropy import units as u
 from astropy.time import Time
 from erfa import ErfaWarning
 from numpy.typing import NDArray
@@ -116,8 +117,6 @@ class TimeGrid:
 
     def times(self, t_s: NDArray[np.float64] | None = None) -> Time:
         """Return the steps (or the offsets `t_s`, s) as a :class:`Time` array, UTC."""
-        from astropy import units as u
-
         offsets = self.t_s if t_s is None else np.asarray(t_s, dtype=np.float64)
         with quiet_future():
             return self.start + offsets * u.s

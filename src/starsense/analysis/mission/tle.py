@@ -19,6 +19,7 @@ import erfa
 import numpy as np
 from astropy.time import Time
 from numpy.typing import NDArray
+from sgp4.api import SGP4_ERRORS, Satrec
 
 from starsense.analysis.mission.timegrid import TimeGrid, quiet_future
 from starsense.errors import InputError
@@ -168,8 +169,6 @@ class TleOrbit:
     @property
     def satrec(self):
         """The sgp4 ``Satrec`` of the element set."""
-        from sgp4.api import Satrec
-
         return Satrec.twoline2rv(self.line1, self.line2)
 
     @property
@@ -206,8 +205,6 @@ class TleOrbit:
         err, r_km, v_km_s = self.satrec.sgp4_array(jd1, jd2)
         if np.any(err != 0):
             k = int(np.flatnonzero(err)[0])
-            from sgp4.api import SGP4_ERRORS
-
             raise InputError(
                 f"SGP4 fails {k * grid.step_s:g} s after the start: "
                 f"{SGP4_ERRORS.get(int(err[k]), 'error ' + str(int(err[k])))}"

@@ -69,7 +69,10 @@ def brightest_part(ctx: ReportContext) -> tuple[Part, dict[str, BrightestCurve]]
         The curves, D = 1 m and t = 1 s, per colour system (G is each curve's last point).
     """
     ctx.progress("limit: θ_rms over the N brightest stars (Fig. 7)")
-    curves = {name: brightest_curve(stars, 1.0, 1.0) for name, stars in ctx.stars.items()}
+    curves = {
+        name: brightest_curve(stars, diameter_m=1.0, exposure_s=1.0)
+        for name, stars in ctx.stars.items()
+    }
     g_cat = {name: float(c.theta_rms_rad[-1]) for name, c in curves.items()}
     fig7 = ctx.save_figure(brightest_curves_figure(curves, catalog_name=ctx.catalog_name), FIG7)
     part = Part(figures=[fig7])
@@ -121,7 +124,7 @@ def brightest_part(ctx: ReportContext) -> tuple[Part, dict[str, BrightestCurve]]
 
 def sensor_part(ctx: ReportContext) -> tuple[Part, LimitResult]:
     """Compute this report's sensor as an ideal whole-sky sensor (numbers only, no HTML)."""
-    own = sky_limit(ctx.primary, ctx.diameter_m, ctx.exposure_s)
+    own = sky_limit(ctx.primary, diameter_m=ctx.diameter_m, exposure_s=ctx.exposure_s)
     fom = ctx.diameter_m**2 * math.sqrt(ctx.exposure_s)
     data = {
         "diameter_m": ctx.diameter_m,

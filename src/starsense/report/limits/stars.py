@@ -73,7 +73,11 @@ def low_photon_part(ctx: ReportContext) -> Part:
     for (d, t), seed in zip(LOW_PHOTON_CASES, seeds, strict=True):
         ctx.progress(f"limit: low-photon degradation, D = {d:g} m, t = {t:g} s")
         res = low_photon_degradation(
-            primary, d, t, n_trials=ctx.low_photon_trials, rng=np.random.default_rng(seed)
+            primary,
+            diameter_m=d,
+            exposure_s=t,
+            n_trials=ctx.low_photon_trials,
+            rng=np.random.default_rng(seed),
         )
         d2t = d * d * t
         meets = d2t >= paper.LOW_PHOTON_D2T_M2_S

@@ -82,10 +82,15 @@ class FovRow:
 
 def _merged(stars: BlackBodyStars, targets, fov_rad, diameter_m, exposure_s) -> FovCell:
     """Return the merged heads from the kernels, for when a head alone is singular (eq. 20-22)."""
-    fishers, counts = fov_fishers(stars, targets, fov_rad, diameter_m, exposure_s)
+    fishers, counts = fov_fishers(
+        stars, targets, fov_diameter_rad=fov_rad, diameter_m=diameter_m, exposure_s=exposure_s
+    )
     n = int(counts.sum())
     try:
-        return FovCell(n, limit_from_fisher(fishers.sum(axis=0), n, diameter_m, exposure_s))
+        return FovCell(
+            n,
+            limit_from_fisher(fishers.sum(axis=0), n, diameter_m=diameter_m, exposure_s=exposure_s),
+        )
     except SingularGeometryError:
         return FovCell(n, None)
 
@@ -121,14 +126,22 @@ def fov_table(
     for fov in fovs_deg:
         fov_rad = fov * DEG
         try:
-            heads, merged = fov_limit(stars, vecs, fov_rad, diameter_m, exposure_s)
+            heads, merged = fov_limit(
+                stars, vecs, fov_diameter_rad=fov_rad, diameter_m=diameter_m, exposure_s=exposure_s
+            )
             cells = tuple(FovCell(h.n_stars, h) for h in heads)
             both = FovCell(merged.n_stars, merged) if merged is not None else None
         except SingularGeometryError:
             cells = []
             for v in vecs:
                 try:
-                    (h,), _ = fov_limit(stars, v, fov_rad, diameter_m, exposure_s)
+                    (h,), _ = fov_limit(
+                        stars,
+                        v,
+                        fov_diameter_rad=fov_rad,
+                        diameter_m=diameter_m,
+                        exposure_s=exposure_s,
+                    )
                     cells.append(FovCell(h.n_stars, h))
                 except SingularGeometryError:
                     cells.append(FovCell(int(in_cone(stars.vectors, v, fov_rad).sum()), None))
@@ -164,7 +177,9 @@ def table1_rows() -> list[Table1Row]:
     for colour, ref in (("B-V", paper.TABLE1_UBV), ("H-Ks", paper.TABLE1_HKS)):
         for name, mag, ci, t_ref, c_ref, s_ref in ref:
             t, c = fit_star(mag, ci, colour)
-            f = centroid_fisher(c, t, paper.TABLE1_DIAMETER_M, paper.TABLE1_EXPOSURE_S)
+            f = centroid_fisher(
+                c, t, diameter_m=paper.TABLE1_DIAMETER_M, exposure_s=paper.TABLE1_EXPOSURE_S
+            )
             rows.append(
                 Table1Row(colour, name, mag, ci, t, c, float(1 / np.sqrt(f)), (t_ref, c_ref, s_ref))
             )
