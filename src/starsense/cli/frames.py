@@ -8,6 +8,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense.analysis.montecarlo import run_montecarlo
+from starsense.catalog import load_catalog
 from starsense.cli.common import (
     CatalogOpt,
     JsonOpt,
@@ -22,6 +24,13 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError
+from starsense.geometry.apparent import parse_time
+from starsense.geometry.attitude import attitude_from_radec_roll
+from starsense.render.areas import render_areas
+from starsense.render.io import FORMATS, write_frame
+from starsense.render.scene import render_frame
+from starsense.render.sequence import render_sequence, sequence_paths
+from starsense.sensor import load_sensor
 from starsense.units import DEG
 
 
@@ -70,12 +79,6 @@ def render(
     ] = None,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import attitude_from_radec_roll
-    from starsense.render.io import write_frame
-    from starsense.render.scene import render_frame
-    from starsense.sensor import load_sensor
-
     option_float(ra_deg, "--ra-deg")
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
     option_float(roll_deg, "--roll-deg")
@@ -109,14 +112,10 @@ def render(
         "noise": not no_noise,
     }
     if time is not None:
-        from starsense.geometry.apparent import parse_time
-
         if areas:
             raise InputError("--time is not available with --areas")
         kwargs["obs_time"] = parse_time(time, "--time")
     if areas:
-        from starsense.render.areas import render_areas
-
         area_frame = render_areas(sens, att, load_catalog(catalog), **kwargs)
         frame = area_frame.frame
         per_area = np.bincount(area_frame.star_area, minlength=len(sens.attitude_areas.areas) + 1)
@@ -133,9 +132,6 @@ def render(
 
 def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kwargs) -> None:
     """``render --sequence N --interval-s DT``: frames DIR/stem_000.ext ..., checked first."""
-    from starsense.render.io import FORMATS, write_frame
-    from starsense.render.sequence import render_sequence, sequence_paths
-
     if n is None or interval_s is None:
         raise InputError("--sequence and --interval-s go together: give both")
     option_int(n, "--sequence", 1, 10000)
@@ -178,9 +174,6 @@ def montecarlo(
     Prints the solve and wrong rates, the attitude error per axis against the predicted
     covariance, and the time per frame.
     """
-    from starsense.analysis.montecarlo import run_montecarlo
-    from starsense.catalog import load_catalog
-
     option_int(trials, "--trials", 1)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
     if max_mag is not None:

@@ -24,6 +24,7 @@ from starsense.analysis.availability import (
     fidelity_check,
     implied_threshold,
 )
+from starsense.analysis.slew import simulate_slew
 from starsense.errors import InputError
 from starsense.geometry.fov import CircularFov
 from starsense.plotting.availability import (
@@ -71,8 +72,6 @@ def _slew_curve(ctx: ReportContext, model: str) -> ThresholdCurve:
     The slew section's result when it ran (same sensor, trials and seed), else a fresh Monte
     Carlo.
     """
-    from starsense.analysis.slew import simulate_slew
-
     result = ctx.slew_results.get(model)
     if result is None:
         result = simulate_slew(ctx.sensor, model, n_trials=ctx.slew_trials, seed=ctx.seed)
