@@ -367,7 +367,7 @@ def _scale_counts(n: int, max_mag: float = float("inf")) -> float:
     cat = _scale_catalog(n)
     fov = CircularFov(np.radians(7.5))
     _, attitudes = sky_attitudes(1_000, 0.0, 0)
-    counts = star_counts(cat, fov, attitudes, max_mag, band="G", client=client)  # warm-up
+    counts = star_counts(cat, fov, attitudes, max_mag=max_mag, band="G", client=client)  # warm-up
     print(f"    (G <= {max_mag:g}: {counts.mean():.0f} stars per field on average)", flush=True)
     if max_mag == float("inf"):  # the Catalog-free reference: one cKDTree over all the stars
         from starsense.geometry.fov import count_in_fov
@@ -375,7 +375,8 @@ def _scale_counts(n: int, max_mag: float = float("inf")) -> float:
         ref = count_in_fov(fov, attitudes, _scale_vectors(n))
         assert np.array_equal(ref, counts), "distributed counts differ from in-memory"
     return best_of(
-        lambda: star_counts(cat, fov, attitudes, max_mag, band="G", client=client), repeat=3
+        lambda: star_counts(cat, fov, attitudes, max_mag=max_mag, band="G", client=client),
+        repeat=3,
     )
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import starsense.report.availability as report_av
+import starsense.report.availability_track as report_track
 from starsense.analysis.availability import ThresholdCurve
 from starsense.photometry.stars import BlackBodyStars
 from starsense.report.section import ReportContext
@@ -43,9 +44,9 @@ def ctx(tmp_path):
 
 def test_availability_section_builds(ctx, monkeypatch):
     monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
-    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", ())  # rendered frames: own test
-    monkeypatch.setattr(report_av, "TRACK_RATES_DEG_S", (1.0, 2.0))
-    monkeypatch.setattr(report_av, "TRACK_NODES_DEG", (0.0, 90.0))
+    monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", ())  # rendered frames: own test
+    monkeypatch.setattr(report_track, "TRACK_RATES_DEG_S", (1.0, 2.0))
+    monkeypatch.setattr(report_track, "TRACK_NODES_DEG", (0.0, 90.0))
     monkeypatch.setattr(report_av, "DYNAMIC_RATES_DEG_S", np.arange(0.0, 3.01, 0.5))
     section = report_av.availability_section(ctx)
     assert section.key == "availability"
@@ -64,11 +65,13 @@ def test_availability_section_builds(ctx, monkeypatch):
 def test_availability_section_fidelity_part(ctx, monkeypatch):
     from starsense.catalog import load_catalog
 
-    monkeypatch.setattr(report_av, "FIDELITY_FRAMES", 2)
-    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_track, "FIDELITY_FRAMES", 2)
+    monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", (1.0,))
     ctx.catalog = load_catalog("hipparcos")  # the section prefers the catalogue when given
     data: dict = {}
-    html = report_av._fidelity_part(ctx, ctx.sensor, ctx.primary, PAPER_IMPLIED, data)
+    html = report_track.fidelity_part(
+        ctx, ctx.sensor, stars=ctx.primary, curve=PAPER_IMPLIED, data=data
+    )
     assert "Full-fidelity check" in html and "Skipped" not in html
     assert data["fidelity"][0]["n_frames"] == 2
 
@@ -89,10 +92,10 @@ def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monke
 
     monkeypatch.setattr(build, "SECTION_BUILDERS", [report_av.availability_section])
     monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
-    monkeypatch.setattr(report_av, "FIDELITY_FRAMES", 2)
-    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", (1.0,))
-    monkeypatch.setattr(report_av, "TRACK_RATES_DEG_S", (1.0,))
-    monkeypatch.setattr(report_av, "TRACK_NODES_DEG", (0.0,))
+    monkeypatch.setattr(report_track, "FIDELITY_FRAMES", 2)
+    monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_track, "TRACK_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_track, "TRACK_NODES_DEG", (0.0,))
     monkeypatch.setattr(report_av, "DYNAMIC_RATES_DEG_S", np.arange(0.0, 3.01, 1.0))
     out = tmp_path / "report"
     build.build_report(

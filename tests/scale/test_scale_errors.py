@@ -175,7 +175,9 @@ def test_catalogue_without_the_band_for_availability(scale, g_only_hats):
     from starsense.geometry.fov import CircularFov
 
     with pytest.raises(MissingColumnsError, match="the V magnitude"):
-        scale.static_availability(g_only_hats, CircularFov(0.1), 6.0, band="V", client=object())
+        scale.static_availability(
+            g_only_hats, CircularFov(0.1), max_mag=6.0, band="V", client=object()
+        )
     plan, band = scale.availability.band_plan(g_only_hats, None)  # default: the first it has
     assert band == "G" and plan.columns == ["ra", "dec", "phot_g_mean_mag"]
 

@@ -99,8 +99,8 @@ def _static_hats(
         res = static_availability(
             cat,
             field,
-            max_mag,
-            n_min,
+            max_mag=max_mag,
+            n_min=n_min,
             band=band,
             n_orientations=n_orientations,
             roll=roll,

@@ -82,7 +82,13 @@ def catalog_import(
 
     check_scheduler(dask)  # a bad --dask, a bad input or output: before any worker starts
     try:
-        check_import(input_path, output, ra_column, dec_column, pixel_threshold)
+        check_import(
+            input_path,
+            output,
+            ra_column=ra_column,
+            dec_column=dec_column,
+            pixel_threshold=pixel_threshold,
+        )
     except MissingColumnsError as exc:  # the library names parameters; say the options
         text = str(exc).replace("ra_column / dec_column", "--ra-column / --dec-column")
         raise MissingColumnsError(text) from None

@@ -116,18 +116,22 @@ def render(
             raise InputError("--time is not available with --areas")
         kwargs["obs_time"] = parse_time(time, "--time")
     if areas:
-        area_frame = render_areas(sens, att, load_catalog(catalog), **kwargs)
-        frame = area_frame.frame
-        per_area = np.bincount(area_frame.star_area, minlength=len(sens.attitude_areas.areas) + 1)
-        names = sens.attitude_areas.names
-        where = ", ".join(f"{a}: {int(k)}" for a, k in zip(names, per_area[1:], strict=True))
-        note = f"; in the areas {where}"
+        frame, note = _render_areas(sens, att, load_catalog(catalog), kwargs)
     else:
         frame = render_frame(sens, att, load_catalog(catalog), **kwargs)
         note = ""
     written = write_frame(out, frame)
     n = len(frame.truth.stars)
     typer.echo(f"frame written: {written} ({n} stars{note}; truth in {written}.json)")
+
+
+def _render_areas(sens, att, catalog, kwargs: dict) -> tuple:
+    """``render --areas``: return the focal-plane frame and a note of the stars in each area."""
+    area_frame = render_areas(sens, att, catalog, **kwargs)
+    per_area = np.bincount(area_frame.star_area, minlength=len(sens.attitude_areas.areas) + 1)
+    names = sens.attitude_areas.names
+    where = ", ".join(f"{a}: {int(k)}" for a, k in zip(names, per_area[1:], strict=True))
+    return area_frame.frame, f"; in the areas {where}"
 
 
 def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kwargs) -> None:

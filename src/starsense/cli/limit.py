@@ -254,10 +254,15 @@ def _limit_sky_hats(
     with hats_session(catalog, dask, not as_json) as (cat, client, progress):
         opts = {"colour": colour, "max_mag": max_mag, "client": client, "progress": progress}
         if fov_deg is None:
-            res, used = hats_sky_limit(cat, diameter_m, exposure_s, **opts)
+            res, used = hats_sky_limit(cat, diameter_m=diameter_m, exposure_s=exposure_s, **opts)
         else:
             heads, merged, used = hats_fov_limit(
-                cat, _target_vectors(radec), fov_deg * DEG, diameter_m, exposure_s, **opts
+                cat,
+                _target_vectors(radec),
+                fov_diameter_rad=fov_deg * DEG,
+                diameter_m=diameter_m,
+                exposure_s=exposure_s,
+                **opts,
             )
     common = {
         "catalog": cat.name,
@@ -309,8 +314,8 @@ def limit_curve(
         with hats_session(catalog, dask, not as_json) as (cat, client, progress):
             curve = hats_curve(
                 cat,
-                diameter_m,
-                exposure_s,
+                diameter_m=diameter_m,
+                exposure_s=exposure_s,
                 n_extrapolated=extrapolate_to,
                 colour=colour,
                 client=client,

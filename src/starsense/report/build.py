@@ -290,10 +290,10 @@ def _write_index(work: Path, ctx: ReportContext, sections: Sequence[Section], el
     )
     text = page.page(
         "starsense performance report",
-        meta,
-        summary,
-        [(s.key, s.title) for s in sections],
-        body,
+        meta_html=meta,
+        summary_rows=summary,
+        nav_items=[(s.key, s.title) for s in sections],
+        body=body,
     )
     (work / INDEX).write_text(text, encoding="utf-8")
 

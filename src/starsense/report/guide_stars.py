@@ -143,7 +143,8 @@ def _ratio_part(ctx: ReportContext, tab: GuideStarTable, data: dict) -> str:
     """Draw Figs. 5-6, store their bins in ``data``; return the figure's file name."""
     sigmas = [s * ARCSEC for s in FIG_SIGMAS_ARCSEC]
     name = ctx.save_figure(
-        triangle_ratio_figure(tab, sigmas, FIG_BINS), "guide_stars_fig5_6_ratio.png"
+        triangle_ratio_figure(tab, sigmas_rad=sigmas, n_bins=FIG_BINS),
+        "guide_stars_fig5_6_ratio.png",
     )
     by_ratio: dict = {}
     for s, s_rad in zip(FIG_SIGMAS_ARCSEC, sigmas, strict=True):

@@ -120,6 +120,7 @@ def _failure_detail(src: Path, fmt: str, ra: str, dec: str, printed: str) -> str
 def check_import(
     input_path: str | Path,
     output: str | Path,
+    *,
     ra_column: str = "ra",
     dec_column: str = "dec",
     pixel_threshold: int = 1_000_000,
@@ -185,7 +186,13 @@ def import_catalog(
     InputError
         Missing input, unknown format, existing output, missing position columns.
     """
-    src, dst, fmt = check_import(input_path, output, ra_column, dec_column, pixel_threshold)
+    src, dst, fmt = check_import(
+        input_path,
+        output,
+        ra_column=ra_column,
+        dec_column=dec_column,
+        pixel_threshold=pixel_threshold,
+    )
     require("hats_import", "distributed")
     from hats_import.catalog.arguments import ImportArguments
     from hats_import.pipeline import pipeline_with_client
