@@ -17,6 +17,7 @@ from typing import Any
 
 import typer
 
+from starsense.cli.listing import group_listing, listing_app
 from starsense.errors import StarsenseError
 
 #: the commands, in the order of ``starsense --help``: name -> (module, attribute), where the
@@ -49,6 +50,19 @@ HELP = "Star-tracker engineering: how good a star sensor can be, and how good it
 
 def _group() -> None:
     pass  # the app is a group with its commands under it (the callback has no options)
+
+
+def _empty_app() -> typer.Typer:
+    app = typer.Typer(
+        name="starsense",
+        help=HELP,
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+    )
+    # a group even with one command registered (typer runs a lone command without its name)
+    app.callback()(_group)
+    return app
 
 
 def _load(where: tuple[str, str]) -> Any:
@@ -84,15 +98,7 @@ def build_app(command: str | None = None, subcommand: str | None = None) -> type
     -------
     typer.Typer
     """
-    app = typer.Typer(
-        name="starsense",
-        help=HELP,
-        no_args_is_help=True,
-        add_completion=False,
-        pretty_exceptions_enable=False,
-    )
-    # a group even with one command registered (typer runs a lone command without its name)
-    app.callback()(_group)
+    app = _empty_app()
     selected = command in COMMANDS
     for name in [command] if selected else list(COMMANDS):
         target = _load(COMMANDS[name])
@@ -102,6 +108,37 @@ def build_app(command: str | None = None, subcommand: str | None = None) -> type
         else:
             app.command(name)(target)
     return app
+
+
+def app_for(args: list[str]) -> typer.Typer:
+    """Return the app for the command line ``args``, importing no more than it needs.
+
+    A command, or a command of a group, gets :func:`build_app` (its module imported). A
+    listing (no argument, ``--help``, an unknown command; a group's name alone or with
+    ``--help`` or an unknown command) is built from the modules' source
+    (:mod:`starsense.cli.listing`) and prints the same text, without importing the commands.
+
+    Parameters
+    ----------
+    args : list of str
+        The arguments after the program name.
+
+    Returns
+    -------
+    typer.Typer
+    """
+    command = args[0] if args else None
+    if command not in COMMANDS:
+        listed = listing_app(_empty_app(), COMMANDS, SUBCOMMANDS)
+        return listed if listed is not None else build_app()
+    group = group_listing(*COMMANDS[command])  # None for a command function
+    if group is not None:
+        names = {name for name, _ in group.commands} | set(SUBCOMMANDS.get(command, {}))
+        if len(args) < 2 or args[1] not in names:
+            listed = listing_app(_empty_app(), {command: COMMANDS[command]}, SUBCOMMANDS)
+            if listed is not None:
+                return listed
+    return build_app(*args[:2])
 
 
 def __getattr__(name: str) -> typer.Typer:
@@ -159,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else list(argv)
     try:
         with _sigterm_unwinds():
-            app = build_app(*args[:2])
+            app = app_for(args)
             app(args=args, prog_name="starsense")  # standalone mode: ends with SystemExit
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)

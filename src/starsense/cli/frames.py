@@ -26,9 +26,9 @@ from starsense.cli.common import (
 from starsense.errors import InputError
 from starsense.geometry.apparent import parse_time
 from starsense.geometry.attitude import attitude_from_radec_roll
+from starsense.render import scene
 from starsense.render.areas import render_areas
 from starsense.render.io import FORMATS, write_frame
-from starsense.render.scene import render_frame
 from starsense.render.sequence import render_sequence, sequence_paths
 from starsense.sensor import load_sensor
 from starsense.units import DEG
@@ -118,7 +118,7 @@ def render(
     if areas:
         frame, note = _render_areas(sens, att, load_catalog(catalog), kwargs)
     else:
-        frame = render_frame(sens, att, load_catalog(catalog), **kwargs)
+        frame = scene.render_frame(sens, att, load_catalog(catalog), **kwargs)
         note = ""
     written = write_frame(out, frame)
     n = len(frame.truth.stars)
