@@ -10,7 +10,10 @@ import pytest
 import starsense.report.availability as report_av
 import starsense.report.availability_track as report_track
 from starsense.analysis.availability import ThresholdCurve
+from starsense.catalog import load_catalog
+from starsense.cli import main
 from starsense.photometry.stars import BlackBodyStars
+from starsense.report import build
 from starsense.report.section import ReportContext
 from starsense.sensor import load_sensor
 
@@ -63,7 +66,6 @@ def test_availability_section_builds(ctx, monkeypatch):
 
 
 def test_availability_section_fidelity_part(ctx, monkeypatch):
-    from starsense.catalog import load_catalog
 
     monkeypatch.setattr(report_track, "FIDELITY_FRAMES", 2)
     monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", (1.0,))
@@ -88,7 +90,6 @@ def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monke
     only, a few frames at one rate, a given threshold curve): the full-fidelity check renders
     from that catalogue instead of printing "Skipped".
     """
-    from starsense.report import build
 
     monkeypatch.setattr(build, "SECTION_BUILDERS", [report_av.availability_section])
     monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
@@ -113,7 +114,6 @@ def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monke
 @pytest.mark.slow
 def test_report_command_from_bsc5_path_runs_every_part(bsc5_path, tmp_path):
     """Issue 11, as a user runs it: `starsense report --catalog bsc5:PATH --out DIR` (~1 min)."""
-    from starsense.cli import main
 
     out = tmp_path / "report"
     assert main(["report", "--catalog", f"bsc5:{bsc5_path}", "--out", str(out)]) == 0
