@@ -3,6 +3,11 @@
 User errors (:class:`~starsense.errors.StarsenseError`) are printed as one line on stderr with exit
 status 2; no traceback. SIGTERM is handled like Ctrl-C: the command unwinds (temporary files are
 removed, an earlier output stays as it was) and the process exits with status 143 (128 + 15).
+
+Start-up: the command modules import the stages they call at their top, so the app imports
+only the module of the command it runs (:data:`COMMANDS`, :func:`app_for`); the listings
+(``starsense --help``, a group's name alone) are read from the modules' source
+(:mod:`starsense.cli.listing`). ``app`` (every command registered) is built on first use.
 """
 
 from __future__ import annotations
