@@ -176,7 +176,6 @@ def test_read_only_output_directory(tmp_path, capsys, monkeypatch):
 
 
 def test_unreadable_files_are_named(bad_dir, tmp_path, capsys, monkeypatch):
-
     secret = tmp_path / "secret.toml"
     secret.write_text("name = 'x'\n")
     real = os.access

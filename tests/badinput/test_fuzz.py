@@ -98,7 +98,6 @@ def _seed_files() -> dict[str, tuple[str, bytes, Callable[[Path], object]]]:
 
 
 def _tiff(frame: np.ndarray) -> bytes:
-
     from PIL import Image
 
     buf = io.BytesIO()

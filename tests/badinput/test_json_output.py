@@ -75,6 +75,5 @@ def test_solve_json_is_valid(tmp_path, capsys):
 
 
 def test_encoder_maps_non_finite_to_null():
-
     doc = {"a": math.nan, "b": np.float32(np.inf), "c": np.array([1.0, -np.inf]), "d": (1, 2)}
     assert _strict(json_text(doc)) == {"a": None, "b": None, "c": [1.0, None], "d": [1, 2]}

@@ -52,14 +52,12 @@ def _assert_old_frame(frame: Path, code: int, err: str) -> None:
 
 
 def test_render_terminated_while_rendering(old_frame, monkeypatch, capsys):
-
     monkeypatch.setattr(scene, "render_frame", _term)
     code = main(["render", "--out", str(old_frame)])
     _assert_old_frame(old_frame, code, capsys.readouterr().err)
 
 
 def test_render_terminated_while_writing_the_image(old_frame, monkeypatch, capsys):
-
     def half_written(target, image, fmt, when=None):
         Path(target).write_bytes(b"half an image")
         _term()
@@ -111,14 +109,12 @@ def _assert_old_report(out: Path, code: int, err: str) -> None:
 
 
 def test_report_terminated_while_loading_stars(old_report, monkeypatch, capsys):
-
     monkeypatch.setattr(build, "_load_stars", _term)
     code = main(["report", "--out", str(old_report)])
     _assert_old_report(old_report, code, capsys.readouterr().err)
 
 
 def _fake_stars(monkeypatch):
-
     monkeypatch.setattr(build, "_load_stars", lambda *a: ("test stars", 1, {}, None))
     return build
 

@@ -41,7 +41,6 @@ def run(capsys, *argv, code=0):
 
 @pytest.fixture(scope="module")
 def st16_sheet(tmp_path_factory):
-
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         rc = main(["datasheet", "--sensor", "st16", *LIGHT, "--json"])
@@ -73,7 +72,6 @@ def test_interface_keys(st16_sheet):
 
 
 def _schema():
-
     return json.loads((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
 
 
@@ -113,7 +111,6 @@ def test_slew_tolerance_agrees_with_slew_command(st16_sheet, capsys):
 
 
 def test_limit_agrees_with_limit_sky(capsys):
-
     sens = load_sensor("st16")
     out, _ = run(capsys, "limit", "sky", "--diameter-m", "0.012", "--exposure-s", "0.1",
                  "--fov-deg", "20", "--target-deg", "83.8,-5.4", "--json")  # fmt: skip
@@ -129,7 +126,6 @@ def test_limit_agrees_with_limit_sky(capsys):
 
 
 def _sensor_toml(tmp_path, name, **changes):
-
     text = (resources.files("starsense.sensor") / "presets" / "st16.toml").read_text()
     data = tomllib.loads(text)
     for dotted, value in changes.items():

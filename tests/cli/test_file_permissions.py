@@ -56,7 +56,6 @@ def test_render_frame_and_truth(tmp_path, capsys, umask):
 
 
 def test_solve_wcs(tmp_path, capsys, umask, shared_dir):
-
     folder = shared_dir / "data" / "images" / "esa"
     name = next(iter(json.loads((folder / "reference.json").read_text())["frames"]))
     out = tmp_path / "sol.wcs.fits"

@@ -66,7 +66,6 @@ def test_availability_section_builds(ctx, monkeypatch):
 
 
 def test_availability_section_fidelity_part(ctx, monkeypatch):
-
     monkeypatch.setattr(report_track, "FIDELITY_FRAMES", 2)
     monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", (1.0,))
     ctx.catalog = load_catalog("hipparcos")  # the section prefers the catalogue when given

@@ -202,7 +202,6 @@ def test_catalog_without_v_i_gets_one_curve(tmp_path, catalog_factory):
 
 
 def test_plot_brightest_curves_writes_png(tmp_path):
-
     curve = brightest_curve(_stars_away_from_equator(), 0.1, 0.01)
     path = plot_brightest_curves([curve], tmp_path / "fig7.png", diameter_m=0.1, exposure_s=0.01)
     assert path.read_bytes()[:8] == PNG_SIGNATURE

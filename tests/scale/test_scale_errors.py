@@ -48,7 +48,6 @@ def test_import_starsense_does_not_import_lsdb_or_dask():
 
 
 def test_missing_extra_raises_install_hint(monkeypatch):
-
     monkeypatch.setitem(sys.modules, "lsdb", None)  # makes `import lsdb` raise ImportError
     with pytest.raises(ScaleNotInstalledError, match=r"starsense\[scale\]"):
         require("lsdb")
@@ -56,7 +55,6 @@ def test_missing_extra_raises_install_hint(monkeypatch):
 
 
 def test_load_catalog_points_hats_to_the_scale_commands():
-
     with pytest.raises(InputError, match=r"limit sky.*availability static"):
         load_catalog("hats:/somewhere")
 
@@ -170,7 +168,6 @@ def test_catalogue_without_colour_for_the_limit(scale, g_only_hats):
 
 
 def test_catalogue_without_the_band_for_availability(scale, g_only_hats):
-
     with pytest.raises(MissingColumnsError, match="the V magnitude"):
         scale.static_availability(
             g_only_hats, CircularFov(0.1), max_mag=6.0, band="V", client=object()

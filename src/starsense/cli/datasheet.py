@@ -219,7 +219,6 @@ def datasheet(
 
 
 def _client(address: str | None):
-
     if address is None:
         return contextlib.nullcontext(None)
 

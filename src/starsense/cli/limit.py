@@ -74,7 +74,6 @@ def _check_max_mag(max_mag: float | None) -> None:
 
 
 def _load_stars(catalog: str, max_mag: float | None, colour: str | None):
-
     _check_max_mag(max_mag)
     cat = load_catalog(catalog)
     stars = BlackBodyStars.from_catalog(cat, colour)

@@ -75,7 +75,6 @@ def _orbit(orbit: str | None, tle: Path | None, start: str | None):
 
 
 def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolerance_json, bar):
-
     if not specs:
         raise InputError("give at least one head: --heads st16[@qx,qy,qz,qw] ...")
     parsed, seen = [], {}

@@ -54,7 +54,6 @@ def _rates_rad_s(text: str | None) -> np.ndarray | None:
 
 
 def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
-
     finite_float(colour_index, "--b-v")
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")

@@ -37,7 +37,6 @@ CSV_FIELDS = (
 
 
 def _image_suffixes() -> set[str]:
-
     return FITS_SUFFIXES | PILLOW_SUFFIXES
 
 
@@ -76,7 +75,6 @@ def parse_image_size(text: str) -> tuple[int, int]:
 
 
 def _solver(sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocity_km_s=None):
-
     if sensor is not None and fov_deg is not None:
         raise InputError("give --sensor or --fov-deg, not both")
     if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
@@ -157,7 +155,6 @@ def _batch_row(solver, image: Path, when=None) -> dict:
 
 
 def _csv_line(row: dict) -> str:
-
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="")
     writer.writerow(["" if row.get(k) is None else row.get(k) for k in CSV_FIELDS])
@@ -165,7 +162,6 @@ def _csv_line(row: dict) -> str:
 
 
 def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None) -> None:
-
     solver.prepare()  # the database, once, before the first frame
     if not as_json:
         typer.echo(",".join(CSV_FIELDS))
@@ -183,7 +179,6 @@ def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None
 
 
 def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bool) -> None:
-
     cents = read_centroids(path)
     if image_size is not None:
         size = parse_image_size(image_size)
