@@ -44,7 +44,7 @@ from starsense.sensor import load_sensor
 
 __all__ = ["mission"]
 
-# the forms of starsense.analysis.mission.specs (imported when the command runs, not at start-up)
+# the forms of starsense.analysis.mission.specs
 ORBIT_HELP = (
     "sso:ALT_KM[:LTAN_H] (sun-synchronous, circular; LTAN default 6 = dawn-dusk), "
     "circular:ALT_KM:INC_DEG[:RAAN_DEG[:ARGLAT_DEG]], or "
