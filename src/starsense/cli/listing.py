@@ -130,19 +130,20 @@ def group_listing(module: str, attribute: str) -> GroupListing | None:
     options = None if tree is None else _typer_options(tree, attribute)
     if options is None:
         return None
-    commands, callback = [], []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Attribute) and ast.unparse(node.value) == attribute:
-            if node.attr not in ("command", "callback"):  # a sub-group: not read here
-                return None
+    # every use of the group in its module: only the decorators read below may register on it
+    uses = [
+        n.attr
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Attribute) and ast.unparse(n.value) == attribute
+    ]
+    commands, callbacks = [], []
     for node in tree.body:
         if not isinstance(node, ast.FunctionDef):
             continue
-        plain = f"{attribute}.callback()"
-        if any(ast.unparse(d) == plain for d in node.decorator_list):
+        if f"{attribute}.callback()" in [ast.unparse(d) for d in node.decorator_list]:
             if ast.unparse(node.args) or len(node.decorator_list) > 1:
                 return None  # a callback with options
-            callback.append(ast.get_docstring(node, clean=False))
+            callbacks.append(ast.get_docstring(node, clean=False))
             continue
         try:
             names = [
@@ -151,16 +152,11 @@ def group_listing(module: str, attribute: str) -> GroupListing | None:
         except ValueError:
             return None
         commands += [(name, ast.get_docstring(node, clean=False)) for name in names]
-    uses = [
-        n
-        for n in ast.walk(tree)
-        if isinstance(n, ast.Attribute)
-        and n.attr == "callback"
-        and ast.unparse(n.value) == attribute
-    ]
-    if len(callback) > 1 or len(uses) != len(callback):  # a callback set some other way
+    if sorted(uses) != sorted(["command"] * len(commands) + ["callback"] * len(callbacks)):
+        return None  # registered some other way, or a sub-group: only importing tells
+    if len(callbacks) > 1:
         return None
-    return GroupListing(options, tuple(commands), bool(callback), callback[0] if callback else None)
+    return GroupListing(options, tuple(commands), bool(callbacks), next(iter(callbacks), None))
 
 
 def _stand_in(doc: str | None) -> Callable[[], None]:
