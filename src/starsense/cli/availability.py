@@ -14,6 +14,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense import plotting
 from starsense._validate import finite_float
 from starsense.analysis.availability import (
     fidelity_check,
@@ -57,13 +58,6 @@ from starsense.cli.common import (
     step_grid,
 )
 from starsense.geometry.sampling import great_circle_track
-from starsense.plotting.availability import (
-    dynamic_figure,
-    save_figure,
-    sky_map_figure,
-    static_curve_figure,
-    track_nmin_figure,
-)
 from starsense.scale import static_availability
 from starsense.sensor import load_sensor
 from starsense.units import DEG
@@ -178,12 +172,14 @@ def static(
     lines = [f"{sens.name}: " + res.lines()[0], *res.lines()[1:]]
     figures = []
     if plot is not None:
-        figures.append(save_figure(static_curve_figure(res), plot))
+        figures.append(
+            plotting.availability.save_figure(plotting.availability.static_curve_figure(res), plot)
+        )
     if maps is not None:
         folder = maps_dir(maps)
         figures.append(
-            save_figure(
-                sky_map_figure(
+            plotting.availability.save_figure(
+                plotting.availability.sky_map_figure(
                     res.boresights,
                     res.counts,
                     f"{sens.name}: stars in the field, m_t = {res.max_mag:g} ({res.fov})",
@@ -192,8 +188,8 @@ def static(
             )
         )
         figures.append(
-            save_figure(
-                sky_map_figure(
+            plotting.availability.save_figure(
+                plotting.availability.sky_map_figure(
                     res.boresights,
                     res.counts,
                     f"{sens.name}: star-sparse regions, m_t = {res.max_mag:g}",
@@ -258,14 +254,16 @@ def dynamic(
     lines = res.lines()
     figures = []
     if plot is not None:
-        figures.append(save_figure(dynamic_figure([res]), plot))
+        figures.append(
+            plotting.availability.save_figure(plotting.availability.dynamic_figure([res]), plot)
+        )
     if maps is not None:
         folder = maps_dir(maps)
         for w, m in zip(res.rates_deg_s, res.threshold_mag, strict=True):
             mt = f"{m:.2f}" if np.isfinite(m) else "none"
             figures.append(
-                save_figure(
-                    sky_map_figure(
+                plotting.availability.save_figure(
+                    plotting.availability.sky_map_figure(
                         analysis.boresights,
                         analysis.sky_counts(m),
                         f"{sens.name}: stars detectable at {w:g} deg/s ({curve.label}, m_t = {mt})",
@@ -344,14 +342,16 @@ def track(
     lines = res.lines()
     figures = []
     if plot is not None:
-        figures.append(save_figure(track_nmin_figure(res), plot))
+        figures.append(
+            plotting.availability.save_figure(plotting.availability.track_nmin_figure(res), plot)
+        )
     if maps is not None:
         folder = maps_dir(maps)
         shown = (-60.0, -30.0, 0.0, 30.0, 60.0, 90.0)
         paths = [great_circle_track(i * DEG, 721, node)[0] for i in shown]
         figures.append(
-            save_figure(
-                sky_map_figure(
+            plotting.availability.save_figure(
+                plotting.availability.sky_map_figure(
                     analysis.boresights,
                     analysis.sky_counts(res.threshold_mag),
                     f"{sens.name}: stars detectable at {res.rate_deg_s:g} deg/s; tracks i = "

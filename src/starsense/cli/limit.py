@@ -12,6 +12,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense import plotting
 from starsense._validate import check_int, check_scalar, finite_float
 from starsense.analysis.limits.brightest import brightest_curve
 from starsense.analysis.limits.centroid import centroid_fisher
@@ -37,7 +38,6 @@ from starsense.errors import InputError
 from starsense.geometry.projection import radec_to_vectors
 from starsense.photometry import ColourModel, fit_star, total_photons
 from starsense.photometry.stars import BlackBodyStars
-from starsense.plotting.limits import plot_brightest_curves
 from starsense.scale import brightest_curve as hats_curve
 from starsense.scale import fov_limit as hats_fov_limit
 from starsense.scale import sky_limit as hats_sky_limit
@@ -340,7 +340,7 @@ def limit_curve(
         f"N = {extrapolate_to:.3g}: {curve.theta_extrapolated_rad:.3e} rad",
     ]
     if plot is not None:
-        plot_brightest_curves(
+        plotting.limits.plot_brightest_curves(
             [curve], plot, catalog_name=cat.name, diameter_m=diameter_m, exposure_s=exposure_s
         )
         payload["plot"] = str(plot)

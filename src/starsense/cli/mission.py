@@ -13,6 +13,7 @@ from typing import Annotated
 
 import typer
 
+from starsense import plotting
 from starsense.analysis.availability import catalog_stars
 from starsense.analysis.mission import (
     Head,
@@ -38,8 +39,6 @@ from starsense.cli.availability_options import (
 )
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, option_float, progress_bar
 from starsense.errors import InputError
-from starsense.plotting.availability import save_figure
-from starsense.plotting.mission import mission_timeline_figure
 from starsense.sensor import load_sensor
 
 __all__ = ["mission"]
@@ -157,7 +156,9 @@ def mission(
             typer.echo(f"warning: {w.message}", err=True)
     payload, lines = res.to_dict(), res.lines()
     if plot is not None:
-        path = save_figure(mission_timeline_figure(res), plot)
+        path = plotting.availability.save_figure(
+            plotting.mission.mission_timeline_figure(res), plot
+        )
         payload["figures"] = [str(path)]
         lines.append(f"figure: {path}")
     emit(payload, as_json, lines)

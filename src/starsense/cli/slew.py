@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense import plotting
 from starsense._validate import finite_float
 from starsense.analysis.slew import simulate_slew
 from starsense.analysis.slew_study import (
@@ -27,9 +28,6 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError
-from starsense.plotting.figure import save_png
-from starsense.plotting.slew import intensity_figure, tolerance_figure
-from starsense.plotting.slew_study import study_figure
 from starsense.references.dzamba2014 import MAX_MAG
 from starsense.sensor import load_sensor
 from starsense.units import DEG, to_edge
@@ -117,7 +115,7 @@ def slew_tolerance(
         text = "not detected at rest" if r is None else f"{'>= ' if c else ''}{r:.2f} deg/s"
         lines.append(f"  m = {m:5.2f}: {text}")
     if plot is not None:
-        save_png(tolerance_figure([res]), plot)
+        plotting.figure.save_png(plotting.slew.tolerance_figure([res]), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)
@@ -147,7 +145,7 @@ def slew_intensity(
         )
         lines.append(f"  {w:10.2f} {row}")
     if plot is not None:
-        save_png(intensity_figure(res), plot)
+        plotting.figure.save_png(plotting.slew.intensity_figure(res), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)
@@ -230,7 +228,7 @@ def slew_study(
     lines = _study_lines(study, payload["best"])
     if plot is not None:
         ref = (sens.detector.psf_sigma_px, sens.detector.mean_qe)
-        save_png(study_figure(study, ref), plot)
+        plotting.figure.save_png(plotting.slew_study.study_figure(study, ref), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)
