@@ -24,6 +24,11 @@ sys.path.insert(0, str(HERE.parent / "tests" / "_support"))
 
 from camera8 import FOV_RAD, camera8, frame8  # noqa: E402
 
+from starsense._io import atomic_write  # noqa: E402
+from starsense.catalog import load_catalog  # noqa: E402
+from starsense.geometry.attitude import small_rotation_angles  # noqa: E402
+from starsense.solve.solver import Solver  # noqa: E402
+
 ARCSEC_PER_RAD = 206264.80624709636
 POINTINGS = [(180, 60, 10), (10, -70, 100), (140, -20, 250), (250, 30, 40), (300, -45, 200)]
 CASES = {
@@ -40,10 +45,6 @@ CASES = {
 
 def main() -> None:
     """Run the sweep, print one line per case and write the JSON record."""
-    from starsense._io import atomic_write
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import small_rotation_angles
-    from starsense.solve.solver import Solver
 
     catalog = load_catalog("hipparcos")
     # the user of issue 13 knows the field, not the camera: --sensor gives the solver its model

@@ -17,16 +17,16 @@ import sys
 import time
 from pathlib import Path
 
+from starsense._io import atomic_write
+from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
+from starsense.catalog import load_catalog
+from starsense.scale import dask_client
+from starsense.sensor import load_sensor
+
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def main(argv: list[str]) -> int:
-    from starsense._io import atomic_write
-    from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
-    from starsense.catalog import load_catalog
-    from starsense.scale import dask_client
-    from starsense.sensor import load_sensor
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sensors", nargs="*", default=["st16", "esa_blackfly"])
     ap.add_argument("--frames", type=int, default=1000)

@@ -14,6 +14,8 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import atexit  # noqa: E402
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import sys  # noqa: E402
@@ -23,6 +25,47 @@ from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
+
+from starsense._io import atomic_write  # noqa: E402
+from starsense.analysis.availability import (  # noqa: E402
+    AvailabilityAnalysis,
+    ThresholdCurve,
+    catalog_stars,
+    field_of_view,
+    sky_attitudes,
+)
+from starsense.analysis.guide_stars import lin_layout, select_guide_stars, simulate_table1  # noqa: E402
+from starsense.analysis.limits import sky_limit  # noqa: E402
+from starsense.analysis.mission import (  # noqa: E402
+    AttitudeProfile,
+    Head,
+    TimeGrid,
+    mission_availability,
+    mission_geometry,
+    sun_synchronous,
+)
+from starsense.analysis.slew import simulate_slew  # noqa: E402
+from starsense.catalog import load_catalog  # noqa: E402
+from starsense.detect import StarDetector  # noqa: E402
+from starsense.geometry.attitude import attitude_from_radec_roll  # noqa: E402
+from starsense.geometry.fov import CircularFov, count_in_fov  # noqa: E402
+from starsense.photometry import ColourModel  # noqa: E402
+from starsense.photometry.stars import BlackBodyStars  # noqa: E402
+from starsense.render.scene import render_frame  # noqa: E402
+from starsense.scale import (  # noqa: E402
+    ScaleNotInstalledError,
+    dask_client,
+    import_catalog,
+    open_hats,
+    star_counts,
+)
+from starsense.scale import sky_limit as hats_sky_limit  # noqa: E402
+from starsense.sensor import load_sensor  # noqa: E402
+from starsense.solve.frames import load_image  # noqa: E402
+from starsense.solve.solver import Solver  # noqa: E402
+from starsense.solve.tracking import Prior, track_frame  # noqa: E402
+from starsense.units import DEG  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 BENCHES: list[tuple[str, str, float, Callable[[], float]]] = []
@@ -63,18 +106,12 @@ def machine() -> dict:
 
 @bench("catalog_warm_load", "warm load of the bundled Hipparcos (hip2) catalogue", 0.3)
 def _catalog_warm_load() -> float:
-    from starsense.catalog import load_catalog
-
     load_catalog("hipparcos")  # fills the cache if cold
     return best_of(lambda: load_catalog("hipparcos"))
 
 
 @bench("limit_sky_bundled", "whole-sky limit over all bundled stars (catalogue loaded)", 0.05)
 def _limit_sky_bundled() -> float:
-    from starsense.analysis.limits import sky_limit
-    from starsense.catalog import load_catalog
-    from starsense.photometry.stars import BlackBodyStars
-
     cat = load_catalog("hipparcos")
     BlackBodyStars.from_catalog(cat)  # builds the colour tables once (photometry set-up)
     return best_of(
@@ -84,10 +121,6 @@ def _limit_sky_bundled() -> float:
 
 @bench("limit_sky_5M", "whole-sky limit, 5 million synthetic stars from V and B-V, one core", 1.0)
 def _limit_sky_5m() -> float:
-    from starsense.analysis.limits import sky_limit
-    from starsense.photometry import ColourModel
-    from starsense.photometry.stars import BlackBodyStars
-
     rng = np.random.default_rng(0)
     n = 5_000_000
     v = rng.normal(size=(n, 3))
@@ -108,11 +141,7 @@ def _limit_sky_5m() -> float:
 # issue 3: rendering, detection, slew tolerance
 
 
-def _st16_frame_inputs():
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import attitude_from_radec_roll
-    from starsense.sensor import load_sensor
-
+def st16_frame_inputs():
     sensor = load_sensor("st16")
     cat = load_catalog("hipparcos")
     # a boresight with ~20 stars to V 5.75 (the ST-16 catalogue limit) in its 15 x 20 deg field
@@ -127,9 +156,7 @@ def _st16_frame_inputs():
     0.15,
 )
 def _render_frame() -> float:
-    from starsense.render.scene import render_frame
-
-    sensor, cat, att, rate = _st16_frame_inputs()
+    sensor, cat, att, rate = st16_frame_inputs()
     frame = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1)
     print(f"    ({len(frame.truth.stars)} stars in the frame)", flush=True)
     return best_of(lambda: render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1))
@@ -137,10 +164,7 @@ def _render_frame() -> float:
 
 @bench("detect_frame_st16", "ST-16 detection logic + CoG centroids on that full frame", 0.06)
 def _detect_frame() -> float:
-    from starsense.detect import StarDetector
-    from starsense.render.scene import render_frame
-
-    sensor, cat, att, rate = _st16_frame_inputs()
+    sensor, cat, att, rate = st16_frame_inputs()
     image = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1).image
     detector = StarDetector.for_sensor(sensor)
     print(f"    ({len(detector(image))} stars detected)", flush=True)
@@ -149,9 +173,6 @@ def _detect_frame() -> float:
 
 @bench("slew_tolerance_curve", "tolerance curve, 20 magnitudes x 40 rates x 20 trials (Reed)", 30.0)
 def _slew_curve() -> float:
-    from starsense.analysis.slew import simulate_slew
-    from starsense.sensor import load_sensor
-
     sensor = load_sensor("st16")
     return best_of(lambda: simulate_slew(sensor, model="reed", n_trials=20, rng=0), repeat=2)
 
@@ -161,10 +182,6 @@ def _slew_curve() -> float:
 
 
 def _availability_setup():
-    from starsense.analysis.availability import AvailabilityAnalysis, field_of_view
-    from starsense.catalog import load_catalog
-    from starsense.sensor import load_sensor
-
     cat, fov = load_catalog("hipparcos"), field_of_view(load_sensor("st16"))
     return AvailabilityAnalysis, cat, fov
 
@@ -177,8 +194,6 @@ def _availability_static() -> float:
 
 @bench("availability_dynamic_20", "spatial dynamic availability curve, 20 rates, given m_t(w)", 5.0)
 def _availability_dynamic() -> float:
-    from starsense.analysis.availability import ThresholdCurve
-
     analysis, cat, fov = _availability_setup()
     # the Reed m_t(w) the paper's Table 2 implies on BSC5 (README); any curve costs the same
     curve = ThresholdCurve(np.radians([0, 1, 1.5, 2, 3]), [5.75, 4.78, 4.40, 3.875, 3.60])
@@ -192,11 +207,6 @@ def _availability_dynamic() -> float:
 
 @bench("solve_esa_frame", "ESA frame: background + detection + identification + attitude", 1.0)
 def _solve_esa() -> float:
-    from pathlib import Path
-
-    from starsense.solve.frames import load_image
-    from starsense.solve.solver import Solver
-
     folder = Path(__file__).resolve().parents[2] / "shared" / "data" / "images" / "esa"
     frames = [load_image(p) for p in sorted(folder.glob("*.tiff"))]
     if not frames:
@@ -227,11 +237,7 @@ def _solve_esa() -> float:
     0.02,
 )
 def _track_frame() -> float:
-    from starsense.render.scene import render_frame
-    from starsense.solve.solver import Solver
-    from starsense.solve.tracking import Prior, track_frame
-
-    sensor, cat, att, rate = _st16_frame_inputs()
+    sensor, cat, att, rate = st16_frame_inputs()
     image = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1).image
     # the prior a tracker has from its last frame: 0.01 deg, the rate to 0.005 deg/s
     prior = Prior(att, np.eye(3) * np.radians(0.01) ** 2, rate, np.eye(3) * np.radians(0.005) ** 2)
@@ -261,8 +267,6 @@ def _track_frame() -> float:
     60.0,
 )
 def _guide_stars_table1() -> float:
-    from starsense.analysis.guide_stars import simulate_table1
-
     tab = simulate_table1(n_trials=10_000, rng=0)
     four = ", ".join(f"{100 * p:.2f}" for p in tab.probability_mc["four"])
     print(f"    (four areas, %: {four})", flush=True)
@@ -271,9 +275,6 @@ def _guide_stars_table1() -> float:
 
 @bench("guide_stars_select", "choose 5 of 20 guide stars by covariance trace (15,504 sets)", 0.5)
 def _guide_stars_select() -> float:
-    from starsense.analysis.guide_stars import lin_layout, select_guide_stars
-    from starsense.units import DEG
-
     lay = lin_layout(1.6 * DEG)
     rng = np.random.default_rng(0)
     xy = rng.uniform(-lay.lens_radius, lay.lens_radius, (400, 2))
@@ -296,11 +297,6 @@ _SCALE_VERSION = 1  # bump when the synthetic catalogue changes
 def _scale_client():
     """One 2-worker local cluster for all scale_ benchmarks, closed at exit (None: no extra)."""
     if "client" not in _SCALE:
-        import atexit
-        import contextlib
-
-        from starsense.scale import ScaleNotInstalledError, dask_client
-
         stack = contextlib.ExitStack()
         try:
             _SCALE["client"] = stack.enter_context(dask_client("local:2", processes=True))
@@ -315,7 +311,6 @@ def _scale_catalog(n: int):
     """Synthetic HATS catalogue of n stars: uniform on the sphere, G with N(<G) ~ 10^(0.35 G)
     up to G = 14.5 (a Galaxy-like luminosity function: 13 % of the stars have G <= 12), BP-RP
     ~ N(1.0, 0.5); Gaia column names."""
-    from starsense.scale import import_catalog, open_hats
 
     folder = Path(tempfile.gettempdir()) / f"starsense-bench-hats-v{_SCALE_VERSION}"
     out = folder / f"synth_{n // 1_000_000}M"
@@ -349,35 +344,30 @@ def _scale_limit(n: int) -> float:
     client = _scale_client()
     if client is None:
         return float("nan")
-    from starsense.scale import sky_limit
 
     cat = _scale_catalog(n)
-    res, used = sky_limit(cat, client=client)  # warm-up
+    res, used = hats_sky_limit(cat, client=client)  # warm-up
     print(f"    ({used.n_stars} stars in {cat.n_partitions} partitions; G = "
           f"{res.g_rad_m2_s05:.3e} rad m^2 s^1/2)", flush=True)  # fmt: skip
-    return best_of(lambda: sky_limit(cat, client=client), repeat=3)
+    return best_of(lambda: hats_sky_limit(cat, client=client), repeat=3)
 
 
 def _scale_counts(n: int, max_mag: float = float("inf")) -> float:
     client = _scale_client()
     if client is None:
         return float("nan")
-    from starsense.analysis.availability import sky_attitudes
-    from starsense.geometry.fov import CircularFov
-    from starsense.scale import star_counts
 
     cat = _scale_catalog(n)
     fov = CircularFov(np.radians(7.5))
     _, attitudes = sky_attitudes(1_000, 0.0, 0)
-    counts = star_counts(cat, fov, attitudes, max_mag, band="G", client=client)  # warm-up
+    counts = star_counts(cat, fov, attitudes, max_mag=max_mag, band="G", client=client)  # warm-up
     print(f"    (G <= {max_mag:g}: {counts.mean():.0f} stars per field on average)", flush=True)
     if max_mag == float("inf"):  # the Catalog-free reference: one cKDTree over all the stars
-        from starsense.geometry.fov import count_in_fov
-
         ref = count_in_fov(fov, attitudes, _scale_vectors(n))
         assert np.array_equal(ref, counts), "distributed counts differ from in-memory"
     return best_of(
-        lambda: star_counts(cat, fov, attitudes, max_mag, band="G", client=client), repeat=3
+        lambda: star_counts(cat, fov, attitudes, max_mag=max_mag, band="G", client=client),
+        repeat=3,
     )
 
 
@@ -422,20 +412,6 @@ def _scale_vectors(n: int) -> np.ndarray:
     2.0,
 )
 def _mission_day() -> float:
-    from scipy.spatial.transform import Rotation
-
-    from starsense.analysis.availability import ThresholdCurve, catalog_stars, field_of_view
-    from starsense.analysis.mission import (
-        AttitudeProfile,
-        Head,
-        TimeGrid,
-        mission_availability,
-        mission_geometry,
-        sun_synchronous,
-    )
-    from starsense.catalog import load_catalog
-    from starsense.sensor import load_sensor
-
     sensor = load_sensor("st16")
     v, m = catalog_stars(load_catalog("hipparcos"), 5.75)
     # the Reed m_t(w) of the ST-16 (README); any curve costs the same. Heads canted 45 deg above
@@ -461,8 +437,6 @@ def _mission_day() -> float:
 
 
 def main(selected: list[str]) -> int:
-    from starsense._io import atomic_write
-
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()
     rows = []

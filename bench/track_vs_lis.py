@@ -22,6 +22,11 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from run import st16_frame_inputs  # noqa: E402
+
+from starsense.render.scene import render_frame  # noqa: E402
+from starsense.solve.solver import Solver  # noqa: E402
+from starsense.solve.tracking import Prior, track_frame  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -39,17 +44,11 @@ def _blocks(fn, n_blocks: int, per_block: int) -> tuple[float, float, float, flo
 
 
 def main() -> None:
-    from run import _st16_frame_inputs
-
-    from starsense.render.scene import render_frame
-    from starsense.solve.solver import Solver
-    from starsense.solve.tracking import Prior, track_frame
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("background", nargs="?", default="known", choices=["auto", "known"])
     parser.add_argument("--blocks", type=int, default=40, help="blocks of 10 tracks")
     args = parser.parse_args()
-    sensor, cat, att, rate = _st16_frame_inputs()
+    sensor, cat, att, rate = st16_frame_inputs()
     image = render_frame(sensor, att, cat, rate_rad_s=rate, max_mag=5.75, rng=1).image
     # the bench's prior: 0.01 deg, the rate to 0.005 deg/s
     prior = Prior(att, np.eye(3) * np.radians(0.01) ** 2, rate, np.eye(3) * np.radians(0.005) ** 2)

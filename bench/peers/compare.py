@@ -39,7 +39,21 @@ import numpy as np  # noqa: E402
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE.parent))
+import agreement as ag  # noqa: E402
+import run_astrometry  # noqa: E402
 from run import RESULTS, machine  # noqa: E402
+
+from starsense._io import atomic_write  # noqa: E402
+from starsense.catalog import load_catalog  # noqa: E402
+from starsense.detect import StarDetector  # noqa: E402
+from starsense.errors import InputError  # noqa: E402
+from starsense.geometry.attitude import angular_separation, radec_roll_from_attitude  # noqa: E402
+from starsense.identify import HashIdentifier, build_database  # noqa: E402
+from starsense.identify.centroid_sets import centroid_sets  # noqa: E402
+from starsense.sensor import load_sensor  # noqa: E402
+from starsense.solve.frames import load_image  # noqa: E402
+from starsense.solve.pinhole import pinhole_vectors  # noqa: E402
+from starsense.solve.solver import Solver  # noqa: E402
 
 ESA_DIR = ROOT.parent / "shared" / "data" / "images" / "esa"
 SYNTH_SIZE = (960, 1280)  # rows, columns
@@ -68,8 +82,6 @@ def synthetic_inputs(n: int, seed: int = 20240605, **kwargs):
     :func:`starsense.identify.centroid_sets.centroid_sets` on the bundled Hipparcos (V <= 9),
     15 deg across a 1280 x 960 pinhole detector, Fibonacci boresights, random roll.
     """
-    from starsense.catalog import load_catalog
-    from starsense.identify.centroid_sets import centroid_sets
 
     sets = centroid_sets(
         load_catalog("hipparcos"), n, fov_rad=math.radians(SYNTH_FOV_DEG),
@@ -80,9 +92,6 @@ def synthetic_inputs(n: int, seed: int = 20240605, **kwargs):
 
 def esa_inputs():
     """The eight frames, starsense's detections of each (as the pipeline makes them), reference."""
-    from starsense.detect import StarDetector
-    from starsense.sensor import load_sensor
-    from starsense.solve.frames import load_image
 
     reference = json.loads((ESA_DIR / "reference.json").read_text())["frames"]
     sensor = load_sensor("esa_blackfly")
@@ -114,12 +123,6 @@ def _best_of(fn, repeat):
 
 
 def starsense_side(synth_sets, esa):
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import radec_roll_from_attitude
-    from starsense.identify import HashIdentifier, build_database
-    from starsense.solve.pinhole import pinhole_vectors
-    from starsense.solve.solver import Solver
-
     names, images, exy, eoff, _reference, sensor = esa
     cat = load_catalog("hipparcos")
     fov = math.radians(SYNTH_FOV_DEG)
@@ -175,7 +178,6 @@ def _solution_record(sol, ms) -> dict:
 
 def starsense_frames(images) -> list[dict]:
     """``--frames DIR``: the Solver with nothing known (field found by the scale search)."""
-    from starsense.solve.solver import Solver
 
     solver = Solver()
     out = []
@@ -188,7 +190,6 @@ def starsense_frames(images) -> list[dict]:
 
 def astrometry_side(paths, fov_deg) -> tuple[list[dict] | None, str]:
     """solve-field on each frame (run_astrometry.py), or (None, why it is unavailable)."""
-    import run_astrometry
 
     ok, what = run_astrometry.available()
     if not ok:
@@ -231,8 +232,6 @@ def _vec(ra_deg, dec_deg):
 
 
 def score(records, truth_vectors, limit_rad) -> dict:
-    from starsense.geometry.attitude import angular_separation
-
     n = len(records)
     solved = [r for r in records if r["solved"]]
     errors = [
@@ -259,8 +258,6 @@ def score(records, truth_vectors, limit_rad) -> dict:
 
 def frames_dir(folder: Path) -> tuple[list[Path], list]:
     """The images of ``--frames DIR`` (every file :func:`load_image` reads), sorted by name."""
-    from starsense.errors import InputError
-    from starsense.solve.frames import load_image
 
     if not folder.is_dir():
         raise SystemExit(f"--frames: {folder} is not a directory")
@@ -278,7 +275,6 @@ def frames_dir(folder: Path) -> tuple[list[Path], list]:
 
 def whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths) -> dict:
     """Print and return the whole-frame figures: time per stage, agreement with references."""
-    import agreement as ag
 
     own = "esa_own_extraction"
     split = ag.stage_split(ours[own], theirs[own] if theirs else None)
@@ -428,7 +424,6 @@ def main(argv=None) -> int:
         "date": time.strftime("%Y-%m-%d"),
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
-    from starsense._io import atomic_write
 
     with atomic_write(RESULTS / "peer_cedar.json") as f:
         json.dump(record, f, indent=2)

@@ -24,8 +24,10 @@ import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
+from importlib.metadata import version  # noqa: E402
 
 import numpy as np  # noqa: E402
+import tetra3  # noqa: E402
 
 warnings.filterwarnings("ignore", category=DeprecationWarning)  # np.math in cedar-solve 0.5.1
 
@@ -59,8 +61,6 @@ def _timed(fn, repeat: int = 1) -> tuple[dict, float]:
 
 
 def main(inputs: str, out: str) -> int:
-    import tetra3
-
     logging.getLogger("tetra3.Tetra3").setLevel(logging.WARNING)
     data = np.load(inputs)
     t0 = time.perf_counter()
@@ -139,8 +139,6 @@ def _plain(value):
 
 
 def _version() -> str:
-    from importlib.metadata import version
-
     return version("cedar-solve")
 
 

@@ -9,6 +9,7 @@ case fails before the work starts, so the whole table takes seconds.
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import time
@@ -16,7 +17,9 @@ from pathlib import Path
 
 import pytest
 
+import starsense._io.files as io_mod
 from starsense.cli import main
+from starsense.cli.common import step_grid
 
 
 def _closed_port() -> int:
@@ -156,7 +159,6 @@ def test_bad_input_is_one_line_exit_2_and_leaves_nothing(
 def test_read_only_output_directory(tmp_path, capsys, monkeypatch):
     # the tests may run as root, for whom every directory is writable: the permission is
     # refused the way the kernel would refuse it to a user
-    import starsense._io.files as io_mod
 
     locked = tmp_path / "locked"
     locked.mkdir()
@@ -174,8 +176,6 @@ def test_read_only_output_directory(tmp_path, capsys, monkeypatch):
 
 
 def test_unreadable_files_are_named(bad_dir, tmp_path, capsys, monkeypatch):
-    import starsense._io.files as io_mod
-
     secret = tmp_path / "secret.toml"
     secret.write_text("name = 'x'\n")
     real = os.access
@@ -191,7 +191,6 @@ def test_unreadable_files_are_named(bad_dir, tmp_path, capsys, monkeypatch):
 def test_valid_fine_inclination_steps_are_accepted():
     # 0.01, 0.03, 0.001 deg were refused (a floating end point past 90 deg); the grid is now
     # built from a count: it starts at -90, ends at 90 and never passes it
-    from starsense.cli.common import step_grid
 
     def _inclinations_deg(step):
         return step_grid(-90.0, 90.0, step, "--inclination-step-deg", 1e-3)
@@ -209,7 +208,6 @@ def test_colour_clamp_is_said(capsys):
     assert code == 0
     assert "warning: --b-v 100 is outside" in captured.err
     assert "clamped to 2,000 K" in captured.err
-    import json
 
     assert json.loads(captured.out)["colour_clamped"] is True
 

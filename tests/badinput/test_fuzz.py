@@ -10,6 +10,8 @@ more under ``slow``.
 from __future__ import annotations
 
 import gzip
+import io
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -32,7 +34,17 @@ from bad_files import (
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from starsense.catalog import (
+    load_bsc5,
+    load_gaia,
+    load_hip2,
+    load_hip_main,
+    load_twomass,
+    load_tycho2,
+)
 from starsense.errors import StarsenseError
+from starsense.sensor import load_sensor
+from starsense.solve.frames import load_image
 
 FAST = 150
 SLOW = 600  # 3000 each (36,000 files) ran clean once: 5 min, too long for every CI run
@@ -62,16 +74,6 @@ def mutated(draw, seed: bytes) -> bytes:
 
 def _seed_files() -> dict[str, tuple[str, bytes, Callable[[Path], object]]]:
     """name -> (file name, valid bytes, reader)."""
-    from starsense.catalog import (
-        load_bsc5,
-        load_gaia,
-        load_hip2,
-        load_hip_main,
-        load_twomass,
-        load_tycho2,
-    )
-    from starsense.sensor import load_sensor
-    from starsense.solve.frames import load_image
 
     def image(path):  # a low pixel limit: a mutated header must not make the test allocate
         return load_image(path, max_pixels=1 << 20)
@@ -96,8 +98,6 @@ def _seed_files() -> dict[str, tuple[str, bytes, Callable[[Path], object]]]:
 
 
 def _tiff(frame: np.ndarray) -> bytes:
-    import io
-
     from PIL import Image
 
     buf = io.BytesIO()
@@ -141,8 +141,6 @@ def _fuzz(name: str, n: int) -> None:
     try:
         run()
     finally:
-        import shutil
-
         shutil.rmtree(folder, ignore_errors=True)
 
 

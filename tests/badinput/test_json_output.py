@@ -10,8 +10,10 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
+from starsense._io import json_text
 from starsense.cli import main
 
 
@@ -73,9 +75,5 @@ def test_solve_json_is_valid(tmp_path, capsys):
 
 
 def test_encoder_maps_non_finite_to_null():
-    import numpy as np
-
-    from starsense._io import json_text
-
     doc = {"a": math.nan, "b": np.float32(np.inf), "c": np.array([1.0, -np.inf]), "d": (1, 2)}
     assert _strict(json_text(doc)) == {"a": None, "b": None, "c": [1.0, None], "d": [1, 2]}

@@ -17,8 +17,14 @@ from pathlib import Path
 
 import pytest
 
+import starsense._io.files as files
+import starsense.render.io as rio
+import starsense.render.scene as scene
+import starsense.report.build as build
+from starsense._io import atomic_write, sweep_stale
 from starsense.cli import main
 from starsense.cli.app import EXIT_TERMINATED
+from starsense.sensor import load_sensor
 
 
 def _term(*args, **kwargs):
@@ -46,16 +52,12 @@ def _assert_old_frame(frame: Path, code: int, err: str) -> None:
 
 
 def test_render_terminated_while_rendering(old_frame, monkeypatch, capsys):
-    import starsense.render.scene as scene
-
     monkeypatch.setattr(scene, "render_frame", _term)
     code = main(["render", "--out", str(old_frame)])
     _assert_old_frame(old_frame, code, capsys.readouterr().err)
 
 
 def test_render_terminated_while_writing_the_image(old_frame, monkeypatch, capsys):
-    import starsense.render.io as rio
-
     def half_written(target, image, fmt, when=None):
         Path(target).write_bytes(b"half an image")
         _term()
@@ -68,7 +70,6 @@ def test_render_terminated_while_writing_the_image(old_frame, monkeypatch, capsy
 def test_render_terminated_during_the_commit_finishes_it(old_frame, monkeypatch, capsys):
     # SIGTERM while the image and its truth are renamed into place is held back until both
     # are: the new pair is complete (never a new image with the old truth), then exit 143
-    import starsense._io.files as files
 
     real = files._fsync
     sent = []
@@ -83,8 +84,6 @@ def test_render_terminated_during_the_commit_finishes_it(old_frame, monkeypatch,
     code = main(["render", "--out", str(old_frame), "--max-mag", "3"])
     assert code == 143 and sent
     from PIL import Image
-
-    from starsense.sensor import load_sensor
 
     det = load_sensor("st16").detector
     with Image.open(old_frame) as im:  # the new frame, complete: the st16 detector's size
@@ -110,16 +109,12 @@ def _assert_old_report(out: Path, code: int, err: str) -> None:
 
 
 def test_report_terminated_while_loading_stars(old_report, monkeypatch, capsys):
-    import starsense.report.build as build
-
     monkeypatch.setattr(build, "_load_stars", _term)
     code = main(["report", "--out", str(old_report)])
     _assert_old_report(old_report, code, capsys.readouterr().err)
 
 
 def _fake_stars(monkeypatch):
-    import starsense.report.build as build
-
     monkeypatch.setattr(build, "_load_stars", lambda *a: ("test stars", 1, {}, None))
     return build
 
@@ -178,8 +173,6 @@ def test_stale_temporaries_of_a_killed_run_are_swept(tmp_path, monkeypatch, caps
     stale_dir.mkdir()
     (stale_dir / "index.html").write_text("x")
     busy.write_bytes(b"x")
-
-    from starsense._io import atomic_write, sweep_stale
 
     with atomic_write(tmp_path / "f.png", "wb") as fh:
         fh.write(b"new")

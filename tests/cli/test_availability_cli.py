@@ -7,6 +7,7 @@ import json
 import pytest
 from typer.testing import CliRunner
 
+from starsense.cli import app, main
 from starsense.cli.availability import availability_app
 from starsense.errors import InputError
 
@@ -104,8 +105,6 @@ def test_bad_input_raises_input_error(argv, message):
 
 
 def test_registered_in_main_app_one_line_exit_2(capsys):
-    from starsense.cli import app, main
-
     names = {g.name for g in app.registered_groups}
     if "availability" not in names:
         pytest.skip("availability sub-app not registered in starsense.cli yet")

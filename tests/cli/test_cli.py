@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from starsense.cli import main
+from starsense.cli.common import progress_bar
 
 
 def run(capsys, *argv):
@@ -217,8 +218,6 @@ def test_options_checked_at_the_edge_under_their_own_names(capsys, tmp_path, arg
 
 
 def test_progress_bar_hidden_when_not_a_terminal_or_json(monkeypatch):
-    from starsense.cli.common import progress_bar
-
     monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
     with progress_bar() as bar:
         assert not bar.shown and bar.callback is None
@@ -230,8 +229,6 @@ def test_progress_bar_hidden_when_not_a_terminal_or_json(monkeypatch):
 
 
 def test_progress_bar_labelled_tasks_and_partitions(monkeypatch):
-    from starsense.cli.common import progress_bar
-
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
     with progress_bar(unit="partitions") as bar:
         assert bar.shown and bar.callback is bar

@@ -3,13 +3,22 @@ thing, and sensors that see too little."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
+import tomllib
+from importlib import resources
 
 import numpy as np
 import pytest
 
+from starsense.analysis.datasheet.sheet import _limit
+from starsense.catalog import load_catalog
 from starsense.cli import main
+from starsense.geometry.attitude import attitude_from_radec_roll
+from starsense.geometry.fov import CircularFov
+from starsense.sensor import load_sensor
 
 #: a light run: 3 frames per rate, 300 boresights (the numbers are checked for agreement with
 #: the other commands, not for their statistics)
@@ -32,9 +41,6 @@ def run(capsys, *argv, code=0):
 
 @pytest.fixture(scope="module")
 def st16_sheet(tmp_path_factory):
-    import contextlib
-    import io
-
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         rc = main(["datasheet", "--sensor", "st16", *LIGHT, "--json"])
@@ -66,8 +72,6 @@ def test_interface_keys(st16_sheet):
 
 
 def _schema():
-    from importlib import resources
-
     return json.loads((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
 
 
@@ -107,12 +111,6 @@ def test_slew_tolerance_agrees_with_slew_command(st16_sheet, capsys):
 
 
 def test_limit_agrees_with_limit_sky(capsys):
-    from starsense.analysis.datasheet.sheet import _limit
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import attitude_from_radec_roll
-    from starsense.geometry.fov import CircularFov
-    from starsense.sensor import load_sensor
-
     sens = load_sensor("st16")
     out, _ = run(capsys, "limit", "sky", "--diameter-m", "0.012", "--exposure-s", "0.1",
                  "--fov-deg", "20", "--target-deg", "83.8,-5.4", "--json")  # fmt: skip
@@ -128,9 +126,6 @@ def test_limit_agrees_with_limit_sky(capsys):
 
 
 def _sensor_toml(tmp_path, name, **changes):
-    import tomllib
-    from importlib import resources
-
     text = (resources.files("starsense.sensor") / "presets" / "st16.toml").read_text()
     data = tomllib.loads(text)
     for dotted, value in changes.items():

@@ -8,12 +8,14 @@ under a umask of 0o022 and of 0o077.
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
 import pytest
 
 from starsense.cli import main
+from starsense.report.section import ReportContext
 
 
 @pytest.fixture(params=[0o022, 0o077], ids=["umask022", "umask077"])
@@ -54,8 +56,6 @@ def test_render_frame_and_truth(tmp_path, capsys, umask):
 
 
 def test_solve_wcs(tmp_path, capsys, umask, shared_dir):
-    import json
-
     folder = shared_dir / "data" / "images" / "esa"
     name = next(iter(json.loads((folder / "reference.json").read_text())["frames"]))
     out = tmp_path / "sol.wcs.fits"
@@ -95,8 +95,6 @@ def test_report_figure_writer(tmp_path, umask):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from starsense.report.section import ReportContext
 
     ctx = ReportContext(work_dir=tmp_path, catalog_name="test", n_catalog=0, stars={},
                         diameter_m=0.1, exposure_s=0.01)  # fmt: skip

@@ -6,6 +6,7 @@ import json
 import math
 import re
 import warnings
+from importlib import resources
 
 import pytest
 
@@ -168,8 +169,6 @@ def test_bad_input_one_line_exit_2_no_file(capsys, tmp_path, tol, argv, message)
 
 
 def test_exclusion_out_of_range_in_toml(capsys, tmp_path, tol):
-    from importlib import resources
-
     text = (resources.files("starsense.sensor") / "presets" / "st16.toml").read_text()
     bad = tmp_path / "st16_bad.toml"
     bad.write_text(text.replace("sun_deg = 45.0", "sun_deg = 200.0"))

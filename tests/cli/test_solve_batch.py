@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import sys
 
 import pytest
 
@@ -88,7 +89,6 @@ def test_batch_refuses_wcs_and_missing_paths(batch_dir, tmp_path, capsys):
 
 def test_progress_bar_on_a_terminal_leaves_stdout_alone(batch_dir, capsys, monkeypatch):
     # stderr a terminal: the rich bar is drawn there; stdout still holds only the JSON lines
-    import sys
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     code, out, _ = _run(["solve", str(batch_dir), "--sensor", "esa_blackfly", "--json"], capsys)

@@ -8,8 +8,12 @@ import numpy as np
 import pytest
 
 import starsense.report.availability as report_av
+import starsense.report.availability_track as report_track
 from starsense.analysis.availability import ThresholdCurve
+from starsense.catalog import load_catalog
+from starsense.cli import main
 from starsense.photometry.stars import BlackBodyStars
+from starsense.report import build
 from starsense.report.section import ReportContext
 from starsense.sensor import load_sensor
 
@@ -43,9 +47,9 @@ def ctx(tmp_path):
 
 def test_availability_section_builds(ctx, monkeypatch):
     monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
-    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", ())  # rendered frames: own test
-    monkeypatch.setattr(report_av, "TRACK_RATES_DEG_S", (1.0, 2.0))
-    monkeypatch.setattr(report_av, "TRACK_NODES_DEG", (0.0, 90.0))
+    monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", ())  # rendered frames: own test
+    monkeypatch.setattr(report_track, "TRACK_RATES_DEG_S", (1.0, 2.0))
+    monkeypatch.setattr(report_track, "TRACK_NODES_DEG", (0.0, 90.0))
     monkeypatch.setattr(report_av, "DYNAMIC_RATES_DEG_S", np.arange(0.0, 3.01, 0.5))
     section = report_av.availability_section(ctx)
     assert section.key == "availability"
@@ -62,13 +66,13 @@ def test_availability_section_builds(ctx, monkeypatch):
 
 
 def test_availability_section_fidelity_part(ctx, monkeypatch):
-    from starsense.catalog import load_catalog
-
-    monkeypatch.setattr(report_av, "FIDELITY_FRAMES", 2)
-    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_track, "FIDELITY_FRAMES", 2)
+    monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", (1.0,))
     ctx.catalog = load_catalog("hipparcos")  # the section prefers the catalogue when given
     data: dict = {}
-    html = report_av._fidelity_part(ctx, ctx.sensor, ctx.primary, PAPER_IMPLIED, data)
+    html = report_track.fidelity_part(
+        ctx, ctx.sensor, stars=ctx.primary, curve=PAPER_IMPLIED, data=data
+    )
     assert "Full-fidelity check" in html and "Skipped" not in html
     assert data["fidelity"][0]["n_frames"] == 2
 
@@ -85,14 +89,13 @@ def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monke
     only, a few frames at one rate, a given threshold curve): the full-fidelity check renders
     from that catalogue instead of printing "Skipped".
     """
-    from starsense.report import build
 
     monkeypatch.setattr(build, "SECTION_BUILDERS", [report_av.availability_section])
     monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
-    monkeypatch.setattr(report_av, "FIDELITY_FRAMES", 2)
-    monkeypatch.setattr(report_av, "FIDELITY_RATES_DEG_S", (1.0,))
-    monkeypatch.setattr(report_av, "TRACK_RATES_DEG_S", (1.0,))
-    monkeypatch.setattr(report_av, "TRACK_NODES_DEG", (0.0,))
+    monkeypatch.setattr(report_track, "FIDELITY_FRAMES", 2)
+    monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_track, "TRACK_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_track, "TRACK_NODES_DEG", (0.0,))
     monkeypatch.setattr(report_av, "DYNAMIC_RATES_DEG_S", np.arange(0.0, 3.01, 1.0))
     out = tmp_path / "report"
     build.build_report(
@@ -110,7 +113,6 @@ def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monke
 @pytest.mark.slow
 def test_report_command_from_bsc5_path_runs_every_part(bsc5_path, tmp_path):
     """Issue 11, as a user runs it: `starsense report --catalog bsc5:PATH --out DIR` (~1 min)."""
-    from starsense.cli import main
 
     out = tmp_path / "report"
     assert main(["report", "--catalog", f"bsc5:{bsc5_path}", "--out", str(out)]) == 0

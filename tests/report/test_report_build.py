@@ -9,8 +9,10 @@ import re
 import numpy as np
 import pytest
 
+from starsense.analysis.limits import brightest_curve
 from starsense.errors import InputError
 from starsense.photometry.stars import BlackBodyStars
+from starsense.plotting.limits import plot_brightest_curves
 from starsense.references.fialho2019 import TABLE2_MAS as TABLE2_PAPER_MAS
 from starsense.report import build, build_report, fov_table, limit_section, table1_rows
 from starsense.report.limits import TITLE
@@ -200,9 +202,6 @@ def test_catalog_without_v_i_gets_one_curve(tmp_path, catalog_factory):
 
 
 def test_plot_brightest_curves_writes_png(tmp_path):
-    from starsense.analysis.limits import brightest_curve
-    from starsense.plotting.limits import plot_brightest_curves
-
     curve = brightest_curve(_stars_away_from_equator(), diameter_m=0.1, exposure_s=0.01)
     path = plot_brightest_curves([curve], tmp_path / "fig7.png", diameter_m=0.1, exposure_s=0.01)
     assert path.read_bytes()[:8] == PNG_SIGNATURE

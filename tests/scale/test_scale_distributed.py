@@ -135,7 +135,7 @@ def test_sky_limit_gaia_equals_in_memory(data, client):
     stars = mem.BlackBodyStars.from_catalog(gaia)
     assert stars.colour == "BP-RP"
     # the table also has 2MASS columns, and J-H comes first in the default order: ask for BP-RP
-    res, used = sky_limit(hats, 0.1, 0.2, colour="BP-RP", client=client)
+    res, used = sky_limit(hats, diameter_m=0.1, exposure_s=0.2, colour="BP-RP", client=client)
     _same_limit(res, mem.sky_limit(stars, diameter_m=0.1, exposure_s=0.2))
     assert (used.colour, used.n_stars, used.n_skipped) == ("BP-RP", len(stars), stars.n_skipped)
     assert used.n_skipped > 0  # the NaN colours
@@ -159,7 +159,13 @@ def test_fov_limits_many_targets_equal_in_memory(data, client):
     ra, dec = rng.uniform(0, 2 * np.pi, 12), np.arcsin(rng.uniform(-1, 1, 12))
     targets = np.array([radec_to_vectors(a, d) for a, d in zip(ra, dec, strict=True)])
     heads, merged, _ = fov_limit(
-        hats, targets, np.radians(20.0), 0.05, 0.1, colour="BP-RP", client=client
+        hats,
+        targets,
+        fov_diameter_rad=np.radians(20.0),
+        diameter_m=0.05,
+        exposure_s=0.1,
+        colour="BP-RP",
+        client=client,
     )
     heads0, merged0 = mem.fov_limit(
         stars, targets, fov_diameter_rad=np.radians(20.0), diameter_m=0.05, exposure_s=0.1
@@ -177,7 +183,8 @@ def test_brightest_curve_equals_in_memory(data, client, max_explicit):
     stars = mem.BlackBodyStars.from_catalog(gaia)
     labels = set()
     curve = brightest_curve(
-        hats, 0.1, 0.1, colour="BP-RP", client=client, max_explicit=max_explicit,
+        hats, diameter_m=0.1, exposure_s=0.1, colour="BP-RP", client=client,
+        max_explicit=max_explicit,
         progress=lambda label, done, total: labels.add(label),
     )  # fmt: skip
     assert ("N brightest: finer histogram" in labels) == (max_explicit == 50)
@@ -205,7 +212,7 @@ def test_brightest_order_is_independent_of_row_order(data):
 def test_star_counts_per_boresight_equal_in_memory(data, client, fov):
     _, gaia, _, hats = data
     _, attitudes = sky_attitudes(1_000, None, rng=2)
-    counts = star_counts(hats, fov, attitudes, 11.0, band="G", client=client)
+    counts = star_counts(hats, fov, attitudes, max_mag=11.0, band="G", client=client)
     counts0 = FieldStars.build(fov, attitudes, *catalog_stars(gaia, 11.0, band="G")).counts()
     np.testing.assert_array_equal(counts, counts0)
     assert counts.mean() > 5  # fields hold stars: the comparison is not of zeros
@@ -216,7 +223,9 @@ def test_static_availability_equals_in_memory(data, client):
     fov = CircularFov(np.radians(7.5))
     # G <= 2.5 keeps ~830 of the 20,000 stars (G uniform in 2-14): ~3.6 per 7.5 deg field on
     # average, so N_min = 3 is met at some boresights and not at others
-    res = static_availability(hats, fov, 2.5, 3, band="G", n_orientations=2_000, client=client)
+    res = static_availability(
+        hats, fov, max_mag=2.5, n_min=3, band="G", n_orientations=2_000, client=client
+    )
     res0 = AvailabilityAnalysis.from_catalog(gaia, fov, 2.5, band="G", n_orientations=2_000).static(
         3
     )

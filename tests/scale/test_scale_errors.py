@@ -16,14 +16,18 @@ import warnings
 import numpy as np
 import pytest
 
+import starsense.scale
+from starsense.catalog import load_catalog
 from starsense.cli import main
 from starsense.errors import InputError
+from starsense.geometry.fov import CircularFov
 from starsense.scale import (
     CatalogUnavailableError,
     MissingColumnsError,
     ScaleNotInstalledError,
     SchedulerUnreachableError,
 )
+from starsense.scale._deps import quiet_third_party_warnings, require
 
 
 def run(capsys, *argv):
@@ -44,8 +48,6 @@ def test_import_starsense_does_not_import_lsdb_or_dask():
 
 
 def test_missing_extra_raises_install_hint(monkeypatch):
-    from starsense.scale._deps import require
-
     monkeypatch.setitem(sys.modules, "lsdb", None)  # makes `import lsdb` raise ImportError
     with pytest.raises(ScaleNotInstalledError, match=r"starsense\[scale\]"):
         require("lsdb")
@@ -53,8 +55,6 @@ def test_missing_extra_raises_install_hint(monkeypatch):
 
 
 def test_load_catalog_points_hats_to_the_scale_commands():
-    from starsense.catalog import load_catalog
-
     with pytest.raises(InputError, match=r"limit sky.*availability static"):
         load_catalog("hats:/somewhere")
 
@@ -70,12 +70,9 @@ def test_dask_option_needs_a_hats_catalogue(capsys):
 @pytest.fixture(scope="module")
 def scale():
     try:
-        from starsense.scale._deps import require
-
         require("lsdb", "hats", "distributed")
     except ScaleNotInstalledError as exc:
         pytest.skip(f"starsense[scale] not installed: {exc}")
-    import starsense.scale
 
     return starsense.scale
 
@@ -145,9 +142,8 @@ def test_bad_scheduler_address(scale, address):
 def g_only_hats(scale, tmp_path_factory):
     """A real HATS catalogue with positions and G but no colour (written by lsdb)."""
     import lsdb
-    import pandas as pd
 
-    from starsense.scale._deps import quiet_third_party_warnings
+    pd = pytest.importorskip("pandas")  # with lsdb (the scale extra), lazily like lsdb
 
     rng = np.random.default_rng(0)
     n = 300
@@ -172,10 +168,10 @@ def test_catalogue_without_colour_for_the_limit(scale, g_only_hats):
 
 
 def test_catalogue_without_the_band_for_availability(scale, g_only_hats):
-    from starsense.geometry.fov import CircularFov
-
     with pytest.raises(MissingColumnsError, match="the V magnitude"):
-        scale.static_availability(g_only_hats, CircularFov(0.1), 6.0, band="V", client=object())
+        scale.static_availability(
+            g_only_hats, CircularFov(0.1), max_mag=6.0, band="V", client=object()
+        )
     plan, band = scale.availability.band_plan(g_only_hats, None)  # default: the first it has
     assert band == "G" and plan.columns == ["ra", "dec", "phot_g_mean_mag"]
 

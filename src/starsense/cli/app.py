@@ -3,59 +3,155 @@
 User errors (:class:`~starsense.errors.StarsenseError`) are printed as one line on stderr with exit
 status 2; no traceback. SIGTERM is handled like Ctrl-C: the command unwinds (temporary files are
 removed, an earlier output stays as it was) and the process exits with status 143 (128 + 15).
+
+Start-up: the command modules import the stages they call at their top, so the app imports
+only the module of the command it runs (:data:`COMMANDS`, :func:`app_for`); the listings
+(``starsense --help``, a group's name alone) are read from the modules' source
+(:mod:`starsense.cli.listing`). ``app`` (every command registered) is built on first use.
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib
 import signal
 import sys
 import threading
 from collections.abc import Iterator
+from typing import Any
 
 import typer
 
+from starsense.cli.listing import group_listing, listing_app
 from starsense.errors import StarsenseError
 
-app = typer.Typer(
-    name="starsense",
-    help="Star-tracker engineering: how good a star sensor can be, and how good it is.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
+#: the commands, in the order of ``starsense --help``: name -> (module, attribute), where the
+#: attribute is a command function or a :class:`typer.Typer` group. A module is imported only when
+#: its command runs (or for the full listing), so ``starsense solve`` loads what solving needs and
+#: nothing of the other commands.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "render": ("starsense.cli.frames", "render"),
+    "solve": ("starsense.cli.solve", "solve"),
+    "calibrate": ("starsense.cli.calibrate", "calibrate"),
+    "montecarlo": ("starsense.cli.frames", "montecarlo"),
+    "datasheet": ("starsense.cli.datasheet", "datasheet"),
+    "track": ("starsense.cli.track", "track"),
+    "report": ("starsense.cli.report", "report"),
+    "limit": ("starsense.cli.limit", "limit_app"),
+    "slew": ("starsense.cli.slew", "slew_app"),
+    "availability": ("starsense.cli.availability", "availability_app"),
+    "guide-stars": ("starsense.cli.guide_stars", "guide_stars_app"),
+    "catalog": ("starsense.cli.catalog", "catalog_app"),
+}
+
+#: commands of a group that live in their own module: group -> {name: (module, attribute)},
+#: registered after the group's own commands, and only when asked for (or for a listing)
+SUBCOMMANDS: dict[str, dict[str, tuple[str, str]]] = {
+    "availability": {"mission": ("starsense.cli.mission", "mission")},
+}
+
+HELP = "Star-tracker engineering: how good a star sensor can be, and how good it is."
 
 
-def _register_subapps() -> None:
-    from starsense.cli.availability import availability_app
-    from starsense.cli.calibrate import calibrate
-    from starsense.cli.catalog import catalog_app
-    from starsense.cli.datasheet import datasheet
-    from starsense.cli.frames import montecarlo, render
-    from starsense.cli.guide_stars import guide_stars_app
-    from starsense.cli.limit import limit_app
-    from starsense.cli.mission import mission
-    from starsense.cli.report import report
-    from starsense.cli.slew import slew_app
-    from starsense.cli.solve import solve
-    from starsense.cli.track import track
-
-    app.add_typer(limit_app, name="limit")
-    app.add_typer(slew_app, name="slew")
-    app.command("render")(render)
-    app.command("solve")(solve)
-    app.command("calibrate")(calibrate)
-    app.command("montecarlo")(montecarlo)
-    app.command("datasheet")(datasheet)
-    app.command("track")(track)
-    app.command("report")(report)
-    availability_app.command("mission")(mission)
-    app.add_typer(availability_app, name="availability")
-    app.add_typer(guide_stars_app, name="guide-stars")
-    app.add_typer(catalog_app, name="catalog")
+def _group() -> None:
+    pass  # the app is a group with its commands under it (the callback has no options)
 
 
-_register_subapps()
+def _empty_app() -> typer.Typer:
+    app = typer.Typer(
+        name="starsense",
+        help=HELP,
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+    )
+    # a group even with one command registered (typer runs a lone command without its name)
+    app.callback()(_group)
+    return app
+
+
+def _load(where: tuple[str, str]) -> Any:
+    module, attribute = where
+    return getattr(importlib.import_module(module), attribute)
+
+
+def _add_subcommands(group: typer.Typer, name: str, subcommand: str | None) -> None:
+    """Register the group's commands from other modules (:data:`SUBCOMMANDS`) that are needed."""
+    own = {info.name for info in group.registered_commands}
+    for sub, where in SUBCOMMANDS.get(name, {}).items():
+        if sub in own:  # registered by an earlier build (the group is the module's object)
+            continue
+        if subcommand is None or subcommand == sub or subcommand not in own:
+            group.command(sub)(_load(where))
+
+
+def build_app(command: str | None = None, subcommand: str | None = None) -> typer.Typer:
+    """Return the ``starsense`` app with ``command`` registered, or every command.
+
+    Parameters
+    ----------
+    command : str, optional
+        The command to run (the first argument): only its module is imported. None, or a name
+        that is not a command (``--help``, a typo), registers them all, for the full listing and
+        typer's own message about an unknown command.
+    subcommand : str, optional
+        The argument after a group's name (``mission`` in ``availability mission``): a command of
+        the group kept in another module (:data:`SUBCOMMANDS`) is imported only when named, or
+        when the group's commands are listed (None, ``--help``, an unknown name).
+
+    Returns
+    -------
+    typer.Typer
+    """
+    app = _empty_app()
+    selected = command in COMMANDS
+    for name in [command] if selected else list(COMMANDS):
+        target = _load(COMMANDS[name])
+        if isinstance(target, typer.Typer):
+            _add_subcommands(target, name, subcommand if selected else None)
+            app.add_typer(target, name=name)
+        else:
+            app.command(name)(target)
+    return app
+
+
+def app_for(args: list[str]) -> typer.Typer:
+    """Return the app for the command line ``args``, importing no more than it needs.
+
+    A command, or a command of a group, gets :func:`build_app` (its module imported). A
+    listing (no argument, ``--help``, an unknown command; a group's name alone or with
+    ``--help`` or an unknown command) is built from the modules' source
+    (:mod:`starsense.cli.listing`) and prints the same text, without importing the commands.
+
+    Parameters
+    ----------
+    args : list of str
+        The arguments after the program name.
+
+    Returns
+    -------
+    typer.Typer
+    """
+    command = args[0] if args else None
+    if command not in COMMANDS:
+        listed = listing_app(_empty_app(), COMMANDS, SUBCOMMANDS)
+        return listed if listed is not None else build_app()
+    group = group_listing(*COMMANDS[command])  # None for a command function
+    if group is not None:
+        names = {name for name, _ in group.commands} | set(SUBCOMMANDS.get(command, {}))
+        if len(args) < 2 or args[1] not in names:
+            listed = listing_app(_empty_app(), {command: COMMANDS[command]}, SUBCOMMANDS)
+            if listed is not None:
+                return listed
+    return build_app(*args[:2])
+
+
+def __getattr__(name: str) -> typer.Typer:
+    """``app``: every command registered, built on first use (for tests and typer's runner)."""
+    if name == "app":
+        globals()["app"] = built = build_app()
+        return built
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class Terminated(BaseException):
@@ -102,9 +198,11 @@ def main(argv: list[str] | None = None) -> int:
         0 on success, 1 for a negative answer (a frame that does not solve), 2 for bad input,
         143 after SIGTERM.
     """
+    args = sys.argv[1:] if argv is None else list(argv)
     try:
         with _sigterm_unwinds():
-            app(args=argv, prog_name="starsense")  # standalone mode: ends with SystemExit
+            app = app_for(args)
+            app(args=args, prog_name="starsense")  # standalone mode: ends with SystemExit
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except StarsenseError as exc:
@@ -119,9 +217,10 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _console_main() -> None:  # pragma: no cover - thin wrapper for the console script
+def console_main() -> None:  # pragma: no cover - thin wrapper for the console script
+    """Run the command line on ``sys.argv`` and exit with its status (the ``starsense`` script)."""
     sys.exit(main())
 
 
 if __name__ == "__main__":  # pragma: no cover
-    _console_main()
+    console_main()

@@ -7,8 +7,15 @@ from typing import Annotated
 
 import typer
 
+from starsense._io import atomic_write
+from starsense.catalog import load_catalog
 from starsense.cli.common import CatalogOpt, JsonOpt, SensorOpt, emit
 from starsense.errors import InputError
+from starsense.geometry.apparent import parse_time
+from starsense.sensor.dump import sensor_to_toml
+from starsense.solve.calibration import PARAMETERS, frame_stars
+from starsense.solve.calibration import calibrate as calibrate_frames
+from starsense.solve.solver import Solver
 
 
 def calibrate(
@@ -39,13 +46,6 @@ def calibrate(
     status 2 when no frame solves or a parameter cannot be fitted (hold it fixed by leaving it
     out of --fit).
     """
-    from starsense._io import atomic_write
-    from starsense.catalog import load_catalog
-    from starsense.geometry.apparent import parse_time
-    from starsense.sensor.dump import sensor_to_toml
-    from starsense.solve.calibration import PARAMETERS, calibrate, frame_stars
-    from starsense.solve.solver import Solver
-
     names = [p.strip() for p in fit.split(",") if p.strip()]
     bad = [p for p in names if p not in PARAMETERS]
     if bad or not names:
@@ -66,7 +66,7 @@ def calibrate(
             skipped[str(path)] = sol.status
     if not stars:
         raise InputError(f"no frame solved with sensor {sensor!r}: {skipped}")
-    result = calibrate(stars, solver.sensor, fit=names)
+    result = calibrate_frames(stars, solver.sensor, fit=names)
     header = (
         f"starsense calibrate: {result.n_frames} frame(s), {result.n_stars} stars; residual rms "
         f"{result.rms_arcsec_before:.2f} -> {result.rms_arcsec_after:.2f} arcsec\n"

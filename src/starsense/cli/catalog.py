@@ -17,6 +17,12 @@ from typing import Annotated
 import typer
 
 from starsense.cli.common import DaskOpt, JsonOpt, emit, option_int, progress_bar
+from starsense.errors import InputError
+from starsense.scale import dask_client, import_catalog, open_hats
+from starsense.scale.cluster import check_scheduler
+from starsense.scale.errors import MissingColumnsError
+from starsense.scale.importer import check_import
+from starsense.scale.location import check_url, is_hats_spec
 
 catalog_app = typer.Typer(
     help="Catalogues: turn a CSV / Parquet catalogue into HATS for the deep-catalogue commands.",
@@ -31,12 +37,8 @@ def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterato
     The callback is None when the bar of partitions done is hidden (``show_progress`` false, or
     stderr not a terminal).
     """
-    from starsense.scale.cluster import check_scheduler
-    from starsense.scale.location import check_url
-
     check_scheduler(dask)  # a malformed or refused --dask fails before the catalogue is opened
     check_url(catalog)  # a refused URL too: both before lsdb is imported
-    from starsense.scale import dask_client, open_hats
 
     cat = open_hats(catalog)
     with dask_client(dask) as client, progress_bar(show_progress, unit="partitions") as bar:
@@ -45,9 +47,6 @@ def hats_session(catalog: str, dask: str | None, show_progress: bool) -> Iterato
 
 def check_dask_option(catalog: str, dask: str | None) -> bool:
     """Return True for a ``hats:`` catalogue; --dask with any other catalogue is an error."""
-    from starsense.errors import InputError
-    from starsense.scale.location import is_hats_spec
-
     is_hats = is_hats_spec(catalog)
     if dask is not None and not is_hats:
         raise InputError(
@@ -79,16 +78,17 @@ def catalog_import(
     (j_m, h_m, k_m) or band names (V, B-V, G, J ...) are recognised by the deep-catalogue
     commands.
     """
-    from starsense.scale import dask_client, import_catalog, open_hats
-
     option_int(pixel_threshold, "--pixel-threshold", 1)
-    from starsense.scale.cluster import check_scheduler
-    from starsense.scale.errors import MissingColumnsError
-    from starsense.scale.importer import check_import
 
     check_scheduler(dask)  # a bad --dask, a bad input or output: before any worker starts
     try:
-        check_import(input_path, output, ra_column, dec_column, pixel_threshold)
+        check_import(
+            input_path,
+            output,
+            ra_column=ra_column,
+            dec_column=dec_column,
+            pixel_threshold=pixel_threshold,
+        )
     except MissingColumnsError as exc:  # the library names parameters; say the options
         text = str(exc).replace("ra_column / dec_column", "--ra-column / --dec-column")
         raise MissingColumnsError(text) from None

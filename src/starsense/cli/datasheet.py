@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+from importlib import resources
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from starsense._io import atomic_write
+from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
+from starsense.catalog import load_catalog
 from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
@@ -19,6 +24,10 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError
+from starsense.plotting.datasheet import nea_sky_figure
+from starsense.plotting.figure import save_png
+from starsense.scale import dask_client
+from starsense.sensor import load_sensor
 from starsense.units import DEG
 
 __all__ = ["datasheet", "datasheet_lines"]
@@ -105,10 +114,6 @@ def _compare_lines(comparison) -> list[str]:
 
 def _write_out(out: Path, sheet, payload: dict) -> list[str]:
     """Write datasheet.json and the NEA sky map into ``out``; return the paths."""
-    from starsense._io import atomic_write
-    from starsense.plotting.datasheet import nea_sky_figure
-    from starsense.plotting.figure import save_png
-
     out.mkdir(parents=True, exist_ok=True)
     name = payload["sensor"]
     path = out / f"{name}_datasheet.json"
@@ -151,13 +156,7 @@ def datasheet(
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
-    from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
-    from starsense.catalog import load_catalog
-    from starsense.sensor import load_sensor
-
     if schema:
-        from importlib import resources
-
         typer.echo((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
         return
     option_int(trials, "--trials", 1)
@@ -201,10 +200,7 @@ def datasheet(
 
 
 def _client(address: str | None):
-    import contextlib
-
     if address is None:
         return contextlib.nullcontext(None)
-    from starsense.scale import dask_client
 
     return dask_client(address)

@@ -8,6 +8,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense.analysis.montecarlo import run_montecarlo
+from starsense.catalog import load_catalog
 from starsense.cli.common import (
     CatalogOpt,
     JsonOpt,
@@ -22,6 +24,13 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError
+from starsense.geometry.apparent import parse_time
+from starsense.geometry.attitude import attitude_from_radec_roll
+from starsense.render import scene
+from starsense.render.areas import render_areas
+from starsense.render.io import FORMATS, write_frame
+from starsense.render.sequence import render_sequence, sequence_paths
+from starsense.sensor import load_sensor
 from starsense.units import DEG
 
 
@@ -70,12 +79,6 @@ def render(
     ] = None,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
-    from starsense.catalog import load_catalog
-    from starsense.geometry.attitude import attitude_from_radec_roll
-    from starsense.render.io import write_frame
-    from starsense.render.scene import render_frame
-    from starsense.sensor import load_sensor
-
     option_float(ra_deg, "--ra-deg")
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
     option_float(roll_deg, "--roll-deg")
@@ -109,33 +112,30 @@ def render(
         "noise": not no_noise,
     }
     if time is not None:
-        from starsense.geometry.apparent import parse_time
-
         if areas:
             raise InputError("--time is not available with --areas")
         kwargs["obs_time"] = parse_time(time, "--time")
     if areas:
-        from starsense.render.areas import render_areas
-
-        area_frame = render_areas(sens, att, load_catalog(catalog), **kwargs)
-        frame = area_frame.frame
-        per_area = np.bincount(area_frame.star_area, minlength=len(sens.attitude_areas.areas) + 1)
-        names = sens.attitude_areas.names
-        where = ", ".join(f"{a}: {int(k)}" for a, k in zip(names, per_area[1:], strict=True))
-        note = f"; in the areas {where}"
+        frame, note = _render_areas(sens, att, load_catalog(catalog), kwargs)
     else:
-        frame = render_frame(sens, att, load_catalog(catalog), **kwargs)
+        frame = scene.render_frame(sens, att, load_catalog(catalog), **kwargs)
         note = ""
     written = write_frame(out, frame)
     n = len(frame.truth.stars)
     typer.echo(f"frame written: {written} ({n} stars{note}; truth in {written}.json)")
 
 
+def _render_areas(sens, att, catalog, kwargs: dict) -> tuple:
+    """``render --areas``: return the focal-plane frame and a note of the stars in each area."""
+    area_frame = render_areas(sens, att, catalog, **kwargs)
+    per_area = np.bincount(area_frame.star_area, minlength=len(sens.attitude_areas.areas) + 1)
+    names = sens.attitude_areas.names
+    where = ", ".join(f"{a}: {int(k)}" for a, k in zip(names, per_area[1:], strict=True))
+    return area_frame.frame, f"; in the areas {where}"
+
+
 def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kwargs) -> None:
     """``render --sequence N --interval-s DT``: frames DIR/stem_000.ext ..., checked first."""
-    from starsense.render.io import FORMATS, write_frame
-    from starsense.render.sequence import render_sequence, sequence_paths
-
     if n is None or interval_s is None:
         raise InputError("--sequence and --interval-s go together: give both")
     option_int(n, "--sequence", 1, 10000)
@@ -178,9 +178,6 @@ def montecarlo(
     Prints the solve and wrong rates, the attitude error per axis against the predicted
     covariance, and the time per frame.
     """
-    from starsense.analysis.montecarlo import run_montecarlo
-    from starsense.catalog import load_catalog
-
     option_int(trials, "--trials", 1)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
     if max_mag is not None:

@@ -13,9 +13,22 @@ import numpy as np
 import typer
 
 from starsense._validate import check_int, check_scalar, positive_float
+from starsense.analysis.guide_stars import (
+    CONFIGURATIONS,
+    CRITERIA,
+    METRICS,
+    SIGMA_KINDS,
+    field_accuracy,
+    field_stars,
+    lin_layout,
+    select_guide_stars,
+    simulate_table1,
+)
+from starsense.catalog import load_catalog
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
 from starsense.errors import InputError
 from starsense.references import lin2024
+from starsense.sensor import load_sensor
 from starsense.units import ARCSEC, DEG
 
 guide_stars_app = typer.Typer(
@@ -74,8 +87,6 @@ def simulate(
     as_json: JsonOpt = False,
 ) -> None:
     """Table 1: probability of accuracy better than the threshold, Monte Carlo and analytic."""
-    from starsense.analysis.guide_stars import simulate_table1
-
     sig = _sigmas(sigmas, list(lin2024.TABLE1_SIGMAS_ARCSEC))
     configs = _configs(configurations)
     _check_choices(configs, metric, sigma_kind)
@@ -172,8 +183,6 @@ def _choice(value: str, allowed, option: str) -> None:
 
 def _check_choices(configs: list[str] | None, metric: str, sigma_kind: str) -> None:
     """Check ``--configurations``, ``--metric`` and ``--sigma-kind``."""
-    from starsense.analysis.guide_stars import CONFIGURATIONS, METRICS, SIGMA_KINDS
-
     for c in configs or ():
         _choice(c, CONFIGURATIONS, "--configurations")
     _choice(metric, METRICS, "--metric")
@@ -209,14 +218,6 @@ def select(
     as_json: JsonOpt = False,
 ) -> None:
     """Choose guide stars in the attitude-determination areas of one pointing."""
-    from starsense.analysis.guide_stars import (
-        CRITERIA,
-        field_stars,
-        lin_layout,
-        select_guide_stars,
-    )
-    from starsense.catalog import load_catalog
-
     if center is None:
         raise InputError("--center-deg RA,DEC is required")
     if (sensor is None) == (lens_fov_deg is None):
@@ -228,8 +229,6 @@ def select(
     positive_float(sigma, "--sigma-arcsec")
     check_scalar(roll_deg, "--roll-deg")
     if sensor is not None:
-        from starsense.sensor import load_sensor
-
         sens = load_sensor(sensor)
         if sens.attitude_areas is None:
             raise InputError(f"sensor {sens.name!r} defines no [attitude_areas]")
@@ -327,9 +326,6 @@ def field_cmd(
 
     Without --center-deg, the paper's four patterns: (150, 0) and (240, -80) at 1.6 and 0.4 deg.
     """
-    from starsense.analysis.guide_stars import CRITERIA, field_accuracy
-    from starsense.catalog import load_catalog
-
     sig = _sigmas(sigmas)
     if center is None:
         centers = [t["center_deg"] for t in lin2024.FIELD_TABLES.values()]

@@ -12,8 +12,15 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense import plotting
 from starsense._validate import check_int, check_scalar, finite_float
-from starsense.cli.catalog import check_dask_option
+from starsense.analysis.limits.brightest import brightest_curve
+from starsense.analysis.limits.centroid import centroid_fisher
+from starsense.analysis.limits.photons import low_photon_degradation
+from starsense.analysis.limits.sky import fov_limit, sky_limit
+from starsense.catalog import load_catalog
+from starsense.catalog._columns import MAG_RANGE
+from starsense.cli.catalog import check_dask_option, hats_session
 from starsense.cli.common import (
     CatalogOpt,
     ColourOpt,
@@ -28,6 +35,12 @@ from starsense.cli.common import (
     output_file,
 )
 from starsense.errors import InputError
+from starsense.geometry.projection import radec_to_vectors
+from starsense.photometry import ColourModel, fit_star, total_photons
+from starsense.photometry.stars import BlackBodyStars
+from starsense.scale import brightest_curve as hats_curve
+from starsense.scale import fov_limit as hats_fov_limit
+from starsense.scale import sky_limit as hats_sky_limit
 from starsense.units import DEG, RAD_TO_ARCSEC
 
 limit_app = typer.Typer(
@@ -52,8 +65,6 @@ def _parse_target(text: str) -> tuple[float, float]:
 
 def _target_vectors(radec: list[tuple[float, float]]) -> np.ndarray:
     """Return the ICRS unit vectors (T, 3) of (RA, Dec) pairs given in degrees."""
-    from starsense.geometry.projection import radec_to_vectors
-
     return np.array([radec_to_vectors(ra * DEG, dec * DEG) for ra, dec in radec])
 
 
@@ -63,9 +74,6 @@ def _check_max_mag(max_mag: float | None) -> None:
 
 
 def _load_stars(catalog: str, max_mag: float | None, colour: str | None):
-    from starsense.catalog import load_catalog
-    from starsense.photometry.stars import BlackBodyStars
-
     _check_max_mag(max_mag)
     cat = load_catalog(catalog)
     stars = BlackBodyStars.from_catalog(cat, colour)
@@ -98,9 +106,6 @@ def limit_star(
     as_json: JsonOpt = False,
 ) -> None:
     """One star's black body, photons and centroid bound (Table 1; eqs. 9, 12, 19)."""
-    from starsense.analysis.limits.centroid import centroid_fisher
-    from starsense.photometry import ColourModel, fit_star, total_photons
-
     if mag_v is not None or b_v is not None:
         if mag_v is None or b_v is None:
             raise InputError("--mag-v and --b-v must be given together")
@@ -115,8 +120,6 @@ def limit_star(
         raise InputError(
             "give --mag-v and --b-v, or --mag-h and --h-ks, or --mag, --colour-index and --colour"
         )
-    from starsense.catalog._columns import MAG_RANGE  # here: the CLI starts without numpy's
-    # scientific stack, and a refused address or bad option is known in well under a second
 
     option_float(m, names[0], *MAG_RANGE)
     option_float(ci, names[1])
@@ -152,8 +155,6 @@ def limit_star(
 
 def _colour_clamp_note(system: str, ci: float, option: str, t: float) -> str | None:
     """Say what was clamped when a colour lies outside the paper's clamp (sec. 2.5), else None."""
-    from starsense.photometry import ColourModel
-
     model = ColourModel(system)
     lo, hi = model.colour_limits
     if lo <= ci <= hi:
@@ -200,7 +201,6 @@ def limit_sky(
             catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, radec, as_json
         )
         return
-    from starsense.analysis.limits.sky import fov_limit, sky_limit
 
     cat, stars = _load_stars(catalog, max_mag, colour)
     common = {"catalog": cat.name, "colour": stars.colour, "n_skipped": stars.n_skipped}
@@ -256,17 +256,18 @@ def _limit_sky_hats(
     catalog, dask, diameter_m, exposure_s, max_mag, colour, fov_deg, radec, as_json
 ) -> None:
     """Run ``limit sky`` over a HATS catalogue on Dask (starsense.scale)."""
-    from starsense.cli.catalog import hats_session
-
     with hats_session(catalog, dask, not as_json) as (cat, client, progress):
-        from starsense.scale import fov_limit, sky_limit  # after the address checks: fast fail
-
         opts = {"colour": colour, "max_mag": max_mag, "client": client, "progress": progress}
         if fov_deg is None:
-            res, used = sky_limit(cat, diameter_m, exposure_s, **opts)
+            res, used = hats_sky_limit(cat, diameter_m=diameter_m, exposure_s=exposure_s, **opts)
         else:
-            heads, merged, used = fov_limit(
-                cat, _target_vectors(radec), fov_deg * DEG, diameter_m, exposure_s, **opts
+            heads, merged, used = hats_fov_limit(
+                cat,
+                _target_vectors(radec),
+                fov_diameter_rad=fov_deg * DEG,
+                diameter_m=diameter_m,
+                exposure_s=exposure_s,
+                **opts,
             )
     common = {
         "catalog": cat.name,
@@ -313,18 +314,13 @@ def limit_curve(
     With --catalog hats:PATH_OR_URL the curve is built partition by partition on Dask (--dask)
     from magnitude histograms, without sorting the catalogue.
     """
-    from starsense.analysis.limits.brightest import brightest_curve
-
     check_scalar(extrapolate_to, "--extrapolate-to", 2)
     if check_dask_option(catalog, dask):
-        from starsense.cli.catalog import hats_session
-        from starsense.scale import brightest_curve as hats_curve
-
         with hats_session(catalog, dask, not as_json) as (cat, client, progress):
             curve = hats_curve(
                 cat,
-                diameter_m,
-                exposure_s,
+                diameter_m=diameter_m,
+                exposure_s=exposure_s,
                 n_extrapolated=extrapolate_to,
                 colour=colour,
                 client=client,
@@ -352,9 +348,7 @@ def limit_curve(
         f"N = {extrapolate_to:.3g}: {curve.theta_extrapolated_rad:.3e} rad",
     ]
     if plot is not None:
-        from starsense.plotting.limits import plot_brightest_curves
-
-        plot_brightest_curves(
+        plotting.limits.plot_brightest_curves(
             [curve], plot, catalog_name=cat.name, diameter_m=diameter_m, exposure_s=exposure_s
         )
         payload["plot"] = str(plot)
@@ -373,8 +367,6 @@ def limit_photons(
     as_json: JsonOpt = False,
 ) -> None:
     """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
-    from starsense.analysis.limits.photons import low_photon_degradation
-
     check_int(trials, "--trials", 1)
     option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
     option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)

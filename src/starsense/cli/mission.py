@@ -13,7 +13,19 @@ from typing import Annotated
 
 import typer
 
-from starsense.cli.availability import (
+from starsense import plotting
+from starsense.analysis.availability import catalog_stars
+from starsense.analysis.mission import (
+    Head,
+    TimeGrid,
+    TleOrbit,
+    mission_availability,
+    mission_geometry,
+    parse_time,
+)
+from starsense.analysis.mission.specs import parse_attitude, parse_head, parse_orbit
+from starsense.catalog import load_catalog
+from starsense.cli.availability_options import (
     FovOpt,
     HalfFovOpt,
     MaxMagOpt,
@@ -21,16 +33,17 @@ from starsense.cli.availability import (
     NMinOpt,
     ToleranceOpt,
     TrialsOpt,
-    _check_n_min,
-    _field_of_view,
-    _threshold_curve,
+    check_n_min,
+    field_of_view_option,
+    threshold_curve_option,
 )
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, option_float, progress_bar
 from starsense.errors import InputError
+from starsense.sensor import load_sensor
 
 __all__ = ["mission"]
 
-# the forms of starsense.analysis.mission.specs (imported when the command runs, not at start-up)
+# the forms of starsense.analysis.mission.specs
 ORBIT_HELP = (
     "sso:ALT_KM[:LTAN_H] (sun-synchronous, circular; LTAN default 6 = dawn-dusk), "
     "circular:ALT_KM:INC_DEG[:RAAN_DEG[:ARGLAT_DEG]], or "
@@ -51,9 +64,6 @@ HEADS_HELP = (
 
 def _orbit(orbit: str | None, tle: Path | None, start: str | None):
     """Return (orbit, start) from --orbit / --tle / --start."""
-    from starsense.analysis.mission import TleOrbit, parse_time
-    from starsense.analysis.mission.specs import parse_orbit
-
     if (orbit is None) == (tle is None):
         raise InputError("give exactly one of --orbit and --tle")
     if tle is not None:
@@ -64,10 +74,6 @@ def _orbit(orbit: str | None, tle: Path | None, start: str | None):
 
 
 def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolerance_json, bar):
-    from starsense.analysis.mission import Head
-    from starsense.analysis.mission.specs import parse_head
-    from starsense.sensor import load_sensor
-
     if not specs:
         raise InputError("give at least one head: --heads st16[@qx,qy,qz,qw] ...")
     parsed, seen = [], {}
@@ -78,13 +84,20 @@ def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolera
         parsed.append((name, label, {} if mounting is None else {"mounting": mounting}))
     sensors = {name: load_sensor(name) for name, _, _ in parsed}
     curves = {
-        name: _threshold_curve(sens, model, trials, seed, tolerance_json, bar.callback)
+        name: threshold_curve_option(
+            sens,
+            model=model,
+            n_trials=trials,
+            seed=seed,
+            tolerance_json=tolerance_json,
+            progress=bar.callback,
+        )
         for name, sens in sensors.items()
     }
     return [
         Head(
             label,
-            _field_of_view(sensors[name], fov, half_fov_deg),
+            field_of_view_option(sensors[name], fov, half_fov_deg),
             curves[name],
             exclusion=sensors[name].exclusion,
             **kwargs,
@@ -117,12 +130,7 @@ def mission(
     as_json: JsonOpt = False,
 ) -> None:
     """Availability along a mission: orbit, attitude profile, bright bodies, several heads."""
-    from starsense.analysis.availability import catalog_stars
-    from starsense.analysis.mission import TimeGrid, mission_availability, mission_geometry
-    from starsense.analysis.mission.specs import parse_attitude
-    from starsense.catalog import load_catalog
-
-    _check_n_min(n_min)
+    check_n_min(n_min)
     hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
     specs = [tok for value in [*(heads or []), *(more_heads or [])] for tok in value.split()]
@@ -150,10 +158,9 @@ def mission(
             typer.echo(f"warning: {w.message}", err=True)
     payload, lines = res.to_dict(), res.lines()
     if plot is not None:
-        from starsense.plotting.availability import save_figure
-        from starsense.plotting.mission import mission_timeline_figure
-
-        path = save_figure(mission_timeline_figure(res), plot)
+        path = plotting.availability.save_figure(
+            plotting.mission.mission_timeline_figure(res), plot
+        )
         payload["figures"] = [str(path)]
         lines.append(f"figure: {path}")
     emit(payload, as_json, lines)

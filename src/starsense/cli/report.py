@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.console import Console
 
 from starsense.cli.common import (
     CatalogOpt,
@@ -17,6 +18,8 @@ from starsense.cli.common import (
     output_dir,
     seed_option,
 )
+from starsense.report import build_report
+from starsense.sensor import load_sensor
 
 
 def report(
@@ -43,11 +46,6 @@ def report(
     ] = 40,
 ) -> None:
     """Write the performance report (HTML + PNG figures) to --out: the sensor's datasheet first."""
-    from rich.console import Console
-
-    from starsense.report import build_report
-    from starsense.sensor import load_sensor
-
     option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
     option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     option_int(slew_trials, "--slew-trials", 1)

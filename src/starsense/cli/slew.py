@@ -8,7 +8,15 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense import plotting
 from starsense._validate import finite_float
+from starsense.analysis.slew import simulate_slew
+from starsense.analysis.slew_study import (
+    DEFAULT_QE_MEANS,
+    DEFAULT_SIGMAS_PX,
+    study_magnitudes,
+    study_slew,
+)
 from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
@@ -20,7 +28,9 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError
-from starsense.units import DEG
+from starsense.references.dzamba2014 import MAX_MAG
+from starsense.sensor import load_sensor
+from starsense.units import DEG, to_edge
 
 slew_app = typer.Typer(
     help="Slew tolerance: detection of smeared stars (Dzamba & Enright 2014).",
@@ -42,9 +52,6 @@ def _rates_rad_s(text: str | None) -> np.ndarray | None:
 
 
 def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
-    from starsense.analysis.slew import simulate_slew
-    from starsense.sensor import load_sensor
-
     finite_float(colour_index, "--b-v")
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")
@@ -108,10 +115,7 @@ def slew_tolerance(
         text = "not detected at rest" if r is None else f"{'>= ' if c else ''}{r:.2f} deg/s"
         lines.append(f"  m = {m:5.2f}: {text}")
     if plot is not None:
-        from starsense.plotting.figure import save_png
-        from starsense.plotting.slew import tolerance_figure
-
-        save_png(tolerance_figure([res]), plot)
+        plotting.figure.save_png(plotting.slew.tolerance_figure([res]), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)
@@ -141,10 +145,7 @@ def slew_intensity(
         )
         lines.append(f"  {w:10.2f} {row}")
     if plot is not None:
-        from starsense.plotting.figure import save_png
-        from starsense.plotting.slew import intensity_figure
-
-        save_png(intensity_figure(res), plot)
+        plotting.figure.save_png(plotting.slew.intensity_figure(res), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)
@@ -165,9 +166,6 @@ MagStepOpt = Annotated[
 
 def _study_lines(study, best: dict) -> list[str]:
     """Return the human-readable summary of a slew study."""
-    from starsense.references.dzamba2014 import MAX_MAG
-    from starsense.units import DEG, to_edge
-
     rates = to_edge(study.rates_rad_s, DEG)
     qe, shape = study.best_qe()
     paper = [MAX_MAG, *study.paper_threshold]  # sec. 1.2 static threshold, then Table 2
@@ -207,14 +205,6 @@ def slew_study(
     as_json: JsonOpt = False,
 ) -> None:
     """Sweep PSF sigma and mean QE: m_t at the paper's rates against its Table 2 (Dzamba 2014)."""
-    from starsense.analysis.slew_study import (
-        DEFAULT_QE_MEANS,
-        DEFAULT_SIGMAS_PX,
-        study_magnitudes,
-        study_slew,
-    )
-    from starsense.sensor import load_sensor
-
     sigmas = parse_floats(sigmas_px, "--sigmas-px", lo=0.1, hi=20.0) or DEFAULT_SIGMAS_PX
     qes = parse_floats(qe, "--qe", lo=0.01, hi=1.0) or DEFAULT_QE_MEANS
     if not 0.005 <= mag_step <= 0.5:
@@ -237,11 +227,8 @@ def slew_study(
     payload = study.to_dict()
     lines = _study_lines(study, payload["best"])
     if plot is not None:
-        from starsense.plotting.figure import save_png
-        from starsense.plotting.slew_study import study_figure
-
         ref = (sens.detector.psf_sigma_px, sens.detector.mean_qe)
-        save_png(study_figure(study, ref), plot)
+        plotting.figure.save_png(plotting.slew_study.study_figure(study, ref), plot)
         payload["plot"] = str(plot)
         lines.append(f"figure: {plot}")
     emit(payload, as_json, lines)

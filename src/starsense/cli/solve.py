@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 
 from starsense.cli.common import (
@@ -19,6 +23,10 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError, StarsenseError
+from starsense.geometry.apparent import parse_time
+from starsense.solve.centroids import read_centroids
+from starsense.solve.frames import FITS_SUFFIXES, PILLOW_SUFFIXES
+from starsense.solve.solver import Solver
 from starsense.units import DEG
 
 #: the columns of the batch CSV table (without --json), in order
@@ -29,8 +37,6 @@ CSV_FIELDS = (
 
 
 def _image_suffixes() -> set[str]:
-    from starsense.solve.frames import FITS_SUFFIXES, PILLOW_SUFFIXES
-
     return FITS_SUFFIXES | PILLOW_SUFFIXES
 
 
@@ -69,10 +75,6 @@ def parse_image_size(text: str) -> tuple[int, int]:
 
 
 def _solver(sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocity_km_s=None):
-    import numpy as np
-
-    from starsense.solve.solver import Solver
-
     if sensor is not None and fov_deg is not None:
         raise InputError("give --sensor or --fov-deg, not both")
     if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
@@ -153,9 +155,6 @@ def _batch_row(solver, image: Path, when=None) -> dict:
 
 
 def _csv_line(row: dict) -> str:
-    import csv
-    import io
-
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="")
     writer.writerow(["" if row.get(k) is None else row.get(k) for k in CSV_FIELDS])
@@ -163,8 +162,6 @@ def _csv_line(row: dict) -> str:
 
 
 def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None) -> None:
-    from concurrent.futures import ThreadPoolExecutor
-
     solver.prepare()  # the database, once, before the first frame
     if not as_json:
         typer.echo(",".join(CSV_FIELDS))
@@ -182,8 +179,6 @@ def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None
 
 
 def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bool) -> None:
-    from starsense.solve.centroids import read_centroids
-
     cents = read_centroids(path)
     if image_size is not None:
         size = parse_image_size(image_size)
@@ -265,7 +260,6 @@ def solve(
     """
     images = list(images or [])
     option_int(jobs, "--jobs", 1, 64)
-    from starsense.geometry.apparent import parse_time
 
     when = None if time_utc is None else parse_time(time_utc, "--time")
     solver = _solver(sensor, fov_deg, catalog, algorithm, not no_apparent, observer_velocity_km_s)

@@ -11,6 +11,8 @@ import typer
 
 from starsense.cli.common import CatalogOpt, JsonOpt, option_float, parse_floats
 from starsense.errors import InputError
+from starsense.solve.solver import Solver
+from starsense.solve.tracking import Prior, Tracker
 from starsense.units import DEG
 
 
@@ -57,9 +59,6 @@ def track(
     missing or unreadable frame gets status "unreadable" and the rest go on. Exit status 0
     when some frame has an attitude, 1 when none has, 2 for bad input.
     """
-    from starsense.solve.solver import Solver
-    from starsense.solve.tracking import Prior, Tracker
-
     if interval_s is not None:
         option_float(interval_s, "--interval-s", 0.0, lo_open=True)
     option_float(prior_sigma_deg, "--prior-sigma-deg", 0.0, 10.0, lo_open=True)

@@ -66,8 +66,10 @@ def _map_x(ra_rad: ArrayLike) -> NDArray[np.float64]:
 @functools.lru_cache(maxsize=1)
 def galactic_plane_radec(n: int = 721) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return ICRS (RA, Dec), rad, of the galactic equator b = 0, l = 0 ... 360 deg (astropy)."""
-    import astropy.units as u
-    from astropy.coordinates import SkyCoord
+    # astropy (a heavy library, lazy as everywhere): the noqa is needed because plotting/ lifts
+    # TID253 for matplotlib, and with it ruff's allow-list of PLC0415
+    import astropy.units as u  # noqa: PLC0415
+    from astropy.coordinates import SkyCoord  # noqa: PLC0415
 
     plane = SkyCoord(
         l=np.linspace(0.0, 360.0, n) * u.deg, b=np.zeros(n) * u.deg, frame="galactic"

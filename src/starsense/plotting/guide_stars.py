@@ -56,6 +56,7 @@ def field_angle_deg(xy: ArrayLike) -> NDArray[np.float64]:
 
 def triangle_ratio_figure(
     table: GuideStarTable,
+    *,
     sigmas_rad: Sequence[float] = (0.1 * ARCSEC, 0.3 * ARCSEC),
     n_bins: int = 10,
     ax: Sequence[Axes] | None = None,

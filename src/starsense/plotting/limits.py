@@ -239,13 +239,13 @@ def fov_table_figure(
 
 def merit_figure(
     g_rad_m2_s05: float,
+    *,
     g_label: str,
     fovs_deg,
     heads_mas,
     merged_mas,
     sensor: tuple[float, float],
     sensors: Sequence[tuple[str, float, float]] = (),
-    *,
     ax: Axes | None = None,
 ) -> Figure:
     """Draw theta_rms against the figure of merit D^2 t^1/2 with the limit lines (paper Fig. 8).

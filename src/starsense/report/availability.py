@@ -21,19 +21,18 @@ from starsense.analysis.availability import (
     StaticAvailability,
     ThresholdCurve,
     describe_fov,
-    fidelity_check,
     implied_threshold,
 )
-from starsense.errors import InputError
+from starsense.analysis.slew import simulate_slew
 from starsense.geometry.fov import CircularFov
 from starsense.plotting.availability import (
     dynamic_figure,
     sky_map_figure,
     static_curve_figure,
     threshold_figure,
-    track_figure,
 )
 from starsense.references import dzamba2014 as paper
+from starsense.report.availability_track import fidelity_part, percent, track_part
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
 from starsense.units import DEG, RAD_TO_DEG
@@ -42,13 +41,6 @@ __all__ = ["availability_section"]
 
 #: slew rates of Fig. 11, deg/s
 DYNAMIC_RATES_DEG_S = np.round(np.arange(0.0, 10.0001, 0.25), 6)
-#: slew rates of Table 2 and Figs. 16-17, deg/s
-TRACK_RATES_DEG_S = paper.TABLE2_RATES_DEG_S
-#: RAs of the tracks' common node: the first gives Table 2, the others its sensitivity, deg
-TRACK_NODES_DEG = (0.0, 45.0, 90.0, 135.0)
-#: rendered frames per rate of the report's full-fidelity check, and its rates (deg/s)
-FIDELITY_FRAMES = 25
-FIDELITY_RATES_DEG_S = (1.0, 2.0, 3.0)
 
 
 @dataclass
@@ -61,18 +53,12 @@ class _Parts:
     summary: list[tuple[str, str]] = field(default_factory=list)
 
 
-def _p(x: float | None) -> str:
-    return "–" if x is None or not np.isfinite(x) else f"{100 * x:.1f}"
-
-
 def _slew_curve(ctx: ReportContext, model: str) -> ThresholdCurve:
     """Return the tolerable-slew threshold curve of ``model``.
 
     The slew section's result when it ran (same sensor, trials and seed), else a fresh Monte
     Carlo.
     """
-    from starsense.analysis.slew import simulate_slew
-
     result = ctx.slew_results.get(model)
     if result is None:
         result = simulate_slew(ctx.sensor, model=model, n_trials=ctx.slew_trials, rng=ctx.seed)
@@ -206,9 +192,9 @@ def _implied_part(analysis: AvailabilityAnalysis, curves: list[ThresholdCurve]) 
         rows.append(
             [
                 f"{rate:g}",
-                _p(n2),
+                percent(n2),
                 fmt(implied_threshold(analysis, n2, 2), 3),
-                _p(n3),
+                percent(n3),
                 fmt(implied_threshold(analysis, n3, 3), 3),
                 *ours,
             ]
@@ -270,9 +256,9 @@ def _dynamic_part(ctx: ReportContext, parts: _Parts, curves: list[ThresholdCurve
         quote_rows.append(
             [
                 f"{rate:g}",
-                _p(reed.by_n_min[2][j]),
+                percent(reed.by_n_min[2][j]),
                 f"≈ {100 * p2:.0f}",
-                _p(reed.by_n_min[3][j]),
+                percent(reed.by_n_min[3][j]),
                 f"≈ {100 * p3:.0f}",
             ]
         )
@@ -281,8 +267,8 @@ def _dynamic_part(ctx: ReportContext, parts: _Parts, curves: list[ThresholdCurve
     parts.summary.append(
         (
             f"{esc(name)} spatial dynamic availability at 1 deg/s, Reed",
-            f"{_p(reed.by_n_min[3][j1])} % (N<sub>min</sub> = 3), "
-            f"{_p(reed.by_n_min[2][j1])} % (N<sub>min</sub> = 2); paper ≈ {100 * p3:.0f} / "
+            f"{percent(reed.by_n_min[3][j1])} % (N<sub>min</sub> = 3), "
+            f"{percent(reed.by_n_min[2][j1])} % (N<sub>min</sub> = 2); paper ≈ {100 * p3:.0f} / "
             f"{100 * p2:.0f} %",
         )
     )
@@ -353,8 +339,8 @@ def availability_section(ctx: ReportContext) -> Section:
         curves.append(_slew_curve(ctx, model))
     html.append(_implied_part(analysis, curves))
     html.append(_dynamic_part(ctx, parts, curves))
-    html.append(_track_part(ctx, analysis, curves[0], parts.figures, parts.data))
-    html.append(_fidelity_part(ctx, sensor, ctx.primary, curves[0], parts.data))
+    html.append(track_part(ctx, analysis, curve=curves[0], figures=parts.figures, data=parts.data))
+    html.append(fidelity_part(ctx, sensor, stars=ctx.primary, curve=curves[0], data=parts.data))
     return Section(
         "availability",
         "Availability (Dzamba & Enright 2014)",
@@ -363,169 +349,3 @@ def availability_section(ctx: ReportContext) -> Section:
         tuple(parts.summary),
         parts.data,
     )
-
-
-def _node_table(ctx, analysis, curve, tracks, node0, other_nodes, data) -> str:
-    """Return the table of track statistics for other nodes (how much the node matters)."""
-    by_node: dict[str, dict] = {}
-    for node in other_nodes:
-        ctx.progress(f"availability: tracks through the node at RA {node:g} deg")
-        for w in TRACK_RATES_DEG_S:
-            t = analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node_rad=node * DEG)
-            by_node.setdefault(f"{node:g}", {})[f"{w:g}"] = {
-                str(k): t.stats(k) for k in (N_MIN_TRACKING, N_MIN_LOST_IN_SPACE)
-            }
-    node_rows = []
-    for w, t in zip(TRACK_RATES_DEG_S, tracks, strict=True):
-        cells = [f"{w:.2f}", f"{_p(t.stats(2)['mean'])} / {_p(t.stats(3)['mean'])}"]
-        for node in other_nodes:
-            st = by_node[f"{node:g}"][f"{w:g}"]
-            cells.append(
-                f"{_p(st['2']['mean'])} / {_p(st['3']['mean'])} "
-                f"({_p(st['2']['min'])} / {_p(st['3']['min'])} – "
-                f"{_p(st['2']['max'])} / {_p(st['3']['max'])})"
-            )
-        ref = paper.TABLE2.get(w)
-        cells.append(f"{ref['mean'][0]:.1f} / {ref['mean'][1]:.1f}" if ref else "–")
-        node_rows.append(cells)
-    data["track_by_node"] = by_node
-    return table(
-        [
-            "rate (deg/s)",
-            f"mean, node {node0:g} deg",
-            *[f"mean (min – max), node {n:g} deg" for n in other_nodes],
-            "paper mean",
-        ],
-        node_rows,
-        classes=["num"] * (2 + len(other_nodes)) + ["num paper"],
-    )
-
-
-def _track_part(ctx, analysis, curve, figures, data) -> str:
-    """Return the along-track part (Table 2, Figs. 16-17) and record figures and numbers."""
-    ctx.progress("availability: along-track tracks")
-    node0, *other_nodes = TRACK_NODES_DEG
-    tracks = [
-        analysis.track(curve, w * DEG, n_min=N_MIN_LOST_IN_SPACE, node_rad=node0 * DEG)
-        for w in TRACK_RATES_DEG_S
-    ]
-    data["track"] = {f"{t.rate_deg_s:g}": t.to_dict() for t in tracks}
-    for k, fig_no in ((N_MIN_TRACKING, 16), (N_MIN_LOST_IN_SPACE, 17)):
-        figures.append(
-            ctx.save_figure(track_figure(tracks, k), f"availability_fig{fig_no}_track_n{k}.png")
-        )
-    rows = []
-    for t in tracks:
-        s2, s3 = t.stats(2), t.stats(3)
-        ref = paper.TABLE2.get(t.rate_deg_s)
-        row = [f"{t.rate_deg_s:.2f}"]
-        for col in ("spatial", "mean", "max", "min"):
-            row.append(f"{_p(s2[col])} / {_p(s3[col])}")
-            row.append(f"{ref[col][0]:.1f} / {ref[col][1]:.1f}" if ref else "–")
-        rows.append(row)
-    header = ["rate (deg/s)"]
-    for col in ("spatial", "mean", "max", "min"):
-        header += [f"{col}: ours", "paper"]
-    node_table = _node_table(ctx, analysis, curve, tracks, node0, other_nodes, data)
-    t0 = tracks[0]
-    return f"""
-<h3>Along-track dynamic availability</h3>
-<p>Great-circle tracks of inclination {t0.inclinations_deg[0]:g} ... {t0.inclinations_deg[-1]:g}
-deg ({len(t0.inclinations)} tracks) to the celestial equator, all through the node at RA
-{t0.node_deg:g} deg, each sampled at {t0.n_samples:,} equally spaced orientations while the
-sensor slews along it ({esc(curve.label)}). Table 2 of the paper beside ours,
-N<sub>min</sub> = 2 / 3, in percent.</p>
-{table(header, rows, classes=["num"] + ["num", "num paper"] * 4)}
-<p class="note">The tracks of one family all cross at their two nodes, so the samples crowd
-there (about 8 % of every track lies within one field radius of a node, against 0.9 % of the
-sky): the mean over inclinations is a weighted sky average, not the spatial one, and it depends
-on where the node lies on the sky. The paper does not give its node (nor the inclination step);
-its along-track means exceed its spatial values at every rate. The statistics for other nodes
-show how much the choice matters:</p>
-{node_table}
-{
-        figure_html(
-            figures[-2],
-            "Along-track availability against inclination, N<sub>min</sub> = 2; "
-            "dotted lines: spatial dynamic availability at the same rate. The paper's Fig. 16.",
-            "along-track availability, N_min 2",
-        )
-    }
-{
-        figure_html(
-            figures[-1],
-            "The same for N<sub>min</sub> = 3; the paper's Fig. 17.",
-            "along-track availability, N_min 3",
-        )
-    }
-"""
-
-
-def _fidelity_part(ctx, sensor, stars, curve, data) -> str:
-    """Return the full-fidelity check: rendered frames through the detector, per rate.
-
-    Renders from the catalogue the report was built from (``ctx.catalog``); a report built
-    from a star set alone has none, and the part says so.
-    """
-    if not FIDELITY_RATES_DEG_S or FIDELITY_FRAMES < 1:
-        return "<h3>Full-fidelity check</h3><p class='note'>Not run (no rates configured).</p>"
-    ctx.progress("availability: full-fidelity check (rendered frames)")
-    catalog = ctx.catalog
-    if catalog is None:
-        return (
-            "<h3>Full-fidelity check</h3><p class='note'>Skipped: the catalogue object is "
-            "needed to render frames (the report was built from a star set alone).</p>"
-        )
-    checks = []
-    try:
-        for rate in FIDELITY_RATES_DEG_S:
-            ctx.progress(f"availability: rendered frames at {rate:g} deg/s")
-            checks.append(
-                fidelity_check(
-                    sensor,
-                    catalog,
-                    curve,
-                    rate_rad_s=rate * DEG,
-                    n_trials=FIDELITY_FRAMES,
-                    max_mag=paper.MAX_MAG,
-                    rng=ctx.seed,
-                )
-            )
-    except InputError as exc:
-        return f"<h3>Full-fidelity check</h3><p class='note'>Skipped: {esc(exc)}.</p>"
-    data["fidelity"] = [c.to_dict() for c in checks]
-    rows = [
-        [
-            f"{c.rate_deg_s:g}",
-            f"{c.threshold_mag:.2f}",
-            _p(c.model_availability),
-            _p(c.frame_availability),
-            f"{c.model_counts.mean():.2f}",
-            f"{c.frame_counts.mean():.2f}",
-            str(c.optimistic),
-            str(c.pessimistic),
-        ]
-        for c in checks
-    ]
-    header = [
-        "rate (deg/s)",
-        "m<sub>t</sub>",
-        "model available (%)",
-        "frames available (%)",
-        "model stars / field",
-        "detected stars / frame",
-        "model optimistic",
-        "model pessimistic",
-    ]
-    return f"""
-<h3>Full-fidelity check</h3>
-<p>{FIDELITY_FRAMES} frames per rate rendered at random attitudes while slewing about the camera
-y axis (streaks along the rows; {esc(curve.label)}, stars &le; {paper.MAX_MAG} of
-{esc(getattr(catalog, "name", ""))}), passed through the sensor's detector; a detection counts
-when it lies on a true star's streak. The threshold model counts the stars &le; m<sub>t</sub>(w)
-in the same (rectangular) detector field at the same attitude. N<sub>min</sub> = 3. The last two
-columns count the frames where the model calls the attitude available and the frames do not
-(optimistic) and the reverse (pessimistic); the model's counts miss partial stars at the edges,
-stars near the threshold that noise lifts over it or pushes under, and streaks that merge.</p>
-{table(header, rows, classes=["num"] * 8)}
-"""

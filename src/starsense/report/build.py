@@ -26,6 +26,7 @@ from starsense._io import (
     temp_prefix,
 )
 from starsense.analysis.limits.centroid import check_aperture
+from starsense.catalog import load_catalog
 from starsense.errors import InputError
 from starsense.photometry import COLOUR_SYSTEMS
 from starsense.photometry.stars import BlackBodyStars
@@ -194,7 +195,6 @@ def _load_stars(catalog_spec, catalog, stars, say):
         return str(name), len(first) + first.n_skipped, by_colour, catalog
     if catalog is None:
         say(f"loading catalogue {catalog_spec!r}")
-        from starsense.catalog import load_catalog
 
         catalog = load_catalog(catalog_spec)
     say(f"fitting black bodies to {len(catalog):,} stars of {catalog.name}")
@@ -290,10 +290,10 @@ def _write_index(work: Path, ctx: ReportContext, sections: Sequence[Section], el
     )
     text = page.page(
         "starsense performance report",
-        meta,
-        summary,
-        [(s.key, s.title) for s in sections],
-        body,
+        meta_html=meta,
+        summary_rows=summary,
+        nav_items=[(s.key, s.title) for s in sections],
+        body=body,
     )
     (work / INDEX).write_text(text, encoding="utf-8")
 

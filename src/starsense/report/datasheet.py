@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
+from starsense.analysis.slew import default_magnitudes, default_rates_rad_s
+from starsense.plotting.datasheet import nea_sky_figure
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
 
@@ -90,8 +93,6 @@ def _main_rows(d: dict) -> list[list[str]]:
 
 def _share_slew(ctx: ReportContext, slew) -> None:
     """Hand the datasheet's slew run to the slew section when it is the run that section makes."""
-    from starsense.analysis.slew import default_magnitudes, default_rates_rad_s
-
     if (
         slew is not None
         and slew.model == "reed"
@@ -105,9 +106,6 @@ def _share_slew(ctx: ReportContext, slew) -> None:
 
 def datasheet_section(ctx: ReportContext) -> Section:
     """Return the datasheet of the report's sensor (analysis.datasheet.build_datasheet)."""
-    from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
-    from starsense.plotting.datasheet import nea_sky_figure
-
     sensor = ctx.sensor
     if sensor is None or ctx.catalog is None:
         return Section("datasheet", "Datasheet", "<p>No sensor or catalogue chosen.</p>")

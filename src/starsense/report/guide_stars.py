@@ -25,6 +25,7 @@ from starsense.plotting.guide_stars import (
 from starsense.references import lin2024
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
+from starsense.sensor import load_sensor
 from starsense.units import ARCSEC
 
 #: Monte Carlo placements per configuration in the report (the paper's sec. 4 enumerates all
@@ -81,7 +82,6 @@ def _layout_for(ctx: ReportContext):
     layout = getattr(sensor, "attitude_areas", None) if sensor is not None else None
     if layout is not None:
         return layout, f"the {sensor.name} sensor", True
-    from starsense.sensor import load_sensor
 
     preset = load_sensor(FALLBACK_PRESET)
     return preset.attitude_areas, f"the {FALLBACK_PRESET} preset (the paper's camera)", False
@@ -143,7 +143,8 @@ def _ratio_part(ctx: ReportContext, tab: GuideStarTable, data: dict) -> str:
     """Draw Figs. 5-6, store their bins in ``data``; return the figure's file name."""
     sigmas = [s * ARCSEC for s in FIG_SIGMAS_ARCSEC]
     name = ctx.save_figure(
-        triangle_ratio_figure(tab, sigmas, FIG_BINS), "guide_stars_fig5_6_ratio.png"
+        triangle_ratio_figure(tab, sigmas_rad=sigmas, n_bins=FIG_BINS),
+        "guide_stars_fig5_6_ratio.png",
     )
     by_ratio: dict = {}
     for s, s_rad in zip(FIG_SIGMAS_ARCSEC, sigmas, strict=True):

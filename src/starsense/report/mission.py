@@ -44,18 +44,9 @@ def _heads(ctx: ReportContext, plan, curve: ThresholdCurve) -> list[Head]:
     return heads
 
 
-def mission_section(ctx: ReportContext) -> Section:
-    """Availability per head and combined along the sensor TOML's mission, with its timeline."""
+def _mission(ctx: ReportContext, plan) -> tuple:
+    """Return (result, start, orbit, attitude profile) of the sensor's [mission] table."""
     sensor = ctx.sensor
-    plan = None if sensor is None else sensor.mission
-    if plan is None:
-        return Section(
-            KEY,
-            TITLE,
-            "<p>The sensor's TOML names no mission (no [mission] "
-            "table): see <code>starsense availability mission</code>.</p>",
-        )
-    ctx.progress("availability over the mission")
     where = f"{sensor.name}: [mission]"
     start = parse_time(plan.start, f"{where} start")
     orbit = parse_orbit(plan.orbit, start, f"{where} orbit")
@@ -81,8 +72,11 @@ def mission_section(ctx: ReportContext) -> Section:
         magnitudes=stars.magnitude[keep],
         meta=meta,
     )
-    data = res.to_dict()
-    figure = ctx.save_figure(mission_timeline_figure(res), "mission_timeline.png")
+    return res, start, orbit, profile
+
+
+def _rows(data: dict) -> list[list[str]]:
+    """Return the table's rows: one per head, then any head (the combined availability)."""
     rows = [
         [
             esc(h["name"]),
@@ -109,6 +103,26 @@ def mission_section(ctx: ReportContext) -> Section:
             "",
         ]
     )
+    return rows
+
+
+def mission_section(ctx: ReportContext) -> Section:
+    """Availability per head and combined along the sensor TOML's mission, with its timeline."""
+    sensor = ctx.sensor
+    plan = None if sensor is None else sensor.mission
+    if plan is None:
+        return Section(
+            KEY,
+            TITLE,
+            "<p>The sensor's TOML names no mission (no [mission] "
+            "table): see <code>starsense availability mission</code>.</p>",
+        )
+    ctx.progress("availability over the mission")
+    res, start, orbit, profile = _mission(ctx, plan)
+    data = res.to_dict()
+    figure = ctx.save_figure(mission_timeline_figure(res), "mission_timeline.png")
+    rows = _rows(data)
+    c = data["combined"]
     mean_rate = float(np.mean([h.rate_rad_s.mean() for h in res.heads])) * 180.0 / np.pi
     html = f"""
 <p>Mission <b>{esc(plan.name or plan.orbit)}</b>: {esc(orbit.label)}; {esc(profile.label)};

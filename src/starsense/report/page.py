@@ -143,8 +143,26 @@ def figure_html(filename: str, caption: str, alt: str) -> str:
     )
 
 
-def page(title: str, meta_html: str, summary_rows, nav_items, body: str) -> str:
-    """Return the whole HTML document."""
+def page(title: str, *, meta_html: str, summary_rows, nav_items, body: str) -> str:
+    """Return the whole HTML document.
+
+    Parameters
+    ----------
+    title : str
+        The document's title (plain text, escaped here).
+    meta_html : str
+        The line under the title (HTML).
+    summary_rows : iterable of (str, str)
+        The summary table's rows: label and value (HTML).
+    nav_items : iterable of (str, str)
+        The sections' keys and titles, for the navigation.
+    body : str
+        The sections (HTML).
+
+    Returns
+    -------
+    str
+    """
     summary = "".join(f"<tr><td>{label}</td><td>{value}</td></tr>" for label, value in summary_rows)
     nav = "".join(f'<li><a href="#{esc(key)}">{esc(t)}</a></li>' for key, t in nav_items)
     return f"""<!DOCTYPE html>

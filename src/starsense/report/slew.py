@@ -10,6 +10,7 @@ from starsense.references.dzamba2014 import QUOTED_MAGNITUDES
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
 from starsense.report.slew_study import slew_study_part
+from starsense.sensor import load_sensor
 
 __all__ = ["MODELS", "slew_section"]
 
@@ -30,8 +31,6 @@ def _rate_at(res: SlewResult, m: float) -> str:
 
 def _study(ctx: ReportContext, sensor):
     """Run the validation of the slew model on the paper's sensor (the st16 preset)."""
-    from starsense.sensor import load_sensor
-
     reference = sensor if sensor.name == "st16" else load_sensor("st16")
     return slew_study_part(ctx, reference)
 

@@ -72,12 +72,12 @@ def _field(
         counts, top, n, faintest = run_partitions(
             c,
             catalog,
-            plan.columns,
-            kernels.field_part,
-            (plan, band, m, fov, attitudes, k),
-            kernels.combine_field,
-            label,
-            progress,
+            plan=plan,
+            kernel=kernels.field_part,
+            kernel_args={"band": band, "max_mag": m, "fov": fov, "attitudes": attitudes, "k": k},
+            combine=kernels.combine_field,
+            label=label,
+            progress=progress,
         )
     if n == 0:
         raise InputError(
@@ -91,8 +91,8 @@ def star_counts(
     catalog: HatsCatalog,
     fov,
     attitudes: Rotation,
-    max_mag: float = math.inf,
     *,
+    max_mag: float = math.inf,
     band: str | None = None,
     client: Any | None = None,
     progress: Progress | None = None,
@@ -111,9 +111,9 @@ def star_counts(
 def static_availability(
     catalog: HatsCatalog,
     fov,
+    *,
     max_mag: float,
     n_min: int = N_MIN_LOST_IN_SPACE,
-    *,
     band: str | None = None,
     n_orientations: int = DEFAULT_N_ORIENTATIONS,
     roll: float | None = None,

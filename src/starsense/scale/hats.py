@@ -39,8 +39,8 @@ from starsense.photometry.colour import COLOUR_SYSTEMS
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import CatalogUnavailableError, MissingColumnsError
 from starsense.scale.location import (  # noqa: F401 - PUBLISHED_HATS, is_hats_spec: public here too
-    _URL_SCHEMES,
     PUBLISHED_HATS,
+    URL_SCHEMES,
     URL_TIMEOUT_S,
     hats_location,
     is_hats_spec,
@@ -288,7 +288,7 @@ def open_hats(spec: str, timeout_s: float = URL_TIMEOUT_S) -> HatsCatalog:
     if is_http:
         _probe_url(location, timeout_s)  # before importing lsdb: a refusal is known at once
     hats, _lsdb = require("hats", "lsdb")
-    if not is_http and not lower.startswith(_URL_SCHEMES):
+    if not is_http and not lower.startswith(URL_SCHEMES):
         path = Path(location).expanduser()
         if not path.exists():
             raise CatalogUnavailableError(f"HATS catalogue not found: {path}")

@@ -18,6 +18,7 @@ from typing import Any
 
 from starsense._io import check_output, sweep_stale, temp_prefix
 from starsense._validate import check_int
+from starsense.catalog._parse import locate_delimited_error
 from starsense.errors import InputError
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import CatalogUnavailableError, MissingColumnsError
@@ -99,8 +100,6 @@ def _collect_worker_prints(client: Any) -> Iterator[list[str]]:
 
 def _failure_detail(src: Path, fmt: str, ra: str, dec: str, printed: str) -> str:
     """Say why hats-import failed: a CSV's first bad position, else its workers' last message."""
-    from starsense.catalog._parse import locate_delimited_error
-
     if fmt == "csv":
         found = locate_delimited_error(
             src,
@@ -121,6 +120,7 @@ def _failure_detail(src: Path, fmt: str, ra: str, dec: str, printed: str) -> str
 def check_import(
     input_path: str | Path,
     output: str | Path,
+    *,
     ra_column: str = "ra",
     dec_column: str = "dec",
     pixel_threshold: int = 1_000_000,
@@ -186,7 +186,13 @@ def import_catalog(
     InputError
         Missing input, unknown format, existing output, missing position columns.
     """
-    src, dst, fmt = check_import(input_path, output, ra_column, dec_column, pixel_threshold)
+    src, dst, fmt = check_import(
+        input_path,
+        output,
+        ra_column=ra_column,
+        dec_column=dec_column,
+        pixel_threshold=pixel_threshold,
+    )
     require("hats_import", "distributed")
     from hats_import.catalog.arguments import ImportArguments
     from hats_import.pipeline import pipeline_with_client

@@ -27,7 +27,7 @@ from starsense.scale._deps import quiet_third_party_warnings
 from starsense.scale.hats import ColumnPlan
 
 
-def limit_stars(frame: Any, plan: ColumnPlan, colour: str, max_mag: float | None):
+def limit_stars(frame: Any, plan: ColumnPlan, *, colour: str, max_mag: float | None):
     """Return the tile's black-body stars, as ``starsense limit`` makes them in memory."""
     quiet_third_party_warnings()
     stars = BlackBodyStars.from_catalog(plan.catalog(frame), colour)
@@ -36,15 +36,15 @@ def limit_stars(frame: Any, plan: ColumnPlan, colour: str, max_mag: float | None
     return stars
 
 
-def sky_part(frame, plan, colour, max_mag, diameter_m, exposure_s):
+def sky_part(frame, plan, *, colour, max_mag, diameter_m, exposure_s):
     """(F (3, 3), stars used, stars skipped) of one tile."""
-    stars = limit_stars(frame, plan, colour, max_mag)
+    stars = limit_stars(frame, plan, colour=colour, max_mag=max_mag)
     return sky_fisher(stars, diameter_m, exposure_s), len(stars), stars.n_skipped
 
 
-def fov_part(frame, plan, colour, max_mag, targets, fov_diameter_rad, diameter_m, exposure_s):
+def fov_part(frame, plan, *, colour, max_mag, targets, fov_diameter_rad, diameter_m, exposure_s):
     """(F per head (T, 3, 3), stars per head (T,), stars used, stars skipped) of one tile."""
-    stars = limit_stars(frame, plan, colour, max_mag)
+    stars = limit_stars(frame, plan, colour=colour, max_mag=max_mag)
     fishers, counts = fov_fishers(
         stars,
         targets,
@@ -73,14 +73,14 @@ def magnitude_bins(magnitude: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return np.searchsorted(edges, magnitude, side="right")
 
 
-def histogram_part(frame, plan, colour, max_mag, edges):
+def histogram_part(frame, plan, *, colour, max_mag, edges):
     """(stars per magnitude bin (len(edges) + 1,), stars skipped) of one tile."""
-    stars = limit_stars(frame, plan, colour, max_mag)
+    stars = limit_stars(frame, plan, colour=colour, max_mag=max_mag)
     counts = np.bincount(magnitude_bins(stars.magnitude, edges), minlength=len(edges) + 1)
     return counts.astype(np.int64), stars.n_skipped
 
 
-def brightest_part(frame, plan, colour, max_mag, diameter_m, exposure_s, edges, bins, partial):
+def brightest_part(frame, plan, *, colour, max_mag, diameter_m, exposure_s, edges, bins, partial):
     """Return summed eq. 21 components per checkpoint bin, and the stars of the cut bins.
 
     Components are summed between and in the checkpoint bins; the stars of the bins a
@@ -104,7 +104,7 @@ def brightest_part(frame, plan, colour, max_mag, diameter_m, exposure_s, edges, 
     explicit : (magnitude (P,), vectors (P, 3), weights (P,))
         The stars in partial bins.
     """
-    stars = limit_stars(frame, plan, colour, max_mag)
+    stars = limit_stars(frame, plan, colour=colour, max_mag=max_mag)
     w = star_weights(stars, diameter_m, exposure_s)
     idx = magnitude_bins(stars.magnitude, edges)
     j = np.searchsorted(bins, idx, side="left")
@@ -128,7 +128,7 @@ def combine_brightest(*parts):
 # -- availability -------------------------------------------------------------------------------
 
 
-def field_part(frame, plan, band, max_mag, fov, attitudes, k):
+def field_part(frame, plan, *, band, max_mag, fov, attitudes, k):
     """Run one tile through the in-memory :class:`FieldStars`.
 
     Returns

@@ -101,9 +101,9 @@ def _enough(n: int, catalog: HatsCatalog, max_mag: float | None) -> None:
 
 def sky_limit(
     catalog: HatsCatalog,
+    *,
     diameter_m: float = 1.0,
     exposure_s: float = 1.0,
-    *,
     colour: str | None = None,
     max_mag: float | None = None,
     client: Any | None = None,
@@ -142,12 +142,17 @@ def sky_limit(
         fisher, n, skipped = run_partitions(
             c,
             catalog,
-            plan.columns,
-            kernels.sky_part,
-            (plan, chosen, max_mag, diameter_m, exposure_s),
-            kernels.combine_sum,
-            "whole-sky limit",
-            progress,
+            plan=plan,
+            kernel=kernels.sky_part,
+            kernel_args={
+                "colour": chosen,
+                "max_mag": max_mag,
+                "diameter_m": diameter_m,
+                "exposure_s": exposure_s,
+            },
+            combine=kernels.combine_sum,
+            label="whole-sky limit",
+            progress=progress,
         )
     _enough(n, catalog, max_mag)
     return limit_from_fisher(fisher, n, diameter_m=diameter_m, exposure_s=exposure_s), StarSummary(
@@ -158,10 +163,10 @@ def sky_limit(
 def fov_limit(
     catalog: HatsCatalog,
     targets,
+    *,
     fov_diameter_rad: float,
     diameter_m: float = 1.0,
     exposure_s: float = 1.0,
-    *,
     colour: str | None = None,
     max_mag: float | None = None,
     client: Any | None = None,
@@ -202,12 +207,19 @@ def fov_limit(
         fishers, counts, n, skipped = run_partitions(
             c,
             catalog,
-            plan.columns,
-            kernels.fov_part,
-            (plan, chosen, max_mag, targets, fov_diameter_rad, diameter_m, exposure_s),
-            kernels.combine_sum,
-            "FOV-limited limits",
-            progress,
+            plan=plan,
+            kernel=kernels.fov_part,
+            kernel_args={
+                "colour": chosen,
+                "max_mag": max_mag,
+                "targets": targets,
+                "fov_diameter_rad": fov_diameter_rad,
+                "diameter_m": diameter_m,
+                "exposure_s": exposure_s,
+            },
+            combine=kernels.combine_sum,
+            label="FOV-limited limits",
+            progress=progress,
         )
     heads, merged = fov_results(
         fishers, counts, targets, diameter_m=diameter_m, exposure_s=exposure_s
@@ -239,11 +251,11 @@ def _refine(edges: np.ndarray, bins: np.ndarray) -> np.ndarray:
 
 def brightest_curve(
     catalog: HatsCatalog,
+    *,
     diameter_m: float = 1.0,
     exposure_s: float = 1.0,
     points_per_decade: int = 20,
     n_extrapolated: float = N_GALAXY,
-    *,
     colour: str | None = None,
     max_mag: float | None = None,
     client: Any | None = None,
@@ -288,12 +300,12 @@ def brightest_curve(
             counts, _ = run_partitions(
                 c,
                 catalog,
-                plan.columns,
-                kernels.histogram_part,
-                (plan, chosen, max_mag, e),
-                kernels.combine_sum,
-                label,
-                progress,
+                plan=plan,
+                kernel=kernels.histogram_part,
+                kernel_args={"colour": chosen, "max_mag": max_mag, "edges": e},
+                combine=kernels.combine_sum,
+                label=label,
+                progress=progress,
             )
             return counts
 
@@ -317,12 +329,20 @@ def brightest_curve(
         rows, (mag, vec, w) = run_partitions(
             c,
             catalog,
-            plan.columns,
-            kernels.brightest_part,
-            (plan, chosen, max_mag, diameter_m, exposure_s, edges, bins, partial),
-            kernels.combine_brightest,
-            "N brightest: sums",
-            progress,
+            plan=plan,
+            kernel=kernels.brightest_part,
+            kernel_args={
+                "colour": chosen,
+                "max_mag": max_mag,
+                "diameter_m": diameter_m,
+                "exposure_s": exposure_s,
+                "edges": edges,
+                "bins": bins,
+                "partial": partial,
+            },
+            combine=kernels.combine_brightest,
+            label="N brightest: sums",
+            progress=progress,
         )
     order = brightest_order(mag, vec, w)
     cum_explicit = np.cumsum(fisher_components(vec[order], w[order]), axis=0)

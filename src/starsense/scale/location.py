@@ -15,7 +15,14 @@ from starsense._io import probe_tcp
 from starsense.errors import InputError
 from starsense.scale.errors import CatalogUnavailableError
 
-__all__ = ["PUBLISHED_HATS", "URL_TIMEOUT_S", "check_url", "hats_location", "is_hats_spec"]
+__all__ = [
+    "PUBLISHED_HATS",
+    "URL_SCHEMES",
+    "URL_TIMEOUT_S",
+    "check_url",
+    "hats_location",
+    "is_hats_spec",
+]
 
 #: published HATS catalogues (module notes)
 PUBLISHED_HATS: dict[str, str] = {
@@ -26,7 +33,8 @@ PUBLISHED_HATS: dict[str, str] = {
 #: seconds to wait for a catalogue URL to answer
 URL_TIMEOUT_S = 10.0
 
-_URL_SCHEMES = ("http://", "https://", "s3://", "gs://", "gcs://", "abfs://", "az://", "file://")
+#: address prefixes read as a URL (anything else is a local path)
+URL_SCHEMES = ("http://", "https://", "s3://", "gs://", "gcs://", "abfs://", "az://", "file://")
 
 
 def is_hats_spec(spec: str | None) -> bool:

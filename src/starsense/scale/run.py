@@ -15,7 +15,7 @@ from typing import Any
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.cluster import dask_client
 from starsense.scale.errors import CatalogUnavailableError
-from starsense.scale.hats import HatsCatalog
+from starsense.scale.hats import ColumnPlan, HatsCatalog
 
 #: partial results combined per reduction task
 FAN_IN = 16
@@ -36,14 +36,15 @@ def client_or_local(client: Any | None) -> Iterator[Any]:
 def run_partitions(
     client: Any,
     catalog: HatsCatalog,
-    columns: list[str],
+    *,
+    plan: ColumnPlan,
     kernel: Callable[..., Any],
-    args: tuple,
+    kernel_args: dict[str, Any],
     combine: Callable[..., Any],
     label: str,
     progress: Progress | None = None,
 ) -> Any:
-    """``combine`` of ``kernel(partition, *args)`` over every partition of ``catalog``.
+    """``combine`` of ``kernel(partition, plan, **kernel_args)`` over the partitions of ``catalog``.
 
     Raises
     ------
@@ -53,14 +54,15 @@ def run_partitions(
     (dask,) = require("dask")
     (distributed,) = require("distributed")
     client.run(quiet_third_party_warnings)  # every worker (process) ignores the same warnings
-    parts = catalog.partitions(columns)
+    parts = catalog.partitions(plan.columns)
     if not parts:
         raise CatalogUnavailableError(f"HATS catalogue {catalog.location} has no partitions")
     # large arguments (attitudes, bin edges) go to the workers once, not once per task
     # (hash=False: a fresh key each run, for the reason given below)
-    shipped = tuple(
-        client.scatter(a, broadcast=True, hash=False) if _nbytes(a) > 100_000 else a for a in args
-    )
+    shipped = {
+        name: client.scatter(a, broadcast=True, hash=False) if _nbytes(a) > 100_000 else a
+        for name, a in kernel_args.items()
+    }
     # lsdb names the partition reads by content: the same columns read twice give the same keys,
     # and a second run submitted while the scheduler still releases the first one's keys fails
     # with "lost dependencies". Fresh keys per run avoid that race.
@@ -68,7 +70,7 @@ def run_partitions(
 
     seed = uuid.uuid4().hex
     parts = list(clone(*parts, seed=seed)) if len(parts) > 1 else [clone(parts[0], seed=seed)]
-    tasks = [dask.delayed(kernel, pure=False)(p, *shipped) for p in parts]
+    tasks = [dask.delayed(kernel, pure=False)(p, plan, **shipped) for p in parts]
     futures = client.compute(tasks)
     level = list(futures)
     while len(level) > 1:

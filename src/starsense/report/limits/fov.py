@@ -194,12 +194,12 @@ def merit_part(ctx: ReportContext, g_primary: float, fov_rows: list[FovRow]) -> 
     ctx.progress("limit: comparison with real sensors (Fig. 8)")
     fig = merit_figure(
         g_primary,
-        f"{ctx.catalog_name} ({ctx.primary.colour})",
-        [r.fov_deg for r in fov_rows],
-        np.column_stack([_mas([r.heads[k] for r in fov_rows]) for k in range(2)]),
-        _mas([r.merged for r in fov_rows]),
-        (ctx.diameter_m, ctx.exposure_s),
-        [(s.name, s.figure_of_merit, s.theta_rms_arcsec) for s in ctx.sensors],
+        g_label=f"{ctx.catalog_name} ({ctx.primary.colour})",
+        fovs_deg=[r.fov_deg for r in fov_rows],
+        heads_mas=np.column_stack([_mas([r.heads[k] for r in fov_rows]) for k in range(2)]),
+        merged_mas=_mas([r.merged for r in fov_rows]),
+        sensor=(ctx.diameter_m, ctx.exposure_s),
+        sensors=[(s.name, s.figure_of_merit, s.theta_rms_arcsec) for s in ctx.sensors],
     )
     fig8 = ctx.save_figure(fig, FIG8)
     part = Part(figures=[fig8])

@@ -97,6 +97,7 @@ def _merged(stars: BlackBodyStars, targets, fov_rad, diameter_m, exposure_s) -> 
 
 def fov_table(
     stars: BlackBodyStars,
+    *,
     diameter_m: float = paper.TABLE2_DIAMETER_M,
     exposure_s: float = paper.TABLE2_EXPOSURE_S,
     fovs_deg=tuple(paper.TABLE2_MAS),

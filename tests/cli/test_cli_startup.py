@@ -1,0 +1,70 @@
+"""Start-up of the command line: only the invoked command's module is imported, and the
+listings read from the modules' source print what the real commands print."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from starsense.cli.app import COMMANDS, app_for, build_app
+from starsense.cli.listing import group_listing
+
+runner = CliRunner()
+
+GROUPS = [name for name, where in COMMANDS.items() if group_listing(*where) is not None]
+
+LISTINGS = [
+    [],
+    ["--help"],
+    ["no-such-command"],
+    *([g] for g in GROUPS),
+    *([g, "--help"] for g in GROUPS),
+    *([g, "no-such-command"] for g in GROUPS),
+]
+
+
+def test_every_group_is_read_from_its_source():
+    assert set(GROUPS) == {"limit", "slew", "availability", "guide-stars", "catalog"}
+
+
+@pytest.mark.parametrize("args", LISTINGS, ids=lambda a: " ".join(a) or "no-arguments")
+def test_listing_prints_what_the_full_app_prints(args):
+    full = runner.invoke(build_app(), args, prog_name="starsense")
+    listed = runner.invoke(app_for(args), args, prog_name="starsense")
+    assert (listed.exit_code, listed.output) == (full.exit_code, full.output)
+
+
+def _loaded(*argv: str) -> set[str]:
+    code = (
+        "import contextlib, io, sys\n"
+        "from starsense.cli import main\n"
+        "quiet = io.StringIO()\n"
+        "with contextlib.redirect_stdout(quiet), contextlib.redirect_stderr(quiet):\n"
+        "    main(sys.argv[1:])\n"
+        "mods = set(sys.modules)\n"
+        "heavy = {m.split('.')[0] for m in mods} & {'scipy', 'matplotlib', 'astropy'}\n"
+        "cli = {m for m in mods if m.startswith('starsense.cli.')}\n"
+        "print(' '.join(sorted(heavy | cli)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, *argv], capture_output=True, text=True, check=True
+    )
+    return set(out.stdout.split())
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["limit", "--help"], ["availability"]])
+def test_listings_import_no_command(argv):
+    assert _loaded(*argv) == {"starsense.cli.app", "starsense.cli.listing"}
+
+
+def test_a_command_imports_its_module_only():
+    loaded = {m for m in _loaded("solve", "--help") if m.startswith("starsense.cli.")}
+    assert loaded == {
+        "starsense.cli.app",
+        "starsense.cli.common",
+        "starsense.cli.listing",
+        "starsense.cli.solve",
+    }
