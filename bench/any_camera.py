@@ -65,10 +65,16 @@ def main() -> None:
                     wrong += bad
                     solved += not bad
         n = 3 * len(POINTINGS)
-        record[name] = {"frames": n, "solved": int(solved), "wrong": int(wrong),
-                        "detections": [int(min(detections)), int(max(detections))]}  # fmt: skip
-        print(f"{name}: {solved}/{n} solved, {wrong} wrong, "
-              f"{min(detections)}-{max(detections)} detections")  # fmt: skip
+        record[name] = {
+            "frames": n,
+            "solved": int(solved),
+            "wrong": int(wrong),
+            "detections": [int(min(detections)), int(max(detections))],
+        }
+        print(
+            f"{name}: {solved}/{n} solved, {wrong} wrong, "
+            f"{min(detections)}-{max(detections)} detections"
+        )
     if "--no-record" not in sys.argv:
         name = "any_camera_sensor.json" if "--sensor" in sys.argv else "any_camera.json"
         with atomic_write(HERE / "results" / name) as f:

@@ -80,8 +80,12 @@ def noise_check(fit, stars, sigmas) -> dict:
     rows = []
     for lo, hi in itertools.pairwise(edges):
         m = (s >= lo) & (s <= hi) & (np.linalg.norm(r, axis=1) < 5 * np.std(r) * math.sqrt(2))
-        rows.append({"predicted_rms_px": float(np.sqrt(np.mean(s[m] ** 2))),
-                     "residual_rms_px": float(np.sqrt(np.mean(r[m] ** 2)))})  # fmt: skip
+        rows.append(
+            {
+                "predicted_rms_px": float(np.sqrt(np.mean(s[m] ** 2))),
+                "residual_rms_px": float(np.sqrt(np.mean(r[m] ** 2))),
+            }
+        )
     return {"quartiles": rows}
 
 
@@ -125,8 +129,11 @@ def refraction_check(frames, sensor) -> dict:
             break
         problem.keep[np.flatnonzero(problem.keep)[bad]] = False
     # the same stars without the shear (held at zero): the fair comparison
-    plain = least_squares(lambda t: problem.residuals(np.concatenate([t, np.zeros(2 * n)])),
-                          res.x[: 7 + 3 * n], x_scale="jac")  # fmt: skip
+    plain = least_squares(
+        lambda t: problem.residuals(np.concatenate([t, np.zeros(2 * n)])),
+        res.x[: 7 + 3 * n],
+        x_scale="jac",
+    )
     shear = problem.unpack_shear(res.x)
     amp = np.hypot(shear[:, 0], shear[:, 1])
     alt = np.array([40.0 if "Alt40" in f.name else 60.0 for f in frames])

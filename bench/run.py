@@ -347,8 +347,11 @@ def _scale_limit(n: int) -> float:
 
     cat = _scale_catalog(n)
     res, used = hats_sky_limit(cat, client=client)  # warm-up
-    print(f"    ({used.n_stars} stars in {cat.n_partitions} partitions; G = "
-          f"{res.g_rad_m2_s05:.3e} rad m^2 s^1/2)", flush=True)  # fmt: skip
+    print(
+        f"    ({used.n_stars} stars in {cat.n_partitions} partitions; G = "
+        f"{res.g_rad_m2_s05:.3e} rad m^2 s^1/2)",
+        flush=True,
+    )
     return best_of(lambda: hats_sky_limit(cat, client=client), repeat=3)
 
 
@@ -419,8 +422,10 @@ def _mission_day() -> float:
     curve = ThresholdCurve(np.radians([0, 1, 1.5, 2, 3]), [5.5, 4.85, 4.48, 4.2, 3.6])
     fov = field_of_view(sensor)
     tilts = (("+Y up 45", 135.0), ("-Y up 45", -135.0), ("zenith", 180.0))
-    heads = [Head(n, fov, curve, Rotation.from_euler("x", a, degrees=True), sensor.exclusion)
-             for n, a in tilts]  # fmt: skip
+    heads = [
+        Head(n, fov, curve, Rotation.from_euler("x", a, degrees=True), sensor.exclusion)
+        for n, a in tilts
+    ]
     grid = TimeGrid.span("2025-03-20T00:00:00", 86400.0, 1.0)
     orbit = sun_synchronous(550e3, ltan_h=6.0, epoch=grid.start)
 

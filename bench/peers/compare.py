@@ -84,9 +84,13 @@ def synthetic_inputs(n: int, seed: int = 20240605, **kwargs):
     """
 
     sets = centroid_sets(
-        load_catalog("hipparcos"), n, fov_rad=math.radians(SYNTH_FOV_DEG),
-        image_size=SYNTH_SIZE, seed=seed, **kwargs,
-    )  # fmt: skip
+        load_catalog("hipparcos"),
+        n,
+        fov_rad=math.radians(SYNTH_FOV_DEG),
+        image_size=SYNTH_SIZE,
+        seed=seed,
+        **kwargs,
+    )
     return sets.xy, sets.offsets, sets.boresights
 
 
@@ -165,15 +169,21 @@ def starsense_side(synth_sets, esa):
     for image in images:
         sol, ms = _best_of(lambda image=image: solver(image), 3)
         own.append(_solution_record(sol, ms))
-    return {"database_load_s": db_s, **synth, "esa_same_centroids": same,
-            "esa_own_extraction": own}  # fmt: skip
+    return {"database_load_s": db_s, **synth, "esa_same_centroids": same, "esa_own_extraction": own}
 
 
 def _solution_record(sol, ms) -> dict:
     """A Solver solution as compare.py scores it, with its stage times (ms)."""
-    return {"solved": sol.solved, "status": sol.status, "ra_deg": sol.ra_deg,
-            "dec_deg": sol.dec_deg, "roll_deg": sol.roll_deg, "fov_deg": sol.fov_deg, "ms": ms,
-            "stage_ms": dict(sol.stage_ms)}  # fmt: skip
+    return {
+        "solved": sol.solved,
+        "status": sol.status,
+        "ra_deg": sol.ra_deg,
+        "dec_deg": sol.dec_deg,
+        "roll_deg": sol.roll_deg,
+        "fov_deg": sol.fov_deg,
+        "ms": ms,
+        "stage_ms": dict(sol.stage_ms),
+    }
 
 
 def starsense_frames(images) -> list[dict]:
@@ -214,8 +224,10 @@ def cedar_side(python: Path, npz: Path) -> tuple[dict | None, str]:
     out = npz.with_suffix(".json")
     run = subprocess.run(
         [str(python), str(HERE / "run_cedar.py"), str(npz), str(out)],
-        capture_output=True, text=True, cwd=HERE,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        cwd=HERE,
+    )
     if run.returncode:
         tail = run.stderr.strip().splitlines()[-1] if run.stderr.strip() else "no stderr"
         return None, f"run_cedar.py exited {run.returncode}: {tail}"
@@ -322,16 +334,20 @@ def main(argv=None) -> int:
         npz = Path(tmp) / "inputs.npz"
         np.savez(
             npz,
-            synth_names=np.array(list(synth)), synth_size=np.array(SYNTH_SIZE),
-            synth_fov_deg=SYNTH_FOV_DEG, esa_names=np.array(names), esa_xy=exy,
+            synth_names=np.array(list(synth)),
+            synth_size=np.array(SYNTH_SIZE),
+            synth_fov_deg=SYNTH_FOV_DEG,
+            esa_names=np.array(names),
+            esa_xy=exy,
             **{f"{k}_xy": v[0] for k, v in synth.items()},
             **{f"{k}_offsets": v[1] for k, v in synth.items()},
-            esa_offsets=eoff, esa_size=np.array([sensor.detector.rows, sensor.detector.columns]),
+            esa_offsets=eoff,
+            esa_size=np.array([sensor.detector.rows, sensor.detector.columns]),
             esa_fov_deg=math.degrees(2.0 * sensor.half_fov_rad[0]),
             **{f"esa_image_{i}": np.asarray(im) for i, im in enumerate(images)},
             frames_names=np.array([p.name for p in frame_paths]),
             **{f"frames_image_{i}": np.asarray(im) for i, im in enumerate(frame_images)},
-        )  # fmt: skip
+        )
         print("starsense ...", flush=True)
         ours = starsense_side(synth, esa)
         ours["frames"] = starsense_frames(frame_images)
@@ -343,8 +359,7 @@ def main(argv=None) -> int:
         esa_fov_deg = math.degrees(2.0 * sensor.half_fov_rad[0])
         astro, astro_why = astrometry_side([ESA_DIR / n for n in names], esa_fov_deg)
         if astro is not None:
-            astro = {"esa_own_extraction": astro,
-                     "frames": astrometry_side(frame_paths, None)[0]}  # fmt: skip
+            astro = {"esa_own_extraction": astro, "frames": astrometry_side(frame_paths, None)[0]}
 
     sets = [
         *((key, label, synth[key][2], ARCMIN) for key, (label, _kw) in SYNTH_SETS.items()),

@@ -51,18 +51,34 @@ def solve(path: Path, fov_deg: float | None = None, cpulimit_s: int = 60) -> dic
     """
     from astropy.io import fits
 
-    args = ["solve-field", "--overwrite", "--no-plots", "--new-fits", "none",
-            "--crpix-center", "--cpulimit", str(cpulimit_s)]  # fmt: skip
+    args = [
+        "solve-field",
+        "--overwrite",
+        "--no-plots",
+        "--new-fits",
+        "none",
+        "--crpix-center",
+        "--cpulimit",
+        str(cpulimit_s),
+    ]
     if fov_deg is not None:
-        args += ["--scale-units", "degwidth", "--scale-low", f"{0.8 * fov_deg:.4f}",
-                 "--scale-high", f"{1.2 * fov_deg:.4f}"]  # fmt: skip
+        args += [
+            "--scale-units",
+            "degwidth",
+            "--scale-low",
+            f"{0.8 * fov_deg:.4f}",
+            "--scale-high",
+            f"{1.2 * fov_deg:.4f}",
+        ]
     with tempfile.TemporaryDirectory(prefix="starsense-astrometry-") as tmp:
         t0 = time.perf_counter()
         try:
             run = subprocess.run(
                 [*args, "--dir", tmp, str(path)],
-                capture_output=True, text=True, timeout=cpulimit_s * 3 + 30,
-            )  # fmt: skip
+                capture_output=True,
+                text=True,
+                timeout=cpulimit_s * 3 + 30,
+            )
         except subprocess.TimeoutExpired:
             return {"solved": False, "status": "timeout", "ms": (time.perf_counter() - t0) * 1e3}
         ms = (time.perf_counter() - t0) * 1e3

@@ -80,8 +80,17 @@ def bsc5_bytes(mags_centi: list[int]) -> bytes:
 
 
 def gaia_binary(n: int = 3) -> bytes:
-    rec = np.zeros(n, [("source_id", "<i8"), ("ra", "<f8"), ("dec", "<f8"), ("g", "<f4"),
-                       ("pmra", "<f4"), ("pmdec", "<f4")])  # fmt: skip
+    rec = np.zeros(
+        n,
+        [
+            ("source_id", "<i8"),
+            ("ra", "<f8"),
+            ("dec", "<f8"),
+            ("g", "<f4"),
+            ("pmra", "<f4"),
+            ("pmdec", "<f4"),
+        ],
+    )
     rec["source_id"] = np.arange(1, n + 1)
     rec["ra"] = np.linspace(1.0, 300.0, n)
     rec["dec"] = np.linspace(-60.0, 60.0, n)
@@ -93,9 +102,15 @@ def gaia_parquet(path: Path, names_extra: str = "zzzzzz") -> Path:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    table = pa.table({"source_id": pa.array([1, 2], pa.int64()), "ra": [1.0, 2.0],
-                      "dec": [3.0, 4.0], "phot_g_mean_mag": [5.0, 6.0],
-                      names_extra: [1, 2]})  # fmt: skip
+    table = pa.table(
+        {
+            "source_id": pa.array([1, 2], pa.int64()),
+            "ra": [1.0, 2.0],
+            "dec": [3.0, 4.0],
+            "phot_g_mean_mag": [5.0, 6.0],
+            names_extra: [1, 2],
+        }
+    )
     pq.write_table(table, path)
     return path
 

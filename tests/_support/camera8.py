@@ -32,13 +32,20 @@ def camera8(bias_counts: float = 1.0, read_noise_e: float = 14.0, aperture_m: fl
             "exposure_s": 0.5,
             "optics": {"focal_length_m": FOCAL_M, "aperture_m": aperture_m, "transmission": 1.0},
             "detector": {
-                "columns": COLUMNS, "rows": ROWS, "pixel_pitch_m": PITCH_M, "bit_depth": 8,
-                "gain_counts_per_e": 0.05, "read_noise_e": read_noise_e, "psf_sigma_px": 1.0,
-                "qe_mean": 0.5, "bias_counts": bias_counts, "full_well_e": 20000.0,
+                "columns": COLUMNS,
+                "rows": ROWS,
+                "pixel_pitch_m": PITCH_M,
+                "bit_depth": 8,
+                "gain_counts_per_e": 0.05,
+                "read_noise_e": read_noise_e,
+                "psf_sigma_px": 1.0,
+                "qe_mean": 0.5,
+                "bias_counts": bias_counts,
+                "full_well_e": 20000.0,
             },
             "detection": {"lit_pixel_counts": 1.0, "min_pixels": 3, "min_integrated_counts": 0.0},
         }
-    )  # fmt: skip
+    )
 
 
 def frame8(

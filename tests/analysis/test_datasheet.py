@@ -53,8 +53,9 @@ def test_clipped_moments_against_quadrature(mu, sigma, lo, hi):
 
 def _ideal(read_noise_e: float, sigma_px: float = 1.5):
     st16 = load_sensor("st16")
-    det = dataclasses.replace(st16.detector, read_noise_e=read_noise_e, psf_sigma_px=sigma_px,
-                              bit_depth=24)  # fmt: skip
+    det = dataclasses.replace(
+        st16.detector, read_noise_e=read_noise_e, psf_sigma_px=sigma_px, bit_depth=24
+    )
     return dataclasses.replace(st16, detector=det)
 
 
@@ -89,8 +90,9 @@ def test_nea_read_noise_limited_scales_steeper():
     # rendering) to 15 %, and be clearly steeper than the photon-limited 2
     sens = _ideal(30.0)
     det = dataclasses.replace(sens.detector, gain_counts_per_e=1.0)
-    logic = dataclasses.replace(sens.detection, lit_pixel_counts=150.0, min_pixels=3,
-                                min_integrated_counts=500.0)  # fmt: skip
+    logic = dataclasses.replace(
+        sens.detection, lit_pixel_counts=150.0, min_pixels=3, min_integrated_counts=500.0
+    )
     sens = dataclasses.replace(sens, detector=det, detection=logic)
     table = centroid_noise(sens, 2e4, 8e4, n_grid=2, n_stamps=300, rng=6)
     measured = table.sigma_px[0] / table.sigma_px[1]
@@ -205,8 +207,9 @@ def test_datasheet_nea_scales_with_aperture_over_the_sky():
     read = dataclasses.replace(
         read,
         detector=dataclasses.replace(read.detector, gain_counts_per_e=1.0),
-        detection=dataclasses.replace(read.detection, lit_pixel_counts=150.0, min_pixels=3,
-                                      min_integrated_counts=500.0),
-    )  # fmt: skip
+        detection=dataclasses.replace(
+            read.detection, lit_pixel_counts=150.0, min_pixels=3, min_integrated_counts=500.0
+        ),
+    )
     small, large = _sky_nea(_aperture(read, 0.006)), _sky_nea(_aperture(read, 0.012))
     assert 2.0**1.5 <= small[0] / large[0] <= 4.0 * 1.1

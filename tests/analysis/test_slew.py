@@ -42,12 +42,19 @@ def test_tolerable_rate_rule():
 def _result(tol, capped, mags):
     n = len(mags)
     return SlewResult(
-        magnitudes=np.asarray(mags, float), rates_rad_s=np.radians([0.0, 5.0]),
-        electrons=np.ones(n), detected_fraction=np.ones((n, 2)),
-        mean_intensity_counts=np.ones((n, 2)), ideal_intensity_counts=np.ones(n),
-        tolerable_rate_rad_s=tol, capped=np.asarray(capped), model="reed", sensor_name="x",
-        n_trials=1, criterion=0.5,
-    )  # fmt: skip
+        magnitudes=np.asarray(mags, float),
+        rates_rad_s=np.radians([0.0, 5.0]),
+        electrons=np.ones(n),
+        detected_fraction=np.ones((n, 2)),
+        mean_intensity_counts=np.ones((n, 2)),
+        ideal_intensity_counts=np.ones(n),
+        tolerable_rate_rad_s=tol,
+        capped=np.asarray(capped),
+        model="reed",
+        sensor_name="x",
+        n_trials=1,
+        criterion=0.5,
+    )
 
 
 def test_magnitude_threshold_inverts_the_tolerance_curve():

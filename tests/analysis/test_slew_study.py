@@ -108,13 +108,21 @@ def test_thresholds_shift_with_qe_as_a_direct_run(st16):
 def fake_study(threshold_ref, sigmas=(1.0, 2.0), n_trials=20) -> SlewStudy:
     thr = np.asarray(threshold_ref, dtype=float)
     return SlewStudy(
-        sigmas_px=np.asarray(sigmas, float), qe_means=np.round(np.arange(0.2, 0.71, 0.01), 2),
-        qe_ref=0.4, rates_rad_s=RATES, magnitudes=np.array([1.0, 8.0]),
-        detected_fraction=np.zeros((len(sigmas), 2, len(RATES))), threshold_ref=thr,
+        sigmas_px=np.asarray(sigmas, float),
+        qe_means=np.round(np.arange(0.2, 0.71, 0.01), 2),
+        qe_ref=0.4,
+        rates_rad_s=RATES,
+        magnitudes=np.array([1.0, 8.0]),
+        detected_fraction=np.zeros((len(sigmas), 2, len(RATES))),
+        threshold_ref=thr,
         paper_rates_rad_s=RATES[1:],
         paper_threshold=np.array([np.mean(paper.TABLE2_IMPLIED_MT[w]) for w in (1, 1.5, 2, 3)]),
-        model="reed", sensor_name="fake", n_trials=n_trials, criterion=0.5, seed=0,
-    )  # fmt: skip
+        model="reed",
+        sensor_name="fake",
+        n_trials=n_trials,
+        criterion=0.5,
+        seed=0,
+    )
 
 
 def test_best_qe_is_the_minimax_of_the_grid():
@@ -169,9 +177,11 @@ def test_table2_implied_thresholds_recomputed(bsc5_path):
     # them rounded to 0.01 mag.
 
     analysis = AvailabilityAnalysis.from_catalog(
-        load_catalog(f"bsc5:{bsc5_path}"), CircularFov(math.radians(paper.HALF_FOV_DEG)),
-        paper.MAX_MAG, n_orientations=paper.N_ORIENTATIONS,
-    )  # fmt: skip
+        load_catalog(f"bsc5:{bsc5_path}"),
+        CircularFov(math.radians(paper.HALF_FOV_DEG)),
+        paper.MAX_MAG,
+        n_orientations=paper.N_ORIENTATIONS,
+    )
     for rate, (m2, m3) in paper.TABLE2_IMPLIED_MT.items():
         n2, n3 = (v / 100 for v in paper.TABLE2[rate]["spatial"])
         assert implied_threshold(analysis, n2, 2) == pytest.approx(m2, abs=0.005)
@@ -184,8 +194,10 @@ def test_monte_carlo_noise_of_one_threshold(st16):
     # sigma = 1, 1.5, 2.5 px, 20 trials, 0.05 mag grid, at rest and at every paper rate
     # (measured 0.008-0.032).
     mags = study_magnitudes(0.05, 3.0, 7.0)
-    runs = [study_slew(st16, sigmas_px=(1.0, 1.5, 2.5), magnitudes=mags, rng=s).threshold_ref
-            for s in range(5)]  # fmt: skip
+    runs = [
+        study_slew(st16, sigmas_px=(1.0, 1.5, 2.5), magnitudes=mags, rng=s).threshold_ref
+        for s in range(5)
+    ]
     spread = np.std(runs, axis=0, ddof=1)
     assert spread.max() <= MC_NOISE_MAG_20, spread
 

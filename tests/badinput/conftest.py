@@ -30,8 +30,9 @@ def bad_dir(tmp_path_factory) -> Path:
     (d / "adir.csv").mkdir()
     (d / "file.txt").write_text("not a folder\n")
     (d / "latin1.toml").write_bytes(SENSOR_TOML.replace("tiny", "caf\xe9").encode("latin-1"))
-    (d / "gain.toml").write_text(SENSOR_TOML.replace("gain_counts_per_e = 1.0",
-                                                     "gain_counts_per_e = 1e-30"))  # fmt: skip
+    (d / "gain.toml").write_text(
+        SENSOR_TOML.replace("gain_counts_per_e = 1.0", "gain_counts_per_e = 1e-30")
+    )
     ok = fits_bytes(np.arange(100, dtype=np.uint16).reshape(10, 10))
     (d / "ok.fits").write_bytes(ok)
     (d / "nobitpix.fits").write_bytes(fits_card(ok, "BITPIX", None))

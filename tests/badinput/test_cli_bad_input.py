@@ -163,8 +163,9 @@ def test_read_only_output_directory(tmp_path, capsys, monkeypatch):
     locked = tmp_path / "locked"
     locked.mkdir()
     real = os.access
-    monkeypatch.setattr(io_mod.os, "access", lambda p, m: False if Path(p) == locked
-                        else real(p, m))  # fmt: skip
+    monkeypatch.setattr(
+        io_mod.os, "access", lambda p, m: False if Path(p) == locked else real(p, m)
+    )
     code = main(["render", "--out", str(locked / "f.png")])
     err = capsys.readouterr().err
     assert code == 2
@@ -179,8 +180,9 @@ def test_unreadable_files_are_named(bad_dir, tmp_path, capsys, monkeypatch):
     secret = tmp_path / "secret.toml"
     secret.write_text("name = 'x'\n")
     real = os.access
-    monkeypatch.setattr(io_mod.os, "access", lambda p, m: False if Path(p) == secret
-                        else real(p, m))  # fmt: skip
+    monkeypatch.setattr(
+        io_mod.os, "access", lambda p, m: False if Path(p) == secret else real(p, m)
+    )
     code = main(["render", "--out", str(tmp_path / "f.png"), "--sensor", str(secret)])
     err = capsys.readouterr().err
     assert (

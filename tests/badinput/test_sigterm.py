@@ -145,8 +145,13 @@ def test_report_terminated_during_the_swap_finishes_it(old_report, monkeypatch, 
     monkeypatch.setattr(
         build, "_write_index", lambda work, *a: (work / "index.html").write_text("new")
     )
-    monkeypatch.setattr(build, "_write_json", lambda work, *a: (work / "report.json").write_text(
-        json.dumps({"generator": "starsense.report"})))  # fmt: skip
+    monkeypatch.setattr(
+        build,
+        "_write_json",
+        lambda work, *a: (work / "report.json").write_text(
+            json.dumps({"generator": "starsense.report"})
+        ),
+    )
     real = build._swap_into_place
 
     def swap_after_term(work, out):
@@ -187,13 +192,22 @@ def test_render_killed_from_outside_at_several_moments(tmp_path):
     # each time exit 143 (or 0 when it had finished, or -15 before the handler was set), no
     # temporary, and either the previous frame or a complete new one
     frame = tmp_path / "f.png"
-    cmd = [sys.executable, "-c", "from starsense.cli import _console_main; _console_main()",
-           "render", "--out", str(frame), "--max-mag", "4"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-c",
+        "from starsense.cli import console_main; console_main()",
+        "render",
+        "--out",
+        str(frame),
+        "--max-mag",
+        "4",
+    ]
     subprocess.run(cmd, check=True, capture_output=True, timeout=120)
     previous = (frame.read_bytes(), frame.with_name("f.png.json").read_bytes())
     for delay in (0.5, 1.5, 2.5, 3.5):
-        proc = subprocess.Popen([*cmd, "--seed", "7"], stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE)  # fmt: skip
+        proc = subprocess.Popen(
+            [*cmd, "--seed", "7"], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
         time.sleep(delay)
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=120)

@@ -41,8 +41,20 @@ def invoke(*argv):
 
 
 def test_static_json_bsc5_acceptance(bsc5_path):
-    out = invoke("static", "--sensor", "st16", "--catalog", f"bsc5:{bsc5_path}", "--max-mag",
-                 "5.75", "--n-min", "3", "--half-fov-deg", "7.5", "--json")  # fmt: skip
+    out = invoke(
+        "static",
+        "--sensor",
+        "st16",
+        "--catalog",
+        f"bsc5:{bsc5_path}",
+        "--max-mag",
+        "5.75",
+        "--n-min",
+        "3",
+        "--half-fov-deg",
+        "7.5",
+        "--json",
+    )
     res = json.loads(out)
     assert {"availability", "n_orientations", "n_stars"} <= set(res)
     assert res["n_orientations"] == 10_000
@@ -52,18 +64,46 @@ def test_static_json_bsc5_acceptance(bsc5_path):
 
 def test_static_text_prints_stars_used_and_writes_figures(tmp_path):
     plot, maps = tmp_path / "fig6.png", tmp_path / "maps"
-    out = invoke("static", "--n-orientations", "2000", "--max-mag", "5.0", "--fov", "rectangular",
-                 "--roll-deg", "30", "--plot", str(plot), "--maps", str(maps))  # fmt: skip
+    out = invoke(
+        "static",
+        "--n-orientations",
+        "2000",
+        "--max-mag",
+        "5.0",
+        "--fov",
+        "rectangular",
+        "--roll-deg",
+        "30",
+        "--plot",
+        str(plot),
+        "--maps",
+        str(maps),
+    )
     assert "stars used" in out and "spatial static availability" in out
     assert plot.stat().st_size > 1000
-    assert sorted(p.name for p in maps.iterdir()) == ["static_sparse.png",
-                                                      "static_stars_in_field.png"]  # fmt: skip
+    assert sorted(p.name for p in maps.iterdir()) == [
+        "static_sparse.png",
+        "static_stars_in_field.png",
+    ]
 
 
 def test_dynamic_json_keys(tolerance_json):
-    out = invoke("dynamic", "--sensor", "st16", "--model", "reed", "--rates-deg-s",
-                 "0.5,1,1.5,2,3", "--n-min", "3", "--n-orientations", "3000",
-                 "--tolerance-json", str(tolerance_json), "--json")  # fmt: skip
+    out = invoke(
+        "dynamic",
+        "--sensor",
+        "st16",
+        "--model",
+        "reed",
+        "--rates-deg-s",
+        "0.5,1,1.5,2,3",
+        "--n-min",
+        "3",
+        "--n-orientations",
+        "3000",
+        "--tolerance-json",
+        str(tolerance_json),
+        "--json",
+    )
     res = json.loads(out)
     assert res["rates_deg_s"] == [0.5, 1.0, 1.5, 2.0, 3.0]
     assert len(res["availability"]) == 5
@@ -74,10 +114,28 @@ def test_dynamic_json_keys(tolerance_json):
 
 def test_track_json_keys(tolerance_json, tmp_path):
     plot = tmp_path / "track.png"
-    out = invoke("track", "--sensor", "st16", "--model", "reed", "--rate-deg-s", "1",
-                 "--n-min", "3", "--n-orientations", "2000", "--inclination-step-deg", "10",
-                 "--track-samples", "300", "--tolerance-json", str(tolerance_json),
-                 "--plot", str(plot), "--json")  # fmt: skip
+    out = invoke(
+        "track",
+        "--sensor",
+        "st16",
+        "--model",
+        "reed",
+        "--rate-deg-s",
+        "1",
+        "--n-min",
+        "3",
+        "--n-orientations",
+        "2000",
+        "--inclination-step-deg",
+        "10",
+        "--track-samples",
+        "300",
+        "--tolerance-json",
+        str(tolerance_json),
+        "--plot",
+        str(plot),
+        "--json",
+    )
     res = json.loads(out)
     assert {"mean", "max", "min", "inclinations_deg", "availability"} <= set(res)
     assert res["inclinations_deg"][0] == -90 and res["inclinations_deg"][-1] == 90

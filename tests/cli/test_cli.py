@@ -23,9 +23,19 @@ def test_limit_star_table1_vega_json(capsys):
     # Paper Table 1 (D = 10 cm, t = 100 ms): Vega T 13231 K, C 2.96e-17, sigma 1.19e-10 rad;
     # tolerances as in the issue (1.5 %, 6 %, 3 %).
     code, out, _ = run(
-        capsys, "limit", "star", "--mag-v", "0.03", "--b-v", "-0.001",
-        "--diameter-m", "0.1", "--exposure-s", "0.1", "--json",
-    )  # fmt: skip
+        capsys,
+        "limit",
+        "star",
+        "--mag-v",
+        "0.03",
+        "--b-v",
+        "-0.001",
+        "--diameter-m",
+        "0.1",
+        "--exposure-s",
+        "0.1",
+        "--json",
+    )
     assert code == 0
     res = json.loads(out)
     assert set(res) >= {"temperature_k", "dilution", "photons", "sigma_rad"}
@@ -38,9 +48,19 @@ def test_limit_star_table1_vega_json(capsys):
 
 def test_limit_star_table1_vega_hks_json(capsys):
     code, out, _ = run(
-        capsys, "limit", "star", "--mag-h", "-0.004", "--h-ks", "-0.005",
-        "--diameter-m", "0.1", "--exposure-s", "0.1", "--json",
-    )  # fmt: skip
+        capsys,
+        "limit",
+        "star",
+        "--mag-h",
+        "-0.004",
+        "--h-ks",
+        "-0.005",
+        "--diameter-m",
+        "0.1",
+        "--exposure-s",
+        "0.1",
+        "--json",
+    )
     assert code == 0
     res = json.loads(out)
     assert res["temperature_k"] == pytest.approx(10417, rel=0.015)
@@ -81,10 +101,23 @@ def test_limit_sky_fov_without_target(capsys):
 def test_console_script_exit_code_and_single_line():
     # The installed entry point, in a fresh process: exit 2, one line on stderr, no traceback.
     proc = subprocess.run(
-        [sys.executable, "-c", "import sys; from starsense.cli import main; sys.exit(main())",
-         "limit", "star", "--mag-v", "1", "--b-v", "0.2", "--diameter-m", "-3"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-c",
+            "import sys; from starsense.cli import main; sys.exit(main())",
+            "limit",
+            "star",
+            "--mag-v",
+            "1",
+            "--b-v",
+            "0.2",
+            "--diameter-m",
+            "-3",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith("error: diameter_m must be")
     assert len(proc.stderr.strip().splitlines()) == 1
@@ -93,10 +126,23 @@ def test_console_script_exit_code_and_single_line():
 def test_python_dash_m_starsense_is_the_command_line():
     # `python -m starsense` runs the same command line as the script: same error, same exit
     proc = subprocess.run(
-        [sys.executable, "-m", "starsense", "limit", "star", "--mag-v", "1", "--b-v", "0.2",
-         "--diameter-m", "-3"],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "starsense",
+            "limit",
+            "star",
+            "--mag-v",
+            "1",
+            "--b-v",
+            "0.2",
+            "--diameter-m",
+            "-3",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith("error: diameter_m must be")
 
@@ -119,9 +165,21 @@ def test_limit_sky_fov_360_equals_whole_sky_and_merge(capsys):
     _, out, _ = run(capsys, "limit", "sky", "--diameter-m", "0.1", "--exposure-s", "0.01", "--json")
     sky = json.loads(out)
     _, out, _ = run(
-        capsys, "limit", "sky", "--diameter-m", "0.1", "--exposure-s", "0.01", "--fov-deg", "360",
-        "--target-deg", "0,0", "--target-deg", "90,0", "--json",
-    )  # fmt: skip
+        capsys,
+        "limit",
+        "sky",
+        "--diameter-m",
+        "0.1",
+        "--exposure-s",
+        "0.01",
+        "--fov-deg",
+        "360",
+        "--target-deg",
+        "0,0",
+        "--target-deg",
+        "90,0",
+        "--json",
+    )
     fov = json.loads(out)
     for head in fov["heads"]:
         assert head["theta_rms_rad"] == pytest.approx(sky["theta_rms_rad"], rel=1e-12)
@@ -154,9 +212,21 @@ def test_limit_sky_bad_target(capsys):
 
 def test_slew_tolerance_json_interface(capsys):
     code, out, _ = run(
-        capsys, "slew", "tolerance", "--sensor", "st16", "--model", "reed",
-        "--magnitudes", "3,4,8", "--rates-deg-s", "0,1,2,4,8", "--trials", "4", "--json",
-    )  # fmt: skip
+        capsys,
+        "slew",
+        "tolerance",
+        "--sensor",
+        "st16",
+        "--model",
+        "reed",
+        "--magnitudes",
+        "3,4,8",
+        "--rates-deg-s",
+        "0,1,2,4,8",
+        "--trials",
+        "4",
+        "--json",
+    )
     assert code == 0
     res = json.loads(out)
     assert res["magnitudes"] == [3.0, 4.0, 8.0]
@@ -177,10 +247,25 @@ def test_render_writes_frame_and_truth(capsys, tmp_path):
 
     out = tmp_path / "frame.tiff"
     code, stdout, _ = run(
-        capsys, "render", "--sensor", "st16", "--ra-deg", "83.8", "--dec-deg", "-5.4",
-        "--roll-deg", "0", "--rate-deg-s", "0.5,0,0", "--seed", "4", "--max-mag", "5",
-        "--out", str(out),
-    )  # fmt: skip
+        capsys,
+        "render",
+        "--sensor",
+        "st16",
+        "--ra-deg",
+        "83.8",
+        "--dec-deg",
+        "-5.4",
+        "--roll-deg",
+        "0",
+        "--rate-deg-s",
+        "0.5,0,0",
+        "--seed",
+        "4",
+        "--max-mag",
+        "5",
+        "--out",
+        str(out),
+    )
     assert code == 0, stdout
     image = np.array(Image.open(out))
     assert image.shape == (1944, 2592)

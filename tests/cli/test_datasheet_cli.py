@@ -50,16 +50,39 @@ def st16_sheet(tmp_path_factory):
 
 def test_interface_keys(st16_sheet):
     d = st16_sheet
-    for key in ("sensor", "fov_deg", "pixel_scale_arcsec", "limiting_magnitude", "stars_in_fov",
-                "nea_arcsec", "limit_arcsec", "monte_carlo", "availability", "budget"):  # fmt: skip
+    for key in (
+        "sensor",
+        "fov_deg",
+        "pixel_scale_arcsec",
+        "limiting_magnitude",
+        "stars_in_fov",
+        "nea_arcsec",
+        "limit_arcsec",
+        "monte_carlo",
+        "availability",
+        "budget",
+    ):
         assert key in d, key
     assert set(d["stars_in_fov"]) >= {"median", "p05"}
     assert set(d["nea_arcsec"]["cross"]) >= {"median", "p95"}
-    mc_keys = {"frames", "solved", "wrong", "cross_rms_arcsec", "roll_rms_arcsec", "cross_ratio",
-               "roll_ratio", "median_ms"}  # fmt: skip
+    mc_keys = {
+        "frames",
+        "solved",
+        "wrong",
+        "cross_rms_arcsec",
+        "roll_rms_arcsec",
+        "cross_ratio",
+        "roll_ratio",
+        "median_ms",
+    }
     assert set(d["monte_carlo"]) >= mc_keys
-    assert set(d["availability"]) >= {"lost_in_space", "tracking", "rates_deg_s",
-                                      "lost_in_space_at_rate", "tracking_at_rate"}  # fmt: skip
+    assert set(d["availability"]) >= {
+        "lost_in_space",
+        "tracking",
+        "rates_deg_s",
+        "lost_in_space_at_rate",
+        "tracking_at_rate",
+    }
     assert all(set(b) >= {"term", "cross_arcsec", "roll_arcsec", "source"} for b in d["budget"])
     # the ST-16's 2592 x 1944 px of 2.2 um behind f = 16 mm: 2 atan(2.85 / 16) = 20.21 deg
     assert d["fov_deg"][0] == pytest.approx(2 * math.degrees(math.atan(2592 * 2.2e-3 / 32)))
@@ -88,10 +111,26 @@ def test_availability_agrees_with_availability_dynamic(st16_sheet, capsys, tmp_p
     tol.write_text(json.dumps(d["slew"]))
     st = d["settings"]
     rates = ",".join(repr(r) for r in d["availability"]["rates_deg_s"])
-    out, _ = run(capsys, "availability", "dynamic", "--sensor", "st16", "--fov", "rectangular",
-                 "--max-mag", repr(st["catalog_cut_mag"]), "--n-orientations",
-                 str(st["n_orientations"]), "--seed", str(st["seed"]), "--rates-deg-s", rates,
-                 "--tolerance-json", str(tol), "--json")  # fmt: skip
+    out, _ = run(
+        capsys,
+        "availability",
+        "dynamic",
+        "--sensor",
+        "st16",
+        "--fov",
+        "rectangular",
+        "--max-mag",
+        repr(st["catalog_cut_mag"]),
+        "--n-orientations",
+        str(st["n_orientations"]),
+        "--seed",
+        str(st["seed"]),
+        "--rates-deg-s",
+        rates,
+        "--tolerance-json",
+        str(tol),
+        "--json",
+    )
     ref = _no_nan(out)
     assert ref["availability_by_n_min"]["3"] == d["availability"]["lost_in_space_at_rate"]
     assert ref["availability_by_n_min"]["2"] == d["availability"]["tracking_at_rate"]
@@ -99,10 +138,22 @@ def test_availability_agrees_with_availability_dynamic(st16_sheet, capsys, tmp_p
 
 def test_slew_tolerance_agrees_with_slew_command(st16_sheet, capsys):
     s = st16_sheet["slew"]
-    out, _ = run(capsys, "slew", "tolerance", "--sensor", "st16", "--magnitudes",
-                 ",".join(repr(m) for m in s["magnitudes"]), "--rates-deg-s",
-                 ",".join(repr(r) for r in s["rates_deg_s"]), "--trials", str(s["n_trials"]),
-                 "--seed", str(s["seed"]), "--json")  # fmt: skip
+    out, _ = run(
+        capsys,
+        "slew",
+        "tolerance",
+        "--sensor",
+        "st16",
+        "--magnitudes",
+        ",".join(repr(m) for m in s["magnitudes"]),
+        "--rates-deg-s",
+        ",".join(repr(r) for r in s["rates_deg_s"]),
+        "--trials",
+        str(s["n_trials"]),
+        "--seed",
+        str(s["seed"]),
+        "--json",
+    )
     ref = _no_nan(out)
     # same seeds, same renders: equal to the last digit (rates read back from deg/s differ by
     # at most one ulp, which moves no pixel)
@@ -112,14 +163,30 @@ def test_slew_tolerance_agrees_with_slew_command(st16_sheet, capsys):
 
 def test_limit_agrees_with_limit_sky(capsys):
     sens = load_sensor("st16")
-    out, _ = run(capsys, "limit", "sky", "--diameter-m", "0.012", "--exposure-s", "0.1",
-                 "--fov-deg", "20", "--target-deg", "83.8,-5.4", "--json")  # fmt: skip
+    out, _ = run(
+        capsys,
+        "limit",
+        "sky",
+        "--diameter-m",
+        "0.012",
+        "--exposure-s",
+        "0.1",
+        "--fov-deg",
+        "20",
+        "--target-deg",
+        "83.8,-5.4",
+        "--json",
+    )
     ref = _no_nan(out)
     head = ref["heads"][0] if "heads" in ref else ref
     east, north, roll = head["axis_sigma_rad"]
     att = attitude_from_radec_roll(np.radians([83.8]), np.radians([-5.4]), np.zeros(1))
-    cross, rl = _limit(load_catalog("hipparcos"), sens, CircularFov(math.radians(10)),
-                       att.as_matrix().reshape(-1, 3, 3))  # fmt: skip
+    cross, rl = _limit(
+        load_catalog("hipparcos"),
+        sens,
+        CircularFov(math.radians(10)),
+        att.as_matrix().reshape(-1, 3, 3),
+    )
     # the same eq. 21 over the same stars: to rounding
     assert cross[0] == pytest.approx(math.sqrt(0.5 * (east**2 + north**2)), rel=1e-9)
     assert rl[0] == pytest.approx(roll, rel=1e-9)

@@ -66,8 +66,19 @@ def test_solve_wcs(tmp_path, capsys, umask, shared_dir):
 
 
 def test_slew_tolerance_plot(tmp_path, capsys, umask):
-    _run(capsys, "slew", "tolerance", "--magnitudes", "3", "--rates-deg-s", "0,1",
-         "--trials", "2", "--plot", tmp_path / "slew.png")  # fmt: skip
+    _run(
+        capsys,
+        "slew",
+        "tolerance",
+        "--magnitudes",
+        "3",
+        "--rates-deg-s",
+        "0,1",
+        "--trials",
+        "2",
+        "--plot",
+        tmp_path / "slew.png",
+    )
     files = _written(tmp_path)
     assert [p.name for p in files] == ["slew.png"]
     _assert_modes(files, umask)
@@ -81,8 +92,17 @@ def test_limit_curve_plot(tmp_path, capsys, umask):
 
 
 def test_availability_static_plot_and_maps(tmp_path, capsys, umask):
-    _run(capsys, "availability", "static", "--n-orientations", "200",
-         "--plot", tmp_path / "static.png", "--maps", tmp_path / "maps")  # fmt: skip
+    _run(
+        capsys,
+        "availability",
+        "static",
+        "--n-orientations",
+        "200",
+        "--plot",
+        tmp_path / "static.png",
+        "--maps",
+        tmp_path / "maps",
+    )
     files = _written(tmp_path)
     assert {p.name for p in files} >= {"static.png", "maps", "static_sparse.png"}
     _assert_modes(files, umask)
@@ -96,8 +116,14 @@ def test_report_figure_writer(tmp_path, umask):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ctx = ReportContext(work_dir=tmp_path, catalog_name="test", n_catalog=0, stars={},
-                        diameter_m=0.1, exposure_s=0.01)  # fmt: skip
+    ctx = ReportContext(
+        work_dir=tmp_path,
+        catalog_name="test",
+        n_catalog=0,
+        stars={},
+        diameter_m=0.1,
+        exposure_s=0.01,
+    )
     fig, ax = plt.subplots()
     ax.plot([0, 1], [0, 1])
     try:

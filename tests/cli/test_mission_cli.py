@@ -53,16 +53,40 @@ def run(capsys, *argv):
 def test_issue_interface_json_and_plot(capsys, tol, tmp_path):
     plot = tmp_path / "timeline.png"
     code, out, err = run(
-        capsys, "--orbit", "sso:550:6", "--attitude", "nadir", "--heads", PLUS_Y, MINUS_Y,
-        ZENITH, "--start", "2025-03-20T00:00:00", "--duration-h", "2", "--step-s", "10",
-        "--tolerance-json", tol, "--json", "--plot", str(plot),
-    )  # fmt: skip
+        capsys,
+        "--orbit",
+        "sso:550:6",
+        "--attitude",
+        "nadir",
+        "--heads",
+        PLUS_Y,
+        MINUS_Y,
+        ZENITH,
+        "--start",
+        "2025-03-20T00:00:00",
+        "--duration-h",
+        "2",
+        "--step-s",
+        "10",
+        "--tolerance-json",
+        tol,
+        "--json",
+        "--plot",
+        str(plot),
+    )
     assert code == 0, err
     res = json.loads(out)
     assert res["steps"] == 720
     assert [h["name"] for h in res["heads"]] == [PLUS_Y, MINUS_Y, ZENITH]
-    keys = {"name", "available_fraction", "sun_blinded_fraction", "moon_blinded_fraction",
-            "earth_blinded_fraction", "outages", "longest_outage_s"}  # fmt: skip
+    keys = {
+        "name",
+        "available_fraction",
+        "sun_blinded_fraction",
+        "moon_blinded_fraction",
+        "earth_blinded_fraction",
+        "outages",
+        "longest_outage_s",
+    }
     for h in res["heads"]:
         assert keys <= set(h)
     assert set(res["combined"]) == {"available_fraction", "outages", "longest_outage_s"}
@@ -79,10 +103,23 @@ def test_issue_interface_json_and_plot(capsys, tol, tmp_path):
 def test_quaternion_file_profile_equals_inertial(capsys, tol, tmp_path):
     q = attitude_from_radec_roll(80.0 * DEG, 30.0 * DEG, 0.0).as_quat()
     csv = tmp_path / "q.csv"
-    csv.write_text("t_s,qx,qy,qz,qw\n" + "".join(
-        f"{t},{q[0]:.17g},{q[1]:.17g},{q[2]:.17g},{q[3]:.17g}\n" for t in (0, 4000)))  # fmt: skip
-    common = ["--orbit", "circular:700:98", "--heads", "st16", "--duration-h", "1", "--step-s",
-              "30", "--tolerance-json", tol, "--json"]  # fmt: skip
+    csv.write_text(
+        "t_s,qx,qy,qz,qw\n"
+        + "".join(f"{t},{q[0]:.17g},{q[1]:.17g},{q[2]:.17g},{q[3]:.17g}\n" for t in (0, 4000))
+    )
+    common = [
+        "--orbit",
+        "circular:700:98",
+        "--heads",
+        "st16",
+        "--duration-h",
+        "1",
+        "--step-s",
+        "30",
+        "--tolerance-json",
+        tol,
+        "--json",
+    ]
     outs = []
     for att in (f"quaternions:{csv}", "inertial:80,30,0"):
         code, out, err = run(capsys, "--attitude", att, *common)
@@ -97,15 +134,43 @@ def test_quaternion_file_profile_equals_inertial(capsys, tol, tmp_path):
 def test_tle_run_and_age_warning(capsys, tol, tmp_path):
     tle = tmp_path / "sat5.tle"
     tle.write_text("VANGUARD 1\n" + "\n".join(TLE5) + "\n")
-    code, out, err = run(capsys, "--tle", str(tle), "--heads", "st16", "--attitude", "sun",
-                         "--duration-h", "0.5", "--step-s", "60", "--tolerance-json", tol,
-                         "--json")  # fmt: skip
+    code, out, err = run(
+        capsys,
+        "--tle",
+        str(tle),
+        "--heads",
+        "st16",
+        "--attitude",
+        "sun",
+        "--duration-h",
+        "0.5",
+        "--step-s",
+        "60",
+        "--tolerance-json",
+        tol,
+        "--json",
+    )
     assert code == 0, err
     assert "warning" not in err
     assert json.loads(out)["start"].startswith("2000-06-27T18:50")
-    code, out, err = run(capsys, "--tle", str(tle), "--heads", "st16", "--attitude", "sun",
-                         "--start", "2000-08-01T00:00:00", "--duration-h", "0.5", "--step-s",
-                         "60", "--tolerance-json", tol, "--json")  # fmt: skip
+    code, out, err = run(
+        capsys,
+        "--tle",
+        str(tle),
+        "--heads",
+        "st16",
+        "--attitude",
+        "sun",
+        "--start",
+        "2000-08-01T00:00:00",
+        "--duration-h",
+        "0.5",
+        "--step-s",
+        "60",
+        "--tolerance-json",
+        tol,
+        "--json",
+    )
     assert code == 0
     assert "warning: the span is +34.2 days from the TLE epoch" in err
     with pytest.warns(TleAgeWarning, match=r"\+34\.2 days"):

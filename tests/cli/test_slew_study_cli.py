@@ -20,9 +20,25 @@ def run(capsys, *argv):
 def test_slew_study_json_and_plot(capsys, tmp_path):
     plot = tmp_path / "study.png"
     code, out, _ = run(
-        capsys, "slew", "study", "--sensor", "st16", "--sigmas-px", "1.5,2.5", "--qe", "0.3,0.4",
-        "--trials", "4", "--mag-step", "0.1", "--seed", "2", "--plot", str(plot), "--json",
-    )  # fmt: skip
+        capsys,
+        "slew",
+        "study",
+        "--sensor",
+        "st16",
+        "--sigmas-px",
+        "1.5,2.5",
+        "--qe",
+        "0.3,0.4",
+        "--trials",
+        "4",
+        "--mag-step",
+        "0.1",
+        "--seed",
+        "2",
+        "--plot",
+        str(plot),
+        "--json",
+    )
     assert code == 0
     res = json.loads(out)
     assert res["sigmas_px"] == [1.5, 2.5] and res["qe_means"] == [0.3, 0.4]
@@ -38,8 +54,9 @@ def test_slew_study_json_and_plot(capsys, tmp_path):
 
 
 def test_slew_study_text(capsys):
-    code, out, _ = run(capsys, "slew", "study", "--sigmas-px", "1.5", "--trials", "4",
-                       "--mag-step", "0.1")  # fmt: skip
+    code, out, _ = run(
+        capsys, "slew", "study", "--sigmas-px", "1.5", "--trials", "4", "--mag-step", "0.1"
+    )
     assert code == 0
     assert "paper" in out and "best physically sensible pair: sigma 1.5 px" in out
 

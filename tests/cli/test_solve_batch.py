@@ -93,6 +93,8 @@ def test_progress_bar_on_a_terminal_leaves_stdout_alone(batch_dir, capsys, monke
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     code, out, _ = _run(["solve", str(batch_dir), "--sensor", "esa_blackfly", "--json"], capsys)
     assert [json.loads(line)["status"] for line in out.splitlines()] == [
-        "solved", "solved", "unreadable",
-    ]  # fmt: skip
+        "solved",
+        "solved",
+        "unreadable",
+    ]
     assert code == 1

@@ -251,8 +251,12 @@ def test_esa_background_follows_the_glow_into_the_corners(shared_dir):
         image = np.array(Image.open(path))
         bg = estimate_background(image)
         resid = image - bg.level
-        corners = [(slice(0, w), slice(0, w)), (slice(0, w), slice(-w, None)),
-                   (slice(-w, None), slice(0, w)), (slice(-w, None), slice(-w, None))]  # fmt: skip
+        corners = [
+            (slice(0, w), slice(0, w)),
+            (slice(0, w), slice(-w, None)),
+            (slice(-w, None), slice(0, w)),
+            (slice(-w, None), slice(-w, None)),
+        ]
         for rows, cols in corners:
             assert abs(np.median(resid[rows, cols])) < 0.5 * bg.noise, path.name
         # sky glow's shot noise: the noise map is lower in the dark corners than in the centre

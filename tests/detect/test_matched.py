@@ -61,8 +61,9 @@ def test_single_pixel_spikes_are_not_stars():
     rr, cc = rng.integers(5, 395, 60), rng.integers(5, 495, 60)
     image[rr, cc] += rng.uniform(50, 65, 60)
     plain = StarDetector(LOGIC, background="auto", threshold_sigma=5)(image)
-    matched = StarDetector(LOGIC, background="auto", threshold_sigma=5, matched_filter=True,
-                           psf_sigma_px=SIGMA_PX)(image)  # fmt: skip
+    matched = StarDetector(
+        LOGIC, background="auto", threshold_sigma=5, matched_filter=True, psf_sigma_px=SIGMA_PX
+    )(image)
     d = np.hypot(matched.x[:, None] - xy[:, 0], matched.y[:, None] - xy[:, 1]).min(axis=1)
     assert np.sum(d < 1.0) >= 18  # (nearly) every star is found: 8.5 sigma, two may blend
     assert np.sum(d >= 1.0) <= 6  # the spikes that a noise excursion lifts
@@ -80,8 +81,9 @@ def test_plateau_one_step_up_is_not_a_star():
     image[40:48, 40:48] = 2
     image[40:48, 48:56] = 2
     image += np.rint(_stars(image.shape, [(96.3, 90.7)], [60.0])).astype(np.uint8)
-    det = StarDetector(LOGIC, background="auto", threshold_sigma=5, matched_filter=True,
-                       psf_sigma_px=SIGMA_PX)(image)  # fmt: skip
+    det = StarDetector(
+        LOGIC, background="auto", threshold_sigma=5, matched_filter=True, psf_sigma_px=SIGMA_PX
+    )(image)
     assert len(det) == 1
     assert det.x[0] == pytest.approx(96.3, abs=0.2) and det.y[0] == pytest.approx(90.7, abs=0.2)
 

@@ -69,10 +69,13 @@ def test_quantised_estimate_agrees_with_photutils_sigma_clipped_std():
 
     image = _dark_frame(2.0, 16.0)
     ref = photutils_background.Background2D(
-        image.astype(float), 64, filter_size=3, sigma_clip=SigmaClip(sigma=5.0, maxiters=10),
+        image.astype(float),
+        64,
+        filter_size=3,
+        sigma_clip=SigmaClip(sigma=5.0, maxiters=10),
         bkg_estimator=photutils_background.MeanBackground(),
         bkg_rms_estimator=photutils_background.StdBackgroundRMS(),
-    )  # fmt: skip
+    )
     bg = estimate_background(image)
     assert bg.noise == pytest.approx(ref.background_rms_median, rel=0.03)
     assert float(np.median(bg.level)) == pytest.approx(ref.background_median, abs=0.02)

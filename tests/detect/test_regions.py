@@ -11,8 +11,10 @@ from starsense.detect.regions import label_pixels, region_centroids
 
 
 @pytest.mark.parametrize("connectivity", [4, 8])
-@pytest.mark.parametrize(("shape", "fill"), [((60, 80), 0.3), ((1, 50), 0.5), ((50, 1), 0.5),
-                                             ((40, 40), 0.0), ((33, 47), 0.6)])  # fmt: skip
+@pytest.mark.parametrize(
+    ("shape", "fill"),
+    [((60, 80), 0.3), ((1, 50), 0.5), ((50, 1), 0.5), ((40, 40), 0.0), ((33, 47), 0.6)],
+)
 def test_label_pixels_is_ndimage_label(shape, fill, connectivity):
     # scipy.ndimage.label over the whole frame is the reference: same regions, same numbering
     # (raster order of each region's first pixel); regions touching the right edge must not

@@ -30,8 +30,9 @@ def test_streak_centroids_equal_the_one_region_loop(st16):
     for k in range(12):
         angle, length = rng.uniform(0, np.pi), rng.uniform(3.0, 20.0)
         streak = (length * np.cos(angle), length * np.sin(angle))
-        img = render_star_stamp(st16, 3000.0, streak_px=streak, offset_px=rng.uniform(-0.5, 0.5, 2),
-                                rng=k, pad_sigma=8)  # fmt: skip
+        img = render_star_stamp(
+            st16, 3000.0, streak_px=streak, offset_px=rng.uniform(-0.5, 0.5, 2), rng=k, pad_sigma=8
+        )
         img = img[:41, :41].astype(float) - st16.detector.bias_counts
         planes.append(np.pad(img, ((0, 41 - img.shape[0]), (0, 41 - img.shape[1]))))
         starts.append(np.array([20.0, 20.0]) + rng.uniform(-3, 3, 2))

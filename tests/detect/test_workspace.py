@@ -50,8 +50,9 @@ def test_detections_do_not_change_when_buffers_are_reused():
     for x0, y0 in [(30.2, 40.7), (100.5, 80.1), (140.0, 20.3)]:
         frame += 400 * np.exp(-((xx - x0) ** 2 + (yy - y0) ** 2) / 2.0)
     other = 500.0 + rng.normal(0, 30, (120, 160))
-    det = StarDetector(background="auto", threshold_sigma=5, matched_filter=True, min_snr=5,
-                       psf_sigma_px=1.0)  # fmt: skip
+    det = StarDetector(
+        background="auto", threshold_sigma=5, matched_filter=True, min_snr=5, psf_sigma_px=1.0
+    )
     first = det(frame)
     det(other)
     again = det(frame)

@@ -54,8 +54,14 @@ def _lens(**kw):
 
 
 def test_sensor_project_unproject_round_trip_with_principal_point():
-    s = _lens(distortion_k1=2.0, distortion_k2=-3.0, distortion_p1=1e-3, distortion_p2=-5e-4,
-              principal_offset_x_px=12.5, principal_offset_y_px=-7.0)  # fmt: skip
+    s = _lens(
+        distortion_k1=2.0,
+        distortion_k2=-3.0,
+        distortion_p1=1e-3,
+        distortion_p2=-5e-4,
+        principal_offset_x_px=12.5,
+        principal_offset_y_px=-7.0,
+    )
     rng = np.random.default_rng(2)
     xs = rng.uniform(-0.5, s.detector.columns - 0.5, 500)
     ys = rng.uniform(-0.5, s.detector.rows - 0.5, 500)

@@ -17,8 +17,11 @@ from starsense.render.sequence import frame_seeds, render_sequence, sequence_pat
 
 def test_sequence_frames_follow_the_rate(st16, attitude, catalog):
     w = np.radians([0.3, -0.2, 0.5])
-    frames = list(render_sequence(st16, attitude, catalog, n_frames=3, interval_s=0.5,
-                                  rate_rad_s=w, seed=7, noise=False))  # fmt: skip
+    frames = list(
+        render_sequence(
+            st16, attitude, catalog, n_frames=3, interval_s=0.5, rate_rad_s=w, seed=7, noise=False
+        )
+    )
     assert [f.truth.time_s for f in frames] == [0.0, 0.5, 1.0]
     seeds = [f.truth.seed for f in frames]
     assert seeds == frame_seeds(7, 3) and len(set(seeds)) == 3
@@ -48,11 +51,31 @@ def test_sequence_paths():
 
 def test_cli_render_sequence_writes_frames_and_truth(tmp_path, capsys):
     out = tmp_path / "frame.tiff"
-    code = main([
-        "render", "--sensor", "st16", "--ra-deg", "80", "--dec-deg", "20", "--roll-deg", "10",
-        "--rate-deg-s", "0.5,0.2,0.1", "--sequence", "3", "--interval-s", "0.5", "--seed", "3",
-        "--max-mag", "5", "--out", str(out),
-    ])  # fmt: skip
+    code = main(
+        [
+            "render",
+            "--sensor",
+            "st16",
+            "--ra-deg",
+            "80",
+            "--dec-deg",
+            "20",
+            "--roll-deg",
+            "10",
+            "--rate-deg-s",
+            "0.5,0.2,0.1",
+            "--sequence",
+            "3",
+            "--interval-s",
+            "0.5",
+            "--seed",
+            "3",
+            "--max-mag",
+            "5",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == [f"frame_00{k}.tiff{ext}" for k in range(3) for ext in ("", ".json")]
@@ -61,8 +84,10 @@ def test_cli_render_sequence_writes_frames_and_truth(tmp_path, capsys):
     assert truth[1]["rate_rad_s"] == pytest.approx(np.radians([0.5, 0.2, 0.1]).tolist())
     # the attitude of frame 1 is frame 0's turned by the rate over 0.5 s (0.28 deg): the
     # boresights differ by |w_xy| dt to first order (the roll part leaves the boresight)
-    b = [radec_to_vectors(np.radians(t["attitude"]["ra_deg"]), np.radians(t["attitude"]["dec_deg"]))
-         for t in truth]  # fmt: skip
+    b = [
+        radec_to_vectors(np.radians(t["attitude"]["ra_deg"]), np.radians(t["attitude"]["dec_deg"]))
+        for t in truth
+    ]
     assert float(angular_separation(b[0], b[1])) == pytest.approx(
         np.hypot(*np.radians([0.5, 0.2])) * 0.5, rel=1e-3
     )

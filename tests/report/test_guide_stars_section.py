@@ -70,8 +70,13 @@ def test_table_has_paper_values(lin_section):
     section = lin_section[1]
     # the paper's Table 1 beside ours: four areas at 0.3", one area at 0.01", its saturation
     t1 = lin2024.TABLE1_PERCENT
-    for paper in (t1["four"][0], t1["one"][-1], t1["four"][-1], t1["two_symmetric"][-1],
-                  t1["two_adjacent"][0]):  # fmt: skip
+    for paper in (
+        t1["four"][0],
+        t1["one"][-1],
+        t1["four"][-1],
+        t1["two_symmetric"][-1],
+        t1["two_adjacent"][0],
+    ):
         assert f">{paper:.2f}<" in section.html
     assert "400 random placements" in section.html
     assert "Cramér-Rao" in section.html and "3σ" in section.html

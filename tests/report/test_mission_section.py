@@ -42,9 +42,16 @@ def _stars(n=6000, seed=0):
 
 
 def _ctx(tmp_path, sensor):
-    return ReportContext(work_dir=tmp_path, catalog_name="synthetic", n_catalog=6000,
-                         stars={"B-V": _stars()}, diameter_m=0.1, exposure_s=0.01,
-                         sensor=sensor, slew_trials=2)  # fmt: skip
+    return ReportContext(
+        work_dir=tmp_path,
+        catalog_name="synthetic",
+        n_catalog=6000,
+        stars={"B-V": _stars()},
+        diameter_m=0.1,
+        exposure_s=0.01,
+        sensor=sensor,
+        slew_trials=2,
+    )
 
 
 def test_mission_section_from_toml(tmp_path):

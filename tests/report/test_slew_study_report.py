@@ -17,9 +17,17 @@ pytest.importorskip("starsense.detect.stack")
 
 
 def test_slew_section_carries_the_psf_qe_study(tmp_path):
-    ctx = ReportContext(work_dir=tmp_path, catalog_name="none", n_catalog=0, stars={},
-                        diameter_m=0.012, exposure_s=0.1, seed=0, slew_trials=2,
-                        sensor=load_sensor("st16"))  # fmt: skip
+    ctx = ReportContext(
+        work_dir=tmp_path,
+        catalog_name="none",
+        n_catalog=0,
+        stars={},
+        diameter_m=0.012,
+        exposure_s=0.1,
+        seed=0,
+        slew_trials=2,
+        sensor=load_sensor("st16"),
+    )
     t0 = time.perf_counter()
     section = slew_section(ctx)
     elapsed = time.perf_counter() - t0

@@ -101,8 +101,9 @@ def data(tmp_path_factory, client):
         index=False,
         float_format="%.17g",  # round-trips float64
     )
-    import_catalog(folder / "stars.parquet", folder / "stars_hats", pixel_threshold=2_000,
-                   client=client)  # fmt: skip
+    import_catalog(
+        folder / "stars.parquet", folder / "stars_hats", pixel_threshold=2_000, client=client
+    )
     gaia = load_catalog(f"gaia:{folder / 'stars.parquet'}", cache=False)
     twomass = load_catalog(f"twomass:{folder / 'twomass.csv'}", cache=False)
     return folder, gaia, twomass, open_hats(f"hats:{folder / 'stars_hats'}")
@@ -183,10 +184,14 @@ def test_brightest_curve_equals_in_memory(data, client, max_explicit):
     stars = mem.BlackBodyStars.from_catalog(gaia)
     labels = set()
     curve = brightest_curve(
-        hats, diameter_m=0.1, exposure_s=0.1, colour="BP-RP", client=client,
+        hats,
+        diameter_m=0.1,
+        exposure_s=0.1,
+        colour="BP-RP",
+        client=client,
         max_explicit=max_explicit,
         progress=lambda label, done, total: labels.add(label),
-    )  # fmt: skip
+    )
     assert ("N brightest: finer histogram" in labels) == (max_explicit == 50)
     curve0 = mem.brightest_curve(stars, diameter_m=0.1, exposure_s=0.1)
     np.testing.assert_array_equal(curve.n_stars, curve0.n_stars)
@@ -250,10 +255,21 @@ def run(capsys, *argv):
 def test_cli_limit_sky_hats_by_scheduler_address(data, client, capsys):
     folder, gaia, _, _ = data
     code, out, err = run(
-        capsys, "limit", "sky", "--catalog", f"hats:{folder / 'stars_hats'}",
-        "--dask", client.scheduler.address, "--diameter-m", "0.1", "--exposure-s", "0.1",
-        "--colour", "BP-RP", "--json",
-    )  # fmt: skip
+        capsys,
+        "limit",
+        "sky",
+        "--catalog",
+        f"hats:{folder / 'stars_hats'}",
+        "--dask",
+        client.scheduler.address,
+        "--diameter-m",
+        "0.1",
+        "--exposure-s",
+        "0.1",
+        "--colour",
+        "BP-RP",
+        "--json",
+    )
     assert code == 0, err
     assert err == ""  # no progress bar or warnings: stderr is not a terminal
     payload = json.loads(out)  # --json output is pure JSON
@@ -265,9 +281,17 @@ def test_cli_limit_sky_hats_by_scheduler_address(data, client, capsys):
 def test_cli_limit_curve_hats(data, client, capsys):
     folder, gaia, _, _ = data
     code, out, err = run(
-        capsys, "limit", "curve", "--catalog", f"hats:{folder / 'stars_hats'}",
-        "--dask", client.scheduler.address, "--colour", "BP-RP", "--json",
-    )  # fmt: skip
+        capsys,
+        "limit",
+        "curve",
+        "--catalog",
+        f"hats:{folder / 'stars_hats'}",
+        "--dask",
+        client.scheduler.address,
+        "--colour",
+        "BP-RP",
+        "--json",
+    )
     assert code == 0, err
     payload = json.loads(out)
     ref = mem.brightest_curve(mem.BlackBodyStars.from_catalog(gaia, "BP-RP"))
@@ -278,17 +302,31 @@ def test_cli_limit_curve_hats(data, client, capsys):
 def test_cli_limit_sky_hats_fov_heads(data, client, capsys):
     folder, gaia, _, _ = data
     code, out, err = run(
-        capsys, "limit", "sky", "--catalog", f"hats:{folder / 'stars_hats'}",
-        "--dask", client.scheduler.address, "--fov-deg", "20", "--target-deg", "10,20",
-        "--target-deg", "200,-40", "--colour", "BP-RP", "--json",
-    )  # fmt: skip
+        capsys,
+        "limit",
+        "sky",
+        "--catalog",
+        f"hats:{folder / 'stars_hats'}",
+        "--dask",
+        client.scheduler.address,
+        "--fov-deg",
+        "20",
+        "--target-deg",
+        "10,20",
+        "--target-deg",
+        "200,-40",
+        "--colour",
+        "BP-RP",
+        "--json",
+    )
     assert code == 0, err
     payload = json.loads(out)
     targets = np.array(
         [radec_to_vectors(np.radians(a), np.radians(d)) for a, d in ((10, 20), (200, -40))]
     )
-    heads, merged = mem.fov_limit(mem.BlackBodyStars.from_catalog(gaia), targets,
-                                  fov_diameter_rad=np.radians(20.0))  # fmt: skip
+    heads, merged = mem.fov_limit(
+        mem.BlackBodyStars.from_catalog(gaia), targets, fov_diameter_rad=np.radians(20.0)
+    )
     assert [h["n_stars"] for h in payload["heads"]] == [h.n_stars for h in heads]
     assert payload["merged"]["theta_rms_rad"] == pytest.approx(merged.theta_rms_rad, rel=REL)
 
@@ -296,10 +334,23 @@ def test_cli_limit_sky_hats_fov_heads(data, client, capsys):
 def test_cli_availability_static_hats(data, client, capsys):
     folder, gaia, _, _ = data
     code, out, err = run(
-        capsys, "availability", "static", "--catalog", f"hats:{folder / 'stars_hats'}",
-        "--dask", client.scheduler.address, "--band", "G", "--max-mag", "2.5",
-        "--half-fov-deg", "7.5", "--n-orientations", "1000", "--json",
-    )  # fmt: skip
+        capsys,
+        "availability",
+        "static",
+        "--catalog",
+        f"hats:{folder / 'stars_hats'}",
+        "--dask",
+        client.scheduler.address,
+        "--band",
+        "G",
+        "--max-mag",
+        "2.5",
+        "--half-fov-deg",
+        "7.5",
+        "--n-orientations",
+        "1000",
+        "--json",
+    )
     assert code == 0, err
     payload = json.loads(out)
     ref = AvailabilityAnalysis.from_catalog(
@@ -314,15 +365,28 @@ def test_cli_catalog_import_is_atomic(client, capsys, tmp_path):
     small.to_csv(tmp_path / "mine.csv", index=False, float_format="%.17g")
     out_dir = tmp_path / "mine_hats"
     code, out, err = run(
-        capsys, "catalog", "import", str(tmp_path / "mine.csv"), str(out_dir),
-        "--dask", client.scheduler.address, "--json",
-    )  # fmt: skip
+        capsys,
+        "catalog",
+        "import",
+        str(tmp_path / "mine.csv"),
+        str(out_dir),
+        "--dask",
+        client.scheduler.address,
+        "--json",
+    )
     assert code == 0, err
     payload = json.loads(out)
     assert payload["n_rows"] == 500 and out_dir.is_dir()
     assert {"phot_g_mean_mag", "bp_rp"} <= set(payload["columns"])
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temp left
     # importing again onto an existing catalogue is refused, and leaves it alone
-    code, _, err = run(capsys, "catalog", "import", str(tmp_path / "mine.csv"), str(out_dir),
-                       "--dask", client.scheduler.address)  # fmt: skip
+    code, _, err = run(
+        capsys,
+        "catalog",
+        "import",
+        str(tmp_path / "mine.csv"),
+        str(out_dir),
+        "--dask",
+        client.scheduler.address,
+    )
     assert code == 2 and "already exists" in err and out_dir.is_dir()

@@ -148,9 +148,12 @@ def g_only_hats(scale, tmp_path_factory):
     rng = np.random.default_rng(0)
     n = 300
     frame = pd.DataFrame(
-        {"ra": rng.uniform(0, 360, n), "dec": np.degrees(np.arcsin(rng.uniform(-1, 1, n))),
-         "phot_g_mean_mag": rng.uniform(2, 10, n)}
-    )  # fmt: skip
+        {
+            "ra": rng.uniform(0, 360, n),
+            "dec": np.degrees(np.arcsin(rng.uniform(-1, 1, n))),
+            "phot_g_mean_mag": rng.uniform(2, 10, n),
+        }
+    )
     path = tmp_path_factory.mktemp("gonly") / "g_only"
     with warnings.catch_warnings():
         quiet_third_party_warnings()  # lsdb's own pandas-3.1 deprecations
@@ -178,7 +181,8 @@ def test_catalogue_without_the_band_for_availability(scale, g_only_hats):
 
 def test_import_without_position_columns_leaves_nothing(scale, tmp_path, capsys):
     (tmp_path / "cat.csv").write_text("alpha,delta,V\n10,20,5\n")
-    code, _, err = run(capsys, "catalog", "import", str(tmp_path / "cat.csv"),
-                       str(tmp_path / "out"))  # fmt: skip
+    code, _, err = run(
+        capsys, "catalog", "import", str(tmp_path / "cat.csv"), str(tmp_path / "out")
+    )
     assert code == 2 and "position column(s) ra, dec missing" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cat.csv"]

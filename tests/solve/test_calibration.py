@@ -138,8 +138,15 @@ def test_calibrate_cli_writes_a_sensor_solve_uses(lens_frames, capsys):
     args += ["--fit", "focal_length,k1"]
     assert main(args) == 0
     res = json.loads(capsys.readouterr().out)
-    assert {"frames", "stars", "focal_length_m", "principal_point_px", "distortion",
-            "residual_rms_arcsec_before", "residual_rms_arcsec_after"} <= set(res)  # fmt: skip
+    assert {
+        "frames",
+        "stars",
+        "focal_length_m",
+        "principal_point_px",
+        "distortion",
+        "residual_rms_arcsec_before",
+        "residual_rms_arcsec_after",
+    } <= set(res)
     assert res["frames"] == 3
     k1, s1 = res["distortion"]["k1"], res["distortion_sigma"]["k1"]
     assert abs(k1 + 0.2) < 3 * s1

@@ -47,8 +47,10 @@ def test_csv_errors_name_the_line(tmp_path, text, message):
 def test_xylist_is_converted_from_fits_pixels(tmp_path):
     from astropy.io import fits
 
-    cols = [fits.Column(name="X", format="E", array=np.array([1.0, 100.5])),
-            fits.Column(name="Y", format="E", array=np.array([1.0, 50.25]))]  # fmt: skip
+    cols = [
+        fits.Column(name="X", format="E", array=np.array([1.0, 100.5])),
+        fits.Column(name="Y", format="E", array=np.array([1.0, 50.25])),
+    ]
     p = tmp_path / "c.xyls"
     fits.HDUList([fits.PrimaryHDU(), fits.BinTableHDU.from_columns(cols)]).writeto(p)
     got = read_centroids(p)

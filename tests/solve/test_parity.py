@@ -73,8 +73,9 @@ def solvers(sensor):
 
 
 def _assert_attitude(sol, truth) -> None:
-    boresight = float(angular_separation(sol.rotation.inv().apply([0, 0, 1]),
-                                         truth.inv().apply([0, 0, 1])))  # fmt: skip
+    boresight = float(
+        angular_separation(sol.rotation.inv().apply([0, 0, 1]), truth.inv().apply([0, 0, 1]))
+    )
     assert boresight < 0.5 * PIXEL_RAD, boresight / PIXEL_RAD
     droll = (sol.roll_rad - attitude_roll(truth) + math.pi) % (2 * math.pi) - math.pi
     assert abs(droll) < math.radians(0.05), math.degrees(droll)

@@ -127,8 +127,10 @@ def test_cli_csv_and_xylist_give_the_truth_attitude(truth, tmp_path, capsys):
     rows = [f"{float(flux[i])!r},{float(xy[i, 1])!r},{float(xy[i, 0])!r}" for i in order]
     csv.write_text("FLUX,Y,X\n" + "\n".join(rows) + "\n")
     # xylist: FITS pixels, first centre at (1, 1), image size in the header
-    cols = [fits.Column(name=n, format="D", array=a)
-            for n, a in (("X", xy[:, 0] + 1), ("Y", xy[:, 1] + 1), ("FLUX", flux))]  # fmt: skip
+    cols = [
+        fits.Column(name=n, format="D", array=a)
+        for n, a in (("X", xy[:, 0] + 1), ("Y", xy[:, 1] + 1), ("FLUX", flux))
+    ]
     hdu = fits.BinTableHDU.from_columns(cols)
     hdu.header["IMAGEW"], hdu.header["IMAGEH"] = COLUMNS, ROWS
     xyls = tmp_path / "c.xyls"
@@ -139,8 +141,9 @@ def test_cli_csv_and_xylist_give_the_truth_attitude(truth, tmp_path, capsys):
         assert code == 0, err
         got = json.loads(out)
         assert got["status"] == "solved" and got["centroids"] == str(path)
-        sol = attitude_from_radec_roll(*np.radians([got["ra_deg"], got["dec_deg"],
-                                                    got["roll_deg"]]))  # fmt: skip
+        sol = attitude_from_radec_roll(
+            *np.radians([got["ra_deg"], got["dec_deg"], got["roll_deg"]])
+        )
         err_arcsec = np.abs(small_rotation_angles(att, sol)) * ARCSEC_PER_RAD
         assert np.all(err_arcsec < EXACT_ARCSEC), (path.suffix, err_arcsec)
 

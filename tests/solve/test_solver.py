@@ -235,8 +235,15 @@ def test_solver_checks_its_parameters_by_name():
 
 def test_solution_stores_radians_and_shows_degrees():
     sigma = (1e-5, 2e-5, 3e-5)
-    sol = Solution("solved", ra_rad=math.pi / 2, dec_rad=-math.pi / 4, roll_rad=0.0,
-                   fov_rad=math.radians(10), rmse_rad=1e-5, sigma_rad=sigma)  # fmt: skip
+    sol = Solution(
+        "solved",
+        ra_rad=math.pi / 2,
+        dec_rad=-math.pi / 4,
+        roll_rad=0.0,
+        fov_rad=math.radians(10),
+        rmse_rad=1e-5,
+        sigma_rad=sigma,
+    )
     d = sol.to_dict()
     assert d["ra_deg"] == pytest.approx(90.0) and d["dec_deg"] == pytest.approx(-45.0)
     assert d["fov_deg"] == pytest.approx(10.0)

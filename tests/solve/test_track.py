@@ -64,8 +64,9 @@ def _gyro_prior(att, w):
 def _run(solver, st16, hipparcos, att, w, n, prior, seed, max_mag=6.5):
     tracker = Tracker(solver, interval_s=0.5, prior=prior)
     out = []
-    frames = render_sequence(st16, att, hipparcos, n_frames=n, interval_s=0.5, rate_rad_s=w,
-                             seed=seed, max_mag=max_mag)  # fmt: skip
+    frames = render_sequence(
+        st16, att, hipparcos, n_frames=n, interval_s=0.5, rate_rad_s=w, seed=seed, max_mag=max_mag
+    )
     for frame in frames:
         out.append((frame, tracker(frame.image)))
     return out
@@ -108,8 +109,13 @@ def test_track_starts_lost_in_space_without_prior(solver, st16, hipparcos):
 
 def test_far_prior_falls_back_and_says_so(solver, st16, hipparcos):
     att, w = _scenario(3, 0.1)
-    frame = next(iter(render_sequence(st16, att, hipparcos, n_frames=1, interval_s=0.5,
-                                      rate_rad_s=w, seed=5, max_mag=6.5)))  # fmt: skip
+    frame = next(
+        iter(
+            render_sequence(
+                st16, att, hipparcos, n_frames=1, interval_s=0.5, rate_rad_s=w, seed=5, max_mag=6.5
+            )
+        )
+    )
     off = Rotation.from_rotvec([5 * DEG, 0.0, 0.0]) * att  # 5 deg off, claimed good to 0.05
     r = track_frame(solver, frame.image, Prior(off, np.eye(3) * (0.05 * DEG) ** 2))
     assert r.mode == "lost_in_space"
@@ -175,26 +181,69 @@ def test_track_needs_a_sensor():
 
 def test_cli_track_sequence_with_corrupt_and_missing_frames(tmp_path, capsys):
     out = tmp_path / "frame.tiff"
-    code = main([
-        "render", "--sensor", "st16", "--ra-deg", "84", "--dec-deg", "-2", "--roll-deg", "30",
-        "--rate-deg-s", "0.2,0.1,0", "--sequence", "4", "--interval-s", "0.5", "--seed", "1",
-        "--max-mag", "6", "--out", str(out),
-    ])  # fmt: skip
+    code = main(
+        [
+            "render",
+            "--sensor",
+            "st16",
+            "--ra-deg",
+            "84",
+            "--dec-deg",
+            "-2",
+            "--roll-deg",
+            "30",
+            "--rate-deg-s",
+            "0.2,0.1,0",
+            "--sequence",
+            "4",
+            "--interval-s",
+            "0.5",
+            "--seed",
+            "1",
+            "--max-mag",
+            "6",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     capsys.readouterr()
     (tmp_path / "frame_001.tiff").write_bytes(b"not a tiff")
     frames = [str(tmp_path / f"frame_00{k}.tiff") for k in range(4)]
-    code = main(["track", *frames, str(tmp_path / "missing.tiff"), "--sensor", "st16",
-                 "--interval-s", "0.5", "--json"])  # fmt: skip
+    code = main(
+        [
+            "track",
+            *frames,
+            str(tmp_path / "missing.tiff"),
+            "--sensor",
+            "st16",
+            "--interval-s",
+            "0.5",
+            "--json",
+        ]
+    )
     lines = [json.loads(s) for s in capsys.readouterr().out.splitlines()]
     assert code == 0
     assert len(lines) == 5
-    keys = {"image", "status", "mode", "ra_deg", "dec_deg", "roll_deg", "rate_deg_s",
-            "n_matched", "time_ms"}  # fmt: skip
+    keys = {
+        "image",
+        "status",
+        "mode",
+        "ra_deg",
+        "dec_deg",
+        "roll_deg",
+        "rate_deg_s",
+        "n_matched",
+        "time_ms",
+    }
     assert all(keys <= set(line) for line in lines)
     assert [line["status"] for line in lines] == [
-        "solved", "unreadable", "solved", "solved", "unreadable"
-    ]  # fmt: skip
+        "solved",
+        "unreadable",
+        "solved",
+        "solved",
+        "unreadable",
+    ]
     assert lines[0]["mode"] == "lost_in_space" and lines[3]["mode"] == "tracking"
     truth = json.loads((tmp_path / "frame_003.tiff.json").read_text())["attitude"]
     assert lines[3]["ra_deg"] == pytest.approx(truth["ra_deg"], abs=10 / 3600)
@@ -244,8 +293,9 @@ def test_tracking_acceptance_st16(solver, st16, hipparcos, rate_deg_s):
     za, zr = [], []
     for k in range(12 if rate_deg_s >= 2 else 4):
         att, w = _scenario(100 + k, rate_deg_s)
-        for frame, r in _run(solver, st16, hipparcos, att, w, 6, _gyro_prior(att, w),
-                             seed=10 * k + 1):  # fmt: skip
+        for frame, r in _run(
+            solver, st16, hipparcos, att, w, 6, _gyro_prior(att, w), seed=10 * k + 1
+        ):
             if _stars_detected(solver, frame) >= 2:
                 assert r.has_attitude, (rate_deg_s, k, r.solution.message)
             if not r.has_attitude:
@@ -347,14 +397,42 @@ def test_track_esa_frames_from_a_close_prior(shared_dir):
 
 def test_cli_track_from_a_given_prior(tmp_path, capsys):
     out = tmp_path / "f.tiff"
-    args = ["render", "--sensor", "st16", "--ra-deg", "84", "--dec-deg", "-2", "--roll-deg",
-            "30", "--rate-deg-s", "0.1,0,0", "--sequence", "1", "--interval-s", "1",
-            "--max-mag", "6", "--out", str(out)]  # fmt: skip
+    args = [
+        "render",
+        "--sensor",
+        "st16",
+        "--ra-deg",
+        "84",
+        "--dec-deg",
+        "-2",
+        "--roll-deg",
+        "30",
+        "--rate-deg-s",
+        "0.1,0,0",
+        "--sequence",
+        "1",
+        "--interval-s",
+        "1",
+        "--max-mag",
+        "6",
+        "--out",
+        str(out),
+    ]
     assert main(args) == 0
     capsys.readouterr()
-    code = main(["track", str(tmp_path / "f_000.tiff"), "--sensor", "st16",
-                 "--prior-radec-roll-deg", "84.02,-2.01,30.05", "--prior-sigma-deg", "0.05",
-                 "--json"])  # fmt: skip
+    code = main(
+        [
+            "track",
+            str(tmp_path / "f_000.tiff"),
+            "--sensor",
+            "st16",
+            "--prior-radec-roll-deg",
+            "84.02,-2.01,30.05",
+            "--prior-sigma-deg",
+            "0.05",
+            "--json",
+        ]
+    )
     line = json.loads(capsys.readouterr().out)
     assert code == 0 and line["mode"] == "tracking" and line["status"] == "solved"
     assert line["ra_deg"] == pytest.approx(84, abs=10 / 3600)

@@ -58,8 +58,9 @@ def _check(solver, fov_deg: float, catalog: str, band: str | None, max_mag: floa
         frame = render_frame(sensor, truth, cat, band=band, max_mag=max_mag, rng=i)
         sol = solver(frame.image)
         assert sol.solved, f"{fov_deg} deg at {ra}, {dec}: {sol.status}: {sol.message}"
-        err = float(angular_separation(sol.rotation.inv().apply([0, 0, 1]),
-                                       truth.inv().apply([0, 0, 1])))  # fmt: skip
+        err = float(
+            angular_separation(sol.rotation.inv().apply([0, 0, 1]), truth.inv().apply([0, 0, 1]))
+        )
         assert err < 2.0 * pixel_rad, (fov_deg, ra, dec, err / pixel_rad)
         assert sol.fov_deg == pytest.approx(fov_deg, rel=3e-3)
 
@@ -85,8 +86,9 @@ def test_narrow_fields_solve_unknown_with_gaia(solver, fov_deg):
 
 def test_plan_uses_gaia_for_narrow_fields_only_when_installed():
     plan = unknown_field_plan("hipparcos")
-    widths = [(round(math.degrees(f.min_fov_rad), 1), round(math.degrees(f.max_fov_rad), 1))
-              for f in plan]  # fmt: skip
+    widths = [
+        (round(math.degrees(f.min_fov_rad), 1), round(math.degrees(f.max_fov_rad), 1)) for f in plan
+    ]
     assert widths == [(5.0, 30.0), (25.0, 70.0), (2.8, 6.0)]
     assert [f.catalog for f in plan[:2]] == ["hipparcos", "hipparcos"]
     assert plan[2].catalog == ("gaia" if deep_catalog_available() else "hipparcos")
@@ -107,8 +109,13 @@ def test_no_wrong_answer_on_noise_or_a_mirrored_sky(solver):
         xy = rng.uniform((0, 0), (1023, 767), size=(20, 2))
         v = pinhole_vectors(xy[:, 0], xy[:, 1], shape=(768, 1024), fov_rad=math.radians(15.0))
         for field_range in plan:
-            ident = identify_ranked(solver.identifier(None, field_range), v, -np.arange(20.0),
-                                    None, assumed_fov_rad=math.radians(15.0))  # fmt: skip
+            ident = identify_ranked(
+                solver.identifier(None, field_range),
+                v,
+                -np.arange(20.0),
+                None,
+                assumed_fov_rad=math.radians(15.0),
+            )
             assert not ident.solved, (field_range, ident)
     sensor = _sensor(20.0)
     truth = attitude_from_radec_roll(*(math.radians(a) for a in POINTINGS[0]))

@@ -22,10 +22,15 @@ def _solution(sensor):
     att = attitude_from_radec_roll(np.radians(200.0), np.radians(35.0), np.radians(25.0))
     ra, dec, roll = radec_roll_from_attitude(att)
     return Solution(
-        "solved", ra_rad=float(ra), dec_rad=float(dec), roll_rad=float(roll), rotation=att,
+        "solved",
+        ra_rad=float(ra),
+        dec_rad=float(dec),
+        roll_rad=float(roll),
+        rotation=att,
         image_shape=(sensor.detector.rows, sensor.detector.columns),
-        focal_px=sensor.focal_length_px, sensor=sensor,
-    )  # fmt: skip
+        focal_px=sensor.focal_length_px,
+        sensor=sensor,
+    )
 
 
 # a header-only WCS file (NAXIS = 0) makes astropy note that the image has fewer axes
@@ -36,9 +41,15 @@ def test_sip_wcs_reproduces_the_sensor_model(k1, tmp_path):
     from astropy.wcs import WCS
 
     base = load_sensor("st16")
-    s = base.with_(optics=dataclasses.replace(
-        base.optics, distortion_k1=k1, distortion_p1=2e-4 if k1 else 0.0,
-        principal_offset_x_px=4.0, principal_offset_y_px=-3.0))  # fmt: skip
+    s = base.with_(
+        optics=dataclasses.replace(
+            base.optics,
+            distortion_k1=k1,
+            distortion_p1=2e-4 if k1 else 0.0,
+            principal_offset_x_px=4.0,
+            principal_offset_y_px=-3.0,
+        )
+    )
     sol = _solution(s)
     path = sol.write_wcs(tmp_path / "f.wcs.fits")
     header = fits.getheader(path)

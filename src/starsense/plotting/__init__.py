@@ -10,8 +10,16 @@ import importlib
 from types import ModuleType
 
 #: the figure modules, imported on first use as attributes of the package
-MODULES = ("availability", "datasheet", "figure", "guide_stars", "limits", "mission", "slew",
-           "slew_study")  # fmt: skip
+MODULES = (
+    "availability",
+    "datasheet",
+    "figure",
+    "guide_stars",
+    "limits",
+    "mission",
+    "slew",
+    "slew_study",
+)
 
 __all__ = ["MODULES"]
 

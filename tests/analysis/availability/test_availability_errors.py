@@ -28,8 +28,9 @@ def analysis():
     rng = np.random.default_rng(0)
     v = rng.normal(size=(500, 3))
     v /= np.linalg.norm(v, axis=1)[:, None]
-    return AvailabilityAnalysis(v, rng.uniform(0, 6, 500), CircularFov(0.15), max_mag=6.0,
-                                n_orientations=200)  # fmt: skip
+    return AvailabilityAnalysis(
+        v, rng.uniform(0, 6, 500), CircularFov(0.15), max_mag=6.0, n_orientations=200
+    )
 
 
 FLAT = ThresholdCurve.constant(5.0)

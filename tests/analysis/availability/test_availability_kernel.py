@@ -126,8 +126,9 @@ def test_roll_matters_only_for_rectangular_fields():
     res = {}
     for roll in (0.0, 37.0):
         for fov in (CircularFov(0.13), RectangularFov(0.17, 0.13)):
-            an = AvailabilityAnalysis(vectors, mags, fov, max_mag=6.0, n_orientations=3000,
-                                      roll_rad=np.radians(roll))  # fmt: skip
+            an = AvailabilityAnalysis(
+                vectors, mags, fov, max_mag=6.0, n_orientations=3000, roll_rad=np.radians(roll)
+            )
             res[roll, type(fov).__name__] = an.sky.counts()
     np.testing.assert_array_equal(res[0.0, "CircularFov"], res[37.0, "CircularFov"])
     assert np.any(res[0.0, "RectangularFov"] != res[37.0, "RectangularFov"])
@@ -179,9 +180,15 @@ def test_threshold_curve_from_slew_result():
     assert c(np.radians([2.5]))[0] == pytest.approx(4.0)
     assert c(np.radians([20.0]))[0] == 2.0
     d = ThresholdCurve.from_tolerance_dict(
-        {"magnitudes": [3, 4], "tolerable_rate_deg_s": [2.0, 1.0], "capped": [False, False],
-         "rates_deg_s": [0, 5], "sensor": "x", "model": "reed"}
-    )  # fmt: skip
+        {
+            "magnitudes": [3, 4],
+            "tolerable_rate_deg_s": [2.0, 1.0],
+            "capped": [False, False],
+            "rates_deg_s": [0, 5],
+            "sensor": "x",
+            "model": "reed",
+        }
+    )
     assert d(np.radians([1.5]))[0] == pytest.approx(3.5)
 
 
@@ -190,8 +197,9 @@ def test_threshold_curve_from_slew_result():
 
 def test_dynamic_with_constant_curve_equals_static():
     vectors, mags = random_sky(4000, seed=7)
-    an = AvailabilityAnalysis(vectors, mags, CircularFov(math.radians(7.5)), max_mag=5.0,
-                              n_orientations=4000)  # fmt: skip
+    an = AvailabilityAnalysis(
+        vectors, mags, CircularFov(math.radians(7.5)), max_mag=5.0, n_orientations=4000
+    )
     dyn = an.dynamic(ThresholdCurve.constant(4.0), np.radians([0.0, 1.0, 7.0]), n_min=3)
     static = an.static(3, max_mag=4.0)
     np.testing.assert_array_equal(dyn.availability, [static.availability] * 3)
@@ -208,8 +216,9 @@ def test_track_family_geometry():
     boresight = m[:, :, 2, :]
     motion = m[:, :, 0, :]  # camera +x along the track
     # boresights are on great circles through the node with max declination |i|
-    np.testing.assert_allclose(np.degrees(np.arcsin(boresight[..., 2])).max(axis=1),
-                               [60.0, 0.0, 45.0], atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        np.degrees(np.arcsin(boresight[..., 2])).max(axis=1), [60.0, 0.0, 45.0], atol=1e-9
+    )
     node = [math.cos(math.radians(30)), math.sin(math.radians(30)), 0.0]
     np.testing.assert_allclose(boresight[:, 0, :], [node] * 3, atol=1e-12)
     # +x is the direction of motion: the next sample lies ahead
@@ -219,13 +228,15 @@ def test_track_family_geometry():
 
 def test_track_availability_in_unit_interval_and_rate_independent_for_constant_curve():
     vectors, mags = random_sky(3000, seed=8)
-    an = AvailabilityAnalysis(vectors, mags, CircularFov(math.radians(7.5)), max_mag=6.0,
-                              n_orientations=2000)  # fmt: skip
+    an = AvailabilityAnalysis(
+        vectors, mags, CircularFov(math.radians(7.5)), max_mag=6.0, n_orientations=2000
+    )
     curve = ThresholdCurve(np.radians([0.0, 2.0]), [5.0, 2.0])
     incl = np.arange(-90.0, 90.1, 15.0)
     for rate in (0.0, 1.0, 3.0):
-        tr = an.track(curve, np.radians(rate), n_min=3, inclinations=np.radians(incl),
-                      n_samples=200)  # fmt: skip
+        tr = an.track(
+            curve, np.radians(rate), n_min=3, inclinations=np.radians(incl), n_samples=200
+        )
         assert tr.availability.shape == (13,)
         assert np.all((tr.availability >= 0) & (tr.availability <= 1))
         assert tr.min <= tr.mean <= tr.max
@@ -255,13 +266,19 @@ def test_track_mean_approaches_spatial_for_constant_threshold():
     Table 2.)
     """
     vectors, mags = random_sky(4000, seed=0)
-    an = AvailabilityAnalysis(vectors, mags, CircularFov(math.radians(7.5)), max_mag=6.0,
-                              n_orientations=10_000)  # fmt: skip
+    an = AvailabilityAnalysis(
+        vectors, mags, CircularFov(math.radians(7.5)), max_mag=6.0, n_orientations=10_000
+    )
     curve = ThresholdCurve.constant(1.1)  # ~3 stars per field: availability ~0.6
     spatial = an.static(3, max_mag=1.1).availability
     assert 0.4 < spatial < 0.8
-    one = an.track(curve, np.radians(1.0), n_min=3,
-                   inclinations=np.radians(np.arange(-90, 91, 2.0)), n_samples=500)  # fmt: skip
+    one = an.track(
+        curve,
+        np.radians(1.0),
+        n_min=3,
+        inclinations=np.radians(np.arange(-90, 91, 2.0)),
+        n_samples=500,
+    )
     assert one.spatial[3] == spatial
     assert one.mean == pytest.approx(spatial, abs=0.05)
     means = [

@@ -95,8 +95,9 @@ def test_inertial_without_bright_bodies_equals_static_availability(stars):
     outcome = []
     for k in range(len(ra)):
         prof = AttitudeProfile("inertial", ra=ra[k], dec=dec[k], roll=roll[k])
-        res = mission_availability(mission_geometry(grid, orbit, prof),
-                                   [Head("h", fov, CURVE)], vectors=v, magnitudes=m)  # fmt: skip
+        res = mission_availability(
+            mission_geometry(grid, orbit, prof), [Head("h", fov, CURVE)], vectors=v, magnitudes=m
+        )
         h = res.heads[0]
         assert np.all(h.stars == static_counts[k])
         assert np.all(h.rate_rad_s < 1e-12)
@@ -127,9 +128,12 @@ def test_nadir_head_always_earth_blinded_and_zenith_never(stars):
     )
     exc = Exclusion(sun_rad=45 * DEG, moon_rad=10 * DEG, earth_limb_rad=0.0, atmosphere_m=0.0)
     zenith = Rotation.from_euler("x", 180.0, degrees=True)
-    res = mission_availability(geo, [Head("nadir", FOV, CURVE, exclusion=exc),
-                                     Head("zenith", FOV, CURVE, zenith, exc)],
-                               vectors=v, magnitudes=m)  # fmt: skip
+    res = mission_availability(
+        geo,
+        [Head("nadir", FOV, CURVE, exclusion=exc), Head("zenith", FOV, CURVE, zenith, exc)],
+        vectors=v,
+        magnitudes=m,
+    )
     nadir, up = res.heads
     assert nadir.earth_blinded.all() and not nadir.available.any()
     assert np.all(nadir.stars == 0)
@@ -148,7 +152,10 @@ def test_future_dates_do_not_warn(stars):
     grid = TimeGrid.span("2030-01-01T00:00:00", 1200.0, 10.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        geo = mission_geometry(grid, sun_synchronous(700e3, ltan_h=22.0, epoch=grid.start),
-                               AttitudeProfile("target", lat=45 * DEG, lon=7 * DEG))  # fmt: skip
+        geo = mission_geometry(
+            grid,
+            sun_synchronous(700e3, ltan_h=22.0, epoch=grid.start),
+            AttitudeProfile("target", lat=45 * DEG, lon=7 * DEG),
+        )
     res = mission_availability(geo, [Head("h", FOV, CURVE)], vectors=v, magnitudes=m)
     assert res.steps == 120

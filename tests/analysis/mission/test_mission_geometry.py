@@ -60,8 +60,11 @@ def test_sun_and_moon_separation_match_astropy_over_a_day():
     head = Head("+Y", FOV, CURVE, PLUS_Y)
     b = geo.head_matrices(head)[:, 2, :]
     times = grid.times()
-    frame = GCRS(obstime=times, obsgeoloc=CartesianRepresentation(geo.r.T * u.m),
-                 obsgeovel=CartesianRepresentation(geo.v.T * u.m / u.s))  # fmt: skip
+    frame = GCRS(
+        obstime=times,
+        obsgeoloc=CartesianRepresentation(geo.r.T * u.m),
+        obsgeovel=CartesianRepresentation(geo.v.T * u.m / u.s),
+    )
     bore = SkyCoord(CartesianRepresentation(b.T), frame=frame)
     for body, ours in (("sun", geo.sun), ("moon", geo.moon)):
         ref = get_body(body, times).transform_to(frame)
@@ -144,8 +147,10 @@ def test_two_heads_opposite_never_both_sun_blinded_and_sun_profile():
     orbit = sun_synchronous(550e3, ltan_h=10.5, epoch=grid.start)
     geo = mission_geometry(grid, orbit, AttitudeProfile("nadir", yaw_steering=True))
     minus_y = mounting_from_quaternion([-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)])
-    seps = [_angle(geo.head_matrices(Head(n, FOV, CURVE, m))[:, 2, :], geo.sun)
-            for n, m in (("+Y", PLUS_Y), ("-Y", minus_y))]  # fmt: skip
+    seps = [
+        _angle(geo.head_matrices(Head(n, FOV, CURVE, m))[:, 2, :], geo.sun)
+        for n, m in (("+Y", PLUS_Y), ("-Y", minus_y))
+    ]
     assert np.allclose(seps[0] + seps[1], math.pi, atol=1e-9)
     assert not np.any((seps[0] < 89.99 * DEG) & (seps[1] < 89.99 * DEG))
     # sun-pointing: body +z on the Sun to rounding (arccos of a dot product: 1.5e-8 rad)
@@ -164,8 +169,9 @@ def test_ground_point_in_gcrs_matches_astropy_and_target_profile():
 
     grid = TimeGrid.span("2020-06-01T00:00:00", 86400.0, 3600.0)
     lat, lon = 45.0, 7.0
-    ours = np.einsum("nij,j->ni", grid.gcrs_from_itrs(),
-                     np.asarray(erfa.gd2gc(1, lon * DEG, lat * DEG, 0.0)))  # fmt: skip
+    ours = np.einsum(
+        "nij,j->ni", grid.gcrs_from_itrs(), np.asarray(erfa.gd2gc(1, lon * DEG, lat * DEG, 0.0))
+    )
     with iers.conf.set_temp("auto_download", False), iers.conf.set_temp("auto_max_age", None):
         site = EarthLocation.from_geodetic(lon * u.deg, lat * u.deg, 0.0 * u.m)
         ref = site.get_gcrs(grid.times()).cartesian.xyz.to_value(u.m).T
