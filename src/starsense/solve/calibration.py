@@ -26,14 +26,19 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from starsense.catalog.apparent import apparent_places
+from starsense.catalog.table import Catalog
 from starsense.errors import InputError
 from starsense.geometry.distortion import distort
+from starsense.sensor import Sensor, load_sensor
+from starsense.solve.solution import Solution
+from starsense.solve.solver import Solver
 from starsense.units import RAD_TO_ARCSEC
 
 __all__ = ["PARAMETERS", "Calibration", "FrameStars", "calibrate", "frame_stars"]
@@ -281,10 +286,32 @@ def _fit_attitudes_only(problem: _Problem) -> np.ndarray:
     return res.fun
 
 
+def _matched_stars(frames: Sequence, sensor: Sensor, catalog) -> list[FrameStars]:
+    """Return every frame as its matched stars, solving the images among them."""
+    solver = Solver(sensor, catalog=catalog)
+    out = []
+    for k, frame in enumerate(frames):
+        name = str(frame) if isinstance(frame, str | Path) else f"frame {k}"
+        if isinstance(frame, FrameStars):
+            out.append(frame)
+            continue
+        if isinstance(frame, Solution):
+            sol = frame
+        elif isinstance(frame, str | Path):
+            sol = solver.solve_file(frame)
+        else:
+            sol = solver(frame)
+        if not sol.solved:
+            raise InputError(f"calibrate: {name} is not solved ({sol.status}: {sol.message})")
+        out.append(frame_stars(sol, solver.catalog, name))
+    return out
+
+
 def calibrate(
-    frames: Sequence[FrameStars],
+    frames: Sequence,
     sensor,
     *,
+    catalog: Catalog | str = "hipparcos",
     fit: Sequence[str] = PARAMETERS,
     clip_sigma: float = 5.0,
     edge_tolerance_px: float = 2.0,
@@ -293,10 +320,15 @@ def calibrate(
 
     Parameters
     ----------
-    frames : sequence of FrameStars
-        One or more solved frames (:func:`frame_stars`).
-    sensor : Sensor
-        The starting camera model (its fixed parameters stay as they are).
+    frames : sequence of FrameStars, Solution, ndarray or path
+        One or more frames: their matched stars (:func:`frame_stars`), their solutions, or the
+        frames themselves (images or image files, solved here with ``Solver(sensor,
+        catalog=catalog)``). A frame that is not solved raises :class:`InputError` naming it.
+    sensor : Sensor, str or Path
+        The starting camera model, a preset name or a TOML file (its fixed parameters stay as
+        they are).
+    catalog : Catalog or str
+        The catalogue the solutions' matches refer to (default: the bundled Hipparcos).
     fit : sequence of str
         Parameters to fit, from :data:`PARAMETERS`.
     clip_sigma : float
@@ -320,6 +352,10 @@ def calibrate(
         raise InputError(f"fit must name some of {', '.join(PARAMETERS)}, got {list(fit)!r}")
     if not frames:
         raise InputError("calibrate needs at least one solved frame")
+    if not isinstance(sensor, Sensor):
+        sensor = load_sensor(sensor)
+    if not all(isinstance(f, FrameStars) for f in frames):
+        frames = _matched_stars(frames, sensor, catalog)
     free = np.array(sorted(i for p in fit for i in _SCALARS[p]), dtype=np.intp)
     names = [_SCALAR_NAMES[i] for i in free] + [
         f"attitude of {f.name or f'frame {k}'}" for k, f in enumerate(frames) for _ in range(3)
