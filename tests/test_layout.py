@@ -186,3 +186,40 @@ def test_no_private_name_used_across_modules():
             ):
                 found.append(f"{name}:{node.lineno} uses {ast.unparse(node)}")
     assert found == [], "\n".join(found)
+
+
+#: public callables with four positional subjects: the field, the attitudes and the stars as the
+#: pair (vectors, magnitudes) that ``catalog_stars`` returns and callers unpack into it
+_FOUR_SUBJECTS = {"analysis/availability/field.py:FieldStars.build"}
+
+
+def test_options_are_keyword_only():
+    """Every public function or method of 4+ parameters takes at most 3 (its subjects)
+    positionally; the options after them are keyword-only (command functions excepted: their
+    signatures are the command line's)."""
+    found = []
+    for path in _modules():
+        rel = path.relative_to(SRC)
+        if rel.parts[0] == "cli" or any(
+            p.startswith("_") and p != "__init__.py" for p in rel.parts
+        ):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        scopes = [(tree, "")]
+        while scopes:
+            node, owner = scopes.pop()
+            for child in ast.iter_child_nodes(node):
+                if isinstance(child, ast.ClassDef) and not child.name.startswith("_"):
+                    scopes.append((child, child.name + "."))
+                elif isinstance(child, ast.FunctionDef) and (
+                    child.name == "__init__" or not child.name.startswith("_")
+                ):
+                    a = child.args
+                    positional = [p.arg for p in a.posonlyargs + a.args]
+                    if owner and positional[:1] in (["self"], ["cls"]):
+                        positional = positional[1:]
+                    where = f"{rel}:{owner}{child.name}"
+                    many = len(positional) + len(a.kwonlyargs) >= 4
+                    if many and len(positional) > 3 and where not in _FOUR_SUBJECTS:
+                        found.append(f"{where} ({len(positional)} positional)")
+    assert found == []
