@@ -1,4 +1,4 @@
-"""Frames of a camera starsense was not tuned for: the 8-bit sweep of issue 13.
+"""Frames of a camera starsense was not tuned for: the 8-bit sweep.
 
 Renders the 6 x 4.5 deg 8-bit camera of ``tests/_support/camera8.py`` (background at 0-2
 counts, noise clipped at zero) at 5 pointings x 3 biases for each kind of defect, solves every
@@ -47,7 +47,7 @@ def main() -> None:
     """Run the sweep, print one line per case and write the JSON record."""
 
     catalog = load_catalog("hipparcos")
-    # the user of issue 13 knows the field, not the camera: --sensor gives the solver its model
+    # a user of such a camera knows the field, not the camera: --sensor gives the solver its model
     solver = Solver(sensor=camera8()) if "--sensor" in sys.argv else Solver(fov_rad=FOV_RAD)
     record = {}
     for name, (sensor_kw, frame_kw) in CASES.items():

@@ -1,4 +1,4 @@
-"""Camera calibration on the ESA frames, leave-one-out (issue 14, part 3).
+"""Camera calibration on the ESA frames, leave-one-out.
 
 For each of the eight frames: fit the camera (focal length, principal point, k1, k2, p1, p2) on
 the other seven, solve the eighth with the calibrated sensor, and compare with the nominal

@@ -1,7 +1,7 @@
 """Benchmarks of the hot paths: `make bench`.
 
 Each benchmark is a function registered with :func:`bench`; it returns the seconds of one timed
-run (setup excluded) and a target from the issue that asked for it. Results, with the machine's
+run (setup excluded) and is held to a target time. Results, with the machine's
 description, go to ``bench/results/<name>.json`` (written atomically) and to a table on stdout.
 Numerical threads are pinned to one core unless a benchmark says otherwise, so "on one core"
 means what it says.
@@ -101,7 +101,7 @@ def machine() -> dict:
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 2: catalogue and the physical limit
+# catalogue and the physical limit
 
 
 @bench("catalog_warm_load", "warm load of the bundled Hipparcos (hip2) catalogue", 0.3)
@@ -138,7 +138,7 @@ def _limit_sky_5m() -> float:
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 3: rendering, detection, slew tolerance
+# rendering, detection, slew tolerance
 
 
 def st16_frame_inputs():
@@ -178,7 +178,7 @@ def _slew_curve() -> float:
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 4: availability
+# availability
 
 
 def _availability_setup():
@@ -202,7 +202,7 @@ def _availability_dynamic() -> float:
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 5: the pipeline on real frames
+# the pipeline on real frames
 
 
 @bench("solve_esa_frame", "ESA frame: background + detection + identification + attitude", 1.0)
@@ -228,7 +228,7 @@ def _solve_esa() -> float:
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 14: tracking
+# tracking
 
 
 @bench(
@@ -258,7 +258,7 @@ def _track_frame() -> float:
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 6: guide-star distribution (Lin et al. 2024)
+# guide-star distribution (Lin et al. 2024)
 
 
 @bench(
@@ -284,7 +284,7 @@ def _guide_stars_select() -> float:
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 7: deep catalogues on a cluster (starsense.scale; needs starsense[scale])
+# deep catalogues on a cluster (starsense.scale; needs starsense[scale])
 # Synthetic HATS catalogues of 1, 2 and 5 million stars (written once by hats-import into the
 # temporary directory and reused), processed by 2 local worker processes (`--dask local:2`).
 # Cluster start-up and catalogue writing are set-up, excluded from the timings like every
@@ -401,12 +401,12 @@ def _scale_vectors(n: int) -> np.ndarray:
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-# end of issue 7 benchmarks
+# end of the deep-catalogue benchmarks
 # ---------------------------------------------------------------------------------------------
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 15: availability over a mission
+# availability over a mission
 
 
 @bench(
@@ -437,7 +437,7 @@ def _mission_day() -> float:
     return best_of(run, repeat=3)
 
 
-# end of issue 15 benchmarks
+# end of the mission benchmarks
 # ---------------------------------------------------------------------------------------------
 
 

@@ -2,7 +2,7 @@
 
 A 6 deg x 4.5 deg camera (1024 x 768 pixels of 5 um behind a 48.8 mm lens, 15 mm aperture),
 8-bit ADC, gain 0.05 counts/e-: the read noise of 12-16 e- is 0.6-0.8 counts and the bias 0-2
-counts, so the background sits at 0-2 counts with its noise clipped at zero (issue 13). Sky
+counts, so the background sits at 0-2 counts with its noise clipped at zero. Sky
 glow, a gradient and vignetting are added to the expected electrons before the noise; hot pixels
 and JPEG compression after it.
 """

@@ -48,7 +48,7 @@ def _row(colour, mag, ci):
 
 @pytest.mark.parametrize(("name", "v", "bv", "t_ref", "c_ref", "s_ref"), TABLE1_UBV)
 def test_fialho2019_table1_ubv(name, v, bv, t_ref, c_ref, s_ref):
-    # Issue tolerances: T 1.5 %, C 6 %, sigma 3 %. Our passbands (Bessell 1990 via sedpy) and
+    # Tolerances: T 1.5 %, C 6 %, sigma 3 %. Our passbands (Bessell 1990 via sedpy) and
     # Vega spectrum (CALSPEC stis_011) differ from the paper's (Bessell & Murphy 2012, stis_008);
     # the measured differences are <= 0.9 % in T, 1 % in C and 2 % in sigma.
     t, c, s = _row("B-V", v, bv)

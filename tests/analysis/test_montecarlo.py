@@ -1,4 +1,4 @@
-"""Monte Carlo of the whole tracker (issue 5, item 5)."""
+"""Monte Carlo of the whole tracker."""
 
 from __future__ import annotations
 

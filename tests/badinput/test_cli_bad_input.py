@@ -49,7 +49,7 @@ CASES = [
     (["solve", "{bad}/short.fits"], ["short.fits", "promises 20,000 bytes", "truncated"]),
     (["solve", "{bad}/nan.fits"], ["nan.fits", "64 pixels are NaN or infinite"]),
     (["solve", "{bad}/onebit.png"], ["onebit.png", "1-bit"]),
-    # a folder is a batch of frames (issue 13): an empty one is named as such
+    # a folder is a batch of frames: an empty one is named as such
     (["solve", "{bad}/adir.png"], ["adir.png", "no images in this folder"]),
     # typer turns '' into Path('.'): the working folder, a batch with no image in it
     (["solve", ""], [".: no images in this folder"]),
@@ -229,7 +229,7 @@ def test_case_count():
     ids=["hats-url", "dask+url", "dask"],
 )
 def test_refused_addresses_fail_at_once(argv, bad_dir, capsys):
-    # the issue's acceptance: the discard port 9 refuses; no 10 s timeout, no lsdb import, no
+    # the discard port 9 refuses at once; no 10 s timeout, no lsdb import, no
     # cluster (measured in-process: the interpreter's start-up is not the command's doing)
     t0 = time.perf_counter()
     code = main([a.replace("{bad}", str(bad_dir)) for a in argv])

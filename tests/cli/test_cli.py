@@ -21,7 +21,7 @@ def run(capsys, *argv):
 
 def test_limit_star_table1_vega_json(capsys):
     # Paper Table 1 (D = 10 cm, t = 100 ms): Vega T 13231 K, C 2.96e-17, sigma 1.19e-10 rad;
-    # tolerances as in the issue (1.5 %, 6 %, 3 %).
+    # tolerances (1.5 %, 6 %, 3 %): our passbands and Vega spectrum are not the paper's.
     code, out, _ = run(
         capsys,
         "limit",

@@ -1,4 +1,4 @@
-"""Files written by the tool get the same permissions whichever command wrote them (issue 11).
+"""Files written by the tool get the same permissions whichever command wrote them.
 
 Every file a command writes for the user is ``0o666 & ~umask`` (what any program creating a file
 would give), every folder it creates ``0o777 & ~umask``: not ``mkstemp``'s 0600, and not a fixed

@@ -1,4 +1,4 @@
-"""`starsense availability mission`: the issue's interface, JSON keys, figure, bad input."""
+"""`starsense availability mission`: the documented interface, JSON keys, figure, bad input."""
 
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def run(capsys, *argv):
     return code, out.out, out.err
 
 
-def test_issue_interface_json_and_plot(capsys, tol, tmp_path):
+def test_documented_interface_json_and_plot(capsys, tol, tmp_path):
     plot = tmp_path / "timeline.png"
     code, out, err = run(
         capsys,

@@ -49,7 +49,7 @@ def test_noise_of_clipped_8bit_background_matches_the_closed_form(bias, read_noi
 
 
 def test_mad_fails_where_the_quantised_estimate_holds():
-    # The failure of issue 13: the background at 0 counts with noise clipped at zero has a MAD of
+    # The MAD's failure: the background at 0 counts with noise clipped at zero has a MAD of
     # zero (photutils' MAD-based rms says so too), which made every non-zero pixel a star.
     from astropy.stats import mad_std
 
@@ -101,7 +101,7 @@ def test_quantisation_step():
 
 def test_esa_frames_keep_the_mad_estimate(shared_dir):
     # 12-bit data stored as 16-bit (steps of 16 counts) with 92-221 counts of noise: far from
-    # quantised, so the MAD path of issue 5 applies unchanged
+    # quantised, so the MAD path applies unchanged
     folder = shared_dir / "data" / "images" / "esa"
     bg = estimate_background(load_image(next(iter(sorted(folder.glob("*.tiff"))))))
     assert bg.step is None and bg.noise > 50

@@ -18,7 +18,7 @@ def st16():
 
 
 def test_streak_centroids_equal_the_one_region_loop(st16):
-    # issue 14: all regions at once must give what streak_centroid gives each alone (same
+    # all regions at once must give what streak_centroid gives each alone (same
     # masks, same iteration and stop rule); only the summation order differs, so the
     # centroids agree to rounding (1e-9 px, far below the 0.1 px centroid noise) and the
     # boxes exactly. Stamps of different streak directions and lengths, noisy, with starting

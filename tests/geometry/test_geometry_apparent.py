@@ -1,4 +1,4 @@
-"""Stellar aberration and apparent places against ERFA and astropy (issue 14, part 4)."""
+"""Stellar aberration and apparent places against ERFA and astropy."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def test_apparent_direction_matches_astropy_gcrs_to_1_mas():
     # astropy's ICRS -> GCRS applies the Earth's barycentric velocity plus obsgeovel
     # (relativistic aberration, erfa.ab) and the Sun's light deflection, which we do not model.
     # The deflection vanishes opposite the Sun (4.07 mas cot(elongation / 2)); stars within
-    # 10 deg of the antisolar point see below 0.4 mas of it, so 1 mas is the issue's bound.
+    # 10 deg of the antisolar point see below 0.4 mas of it, so a 1 mas bound leaves room for it.
     t = Time(T, scale="utc")
     sun = get_sun(t).cartesian.xyz.value
     anti = -sun / np.linalg.norm(sun)

@@ -1,4 +1,4 @@
-"""Lost-in-space on the peer benchmark's seeded centroid sets (issue 13, part 2).
+"""Lost-in-space on the peer benchmark's seeded centroid sets.
 
 The sets are :func:`starsense.identify.centroid_sets.centroid_sets` on the bundled Hipparcos,
 15 deg across 1280 x 960 pixels, as ``bench/peers/compare.py`` makes them:
@@ -7,7 +7,7 @@ The sets are :func:`starsense.identify.centroid_sets.centroid_sets` on the bundl
   6 false stars (20 detections, a third false);
 * easy: the 20 brightest, 0.3 px noise, 2 false stars.
 
-Before issue 13 the hard set solved ~98 % (database of 10 pattern stars per field, patterns of
+Formerly the hard set solved ~98 % (database of 10 pattern stars per field, patterns of
 the 10 brightest detections); now 2,001 of 2,001 (``make bench-peers``). The default suite runs
 300 of each, the slow test all 2,001.
 

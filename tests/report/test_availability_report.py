@@ -83,7 +83,7 @@ def test_no_sensor(ctx):
 
 
 def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monkeypatch):
-    """Issue 11: the loaded catalogue travels in ReportContext, whatever the --catalog spec.
+    """The loaded catalogue travels in ReportContext, whatever the --catalog spec.
 
     The report is built from ``bsc5:PATH`` through build_report (the availability section
     only, a few frames at one rate, a given threshold curve): the full-fidelity check renders
@@ -112,7 +112,7 @@ def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monke
 
 @pytest.mark.slow
 def test_report_command_from_bsc5_path_runs_every_part(bsc5_path, tmp_path):
-    """Issue 11, as a user runs it: `starsense report --catalog bsc5:PATH --out DIR` (~1 min)."""
+    """The same, as a user runs it: `starsense report --catalog bsc5:PATH --out DIR` (~1 min)."""
 
     out = tmp_path / "report"
     assert main(["report", "--catalog", f"bsc5:{bsc5_path}", "--out", str(out)]) == 0

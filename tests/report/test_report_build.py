@@ -209,7 +209,7 @@ def test_plot_brightest_curves_writes_png(tmp_path):
 
 
 def test_datasheet_first_papers_last(report):
-    # issue 12: the datasheet opens the report; the papers' reproductions close it as the
+    # the datasheet opens the report; the papers' reproductions close it as the
     # validation appendix
     _out, html, doc, _ = report
     assert next(iter(doc["sections"])) == "datasheet"

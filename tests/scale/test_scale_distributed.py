@@ -3,7 +3,7 @@
 One small catalogue (20,000 stars, Gaia and 2MASS column names) is written as Parquet and CSV,
 read in memory by the real readers (``gaia:``, ``twomass:``), and turned into HATS by
 ``starsense catalog import`` (hats-import) with at most 2,000 rows per tile, so every result is
-merged from ~20 partitions. Tolerance 1e-12 relative (the issue's): the per-star quantities are
+merged from ~20 partitions. Tolerance 1e-12 relative, with margin: the per-star quantities are
 bit-identical (same kernels on the same float64 values); only the order of the Fisher sums
 differs, ~1e-16 per addition x sqrt(20,000 terms) x the condition number of F (< 100 for the
 20 deg fields here), i.e. ~1e-13 at worst. Integer results (counts, availability) are exact.
@@ -52,7 +52,7 @@ from starsense.scale import (
     static_availability,
 )
 
-REL = 1e-12  # the tolerance; see the module notes for why it holds with margin
+REL = 1e-12  # relative; see the module notes for why it holds with margin
 N_STARS = 20_000
 
 

@@ -1,4 +1,4 @@
-"""Camera calibration from star fields (issue 14, part 3): rendered frames with known
+"""Camera calibration from star fields: rendered frames with known
 distortion, the named errors, and the command line."""
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from starsense.solve.solver import Solver
 SHARED_ESA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "images" / "esa"
 
 # ST-16: the detector corner is at r = tan(angle) = 0.2228, r^2 = 0.0496. k1 = 2 moves it by
-# k1 r^2 = 10 % (162 px): the issue's "k1 up to 1e-1 at the field edge".
+# k1 r^2 = 10 % (162 px) at the field edge, the strongest distortion calibration must fit.
 TRUTH = {"distortion_k1": 2.0, "distortion_k2": -3.0, "distortion_p1": 1e-4,
          "distortion_p2": -5e-5, "principal_offset_x_px": 3.0,
          "principal_offset_y_px": -2.0}  # fmt: skip

@@ -1,4 +1,4 @@
-"""The time a frame was taken, from its header (issue 14, part 4)."""
+"""The time a frame was taken, from its header."""
 
 from __future__ import annotations
 

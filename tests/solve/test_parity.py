@@ -1,4 +1,4 @@
-"""No wrong attitude on frames that are not a plain view of the sky (issue 13).
+"""No wrong attitude on frames that are not a plain view of the sky.
 
 Each frame is rendered by our renderer through the ESA camera's 1024 x 768 detector (100-count
 bias) behind a pinhole lens of 20 deg, seeded; the sky is Hipparcos to V = 8 (Orion).

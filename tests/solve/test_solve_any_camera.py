@@ -1,9 +1,9 @@
-"""Frames from a camera the project was not tuned for: dark 8-bit, quantised, clipped (issue 13).
+"""Frames from a camera the project was not tuned for: dark 8-bit, quantised, clipped.
 
 Rendered by starsense.render (tests/_support/camera8.py): a 6 x 4.5 deg field on 1024 x 768
 pixels (21 arcsec/px), 8-bit, background at 0-2 counts with 0.7 counts of read noise clipped at
-zero; then hot pixels, a glow gradient, vignetting, JPEG compression. Before issue 13 such
-frames gave ~20,000 detections (a MAD noise of zero) and solved none.
+zero; then hot pixels, a glow gradient, vignetting, JPEG compression. A MAD noise estimate (zero
+here) gave such frames ~20,000 detections and no solution.
 
 "Wrong" is judged against the truth, never against the solver: every matched detection must lie
 within 5 px of the rendered position of the catalogue star it was matched to (centroids are
@@ -38,7 +38,7 @@ def catalog():
 
 @pytest.fixture(scope="module")
 def field_solver():
-    # what the user of issue 13 has: the field, not a model of the camera
+    # what a user of such a camera has: the field, not a model of the camera
     return Solver(fov_rad=FOV_RAD)
 
 
@@ -66,7 +66,7 @@ def _check_right(sol, att, frame):
 
 CASES = {
     "bias0": ({"bias_counts": 0.0}, {}),
-    # the failure of issue 13: read noise 0.6 counts at bias 0, a MAD of zero (~20,000
+    # the MAD's failure: read noise 0.6 counts at bias 0, a MAD of zero (~20,000
     # detections per frame before)
     "bias0_read_noise_0.6": ({"bias_counts": 0.0, "read_noise_e": 12.0}, {}),
     "bias1_hot_pixels": ({"bias_counts": 1.0}, {"hot_pixels": 200}),
@@ -112,7 +112,7 @@ def test_harder_8bit_frames_are_never_wrong(catalog, solver, frame_kw):
 @pytest.mark.parametrize("bias", [0.0, 1.0, 2.0])
 def test_8bit_pure_noise_frames_do_not_solve(field_solver, bias):
     # the same camera with the shutter closed: the clipped noise alone must give (almost) no
-    # detection and never a solution (before issue 13: thousands, with only the field known)
+    # detection and never a solution (formerly thousands, with only the field known)
     image = dark_frame(camera8(bias_counts=bias), seed=int(bias))
     sol = field_solver(image)
     assert sol.status in ("no_stars", "too_few_stars", "no_match")

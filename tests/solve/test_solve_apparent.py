@@ -1,4 +1,4 @@
-"""Apparent places in the loop (issue 14, part 4): a frame rendered as a real camera sees the sky
+"""Apparent places in the loop: a frame rendered as a real camera sees the sky
 at a given time solves to the true ICRS attitude only with the correction on."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The full pipeline on real frames: image -> detection -> identification -> attitude.
 
-Acceptance (issue 5): the eight ESA frames solve, each boresight within 15 arcsec of
+Acceptance: the eight ESA frames solve, each boresight within 15 arcsec of
 reference.json (cedar-solve's solution, itself fitted to 5-7 arcsec rms; LOST agrees to ~10).
 """
 
@@ -57,9 +57,9 @@ def _separation_arcsec(sol, ref) -> float:
     ids=["sensor", "fov", "none"],
 )
 def test_esa_frames_solve_within_15_arcsec(esa, optics):
-    # issue 13 (matched-filter detection): with the optics known, every boresight within
+    # with matched-filter detection and the optics known, every boresight within
     # 6 arcsec (measured: 4.2 with the sensor); found by the scale search, within 15 (6.0;
-    # 6.6 before issue 13)
+    # 6.6 before matched-filter detection)
     folder, reference = esa
     solver = Solver(**optics)
     bound = 6 if optics else 15

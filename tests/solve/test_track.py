@@ -283,7 +283,7 @@ def _stars_detected(solver, frame) -> int:
 @pytest.mark.slow
 @pytest.mark.parametrize("rate_deg_s", [0.1, 0.5, 1.0, 2.0])
 def test_tracking_acceptance_st16(solver, st16, hipparcos, rate_deg_s):
-    # issue 14: lock kept wherever >= 2 stars are detected; attitude and rate errors within
+    # lock kept wherever >= 2 stars are detected; attitude and rate errors within
     # 1.25x of their predicted covariance. Random attitudes x 6 frames, 4 sequences (12 at
     # 2 deg/s, where 2-3 stars are detected, frames of two stars are common and some frames
     # have none): the rms of ~24-50 unit deviates per axis has a standard error of 10-14 %, so
@@ -342,7 +342,7 @@ def test_streak_centroid_noise_model(st16, electrons, rate_deg_s):
 
 
 def test_rate_from_one_frame_of_streaks(solver, st16, hipparcos):
-    # issue 14: the rate from the streaks of a single smeared frame, up to its sign. The lit
+    # the rate from the streaks of a single smeared frame, up to its sign. The lit
     # region is shorter than the streak where its ends fall below the threshold: from the 5
     # brightest streaks the rate comes out 0-16 % low on rendered frames, and the reported
     # covariance carries 20 % of |w| for it, so the cross-axis error stays within 3 sigma

@@ -1,4 +1,4 @@
-"""Frames of 3 to 60 deg solve with the field unknown (issue 13, part 3).
+"""Frames of 3 to 60 deg solve with the field unknown.
 
 Each frame is rendered by our renderer through a sensor built here: the ESA camera's 1024 x
 768 detector with a 100-count bias (a real 16-bit camera's offset, so that the background is

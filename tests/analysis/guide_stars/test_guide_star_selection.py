@@ -86,7 +86,7 @@ def test_lin2024_four_area_saturation_matches_paper():
 
 
 def test_lin2024_four_area_column_with_3sigma_reading():
-    # The acceptance: the four-area column within 10 points of the paper's at every
+    # The required agreement: the four-area column within 10 points of the paper's at every
     # sigma. Reading the paper's sigma as a 3-sigma bound does this (the per-axis reading
     # cannot: the Cramer-Rao bound caps the sigma = 0.3 cell near 24 %).
     tab = gs.simulate_table1(n_trials=10_000, configurations=["four"], sigma_kind="3sigma")
