@@ -97,8 +97,8 @@ def _static_hats(
             n_min=n_min,
             band=band,
             n_orientations=n_orientations,
-            roll=roll,
-            seed=seed,
+            roll_rad=roll,
+            rng=seed,
             client=client,
             progress=progress,
         )

@@ -116,19 +116,19 @@ def static_availability(
     n_min: int = N_MIN_LOST_IN_SPACE,
     band: str | None = None,
     n_orientations: int = DEFAULT_N_ORIENTATIONS,
-    roll: float | None = None,
-    seed: int | None = 0,
+    roll_rad: float | None = None,
+    rng: int | np.random.Generator | None = 0,
     client: Any | None = None,
     progress: Progress | None = None,
 ) -> StaticAvailability:
     """Return the spatial static availability (sec. 1.2) of a HATS catalogue.
 
     As ``AvailabilityAnalysis.from_catalog(cat, fov, max_mag, band, ...).static(n_min)``;
-    `roll` (rad, None: random from `seed`) matters only for a rectangular field.
+    `roll_rad` (None: random from `rng`) matters only for a rectangular field.
     """
     n_min = check_int(n_min, "n_min", 1)
-    roll = roll if isinstance(fov, RectangularFov) else 0.0
-    boresights, attitudes = sky_attitudes(n_orientations, roll, seed)
+    roll = roll_rad if isinstance(fov, RectangularFov) else 0.0
+    boresights, attitudes = sky_attitudes(n_orientations, roll, rng=rng)
     counts, top, n, faintest, band = _field(
         catalog,
         fov,

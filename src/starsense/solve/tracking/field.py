@@ -97,7 +97,7 @@ def tracking_setup(solver) -> TrackingSetup:
     return got
 
 
-def half_turn(sensor, rate) -> np.ndarray | None:
+def half_turn(sensor, rate_rad_s) -> np.ndarray | None:
     """Return the rotation over half the exposure at the body rate, (3, 3); None at rest.
 
     Rodrigues' formula for the rotation vector ``v = w t_e / 2`` (angle ``|v|``, axis ``k``):
@@ -108,17 +108,17 @@ def half_turn(sensor, rate) -> np.ndarray | None:
     ----------
     sensor : Sensor
         Its exposure time is used.
-    rate : array_like, shape (3,) or None
+    rate_rad_s : array_like, shape (3,) or None
         Body rate, camera frame, rad/s.
 
     Returns
     -------
     ndarray, shape (3, 3) or None
     """
-    if rate is None:
+    if rate_rad_s is None:
         return None
     half = sensor.exposure_s / 2.0
-    v1, v2, v3 = (float(r) * half for r in np.asarray(rate, dtype=float).reshape(3))
+    v1, v2, v3 = (float(r) * half for r in np.asarray(rate_rad_s, dtype=float).reshape(3))
     angle = math.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
     if angle == 0.0:
         return None

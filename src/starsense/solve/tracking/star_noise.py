@@ -105,7 +105,7 @@ class StarNoise:
 
 
 def star_noise(
-    solver, det, matched, *, rate, vectors=None, half_turn=None, margin_px=None
+    solver, det, matched, *, rate_rad_s, vectors=None, half_turn=None, margin_px=None
 ) -> StarNoise:
     """Return the centroid noise of detections ``matched`` (module docstring).
 
@@ -121,12 +121,12 @@ def star_noise(
         streak).
     matched : ndarray of int, shape (N,)
         The detections used.
-    rate : array_like, shape (3,) or None
+    rate_rad_s : array_like, shape (3,) or None
         Body rate, camera frame, rad/s.
     vectors : ndarray, shape (N, 3), optional
         The detections' camera-frame unit vectors, when already computed.
     half_turn : ndarray, shape (3, 3), optional
-        The rotation by ``rate x exposure / 2``, when already computed.
+        The rotation by ``rate_rad_s x exposure / 2``, when already computed.
     margin_px : int, optional
         The CoG window's margin (default: the solver's detector's).
     """
@@ -155,12 +155,12 @@ def star_noise(
         cog = cog * eye
         cog[along] = cov[along]
         cov = cog
-    if rate is None or not np.any(rate):
+    if rate_rad_s is None or not np.any(rate_rad_s):
         return StarNoise(sensor, x, y, cov)
     b = sensor.unproject(x, y) if vectors is None else vectors
     h = half_turn
     if h is None:
-        h = Rotation.from_rotvec(np.asarray(rate, dtype=float) * sensor.exposure_s / 2.0)
+        h = Rotation.from_rotvec(np.asarray(rate_rad_s, dtype=float) * sensor.exposure_s / 2.0)
         h = h.as_matrix()
     # start and end of each streak, projected at once
     px, py = sensor.project(np.concatenate([b @ h.T, b @ h]))

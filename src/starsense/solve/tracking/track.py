@@ -223,7 +223,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         solver,
         det,
         matched,
-        rate=rate,
+        rate_rad_s=rate,
         vectors=vectors[matched],
         half_turn=turn,
         margin_px=setup.margin_px,
