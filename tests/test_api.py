@@ -59,6 +59,9 @@ def test_name_is_exported_and_documented(name):
         if inspect.signature(value).parameters:
             assert "Parameters\n----------" in doc, f"{name}: no numpydoc Parameters section"
         assert "Returns\n-------" in doc, f"{name}: no numpydoc Returns section"
+    if inspect.isclass(value):
+        # numpydoc: a class says what it is built from (Parameters) or holds (Attributes)
+        assert "Parameters\n----------" in doc or "Attributes\n----------" in doc, name
     if inspect.ismodule(value):
         for entry in ("static", "dynamic", "mission"):
             fn = getattr(value, entry)
