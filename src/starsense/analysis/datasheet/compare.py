@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from starsense.analysis.datasheet.sections import Datasheet
-from starsense.analysis.datasheet.sheet import DatasheetSettings, build_datasheet
+from starsense.analysis.datasheet.sheet import datasheet
 from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
 from starsense.units import DEG
 
@@ -153,17 +153,21 @@ def compare(
     Comparison
     """
     sens = [as_sensor(s) for s in sensors]
-    cat = as_catalog(catalog)
-    settings = DatasheetSettings(
-        n_trials=n_trials,
-        rate_rad_s=rate_rad_s,
-        seed=root_seed(rng),
-        n_orientations=n_orientations,
-        n_slew_trials=n_slew_trials,
-        model=model,
-        n_rate_trials=n_rate_trials,
-    )
+    cat, seed = as_catalog(catalog), root_seed(rng)  # one catalogue and one seed for all
     sheets = [
-        build_datasheet(s, cat, settings=settings, client=client, progress=progress) for s in sens
+        datasheet(
+            s,
+            cat,
+            n_trials=n_trials,
+            rate_rad_s=rate_rad_s,
+            rng=seed,
+            n_orientations=n_orientations,
+            model=model,
+            n_slew_trials=n_slew_trials,
+            n_rate_trials=n_rate_trials,
+            client=client,
+            progress=progress,
+        )
+        for s in sens
     ]
     return Comparison.from_sheets(sheets)
