@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint bench bench-peers clean
+.PHONY: demo test test-fast lint docs bench bench-peers clean
 
 $(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,11 @@ test: $(STAMP)  ## lint, format, the stage contract, then the whole suite (what 
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"
+
+docs: $(STAMP)  ## the manual, warnings as errors: docs/_build/html/index.html
+	rm -rf docs/_build docs/generated
+	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	@echo "Open docs/_build/html/index.html"
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench

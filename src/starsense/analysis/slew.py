@@ -244,7 +244,7 @@ def tolerable_rate(
     return rate, bool(rate is not None and np.all(fraction_row >= criterion))
 
 
-def simulate_slew(
+def slew_tolerance(
     sensor,
     *,
     model: str = "reed",
@@ -379,5 +379,5 @@ def magnitude_threshold(result: SlewResult, rates_rad_s) -> np.ndarray:
     return out
 
 
-slew_tolerance = simulate_slew
-"""The front door's name for :func:`simulate_slew`: the slew-tolerance curve of a sensor."""
+simulate_slew = slew_tolerance
+"""The name the analyses use for :func:`slew_tolerance` (the same function)."""

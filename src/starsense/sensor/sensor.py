@@ -69,16 +69,20 @@ class Sensor:
     Build it with :func:`~starsense.sensor.load_sensor` from a preset name or a TOML path, or
     directly.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Sensor name.
     optics : Optics
+        Lens: focal length, aperture, distortion (:mod:`starsense.sensor.optics`).
     detector : Detector
+        Pixels, noise, gain and ADC (:mod:`starsense.sensor.detector`).
     exposure_s : float
         Exposure time, s.
     detection : DetectionThresholds
+        The detection logic: lit-pixel and integrated thresholds, counts.
     description : str
+        Free text from the TOML.
     attitude_areas : AreaLayout or None
         Attitude-determination areas in the focal plane (Lin et al. 2024), tangent-plane units
         (:class:`starsense.geometry.areas.AreaLayout`); None when the whole detector is used.

@@ -48,7 +48,7 @@ class Solution:
     angles are stored in radians; ``ra_deg``, ``rmse_arcsec`` ... give them in the units of the
     command line and of :meth:`to_dict`.
 
-    Attributes
+    Parameters
     ----------
     status : SolveStatus
         Outcome.
@@ -67,7 +67,9 @@ class Solution:
     sigma_rad : tuple of 3 float or None
         1-sigma attitude error about the camera x, y (cross-boresight) and z (roll) axes, rad.
     time_ms : float
-        Wall time of the whole solve, ms; ``stage_ms`` per stage.
+        Wall time of the whole solve, ms.
+    stage_ms : dict of str to float
+        Wall time per stage (detection, identification, attitude...), ms.
     rotation : Rotation or None
         The attitude, ICRS -> camera.
     matches : tuple of (int, int)

@@ -184,8 +184,14 @@ def dynamic(
         Catalogue cut (V).
     n_min : int
         Stars needed.
-    fov, half_fov_rad, n_orientations, roll_rad
-        The field and the sky grid, as for :func:`static` (rad).
+    fov : {"circular", "rectangular"}
+        Shape of the field, as for :func:`static`.
+    half_fov_rad : float or None
+        Half-angle of a circular field, rad (None: from the sensor).
+    n_orientations : int
+        Boresights of the sky grid.
+    roll_rad : float or None
+        Roll of a rectangular field, rad (None: random per boresight).
     rng : None, int or numpy.random.Generator
         Root seed of the rolls and of the slew Monte Carlo.
     progress : callable(label, done, total), optional

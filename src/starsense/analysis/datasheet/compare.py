@@ -139,8 +139,15 @@ def compare(
         The sensors (objects, preset names or sensor TOML files).
     catalog : Catalog, str or None
         The catalogue (object or specification; None: the bundled Hipparcos), loaded once.
-    n_trials, rate_rad_s, n_orientations, model, n_slew_trials, n_rate_trials
-        As for :func:`~starsense.analysis.datasheet.datasheet` (rate in rad/s).
+    n_trials, n_orientations, n_slew_trials : int
+        Rendered frames per check, boresights of the sky statistics, and trials per point of
+        the slew curve, as for :func:`~starsense.analysis.datasheet.datasheet`.
+    rate_rad_s : float
+        The rate of the check under slew, rad/s.
+    model : str
+        Sensitivity model ("reed", "liebe" or "blackbody").
+    n_rate_trials : int or None
+        Frames of the check under slew (None: ``n_trials``).
     rng : None, int or numpy.random.Generator
         Root seed, the same for every sensor.
     client : dask.distributed.Client, optional

@@ -263,7 +263,7 @@ class Datasheet:
     A sensor that detects no star at rest has ``limiting_magnitude`` None, its ``warnings``
     say why, and every section but ``settings`` is None.
 
-    Attributes
+    Parameters
     ----------
     schema, sensor : str
         The JSON schema's name and version; the sensor's name.
@@ -280,16 +280,23 @@ class Datasheet:
     limit_arcsec, nea_over_limit : AxisPair
         Fialho & Mortari's bound for this D, t and field (arcsec), and NEA over it.
     roll_over_cross : RollOverCross
+        Roll over cross-boresight NEA, and what the field's geometry gives.
     monte_carlo, monte_carlo_at_rate : MonteCarloCheck
         The rendered-frame checks at rest and at the settings' rate.
     availability : AvailabilitySummary
+        Availability at the datasheet's rates for lost in space and tracking.
     slew : SlewResult
         The slew-tolerance run; its JSON section is :meth:`SlewResult.tolerance_dict`.
     budget : tuple of BudgetRow
+        The error budget, one row per term.
     quoted : tuple of QuotedValue
+        The TOML's ``[quoted]`` values beside the predictions.
     quoted_source : str or None
+        Where the quoted values come from.
     settings : SheetSettings
+        Trials, rate, seed and catalogue of the run.
     warnings : tuple of str
+        What the reader should know, in words.
     boresights : ndarray (M, 3) or None
         Boresights of the sky statistics (not in the JSON).
     nea_cross_rad : ndarray (M,) or None
