@@ -387,7 +387,7 @@ def build_database(
     db = IdentificationDatabase.load(path, key)
     if db is not None:
         return db
-    expected_s = estimated_build_s(params)
+    expected_s = estimated_build_s(params, len(catalog))
     if expected_s >= NOTICE_BUILD_S:  # stderr without logging set up (logging.lastResort)
         _log.warning(
             "building the %s deg identification database, about %.0f s, once (cached in %s)",

@@ -29,6 +29,7 @@ __all__ = [
     "FieldRange",
     "deep_catalog_available",
     "identifier_for",
+    "known_field_catalog",
     "plan_band",
     "unknown_field_plan",
 ]
@@ -139,6 +140,31 @@ def unknown_field_plan(
     return plan
 
 
+def known_field_catalog(catalog: Catalog | str, fov_rad: float | None) -> Catalog | str:
+    """Return the catalogue to identify a known field with.
+
+    The default spec ``"hipparcos"`` becomes the bundled Gaia (G <= 10) when the field is no
+    wider than the narrow range (6 deg) and Gaia is installed, as in the unknown-field search:
+    a 1-5 deg field holds too few Hipparcos stars. Any other choice is kept.
+
+    Parameters
+    ----------
+    catalog : Catalog or str
+        The catalogue the user chose (an object or a spec).
+    fov_rad : float or None
+        The known field (full width of the widest axis), rad; None when it is not known.
+
+    Returns
+    -------
+    Catalog or str
+        `catalog`, or ``"gaia"``.
+    """
+    default = isinstance(catalog, str) and catalog.strip().lower() == "hipparcos"
+    if default and fov_rad is not None and fov_rad <= NARROW_RANGE_RAD[1]:
+        return "gaia" if deep_catalog_available() else catalog
+    return catalog
+
+
 def identifier_for(
     catalog: Catalog | str,
     *,
@@ -164,7 +190,8 @@ def identifier_for(
     HashIdentifier or TriangleIdentifier
     """
     if fov_rad is not None:
-        db = build_database(_loaded(catalog), fov_rad)
+        loaded = _loaded(catalog)
+        db = build_database(loaded, fov_rad, band=plan_band(loaded))
     elif field_range is not None:
         fr = field_range
         db = build_database(
