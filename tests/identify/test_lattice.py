@@ -8,8 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from starsense.catalog import load_catalog
+from starsense.geometry.attitude import angular_separation, attitude_from_radec_roll
 from starsense.identify import build_database
 from starsense.identify import patterns as patterns_module
+from starsense.identify.fields import deep_catalog_available, known_field_catalog
 from starsense.identify.lattice import (
     DENSE_LATTICE,
     PATTERN_BUDGET,
@@ -18,6 +21,9 @@ from starsense.identify.lattice import (
     lattice_pattern_count,
     pattern_lattice,
 )
+from starsense.render.scene import render_frame
+from starsense.sensor import load_sensor
+from starsense.solve.solver import Solver
 
 DEG = math.radians(1.0)
 
@@ -71,3 +77,34 @@ def test_blocks_give_the_same_database(hipparcos, monkeypatch):
     blocks = build_database(hipparcos, fov, cache=False)
     for name in whole._ARRAYS:
         np.testing.assert_array_equal(getattr(blocks, name), getattr(whole, name))
+
+
+def test_narrow_known_fields_use_gaia_with_the_default_catalogue():
+    deep = "gaia" if deep_catalog_available() else "hipparcos"
+    assert known_field_catalog("hipparcos", 1.14 * DEG) == deep
+    assert known_field_catalog("hipparcos", 3.9 * DEG) == deep
+    # Hipparcos alone serves 4-70 deg; a catalogue the user chose is always kept
+    assert known_field_catalog("hipparcos", 6.0 * DEG) == "hipparcos"
+    assert known_field_catalog("hipparcos", None) == "hipparcos"
+    assert known_field_catalog("bsc5:/x/catalog", 1.0 * DEG) == "bsc5:/x/catalog"
+
+
+@pytest.mark.slow  # builds the 1.14 deg Gaia database once (~25 s, ~1.2 GB peak)
+def test_lin2024_frame_solves_on_gaia():
+    """A rendered lin2024 frame (1.14 deg, 2 arcsec pixels, Gaia to G = 10) solves, right.
+
+    The boresight must lie within one pixel (2 arcsec) of the truth: dozens of matched stars
+    centroided to a fraction of a pixel; a wrong identification is off by degrees.
+    """
+    if not deep_catalog_available():
+        pytest.skip("narrow fields need the gaia extra (pip install 'starsense[gaia]')")
+    sensor = load_sensor("lin2024")
+    gaia = load_catalog("gaia")
+    solver = Solver(sensor="lin2024")
+    for i, (ra, dec) in enumerate([(83.8, -5.4), (192.9, 27.1), (280.0, -30.0)]):
+        truth = attitude_from_radec_roll(math.radians(ra), math.radians(dec), 0.3 * i)
+        frame = render_frame(sensor, truth, gaia, band="G", max_mag=10.0, rng=i)
+        sol = solver(frame.image)
+        assert sol.solved, (ra, dec, sol.status, sol.message)
+        err = angular_separation(sol.rotation.inv().apply([0, 0, 1]), truth.inv().apply([0, 0, 1]))
+        assert err < math.radians(2.0 / 3600.0), (ra, dec, math.degrees(err) * 3600)

@@ -73,6 +73,8 @@ class FieldRange:
 COMMON_RANGE_RAD = (5.0 * DEG, 30.0 * DEG, 15.0 * DEG)
 WIDE_RANGE_RAD = (25.0 * DEG, 70.0 * DEG, 50.0 * DEG)
 NARROW_RANGE_RAD = (2.8 * DEG, 6.0 * DEG, 4.0 * DEG)
+#: a known field narrower than this is identified on the bundled Gaia (with the default spec)
+DEEP_KNOWN_FIELD_RAD = 4.0 * DEG
 #: the narrow database's lattice: at the common range's density (16 fields per field area, 50
 #: patterns each) Gaia at 2.5-6 deg made 8.3 M patterns (400 MB, 4 min to build); 4 fields per
 #: field area and 35 patterns (the 4-subsets of the 7 brightest stars) make ~20x fewer
@@ -143,9 +145,10 @@ def unknown_field_plan(
 def known_field_catalog(catalog: Catalog | str, fov_rad: float | None) -> Catalog | str:
     """Return the catalogue to identify a known field with.
 
-    The default spec ``"hipparcos"`` becomes the bundled Gaia (G <= 10) when the field is no
-    wider than the narrow range (6 deg) and Gaia is installed, as in the unknown-field search:
-    a 1-5 deg field holds too few Hipparcos stars. Any other choice is kept.
+    The default spec ``"hipparcos"`` becomes the bundled Gaia (G <= 10) when the field is
+    narrower than :data:`DEEP_KNOWN_FIELD_RAD` (4 deg) and Gaia is installed, as in the narrow
+    range of the unknown-field search: Hipparcos alone serves fields of about 4-70 deg, and a
+    1-3 deg field holds too few of its stars. Any other choice is kept.
 
     Parameters
     ----------
@@ -160,7 +163,7 @@ def known_field_catalog(catalog: Catalog | str, fov_rad: float | None) -> Catalo
         `catalog`, or ``"gaia"``.
     """
     default = isinstance(catalog, str) and catalog.strip().lower() == "hipparcos"
-    if default and fov_rad is not None and fov_rad <= NARROW_RANGE_RAD[1]:
+    if default and fov_rad is not None and fov_rad < DEEP_KNOWN_FIELD_RAD:
         return "gaia" if deep_catalog_available() else catalog
     return catalog
 
