@@ -28,6 +28,10 @@ from starsense.solve.solver import Solver
 DEG = math.radians(1.0)
 
 
+def _lattice(lattice):
+    return {"field_oversampling": lattice[0], "patterns_per_field": lattice[1]}
+
+
 @pytest.mark.parametrize("fov_deg", [8.0, 11.42, 15.0, 20.0, 30.0])
 def test_common_fields_keep_the_dense_lattice(fov_deg):
     # the lattice every lost-in-space result of these fields was measured with
@@ -38,11 +42,11 @@ def test_common_fields_keep_the_dense_lattice(fov_deg):
 @pytest.mark.parametrize("fov_deg", [1.0, 1.14, 2.3, 4.0])
 def test_narrow_fields_get_the_sparse_lattice_within_budget(fov_deg):
     fov = fov_deg * DEG
-    dense = lattice_pattern_count(fov, fov, 13, *DENSE_LATTICE)
+    dense = lattice_pattern_count(fov, fov, 13, **_lattice(DENSE_LATTICE))
     assert dense > PATTERN_BUDGET  # what made the 1-5 deg databases run out of memory
     assert pattern_lattice(fov, fov, 13) == SPARSE_LATTICE
     # at most ~6 M lattice patterns at 1 deg: 48 bytes each in the database, < 0.4 GB
-    assert lattice_pattern_count(fov, fov, 13, *SPARSE_LATTICE) * 48 < 0.4e9
+    assert lattice_pattern_count(fov, fov, 13, **_lattice(SPARSE_LATTICE)) * 48 < 0.4e9
 
 
 def test_what_the_caller_gives_is_kept():

@@ -52,6 +52,7 @@ def lattice_pattern_count(
     max_fov_rad: float,
     min_fov_rad: float,
     pattern_stars_per_fov: int,
+    *,
     field_oversampling: float,
     patterns_per_field: int | None,
 ) -> int:
@@ -123,7 +124,13 @@ def pattern_lattice(
 
     chosen = resolve(DENSE_LATTICE)
     if field_oversampling is None or patterns_per_field is None:
-        count = lattice_pattern_count(max_fov_rad, min_fov_rad, pattern_stars_per_fov, *chosen)
+        count = lattice_pattern_count(
+            max_fov_rad,
+            min_fov_rad,
+            pattern_stars_per_fov,
+            field_oversampling=chosen[0],
+            patterns_per_field=chosen[1],
+        )
         if count > PATTERN_BUDGET:
             chosen = resolve(SPARSE_LATTICE)
     return chosen
@@ -148,8 +155,8 @@ def estimated_build_s(params: Any, n_stars: int) -> float:
         params.max_fov_rad,
         params.min_fov_rad,
         params.pattern_stars_per_fov,
-        params.field_oversampling,
-        params.patterns_per_field,
+        field_oversampling=params.field_oversampling,
+        patterns_per_field=params.patterns_per_field,
     )
 
 
