@@ -449,11 +449,11 @@ class Solver:
         """Build (or load from the cache) the database of the Solver's field now, once.
 
         A batch calls it before its first frame, so that no frame's time holds the load. With a
-        sensor, the detector also runs once on a dark frame of the sensor's shape: the lazy
-        imports and the work buffers of that shape are then paid here, not by the first frame.
+        sensor, the k-d tree is built and the detector runs on a dark frame of the sensor's
+        shape: its lazy imports and work buffers are paid here, not by the first frame.
         """
         if self.sensor is not None:
-            self.identifier(2.0 * self.sensor.half_fov_rad[0])
+            _ = self.identifier(2.0 * self.sensor.half_fov_rad[0]).database.tree
             shape = (self.sensor.detector.rows, self.sensor.detector.columns)
             self.detector(np.zeros(shape, dtype=np.float32))
         else:
