@@ -344,8 +344,8 @@ def build_database(
     patterns_per_field : int or "all", optional
         Patterns kept per lattice field, brightest stars first; "all" for every combination.
     cache : bool
-        Reuse / write an ``.npz`` copy under ``$STARSENSE_CACHE_DIR/identify`` (or the user
-        cache directory).
+        Reuse / write a memory-mapped copy (a directory of ``.npy`` files) under
+        ``$STARSENSE_CACHE_DIR/identify`` (or the user cache directory).
     cache_dir : str or Path, optional
         Another cache directory.
 
