@@ -44,10 +44,12 @@ bench: $(STAMP)  ## time the hot paths; results to bench/results/*.json (+ peers
 	else echo "(peer comparison: run 'make bench-peers' once to install cedar-solve)"; fi
 
 # Peer comparison (development only): cedar-solve 0.5.1 needs NumPy < 2 (np.math) and Pillow < 9,
-# so it gets its own venv, bench/peers/.venv (git-ignored by .venv/). If that cannot be installed,
-# bench-peers still prints starsense's side and says why cedar-solve is unavailable.
+# so it gets its own venv, bench/peers/.venv; tetra3rs (PyPI wheel) gets bench/peers/.venv-tetra3rs
+# (both git-ignored). If one cannot be installed, bench-peers still runs and says why it is missing.
 PEERS       := bench/peers/.venv
 PEERS_STAMP := $(PEERS)/.installed
+T3RS        := bench/peers/.venv-tetra3rs
+T3RS_STAMP  := $(T3RS)/.installed
 
 $(PEERS_STAMP):
 	$(PYTHON) -m venv $(PEERS)
@@ -55,9 +57,16 @@ $(PEERS_STAMP):
 	$(PEERS)/bin/python -m pip install --quiet "cedar-solve==0.5.1" "numpy<2"
 	touch $@
 
-bench-peers: $(STAMP)  ## starsense vs cedar-solve on the same inputs; bench/results/peer_cedar.json
+$(T3RS_STAMP):
+	$(PYTHON) -m venv $(T3RS)
+	$(T3RS)/bin/python -m pip install --quiet "tetra3rs==0.14.0"
+	touch $@
+
+bench-peers: $(STAMP)  ## starsense vs cedar-solve, tetra3rs, astrometry.net; bench/results/peers.json
 	-@$(MAKE) --no-print-directory $(PEERS_STAMP) || echo "(cedar-solve install failed; see above)"
-	$(BIN)/python bench/peers/compare.py --cedar-python $(PEERS)/bin/python
+	-@$(MAKE) --no-print-directory $(T3RS_STAMP) || echo "(tetra3rs install failed; see above)"
+	$(BIN)/python bench/peers/compare.py --cedar-python $(PEERS)/bin/python \
+		--tetra3rs-python $(T3RS)/bin/python
 
 clean:
-	rm -rf $(VENV) bench/peers/.venv build *.egg-info src/*.egg-info .pytest_cache report
+	rm -rf $(VENV) bench/peers/.venv bench/peers/.venv-tetra3rs bench/peers/.cache build *.egg-info src/*.egg-info .pytest_cache report

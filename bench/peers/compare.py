@@ -1,8 +1,10 @@
-"""Peer comparison, starsense vs cedar-solve, same inputs, same run: `make bench-peers`.
+"""Peer comparison, starsense vs cedar-solve, tetra3rs and astrometry.net: `make bench-peers`.
 
-cedar-solve 0.5.1 (PyPI) needs NumPy < 2, so it runs in its own venv, ``bench/peers/.venv``
-(made by ``make bench-peers``; git-ignored), as a subprocess, ``bench/peers/run_cedar.py``, on
-an .npz this script writes. starsense runs in-process here. Inputs:
+Same inputs, same run, one thread each. cedar-solve 0.5.1 (PyPI) needs NumPy < 2, so it runs in
+its own venv, ``bench/peers/.venv``, as a subprocess, ``bench/peers/run_cedar.py``; tetra3rs
+(PyPI wheel) likewise in ``bench/peers/.venv-tetra3rs`` through ``run_tetra3rs.py`` (both venvs
+made by ``make bench-peers``, git-ignored). Both read an .npz this script writes; starsense runs
+in-process here; a peer that is missing is said so and skipped. Inputs:
 
 (a) synthetic centroid sets: 2,001 Fibonacci boresights (random roll), 15 deg across a
     1280 x 960 pinhole detector, the 20 brightest bundled-Hipparcos stars (V <= 9) in the frame,
@@ -12,10 +14,14 @@ an .npz this script writes. starsense runs in-process here. Inputs:
     ``Solver(sensor="esa_blackfly")``), field 11.42 deg given; (b2) each with its own extraction
     from the image (starsense's full pipeline vs cedar's ``solve_from_image``). Wrong: boresight
     more than 15 arcsec from reference.json.
+(c) the real frame sets with a reference.json (``frame_sets.py``): ``granasat/`` and
+    ``cedar-bmp/`` of the shared data; starsense knows nothing, the peers get the camera's
+    nominal field as an estimate; wrong: image centre beyond the set's tolerance.
 
 Time per solve is the wall time of one call (centroids in, attitude out; or image in, attitude
 out for b2), one thread, databases loaded beforehand; ESA times are the best of 3 per frame.
-Results: ``bench/results/peer_cedar.json`` (atomic write) and a table on stdout.
+Results: ``bench/results/peers.json`` (atomic write) and tables on stdout, the last one the
+side-by-side table of every solver on every input (Markdown).
 """
 
 from __future__ import annotations
@@ -40,6 +46,8 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE.parent))
 import agreement as ag  # noqa: E402
+import frame_sets  # noqa: E402
+import peer_table  # noqa: E402
 import run_astrometry  # noqa: E402
 from run import RESULTS, machine  # noqa: E402
 
@@ -47,7 +55,7 @@ from starsense._io import atomic_write  # noqa: E402
 from starsense.catalog import load_catalog  # noqa: E402
 from starsense.detect import StarDetector  # noqa: E402
 from starsense.errors import InputError  # noqa: E402
-from starsense.geometry.attitude import angular_separation, radec_roll_from_attitude  # noqa: E402
+from starsense.geometry.attitude import radec_roll_from_attitude  # noqa: E402
 from starsense.identify import HashIdentifier, build_database  # noqa: E402
 from starsense.identify.centroid_sets import centroid_sets  # noqa: E402
 from starsense.sensor import load_sensor  # noqa: E402
@@ -55,7 +63,9 @@ from starsense.solve.frames import load_image  # noqa: E402
 from starsense.solve.pinhole import pinhole_vectors  # noqa: E402
 from starsense.solve.solver import Solver  # noqa: E402
 
-ESA_DIR = ROOT.parent / "shared" / "data" / "images" / "esa"
+IMAGES = ROOT.parent / "shared" / "data" / "images"
+ESA_DIR = IMAGES / "esa"
+FRAME_SETS = ("granasat", "cedar-bmp")
 SYNTH_SIZE = (960, 1280)  # rows, columns
 SYNTH_FOV_DEG = 15.0
 ARCMIN = math.radians(1.0 / 60.0)
@@ -211,26 +221,30 @@ def astrometry_side(paths, fov_deg) -> tuple[list[dict] | None, str]:
 # cedar-solve's side
 
 
-def cedar_side(python: Path, npz: Path) -> tuple[dict | None, str]:
-    """(results, "") or (None, why cedar-solve is unavailable)."""
+def peer_side(python: Path, script: str, module: str, npz: Path, *extra) -> tuple[dict | None, str]:
+    """A peer's results, (results, "") or (None, why it is unavailable).
+
+    `script` runs under the peer venv's `python` on `npz`; `module` is what it imports.
+    """
     python = python.absolute()  # not resolve(): the venv's python is a symlink out of the venv
     if not python.exists():
         return None, f"{python} not found (make bench-peers creates it)"
     probe = subprocess.run(
-        [str(python), "-c", "import tetra3"], capture_output=True, text=True, cwd=HERE
+        [str(python), "-c", f"import {module}"], capture_output=True, text=True, cwd=HERE
     )
     if probe.returncode:
-        return None, f"'import tetra3' fails in {python}: {probe.stderr.strip().splitlines()[-1]}"
-    out = npz.with_suffix(".json")
+        last = probe.stderr.strip().splitlines()[-1]
+        return None, f"'import {module}' fails in {python}: {last}"
+    out = npz.with_suffix(f".{module}.json")
     run = subprocess.run(
-        [str(python), str(HERE / "run_cedar.py"), str(npz), str(out)],
+        [str(python), str(HERE / script), str(npz), str(out), *map(str, extra)],
         capture_output=True,
         text=True,
         cwd=HERE,
     )
     if run.returncode:
         tail = run.stderr.strip().splitlines()[-1] if run.stderr.strip() else "no stderr"
-        return None, f"run_cedar.py exited {run.returncode}: {tail}"
+        return None, f"{script} exited {run.returncode}: {tail}"
     return json.loads(out.read_text()), ""
 
 
@@ -241,31 +255,6 @@ def cedar_side(python: Path, npz: Path) -> tuple[dict | None, str]:
 def _vec(ra_deg, dec_deg):
     ra, dec = math.radians(ra_deg), math.radians(dec_deg)
     return np.array([math.cos(dec) * math.cos(ra), math.cos(dec) * math.sin(ra), math.sin(dec)])
-
-
-def score(records, truth_vectors, limit_rad) -> dict:
-    n = len(records)
-    solved = [r for r in records if r["solved"]]
-    errors = [
-        float(angular_separation(_vec(r["ra_deg"], r["dec_deg"]), t))
-        for r, t in zip(records, truth_vectors, strict=True)
-        if r["solved"]
-    ]
-    wrong = sum(e > limit_rad for e in errors)
-    ms = np.array([r["ms"] for r in records])
-    return {
-        "n": n,
-        "solved": len(solved),
-        "wrong": int(wrong),
-        "solve_rate": len(solved) / n,
-        "wrong_rate": wrong / n,
-        "correct_rate": (len(solved) - wrong) / n,
-        "mean_ms": float(ms.mean()),
-        "median_ms": float(np.median(ms)),
-        "p99_ms": float(np.percentile(ms, 99)),
-        "max_ms": float(ms.max()),
-        "median_error_arcsec": float(np.median(errors) / ARCSEC) if errors else None,
-    }
 
 
 def frames_dir(folder: Path) -> tuple[list[Path], list]:
@@ -285,15 +274,14 @@ def frames_dir(folder: Path) -> tuple[list[Path], list]:
     return paths, images
 
 
-def whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths) -> dict:
+def whole_frames(ours, peers, astro, astro_why, reference, names, frame_paths) -> dict:
     """Print and return the whole-frame figures: time per stage, agreement with references."""
 
     own = "esa_own_extraction"
+    theirs = peers.get("cedar")
     split = ag.stage_split(ours[own], theirs[own] if theirs else None)
     ag.print_stage_split(split)
-    solvers = {"starsense": ours[own]}
-    if theirs is not None:
-        solvers["cedar"] = theirs[own]
+    solvers = {"starsense": ours[own], **{who: r[own] for who, r in peers.items()}}
     if astro is not None:
         solvers["astrometry.net"] = astro[own]
     else:
@@ -313,12 +301,89 @@ def whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths) 
     return out
 
 
+def write_inputs(npz: Path, synth, esa, frame_paths, frame_images, sets) -> None:
+    """The .npz every peer reads (see run_cedar.py, run_tetra3rs.py)."""
+    names, images, exy, eoff, _reference, sensor = esa
+    set_arrays = {}
+    for key, fs in sets.items():
+        set_arrays[f"set_{key}_fov_deg"] = fs["fov_deg"]
+        set_arrays[f"set_{key}_frames"] = np.array(fs["names"])
+        for i, im in enumerate(fs["peer_images"]):
+            set_arrays[f"set_{key}_image_{i}"] = im
+    np.savez(
+        npz,
+        synth_names=np.array(list(synth)),
+        synth_size=np.array(SYNTH_SIZE),
+        synth_fov_deg=SYNTH_FOV_DEG,
+        esa_names=np.array(names),
+        esa_xy=exy,
+        **{f"{k}_xy": v[0] for k, v in synth.items()},
+        **{f"{k}_offsets": v[1] for k, v in synth.items()},
+        esa_offsets=eoff,
+        esa_size=np.array([sensor.detector.rows, sensor.detector.columns]),
+        esa_fov_deg=math.degrees(2.0 * sensor.half_fov_rad[0]),
+        **{f"esa_image_{i}": np.asarray(im) for i, im in enumerate(images)},
+        frames_names=np.array([p.name for p in frame_paths]),
+        **{f"frames_image_{i}": np.asarray(im) for i, im in enumerate(frame_images)},
+        set_names=np.array(list(sets)),
+        **set_arrays,
+    )
+
+
+def load_sets(names) -> dict:
+    """The real frame sets found under the shared data (absent ones said and skipped)."""
+    sets = {}
+    for name in names:
+        folder = IMAGES / name
+        if (folder / "reference.json").is_file():
+            sets[name] = frame_sets.load_set(folder)
+        else:
+            print(f"frame set {name}: {folder}/reference.json not found, skipped")
+    return sets
+
+
+def centroid_scores(ours, peers, synth, esa_truth) -> tuple[dict, list]:
+    """Score every solver on the centroid sets and the ESA frames; print one line each."""
+    sets = [
+        *((key, label, synth[key][2], ARCMIN) for key, (label, _kw) in SYNTH_SETS.items()),
+        ("esa_same_centroids", "ESA frames, starsense's centroids", esa_truth, 15 * ARCSEC),
+        ("esa_own_extraction", "ESA frames, each its own extraction", esa_truth, 15 * ARCSEC),
+    ]
+    results, rows = {}, []
+    header = f"{'input':50s} {'solver':14s} {'solved':>8s} {'wrong':>6s} {'mean ms':>9s} "
+    print(header + f"{'median ms':>10s} {'err as':>7s}")
+    for key, label, truth, limit in sets:
+        entry = {"starsense": peer_table.score(ours[key], truth, limit)}
+        for who, theirs in peers.items():
+            entry[who] = peer_table.score(theirs[key], truth, limit)
+            entry[f"ratio_median_ms_{who}_over_starsense"] = (
+                entry[who]["median_ms"] / entry["starsense"]["median_ms"]
+            )
+        entry["wrong_limit_arcsec"] = limit / ARCSEC
+        results[key] = entry
+        peer_table.print_scores(label, entry)
+        rows.append((label, entry, key == "esa_own_extraction"))
+        loose = peers.get("tetra3rs", {}).get(f"{key}_loose")
+        if loose is not None:  # run_tetra3rs.LOOSE
+            entry["tetra3rs_loose"] = peer_table.score(loose, truth, limit)
+            label = f"{label}, tetra3rs match_max_error 0.003"
+            peer_table.print_scores(label, {"tetra3rs": entry["tetra3rs_loose"]})
+            rows.append((label, {"tetra3rs": entry["tetra3rs_loose"]}, False))
+    return results, rows
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cedar-python", type=Path, default=HERE / ".venv" / "bin" / "python")
+    parser.add_argument(
+        "--tetra3rs-python", type=Path, default=HERE / ".venv-tetra3rs" / "bin" / "python"
+    )
     parser.add_argument("-n", type=int, default=2001, help="Fibonacci boresights (default 2001)")
     parser.add_argument(
         "--frames", type=Path, help="also solve every image of this folder with each solver"
+    )
+    parser.add_argument(
+        "--sets", nargs="*", default=list(FRAME_SETS), help="frame sets of the shared data"
     )
     parser.add_argument("--no-astrometry", action="store_true", help="skip solve-field")
     args = parser.parse_args(argv)
@@ -327,122 +392,95 @@ def main(argv=None) -> int:
     print(f"generating inputs: {args.n} synthetic centroid sets, 8 ESA frames ...", flush=True)
     synth = {key: synthetic_inputs(args.n, **kw) for key, (_label, kw) in SYNTH_SETS.items()}
     esa = esa_inputs()
-    names, images, exy, eoff, reference, sensor = esa
+    names, _images, _exy, _eoff, reference, sensor = esa
     esa_truth = [_vec(reference[n]["ra_deg"], reference[n]["dec_deg"]) for n in names]
+    sets = load_sets(args.sets)
 
+    peers, missing = {}, {}
     with tempfile.TemporaryDirectory(prefix="starsense-peers-") as tmp:
         npz = Path(tmp) / "inputs.npz"
-        np.savez(
-            npz,
-            synth_names=np.array(list(synth)),
-            synth_size=np.array(SYNTH_SIZE),
-            synth_fov_deg=SYNTH_FOV_DEG,
-            esa_names=np.array(names),
-            esa_xy=exy,
-            **{f"{k}_xy": v[0] for k, v in synth.items()},
-            **{f"{k}_offsets": v[1] for k, v in synth.items()},
-            esa_offsets=eoff,
-            esa_size=np.array([sensor.detector.rows, sensor.detector.columns]),
-            esa_fov_deg=math.degrees(2.0 * sensor.half_fov_rad[0]),
-            **{f"esa_image_{i}": np.asarray(im) for i, im in enumerate(images)},
-            frames_names=np.array([p.name for p in frame_paths]),
-            **{f"frames_image_{i}": np.asarray(im) for i, im in enumerate(frame_images)},
-        )
+        write_inputs(npz, synth, esa, frame_paths, frame_images, sets)
         print("starsense ...", flush=True)
         ours = starsense_side(synth, esa)
         ours["frames"] = starsense_frames(frame_images)
-        print("cedar-solve (subprocess in the peers venv) ...", flush=True)
-        theirs, why = cedar_side(args.cedar_python, npz)
+        ours["sets"] = {key: frame_sets.starsense_set(fs) for key, fs in sets.items()}
+        for who, python, script, module, extra in (
+            ("cedar", args.cedar_python, "run_cedar.py", "tetra3", ()),
+            ("tetra3rs", args.tetra3rs_python, "run_tetra3rs.py", "tetra3rs", (HERE / ".cache",)),
+        ):
+            print(f"{who} (subprocess in its venv) ...", flush=True)
+            result, why = peer_side(python, script, module, npz, *extra)
+            if result is None:
+                missing[who] = why
+                print(f"{who} unavailable: {why}")
+            else:
+                peers[who] = result
     astro, astro_why = None, "skipped (--no-astrometry)"
     if not args.no_astrometry:
         print("astrometry.net solve-field ...", flush=True)
         esa_fov_deg = math.degrees(2.0 * sensor.half_fov_rad[0])
         astro, astro_why = astrometry_side([ESA_DIR / n for n in names], esa_fov_deg)
         if astro is not None:
-            astro = {"esa_own_extraction": astro, "frames": astrometry_side(frame_paths, None)[0]}
+            astro = {
+                "esa_own_extraction": astro,
+                "frames": astrometry_side(frame_paths, None)[0],
+                "sets": {
+                    key: astrometry_side([fs["folder"] / n for n in fs["names"]], fs["fov_deg"])[0]
+                    for key, fs in sets.items()
+                },
+            }
+    if astro is None:
+        missing["astrometry.net"] = astro_why
 
-    sets = [
-        *((key, label, synth[key][2], ARCMIN) for key, (label, _kw) in SYNTH_SETS.items()),
-        ("esa_same_centroids", "ESA frames, starsense's centroids", esa_truth, 15 * ARCSEC),
-        ("esa_own_extraction", "ESA frames, each its own extraction", esa_truth, 15 * ARCSEC),
-    ]
-    results = {}
-    header = f"{'input':50s} {'solver':12s} {'solved':>8s} {'wrong':>6s} {'mean ms':>9s} "
-    print(header + f"{'median ms':>10s} {'err as':>7s}")
-    for key, label, truth, limit in sets:
-        entry = {"starsense": score(ours[key], truth, limit)}
-        if theirs is not None:
-            entry["cedar"] = score(theirs[key], truth, limit)
-            c, s = entry["cedar"], entry["starsense"]
-            entry["ratio_mean_ms_cedar_over_starsense"] = c["mean_ms"] / s["mean_ms"]
-            entry["ratio_median_ms_cedar_over_starsense"] = c["median_ms"] / s["median_ms"]
-        entry["wrong_limit_arcsec"] = limit / ARCSEC
-        results[key] = entry
-        for who in ("starsense", "cedar"):
-            if who not in entry:
-                continue
-            r = entry[who]
-            err = "-" if r["median_error_arcsec"] is None else f"{r['median_error_arcsec']:.1f}"
-            print(
-                f"{label:50s} {who:12s} {r['solved']:>4d}/{r['n']:<4d}{r['wrong']:>5d} "
-                f"{r['mean_ms']:9.2f} {r['median_ms']:10.2f} {err:>7s}"
-            )
-        if theirs is not None:
-            print(
-                f"{'':50s} {'ratio':12s} cedar/starsense time: mean "
-                f"{entry['ratio_mean_ms_cedar_over_starsense']:.2f}x, median "
-                f"{entry['ratio_median_ms_cedar_over_starsense']:.2f}x"
-            )
-    if theirs is None:
-        print(f"cedar-solve unavailable: {why}")
-    whole = whole_frames(ours, theirs, astro, astro_why, reference, names, frame_paths)
+    results, rows = centroid_scores(ours, peers, synth, esa_truth)
+    set_results, set_rows = frame_sets.set_scores(sets, ours, peers, astro)
+    whole = whole_frames(ours, peers, astro, astro_why, reference, names, frame_paths)
+    side_by_side = peer_table.table(rows + set_rows, missing)
+    print("\nside by side (one thread each, same run):\n" + side_by_side)
 
     record = {
-        "name": "peer_cedar",
-        "description": "starsense vs cedar-solve on the same inputs (bench/peers/compare.py)",
+        "name": "peers",
+        "description": "starsense and its peers on the same inputs (bench/peers/compare.py)",
         "results": results,
+        "frame_sets": set_results,
         "whole_frames": whole,
+        "table_markdown": side_by_side,
         "starsense": {"database_load_s": ours["database_load_s"], "machine": machine()},
-        "cedar": (
-            {k: theirs[k] for k in ("version", "database", "database_load_s", "machine")}
-            if theirs is not None
-            else {"unavailable": why}
-        ),
+        **{
+            who: {k: r.get(k) for k in ("version", "database", "database_load_s", "machine")}
+            for who, r in peers.items()
+        },
+        "unavailable": missing,
         "per_case": {
             **{
                 f"{key}_unsolved": {
                     who: [
                         {"index": i, "status": r.get("status")}
-                        for i, r in enumerate(recs)
+                        for i, r in enumerate(recs[key])
                         if not r["solved"]
                     ]
-                    for who, recs in (
-                        ("starsense", ours[key]),
-                        ("cedar", theirs[key] if theirs else []),
-                    )
+                    for who, recs in (("starsense", ours), *peers.items())
                 }
                 for key in SYNTH_SETS
             },
             "esa_names": names,
-            **{f"starsense_{k}": ours[k] for k in ("esa_same_centroids", "esa_own_extraction")},
-            **(
-                {f"cedar_{k}": theirs[k] for k in ("esa_same_centroids", "esa_own_extraction")}
-                if theirs is not None
-                else {}
-            ),
+            **{
+                f"{who}_{k}": recs[k]
+                for who, recs in (("starsense", ours), *peers.items())
+                for k in ("esa_same_centroids", "esa_own_extraction")
+            },
             "frames_names": [p.name for p in frame_paths],
             "starsense_frames": ours["frames"],
-            **({"cedar_frames": theirs.get("frames", [])} if theirs is not None else {}),
+            **({"cedar_frames": peers["cedar"].get("frames", [])} if "cedar" in peers else {}),
             **({f"astrometry_{k}": v for k, v in astro.items()} if astro else {}),
         },
         "machine": machine(),
         "date": time.strftime("%Y-%m-%d"),
     }
     RESULTS.mkdir(parents=True, exist_ok=True)
-
-    with atomic_write(RESULTS / "peer_cedar.json") as f:
+    with atomic_write(RESULTS / "peers.json") as f:
         json.dump(record, f, indent=2)
-    print(f"written {RESULTS / 'peer_cedar.json'}")
+    print(f"written {RESULTS / 'peers.json'}")
     return 0
 
 

@@ -108,6 +108,17 @@ def main(inputs: str, out: str) -> int:
         res, ms = _timed(lambda image=image: t3.solve_from_image(image), 1)
         frames.append(_record(res, ms))
 
+    sets = {}  # compare.py's real frame sets: the camera's nominal field as the estimate
+    for key in (str(k) for k in data["set_names"]) if "set_names" in data else ():
+        set_fov = float(data[f"set_{key}_fov_deg"])
+        sets[key] = []
+        for i in range(len(data[f"set_{key}_frames"])):
+            image = Image.fromarray(data[f"set_{key}_image_{i}"])
+            res, ms = _timed(
+                lambda image=image, f=set_fov: t3.solve_from_image(image, fov_estimate=f)
+            )
+            sets[key].append(_record(res, ms))
+
     record = {
         "solver": "cedar-solve",
         "version": _version(),
@@ -123,6 +134,7 @@ def main(inputs: str, out: str) -> int:
         "esa_same_centroids": same,
         "esa_own_extraction": own,
         "frames": frames,
+        "sets": sets,
     }
     with open(out, "w") as f:
         json.dump(record, f, default=lambda o: o.item() if hasattr(o, "item") else str(o))

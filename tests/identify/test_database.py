@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from starsense._io import file_mode
+from starsense._io import dir_mode, file_mode
 from starsense.errors import InputError
 from starsense.identify import build_database, edge_ratios, pattern_edges, thin_by_region
 from starsense.identify import database as database_module
@@ -78,10 +78,11 @@ def test_cache_round_trip(hipparcos, tmp_path, monkeypatch):
     fov = math.radians(20)
     db = build_database(hipparcos, fov, cache_dir=tmp_path)
     path, _ = database_cache_file(hipparcos, db.params, tmp_path)
-    assert path.is_file()
-    assert not list(tmp_path.glob(".tmp-*"))
-    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary file left (_io)
-    assert path.stat().st_mode & 0o777 == file_mode()  # 0666 less the umask, not 0600
+    assert path.is_dir()
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]  # no temporary left (_io)
+    for entry in path.iterdir():
+        assert entry.stat().st_mode & 0o777 == file_mode()  # 0666 less the umask, not 0600
+    assert path.stat().st_mode & 0o777 == dir_mode()
 
     def no_build(*args, **kwargs):
         raise AssertionError("rebuilt although cached")
@@ -90,6 +91,9 @@ def test_cache_round_trip(hipparcos, tmp_path, monkeypatch):
     again = build_database(hipparcos, fov, cache_dir=tmp_path)
     for name in db._ARRAYS:
         np.testing.assert_array_equal(getattr(again, name), getattr(db, name))
+        # memory-mapped from the cache, read-only: opening it does not read the arrays
+        assert isinstance(getattr(again, name).base, np.memmap)
+        assert not getattr(again, name).flags.writeable
     assert again.params == db.params
     # other parameters -> another key -> a rebuild
     with pytest.raises(AssertionError, match="rebuilt"):
@@ -101,9 +105,15 @@ def test_cache_ignores_corrupt_file(hipparcos, tmp_path):
     db = build_database(hipparcos, fov, cache=False)
     path, _ = database_cache_file(hipparcos, db.params, tmp_path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(b"not an npz")
+    path.write_bytes(b"not a database directory")
     again = build_database(hipparcos, fov, cache_dir=tmp_path)
     np.testing.assert_array_equal(again.patterns, db.patterns)
+    # a truncated array in a cached directory: rebuilt and replaced, not used
+    with open(path / "patterns.npy", "r+b") as f:
+        f.truncate(200)
+    third = build_database(hipparcos, fov, cache_dir=tmp_path)
+    np.testing.assert_array_equal(third.patterns, db.patterns)
+    assert (path / "patterns.npy").stat().st_size == 128 + db.patterns.nbytes  # header + data
 
 
 @pytest.mark.parametrize(

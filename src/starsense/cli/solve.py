@@ -162,11 +162,12 @@ def _csv_line(row: dict) -> str:
 
 
 def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None) -> None:
-    solver.prepare()  # the database, once, before the first frame
     if not as_json:
         typer.echo(",".join(CSV_FIELDS))
     n_solved = 0
     with progress_bar(True) as bar, ThreadPoolExecutor(max_workers=jobs) as pool:
+        # the database, once, before the first frame; in a worker, whose buffers it warms
+        pool.submit(solver.prepare).result()
         progress = bar.task("Solving", total=len(frames))
         for done, row in enumerate(
             pool.map(lambda f: _batch_row(solver, f, when), frames), start=1

@@ -1,30 +1,42 @@
-"""The on-disk cache of identification databases (``.npz`` files in the user cache directory).
+"""The on-disk cache of identification databases (directories in the user cache directory).
 
-The cache key is a hash of the catalogue's name, source, size, the modification time of its
-source file (if it is one), a digest of its positions and magnitudes, and every build
-parameter. Files are written atomically (:func:`starsense._io.atomic_write`); a missing,
-unreadable or stale file reads as None, and the database is then rebuilt.
+One database is one directory: ``meta.json`` (the cache key, the build parameters) and one
+``.npy`` file per array, which :func:`read_arrays` memory-maps (``mmap_mode="r"``): opening a
+database reads only its header, and a solve then touches the pages it probes, so start-up does
+not pay for the whole database, nor a process for memory it does not use.
+
+The cache key is a hash of the catalogue's name, size and a digest of its identifiers,
+positions and magnitudes (the content, not the file's path or modification time: a fresh
+clone or a moved installation reuses its databases), and every build parameter. A directory is
+written under a temporary name (:func:`starsense._io.temp_prefix`, swept when its process is
+gone) and renamed into place; a missing, unreadable or stale one reads as None, and the
+database is then rebuilt.
 """
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import logging
-import zipfile
+import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from starsense._io import atomic_write
+from starsense._io import dir_mode, file_mode, sweep_stale, temp_prefix
 from starsense.catalog.cache import default_cache_dir
 
 if TYPE_CHECKING:
     from starsense.catalog.table import Catalog
 
-__all__ = ["DATABASE_FORMAT_VERSION", "BuildParams", "database_cache_file", "read_npz", "write_npz"]
+__all__ = [
+    "DATABASE_FORMAT_VERSION",
+    "BuildParams",
+    "database_cache_file",
+    "read_arrays",
+    "write_arrays",
+]
 
 
 class BuildParams(Protocol):
@@ -40,8 +52,9 @@ class BuildParams(Protocol):
         ...
 
 
-DATABASE_FORMAT_VERSION = 1
-"""Version of the ``.npz`` layout; bump it when the layout or the build algorithm changes."""
+DATABASE_FORMAT_VERSION = 2
+"""Version of the on-disk layout (2: a directory of ``.npy`` files, memory-mapped; the key
+without the catalogue's path); bump it when the layout or the build algorithm changes."""
 
 _log = logging.getLogger(__name__)
 
@@ -51,17 +64,7 @@ def _catalog_digest(catalog: Catalog, band: str) -> dict:
     h = hashlib.sha256()
     for arr in (catalog.ids, catalog.ra_rad, catalog.dec_rad, catalog.mags[band]):
         h.update(np.ascontiguousarray(arr).tobytes())
-    info: dict = {
-        "name": catalog.name,
-        "source": str(catalog.source),
-        "n": len(catalog),
-        "digest": h.hexdigest()[:32],
-    }
-    with contextlib.suppress(OSError, ValueError):
-        st = Path(catalog.source).stat()
-        info["size"] = st.st_size
-        info["mtime_ns"] = st.st_mtime_ns
-    return info
+    return {"name": catalog.name, "n": len(catalog), "digest": h.hexdigest()[:32]}
 
 
 def database_cache_file(
@@ -82,7 +85,7 @@ def database_cache_file(
     Returns
     -------
     path : Path
-        The ``.npz`` file.
+        The database's directory.
     key : str
         The key stored in (and checked against) the file.
     """
@@ -96,41 +99,63 @@ def database_cache_file(
     )
     digest = hashlib.sha256(key.encode()).hexdigest()[:16]
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir() / "identify"
-    return directory / f"iddb-{catalog.name}-{digest}.npz", key
+    return directory / f"iddb-{catalog.name}-{digest}", key
 
 
-def write_npz(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-    """Write ``meta`` (as JSON, with the format version) and ``arrays`` to ``path`` atomically.
+def write_arrays(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
+    """Write ``meta`` (JSON, with the format version) and ``arrays`` (``.npy``) as directory `path`.
+
+    Written under a temporary name beside `path`, then renamed into place; a stale or
+    unreadable directory already at `path` is replaced, one another process has just written
+    is kept.
 
     Parameters
     ----------
     path : str or Path
-        The ``.npz`` file; its directory is created if needed.
+        The database's directory; its parent is created if needed.
     meta : dict
         JSON-serialisable metadata (the cache key, build parameters, ...).
     arrays : dict of str to ndarray
-        The arrays to store.
+        The arrays to store, one ``NAME.npy`` file each.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    meta = {**meta, "format": DATABASE_FORMAT_VERSION}
-    with atomic_write(target, "wb") as f:
-        np.savez(f, meta=np.array(json.dumps(meta)), **arrays)
+    sweep_stale(target)
+    tmp = target.parent / f"{temp_prefix(target)}dir"
+    try:
+        tmp.mkdir(mode=dir_mode())
+        for name, arr in arrays.items():
+            np.save(tmp / f"{name}.npy", np.ascontiguousarray(arr), allow_pickle=False)
+        (tmp / "meta.json").write_text(json.dumps({**meta, "format": DATABASE_FORMAT_VERSION}))
+        for entry in tmp.iterdir():
+            entry.chmod(file_mode())
+        if target.exists() and read_arrays(target, tuple(arrays), meta.get("key")) is None:
+            shutil.rmtree(target) if target.is_dir() else target.unlink()
+        try:
+            tmp.rename(target)
+        except OSError:
+            if read_arrays(target, tuple(arrays), meta.get("key")) is None:
+                raise  # not a concurrent writer's copy: say so
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
-def read_npz(
+def read_arrays(
     path: str | Path, names: tuple[str, ...], key: str | None = None
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]] | None:
-    """Read a file written by :func:`write_npz`; None if missing, unreadable or stale.
+    """Open a directory written by :func:`write_arrays`; None if missing, unreadable or stale.
+
+    The arrays are memory-mapped read-only (``np.load(..., mmap_mode="r")``), as plain
+    ndarrays.
 
     Parameters
     ----------
     path : str or Path
-        The ``.npz`` file.
+        The database's directory.
     names : tuple of str
-        The arrays to read.
+        The arrays to open.
     key : str, optional
-        The expected cache key; a file with another key is stale.
+        The expected cache key; a directory with another key is stale.
 
     Returns
     -------
@@ -138,16 +163,19 @@ def read_npz(
         The metadata and the arrays.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.is_dir():
         return None
     try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            if meta.get("format") != DATABASE_FORMAT_VERSION:
-                return None
-            if key is not None and meta.get("key") != key:
-                return None
-            return meta, {a: z[a] for a in names}
-    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        meta = json.loads((path / "meta.json").read_text())
+        if meta.get("format") != DATABASE_FORMAT_VERSION:
+            return None
+        if key is not None and meta.get("key") != key:
+            return None
+        arrays = {}
+        for a in names:
+            mapped = np.load(path / f"{a}.npy", mmap_mode="r", allow_pickle=False)
+            arrays[a] = np.asarray(mapped)  # a plain ndarray view of the map (no copy)
+        return meta, arrays
+    except (OSError, ValueError, KeyError, TypeError, EOFError) as exc:
         _log.info("ignoring unreadable identification database %s: %s", path, exc)
         return None

@@ -27,8 +27,9 @@ import json
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,8 +41,18 @@ from starsense.errors import InputError
 from starsense.identify.cache import (
     DATABASE_FORMAT_VERSION,
     database_cache_file,
-    read_npz,
-    write_npz,
+    read_arrays,
+    write_arrays,
+)
+from starsense.identify.lattice import (
+    MAX_PAIRS,
+    NOTICE_BUILD_S,
+    PATTERN_BUDGET,
+    estimated_build_s,
+    expected_pairs,
+    fov_text,
+    lattice_pattern_count,
+    pattern_lattice,
 )
 from starsense.identify.patterns import (
     field_sizes,
@@ -54,10 +65,14 @@ from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = [
     "DATABASE_FORMAT_VERSION",
+    "PATTERN_BUDGET",
     "DatabaseParams",
     "IdentificationDatabase",
     "build_database",
     "database_cache_file",
+    "estimated_build_s",
+    "lattice_pattern_count",
+    "pattern_lattice",
 ]
 
 _log = logging.getLogger(__name__)
@@ -200,13 +215,11 @@ class IdentificationDatabase:
     build_time_s: float = 0.0
     _tree: cKDTree | None = field(default=None, repr=False)
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "_tree", cKDTree(self.vectors))
-
     @property
     def tree(self) -> cKDTree:
-        """k-d tree on :attr:`vectors` (chord distance)."""
-        assert self._tree is not None
+        """k-d tree on :attr:`vectors` (chord distance), built on first use."""
+        if self._tree is None:
+            object.__setattr__(self, "_tree", cKDTree(self.vectors))
         return self._tree
 
     def __len__(self) -> int:
@@ -236,12 +249,12 @@ class IdentificationDatabase:
     )
 
     def save(self, path: str | Path, key: str = "") -> None:
-        """Write to ``path`` (``.npz``) atomically (:func:`starsense.identify.cache.write_npz`).
+        """Write to the directory ``path`` atomically (:func:`~.cache.write_arrays`).
 
         Parameters
         ----------
         path : str or Path
-            The file to write.
+            The directory to write.
         key : str
             The cache key stored with it (:func:`database_cache_file`).
         """
@@ -251,16 +264,16 @@ class IdentificationDatabase:
             "catalog_name": self.catalog_name,
             "build_time_s": self.build_time_s,
         }
-        write_npz(path, meta, {a: getattr(self, a) for a in self._ARRAYS})
+        write_arrays(path, meta, {a: getattr(self, a) for a in self._ARRAYS})
 
     @classmethod
     def load(cls, path: str | Path, key: str | None = None) -> IdentificationDatabase | None:
-        """Read a database written by :meth:`save`; None if missing, unreadable or stale.
+        """Open a database written by :meth:`save` (memory-mapped); None if missing or stale.
 
         Parameters
         ----------
         path : str or Path
-            The file to read.
+            The directory to open.
         key : str, optional
             The expected cache key; a file with another key is stale.
 
@@ -269,7 +282,7 @@ class IdentificationDatabase:
         IdentificationDatabase or None
             The database, or None.
         """
-        stored = read_npz(path, cls._ARRAYS, key)
+        stored = read_arrays(path, cls._ARRAYS, key)
         if stored is None:
             return None
         meta, arrays = stored
@@ -295,9 +308,9 @@ def build_database(
     pattern_stars_per_fov: int = 13,
     verification_stars_per_fov: int = 40,
     lattice_oversampling: float = 2.0,
-    field_oversampling: float = 4.0,
+    field_oversampling: float | None = None,
     n_bins: int = 50,
-    patterns_per_field: int | None = None,
+    patterns_per_field: int | Literal["all"] | None = None,
     cache: bool = True,
     cache_dir: str | Path | None = None,
 ) -> IdentificationDatabase:
@@ -321,15 +334,18 @@ def build_database(
         Brightest stars kept per field-sized region as pattern / verification stars.
     lattice_oversampling : float
         Linear oversampling of the lattice of thinning regions (``**2`` centres per area).
-    field_oversampling : float
+    field_oversampling : float, optional
         Linear oversampling of the lattice of pattern fields (``**2`` centres per field area).
+        Default (with `patterns_per_field`): :func:`pattern_lattice`, 4 and every combination,
+        or for fields whose database would exceed :data:`PATTERN_BUDGET` patterns (narrow
+        fields, a few degrees), the sparse lattice of 2 and 35 patterns per field.
     n_bins : int
         Hash bins per edge ratio.
-    patterns_per_field : int, optional
-        Patterns kept per lattice field, brightest stars first (default: all combinations).
+    patterns_per_field : int or "all", optional
+        Patterns kept per lattice field, brightest stars first; "all" for every combination.
     cache : bool
-        Reuse / write an ``.npz`` copy under ``$STARSENSE_CACHE_DIR/identify`` (or the user
-        cache directory).
+        Reuse / write a memory-mapped copy (a directory of ``.npy`` files) under
+        ``$STARSENSE_CACHE_DIR/identify`` (or the user cache directory).
     cache_dir : str or Path, optional
         Another cache directory.
 
@@ -342,7 +358,7 @@ def build_database(
     InputError
         A parameter is out of range, or the catalogue lacks `band`.
     """
-    params = DatabaseParams(
+    params = DatabaseParams(  # validated here, then given its pattern lattice
         max_fov_rad=float(max_fov_rad),
         min_fov_rad=float(max_fov_rad if min_fov_rad is None else min_fov_rad),
         mag_limit=None if mag_limit is None else float(mag_limit),
@@ -350,10 +366,16 @@ def build_database(
         pattern_stars_per_fov=int(pattern_stars_per_fov),
         verification_stars_per_fov=int(verification_stars_per_fov),
         lattice_oversampling=float(lattice_oversampling),
-        field_oversampling=float(field_oversampling),
         n_bins=int(n_bins),
-        patterns_per_field=None if patterns_per_field is None else int(patterns_per_field),
     )
+    lattice = pattern_lattice(
+        params.max_fov_rad,
+        params.min_fov_rad,
+        params.pattern_stars_per_fov,
+        field_oversampling=field_oversampling,
+        patterns_per_field=patterns_per_field,
+    )
+    params = replace(params, field_oversampling=lattice[0], patterns_per_field=lattice[1])
     if band not in catalog.mags:
         raise InputError(
             f"catalogue {catalog.name!r} has no {band!r} magnitudes; "
@@ -365,6 +387,14 @@ def build_database(
     db = IdentificationDatabase.load(path, key)
     if db is not None:
         return db
+    expected_s = estimated_build_s(params, len(catalog))
+    if expected_s >= NOTICE_BUILD_S:  # stderr without logging set up (logging.lastResort)
+        _log.warning(
+            "building the %s deg identification database, about %.0f s, once (cached in %s)",
+            fov_text(params),
+            expected_s,
+            path.parent,
+        )
     db = _build(catalog, params)
     try:
         db.save(path, key)
@@ -422,8 +452,11 @@ def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
     patterns, ratios, largest, keys = hash_patterns(vectors, patterns, params.n_bins)
 
     # Pairs of pattern stars within the field diagonal (rectangular fields up to 4:3 -> 1.25).
-    # Only for a known field: the triangle algorithm needs the absolute scale.
-    pstars = np.flatnonzero(is_pattern) if len(sizes) == 1 else np.zeros(0, dtype=np.int64)
+    # Only for a known field: the triangle algorithm needs the absolute scale; and only when
+    # they are few enough to keep (a 1.1 deg field on Gaia would make 16 M, 400 MB).
+    pstars = np.flatnonzero(is_pattern)
+    if len(sizes) > 1 or expected_pairs(len(pstars), params.max_fov_rad) > MAX_PAIRS:
+        pstars = np.zeros(0, dtype=np.int64)
     pairs, angles = star_pairs(vectors, pstars, params.max_fov_rad)
 
     return IdentificationDatabase(

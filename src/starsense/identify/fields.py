@@ -29,6 +29,7 @@ __all__ = [
     "FieldRange",
     "deep_catalog_available",
     "identifier_for",
+    "known_field_catalog",
     "plan_band",
     "unknown_field_plan",
 ]
@@ -72,6 +73,8 @@ class FieldRange:
 COMMON_RANGE_RAD = (5.0 * DEG, 30.0 * DEG, 15.0 * DEG)
 WIDE_RANGE_RAD = (25.0 * DEG, 70.0 * DEG, 50.0 * DEG)
 NARROW_RANGE_RAD = (2.8 * DEG, 6.0 * DEG, 4.0 * DEG)
+#: a known field narrower than this is identified on the bundled Gaia (with the default spec)
+DEEP_KNOWN_FIELD_RAD = 4.0 * DEG
 #: the narrow database's lattice: at the common range's density (16 fields per field area, 50
 #: patterns each) Gaia at 2.5-6 deg made 8.3 M patterns (400 MB, 4 min to build); 4 fields per
 #: field area and 35 patterns (the 4-subsets of the 7 brightest stars) make ~20x fewer
@@ -139,6 +142,32 @@ def unknown_field_plan(
     return plan
 
 
+def known_field_catalog(catalog: Catalog | str, fov_rad: float | None) -> Catalog | str:
+    """Return the catalogue to identify a known field with.
+
+    The default spec ``"hipparcos"`` becomes the bundled Gaia (G <= 10) when the field is
+    narrower than :data:`DEEP_KNOWN_FIELD_RAD` (4 deg) and Gaia is installed, as in the narrow
+    range of the unknown-field search: Hipparcos alone serves fields of about 4-70 deg, and a
+    1-3 deg field holds too few of its stars. Any other choice is kept.
+
+    Parameters
+    ----------
+    catalog : Catalog or str
+        The catalogue the user chose (an object or a spec).
+    fov_rad : float or None
+        The known field (full width of the widest axis), rad; None when it is not known.
+
+    Returns
+    -------
+    Catalog or str
+        `catalog`, or ``"gaia"``.
+    """
+    default = isinstance(catalog, str) and catalog.strip().lower() == "hipparcos"
+    if default and fov_rad is not None and fov_rad < DEEP_KNOWN_FIELD_RAD:
+        return "gaia" if deep_catalog_available() else catalog
+    return catalog
+
+
 def identifier_for(
     catalog: Catalog | str,
     *,
@@ -164,7 +193,8 @@ def identifier_for(
     HashIdentifier or TriangleIdentifier
     """
     if fov_rad is not None:
-        db = build_database(_loaded(catalog), fov_rad)
+        loaded = _loaded(catalog)
+        db = build_database(loaded, fov_rad, band=plan_band(loaded))
     elif field_range is not None:
         fr = field_range
         db = build_database(

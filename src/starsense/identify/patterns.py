@@ -28,6 +28,7 @@ from scipy.spatial import cKDTree
 from starsense.geometry.sampling import fibonacci_sphere
 
 __all__ = [
+    "CHUNK_PATTERNS",
     "breadth_first_combinations",
     "chord_angles",
     "edge_ratios",
@@ -40,6 +41,9 @@ __all__ = [
     "star_pairs",
     "thin_by_region",
 ]
+
+#: patterns described per block when building (temporaries of ~0.3 KB per pattern)
+CHUNK_PATTERNS = 1 << 20
 
 # The 6 edges of a 4-star pattern, as index pairs into the pattern.
 _EDGE_PAIRS = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)], dtype=np.intp)
@@ -240,17 +244,29 @@ def lattice_patterns(
         for i, members in enumerate(tree.query_ball_point(centres, chord)):
             m = np.sort(np.asarray(members, dtype=np.int64))[:stars_per_field]
             table[i, : len(m)] = stars[m]
-        pats = table[:, combos].reshape(-1, 4)
-        chunks.append(pats[(pats >= 0).all(axis=1)])
+        block = max(1, CHUNK_PATTERNS // len(combos))  # fields per block: bounded temporaries
+        for start in range(0, n_centres, block):
+            pats = table[start : start + block][:, combos].reshape(-1, 4)
+            chunks.append(pats[(pats >= 0).all(axis=1)])
     patterns = np.sort(np.concatenate(chunks), axis=1)
     if len(vectors) < 2**16:
         packed = (patterns[:, 0] << 48) | (patterns[:, 1] << 32) | (patterns[:, 2] << 16)
         _, first = np.unique(packed | patterns[:, 3], return_index=True)
         patterns = patterns[first]
+    elif len(vectors) < 2**21:  # two 42-bit keys: np.unique(axis=0)'s result, 5x faster
+        hi = (patterns[:, 0] << 21) | patterns[:, 1]
+        lo = (patterns[:, 2] << 21) | patterns[:, 3]
+        order = np.lexsort((lo, hi))
+        hi, lo = hi[order], lo[order]
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = (hi[1:] != hi[:-1]) | (lo[1:] != lo[:-1])
+        patterns = patterns[order[first]]
     else:
         patterns = np.unique(patterns, axis=0)
-    order = order_by_centroid_distance(vectors[patterns])
-    return np.take_along_axis(patterns, order, axis=1)
+    for start in range(0, len(patterns), CHUNK_PATTERNS):  # bounded temporaries
+        part = patterns[start : start + CHUNK_PATTERNS]
+        part[:] = np.take_along_axis(part, order_by_centroid_distance(vectors[part]), axis=1)
+    return patterns
 
 
 def hash_patterns(
@@ -278,9 +294,14 @@ def hash_patterns(
     keys : ndarray of int64, shape (P,)
         Their hash keys, ascending.
     """
-    ratios, largest = edge_ratios(pattern_edges(vectors[patterns]))
+    ratios = np.empty((len(patterns), 5))
+    largest = np.empty(len(patterns))
+    for start in range(0, len(patterns), CHUNK_PATTERNS):  # bounded temporaries
+        part = slice(start, start + CHUNK_PATTERNS)
+        ratios[part], largest[part] = edge_ratios(pattern_edges(vectors[patterns[part]]))
     bins = np.clip((ratios * n_bins).astype(np.int64), 0, n_bins - 1)
     keys = hash_keys(bins, n_bins)
+    del bins
     sort = np.argsort(keys, kind="stable")
     return patterns[sort], ratios[sort], largest[sort], keys[sort]
 

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
 from starsense.identify.database import IdentificationDatabase
+from starsense.identify.lattice import MAX_PAIRS
 from starsense.identify.patterns import breadth_first_combinations, chord_angles
 from starsense.identify.result import Identification, result_builder, validate_vectors
 from starsense.identify.verify import Verifier
@@ -73,7 +74,8 @@ class TriangleIdentifier:
         if len(database.pairs) == 0:
             raise InputError(
                 "the database has no star pairs: the triangle algorithm needs a database built "
-                "for one known field (min_fov_rad equal to max_fov_rad)"
+                "for one known field (min_fov_rad equal to max_fov_rad) with at most "
+                f"{MAX_PAIRS:,} pairs (a narrow field on a deep catalogue has more: use hashing)"
             )
         if tolerance_rad is not None:
             check_scalar(tolerance_rad, "tolerance_rad", 0, 0.05, lo_open=True, hi_open=True)

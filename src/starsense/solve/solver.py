@@ -36,7 +36,7 @@ from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
 from starsense.detect.centroid import cog_sigma_px
 from starsense.geometry.attitude import radec_roll_from_attitude
-from starsense.identify.fields import FieldRange
+from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.blends import blend_radius_px, photocentres
 from starsense.solve.centroids import check_centroid_input
@@ -140,6 +140,10 @@ class Solver:
             if self.sensor is not None
             else DetectionThresholds(lit_pixel_counts=1e-6, min_pixels=3, min_integrated_counts=0)
         )
+        known_fov = (
+            2.0 * self.sensor.half_fov_rad[0] if self.sensor is not None else self.settings.fov_rad
+        )
+        catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
         self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
         self._detector: StarDetector | None = None
 
@@ -444,10 +448,14 @@ class Solver:
     def prepare(self) -> None:
         """Build (or load from the cache) the database of the Solver's field now, once.
 
-        A batch calls it before its first frame, so that no frame's time holds the load.
+        A batch calls it before its first frame, so that no frame's time holds the load. With a
+        sensor, the k-d tree is built and the detector runs on a dark frame of the sensor's
+        shape: its lazy imports and work buffers are paid here, not by the first frame.
         """
         if self.sensor is not None:
-            self.identifier(2.0 * self.sensor.half_fov_rad[0])
+            _ = self.identifier(2.0 * self.sensor.half_fov_rad[0]).database.tree
+            shape = (self.sensor.detector.rows, self.sensor.detector.columns)
+            self.detector(np.zeros(shape, dtype=np.float32))
         else:
             self.identifier(self.settings.fov_rad)
 
