@@ -159,3 +159,33 @@ def test_window_detector_gives_the_same_detections_either_way(known):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     np.testing.assert_allclose(a.extra["spread_px2"], b.extra["spread_px2"], rtol=1e-9)
     assert a.n_candidates == b.n_candidates and a.noise_counts == b.noise_counts
+
+
+@needs_kernel
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(0, 40))
+def test_kernel_union_area_equals_the_numpy_form(seed, k):
+    # integer arithmetic both ways: equal; and bounded by the sum and the largest box
+    rng = np.random.default_rng(seed)
+    r0, c0 = rng.integers(-5, 60, k), rng.integers(-5, 60, k)
+    boxes = np.column_stack([r0, r0 + rng.integers(0, 30, k), c0, c0 + rng.integers(0, 30, k)])
+    got, ref = wk.union_area_compiled(boxes), wk.union_area_numpy(boxes)
+    assert got == ref
+    areas = (boxes[:, 1] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 2])
+    assert (areas.max() if k else 0) <= got <= areas.sum()
+
+
+@needs_kernel
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(0, 40))
+def test_kernel_apart_equals_the_numpy_form(seed, n):
+    rng = np.random.default_rng(seed)
+    x, y = rng.uniform(0, 8, n), rng.uniform(0, 8, n)  # crowded: many within 2 px
+    x[: n // 4] = np.round(x[: n // 4])  # and some exactly 2 px apart
+    y[: n // 4] = np.round(y[: n // 4])
+    order = rng.permutation(n)
+    got, ref = wk.apart_compiled(x, y, order), wk.apart_numpy(x, y, order)
+    np.testing.assert_array_equal(got, ref)
+    kept = order[got]
+    d = np.hypot(x[kept, None] - x[None, kept], y[kept, None] - y[None, kept])
+    assert (d[~np.eye(len(kept), dtype=bool)] >= 2.0).all()

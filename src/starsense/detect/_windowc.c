@@ -166,18 +166,22 @@ static Py_ssize_t label_windows(const unsigned char *lit, int32_t *lab, const in
     for (Py_ssize_t p = 0; p < k; p++) {                                                    \
         float lv = level[p], th = thr[p];                                                   \
         for (Py_ssize_t i = 0; i < h; i++) {                                                \
-            const T *src = (const T *)f->data + (r0[p] + i) * f->cols + c0[p];              \
+            const T *restrict src = (const T *)f->data + (r0[p] + i) * f->cols + c0[p];     \
             Py_ssize_t at = (p * h + i) * w;                                                \
-            float *d = sub + at;                                                            \
-            unsigned char *l = lit + at;                                                    \
+            float *restrict d = sub + at;                                                   \
+            unsigned char *restrict l = lit + at;                                           \
+            unsigned char any = 0;                                                          \
             for (Py_ssize_t j = 0; j < w; j++) {                                            \
                 float v = (float)src[j] - lv;                                               \
+                unsigned char on = v > th;                                                  \
                 d[j] = v;                                                                   \
-                l[j] = v > th;                                                              \
+                l[j] = on;                                                                  \
+                any |= on;                                                                  \
             }                                                                               \
-            for (Py_ssize_t j = 0; j < w; j++)                                              \
-                if (l[j])                                                                   \
-                    idx[nlit++] = (int32_t)(at + j);                                        \
+            if (any)                                                                        \
+                for (Py_ssize_t j = 0; j < w; j++)                                          \
+                    if (l[j])                                                               \
+                        idx[nlit++] = (int32_t)(at + j);                                    \
         }                                                                                   \
     }                                                                                       \
     break;
@@ -463,9 +467,126 @@ done:
     return result;
 }
 
+static int cmp_i64(const void *a, const void *b)
+{
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* The distinct values of v[0..n) ascending, in place; returns their number. */
+static Py_ssize_t distinct(int64_t *v, Py_ssize_t n)
+{
+    qsort(v, n, sizeof(int64_t), cmp_i64);
+    Py_ssize_t m = 0;
+    for (Py_ssize_t i = 0; i < n; i++)
+        if (m == 0 || v[i] != v[m - 1])
+            v[m++] = v[i];
+    return m;
+}
+
+static Py_ssize_t find_edge(const int64_t *e, Py_ssize_t n, int64_t x)
+{
+    Py_ssize_t lo = 0, hi = n;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        if (e[mid] < x)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* union_area(boxes, k) -> pixels covered by the union of the k boxes (row0, row1, col0, col1;
+ * int64, half-open), exactly: the cells between the boxes' edges, as windows.union_area. */
+static PyObject *union_area(PyObject *self, PyObject *args)
+{
+    Py_buffer bb;
+    Py_ssize_t k;
+    if (!PyArg_ParseTuple(args, "y*n", &bb, &k))
+        return NULL;
+    PyObject *result = NULL;
+    int64_t *rows = NULL, *cols = NULL;
+    unsigned char *covered = NULL;
+    if (!check(&bb, k * 32, "boxes"))
+        goto done;
+    const int64_t *b = bb.buf;
+    rows = malloc((2 * k + 1) * sizeof(int64_t));
+    cols = malloc((2 * k + 1) * sizeof(int64_t));
+    if (!rows || !cols) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < k; i++) {
+        rows[2 * i] = b[4 * i];
+        rows[2 * i + 1] = b[4 * i + 1];
+        cols[2 * i] = b[4 * i + 2];
+        cols[2 * i + 1] = b[4 * i + 3];
+    }
+    Py_ssize_t nr = distinct(rows, 2 * k), nc = distinct(cols, 2 * k);
+    covered = calloc((nr + 1) * (nc + 1), 1);
+    if (covered == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (Py_ssize_t i = 0; i < k; i++) {
+        Py_ssize_t i0 = find_edge(rows, nr, b[4 * i]), i1 = find_edge(rows, nr, b[4 * i + 1]);
+        Py_ssize_t j0 = find_edge(cols, nc, b[4 * i + 2]), j1 = find_edge(cols, nc, b[4 * i + 3]);
+        for (Py_ssize_t r = i0; r < i1; r++)
+            memset(covered + r * nc + j0, 1, j1 > j0 ? j1 - j0 : 0);
+    }
+    long long area = 0;
+    for (Py_ssize_t r = 0; r + 1 < nr; r++)
+        for (Py_ssize_t c = 0; c + 1 < nc; c++)
+            if (covered[r * nc + c])
+                area += (long long)(rows[r + 1] - rows[r]) * (cols[c + 1] - cols[c]);
+    result = PyLong_FromLongLong(area);
+done:
+    free(covered);
+    free(rows);
+    free(cols);
+    PyBuffer_Release(&bb);
+    return result;
+}
+
+/* apart(x, y, order, n, keep) -> m: the rows order[0..n) in turn, kept when at least 2 px
+ * (math.hypot) from every row kept before; keep[0..m) their positions in order, as
+ * windows._detections. */
+static PyObject *apart(PyObject *self, PyObject *args)
+{
+    Py_buffer xb, yb, ob, kb;
+    Py_ssize_t n;
+    if (!PyArg_ParseTuple(args, "y*y*y*nw*", &xb, &yb, &ob, &n, &kb))
+        return NULL;
+    PyObject *result = NULL;
+    if (check(&xb, n * 8, "x") && check(&yb, n * 8, "y") && check(&ob, n * 8, "order") &&
+        check(&kb, n * 8, "keep")) {
+        const double *x = xb.buf, *y = yb.buf;
+        const int64_t *order = ob.buf;
+        int64_t *keep = kb.buf;
+        Py_ssize_t m = 0;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            double xi = x[order[i]], yi = y[order[i]];
+            int ok = 1;
+            for (Py_ssize_t j = 0; j < m && ok; j++)
+                ok = hypot(xi - x[order[keep[j]]], yi - y[order[keep[j]]]) >= 2.0;
+            if (ok)
+                keep[m++] = i;
+        }
+        result = PyLong_FromSsize_t(m);
+    }
+    PyBuffer_Release(&xb);
+    PyBuffer_Release(&yb);
+    PyBuffer_Release(&ob);
+    PyBuffer_Release(&kb);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"detect_windows", detect_windows, METH_VARARGS,
      "Detect and centroid the stars of tracking windows (see _windowc.c)."},
+    {"union_area", union_area, METH_VARARGS, "Pixels covered by a union of boxes."},
+    {"apart", apart, METH_VARARGS, "Rows kept at least 2 px from those kept before."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_windowc", NULL, -1, methods};

@@ -13,10 +13,13 @@ reads the frame's pixel type, else the NumPy form.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import ndimage
 
 from starsense.detect.streak import columns, kept_arange, streak_centroids, windows_view
+from starsense.detect.workspace import scratch
 
 try:  # the compiled kernel (setup.py builds it where a C compiler exists)
     import starsense.detect._windowc as _windowc
@@ -25,10 +28,14 @@ except ImportError:  # pragma: no cover - exercised on machines without a compil
 
 __all__ = [
     "NO_ROWS",
+    "apart_compiled",
+    "apart_numpy",
     "detect_stack_compiled",
     "detect_stack_numpy",
     "float32_below",
     "label_windows",
+    "union_area_compiled",
+    "union_area_numpy",
 ]
 
 #: scipy's 2-D structuring elements, 8- and 4-connected (indexed by ``connectivity == 4``).
@@ -268,6 +275,90 @@ def detect_stack_numpy(stack, r0, c0, shape, *, level, threshold, logic, sigma_p
     return rows, n
 
 
+def union_area_numpy(boxes: np.ndarray) -> int:
+    """Return the pixels covered by the union of boxes (row0, row1, col0, col1), in NumPy.
+
+    The box edges cut the plane into cells (at most 2K x 2K for K boxes); each box marks the
+    cells it spans, and the areas of the marked cells are summed.
+    """
+    boxes = np.asarray(boxes, dtype=int)
+    if len(boxes) == 0:
+        return 0
+    rows, cols = _edges(boxes[:, :2]), _edges(boxes[:, 2:])
+    i, j = rows.searchsorted(boxes[:, :2]), cols.searchsorted(boxes[:, 2:])
+    covered = np.zeros((len(rows) - 1, len(cols) - 1), bool)
+    for (i0, i1), (j0, j1) in zip(i.tolist(), j.tolist(), strict=True):
+        covered[i0:i1, j0:j1] = True
+    area = (rows[1:] - rows[:-1])[:, None] * (cols[1:] - cols[:-1])
+    return int(area[covered].sum())
+
+
+def _edges(values: np.ndarray) -> np.ndarray:
+    """Return the distinct values, ascending (``np.unique`` without its overheads)."""
+    v = values.flatten()  # a copy, sorted in place
+    v.sort()
+    first = np.empty(len(v), bool)
+    first[0] = True
+    np.not_equal(v[1:], v[:-1], out=first[1:])
+    return v[first]
+
+
+def union_area_compiled(boxes: np.ndarray) -> int | None:
+    """:func:`union_area_numpy` in the compiled kernel (the same integer arithmetic).
+
+    Returns None where the kernel is not built.
+    """
+    if _windowc is None:
+        return None
+    boxes = np.ascontiguousarray(boxes, dtype=np.int64).reshape(-1, 4)
+    return _windowc.union_area(boxes, len(boxes))
+
+
+def apart_numpy(x: np.ndarray, y: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Return the positions in ``order`` of the rows kept at least 2 px from those kept before.
+
+    The rows are taken in ``order`` (e.g. brightest first); one is kept when it lies at least
+    2 px (``math.hypot``) from every row kept before it.
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (N,)
+        Positions, px.
+    order : ndarray of int, shape (N,)
+        The order in which the rows are taken.
+
+    Returns
+    -------
+    ndarray of int, shape (M,)
+        Positions in ``order`` (ascending).
+    """
+    xs, ys = x[order].tolist(), y[order].tolist()
+    keep: list[int] = []
+    for i in range(len(xs)):
+        xi, yi = xs[i], ys[i]
+        for j in keep:
+            if not math.hypot(xi - xs[j], yi - ys[j]) >= 2.0:
+                break
+        else:
+            keep.append(i)
+    return np.array(keep, dtype=np.intp)
+
+
+def apart_compiled(x: np.ndarray, y: np.ndarray, order: np.ndarray) -> np.ndarray | None:
+    """:func:`apart_numpy` in the compiled kernel (the same ``hypot``); None where not built."""
+    if _windowc is None:
+        return None
+    keep = np.empty(len(order), np.int64)
+    m = _windowc.apart(
+        np.ascontiguousarray(x, dtype=float),
+        np.ascontiguousarray(y, dtype=float),
+        np.ascontiguousarray(order, dtype=np.int64),
+        len(order),
+        keep,
+    )
+    return keep[:m]
+
+
 def detect_stack_compiled(image, r0, c0, size, *, level, threshold, logic, sigma_px, streaks):
     """:func:`detect_stack_numpy` in the compiled kernel, the windows cut from the frame there.
 
@@ -292,12 +383,14 @@ def detect_stack_compiled(image, r0, c0, size, *, level, threshold, logic, sigma
         return None
     image = np.ascontiguousarray(image)
     k, (h, w) = len(r0), size
-    level = np.broadcast_to(np.asarray(level, np.float32), (k,)).copy()
-    threshold = np.broadcast_to(np.asarray(threshold, np.float32), (k,)).copy()
+    level, threshold = (
+        np.full(k, v[0], np.float32) if len(v) == 1 else np.ascontiguousarray(v, np.float32)
+        for v in (level, threshold)
+    )
     eight = logic.connectivity != 4
     # at most one region per 2 x 2 pixels (8-connected) or per 2 pixels (4-connected)
     cap = k * (((h + 1) // 2) * ((w + 1) // 2) if eight else (h * w + 1) // 2)
-    out = np.empty((max(cap, 1), _NCOL))
+    out = scratch("window_rows", (max(cap, 1), _NCOL), np.float64)
     st = _NO_STREAKS if streaks is None else np.ascontiguousarray(streaks, dtype=float)
     n, m = _windowc.detect_windows(
         image,
@@ -331,7 +424,7 @@ def detect_stack_compiled(image, r0, c0, size, *, level, threshold, logic, sigma
         o[:, 3].astype(np.intp),
         o[:, 4].copy(),
         o[:, 5:9].astype(np.intp),
-        o[:, 9:13].reshape(m, 2, 2),
+        o[:, 9:13].reshape(m, 2, 2).copy(),  # nothing returned is the scratch buffer
     )
     return rows, n
 

@@ -29,9 +29,13 @@ from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.detect.streak import columns, windows_view
 from starsense.detect.threshold import Detections, StarDetector
 from starsense.detect.window_kernels import (
+    apart_compiled,
+    apart_numpy,
     detect_stack_compiled,
     detect_stack_numpy,
     float32_below,
+    union_area_compiled,
+    union_area_numpy,
 )
 
 if TYPE_CHECKING:
@@ -75,32 +79,15 @@ class WindowDetections:
         return int(np.count_nonzero(inside.any(axis=1)))
 
 
-def union_area(boxes: np.ndarray) -> int:
+def union_area(boxes: np.ndarray, *, compiled: bool = True) -> int:
     """Return the pixels covered by the union of boxes (row0, row1, col0, col1), exactly.
 
     The box edges cut the plane into cells (at most 2K x 2K for K boxes); each box marks the
-    cells it spans, and the areas of the marked cells are summed.
+    cells it spans, and the areas of the marked cells are summed (in the compiled kernel where
+    it is built and ``compiled``, else :func:`~starsense.detect.window_kernels.union_area_numpy`).
     """
-    boxes = np.asarray(boxes, dtype=int)
-    if len(boxes) == 0:
-        return 0
-    rows, cols = _edges(boxes[:, :2]), _edges(boxes[:, 2:])
-    i, j = rows.searchsorted(boxes[:, :2]), cols.searchsorted(boxes[:, 2:])
-    covered = np.zeros((len(rows) - 1, len(cols) - 1), bool)
-    for (i0, i1), (j0, j1) in zip(i.tolist(), j.tolist(), strict=True):
-        covered[i0:i1, j0:j1] = True
-    area = (rows[1:] - rows[:-1])[:, None] * (cols[1:] - cols[:-1])
-    return int(area[covered].sum())
-
-
-def _edges(values: np.ndarray) -> np.ndarray:
-    """Return the distinct values, ascending (``np.unique`` without its overheads)."""
-    v = values.flatten()  # a copy, sorted in place
-    v.sort()
-    first = np.empty(len(v), bool)
-    first[0] = True
-    np.not_equal(v[1:], v[:-1], out=first[1:])
-    return v[first]
+    got = union_area_compiled(boxes) if compiled else None
+    return union_area_numpy(boxes) if got is None else got
 
 
 def streak_px(sensor, rate_rad_s, vectors_cam=None) -> np.ndarray | float:
@@ -195,22 +182,16 @@ def _median_noise(noise: np.ndarray) -> float:
     return float(noise[0]) if len(noise) == 1 else float(np.median(noise))
 
 
-def _detections(rows, noise: float, n_candidates: int, saturation):
+def _detections(rows, noise: float, n_candidates: int, saturation, compiled: bool):
     """Build Detections from the window rows: brightest first, one per 2 px.
 
     ``rows`` as :func:`~starsense.detect.window_kernels.detect_stack_numpy` returns them.
     """
     x, y, counts, n_pixels, peak, box, spread = rows
     order = np.argsort(-counts, kind="stable")
-    xs, ys = x[order].tolist(), y[order].tolist()
-    keep: list[int] = []
-    for i in range(len(xs)):  # overlapping windows and pieces of one streak: the same centre
-        xi, yi = xs[i], ys[i]
-        for j in keep:
-            if not math.hypot(xi - xs[j], yi - ys[j]) >= 2.0:
-                break
-        else:
-            keep.append(i)
+    # overlapping windows and pieces of one streak: the same centre
+    keep = apart_compiled(x, y, order) if compiled else None
+    keep = apart_numpy(x, y, order) if keep is None else keep
     sel = order[keep]
     peak = peak[sel].astype(float)
     return Detections(
@@ -300,6 +281,8 @@ class WindowDetector:
         if got is None:
             stack = _stack(image, r0, c0, (h, w))
             got = detect_stack_numpy(stack, r0, c0, image.shape, **kw)
-        det = _detections(got[0], _median_noise(noise), got[1], self.camera.saturation_counts)
+        det = _detections(
+            got[0], _median_noise(noise), got[1], self.camera.saturation_counts, self.compiled
+        )
         boxes = columns(r0, r0 + h, c0, c0 + w)
-        return WindowDetections(det, n, union_area(boxes), boxes)
+        return WindowDetections(det, n, union_area(boxes, compiled=self.compiled), boxes)
