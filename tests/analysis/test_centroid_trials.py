@@ -46,7 +46,7 @@ def test_simulated_centroids_have_the_predicted_noise_and_false_stars(st16, tabl
     rng = np.random.default_rng(5)
     z, n_false = [], []
     for _ in range(300):
-        sim = simulate_centroids(rng, st16, stars, table)
+        sim = simulate_centroids(st16, stars, table, rng=rng)
         true = np.isfinite(sim.sigma_px)
         z.append(((sim.xy - sim.xy_true)[true] / sim.sigma_px[true, None]).ravel())
         n_false.append(int((~true).sum()))
@@ -75,7 +75,7 @@ def test_stars_are_dropped_with_the_tabulated_probability(st16):
     rng = np.random.default_rng(8)
     seen = in_field = 0
     for _ in range(300):
-        sim = simulate_centroids(rng, st16, stars, flat)
+        sim = simulate_centroids(st16, stars, flat, rng=rng)
         seen, in_field = seen + len(sim.xy), in_field + sim.n_in_field
     frac, sd = seen / in_field, np.sqrt(0.4 * 0.6 / in_field)
     assert in_field > 3000 and abs(frac - 0.4) < 4 * sd
@@ -86,7 +86,7 @@ def test_stars_below_the_detection_table_are_never_seen(st16, table):
     stars = star_field(st16, vectors, mags)
     rng = np.random.default_rng(1)
     for _ in range(50):
-        sim = simulate_centroids(rng, st16, stars, table)
+        sim = simulate_centroids(st16, stars, table, rng=rng)
         m = sim.magnitudes[np.isfinite(sim.magnitudes)]
         assert np.all(m < 5.75)  # detection probability 0 from V 5.75
 

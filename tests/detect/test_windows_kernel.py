@@ -80,6 +80,7 @@ def _case(seed, dtype, integer, per_window, streaked, connectivity):
     )
     streaks = rng.uniform(-15, 15, (k, 2)) if streaked else None
     kw = {
+        "corners": (r0, c0),
         "level": level.astype(np.float32),
         "threshold": threshold,
         "logic": logic,
@@ -87,8 +88,8 @@ def _case(seed, dtype, integer, per_window, streaked, connectivity):
         "streaks": streaks,
     }
     stack = windows_view(img[None], (h, w))[0, r0, c0]
-    ref = wk.detect_stack_numpy(stack, r0, c0, img.shape, **kw)
-    got = wk.detect_stack_compiled(img, r0, c0, (h, w), **kw)
+    ref = wk.detect_stack_numpy(stack, img.shape, **kw)
+    got = wk.detect_stack_compiled(img, (h, w), **kw)
     return ref, got
 
 

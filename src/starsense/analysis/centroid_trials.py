@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starsense._validate import check_int
+from starsense._validate import as_generator, check_int
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.datasheet.predict import StarModel, limiting_magnitude
 from starsense.analysis.datasheet.verify import wrong_rate_upper
@@ -273,24 +273,25 @@ def star_field(sensor, vectors: np.ndarray, magnitudes: np.ndarray):
     return (vectors, magnitudes, cKDTree(vectors), reach)
 
 
-def simulate_centroids(rng, sensor, stars, cmodel: CentroidModel) -> SimulatedCentroids:
+def simulate_centroids(sensor, stars, cmodel: CentroidModel, *, rng) -> SimulatedCentroids:
     """Simulate one random frame's centroids (see the module docstring).
 
     Parameters
     ----------
-    rng : numpy.random.Generator
-        The trial's stream.
     sensor : Sensor
         Projects the stars (optics and distortion) onto its detector.
     stars : tuple
         :func:`star_field`.
     cmodel : CentroidModel
         Detection probability, centroid noise, electrons per magnitude; false stars.
+    rng : numpy.random.Generator or int
+        The trial's stream (or its seed).
 
     Returns
     -------
     SimulatedCentroids
     """
+    rng, _ = as_generator(rng)
     vectors, mags, tree, reach = stars
     truth = random_attitudes(1, rng)[0]
     m = truth.as_matrix()
@@ -324,7 +325,7 @@ def simulate_centroids(rng, sensor, stars, cmodel: CentroidModel) -> SimulatedCe
 
 def _one_trial(rng, solver, stars, cmodel: CentroidModel, wrong_rad: float):
     """Simulate and solve one frame's centroids; (status, solved, wrong, ms, centroids)."""
-    sim = simulate_centroids(rng, solver.sensor, stars, cmodel)
+    sim = simulate_centroids(solver.sensor, stars, cmodel, rng=rng)
     det = solver.sensor.detector
     x, y = sim.xy.T
     # the noise may move a star at the edge off the detector: it is not seen

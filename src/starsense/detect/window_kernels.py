@@ -190,7 +190,7 @@ def _regions(p, box, ok, r0, c0, shape, window):
     return keep[~cut] + 1, p[~cut], box[~cut]
 
 
-def detect_stack_numpy(stack, r0, c0, shape, *, level, threshold, logic, sigma_px, streaks):
+def detect_stack_numpy(stack, shape, *, corners, level, threshold, logic, sigma_px, streaks):
     """Apply the detection logic to every window at once, in NumPy (the reference form).
 
     With a streak of at least 2 PSF sigmas the centroid is taken over the whole predicted
@@ -201,10 +201,10 @@ def detect_stack_numpy(stack, r0, c0, shape, *, level, threshold, logic, sigma_p
     ----------
     stack : ndarray, shape (K, h, w)
         The windows, counts as read.
-    r0, c0 : ndarray of int, shape (K,)
-        Each window's first row and column in the frame, px.
     shape : (int, int)
         The frame's rows and columns.
+    corners : (ndarray of int, ndarray of int), shape (K,) each
+        Each window's first row and column in the frame, px.
     level : ndarray of float32, shape (K,) or (1,)
         Each window's background level, counts ((1,): one for all).
     threshold : ndarray of float32, shape (K,) or (1,)
@@ -224,6 +224,7 @@ def detect_stack_numpy(stack, r0, c0, shape, *, level, threshold, logic, sigma_p
     n : int
         Regions labelled (candidates).
     """
+    r0, c0 = corners
     # counts less the level in float32 (the frame's integer counts are exact in it)
     if len(level) == 1:  # one level and threshold for all: scalars, no broadcast
         sub = stack.astype(np.float32)
@@ -359,17 +360,17 @@ def apart_compiled(x: np.ndarray, y: np.ndarray, order: np.ndarray) -> np.ndarra
     return keep[:m]
 
 
-def detect_stack_compiled(image, r0, c0, size, *, level, threshold, logic, sigma_px, streaks):
+def detect_stack_compiled(image, size, *, corners, level, threshold, logic, sigma_px, streaks):
     """:func:`detect_stack_numpy` in the compiled kernel, the windows cut from the frame there.
 
     Parameters
     ----------
     image : ndarray, shape (rows, columns)
         The frame, counts.
-    r0, c0 : ndarray of int, shape (K,)
-        Each window's first row and column, px (the window inside the frame).
     size : (int, int)
         The windows' rows and columns (h, w).
+    corners : (ndarray of int, ndarray of int), shape (K,) each
+        Each window's first row and column, px (the window inside the frame).
     level, threshold, logic, sigma_px, streaks
         As :func:`detect_stack_numpy` (``level`` and ``threshold`` (K,) or (1,)).
 
@@ -382,6 +383,7 @@ def detect_stack_compiled(image, r0, c0, size, *, level, threshold, logic, sigma
     if fmt is None:
         return None
     image = np.ascontiguousarray(image)
+    r0, c0 = corners
     k, (h, w) = len(r0), size
     level, threshold = (
         np.full(k, v[0], np.float32) if len(v) == 1 else np.ascontiguousarray(v, np.float32)

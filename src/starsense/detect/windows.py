@@ -271,16 +271,17 @@ class WindowDetector:
         r0, c0, (h, w) = _corners(image.shape, np.asarray(centres_px, dtype=float), half_px)
         level, noise, threshold = _levels(self, image, r0, c0, (h, w))
         kw = {
+            "corners": (r0, c0),
             "level": level,
             "threshold": threshold,
             "logic": self.detector.logic,
             "sigma_px": self.camera.psf_sigma_px,
             "streaks": streaks_px,
         }
-        got = None if not self.compiled else detect_stack_compiled(image, r0, c0, (h, w), **kw)
+        got = None if not self.compiled else detect_stack_compiled(image, (h, w), **kw)
         if got is None:
             stack = _stack(image, r0, c0, (h, w))
-            got = detect_stack_numpy(stack, r0, c0, image.shape, **kw)
+            got = detect_stack_numpy(stack, image.shape, **kw)
         det = _detections(
             got[0], _median_noise(noise), got[1], self.camera.saturation_counts, self.compiled
         )
