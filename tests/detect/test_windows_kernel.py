@@ -190,3 +190,21 @@ def test_kernel_apart_equals_the_numpy_form(seed, n):
     kept = order[got]
     d = np.hypot(x[kept, None] - x[None, kept], y[kept, None] - y[None, kept])
     assert (d[~np.eye(len(kept), dtype=bool)] >= 2.0).all()
+
+
+def test_without_the_kernel_the_numpy_form_answers(monkeypatch):
+    # a machine without a C compiler: the compiled entry points say so (None) and the
+    # detector falls back to the NumPy form
+    monkeypatch.setattr(wk, "_windowc", None)
+    boxes = np.array([[0, 10, 0, 10], [5, 15, 5, 15]])
+    assert wk.union_area_compiled(boxes) is None and wk.union_area_numpy(boxes) == 175
+    x = np.array([0.0, 1.0, 5.0])
+    assert wk.apart_compiled(x, x, np.arange(3)) is None
+    np.testing.assert_array_equal(wk.apart_numpy(x, x, np.arange(3)), [0, 2])
+    img = np.zeros((40, 40), np.uint16)
+    img[18:22, 18:22] = 500
+    logic = DetectionLogic(lit_pixel_counts=50.0, min_pixels=4, min_integrated_counts=100.0)
+    wd = WindowDetector(StarDetector(logic), load_sensor("st16").detector, True, 5.0)
+    det = wd(img, np.array([[19.5, 19.5]]), half_px=8).detections
+    assert len(det.x) == 1 and det.n_pixels[0] == 16
+    assert det.x[0] == 19.5 and det.y[0] == 19.5  # a symmetric spot: its centre, exactly
