@@ -7,7 +7,7 @@ OUT    ?= report
 
 .PHONY: demo test test-fast lint docs bench bench-peers clean
 
-$(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c
+$(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c src/starsense/detect/_windowc.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev,scale,gaia]'

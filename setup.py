@@ -1,7 +1,8 @@
-"""Build the one compiled kernel (the metadata is in pyproject.toml).
+"""Build the compiled kernels (the metadata is in pyproject.toml).
 
 ``starsense.detect._clipc`` runs the background mesh's sigma clipping box by box
-(src/starsense/detect/_clipc.c). It is optional: where it cannot be compiled the package
+(src/starsense/detect/_clipc.c); ``starsense.detect._windowc`` tracking's window detection
+(src/starsense/detect/_windowc.c). They are optional: where one cannot be compiled the package
 installs without it and uses the NumPy implementation of the same algorithm.
 """
 
@@ -13,6 +14,13 @@ setup(
             "starsense.detect._clipc",
             ["src/starsense/detect/_clipc.c"],
             optional=True,
-        )
+        ),
+        Extension(
+            "starsense.detect._windowc",
+            ["src/starsense/detect/_windowc.c"],
+            # no fused multiply-add: the kernel's roundings are the NumPy form's
+            extra_compile_args=["-ffp-contract=off"],
+            optional=True,
+        ),
     ]
 )

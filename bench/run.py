@@ -35,6 +35,7 @@ from starsense.analysis.availability import (  # noqa: E402
     field_of_view,
     sky_attitudes,
 )
+from starsense.analysis.centroid_trials import centroid_model, centroid_trials  # noqa: E402
 from starsense.analysis.guide_stars import lin_layout, select_guide_stars, simulate_table1  # noqa: E402
 from starsense.analysis.limits import sky_limit  # noqa: E402
 from starsense.analysis.mission import (  # noqa: E402
@@ -45,6 +46,7 @@ from starsense.analysis.mission import (  # noqa: E402
     mission_geometry,
     sun_synchronous,
 )
+from starsense.analysis.montecarlo import montecarlo  # noqa: E402
 from starsense.analysis.slew import simulate_slew  # noqa: E402
 from starsense.catalog import load_catalog  # noqa: E402
 from starsense.detect import StarDetector  # noqa: E402
@@ -255,6 +257,56 @@ def _track_frame() -> float:
             flush=True,
         )
     return out[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# the datasheet at Monte Carlo scale: 2 local worker processes (cluster start-up excluded)
+
+
+@bench(
+    "lis_centroids_st16_10k",
+    "ST-16 lost in space on 10,000 simulated centroid sets (noise, drops, 2 false stars), "
+    "2 workers",
+    30.0,
+)
+def _lis_centroids() -> float:
+    client = _scale_client()
+    if client is None:
+        return float("nan")
+    sensor = load_sensor("st16")
+    cmodel = centroid_model(sensor, rng=0)  # the datasheet's tables: set-up, not timed
+    centroid_trials(sensor, n_trials=200, cmodel=cmodel, rng=1, client=client)  # warm workers
+    res = centroid_trials(sensor, n_trials=10_000, cmodel=cmodel, rng=0, client=client)
+    print(
+        f"    ({res.n_solved}/{res.n_trials} solved, {res.n_wrong} wrong, rate < "
+        f"{res.wrong_rate_upper95:.1e} (95 %); 1e6 trials: ~{res.wall_s * 100 / 60:.0f} min)",
+        flush=True,
+    )
+    return res.wall_s
+
+
+@bench(
+    "frames_st16_500",
+    "500 rendered ST-16 frames end to end (render, detect, identify, attitude), 2 workers",
+    30.0,
+)
+def _frames_st16() -> float:
+    client = _scale_client()
+    if client is None:
+        return float("nan")
+    sensor = load_sensor("st16")
+    montecarlo(sensor, n_trials=20, rng=1, client=client)  # warm workers (database, imports)
+    t0 = time.perf_counter()
+    res = montecarlo(sensor, n_trials=500, rng=0, client=client)
+    wall = time.perf_counter() - t0
+    t = res.time_ms
+    print(
+        f"    ({res.n_solved - res.n_wrong}/500 solved right; per frame render "
+        f"{t['render']:.0f} ms, solve {t['solve']:.0f} ms; 10,000 frames: "
+        f"~{wall * 20 / 60:.1f} min)",
+        flush=True,
+    )
+    return wall
 
 
 # ---------------------------------------------------------------------------------------------

@@ -7,7 +7,8 @@ import pytest
 from scipy import ndimage
 
 from starsense.detect.streak import streak_centroid, streak_centroids
-from starsense.detect.windows import _label, union_area
+from starsense.detect.window_kernels import label_windows
+from starsense.detect.windows import union_area
 from starsense.render.scene import render_star_stamp
 from starsense.sensor import load_sensor
 
@@ -85,6 +86,6 @@ def test_window_labels_equal_a_3d_labelling(connectivity):
     structure = np.zeros((3, 3, 3), bool)
     structure[1] = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
     ref, n_ref = ndimage.label(lit, structure=structure)
-    got, n = _label(lit, connectivity)
+    got, n = label_windows(lit, connectivity)
     assert n == n_ref
     np.testing.assert_array_equal(got, ref)

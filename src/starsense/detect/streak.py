@@ -15,6 +15,9 @@ import numpy as np
 
 __all__ = ["columns", "kept_arange", "streak_centroid", "streak_centroids", "windows_view"]
 
+#: Float64 zero: ``np.where(mask, float32 counts, _ZERO)`` is float64, so the sums over a
+#: capsule are float64 sums (a Python 0.0 would leave them float32, rounding past 2^24 counts)
+_ZERO = np.float64(0.0)
 #: 0, 1, 2, ...: the rows and columns of a crop (larger crops make their own)
 _ARANGE = {int: np.arange(4096), float: np.arange(4096.0)}
 
@@ -100,7 +103,7 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, *, streak, radius: floa
         if got is None:
             return out
         inside, (r0, r1, c0, c1) = got
-        w = np.where(inside, sub[r0:r1, c0:c1], 0.0)
+        w = np.where(inside, sub[r0:r1, c0:c1], _ZERO)
         total = float(w.sum())
         if not total > 0:
             return out
@@ -246,7 +249,7 @@ def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
         r0, c0 = _origins(yx, rch, limit)
         inside, px, py = _capsules(xl, yl, sxl, syl, l2, radius, r0, c0, size)
         # a capsule off its plane holds no pixel: no total, the region stops (as alone)
-        wt = np.where(inside, crops[live, r0, c0], 0.0)
+        wt = np.where(inside, crops[live, r0, c0], _ZERO)
         tot = np.add.reduce(wt, axis=(1, 2)).astype(float)  # wt.sum, without its wrapper
         good = tot > 0
         cut = not good.all()
