@@ -48,8 +48,8 @@ EQUIDISTANT = {"k1": -1.0 / 3.0, "k2": 1.0 / 5.0}
 
 def wide_sensor(fov_deg: float, *, k1=0.0, k2=0.0, p1=0.0, p2=0.0, offset_px=(0.0, 0.0)):
     """The camera with a field of ``fov_deg`` across its columns and the given distortion."""
-    columns = int(round(2 * FOCAL_M * math.tan(math.radians(fov_deg) / 2) / PITCH_M))
-    rows = int(round(columns * 0.75))
+    columns = round(2 * FOCAL_M * math.tan(math.radians(fov_deg) / 2) / PITCH_M)
+    rows = round(columns * 0.75)
     return sensor_from_dict(
         {
             "name": f"pi_v2_{fov_deg:g}deg",
@@ -97,7 +97,7 @@ def draw_lens(fov_deg: float, rng: np.random.Generator):
 
 def wide_frame(fov_deg: float, seed: int, catalog: Catalog, *, jpeg_quality: int = 90):
     """Render one frame of the family: (uint8 image, truth attitude, Frame, Sensor, lens dict)."""
-    rng = np.random.default_rng([int(round(fov_deg * 1000)), seed])
+    rng = np.random.default_rng([round(fov_deg * 1000), seed])
     sensor, lens = draw_lens(fov_deg, rng)
     att = random_attitudes(1, rng)[0]
     exposure_s = float(np.exp(rng.uniform(np.log(1.0), np.log(4.0))))

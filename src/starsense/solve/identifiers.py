@@ -13,10 +13,10 @@ import numpy as np
 
 from starsense.catalog import load_catalog
 from starsense.catalog.table import Catalog
-from starsense.identify import Identification, identify_ranked
-from starsense.identify.fields import FieldRange, identifier_for, unknown_field_plan
 from starsense.geometry.distortion import undistort
 from starsense.geometry.projection import tangent_to_vectors, vectors_to_tangent
+from starsense.identify import Identification, identify_ranked
+from starsense.identify.fields import FieldRange, identifier_for, unknown_field_plan
 from starsense.identify.verify import apply_scale
 
 #: radial distortions (k1, tangent-plane units of each range's nominal focal length) tried for a

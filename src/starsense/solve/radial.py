@@ -33,12 +33,19 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from starsense.geometry.distortion import distort, undistort
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.identify.verify import false_match_probability
+from starsense.solve.pairing import (
+    FIELD_TERMS,
+    ambiguous_pairs,
+    deleted_residuals,
+    nearest_pairs,
+    residual_field,
+    residual_sigma,
+)
 from starsense.solve.pinhole import pinhole_vectors
 
 __all__ = ["RadialFit", "fit_radial", "radial_vectors", "refine_identification"]
@@ -48,6 +55,11 @@ HYPOTHESIS_STARS = 4
 #: tangent of the corner's off-axis angle above which k2 is fitted too (about 33 deg across
 #: the diagonal): below it r^4 is under 1 % and k2 is degenerate with k1 and the focal length
 K2_MIN_CORNER_TAN = 0.3
+#: narrowest horizontal field refined, rad (20 deg). Below it the lenses are long and well
+#: corrected: on the eight 11.4 deg ESA frames the fitted k1 (0.07-0.15) lowers the residual by
+#: 0.01-0.06 px rms and moves the boresight by 1-3 arcsec either way, as much as the image
+#: centre standing in for the unknown principal point does; the identification's pinhole stays.
+MIN_FIELD_RAD = math.radians(20.0)
 #: a distortion term is kept when it is at least this many of its sigmas from zero
 SIGNIFICANT = 3.0
 #: matched stars needed per fitted distortion term beyond the attitude and focal length
@@ -171,27 +183,6 @@ class _Model:
         )
 
 
-def _pairs(pred: np.ndarray, xy: np.ndarray, radius_px: float) -> tuple[np.ndarray, np.ndarray]:
-    """One-to-one nearest (detection, star) pairs within ``radius_px``, nearest first."""
-    ok = np.flatnonzero(np.isfinite(pred).all(axis=1))
-    if len(ok) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    dist, near = cKDTree(pred[ok]).query(xy, distance_upper_bound=radius_px)
-    hit = np.flatnonzero(np.isfinite(dist))
-    order = hit[np.argsort(dist[hit], kind="stable")]
-    used: set[int] = set()
-    det, star = [], []
-    for d in order.tolist():
-        s = int(ok[near[d]])
-        if s in used:
-            continue
-        used.add(s)
-        det.append(d)
-        star.append(s)
-    idx = np.argsort(det)
-    return np.asarray(det, np.int64)[idx], np.asarray(star, np.int64)[idx]
-
-
 def _terms(n_matched: int, corner_tan: float, max_terms: int) -> int:
     """How many radial terms ``n_matched`` stars of a field reaching ``corner_tan`` support."""
     n = min(max_terms, max(0, (n_matched - 4) // STARS_PER_TERM))
@@ -249,92 +240,33 @@ def fit_radial(
     """
     rows, cols = shape
     xy = np.asarray(xy, dtype=float)[:max_detections]
-    centre = np.array([(cols - 1) / 2.0, (rows - 1) / 2.0])
     rotation, det, cat = tentative
     det, cat = np.asarray(det, np.int64), np.asarray(cat, np.int64)
     keep = det < len(xy)
-    det, cat = det[keep], cat[keep]
-    if len(det) < HYPOTHESIS_STARS + 1:
+    fit = _Fit(xy, shape, rotation, focal_px, k1)
+    star = fit.sky_from(database, cat[keep])
+    if star is None or keep.sum() < HYPOTHESIS_STARS + 1:
         return None
-    half_diag_px = math.hypot(cols / 2.0, rows / 2.0)
-    corner_tan = half_diag_px / focal_px
-    reach = math.atan(corner_tan) * 1.3 + 0.02  # barrel distortion widens the sky seen
-    boresight = rotation.inv().apply([0.0, 0.0, 1.0])
-    near = np.asarray(database.tree.query_ball_point(boresight, 2 * math.sin(reach / 2)), np.int64)
-    sky = database.vectors[near]
-    where = {int(s): i for i, s in enumerate(near.tolist())}
-    star = np.array([where.get(int(c), -1) for c in cat], np.int64)
-    if np.any(star < 0):
+    pairs = fit.iterate(det[keep], star, max_terms)
+    if pairs is None:
         return None
-    theta = np.array([0.0, 0.0, 0.0, focal_px, k1, 0.0])
-    radius = 0.01 * cols  # the identification's match radius, 1 % of the field
-    n_terms = 0
-    field = None
-    for it in range(10):
-        # one more term per round (k1 first): a two-term fit to a tentative match's few wrong
-        # pairs can bend into a false minimum
-        cap = _terms(len(det), corner_tan, max_terms)
-        if k1 and len(det) >= HYPOTHESIS_STARS + 2:  # a guessed k1 is fitted, not kept
-            cap = max(cap, 1)
-        n_terms = min(n_terms + 1 if it or k1 else 0, cap)
-        model = _Model(xy, centre, rotation, n_terms, (theta[4], 0.0))
-        res = model.fit(theta[: 4 + n_terms], det, sky[star], scale_px=radius / 4.0)
-        theta[: 4 + n_terms] = res.x
-        e = xy[det] - model.project(res.x, sky[star])
-        pred = model.project(theta[: 4 + n_terms], sky)
-        field = _residual_field(e, xy[det])
-        if field is not None:  # what the radial model leaves (decentring, principal point)
-            pred = pred + field(pred)
-            e = e - field(xy[det])
-        n_free = 4 + n_terms + (2 * len(_FIELD_TERMS) if field is not None else 0)
-        radius = min(radius, max(4.0 * _sigma(e, n_free), 1.0))
-        inside = np.isfinite(pred).all(axis=1) & (np.abs(pred - centre) <= centre + 0.5).all(1)
-        new_det, new_star = _pairs(np.where(inside[:, None], pred, np.nan), xy, radius)
-        if len(new_det) < HYPOTHESIS_STARS + 1:
-            return None
-        same = np.array_equal(new_det, det) and np.array_equal(new_star, star)
-        det, star = new_det, new_star
-        if same and it >= 2 and cap <= n_terms:
-            break
-    model = _Model(xy, centre, rotation, n_terms, (theta[4], 0.0))
-    res = model.fit(theta[: 4 + n_terms], det, sky[star])
-    theta[: 4 + n_terms] = res.x
-    field = _residual_field(res.fun.reshape(-1, 2), xy[det])
-    # drop the pairs that only fit because they bent the model to themselves
-    ok = _deleted_residuals(res, xy[det], field) <= radius
-    if catalog is not None:
-        ids = database.ids[near[star]]
-        project = lambda v: model.project(theta[: 4 + n_terms], v)  # noqa: E731
-        ok &= ~_ambiguous(catalog, project, field, xy[det], ids, (boresight, reach, radius))
-    if not ok.all():
-        det, star = det[ok], star[ok]
-        if len(det) < HYPOTHESIS_STARS + 1:
-            return None
-        res = model.fit(theta[: 4 + n_terms], det, sky[star])
-        theta[: 4 + n_terms] = res.x
-    n_in = int(inside.sum())
-    p_single = n_in * math.pi * radius**2 / (rows * cols)
+    pairs = fit.screen(*pairs, database, catalog)
+    if pairs is None:
+        return None
+    det, star = pairs
+    n_in = int(fit.inside.sum())
+    p_single = n_in * math.pi * fit.radius**2 / (rows * cols)
     # the hypothesis stars and every fitted term beyond the attitude and scale are no evidence
-    n_free = HYPOTHESIS_STARS + n_terms + (2 * len(_FIELD_TERMS) if field is not None else 0)
+    n_free = HYPOTHESIS_STARS + fit.n_terms + (2 * len(FIELD_TERMS) if fit.field else 0)
     p_false = false_match_probability(len(xy), len(det), n_hypothesis=n_free, p_single=p_single)
     if p_false > false_match_threshold:
         return None
-    sigmas = _sigmas(res, n_terms)
-    while n_terms and abs(theta[3 + n_terms]) < SIGNIFICANT * sigmas[n_terms - 1]:
-        # the highest term is not measured: leave it out (a noise-fitted k2 of a narrow field
-        # would bend the corners, where no star holds it)
-        theta[3 + n_terms] = 0.0
-        n_terms -= 1
-        model = _Model(xy, centre, rotation, n_terms)
-        res = model.fit(theta[: 4 + n_terms], det, sky[star])
-        theta[: 4 + n_terms] = res.x
-        sigmas = _sigmas(res, n_terms)
-    pin = _Model(xy, centre, rotation, 0).fit(theta[:4], det, sky[star])
+    res, sigmas = fit.prune(det, star)
+    theta, n_terms = fit.theta, fit.n_terms
+    pin = _Model(xy, fit.centre, rotation, 0).fit(theta[:4], det, fit.sky[star])
     k1, k2 = (*theta[4 : 4 + n_terms], 0.0, 0.0)[:2]
-    edge = k1 * corner_tan**2 + k2 * corner_tan**4
-    rot = Rotation.from_rotvec(theta[:3]) * rotation
     return RadialFit(
-        rotation=rot,
+        rotation=Rotation.from_rotvec(theta[:3]) * rotation,
         focal_px=float(theta[3]),
         k1=float(k1),
         k2=float(k2),
@@ -342,120 +274,112 @@ def fit_radial(
         k2_sigma=sigmas[1],
         n_terms=n_terms,
         detection_index=det,
-        catalog_index=near[star],
+        catalog_index=fit.near[star],
         residual_rms_px=float(np.sqrt(np.mean(res.fun**2))),
         pinhole_rms_px=float(np.sqrt(np.mean(pin.fun**2))),
         false_match_probability=p_false,
-        edge_distortion=float(edge),
+        edge_distortion=float(k1 * fit.corner_tan**2 + k2 * fit.corner_tan**4),
     )
 
 
-#: (p, q) of the monomials x^p y^q of the residual field: a cubic in the image coordinates
-_FIELD_TERMS = [(p, q) for p in range(4) for q in range(4 - p)]
-#: pairs needed before the residual field is fitted (5 per coefficient of each axis)
-FIELD_MIN_PAIRS = 5 * len(_FIELD_TERMS)
+class _Fit:
+    """The state of one frame's lens fit: parameters, pairs, match radius, residual field."""
 
+    def __init__(self, xy, shape, rotation, focal_px, k1):
+        rows, cols = shape
+        self.xy, self.rotation, self.k1_start = xy, rotation, k1
+        self.centre = np.array([(cols - 1) / 2.0, (rows - 1) / 2.0])
+        self.corner_tan = math.hypot(cols / 2.0, rows / 2.0) / focal_px
+        self.reach = math.atan(self.corner_tan) * 1.3 + 0.02  # barrel widens the sky seen
+        self.boresight = rotation.inv().apply([0.0, 0.0, 1.0])
+        self.theta = np.array([0.0, 0.0, 0.0, focal_px, k1, 0.0])
+        self.radius = 0.01 * cols  # the identification's match radius, 1 % of the field
+        self.n_terms = 0
+        self.field = None
+        self.inside = np.zeros(0, dtype=bool)
 
-def _residual_field(resid: np.ndarray, at: np.ndarray):
-    """Return a smooth cubic map of the residuals (px -> px), or None with too few pairs.
+    def sky_from(self, database, cat):
+        """Fetch the database stars of the field; return the tentative stars' rows in it."""
+        chord = 2 * math.sin(self.reach / 2)
+        self.near = np.asarray(database.tree.query_ball_point(self.boresight, chord), np.int64)
+        self.sky = database.vectors[self.near]
+        where = {int(s): i for i, s in enumerate(self.near.tolist())}
+        star = np.array([where.get(int(c), -1) for c in cat], np.int64)
+        return None if np.any(star < 0) else star
 
-    Fitted by least squares with pairs beyond 3 sigma dropped (twice): a wrong pair does not
-    bend it. It carries what a one-frame radial model leaves at the corners (decentring, a
-    principal point off the image centre: a few pixels), only to pair the stars there.
-    """
-    if len(at) < FIELD_MIN_PAIRS:
-        return None
-    centre = at.mean(axis=0)
-    scale = float(np.abs(at - centre).max()) or 1.0
+    def model(self):
+        return _Model(self.xy, self.centre, self.rotation, self.n_terms, (self.theta[4], 0.0))
 
-    def design(p):
-        u, v = ((np.asarray(p) - centre) / scale).T
-        return np.column_stack([u**a * v**b for a, b in _FIELD_TERMS])
+    def refit(self, det, star, scale_px=None):
+        model = self.model()
+        res = model.fit(self.theta[: 4 + self.n_terms], det, self.sky[star], scale_px=scale_px)
+        self.theta[: 4 + self.n_terms] = res.x
+        return model, res
 
-    m = design(at)
-    keep = np.ones(len(at), dtype=bool)
-    for _ in range(3):
-        coeff, *_ = np.linalg.lstsq(m[keep], resid[keep], rcond=None)
-        err = np.hypot(*(resid - m @ coeff).T)
-        sigma = float(np.median(err[keep])) / math.sqrt(2.0 * math.log(2.0))
-        keep = err <= max(3.0 * sigma, 1e-6)
-        if keep.sum() < FIELD_MIN_PAIRS:
-            return None
+    def iterate(self, det, star, max_terms):
+        """Fit and re-pair until the pairs stop changing; None when too few stay."""
+        xy = self.xy
+        for it in range(10):
+            # one more term per round (k1 first): a two-term fit to a tentative match's few
+            # wrong pairs can bend into a false minimum
+            cap = _terms(len(det), self.corner_tan, max_terms)
+            if self.k1_start and len(det) >= HYPOTHESIS_STARS + 2:  # a guess is fitted
+                cap = max(cap, 1)
+            self.n_terms = min(self.n_terms + 1 if it or self.k1_start else 0, cap)
+            model, res = self.refit(det, star, scale_px=self.radius / 4.0)
+            e = xy[det] - model.project(res.x, self.sky[star])
+            pred = model.project(res.x, self.sky)
+            self.field = residual_field(e, xy[det])
+            if self.field is not None:  # what the radial model leaves (decentring, centre)
+                pred = pred + self.field(pred)
+                e = e - self.field(xy[det])
+            n_free = 4 + self.n_terms + (2 * len(FIELD_TERMS) if self.field else 0)
+            self.radius = min(self.radius, max(4.0 * residual_sigma(e, n_free), 1.0))
+            c = self.centre
+            self.inside = np.isfinite(pred).all(axis=1) & (np.abs(pred - c) <= c + 0.5).all(1)
+            shown = np.where(self.inside[:, None], pred, np.nan)
+            new_det, new_star = nearest_pairs(shown, xy, self.radius)
+            if len(new_det) < HYPOTHESIS_STARS + 1:
+                return None
+            same = np.array_equal(new_det, det) and np.array_equal(new_star, star)
+            det, star = new_det, new_star
+            if same and it >= 2 and cap <= self.n_terms:
+                break
+        return det, star
 
-    def field(p):
-        out = design(np.nan_to_num(p)) @ coeff
-        out[~np.isfinite(p).all(axis=1)] = np.nan
-        return out
+    def screen(self, det, star, database, catalog):
+        """Drop the pairs a lone star holds the fit to, and the ambiguous ones (catalogue)."""
+        model, res = self.refit(det, star)
+        self.field = residual_field(res.fun.reshape(-1, 2), self.xy[det])
+        ok = deleted_residuals(res, self.xy[det], self.field) <= self.radius
+        if catalog is not None:
+            theta = self.theta[: 4 + self.n_terms].copy()
+            where = (self.boresight, self.reach, self.radius)
+            ids = database.ids[self.near[star]]
+            ok &= ~ambiguous_pairs(
+                catalog, lambda v: model.project(theta, v), self.field, self.xy[det], ids, where
+            )
+        if not ok.all():
+            det, star = det[ok], star[ok]
+            if len(det) < HYPOTHESIS_STARS + 1:
+                return None
+            self.refit(det, star)
+        return det, star
 
-    field.design = design
-    return field
-
-
-def _ambiguous(catalog, project, field, at, ids, where) -> np.ndarray:
-    """Return which pairs have another catalogue star near their detection (shape (M,)).
-
-    ``where`` is (boresight, cone half-angle, match radius px); ``project`` maps unit vectors to
-    pixels; the other star counts when it is at most 1 mag fainter than the paired one.
-    """
-    boresight, reach, radius = where
-    idx = catalog.cone(boresight, reach)
-    cone_ids = catalog.ids[idx]
-    where_id = {int(i): k for k, i in enumerate(cone_ids.tolist())}
-    mine = np.array([where_id.get(int(i), -1) for i in ids], dtype=np.int64)
-    if np.any(mine < 0):  # a database of another catalogue (the deep narrow range)
-        return np.zeros(len(ids), dtype=bool)
-    band = "V" if "V" in catalog.bands else catalog.bands[0]
-    mags = np.asarray(catalog.mags[band], dtype=float)[idx]
-    pred = project(catalog.vectors[idx])
-    if field is not None:
-        pred = pred + field(pred)
-    finite = np.flatnonzero(np.isfinite(pred).all(axis=1))
-    tree = cKDTree(pred[finite])
-    out = np.zeros(len(ids), dtype=bool)
-    for i, (p, k) in enumerate(zip(at, mine.tolist(), strict=True)):
-        others = [j for j in finite[tree.query_ball_point(p, 2.0 * radius)] if j != k]
-        out[i] = bool(others) and bool(np.any(mags[others] <= np.nan_to_num(mags[k]) + 1.0))
-    return out
-
-
-def _sigma(e: np.ndarray, n_free: int) -> float:
-    """Per-axis sigma of residuals ``e`` (M, 2) after fitting ``n_free`` parameters.
-
-    From their median length (Rayleigh: median = sigma sqrt(2 ln 2), robust to a wrong pair),
-    scaled up by ``sqrt(2M / (2M - n_free))`` for the degrees of freedom the fit took.
-    """
-    m2 = 2 * len(e)
-    med = float(np.median(np.hypot(*e.T))) / math.sqrt(2.0 * math.log(2.0))
-    return med * math.sqrt(m2 / max(m2 - n_free, 1))
-
-
-def _deleted_residuals(res, at: np.ndarray, field) -> np.ndarray:
-    """Return each pair's residual as predicted without it, px (shape (M,)).
-
-    ``e_(i) = (I - H_ii)^-1 e_i`` with ``H`` the hat matrix of the radial fit and the residual
-    field together and ``e_i`` the residual after both (Cook 1977, the deleted residual). A pair
-    at an unsupported corner that holds the fit to itself has ``H_ii`` near I: its deleted
-    residual is large, and it is no evidence.
-    """
-    e = res.fun.reshape(-1, 2)
-    parts = [res.jac]
-    if field is not None:
-        e = e - field(at)
-        m = field.design(at)
-        fx = np.zeros((2 * len(at), m.shape[1]))
-        fy = np.zeros_like(fx)
-        fx[0::2], fy[1::2] = m, m
-        parts += [fx, fy]
-    q, _ = np.linalg.qr(np.hstack(parts))
-    qb = q.reshape(len(at), 2, -1)
-    h = np.einsum("nik,njk->nij", qb, qb)
-    a = np.eye(2) - h
-    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dx = (a[:, 1, 1] * e[:, 0] - a[:, 0, 1] * e[:, 1]) / det
-        dy = (-a[:, 1, 0] * e[:, 0] + a[:, 0, 0] * e[:, 1]) / det
-    out = np.hypot(dx, dy)
-    return np.where(det > 1e-9, out, np.inf)
+    def prune(self, det, star):
+        """Leave out the highest radial term while it is not measured; the last fit, sigmas."""
+        _, res = self.refit(det, star)
+        sigmas = _sigmas(res, self.n_terms)
+        while (
+            self.n_terms
+            and abs(self.theta[3 + self.n_terms]) < SIGNIFICANT * sigmas[self.n_terms - 1]
+        ):
+            # a noise-fitted k2 of a narrow field would bend the corners, where no star holds it
+            self.theta[3 + self.n_terms] = 0.0
+            self.n_terms -= 1
+            _, res = self.refit(det, star)
+            sigmas = _sigmas(res, self.n_terms)
+        return res, sigmas
 
 
 def _sigmas(res, n_terms: int) -> tuple[float, float]:
@@ -477,6 +401,8 @@ def refine_identification(
     ident, database, x, y, flux, *, shape, fov_rad: float, k1=0.0, catalog=None
 ):
     """Refine a solved identification of an unknown camera with a radial-distortion fit.
+
+    A field narrower than :data:`MIN_FIELD_RAD` identified as a pinhole is left as it is.
 
     Parameters
     ----------
@@ -510,8 +436,10 @@ def refine_identification(
     fov_rad : float
         The horizontal field across the image width, rad (through the distortion found).
     """
-    rows, cols = shape
+    cols = shape[1]
     focal = cols / 2.0 / math.tan(fov_rad / 2.0)
+    if fov_rad < MIN_FIELD_RAD and not k1:
+        return ident, None, pinhole_vectors(x, y, shape=shape, fov_rad=fov_rad), fov_rad
     order = np.argsort(-np.asarray(flux, dtype=float), kind="stable")  # brightest first
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
