@@ -118,7 +118,7 @@ def test_fit_radial_recovers_a_noise_free_lens(solver, catalog):
     start = Rotation.from_rotvec(np.radians([0.05, -0.03, 0.04])) * att
     tentative = (start, np.arange(8), inside[:8])
     fit = fit_radial(
-        xy, (sensor.detector.rows, sensor.detector.columns), db, tentative,
+        xy, (sensor.detector.rows, sensor.detector.columns), db, tentative=tentative,
         focal_px=1.03 * sensor.focal_length_px,
     )  # fmt: skip
     assert fit is not None and fit.n_terms == 2

@@ -114,7 +114,7 @@ def residual_field(resid: np.ndarray, at: np.ndarray):
     return field
 
 
-def ambiguous_pairs(catalog, project, field, at, ids, where) -> np.ndarray:
+def ambiguous_pairs(catalog, project, at, *, field, ids, where) -> np.ndarray:
     """Return which pairs have another catalogue star near their detection.
 
     Parameters

@@ -193,8 +193,8 @@ def fit_radial(
     xy,
     shape,
     database,
-    tentative,
     *,
+    tentative,
     focal_px: float,
     k1: float = 0.0,
     catalog=None,
@@ -357,7 +357,12 @@ class _Fit:
             where = (self.boresight, self.reach, self.radius)
             ids = database.ids[self.near[star]]
             ok &= ~ambiguous_pairs(
-                catalog, lambda v: model.project(theta, v), self.field, self.xy[det], ids, where
+                catalog,
+                lambda v: model.project(theta, v),
+                self.xy[det],
+                field=self.field,
+                ids=ids,
+                where=where,
             )
         if not ok.all():
             det, star = det[ok], star[ok]
@@ -398,7 +403,7 @@ def _sigmas(res, n_terms: int) -> tuple[float, float]:
 
 
 def refine_identification(
-    ident, database, x, y, flux, *, shape, fov_rad: float, k1=0.0, catalog=None
+    ident, database, xy, *, flux, shape, fov_rad: float, k1=0.0, catalog=None
 ):
     """Refine a solved identification of an unknown camera with a radial-distortion fit.
 
@@ -410,8 +415,8 @@ def refine_identification(
         A solved identification (pinhole, field ``fov_rad``).
     database : IdentificationDatabase
         Its database.
-    x, y : ndarray, shape (N,)
-        The centroids, pixels.
+    xy : ndarray, shape (N, 2)
+        The centroids (x = column, y = row), pixels.
     flux : ndarray, shape (N,)
         Their brightness (larger is brighter).
     shape : (int, int)
@@ -438,6 +443,7 @@ def refine_identification(
     """
     cols = shape[1]
     focal = cols / 2.0 / math.tan(fov_rad / 2.0)
+    x, y = np.asarray(xy, dtype=float).T
     if fov_rad < MIN_FIELD_RAD and not k1:
         return ident, None, pinhole_vectors(x, y, shape=shape, fov_rad=fov_rad), fov_rad
     order = np.argsort(-np.asarray(flux, dtype=float), kind="stable")  # brightest first
@@ -447,7 +453,7 @@ def refine_identification(
         np.column_stack([x, y])[order],
         shape,
         database,
-        (ident.rotation, rank[np.asarray(ident.detection_index)], ident.catalog_index),
+        tentative=(ident.rotation, rank[np.asarray(ident.detection_index)], ident.catalog_index),
         focal_px=focal,
         k1=k1,
         catalog=catalog,

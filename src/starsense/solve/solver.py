@@ -357,8 +357,8 @@ class Solver:
         radial = None
         if self.sensor is None:  # an unknown camera: fit its focal length and radial distortion
             ident, radial, vectors, fov = refine_identification(
-                ident, identifier.database, points.x, points.y, points.flux,
-                shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
+                ident, identifier.database, np.column_stack([points.x, points.y]),
+                flux=points.flux, shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
             )  # fmt: skip
         matched = np.asarray(ident.detection_index)
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
