@@ -12,7 +12,7 @@ away), and the direction of the image centre within 4 px of the truth. The solve
 radial model about the image centre: the family's decentring (p up to 0.0048, up to 7 px at
 the edge of a 60 deg field) and principal-point offsets (up to 22 px) are, in one frame, not
 separable from a tilt (a tilt also moves gnomonic coordinates quadratically) and moved the
-centre by up to 2.4 px over the 36 frames; a wrong identification is off by degrees.
+centre by up to 2.1 px over the 36 frames; a wrong identification is off by degrees.
 """
 
 from __future__ import annotations
