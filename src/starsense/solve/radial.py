@@ -17,7 +17,13 @@ stars) ``k2`` are fitted by ``scipy.optimize.least_squares``; with the fitted ca
 catalogue star of the field is projected into the image and paired one-to-one with the nearest
 detection within a radius set by the residuals (4 sigma of the fit, as
 :class:`~starsense.identify.verify.Verifier`), and the fit and pairing are repeated until the
-pairs stop changing.
+pairs stop changing. The radial terms enter one per round (k1 first), with a robust loss while
+the pairs may still be wrong; with enough pairs a smooth cubic map of what the radial model
+leaves (decentring, a principal point off the centre) is added to the predicted places for the
+pairing only (:mod:`starsense.solve.pairing`). Before the test below, pairs whose deleted
+residual (the residual predicted without them) exceeds the radius are dropped, and so are pairs
+with another catalogue star near their detection. A term less than :data:`SIGNIFICANT` sigma
+from zero is then left out. Fields narrower than :data:`MIN_FIELD_RAD` are not refined.
 
 The result is accepted only when it passes the same false-match test as the identification
 (:func:`~starsense.identify.verify.false_match_probability`): the chance that as many
