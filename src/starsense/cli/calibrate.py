@@ -12,10 +12,10 @@ from starsense.catalog import load_catalog
 from starsense.cli.common import CatalogOpt, JsonOpt, SensorOpt, emit
 from starsense.errors import InputError
 from starsense.geometry.apparent import parse_time
+from starsense.sensor import load_sensor
 from starsense.sensor.dump import sensor_to_toml
-from starsense.solve.calibration import PARAMETERS, frame_stars
+from starsense.solve.calibration import PARAMETERS, FrameSolver, frame_stars
 from starsense.solve.calibration import calibrate as calibrate_frames
-from starsense.solve.solver import Solver
 
 
 def calibrate(
@@ -39,12 +39,13 @@ def calibrate(
 ) -> None:
     """Fit focal length, principal point and Brown-Conrady distortion to the frames' stars.
 
-    Every frame is solved with --sensor; the matched stars of those that solve are fitted
-    jointly, each frame's attitude a nuisance parameter. The result is written to --out as a
-    sensor TOML that `solve --sensor FILE` uses. With a time (--time, FITS DATE-OBS, EXIF) the
-    stars are fitted at their apparent places (proper motion, parallax, aberration). Exit
-    status 2 when no frame solves or a parameter cannot be fitted (hold it fixed by leaving it
-    out of --fit).
+    Every frame is solved with --sensor (one that does not identify with it, as through a lens
+    that bends it more than that model allows, is solved with nothing known); the matched
+    stars of those that solve are fitted jointly, each frame's attitude a nuisance parameter.
+    The result is written to --out as a sensor TOML that `solve --sensor FILE` uses. With a
+    time (--time, FITS DATE-OBS, EXIF) the stars are fitted at their apparent places (proper
+    motion, parallax, aberration). Exit status 2 when no frame solves or a parameter cannot be
+    fitted (hold it fixed by leaving it out of --fit).
     """
     names = [p.strip() for p in fit.split(",") if p.strip()]
     bad = [p for p in names if p not in PARAMETERS]
@@ -55,22 +56,22 @@ def calibrate(
     if not out.parent.is_dir():
         raise InputError(f"--out: directory {str(out.parent)!r} not found")
     when = None if time is None else parse_time(time, "--time")
-    solver = Solver(sensor, catalog=catalog)
-    cat = load_catalog(catalog)
+    solver = FrameSolver(load_sensor(sensor), catalog=load_catalog(catalog))
+    cat = solver.catalog
     stars, skipped = [], {}
     for path in frames:
-        sol = solver.solve_file(path, when)
+        sol = solver(path, when)
         if sol.solved:
             stars.append(frame_stars(sol, cat, str(path)))
         else:
             skipped[str(path)] = sol.status
     if not stars:
         raise InputError(f"no frame solved with sensor {sensor!r}: {skipped}")
-    result = calibrate_frames(stars, solver.sensor, fit=names)
+    result = calibrate_frames(stars, solver.solver.sensor, fit=names)
     header = (
         f"starsense calibrate: {result.n_frames} frame(s), {result.n_stars} stars; residual rms "
         f"{result.rms_arcsec_before:.2f} -> {result.rms_arcsec_after:.2f} arcsec\n"
-        f"fitted: {', '.join(result.fitted)}, from sensor {solver.sensor.name}"
+        f"fitted: {', '.join(result.fitted)}, from sensor {solver.solver.sensor.name}"
     )
     with atomic_write(out) as fh:
         fh.write(sensor_to_toml(result.sensor.with_(name=out.stem), header))

@@ -41,7 +41,7 @@ from starsense.solve.solution import Solution
 from starsense.solve.solver import Solver
 from starsense.units import RAD_TO_ARCSEC
 
-__all__ = ["PARAMETERS", "Calibration", "FrameStars", "calibrate", "frame_stars"]
+__all__ = ["PARAMETERS", "Calibration", "FrameSolver", "FrameStars", "calibrate", "frame_stars"]
 
 #: the camera parameters that can be fitted, by the names ``fit`` takes
 PARAMETERS = ("focal_length", "principal_point", "k1", "k2", "p1", "p2")
@@ -286,9 +286,48 @@ def _fit_attitudes_only(problem: _Problem) -> np.ndarray:
     return res.fun
 
 
+class FrameSolver:
+    """Solve frames for a calibration: with the sensor, else as a camera of unknown optics.
+
+    A frame through a lens that bends it more than the sensor's model allows (the model being
+    calibrated) may not identify with that model; it is then solved with nothing known
+    (:class:`~starsense.solve.solver.Solver` without a sensor: the field searched, a radial
+    distortion fitted) and its matched stars fitted all the same. Call it on a frame (array) or
+    an image file.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        The starting camera model.
+    catalog : Catalog or str
+        The catalogue (object or spec), shared by both solvers.
+    """
+
+    def __init__(self, sensor, *, catalog: Catalog | str = "hipparcos") -> None:
+        self.solver = Solver(sensor, catalog=catalog)
+        self._unknown: Solver | None = None
+
+    @property
+    def catalog(self) -> Catalog:
+        """The catalogue the matches refer to."""
+        return self.solver.catalog
+
+    def __call__(self, frame, obs_time=None) -> Solution:
+        """Return the frame's Solution (the sensor's, or the unknown camera's if that solves)."""
+        path = isinstance(frame, str | Path)
+        sol = self.solver.solve_file(frame, obs_time) if path else self.solver(frame, obs_time)
+        if sol.solved:
+            return sol
+        if self._unknown is None:
+            self._unknown = Solver(catalog=self.solver.catalog)
+        unknown = self._unknown
+        other = unknown.solve_file(frame, obs_time) if path else unknown(frame, obs_time)
+        return other if other.solved else sol
+
+
 def _matched_stars(frames: Sequence, sensor: Sensor, catalog) -> list[FrameStars]:
     """Return every frame as its matched stars, solving the images among them."""
-    solver = Solver(sensor, catalog=catalog)
+    solver = FrameSolver(sensor, catalog=catalog)
     out = []
     for k, frame in enumerate(frames):
         name = str(frame) if isinstance(frame, str | Path) else f"frame {k}"
@@ -297,8 +336,6 @@ def _matched_stars(frames: Sequence, sensor: Sensor, catalog) -> list[FrameStars
             continue
         if isinstance(frame, Solution):
             sol = frame
-        elif isinstance(frame, str | Path):
-            sol = solver.solve_file(frame)
         else:
             sol = solver(frame)
         if not sol.solved:
@@ -322,8 +359,9 @@ def calibrate(
     ----------
     frames : sequence of FrameStars, Solution, ndarray or path
         One or more frames: their matched stars (:func:`frame_stars`), their solutions, or the
-        frames themselves (images or image files, solved here with ``Solver(sensor,
-        catalog=catalog)``). A frame that is not solved raises :class:`InputError` naming it.
+        frames themselves (images or image files, solved here with :class:`FrameSolver`: the
+        sensor, else nothing known). A frame that is not solved raises :class:`InputError`
+        naming it.
     sensor : Sensor, str or Path
         The starting camera model, a preset name or a TOML file (its fixed parameters stay as
         they are).

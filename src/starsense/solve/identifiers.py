@@ -13,9 +13,16 @@ import numpy as np
 
 from starsense.catalog import load_catalog
 from starsense.catalog.table import Catalog
+from starsense.geometry.distortion import undistort
+from starsense.geometry.projection import tangent_to_vectors, vectors_to_tangent
 from starsense.identify import Identification, identify_ranked
 from starsense.identify.fields import FieldRange, identifier_for, unknown_field_plan
 from starsense.identify.verify import apply_scale
+
+#: radial distortions (k1, tangent-plane units of each range's nominal focal length) tried for a
+#: frame of unknown optics that does not solve as a pinhole: a third and two thirds of the
+#: equidistant (f-theta) lens's k1 = -1/3, the barrel of short wide-angle lenses
+DISTORTION_GUESSES = (-1.0 / 9.0, -2.0 / 9.0)
 
 __all__ = ["FieldIdentifiers"]
 
@@ -81,6 +88,39 @@ class FieldIdentifiers:
             )
         return self._built[key]
 
+    def search_distorted(self, vectors: np.ndarray, flux: np.ndarray, fov_assumed_rad: float):
+        """Identify an unknown field through a guessed barrel distortion.
+
+        For each guess of :data:`DISTORTION_GUESSES` the vectors are re-unprojected at each
+        range's nominal field and undistorted (:mod:`starsense.geometry.distortion`), and
+        the common and wide ranges searched (a narrow field is not bent enough to need it).
+
+        Parameters
+        ----------
+        vectors, flux, fov_assumed_rad
+            As :meth:`search`.
+
+        Returns
+        -------
+        identifier, Identification, float
+            The last identifier, its answer and the k1 that solved, in tangent-plane units of
+            the focal length found (0 when none solved).
+        """
+        t = vectors_to_tangent(vectors)
+        identifier, ident = None, None
+        for k1 in DISTORTION_GUESSES:
+            for field_range in self.plan()[:2]:
+                identifier = self(None, field_range)
+                nominal = field_range.nominal_fov_rad
+                u, w = undistort(*(t * (math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))).T,
+                                 (k1, 0.0, 0.0, 0.0))  # fmt: skip
+                v = tangent_to_vectors(np.column_stack([u, w]))
+                ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+                if ident.solved:
+                    # the tangent found is scale x the one assumed: k1 / scale^2 at the true focus
+                    return identifier, ident, k1 / ident.scale**2
+        return identifier, ident, 0.0
+
     def search(self, vectors: np.ndarray, flux: np.ndarray, fov_assumed_rad: float):
         """Identify with the field unknown: each range of the plan in turn until one solves.
 
@@ -109,8 +149,12 @@ class FieldIdentifiers:
 
     def identify(
         self, vectors, flux, *, fov_known_rad, fov_assumed_rad, estimate: bool
-    ) -> tuple[object, Identification, float | None]:
-        """Return (identifier, identification, known field or None after a scale search).
+    ) -> tuple[object, Identification, float | None, float]:
+        """Return (identifier, identification, known field or None, radial k1 assumed).
+
+        When the field is searched and does not solve as a pinhole, it is searched again
+        through guessed barrel distortions (:meth:`search_distorted`); the k1 that solved is
+        returned (tangent-plane units of the focal length found; 0 for a pinhole).
 
         Parameters
         ----------
@@ -126,15 +170,20 @@ class FieldIdentifiers:
             The known field is an estimate (no sensor): when it does not solve, the scale is
             searched around it (hashing, 4 vectors or more), which refines the field.
         """
-        if fov_known_rad is None:
-            return (*self.search(vectors, flux, fov_assumed_rad), None)
-        identifier = self(fov_known_rad)
-        ident = identify_ranked(identifier, vectors, flux, fov_known_rad)
-        if (
-            not ident.solved
-            and estimate
-            and self.algorithm == "hashing"
-            and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
-        ):
-            return (*self.search(vectors, flux, fov_assumed_rad), None)
-        return identifier, ident, fov_known_rad
+        searched = fov_known_rad is None
+        if not searched:
+            identifier = self(fov_known_rad)
+            ident = identify_ranked(identifier, vectors, flux, fov_known_rad)
+            searched = (
+                not ident.solved
+                and estimate
+                and self.algorithm == "hashing"
+                and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
+            )
+            if not searched:
+                return identifier, ident, fov_known_rad, 0.0
+        identifier, ident = self.search(vectors, flux, fov_assumed_rad)
+        if ident.solved or not estimate or len(vectors) < 4 or self.algorithm != "hashing":
+            return identifier, ident, None, 0.0
+        found = self.search_distorted(vectors, flux, fov_assumed_rad)
+        return (*found[:2], None, found[2]) if found[1].solved else (identifier, ident, None, 0.0)

@@ -85,6 +85,11 @@ class Solution:
         (:meth:`starsense.catalog.apparent.ApparentPlaces.to_dict`), or why none was.
     sensor : Sensor or None
         The sensor model the centroids were unprojected with (principal point, distortion).
+    distortion : dict or None
+        For a frame solved with no sensor: the lens found with it
+        (:meth:`starsense.solve.radial.RadialFit.to_dict`: radial k1, k2 with their sigmas, the
+        focal length in pixels, the displacement at the image corner in per cent, the residual
+        rms with and without it); None otherwise.
     """
 
     status: SolveStatus
@@ -107,6 +112,7 @@ class Solution:
     focal_px: float | None = None
     apparent: dict | None = None
     sensor: object = field(default=None, repr=False)
+    distortion: dict | None = None
 
     @property
     def ra_deg(self) -> float | None:
@@ -174,4 +180,5 @@ class Solution:
             "time_ms": self.time_ms,
             "stage_ms": self.stage_ms,
             "apparent_places": self.apparent,
+            "distortion": self.distortion,
         }

@@ -44,6 +44,7 @@ from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
+from starsense.solve.radial import refine_identification
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
 from starsense.units import DEG
@@ -344,7 +345,7 @@ class Solver:
         self.identifier(fov_known)  # database build or cache load, timed on its own
         stages["database_ms"] = _ms(t1)
         t2 = time.perf_counter()
-        identifier, ident, fov_known = self._identifiers.identify(
+        identifier, ident, fov_known, k1 = self._identifiers.identify(
             vectors,
             points.flux,
             fov_known_rad=fov_known,
@@ -357,14 +358,18 @@ class Solver:
         # final attitude from all matches, with its covariance
         t3 = time.perf_counter()
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
-        if fov_known is None:  # re-unproject with the field found
-            vectors = pinhole_vectors(points.x, points.y, shape=points.shape, fov_rad=fov)
+        radial = None
+        if self.sensor is None:  # an unknown camera: fit its focal length and radial distortion
+            ident, radial, vectors, fov = refine_identification(
+                ident, identifier.database, np.column_stack([points.x, points.y]),
+                flux=points.flux, shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
+            )  # fmt: skip
         matched = np.asarray(ident.detection_index)
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
         pixel_rad = fov / points.shape[1]
         att, _ = robust_attitude(vectors[matched], ref, sigma_px(matched) * pixel_rad)
         stages["attitude_ms"] = _ms(t3)
-        return self._solution(points, ident, att, fov, apparent, t0, stages)
+        return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
 
     def _unsolved(self, points, ident, t0, stages, sigma_px, fov_given, obs_time, parity):
         """Return the answer for centroids that did not solve: their mirror image, or why not."""
@@ -411,7 +416,7 @@ class Solver:
             ref /= np.linalg.norm(ref, axis=1)[:, None]
         return ref, apparent
 
-    def _solution(self, points, ident, att, fov, apparent, t0, stages) -> Solution:
+    def _solution(self, points, ident, att, fov, apparent, t0, stages, radial=None) -> Solution:
         """Return the solved frame's Solution."""
         n, shape = len(points.x), points.shape
         ra, dec, roll = radec_roll_from_attitude(att.rotation)
@@ -439,8 +444,11 @@ class Solver:
             focal_px=(
                 self.sensor.focal_length_px
                 if self.sensor is not None
+                else radial.focal_px
+                if radial is not None
                 else shape[1] / 2.0 / math.tan(fov / 2.0)
             ),
+            distortion=None if radial is None else radial.to_dict(),
             apparent=apparent,
             sensor=self.sensor,
         )

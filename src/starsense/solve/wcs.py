@@ -66,14 +66,18 @@ def sip_coefficients(sensor, order: int = 5) -> tuple[np.ndarray, ...]:
     max_error_px : float
         Largest error of the forward or inverse fit on the grid, px.
     """
+    det = sensor.detector
+    lens = (sensor.focal_length_px, sensor.principal_point_px, sensor.optics.distortion)
+    return _sip_fit(lens, (det.columns, det.rows), order)
+
+
+def _sip_fit(lens, size, order: int) -> tuple[np.ndarray, ...]:
+    """SIP matrices of a lens ``(f_px, (cx, cy), (k1, k2, p1, p2))`` over ``size`` (w, h)."""
     if not 2 <= int(order) <= 9:
         raise InputError(f"order must be within [2, 9], got {order!r}")
-    det = sensor.detector
-    f = sensor.focal_length_px
-    cx, cy = sensor.principal_point_px
-    coeffs = sensor.optics.distortion
-    xs = np.linspace(-0.5, det.columns - 0.5, _GRID) - cx
-    ys = np.linspace(-0.5, det.rows - 0.5, _GRID) - cy
+    f, (cx, cy), coeffs = lens
+    xs = np.linspace(-0.5, size[0] - 0.5, _GRID) - cx
+    ys = np.linspace(-0.5, size[1] - 0.5, _GRID) - cy
     u, v = (g.ravel() for g in np.meshgrid(xs, ys))  # measured (distorted) offsets, px
     xi, yi = undistort(u / f, v / f, coeffs)
     ui, vi = xi * f, yi * f  # pinhole offsets, px
@@ -85,12 +89,30 @@ def sip_coefficients(sensor, order: int = 5) -> tuple[np.ndarray, ...]:
     return a, b, ap, bp, max(err_fwd, err_inv)
 
 
-def _auto_sip(sensor, order: int | None) -> tuple[int, tuple]:
+def _lens(solution):
+    """Return the solved frame's lens ``(f_px, (cx, cy), coefficients)``, or None (pinhole).
+
+    Its sensor's, or the radial lens found with nothing known (``Solution.distortion``).
+    """
+    sensor = solution.sensor
+    if sensor is not None:
+        if not sensor.optics.has_distortion:
+            return None
+        return sensor.focal_length_px, sensor.principal_point_px, sensor.optics.distortion
+    d = solution.distortion
+    if not d or not (d["k1"] or d["k2"]):
+        return None
+    rows, cols = solution.image_shape
+    centre = ((cols - 1) / 2.0, (rows - 1) / 2.0)
+    return d["focal_length_px"], centre, (d["k1"], d["k2"], 0.0, 0.0)
+
+
+def _auto_sip(lens, size, order: int | None) -> tuple[int, tuple]:
     """Return the SIP order to use (lowest odd one within tolerance if None) and its fit."""
     if order is not None:
-        return order, sip_coefficients(sensor, order)
+        return order, _sip_fit(lens, size, order)
     for k in (3, 5, 7, 9):
-        fit = sip_coefficients(sensor, k)
+        fit = _sip_fit(lens, size, k)
         if fit[-1] <= SIP_TOLERANCE_PX:
             break
     return k, fit
@@ -102,8 +124,9 @@ def solution_wcs(solution, sip_order: int | None = None):
     Parameters
     ----------
     solution : Solution
-        A solved frame (:class:`starsense.solve.solver.Solution`); its ``sensor`` (or None for
-        a pinhole at the image centre) gives the principal point and distortion.
+        A solved frame (:class:`starsense.solve.solver.Solution`); its ``sensor`` gives the
+        principal point and distortion, else the radial lens found with nothing known
+        (``distortion``), else a pinhole at the image centre.
     sip_order : int, optional
         Degree of the SIP polynomials (default: the lowest odd one within
         :data:`SIP_TOLERANCE_PX`).
@@ -140,8 +163,9 @@ def solution_wcs(solution, sip_order: int | None = None):
     w.wcs.cd = cd
     w.wcs.radesys = "ICRS"
     w.pixel_shape = (cols, rows)
-    if sensor is not None and sensor.optics.has_distortion:
-        _, (a, b, ap, bp, _) = _auto_sip(sensor, sip_order)
+    lens = _lens(solution)
+    if lens is not None:
+        _, (a, b, ap, bp, _) = _auto_sip(lens, (cols, rows), sip_order)
         w.wcs.ctype = ["RA---TAN-SIP", "DEC--TAN-SIP"]
         w.sip = Sip(a, b, ap, bp, w.wcs.crpix)
     return w
@@ -171,7 +195,8 @@ def write_solution_wcs(solution, path: str | Path, sip_order: int | None = None)
     header = w.to_header(relax=True)
     header["COMMENT"] = "starsense solution: " + solution.message
     if w.sip is not None:
-        order, fit = _auto_sip(solution.sensor, sip_order)
+        rows, cols = solution.image_shape
+        order, fit = _auto_sip(_lens(solution), (cols, rows), sip_order)
         header["COMMENT"] = f"SIP order {order}: largest fit error {fit[-1]:.2e} px"
     with atomic_path(path, suffix=".tmp") as tmp:
         fits.PrimaryHDU(header=header).writeto(tmp, overwrite=True)
