@@ -83,6 +83,12 @@ class Solution:
         (:meth:`starsense.catalog.apparent.ApparentPlaces.to_dict`), or why none was.
     sensor : Sensor or None
         The sensor model the centroids were unprojected with (principal point, distortion).
+    notes : tuple of str
+        What the user should know about the frame (e.g. that it looks like a raw Bayer mosaic).
+    counts : dict
+        How far each stage got (:func:`starsense.solve.counts.stage_counts`): pixels above the
+        threshold, candidates and the rejected ones by reason, detections, patterns tried, the
+        best false-match probability seen.
     """
 
     status: SolveStatus
@@ -105,6 +111,8 @@ class Solution:
     focal_px: float | None = None
     apparent: dict | None = None
     sensor: object = field(default=None, repr=False)
+    notes: tuple[str, ...] = ()
+    counts: dict = field(default_factory=dict)
 
     @property
     def ra_deg(self) -> float | None:
@@ -172,4 +180,6 @@ class Solution:
             "time_ms": self.time_ms,
             "stage_ms": self.stage_ms,
             "apparent_places": self.apparent,
+            "counts": self.counts,
+            "notes": list(self.notes),
         }
