@@ -13,6 +13,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense import plotting
 from starsense.cli.common import (
     CatalogOpt,
     JsonOpt,
@@ -24,8 +25,8 @@ from starsense.cli.common import (
 )
 from starsense.errors import InputError, StarsenseError
 from starsense.geometry.apparent import parse_time
-from starsense.solve.centroids import read_centroids
 from starsense.solve.bayer import check_bayer
+from starsense.solve.centroids import read_centroids
 from starsense.solve.frames import FITS_SUFFIXES, PILLOW_SUFFIXES, load_image
 from starsense.solve.solver import Solver
 from starsense.units import DEG
@@ -113,14 +114,11 @@ def _notes(sol) -> list[str]:
 
 def _explain(solver, image: Path, sol, out: Path, bayer: str | None) -> None:
     """Draw the frame, its detections, pattern stars, matches and the reason to ``out``."""
-    from starsense.plotting.explain import explain_figure
-    from starsense.plotting.figure import save_png
-
     frame = load_image(image, bayer=bayer)
     det = solver.detector(frame)
     catalog = solver.catalog if sol.solved else None
-    fig = explain_figure(frame, det, sol, catalog=catalog, title=str(image))
-    save_png(fig, out)
+    fig = plotting.explain.explain_figure(frame, det, sol, catalog=catalog, title=str(image))
+    plotting.figure.save_png(fig, out)
 
 
 def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None, **opts) -> None:

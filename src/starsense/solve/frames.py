@@ -207,7 +207,7 @@ _limit = max_pixels  # the argument of load_image shadows the function's name
 
 
 def _pillow_array(im) -> np.ndarray:
-    """The pixels of an open Pillow image: palettes expanded, other colour models to RGB."""
+    """Return the pixels of an open Pillow image: palettes expanded, colour models to RGB."""
     if im.mode in ("P", "PA"):
         im = im.convert("RGBA")
     elif im.mode in ("CMYK", "YCbCr", "LAB", "HSV"):
@@ -239,7 +239,7 @@ def _load_pillow(p: Path, limit: int) -> np.ndarray:
 
 
 def _load_tiff(p: Path, limit: int) -> np.ndarray:
-    """A TIFF: tifffile's first page (16-bit colour keeps its depth), else Pillow's reading.
+    """Read a TIFF: tifffile's first page (16-bit colour keeps its depth), else Pillow's.
 
     tifffile decodes uncompressed, deflate and packbits strips itself and the other codecs
     (LZW, JPEG, ...) with the optional imagecodecs; Pillow (libtiff) reads those, but reads
