@@ -123,7 +123,10 @@ def _explain(solver, image: Path, sol, out: Path, bayer: str | None) -> None:
 
 def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None, **opts) -> None:
     bayer, explain = opts.get("bayer"), opts.get("explain")
-    sol = solver.solve_file(image, when, bayer=bayer)
+    try:
+        sol = solver.solve_file(image, when, bayer=bayer)
+    except InputError as exc:  # every message names the frame
+        raise InputError(str(exc) if str(image) in str(exc) else f"{image}: {exc}") from None
     if explain is not None:
         _explain(solver, image, sol, explain, bayer)
     payload = {"image": str(image), **sol.to_dict()}
@@ -213,7 +216,8 @@ def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None
         raise typer.Exit(1)
 
 
-def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bool) -> None:
+def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bool, **opts):
+    """Solve a centroid list; ``opts``: ``when`` (the image's time), ``wcs`` (a file)."""
     cents = read_centroids(path)
     if image_size is not None:
         size = parse_image_size(image_size)
@@ -221,10 +225,22 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
         size = cents.image_size
     else:
         raise InputError("--image-size WIDTHxHEIGHT is needed with --centroids")
-    sol = solver.solve_centroids(cents.xy, size, brightness=cents.flux)
+    try:
+        sol = solver.solve_centroids(
+            cents.xy, size, brightness=cents.flux, obs_time=opts.get("when")
+        )
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
     payload = {"centroids": str(path), **sol.to_dict()}
+    if opts.get("when") is not None and sol.apparent and sol.apparent.get("applied"):
+        payload["apparent_places"]["time_source"] = "--time"
     if sol.solved:
-        emit(payload, as_json, _summary(str(path), sol))
+        lines = _summary(str(path), sol)
+        wcs = opts.get("wcs")
+        if wcs is not None:
+            payload["wcs"] = str(sol.write_wcs(wcs))
+            lines.append(f"  WCS written: {wcs}")
+        emit(payload, as_json, lines)
         return
     emit(payload, as_json, _not_solved(str(path), sol))
     raise typer.Exit(1)
@@ -324,7 +340,7 @@ def solve(
         for given, name in ((bayer, "--bayer"), (explain, "--explain")):
             if given is not None:
                 raise InputError(f"{name} goes with a frame, not with --centroids")
-        _solve_centroid_file(solver, centroids, image_size, as_json)
+        _solve_centroid_file(solver, centroids, image_size, as_json, when=when, wcs=wcs)
         return
     if image_size is not None:
         raise InputError("--image-size goes with --centroids")

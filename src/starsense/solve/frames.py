@@ -28,6 +28,7 @@ import numpy as np
 
 from starsense._io import readable_file
 from starsense.errors import InputError
+from starsense.geometry.apparent import parse_time
 from starsense.solve.bayer import bin_bayer, check_bayer
 
 LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114])
@@ -175,19 +176,44 @@ def frame_time(path: str | Path) -> tuple[str | None, str | None]:
     -------
     time, source : str or None
         The time as written (ISO 8601 or EXIF form) and ``"FITS DATE-OBS"``,
-        ``"EXIF DateTimeOriginal"`` or ``"EXIF DateTime"``; (None, None) when there is none.
+        ``"EXIF DateTimeOriginal"`` or ``"EXIF DateTime"``; (None, None) when there is none
+        (or a blank EXIF date).
+
+    Raises
+    ------
+    InputError
+        A FITS DATE-OBS card that cannot be read, or a time that is not a time, naming the
+        file and the card or tag.
     """
     p = Path(path)
+    value, source = _header_time(p)
+    if value is None:
+        return None, None
+    if not value.strip(" :0-T"):  # a camera's blank EXIF date ("0000:00:00 00:00:00", spaces)
+        return None, None
+    parse_time(value, f"{p}: {source}")  # a bad time names the file and the card or tag
+    return value, source
+
+
+def _header_time(p: Path) -> tuple[str | None, str | None]:
     suffix = p.suffix.lower()
     try:
         if suffix in FITS_SUFFIXES:
             from astropy.io import fits
 
-            with fits.open(p) as hdul:
-                for hdu in hdul:
-                    value = hdu.header.get("DATE-OBS")
-                    if value:
-                        return str(value), "FITS DATE-OBS"
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                with fits.open(p) as hdul:
+                    for i, hdu in enumerate(hdul):
+                        try:
+                            value = hdu.header.get("DATE-OBS")
+                        except Exception as exc:  # astropy's VerifyError: an unparsable card
+                            raise InputError(
+                                f"{p}: FITS card DATE-OBS of HDU {i} cannot be read "
+                                f"({_one_line(exc)})"
+                            ) from None
+                        if value:
+                            return str(value), "FITS DATE-OBS"
         elif suffix in PILLOW_SUFFIXES:
             from PIL import Image
 
@@ -198,6 +224,8 @@ def frame_time(path: str | Path) -> tuple[str | None, str | None]:
                     return str(original).strip("\x00 "), "EXIF DateTimeOriginal"
                 if exif.get(_EXIF_DATETIME):
                     return str(exif[_EXIF_DATETIME]).strip("\x00 "), "EXIF DateTime"
+    except InputError:
+        raise
     except (OSError, ValueError):
         return None, None  # unreadable headers: load_image reports an unreadable frame
     return None, None

@@ -40,7 +40,7 @@ from starsense.identify.fields import FieldRange
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import blend_radius_px, photocentres
-from starsense.solve.centroids import check_centroid_input
+from starsense.solve.centroids import check_centroid_input, check_frame_shape
 from starsense.solve.counts import detection_counts, identification_counts, max_candidates
 from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
@@ -255,6 +255,7 @@ class Solver:
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
         a = np.asarray(image)
+        check_frame_shape(a.shape, self.sensor)
         detector = self.detector
         det = detector(a)
         stages["detect_ms"] = _ms(t0)
@@ -280,7 +281,7 @@ class Solver:
         return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
     def solve_centroids(
-        self, xy, image_size, *, fov_rad: float | None = None, brightness=None
+        self, xy, image_size, *, fov_rad: float | None = None, brightness=None, obs_time=None
     ) -> Solution:
         """Solve a list of centroids measured by any centroider (no image needed).
 
@@ -301,6 +302,8 @@ class Solver:
         brightness : array_like, shape (N,), optional
             Anything that grows with brightness (flux, counts); when omitted the centroids are
             taken as listed brightest first.
+        obs_time : str or astropy.time.Time, optional
+            When the image was taken (ISO 8601 UTC): the attitude is fitted to apparent places.
 
         Returns
         -------
@@ -321,7 +324,7 @@ class Solver:
         sigma = self.settings.centroid_sigma_px
         sigma = sigma if sigma != "snr" else 0.3
         points = _Points(pts[:, 0], pts[:, 1], flux, shape, "centroids")
-        return self._solve_points(points, t0, {}, lambda _: sigma, fov_rad)
+        return self._solve_points(points, t0, {}, lambda _: sigma, fov_rad, obs_time)
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True):
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
