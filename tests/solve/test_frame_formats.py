@@ -103,7 +103,7 @@ FORMATS = {
         ),
         ".tif",
         257,
-    ),  # fmt: skip
+    ),
     "jpeg 95": (lambda a, p: _pillow(a, p, quality=95), ".jpg", None),
     "fits primary": (lambda a, p: _fits(a.astype(np.int16), p, "primary"), ".fits", 1),
     "fits extension": (lambda a, p: _fits(a.astype(np.float32), p, "extension"), ".fit", 1),
