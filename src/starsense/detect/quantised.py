@@ -80,7 +80,7 @@ def quantisation_step(values: np.ndarray) -> float | None:
 def _float_step(v: np.ndarray) -> float | None:
     """Return the step of float samples taking few distinct values (quantisation_step)."""
     u = np.unique(v)
-    if u.size < 2 or u.size > max(2, v.size // 10):
+    if u.size < 2 or u.size > v.size // 10:
         return None
     lo, hi = np.percentile(v, [1.0, 99.0])
     central = u[(u >= lo) & (u <= hi)]
