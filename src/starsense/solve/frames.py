@@ -17,6 +17,7 @@ the file holds, 1-bit frames, and NaN or infinite pixels.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -35,8 +36,7 @@ LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114])
 FITS_SUFFIXES = {".fits", ".fit", ".fts"}
 PILLOW_SUFFIXES = {".tif", ".tiff", ".png", ".jpg", ".jpeg", ".bmp"}
 TIFF_SUFFIXES = {".tif", ".tiff"}
-#: Pillow's pixel limit is one setting for the process: frames are opened one at a time while
-#: it is lifted (threads of a batch would otherwise restore it under each other's feet)
+#: held while Pillow's pixel limit is lifted (:func:`_pillow_open`)
 _PILLOW_LOCK = threading.Lock()
 
 #: frames larger than this many pixels are refused before decoding (2^28: 16384 x 16384, 512 MB
@@ -215,9 +215,7 @@ def _header_time(p: Path) -> tuple[str | None, str | None]:
                         if value:
                             return str(value), "FITS DATE-OBS"
         elif suffix in PILLOW_SUFFIXES:
-            from PIL import Image
-
-            with Image.open(p) as im:
+            with _pillow_open(p) as im:
                 exif = im.getexif()
                 original = exif.get_ifd(_EXIF_IFD).get(_EXIF_DATETIME_ORIGINAL)
                 if original:
@@ -226,8 +224,8 @@ def _header_time(p: Path) -> tuple[str | None, str | None]:
                     return str(exif[_EXIF_DATETIME]).strip("\x00 "), "EXIF DateTime"
     except InputError:
         raise
-    except (OSError, ValueError):
-        return None, None  # unreadable headers: load_image reports an unreadable frame
+    except Exception:  # unreadable headers: load_image reports the frame
+        return None, None
     return None, None
 
 
@@ -243,23 +241,34 @@ def _pillow_array(im) -> np.ndarray:
     return np.array(im)
 
 
-def _load_pillow(p: Path, limit: int) -> np.ndarray:
+@contextlib.contextmanager
+def _pillow_open(p: Path):
+    """Open ``p`` with Pillow, its "decompression bomb" check lifted (ours is the pixel limit).
+
+    Pillow's limit is one setting for the process: frames are opened one at a time while it is
+    lifted (threads of a batch would otherwise restore it under each other's feet). A corrupt
+    file makes Pillow warn ("Corrupt EXIF data") before it fails: the warnings are kept out of
+    the user's way; the failure is reported, with its reason.
+    """
     from PIL import Image
 
+    with _PILLOW_LOCK:
+        old = Image.MAX_IMAGE_PIXELS
+        Image.MAX_IMAGE_PIXELS = None
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                with Image.open(p) as im:  # opening reads the header only
+                    yield im
+        finally:
+            Image.MAX_IMAGE_PIXELS = old
+
+
+def _load_pillow(p: Path, limit: int) -> np.ndarray:
     try:
-        with _PILLOW_LOCK:
-            old = Image.MAX_IMAGE_PIXELS
-            # Pillow's own "decompression bomb" check is replaced by ours, stated exactly
-            Image.MAX_IMAGE_PIXELS = None
-            try:  # a corrupt file makes Pillow warn ("Corrupt EXIF data") before it fails: the
-                # warnings are kept out of the user's way; the failure is reported, with why
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    with Image.open(p) as im:  # opening reads the header only
-                        _check_size(p, (im.height, im.width), limit)
-                        return _pillow_array(im)
-            finally:
-                Image.MAX_IMAGE_PIXELS = old
+        with _pillow_open(p) as im:
+            _check_size(p, (im.height, im.width), limit)
+            return _pillow_array(im)
     except InputError:
         raise
     except Exception as exc:  # a decoder's view of a damaged file: OSError, SyntaxError, ...
