@@ -249,7 +249,7 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
 def solve(
     images: Annotated[
         list[Path] | None,
-        typer.Argument(help="Frames (TIFF, PNG, JPEG, FITS; 8-32 bit) and folders of frames."),
+        typer.Argument(help="Frames (BMP, PNG, JPEG, TIFF, FITS; 8-32 bit) and folders of frames."),
     ] = None,
     sensor: Annotated[
         str | None, typer.Option("--sensor", help="Sensor preset or TOML (known optics).")
