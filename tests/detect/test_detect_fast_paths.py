@@ -21,13 +21,36 @@ from starsense.errors import InputError
 
 
 def _hot_reference(image, bg, threshold_sigma=8.0):
-    """The definition over the whole frame: scipy's 8-neighbour maximum filter, -inf outside."""
+    """The definition over the whole frame: scipy's maximum filters, -inf outside.
+
+    A pixel above the threshold is hot when its 8 neighbours are quiet; else, with its brightest
+    4-neighbour (not brighter than itself) as a pair, when the 10 pixels around the pair are.
+    """
     sub = np.asarray(image, np.float32) - np.asarray(bg.level, np.float32)
     footprint = np.ones((3, 3), bool)
     footprint[1, 1] = False
     neighbours = ndimage.maximum_filter(sub, footprint=footprint, mode="constant", cval=-np.inf)
     noise = np.maximum(bg.noise_map if bg.noise_map is not None else bg.noise, np.float32(1e-12))
-    return (sub > threshold_sigma * noise) & (neighbours < np.maximum(3.0 * noise, 0.15 * sub))
+    limit = np.maximum(3.0 * noise, 0.15 * sub)
+    above = sub > threshold_sigma * noise
+    hot = above & (neighbours < limit)
+    padded = np.pad(sub, 2, constant_values=-np.inf)
+    rows, cols = sub.shape
+    steps = [(-1, 0), (1, 0), (0, -1), (0, 1)]
+    side = np.stack([padded[2 + dr : 2 + dr + rows, 2 + dc : 2 + dc + cols] for dr, dc in steps])
+    best = np.argmax(side, axis=0)
+    for r, c in zip(*np.nonzero(above & ~hot), strict=True):
+        dr, dc = steps[best[r, c]]
+        box = padded[2 + r + min(0, dr) - 1 : 2 + r + max(0, dr) + 2,
+                     2 + c + min(0, dc) - 1 : 2 + c + max(0, dc) + 2].copy()  # fmt: skip
+        box[1 - min(0, dr), 1 - min(0, dc)] = -np.inf  # the pixel
+        box[1 - min(0, dr) + dr, 1 - min(0, dc) + dc] = -np.inf  # its partner
+        partner = padded[2 + r + dr, 2 + c + dc]
+        if box.max() < limit[r, c] and sub[r, c] >= partner:
+            hot[r, c] = True
+            if 0 <= r + dr < rows and 0 <= c + dc < cols:
+                hot[r + dr, c + dc] = True
+    return hot
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -39,7 +62,10 @@ def test_hot_pixel_mask_matches_the_whole_frame_definition(seed):
     img[spots[:, 0], spots[:, 1]] += rng.uniform(0, 2000, 60)  # isolated and touching spikes
     img[0, 0] += 900.0  # corner
     img[50, 130] += 900.0  # edge
-    img[20, 20:22] += 900.0  # a pair: neither is isolated
+    img[20, 20:22] += 900.0  # a pair: hot together
+    img[70:72, 100] += [900.0, 700.0]  # a vertical pair
+    img[80, 30:32] += [900.0, 500.0]  # a pair with a star-like neighbour: not hot
+    img[81, 31] += 400.0
     img[60:63, 60:63] += 400.0  # a flat blob
     bg = estimate_background(img, box_px=16)
     expected = _hot_reference(img, bg)
@@ -49,6 +75,22 @@ def test_hot_pixel_mask_matches_the_whole_frame_definition(seed):
     assert np.array_equal(hot_pixel_mask(img, bg, subtracted=sub), expected)
     strict = hot_pixel_mask(img, bg, threshold_sigma=20.0)
     assert np.array_equal(strict, _hot_reference(img, bg, 20.0))
+
+
+def test_hot_pixel_pairs_are_hot_and_stars_between_two_pixels_are_not():
+    rng = np.random.default_rng(5)
+    img = 100.0 + 4.0 * rng.standard_normal((64, 96))
+    img[20, 20:22] += 300.0  # a horizontal pair
+    img[40:42, 70] += [300.0, 200.0]  # a vertical pair
+    # a star of PSF sigma 0.6 px centred between two pixels (the undersampled extreme): its
+    # pixels beside the pair get ~25 % of the pair's light
+    y, x = np.mgrid[0:64, 0:96]
+    img += 600.0 * np.exp(-((x - 50.0) ** 2 + (y - 30.5) ** 2) / (2 * 0.6**2))
+    bg = estimate_background(img, box_px=16)
+    hot = hot_pixel_mask(img, bg)
+    assert hot[20, 20:22].all() and hot[40:42, 70].all()
+    assert not hot[28:34, 47:54].any()
+    assert hot.sum() == 4
 
 
 def test_hot_pixel_mask_without_candidates_and_bad_subtracted():

@@ -95,7 +95,16 @@ def test_probit_fit_recovers_the_gaussian_behind_clipped_values():
 def test_quantisation_step():
     assert quantisation_step(np.array([0, 1, 3, 7], np.uint8)) == 1.0
     assert quantisation_step(np.array([16, 48, 4096, 65520], np.uint16)) == 16.0
-    assert quantisation_step(np.array([0.5, 1.25])) is None
+    assert quantisation_step(np.array([0.5, 1.25])) is None  # too few samples to tell
+    rng = np.random.default_rng(0)
+    counts = rng.integers(0, 6, 1000)
+    # float data of few distinct values: a lattice (a Bayer cell's sum, 2.95 x counts)...
+    assert quantisation_step(np.float32(2.95) * counts) == pytest.approx(2.95, rel=1e-6)
+    # ... or not (the luminance of tinted 8-bit colour: values 0, 1, 2, 2.886, 3.886, 4.886,
+    # spacings 1 and 0.886: the median spacing)
+    tinted = 0.886 * counts + 0.114 * np.round(0.8 * counts)
+    assert quantisation_step(tinted) == pytest.approx(1.0)
+    assert quantisation_step(rng.standard_normal(1000)) is None  # continuous
     assert quantisation_step(np.full(10, 7)) is None
 
 

@@ -171,11 +171,17 @@ def test_calibrate_cli_bad_input_leaves_no_file(lens_frames, capsys, tmp_path):
     blank = tmp_path / "blank.fits"
     from astropy.io import fits
 
-    fits.PrimaryHDU(np.zeros((64, 64), np.uint16)).writeto(blank)
+    fits.PrimaryHDU(np.zeros((1944, 2592), np.uint16)).writeto(blank)  # st16's detector
     assert main(["calibrate", str(blank), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "no frame solved" in err and "Traceback" not in err
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["blank.fits"]
+    small = tmp_path / "small.fits"  # not the sensor's detector: its optics do not apply
+    fits.PrimaryHDU(np.zeros((64, 64), np.uint16)).writeto(small)
+    assert main(["calibrate", str(small), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "64 x 64 pixels but the sensor 'st16' has a 2592 x 1944 detector" in err
+    assert err.count("\n") == 1 and not out.exists()
 
 
 @pytest.mark.slow  # 18 s: a database build for the calibrated field

@@ -47,7 +47,8 @@ def test_esa_frames_load(shared_dir):
 @pytest.mark.parametrize(
     ("name", "content", "message"),
     [
-        ("x.bmp", b"BM", "unknown image type '.bmp'"),
+        ("x.xcf", b"gimp xcf", "unknown image type '.xcf'"),
+        ("x.bmp", b"BM", "not a readable image"),
         ("x.tiff", b"not a tiff", "not a readable image"),
         ("x.fits", b"SIMPLE  = garbage", "not a readable FITS file"),
     ],

@@ -13,6 +13,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense import plotting
 from starsense.cli.common import (
     CatalogOpt,
     JsonOpt,
@@ -24,8 +25,9 @@ from starsense.cli.common import (
 )
 from starsense.errors import InputError, StarsenseError
 from starsense.geometry.apparent import parse_time
+from starsense.solve.bayer import check_bayer
 from starsense.solve.centroids import read_centroids
-from starsense.solve.frames import FITS_SUFFIXES, PILLOW_SUFFIXES
+from starsense.solve.frames import FITS_SUFFIXES, PILLOW_SUFFIXES, load_image
 from starsense.solve.solver import Solver
 from starsense.units import DEG
 
@@ -106,9 +108,30 @@ def _summary(name: str, sol) -> list[str]:
     ]
 
 
-def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None) -> None:
-    sol = solver.solve_file(image, when)
+def _notes(sol) -> list[str]:
+    return [f"  note: {note}" for note in sol.notes]
+
+
+def _explain(solver, image: Path, sol, out: Path, bayer: str | None) -> None:
+    """Draw the frame, its detections, pattern stars, matches and the reason to ``out``."""
+    frame = load_image(image, bayer=bayer)
+    det = solver.detector(frame)
+    catalog = solver.catalog if sol.solved else None
+    fig = plotting.explain.explain_figure(frame, det, sol, catalog=catalog, title=str(image))
+    plotting.figure.save_png(fig, out)
+
+
+def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None, **opts) -> None:
+    bayer, explain = opts.get("bayer"), opts.get("explain")
+    try:
+        sol = solver.solve_file(image, when, bayer=bayer)
+    except InputError as exc:  # every message names the frame
+        raise InputError(str(exc) if str(image) in str(exc) else f"{image}: {exc}") from None
+    if explain is not None:
+        _explain(solver, image, sol, explain, bayer)
     payload = {"image": str(image), **sol.to_dict()}
+    if explain is not None:
+        payload["explain"] = str(explain)
     if when is not None and sol.apparent and sol.apparent.get("applied"):
         payload["apparent_places"]["time_source"] = "--time"
     if sol.solved:
@@ -119,17 +142,31 @@ def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None) 
         if wcs is not None:
             payload["wcs"] = str(sol.write_wcs(wcs))
             lines.append(f"  WCS written: {wcs}")
-        emit(payload, as_json, lines)
+        if explain is not None:
+            lines.append(f"  explained: {explain}")
+        emit(payload, as_json, lines + _notes(sol))
         return
     if sol.status == "no_stars":
-        raise InputError(f"{image}: {sol.message}")
-    emit(payload, as_json, _not_solved(str(image), sol))
+        said = f" (explained: {explain})" if explain is not None else ""
+        raise InputError(f"{image}: {sol.message}{said}")
+    lines = _not_solved(str(image), sol) + _notes(sol)
+    if explain is not None:
+        lines.append(f"  explained: {explain}")
+    emit(payload, as_json, lines)
     raise typer.Exit(1)
 
 
 def _not_solved(name: str, sol) -> list[str]:
     """Lines for a frame that did not solve; a mirrored one also gets its flipped attitude."""
     lines = [f"{name}: not solved ({sol.status}): {sol.message}"]
+    c = sol.counts
+    if "candidates" in c:
+        lines.append(
+            f"  {c.get('pixels_above_threshold', 0):,} pixels above threshold, "
+            f"{c['candidates']:,} candidates, {c.get('detections', 0):,} detections; "
+            f"{c.get('patterns_tried', 0):,} patterns tried, best false-match probability "
+            f"{c.get('best_false_match_probability', 1.0):.2g}"
+        )
     if sol.status == "mirrored":
         lines.append(
             f"  flipped frame: RA {sol.ra_deg:.4f} deg, Dec {sol.dec_deg:.4f} deg, roll "
@@ -139,11 +176,11 @@ def _not_solved(name: str, sol) -> list[str]:
     return lines
 
 
-def _batch_row(solver, image: Path, when=None) -> dict:
+def _batch_row(solver, image: Path, when=None, bayer: str | None = None) -> dict:
     """Solve one frame of a batch; a frame that cannot be read gets status "unreadable"."""
     t0 = time.perf_counter()
     try:
-        sol = solver.solve_file(image, when)
+        sol = solver.solve_file(image, when, bayer=bayer)
     except StarsenseError as exc:
         return {
             "image": str(image),
@@ -157,11 +194,12 @@ def _batch_row(solver, image: Path, when=None) -> dict:
 def _csv_line(row: dict) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="")
+    row = {**row, "message": " ".join([row.get("message") or "", *row.get("notes", ())]).strip()}
     writer.writerow(["" if row.get(k) is None else row.get(k) for k in CSV_FIELDS])
     return buf.getvalue()
 
 
-def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None) -> None:
+def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None, bayer=None):
     if not as_json:
         typer.echo(",".join(CSV_FIELDS))
     n_solved = 0
@@ -170,7 +208,7 @@ def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None
         pool.submit(solver.prepare).result()
         progress = bar.task("Solving", total=len(frames))
         for done, row in enumerate(
-            pool.map(lambda f: _batch_row(solver, f, when), frames), start=1
+            pool.map(lambda f: _batch_row(solver, f, when, bayer), frames), start=1
         ):
             n_solved += row["status"] == "solved"
             typer.echo(json.dumps(row) if as_json else _csv_line(row))
@@ -179,7 +217,8 @@ def _solve_batch(solver, frames: list[Path], jobs: int, as_json: bool, when=None
         raise typer.Exit(1)
 
 
-def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bool) -> None:
+def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bool, **opts):
+    """Solve a centroid list; ``opts``: ``when`` (the image's time), ``wcs`` (a file)."""
     cents = read_centroids(path)
     if image_size is not None:
         size = parse_image_size(image_size)
@@ -187,10 +226,22 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
         size = cents.image_size
     else:
         raise InputError("--image-size WIDTHxHEIGHT is needed with --centroids")
-    sol = solver.solve_centroids(cents.xy, size, brightness=cents.flux)
+    try:
+        sol = solver.solve_centroids(
+            cents.xy, size, brightness=cents.flux, obs_time=opts.get("when")
+        )
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
     payload = {"centroids": str(path), **sol.to_dict()}
+    if opts.get("when") is not None and sol.apparent and sol.apparent.get("applied"):
+        payload["apparent_places"]["time_source"] = "--time"
     if sol.solved:
-        emit(payload, as_json, _summary(str(path), sol))
+        lines = _summary(str(path), sol)
+        wcs = opts.get("wcs")
+        if wcs is not None:
+            payload["wcs"] = str(sol.write_wcs(wcs))
+            lines.append(f"  WCS written: {wcs}")
+        emit(payload, as_json, lines)
         return
     emit(payload, as_json, _not_solved(str(path), sol))
     raise typer.Exit(1)
@@ -199,7 +250,7 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
 def solve(
     images: Annotated[
         list[Path] | None,
-        typer.Argument(help="Frames (TIFF, PNG, JPEG, FITS; 8-32 bit) and folders of frames."),
+        typer.Argument(help="Frames (BMP, PNG, JPEG, TIFF, FITS; 8-32 bit) and folders of frames."),
     ] = None,
     sensor: Annotated[
         str | None, typer.Option("--sensor", help="Sensor preset or TOML (known optics).")
@@ -244,6 +295,23 @@ def solve(
         str | None,
         typer.Option("--image-size", help="WIDTHxHEIGHT of the centroids' image, pixels."),
     ] = None,
+    bayer: Annotated[
+        str | None,
+        typer.Option(
+            "--bayer",
+            help="The frames are raw Bayer mosaics of this pattern (RGGB, BGGR, GRBG, GBRG): "
+            "solved on their luminance, binned 2 x 2.",
+        ),
+    ] = None,
+    explain: Annotated[
+        Path | None,
+        typer.Option(
+            "--explain",
+            help="Draw the frame with its detections, pattern stars, matched catalogue stars "
+            "(residual arrows) and the reason for a failure to this PNG; one frame only.",
+            callback=output_file,
+        ),
+    ] = None,
     jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,
     as_json: JsonOpt = False,
 ) -> None:
@@ -261,13 +329,19 @@ def solve(
     """
     images = list(images or [])
     option_int(jobs, "--jobs", 1, 64)
+    bayer = check_bayer(bayer)
+    if explain is not None and explain.suffix.lower() != ".png":
+        raise InputError(f"--explain writes a PNG figure: give a .png file, got {explain}")
 
     when = None if time_utc is None else parse_time(time_utc, "--time")
     solver = _solver(sensor, fov_deg, catalog, algorithm, not no_apparent, observer_velocity_km_s)
     if centroids is not None:
         if images:
             raise InputError("give frames or --centroids, not both")
-        _solve_centroid_file(solver, centroids, image_size, as_json)
+        for given, name in ((bayer, "--bayer"), (explain, "--explain")):
+            if given is not None:
+                raise InputError(f"{name} goes with a frame, not with --centroids")
+        _solve_centroid_file(solver, centroids, image_size, as_json, when=when, wcs=wcs)
         return
     if image_size is not None:
         raise InputError("--image-size goes with --centroids")
@@ -275,8 +349,10 @@ def solve(
         raise InputError("give a frame, a folder of frames or --centroids FILE")
     frames = expand_frames(images)
     if len(images) == 1 and len(frames) == 1 and not images[0].is_dir():
-        _solve_one(solver, frames[0], wcs, as_json, when)
+        _solve_one(solver, frames[0], wcs, as_json, when, bayer=bayer, explain=explain)
         return
     if wcs is not None:
         raise InputError("--wcs writes one frame's WCS: give a single frame")
-    _solve_batch(solver, frames, jobs, as_json, when)
+    if explain is not None:
+        raise InputError("--explain draws one frame: give a single frame")
+    _solve_batch(solver, frames, jobs, as_json, when, bayer)

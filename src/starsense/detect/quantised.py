@@ -7,7 +7,9 @@ noise, and the noise clipped at zero is not even symmetric (a MAD of 0 made ever
 a "star": ~20,000 detections per frame). Such frames are treated here.
 
 1. **Step.** The quantisation step ``q`` is the greatest common divisor of the sampled values
-   (12-bit data stored as 16-bit: 16; 8-bit: 1); float frames with non-integer values have none.
+   (12-bit data stored as 16-bit: 16; 8-bit: 1); float frames that take few distinct values
+   (8-bit counts scaled, summed over a Bayer cell or weighted into a colour frame's luminance)
+   have the spacing of those values; continuous float frames have none.
 2. **Underlying Gaussian.** A quantised, zero-clipped Gaussian N(mu, s) has, at every bin edge
    e = k + q/2 of a value k, the exact cumulative fraction F(e) = Phi((e - mu) / s): rounding
    and clipping at zero both keep the mass below an edge below it. So the probits
@@ -45,7 +47,7 @@ _F_RANGE = (1e-3, 1.0 - 1e-3)
 
 
 def quantisation_step(values: np.ndarray) -> float | None:
-    """Return the quantisation step of integer-valued data, or None when there is none.
+    """Return the quantisation step of discrete data, or None when there is none.
 
     Parameters
     ----------
@@ -55,19 +57,40 @@ def quantisation_step(values: np.ndarray) -> float | None:
     Returns
     -------
     float or None
-        The greatest common divisor of the values' differences from their minimum (1 for
-        8-bit data, 16 for 12-bit data stored as 16-bit), or None for non-integer data or a
-        constant frame.
+        Integer data: the greatest common divisor of the values' differences from their
+        minimum (1 for 8-bit data, 16 for 12-bit data stored as 16-bit). Float data taking
+        few distinct values (at most one sample in ten distinct: counts scaled, a Bayer cell's
+        sum, the luminance of 8-bit colour): the spacing of their lattice when they lie on one
+        (x = a + k q), else the median spacing of the distinct values between the 1st and 99th
+        percentiles. None for continuous data or a constant frame.
     """
     v = np.asarray(values, dtype=np.float64).ravel()
     v = v[np.isfinite(v)]
-    if v.size == 0 or not np.all(v == np.round(v)):
+    if v.size == 0:
         return None
+    if not np.all(v == np.round(v)):
+        return _float_step(v)
     d = (v - v.min()).astype(np.int64)
     d = d[d > 0]  # the gcd of all the differences is that of the distinct ones
     if d.size == 0:
         return None
     return float(np.gcd.reduce(d))
+
+
+def _float_step(v: np.ndarray) -> float | None:
+    """Return the step of float samples taking few distinct values (quantisation_step)."""
+    u = np.unique(v)
+    if u.size < 2 or u.size > v.size // 10:
+        return None
+    lo, hi = np.percentile(v, [1.0, 99.0])
+    central = u[(u >= lo) & (u <= hi)]
+    if central.size < 2:
+        central = u
+    q = float(np.diff(central).min())
+    k = (central - central[0]) / q
+    if np.all(np.abs(k - np.round(k)) < 1e-3):  # a lattice: rounding errors of float32 only
+        return q
+    return float(np.median(np.diff(central)))
 
 
 def clipped_gaussian_sigma(cells: np.ndarray, median: np.ndarray, step: float) -> np.ndarray:

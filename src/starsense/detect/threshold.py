@@ -66,6 +66,12 @@ class Detections:
     noise_counts : float
         Background noise used for the thresholds.
     time_ms : float
+    counts : dict
+        What each cut did: ``pixels_above_threshold``, ``hot_pixels`` (removed before
+        labelling), ``candidates`` (lit regions), ``rejected_size`` (too few or too many
+        pixels), ``rejected_faint`` (integrated counts, significance or peak too low),
+        ``rejected_shape`` (not point-like: plateaus, streaks), ``saturated`` (detections
+        with a pixel at saturation, kept), ``detections``.
     """
 
     x: np.ndarray
@@ -81,6 +87,7 @@ class Detections:
     time_ms: float = 0.0
     method: str = "cog"
     extra: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.x)
@@ -305,10 +312,13 @@ class StarDetector:
         bg = self._background(a)
         sub = scratch("sub", a.shape)
         np.subtract(a, np.asarray(bg.level, dtype=np.float32), out=sub, dtype=np.float32)
+        counts = {"hot_pixels": 0}
         if self.background == "auto" and self.remove_hot_pixels:
             hot = hot_pixel_mask(a, bg, subtracted=sub)
             sub[hot] = 0.0
+            counts["hot_pixels"] = int(hot.sum())
         idx, core, filtered = self._lit(sub, bg)
+        counts["pixels_above_threshold"] = int(idx.size)
         lab, n = label_pixels(idx, a.shape, 4 if self.logic.connectivity == 4 else 8)
         empty = Detections(
             np.empty(0),
@@ -323,12 +333,16 @@ class StarDetector:
             float(bg.noise),
             0.0,
             self.centroid,
+            counts={**counts, "candidates": int(n), "detections": 0},
         )
         if n == 0:
             return _timed(empty, t0)
         sizes = np.bincount(lab, minlength=n + 1)
         sums = np.bincount(lab, weights=sub.ravel()[idx], minlength=n + 1)
-        ok = (sizes >= self.logic.min_pixels) & (sums >= self.logic.min_integrated_counts)
+        sized = sizes >= self.logic.min_pixels
+        if self.max_pixels is not None:
+            sized &= sizes <= self.max_pixels
+        ok = sums >= self.logic.min_integrated_counts
         if bg.step is not None:
             # quantised data: a star rises at least two steps above the background somewhere
             # (a plateau one step up, JPEG's flattened 8 x 8 blocks, is not a star)
@@ -340,14 +354,22 @@ class StarDetector:
             var = np.bincount(lab, weights=np.broadcast_to(noise, idx.shape) ** 2, minlength=n + 1)
             with np.errstate(invalid="ignore", divide="ignore"):
                 ok &= sums >= self.min_snr * np.sqrt(var)
-        if self.max_pixels is not None:
-            ok &= sizes <= self.max_pixels
-        ok[0] = False
+        sized[0] = False
+        faint = sized & ~ok
+        ok &= sized
         if filtered is not None:
             ok &= self._sharp(sub, filtered, idx, lab, n, a)
         keep = np.flatnonzero(ok)
+        counts.update(
+            candidates=int(n),
+            rejected_size=int(n - sized.sum()),
+            rejected_faint=int(faint.sum()),
+            rejected_shape=int(sized.sum() - faint.sum() - keep.size),
+            saturated=0,
+            detections=int(keep.size),
+        )
         if keep.size == 0:
-            return _timed(empty, t0)
+            return _timed(replace(empty, counts=counts), t0)
         keep = keep[np.argsort(-sums[keep], kind="stable")]
         power = 2 if self.centroid == "iwcog" else 1
         xs, ys, peak_arr, boxes, fits = region_centroids(
@@ -372,6 +394,7 @@ class StarDetector:
             n_candidates=int(n),
             noise_counts=float(bg.noise),
             method=self.centroid,
+            counts={**counts, "saturated": int(sat.sum())},
         )
         return _timed(det, t0)
 

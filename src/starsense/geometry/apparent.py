@@ -20,7 +20,9 @@ Light deflection by the Sun (4 mas at 90 deg from it, more close to it) is not m
 
 from __future__ import annotations
 
+import re
 import warnings
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -64,14 +66,33 @@ def aberrate(vectors, velocity_m_s) -> np.ndarray:
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 
+#: a UTC offset ending an ISO 8601 time: Z, +HH:MM, +HHMM or +HH
+_UTC_OFFSET = re.compile(r"(Z|[+-]\d\d(:?\d\d)?)$")
+
+
+def _to_utc_text(text: str) -> str:
+    """Return an ISO 8601 time with a UTC offset (``+02:00``, ``Z``) as UTC text, else as is."""
+    m = _UTC_OFFSET.search(text)
+    if m is None or m.start() <= 10:  # a date's own "-29" is no offset
+        return text
+    try:
+        t = datetime.fromisoformat(text[:-1] + "+00:00" if m.group(1) == "Z" else text)
+    except ValueError:
+        return text  # astropy says what is wrong with it
+    if t.tzinfo is None:
+        return text
+    return t.astimezone(UTC).replace(tzinfo=None).isoformat()
+
+
 def parse_time(value, name: str = "time"):
     """Return a scalar UTC astropy ``Time`` from a ``Time`` or a text: the one time parser.
 
     Parameters
     ----------
     value : str or astropy.time.Time
-        ``"2019-07-29T20:47:26"`` (ISO 8601; any form astropy reads, such as
-        ``"2019-07-29 20:47:26"``), ``"2019:07:29 20:47:26"`` (EXIF) or a Time.
+        ``"2019-07-29T20:47:26"`` (ISO 8601, UTC; any form astropy reads, such as
+        ``"2019-07-29 20:47:26"``; with a UTC offset, ``"2019-07-29T22:47:26+02:00"`` or a
+        final ``Z``, converted to UTC), ``"2019:07:29 20:47:26"`` (EXIF) or a Time.
     name : str
         Parameter (or option) name for the message.
 
@@ -93,6 +114,7 @@ def parse_time(value, name: str = "time"):
             text = str(value).strip()
             if len(text) >= 19 and text[4] == ":" and text[7] == ":":  # EXIF 'YYYY:MM:DD HH:MM:SS'
                 text = text[:4] + "-" + text[5:7] + "-" + text[8:10] + "T" + text[11:]
+            text = _to_utc_text(text)
             try:
                 t = Time(text, scale="utc")
             except ValueError:

@@ -238,6 +238,7 @@ class HashIdentifier:
         combos = self._combos[(self._combos < n_pat).all(axis=1)]
         tried = 0
         verified = 0
+        best = [1.0]  # the least false-match probability seen
         # The largest pattern in the image tells the scale; its bounds for an unknown field.
         scale_range = (0.0, math.inf)
         if not known:
@@ -255,6 +256,7 @@ class HashIdentifier:
                     f"no match within {self.timeout_s} s ({tried} patterns tried)",
                     n_patterns_tried=tried,
                     n_candidates=verified,
+                    best_false_match_probability=best[0],
                 )
             tried += 1
             cand = self._lookup(ratios)
@@ -275,6 +277,7 @@ class HashIdentifier:
                     field_width_rad=fov_rad,
                     scale_range=scale_range,
                     tangent=tangent,
+                    seen=best,
                 )
                 if out is None:
                     continue
@@ -294,6 +297,7 @@ class HashIdentifier:
                     false_match_probability=out.false_match_probability,
                     n_patterns_tried=tried,
                     n_candidates=verified,
+                    best_false_match_probability=out.false_match_probability,
                 )
         return result(
             "no_match",
@@ -302,4 +306,5 @@ class HashIdentifier:
             f"{self.verifier.false_match_threshold:g} ({verified} hypotheses verified)",
             n_patterns_tried=tried,
             n_candidates=verified,
+            best_false_match_probability=best[0],
         )

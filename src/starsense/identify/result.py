@@ -77,6 +77,9 @@ class Identification:
         Detections given.
     n_patterns_tried : int
         Detection patterns (4-star or triangles) looked up.
+    best_false_match_probability : float
+        The least false-match probability of the hypotheses verified (1 when none got that
+        far): how close a failed solve came.
     n_candidates : int
         Hypotheses verified.
     time_ms : float
@@ -98,6 +101,7 @@ class Identification:
     n_detections: int = 0
     n_patterns_tried: int = 0
     n_candidates: int = 0
+    best_false_match_probability: float = 1.0
     time_ms: float = 0.0
     message: str = ""
 

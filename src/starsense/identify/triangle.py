@@ -183,6 +183,7 @@ class TriangleIdentifier:
         n_pat = min(n, self.n_pattern_detections)
         combos = self._combos[(self._combos < n_pat).all(axis=1)]
         tried = verified = 0
+        best = [1.0]  # the least false-match probability seen
         for combo in combos:
             if self.timeout_s is not None and time.perf_counter() - t0 > self.timeout_s:
                 return result(
@@ -190,12 +191,15 @@ class TriangleIdentifier:
                     f"no match within {self.timeout_s} s ({tried} triangles tried)",
                     n_patterns_tried=tried,
                     n_candidates=verified,
+                    best_false_match_probability=best[0],
                 )
             tried += 1
             cand, _ = self._candidates(v[combo], tol)
             for cat in cand[: self.max_candidates_per_triangle]:
                 verified += 1
-                out = self.verifier(v, combo.astype(np.int64), cat, field_width_rad=fov_rad)
+                out = self.verifier(
+                    v, combo.astype(np.int64), cat, field_width_rad=fov_rad, seen=best
+                )
                 if out is None:
                     continue
                 return result(
@@ -210,6 +214,7 @@ class TriangleIdentifier:
                     false_match_probability=out.false_match_probability,
                     n_patterns_tried=tried,
                     n_candidates=verified,
+                    best_false_match_probability=out.false_match_probability,
                 )
         return result(
             "no_match",
@@ -218,4 +223,5 @@ class TriangleIdentifier:
             f"{self.verifier.false_match_threshold:g} ({verified} hypotheses verified)",
             n_patterns_tried=tried,
             n_candidates=verified,
+            best_false_match_probability=best[0],
         )

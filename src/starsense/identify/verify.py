@@ -242,6 +242,7 @@ class Verifier:
         field_width_rad: float | None = None,
         scale_range: tuple[float, float] = (0.0, math.inf),
         tangent: NDArray[np.float64] | None = None,
+        seen: list[float] | None = None,
     ) -> _Verified | None:
         """Verify one hypothesis; None if it fails.
 
@@ -263,6 +264,9 @@ class Verifier:
         tangent : ndarray, shape (N, 2), optional
             ``(x/z, y/z)`` of the first `max_detections` vectors, when the caller verifies many
             hypotheses on the same vectors (computed here otherwise).
+        seen : list of one float, optional
+            The least false-match probability of the hypotheses verified so far: lowered here
+            when this one gets as far as a probability (the "best seen" of a failed solve).
         """
         v = vectors_cam[: self.max_detections]
         n = len(v)
@@ -313,6 +317,8 @@ class Verifier:
                 if fit_scale:
                     vs = tangent_to_vectors(tangent * scale)
         p_false = false_match_probability(n, len(det_m), n_hypothesis=k, p_single=p_single)
+        if seen is not None:
+            seen[0] = min(seen[0], p_false)
         if p_false > self.false_match_threshold:
             return None
         return _Verified(

@@ -13,6 +13,7 @@ from types import ModuleType
 MODULES = (
     "availability",
     "datasheet",
+    "explain",
     "figure",
     "guide_stars",
     "limits",

@@ -26,6 +26,7 @@ __all__ = [
     "CentroidList",
     "check_centroid_input",
     "check_centroids",
+    "check_frame_shape",
     "check_image_size",
     "read_centroids",
 ]
@@ -227,7 +228,8 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
     ------
     InputError
         Centroids not (N, 2) finite numbers, a bad image size or field, brightness not one
-        finite value per centroid, an image size that is not the sensor's.
+        finite value per centroid, an image size that is not the sensor's, a centroid
+        outside the image.
     """
     pts = check_centroids(xy)
     shape = check_image_size(image_size)
@@ -241,6 +243,16 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
             raise InputError(
                 f"image_size {shape[1]} x {shape[0]} is not the sensor's {det.columns} x {det.rows}"
             )
+    rows, cols = shape
+    outside = (pts[:, 0] < -0.5) | (pts[:, 0] >= cols - 0.5)
+    outside |= (pts[:, 1] < -0.5) | (pts[:, 1] >= rows - 0.5)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise InputError(
+            f"{int(outside.sum())} centroid(s) lie outside the {cols} x {rows} image (x in "
+            f"[-0.5, {cols - 0.5}), y in [-0.5, {rows - 0.5})), the first: number {i + 1} at "
+            f"x = {pts[i, 0]:g}, y = {pts[i, 1]:g}; is the image size right?"
+        )
     if brightness is None:
         flux = np.arange(len(pts), 0, -1, dtype=float)  # as listed: brightest first
     else:
@@ -251,3 +263,36 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
                 f"got shape {flux.shape}"
             )
     return pts, shape, flux, fov_rad
+
+
+def check_frame_shape(shape, sensor) -> None:
+    """Refuse a frame whose size is not the sensor's detector (cropped, binned or rotated).
+
+    The sensor's optics map its own detector's pixels to directions; a frame of another size
+    would be unprojected through the wrong principal point and scale and could "solve" degrees
+    off. Such a frame is solved as what it is, without the sensor (its own field, or none).
+
+    Parameters
+    ----------
+    shape : (int, int)
+        Rows, columns of the frame.
+    sensor : Sensor or None
+        The solver's sensor (nothing is checked without one).
+
+    Raises
+    ------
+    InputError
+        Naming both sizes and what to do.
+    """
+    if sensor is None or len(shape) != 2:
+        return  # not a 2-D frame: the detector says so
+    det = sensor.detector
+    if tuple(shape) == (det.rows, det.columns):
+        return
+    turned = tuple(shape) == (det.columns, det.rows)
+    what = "rotated by 90 deg" if turned else "cropped, binned or from another camera"
+    raise InputError(
+        f"the frame is {shape[1]} x {shape[0]} pixels but the sensor {sensor.name!r} has a "
+        f"{det.columns} x {det.rows} detector (a frame {what}): its optics do not apply; solve "
+        "it without --sensor (give --fov-deg for the frame's own field, or nothing)"
+    )

@@ -7,6 +7,7 @@ The catalogue is loaded once (when given as a spec) and carried to every databas
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -138,14 +139,19 @@ class FieldIdentifiers:
         identifier, Identification
             The last range's identifier and its answer.
         """
+        tried, best = 0, 1.0  # over every range tried: the counts of a failed search
         for field_range in self.plan():
             identifier = self(None, field_range)
             nominal = field_range.nominal_fov_rad  # re-unproject at the range's own field
             v = apply_scale(vectors, math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))
             ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+            tried += ident.n_patterns_tried
+            best = min(best, ident.best_false_match_probability)
             if ident.solved:
                 break
-        return identifier, ident
+        return identifier, dataclasses.replace(
+            ident, n_patterns_tried=tried, best_false_match_probability=best
+        )
 
     def identify(
         self, vectors, flux, *, fov_known_rad, fov_assumed_rad, estimate: bool

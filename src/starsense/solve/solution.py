@@ -90,6 +90,12 @@ class Solution:
         (:meth:`starsense.solve.radial.RadialFit.to_dict`: radial k1, k2 with their sigmas, the
         focal length in pixels, the displacement at the image corner in per cent, the residual
         rms with and without it); None otherwise.
+    notes : tuple of str
+        What the user should know about the frame (e.g. that it looks like a raw Bayer mosaic).
+    counts : dict
+        How far each stage got (:func:`starsense.solve.counts.stage_counts`): pixels above the
+        threshold, candidates and the rejected ones by reason, detections, patterns tried, the
+        best false-match probability seen.
     """
 
     status: SolveStatus
@@ -113,6 +119,8 @@ class Solution:
     apparent: dict | None = None
     sensor: object = field(default=None, repr=False)
     distortion: dict | None = None
+    notes: tuple[str, ...] = ()
+    counts: dict = field(default_factory=dict)
 
     @property
     def ra_deg(self) -> float | None:
@@ -181,4 +189,6 @@ class Solution:
             "stage_ms": self.stage_ms,
             "apparent_places": self.apparent,
             "distortion": self.distortion,
+            "counts": self.counts,
+            "notes": list(self.notes),
         }

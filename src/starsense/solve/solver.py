@@ -38,8 +38,10 @@ from starsense.detect.centroid import cog_sigma_px
 from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
+from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import blend_radius_px, photocentres
-from starsense.solve.centroids import check_centroid_input
+from starsense.solve.centroids import check_centroid_input, check_frame_shape
+from starsense.solve.counts import detection_counts, identification_counts, max_candidates
 from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
@@ -258,12 +260,18 @@ class Solver:
         t0 = time.perf_counter()
         stages: dict[str, float] = {}
         a = np.asarray(image)
+        check_frame_shape(a.shape, self.sensor)
         detector = self.detector
         det = detector(a)
         stages["detect_ms"] = _ms(t0)
+        counts = detection_counts(a, det)
         if len(det) == 0:
             return Solution(
-                "no_stars", "no star passed the detection logic", time_ms=_ms(t0), stage_ms=stages
+                "no_stars",
+                "no star passed the detection logic",
+                time_ms=_ms(t0),
+                stage_ms=stages,
+                counts=counts,
             )
 
         def sigma_px(matched):
@@ -274,10 +282,11 @@ class Solver:
             return self.settings.centroid_sigma_px
 
         points = _Points(det.x, det.y, det.integrated_counts, a.shape, "detections")
-        return self._solve_points(points, t0, stages, sigma_px, None, obs_time)
+        sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time)
+        return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
     def solve_centroids(
-        self, xy, image_size, *, fov_rad: float | None = None, brightness=None
+        self, xy, image_size, *, fov_rad: float | None = None, brightness=None, obs_time=None
     ) -> Solution:
         """Solve a list of centroids measured by any centroider (no image needed).
 
@@ -298,6 +307,8 @@ class Solver:
         brightness : array_like, shape (N,), optional
             Anything that grows with brightness (flux, counts); when omitted the centroids are
             taken as listed brightest first.
+        obs_time : str or astropy.time.Time, optional
+            When the image was taken (ISO 8601 UTC): the attitude is fitted to apparent places.
 
         Returns
         -------
@@ -318,7 +329,7 @@ class Solver:
         sigma = self.settings.centroid_sigma_px
         sigma = sigma if sigma != "snr" else 0.3
         points = _Points(pts[:, 0], pts[:, 1], flux, shape, "centroids")
-        return self._solve_points(points, t0, {}, lambda _: sigma, fov_rad)
+        return self._solve_points(points, t0, {}, lambda _: sigma, fov_rad, obs_time)
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True):
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
@@ -354,7 +365,8 @@ class Solver:
         )
         stages["identify_ms"] = _ms(t2)
         if not ident.solved:
-            return self._unsolved(points, ident, t0, stages, sigma_px, fov_given, obs_time, parity)
+            sol = self._unsolved(points, ident, t0, stages, sigma_px, fov_given, obs_time, parity)
+            return dataclasses.replace(sol, counts={**identification_counts(ident), **sol.counts})
         # final attitude from all matches, with its covariance
         t3 = time.perf_counter()
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
@@ -451,6 +463,7 @@ class Solver:
             distortion=None if radial is None else radial.to_dict(),
             apparent=apparent,
             sensor=self.sensor,
+            counts=identification_counts(ident),
         )
 
     def prepare(self) -> None:
@@ -467,20 +480,22 @@ class Solver:
         else:
             self.identifier(self.settings.fov_rad)
 
-    def solve_file(self, path: str | Path, obs_time=None) -> Solution:
-        """Load a frame (:func:`starsense.solve.frames.load_image`) and solve it.
+    def solve_file(self, path: str | Path, obs_time=None, *, bayer: str | None = None) -> Solution:
+        """Load a frame (:func:`starsense.solve.frames.load_image`, ``bayer`` its mosaic) and solve.
 
         The frame's time is ``obs_time`` if given, else its FITS DATE-OBS or EXIF
         DateTimeOriginal / DateTime (:func:`starsense.solve.frames.frame_time`), else unknown.
+        A frame that looks like a raw Bayer mosaic (none given) gets a note saying so.
         """
-        image = load_image(path)  # first: its checks (size, header) come before any other read
+        image = load_image(path, bayer=bayer)  # first: its checks come before any other read
         source = "obs_time"
         if obs_time is None:
             obs_time, source = frame_time(path)
         sol = self(image, obs_time)
         if sol.apparent is not None and sol.apparent.get("applied"):
             sol = dataclasses.replace(sol, apparent={**sol.apparent, "time_source": source})
-        return sol
+        hint = bayer_hint(image) if bayer is None else None
+        return sol if hint is None else dataclasses.replace(sol, notes=(*sol.notes, hint))
 
 
 @dataclass(frozen=True)
@@ -492,16 +507,6 @@ class _Points:
     flux: np.ndarray
     shape: tuple
     what: str
-
-
-def max_candidates(shape) -> int:
-    """Return the most detections a frame of ``shape`` can hold as stars.
-
-    One per 1,000 pixels, at least 500: 786 for a 1024 x 768 frame, where the ESA frames give
-    22-313 (matched filter, no known optics); real stars closer than ~30 pixels on average
-    blend, and identification uses only the brightest tens.
-    """
-    return max(500, int(shape[0]) * int(shape[1]) // 1000)
 
 
 def _ms(t0: float) -> float:

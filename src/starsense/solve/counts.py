@@ -1,0 +1,64 @@
+"""How far a solve got, stage by stage: the counts a user reads when a frame fails."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["detection_counts", "identification_counts", "max_candidates"]
+
+
+def detection_counts(image, det) -> dict:
+    """Return the detector's per-stage counts, saturation judged on the frame's full scale.
+
+    Parameters
+    ----------
+    image : ndarray, shape (rows, columns)
+        The frame as detected.
+    det : Detections
+        Its detections (:attr:`starsense.detect.Detections.counts`).
+
+    Returns
+    -------
+    dict
+        ``pixels_above_threshold``, ``hot_pixels``, ``candidates``, ``rejected_size``,
+        ``rejected_faint``, ``rejected_shape``, ``saturated`` (detections with a pixel at the
+        sensor's saturation or, for an integer frame, at its type's full scale: kept, but
+        their centroids are less sure), ``detections``.
+    """
+    counts = dict(det.counts)
+    a = np.asarray(image)
+    if a.dtype.kind in "ui" and len(det) and not det.saturated.any():
+        full = np.iinfo(a.dtype).max
+        counts["saturated"] = int(np.count_nonzero(det.peak_counts >= full))
+    return counts
+
+
+def identification_counts(ident) -> dict:
+    """Return the identification's counts: patterns tried, hypotheses, best probability.
+
+    Parameters
+    ----------
+    ident : Identification
+        The answer of the identifier (summed over the field ranges of an unknown field).
+
+    Returns
+    -------
+    dict
+        ``patterns_tried``, ``hypotheses_verified`` and ``best_false_match_probability`` (the
+        least false-match probability of any hypothesis verified; 1 when none got that far).
+    """
+    return {
+        "patterns_tried": int(ident.n_patterns_tried),
+        "hypotheses_verified": int(ident.n_candidates),
+        "best_false_match_probability": float(ident.best_false_match_probability),
+    }
+
+
+def max_candidates(shape) -> int:
+    """Return the most detections a frame of ``shape`` can hold as stars.
+
+    One per 1,000 pixels, at least 500: 786 for a 1024 x 768 frame, where the ESA frames give
+    22-313 (matched filter, no known optics); real stars closer than ~30 pixels on average
+    blend, and identification uses only the brightest tens.
+    """
+    return max(500, int(shape[0]) * int(shape[1]) // 1000)
