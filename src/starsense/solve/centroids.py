@@ -24,6 +24,7 @@ from starsense.solve.settings import FOV_RANGE_RAD
 
 __all__ = [
     "CentroidList",
+    "CentroidPoints",
     "check_centroid_input",
     "check_centroids",
     "check_frame_shape",
@@ -296,3 +297,26 @@ def check_frame_shape(shape, sensor) -> None:
         f"{det.columns} x {det.rows} detector (a frame {what}): its optics do not apply; solve "
         "it without --sensor (give --fov-deg for the frame's own field, or nothing)"
     )
+
+
+@dataclass(frozen=True)
+class CentroidPoints:
+    """Centroids to solve, as the Solver carries them from detection to the attitude.
+
+    Parameters
+    ----------
+    x, y : ndarray (N,)
+        Centroids, px (x along the columns, y down the rows).
+    flux : ndarray (N,)
+        Brightness, any unit (only the order matters).
+    shape : tuple of int
+        The image's (rows, columns).
+    what : str
+        What the points are ("detections" or "centroids"), for messages.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    flux: np.ndarray
+    shape: tuple
+    what: str

@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
@@ -40,7 +39,7 @@ from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import blend_radius_px, photocentres
-from starsense.solve.centroids import check_centroid_input, check_frame_shape
+from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import detection_counts, identification_counts, max_candidates
 from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
@@ -281,7 +280,7 @@ class Solver:
                 )
             return self.settings.centroid_sigma_px
 
-        points = _Points(det.x, det.y, det.integrated_counts, a.shape, "detections")
+        points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
         sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time)
         return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
@@ -328,7 +327,7 @@ class Solver:
         )
         sigma = self.settings.centroid_sigma_px
         sigma = sigma if sigma != "snr" else 0.3
-        points = _Points(pts[:, 0], pts[:, 1], flux, shape, "centroids")
+        points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
         return self._solve_points(points, t0, {}, lambda _: sigma, fov_rad, obs_time)
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True):
@@ -395,7 +394,7 @@ class Solver:
                 points.flux,
                 shape=shape,
                 solve_points=lambda mx, my, f: self._solve_points(
-                    _Points(mx, my, f, shape, points.what),
+                    CentroidPoints(mx, my, f, shape, points.what),
                     t0,
                     stages,
                     sigma_px,
@@ -496,17 +495,6 @@ class Solver:
             sol = dataclasses.replace(sol, apparent={**sol.apparent, "time_source": source})
         hint = bayer_hint(image) if bayer is None else None
         return sol if hint is None else dataclasses.replace(sol, notes=(*sol.notes, hint))
-
-
-@dataclass(frozen=True)
-class _Points:
-    """Centroids to solve: x, y (px), brightness, the image's (rows, columns), what they are."""
-
-    x: np.ndarray
-    y: np.ndarray
-    flux: np.ndarray
-    shape: tuple
-    what: str
 
 
 def _ms(t0: float) -> float:
