@@ -20,6 +20,8 @@ Light deflection by the Sun (4 mas at 90 deg from it, more close to it) is not m
 
 from __future__ import annotations
 
+import datetime
+import re
 import warnings
 
 import numpy as np
@@ -64,6 +66,19 @@ def aberrate(vectors, velocity_m_s) -> np.ndarray:
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 
+def _without_offset(text: str) -> str:
+    """Return an ISO 8601 time with a UTC offset (``+02:00``, ``Z``) as the UTC time it names."""
+    if not re.search(r"T.*(Z|[+-]\d\d:?\d\d)$", text):
+        return text
+    try:
+        when = datetime.datetime.fromisoformat(text)
+    except ValueError:
+        return text  # not ISO 8601: astropy says so
+    if when.tzinfo is None:
+        return text
+    return when.astimezone(datetime.UTC).replace(tzinfo=None).isoformat()
+
+
 def parse_time(value, name: str = "time"):
     """Return a scalar UTC astropy ``Time`` from a ``Time`` or a text: the one time parser.
 
@@ -94,7 +109,7 @@ def parse_time(value, name: str = "time"):
             if len(text) >= 19 and text[4] == ":" and text[7] == ":":  # EXIF 'YYYY:MM:DD HH:MM:SS'
                 text = text[:4] + "-" + text[5:7] + "-" + text[8:10] + "T" + text[11:]
             try:
-                t = Time(text, scale="utc")
+                t = Time(_without_offset(text), scale="utc")
             except ValueError:
                 raise InputError(
                     f"{name} must be an ISO 8601 time such as 2019-07-29T20:47:26 (UTC); "
