@@ -14,6 +14,7 @@ from typing import Annotated
 import typer
 
 from starsense import plotting
+from starsense._io import check_output
 from starsense.analysis.availability import catalog_stars
 from starsense.analysis.mission import (
     Head,
@@ -134,6 +135,11 @@ def mission(
     hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
     specs = [tok for value in [*(heads or []), *(more_heads or [])] for tok in value.split()]
+    if plot is not None:  # the place, before the work (missing folders are created)
+        if plot.parent.exists():
+            check_output(plot, "--plot")
+        else:
+            check_output(plot.parent, "--plot", directory=True)
     profile = parse_attitude(attitude, "--attitude")
     orb, t0 = _orbit(orbit, tle, start)
     with warnings.catch_warnings(record=True) as caught, progress_bar(not as_json) as bar:
