@@ -136,10 +136,7 @@ def mission(
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
     specs = [tok for value in [*(heads or []), *(more_heads or [])] for tok in value.split()]
     if plot is not None:  # the place, before the work (missing folders are created)
-        if plot.parent.exists():
-            check_output(plot, "--plot")
-        else:
-            check_output(plot.parent, "--plot", directory=True)
+        check_output(plot, "--plot", make_parents=True)
     profile = parse_attitude(attitude, "--attitude")
     orb, t0 = _orbit(orbit, tle, start)
     with warnings.catch_warnings(record=True) as caught, progress_bar(not as_json) as bar:

@@ -171,9 +171,11 @@ def dask_client(
     if kind == "local":
         n = value or n_workers or os.cpu_count() or 1
         # the workers' scratch space (its lock files) in a folder of this run, removed after
+        # (every server, the scheduler too, keeps one: dask's temporary-directory points there)
         scratch = tempfile.mkdtemp(prefix="starsense-dask-")
+        (dask,) = require("dask")
         try:
-            with _children_ignore_sigint():  # Ctrl-C is the command's, not each worker's
+            with _children_ignore_sigint(), dask.config.set({"temporary-directory": scratch}):
                 cluster = _local_cluster(distributed, n, processes, scratch)
             try:
                 client = distributed.Client(cluster)

@@ -58,9 +58,14 @@ class DetectionThresholds:
     connectivity: int = 8
 
     def __post_init__(self) -> None:
-        check_field("detection", "lit_pixel_counts", self.lit_pixel_counts, 0, None, lo_open=True)
+        # counts: no pixel of a (<= 32-bit) ADC exceeds 2^32, nor a star's sum 2^32 x 1e6 px
+        check_field(
+            "detection", "lit_pixel_counts", self.lit_pixel_counts, 0, 2.0**32, lo_open=True
+        )
         check_field("detection", "min_pixels", self.min_pixels, 1, 1_000_000, integer=True)
-        check_field("detection", "min_integrated_counts", self.min_integrated_counts, 0, None)
+        check_field(
+            "detection", "min_integrated_counts", self.min_integrated_counts, 0, 2.0**32 * 1e6
+        )
         if self.connectivity not in (4, 8):
             raise InputError(f"detection.connectivity must be 4 or 8, got {self.connectivity!r}")
 

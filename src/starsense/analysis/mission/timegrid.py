@@ -63,9 +63,8 @@ def quiet_future() -> Iterator[None]:
 def _check_years(start: Time, duration_s: float) -> None:
     """Refuse a span outside the years the Sun's and Moon's ephemeris covers (1900-2100)."""
     with quiet_future():
-        first = start.utc.datetime64.astype("datetime64[Y]").astype(int) + 1970
-        last = (start + duration_s * u.s).utc.datetime64.astype("datetime64[Y]").astype(int)
-    last += 1970
+        first = int(start.utc.ymdhms["year"])
+        last = int((start + duration_s * u.s).utc.ymdhms["year"])
     if first < EPHEMERIS_YEARS[0] or last > EPHEMERIS_YEARS[1]:
         raise InputError(
             f"the span {first}-{last} is outside {EPHEMERIS_YEARS[0]}-{EPHEMERIS_YEARS[1]}, "
