@@ -141,9 +141,10 @@ def mission(
     orb, t0 = _orbit(orbit, tle, start)
     with warnings.catch_warnings(record=True) as caught, progress_bar(not as_json) as bar:
         warnings.simplefilter("always", UserWarning)
-        head_list = _heads(specs, fov, half_fov_deg, model, trials, seed, tolerance_json, bar)
+        # the orbit and attitude first: their faults show before the heads' slew Monte Carlo
         grid = TimeGrid.span(t0, hours * 3600.0, step)
         geo = mission_geometry(grid, orb, profile)
+        head_list = _heads(specs, fov, half_fov_deg, model, trials, seed, tolerance_json, bar)
         vectors, mags = catalog_stars(load_catalog(catalog), max_mag)
         meta = {
             "start": t0.isot,
