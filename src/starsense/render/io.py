@@ -97,6 +97,9 @@ def _checked(target: Path, frame) -> tuple[str, np.ndarray]:
             f"use one of {', '.join(sorted(FORMATS))}"
         )
     fmt = FORMATS[ext]
+    directory = target.parent if str(target.parent) else Path(".")
+    if not directory.is_dir():
+        raise InputError(f"cannot write {str(target)!r}: directory {str(directory)!r} not found")
     if frame is None:
         return fmt, np.zeros((0, 0), np.uint16)
     image = np.asarray(frame.image)
@@ -112,9 +115,6 @@ def _checked(target: Path, frame) -> tuple[str, np.ndarray]:
             f"cannot write {str(target)!r}: counts of 2^31 and above do not fit Pillow's "
             "32-bit TIFF; use .fits"
         )
-    directory = target.parent if str(target.parent) else Path(".")
-    if not directory.is_dir():
-        raise InputError(f"cannot write {str(target)!r}: directory {str(directory)!r} not found")
     return fmt, image
 
 
