@@ -165,6 +165,8 @@ CASES = [
       "{bad}/file.txt/t.png"], ["--plot", "file.txt/t.png", "is not a directory"]),
     (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--plot",
       "{bad}/file.txt/sub/t.png"], ["--plot", "file.txt/sub/t.png", "is not a directory"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--duration-h",
+      "0.0001"], ["--duration-h 0.0001 at --step-s 1 gives 1 steps"]),
     # -- F: network addresses ------------------------------------------------------------------
     (["limit", "sky", "--catalog", "hats:http://127.0.0.1:99999/x"],
      ["http://127.0.0.1:99999/x", "port", "1-65535"]),
@@ -272,7 +274,7 @@ def test_colour_clamp_is_said(capsys):
 
 def test_case_count():
     # the note quotes the size of this table; keep it honest
-    assert len(CASES) >= 89
+    assert len(CASES) >= 90
 
 
 @pytest.mark.parametrize(
