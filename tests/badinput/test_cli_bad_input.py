@@ -295,3 +295,19 @@ def test_refused_addresses_fail_at_once(argv, bad_dir, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "connection refused by 127.0.0.1:9" in err
     assert elapsed < 2.0
+
+
+def test_render_sequence_takes_a_time_with_a_utc_offset(tmp_path, capsys):
+    # 20:47:26+02:00 is 18:47:26 UTC; frame k of the sequence is taken k x 0.5 s later
+    code = main(
+        [
+            "render", "--out", str(tmp_path / "s.png"), "--sequence", "2", "--interval-s",
+            "0.5", "--time", "2019-07-29T20:47:26+02:00", "--max-mag", "3", "--no-noise",
+            "--ra-deg", "83.8", "--dec-deg", "-1.2",  # Orion's belt: stars in the field
+        ]
+    )  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    for k, utc in enumerate(["2019-07-29T18:47:26.000", "2019-07-29T18:47:26.500"]):
+        truth = json.loads((tmp_path / f"s_{k:03d}.png.json").read_text())
+        assert truth["apparent_places"]["time_utc"] == utc
+        assert truth["time_s"] == 0.5 * k
