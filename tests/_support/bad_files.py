@@ -148,3 +148,18 @@ def fits_card(raw: bytes, key: str, value: str | None) -> bytes:
     i = raw.index(key.ljust(8).encode() + b"= ")
     card = (" " * 80) if value is None else f"{key:<8}= {value:>20}".ljust(80)
     return raw[:i] + card.encode() + raw[i + 80 :]
+
+
+def tle_text(line1: str, line2: str, name: str = "ISS (ZARYA)") -> str:
+    """A three-line TLE with the checksums (column 69) of ``line1`` and ``line2`` recomputed."""
+
+    def fixed(line: str) -> str:
+        total = sum(int(c) if c.isdigit() else (1 if c == "-" else 0) for c in line[:68])
+        return line[:68] + str(total % 10)
+
+    return f"{name}\n{fixed(line1)}\n{fixed(line2)}\n"
+
+
+#: the ISS element set of 2024-01-01 12:00 UTC (checksums recomputed by tle_text)
+TLE_LINE1 = "1 25544U 98067A   24001.50000000  .00016717  00000-0  10270-3 0  9990"
+TLE_LINE2 = "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.50377579999990"

@@ -109,6 +109,64 @@ CASES = [
      ["baddec.csv", "line 3, column dec: 'abc' is not a number"]),
     (["catalog", "import", "{bad}/baddec.csv", "{bad}/file.txt/h"],
      ["output", "file.txt", "is not a directory"]),
+    # -- D: the sensor TOML's schema, checked when it is loaded --------------------------------
+    (["render", "--out", "{out}/f.png", "--sensor", "{bad}/name.toml"],
+     ["name.toml", "name must be text", "['a']"]),
+    (["render", "--out", "{out}/f.png", "--sensor", "{bad}/budget.toml"],
+     ["budget.toml", "[budget] source must be text", "5"]),
+    (["render", "--out", "{out}/f.png", "--sensor", "{bad}/quoted.toml"],
+     ["quoted.toml: [quoted] nea_cross_arcsec = -1.0 is out of range"]),
+    (["render", "--out", "{out}/f.png", "--sensor", "{bad}/k1.toml"],
+     ["k1.toml", "optics.distortion_k1 = -10", "fold"]),
+    (["render", "--out", "{out}/f.png", "--sensor", "{bad}/wide.toml"],
+     ["wide.toml", "177.1 deg across the columns", "175 deg"]),
+    (["render", "--out", "{out}/f.png", "--sensor", "{bad}/lit.toml"],
+     ["lit.toml", "detection.lit_pixel_counts = 1e+300"]),
+    (["slew", "tolerance", "--sensor", "{bad}/onepx.toml"],
+     ["detector.columns = 1", "star does not fit"]),
+    # -- E: the work bounded before it starts (memory of the machine) --------------------------
+    (["render", "--out", "{out}/f.png", "--sensor", "{bad}/big.toml"],
+     ["100000 x 100000", "10,000,000,000 pixels", "67,108,864"]),
+    (["datasheet", "--sensor", "{bad}/big.toml"], ["100000 x 100000", "67,108,864"]),
+    # -- G: the newer commands -------------------------------------------------------------------
+    (["render", "--out", "{out}/f.png", "--sequence", "2", "--interval-s", "1", "--time", "x"],
+     ["--time", "'x' is not an ISO 8601 time"]),
+    (["datasheet", "--out", "{bad}/file.txt/sub"], ["--out", "file.txt", "is not a directory"]),
+    (["calibrate", "--fit", "focal_length,k1,focal_length", "--out", "{out}/c.toml",
+      "{bad}/ok.fits"], ["--fit", "focal_length listed twice"]),
+    (["track", "--sensor", "st16", "--interval-s", "1e-300", "--json", "{bad}/ok.fits"],
+     ["--interval-s", "1e-300", "1e-06"]),
+    (["availability", "mission", "--heads", "st16", "--tle", "{bad}/day0.tle"],
+     ["day0.tle, line 2, columns 21-32", "epoch day 000.5", "[1, 367]"]),
+    (["availability", "mission", "--heads", "st16", "--tle", "{bad}/day400.tle"],
+     ["day400.tle, line 2", "epoch day 400.5"]),
+    (["availability", "mission", "--heads", "st16", "--tle", "{bad}/day366.tle"],
+     ["day366.tle", "epoch day 366.5", "past the end of 2023"]),
+    (["availability", "mission", "--heads", "st16", "--tle", "{bad}/inc200.tle"],
+     ["inc200.tle, line 3, columns 9-16", "inclination (deg) 200.0000", "[0, 180]"]),
+    (["availability", "mission", "--heads", "st16", "--tle", "{bad}/ok.tle", "--start",
+      "1990-01-01T00:00", "--duration-h", "0.1", "--step-s", "60"],
+     ["SGP4 fails", "-12418.5 days from the TLE epoch 2024-01-01T12:00:00.000"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--start",
+      "9999-01-01T00:00"], ["9999", "outside 1900-2100"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--attitude",
+      "quaternions:{bad}/adir.csv"], ["quaternion file", "adir.csv is a directory"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--attitude",
+      "quaternions:{bad}/latin1.csv"], ["latin1.csv", "not UTF-8", "0xe9 at line 3"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--attitude",
+      "quaternions:{bad}/qnan.csv"], ["qnan.csv, line 4, column 2 (qx): nan"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--attitude",
+      "target:10,1e300"], ["--attitude target longitude (deg) = 1e+300"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "kepler:-5,0,0,0,0,0"],
+     ["--orbit kepler semi-major axis (km) = -5.0"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "circular:1e12:10"],
+     ["--orbit circular altitude (km)", "1000000.0"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--plot",
+      "{bad}/file.txt/t.png"], ["--plot", "file.txt/t.png", "is not a directory"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--plot",
+      "{bad}/file.txt/sub/t.png"], ["--plot", "file.txt/sub/t.png", "is not a directory"]),
+    (["availability", "mission", "--heads", "st16", "--orbit", "sso:500", "--duration-h",
+      "0.0001"], ["--duration-h 0.0001 at --step-s 1 gives 1 steps"]),
     # -- F: network addresses ------------------------------------------------------------------
     (["limit", "sky", "--catalog", "hats:http://127.0.0.1:99999/x"],
      ["http://127.0.0.1:99999/x", "port", "1-65535"]),
@@ -216,7 +274,7 @@ def test_colour_clamp_is_said(capsys):
 
 def test_case_count():
     # the note quotes the size of this table; keep it honest
-    assert len(CASES) >= 50
+    assert len(CASES) >= 90
 
 
 @pytest.mark.parametrize(
@@ -237,3 +295,19 @@ def test_refused_addresses_fail_at_once(argv, bad_dir, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "connection refused by 127.0.0.1:9" in err
     assert elapsed < 2.0
+
+
+def test_render_sequence_takes_a_time_with_a_utc_offset(tmp_path, capsys):
+    # 20:47:26+02:00 is 18:47:26 UTC; frame k of the sequence is taken k x 0.5 s later
+    code = main(
+        [
+            "render", "--out", str(tmp_path / "s.png"), "--sequence", "2", "--interval-s",
+            "0.5", "--time", "2019-07-29T20:47:26+02:00", "--max-mag", "3", "--no-noise",
+            "--ra-deg", "83.8", "--dec-deg", "-1.2",  # Orion's belt: stars in the field
+        ]
+    )  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    for k, utc in enumerate(["2019-07-29T18:47:26.000", "2019-07-29T18:47:26.500"]):
+        truth = json.loads((tmp_path / f"s_{k:03d}.png.json").read_text())
+        assert truth["apparent_places"]["time_utc"] == utc
+        assert truth["time_s"] == 0.5 * k

@@ -20,6 +20,7 @@ import pytest
 import starsense._io.files as files
 import starsense.render.io as rio
 import starsense.render.scene as scene
+import starsense.render.sequence as sequence  # bound before a test patches scene.render_frame
 import starsense.report.build as build
 from starsense._io import atomic_write, sweep_stale
 from starsense.cli import main
@@ -76,7 +77,7 @@ def test_render_terminated_during_the_commit_finishes_it(old_frame, monkeypatch,
 
     def fsync_then_term(path):
         real(path)
-        if not sent:
+        if not sent and Path(path).parent == old_frame.parent:  # not a catalogue cache write
             sent.append(path)
             os.kill(os.getpid(), signal.SIGTERM)
 
@@ -218,3 +219,142 @@ def test_render_killed_from_outside_at_several_moments(tmp_path):
         if now != previous:  # replaced: the new pair is complete
             assert "stars" in json.loads(now[1])
             previous = now
+
+
+# -- render --sequence: the sequence is one unit ---------------------------------------------
+
+SEQ_N = 20
+
+
+@pytest.fixture
+def old_sequence(tmp_path: Path) -> Path:
+    """A previous 20-frame sequence s_000.png ... s_019.png with its truths."""
+    for k in range(SEQ_N):
+        (tmp_path / f"s_{k:03d}.png").write_bytes(f"old image {k}".encode())
+        (tmp_path / f"s_{k:03d}.png.json").write_text(f'{{"old": {k}}}')
+    return tmp_path
+
+
+def _assert_old_sequence(folder: Path, code: int, err: str) -> None:
+    assert code == EXIT_TERMINATED == 143
+    assert err.strip() == "error: terminated (SIGTERM); nothing written"
+    names = [f"s_{k:03d}.png{ext}" for k in range(SEQ_N) for ext in ("", ".json")]
+    assert _files(folder) == sorted(names)  # no new frame, no temporary
+    for k in range(SEQ_N):
+        assert (folder / f"s_{k:03d}.png").read_bytes() == f"old image {k}".encode()
+        assert (folder / f"s_{k:03d}.png.json").read_text() == f'{{"old": {k}}}'
+
+
+def _sequence_argv(folder: Path) -> list[str]:
+    return [
+        "render", "--out", str(folder / "s.png"), "--sequence", str(SEQ_N),
+        "--interval-s", "0.2", "--max-mag", "3", "--no-noise",
+    ]  # fmt: skip
+
+
+def _term_on_call(n: int, real):
+    """A stand-in for ``real`` that sends SIGTERM on its ``n``-th call (1-based)."""
+    calls = []
+
+    def wrapped(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == n:
+            _term()
+        return real(*args, **kwargs)
+
+    return wrapped
+
+
+@pytest.mark.parametrize(
+    ("where", "call"),
+    [("render", 1), ("render", 11), ("write", SEQ_N)],
+    ids=["rendering the first frame", "rendering frame 10", "writing the last frame"],
+)
+def test_render_sequence_terminated_leaves_the_old_sequence(
+    old_sequence, monkeypatch, capsys, where, call
+):
+    # SIGTERM at three moments of `render --sequence 20`: before any frame, half-way, and
+    # with every frame but the last written to its temporary: nothing of the new sequence
+    # stays, the old one is intact, exit 143
+    if where == "render":
+        monkeypatch.setattr(sequence, "render_frame", _term_on_call(call, sequence.render_frame))
+    else:
+        monkeypatch.setattr(rio, "_write_pillow", _term_on_call(call, rio._write_pillow))
+    code = main(_sequence_argv(old_sequence))
+    _assert_old_sequence(old_sequence, code, capsys.readouterr().err)
+
+
+def test_render_sequence_failing_at_a_frame_leaves_the_old_sequence(
+    old_sequence, monkeypatch, capsys
+):
+    real = sequence.render_frame
+    calls = []
+
+    def fails_at_frame_5(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 6:
+            raise OSError(28, "No space left on device")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sequence, "render_frame", fails_at_frame_5)
+    code = main(_sequence_argv(old_sequence))
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.endswith("s_000.png: No space left on device"), err
+    names = [f"s_{k:03d}.png{ext}" for k in range(SEQ_N) for ext in ("", ".json")]
+    assert _files(old_sequence) == sorted(names)
+    assert (old_sequence / "s_005.png").read_bytes() == b"old image 5"
+
+
+def test_render_sequence_terminated_during_the_commit_finishes_it(
+    old_sequence, monkeypatch, capsys
+):
+    # SIGTERM while the 40 files are renamed into place is held back until all are: the new
+    # sequence is complete (every frame a 16-bit PNG with its truth at its own time), exit 143
+    real = files._fsync
+    sent = []
+
+    def fsync_then_term(path):
+        real(path)
+        if not sent and Path(path).parent == old_sequence:  # not a catalogue cache write
+            sent.append(path)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(files, "_fsync", fsync_then_term)
+    code = main(_sequence_argv(old_sequence))
+    assert code == 143 and sent
+    from PIL import Image
+
+    det = load_sensor("st16").detector
+    for k in range(SEQ_N):
+        with Image.open(old_sequence / f"s_{k:03d}.png") as im:
+            assert im.size == (det.columns, det.rows)
+        truth = json.loads((old_sequence / f"s_{k:03d}.png.json").read_text())
+        assert truth["time_s"] == pytest.approx(0.2 * k)
+    assert len(_files(old_sequence)) == 2 * SEQ_N
+
+
+@pytest.mark.slow
+def test_render_sequence_killed_from_outside_at_three_moments(old_sequence):
+    # the real command: SIGTERM 1, 4 and 8 s after the start (start-up, rendering, writing):
+    # exit 143 (or 0 when it had finished, -15 before the handler was set), no temporary,
+    # and the sequence is either the old one or a complete new one
+    cmd = [sys.executable, "-c", "from starsense.cli import console_main; console_main()"]
+    codes = []
+    for delay in (1.0, 4.0, 8.0):
+        proc = subprocess.Popen(
+            [*cmd, *_sequence_argv(old_sequence)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
+        time.sleep(delay)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=300)
+        codes.append(proc.returncode)
+        assert proc.returncode in (143, 0, -signal.SIGTERM), err
+        assert b"Traceback" not in err
+        assert len(_files(old_sequence)) == 2 * SEQ_N  # no temporary, no extra frame
+        truths = [(old_sequence / f"s_{k:03d}.png.json").read_text() for k in range(SEQ_N)]
+        old = ['"old"' in t for t in truths]
+        assert all(old) or not any(old)  # never a mix of the two sequences
+        if proc.returncode == 143:
+            assert all(old)  # terminated before its commit: the old sequence stands
+            _assert_old_sequence(old_sequence, 143, err.decode())
+    assert 143 in codes, codes  # at least one moment fell inside the run

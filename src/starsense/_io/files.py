@@ -162,7 +162,11 @@ def read_text(path: str | os.PathLike[str], what: str = "file") -> str:
 
 
 def check_output(
-    target: str | os.PathLike[str], what: str = "output", *, directory: bool = False
+    target: str | os.PathLike[str],
+    what: str = "output",
+    *,
+    directory: bool = False,
+    make_parents: bool = False,
 ) -> Path:
     """Check, before any work, that ``target`` can be written; return it as a Path.
 
@@ -175,6 +179,9 @@ def check_output(
     directory : bool
         ``target`` is a directory to create or replace (a report), not a file; missing
         directories above it will be created, so the nearest existing one is checked.
+    make_parents : bool
+        ``target`` is a file whose missing directories the writer creates (a figure): the
+        nearest existing one is checked.
 
     Returns
     -------
@@ -192,7 +199,7 @@ def check_output(
     p = Path(text).expanduser()
     parent = p.absolute().parent
     shown = f"cannot write {what} {p}"
-    if directory:  # missing folders on the way are created: the nearest existing one counts
+    if directory or make_parents:  # missing folders on the way are created: the nearest counts
         while not parent.exists() and parent != parent.parent:
             parent = parent.parent
     if not parent.exists():

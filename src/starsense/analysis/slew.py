@@ -58,6 +58,9 @@ __all__ = [
 _PAPER_MAX_RATE_DEG_S = 10.0
 #: the paper's top rate, rad/s
 DEFAULT_MAX_RATE_RAD_S = _PAPER_MAX_RATE_DEG_S * DEG
+#: most float64 stamp bytes one batch of the slew Monte Carlo holds (noise and detection take
+#: a few copies of it): 256 MiB keeps a run under ~1.5 GiB on a shared machine
+STACK_BUDGET_BYTES = 2**28
 
 
 def default_rates_rad_s(n: int = 40, max_rate_rad_s: float | None = None) -> np.ndarray:
@@ -299,13 +302,7 @@ def slew_tolerance(
     electrons = np.asarray(
         Sensitivity.for_sensor(sensor, model).electrons(mags, colours), dtype=float
     )
-    max_len = sensor.streak_length_px(rates[-1])
-    if max_len + 10 * det.psf_sigma_px >= det.columns:
-        top_deg_s = float(to_edge(rates[-1], DEG))
-        raise InputError(
-            f"a {top_deg_s:g} deg/s slew sweeps a star {max_len:.0f} px in {sensor.exposure_s} s: "
-            f"longer than the detector's {det.columns} columns"
-        )
+    _check_streak_fits(sensor, rates[-1])
     n_m, n_r = len(mags), len(rates)
     detected = np.zeros((n_m, n_r, n_trials), dtype=bool)
     intensity = np.full((n_m, n_r, n_trials), np.nan)
@@ -325,11 +322,13 @@ def slew_tolerance(
         unit = np.zeros((n_trials, *shape))
         for k, s in enumerate(stamps):
             unit[k, : s.shape[0], : s.shape[1]] = s
-        expected = electrons[:, None, None, None] * unit[None]  # (M, T, H, W)
-        counts = apply_noise(expected.reshape(-1, *shape), sensor, rng=gen)
-        found, integ = detect_stack(counts, sensor.detection, background_counts=det.bias_counts)
-        detected[:, j, :] = found.reshape(n_m, n_trials)
-        intensity[:, j, :] = integ.reshape(n_m, n_trials)
+        for chunk in _magnitude_chunks(n_m, unit, rate):
+            expected = electrons[chunk, None, None, None] * unit[None]  # (m, T, H, W)
+            counts = apply_noise(expected.reshape(-1, *shape), sensor, rng=gen)
+            del expected
+            found, integ = detect_stack(counts, sensor.detection, background_counts=det.bias_counts)
+            detected[chunk, j, :] = found.reshape(-1, n_trials)
+            intensity[chunk, j, :] = integ.reshape(-1, n_trials)
         if progress is not None:
             progress(j + 1, n_r)
     fraction = detected.mean(axis=2)
@@ -355,6 +354,46 @@ def slew_tolerance(
         seed=seed,
         threshold_counts=float(sensor.detection.min_integrated_counts),
     )
+
+
+def _check_streak_fits(sensor, top_rate_rad_s: float) -> None:
+    """Refuse a slew whose star image (streak + 10 PSF sigma) is wider than the detector."""
+    det = sensor.detector
+    max_len = sensor.streak_length_px(top_rate_rad_s)
+    width = max_len + 10 * det.psf_sigma_px
+    if width < det.columns:
+        return
+    star = f"a star image {width:.0f} px wide (10 x detector.psf_sigma_px = {det.psf_sigma_px:g})"
+    if max_len >= 0.5:
+        top_deg_s = float(to_edge(top_rate_rad_s, DEG))
+        star = (
+            f"a {top_deg_s:g} deg/s slew sweeps a star {max_len:.0f} px in "
+            f"{sensor.exposure_s:g} s ({width:.0f} px with 10 x detector.psf_sigma_px)"
+        )
+    raise InputError(
+        f"{star}: wider than the detector (detector.columns = {det.columns}); the star "
+        "does not fit the frame"
+    )
+
+
+def _magnitude_chunks(n_mags: int, unit: np.ndarray, rate_rad_s: float) -> list[slice]:
+    """Split the magnitudes so that one batch of noisy stamps stays within the memory budget.
+
+    Every magnitude at once when it fits (the usual case); else batches of magnitudes, each
+    holding at most :data:`STACK_BUDGET_BYTES` of float64 counts. One magnitude's stamps
+    beyond the budget raise :class:`InputError` naming the stamp size and the budget.
+    """
+    per_mag = unit.nbytes  # float64 (T, H, W) per magnitude; the noise and detection copy it
+    if per_mag > STACK_BUDGET_BYTES:
+        h, w = unit.shape[1:]
+        raise InputError(
+            f"slew at {float(to_edge(rate_rad_s, DEG)):g} deg/s: {unit.shape[0]} trial stamps "
+            f"of {h} x {w} px need {per_mag / 2**30:.2f} GiB, more than the "
+            f"{STACK_BUDGET_BYTES / 2**30:.2f} GiB one batch may use (memory of a shared "
+            "machine); lower the trials, the rates or detector.psf_sigma_px"
+        )
+    per_batch = max(1, STACK_BUDGET_BYTES // max(per_mag, 1))
+    return [slice(i, min(i + per_batch, n_mags)) for i in range(0, n_mags, per_batch)]
 
 
 def magnitude_threshold(result: SlewResult, rates_rad_s) -> np.ndarray:

@@ -51,6 +51,9 @@ def calibrate(
     bad = [p for p in names if p not in PARAMETERS]
     if bad or not names:
         raise InputError(f"--fit must name some of {', '.join(PARAMETERS)}; got {fit!r}")
+    twice = sorted({p for p in names if names.count(p) > 1})
+    if twice:
+        raise InputError(f"--fit {fit}: {', '.join(twice)} listed twice; name each once")
     if out.suffix.lower() != ".toml":
         raise InputError(f"--out must be a .toml file, got {str(out)!r}")
     if not out.parent.is_dir():

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from starsense._io import atomic_write
+from starsense._io import atomic_write, check_output
 from starsense.analysis.centroid_trials import centroid_trials
 from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
 from starsense.catalog import load_catalog
@@ -173,8 +173,8 @@ def datasheet(
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
     if seed < 0:
         raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
-    if out is not None and Path(out).exists() and not Path(out).is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")  # before any work
+    if out is not None:  # the place, before any work: a folder (created) we may write in
+        check_output(out, "--out", directory=True)
     names = list(compare) if compare else [sensor]
     sensors = [load_sensor(n) for n in names]
     cat = load_catalog(catalog)

@@ -28,7 +28,7 @@ from starsense.geometry.apparent import parse_time
 from starsense.geometry.attitude import attitude_from_radec_roll
 from starsense.render import scene
 from starsense.render.areas import render_areas
-from starsense.render.io import FORMATS, write_frame
+from starsense.render.io import FORMATS, write_frame, write_frames
 from starsense.render.sequence import render_sequence, sequence_paths
 from starsense.sensor import load_sensor
 from starsense.units import DEG
@@ -86,6 +86,9 @@ def render(
     if max_mag is not None:
         option_float(max_mag, "--max-mag")
     sens = load_sensor(sensor)
+    obs_time = None if time is None else parse_time(time, "--time")
+    if obs_time is not None and areas:
+        raise InputError("--time is not available with --areas")
     att = attitude_from_radec_roll(np.radians(ra_deg), np.radians(dec_deg), np.radians(roll_deg))
     if sequence is not None or interval_s is not None:
         if areas:
@@ -102,6 +105,7 @@ def render(
             catalog=load_catalog(catalog),
             max_mag=max_mag,
             noise=not no_noise,
+            obs_time=obs_time,
         )
         return
     kwargs = {
@@ -111,10 +115,8 @@ def render(
         "rng": seed,
         "noise": not no_noise,
     }
-    if time is not None:
-        if areas:
-            raise InputError("--time is not available with --areas")
-        kwargs["obs_time"] = parse_time(time, "--time")
+    if obs_time is not None:
+        kwargs["obs_time"] = obs_time
     if areas:
         frame, note = _render_areas(sens, att, load_catalog(catalog), kwargs)
     else:
@@ -152,12 +154,16 @@ def _render_sequence(out, sens, att, rate, n, interval_s, seed, *, catalog, **kw
     frames = render_sequence(
         sens, att, catalog, n_frames=n, interval_s=interval_s, rate_rad_s=rate, seed=seed, **kwargs
     )
-    for path, frame in zip(paths, frames, strict=True):
-        write_frame(path, frame)
-        typer.echo(
-            f"frame written: {path} (t = {frame.truth.time_s:g} s, {len(frame.truth.stars)} "
-            f"stars; truth in {path}.json)"
-        )
+    done = []
+
+    def noted(frames):  # what each frame held, for the lines printed once all are in place
+        for frame in frames:
+            done.append((frame.truth.time_s, len(frame.truth.stars)))
+            yield frame
+
+    write_frames(paths, noted(frames))  # the whole sequence, or nothing of it
+    for path, (t, n_stars) in zip(paths, done, strict=True):
+        typer.echo(f"frame written: {path} (t = {t:g} s, {n_stars} stars; truth in {path}.json)")
 
 
 def montecarlo(

@@ -7,6 +7,7 @@ group by :mod:`starsense.cli.app`.
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 from typing import Annotated
@@ -14,6 +15,7 @@ from typing import Annotated
 import typer
 
 from starsense import plotting
+from starsense._io import check_output
 from starsense.analysis.availability import catalog_stars
 from starsense.analysis.mission import (
     Head,
@@ -24,6 +26,7 @@ from starsense.analysis.mission import (
     parse_time,
 )
 from starsense.analysis.mission.specs import parse_attitude, parse_head, parse_orbit
+from starsense.analysis.mission.timegrid import MAX_STEPS
 from starsense.catalog import load_catalog
 from starsense.cli.availability_options import (
     FovOpt,
@@ -133,14 +136,23 @@ def mission(
     check_n_min(n_min)
     hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
+    n_steps = math.ceil(hours * 3600.0 / step - 1e-9)
+    if not 2 <= n_steps <= MAX_STEPS:  # said in the options' units, not TimeGrid's seconds
+        raise InputError(
+            f"--duration-h {hours:g} at --step-s {step:g} gives {n_steps} steps; "
+            f"need 2 to {MAX_STEPS:,}"
+        )
     specs = [tok for value in [*(heads or []), *(more_heads or [])] for tok in value.split()]
+    if plot is not None:  # the place, before the work (missing folders are created)
+        check_output(plot, "--plot", make_parents=True)
     profile = parse_attitude(attitude, "--attitude")
     orb, t0 = _orbit(orbit, tle, start)
     with warnings.catch_warnings(record=True) as caught, progress_bar(not as_json) as bar:
         warnings.simplefilter("always", UserWarning)
-        head_list = _heads(specs, fov, half_fov_deg, model, trials, seed, tolerance_json, bar)
+        # the orbit and attitude first: their faults show before the heads' slew Monte Carlo
         grid = TimeGrid.span(t0, hours * 3600.0, step)
         geo = mission_geometry(grid, orb, profile)
+        head_list = _heads(specs, fov, half_fov_deg, model, trials, seed, tolerance_json, bar)
         vectors, mags = catalog_stars(load_catalog(catalog), max_mag)
         meta = {
             "start": t0.isot,

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
 import typer
 
+from starsense._io import json_text
 from starsense.cli.common import CatalogOpt, JsonOpt, option_float, parse_floats
 from starsense.errors import InputError
 from starsense.solve.solver import Solver
 from starsense.solve.tracking import Prior, Tracker
+from starsense.solve.tracking.tracker import MIN_INTERVAL_S
 from starsense.units import DEG
 
 
@@ -60,7 +61,7 @@ def track(
     when some frame has an attitude, 1 when none has, 2 for bad input.
     """
     if interval_s is not None:
-        option_float(interval_s, "--interval-s", 0.0, lo_open=True)
+        option_float(interval_s, "--interval-s", MIN_INTERVAL_S)
     option_float(prior_sigma_deg, "--prior-sigma-deg", 0.0, 10.0, lo_open=True)
     prior = None
     if prior_radec_roll_deg is not None:
@@ -76,6 +77,6 @@ def track(
     for path in frames:
         r = tracker.track_file(path)
         any_attitude |= r.has_attitude
-        typer.echo(json.dumps(r.to_dict(), allow_nan=False) if as_json else _line(r))
+        typer.echo(json_text(r.to_dict(), indent=None) if as_json else _line(r))
     if not any_attitude:
         raise typer.Exit(1)

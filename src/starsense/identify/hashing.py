@@ -56,9 +56,13 @@ def _descriptors(v: NDArray[np.float64], combos: NDArray[np.intp]):
         if len(block) == 0:
             continue
         pv = v[block]
-        dets = np.take_along_axis(block, order_by_centroid_distance(pv), axis=1)
-        ratios, largest = edge_ratios(pattern_edges(pv))
-        yield from zip(dets, ratios, largest.tolist(), strict=True)
+        # coincident detections (a star listed twice) make a pattern with a zero edge: it has
+        # no shape to look up, and is skipped
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dets = np.take_along_axis(block, order_by_centroid_distance(pv), axis=1)
+            ratios, largest = edge_ratios(pattern_edges(pv))
+        ok = (largest > 0) & np.isfinite(ratios).all(axis=1)
+        yield from zip(dets[ok], ratios[ok], largest[ok].tolist(), strict=True)
 
 
 class HashIdentifier:

@@ -15,7 +15,7 @@ Equation numbers are those of Dzamba & Enright 2014, Sensors 14, 3939.
 """
 
 from starsense.render.frame import Frame, FrameTruth, StarTruth
-from starsense.render.io import write_frame
+from starsense.render.io import write_frame, write_frames
 from starsense.render.noise import apply_noise, as_generator, quantise
 from starsense.render.psf import Box, gaussian_stamp
 from starsense.render.scene import check_on_detector, render_frame, render_star_stamp
@@ -46,4 +46,5 @@ __all__ = [
     "star_tracks",
     "streak_stamp_expected",
     "write_frame",
+    "write_frames",
 ]

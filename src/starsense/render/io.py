@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +38,7 @@ import numpy as np
 from starsense._io import atomic_paths, json_text
 from starsense.errors import InputError
 
-__all__ = ["FORMATS", "write_frame"]
+__all__ = ["FORMATS", "write_frame", "write_frames"]
 
 FORMATS = {
     ".tif": "TIFF",
@@ -87,6 +88,50 @@ def _write_fits(target: str, frame) -> None:
     hdu.writeto(target, overwrite=True)
 
 
+def _checked(target: Path, frame) -> tuple[str, np.ndarray]:
+    """Return the format and image of ``frame`` for ``target``, or raise InputError."""
+    ext = target.suffix.lower()
+    if ext not in FORMATS:
+        raise InputError(
+            f"cannot write {str(target)!r}: unknown image extension {target.suffix!r}; "
+            f"use one of {', '.join(sorted(FORMATS))}"
+        )
+    fmt = FORMATS[ext]
+    directory = target.parent if str(target.parent) else Path(".")
+    if not directory.is_dir():
+        raise InputError(f"cannot write {str(target)!r}: directory {str(directory)!r} not found")
+    if frame is None:
+        return fmt, np.zeros((0, 0), np.uint16)
+    image = np.asarray(frame.image)
+    if image.ndim != 2 or image.dtype not in (np.uint16, np.uint32):
+        raise InputError(f"frame.image must be a 2-D uint16 or uint32 array, got {image.dtype}")
+    if fmt == "PNG" and image.dtype != np.uint16:
+        raise InputError(
+            f"cannot write {str(target)!r}: PNG holds 16-bit frames only, this frame is "
+            f"{image.dtype}; use .tif or .fits"
+        )
+    if fmt == "TIFF" and image.dtype == np.uint32 and image.size and image.max() >= 2**31:
+        raise InputError(
+            f"cannot write {str(target)!r}: counts of 2^31 and above do not fit Pillow's "
+            "32-bit TIFF; use .fits"
+        )
+    return fmt, image
+
+
+def _write_pair(tmp_image: Path, tmp_json: Path, target: Path, frame) -> None:
+    """Write ``frame``'s image and truth to the temporaries of ``target`` and its JSON."""
+    fmt, image = _checked(target, frame)
+    text = json_text(frame.truth_dict(), indent=1)
+    if fmt == "FITS":
+        _write_fits(str(tmp_image), frame)
+    else:
+        when = None if frame.truth.apparent is None else frame.truth.apparent["time_utc"]
+        _write_pillow(str(tmp_image), image, fmt, when)
+    with open(tmp_json, "w", encoding="utf-8") as fh:
+        fh.write(text)
+        fh.write("\n")
+
+
 def write_frame(path: str | os.PathLike, frame) -> Path:
     """Write a frame's image and, beside it as ``<path>.json``, its truth; atomically.
 
@@ -109,41 +154,48 @@ def write_frame(path: str | os.PathLike, frame) -> Path:
         Unknown extension, a frame the format cannot hold (uint32 as PNG, 32-bit counts as
         TIFF), or a directory that does not exist. Nothing is written in these cases.
     """
-    target = Path(path)
-    ext = target.suffix.lower()
-    if ext not in FORMATS:
-        raise InputError(
-            f"cannot write {str(target)!r}: unknown image extension {target.suffix!r}; "
-            f"use one of {', '.join(sorted(FORMATS))}"
-        )
-    fmt = FORMATS[ext]
-    image = np.asarray(frame.image)
-    if image.ndim != 2 or image.dtype not in (np.uint16, np.uint32):
-        raise InputError(f"frame.image must be a 2-D uint16 or uint32 array, got {image.dtype}")
-    if fmt == "PNG" and image.dtype != np.uint16:
-        raise InputError(
-            f"cannot write {str(target)!r}: PNG holds 16-bit frames only, this frame is "
-            f"{image.dtype}; use .tif or .fits"
-        )
-    if fmt == "TIFF" and image.dtype == np.uint32 and image.size and image.max() >= 2**31:
-        raise InputError(
-            f"cannot write {str(target)!r}: counts of 2^31 and above do not fit Pillow's "
-            "32-bit TIFF; use .fits"
-        )
-    directory = target.parent if str(target.parent) else Path(".")
-    if not directory.is_dir():
-        raise InputError(f"cannot write {str(target)!r}: directory {str(directory)!r} not found")
-    json_path = target.with_name(target.name + ".json")
-    text = json_text(frame.truth_dict(), indent=1)
+    return write_frames([path], [frame])[0]
 
-    # both renamed into place together (signals held back), neither before both are complete
-    with atomic_paths([target, json_path], [ext, ".json"]) as (tmp_image, tmp_json):
-        if fmt == "FITS":
-            _write_fits(str(tmp_image), frame)
-        else:
-            when = None if frame.truth.apparent is None else frame.truth.apparent["time_utc"]
-            _write_pillow(str(tmp_image), image, fmt, when)
-        with open(tmp_json, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.write("\n")
-    return target
+
+def write_frames(paths: Sequence[str | os.PathLike], frames: Iterable) -> list[Path]:
+    """Write frames and their truths as one unit: all of them, or none.
+
+    Each frame is written to temporaries as it comes (an iterator is rendered one frame at a
+    time, never all held in memory); the images and truths are renamed into place together
+    only when every one is complete, with SIGINT and SIGTERM held back meanwhile
+    (:func:`starsense._io.atomic_paths`). An error or a signal before that leaves the previous
+    files as they were and no temporary behind.
+
+    Parameters
+    ----------
+    paths : sequence of str or PathLike
+        Image files, one per frame (formats as in :func:`write_frame`).
+    frames : iterable of Frame
+        The frames, in the order of ``paths``.
+
+    Returns
+    -------
+    list of Path
+        The image paths.
+
+    Raises
+    ------
+    InputError
+        As :func:`write_frame`, or fewer or more frames than paths.
+    """
+    targets = [Path(p) for p in paths]
+    for target in targets:
+        _checked(target, None)  # extensions and folders, before any frame is rendered
+    names = [t.with_name(t.name + ".json") for t in targets]
+    suffixes = [t.suffix.lower() for t in targets]
+    everything = [x for pair in zip(targets, names, strict=True) for x in pair]
+    with atomic_paths(everything, [x for s in suffixes for x in (s, ".json")]) as tmps:
+        frames = iter(frames)
+        for k, target in enumerate(targets):
+            frame = next(frames, None)
+            if frame is None:
+                raise InputError(f"{len(targets)} paths but only {k} frames to write")
+            _write_pair(tmps[2 * k], tmps[2 * k + 1], target, frame)
+        if next(frames, None) is not None:
+            raise InputError(f"more frames than the {len(targets)} paths to write them to")
+    return targets

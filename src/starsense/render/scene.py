@@ -44,7 +44,41 @@ from starsense.render.psf import Box
 from starsense.render.smear import METHODS, pad_sigma_for, polyline_expected
 from starsense.render.tracks import Tracks, check_rate, star_tracks
 
-__all__ = ["check_on_detector", "render_frame", "render_star_stamp"]
+__all__ = [
+    "MAX_RENDER_PIXELS",
+    "check_frame_size",
+    "check_on_detector",
+    "render_frame",
+    "render_star_stamp",
+]
+
+#: largest detector a frame is rendered for, pixels (8192 x 8192): a frame holds ~30 bytes a
+#: pixel while it is rendered (expected electrons, noise, counts), ~2 GB at this size
+MAX_RENDER_PIXELS = 1 << 26
+
+
+def check_frame_size(sensor) -> None:
+    """Refuse, before any work, a detector too large to render a frame of.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        The sensor whose full detector frame would be rendered.
+
+    Raises
+    ------
+    InputError
+        ``columns x rows`` above :data:`MAX_RENDER_PIXELS`, naming the size and the limit.
+    """
+    det = sensor.detector
+    n = det.columns * det.rows
+    if n > MAX_RENDER_PIXELS:
+        raise InputError(
+            f"detector.columns x detector.rows = {det.columns} x {det.rows} = {n:,} pixels: "
+            f"more than the {MAX_RENDER_PIXELS:,} (8192 x 8192) a rendered frame may have "
+            f"(~30 bytes a pixel while rendering: {n * 30 / 2**30:.0f} GiB)"
+        )
+
 
 _MODELS = ("reed", "liebe", "blackbody")
 
@@ -388,6 +422,7 @@ def render_frame(
         Bad rate (not 3 finite numbers), exposure (not finite and > 0), model, method,
         attitude, or a catalogue without the needed band / colour.
     """
+    check_frame_size(sensor)
     catalog = load_catalog(DEFAULT_CATALOG if catalog is None else catalog)
     w = check_rate(rate_rad_s)
     te = sensor.exposure_or(exposure_s)

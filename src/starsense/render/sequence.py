@@ -22,6 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense._validate import check_int, positive_float
 from starsense.errors import InputError
+from starsense.geometry.apparent import parse_time
 from starsense.render.frame import Frame
 from starsense.render.scene import render_frame
 from starsense.render.tracks import check_rate
@@ -122,7 +123,9 @@ def render_sequence(
     seed : int
         Root seed; frame ``k`` uses child seed ``frame_seeds(seed, n_frames)[k]``.
     **kwargs
-        Passed to :func:`~starsense.render.scene.render_frame` (model, max_mag, noise, ...).
+        Passed to :func:`~starsense.render.scene.render_frame` (model, max_mag, noise, ...);
+        ``obs_time`` is the time of the first frame, frame ``k`` is taken ``k * interval_s``
+        later.
 
     Yields
     ------
@@ -145,9 +148,16 @@ def render_sequence(
     if "rng" in kwargs:
         raise InputError("render_sequence takes seed=, not rng= (each frame gets a child seed)")
     seeds = frame_seeds(seed, n)
+    start = kwargs.pop("obs_time", None)
+    if start is not None:
+        from astropy.time import TimeDelta
+
+        start = parse_time(start, "obs_time")
     for k in range(n):
         t = k * dt
         att = propagate_attitude(rotation, w, t)
+        if start is not None:
+            kwargs["obs_time"] = start + TimeDelta(t, format="sec")
         frame = render_frame(sensor, att, catalog, rate_rad_s=w, rng=seeds[k], **kwargs)
         truth = dataclasses.replace(frame.truth, time_s=t)
         yield dataclasses.replace(frame, truth=truth)

@@ -14,7 +14,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import shutil
 import signal
+import tempfile
 import threading
 import time
 from collections.abc import Iterator
@@ -116,6 +118,27 @@ def _children_ignore_sigint() -> Iterator[None]:
         signal.signal(signal.SIGINT, old)
 
 
+def _local_cluster(distributed, n: int, processes: bool, scratch: str):
+    """Start a loopback LocalCluster of ``n`` single-thread workers with scratch in ``scratch``."""
+    return distributed.LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=processes,
+        local_directory=scratch,
+        # TCP on the loopback even for thread workers: the scheduler can then be shared
+        # by address (tcp://127.0.0.1:PORT) with other clients of this machine
+        protocol="tcp://",
+        host="127.0.0.1",
+        # no dashboard: None would mean distributed's default, port 8787, and a
+        # second starsense run on the same machine would then fail to start its cluster
+        dashboard_address=":0",
+        scheduler_kwargs={"dashboard": False},
+        # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
+        # a traceback; task failures still reach the client as exceptions
+        silence_logs=logging.CRITICAL,
+    )
+
+
 @contextlib.contextmanager
 def dask_client(
     address: str | None = None,
@@ -147,32 +170,24 @@ def dask_client(
     (distributed,) = require("distributed")
     if kind == "local":
         n = value or n_workers or os.cpu_count() or 1
-        with _children_ignore_sigint():  # Ctrl-C is the command's, not each worker's
-            cluster = distributed.LocalCluster(
-                n_workers=n,
-                threads_per_worker=1,
-                processes=processes,
-                # TCP on the loopback even for thread workers: the scheduler can then be shared
-                # by address (tcp://127.0.0.1:PORT) with other clients of this machine
-                protocol="tcp://",
-                host="127.0.0.1",
-                # no dashboard: None would mean distributed's default, port 8787, and a
-                # second starsense run on the same machine would then fail to start its cluster
-                dashboard_address=":0",
-                scheduler_kwargs={"dashboard": False},
-                # CRITICAL: a worker's heartbeat racing the scheduler's shutdown logs an ERROR with
-                # a traceback; task failures still reach the client as exceptions
-                silence_logs=logging.CRITICAL,
-            )
+        # the workers' scratch space (its lock files) in a folder of this run, removed after
+        # (every server, the scheduler too, keeps one: dask's temporary-directory points there)
+        scratch = tempfile.mkdtemp(prefix="starsense-dask-")
+        (dask,) = require("dask")
         try:
-            client = distributed.Client(cluster)
-            client.run(quiet_third_party_warnings)
+            with _children_ignore_sigint(), dask.config.set({"temporary-directory": scratch}):
+                cluster = _local_cluster(distributed, n, processes, scratch)
             try:
-                yield client
+                client = distributed.Client(cluster)
+                client.run(quiet_third_party_warnings)
+                try:
+                    yield client
+                finally:
+                    client.close()
             finally:
-                client.close()
+                cluster.close()
         finally:
-            cluster.close()
+            shutil.rmtree(scratch, ignore_errors=True)
         return
     t0 = time.monotonic()
     try:

@@ -172,7 +172,18 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
     Returns
     -------
     Sensor
+
+    Raises
+    ------
+    InputError
+        ``data`` is not a table, or a key or value is wrong (the message names ``source``,
+        the field and the value).
     """
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{source}: a sensor must be a table (a dict of the TOML's keys), "
+            f"got {type(data).__name__}"
+        )
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
         raise InputError(
@@ -194,14 +205,16 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
     mission = None
     if "mission" in data:
         mission = mission_from_table(data["mission"], source)
+    quoted = parse_quoted(data["quoted"], source) if "quoted" in data else ()
+    budget = parse_budget(data["budget"], source) if "budget" in data else ()
     try:
         return Sensor(
-            name=str(data.get("name", Path(source).stem)),
-            description=str(data.get("description", "")),
+            name=data.get("name", Path(source).stem),
+            description=data.get("description", ""),
             exposure_s=data["exposure_s"],
             attitude_areas=areas,
-            quoted=parse_quoted(data["quoted"], source) if "quoted" in data else (),
-            budget=parse_budget(data["budget"], source) if "budget" in data else (),
+            quoted=quoted,
+            budget=budget,
             exclusion=exclusion,
             mission=mission,
             **parts,

@@ -92,6 +92,8 @@ def parse_budget(value: Any, source: str) -> tuple[tuple[str, Any], ...]:
     where = f"{source}: [budget]"
     table = _table(value, where)
     pairs = _numbers(table, BUDGET_KEYS, where, {*_FLAGS, "source"})
+    if "source" in table and not isinstance(table["source"], str):
+        raise InputError(f"{where} source must be text (in quotes), got {table['source']!r}")
     flag = table.get("aberration_corrected", False)
     if not isinstance(flag, bool):
         raise InputError(f"{where} aberration_corrected = {flag!r} must be true or false")

@@ -23,14 +23,17 @@ import numpy as np
 
 from starsense._validate import check_scalar
 from starsense.errors import InputError
-from starsense.geometry.distortion import distort, undistort
+from starsense.geometry.distortion import distort, distortion_jacobian, undistort
 from starsense.geometry.fov import RectangularFov
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
 from starsense.sensor.optics import Optics
 
-__all__ = ["DetectionThresholds", "Sensor"]
+__all__ = ["MAX_FIELD_DEG", "DetectionThresholds", "Sensor"]
+
+#: widest field a sensor may have across either axis, deg (a pinhole camera's field is < 180)
+MAX_FIELD_DEG = 175.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -55,9 +58,14 @@ class DetectionThresholds:
     connectivity: int = 8
 
     def __post_init__(self) -> None:
-        check_field("detection", "lit_pixel_counts", self.lit_pixel_counts, 0, None, lo_open=True)
+        # counts: no pixel of a (<= 32-bit) ADC exceeds 2^32, nor a star's sum 2^32 x 1e6 px
+        check_field(
+            "detection", "lit_pixel_counts", self.lit_pixel_counts, 0, 2.0**32, lo_open=True
+        )
         check_field("detection", "min_pixels", self.min_pixels, 1, 1_000_000, integer=True)
-        check_field("detection", "min_integrated_counts", self.min_integrated_counts, 0, None)
+        check_field(
+            "detection", "min_integrated_counts", self.min_integrated_counts, 0, 2.0**32 * 1e6
+        )
         if self.connectivity not in (4, 8):
             raise InputError(f"detection.connectivity must be 4 or 8, got {self.connectivity!r}")
 
@@ -118,9 +126,43 @@ class Sensor:
     mission: Any = None
 
     def __post_init__(self) -> None:
+        for key in ("name", "description"):
+            if not isinstance(getattr(self, key), str):
+                raise InputError(f"{key} must be text, got {getattr(self, key)!r}")
         check_field("sensor", "exposure_s", self.exposure_s, 0, 1e5, lo_open=True)
-        if self.detector.rows * self.detector.pixel_pitch_m >= 2 * self.optics.focal_length_m * 20:
-            raise InputError("detector is too large for the focal length (field beyond 175 deg)")
+        for axis in ("columns", "rows"):
+            size_m = getattr(self.detector, axis) * self.detector.pixel_pitch_m
+            field_deg = 2.0 * math.degrees(math.atan(size_m / 2.0 / self.optics.focal_length_m))
+            if field_deg > MAX_FIELD_DEG:
+                raise InputError(
+                    f"detector is too large for the focal length: a field of {field_deg:.1f} "
+                    f"deg across the {axis} (detector.{axis} x pixel_pitch_m = {size_m:.4g} m "
+                    f"at optics.focal_length_m = {self.optics.focal_length_m:g}); a pinhole "
+                    f"camera covers less than {MAX_FIELD_DEG:g} deg"
+                )
+        self._check_distortion_fold()
+
+    def _check_distortion_fold(self) -> None:
+        """Refuse distortion that folds back inside the detector (no direction for a pixel)."""
+        if not self.optics.has_distortion:
+            return
+        c, r = self.detector.columns - 1, self.detector.rows - 1
+        xs = np.array([0.0, c / 2, c, c, c, c / 2, 0.0, 0.0])
+        ys = np.array([0.0, 0.0, 0.0, r / 2, r, r, r, r / 2])
+        cx, cy = self.principal_point_px
+        fp = self.focal_length_px
+        u, w = undistort((xs - cx) / fp, (ys - cy) / fp, self.optics.distortion)
+        j = distortion_jacobian(np.nan_to_num(u), np.nan_to_num(w), self.optics.distortion)
+        folded = j[..., 0, 0] * j[..., 1, 1] - j[..., 0, 1] * j[..., 1, 0] <= 0
+        bad = np.flatnonzero(~(np.isfinite(u) & np.isfinite(w)) | folded)
+        if bad.size:
+            k1, k2, p1, p2 = self.optics.distortion
+            raise InputError(
+                f"optics.distortion_k1 = {k1:g}, distortion_k2 = {k2:g}, distortion_p1 = "
+                f"{p1:g}, distortion_p2 = {p2:g} fold the image back inside the detector: "
+                f"pixel ({xs[bad[0]]:g}, {ys[bad[0]]:g}) lies beyond the fold of the "
+                "distortion model, no direction maps to it"
+            )
 
     # -- geometry ----------------------------------------------------------------------------
 

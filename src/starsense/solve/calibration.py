@@ -388,6 +388,9 @@ def calibrate(
     unknown = [p for p in fit if p not in PARAMETERS]
     if unknown or not fit:
         raise InputError(f"fit must name some of {', '.join(PARAMETERS)}, got {list(fit)!r}")
+    twice = sorted({p for p in fit if fit.count(p) > 1})
+    if twice:
+        raise InputError(f"fit lists {', '.join(twice)} twice: name each parameter once")
     if not frames:
         raise InputError("calibrate needs at least one solved frame")
     if not isinstance(sensor, Sensor):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, TypeAlias
 
@@ -94,7 +95,8 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
     if sensor is None and fov_rad is None and s.algorithm == "triangle":
         raise InputError("the triangle algorithm needs a known field: give sensor or fov_rad")
     sigma = s.centroid_sigma_px
-    if sigma != "snr" and not (isinstance(sigma, (int, float)) and sigma > 0):
+    number = isinstance(sigma, int | float) and not isinstance(sigma, bool)
+    if sigma != "snr" and not (number and math.isfinite(sigma) and sigma > 0):
         raise InputError(f"centroid_sigma_px must be > 0 or 'snr', got {show(sigma)}")
     if s.background not in ("auto", "known"):
         raise InputError(f"background must be 'auto' or 'known', got {s.background!r}")

@@ -50,6 +50,7 @@ from starsense.analysis.limits.sky import star_weights
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.slew import simulate_slew
 from starsense.photometry.stars import BlackBodyStars
+from starsense.render.scene import check_frame_size
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
 
 __all__ = ["SCHEMA", "Datasheet", "DatasheetSettings", "build_datasheet", "datasheet"]
@@ -280,6 +281,7 @@ def build_datasheet(
     Datasheet
     """
     st = settings or DatasheetSettings()
+    check_frame_size(sensor)  # the verification renders whole frames: refuse before any work
     cat = as_catalog(catalog)
     steps = [
         "static limit",

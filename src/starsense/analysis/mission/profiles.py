@@ -29,7 +29,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
-from starsense._validate import check_scalar, finite_float
+from starsense._io import read_text
+from starsense._validate import check_scalar, finite_float, show
 from starsense.analysis.mission.timegrid import EARTH_ROTATION_RAD_S, TimeGrid
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll
@@ -116,15 +117,12 @@ def read_quaternions(path: str | Path) -> tuple[NDArray[np.float64], Rotation]:
     attitudes : Rotation, batch of K
     """
     p = Path(path)
-    try:
-        rows = list(csv.reader(p.read_text(encoding="utf-8").splitlines()))
-    except FileNotFoundError:
-        raise InputError(f"quaternion file not found: {p}") from None
+    rows = list(csv.reader(read_text(p, "quaternion file").splitlines()))
     header = [h.strip() for h in rows[0]] if rows else []
     want = ["t_s", "qx", "qy", "qz", "qw"]
     if header != want:
         raise InputError(f"{p}, line 1: header must be {','.join(want)}, got {','.join(header)}")
-    values = []
+    values, line_of = [], []
     for no, row in enumerate(rows[1:], start=2):
         if not row or all(not c.strip() for c in row):
             continue
@@ -132,6 +130,7 @@ def read_quaternions(path: str | Path) -> tuple[NDArray[np.float64], Rotation]:
             raise InputError(f"{p}, line {no}: expected 5 columns, got {len(row)}")
         try:
             values.append([float(c) for c in row])
+            line_of.append(no)
         except ValueError:
             col = next(i for i, c in enumerate(row, start=1) if not _is_float(c))
             raise InputError(
@@ -139,15 +138,28 @@ def read_quaternions(path: str | Path) -> tuple[NDArray[np.float64], Rotation]:
                 f"{row[col - 1].strip()!r} is not a number"
             ) from None
     a = np.asarray(values, dtype=np.float64).reshape(-1, 5)
-    if len(a) < 2 or not np.all(np.isfinite(a)):
-        raise InputError(f"{p}: need at least 2 rows of finite numbers")
-    if np.any(np.diff(a[:, 0]) <= 0):
-        raise InputError(f"{p}: t_s must be strictly increasing")
+    finite = np.isfinite(a)
+    if not finite.all():
+        row, col = np.argwhere(~finite)[0]
+        raise InputError(
+            f"{p}, line {line_of[row]}, column {col + 1} ({want[col]}): "
+            f"{show(a[row, col])} is not a finite number"
+        )
+    if len(a) < 2:
+        raise InputError(f"{p}: need at least 2 rows of t_s,qx,qy,qz,qw, found {len(a)}")
+    back = np.flatnonzero(np.diff(a[:, 0]) <= 0)
+    if back.size:
+        k = back[0] + 1
+        raise InputError(
+            f"{p}, line {line_of[k]}: t_s = {show(a[k, 0])} is not after the previous "
+            f"{show(a[k - 1, 0])}; t_s must be strictly increasing"
+        )
     norms = np.linalg.norm(a[:, 1:], axis=1)
     bad = np.flatnonzero(np.abs(norms - 1.0) > 1e-3)
     if bad.size:
         raise InputError(
-            f"{p}, row {bad[0] + 1}: quaternion norm {norms[bad[0]]:.4g} is not 1: not a rotation"
+            f"{p}, line {line_of[bad[0]]}: quaternion norm {norms[bad[0]]:.4g} is not 1: "
+            "not a rotation"
         )
     return a[:, 0], Rotation.from_quat(a[:, 1:] / norms[:, None])
 

@@ -37,6 +37,16 @@ ATTITUDE_FORMS = (
 )
 
 
+#: largest orbit radius, km: the Earth's sphere of influence (~0.9 million km; Vallado 2013,
+#: sec. 12.2) rounded up; beyond it the Sun, not the Earth, shapes the orbit
+MAX_ORBIT_KM = 1e6
+
+
+def _angle(value: float, where: str) -> float:
+    """Return an angle in degrees within one turn either way ([-360, 360]), or raise."""
+    return check_scalar(value, where, -360.0, 360.0)
+
+
 def numbers(text: str, where: str, *, n_lo: int, n_hi: int) -> list[float]:
     """Return the comma-separated finite numbers of `text`, between `n_lo` and `n_hi` of them."""
     parts = [p for p in text.split(",") if p.strip()] if text else []
@@ -62,8 +72,10 @@ def parse_orbit(text: str, start: Any, where: str = "orbit") -> KeplerOrbit:
         return sun_synchronous(alt * 1e3, ltan_h=ltan, epoch=start)
     if kind == "circular":
         vals = [*numbers(rest.replace(":", ","), f"{where} circular", n_lo=2, n_hi=4), 0.0, 0.0]
-        alt = check_scalar(vals[0], f"{where} circular altitude (km)", 100.0, None)
+        alt = check_scalar(vals[0], f"{where} circular altitude (km)", 100.0, MAX_ORBIT_KM)
         inc = check_scalar(vals[1], f"{where} circular inclination (deg)", 0.0, 180.0)
+        _angle(vals[2], f"{where} circular RAAN (deg)")
+        _angle(vals[3], f"{where} circular argument of latitude (deg)")
         return KeplerOrbit(
             EARTH_RADIUS_M + alt * 1e3,
             0.0,
@@ -76,8 +88,11 @@ def parse_orbit(text: str, start: Any, where: str = "orbit") -> KeplerOrbit:
         )
     if kind == "kepler":
         a, e, i, raan, argp, m = numbers(rest, f"{where} kepler", n_lo=6, n_hi=6)
+        check_scalar(a, f"{where} kepler semi-major axis (km)", 0.0, MAX_ORBIT_KM, lo_open=True)
         check_scalar(e, f"{where} kepler eccentricity", 0.0, 1.0, hi_open=True)
         check_scalar(i, f"{where} kepler inclination (deg)", 0.0, 180.0)
+        for value, label in ((raan, "RAAN"), (argp, "argument of perigee"), (m, "mean anomaly")):
+            _angle(value, f"{where} kepler {label} (deg)")
         return KeplerOrbit(
             a * 1e3,
             e,
@@ -105,6 +120,7 @@ def parse_attitude(text: str, where: str = "attitude") -> AttitudeProfile:
     if kind == "target":
         lat, lon = numbers(rest, f"{where} target:LAT,LON", n_lo=2, n_hi=2)
         check_scalar(lat, f"{where} target latitude (deg)", -90.0, 90.0)
+        _angle(lon, f"{where} target longitude (deg)")
         return AttitudeProfile("target", lat=lat * DEG, lon=lon * DEG)
     if kind == "quaternions" and rest:
         return AttitudeProfile("quaternions", path=rest)

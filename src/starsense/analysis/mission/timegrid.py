@@ -44,6 +44,8 @@ EARTH_ROTATION_RAD_S = 7.292115e-5
 #: largest number of time steps of one run (memory: ~100 floats per step and head)
 MAX_STEPS = 20_000_000
 _DAY_S = 86400.0
+#: the years the Sun's and the Moon's positions are computed for (ERFA ``epv00``'s range)
+EPHEMERIS_YEARS = (1900, 2100)
 
 
 @contextlib.contextmanager
@@ -56,6 +58,18 @@ def quiet_future() -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*dubious year", category=ErfaWarning)
         yield
+
+
+def _check_years(start: Time, duration_s: float) -> None:
+    """Refuse a span outside the years the Sun's and Moon's ephemeris covers (1900-2100)."""
+    with quiet_future():
+        first = int(start.utc.ymdhms["year"])
+        last = int((start + duration_s * u.s).utc.ymdhms["year"])
+    if first < EPHEMERIS_YEARS[0] or last > EPHEMERIS_YEARS[1]:
+        raise InputError(
+            f"the span {first}-{last} is outside {EPHEMERIS_YEARS[0]}-{EPHEMERIS_YEARS[1]}, "
+            "the years the built-in Sun and Moon ephemeris (ERFA epv00) holds: start within them"
+        )
 
 
 @dataclass(frozen=True)
@@ -97,6 +111,7 @@ class TimeGrid:
                 f"{duration:g} s at {step:g} s steps is {n} steps, more than {MAX_STEPS}; "
                 "lengthen the step"
             )
+        _check_years(t0, n * step)
         return cls(t0, step, n)
 
     @cached_property

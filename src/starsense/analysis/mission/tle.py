@@ -21,6 +21,7 @@ from astropy.time import Time
 from numpy.typing import NDArray
 from sgp4.api import SGP4_ERRORS, Satrec
 
+from starsense._io import read_text
 from starsense.analysis.mission.timegrid import TimeGrid, quiet_future
 from starsense.errors import InputError
 
@@ -44,6 +45,20 @@ _FIELDS = (
     (2, 35, 42, "argument of perigee", "float"),
     (2, 44, 51, "mean anomaly", "float"),
     (2, 53, 63, "mean motion", "float"),
+)
+
+
+# (line, first column, last column, field, lowest, highest): the values the format allows
+# (Spacetrack Report No. 3: day 1.0 is 1 January 00:00; 366 days in a leap year; mean motion
+# below 20 rev/day keeps the perigee above the Earth's surface for any eccentricity of a
+# real orbit, and positive keeps a period)
+_RANGES = (
+    (1, 21, 32, "epoch day", 1.0, 367.0),
+    (2, 9, 16, "inclination (deg)", 0.0, 180.0),
+    (2, 18, 25, "right ascension of the node (deg)", 0.0, 360.0),
+    (2, 35, 42, "argument of perigee (deg)", 0.0, 360.0),
+    (2, 44, 51, "mean anomaly (deg)", 0.0, 360.0),
+    (2, 53, 63, "mean motion (rev/day)", 1e-3, 20.0),
 )
 
 
@@ -113,6 +128,24 @@ def parse_tle(text: str, source: str = "TLE") -> tuple[str, str, str]:
                 f"{source}, line {no}, columns {first}-{last}: {label} "
                 f"{line[first - 1 : last].strip()!r} is not a number"
             )
+    for want, first, last, label, lo, hi in _RANGES:
+        no, line = body[want - 1]
+        text = line[first - 1 : last].strip()
+        value = float(text)
+        if not lo <= value <= hi:
+            raise InputError(
+                f"{source}, line {no}, columns {first}-{last}: {label} {text} is out of range; "
+                f"must be in [{lo:g}, {hi:g}]"
+            )
+    no, line = body[0]
+    yy = int(line[18:20])
+    year = 2000 + yy if yy < 57 else 1900 + yy  # the TLE convention: 57-99 are 1957-1999
+    days = 366 if (year % 4 == 0 and year % 100 != 0) or year % 400 == 0 else 365
+    if float(line[20:32]) >= days + 1:
+        raise InputError(
+            f"{source}, line {no}, columns 21-32: epoch day {line[20:32].strip()} is past the "
+            f"end of {year} ({days} days)"
+        )
     for no, line in body:
         if not line[68].isdigit() or int(line[68]) != _checksum(line):
             raise InputError(
@@ -157,13 +190,7 @@ class TleOrbit:
     def from_file(cls, path: str | Path) -> TleOrbit:
         """Read and check a TLE file (2 or 3 lines)."""
         p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InputError(f"TLE file not found: {p}") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"{p}: cannot read the TLE ({exc})") from None
-        name, l1, l2 = parse_tle(text, str(p))
+        name, l1, l2 = parse_tle(read_text(p, "TLE file"), str(p))
         return cls(l1, l2, name)
 
     @property
@@ -194,21 +221,19 @@ class TleOrbit:
             age0 = (grid.start - epoch).to_value("day")
         ages = [age0, age0 + grid.duration_s / 86400.0]
         worst = max(ages, key=abs)
-        if abs(worst) > TLE_VALID_DAYS:
-            warnings.warn(
-                f"the span is {worst:+.1f} days from the TLE epoch {epoch.isot}: SGP4 is "
-                f"trusted to ~{TLE_VALID_DAYS:g} days; positions may be off by many km",
-                TleAgeWarning,
-                stacklevel=2,
-            )
+        age = (
+            f"the span is {worst:+.1f} days from the TLE epoch {epoch.isot}: SGP4 is "
+            f"trusted to ~{TLE_VALID_DAYS:g} days"
+        )
         jd1, jd2 = grid.jd("utc")
         err, r_km, v_km_s = self.satrec.sgp4_array(jd1, jd2)
         if np.any(err != 0):
             k = int(np.flatnonzero(err)[0])
-            raise InputError(
-                f"SGP4 fails {k * grid.step_s:g} s after the start: "
-                f"{SGP4_ERRORS.get(int(err[k]), 'error ' + str(int(err[k])))}"
-            )
+            why = SGP4_ERRORS.get(int(err[k]), "error " + str(int(err[k])))
+            old = f" ({age})" if abs(worst) > TLE_VALID_DAYS else ""
+            raise InputError(f"SGP4 fails {k * grid.step_s:g} s after the start{old}: {why}")
+        if abs(worst) > TLE_VALID_DAYS:
+            warnings.warn(f"{age}; positions may be off by many km", TleAgeWarning, stacklevel=2)
         mid = grid.times(np.array([0.5 * grid.duration_s]))[0]
         m = teme_to_gcrs_matrix(mid)
         return r_km @ m.T * 1e3, v_km_s @ m.T * 1e3

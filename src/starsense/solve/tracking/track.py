@@ -308,7 +308,8 @@ def track_frame(solver, image, prior: Prior | None) -> TrackSolution:
             sol, covariance = refined
         else:
             sol, covariance = lis, np.diag(np.square(lis.sigma_rad))
-        msg = f"{reason}; lost-in-space: {lis.message}"
+        # the message of the solution kept: its counts are the ones n_matched / n_detections hold
+        msg = f"{reason}; lost-in-space: {sol.message}"
         return TrackSolution(
             _done(dataclasses.replace(sol, message=msg), t0), "lost_in_space", covariance
         )

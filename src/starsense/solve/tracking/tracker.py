@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from starsense._validate import positive_float
+from starsense._validate import check_scalar, positive_float, show
 from starsense.attitude.rate import rate_from_attitudes
 from starsense.detect.windows import streak_px
 from starsense.errors import InputError, StarsenseError
@@ -23,7 +23,12 @@ from starsense.solve.tracking.streak_rate import rate_from_streaks, streak_axes
 from starsense.solve.tracking.track import N_SIGMA_SEARCH, Prior, TrackSolution, track_frame
 from starsense.units import DEG
 
-__all__ = ["Tracker"]
+__all__ = ["MIN_INTERVAL_S", "Tracker"]
+
+
+#: shortest time between frames a rate is measured over, s (no star camera frames faster
+#: than a microsecond; below it the rate's covariance, ~ sigma^2 / dt^2, overflows)
+MIN_INTERVAL_S = 1e-6
 
 
 class Tracker:
@@ -53,7 +58,14 @@ class Tracker:
         if solver.sensor is None:
             raise InputError("tracking needs a sensor (known optics)")
         self.solver = solver
-        self.interval_s = None if interval_s is None else positive_float(interval_s, "interval_s")
+        if interval_s is not None:
+            interval_s = check_scalar(interval_s, "interval_s", MIN_INTERVAL_S, None)
+        self.interval_s = interval_s
+        if prior is not None and not isinstance(prior, Prior):
+            raise InputError(
+                f"prior must be a Prior (Prior.from_radec_roll(ra, dec, roll, sigma_rad=...)), "
+                f"got {type(prior).__name__} {show(prior)}"
+            )
         self.max_rate_rad_s = positive_float(max_rate_rad_s, "max_rate_rad_s")
         self._prior = prior
         self._last = None  # (time, rotation, covariance)
@@ -98,7 +110,7 @@ class Tracker:
             sol, cov = result.solution, result.covariance_rad2
             if self._last is not None and t is not None and self._last[0] is not None:
                 dt = t - self._last[0]
-                if dt > 0:
+                if dt >= MIN_INTERVAL_S:  # shorter: no rate worth the name (it overflows)
                     rate, rate_cov = rate_from_attitudes(
                         self._last[1], sol.rotation, dt, cov0_rad2=self._last[2], cov1_rad2=cov
                     )
