@@ -9,8 +9,7 @@ The optics are known three ways, from best to least:
   when the frame does not solve at that field, it is taken as an estimate and the scale is
   searched as below, which refines the field;
 * nothing: the centroids are unprojected with a nominal field and the FOV-free pattern hashing
-  (edge ratios are scale-invariant) finds the scale, searching fields of 5-30 deg, then 25-70
-  deg, then 2.8-6 deg (with the Gaia catalogue when installed;
+  (edge ratios are scale-invariant) finds the scale over 5-30, 25-70, then 2.8-6 deg (Gaia;
   :func:`starsense.identify.fields.unknown_field_plan`).
 
 The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
