@@ -35,6 +35,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("starsense.cli.calibrate", "calibrate"),
     "montecarlo": ("starsense.cli.frames", "montecarlo"),
     "datasheet": ("starsense.cli.datasheet", "datasheet"),
+    "trade": ("starsense.cli.trade", "trade"),
     "track": ("starsense.cli.track", "track"),
     "report": ("starsense.cli.report", "report"),
     "limit": ("starsense.cli.limit", "limit_app"),

@@ -66,7 +66,8 @@ class DatasheetSettings:
     Attributes
     ----------
     n_trials : int
-        Monte Carlo frames at rest, and again at ``rate_rad_s`` (JSON ``trials``).
+        Monte Carlo frames at rest, and again at ``rate_rad_s`` (JSON ``trials``); 0 gives
+        the prediction alone (no frames rendered).
     rate_rad_s : float
         Cross-axis rate of the second Monte Carlo, rad/s.
     seed : int
@@ -322,6 +323,9 @@ def build_datasheet(
         ("monte_carlo", 0.0, st.n_trials),
         ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
     ):
+        if n == 0:  # the prediction alone (starsense trade, the design page)
+            runs[key] = _no_frames(rate)
+            continue
         res = montecarlo(
             sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model, client=client
         )
@@ -361,6 +365,33 @@ def build_datasheet(
         boresights=boresights,
         nea_cross_rad=sig["nea"][0],
         dynamic=fine,
+    )
+
+
+def _no_frames(rate_rad_s: float) -> MonteCarloCheck:
+    """Return the check of a run of no frames (every measured number None)."""
+    return MonteCarloCheck(
+        frames=0,
+        solved=0,
+        wrong=0,
+        wrong_rate_upper95=1.0,
+        rate_deg_s=rate_rad_s * RAD_TO_DEG,
+        median_ms=None,
+        p95_ms=None,
+        statuses={},
+        **dict.fromkeys(
+            (
+                "cross_rms_arcsec",
+                "roll_rms_arcsec",
+                "cross_predicted_arcsec",
+                "roll_predicted_arcsec",
+                "cross_ratio",
+                "roll_ratio",
+                "cross_ratio_robust",
+                "roll_ratio_robust",
+                "outliers_5sigma",
+            )
+        ),
     )
 
 
