@@ -20,7 +20,7 @@ from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.availability.threshold import ThresholdCurve
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
-from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
+from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
     StarModel,
@@ -44,12 +44,11 @@ from starsense.analysis.datasheet.sections import (
     Spread,
     StarsInFov,
 )
+from starsense.analysis.datasheet.skycache import limit_sigmas
 from starsense.analysis.datasheet.verify import score_montecarlo
 from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
-from starsense.analysis.limits.sky import star_weights
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.slew import simulate_slew
-from starsense.photometry.stars import BlackBodyStars
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
 
 __all__ = ["SCHEMA", "Datasheet", "DatasheetSettings", "build_datasheet", "datasheet"]
@@ -156,10 +155,7 @@ def _availability(analysis, curve, rate_rad_s: float) -> tuple[AvailabilitySumma
 
 def _limit(catalog, sensor, fov, matrices) -> tuple[np.ndarray, np.ndarray]:
     """Fialho & Mortari's bound per attitude for the sensor's D, t and field (rad)."""
-    stars = BlackBodyStars.from_catalog(catalog)
-    w = star_weights(stars, sensor.optics.aperture_m, sensor.exposure_s)
-    pairs = field_stars_cam(fov, matrices, stars.vectors)
-    return axis_sigmas(fisher_per_pointing(pairs, w[pairs.star]))
+    return limit_sigmas(catalog, sensor, fov, matrices)
 
 
 def _geometry(sensor, limit_mag, model) -> dict:
