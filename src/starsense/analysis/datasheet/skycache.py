@@ -19,7 +19,7 @@ from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fis
 from starsense.analysis.limits.sky import star_weights
 from starsense.photometry.stars import BlackBodyStars
 
-__all__ = ["limit_sigmas", "unit_limit_sigmas"]
+__all__ = ["black_bodies", "limit_sigmas", "unit_limit_sigmas"]
 
 _BLOCK = 200  # attitudes per block
 _KEEP = 8  # fields kept
@@ -27,7 +27,17 @@ _UNIT: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 _STARS: dict[int, tuple[object, BlackBodyStars]] = {}
 
 
-def _stars(catalog) -> BlackBodyStars:
+def black_bodies(catalog) -> BlackBodyStars:
+    """Return the catalogue's stars as black bodies (computed once per catalogue object).
+
+    Parameters
+    ----------
+    catalog : Catalog
+
+    Returns
+    -------
+    BlackBodyStars
+    """
     key = id(catalog)
     if key not in _STARS or _STARS[key][0] is not catalog:
         _STARS.clear()
@@ -60,7 +70,7 @@ def unit_limit_sigmas(catalog, fov, matrices: np.ndarray) -> tuple[np.ndarray, n
         hashlib.sha1(mats.tobytes()).hexdigest(),
     )
     if key not in _UNIT:
-        stars = _stars(catalog)
+        stars = black_bodies(catalog)
         w = star_weights(stars, 1.0, 1.0)  # eq. 19 at D = 1 m, t = 1 s
         cross, roll = np.empty(len(mats)), np.empty(len(mats))
         for start in range(0, len(mats), _BLOCK):
