@@ -129,3 +129,17 @@ def test_capped_value_is_flagged_and_written_as_a_bound():
     assert rows["fastest_99"] == {"value": None, "capped": False}  # absent: no value
     assert format_value(10.0, ".0f", capped=True) == ">= 10"
     assert format_value(None, ".2f") == "n/a"
+
+
+@pytest.mark.slow
+def test_dask_gives_identical_rows():
+    pytest.importorskip("distributed", reason="the scale extra (dask.distributed) is not installed")
+    from starsense.scale import dask_client
+
+    base = base_document("st16")
+    todo = designs(base, [parse_vary("exposure_s=0.05,0.2"), parse_vary("optics.aperture_m=0.012")])
+    st = prediction_settings(**_FAST)
+    here = run_trade(todo, settings=st, workers=1)
+    with dask_client("local:1", processes=False) as client:
+        there = run_trade(todo, settings=st, client=client)
+    assert [r.to_dict() for r in here.rows] == [r.to_dict() for r in there.rows]
