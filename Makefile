@@ -10,7 +10,7 @@ OUT    ?= report
 $(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,scale,gaia]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,scale,gaia,web]'
 	touch $(STAMP)
 
 demo: $(STAMP)  ## the main job: the performance report for the default sensor

@@ -1,0 +1,225 @@
+"""The design page's server: edit a sensor, see its datasheet's predictions, verify on frames.
+
+Routes (JSON in and out; a design is a sensor TOML document as a JSON object):
+
+* ``GET /``: the page;
+* ``GET /api/base``: the base design and the editable fields;
+* ``POST /api/predict`` ``{"document", "rate_deg_s"}``: the datasheet's trade rows, headline
+  numbers and the slew-tolerance figure (PNG, base64) from
+  :func:`starsense.analysis.trade.predict`, or ``{"error", "field"}`` with the loader's one-line
+  message and the field it names;
+* ``POST /api/toml``: the design as a TOML file; ``POST /api/datasheet``: the datasheet JSON
+  (the prediction);
+* ``POST /api/verify``: start a check on rendered frames; ``GET /api/verify/{id}``: its
+  progress and, when done, measured / predicted.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import itertools
+import threading
+from dataclasses import dataclass, field
+
+import tomli_w
+from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import Request
+from starlette.responses import HTMLResponse, JSONResponse, Response
+from starlette.routing import Route
+
+from starsense.analysis.datasheet.compare import row_values
+from starsense.analysis.datasheet.sheet import build_datasheet
+from starsense.analysis.inputs import as_catalog
+from starsense.analysis.trade import base_document, predict, prediction_settings
+from starsense.errors import InputError
+from starsense.plotting.slew import tolerance_figure
+from starsense.sensor.load import sensor_from_dict
+from starsense.units import DEG
+from starsense.web.page import FIELDS, page_html
+
+__all__ = ["create_app"]
+
+
+@dataclass
+class _Job:
+    total: int = 6
+    done: int = 0
+    label: str = "starting"
+    result: dict | None = None
+    error: str | None = None
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+
+def _field_of(message: str) -> str | None:
+    """Return the field ("detector.pixel_pitch_m") a loader message names, if any."""
+    for section, names in FIELDS.items():
+        for name, *_ in names:
+            key = name if section == "" else f"{section}.{name}"
+            if key in message or (section and f"{name} " in message and section in message):
+                return key
+    return None
+
+
+def _settings(payload: dict):
+    rate = float(payload.get("rate_deg_s", 1.0))
+    if not 0.0 <= rate <= 30.0:
+        raise InputError(f"rate_deg_s = {rate:g} is out of range; must be in [0, 30]")
+    return prediction_settings(rate_rad_s=rate * DEG, rng=int(payload.get("seed", 0)))
+
+
+def _headline(d: dict) -> dict:
+    rows = row_values(d)
+    return {k: v for k, v in rows.items() if v["value"] is not None}
+
+
+def _figure_png(sheet) -> str | None:
+    if sheet.slew is None:
+        return None
+    fig = tolerance_figure([sheet.slew])
+    buf = io.BytesIO()
+    fig.set_size_inches(6.0, 3.6)
+    fig.savefig(buf, format="png", dpi=80)
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def create_app(base: str = "st16", catalog: str | None = None) -> Starlette:
+    """Return the page's Starlette app for a base design.
+
+    Parameters
+    ----------
+    base : str
+        Preset name or sensor TOML file the page starts from.
+    catalog : str, optional
+        Catalogue specification (None: the bundled Hipparcos), loaded once.
+
+    Returns
+    -------
+    starlette.applications.Starlette
+    """
+    doc = base_document(base)
+    cat = as_catalog(catalog)
+    jobs: dict[str, _Job] = {}
+    ids = itertools.count(1)
+    compute = threading.Lock()  # one prediction at a time: the CPU is the user's
+
+    def sensor_or_error(payload: dict):
+        document = payload.get("document")
+        if not isinstance(document, dict):
+            raise InputError("the request has no design document")
+        return sensor_from_dict(document, source="design")
+
+    def bad(exc: InputError) -> JSONResponse:
+        msg = str(exc)
+        return JSONResponse({"error": msg, "field": _field_of(msg)}, status_code=422)
+
+    async def index(request: Request) -> HTMLResponse:
+        return HTMLResponse(page_html())
+
+    async def base_route(request: Request) -> JSONResponse:
+        return JSONResponse({"document": doc, "fields": FIELDS})
+
+    def _predict(payload: dict):
+        sensor = sensor_or_error(payload)
+        settings = _settings(payload)
+        with compute:
+            return predict(sensor, cat, settings=settings)
+
+    async def predict_route(request: Request) -> JSONResponse:
+        payload = await request.json()
+        try:
+            sheet = await _run(_predict, payload)
+        except InputError as exc:
+            return bad(exc)
+        d = sheet.to_dict()
+        return JSONResponse(
+            {
+                "sensor": d["sensor"],
+                "rows": _headline(d),
+                "warnings": list(d.get("warnings", [])),
+                "figure_png": _figure_png(sheet),
+                "datasheet": d,
+            }
+        )
+
+    async def toml_route(request: Request) -> Response:
+        payload = await request.json()
+        try:
+            sensor = sensor_or_error(payload)
+        except InputError as exc:
+            return bad(exc)
+        text = tomli_w.dumps(payload["document"])
+        head = {"Content-Disposition": f'attachment; filename="{_safe(sensor.name)}.toml"'}
+        return Response(text, media_type="application/toml", headers=head)
+
+    async def datasheet_route(request: Request) -> Response:
+        payload = await request.json()
+        try:
+            sheet = await _run(_predict, payload)
+        except InputError as exc:
+            return bad(exc)
+        name = _safe(sheet.sensor)
+        head = {"Content-Disposition": f'attachment; filename="{name}_datasheet.json"'}
+        return JSONResponse(sheet.to_dict(), headers=head)
+
+    async def verify_route(request: Request) -> JSONResponse:
+        payload = await request.json()
+        try:
+            sensor = sensor_or_error(payload)
+            settings = _settings(payload)
+            frames = int(payload.get("frames", 20))
+            if not 1 <= frames <= 1000:
+                raise InputError(f"frames = {frames} is out of range; must be in [1, 1000]")
+        except (InputError, ValueError, TypeError) as exc:
+            return bad(InputError(str(exc)))
+        job_id, job = str(next(ids)), _Job()
+        jobs[job_id] = job
+        st = type(settings)(**{**settings.__dict__, "n_trials": frames, "n_rate_trials": frames})
+
+        def work() -> None:
+            def progress(label: str, done: int, total: int) -> None:
+                with job.lock:
+                    job.label, job.done, job.total = label, done, total
+
+            try:
+                with compute:
+                    sheet = build_datasheet(sensor, cat, settings=st, progress=progress)
+                job.result = sheet.to_dict()
+            except Exception as exc:  # shown to the user beside the button
+                job.error = str(exc)
+
+        threading.Thread(target=work, daemon=True).start()
+        return JSONResponse({"id": job_id})
+
+    async def verify_status(request: Request) -> JSONResponse:
+        job = jobs.get(request.path_params["job"])
+        if job is None:
+            return JSONResponse({"error": "no such verification"}, status_code=404)
+        out = {"done": job.done, "total": job.total, "label": job.label, "error": job.error}
+        if job.result is not None:
+            out["rows"] = _headline(job.result)
+            out["finished"] = True
+        return JSONResponse(out)
+
+    return Starlette(
+        routes=[
+            Route("/", index),
+            Route("/api/base", base_route),
+            Route("/api/predict", predict_route, methods=["POST"]),
+            Route("/api/toml", toml_route, methods=["POST"]),
+            Route("/api/datasheet", datasheet_route, methods=["POST"]),
+            Route("/api/verify", verify_route, methods=["POST"]),
+            Route("/api/verify/{job}", verify_status),
+        ]
+    )
+
+
+async def _run(func, payload):
+    """Run a CPU-bound call off the event loop (the page stays responsive)."""
+    return await run_in_threadpool(func, payload)
+
+
+def _safe(name: str) -> str:
+    keep = "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name)).strip(".")
+    return keep or "design"
