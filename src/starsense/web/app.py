@@ -62,11 +62,14 @@ def _field_of(message: str) -> str | None:
     return None
 
 
-def _settings(payload: dict):
-    rate = float(payload.get("rate_deg_s", 1.0))
+def _settings(payload: dict, sky: dict):
+    try:
+        rate = float(payload.get("rate_deg_s", 1.0))
+    except (TypeError, ValueError):
+        rate = float("nan")
     if not 0.0 <= rate <= 30.0:
-        raise InputError(f"rate_deg_s = {rate:g} is out of range; must be in [0, 30]")
-    return prediction_settings(rate_rad_s=rate * DEG, rng=int(payload.get("seed", 0)))
+        raise InputError(f"rate_deg_s = {payload.get('rate_deg_s')!r}: must be in [0, 30] deg/s")
+    return prediction_settings(rate_rad_s=rate * DEG, rng=int(payload.get("seed", 0)), **sky)
 
 
 def _headline(d: dict) -> dict:
@@ -84,7 +87,13 @@ def _figure_png(sheet) -> str | None:
     return base64.b64encode(buf.getvalue()).decode()
 
 
-def create_app(base: str = "st16", catalog: str | None = None) -> Starlette:
+def create_app(
+    base: str = "st16",
+    catalog: str | None = None,
+    *,
+    n_orientations: int = 2000,
+    n_slew_trials: int = 20,
+) -> Starlette:
     """Return the page's Starlette app for a base design.
 
     Parameters
@@ -93,11 +102,15 @@ def create_app(base: str = "st16", catalog: str | None = None) -> Starlette:
         Preset name or sensor TOML file the page starts from.
     catalog : str, optional
         Catalogue specification (None: the bundled Hipparcos), loaded once.
+    n_orientations, n_slew_trials : int
+        The prediction's sky boresights and slew renders (the datasheet's defaults, so the
+        page shows the numbers of ``starsense datasheet`` and ``starsense trade``).
 
     Returns
     -------
     starlette.applications.Starlette
     """
+    sky = {"n_orientations": n_orientations, "n_slew_trials": n_slew_trials}
     doc = base_document(base)
     cat = as_catalog(catalog)
     jobs: dict[str, _Job] = {}
@@ -122,7 +135,7 @@ def create_app(base: str = "st16", catalog: str | None = None) -> Starlette:
 
     def _predict(payload: dict):
         sensor = sensor_or_error(payload)
-        settings = _settings(payload)
+        settings = _settings(payload, sky)
         with compute:
             return predict(sensor, cat, settings=settings)
 
@@ -167,7 +180,7 @@ def create_app(base: str = "st16", catalog: str | None = None) -> Starlette:
         payload = await request.json()
         try:
             sensor = sensor_or_error(payload)
-            settings = _settings(payload)
+            settings = _settings(payload, sky)
             frames = int(payload.get("frames", 20))
             if not 1 <= frames <= 1000:
                 raise InputError(f"frames = {frames} is out of range; must be in [1, 1000]")
