@@ -222,7 +222,10 @@ def _map(func, designs, *, workers: int, client, progress):
     ctx = multiprocessing.get_context("fork")  # workers share the parent's catalogue pages
     with concurrent.futures.ProcessPoolExecutor(workers, mp_context=ctx) as pool:
         out = []
-        for k, row in enumerate(pool.map(func, designs)):
+        # contiguous chunks: neighbours in the grid often share a field, whose sky geometry
+        # a worker then computes once
+        chunk = max(1, n // (4 * workers))
+        for k, row in enumerate(pool.map(func, designs, chunksize=chunk)):
             out.append(row)
             if progress is not None:
                 progress("trade", k + 1, n)
