@@ -82,7 +82,7 @@ def test_limit_scales_as_d2_sqrt_t():
     sensor = load_sensor("st16")
     fov = sensor.fov()
     mats = random_attitudes(20, rng=3).as_matrix()
-    cross, roll = limit_sigmas(cat, sensor, fov, mats)
+    cross, roll = limit_sigmas(cat, sensor, fov, matrices=mats)
     stars = BlackBodyStars.from_catalog(cat)
     w = star_weights(stars, sensor.optics.aperture_m, sensor.exposure_s)
     pairs = field_stars_cam(fov, mats, stars.vectors)

@@ -20,7 +20,7 @@ import base64
 import io
 import itertools
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import tomli_w
 from starlette.applications import Starlette
@@ -87,6 +87,116 @@ def _figure_png(sheet) -> str | None:
     return base64.b64encode(buf.getvalue()).decode()
 
 
+class _Page:
+    """The page's state (base design, catalogue, verification jobs) and its route handlers."""
+
+    def __init__(self, base: str, catalog, sky: dict) -> None:
+        self.doc = base_document(base)
+        self.cat = as_catalog(catalog)
+        self.sky = sky
+        self.jobs: dict[str, _Job] = {}
+        self.ids = itertools.count(1)
+        self.compute = threading.Lock()  # one computation at a time: the CPU is the user's
+
+    @staticmethod
+    def sensor_of(payload: dict):
+        document = payload.get("document")
+        if not isinstance(document, dict):
+            raise InputError("the request has no design document")
+        return sensor_from_dict(document, source="design")
+
+    def predict(self, payload: dict):
+        sensor = self.sensor_of(payload)
+        settings = _settings(payload, self.sky)
+        with self.compute:
+            return predict(sensor, self.cat, settings=settings)
+
+    async def index(self, request: Request) -> HTMLResponse:
+        return HTMLResponse(page_html())
+
+    async def base(self, request: Request) -> JSONResponse:
+        return JSONResponse({"document": self.doc, "fields": FIELDS})
+
+    async def predict_route(self, request: Request) -> JSONResponse:
+        try:
+            sheet = await run_in_threadpool(self.predict, await request.json())
+        except InputError as exc:
+            return _bad(exc)
+        d = sheet.to_dict()
+        return JSONResponse(
+            {
+                "sensor": d["sensor"],
+                "rows": _headline(d),
+                "warnings": list(d.get("warnings", [])),
+                "figure_png": _figure_png(sheet),
+                "datasheet": d,
+            }
+        )
+
+    async def toml(self, request: Request) -> Response:
+        payload = await request.json()
+        try:
+            sensor = self.sensor_of(payload)
+        except InputError as exc:
+            return _bad(exc)
+        text = tomli_w.dumps(payload["document"])
+        head = {"Content-Disposition": f'attachment; filename="{_safe(sensor.name)}.toml"'}
+        return Response(text, media_type="application/toml", headers=head)
+
+    async def datasheet(self, request: Request) -> Response:
+        try:
+            sheet = await run_in_threadpool(self.predict, await request.json())
+        except InputError as exc:
+            return _bad(exc)
+        head = {
+            "Content-Disposition": f'attachment; filename="{_safe(sheet.sensor)}_datasheet.json"'
+        }
+        return JSONResponse(sheet.to_dict(), headers=head)
+
+    async def verify(self, request: Request) -> JSONResponse:
+        payload = await request.json()
+        try:
+            sensor = self.sensor_of(payload)
+            settings = _settings(payload, self.sky)
+            frames = int(payload.get("frames", 20))
+            if not 1 <= frames <= 1000:
+                raise InputError(f"frames = {frames} is out of range; must be in [1, 1000]")
+        except (InputError, ValueError, TypeError) as exc:
+            return _bad(InputError(str(exc)))
+        job_id, job = str(next(self.ids)), _Job()
+        self.jobs[job_id] = job
+        st = replace(settings, n_trials=frames, n_rate_trials=frames)
+        threading.Thread(target=self._work, args=(job, sensor, st), daemon=True).start()
+        return JSONResponse({"id": job_id})
+
+    def _work(self, job: _Job, sensor, settings) -> None:
+        def progress(label: str, done: int, total: int) -> None:
+            with job.lock:
+                job.label, job.done, job.total = label, done, total
+
+        try:
+            with self.compute:
+                sheet = build_datasheet(sensor, self.cat, settings=settings, progress=progress)
+            job.result = sheet.to_dict()
+        except Exception as exc:  # shown to the user beside the button
+            job.error = str(exc)
+
+    async def verify_status(self, request: Request) -> JSONResponse:
+        job = self.jobs.get(request.path_params["job"])
+        if job is None:
+            return JSONResponse({"error": "no such verification"}, status_code=404)
+        out = {"done": job.done, "total": job.total, "label": job.label, "error": job.error}
+        if job.result is not None:
+            out["rows"] = _headline(job.result)
+            out["finished"] = True
+        return JSONResponse(out)
+
+
+def _bad(exc: InputError) -> JSONResponse:
+    msg = str(exc)
+    return JSONResponse({"error": msg, "field": _field_of(msg)}, status_code=422)
+
+
 def create_app(
     base: str = "st16",
     catalog: str | None = None,
@@ -110,127 +220,18 @@ def create_app(
     -------
     starlette.applications.Starlette
     """
-    sky = {"n_orientations": n_orientations, "n_slew_trials": n_slew_trials}
-    doc = base_document(base)
-    cat = as_catalog(catalog)
-    jobs: dict[str, _Job] = {}
-    ids = itertools.count(1)
-    compute = threading.Lock()  # one prediction at a time: the CPU is the user's
-
-    def sensor_or_error(payload: dict):
-        document = payload.get("document")
-        if not isinstance(document, dict):
-            raise InputError("the request has no design document")
-        return sensor_from_dict(document, source="design")
-
-    def bad(exc: InputError) -> JSONResponse:
-        msg = str(exc)
-        return JSONResponse({"error": msg, "field": _field_of(msg)}, status_code=422)
-
-    async def index(request: Request) -> HTMLResponse:
-        return HTMLResponse(page_html())
-
-    async def base_route(request: Request) -> JSONResponse:
-        return JSONResponse({"document": doc, "fields": FIELDS})
-
-    def _predict(payload: dict):
-        sensor = sensor_or_error(payload)
-        settings = _settings(payload, sky)
-        with compute:
-            return predict(sensor, cat, settings=settings)
-
-    async def predict_route(request: Request) -> JSONResponse:
-        payload = await request.json()
-        try:
-            sheet = await _run(_predict, payload)
-        except InputError as exc:
-            return bad(exc)
-        d = sheet.to_dict()
-        return JSONResponse(
-            {
-                "sensor": d["sensor"],
-                "rows": _headline(d),
-                "warnings": list(d.get("warnings", [])),
-                "figure_png": _figure_png(sheet),
-                "datasheet": d,
-            }
-        )
-
-    async def toml_route(request: Request) -> Response:
-        payload = await request.json()
-        try:
-            sensor = sensor_or_error(payload)
-        except InputError as exc:
-            return bad(exc)
-        text = tomli_w.dumps(payload["document"])
-        head = {"Content-Disposition": f'attachment; filename="{_safe(sensor.name)}.toml"'}
-        return Response(text, media_type="application/toml", headers=head)
-
-    async def datasheet_route(request: Request) -> Response:
-        payload = await request.json()
-        try:
-            sheet = await _run(_predict, payload)
-        except InputError as exc:
-            return bad(exc)
-        name = _safe(sheet.sensor)
-        head = {"Content-Disposition": f'attachment; filename="{name}_datasheet.json"'}
-        return JSONResponse(sheet.to_dict(), headers=head)
-
-    async def verify_route(request: Request) -> JSONResponse:
-        payload = await request.json()
-        try:
-            sensor = sensor_or_error(payload)
-            settings = _settings(payload, sky)
-            frames = int(payload.get("frames", 20))
-            if not 1 <= frames <= 1000:
-                raise InputError(f"frames = {frames} is out of range; must be in [1, 1000]")
-        except (InputError, ValueError, TypeError) as exc:
-            return bad(InputError(str(exc)))
-        job_id, job = str(next(ids)), _Job()
-        jobs[job_id] = job
-        st = type(settings)(**{**settings.__dict__, "n_trials": frames, "n_rate_trials": frames})
-
-        def work() -> None:
-            def progress(label: str, done: int, total: int) -> None:
-                with job.lock:
-                    job.label, job.done, job.total = label, done, total
-
-            try:
-                with compute:
-                    sheet = build_datasheet(sensor, cat, settings=st, progress=progress)
-                job.result = sheet.to_dict()
-            except Exception as exc:  # shown to the user beside the button
-                job.error = str(exc)
-
-        threading.Thread(target=work, daemon=True).start()
-        return JSONResponse({"id": job_id})
-
-    async def verify_status(request: Request) -> JSONResponse:
-        job = jobs.get(request.path_params["job"])
-        if job is None:
-            return JSONResponse({"error": "no such verification"}, status_code=404)
-        out = {"done": job.done, "total": job.total, "label": job.label, "error": job.error}
-        if job.result is not None:
-            out["rows"] = _headline(job.result)
-            out["finished"] = True
-        return JSONResponse(out)
-
+    page = _Page(base, catalog, {"n_orientations": n_orientations, "n_slew_trials": n_slew_trials})
     return Starlette(
         routes=[
-            Route("/", index),
-            Route("/api/base", base_route),
-            Route("/api/predict", predict_route, methods=["POST"]),
-            Route("/api/toml", toml_route, methods=["POST"]),
-            Route("/api/datasheet", datasheet_route, methods=["POST"]),
-            Route("/api/verify", verify_route, methods=["POST"]),
-            Route("/api/verify/{job}", verify_status),
+            Route("/", page.index),
+            Route("/api/base", page.base),
+            Route("/api/predict", page.predict_route, methods=["POST"]),
+            Route("/api/toml", page.toml, methods=["POST"]),
+            Route("/api/datasheet", page.datasheet, methods=["POST"]),
+            Route("/api/verify", page.verify, methods=["POST"]),
+            Route("/api/verify/{job}", page.verify_status),
         ]
     )
-
-
-async def _run(func, payload):
-    """Run a CPU-bound call off the event loop (the page stays responsive)."""
-    return await run_in_threadpool(func, payload)
 
 
 def _safe(name: str) -> str:

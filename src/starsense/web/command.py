@@ -16,6 +16,7 @@ __all__ = ["design"]
 
 
 def design(
+    *,
     sensor: Annotated[
         str, typer.Option("--sensor", help="Base design: a preset (st16) or a sensor TOML file.")
     ] = "st16",

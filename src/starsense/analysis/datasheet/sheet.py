@@ -155,7 +155,7 @@ def _availability(analysis, curve, rate_rad_s: float) -> tuple[AvailabilitySumma
 
 def _limit(catalog, sensor, fov, matrices) -> tuple[np.ndarray, np.ndarray]:
     """Fialho & Mortari's bound per attitude for the sensor's D, t and field (rad)."""
-    return limit_sigmas(catalog, sensor, fov, matrices)
+    return limit_sigmas(catalog, sensor, fov, matrices=matrices)
 
 
 def _geometry(sensor, limit_mag, model) -> dict:

@@ -84,10 +84,26 @@ def unit_limit_sigmas(catalog, fov, matrices: np.ndarray) -> tuple[np.ndarray, n
     return _UNIT[key]
 
 
-def limit_sigmas(catalog, sensor, fov, matrices) -> tuple[np.ndarray, np.ndarray]:
+def limit_sigmas(catalog, sensor, fov, *, matrices) -> tuple[np.ndarray, np.ndarray]:
     """Return Fialho & Mortari's bound per attitude for the sensor's D and t (rad), (M,) each.
 
     The unit bound (:func:`unit_limit_sigmas`) divided by ``D^2 sqrt(t)``.
+
+    Parameters
+    ----------
+    catalog : Catalog
+        All the catalogue's stars.
+    sensor : Sensor
+        Its aperture D (m) and exposure t (s).
+    fov : RectangularFov
+        The field.
+    matrices : ndarray (M, 3, 3)
+        Attitudes, ICRS -> camera.
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad.
     """
     cross, roll = unit_limit_sigmas(catalog, fov, matrices)
     scale = sensor.optics.aperture_m**2 * math.sqrt(sensor.exposure_s)
