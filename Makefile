@@ -34,6 +34,7 @@ lint: $(STAMP)
 bench: $(STAMP)  ## time the hot paths; results to bench/results/*.json (+ peers if installed)
 	$(BIN)/python bench/run.py
 	$(BIN)/python bench/datasheet_check.py  # measured/predicted over 1,000 frames per sensor
+	$(BIN)/python bench/predict_bench.py --trade  # fast prediction of new designs; the 24-design trade
 	@if [ -x bench/peers/.venv/bin/python ]; then \
 		$(BIN)/python bench/peers/compare.py --cedar-python bench/peers/.venv/bin/python; \
 	else echo "(peer comparison: run 'make bench-peers' once to install cedar-solve)"; fi
