@@ -157,3 +157,18 @@ def test_st16_prediction_agrees_with_rendered_frames():
     mc = full["monte_carlo"]
     assert mc["wrong"] == 0
     assert 0.8 <= mc["cross_ratio"] <= 1.25 and 0.8 <= mc["roll_ratio"] <= 1.25
+
+
+@pytest.mark.slow
+def test_verify_pareto_checks_only_the_front_on_frames():
+    base = base_document("st16")
+    todo = designs(base, [parse_vary("exposure_s=0.05,0.2")])
+    st = prediction_settings(**_FAST)
+    plain = run_trade(todo, settings=st, workers=1)
+    checked = run_trade(todo, settings=st, n_frames=2, verify="pareto", workers=1)
+    for before, after in zip(plain.rows, checked.rows, strict=True):
+        on_front = any(before.pareto.values())
+        assert after.verified == on_front
+        # the predicted rows do not move when frames are added; the measured ones appear
+        assert after.rows["nea_cross"] == before.rows["nea_cross"]
+        assert (after.rows["lis_solved_rest"]["value"] is not None) == on_front
