@@ -10,7 +10,7 @@ OUT    ?= report
 $(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c src/starsense/detect/_windowc.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,scale,gaia]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,scale,gaia,web]'
 	touch $(STAMP)
 
 demo: $(STAMP)  ## the main job: the performance report for the default sensor
@@ -39,6 +39,7 @@ lint: $(STAMP)
 bench: $(STAMP)  ## time the hot paths; results to bench/results/*.json (+ peers if installed)
 	$(BIN)/python bench/run.py
 	$(BIN)/python bench/datasheet_check.py  # measured/predicted over 1,000 frames per sensor
+	$(BIN)/python bench/predict_bench.py --trade  # fast prediction of new designs; the 24-design trade
 	@if [ -x bench/peers/.venv/bin/python ]; then \
 		$(BIN)/python bench/peers/compare.py --cedar-python bench/peers/.venv/bin/python; \
 	else echo "(peer comparison: run 'make bench-peers' once to install cedar-solve)"; fi

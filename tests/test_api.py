@@ -32,6 +32,7 @@ NAMES = (
     "datasheet",
     "Datasheet",
     "compare",
+    "predict",
     "montecarlo",
     "availability",
     "slew_tolerance",

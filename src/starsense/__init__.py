@@ -34,6 +34,9 @@ What a sensor does
         The sensor's datasheet (accuracy, lost in space, availability, slew, the physical
         limit), every predicted number checked on rendered frames in the same run; several
         designs side by side.
+    predict
+        What the datasheet predicts for a design without rendering frames (the same numbers,
+        in about a second or a few): for trade studies.
     montecarlo
         Random attitudes through render -> detect -> identify -> estimate.
     availability
@@ -73,6 +76,7 @@ _EXPORTS: dict[str, tuple[str, str | None]] = {
     "datasheet": ("starsense.analysis.datasheet", "datasheet"),
     "Datasheet": ("starsense.analysis.datasheet", "Datasheet"),
     "compare": ("starsense.analysis.datasheet", "compare"),
+    "predict": ("starsense.analysis.trade", "predict"),
     "montecarlo": ("starsense.analysis.montecarlo", "montecarlo"),
     "availability": ("starsense.analysis.availability", None),
     "slew_tolerance": ("starsense.analysis.slew", "slew_tolerance"),
@@ -95,6 +99,7 @@ __all__ = [
     "load_catalog",
     "load_sensor",
     "montecarlo",
+    "predict",
     "render_frame",
     "sky_limit",
     "slew_tolerance",
@@ -106,6 +111,7 @@ if TYPE_CHECKING:  # what the names are, for editors and type checkers
     from starsense.analysis.limits import sky_limit
     from starsense.analysis.montecarlo import montecarlo
     from starsense.analysis.slew import slew_tolerance
+    from starsense.analysis.trade import predict
     from starsense.catalog import Catalog, load_catalog
     from starsense.geometry.attitude import attitude_from_radec_roll
     from starsense.render.scene import render_frame

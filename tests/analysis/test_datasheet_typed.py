@@ -94,7 +94,10 @@ def test_comparison_rows_from_the_sheets(sheet):
     rows = {r.label: r.values for r in comp.rows}
     assert rows["NEA cross, arcsec"] == (sheet.nea_arcsec.cross.median,) * 2
     assert rows["LIS solved at rest"] == (sheet.monte_carlo.solved_fraction,) * 2
-    assert comp.to_dict() == {"sensors": [sheet.to_dict(), sheet.to_dict()]}
+    assert comp.to_dict() == {
+        "sensors": [sheet.to_dict(), sheet.to_dict()],
+        "rows": [r.to_dict() for r in comp.rows],  # the trade rows, with their "capped" flags
+    }
 
 
 def test_blind_sensor_has_only_the_settings_and_why():

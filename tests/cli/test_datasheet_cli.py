@@ -239,9 +239,17 @@ def test_compare_two_apertures(capsys, tmp_path):
     a = _sensor_toml(tmp_path, "small", optics__aperture_m=0.012)
     b = _sensor_toml(tmp_path, "large", optics__aperture_m=0.024)
     out, _ = run(capsys, "datasheet", "--compare", str(a), "--compare", str(b), *LIGHT, "--json")
-    small, large = _no_nan(out)["sensors"]
+    payload = _no_nan(out)
+    small, large = payload["sensors"]
+    rows = {r["key"]: r for r in payload["rows"]}  # the trade rows, one value per sensor
+    assert rows["nea_cross"]["values"] == [
+        small["nea_arcsec"]["cross"]["median"],
+        large["nea_arcsec"]["cross"]["median"],
+    ]
+    assert len(rows["fastest_99"]["capped"]) == 2
     # 4x the photons: fainter limit, more stars, and each star centroided better
     assert large["limiting_magnitude"] > small["limiting_magnitude"]
     assert large["nea_arcsec"]["cross"]["median"] < small["nea_arcsec"]["cross"]["median"] / 2
     out, _ = run(capsys, "datasheet", "--compare", str(a), "--compare", str(b), *LIGHT)
     assert "small" in out and "large" in out
+    assert "fastest rate keeping 99 %, deg/s" in out and "NEA / limit cross" in out

@@ -35,6 +35,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("starsense.cli.calibrate", "calibrate"),
     "montecarlo": ("starsense.cli.frames", "montecarlo"),
     "datasheet": ("starsense.cli.datasheet", "datasheet"),
+    "trade": ("starsense.cli.trade", "trade"),
+    "design": ("starsense.web.command", "design"),
     "track": ("starsense.cli.track", "track"),
     "report": ("starsense.cli.report", "report"),
     "limit": ("starsense.cli.limit", "limit_app"),

@@ -106,10 +106,10 @@ def datasheet_lines(d: dict) -> list[str]:
 def _compare_lines(comparison) -> list[str]:
     """Datasheets side by side (one column per sensor)."""
     width = max(12, *(len(name) for name in comparison.sensors))
-    out = [f"{'':28s}" + "".join(f"{name:>{width + 2}s}" for name in comparison.sensors)]
+    out = [f"{'':34s}" + "".join(f"{name:>{width + 2}s}" for name in comparison.sensors)]
     for row in comparison.rows:
-        cells = [_f(v, row.fmt) for v in row.values]
-        out.append(f"{row.label:28s}" + "".join(f"{c:>{width + 2}s}" for c in cells))
+        cells = row.cells()
+        out.append(f"{row.label:34s}" + "".join(f"{c:>{width + 2}s}" for c in cells))
     return out
 
 
@@ -200,8 +200,9 @@ def datasheet(
         for s, p in zip(sheets, payloads, strict=True):
             figures += _write_out(Path(out), s, p)
     if compare:
-        payload = {"sensors": payloads}
-        lines = _compare_lines(Comparison.from_sheets(sheets))
+        comparison = Comparison.from_sheets(sheets)
+        payload = {"sensors": payloads, "rows": [r.to_dict() for r in comparison.rows]}
+        lines = _compare_lines(comparison)
     else:
         payload = payloads[0]
         lines = datasheet_lines(payload)

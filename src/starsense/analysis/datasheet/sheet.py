@@ -20,7 +20,7 @@ from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.availability.threshold import ThresholdCurve
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
-from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
+from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
     StarModel,
@@ -44,12 +44,11 @@ from starsense.analysis.datasheet.sections import (
     Spread,
     StarsInFov,
 )
+from starsense.analysis.datasheet.skycache import limit_sigmas
 from starsense.analysis.datasheet.verify import score_montecarlo
 from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
-from starsense.analysis.limits.sky import star_weights
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.slew import simulate_slew
-from starsense.photometry.stars import BlackBodyStars
 from starsense.render.scene import check_frame_size
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
 
@@ -67,7 +66,8 @@ class DatasheetSettings:
     Attributes
     ----------
     n_trials : int
-        Monte Carlo frames at rest, and again at ``rate_rad_s`` (JSON ``trials``).
+        Monte Carlo frames at rest, and again at ``rate_rad_s`` (JSON ``trials``); 0 gives
+        the prediction alone (no frames rendered).
     rate_rad_s : float
         Cross-axis rate of the second Monte Carlo, rad/s.
     seed : int
@@ -156,10 +156,7 @@ def _availability(analysis, curve, rate_rad_s: float) -> tuple[AvailabilitySumma
 
 def _limit(catalog, sensor, fov, matrices) -> tuple[np.ndarray, np.ndarray]:
     """Fialho & Mortari's bound per attitude for the sensor's D, t and field (rad)."""
-    stars = BlackBodyStars.from_catalog(catalog)
-    w = star_weights(stars, sensor.optics.aperture_m, sensor.exposure_s)
-    pairs = field_stars_cam(fov, matrices, stars.vectors)
-    return axis_sigmas(fisher_per_pointing(pairs, w[pairs.star]))
+    return limit_sigmas(catalog, sensor, fov, matrices=matrices)
 
 
 def _geometry(sensor, limit_mag, model) -> dict:
@@ -324,6 +321,9 @@ def build_datasheet(
         ("monte_carlo", 0.0, st.n_trials),
         ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
     ):
+        if n == 0:  # the prediction alone (starsense trade, the design page)
+            runs[key] = _no_frames(rate)
+            continue
         res = montecarlo(
             sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model, client=client
         )
@@ -363,6 +363,33 @@ def build_datasheet(
         boresights=boresights,
         nea_cross_rad=sig["nea"][0],
         dynamic=fine,
+    )
+
+
+def _no_frames(rate_rad_s: float) -> MonteCarloCheck:
+    """Return the check of a run of no frames (every measured number None)."""
+    return MonteCarloCheck(
+        frames=0,
+        solved=0,
+        wrong=0,
+        wrong_rate_upper95=1.0,
+        rate_deg_s=rate_rad_s * RAD_TO_DEG,
+        median_ms=None,
+        p95_ms=None,
+        statuses={},
+        **dict.fromkeys(
+            (
+                "cross_rms_arcsec",
+                "roll_rms_arcsec",
+                "cross_predicted_arcsec",
+                "roll_predicted_arcsec",
+                "cross_ratio",
+                "roll_ratio",
+                "cross_ratio_robust",
+                "roll_ratio_robust",
+                "outliers_5sigma",
+            )
+        ),
     )
 
 

@@ -1,0 +1,86 @@
+"""The fast prediction: everything the datasheet predicts for a design, without frames.
+
+:func:`predict` is :func:`~starsense.analysis.datasheet.build_datasheet` with no rendered
+frames (``n_trials=0``): the same models (the slew-tolerance renders of single-star stamps,
+the centroid noise of single-star windows, the Fisher propagation over the sky's boresights),
+evaluated only on what they need. The numbers are therefore the datasheet's own: the same
+design and seed give the same predicted values in ``starsense datasheet``, ``starsense
+trade``, the design page and this function; the datasheet adds the check on rendered frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from starsense.analysis.datasheet.sections import Datasheet
+from starsense.analysis.datasheet.sheet import DatasheetSettings, build_datasheet
+from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
+from starsense.units import DEG
+
+__all__ = ["predict", "prediction_settings"]
+
+
+def prediction_settings(
+    *,
+    rate_rad_s: float = 1.0 * DEG,
+    rng: int | np.random.Generator | None = 0,
+    n_orientations: int = 2000,
+    model: str = "reed",
+    n_slew_trials: int = 20,
+) -> DatasheetSettings:
+    """Return the datasheet settings of a prediction (no frames: ``n_trials=0``).
+
+    Parameters
+    ----------
+    rate_rad_s : float
+        The rate of the "at rate" rows, rad/s.
+    rng : None, int or numpy.random.Generator
+        Root seed (recorded).
+    n_orientations : int
+        Quasi-uniform boresights of the sky statistics.
+    model : {"reed", "liebe", "blackbody"}
+        Sensitivity model.
+    n_slew_trials : int
+        Single-star renders per (magnitude, rate) of the slew-tolerance curve.
+
+    Returns
+    -------
+    DatasheetSettings
+    """
+    return DatasheetSettings(
+        n_trials=0,
+        n_rate_trials=0,
+        rate_rad_s=rate_rad_s,
+        seed=root_seed(rng),
+        n_orientations=n_orientations,
+        n_slew_trials=n_slew_trials,
+        model=model,
+    )
+
+
+def predict(sensor, catalog=None, *, settings: DatasheetSettings | None = None) -> Datasheet:
+    """Return what the datasheet predicts for ``sensor``, without rendering frames.
+
+    Limiting magnitude, stars in the field, NEA per axis over the sky (median, 95th
+    percentile), the physical limit and NEA / limit, the slew-tolerance curve, availability at
+    rest and under slew with the fastest rates that keep 50/90/99 %, and the error budget.
+
+    Parameters
+    ----------
+    sensor : Sensor, str or Path
+        The design (object, preset name or sensor TOML file).
+    catalog : Catalog, str or None
+        The catalogue (None: the bundled Hipparcos).
+    settings : DatasheetSettings, optional
+        Default :func:`prediction_settings`; any ``n_trials`` given is replaced by 0.
+
+    Returns
+    -------
+    Datasheet
+        Its ``monte_carlo`` sections hold ``frames = 0`` and no measured numbers.
+    """
+    st = prediction_settings() if settings is None else settings
+    st = replace(st, n_trials=0, n_rate_trials=0)
+    return build_datasheet(as_sensor(sensor), as_catalog(catalog), settings=st)

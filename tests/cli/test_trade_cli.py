@@ -1,0 +1,54 @@
+"""`starsense trade`: bad input refused before any work, rows as JSON lines and CSV, Dask."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+import pytest
+
+from starsense.cli import main
+
+_CHEAP = ["--sensor", "st16", "--workers", "1"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragments"),
+    [
+        (["--vary", "optics.focal_lenght_m=0.01,0.02"], ["unknown key", "focal_lenght_m"]),
+        (["--vary", "exposure_s=0.1:0.2:1"], ["exposure_s", "0.1:0.2:1", "N must be"]),
+        (
+            ["--vary", "exposure_s=0.01:1:101", "--vary", "optics.focal_length_m=0.01:0.05:101"],
+            ["10201 designs", "--dask"],
+        ),
+        ([], ["--vary"]),
+        (["--vary", "exposure_s=0.1", "--keep", "colour"], ["--keep", "colour"]),
+        (["--vary", "exposure_s=0.1", "--verify", "some"], ["--verify", "some"]),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(argv, fragments, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code = main(["trade", *_CHEAP, *argv])
+    captured = capsys.readouterr()
+    assert code == 2, captured
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), captured.err
+    for fragment in fragments:
+        assert fragment in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_json_lines_csv_and_out(capsys, tmp_path):
+    argv = ["trade", *_CHEAP, "--vary", "exposure_s=0.1", "--vary", "detector.pixel_pitch_m=-1"]
+    assert main([*argv, "--json"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 1  # one object per line, one line per design
+    row = json.loads(lines[0])
+    assert row["rows"] is None and "pixel_pitch_m" in row["error"]  # its own error, exit 0
+    assert main([*argv, "--csv", "--out", str(tmp_path / "t")]) == 0
+    table = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert len(table) == 1 and table[0]["exposure_s"] == "0.1"
+    names = sorted(p.name for p in (tmp_path / "t").iterdir())
+    assert "trade.jsonl" in names and "trade.csv" in names
+    assert any(n.startswith("trade_pareto_") and n.endswith(".png") for n in names)
