@@ -32,6 +32,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DATABASE_FORMAT_VERSION",
+    "IN_MEMORY_MAX_BYTES",
     "BuildParams",
     "database_cache_file",
     "read_arrays",
@@ -55,6 +56,10 @@ class BuildParams(Protocol):
 DATABASE_FORMAT_VERSION = 2
 """Version of the on-disk layout (2: a directory of ``.npy`` files, memory-mapped; the key
 without the catalogue's path); bump it when the layout or the build algorithm changes."""
+
+#: arrays up to this size are read into memory when a database is opened, bytes (16 MiB: the
+#: star tables of any database; the pattern tables above it stay memory-mapped)
+IN_MEMORY_MAX_BYTES = 16 * 2**20
 
 _log = logging.getLogger(__name__)
 
@@ -145,8 +150,9 @@ def read_arrays(
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]] | None:
     """Open a directory written by :func:`write_arrays`; None if missing, unreadable or stale.
 
-    The arrays are memory-mapped read-only (``np.load(..., mmap_mode="r")``), as plain
-    ndarrays.
+    The arrays larger than :data:`IN_MEMORY_MAX_BYTES` (the pattern tables) are memory-mapped
+    read-only (``np.load(..., mmap_mode="r")``), as plain ndarrays; smaller ones (the star
+    tables) are read into memory.
 
     Parameters
     ----------
@@ -174,7 +180,11 @@ def read_arrays(
         arrays = {}
         for a in names:
             mapped = np.load(path / f"{a}.npy", mmap_mode="r", allow_pickle=False)
-            arrays[a] = np.asarray(mapped)  # a plain ndarray view of the map (no copy)
+            # the pattern tables stay mapped (a plain read-only view, no copy); the small
+            # star tables are read into memory, writable like any array a user gets (scipy's
+            # Rotation.apply, for one, refuses a read-only buffer)
+            small = mapped.nbytes <= IN_MEMORY_MAX_BYTES
+            arrays[a] = np.array(mapped) if small else np.asarray(mapped)
         return meta, arrays
     except (OSError, ValueError, KeyError, TypeError, EOFError) as exc:
         _log.info("ignoring unreadable identification database %s: %s", path, exc)
