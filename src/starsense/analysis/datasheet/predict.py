@@ -7,7 +7,6 @@ stars). :mod:`starsense.analysis.datasheet.verify` checks it against rendered fr
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +14,8 @@ import numpy as np
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
 from starsense.analysis.datasheet.terms import pixel_spatial_error
-from starsense.analysis.slew import default_rates_rad_s, last_above
+from starsense.analysis.sensor_detection import limiting_magnitude, slew_grids
+from starsense.analysis.slew import last_above
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.units import DEG
 
@@ -30,43 +30,6 @@ __all__ = [
 
 #: the datasheet's availability rates: at rest and 0.5, 1, 2 deg/s (rad/s)
 DEFAULT_RATES_RAD_S = np.array([0.0, 0.5, 1.0, 2.0]) * DEG
-
-
-def limiting_magnitude(magnitudes, fraction, criterion: float = 0.5) -> float | None:
-    """Return the faintest magnitude detected in >= ``criterion`` of renders (interpolated).
-
-    Parameters
-    ----------
-    magnitudes : array (M,)
-        Increasing magnitudes.
-    fraction : array (M,)
-        Detection fraction of each at rest.
-    criterion : float
-        The fraction that counts as detected.
-
-    Returns
-    -------
-    float or None
-        The magnitude where the detection fraction crosses ``criterion`` on its way down
-        (linear interpolation); None when not even the brightest is detected.
-    """
-    return last_above(magnitudes, fraction, criterion)
-
-
-def slew_grids(sensor, static_limit: float, *, n_mag: int = 20, n_rate: int = 40):
-    """Return the magnitudes (0.25 mag steps ending just past the limit) and rates to simulate.
-
-    The rates run from rest to 10 deg/s (the paper's range), or less when a faster slew would
-    sweep a star over more than half the detector's columns in one exposure.
-    """
-    top = math.ceil(static_limit * 4.0) / 4.0 + 0.25
-    mags = top - 0.25 * np.arange(n_mag)[::-1]
-    det = sensor.detector
-    half_width = 0.5 * det.columns * det.pixel_pitch_m / sensor.optics.focal_length_m
-    max_rate = math.atan(half_width) / sensor.exposure_s
-    if max_rate >= 10.0 * DEG:  # the paper's grid, built as the slew analysis builds it
-        return mags, default_rates_rad_s(n_rate)
-    return mags, np.linspace(0.0, max_rate, n_rate)
 
 
 def fastest_rate(rates, availability, target: float) -> float | None:

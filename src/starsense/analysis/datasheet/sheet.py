@@ -18,16 +18,13 @@ import numpy as np
 from starsense.analysis.availability.analysis import AvailabilityAnalysis
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
-from starsense.analysis.availability.threshold import ThresholdCurve
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
     StarModel,
     fastest_rate,
-    limiting_magnitude,
     nea_at,
-    slew_grids,
 )
 from starsense.analysis.datasheet.sections import (
     AvailabilitySummary,
@@ -48,7 +45,7 @@ from starsense.analysis.datasheet.verify import score_montecarlo
 from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
 from starsense.analysis.limits.sky import star_weights
 from starsense.analysis.montecarlo import montecarlo
-from starsense.analysis.slew import simulate_slew
+from starsense.analysis.sensor_detection import sensor_detection
 from starsense.photometry.stars import BlackBodyStars
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
 
@@ -99,31 +96,14 @@ def _arcsec_stats(cross: np.ndarray, roll: np.ndarray) -> AxisSpread:
 
 def _detection(sensor, settings: DatasheetSettings, tick):
     """Return the static limit, slew tolerance and threshold curve (all None: nothing detected)."""
-    wide = np.arange(-2.0, 16.0001, 0.25)
-    rest = simulate_slew(
+    det = sensor_detection(
         sensor,
         model=settings.model,
-        magnitudes=wide,
-        rates_rad_s=[0.0],
         n_trials=settings.n_slew_trials,
         rng=settings.seed,
+        progress=tick,
     )
-    rough = limiting_magnitude(wide, rest.detected_fraction[:, 0])
-    tick("static limit")
-    if rough is None:
-        return None, None, None
-    mags, rates = slew_grids(sensor, rough)
-    slew = simulate_slew(
-        sensor,
-        model=settings.model,
-        magnitudes=mags,
-        rates_rad_s=rates,
-        n_trials=settings.n_slew_trials,
-        rng=settings.seed,
-    )
-    limit = limiting_magnitude(mags, slew.detected_fraction[:, 0])
-    tick("slew tolerance")
-    return (rough if limit is None else limit), slew, ThresholdCurve.from_slew(slew)
+    return det.limit_mag, det.slew, det.curve
 
 
 def _availability(analysis, curve, rate_rad_s: float) -> tuple[AvailabilitySummary, object]:
