@@ -150,3 +150,43 @@ def test_mission_inertial_availability_equals_the_datasheets(sheet, imx, capsys)
     # step, and so lost in space at every step
     assert head["mean_stars"] == n_own
     assert head["lost_in_space_fraction"] == 1.0
+
+
+def test_report_availability_equals_the_datasheets(imx, tmp_path, monkeypatch):
+    import starsense.report.availability as report_av
+    import starsense.report.availability_track as report_track
+    from starsense.photometry.stars import BlackBodyStars
+    from starsense.report.datasheet import datasheet_section
+    from starsense.report.section import ReportContext
+
+    # the paper's parts (tracks, rendered frames) have their own tests: keep them short here
+    monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", ())
+    monkeypatch.setattr(report_track, "TRACK_RATES_DEG_S", (1.0,))
+    monkeypatch.setattr(report_track, "TRACK_NODES_DEG", (0.0,))
+    monkeypatch.setattr(report_av, "DYNAMIC_RATES_DEG_S", np.array([0.0, 1.0]))
+    cat = load_catalog("hipparcos")
+    ctx = ReportContext(
+        work_dir=tmp_path,
+        catalog_name=cat.name,
+        n_catalog=len(cat),
+        stars={"B-V": BlackBodyStars.from_catalog(cat)},
+        diameter_m=0.017857,
+        exposure_s=0.05,
+        seed=SEED,
+        sensor=load_sensor(str(imx)),
+        datasheet_trials=1,
+        catalog=cat,
+    )
+    sheet = datasheet_section(ctx).data["datasheet"]
+    section = report_av.availability_section(ctx)
+    own = section.data["sensor"]
+    av = sheet["availability"]
+    # the same analysis (field, boresights, rolls, stars, threshold curve): equal, not close
+    assert own["rates_deg_s"] == pytest.approx(av["rates_deg_s"], abs=1e-12)
+    assert own["lost_in_space"] == av["lost_in_space_at_rate"]
+    assert own["tracking"] == av["tracking_at_rate"]
+    assert own["limiting_magnitude"] == sheet["limiting_magnitude"]
+    # and the summary quotes them, for this sensor (not the paper's m_t = 5.75)
+    label, value = section.summary[0]
+    assert label.startswith("imx296_25mm static availability")
+    assert f"{100 * av['lost_in_space']:.2f}" in value
