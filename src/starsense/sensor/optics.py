@@ -4,9 +4,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from starsense.errors import InputError
 from starsense.sensor._fields import check_field
 
 __all__ = ["Optics"]
+
+
+#: the fastest focal ratio a lens in air can have: N = 1 / (2 NA) with the numerical aperture
+#: NA = n sin(theta) <= 1 (Born & Wolf, Principles of Optics, sec. 4.2.3; the aplanatic limit)
+MIN_F_NUMBER = 0.5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -46,6 +52,13 @@ class Optics:
         check_field("optics", "focal_length_m", self.focal_length_m, 0, 10, lo_open=True)
         check_field("optics", "aperture_m", self.aperture_m, 0, 10, lo_open=True)
         check_field("optics", "transmission", self.transmission, 0, 1, lo_open=True)
+        f_number = self.focal_length_m / self.aperture_m
+        if f_number < MIN_F_NUMBER:
+            raise InputError(
+                f"optics: f-number focal_length_m / aperture_m = {self.focal_length_m:g} / "
+                f"{self.aperture_m:g} = f/{f_number:.3g} is below f/{MIN_F_NUMBER:g}, the "
+                "fastest any lens in air can be (N = 1 / (2 NA), NA <= 1)"
+            )
         check_field("optics", "distortion_k1", self.distortion_k1, -10, 10)
         check_field("optics", "distortion_k2", self.distortion_k2, -10, 10)
         check_field("optics", "distortion_p1", self.distortion_p1, -1, 1)

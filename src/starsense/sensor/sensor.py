@@ -62,6 +62,37 @@ class DetectionThresholds:
             raise InputError(f"detection.connectivity must be 4 or 8, got {self.connectivity!r}")
 
 
+def _check_detection_fits_adc(logic: DetectionThresholds, det: Detector) -> None:
+    """Refuse a detection logic the detector's ADC cannot meet, or finer than one count.
+
+    Over the bias, a pixel gives at most ``2**bit_depth - 1 - bias_counts`` counts; a star at
+    most that in every pixel of the detector.
+    """
+    top = det.saturation_counts - det.bias_counts
+    if logic.lit_pixel_counts < 1.0:
+        raise InputError(
+            f"detection.lit_pixel_counts = {logic.lit_pixel_counts:g} is below one ADC count: "
+            "no count step is that fine (allowed 1 ... the ADC's top over the bias)"
+        )
+    if logic.lit_pixel_counts >= top:
+        raise InputError(
+            f"detection.lit_pixel_counts = {logic.lit_pixel_counts:g} counts: no pixel can "
+            f"exceed it: a {det.bit_depth}-bit ADC gives at most {top:g} counts over the bias "
+            f"({det.bias_counts:g})"
+        )
+    if 0.0 < logic.min_integrated_counts < 1.0:
+        raise InputError(
+            f"detection.min_integrated_counts = {logic.min_integrated_counts:g} is below one "
+            "ADC count (0 turns the check off)"
+        )
+    if logic.min_integrated_counts > top * det.columns * det.rows:
+        raise InputError(
+            f"detection.min_integrated_counts = {logic.min_integrated_counts:g} counts: more "
+            f"than the whole {det.columns} x {det.rows} detector can give at {top:g} counts a "
+            "pixel"
+        )
+
+
 @dataclass(frozen=True, kw_only=True)
 class Sensor:
     """A star sensor: optics, detector, exposure and detection logic.
@@ -117,6 +148,7 @@ class Sensor:
         check_field("sensor", "exposure_s", self.exposure_s, 0, 1e5, lo_open=True)
         if self.detector.rows * self.detector.pixel_pitch_m >= 2 * self.optics.focal_length_m * 20:
             raise InputError("detector is too large for the focal length (field beyond 175 deg)")
+        _check_detection_fits_adc(self.detection, self.detector)
 
     # -- geometry ----------------------------------------------------------------------------
 

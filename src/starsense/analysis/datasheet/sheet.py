@@ -19,6 +19,7 @@ from starsense.analysis.availability.analysis import AvailabilityAnalysis
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
+from starsense.analysis.datasheet.checks import sanity_warnings
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
@@ -46,6 +47,7 @@ from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
 from starsense.analysis.limits.sky import star_weights
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.sensor_detection import sensor_detection
+from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.photometry.stars import BlackBodyStars
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
 
@@ -170,7 +172,7 @@ def _no_stars(sensor, settings, catalog_name: str) -> Datasheet:
         schema=SCHEMA,
         sensor=sensor.name,
         limiting_magnitude=None,
-        warnings=(why,),
+        warnings=(why, *sanity_warnings(sensor, catalog_name="", limit_mag=None, runs={})),
         settings=_settings(settings, catalog_name, None),
     )
 
@@ -260,7 +262,7 @@ def build_datasheet(
     Datasheet
     """
     st = settings or DatasheetSettings()
-    cat = as_catalog(catalog)
+    cat, colour_note = with_johnson_from_gaia(as_catalog(catalog))
     steps = [
         "static limit",
         "slew tolerance",
@@ -337,7 +339,13 @@ def build_datasheet(
         ),
         quoted_source=dict(sensor.quoted).get("source"),
         settings=_settings(st, getattr(cat, "name", ""), limit_mag),
-        warnings=tuple(_warnings(stars, avail, runs)),
+        warnings=(
+            *([colour_note] if colour_note else []),
+            *_warnings(stars, avail, runs),
+            *sanity_warnings(
+                sensor, catalog_name=getattr(cat, "name", ""), limit_mag=limit_mag, runs=runs
+            ),
+        ),
         boresights=boresights,
         nea_cross_rad=sig["nea"][0],
         dynamic=fine,
