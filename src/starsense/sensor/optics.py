@@ -36,6 +36,15 @@ class Optics:
     principal_offset_x_px, principal_offset_y_px : float
         Offset of the principal point (where the optical axis meets the detector, the centre
         of the distortion) from the detector centre, along columns and rows, px.
+    distortion_residual_px : float
+        What the distortion calibration leaves: rms error of a star's position per axis, px
+        (the residual of ``starsense calibrate``). Rendered frames displace each star by it
+        (independent per star), the datasheet's budget propagates it (field-of-view spatial
+        error).
+    psf_sigma_corner_px : float
+        Gaussian PSF sigma in the detector's corners, px (0: the detector's ``psf_sigma_px``
+        everywhere). Between the centre and the corners the sigma grows with the square of the
+        distance from the centre (field curvature, defocus off axis).
     """
 
     focal_length_m: float
@@ -47,6 +56,8 @@ class Optics:
     distortion_p2: float = 0.0
     principal_offset_x_px: float = 0.0
     principal_offset_y_px: float = 0.0
+    distortion_residual_px: float = 0.0
+    psf_sigma_corner_px: float = 0.0
 
     def __post_init__(self) -> None:
         check_field("optics", "focal_length_m", self.focal_length_m, 0, 10, lo_open=True)
@@ -65,6 +76,8 @@ class Optics:
         check_field("optics", "distortion_p2", self.distortion_p2, -1, 1)
         check_field("optics", "principal_offset_x_px", self.principal_offset_x_px, -1e5, 1e5)
         check_field("optics", "principal_offset_y_px", self.principal_offset_y_px, -1e5, 1e5)
+        check_field("optics", "distortion_residual_px", self.distortion_residual_px, 0, 100)
+        check_field("optics", "psf_sigma_corner_px", self.psf_sigma_corner_px, 0, 100)
 
     @property
     def distortion(self) -> tuple[float, float, float, float]:

@@ -253,6 +253,30 @@ class Sensor:
             return self.exposure_s
         return check_scalar(exposure_s, "exposure_s", 0.0, None, lo_open=True)
 
+    def psf_sigma_at(self, x_px, y_px) -> np.ndarray:
+        """Return the Gaussian PSF sigma at detector positions, px.
+
+        ``psf_sigma_px`` at the centre, ``optics.psf_sigma_corner_px`` in the corners (0: the
+        same everywhere), growing with the square of the distance from the centre.
+
+        Parameters
+        ----------
+        x_px, y_px : array_like (N,)
+            Column and row, px.
+
+        Returns
+        -------
+        ndarray (N,)
+        """
+        det = self.detector
+        s0, sc = det.psf_sigma_px, self.optics.psf_sigma_corner_px
+        x = np.asarray(x_px, dtype=float)
+        if sc <= 0.0 or sc == s0:
+            return np.full(x.shape, float(s0))
+        cx, cy = 0.5 * (det.columns - 1), 0.5 * (det.rows - 1)
+        r2 = ((x - cx) ** 2 + (np.asarray(y_px, dtype=float) - cy) ** 2) / (cx**2 + cy**2)
+        return s0 + (sc - s0) * np.minimum(r2, 1.0)
+
     def streak_length_px(self, rate_rad_s: float) -> float:
         """Length of a cross-axis streak, f tan(|w| t_e) / pitch (Dzamba & Enright eq. 1), px.
 
