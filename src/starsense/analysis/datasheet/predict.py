@@ -11,9 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
+from starsense.analysis.datasheet.field import (
+    axis_sigmas,
+    field_stars_cam,
+    fisher_per_pointing,
+    propagated_sigmas,
+)
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
-from starsense.analysis.datasheet.terms import pixel_spatial_error
+from starsense.analysis.datasheet.terms import pixel_spatial_error, prnu_centroid_px
 from starsense.analysis.sensor_detection import limiting_magnitude, slew_grids
 from starsense.analysis.slew import last_above
 from starsense.photometry.sensitivity import Sensitivity
@@ -22,6 +27,7 @@ from starsense.units import DEG
 __all__ = [
     "DEFAULT_RATES_RAD_S",
     "StarModel",
+    "error_kinds",
     "fastest_rate",
     "limiting_magnitude",
     "nea_at",
@@ -79,19 +85,53 @@ class StarModel:
     def star_sigmas_rad(self, magnitudes, z_cam, kind: str = "nea") -> np.ndarray:
         """Return each star's 1-sigma direction error, rad.
 
-        ``kind``: "nea" (the centroider's temporal noise), "crb" (the pixelated-Gaussian bound)
-        or "pixel" (the measured sub-pixel bias, rms). Off-axis stars scale by the
-        camera-frame z (the pinhole's angle per pixel, across the radial direction).
+        ``kind``: "nea" (the centroider's temporal noise), "crb" (the pixelated-Gaussian bound),
+        "pixel" (the measured sub-pixel bias, rms over pixel phases), "prnu" (the shift the
+        detector's photo-response non-uniformity gives a centroid) or "residual" (the
+        distortion calibration's residual). Off-axis stars scale by the camera-frame z (the
+        pinhole's angle per pixel, across the radial direction).
         """
         e = self.sensitivity.electrons(np.asarray(magnitudes, dtype=float))
         if kind == "nea":
             px = self.noise.sigma(e)
         elif kind == "crb":
             px = self.noise.crb(e)
-        else:
+        elif kind == "pixel":
             px = self.pixel_bias.rms(e)
+        elif kind == "prnu":
+            px = np.full(np.shape(e), prnu_centroid_px(self.sensor))
+        elif kind == "residual":
+            px = np.full(np.shape(e), self.sensor.optics.distortion_residual_px)
+        else:
+            raise ValueError(f"unknown error kind {kind!r}")
         px = np.where(np.isfinite(px), px, np.inf)
         return px * self.pixel_rad * np.asarray(z_cam, dtype=float)
+
+
+#: the kinds that are the estimator's own noise (a Fisher bound); the others are errors
+#: propagated through its weights (:func:`propagated_sigmas`)
+NOISE_KINDS = ("nea", "crb")
+
+
+def error_kinds(sensor) -> tuple[str, ...]:
+    """Return the per-star kinds of a sensor: noise, bound, bias, and its own rendered errors.
+
+    Parameters
+    ----------
+    sensor : Sensor
+
+    Returns
+    -------
+    tuple of str
+        ``("nea", "crb", "pixel")``, then ``"prnu"`` with a PRNU and ``"residual"`` with a
+        distortion calibration residual.
+    """
+    kinds = ["nea", "crb", "pixel"]
+    if sensor.detector.prnu_fraction > 0:
+        kinds.append("prnu")
+    if sensor.optics.distortion_residual_px > 0:
+        kinds.append("residual")
+    return tuple(kinds)
 
 
 def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea",), tree=None):
@@ -116,8 +156,13 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
     dict, and the stars in the field per attitude (M,)
     """
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree=tree)
+    mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
+    weights = 1.0 / model.star_sigmas_rad(mags, z, "nea") ** 2
     out = {}
     for kind in kinds:
-        sigma = model.star_sigmas_rad(np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2], kind)
-        out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
+        sigma = model.star_sigmas_rad(mags, z, kind)
+        if kind in NOISE_KINDS:
+            out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
+        else:
+            out[kind] = propagated_sigmas(pairs, weights, np.where(np.isfinite(sigma), sigma, 0))
     return out, pairs.counts()

@@ -9,6 +9,7 @@ terms), a typed :class:`~starsense.analysis.datasheet.sections.Datasheet`. Its J
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fis
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
     StarModel,
+    error_kinds,
     fastest_rate,
     nea_at,
 )
@@ -228,7 +230,7 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     sig, counts = nea_at(
-        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=("nea", "crb", "pixel")
+        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=error_kinds(sensor)
     )
     lim = _limit(cat, sensor, fov, mats)
     return model, vectors, mags, boresights, mats, sig, counts, lim
@@ -313,7 +315,9 @@ def build_datasheet(
             )
         )
         tick(key.replace("_", " "))
-    pse = np.nanmax(model.pixel_bias.rms_px) if np.isfinite(model.pixel_bias.rms_px).any() else None
+    bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
+    pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
+    errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
     return Datasheet(
         schema=SCHEMA,
         sensor=sensor.name,
@@ -327,7 +331,15 @@ def build_datasheet(
         **runs,
         availability=avail,
         slew=slew,  # its JSON is that of `starsense slew tolerance`
-        budget=tuple(error_budget(sensor, nea, pixel=sig["pixel"], pse_px=pse)),
+        budget=tuple(
+            error_budget(
+                sensor,
+                nea,
+                errors=errors,
+                pse_px=pse,
+                dsnu=_dsnu_growth(sensor, st, limit_mag, fov, (vectors, mags, mats), nea),
+            )
+        ),
         quoted=tuple(
             quoted_values(
                 sensor,
@@ -349,6 +361,32 @@ def build_datasheet(
         boresights=boresights,
         nea_cross_rad=sig["nea"][0],
         dynamic=fine,
+    )
+
+
+def _dsnu_growth(sensor, st, limit_mag, fov, sky, nea: AxisSpread) -> AxisPair | None:
+    """Return how much the DSNU grows the NEA (quadrature difference of sky medians), arcsec.
+
+    The dark-signal non-uniformity left after the dark frame acts, for one frame, as a second
+    read noise: the NEA is recomputed with ``hypot(read_noise, dsnu)``.
+    """
+    det = sensor.detector
+    if det.dsnu_e <= 0 or nea.cross.median is None:
+        return None
+    vectors, mags, mats = sky
+    noisier = sensor.with_(
+        detector=dataclasses.replace(det, read_noise_e=math.hypot(det.read_noise_e, det.dsnu_e))
+    )
+    model = StarModel.build(
+        noisier, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag
+    )
+    sig, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=mags)
+    grown = _arcsec_stats(*sig["nea"])
+    return AxisPair(
+        *(
+            math.sqrt(max(getattr(grown, k).median ** 2 - getattr(nea, k).median ** 2, 0.0))
+            for k in ("cross", "roll")
+        )
     )
 
 
