@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint bench bench-peers clean
+.PHONY: demo test test-fast lint bench bench-peers bench-zoo clean
 
 $(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c
 	$(PYTHON) -m venv $(VENV)
@@ -49,6 +49,9 @@ $(PEERS_STAMP):
 	$(PEERS)/bin/python -m pip install --quiet --upgrade pip
 	$(PEERS)/bin/python -m pip install --quiet "cedar-solve==0.5.1" "numpy<2"
 	touch $@
+
+bench-zoo: $(STAMP)  ## the sensor zoo (40 seeded designs + the 768x512 CCD), at rest and 1 deg/s; bench/results/zoo.json
+	$(BIN)/python bench/zoo.py --designs 40 --frames 100
 
 bench-peers: $(STAMP)  ## starsense vs cedar-solve on the same inputs; bench/results/peer_cedar.json
 	-@$(MAKE) --no-print-directory $(PEERS_STAMP) || echo "(cedar-solve install failed; see above)"
