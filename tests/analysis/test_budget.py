@@ -90,3 +90,22 @@ def test_budget_moves_the_monte_carlo_as_it_says():
     assert mc1.roll_ratio_robust / mc0.roll_ratio_robust == pytest.approx(1.0, rel=0.25)
     assert _total(s1) > 2.0 * _total(s0)  # and the sky's budget says so too
     assert mc1.wrong == 0
+
+
+def test_field_dependent_psf_widens_the_corner_stars_noise():
+    from starsense.analysis.datasheet.predict import StarModel
+
+    base = load_sensor("st16")
+    wide = base.with_(optics=dataclasses.replace(base.optics, psf_sigma_corner_px=3.0))
+    m0 = StarModel.build(base, model="reed", bright_mag=4.0, faint_mag=5.5)
+    m1 = StarModel.build(wide, model="reed", bright_mag=4.0, faint_mag=5.5)
+    mags = np.array([5.0, 5.0])
+    # z of a star at the centre and in the corner (tan^2 = corner^2 / f^2)
+    det = base.detector
+    corner = math.hypot(0.5 * (det.columns - 1), 0.5 * (det.rows - 1)) / base.focal_length_px
+    z = np.array([1.0, 1.0 / math.sqrt(1.0 + corner**2)])
+    s0, s1 = m0.star_sigmas_rad(mags, z), m1.star_sigmas_rad(mags, z)
+    assert s1[0] == pytest.approx(s0[0])  # the centre keeps the detector's PSF
+    # a 3 px PSF spreads a star's light over 4x the pixels of a 1.5 px one: its read-noise
+    # share of the centroid noise grows; the corner star is noisier than with the static PSF
+    assert s1[1] > 1.2 * s0[1]

@@ -118,12 +118,19 @@ def error_budget(
     """
     given = dict(sensor.budget)
     det = sensor.detector
+    sc = sensor.optics.psf_sigma_corner_px
+    optics = (
+        f"; its PSF widens from {det.psf_sigma_px:g} px at the centre to {sc:g} px in the "
+        "corners (optics, rendered)"
+        if sc > 0 and sc != det.psf_sigma_px
+        else ""
+    )
     rows = [
         BudgetRow(
             "noise-equivalent angle (temporal, 1 sigma, sky median)",
             nea.cross.median,
             nea.roll.median,
-            "modelled (centroid noise through eq. 21)",
+            f"modelled (centroid noise through eq. 21){optics}",
         ),
         _sky_row(
             "pixel spatial error (centroid bias"

@@ -7,6 +7,7 @@ stars). :mod:`starsense.analysis.datasheet.verify` checks it against rendered fr
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,12 +61,17 @@ class StarModel:
         Centroid noise table of the sensor's centroider.
     pixel_bias : PixelSpatialError or None
         The centroider's sub-pixel bias measured on noiseless renders.
+    noise_corner : CentroidNoise or None
+        The noise table at the corners' PSF (``optics.psf_sigma_corner_px``); a star's noise
+        is interpolated between the two tables as its PSF is (with the square of its distance
+        from the centre).
     """
 
     sensor: object
     sensitivity: object
     noise: CentroidNoise
     pixel_bias: object = None
+    noise_corner: CentroidNoise | None = None
 
     @classmethod
     def build(cls, sensor, *, model: str, bright_mag: float, faint_mag: float) -> StarModel:
@@ -75,7 +81,20 @@ class StarModel:
         noise = centroid_noise(sensor, 0.5 * e_lo, 2.0 * e_hi)
         probe = np.geomspace(max(e_lo, 1.0), max(e_hi, 2.0), 5)
         bias = pixel_spatial_error(sensor, probe)
-        return cls(sensor, sens, noise, bias)
+        corner = None
+        sc = sensor.optics.psf_sigma_corner_px
+        if sc > 0 and sc != sensor.detector.psf_sigma_px:
+            wide = sensor.with_(detector=dataclasses.replace(sensor.detector, psf_sigma_px=sc))
+            corner = centroid_noise(wide, 0.5 * e_lo, 2.0 * e_hi)
+        return cls(sensor, sens, noise, bias, corner)
+
+    def _corner_weight(self, z_cam) -> np.ndarray:
+        """Return (r / r_corner)^2 of stars at camera-frame z (r from the detector centre)."""
+        det = self.sensor.detector
+        z = np.asarray(z_cam, dtype=float)
+        r2_px = self.sensor.focal_length_px**2 * (1.0 / z**2 - 1.0)
+        corner2 = (0.5 * (det.columns - 1)) ** 2 + (0.5 * (det.rows - 1)) ** 2
+        return np.clip(r2_px / corner2, 0.0, 1.0)
 
     @property
     def pixel_rad(self) -> float:
@@ -94,6 +113,9 @@ class StarModel:
         e = self.sensitivity.electrons(np.asarray(magnitudes, dtype=float))
         if kind == "nea":
             px = self.noise.sigma(e)
+            if self.noise_corner is not None:  # the PSF widens to the corners
+                t = self._corner_weight(z_cam)
+                px = (1.0 - t) * px + t * self.noise_corner.sigma(e)
         elif kind == "crb":
             px = self.noise.crb(e)
         elif kind == "pixel":
