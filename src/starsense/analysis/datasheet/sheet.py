@@ -236,6 +236,27 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     return model, vectors, mags, boresights, mats, sig, counts, lim
 
 
+def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
+    """Return the Monte Carlo checks at rest and at the settings' rate, scored."""
+    model, fov, vectors, mags = sky
+    runs = {}
+    rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
+    for key, rate, n in (
+        ("monte_carlo", 0.0, st.n_trials),
+        ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
+    ):
+        res = montecarlo(
+            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model, client=client
+        )
+        runs[key] = MonteCarloCheck(
+            **score_montecarlo(
+                res, model, fov=fov, vectors=vectors, magnitudes=mags, predict=rate == 0.0
+            )
+        )
+        tick(key.replace("_", " "))
+    return runs
+
+
 def build_datasheet(
     sensor,
     catalog=None,
@@ -300,21 +321,7 @@ def build_datasheet(
         else None
         for k in ("cross", "roll")
     }
-    runs = {}
-    rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
-    for key, rate, n in (
-        ("monte_carlo", 0.0, st.n_trials),
-        ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
-    ):
-        res = montecarlo(
-            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model, client=client
-        )
-        runs[key] = MonteCarloCheck(
-            **score_montecarlo(
-                res, model, fov=fov, vectors=vectors, magnitudes=mags, predict=rate == 0.0
-            )
-        )
-        tick(key.replace("_", " "))
+    runs = _runs(sensor, cat, st, (model, fov, vectors, mags), client, tick)
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
