@@ -188,8 +188,14 @@ def main(argv: list[str]) -> int:
     ctx = mp.get_context("spawn")  # one process per design: its own peak memory
     for name, params in designs:
         job = (name, params, args.frames, args.rate_frames or args.frames, args.seed)
-        with ctx.Pool(1) as pool:
-            row = pool.apply(_run_one, (job,))
+        try:
+            with ctx.Pool(1) as pool:
+                row = pool.apply(_run_one, (job,))
+        except Exception as exc:  # a design the package cannot handle is a row, not the end
+            row = {"design": name, "params": params, "error": f"{type(exc).__name__}: {exc}"}
+            rows.append(row)
+            print(f"{name}: failed: {row['error']}", flush=True)
+            continue
         rows.append(row)
         mc, mr = row["monte_carlo"], row["monte_carlo_at_rate"]
         print(
