@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint docs bench bench-peers clean
+.PHONY: demo test test-fast lint docs bench bench-peers bench-zoo clean
 
 $(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c src/starsense/detect/_windowc.c
 	$(PYTHON) -m venv $(VENV)
@@ -57,6 +57,9 @@ $(PEERS_STAMP):
 	$(PEERS)/bin/python -m pip install --quiet --upgrade pip
 	$(PEERS)/bin/python -m pip install --quiet "cedar-solve==0.5.1" "numpy<2"
 	touch $@
+
+bench-zoo: $(STAMP)  ## the sensor zoo (40 seeded designs + the 768x512 CCD), at rest and 1 deg/s; bench/results/zoo.json
+	$(BIN)/python bench/zoo.py --designs 40 --frames 100
 
 $(T3RS_STAMP):
 	$(PYTHON) -m venv $(T3RS)

@@ -9,6 +9,7 @@ import json
 import math
 import tomllib
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -253,3 +254,37 @@ def test_compare_two_apertures(capsys, tmp_path):
     out, _ = run(capsys, "datasheet", "--compare", str(a), "--compare", str(b), *LIGHT)
     assert "small" in out and "large" in out
     assert "fastest rate keeping 99 %, deg/s" in out and "NEA / limit cross" in out
+
+
+@pytest.mark.parametrize(
+    ("name", "stem"), [("../x", "_x"), ("a/b", "a_b"), ("..", "sensor"), ("st 16", "st_16")]
+)
+def test_out_writes_the_json_under_a_safe_name(capsys, tmp_path, name, stem):
+    blind = _sensor_toml(tmp_path, "blind", optics__aperture_m=1e-5)
+    blind.write_text(blind.read_text().replace('name = "blind"', f"name = {json.dumps(name)}"))
+    out_dir = tmp_path / "out"
+    out, _ = run(
+        capsys, "datasheet", "--sensor", str(blind), *LIGHT, "--json", "--out", str(out_dir)
+    )
+    d = _no_nan(out)
+    written = out_dir / f"{stem}_datasheet.json"
+    assert d["files"] == [str(written)]
+    # read back: the sheet as printed, less the list of files
+    assert _no_nan(written.read_text()) == {k: v for k, v in d.items() if k != "files"}
+    assert [p.name for p in out_dir.iterdir()] == [written.name]  # nothing outside, no temporary
+    assert not (tmp_path / "x_datasheet.json").exists()
+
+
+def test_out_two_sensors_of_one_name_write_two_files(capsys, tmp_path):
+    a = _sensor_toml(tmp_path, "blind", optics__aperture_m=1e-5)
+    b = tmp_path / "other.toml"
+    b.write_text(a.read_text().replace("aperture_m = 1e-05", "aperture_m = 2e-05"))
+    out_dir = tmp_path / "out"
+    argv = ["datasheet", "--compare", str(a), "--compare", str(b), *LIGHT, "--json"]
+    out, _ = run(capsys, *argv, "--out", str(out_dir))
+    files = _no_nan(out)["files"]
+    assert sorted(files) == [
+        str(out_dir / "blind-2_datasheet.json"),
+        str(out_dir / "blind_datasheet.json"),
+    ]
+    assert all(_no_nan(Path(f).read_text())["sensor"] == "blind" for f in files)

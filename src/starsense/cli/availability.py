@@ -41,8 +41,8 @@ from starsense.cli.availability_options import (
     field_of_view_option,
     maps_dir,
     roll_option,
+    sensor_threshold,
     setup_analysis,
-    threshold_curve_option,
 )
 from starsense.cli.catalog import check_dask_option, hats_session
 from starsense.cli.common import (
@@ -89,6 +89,8 @@ def _static_hats(
     roll = roll_option(roll_deg)
     sens = load_sensor(sensor)
     field = field_of_view_option(sens, fov, half_fov_deg)
+    if max_mag is None:  # the sensor's own threshold at rest (V; a hats: catalogue's --band)
+        max_mag = sensor_threshold(sens, seed=seed)[1]
     with hats_session(catalog, dask, not as_json) as (cat, client, progress), as_options():
         res = static_availability(
             cat,
@@ -114,7 +116,7 @@ def static(
     catalog: ScaleCatalogOpt = "hipparcos",
     fov: FovOpt = "circular",
     half_fov_deg: HalfFovOpt = None,
-    max_mag: MaxMagOpt = 5.75,
+    max_mag: MaxMagOpt = None,
     n_min: NMinOpt = 3,
     n_orientations: NOrientOpt = 10_000,
     roll_deg: RollOpt = None,
@@ -211,7 +213,7 @@ def dynamic(
     catalog: CatalogOpt = "hipparcos",
     fov: FovOpt = "circular",
     half_fov_deg: HalfFovOpt = None,
-    max_mag: MaxMagOpt = 5.75,
+    max_mag: MaxMagOpt = None,
     n_min: NMinOpt = 3,
     n_orientations: NOrientOpt = 10_000,
     roll_deg: RollOpt = None,
@@ -229,24 +231,25 @@ def dynamic(
     """Spatial dynamic availability against slew rate, m_t = m_t(w) (Fig. 11)."""
     rates = check_rates_deg_s(parse_floats(rates_deg_s, "--rates-deg-s"), "--rates-deg-s")
     check_n_min(n_min)
+    check_max_mag(max_mag)
     with progress_bar() as progress:
+        curve, rest_mag = sensor_threshold(
+            load_sensor(sensor),
+            model=model,
+            n_trials=trials,
+            seed=seed,
+            tolerance_json=tolerance_json,
+            progress=progress,
+        )
         sens, _, analysis = setup_analysis(
             sensor,
             catalog,
             fov=fov,
             half_fov_deg=half_fov_deg,
-            max_mag=max_mag,
+            max_mag=rest_mag if max_mag is None else max_mag,
             n_orientations=n_orientations,
             roll_deg=roll_deg,
             seed=seed,
-            progress=progress,
-        )
-        curve = threshold_curve_option(
-            sens,
-            model=model,
-            n_trials=trials,
-            seed=seed,
-            tolerance_json=tolerance_json,
             progress=progress,
         )
         res = analysis.dynamic(curve, rates, n_min)
@@ -285,7 +288,7 @@ def track(
     catalog: CatalogOpt = "hipparcos",
     fov: FovOpt = "circular",
     half_fov_deg: HalfFovOpt = None,
-    max_mag: MaxMagOpt = 5.75,
+    max_mag: MaxMagOpt = None,
     n_min: NMinOpt = 3,
     n_orientations: NOrientOpt = 10_000,
     roll_deg: RollOpt = None,
@@ -317,24 +320,25 @@ def track(
     node = finite_float(node_deg, "--node-deg") * DEG
     # from a count (0.01 deg: 18,001 tracks ending at 90); finer than 0.001 deg is refused
     inclinations = DEG * step_grid(-90, 90, inclination_step_deg, "--inclination-step-deg", 1e-3)
+    check_max_mag(max_mag)
     with progress_bar() as progress:
+        curve, rest_mag = sensor_threshold(
+            load_sensor(sensor),
+            model=model,
+            n_trials=trials,
+            seed=seed,
+            tolerance_json=tolerance_json,
+            progress=progress,
+        )
         sens, _, analysis = setup_analysis(
             sensor,
             catalog,
             fov=fov,
             half_fov_deg=half_fov_deg,
-            max_mag=max_mag,
+            max_mag=rest_mag if max_mag is None else max_mag,
             n_orientations=n_orientations,
             roll_deg=roll_deg,
             seed=seed,
-            progress=progress,
-        )
-        curve = threshold_curve_option(
-            sens,
-            model=model,
-            n_trials=trials,
-            seed=seed,
-            tolerance_json=tolerance_json,
             progress=progress,
         )
         res = analysis.track(
@@ -381,7 +385,7 @@ def track(
 def fidelity(
     sensor: SensorOpt = "st16",
     catalog: CatalogOpt = "hipparcos",
-    max_mag: MaxMagOpt = 5.75,
+    max_mag: MaxMagOpt = None,
     n_min: NMinOpt = 3,
     seed: SeedOpt = 0,
     model: ModelOpt = "reed",
@@ -401,7 +405,7 @@ def fidelity(
     sens = load_sensor(sensor)
     cat = load_catalog(catalog)
     with progress_bar() as progress:
-        curve = threshold_curve_option(
+        curve, rest_mag = sensor_threshold(
             sens,
             model=model,
             n_trials=trials,
@@ -409,6 +413,7 @@ def fidelity(
             tolerance_json=tolerance_json,
             progress=progress,
         )
+        max_mag = rest_mag if max_mag is None else max_mag
         with as_options():
             res = fidelity_check(
                 sens,

@@ -25,7 +25,7 @@ from starsense.analysis.availability import (
     ThresholdCurve,
     field_of_view,
 )
-from starsense.analysis.slew import simulate_slew
+from starsense.analysis.sensor_detection import sensor_detection
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
     output_dir,
@@ -54,9 +54,12 @@ HalfFovOpt = Annotated[
     ),
 ]
 MaxMagOpt = Annotated[
-    float,
+    float | None,
     typer.Option(
-        "--max-mag", help="Catalogue cut and static detection threshold m_t, V magnitude."
+        "--max-mag",
+        help="Catalogue cut and static detection threshold m_t, V magnitude (default: the "
+        "sensor's own, min(m_t(0), limiting magnitude) of its slew Monte Carlo, as in its "
+        "datasheet).",
     ),
 ]
 NMinOpt = Annotated[
@@ -163,15 +166,15 @@ def check_rates_deg_s(values: list[float], option: str) -> np.ndarray:
     return rates * DEG
 
 
-def check_max_mag(max_mag: float) -> float:
-    """Return ``--max-mag`` (magnitude), checked: not NaN, not -inf.
+def check_max_mag(max_mag: float | None) -> float | None:
+    """Return ``--max-mag`` (magnitude), checked: not NaN, not -inf (None: the sensor's own).
 
     Raises
     ------
     InputError
         Naming ``--max-mag`` and its value.
     """
-    if math.isnan(max_mag) or max_mag == -math.inf:
+    if max_mag is not None and (math.isnan(max_mag) or max_mag == -math.inf):
         raise InputError(f"magnitude limit (--max-mag) must be finite, got {max_mag!r}")
     return max_mag
 
@@ -249,7 +252,7 @@ def setup_analysis(
     *,
     fov: str,
     half_fov_deg: float | None,
-    max_mag: float,
+    max_mag: float | None,
     n_orientations: int,
     roll_deg: float | None,
     seed: int,
@@ -263,7 +266,8 @@ def setup_analysis(
     sensor, catalog : str
         ``--sensor`` and ``--catalog``.
     fov, half_fov_deg, max_mag, n_orientations, roll_deg, seed
-        The options of the same names (degrees as given), checked here.
+        The options of the same names (degrees as given), checked here; ``max_mag`` None is
+        the sensor's own static threshold (:func:`sensor_threshold`).
     progress : callable, optional
         ``progress(label, done, total)``.
     band : str
@@ -280,6 +284,8 @@ def setup_analysis(
     sens = load_sensor(sensor)
     field = field_of_view_option(sens, fov, half_fov_deg)
     cat = load_catalog(catalog)
+    if max_mag is None:  # the sensor's own threshold at rest, as its datasheet computes it
+        max_mag = sensor_threshold(sens, seed=seed, progress=progress)[1]
     with as_options():
         analysis = AvailabilityAnalysis.from_catalog(
             cat,
@@ -294,16 +300,20 @@ def setup_analysis(
     return sens, cat, analysis
 
 
-def threshold_curve_option(
+def sensor_threshold(
     sens,
     *,
-    model: str,
-    n_trials: int,
-    seed: int,
-    tolerance_json: Path | None,
-    progress: Callable[[str, int, int], None] | None,
+    model: str = "reed",
+    n_trials: int = 20,
+    seed: int = 0,
+    tolerance_json: Path | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
 ):
-    """Return m_t(w) from a saved tolerance JSON, or from the slew Monte Carlo.
+    """Return the sensor's m_t(w) and its static threshold, from a saved curve or the sensor.
+
+    Without ``tolerance_json`` the slew Monte Carlo runs on the sensor's own grid
+    (:func:`starsense.analysis.sensor_detection.sensor_detection`: magnitudes up to just past its
+    limit, rates it can hold), the run its datasheet makes for the same model, trials and seed.
 
     Parameters
     ----------
@@ -322,7 +332,14 @@ def threshold_curve_option(
 
     Returns
     -------
-    ThresholdCurve
+    curve : ThresholdCurve
+    static_mag : float
+        The threshold at rest, V: ``min(m_t(0), limit)`` (a saved curve: its ``m_t(0)``).
+
+    Raises
+    ------
+    InputError
+        A bad option, or a sensor that detects no star even at rest.
     """
     if tolerance_json is not None:
         try:
@@ -333,22 +350,53 @@ def threshold_curve_option(
             raise InputError(f"--tolerance-json {tolerance_json}: not valid JSON ({exc})") from None
         if not isinstance(data, dict):
             raise InputError(f"--tolerance-json {tolerance_json}: expected a JSON object")
-        return ThresholdCurve.from_tolerance_dict(data, f"--tolerance-json {tolerance_json}")
+        curve = ThresholdCurve.from_tolerance_dict(data, f"--tolerance-json {tolerance_json}")
+        return curve, float(curve(np.array([0.0]))[0])
     if model not in ("reed", "liebe"):
         raise InputError(f"--model must be 'reed' or 'liebe', got {model!r}")
     if isinstance(n_trials, bool) or n_trials < 1:
         raise InputError(f"--trials = {n_trials} is out of range; must be an integer >= 1")
-
-    result = simulate_slew(
+    det = sensor_detection(
         sens,
         model=model,
         n_trials=n_trials,
         rng=seed,
         progress=None
         if progress is None
-        else (lambda done, total: progress(f"slew Monte Carlo ({model})", done, total)),
+        else (lambda label: progress(f"slew Monte Carlo ({model}): {label}", 1, 1)),
     )
-    return ThresholdCurve.from_slew(result)
+    if det.curve is None:
+        raise InputError(
+            f"{sens.name} detects no star at rest, not even of magnitude -2: nothing is available"
+        )
+    return det.curve, det.static_mag
+
+
+def threshold_curve_option(
+    sens,
+    *,
+    model: str,
+    n_trials: int,
+    seed: int,
+    tolerance_json: Path | None,
+    progress: Callable[[str, int, int], None] | None,
+):
+    """Return m_t(w) from a saved tolerance JSON, or from the sensor's slew Monte Carlo.
+
+    The curve of :func:`sensor_threshold` (same parameters).
+
+    Returns
+    -------
+    ThresholdCurve
+    """
+    return sensor_threshold(
+        sens,
+        model=model,
+        n_trials=n_trials,
+        seed=seed,
+        tolerance_json=tolerance_json,
+        progress=progress,
+    )[0]
 
 
 def maps_dir(maps: Path) -> Path:

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import contextlib
-import json
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from starsense._io import atomic_write, check_output
+from starsense._io import atomic_write, check_output, json_text
 from starsense.analysis.centroid_trials import centroid_trials
 from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
 from starsense.catalog import load_catalog
@@ -31,7 +31,7 @@ from starsense.scale import dask_client
 from starsense.sensor import load_sensor
 from starsense.units import DEG
 
-__all__ = ["datasheet", "datasheet_lines"]
+__all__ = ["datasheet", "datasheet_lines", "safe_stem"]
 
 
 def _f(value, fmt: str = ".2f", none: str = "n/a") -> str:
@@ -113,15 +113,44 @@ def _compare_lines(comparison) -> list[str]:
     return out
 
 
-def _write_out(out: Path, sheet, payload: dict) -> list[str]:
-    """Write datasheet.json and the NEA sky map into ``out``; return the paths."""
+def safe_stem(name: str, taken: set[str] | None = None) -> str:
+    """Return a file-name stem made from a sensor's ``name``, safe to join to any folder.
+
+    Every character but letters, digits, ``.``, ``_`` and ``-`` becomes ``_``; leading dots are
+    dropped (no ``..``, no hidden file); an empty result is ``sensor``. A stem already in
+    ``taken`` gets ``-2``, ``-3``, ... (two sensors of one name write two files); the stem
+    returned is added to ``taken``.
+
+    Parameters
+    ----------
+    name : str
+        The sensor's name (free text from its TOML).
+    taken : set of str, optional
+        Stems already used in this run (updated).
+
+    Returns
+    -------
+    str
+    """
+    stem = re.sub(r"[^A-Za-z0-9._-]", "_", name).lstrip(".") or "sensor"
+    if taken is None:
+        return stem
+    out, k = stem, 2
+    while out in taken:
+        out, k = f"{stem}-{k}", k + 1
+    taken.add(out)
+    return out
+
+
+def _write_out(out: Path, sheet, payload: dict, stem: str) -> list[str]:
+    """Write ``{stem}_datasheet.json`` and the NEA sky map into ``out``; return the paths."""
     out.mkdir(parents=True, exist_ok=True)
-    name = payload["sensor"]
-    path = out / f"{name}_datasheet.json"
-    atomic_write(path, json.dumps(payload, indent=1).encode())
+    path = out / f"{stem}_datasheet.json"
+    with atomic_write(path) as fh:
+        fh.write(json_text(payload, indent=1))
     written = [str(path)]
     if sheet.boresights is not None:
-        written.append(str(save_png(nea_sky_figure(sheet), out / f"{name}_nea_sky.png")))
+        written.append(str(save_png(nea_sky_figure(sheet), out / f"{stem}_nea_sky.png")))
     return written
 
 
@@ -197,8 +226,9 @@ def datasheet(
     payloads = [s.to_dict() for s in sheets]
     figures = []
     if out is not None:
+        taken: set[str] = set()
         for s, p in zip(sheets, payloads, strict=True):
-            figures += _write_out(Path(out), s, p)
+            figures += _write_out(Path(out), s, p, safe_stem(p["sensor"], taken))
     if compare:
         comparison = Comparison.from_sheets(sheets)
         payload = {"sensors": payloads, "rows": [r.to_dict() for r in comparison.rows]}

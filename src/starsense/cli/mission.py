@@ -36,9 +36,10 @@ from starsense.cli.availability_options import (
     NMinOpt,
     ToleranceOpt,
     TrialsOpt,
+    check_max_mag,
     check_n_min,
     field_of_view_option,
-    threshold_curve_option,
+    sensor_threshold,
 )
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, option_float, progress_bar
 from starsense.errors import InputError
@@ -77,6 +78,7 @@ def _orbit(orbit: str | None, tle: Path | None, start: str | None):
 
 
 def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolerance_json, bar):
+    """Return the heads and the faintest static threshold among them (V)."""
     if not specs:
         raise InputError("give at least one head: --heads st16[@qx,qy,qz,qw] ...")
     parsed, seen = [], {}
@@ -86,8 +88,8 @@ def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolera
         label = label if seen[label] == 1 else f"{label}#{seen[label]}"
         parsed.append((name, label, {} if mounting is None else {"mounting": mounting}))
     sensors = {name: load_sensor(name) for name, _, _ in parsed}
-    curves = {
-        name: threshold_curve_option(
+    thresholds = {
+        name: sensor_threshold(
             sens,
             model=model,
             n_trials=trials,
@@ -97,16 +99,18 @@ def _heads(specs: list[str], fov: str, half_fov_deg, model, trials, seed, tolera
         )
         for name, sens in sensors.items()
     }
-    return [
+    heads = [
         Head(
             label,
             field_of_view_option(sensors[name], fov, half_fov_deg),
-            curves[name],
+            thresholds[name][0],
             exclusion=sensors[name].exclusion,
             **kwargs,
         )
         for name, label, kwargs in parsed
     ]
+    # the catalogue cut every head needs: the faintest static threshold of the heads
+    return heads, max(rest for _, rest in thresholds.values())
 
 
 def mission(
@@ -121,9 +125,9 @@ def mission(
     duration_h: Annotated[float, typer.Option("--duration-h", help="Span, hours.")] = 24.0,
     step_s: Annotated[float, typer.Option("--step-s", help="Time step, seconds.")] = 1.0,
     catalog: CatalogOpt = "hipparcos",
-    max_mag: MaxMagOpt = 5.75,
+    max_mag: MaxMagOpt = None,
     n_min: NMinOpt = 3,
-    fov: FovOpt = "circular",
+    fov: FovOpt = "rectangular",
     half_fov_deg: HalfFovOpt = None,
     model: ModelOpt = "reed",
     trials: TrialsOpt = 20,
@@ -134,6 +138,7 @@ def mission(
 ) -> None:
     """Availability along a mission: orbit, attitude profile, bright bodies, several heads."""
     check_n_min(n_min)
+    check_max_mag(max_mag)
     hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
     n_steps = math.ceil(hours * 3600.0 / step - 1e-9)
@@ -152,7 +157,10 @@ def mission(
         # the orbit and attitude first: their faults show before the heads' slew Monte Carlo
         grid = TimeGrid.span(t0, hours * 3600.0, step)
         geo = mission_geometry(grid, orb, profile)
-        head_list = _heads(specs, fov, half_fov_deg, model, trials, seed, tolerance_json, bar)
+        head_list, rest_mag = _heads(
+            specs, fov, half_fov_deg, model, trials, seed, tolerance_json, bar
+        )
+        max_mag = rest_mag if max_mag is None else max_mag
         vectors, mags = catalog_stars(load_catalog(catalog), max_mag)
         meta = {
             "start": t0.isot,

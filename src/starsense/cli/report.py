@@ -10,8 +10,6 @@ from rich.console import Console
 
 from starsense.cli.common import (
     CatalogOpt,
-    DiameterOpt,
-    ExposureOpt,
     SensorOpt,
     option_float,
     option_int,
@@ -27,8 +25,14 @@ def report(
         Path, typer.Option("--out", help="Output directory.", callback=output_dir)
     ] = Path("report"),
     catalog: CatalogOpt = "hipparcos",
-    diameter_m: DiameterOpt = 0.1,
-    exposure_s: ExposureOpt = 0.01,
+    diameter_m: Annotated[
+        float | None,
+        typer.Option("--diameter-m", help="Aperture D of the limit, m (default: the sensor's)."),
+    ] = None,
+    exposure_s: Annotated[
+        float | None,
+        typer.Option("--exposure-s", help="Exposure t of the limit, s (default: the sensor's)."),
+    ] = None,
     sensors: Annotated[
         Path | None,
         typer.Option("--sensors", help="CSV of real sensors to plot against the limit (Fig. 8)."),
@@ -46,11 +50,16 @@ def report(
     ] = 40,
 ) -> None:
     """Write the performance report (HTML + PNG figures) to --out: the sensor's datasheet first."""
-    option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
-    option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
+    if diameter_m is not None:
+        option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
+    if exposure_s is not None:
+        option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     option_int(slew_trials, "--slew-trials", 1)
     option_int(trials, "--trials", 1)
     sens = load_sensor(sensor)
+    # the limit of the sensor given (its aperture and exposure) unless told otherwise
+    diameter_m = sens.optics.aperture_m if diameter_m is None else diameter_m
+    exposure_s = sens.exposure_s if exposure_s is None else exposure_s
 
     console = Console(stderr=True)
     with console.status("building report") as status:

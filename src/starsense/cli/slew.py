@@ -10,6 +10,7 @@ import typer
 
 from starsense import plotting
 from starsense._validate import finite_float
+from starsense.analysis.sensor_detection import sensor_grids
 from starsense.analysis.slew import simulate_slew
 from starsense.analysis.slew_study import (
     DEFAULT_QE_MEANS,
@@ -56,6 +57,12 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")
     rate_values = _rates_rad_s(rates)
+    if mags is None or rate_values is None:  # the sensor's own grids, as its datasheet uses
+        own_mags, own_rates = sensor_grids(
+            sensor, model=model, n_trials=trials, rng=seed, colour_index=colour_index
+        )
+        mags = own_mags if mags is None else mags
+        rate_values = own_rates if rate_values is None else rate_values
     with progress_bar() as bar:
         result = simulate_slew(
             sensor,
@@ -73,11 +80,19 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
 
 MagsOpt = Annotated[
     str | None,
-    typer.Option("--magnitudes", help="Comma-separated magnitudes (default 1.25..6 by 0.25)."),
+    typer.Option(
+        "--magnitudes",
+        help="Comma-separated magnitudes (default: 20 steps of 0.25 ending just past the "
+        "sensor's limit).",
+    ),
 ]
 RatesOpt = Annotated[
     str | None,
-    typer.Option("--rates-deg-s", help="Comma-separated increasing rates (default 0..10, 40)."),
+    typer.Option(
+        "--rates-deg-s",
+        help="Comma-separated increasing rates (default 0..10 in 40, or less when the "
+        "detector cannot hold the streak).",
+    ),
 ]
 TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo trials per point.")]
 CriterionOpt = Annotated[

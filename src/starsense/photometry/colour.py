@@ -11,6 +11,7 @@ The paper's systems, the curves of its Fig. 7, are in :data:`COLOUR_SYSTEMS`.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 
@@ -199,3 +200,92 @@ def fit_star(magnitude: float, colour_index: float, colour: str = "B-V") -> tupl
             raise InputError(f"{name} must be a finite number, got {value!r}")
     t, c = ColourModel(colour).fit(magnitude, colour_index)
     return float(t), float(c)
+
+
+# -- Gaia G, BP-RP -> Johnson V, B-V -------------------------------------------------------------
+
+#: G - V against BP - RP for Gaia (E)DR3 photometry: Riello et al. 2021, A&A 649, A3,
+#: Table C.2 (rms 0.0277 mag; valid -0.5 < BP-RP < 5.0), coefficients of 1, c, c^2, c^3
+RIELLO2021_G_MINUS_V = (-0.02704, 0.01424, -0.2156, 0.01426)
+RIELLO2021_BP_RP_RANGE = (-0.5, 5.0)
+#: G - V against Johnson B - V: Evans et al. 2018, A&A 616, A4, Table C.2 (rms 0.06285 mag),
+#: coefficients of 1, x, x^2, x^3; and G - V against BP - RP from the same table (rms 0.045858
+#: mag, valid -0.5 < BP-RP < 2.75): B - V is the first inverted at the second's G - V
+EVANS2018_G_MINUS_V_BV = (-0.02907, -0.02385, -0.2297, -0.001768)
+EVANS2018_G_MINUS_V_BP_RP = (-0.01760, -0.006860, -0.1732)
+#: the colour assumed for a star without BP - RP: the median BP - RP of Gaia stars to G = 10
+#: is about 1.0 (F-G dwarfs and K giants); V is then G + 0.21, uncertain by ~0.3 mag
+DEFAULT_BP_RP = 1.0
+
+
+def gaia_to_johnson(g, bp_rp):
+    """Return Johnson V and B - V from Gaia G and BP - RP (published photometric relations).
+
+    V = G - (G - V)(BP - RP) with Riello et al. 2021, Table C.2 (Gaia EDR3/DR3; rms 0.03 mag).
+    B - V solves Evans et al. 2018, Table C.2 (G - V as a cubic in B - V) for the G - V that
+    the same table gives from BP - RP, on the cubic's monotonic branch B - V in [-0.05, 2.5]
+    (rms ~0.1 mag; stars bluer than BP - RP ~ 0.1 get -0.05). Colours outside Riello's range
+    -0.5 ... 5 are clipped to it; a missing BP - RP (NaN) takes :data:`DEFAULT_BP_RP`.
+
+    Parameters
+    ----------
+    g : array_like (N,)
+        Gaia G, mag.
+    bp_rp : array_like (N,)
+        Gaia BP - RP, mag (NaN: unknown).
+
+    Returns
+    -------
+    v, b_v : ndarray (N,)
+        Johnson V and B - V, mag.
+    """
+    g = np.asarray(g, dtype=float)
+    c = np.asarray(bp_rp, dtype=float)
+    c = np.clip(np.where(np.isfinite(c), c, DEFAULT_BP_RP), *RIELLO2021_BP_RP_RANGE)
+    g_minus_v = np.polynomial.polynomial.polyval(c, RIELLO2021_G_MINUS_V)
+    gv_evans = np.polynomial.polynomial.polyval(np.minimum(c, 2.75), EVANS2018_G_MINUS_V_BP_RP)
+    # Evans's cubic decreases monotonically on [-0.05, 2.5]: invert it on a fine table
+    bv_grid = np.linspace(-0.05, 2.5, 2551)
+    gv_grid = np.polynomial.polynomial.polyval(bv_grid, EVANS2018_G_MINUS_V_BV)
+    b_v = np.interp(-gv_evans, -gv_grid, bv_grid)  # np.interp needs increasing abscissae
+    return g - g_minus_v, b_v
+
+
+def with_johnson_from_gaia(catalog):
+    """Return ``catalog`` with V and B - V from its G and BP - RP, and a note saying how.
+
+    A catalogue that has V already, or no G, is returned as is (note None). Stars without
+    BP - RP take :data:`DEFAULT_BP_RP` (the note counts them).
+
+    Parameters
+    ----------
+    catalog : Catalog
+        A Gaia catalogue (band ``G``, colour ``BP-RP`` if known).
+
+    Returns
+    -------
+    catalog : Catalog
+        With ``mags["V"]`` and ``colours["B-V"]`` (:func:`gaia_to_johnson`).
+    note : str or None
+        What was done, for the warnings of an analysis.
+    """
+    if "V" in catalog.mags or "G" not in catalog.mags:
+        return catalog, None
+    g = catalog.mags["G"]
+    bp_rp = catalog.colours.get("BP-RP", np.full(len(g), np.nan))
+    v, b_v = gaia_to_johnson(g, bp_rp)
+    n_missing = int(np.sum(~np.isfinite(bp_rp) & np.isfinite(g)))
+    note = (
+        f"V and B-V of {catalog.name} from G and BP-RP (Riello et al. 2021, Table C.2: rms 0.03 "
+        "mag; Evans et al. 2018, Table C.2)"
+    )
+    if n_missing:
+        note += (
+            f"; {n_missing:,} of {len(g):,} stars have no BP-RP and take BP-RP = "
+            f"{DEFAULT_BP_RP:g} (V = G + {float(gaia_to_johnson(0.0, DEFAULT_BP_RP)[0]):.2f}, "
+            "uncertain by ~0.3 mag)"
+        )
+    out = dataclasses.replace(
+        catalog, mags={**catalog.mags, "V": v}, colours={**catalog.colours, "B-V": b_v}
+    )
+    return out, note

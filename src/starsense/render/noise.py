@@ -80,6 +80,27 @@ def quantise(expected_e, sensor) -> np.ndarray:
     return _to_counts(work, det)
 
 
+def _non_uniformity(e, work, det, te: float, gen):
+    """Apply the detector's fixed-pattern terms: PRNU, DSNU and hot pixels.
+
+    Each frame draws its own pattern (a star lands on other pixels in every frame, so over a
+    Monte Carlo a fresh draw has the statistics of one fixed pattern): the expected signal is
+    multiplied by ``1 + prnu N(0, 1)`` per pixel (clipped at 0), the read-out gets
+    ``dsnu N(0, 1)`` electrons per pixel, and a fraction of the pixels gets the hot pixels'
+    dark charge (its mean; the shot noise follows with the signal's). Draws happen only for
+    non-zero terms, after the read noise, so a detector without them renders as before.
+    """
+    if det.prnu_fraction > 0:
+        gain = 1.0 + det.prnu_fraction * gen.standard_normal(e.shape)
+        e = np.asarray(e, dtype=np.float64) * np.maximum(gain, 0.0)
+    if det.dsnu_e > 0:
+        work += (det.dsnu_e * gen.standard_normal(e.shape)).astype(work.dtype)
+    if det.hot_pixel_fraction > 0:
+        hot = gen.random(e.shape) < det.hot_pixel_fraction
+        e = np.where(hot, np.asarray(e, dtype=np.float64) + det.hot_pixel_e_s * te, e)
+    return e, work
+
+
 def apply_noise(expected_e, sensor, *, rng=None, exposure_s: float | None = None) -> np.ndarray:
     """Noisy counts from expected electrons: shot, dark, read noise, gain, bias, ADC.
 
@@ -115,6 +136,7 @@ def apply_noise(expected_e, sensor, *, rng=None, exposure_s: float | None = None
         work *= det.read_noise_e
     else:
         work = np.zeros(e.shape, dtype=wdt)
+    e, work = _non_uniformity(e, work, det, te, gen)
     dark = det.dark_current_e_s * te
     if dark > 0:
         lam = np.asarray(e, dtype=np.float64) + dark

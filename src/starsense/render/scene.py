@@ -25,6 +25,7 @@ for another date.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 
@@ -266,13 +267,28 @@ def _check_render_options(attitude, model: str, method: str, max_mag) -> None:
         raise InputError(f"max_mag must be a number or None, got {max_mag!r}")
 
 
+def _residual(sensor, tracks: Tracks, gen) -> Tracks:
+    """Displace each star by the distortion calibration's residual (the truth keeps the ideal).
+
+    ``optics.distortion_residual_px`` rms per axis, independent per star, the whole track moved
+    together; no draw when it is 0.
+    """
+    r = sensor.optics.distortion_residual_px
+    if r <= 0.0 or not len(tracks):
+        return tracks
+    shift = r * gen.standard_normal((len(tracks), 2))
+    return dataclasses.replace(
+        tracks, vertices=tuple(v + d for v, d in zip(tracks.vertices, shift, strict=True))
+    )
+
+
 def _field_stars(sensor, attitude, catalog, w, te, mags_all, ci_all, max_mag):
     """Step 1: catalogue stars that can reach the detector, with a magnitude (and colour).
 
     The cone is the field, the sweep in half an exposure, and the PSF margin. Returns the
     catalogue indices, magnitudes and colour indices (NaN without a colour model).
     """
-    sigma = _sigma(sensor)
+    sigma = max(_sigma(sensor), sensor.optics.psf_sigma_corner_px)
     boresight = attitude.inv().apply([0.0, 0.0, 1.0])
     margin = 2.0 * (8.0 * sigma + 2.0) / sensor.focal_length_px
     radius = _field_radius_rad(sensor) + 0.5 * float(np.linalg.norm(w)) * te + margin
@@ -308,8 +324,10 @@ def _expected_image(sensor, tracks: Tracks, electrons: np.ndarray, method: str):
     ``tracks``, electrons on the detector, whether the whole track is on it, and segments.
     """
     det = sensor.detector
-    sigma = _sigma(sensor)
-    pads = pad_sigma_for(electrons, sigma) * sigma
+    mid = tracks.mid if len(tracks) else np.zeros((0, 2))
+    sigmas = sensor.psf_sigma_at(mid[:, 0], mid[:, 1])  # the field-dependent PSF, per star
+    sigmas = np.where(np.isfinite(sigmas), sigmas, _sigma(sensor))
+    pads = pad_sigma_for(electrons, sigmas) * sigmas
     expected = np.zeros((det.rows, det.columns), dtype=np.float32)
     rendered, on_det_e, on_det, nseg = [], [], [], []
     for i in range(electrons.size):
@@ -326,9 +344,9 @@ def _expected_image(sensor, tracks: Tracks, electrons: np.ndarray, method: str):
         stamp, _ = polyline_expected(
             xs,
             ys,
-            sigma_px=sigma,
+            sigma_px=float(sigmas[i]),
             electrons=electrons[i],
-            pad_sigma=pads[i] / sigma,
+            pad_sigma=pads[i] / sigmas[i],
             box=box,
             method=method,
         )
@@ -446,7 +464,7 @@ def render_frame(
         raise InputError("observer_velocity_m_s needs obs_time")
     vectors = rotation.apply(sky) if idx.size else np.zeros((0, 3))
     tracks = star_tracks(sensor, vectors, rate_rad_s=w, exposure_s=te)
-    expected, rendered = _expected_image(sensor, tracks, electrons, method)
+    expected, rendered = _expected_image(sensor, _residual(sensor, tracks, gen), electrons, method)
     truth_stars = _star_truth(catalog, stars, tracks, rendered, model)
 
     # 4. detector

@@ -23,6 +23,8 @@ from starsense.analysis.availability import (
     describe_fov,
     implied_threshold,
 )
+from starsense.analysis.datasheet import DatasheetSettings
+from starsense.analysis.datasheet.predict import DEFAULT_RATES_RAD_S
 from starsense.analysis.slew import simulate_slew
 from starsense.geometry.fov import CircularFov
 from starsense.plotting.availability import (
@@ -38,6 +40,10 @@ from starsense.report.section import ReportContext, Section
 from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = ["availability_section"]
+
+#: the datasheet's boresights and rates, so the sensor's own numbers are its datasheet's
+SHEET_ORIENTATIONS = DatasheetSettings().n_orientations
+SHEET_RATES_RAD_S = DEFAULT_RATES_RAD_S
 
 #: slew rates of Fig. 11, deg/s
 DYNAMIC_RATES_DEG_S = np.round(np.arange(0.0, 10.0001, 0.25), 6)
@@ -129,13 +135,6 @@ def _static_part(ctx: ReportContext, parts: _Parts, band: str, intro: str) -> st
     parts.figures.append(ctx.save_figure(static_curve_figure(static), "availability_fig6_mt.png"))
     parts.data["static"] = static.to_dict()
     parts.data["fov"] = describe_fov(parts.analysis.fov)
-    parts.summary.append(
-        (
-            f"{esc(name)} static availability (N<sub>min</sub> = 3)",
-            f"{100 * static.availability:.2f} % ({static.n_stars:,} stars, paper &gt; "
-            f"{100 * paper.STATIC_AVAILABILITY_N3:.1f} %)",
-        )
-    )
     return _static_html(static, parts.figures[-3:], intro)
 
 
@@ -262,16 +261,6 @@ def _dynamic_part(ctx: ReportContext, parts: _Parts, curves: list[ThresholdCurve
                 f"≈ {100 * p3:.0f}",
             ]
         )
-    j1 = int(np.argmin(np.abs(reed.rates_deg_s - 1.0)))
-    p2, p3 = paper.FIG11_REED[1.0]
-    parts.summary.append(
-        (
-            f"{esc(name)} spatial dynamic availability at 1 deg/s, Reed",
-            f"{percent(reed.by_n_min[3][j1])} % (N<sub>min</sub> = 3), "
-            f"{percent(reed.by_n_min[2][j1])} % (N<sub>min</sub> = 2); paper ≈ {100 * p3:.0f} / "
-            f"{100 * p2:.0f} %",
-        )
-    )
     figures = parts.figures
     return f"""
 {
@@ -315,6 +304,80 @@ def _dynamic_part(ctx: ReportContext, parts: _Parts, curves: list[ThresholdCurve
 """
 
 
+def _own_part(ctx: ReportContext, parts: _Parts) -> str:
+    """Return the sensor's own availability: its field, limit and m_t(w), as its datasheet.
+
+    The datasheet's analysis (:func:`starsense.analysis.datasheet.build_datasheet`): the
+    detector's rectangular field with a random roll per boresight, the catalogue's V stars to
+    the sensor's limiting magnitude, its Reed m_t(w), the datasheet's boresights and seed, so
+    the numbers are the datasheet's.
+    """
+    sensor = ctx.sensor
+    det = ctx.detection()
+    if det.curve is None:
+        return f"<p>{esc(sensor.name)} detects no star at rest: nothing is available.</p>"
+    if ctx.catalog is not None:
+        analysis = AvailabilityAnalysis.from_catalog(
+            ctx.catalog,
+            sensor.fov(),
+            det.limit_mag,
+            band="V",
+            n_orientations=SHEET_ORIENTATIONS,
+            roll_rad=None,
+            rng=ctx.seed,
+        )
+    else:
+        stars = ctx.primary
+        analysis = AvailabilityAnalysis(
+            stars.vectors,
+            stars.magnitude,
+            sensor.fov(),
+            max_mag=det.limit_mag,
+            n_orientations=SHEET_ORIENTATIONS,
+            roll_rad=None,
+            rng=ctx.seed,
+            catalog=ctx.catalog_name,
+        )
+    dyn = analysis.dynamic(det.curve, SHEET_RATES_RAD_S, N_MIN_LOST_IN_SPACE)
+    lis, trk = dyn.by_n_min[N_MIN_LOST_IN_SPACE], dyn.by_n_min[N_MIN_TRACKING]
+    parts.data["sensor"] = {
+        "rates_deg_s": dyn.rates_deg_s.tolist(),
+        "lost_in_space": [float(x) for x in lis],
+        "tracking": [float(x) for x in trk],
+        "threshold_mag": [float(x) for x in dyn.threshold_mag],
+        "limiting_magnitude": det.limit_mag,
+        "n_orientations": analysis.n_orientations,
+        "fov": describe_fov(analysis.fov),
+    }
+    j1 = int(np.argmin(np.abs(dyn.rates_deg_s - 1.0)))
+    parts.summary += [
+        (
+            f"{esc(sensor.name)} static availability (its field, V &le; "
+            f"{dyn.threshold_mag[0]:.2f})",
+            f"{100 * lis[0]:.2f} % lost in space (N<sub>min</sub> = 3), {100 * trk[0]:.2f} % "
+            "tracking (N<sub>min</sub> = 2)",
+        ),
+        (
+            f"{esc(sensor.name)} availability at {dyn.rates_deg_s[j1]:g} deg/s (Reed)",
+            f"{percent(lis[j1])} % lost in space, {percent(trk[j1])} % tracking",
+        ),
+    ]
+    rows = [
+        [f"{w:g}", f"{m:.2f}", percent(a), percent(t)]
+        for w, m, a, t in zip(dyn.rates_deg_s, dyn.threshold_mag, lis, trk, strict=True)
+    ]
+    head = ["rate (deg/s)", "m<sub>t</sub>", "lost in space N&ge;3 (%)", "tracking N&ge;2 (%)"]
+    return f"""
+<h3>{esc(sensor.name)}: its own field and threshold</h3>
+<p>The sensor's rectangular field ({esc(describe_fov(analysis.fov))}), a random roll per
+boresight, {analysis.n_orientations:,} boresights, the catalogue's stars to its limiting
+magnitude V = {det.limit_mag:.2f} (detected in half the renders at rest) and its Reed
+tolerable-slew curve: the numbers of its datasheet.</p>
+{table(head, rows, classes=["num"] * 4)}
+<h3>The paper's conditions</h3>
+"""
+
+
 def availability_section(ctx: ReportContext) -> Section:
     """Build the section: spatial static, spatial dynamic and along-track availability."""
     sensor = ctx.sensor
@@ -332,7 +395,7 @@ def availability_section(ctx: ReportContext) -> Section:
         "distribution). The stars in each field are found once and their magnitudes\nsorted, "
         "so availability at any threshold is a lookup."
     )
-    html = [_static_part(ctx, parts, band, intro)]
+    html = [_own_part(ctx, parts), _static_part(ctx, parts, band, intro)]
     curves: list[ThresholdCurve] = []
     for model in ("reed", "liebe"):
         ctx.progress(f"availability: tolerable slew curve, {model} model")

@@ -76,8 +76,8 @@ def build_report(
     out_dir,
     *,
     catalog_spec: str = "hipparcos",
-    diameter_m: float = DEFAULT_DIAMETER_M,
-    exposure_s: float = DEFAULT_EXPOSURE_S,
+    diameter_m: float | None = None,
+    exposure_s: float | None = None,
     sensors_table=None,
     progress: Callable[[str], None] | None = None,
     catalog=None,
@@ -97,8 +97,9 @@ def build_report(
         non-empty directory is refused (InputError) rather than overwritten.
     catalog_spec : str
         What to pass to :func:`starsense.catalog.load_catalog` (default: bundled Hipparcos hip2).
-    diameter_m, exposure_s : float
-        The user's sensor, aperture D (m) and exposure t (s): its ideal limit goes in the summary.
+    diameter_m, exposure_s : float, optional
+        Aperture D (m) and exposure t (s) of the limit in the summary (default: the sensor's;
+        without a sensor the paper's Table 2 ideal sensor, D = 0.1 m, t = 0.01 s).
     sensors_table : str or Path or None
         CSV of real sensors for the Fig. 8 comparison (see :func:`load_sensor_table`).
     progress : callable(str) or None
@@ -126,6 +127,10 @@ def build_report(
     """
     t0 = time.perf_counter()
     say = progress or _noop
+    if diameter_m is None:
+        diameter_m = DEFAULT_DIAMETER_M if sensor is None else sensor.optics.aperture_m
+    if exposure_s is None:
+        exposure_s = DEFAULT_EXPOSURE_S if sensor is None else sensor.exposure_s
     check_aperture(diameter_m, exposure_s)
     out_dir = check_output(out_dir, "report directory", directory=True).resolve()
     _check_replaceable(out_dir)
@@ -269,8 +274,10 @@ def _write_index(work: Path, ctx: ReportContext, sections: Sequence[Section], el
             f"{fits}",
         )
     ]
-    for s in sections:
-        summary.extend(s.summary)
+    for s in sections:  # the sensor given; the papers' sensors stay in their appendix
+        summary.extend(
+            row for row in s.summary if s.key not in APPENDIX_KEYS or "This sensor" in row[0]
+        )
     parts = []
     for s in sections:
         if s.key == APPENDIX_KEYS[0]:

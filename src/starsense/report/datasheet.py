@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import numpy as np
-
+from starsense.analysis.availability.threshold import ThresholdCurve
 from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
-from starsense.analysis.slew import default_magnitudes, default_rates_rad_s
+from starsense.analysis.sensor_detection import SensorDetection
 from starsense.plotting.datasheet import nea_sky_figure
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
@@ -91,17 +90,17 @@ def _main_rows(d: dict) -> list[list[str]]:
     return rows
 
 
-def _share_slew(ctx: ReportContext, slew) -> None:
-    """Hand the datasheet's slew run to the slew section when it is the run that section makes."""
-    if (
-        slew is not None
-        and slew.model == "reed"
-        and slew.n_trials == ctx.slew_trials
-        and slew.seed == ctx.seed
-        and np.array_equal(slew.magnitudes, default_magnitudes())
-        and np.array_equal(slew.rates_rad_s, default_rates_rad_s())
-    ):
-        ctx.slew_results["reed"] = slew
+def _share_slew(ctx: ReportContext, sheet) -> None:
+    """Hand the datasheet's detection (limit, slew run, m_t(w)) to the later sections.
+
+    The datasheet ran :func:`~starsense.analysis.sensor_detection.sensor_detection` with the
+    Reed model and the report's trials and seed: the run :meth:`ReportContext.detection` makes.
+    """
+    if sheet.slew is not None and ctx.detection_cache is None:
+        ctx.detection_cache = SensorDetection(
+            sheet.limiting_magnitude, sheet.slew, ThresholdCurve.from_slew(sheet.slew)
+        )
+        ctx.slew_results.setdefault("reed", sheet.slew)
 
 
 def datasheet_section(ctx: ReportContext) -> Section:
@@ -118,7 +117,7 @@ def datasheet_section(ctx: ReportContext) -> Section:
         n_rate_trials=max(1, ctx.datasheet_trials // 2),
     )
     sheet = build_datasheet(sensor, ctx.catalog, settings=settings)
-    _share_slew(ctx, sheet.slew)
+    _share_slew(ctx, sheet)
     d = sheet.to_dict()
     if d.get("limiting_magnitude") is None:
         html = "".join(f"<p>{esc(w)}</p>" for w in d["warnings"])

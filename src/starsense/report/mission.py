@@ -2,8 +2,8 @@
 
 Dzamba & Enright 2014, Fig. 1, last row; :mod:`starsense.analysis.mission`. The heads are the
 report's sensor on the mountings the table lists; the threshold is the sensor's Reed
-tolerable-slew curve (the slew section's, reused), the stars the report's primary star set to
-the paper's catalogue cut.
+tolerable-slew curve on its own grid (:meth:`ReportContext.detection`, the datasheet's run), the
+stars the report's primary star set to the sensor's threshold at rest.
 """
 
 from __future__ import annotations
@@ -19,9 +19,8 @@ from starsense.analysis.mission import (
     parse_time,
 )
 from starsense.analysis.mission.specs import parse_attitude, parse_head, parse_orbit
-from starsense.analysis.slew import simulate_slew
+from starsense.errors import InputError
 from starsense.plotting.mission import mission_timeline_figure
-from starsense.references import dzamba2014 as paper
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
 
@@ -51,14 +50,13 @@ def _mission(ctx: ReportContext, plan) -> tuple:
     start = parse_time(plan.start, f"{where} start")
     orbit = parse_orbit(plan.orbit, start, f"{where} orbit")
     profile = parse_attitude(plan.attitude, f"{where} attitude")
-    slew = ctx.slew_results.get("reed") or simulate_slew(
-        sensor, model="reed", n_trials=ctx.slew_trials, rng=ctx.seed
-    )
-    curve = ThresholdCurve.from_slew(slew)
-    heads = _heads(ctx, plan, curve)
+    det = ctx.detection()  # the sensor's own limit and m_t(w), as in its datasheet
+    if det.curve is None:
+        raise InputError(f"{where}: {sensor.name} detects no star at rest")
+    heads = _heads(ctx, plan, det.curve)
     grid = TimeGrid.span(start, plan.duration_h * 3600.0, plan.step_s)
     stars = ctx.primary
-    keep = stars.magnitude <= paper.MAX_MAG
+    keep = stars.magnitude <= det.static_mag
     meta = {
         "start": start.isot,
         "orbit": orbit.label,
@@ -129,7 +127,8 @@ def mission_section(ctx: ReportContext) -> Section:
 {res.steps:,} steps of {plan.step_s:g} s from {esc(start.isot)} UTC. Heads: {esc(sensor.name)}
 on the mountings of its [mission] table; exclusion {
         esc(str(sensor.exclusion and sensor.exclusion.to_dict()))
-    }. Stars: {esc(ctx.catalog_name)} &le; {paper.MAX_MAG}; threshold
+    }. Stars: {esc(ctx.catalog_name)} &le; {ctx.detection().static_mag:.2f} (the sensor's
+threshold at rest); threshold
 m<sub>t</sub>(w) from the Reed tolerable-slew curve at each head's cross-boresight rate (mean
 {mean_rate:.3f} deg/s). A head has an attitude from the first step with 3 detected stars
 (lost-in-space) until fewer than 2 are detected.</p>

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from starsense.analysis.sensor_detection import SensorDetection, sensor_detection
 from starsense.catalog import Catalog
 from starsense.photometry.stars import BlackBodyStars
 from starsense.report.sensors import SensorSpec
@@ -78,6 +79,9 @@ class ReportContext:
     catalog : Catalog or None
         The catalogue the report was built from, as loaded (any ``--catalog`` spec); None when
         the report was given black-body stars alone. Sections that render frames need it.
+    detection_cache : SensorDetection or None
+        The sensor's detection (limit, slew run on its own grid, m_t(w)) once computed: see
+        :meth:`detection`.
     """
 
     work_dir: Path
@@ -95,11 +99,26 @@ class ReportContext:
     datasheet_trials: int = 40
     slew_results: dict = field(default_factory=dict)
     catalog: Catalog | None = None
+    detection_cache: SensorDetection | None = None
 
     @property
     def primary(self) -> BlackBodyStars:
         """The primary star set: the first black-body fit."""
         return next(iter(self.stars.values()))
+
+    def detection(self) -> SensorDetection:
+        """Return the sensor's detection (Reed model, the report's trials and seed), computed once.
+
+        The run its datasheet makes (:func:`starsense.analysis.sensor_detection.sensor_detection`),
+        so every section uses the sensor's own limit, slew grid and threshold curve.
+        """
+        if self.detection_cache is None:
+            self.detection_cache = sensor_detection(
+                self.sensor, model="reed", n_trials=self.slew_trials, rng=self.seed
+            )
+            if self.detection_cache.slew is not None:
+                self.slew_results.setdefault("reed", self.detection_cache.slew)
+        return self.detection_cache
 
     def save_figure(self, fig: Figure, name: str, dpi: int = 110) -> str:
         """Write ``fig`` as ``work_dir/name`` (PNG) and return ``name``."""

@@ -42,6 +42,15 @@ class Detector:
         ADC bits (1..32): counts saturate at 2^bits - 1.
     psf_sigma_px : float
         Standard deviation of the static Gaussian PSF, pixels.
+    prnu_fraction : float
+        Photo-response non-uniformity: rms pixel-to-pixel gain spread, a fraction (0.01 = 1 %).
+    dsnu_e : float
+        Dark-signal non-uniformity: rms pixel-to-pixel offset left after the dark frame is
+        subtracted, electrons.
+    hot_pixel_fraction : float
+        Fraction of the pixels that are hot (dark current ``hot_pixel_e_s``).
+    hot_pixel_e_s : float
+        Dark current of a hot pixel, electrons per second.
     """
 
     columns: int
@@ -58,6 +67,10 @@ class Detector:
     full_well_e: float = 1e5
     dark_current_e_s: float = 0.0
     bias_counts: float = 0.0
+    prnu_fraction: float = 0.0
+    dsnu_e: float = 0.0
+    hot_pixel_fraction: float = 0.0
+    hot_pixel_e_s: float = 1000.0
 
     def __post_init__(self) -> None:
         check_field("detector", "columns", self.columns, 1, 100_000, integer=True)
@@ -72,6 +85,10 @@ class Detector:
         check_field("detector", "full_well_e", self.full_well_e, 0, 1e9, lo_open=True)
         check_field("detector", "dark_current_e_s", self.dark_current_e_s, 0, 1e9)
         check_field("detector", "bias_counts", self.bias_counts, 0, 2.0**self.bit_depth - 1)
+        check_field("detector", "prnu_fraction", self.prnu_fraction, 0, 0.5)
+        check_field("detector", "dsnu_e", self.dsnu_e, 0, 1e4)
+        check_field("detector", "hot_pixel_fraction", self.hot_pixel_fraction, 0, 0.1)
+        check_field("detector", "hot_pixel_e_s", self.hot_pixel_e_s, 0, 1e9)
         self._check_spectrum()
 
     def _check_spectrum(self) -> None:

@@ -70,6 +70,37 @@ class DetectionThresholds:
             raise InputError(f"detection.connectivity must be 4 or 8, got {self.connectivity!r}")
 
 
+def _check_detection_fits_adc(logic: DetectionThresholds, det: Detector) -> None:
+    """Refuse a detection logic the detector's ADC cannot meet, or finer than one count.
+
+    Over the bias, a pixel gives at most ``2**bit_depth - 1 - bias_counts`` counts; a star at
+    most that in every pixel of the detector.
+    """
+    top = det.saturation_counts - det.bias_counts
+    if logic.lit_pixel_counts < 1.0:
+        raise InputError(
+            f"detection.lit_pixel_counts = {logic.lit_pixel_counts:g} is below one ADC count: "
+            "no count step is that fine (allowed 1 ... the ADC's top over the bias)"
+        )
+    if logic.lit_pixel_counts >= top:
+        raise InputError(
+            f"detection.lit_pixel_counts = {logic.lit_pixel_counts:g} counts: no pixel can "
+            f"exceed it: a {det.bit_depth}-bit ADC gives at most {top:g} counts over the bias "
+            f"({det.bias_counts:g})"
+        )
+    if 0.0 < logic.min_integrated_counts < 1.0:
+        raise InputError(
+            f"detection.min_integrated_counts = {logic.min_integrated_counts:g} is below one "
+            "ADC count (0 turns the check off)"
+        )
+    if logic.min_integrated_counts > top * det.columns * det.rows:
+        raise InputError(
+            f"detection.min_integrated_counts = {logic.min_integrated_counts:g} counts: more "
+            f"than the whole {det.columns} x {det.rows} detector can give at {top:g} counts a "
+            "pixel"
+        )
+
+
 @dataclass(frozen=True, kw_only=True)
 class Sensor:
     """A star sensor: optics, detector, exposure and detection logic.
@@ -141,6 +172,7 @@ class Sensor:
                     f"camera covers less than {MAX_FIELD_DEG:g} deg"
                 )
         self._check_distortion_fold()
+        _check_detection_fits_adc(self.detection, self.detector)
 
     def _check_distortion_fold(self) -> None:
         """Refuse distortion that folds back inside the detector (no direction for a pixel)."""
@@ -266,6 +298,30 @@ class Sensor:
         if exposure_s is None:
             return self.exposure_s
         return check_scalar(exposure_s, "exposure_s", 0.0, None, lo_open=True)
+
+    def psf_sigma_at(self, x_px, y_px) -> np.ndarray:
+        """Return the Gaussian PSF sigma at detector positions, px.
+
+        ``psf_sigma_px`` at the centre, ``optics.psf_sigma_corner_px`` in the corners (0: the
+        same everywhere), growing with the square of the distance from the centre.
+
+        Parameters
+        ----------
+        x_px, y_px : array_like (N,)
+            Column and row, px.
+
+        Returns
+        -------
+        ndarray (N,)
+        """
+        det = self.detector
+        s0, sc = det.psf_sigma_px, self.optics.psf_sigma_corner_px
+        x = np.asarray(x_px, dtype=float)
+        if sc <= 0.0 or sc == s0:
+            return np.full(x.shape, float(s0))
+        cx, cy = 0.5 * (det.columns - 1), 0.5 * (det.rows - 1)
+        r2 = ((x - cx) ** 2 + (np.asarray(y_px, dtype=float) - cy) ** 2) / (cx**2 + cy**2)
+        return s0 + (sc - s0) * np.minimum(r2, 1.0)
 
     def streak_length_px(self, rate_rad_s: float) -> float:
         """Length of a cross-axis streak, f tan(|w| t_e) / pitch (Dzamba & Enright eq. 1), px.

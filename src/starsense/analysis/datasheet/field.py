@@ -21,7 +21,13 @@ from starsense.attitude.covariance import (
     fisher_from_components,
 )
 
-__all__ = ["FieldStarsCam", "axis_sigmas", "field_stars_cam", "fisher_per_pointing"]
+__all__ = [
+    "FieldStarsCam",
+    "axis_sigmas",
+    "field_stars_cam",
+    "fisher_per_pointing",
+    "propagated_sigmas",
+]
 
 
 class FieldStarsCam:
@@ -96,4 +102,46 @@ def axis_sigmas(fishers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = np.linalg.inv(f[ok])
         cross[ok] = np.sqrt(0.5 * (p[:, 0, 0] + p[:, 1, 1]))
         roll[ok] = np.sqrt(p[:, 2, 2])
+    return cross, roll
+
+
+def propagated_sigmas(
+    pairs: FieldStarsCam, weights: NDArray[np.float64], error_rad: NDArray[np.float64]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the attitude error a per-star error makes through the weighted estimate, rad.
+
+    The estimator weights each star by ``weights`` (its NEA information, eq. 21); a star
+    carrying an independent error of ``error_rad`` (1 sigma per axis: a sub-pixel bias met at a
+    random phase, a PRNU-driven shift, a calibration residual) moves the estimate by the
+    weighted least-squares sandwich ``F^-1 G F^-1``, with ``F = sum w (I - r r^T)`` and
+    ``G = sum w^2 e^2 (I - r r^T)``: an error, not a weight, so stars with small errors do not
+    hide the others.
+
+    Parameters
+    ----------
+    pairs : FieldStarsCam
+        Stars in the field of each attitude.
+    weights : ndarray (P,)
+        The estimator's weight of each pair, rad^-2.
+    error_rad : ndarray (P,)
+        Each pair's error, 1 sigma per axis, rad.
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad (rms of x and y; about z); NaN where F is singular.
+    """
+    w = np.where(np.isfinite(weights), weights, 0.0)
+    e2 = np.where(np.isfinite(error_rad), np.asarray(error_rad, dtype=float) ** 2, 0.0)
+    f = fisher_per_pointing(pairs, w)
+    g = fisher_per_pointing(pairs, w * w * e2)
+    eig = np.linalg.eigvalsh(f)
+    ok = eig[:, 0] > SINGULAR_RCOND * np.maximum(eig[:, -1], np.finfo(float).tiny)
+    cross = np.full(len(f), np.nan)
+    roll = np.full(len(f), np.nan)
+    if ok.any():
+        finv = np.linalg.inv(f[ok])
+        cov = finv @ g[ok] @ finv
+        cross[ok] = np.sqrt(0.5 * (cov[:, 0, 0] + cov[:, 1, 1]))
+        roll[ok] = np.sqrt(cov[:, 2, 2])
     return cross, roll

@@ -7,21 +7,28 @@ stars). :mod:`starsense.analysis.datasheet.verify` checks it against rendered fr
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
+from starsense.analysis.datasheet.field import (
+    axis_sigmas,
+    field_stars_cam,
+    fisher_per_pointing,
+    propagated_sigmas,
+)
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
-from starsense.analysis.datasheet.terms import pixel_spatial_error
-from starsense.analysis.slew import default_rates_rad_s, last_above
+from starsense.analysis.datasheet.terms import pixel_spatial_error, prnu_centroid_px
+from starsense.analysis.sensor_detection import limiting_magnitude, slew_grids
+from starsense.analysis.slew import last_above
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.units import DEG
 
 __all__ = [
     "DEFAULT_RATES_RAD_S",
     "StarModel",
+    "error_kinds",
     "fastest_rate",
     "limiting_magnitude",
     "nea_at",
@@ -30,43 +37,6 @@ __all__ = [
 
 #: the datasheet's availability rates: at rest and 0.5, 1, 2 deg/s (rad/s)
 DEFAULT_RATES_RAD_S = np.array([0.0, 0.5, 1.0, 2.0]) * DEG
-
-
-def limiting_magnitude(magnitudes, fraction, criterion: float = 0.5) -> float | None:
-    """Return the faintest magnitude detected in >= ``criterion`` of renders (interpolated).
-
-    Parameters
-    ----------
-    magnitudes : array (M,)
-        Increasing magnitudes.
-    fraction : array (M,)
-        Detection fraction of each at rest.
-    criterion : float
-        The fraction that counts as detected.
-
-    Returns
-    -------
-    float or None
-        The magnitude where the detection fraction crosses ``criterion`` on its way down
-        (linear interpolation); None when not even the brightest is detected.
-    """
-    return last_above(magnitudes, fraction, criterion)
-
-
-def slew_grids(sensor, static_limit: float, *, n_mag: int = 20, n_rate: int = 40):
-    """Return the magnitudes (0.25 mag steps ending just past the limit) and rates to simulate.
-
-    The rates run from rest to 10 deg/s (the paper's range), or less when a faster slew would
-    sweep a star over more than half the detector's columns in one exposure.
-    """
-    top = math.ceil(static_limit * 4.0) / 4.0 + 0.25
-    mags = top - 0.25 * np.arange(n_mag)[::-1]
-    det = sensor.detector
-    half_width = 0.5 * det.columns * det.pixel_pitch_m / sensor.optics.focal_length_m
-    max_rate = math.atan(half_width) / sensor.exposure_s
-    if max_rate >= 10.0 * DEG:  # the paper's grid, built as the slew analysis builds it
-        return mags, default_rates_rad_s(n_rate)
-    return mags, np.linspace(0.0, max_rate, n_rate)
 
 
 def fastest_rate(rates, availability, target: float) -> float | None:
@@ -91,12 +61,17 @@ class StarModel:
         Centroid noise table of the sensor's centroider.
     pixel_bias : PixelSpatialError or None
         The centroider's sub-pixel bias measured on noiseless renders.
+    noise_corner : CentroidNoise or None
+        The noise table at the corners' PSF (``optics.psf_sigma_corner_px``); a star's noise
+        is interpolated between the two tables as its PSF is (with the square of its distance
+        from the centre).
     """
 
     sensor: object
     sensitivity: object
     noise: CentroidNoise
     pixel_bias: object = None
+    noise_corner: CentroidNoise | None = None
 
     @classmethod
     def build(cls, sensor, *, model: str, bright_mag: float, faint_mag: float) -> StarModel:
@@ -106,7 +81,20 @@ class StarModel:
         noise = centroid_noise(sensor, 0.5 * e_lo, 2.0 * e_hi)
         probe = np.geomspace(max(e_lo, 1.0), max(e_hi, 2.0), 5)
         bias = pixel_spatial_error(sensor, probe)
-        return cls(sensor, sens, noise, bias)
+        corner = None
+        sc = sensor.optics.psf_sigma_corner_px
+        if sc > 0 and sc != sensor.detector.psf_sigma_px:
+            wide = sensor.with_(detector=dataclasses.replace(sensor.detector, psf_sigma_px=sc))
+            corner = centroid_noise(wide, 0.5 * e_lo, 2.0 * e_hi)
+        return cls(sensor, sens, noise, bias, corner)
+
+    def _corner_weight(self, z_cam) -> np.ndarray:
+        """Return (r / r_corner)^2 of stars at camera-frame z (r from the detector centre)."""
+        det = self.sensor.detector
+        z = np.asarray(z_cam, dtype=float)
+        r2_px = self.sensor.focal_length_px**2 * (1.0 / z**2 - 1.0)
+        corner2 = (0.5 * (det.columns - 1)) ** 2 + (0.5 * (det.rows - 1)) ** 2
+        return np.clip(r2_px / corner2, 0.0, 1.0)
 
     @property
     def pixel_rad(self) -> float:
@@ -116,19 +104,56 @@ class StarModel:
     def star_sigmas_rad(self, magnitudes, z_cam, kind: str = "nea") -> np.ndarray:
         """Return each star's 1-sigma direction error, rad.
 
-        ``kind``: "nea" (the centroider's temporal noise), "crb" (the pixelated-Gaussian bound)
-        or "pixel" (the measured sub-pixel bias, rms). Off-axis stars scale by the
-        camera-frame z (the pinhole's angle per pixel, across the radial direction).
+        ``kind``: "nea" (the centroider's temporal noise), "crb" (the pixelated-Gaussian bound),
+        "pixel" (the measured sub-pixel bias, rms over pixel phases), "prnu" (the shift the
+        detector's photo-response non-uniformity gives a centroid) or "residual" (the
+        distortion calibration's residual). Off-axis stars scale by the camera-frame z (the
+        pinhole's angle per pixel, across the radial direction).
         """
         e = self.sensitivity.electrons(np.asarray(magnitudes, dtype=float))
         if kind == "nea":
             px = self.noise.sigma(e)
+            if self.noise_corner is not None:  # the PSF widens to the corners
+                t = self._corner_weight(z_cam)
+                px = (1.0 - t) * px + t * self.noise_corner.sigma(e)
         elif kind == "crb":
             px = self.noise.crb(e)
-        else:
+        elif kind == "pixel":
             px = self.pixel_bias.rms(e)
+        elif kind == "prnu":
+            px = np.full(np.shape(e), prnu_centroid_px(self.sensor))
+        elif kind == "residual":
+            px = np.full(np.shape(e), self.sensor.optics.distortion_residual_px)
+        else:
+            raise ValueError(f"unknown error kind {kind!r}")
         px = np.where(np.isfinite(px), px, np.inf)
         return px * self.pixel_rad * np.asarray(z_cam, dtype=float)
+
+
+#: the kinds that are the estimator's own noise (a Fisher bound); the others are errors
+#: propagated through its weights (:func:`propagated_sigmas`)
+NOISE_KINDS = ("nea", "crb")
+
+
+def error_kinds(sensor) -> tuple[str, ...]:
+    """Return the per-star kinds of a sensor: noise, bound, bias, and its own rendered errors.
+
+    Parameters
+    ----------
+    sensor : Sensor
+
+    Returns
+    -------
+    tuple of str
+        ``("nea", "crb", "pixel")``, then ``"prnu"`` with a PRNU and ``"residual"`` with a
+        distortion calibration residual.
+    """
+    kinds = ["nea", "crb", "pixel"]
+    if sensor.detector.prnu_fraction > 0:
+        kinds.append("prnu")
+    if sensor.optics.distortion_residual_px > 0:
+        kinds.append("residual")
+    return tuple(kinds)
 
 
 def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea",), tree=None):
@@ -153,8 +178,13 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
     dict, and the stars in the field per attitude (M,)
     """
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree=tree)
+    mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
+    weights = 1.0 / model.star_sigmas_rad(mags, z, "nea") ** 2
     out = {}
     for kind in kinds:
-        sigma = model.star_sigmas_rad(np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2], kind)
-        out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
+        sigma = model.star_sigmas_rad(mags, z, kind)
+        if kind in NOISE_KINDS:
+            out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
+        else:
+            out[kind] = propagated_sigmas(pairs, weights, np.where(np.isfinite(sigma), sigma, 0))
     return out, pairs.counts()

@@ -9,6 +9,7 @@ terms), a typed :class:`~starsense.analysis.datasheet.sections.Datasheet`. Its J
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,16 +19,15 @@ import numpy as np
 from starsense.analysis.availability.analysis import AvailabilityAnalysis
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
-from starsense.analysis.availability.threshold import ThresholdCurve
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
+from starsense.analysis.datasheet.checks import sanity_warnings
 from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
     StarModel,
+    error_kinds,
     fastest_rate,
-    limiting_magnitude,
     nea_at,
-    slew_grids,
 )
 from starsense.analysis.datasheet.sections import (
     AvailabilitySummary,
@@ -45,10 +45,11 @@ from starsense.analysis.datasheet.sections import (
     StarsInFov,
 )
 from starsense.analysis.datasheet.skycache import limit_sigmas
-from starsense.analysis.datasheet.verify import score_montecarlo
+from starsense.analysis.datasheet.verify import no_frames_check, score_montecarlo
 from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
 from starsense.analysis.montecarlo import montecarlo
-from starsense.analysis.slew import simulate_slew
+from starsense.analysis.sensor_detection import sensor_detection
+from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.render.scene import check_frame_size
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
 
@@ -100,31 +101,14 @@ def _arcsec_stats(cross: np.ndarray, roll: np.ndarray) -> AxisSpread:
 
 def _detection(sensor, settings: DatasheetSettings, tick):
     """Return the static limit, slew tolerance and threshold curve (all None: nothing detected)."""
-    wide = np.arange(-2.0, 16.0001, 0.25)
-    rest = simulate_slew(
+    det = sensor_detection(
         sensor,
         model=settings.model,
-        magnitudes=wide,
-        rates_rad_s=[0.0],
         n_trials=settings.n_slew_trials,
         rng=settings.seed,
+        progress=tick,
     )
-    rough = limiting_magnitude(wide, rest.detected_fraction[:, 0])
-    tick("static limit")
-    if rough is None:
-        return None, None, None
-    mags, rates = slew_grids(sensor, rough)
-    slew = simulate_slew(
-        sensor,
-        model=settings.model,
-        magnitudes=mags,
-        rates_rad_s=rates,
-        n_trials=settings.n_slew_trials,
-        rng=settings.seed,
-    )
-    limit = limiting_magnitude(mags, slew.detected_fraction[:, 0])
-    tick("slew tolerance")
-    return (rough if limit is None else limit), slew, ThresholdCurve.from_slew(slew)
+    return det.limit_mag, det.slew, det.curve
 
 
 def _availability(analysis, curve, rate_rad_s: float) -> tuple[AvailabilitySummary, object]:
@@ -188,7 +172,7 @@ def _no_stars(sensor, settings, catalog_name: str) -> Datasheet:
         schema=SCHEMA,
         sensor=sensor.name,
         limiting_magnitude=None,
-        warnings=(why,),
+        warnings=(why, *sanity_warnings(sensor, catalog_name="", limit_mag=None, runs={})),
         settings=_settings(settings, catalog_name, None),
     )
 
@@ -244,10 +228,34 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     sig, counts = nea_at(
-        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=("nea", "crb", "pixel")
+        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=error_kinds(sensor)
     )
     lim = _limit(cat, sensor, fov, mats)
     return model, vectors, mags, boresights, mats, sig, counts, lim
+
+
+def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
+    """Return the Monte Carlo checks at rest and at the settings' rate, scored."""
+    model, fov, vectors, mags = sky
+    runs = {}
+    rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
+    for key, rate, n in (
+        ("monte_carlo", 0.0, st.n_trials),
+        ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
+    ):
+        if n == 0:  # the prediction alone (starsense trade, the design page)
+            runs[key] = no_frames_check(rate)
+            continue
+        res = montecarlo(
+            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model, client=client
+        )
+        runs[key] = MonteCarloCheck(
+            **score_montecarlo(
+                res, model, fov=fov, vectors=vectors, magnitudes=mags, predict=rate == 0.0
+            )
+        )
+        tick(key.replace("_", " "))
+    return runs
 
 
 def build_datasheet(
@@ -279,7 +287,7 @@ def build_datasheet(
     """
     st = settings or DatasheetSettings()
     check_frame_size(sensor)  # the verification renders whole frames: refuse before any work
-    cat = as_catalog(catalog)
+    cat, colour_note = with_johnson_from_gaia(as_catalog(catalog))
     steps = [
         "static limit",
         "slew tolerance",
@@ -315,25 +323,10 @@ def build_datasheet(
         else None
         for k in ("cross", "roll")
     }
-    runs = {}
-    rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
-    for key, rate, n in (
-        ("monte_carlo", 0.0, st.n_trials),
-        ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
-    ):
-        if n == 0:  # the prediction alone (starsense trade, the design page)
-            runs[key] = _no_frames(rate)
-            continue
-        res = montecarlo(
-            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model, client=client
-        )
-        runs[key] = MonteCarloCheck(
-            **score_montecarlo(
-                res, model, fov=fov, vectors=vectors, magnitudes=mags, predict=rate == 0.0
-            )
-        )
-        tick(key.replace("_", " "))
-    pse = np.nanmax(model.pixel_bias.rms_px) if np.isfinite(model.pixel_bias.rms_px).any() else None
+    runs = _runs(sensor, cat, st, (model, fov, vectors, mags), client, tick)
+    bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
+    pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
+    errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
     return Datasheet(
         schema=SCHEMA,
         sensor=sensor.name,
@@ -347,7 +340,15 @@ def build_datasheet(
         **runs,
         availability=avail,
         slew=slew,  # its JSON is that of `starsense slew tolerance`
-        budget=tuple(error_budget(sensor, nea, pixel=sig["pixel"], pse_px=pse)),
+        budget=tuple(
+            error_budget(
+                sensor,
+                nea,
+                errors=errors,
+                pse_px=pse,
+                dsnu=_dsnu_growth(sensor, st, limit_mag, fov, (vectors, mags, mats), nea),
+            )
+        ),
         quoted=tuple(
             quoted_values(
                 sensor,
@@ -359,37 +360,42 @@ def build_datasheet(
         ),
         quoted_source=dict(sensor.quoted).get("source"),
         settings=_settings(st, getattr(cat, "name", ""), limit_mag),
-        warnings=tuple(_warnings(stars, avail, runs)),
+        warnings=(
+            *([colour_note] if colour_note else []),
+            *_warnings(stars, avail, runs),
+            *sanity_warnings(
+                sensor, catalog_name=getattr(cat, "name", ""), limit_mag=limit_mag, runs=runs
+            ),
+        ),
         boresights=boresights,
         nea_cross_rad=sig["nea"][0],
         dynamic=fine,
     )
 
 
-def _no_frames(rate_rad_s: float) -> MonteCarloCheck:
-    """Return the check of a run of no frames (every measured number None)."""
-    return MonteCarloCheck(
-        frames=0,
-        solved=0,
-        wrong=0,
-        wrong_rate_upper95=1.0,
-        rate_deg_s=rate_rad_s * RAD_TO_DEG,
-        median_ms=None,
-        p95_ms=None,
-        statuses={},
-        **dict.fromkeys(
-            (
-                "cross_rms_arcsec",
-                "roll_rms_arcsec",
-                "cross_predicted_arcsec",
-                "roll_predicted_arcsec",
-                "cross_ratio",
-                "roll_ratio",
-                "cross_ratio_robust",
-                "roll_ratio_robust",
-                "outliers_5sigma",
-            )
-        ),
+def _dsnu_growth(sensor, st, limit_mag, fov, sky, nea: AxisSpread) -> AxisPair | None:
+    """Return how much the DSNU grows the NEA (quadrature difference of sky medians), arcsec.
+
+    The dark-signal non-uniformity left after the dark frame acts, for one frame, as a second
+    read noise: the NEA is recomputed with ``hypot(read_noise, dsnu)``.
+    """
+    det = sensor.detector
+    if det.dsnu_e <= 0 or nea.cross.median is None:
+        return None
+    vectors, mags, mats = sky
+    noisier = sensor.with_(
+        detector=dataclasses.replace(det, read_noise_e=math.hypot(det.read_noise_e, det.dsnu_e))
+    )
+    model = StarModel.build(
+        noisier, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag
+    )
+    sig, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=mags)
+    grown = _arcsec_stats(*sig["nea"])
+    return AxisPair(
+        *(
+            math.sqrt(max(getattr(grown, k).median ** 2 - getattr(nea, k).median ** 2, 0.0))
+            for k in ("cross", "roll")
+        )
     )
 
 

@@ -3,8 +3,9 @@
 Random attitudes are rendered, detected, identified and solved
 (:func:`starsense.analysis.montecarlo.run_montecarlo`); for every right solution the predicted
 1-sigma of that very attitude comes from the same star model and catalogue as the datasheet
-(:func:`starsense.analysis.datasheet.predict.nea_at`), the temporal noise and the measured pixel
-spatial error added in quadrature (both vary from frame to frame at random attitudes). The
+(:func:`starsense.analysis.datasheet.predict.nea_at`), the temporal noise, the measured pixel
+spatial error and the sensor's rendered errors (PRNU, calibration residual) added in quadrature
+(all vary from frame to frame at random attitudes). The
 ratio measured rms / predicted rms is reported per axis.
 """
 
@@ -17,10 +18,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import beta
 
-from starsense.analysis.datasheet.predict import nea_at
+from starsense.analysis.datasheet.predict import error_kinds, nea_at
+from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
-__all__ = ["score_montecarlo", "wrong_rate_upper"]
+__all__ = ["no_frames_check", "score_montecarlo", "wrong_rate_upper"]
 
 
 def wrong_rate_upper(n_wrong: int, n_frames: int, confidence: float = 0.95) -> float:
@@ -94,11 +96,10 @@ def score_montecarlo(
             out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
         return out
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
-    pred, _ = nea_at(
-        model, fov, mats, vectors=vectors, magnitudes=magnitudes, kinds=("nea", "pixel")
-    )
-    cross = np.hypot(pred["nea"][0], pred["pixel"][0])
-    roll = np.hypot(pred["nea"][1], pred["pixel"][1])
+    kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
+    pred, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=magnitudes, kinds=kinds)
+    cross = np.sqrt(sum(pred[k][0] ** 2 for k in kinds))
+    roll = np.sqrt(sum(pred[k][1] ** 2 for k in kinds))
     e = res.errors_rad
     meas_cross = math.sqrt(float(np.mean(0.5 * (e[:, 0] ** 2 + e[:, 1] ** 2))))
     meas_roll = math.sqrt(float(np.mean(e[:, 2] ** 2)))
@@ -122,3 +123,40 @@ def score_montecarlo(
         "outliers_5sigma": int(np.sum((z_cross > 5) | (z_roll > 5))),
         "stars_matched_median": float(np.median(res.n_matched)),
     }
+
+
+def no_frames_check(rate_rad_s: float) -> MonteCarloCheck:
+    """Return the check of a run of no frames: every measured number None.
+
+    Parameters
+    ----------
+    rate_rad_s : float
+        The rate the run would have had, rad/s.
+
+    Returns
+    -------
+    MonteCarloCheck
+    """
+    return MonteCarloCheck(
+        frames=0,
+        solved=0,
+        wrong=0,
+        wrong_rate_upper95=1.0,
+        rate_deg_s=rate_rad_s * RAD_TO_DEG,
+        median_ms=None,
+        p95_ms=None,
+        statuses={},
+        **dict.fromkeys(
+            (
+                "cross_rms_arcsec",
+                "roll_rms_arcsec",
+                "cross_predicted_arcsec",
+                "roll_predicted_arcsec",
+                "cross_ratio",
+                "roll_ratio",
+                "cross_ratio_robust",
+                "roll_ratio_robust",
+                "outliers_5sigma",
+            )
+        ),
+    )

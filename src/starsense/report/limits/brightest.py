@@ -138,6 +138,16 @@ def sensor_part(ctx: ReportContext) -> tuple[Part, LimitResult]:
     return Part(data={"sensor": data}), own
 
 
+def _is_sensor(ctx: ReportContext) -> bool:
+    """Whether the report's D and t are those of its sensor (not an ideal sensor's)."""
+    sensor = ctx.sensor
+    return (
+        sensor is not None
+        and math.isclose(ctx.diameter_m, sensor.optics.aperture_m)
+        and math.isclose(ctx.exposure_s, sensor.exposure_s)
+    )
+
+
 def summary_rows(
     ctx: ReportContext, curves: dict[str, BrightestCurve], own: LimitResult
 ) -> tuple[tuple[str, str], ...]:
@@ -156,7 +166,8 @@ def summary_rows(
         (f"G (rad m<sup>2</sup> s<sup>½</sup>), paper: {fmt(lo)} … {fmt(hi)}", g_lines),
         (
             "This sensor's limit",
-            f"D = {fmt(ctx.diameter_m)} m, t = {fmt(ctx.exposure_s)} s "
+            (f"{esc(ctx.sensor.name)}: " if _is_sensor(ctx) else "")
+            + f"D = {fmt(ctx.diameter_m)} m, t = {fmt(ctx.exposure_s)} s "
             f"(D<sup>2</sup> t<sup>½</sup> = {fmt(fom)} m<sup>2</sup> s<sup>½</sup>): "
             f"θ<sub>rms</sub> = {fmt(own.theta_rms_rad * RAD_TO_MAS)} mas "
             f"({fmt(own.theta_rms_rad)} rad) with {esc(ctx.catalog_name)} "

@@ -1,0 +1,214 @@
+"""The sensor zoo: the datasheet judged over seeded, physically sensible designs nobody tuned it on.
+
+:func:`zoo_designs` draws designs across field 3-60 deg, pixel pitch 2-25 um, 512-4096
+columns (4:3), PSF sigma 0.5-3 px (undersampled included), exposure 10 ms-1 s, 8-16 bit, read
+noise 1-30 e-, QE 0.3-0.8 and f/0.95-f/4 (log-uniform where the range spans a decade). The
+detector is made consistent: full well 1,500 e- per square micrometre of pixel (a CMOS/CCD
+rule of thumb), the gain maps the full well onto the ADC's range unless that would put the
+read noise below one count (then one count per read-noise electron-rms).
+
+The detection logic is derived from each design's noise, not copied from a preset:
+
+* sigma = noise of an empty pixel in counts (read noise and dark shot noise times the gain, and
+  the ADC's 1/sqrt(12), :func:`starsense.analysis.datasheet.checks.empty_pixel_sigma_counts`);
+* lit pixel: 5 sigma, at least 1 count;
+* contiguous pixels: 2 for an undersampled PSF (sigma < 0.8 px), else 3;
+* integrated: 5 sigma over the PSF's noise-equivalent area, ``5 sigma sqrt(4 pi s^2)`` (s the
+  PSF sigma, at least 1 px^2), at least lit x pixels.
+
+For each design the datasheet runs at rest and at 1 deg/s (``--frames`` each) and the row
+records the measured / predicted ratios per axis, solved, wrong, time and peak memory (each
+design in its own process, so the peak is that design's). ``python bench/zoo.py [--designs N]
+[--frames N] [--only NAME]``; results in ``bench/results/zoo.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing as mp
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from starsense._io import atomic_write
+from starsense.analysis.datasheet.checks import empty_pixel_sigma_counts
+from starsense.sensor import DetectionThresholds, Sensor
+from starsense.sensor.detector import Detector
+from starsense.sensor.optics import Optics
+
+RESULTS = Path(__file__).resolve().parent / "results"
+#: full-well capacity per square micrometre of pixel, e- (typical of CMOS and CCD pixels)
+FULL_WELL_E_PER_UM2 = 1500.0
+
+
+def _log_uniform(rng, lo: float, hi: float) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def detection_for(det: Detector, exposure_s: float) -> DetectionThresholds:
+    """Return the detection logic of a detector from its noise (the module docstring)."""
+    probe = Sensor(
+        name="probe",
+        optics=Optics(focal_length_m=0.05, aperture_m=0.025),
+        detector=det,
+        exposure_s=exposure_s,
+        detection=DetectionThresholds(lit_pixel_counts=1.0, min_integrated_counts=0.0),
+    )
+    sigma = empty_pixel_sigma_counts(probe)
+    lit = max(5.0 * sigma, 1.0)
+    n_pix = 2 if det.psf_sigma_px < 0.8 else 3
+    area = max(4.0 * math.pi * det.psf_sigma_px**2, 1.0)
+    integrated = max(5.0 * sigma * math.sqrt(area), lit * n_pix)
+    return DetectionThresholds(
+        lit_pixel_counts=round(lit, 3), min_pixels=n_pix, min_integrated_counts=round(integrated, 3)
+    )
+
+
+def make_sensor(name: str, **p) -> Sensor:
+    """Return a design from its parameters (field or focal length, pixel, optics, detector)."""
+    bits = int(p["bit_depth"])
+    full_well = FULL_WELL_E_PER_UM2 * (p["pitch_um"]) ** 2
+    # the full well onto the ADC's range, but the read noise at least one count (a camera
+    # with few bits saturates its ADC before its well rather than quantise its noise away)
+    gain = max((2**bits - 1) / full_well, 1.0 / p["read_noise_e"])
+    det = Detector(
+        columns=int(p["columns"]),
+        rows=int(p["rows"]),
+        pixel_pitch_m=p["pitch_um"] * 1e-6,
+        gain_counts_per_e=max(gain, 1e-4),
+        read_noise_e=p["read_noise_e"],
+        bit_depth=bits,
+        psf_sigma_px=p["psf_sigma_px"],
+        qe_mean=p["qe"],
+        passband_nm=(400.0, 900.0),
+        full_well_e=full_well,
+    )
+    focal = p.get("focal_length_m")
+    if focal is None:
+        half = 0.5 * det.columns * det.pixel_pitch_m
+        focal = half / math.tan(math.radians(0.5 * p["fov_deg"]))
+    return Sensor(
+        name=name,
+        optics=Optics(focal_length_m=focal, aperture_m=focal / p["f_number"], transmission=0.8),
+        detector=det,
+        exposure_s=p["exposure_s"],
+        detection=detection_for(det, p["exposure_s"]),
+    )
+
+
+def zoo_designs(n: int, seed: int = 23) -> list[tuple[str, dict]]:
+    """Return ``n`` seeded designs ``(name, parameters)`` across the ranges of the docstring."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        columns = int(round(_log_uniform(rng, 512, 4096) / 16) * 16)
+        p = {
+            "fov_deg": _log_uniform(rng, 3.0, 60.0),
+            "columns": columns,
+            "rows": int(round(0.75 * columns / 16) * 16),
+            "pitch_um": _log_uniform(rng, 2.0, 25.0),
+            "psf_sigma_px": _log_uniform(rng, 0.5, 3.0),
+            "exposure_s": _log_uniform(rng, 0.01, 1.0),
+            "bit_depth": int(rng.choice([8, 10, 12, 14, 16])),
+            "read_noise_e": _log_uniform(rng, 1.0, 30.0),
+            "qe": float(rng.uniform(0.3, 0.8)),
+            "f_number": float(rng.uniform(0.95, 4.0)),
+        }
+        out.append((f"zoo{k:02d}", p))
+    return out
+
+
+#: the CCD of the vendor comparison: 768 x 512 px of 9 um behind a 25 mm f/0.95 lens, 1 s
+CCD_768 = {
+    "focal_length_m": 0.025,
+    "columns": 768,
+    "rows": 512,
+    "pitch_um": 9.0,
+    "psf_sigma_px": 0.8,
+    "exposure_s": 1.0,
+    "bit_depth": 16,
+    "read_noise_e": 10.0,
+    "qe": 0.5,
+    "f_number": 0.95,
+}
+
+
+def _run_one(args) -> dict:
+    name, params, frames, rate_frames, seed = args
+    from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
+    from starsense.catalog import load_catalog
+
+    sensor = make_sensor(name, **params)
+    t0 = time.perf_counter()
+    settings = DatasheetSettings(n_trials=frames, n_rate_trials=rate_frames, seed=seed)
+    d = build_datasheet(sensor, load_catalog("hipparcos"), settings=settings).to_dict()
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    row = {"design": name, "params": params, "detection": vars(sensor.detection)}
+    row["seconds"] = time.perf_counter() - t0
+    row["peak_mb"] = peak_mb
+    row["limiting_magnitude"] = d.get("limiting_magnitude")
+    row["warnings"] = d.get("warnings", [])
+    for key in ("monte_carlo", "monte_carlo_at_rate"):
+        mc = d.get(key) or {}
+        row[key] = {
+            k: mc.get(k)
+            for k in ("frames", "solved", "wrong", "cross_ratio", "roll_ratio", "median_ms")
+        }
+    if d.get("stars_in_fov"):
+        row["stars_in_fov"] = d["stars_in_fov"]["median"]
+    return row
+
+
+def in_band(row: dict) -> bool:
+    """Whether measured / predicted lies in 0.8-1.25 on both axes at rest."""
+    mc = row["monte_carlo"]
+    return all(
+        mc.get(k) is not None and 0.8 <= mc[k] <= 1.25 for k in ("cross_ratio", "roll_ratio")
+    )
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--designs", type=int, default=40)
+    ap.add_argument("--frames", type=int, default=100)
+    ap.add_argument("--rate-frames", type=int, default=None)
+    ap.add_argument("--seed", type=int, default=23)
+    ap.add_argument("--only", default=None, help="run one design (a zoo name, or ccd768)")
+    ap.add_argument("--out", default=str(RESULTS / "zoo.json"))
+    args = ap.parse_args(argv)
+    designs = [*zoo_designs(args.designs, args.seed), ("ccd768", CCD_768)]
+    if args.only:
+        designs = [d for d in designs if d[0] == args.only]
+    rows = []
+    ctx = mp.get_context("spawn")  # one process per design: its own peak memory
+    for name, params in designs:
+        job = (name, params, args.frames, args.rate_frames or args.frames, args.seed)
+        try:
+            with ctx.Pool(1) as pool:
+                row = pool.apply(_run_one, (job,))
+        except Exception as exc:  # a design the package cannot handle is a row, not the end
+            row = {"design": name, "params": params, "error": f"{type(exc).__name__}: {exc}"}
+            rows.append(row)
+            print(f"{name}: failed: {row['error']}", flush=True)
+            continue
+        rows.append(row)
+        mc, mr = row["monte_carlo"], row["monte_carlo_at_rate"]
+        print(
+            f"{name}: rest {mc['solved']}/{mc['frames']} solved, {mc['wrong']} wrong, ratios "
+            f"{mc['cross_ratio']} / {mc['roll_ratio']}; 1 deg/s {mr['solved']}/{mr['frames']}"
+            f", {mr['wrong']} wrong; {row['seconds']:.0f} s, {row['peak_mb']:.0f} MB",
+            flush=True,
+        )
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        with atomic_write(args.out) as f:
+            json.dump({"date": time.strftime("%Y-%m-%d"), "rows": rows}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,105 @@
+"""Physical sanity of a datasheet: what is suspicious about the sensor or its numbers, in words.
+
+What cannot exist is refused when the sensor is built (:mod:`starsense.sensor`: an f-number
+below 0.5, a detection threshold the ADC cannot meet or finer than one count). What is only
+suspicious is said here, in the datasheet's ``warnings``:
+
+* a lit-pixel threshold at less than 3 or more than 20 sigma of the noise of an empty pixel
+  (read noise, dark current over the exposure and quantisation, in counts);
+* fewer than half the frames solved at rest while an NEA is quoted;
+* a limiting magnitude past the catalogue's completeness (the stars in the field, the
+  availability and the NEA then count too few stars).
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings"]
+
+#: V to which each catalogue is complete, and the source of the figure
+COMPLETENESS_V = {
+    # ESA 1997, The Hipparcos and Tycho Catalogues, Vol. 1, sec. 1.1: the survey is complete
+    # to V = 7.3 - 9.0 depending on galactic latitude and spectral type; 7.3 everywhere
+    "hip2": (7.3, "Hipparcos, ESA 1997"),
+    "hip_main": (7.3, "Hipparcos, ESA 1997"),
+    # Hoffleit & Warren 1991 (Yale Bright Star Catalogue, 5th ed.): essentially complete to
+    # V = 6.5
+    "bsc5": (6.5, "Hoffleit & Warren 1991"),
+    # Hog et al. 2000, A&A 355, L27: Tycho-2 is 99 % complete to V = 11.0
+    "tycho2": (11.0, "Hog et al. 2000"),
+    # the bundled Gaia DR3 file holds G <= 10 (V ~ G + 0.2 for BP-RP ~ 1)
+    "gaia_dr3": (10.0, "the bundled Gaia DR3 file's cut, G <= 10"),
+}
+#: the detection logic's threshold, in sigma of an empty pixel, outside which it is suspicious
+SIGMA_RANGE = (3.0, 20.0)
+
+
+def empty_pixel_sigma_counts(sensor) -> float:
+    """Return the noise of a pixel without a star, counts rms.
+
+    Read noise and the shot noise of the dark current over the exposure (electrons) times the
+    gain, and the ADC's quantisation (1 / sqrt(12) counts), in quadrature.
+
+    Parameters
+    ----------
+    sensor : Sensor
+
+    Returns
+    -------
+    float
+        counts rms.
+    """
+    det = sensor.detector
+    electrons2 = det.read_noise_e**2 + det.dark_current_e_s * sensor.exposure_s
+    return math.sqrt((det.gain_counts_per_e**2) * electrons2 + 1.0 / 12.0)
+
+
+def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs) -> list[str]:
+    """Return the datasheet's warnings on the detection logic, the solving and the catalogue.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    catalog_name : str
+        The catalogue's name (``hip2``, ``gaia_dr3``, ...).
+    limit_mag : float or None
+        The limiting magnitude, V.
+    runs : dict of str -> MonteCarloCheck
+        The Monte Carlo runs (``monte_carlo`` at rest).
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    logic = sensor.detection
+    sigma = empty_pixel_sigma_counts(sensor)
+    k = logic.lit_pixel_counts / sigma
+    lo, hi = SIGMA_RANGE
+    if k < lo:
+        out.append(
+            f"the lit-pixel threshold ({logic.lit_pixel_counts:g} counts) is {k:.1f} sigma of "
+            f"an empty pixel's noise ({sigma:.3g} counts): noise lights pixels in every frame "
+            f"(a detection logic usually sits at ~5 sigma, {5 * sigma:.3g} counts)"
+        )
+    elif k > hi:
+        out.append(
+            f"the lit-pixel threshold ({logic.lit_pixel_counts:g} counts) is {k:.0f} sigma of "
+            f"an empty pixel's noise ({sigma:.3g} counts): stars the noise would let through "
+            f"are lost (a detection logic usually sits at ~5 sigma, {5 * sigma:.3g} counts)"
+        )
+    mc = runs.get("monte_carlo")
+    if mc is not None and mc.frames and mc.solved < 0.5 * mc.frames:
+        out.append(
+            f"only {mc.solved} of {mc.frames} frames solved at rest: the NEA quoted is that of "
+            "the frames that solve, not what the sensor delivers"
+        )
+    known = COMPLETENESS_V.get(catalog_name)
+    if known is not None and limit_mag is not None and limit_mag > known[0]:
+        out.append(
+            f"the limiting magnitude V = {limit_mag:.2f} is past {catalog_name}'s completeness "
+            f"(V = {known[0]:g}, {known[1]}): stars in the field, availability and NEA count too "
+            "few stars; use a deeper catalogue (--catalog gaia, or tycho2)"
+        )
+    return out

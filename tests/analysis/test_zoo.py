@@ -1,0 +1,60 @@
+"""The sensor zoo (``bench/zoo.py``): seeded, physically sensible designs with a detection logic
+derived from their noise; the small zoo's datasheets find no wrong solution."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from pathlib import Path
+
+import pytest
+
+from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
+from starsense.analysis.datasheet.checks import empty_pixel_sigma_counts
+from starsense.catalog import load_catalog
+
+_PATH = Path(__file__).resolve().parents[2] / "bench" / "zoo.py"
+_spec = importlib.util.spec_from_file_location("starsense_bench_zoo", _PATH)
+zoo = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(zoo)
+
+
+def test_designs_are_seeded_and_in_range():
+    a, b = zoo.zoo_designs(40, 5), zoo.zoo_designs(40, 5)
+    assert a == b and a != zoo.zoo_designs(40, 6)
+    for name, p in a:
+        s = zoo.make_sensor(name, **p)  # the sensor's own checks: f-number, ADC, thresholds
+        assert 3.0 <= p["fov_deg"] <= 60.0 and 2.0 <= p["pitch_um"] <= 25.0
+        assert 512 <= p["columns"] <= 4096 and 0.5 <= p["psf_sigma_px"] <= 3.0
+        assert 0.01 <= p["exposure_s"] <= 1.0 and p["bit_depth"] in (8, 10, 12, 14, 16)
+        assert 1.0 <= p["read_noise_e"] <= 30.0 and 0.95 <= p["f_number"] <= 4.0
+        # the field as drawn: 2 atan(half width / f)
+        half = 0.5 * s.detector.columns * s.detector.pixel_pitch_m
+        assert 2 * math.degrees(math.atan(half / s.optics.focal_length_m)) == pytest.approx(
+            p["fov_deg"]
+        )
+        # the detection logic from the design's own noise: 5 sigma of an empty pixel
+        sigma = empty_pixel_sigma_counts(s)
+        assert s.detection.lit_pixel_counts == pytest.approx(max(5 * sigma, 1.0), abs=1e-3)
+        assert s.detection.min_integrated_counts >= s.detection.lit_pixel_counts
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="known gap: zoo00 (20.5 deg, 0.61 px PSF, 14 bit) gives 2 wrong attitudes in 40 "
+    "frames at 1 deg/s, and zoo03's (6.4 deg field, limit past V 9) pattern database needs "
+    "more than 4 GB",
+)
+def test_small_zoo_has_no_wrong_solution():
+    """8 designs, 40 frames at rest and 40 at 1 deg/s each: no wrong attitude."""
+    cat = load_catalog("hipparcos")
+    settings = DatasheetSettings(n_trials=40, seed=23, n_orientations=500)
+    wrong = {}
+    for name, p in zoo.zoo_designs(8, 23):
+        d = build_datasheet(zoo.make_sensor(name, **p), cat, settings=settings)
+        if d.limiting_magnitude is None:
+            continue
+        wrong[name] = d.monte_carlo.wrong + d.monte_carlo_at_rate.wrong
+    assert len(wrong) >= 6  # designs that see stars
+    assert sum(wrong.values()) == 0, wrong
