@@ -288,3 +288,12 @@ def test_out_two_sensors_of_one_name_write_two_files(capsys, tmp_path):
         str(out_dir / "blind_datasheet.json"),
     ]
     assert all(_no_nan(Path(f).read_text())["sensor"] == "blind" for f in files)
+
+
+def test_sensor_with_compare_is_compared_first_not_dropped(capsys, tmp_path):
+    """`--sensor X --compare A` compares X and A (X first); X is never dropped without a word."""
+    x = _sensor_toml(tmp_path, "x", optics__aperture_m=1e-5)
+    a = tmp_path / "a.toml"
+    a.write_text(x.read_text().replace('name = "x"', 'name = "a"'))
+    out, _ = run(capsys, "datasheet", "--sensor", str(x), "--compare", str(a), *LIGHT, "--json")
+    assert [s["sensor"] for s in _no_nan(out)["sensors"]] == ["x", "a"]

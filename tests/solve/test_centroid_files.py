@@ -73,3 +73,21 @@ def test_xylist_without_a_table_or_columns(tmp_path):
         read_centroids(q)
     with pytest.raises(InputError, match="centroid file not found"):
         read_centroids(tmp_path / "missing.csv")
+
+
+@pytest.mark.parametrize(("width", "message"), [(1024.7, "not a whole number"), (0, "at least 1")])
+def test_xylist_image_size_card_must_be_whole_pixels(tmp_path, width, message):
+    """An IMAGEW of 1024.7 names the file and the card, never truncated to 1024."""
+    from astropy.io import fits
+
+    cols = [fits.Column(name=n, format="E", array=np.array([1.0, 5.0, 9.0])) for n in "XY"]
+    table = fits.BinTableHDU.from_columns(cols)
+    table.header["IMAGEW"] = width
+    table.header["IMAGEH"] = 768
+    p = tmp_path / "c.xyls"
+    fits.HDUList([fits.PrimaryHDU(), table]).writeto(p)
+    with pytest.raises(InputError, match=rf"c\.xyls: card IMAGEW = .*{message}"):
+        read_centroids(p)
+    table.header["IMAGEW"] = 1024.0  # a whole number stored as a float is that number
+    fits.HDUList([fits.PrimaryHDU(), table]).writeto(p, overwrite=True)
+    assert read_centroids(p).image_size == (1024, 768)

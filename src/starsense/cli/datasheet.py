@@ -18,7 +18,6 @@ from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
     SeedOpt,
-    SensorOpt,
     emit,
     option_float,
     option_int,
@@ -155,7 +154,14 @@ def _write_out(out: Path, sheet, payload: dict, stem: str) -> list[str]:
 
 
 def datasheet(
-    sensor: SensorOpt = "st16",
+    sensor: Annotated[
+        str | None,
+        typer.Option(
+            "--sensor",
+            help="Sensor preset (st16, esa_blackfly) or a TOML file [default: st16]; with "
+            "--compare, the first of the sensors compared.",
+        ),
+    ] = None,
     compare: Annotated[
         list[str] | None,
         typer.Option("--compare", help="Sensors (presets or TOML) side by side; repeat it."),
@@ -204,7 +210,8 @@ def datasheet(
         raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
     if out is not None:  # the place, before any work: a folder (created) we may write in
         check_output(out, "--out", directory=True)
-    names = list(compare) if compare else [sensor]
+    # --sensor with --compare is one more sensor of the comparison, first (never dropped)
+    names = [n for n in (sensor, *(compare or ())) if n is not None] or ["st16"]
     sensors = [load_sensor(n) for n in names]
     cat = load_catalog(catalog)
     if centroids_only:
@@ -229,7 +236,7 @@ def datasheet(
         taken: set[str] = set()
         for s, p in zip(sheets, payloads, strict=True):
             figures += _write_out(Path(out), s, p, safe_stem(p["sensor"], taken))
-    if compare:
+    if len(names) > 1:
         comparison = Comparison.from_sheets(sheets)
         payload = {"sensors": payloads, "rows": [r.to_dict() for r in comparison.rows]}
         lines = _compare_lines(comparison)

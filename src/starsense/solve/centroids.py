@@ -164,7 +164,7 @@ def _read_xylist(p: Path) -> CentroidList:
             size = None
             header = table.header
             if "IMAGEW" in header and "IMAGEH" in header:
-                size = (int(header["IMAGEW"]), int(header["IMAGEH"]))
+                size = tuple(_size_card(header, key, p) for key in ("IMAGEW", "IMAGEH"))
     except (OSError, ValueError, TypeError) as exc:
         raise InputError(f"{p}: not a readable FITS xylist ({exc})") from None
     if x.size == 0:
@@ -320,3 +320,13 @@ class CentroidPoints:
     flux: np.ndarray
     shape: tuple
     what: str
+
+
+def _size_card(header, key: str, path: Path) -> int:
+    """Return an xylist's IMAGEW / IMAGEH card as a positive whole number of pixels."""
+    value = header[key]
+    if isinstance(value, bool) or not isinstance(value, int | float) or value != int(value):
+        raise InputError(f"{path}: card {key} = {value!r} is not a whole number of pixels")
+    if value < 1:
+        raise InputError(f"{path}: card {key} = {value!r} must be at least 1 pixel")
+    return int(value)
