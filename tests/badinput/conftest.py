@@ -116,10 +116,14 @@ def _sensor_files(d: Path) -> None:
             focal_length_m="focal_length_m = 0.01", columns="columns = 1024", rows="rows = 1024"
         ).replace("[detector]", "distortion_k1 = -10\n\n[detector]")
     )
-    # 8000 columns of 5 um behind 0.5 mm: 2 atan(20 mm / 0.5 mm) = 177.1 deg across the
-    # columns; the 48 rows span 27 deg
+    # 8000 columns of 5 um behind 0.5 mm (at f/1): 2 atan(20 mm / 0.5 mm) = 177.1 deg across
+    # the columns; the 48 rows span 27 deg
     (d / "wide.toml").write_text(
-        _sensor(focal_length_m="focal_length_m = 0.0005", columns="columns = 8000")
+        _sensor(
+            focal_length_m="focal_length_m = 0.0005",
+            aperture_m="aperture_m = 0.0005",
+            columns="columns = 8000",
+        )
     )
     (d / "big.toml").write_text(
         _sensor(

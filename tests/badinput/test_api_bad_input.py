@@ -55,8 +55,9 @@ def test_quoted_errors_name_the_file_once():
 
 @pytest.mark.parametrize("axis", ["columns", "rows"])
 def test_field_beyond_175_deg_is_refused_on_either_axis(axis):
-    # 8000 px of 5 um = 40 mm behind 0.5 mm: 2 atan(40 mm / 2 / 0.5 mm) = 177.1 deg
+    # 8000 px of 5 um = 40 mm behind 0.5 mm (at f/1): 2 atan(40 mm / 2 / 0.5 mm) = 177.1 deg
     data = _sensor_data(focal_length_m=0.0005)
+    data["optics"]["aperture_m"] = 0.0005
     data["detector"][axis] = 8000
     with pytest.raises(InputError, match=rf"177\.1 deg across the {axis}"):
         sensor_from_dict(data)

@@ -38,9 +38,13 @@ def _sensor(fov_deg: float):
     base = load_sensor("esa_blackfly")
     width = base.detector.columns * base.detector.pixel_pitch_m
     focal = width / 2.0 / math.tan(math.radians(fov_deg) / 2.0)
+    # a lens no faster than f/1 (short focal lengths cannot keep the base's 18 mm aperture:
+    # f/0.33 at 60 deg is no lens), the exposure lengthened to keep the photons per star
+    aperture = min(base.optics.aperture_m, focal)
     return base.with_(
-        optics=dataclasses.replace(base.optics, focal_length_m=focal),
+        optics=dataclasses.replace(base.optics, focal_length_m=focal, aperture_m=aperture),
         detector=dataclasses.replace(base.detector, bias_counts=100.0),
+        exposure_s=base.exposure_s * (base.optics.aperture_m / aperture) ** 2,
     )
 
 
