@@ -141,3 +141,10 @@ def test_site_builds_and_renders_in_a_browser(tmp_path):
         assert broken == []
     finally:
         browser.quit()
+
+
+def test_readme_is_a_front_page_not_a_manual():
+    """The README stays short (what it does, the two commands, examples, where the manual is)."""
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) <= 250
+    assert any("make docs" in line for line in lines)  # it says where the manual is
