@@ -110,6 +110,27 @@ def _static_hats(
 # -- commands ---------------------------------------------------------------------------------
 
 
+def _curve_and_analysis(sensor, catalog, *, threshold, grid, max_mag, roll_deg, seed, progress):
+    """Return the sensor's m_t(w), the sensor and the analysis of the shared options.
+
+    ``threshold`` holds :func:`sensor_threshold`'s options, ``grid`` the field options of
+    :func:`setup_analysis`; ``max_mag`` None is the sensor's own static threshold.
+    """
+    curve, rest_mag = sensor_threshold(
+        load_sensor(sensor), seed=seed, progress=progress, **threshold
+    )
+    sens, _, analysis = setup_analysis(
+        sensor,
+        catalog,
+        max_mag=rest_mag if max_mag is None else max_mag,
+        roll_deg=roll_deg,
+        seed=seed,
+        progress=progress,
+        **grid,
+    )
+    return curve, sens, analysis
+
+
 @availability_app.command("static")
 def static(
     sensor: SensorOpt = "st16",
@@ -233,21 +254,12 @@ def dynamic(
     check_n_min(n_min)
     check_max_mag(max_mag)
     with progress_bar() as progress:
-        curve, rest_mag = sensor_threshold(
-            load_sensor(sensor),
-            model=model,
-            n_trials=trials,
-            seed=seed,
-            tolerance_json=tolerance_json,
-            progress=progress,
-        )
-        sens, _, analysis = setup_analysis(
+        curve, sens, analysis = _curve_and_analysis(
             sensor,
             catalog,
-            fov=fov,
-            half_fov_deg=half_fov_deg,
-            max_mag=rest_mag if max_mag is None else max_mag,
-            n_orientations=n_orientations,
+            threshold={"model": model, "n_trials": trials, "tolerance_json": tolerance_json},
+            grid={"fov": fov, "half_fov_deg": half_fov_deg, "n_orientations": n_orientations},
+            max_mag=max_mag,
             roll_deg=roll_deg,
             seed=seed,
             progress=progress,
@@ -322,21 +334,12 @@ def track(
     inclinations = DEG * step_grid(-90, 90, inclination_step_deg, "--inclination-step-deg", 1e-3)
     check_max_mag(max_mag)
     with progress_bar() as progress:
-        curve, rest_mag = sensor_threshold(
-            load_sensor(sensor),
-            model=model,
-            n_trials=trials,
-            seed=seed,
-            tolerance_json=tolerance_json,
-            progress=progress,
-        )
-        sens, _, analysis = setup_analysis(
+        curve, sens, analysis = _curve_and_analysis(
             sensor,
             catalog,
-            fov=fov,
-            half_fov_deg=half_fov_deg,
-            max_mag=rest_mag if max_mag is None else max_mag,
-            n_orientations=n_orientations,
+            threshold={"model": model, "n_trials": trials, "tolerance_json": tolerance_json},
+            grid={"fov": fov, "half_fov_deg": half_fov_deg, "n_orientations": n_orientations},
+            max_mag=max_mag,
             roll_deg=roll_deg,
             seed=seed,
             progress=progress,
