@@ -22,7 +22,20 @@ from starsense.analysis.datasheet.predict import error_kinds, nea_at
 from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
-__all__ = ["no_frames_check", "score_montecarlo", "wrong_rate_upper"]
+__all__ = ["MEASURED_KEYS", "no_frames_check", "score_montecarlo", "wrong_rate_upper"]
+
+#: the fields of a Monte Carlo check measured on solved frames (None when none was measured)
+MEASURED_KEYS = (
+    "cross_rms_arcsec",
+    "roll_rms_arcsec",
+    "cross_predicted_arcsec",
+    "roll_predicted_arcsec",
+    "cross_ratio",
+    "roll_ratio",
+    "cross_ratio_robust",
+    "roll_ratio_robust",
+    "outliers_5sigma",
+)
 
 
 def wrong_rate_upper(n_wrong: int, n_frames: int, confidence: float = 0.95) -> float:
@@ -76,18 +89,7 @@ def score_montecarlo(
         "statuses": dict(res.statuses),
     }
     if right == 0 or not predict:
-        keys = (
-            "cross_rms_arcsec",
-            "roll_rms_arcsec",
-            "cross_predicted_arcsec",
-            "roll_predicted_arcsec",
-            "cross_ratio",
-            "roll_ratio",
-            "cross_ratio_robust",
-            "roll_ratio_robust",
-            "outliers_5sigma",
-        )
-        out = {**out, **dict.fromkeys(keys)}
+        out = {**out, **dict.fromkeys(MEASURED_KEYS)}
         if right:
             e = res.errors_rad
             out["cross_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(
@@ -146,17 +148,5 @@ def no_frames_check(rate_rad_s: float) -> MonteCarloCheck:
         median_ms=None,
         p95_ms=None,
         statuses={},
-        **dict.fromkeys(
-            (
-                "cross_rms_arcsec",
-                "roll_rms_arcsec",
-                "cross_predicted_arcsec",
-                "roll_predicted_arcsec",
-                "cross_ratio",
-                "roll_ratio",
-                "cross_ratio_robust",
-                "roll_ratio_robust",
-                "outliers_5sigma",
-            )
-        ),
+        **dict.fromkeys(MEASURED_KEYS),
     )
