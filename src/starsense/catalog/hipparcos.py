@@ -22,7 +22,6 @@ from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from starsense.catalog._columns import check_unique_ids
 from starsense.catalog._parse import (
@@ -139,6 +138,8 @@ _TABLE_V_MINUS_HP = _BESSELL2000_TABLE2[:, 3] / 1000.0
 
 @functools.cache
 def _v_minus_hp_interpolator():  # a scipy PchipInterpolator, built on first use
+    from scipy.interpolate import PchipInterpolator
+
     return PchipInterpolator(_TABLE_B_MINUS_V, _TABLE_V_MINUS_HP, extrapolate=False)
 
 

@@ -15,7 +15,6 @@ background-subtracted counts, in the pixel-centre convention of :mod:`starsense.
 from __future__ import annotations
 
 import numpy as np
-from scipy import optimize
 from scipy.special import erf
 
 METHODS = ("cog", "iwcog", "gauss")
@@ -49,6 +48,8 @@ def _pixel_gauss(x, y, x0, y0, sigma, flux, offset):
 
 def gauss_fit(window: np.ndarray, row0: int, col0: int, *, sigma0: float = 1.5):
     """Fit a pixel-integrated symmetric Gaussian + constant; returns (x, y, sigma, ok)."""
+    from scipy.optimize import least_squares
+
     w = np.asarray(window, dtype=float)
     x0, y0 = cog(w, row0, col0)
     if not np.isfinite(x0):
@@ -63,7 +64,7 @@ def gauss_fit(window: np.ndarray, row0: int, col0: int, *, sigma0: float = 1.5):
     lo = [col0 - 0.5, row0 - 0.5, 0.2, 0.0, -np.inf]
     hi = [col0 + w.shape[1] - 0.5, row0 + w.shape[0] - 0.5, max(w.shape), np.inf, np.inf]
     try:
-        res = optimize.least_squares(residual, p0, bounds=(lo, hi), x_scale="jac", max_nfev=200)
+        res = least_squares(residual, p0, bounds=(lo, hi), x_scale="jac", max_nfev=200)
     except (ValueError, np.linalg.LinAlgError):
         return x0, y0, np.nan, False
     if not res.success:

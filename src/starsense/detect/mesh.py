@@ -12,7 +12,6 @@ import functools
 
 import numpy as np
 from scipy import ndimage
-from scipy.interpolate import CubicSpline
 
 from starsense.detect.surface import matmul_single_thread
 from starsense.detect.workspace import scratch
@@ -126,9 +125,53 @@ def _interpolation_matrix(centres: np.ndarray, n: int, kind: str) -> np.ndarray:
     w[np.arange(n), seg + 1] += t
     if kind == "cubic" and m >= 3:
         inside = (pix >= centres[0]) & (pix <= centres[-1])
-        spline = CubicSpline(centres, np.eye(m), bc_type="natural")
-        w[inside] = spline(pix[inside])
+        w[inside] = natural_spline_weights(centres, pix[inside])
     return w
+
+
+def natural_spline_weights(knots: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """W (n, m): the natural cubic spline through values v at ``knots``, at ``x``, is ``W @ v``.
+
+    The spline of ``scipy.interpolate.CubicSpline(knots, v, bc_type="natural")`` (zero second
+    derivative at both ends), written out in NumPy: its second derivatives at the knots solve
+    the (m - 2)-square tridiagonal system of continuity of the first derivative, here for every
+    unit vector v at once (scipy.interpolate costs ~0.1 s to import, more than a frame's solve).
+
+    Parameters
+    ----------
+    knots : ndarray, shape (m,)
+        Strictly ascending, m >= 3.
+    x : ndarray, shape (n,)
+        Where to evaluate, within ``[knots[0], knots[-1]]``.
+
+    Returns
+    -------
+    ndarray, shape (n, m)
+    """
+    m = knots.size
+    h = np.diff(knots)
+    a = np.zeros((m - 2, m - 2))
+    i = np.arange(m - 2)
+    a[i, i] = 2.0 * (h[:-1] + h[1:])
+    a[i[1:], i[:-1]] = h[1:-1]
+    a[i[:-1], i[1:]] = h[1:-1]
+    b = np.zeros((m - 2, m))  # 6 x the change of slope at each inner knot, per unit value
+    b[i, i] = 6.0 / h[:-1]
+    b[i, i + 1] = -6.0 / h[:-1] - 6.0 / h[1:]
+    b[i, i + 2] = 6.0 / h[1:]
+    second = np.zeros((m, m))  # second derivatives at the knots, zero at the ends (natural)
+    second[1:-1] = np.linalg.solve(a, b)
+    seg = np.clip(np.searchsorted(knots, x, side="right") - 1, 0, m - 2)
+    hs = h[seg]
+    t1 = x - knots[seg]  # from the segment's left knot
+    t0 = knots[seg + 1] - x  # to its right knot
+    rows = np.arange(x.size)
+    w = np.zeros((x.size, m))
+    w[rows, seg] = t0 / hs
+    w[rows, seg + 1] += t1 / hs
+    c0 = ((t0**3 / hs - hs * t0) / 6.0)[:, None]
+    c1 = ((t1**3 / hs - hs * t1) / 6.0)[:, None]
+    return w + c0 * second[seg] + c1 * second[seg + 1]
 
 
 def interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.ndarray:

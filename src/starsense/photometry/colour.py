@@ -16,7 +16,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from starsense.errors import InputError
 from starsense.photometry.blackbody import spectral_exitance
@@ -114,6 +113,8 @@ class ColourModel:
 
     @functools.cached_property
     def _tables(self):
+        from scipy.interpolate import PchipInterpolator
+
         blue = _surface_magnitudes(self.blue_band)
         red = _surface_magnitudes(self.red_band)
         ci = blue - red  # decreasing with T

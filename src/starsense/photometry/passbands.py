@@ -32,7 +32,6 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from starsense.errors import InputError
 
@@ -158,6 +157,7 @@ class Passband:
 
 
 def _load_curve(filter_name: str) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.interpolate import PchipInterpolator
     from sedpy import observate
 
     f = observate.Filter(filter_name)

@@ -29,7 +29,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from starsense.catalog.apparent import apparent_places
@@ -279,6 +278,8 @@ def _rms(res: np.ndarray) -> float:
 
 def _fit_attitudes_only(problem: _Problem) -> np.ndarray:
     """Residuals with the input camera, attitudes re-fitted (the 'before' numbers)."""
+    from scipy.optimize import least_squares
+
     saved = problem.free
     problem.free = np.zeros(0, dtype=np.intp)
     res = least_squares(problem.residuals, np.zeros(3 * problem.n_frames), x_scale="jac")
@@ -409,6 +410,8 @@ def calibrate(
             f"{names[free.size - 1]} cannot be fitted: {len(problem.v)} stars give {m} "
             f"residuals for {n_unknowns} unknowns ({free.size} camera, 3 per frame)"
         )
+    from scipy.optimize import least_squares
+
     theta = np.concatenate([problem.cam0[free], np.zeros(3 * len(frames))])
     rejected = 0
     for attempt in range(4):

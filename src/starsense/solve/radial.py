@@ -38,7 +38,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from starsense.geometry.distortion import distort, undistort
@@ -178,6 +177,7 @@ class _Model:
 
     def fit(self, theta0, det, v, scale_px=None):
         """Least squares; robust (soft L1 beyond ``scale_px``) while pairs may be wrong."""
+        from scipy.optimize import least_squares
 
         def residuals(theta):
             return (self.xy[det] - self.project(theta, v)).ravel()
