@@ -2,7 +2,8 @@
 
 ``starsense.detect._clipc`` runs the background mesh's sigma clipping box by box
 (src/starsense/detect/_clipc.c); ``starsense.detect._windowc`` tracking's window detection
-(src/starsense/detect/_windowc.c). They are optional: where one cannot be compiled the package
+(src/starsense/detect/_windowc.c); ``starsense.detect._framec`` whole-frame detection's PSF
+correlation, filtered-noise median and labelling (src/starsense/detect/_framec.c). They are optional: where one cannot be compiled the package
 installs without it and uses the NumPy implementation of the same algorithm.
 """
 
@@ -20,6 +21,13 @@ setup(
             ["src/starsense/detect/_windowc.c"],
             # no fused multiply-add: the kernel's roundings are the NumPy form's
             extra_compile_args=["-ffp-contract=off"],
+            optional=True,
+        ),
+        Extension(
+            "starsense.detect._framec",
+            ["src/starsense/detect/_framec.c"],
+            # no fused multiply-add: the kernel's roundings are the NumPy forms'
+            extra_compile_args=["-O3", "-ffp-contract=off"],
             optional=True,
         ),
     ]

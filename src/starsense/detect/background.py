@@ -55,6 +55,11 @@ from starsense.detect.surface import NoiseSurface
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
 
+try:
+    import starsense.detect._framec as _framec
+except ImportError:  # built without a C compiler: the NumPy form below
+    _framec = None
+
 # Boxes of at least this size are sampled at every second pixel each way.
 _SUBSAMPLE_MIN_BOX_PX = 32
 # A box keeping fewer valid samples than this fraction (masked, clipped) takes its value from the
@@ -355,6 +360,13 @@ def hot_pixel_mask(
     if r.size == 0:
         return hot
     n_here = np.maximum(np.broadcast_to(background.noise_at(flat), flat.shape), np.float32(1e-12))
+    if _framec is not None:
+        # the tests below, candidate by candidate (_framec.c): the same float32 comparisons
+        n_here = np.ascontiguousarray(n_here, dtype=np.float32)
+        rows, cols = sub.shape
+        args = (np.ascontiguousarray(sub), rows, cols, flat.astype(np.int64), n_here, flat.size)
+        _framec.hot(*args, threshold_sigma, hot.view(np.uint8))
+        return hot
     above = sub[r, c] > threshold_sigma * n_here
     r, c, n_here = r[above], c[above], n_here[above]
     rows, cols = sub.shape

@@ -16,6 +16,11 @@ import numpy as np
 from scipy.sparse import coo_array
 from scipy.sparse.csgraph import connected_components
 
+try:
+    import starsense.detect._framec as _framec
+except ImportError:  # built without a C compiler: the NumPy form below
+    _framec = None
+
 __all__ = ["label_pixels", "region_centroids"]
 
 
@@ -46,6 +51,20 @@ def label_pixels(idx: np.ndarray, shape: tuple[int, int], connectivity: int = 8)
     p = idx.size
     if p == 0:
         return np.zeros(0, np.int32), 0
+    if _framec is not None:
+        # union-find over each pixel's neighbours to the left and above (_framec.c): the
+        # same regions, numbered the same way
+        labels = np.empty(p, np.int32)
+        n = _framec.label(
+            np.ascontiguousarray(idx, dtype=np.int64), p, shape[1], connectivity, labels
+        )
+        return labels, int(n)
+    return _label_pixels_numpy(idx, shape, connectivity)
+
+
+def _label_pixels_numpy(idx: np.ndarray, shape: tuple[int, int], connectivity: int = 8):
+    """:func:`label_pixels` by sparse-graph connected components, in NumPy/SciPy."""
+    p = idx.size
     rows, cols = shape
     r, c = np.divmod(idx, cols)
     offsets = [(0, 1), (1, 0)] + ([(1, -1), (1, 1)] if connectivity == 8 else [])

@@ -1,0 +1,419 @@
+/* Compiled kernels of whole-frame detection: the PSF correlation, the median of the filtered
+ * noise, the labelling of lit pixels.
+ *
+ * Each is the algorithm of its NumPy form, with the same float32 operations in the same order
+ * (built without fused multiply-adds), so its results are those of the NumPy form bit for bit
+ * (tests/detect/test_detect_frame_kernel.py):
+ *
+ *   correlate   matched.py's gaussian_correlate: a separable correlation with a symmetric
+ *               float32 kernel, edge pixels repeated, along the rows then down the columns,
+ *               the taps in symmetric pairs ((p[-j] + p[+j]) * t[j], added in order of j);
+ *   median      np.median of a float32 vector (matched.py's _median_in_place): the k-th
+ *               smallest value by a radix selection on the float's bits, two passes of a
+ *               16-bit histogram, no reordering; for an even count the mean of the two
+ *               middle values in float32;
+ *   label       regions.py's label_pixels: the connected regions (4- or 8-connected) of a
+ *               sparse, ascending list of lit pixels, numbered 1..n in the order of their first
+ *               pixel (scipy.ndimage.label's numbering), by union-find over each pixel's
+ *               neighbours to the left and in the row above;
+ *   hot         background.py's hot_pixel_mask past its first cut: of the candidate pixels
+ *               (above the threshold at the frame's lowest noise, with their own noise), those
+ *               above the threshold at their noise whose 8 neighbours stay below the allowed
+ *               level, or which with their brightest 4-neighbour form a pair whose 10
+ *               surrounding pixels do (the same float32 comparisons).
+ *
+ * Built by setup.py as an optional extension: without a C compiler the package runs the NumPy
+ * forms. No NumPy headers: arrays arrive through the buffer protocol.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int check(Py_buffer *b, Py_ssize_t bytes, const char *name)
+{
+    if (b->len < bytes) {
+        PyErr_Format(PyExc_ValueError, "%s: buffer of %zd bytes, %zd needed", name, b->len,
+                     bytes);
+        return -1;
+    }
+    return 0;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* correlate(a, rows, cols, taps, radius, across, out): a, across, out float32 (rows, cols)  */
+
+/* Along the rows: each row padded by r repeated edge pixels (``padded``, cols + 2r floats),
+ * then the taps one after another over the whole row (a loop the compiler vectorises). */
+static void correlate_rows(const float *a, Py_ssize_t rows, Py_ssize_t cols, const float *t,
+                           int r, float *across, float *padded)
+{
+    for (Py_ssize_t i = 0; i < rows; i++) {
+        const float *row = a + i * cols;
+        float *acc = across + i * cols;
+        for (int j = 0; j < r; j++) {
+            padded[j] = row[0];
+            padded[r + cols + j] = row[cols - 1];
+        }
+        memcpy(padded + r, row, cols * sizeof(float));
+        const float *p = padded + r;
+        const float t0 = t[0];
+        for (Py_ssize_t c = 0; c < cols; c++)
+            acc[c] = p[c] * t0;
+        for (int j = 1; j <= r; j++) {
+            const float tj = t[j];
+            const float *left = p - j, *right = p + j;
+            for (Py_ssize_t c = 0; c < cols; c++) {
+                float pair = left[c] + right[c];
+                pair = pair * tj;
+                acc[c] = acc[c] + pair;
+            }
+        }
+    }
+}
+
+static void correlate_columns(const float *across, Py_ssize_t rows, Py_ssize_t cols,
+                              const float *t, int r, float *out)
+{
+    for (Py_ssize_t i = 0; i < rows; i++) {
+        float *o = out + i * cols;
+        const float *mid = across + i * cols;
+        for (Py_ssize_t c = 0; c < cols; c++)
+            o[c] = mid[c] * t[0];
+        for (int j = 1; j <= r; j++) {
+            Py_ssize_t up = i - j < 0 ? 0 : i - j;
+            Py_ssize_t down = i + j >= rows ? rows - 1 : i + j;
+            const float *u = across + up * cols, *d = across + down * cols;
+            const float tj = t[j];
+            for (Py_ssize_t c = 0; c < cols; c++) {
+                float pair = u[c] + d[c];
+                pair = pair * tj;
+                o[c] = o[c] + pair;
+            }
+        }
+    }
+}
+
+static PyObject *correlate(PyObject *self, PyObject *args)
+{
+    Py_buffer ab, tb, xb, ob;
+    Py_ssize_t rows, cols;
+    int radius;
+    if (!PyArg_ParseTuple(args, "y*nny*iw*w*", &ab, &rows, &cols, &tb, &radius, &xb, &ob))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t bytes = rows * cols * 4;
+    if (rows < 1 || cols < 1 || radius < 0 || check(&ab, bytes, "a")
+        || check(&tb, (Py_ssize_t)(radius + 1) * 4, "taps") || check(&xb, bytes, "across")
+        || check(&ob, bytes, "out")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    float *padded = malloc((cols + 2 * (Py_ssize_t)radius) * sizeof(float));
+    if (padded == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    correlate_rows((const float *)ab.buf, rows, cols, (const float *)tb.buf, radius,
+                   (float *)xb.buf, padded);
+    correlate_columns((const float *)xb.buf, rows, cols, (const float *)tb.buf, radius,
+                      (float *)ob.buf);
+    Py_END_ALLOW_THREADS
+    free(padded);
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&ab);
+    PyBuffer_Release(&tb);
+    PyBuffer_Release(&xb);
+    PyBuffer_Release(&ob);
+    return result;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* median(z): np.median of a 1-D float32 vector (no NaN), as a float                         */
+
+/* The float's bits as an unsigned key of the same order (-0.0 sorts just below +0.0, which
+ * compare equal as floats: either is "the" k-th value, and they are equal). */
+static inline uint32_t key_of(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+static inline float float_of(uint32_t k)
+{
+    uint32_t u = (k & 0x80000000u) ? (k & 0x7fffffffu) : ~k;
+    float f;
+    memcpy(&f, &u, 4);
+    return f;
+}
+
+/* The k-th smallest (0-based) of z[0:n], 0 <= k < n. hist: 65536 counters. */
+static float select_kth(const float *z, Py_ssize_t n, Py_ssize_t k, Py_ssize_t *hist)
+{
+    memset(hist, 0, 65536 * sizeof(Py_ssize_t));
+    for (Py_ssize_t i = 0; i < n; i++)
+        hist[key_of(z[i]) >> 16]++;
+    uint32_t high = 0;
+    Py_ssize_t below = 0;
+    for (; high < 65536; high++) {
+        if (below + hist[high] > k)
+            break;
+        below += hist[high];
+    }
+    memset(hist, 0, 65536 * sizeof(Py_ssize_t));
+    for (Py_ssize_t i = 0; i < n; i++) {
+        uint32_t key = key_of(z[i]);
+        if ((key >> 16) == high)
+            hist[key & 0xffffu]++;
+    }
+    uint32_t low = 0;
+    for (; low < 65536; low++) {
+        if (below + hist[low] > k)
+            break;
+        below += hist[low];
+    }
+    return float_of((high << 16) | low);
+}
+
+static PyObject *median(PyObject *self, PyObject *args)
+{
+    Py_buffer zb;
+    Py_ssize_t n;
+    if (!PyArg_ParseTuple(args, "y*n", &zb, &n))
+        return NULL;
+    PyObject *result = NULL;
+    if (n < 1 || check(&zb, n * 4, "z")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "median of nothing");
+        goto done;
+    }
+    Py_ssize_t *hist = malloc(65536 * sizeof(Py_ssize_t));
+    if (hist == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    const float *z = (const float *)zb.buf;
+    float m;
+    Py_BEGIN_ALLOW_THREADS
+    Py_ssize_t k = (n - 1) / 2;
+    m = select_kth(z, n, k, hist);
+    if (n % 2 == 0) {
+        float upper = select_kth(z, n, k + 1, hist);
+        float s = m + upper;
+        m = s / 2.0f;
+    }
+    Py_END_ALLOW_THREADS
+    free(hist);
+    result = PyFloat_FromDouble((double)m);
+done:
+    PyBuffer_Release(&zb);
+    return result;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* label(idx, p, cols, connectivity, labels) -> n: idx int64 ascending, labels int32 (p,)    */
+
+static Py_ssize_t find(Py_ssize_t *parent, Py_ssize_t i)
+{
+    while (parent[i] != i) {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    return i;
+}
+
+static void unite(Py_ssize_t *parent, Py_ssize_t a, Py_ssize_t b)
+{
+    a = find(parent, a);
+    b = find(parent, b);
+    if (a == b)
+        return;
+    if (a < b) /* the root is the component's first pixel */
+        parent[b] = a;
+    else
+        parent[a] = b;
+}
+
+static void label_sorted(const int64_t *idx, Py_ssize_t p, int64_t cols, int eight,
+                         Py_ssize_t *parent, int32_t *labels, Py_ssize_t *n_out)
+{
+    Py_ssize_t up = 0; /* first pixel that may be in the row above, at or right of c - 1 */
+    for (Py_ssize_t i = 0; i < p; i++) {
+        parent[i] = i;
+        int64_t v = idx[i], c = v % cols;
+        if (i > 0 && idx[i - 1] == v - 1 && c > 0)
+            unite(parent, i, i - 1);
+        int64_t first = v - cols - (eight && c > 0 ? 1 : 0);
+        int64_t last = v - cols + (eight && c + 1 < cols ? 1 : 0);
+        while (up < i && idx[up] < first)
+            up++;
+        for (Py_ssize_t j = up; j < i && idx[j] <= last; j++)
+            unite(parent, i, j);
+    }
+    Py_ssize_t n = 0;
+    for (Py_ssize_t i = 0; i < p; i++) {
+        Py_ssize_t root = find(parent, i);
+        if (root == i)
+            labels[i] = (int32_t)++n;
+        else
+            labels[i] = labels[root]; /* root < i: labelled already */
+    }
+    *n_out = n;
+}
+
+static PyObject *label(PyObject *self, PyObject *args)
+{
+    Py_buffer ib, lb;
+    Py_ssize_t p, cols;
+    int connectivity;
+    if (!PyArg_ParseTuple(args, "y*nniw*", &ib, &p, &cols, &connectivity, &lb))
+        return NULL;
+    PyObject *result = NULL;
+    if (p < 0 || cols < 1 || check(&ib, p * 8, "idx") || check(&lb, p * 4, "labels")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    Py_ssize_t *parent = malloc((p > 0 ? p : 1) * sizeof(Py_ssize_t));
+    if (parent == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    Py_ssize_t n = 0;
+    Py_BEGIN_ALLOW_THREADS
+    label_sorted((const int64_t *)ib.buf, p, (int64_t)cols, connectivity == 8, parent,
+                 (int32_t *)lb.buf, &n);
+    Py_END_ALLOW_THREADS
+    free(parent);
+    result = PyLong_FromSsize_t(n);
+done:
+    PyBuffer_Release(&ib);
+    PyBuffer_Release(&lb);
+    return result;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* hot(sub, rows, cols, flat, noise, p, threshold_sigma, hot): sub float32 (rows, cols), flat */
+/* int64 (p,), noise float32 (p,) (at least 1e-12), hot uint8 (rows, cols), set where hot    */
+
+/* The largest of sub at (r + dr[k], c + dc[k]), k < n, inside the frame; -inf if none. */
+static float ring_max(const float *sub, Py_ssize_t rows, Py_ssize_t cols, Py_ssize_t r,
+                      Py_ssize_t c, const int *dr, const int *dc, int n)
+{
+    float out = -INFINITY;
+    for (int k = 0; k < n; k++) {
+        Py_ssize_t rr = r + dr[k], cc = c + dc[k];
+        if (rr < 0 || rr >= rows || cc < 0 || cc >= cols)
+            continue;
+        float v = sub[rr * cols + cc];
+        if (v > out)
+            out = v;
+    }
+    return out;
+}
+
+static const int EIGHT_DR[8] = {-1, -1, -1, 0, 0, 1, 1, 1};
+static const int EIGHT_DC[8] = {-1, 0, 1, -1, 1, -1, 0, 1};
+/* the 4-neighbours in background.py's order: up, down, left, right */
+static const int SIDE_DR[4] = {-1, 1, 0, 0};
+static const int SIDE_DC[4] = {0, 0, -1, 1};
+
+/* The 10 pixels around the pair (0, 0) + (dr, dc): the box around the two less the two. */
+static int pair_ring(int dr, int dc, int *rr, int *cc)
+{
+    int n = 0;
+    int r_lo = (dr < 0 ? dr : 0) - 1, r_hi = (dr > 0 ? dr : 0) + 1;
+    int c_lo = (dc < 0 ? dc : 0) - 1, c_hi = (dc > 0 ? dc : 0) + 1;
+    for (int i = r_lo; i <= r_hi; i++)
+        for (int j = c_lo; j <= c_hi; j++) {
+            if ((i == 0 && j == 0) || (i == dr && j == dc))
+                continue;
+            rr[n] = i;
+            cc[n] = j;
+            n++;
+        }
+    return n;
+}
+
+static Py_ssize_t clamp(Py_ssize_t v, Py_ssize_t n) { return v < 0 ? 0 : (v >= n ? n - 1 : v); }
+
+static void hot_pixels(const float *sub, Py_ssize_t rows, Py_ssize_t cols, const int64_t *flat,
+                       const float *noise, Py_ssize_t p, float ts, uint8_t *hot)
+{
+    int ring_r[4][10], ring_c[4][10], ring_n[4];
+    for (int s = 0; s < 4; s++)
+        ring_n[s] = pair_ring(SIDE_DR[s], SIDE_DC[s], ring_r[s], ring_c[s]);
+    for (Py_ssize_t i = 0; i < p; i++) {
+        Py_ssize_t r = (Py_ssize_t)(flat[i] / cols), c = (Py_ssize_t)(flat[i] % cols);
+        float v = sub[r * cols + c], n = noise[i];
+        if (!(v > ts * n))
+            continue;
+        float three = 3.0f * n, part = 0.15f * v;
+        float allowed = three >= part ? three : part;
+        if (ring_max(sub, rows, cols, r, c, EIGHT_DR, EIGHT_DC, 8) < allowed) {
+            hot[r * cols + c] = 1;
+            continue;
+        }
+        int best = 0; /* the brightest 4-neighbour, the first of equals */
+        float top = -INFINITY;
+        for (int s = 0; s < 4; s++) {
+            float side = ring_max(sub, rows, cols, r, c, SIDE_DR + s, SIDE_DC + s, 1);
+            if (s == 0 || side > top) {
+                top = side;
+                best = s;
+            }
+        }
+        Py_ssize_t r2 = clamp(r + SIDE_DR[best], rows), c2 = clamp(c + SIDE_DC[best], cols);
+        if (ring_max(sub, rows, cols, r, c, ring_r[best], ring_c[best], ring_n[best]) < allowed
+            && v >= sub[r2 * cols + c2]) {
+            hot[r * cols + c] = 1;
+            hot[r2 * cols + c2] = 1;
+        }
+    }
+}
+
+static PyObject *hot(PyObject *self, PyObject *args)
+{
+    Py_buffer sb, fb, nb, hb;
+    Py_ssize_t rows, cols, p;
+    float ts;
+    if (!PyArg_ParseTuple(args, "y*nny*y*nfw*", &sb, &rows, &cols, &fb, &nb, &p, &ts, &hb))
+        return NULL;
+    PyObject *result = NULL;
+    if (rows < 1 || cols < 1 || p < 0 || check(&sb, rows * cols * 4, "sub")
+        || check(&fb, p * 8, "flat") || check(&nb, p * 4, "noise")
+        || check(&hb, rows * cols, "hot")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    hot_pixels((const float *)sb.buf, rows, cols, (const int64_t *)fb.buf,
+               (const float *)nb.buf, p, ts, (uint8_t *)hb.buf);
+    Py_END_ALLOW_THREADS
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&fb);
+    PyBuffer_Release(&nb);
+    PyBuffer_Release(&hb);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"correlate", correlate, METH_VARARGS, "Separable symmetric correlation (matched.py)."},
+    {"median", median, METH_VARARGS, "np.median of a float32 vector."},
+    {"label", label, METH_VARARGS, "Connected regions of sorted lit pixels (regions.py)."},
+    {"hot", hot, METH_VARARGS, "Hot pixels and pairs among candidates (background.py)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_framec", NULL, -1, methods};
+
+PyMODINIT_FUNC PyInit__framec(void) { return PyModule_Create(&module); }
