@@ -85,3 +85,20 @@ def test_kernel_refuses_buffers_of_the_wrong_size():
     low, high = np.empty(2, np.float32), np.empty(2, np.float32)
     with pytest.raises(ValueError, match="med has 24 bytes, expected 16"):
         clip._clipc.clip_sorted(s, 2, 10, 3.0, clip.MAD_TO_SIGMA, 10, med, low, high, kept)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), dtype=st.sampled_from([np.uint8, np.uint16, np.int16]))
+def test_integer_samples_sorted_as_integers_clip_the_same(seed, dtype):
+    # sorting the integers and converting them is sorting their (exact) float32 values
+    info = np.iinfo(dtype)
+    rng = np.random.default_rng(seed)
+    shape = (int(rng.integers(1, 4)), int(rng.integers(1, 4)), int(rng.integers(1, 400)))
+    counts = rng.normal(rng.uniform(info.min, info.max), rng.uniform(0.5, 50), shape)
+    counts[rng.random(shape) < 0.05] = info.max  # saturated stars
+    counts = np.clip(np.round(counts), info.min, info.max).astype(dtype)
+    cells = counts.astype(np.float32)
+    got = clip.sigma_clip_boxes(cells, 3.0, counts=counts)
+    expected = clip.sigma_clip_boxes(cells, 3.0)
+    for name, g, e in zip(("median", "low", "high", "kept"), got, expected, strict=True):
+        np.testing.assert_array_equal(g, e, err_msg=name)

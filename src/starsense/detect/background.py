@@ -262,7 +262,10 @@ def estimate_background(
             cells[~ok] = np.nan
         n_samples = ok.sum(axis=-1)
 
-    med, low, high, kept = sigma_clip_boxes(cells, float(sigma_clip))
+    counts = None
+    if ok is True and a.dtype.kind in "iu" and a.dtype.itemsize <= 2:
+        counts = gather(a, None, "bg_counts")  # 8/16-bit frames: sorted as integers
+    med, low, high, kept = sigma_clip_boxes(cells, float(sigma_clip), counts=counts)
     keep = scratch("bg_keep", cells.shape, bool)
     with np.errstate(invalid="ignore"):
         np.greater_equal(cells, low[..., None], out=keep)

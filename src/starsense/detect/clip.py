@@ -136,7 +136,7 @@ def _run_mad(s: np.ndarray, lo: np.ndarray, hi: np.ndarray, med: np.ndarray, at=
         return np.where(count > 0, 0.5 * (a.astype(np.float64) + b), np.nan)
 
 
-def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
+def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float, *, counts: np.ndarray | None = None):
     """Sigma-clipped median of every box at once.
 
     ``cells`` (..., samples) holds NaN for missing samples. The samples are sorted once; the kept
@@ -149,6 +149,9 @@ def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
         The samples of each box, counts; NaN where missing.
     sigma_clip : float
         Clip at this many robust sigmas (MAD_TO_SIGMA x MAD) from the median.
+    counts : ndarray of 8- or 16-bit integers, shape (..., samples), optional
+        The same samples as the integers they were converted from (none missing): sorted as
+        integers, ~1.5x faster than as floats, then converted (exactly, and in the same order).
 
     Returns
     -------
@@ -160,8 +163,14 @@ def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float):
         The number of samples kept.
     """
     s = scratch("clip_sorted", cells.shape, cells.dtype)
-    np.copyto(s, cells)
-    s.sort(axis=-1)  # NaN last
+    if counts is not None and counts.dtype.itemsize <= 2 and counts.dtype.kind in "iu":
+        ints = scratch("clip_sorted_counts", counts.shape, counts.dtype)
+        np.copyto(ints, counts)
+        ints.sort(axis=-1)
+        np.copyto(s, ints)
+    else:
+        np.copyto(s, cells)
+        s.sort(axis=-1)  # NaN last
     if _clipc is None or s.dtype != np.float32:
         return _clip_sorted_numpy(s, sigma_clip)
     lead, m = s.shape[:-1], s.shape[-1]
