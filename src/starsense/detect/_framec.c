@@ -155,9 +155,9 @@ static inline float float_of(uint32_t k)
 
 /* The key of the k-th smallest (0-based) of the n keys, 0 <= k < n, by a radix selection: a
  * histogram of the keys' top 11 bits finds the bin that holds it, the keys in that bin are
- * kept (in ``keys``, compacted in place without branches), then the next 11 and last 10 bits
- * likewise. 2,048 counters, four copies filled in turn so that runs of equal bins do not wait
- * on each other. *n_le is how many keys are at most the one returned. */
+ * kept (in ``keys``, compacted in place without branches), then the next 11 and the last 10
+ * bits likewise (2,048 counters, in the L1 cache; four copies filled in turn, so that runs of
+ * equal bins do not wait on each other). *n_le is how many keys are at most the one returned. */
 static uint32_t select_key(uint32_t *keys, Py_ssize_t n, Py_ssize_t k, Py_ssize_t *n_le)
 {
     static const int shift[3] = {21, 10, 0}, width[3] = {11, 11, 10};
@@ -189,7 +189,7 @@ static uint32_t select_key(uint32_t *keys, Py_ssize_t n, Py_ssize_t k, Py_ssize_
             *n_le = below + here;
             break;
         }
-        Py_ssize_t m = 0; /* keep the keys of bin b */
+        Py_ssize_t m = 0; /* keep the keys of bin b; below still counts every key under it */
         for (i = 0; i < n; i++) {
             keys[m] = keys[i];
             m += ((keys[i] >> sh) & (bins - 1)) == b;
@@ -197,6 +197,25 @@ static uint32_t select_key(uint32_t *keys, Py_ssize_t n, Py_ssize_t k, Py_ssize_
         n = m;
     }
     return prefix;
+}
+
+/* The two middle values of the n floats z (n >= 1; equal for odd n). keys: n scratch keys. */
+static void middle_pair(const float *z, Py_ssize_t n, uint32_t *keys, float *lower, float *upper)
+{
+    for (Py_ssize_t i = 0; i < n; i++)
+        keys[i] = key_of(z[i]);
+    Py_ssize_t k = (n - 1) / 2, n_le;
+    uint32_t key = select_key(keys, n, k, &n_le);
+    *lower = float_of(key);
+    uint32_t next = key;
+    if (n % 2 == 0 && n_le <= k + 1) { /* the (k + 1)-th: the least value above */
+        next = UINT32_MAX;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            uint32_t other = key_of(z[i]);
+            next = (other > key && other < next) ? other : next;
+        }
+    }
+    *upper = float_of(next);
 }
 
 static PyObject *median(PyObject *self, PyObject *args)
@@ -219,22 +238,10 @@ static PyObject *median(PyObject *self, PyObject *args)
     const float *z = (const float *)zb.buf;
     float m;
     Py_BEGIN_ALLOW_THREADS
-    for (Py_ssize_t i = 0; i < n; i++)
-        keys[i] = key_of(z[i]);
-    Py_ssize_t k = (n - 1) / 2, n_le;
-    uint32_t key = select_key(keys, n, k, &n_le);
-    m = float_of(key);
+    float upper;
+    middle_pair(z, n, keys, &m, &upper);
     if (n % 2 == 0) {
-        /* the (k + 1)-th: the same value if it repeats, else the least value above it */
-        uint32_t next = key;
-        if (n_le <= k + 1) {
-            next = UINT32_MAX;
-            for (Py_ssize_t i = 0; i < n; i++) {
-                uint32_t other = key_of(z[i]);
-                next = (other > key && other < next) ? other : next;
-            }
-        }
-        float s = m + float_of(next);
+        float s = m + upper;
         m = s / 2.0f;
     }
     Py_END_ALLOW_THREADS
