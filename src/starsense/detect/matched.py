@@ -79,9 +79,7 @@ def gaussian_correlate(
     if _framec is not None and out.dtype == np.float32 and out.flags.c_contiguous:
         # the compiled form of _band's passes, whole frame (_framec.c): the same float32
         # operations in the same order, so the same values
-        a = np.ascontiguousarray(a)
-        across = scratch("gauss_across_frame", (rows, cols))
-        _framec.correlate(a, rows, cols, taps, radius, across, out)
+        _framec.correlate(np.ascontiguousarray(a), rows, cols, taps, radius, out)
         return out
     # bands of rows, so that a band's three work arrays stay in the cache between the passes
     band = max(16, _BAND_FLOATS // cols)
