@@ -146,7 +146,7 @@ done:
 }
 
 /* ---------------------------------------------------------------------------------------- */
-/* median(z): np.median of a 1-D float32 vector (no NaN), as a float                         */
+/* median(z, n, keys): np.median of a 1-D float32 vector (no NaN), as a float; keys: n uint32 */
 
 /* The float's bits as an unsigned key of the same order (-0.0 sorts just below +0.0, which
  * compare equal as floats: either is "the" k-th value, and they are equal). */
@@ -232,35 +232,29 @@ static void middle_pair(const float *z, Py_ssize_t n, uint32_t *keys, float *low
 
 static PyObject *median(PyObject *self, PyObject *args)
 {
-    Py_buffer zb;
+    Py_buffer zb, kb;
     Py_ssize_t n;
-    if (!PyArg_ParseTuple(args, "y*n", &zb, &n))
+    if (!PyArg_ParseTuple(args, "y*nw*", &zb, &n, &kb))
         return NULL;
     PyObject *result = NULL;
-    if (n < 1 || check(&zb, n * 4, "z")) {
+    if (n < 1 || check(&zb, n * 4, "z") || check(&kb, n * 4, "keys")) {
         if (!PyErr_Occurred())
             PyErr_SetString(PyExc_ValueError, "median of nothing");
         goto done;
     }
-    uint32_t *keys = malloc(n * sizeof(uint32_t));
-    if (keys == NULL) {
-        PyErr_NoMemory();
-        goto done;
-    }
     const float *z = (const float *)zb.buf;
-    float m;
+    float m, upper;
     Py_BEGIN_ALLOW_THREADS
-    float upper;
-    middle_pair(z, n, keys, &m, &upper);
+    middle_pair(z, n, (uint32_t *)kb.buf, &m, &upper);
     if (n % 2 == 0) {
         float s = m + upper;
         m = s / 2.0f;
     }
     Py_END_ALLOW_THREADS
-    free(keys);
     result = PyFloat_FromDouble((double)m);
 done:
     PyBuffer_Release(&zb);
+    PyBuffer_Release(&kb);
     return result;
 }
 

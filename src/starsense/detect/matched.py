@@ -207,7 +207,7 @@ def _median_in_place(z: np.ndarray) -> np.float32:
     """
     n = z.size
     if _framec is not None and z.flags.c_contiguous:
-        return np.float32(_framec.median(z, n))
+        return np.float32(_framec.median(z, n, scratch("median_keys", (n,), np.uint32)))
     k = (n - 1) // 2
     z.partition(k)
     if n % 2:
