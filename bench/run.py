@@ -18,6 +18,7 @@ import atexit  # noqa: E402
 import contextlib  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -227,6 +228,29 @@ def _solve_esa() -> float:
         flush=True,
     )
     return float(np.mean(per_frame))
+
+
+@bench(
+    "solve_cli_esa_frame",
+    "`starsense solve FRAME --sensor esa_blackfly --json` as a process: start-up + one frame",
+    0.7,
+)
+def _solve_cli_esa() -> float:
+    folder = Path(__file__).resolve().parents[2] / "shared" / "data" / "images" / "esa"
+    frames = sorted(folder.glob("*.tiff"))
+    if not frames:
+        print("    (skipped: ../shared/data/images/esa not found)")
+        return float("nan")
+    command = [str(Path(sys.executable).with_name("starsense")), "solve", str(frames[0])]
+    command += ["--sensor", "esa_blackfly", "--json"]
+    subprocess.run(command, capture_output=True, check=True)  # the database cache, warm
+    times = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        subprocess.run(command, capture_output=True, check=True)
+        times.append(time.perf_counter() - t0)
+    print(f"    (5 runs: {', '.join(f'{t:.2f}' for t in times)} s; the median)", flush=True)
+    return float(np.median(times))
 
 
 # ---------------------------------------------------------------------------------------------

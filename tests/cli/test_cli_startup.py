@@ -68,3 +68,29 @@ def test_a_command_imports_its_module_only():
         "starsense.cli.listing",
         "starsense.cli.solve",
     }
+
+
+def test_solving_a_frame_imports_nothing_it_does_not_use(shared_dir):
+    # the command's imports, then a frame loaded and its stars detected: a frame's solve pays
+    # for what it needs (numpy, scipy.spatial's rotations and k-d tree, scipy.ndimage), not for
+    # the least-squares fits, the spline and PCHIP interpolators, the tracker or the figures
+    # (~0.15 s of the command's start-up). The database, built once, is left out: building it
+    # converts catalogue magnitudes (PCHIP); loading it from the cache does not.
+    frames = sorted((shared_dir / "data" / "images" / "esa").glob("*.tiff"))
+    if not frames:
+        pytest.skip(f"no ESA frames in {shared_dir}")
+    code = (
+        "import sys\n"
+        "import starsense.cli.solve\n"
+        "from starsense.solve import Solver, load_image\n"
+        "det = Solver(sensor='esa_blackfly').detector(load_image(sys.argv[1]))\n"
+        "assert len(det) > 20, len(det)\n"
+        "print(' '.join(sorted(sys.modules)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(frames[0])], capture_output=True, text=True, check=True
+    )
+    loaded = set(out.stdout.split())
+    assert {"starsense.solve.solver", "starsense.detect.threshold", "scipy.spatial"} <= loaded
+    unused = {"scipy.interpolate", "scipy.optimize", "starsense.solve.tracking", "matplotlib"}
+    assert not loaded & unused, sorted(loaded & unused)
