@@ -251,7 +251,15 @@ def estimate_background(
         interpolation=interpolation,
     )
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
-    cells = gather(a, np.float32, "bg_cells")
+    counts = None
+    if mesh.regular and bad is None and a.dtype.kind in "iu" and a.dtype.itemsize <= 2:
+        # 8/16-bit frames: the samples gathered once as integers (sorted as such, below), and
+        # converted (exactly) by one contiguous copy
+        counts = gather(a, None, "bg_counts")
+        cells = scratch("bg_cells", counts.shape)
+        np.copyto(cells, counts)
+    else:
+        cells = gather(a, np.float32, "bg_cells")
     if mesh.regular and bad is None:  # every sample is inside its box and unmasked
         ok, n_samples = True, np.full(mesh.boxes, cells.shape[-1])
     else:
@@ -262,9 +270,6 @@ def estimate_background(
             cells[~ok] = np.nan
         n_samples = ok.sum(axis=-1)
 
-    counts = None
-    if ok is True and a.dtype.kind in "iu" and a.dtype.itemsize <= 2:
-        counts = gather(a, None, "bg_counts")  # 8/16-bit frames: sorted as integers
     med, low, high, kept = sigma_clip_boxes(cells, float(sigma_clip), counts=counts)
     keep = scratch("bg_keep", cells.shape, bool)
     with np.errstate(invalid="ignore"):

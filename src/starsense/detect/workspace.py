@@ -12,6 +12,7 @@ allocated per frame, as before), so that a few huge frames do not pin hundreds o
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import OrderedDict
 
@@ -46,7 +47,7 @@ def scratch(name: str, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
     """
     dtype = np.dtype(dtype)
     shape = tuple(int(n) for n in shape)
-    if int(np.prod(shape)) > MAX_KEPT_PIXELS:
+    if math.prod(shape) > MAX_KEPT_PIXELS:
         return np.empty(shape, dtype)
     buffers = getattr(_LOCAL, "buffers", None)
     if buffers is None:
