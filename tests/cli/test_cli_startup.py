@@ -73,7 +73,8 @@ def test_a_command_imports_its_module_only():
 def test_solving_a_frame_imports_nothing_it_does_not_use(shared_dir):
     # the command's imports, then a frame loaded and its stars detected: a frame's solve pays
     # for what it needs (numpy, scipy.spatial's rotations and k-d tree, scipy.ndimage), not for
-    # the least-squares fits, the spline and PCHIP interpolators, the tracker or the figures
+    # the least-squares fits, the spline and PCHIP interpolators, the tracker, the figures or
+    # the progress bars
     # (~0.15 s of the command's start-up). The database, built once, is left out: building it
     # converts catalogue magnitudes (PCHIP); loading it from the cache does not.
     frames = sorted((shared_dir / "data" / "images" / "esa").glob("*.tiff"))
@@ -92,5 +93,11 @@ def test_solving_a_frame_imports_nothing_it_does_not_use(shared_dir):
     )
     loaded = set(out.stdout.split())
     assert {"starsense.solve.solver", "starsense.detect.threshold", "scipy.spatial"} <= loaded
-    unused = {"scipy.interpolate", "scipy.optimize", "starsense.solve.tracking", "matplotlib"}
+    unused = {
+        "scipy.interpolate",
+        "scipy.optimize",
+        "starsense.solve.tracking",
+        "matplotlib",
+        "rich",  # the progress bar's, drawn only for a batch on a terminal
+    }
     assert not loaded & unused, sorted(loaded & unused)

@@ -20,8 +20,6 @@ from typing import Annotated, Any
 
 import numpy as np
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
 from starsense._io import check_output, json_text
 from starsense._validate import check_int, check_scalar
@@ -350,6 +348,8 @@ def progress_bar(enabled: bool = True, *, unit: str | None = None) -> Iterator[P
     if not enabled or not sys.stderr.isatty():
         yield ProgressBar(None)
         return
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
     columns: tuple = ()
     if unit is not None:

@@ -6,7 +6,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 from starsense.cli.common import (
     CatalogOpt,
@@ -60,6 +59,8 @@ def report(
     # the limit of the sensor given (its aperture and exposure) unless told otherwise
     diameter_m = sens.optics.aperture_m if diameter_m is None else diameter_m
     exposure_s = sens.exposure_s if exposure_s is None else exposure_s
+
+    from rich.console import Console
 
     console = Console(stderr=True)
     with console.status("building report") as status:
