@@ -74,9 +74,8 @@ def test_solving_a_frame_imports_nothing_it_does_not_use(shared_dir):
     # the command's imports, then a frame loaded and its stars detected: a frame's solve pays
     # for what it needs (numpy, scipy.spatial's rotations and k-d tree, scipy.ndimage), not for
     # the least-squares fits, the spline and PCHIP interpolators, the tracker, the figures or
-    # the progress bars
-    # (~0.15 s of the command's start-up). The database, built once, is left out: building it
-    # converts catalogue magnitudes (PCHIP); loading it from the cache does not.
+    # the progress bars (~0.17 s of the command's start-up). The database, built once, is left
+    # out: building it converts catalogue magnitudes (PCHIP); loading it from the cache does not.
     frames = sorted((shared_dir / "data" / "images" / "esa").glob("*.tiff"))
     if not frames:
         pytest.skip(f"no ESA frames in {shared_dir}")
