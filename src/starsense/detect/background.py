@@ -177,6 +177,31 @@ def _masked_std(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return np.where(n >= 2, np.sqrt(var), np.nan)
 
 
+def _mesh_samples(a: np.ndarray, mesh: MeshSampler, bad: np.ndarray | None):
+    """Return the mesh's samples: float32 (NaN where missing), as integers, valid, per box.
+
+    ``counts`` is the same samples as 8/16-bit integers (or None): gathered once as such
+    (:func:`~starsense.detect.clip.sigma_clip_boxes` sorts them as integers) and converted,
+    exactly, by one contiguous copy. ``ok`` is True where every sample is inside its box and
+    unmasked, else a bool array of the samples' shape.
+    """
+    counts = None
+    if mesh.regular and bad is None and a.dtype.kind in "iu" and a.dtype.itemsize <= 2:
+        counts = mesh.gather(a, None, "bg_counts")
+        cells = scratch("bg_cells", counts.shape)
+        np.copyto(cells, counts)
+    else:
+        cells = mesh.gather(a, np.float32, "bg_cells")
+    if mesh.regular and bad is None:  # every sample is inside its box and unmasked
+        return cells, counts, True, np.full(mesh.boxes, cells.shape[-1])
+    ok = mesh.valid()
+    if bad is not None:
+        ok &= ~mesh.gather(bad)
+    if not ok.all():
+        cells[~ok] = np.nan
+    return cells, counts, ok, ok.sum(axis=-1)
+
+
 def estimate_background(
     image: ArrayLike,
     *,
@@ -251,25 +276,7 @@ def estimate_background(
         interpolation=interpolation,
     )
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
-    counts = None
-    if mesh.regular and bad is None and a.dtype.kind in "iu" and a.dtype.itemsize <= 2:
-        # 8/16-bit frames: the samples gathered once as integers (sorted as such, below), and
-        # converted (exactly) by one contiguous copy
-        counts = gather(a, None, "bg_counts")
-        cells = scratch("bg_cells", counts.shape)
-        np.copyto(cells, counts)
-    else:
-        cells = gather(a, np.float32, "bg_cells")
-    if mesh.regular and bad is None:  # every sample is inside its box and unmasked
-        ok, n_samples = True, np.full(mesh.boxes, cells.shape[-1])
-    else:
-        ok = mesh.valid()
-        if bad is not None:
-            ok &= ~gather(bad)
-        if not ok.all():
-            cells[~ok] = np.nan
-        n_samples = ok.sum(axis=-1)
-
+    cells, counts, ok, n_samples = _mesh_samples(a, mesh, bad)
     med, low, high, kept = sigma_clip_boxes(cells, float(sigma_clip), counts=counts)
     keep = scratch("bg_keep", cells.shape, bool)
     with np.errstate(invalid="ignore"):
