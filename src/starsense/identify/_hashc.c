@@ -1,0 +1,925 @@
+/* Compiled core of lost-in-space identification by 4-star geometric hashing.
+ *
+ * starsense.identify.hashing.HashIdentifier looks the patterns of the brightest detections up
+ * in the database's sorted hash index and verifies the candidates. Its NumPy form does each
+ * pattern, each look-up and each verification step in a few dozen array operations on 4 to 60
+ * rows, whose cost is NumPy's per-call overhead, not the arithmetic. This kernel runs the same
+ * algorithm for one frame in one call (identify):
+ *
+ *   - the 4-star patterns of the brightest detections, breadth first (patterns.
+ *     breadth_first_combinations), each in canonical order (patterns.order_by_centroid_distance)
+ *     with its five edge ratios and largest edge (patterns.edge_ratios): describe();
+ *   - the hash keys of the box ratios +- pattern_max_error, probed in the sorted key array
+ *     (binary search), candidates within the error kept, nearest first (HashIdentifier._lookup):
+ *     lookup();
+ *   - the scale test of a known field, then the verification of each candidate as
+ *     verify.Verifier does it for a known field (attitude from the pairs, nearest catalogue star
+ *     of every detection within the match radius, refit, two passes with a radius from the
+ *     residuals): verify().
+ *
+ * The acceptance decision (the false-match probability and its threshold) is not made here:
+ * verify() calls back the Python callable it is given, Verifier.accept, with (detections,
+ * matched, hypothesis stars, p_single) and takes its (p_false, accepted).
+ *
+ * Arithmetic: the descriptors and the look-up are the NumPy form's operations in the same order
+ * (sums of three products left to right, the centroid summed star by star), so they are equal
+ * bit for bit but for asin, which NumPy may take from its own vectorised routine (a few ulp).
+ * The attitude is Davenport's q method (the largest eigenvector of the 4x4 K matrix, cyclic
+ * Jacobi) where the NumPy form takes the SVD: the same rotation to ~1e-15 rad. Catalogue stars
+ * of a field come from a grid on the cube [-1, 1]^3 (hash_kernels.star_grid) where the NumPy
+ * form asks a k-d tree; the stars inside the cone are the same set. Decisions therefore agree
+ * except where a value falls within rounding of a threshold (tests/identify/
+ * test_hash_kernel.py). Built with -ffp-contract=off: no fused multiply-add.
+ *
+ * Built by setup.py as an optional extension: without a C compiler the package uses the NumPy
+ * form. No NumPy headers: arrays arrive through the buffer protocol.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define K 4         /* stars per pattern */
+#define NR 5        /* edge ratios per pattern */
+#define MAXDET 1024 /* detections taken part in verification at most */
+
+enum { B_KEYS, B_RATIOS, B_LARGEST, B_PATTERNS, B_STARS, B_CSTART, B_CSTARS, NBUF };
+
+typedef struct {
+    Py_buffer buf[NBUF];
+    const int64_t *keys;
+    const float *ratios;
+    const float *largest;
+    const int32_t *patterns;
+    const double *stars;
+    const int64_t *cell_start;
+    const int64_t *cell_stars;
+    Py_ssize_t n_patterns, n_stars;
+    int grid;
+    double cell;
+    int n_bins, max_cand, max_det;
+    double max_error, scale_tol, match_radius;
+} Tables;
+
+/* growable arrays ----------------------------------------------------------------------- */
+
+typedef struct {
+    void *p;
+    size_t n, cap, item;
+} Vec;
+
+static int vec_reserve(Vec *v, size_t n)
+{
+    if (n <= v->cap)
+        return 0;
+    size_t cap = v->cap ? v->cap : 64;
+    while (cap < n)
+        cap *= 2;
+    void *p = realloc(v->p, cap * v->item);
+    if (p == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    v->p = p;
+    v->cap = cap;
+    return 0;
+}
+
+static void vec_free(Vec *v)
+{
+    free(v->p);
+    v->p = NULL;
+    v->n = v->cap = 0;
+}
+
+/* pattern descriptors ------------------------------------------------------------------- */
+
+static const int EDGE[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+
+static inline double dot3(const double *a, const double *b)
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* Describe the pattern of detections idx (rows of v): its stars in canonical order (det), its
+ * edge ratios and largest edge. Returns 0 for a pattern without a shape (a zero edge). */
+static int describe(const double *v, const int64_t idx[K], int64_t det[K], double ratios[NR],
+                    double *largest)
+{
+    const double *p[K];
+    double c[3], d2[K], e[6];
+    int order[K];
+    for (int k = 0; k < K; k++)
+        p[k] = v + 3 * idx[k];
+    for (int i = 0; i < 3; i++)
+        c[i] = ((p[0][i] + p[1][i]) + p[2][i]) + p[3][i];
+    double cn = sqrt(dot3(c, c));
+    for (int i = 0; i < 3; i++)
+        c[i] /= cn;
+    for (int k = 0; k < K; k++) {
+        double d[3] = {p[k][0] - c[0], p[k][1] - c[1], p[k][2] - c[2]};
+        d2[k] = dot3(d, d);
+    }
+    for (int k = 0; k < K; k++) { /* stable insertion sort by d2 (NaN last, as argsort) */
+        int j = k;
+        while (j > 0 && (d2[order[j - 1]] > d2[k] || (isnan(d2[order[j - 1]]) && !isnan(d2[k])))) {
+            order[j] = order[j - 1];
+            j--;
+        }
+        order[j] = k;
+    }
+    for (int k = 0; k < K; k++)
+        det[k] = idx[order[k]];
+    for (int q = 0; q < 6; q++) {
+        const double *a = p[EDGE[q][0]], *b = p[EDGE[q][1]];
+        double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+        double h = sqrt(dot3(d, d)) / 2.0;
+        h = h < 0.0 ? 0.0 : (h > 1.0 ? 1.0 : h);
+        e[q] = 2.0 * asin(h);
+    }
+    for (int q = 1; q < 6; q++) { /* ascending */
+        double x = e[q];
+        int j = q;
+        while (j > 0 && e[j - 1] > x) {
+            e[j] = e[j - 1];
+            j--;
+        }
+        e[j] = x;
+    }
+    *largest = e[5];
+    int ok = e[5] > 0.0;
+    for (int q = 0; q < NR; q++) {
+        ratios[q] = e[q] / e[5];
+        ok = ok && isfinite(ratios[q]);
+    }
+    return ok;
+}
+
+/* hash look-up -------------------------------------------------------------------------- */
+
+typedef struct {
+    int64_t index;
+    double diff;
+    Py_ssize_t pos; /* order of collection: ties of diff keep it (a stable sort) */
+} Cand;
+
+static int cand_cmp(const void *a, const void *b)
+{
+    const Cand *x = a, *y = b;
+    if (x->diff != y->diff)
+        return x->diff < y->diff ? -1 : 1;
+    return (x->pos > y->pos) - (x->pos < y->pos);
+}
+
+static Py_ssize_t lower_bound(const int64_t *k, Py_ssize_t n, int64_t key)
+{
+    Py_ssize_t lo = 0, hi = n;
+    while (lo < hi) {
+        Py_ssize_t mid = lo + (hi - lo) / 2;
+        if (k[mid] < key)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+static int add_bucket(const Tables *t, const double r[NR], int64_t key, Vec *out)
+{
+    Py_ssize_t a = lower_bound(t->keys, t->n_patterns, key);
+    for (Py_ssize_t c = a; c < t->n_patterns && t->keys[c] == key; c++) {
+        double diff = 0.0;
+        const float *pr = t->ratios + NR * c;
+        for (int q = 0; q < NR; q++) {
+            double x = fabs((double)pr[q] - r[q]);
+            if (x > diff || isnan(x))
+                diff = x;
+        }
+        if (!(diff <= t->max_error))
+            continue;
+        if (vec_reserve(out, out->n + 1) < 0)
+            return -1;
+        Cand *cd = (Cand *)out->p + out->n;
+        cd->index = c;
+        cd->diff = diff;
+        cd->pos = (Py_ssize_t)out->n;
+        out->n++;
+    }
+    return 0;
+}
+
+/* The database patterns whose hash bins overlap r +- max_error and whose ratios lie within
+ * it, nearest first, into out (Cand). Keys in the NumPy form's order: itertools.product over
+ * the ratios' bin ranges, the last ratio fastest. */
+static int lookup(const Tables *t, const double r[NR], Vec *out)
+{
+    int64_t lo[NR], hi[NR], w[NR], bin[NR];
+    double nb = (double)t->n_bins;
+    out->n = 0;
+    for (int q = 0; q < NR; q++) {
+        double a = (r[q] - t->max_error) * nb, b = (r[q] + t->max_error) * nb;
+        a = fmin(fmax(a, 0.0), nb - 1.0);
+        b = fmin(fmax(b, 0.0), nb - 1.0);
+        lo[q] = (int64_t)a;
+        hi[q] = (int64_t)b;
+        w[q] = q ? w[q - 1] * t->n_bins : 1;
+        bin[q] = lo[q];
+    }
+    for (;;) {
+        int64_t key = 0;
+        for (int q = 0; q < NR; q++)
+            key += bin[q] * w[q];
+        if (add_bucket(t, r, key, out) < 0)
+            return -1;
+        int q = NR - 1;
+        while (q >= 0 && bin[q] == hi[q]) {
+            bin[q] = lo[q];
+            q--;
+        }
+        if (q < 0)
+            break;
+        bin[q]++;
+    }
+    if (out->n > 1)
+        qsort(out->p, out->n, sizeof(Cand), cand_cmp);
+    return 0;
+}
+
+/* attitude: Davenport's q method ---------------------------------------------------------- */
+
+/* Eigenvector of the largest eigenvalue of the symmetric 4x4 a (destroyed), cyclic Jacobi. */
+static void largest_eigenvector(double a[4][4], double q[4])
+{
+    double v[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+    for (int sweep = 0; sweep < 50; sweep++) {
+        double off = 0.0, diag = 0.0;
+        for (int i = 0; i < 4; i++) {
+            diag += a[i][i] * a[i][i];
+            for (int j = i + 1; j < 4; j++)
+                off += a[i][j] * a[i][j];
+        }
+        if (off <= 1e-36 * diag)
+            break;
+        for (int p = 0; p < 4; p++) {
+            for (int r = p + 1; r < 4; r++) {
+                if (a[p][r] == 0.0)
+                    continue;
+                double theta = (a[r][r] - a[p][p]) / (2.0 * a[p][r]);
+                double tt = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                double c = 1.0 / sqrt(tt * tt + 1.0), s = tt * c;
+                for (int k = 0; k < 4; k++) { /* columns p, r */
+                    double akp = a[k][p], akr = a[k][r];
+                    a[k][p] = c * akp - s * akr;
+                    a[k][r] = s * akp + c * akr;
+                }
+                for (int k = 0; k < 4; k++) { /* rows p, r */
+                    double apk = a[p][k], ark = a[r][k];
+                    a[p][k] = c * apk - s * ark;
+                    a[r][k] = s * apk + c * ark;
+                }
+                a[p][r] = a[r][p] = 0.0;
+                for (int k = 0; k < 4; k++) {
+                    double vkp = v[k][p], vkr = v[k][r];
+                    v[k][p] = c * vkp - s * vkr;
+                    v[k][r] = s * vkp + c * vkr;
+                }
+            }
+        }
+    }
+    int best = 0;
+    for (int i = 1; i < 4; i++)
+        if (a[i][i] > a[best][best])
+            best = i;
+    for (int i = 0; i < 4; i++)
+        q[i] = v[i][best];
+}
+
+/* The attitude matrix R (body ~ R ref, row-major) of m pairs (Wahba, equal weights) and the
+ * residual angles. body: detection directions of det; ref: database stars of cat. */
+static void fit(const Tables *t, const double *vs, const int64_t *det, const int64_t *cat,
+                int m, double R[9], double *resid)
+{
+    double B[3][3] = {{0}};
+    for (int k = 0; k < m; k++) {
+        const double *b = vs + 3 * det[k], *r = t->stars + 3 * cat[k];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                B[i][j] += b[i] * r[j];
+    }
+    double sigma = B[0][0] + B[1][1] + B[2][2];
+    double z[3] = {B[1][2] - B[2][1], B[2][0] - B[0][2], B[0][1] - B[1][0]};
+    double Km[4][4];
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++)
+            Km[i][j] = B[i][j] + B[j][i] - (i == j ? sigma : 0.0);
+        Km[i][3] = Km[3][i] = z[i];
+    }
+    Km[3][3] = sigma;
+    double q[4];
+    largest_eigenvector(Km, q);
+    double n = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    double x = q[0] / n, y = q[1] / n, w = q[2] / n, s = q[3] / n;
+    /* A(q) = (s^2 - |v|^2) I + 2 v v^T - 2 s [v x], v = (x, y, w) */
+    double d = s * s - (x * x + y * y + w * w);
+    R[0] = d + 2 * x * x;
+    R[1] = 2 * x * y + 2 * s * w;
+    R[2] = 2 * x * w - 2 * s * y;
+    R[3] = 2 * y * x - 2 * s * w;
+    R[4] = d + 2 * y * y;
+    R[5] = 2 * y * w + 2 * s * x;
+    R[6] = 2 * w * x + 2 * s * y;
+    R[7] = 2 * w * y - 2 * s * x;
+    R[8] = d + 2 * w * w;
+    for (int k = 0; k < m; k++) {
+        const double *b = vs + 3 * det[k], *r = t->stars + 3 * cat[k];
+        double ch2 = 0.0;
+        for (int i = 0; i < 3; i++) {
+            double e = (R[3 * i] * r[0] + R[3 * i + 1] * r[1] + R[3 * i + 2] * r[2]) - b[i];
+            ch2 += e * e;
+        }
+        resid[k] = 2.0 * asin(fmin(sqrt(ch2) / 2.0, 1.0));
+    }
+}
+
+/* matching ------------------------------------------------------------------------------ */
+
+typedef struct {
+    int d;
+    Py_ssize_t c; /* position in the near list */
+    double chord2;
+} Pair;
+
+static int pair_cmp(const void *a, const void *b)
+{
+    const Pair *x = a, *y = b;
+    if (x->chord2 != y->chord2)
+        return x->chord2 < y->chord2 ? -1 : 1;
+    if (x->d != y->d)
+        return x->d - y->d;
+    return (x->c > y->c) - (x->c < y->c);
+}
+
+static int pair_by_det(const void *a, const void *b)
+{
+    const Pair *x = a, *y = b;
+    return x->d - y->d;
+}
+
+typedef struct {
+    Vec near;   /* int64 star indices in the cone */
+    Vec cam;    /* double[3] of each, camera frame */
+    Vec pairs;  /* Pair */
+    Vec used;   /* char per near star */
+} Scratch;
+
+/* One-to-one nearest pairs (detection, star) within radius among the stars within cone_rad of
+ * the boresight R[6..8]; p_single as Verifier._match. Pairs into det_m/cat_m (sorted by
+ * detection), their number into *m. */
+static int match(const Tables *t, Scratch *s, const double *vs, int n, const double R[9],
+                 double cone_rad, double radius, int64_t *det_m, int64_t *cat_m, int *m,
+                 double *p_single)
+{
+    const double *centre = R + 6;
+    double cone = fmin(cone_rad, M_PI / 2.0), cosc = cos(cone);
+    double chord = sqrt(fmax(2.0 - 2.0 * cosc, 0.0)) * (1.0 + 1e-9) + 1e-12;
+    int lo[3], hi[3];
+    for (int i = 0; i < 3; i++) {
+        lo[i] = (int)floor((centre[i] - chord + 1.0) / t->cell);
+        hi[i] = (int)floor((centre[i] + chord + 1.0) / t->cell);
+        lo[i] = lo[i] < 0 ? 0 : (lo[i] >= t->grid ? t->grid - 1 : lo[i]);
+        hi[i] = hi[i] < 0 ? 0 : (hi[i] >= t->grid ? t->grid - 1 : hi[i]);
+    }
+    s->near.n = 0;
+    for (int a = lo[0]; a <= hi[0]; a++)
+        for (int b = lo[1]; b <= hi[1]; b++)
+            for (int c = lo[2]; c <= hi[2]; c++) {
+                Py_ssize_t cell = ((Py_ssize_t)a * t->grid + b) * t->grid + c;
+                for (int64_t j = t->cell_start[cell]; j < t->cell_start[cell + 1]; j++) {
+                    int64_t star = t->cell_stars[j];
+                    if (dot3(t->stars + 3 * star, centre) >= cosc) {
+                        if (vec_reserve(&s->near, s->near.n + 1) < 0)
+                            return -1;
+                        ((int64_t *)s->near.p)[s->near.n++] = star;
+                    }
+                }
+            }
+    Py_ssize_t nn = (Py_ssize_t)s->near.n;
+    double solid = 2.0 * M_PI * (1.0 - cos(cone_rad));
+    *p_single = (double)nn * M_PI * radius * radius / solid;
+    *m = 0;
+    if (nn == 0)
+        return 0;
+    if (vec_reserve(&s->cam, nn) < 0 || vec_reserve(&s->used, nn) < 0)
+        return -1;
+    double *cam = s->cam.p;
+    const int64_t *near = s->near.p;
+    for (Py_ssize_t j = 0; j < nn; j++) {
+        const double *st = t->stars + 3 * near[j];
+        for (int i = 0; i < 3; i++)
+            cam[3 * j + i] = R[3 * i] * st[0] + R[3 * i + 1] * st[1] + R[3 * i + 2] * st[2];
+    }
+    double limit = 2.0 * sin(radius / 2.0), lim2 = limit * limit;
+    s->pairs.n = 0;
+    int contested = 0;
+    char *used = s->used.p;
+    memset(used, 0, (size_t)nn);
+    for (int d = 0; d < n; d++) {
+        int here = 0;
+        for (Py_ssize_t j = 0; j < nn; j++) {
+            double ch2 = 2.0 - 2.0 * dot3(vs + 3 * d, cam + 3 * j);
+            if (!(ch2 <= lim2))
+                continue;
+            if (vec_reserve(&s->pairs, s->pairs.n + 1) < 0)
+                return -1;
+            Pair *p = (Pair *)s->pairs.p + s->pairs.n++;
+            p->d = d;
+            p->c = j;
+            p->chord2 = ch2;
+            contested |= here++ > 0 || used[j];
+            used[j] = 1;
+        }
+    }
+    Pair *pairs = s->pairs.p;
+    Py_ssize_t np_ = (Py_ssize_t)s->pairs.n;
+    if (contested) { /* nearest pairs first, each detection and star used once */
+        qsort(pairs, np_, sizeof(Pair), pair_cmp);
+        memset(used, 0, (size_t)nn);
+        char dused[MAXDET] = {0};
+        Py_ssize_t kept = 0;
+        for (Py_ssize_t i = 0; i < np_; i++) {
+            if (dused[pairs[i].d] || used[pairs[i].c])
+                continue;
+            dused[pairs[i].d] = used[pairs[i].c] = 1;
+            pairs[kept++] = pairs[i];
+        }
+        np_ = kept;
+        qsort(pairs, np_, sizeof(Pair), pair_by_det);
+    }
+    for (Py_ssize_t i = 0; i < np_; i++) {
+        det_m[i] = pairs[i].d;
+        cat_m[i] = near[pairs[i].c];
+    }
+    *m = (int)np_;
+    return 0;
+}
+
+static PyObject *KWNAMES; /* ("n_hypothesis", "p_single") */
+
+/* verification -------------------------------------------------------------------------- */
+
+typedef struct {
+    double R[9];
+    int m;
+    int64_t det[MAXDET], cat[MAXDET];
+    double resid[MAXDET];
+    double p_false;
+} Verified;
+
+static double median(const double *x, int m, double *work)
+{
+    memcpy(work, x, m * sizeof(double));
+    for (int i = 1; i < m; i++) {
+        double v = work[i];
+        int j = i;
+        while (j > 0 && work[j - 1] > v) {
+            work[j] = work[j - 1];
+            j--;
+        }
+        work[j] = v;
+    }
+    return m % 2 ? work[m / 2] : (work[m / 2 - 1] + work[m / 2]) / 2.0;
+}
+
+static int same_pairs(const Verified *o, const int64_t *det, const int64_t *cat, int m)
+{
+    return o->m == m && memcmp(o->det, det, m * sizeof(int64_t)) == 0 &&
+           memcmp(o->cat, cat, m * sizeof(int64_t)) == 0;
+}
+
+/* Verify the hypothesis det[i] = star cat[i] (K pairs) with a known field, as Verifier.__call__
+ * does with fit_scale=False, scale=1. Returns 1 accepted (out filled), 0 rejected, -1 error. */
+static int verify(const Tables *t, Scratch *s, const double *vs, int n, double max_off,
+                  double fov, const int64_t det[K], const int64_t cat[K], PyObject *accept,
+                  double *best, Verified *out)
+{
+    int64_t det_m[MAXDET], cat_m[MAXDET];
+    double work[MAXDET], p_single = 0.0;
+    int m;
+    memcpy(out->det, det, K * sizeof(int64_t));
+    memcpy(out->cat, cat, K * sizeof(int64_t));
+    out->m = K;
+    fit(t, vs, out->det, out->cat, K, out->R, out->resid);
+    double radius = t->match_radius * fov, rmax = 0.0;
+    for (int k = 0; k < K; k++)
+        rmax = fmax(rmax, out->resid[k]);
+    if (rmax > radius)
+        return 0;
+    for (int pass = 0; pass < 4; pass++) {
+        if (pass >= 2) { /* the radius from the residuals of the last fit */
+            double sig = median(out->resid, out->m, work) / sqrt(2.0 * log(2.0));
+            radius = fmin(radius, fmax(4.0 * sig, radius / 20.0));
+        }
+        if (match(t, s, vs, n, out->R, max_off + radius, radius, det_m, cat_m, &m, &p_single) < 0)
+            return -1;
+        if (m < K)
+            return 0;
+        if (!same_pairs(out, det_m, cat_m, m)) {
+            memcpy(out->det, det_m, m * sizeof(int64_t));
+            memcpy(out->cat, cat_m, m * sizeof(int64_t));
+            out->m = m;
+            fit(t, vs, out->det, out->cat, m, out->R, out->resid);
+        }
+    }
+    /* the decision: accept(n, m, n_hypothesis=K, p_single=p) -> (p_false, accepted) */
+    PyObject *argv[4] = {PyLong_FromLong(n), PyLong_FromLong(m), PyLong_FromLong(K),
+                         PyFloat_FromDouble(p_single)};
+    PyObject *res = NULL;
+    if (argv[0] && argv[1] && argv[2] && argv[3])
+        res = PyObject_Vectorcall(accept, argv, 2, KWNAMES);
+    for (int i = 0; i < 4; i++)
+        Py_XDECREF(argv[i]);
+    if (res == NULL)
+        return -1;
+    double p_false;
+    int ok;
+    if (!PyArg_ParseTuple(res, "dp", &p_false, &ok)) {
+        Py_DECREF(res);
+        return -1;
+    }
+    Py_DECREF(res);
+    if (p_false < *best)
+        *best = p_false;
+    out->p_false = p_false;
+    return ok ? 1 : 0;
+}
+
+/* the frame ----------------------------------------------------------------------------- */
+
+static double now_s(void)
+{
+    struct timespec ts;
+#ifdef CLOCK_MONOTONIC
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+#else
+    timespec_get(&ts, TIME_UTC);
+#endif
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void scratch_free(Scratch *s)
+{
+    vec_free(&s->near);
+    vec_free(&s->cam);
+    vec_free(&s->pairs);
+    vec_free(&s->used);
+}
+
+static void scratch_init(Scratch *s)
+{
+    memset(s, 0, sizeof(*s));
+    s->near.item = sizeof(int64_t);
+    s->cam.item = 3 * sizeof(double);
+    s->pairs.item = sizeof(Pair);
+    s->used.item = 1;
+}
+
+static Tables *get_tables(PyObject *capsule)
+{
+    return PyCapsule_GetPointer(capsule, "starsense.identify._hashc.Tables");
+}
+
+static int get_vectors(Py_buffer *b, PyObject *obj, Py_ssize_t *n)
+{
+    if (PyObject_GetBuffer(obj, b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+        return -1;
+    const char *f = b->format;
+    while (*f == '@' || *f == '=' || *f == '<')
+        f++;
+    if (b->itemsize != 8 || strcmp(f, "d") != 0 || b->len % 24 != 0) {
+        PyErr_SetString(PyExc_ValueError, "_hashc: vectors must be a C-contiguous (N, 3) float64");
+        PyBuffer_Release(b);
+        return -1;
+    }
+    *n = b->len / 24;
+    return 0;
+}
+
+static PyObject *bytes_of(const void *p, Py_ssize_t n) { return PyBytes_FromStringAndSize(p, n); }
+
+/* identify(tables, vectors, n_pattern, fov, accept, budget_s) ->
+ *   (status, tried, verified, best, R (9-tuple) or None, det bytes, cat bytes, rms, p_false)
+ * status: 0 no match, 1 solved, 2 timeout. */
+static PyObject *py_identify(PyObject *self, PyObject *args)
+{
+    PyObject *cap, *vobj, *accept;
+    int n_pattern;
+    double fov, budget;
+    if (!PyArg_ParseTuple(args, "OOidOd", &cap, &vobj, &n_pattern, &fov, &accept, &budget))
+        return NULL;
+    Tables *t = get_tables(cap);
+    if (t == NULL)
+        return NULL;
+    Py_buffer vb;
+    Py_ssize_t nv;
+    if (get_vectors(&vb, vobj, &nv) < 0)
+        return NULL;
+    const double *v = vb.buf;
+    int n = (int)(nv < t->max_det ? nv : t->max_det);
+    int n_pat = (int)(nv < n_pattern ? nv : n_pattern);
+    if (n_pat > n)
+        n_pat = n; /* patterns draw on the verified detections only */
+    double zmin = 1.0;
+    for (int i = 0; i < n; i++)
+        zmin = fmin(zmin, v[3 * i + 2]);
+    double max_off = acos(fmin(fmax(zmin, -1.0), 1.0));
+    double t0 = budget < INFINITY ? now_s() : 0.0;
+    Vec cands = {NULL, 0, 0, sizeof(Cand)};
+    Scratch s;
+    scratch_init(&s);
+    Verified *out = malloc(sizeof(Verified));
+    PyObject *ret = NULL;
+    if (out == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    long tried = 0, verified = 0;
+    double best = 1.0;
+    int status = 0, rc = 0;
+    for (int d = 3; d < n_pat && !status; d++)
+        for (int a = 0; a < d && !status; a++)
+            for (int b = a + 1; b < d && !status; b++)
+                for (int c = b + 1; c < d && !status; c++) {
+                    int64_t idx[K] = {a, b, c, d}, det[K];
+                    double r[NR], largest;
+                    if (!describe(v, idx, det, r, &largest))
+                        continue;
+                    if (budget < INFINITY && now_s() - t0 > budget) {
+                        status = 2;
+                        break;
+                    }
+                    tried++;
+                    if (lookup(t, r, &cands) < 0)
+                        goto done;
+                    const Cand *cd = cands.p;
+                    int kept = 0;
+                    for (size_t i = 0; i < cands.n && kept < t->max_cand; i++) {
+                        double scale = (double)t->largest[cd[i].index] / largest;
+                        if (!(fabs(scale - 1.0) <= t->scale_tol))
+                            continue;
+                        kept++;
+                        verified++;
+                        int64_t cat[K];
+                        const int32_t *pt = t->patterns + K * cd[i].index;
+                        for (int k = 0; k < K; k++)
+                            cat[k] = pt[k];
+                        rc = verify(t, &s, v, n, max_off, fov, det, cat, accept, &best, out);
+                        if (rc < 0)
+                            goto done;
+                        if (rc == 1) {
+                            status = 1;
+                            break;
+                        }
+                    }
+                }
+    if (status == 1) {
+        double ss = 0.0;
+        for (int k = 0; k < out->m; k++)
+            ss += out->resid[k] * out->resid[k];
+        const double *R = out->R;
+        ret = Py_BuildValue("(illd(ddddddddd)NNdd)", 1, tried, verified, best, R[0], R[1], R[2],
+                            R[3], R[4], R[5], R[6], R[7], R[8],
+                            bytes_of(out->det, out->m * sizeof(int64_t)),
+                            bytes_of(out->cat, out->m * sizeof(int64_t)),
+                            sqrt(ss / out->m), out->p_false);
+    } else {
+        ret = Py_BuildValue("(illdOOOdd)", status, tried, verified, best, Py_None, Py_None,
+                            Py_None, NAN, 1.0);
+    }
+done:
+    free(out);
+    free(cands.p);
+    scratch_free(&s);
+    PyBuffer_Release(&vb);
+    return ret;
+}
+
+/* describe(vectors, n_pattern) -> (count, det bytes (int64 x4), ratios bytes, largest bytes):
+ * the described patterns of the first n_pattern detections, breadth first. */
+static PyObject *py_describe(PyObject *self, PyObject *args)
+{
+    PyObject *vobj;
+    int n_pattern;
+    if (!PyArg_ParseTuple(args, "Oi", &vobj, &n_pattern))
+        return NULL;
+    Py_buffer vb;
+    Py_ssize_t nv;
+    if (get_vectors(&vb, vobj, &nv) < 0)
+        return NULL;
+    int n_pat = (int)(nv < n_pattern ? nv : n_pattern);
+    Py_ssize_t most = n_pat < 4 ? 0 : (Py_ssize_t)n_pat * (n_pat - 1) * (n_pat - 2) * (n_pat - 3) / 24;
+    int64_t *dets = malloc((most + 1) * K * sizeof(int64_t));
+    double *ratios = malloc((most + 1) * NR * sizeof(double));
+    double *largest = malloc((most + 1) * sizeof(double));
+    PyObject *ret = NULL;
+    if (!dets || !ratios || !largest) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    Py_ssize_t count = 0;
+    for (int d = 3; d < n_pat; d++)
+        for (int a = 0; a < d; a++)
+            for (int b = a + 1; b < d; b++)
+                for (int c = b + 1; c < d; c++) {
+                    int64_t idx[K] = {a, b, c, d};
+                    if (describe(vb.buf, idx, dets + K * count, ratios + NR * count,
+                                 largest + count))
+                        count++;
+                }
+    ret = Py_BuildValue("(nNNN)", count, bytes_of(dets, count * K * sizeof(int64_t)),
+                        bytes_of(ratios, count * NR * sizeof(double)),
+                        bytes_of(largest, count * sizeof(double)));
+done:
+    free(dets);
+    free(ratios);
+    free(largest);
+    PyBuffer_Release(&vb);
+    return ret;
+}
+
+/* lookup(tables, r0, r1, r2, r3, r4) -> bytes (int64 candidate patterns, nearest first) */
+static PyObject *py_lookup(PyObject *self, PyObject *args)
+{
+    PyObject *cap;
+    double r[NR];
+    if (!PyArg_ParseTuple(args, "Oddddd", &cap, r, r + 1, r + 2, r + 3, r + 4))
+        return NULL;
+    Tables *t = get_tables(cap);
+    if (t == NULL)
+        return NULL;
+    Vec cands = {NULL, 0, 0, sizeof(Cand)};
+    if (lookup(t, r, &cands) < 0) {
+        free(cands.p);
+        return NULL;
+    }
+    PyObject *out = PyBytes_FromStringAndSize(NULL, cands.n * sizeof(int64_t));
+    if (out != NULL) {
+        int64_t *o = (int64_t *)PyBytes_AS_STRING(out);
+        for (size_t i = 0; i < cands.n; i++)
+            o[i] = ((Cand *)cands.p)[i].index;
+    }
+    free(cands.p);
+    return out;
+}
+
+/* verify(tables, vectors, det (4 ints), cat (4 ints), fov, accept) ->
+ *   None or (R 9-tuple, det bytes, cat bytes, rms, p_false) */
+static PyObject *py_verify(PyObject *self, PyObject *args)
+{
+    PyObject *cap, *vobj, *accept;
+    int64_t det[K], cat[K];
+    double fov;
+    if (!PyArg_ParseTuple(args, "OO(LLLL)(LLLL)dO", &cap, &vobj, det, det + 1, det + 2, det + 3,
+                          cat, cat + 1, cat + 2, cat + 3, &fov, &accept))
+        return NULL;
+    Tables *t = get_tables(cap);
+    if (t == NULL)
+        return NULL;
+    Py_buffer vb;
+    Py_ssize_t nv;
+    if (get_vectors(&vb, vobj, &nv) < 0)
+        return NULL;
+    const double *v = vb.buf;
+    int n = (int)(nv < t->max_det ? nv : t->max_det);
+    for (int k = 0; k < K; k++)
+        if (det[k] < 0 || det[k] >= n || cat[k] < 0 || cat[k] >= t->n_stars) {
+            PyBuffer_Release(&vb);
+            PyErr_SetString(PyExc_IndexError, "_hashc.verify: a hypothesis index is out of range");
+            return NULL;
+        }
+    double zmin = 1.0;
+    for (int i = 0; i < n; i++)
+        zmin = fmin(zmin, v[3 * i + 2]);
+    double max_off = acos(fmin(fmax(zmin, -1.0), 1.0)), best = 1.0;
+    Scratch s;
+    scratch_init(&s);
+    Verified *out = malloc(sizeof(Verified));
+    PyObject *ret = NULL;
+    if (out == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    int rc = verify(t, &s, v, n, max_off, fov, det, cat, accept, &best, out);
+    if (rc == 0) {
+        Py_INCREF(Py_None);
+        ret = Py_None;
+    } else if (rc == 1) {
+        double ss = 0.0;
+        for (int k = 0; k < out->m; k++)
+            ss += out->resid[k] * out->resid[k];
+        const double *R = out->R;
+        ret = Py_BuildValue("((ddddddddd)NNdd)", R[0], R[1], R[2], R[3], R[4], R[5], R[6], R[7],
+                            R[8], bytes_of(out->det, out->m * sizeof(int64_t)),
+                            bytes_of(out->cat, out->m * sizeof(int64_t)), sqrt(ss / out->m),
+                            out->p_false);
+    }
+done:
+    free(out);
+    scratch_free(&s);
+    PyBuffer_Release(&vb);
+    return ret;
+}
+
+/* the tables ---------------------------------------------------------------------------- */
+
+static void tables_free(PyObject *capsule)
+{
+    Tables *t = get_tables(capsule);
+    if (t == NULL)
+        return;
+    for (int i = 0; i < NBUF; i++)
+        if (t->buf[i].obj != NULL)
+            PyBuffer_Release(&t->buf[i]);
+    free(t);
+}
+
+/* tables(keys, ratios, largest, patterns, stars, cell_start, cell_stars, grid, cell, n_bins,
+ *        max_error, scale_tol, match_radius, max_cand, max_det) -> capsule
+ * keys int64 (P,), ratios float32 (P, 5), largest float32 (P,), patterns int32 (P, 4), stars
+ * float64 (M, 3), cell_start int64 (grid^3 + 1,), cell_stars int64 (M,): all C-contiguous. */
+static PyObject *py_tables(PyObject *self, PyObject *args)
+{
+    PyObject *obj[NBUF];
+    Tables *t = calloc(1, sizeof(Tables));
+    if (t == NULL)
+        return PyErr_NoMemory();
+    if (!PyArg_ParseTuple(args, "OOOOOOOididddii", &obj[0], &obj[1], &obj[2], &obj[3],
+                          &obj[4], &obj[5], &obj[6], &t->grid, &t->cell, &t->n_bins,
+                          &t->max_error, &t->scale_tol, &t->match_radius, &t->max_cand,
+                          &t->max_det)) {
+        free(t);
+        return NULL;
+    }
+    static const char *fmt[NBUF] = {"l", "f", "f", "i", "d", "l", "l"};
+    static const Py_ssize_t size[NBUF] = {8, 4, 4, 4, 8, 8, 8};
+    for (int i = 0; i < NBUF; i++) {
+        if (PyObject_GetBuffer(obj[i], &t->buf[i], PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+            goto fail;
+        const char *f = t->buf[i].format;
+        while (*f == '@' || *f == '=' || *f == '<')
+            f++;
+        if (t->buf[i].itemsize != size[i] ||
+            (strcmp(f, fmt[i]) != 0 && !(fmt[i][0] == 'l' && strcmp(f, "q") == 0))) {
+            PyErr_Format(PyExc_ValueError, "_hashc.tables: argument %d has format %s", i, f);
+            goto fail;
+        }
+    }
+    t->keys = t->buf[B_KEYS].buf;
+    t->ratios = t->buf[B_RATIOS].buf;
+    t->largest = t->buf[B_LARGEST].buf;
+    t->patterns = t->buf[B_PATTERNS].buf;
+    t->stars = t->buf[B_STARS].buf;
+    t->cell_start = t->buf[B_CSTART].buf;
+    t->cell_stars = t->buf[B_CSTARS].buf;
+    t->n_patterns = t->buf[B_KEYS].len / 8;
+    t->n_stars = t->buf[B_STARS].len / 24;
+    if (t->buf[B_RATIOS].len != t->n_patterns * NR * 4 ||
+        t->buf[B_LARGEST].len != t->n_patterns * 4 ||
+        t->buf[B_PATTERNS].len != t->n_patterns * K * 4 || t->grid < 1 ||
+        t->buf[B_CSTART].len != ((Py_ssize_t)t->grid * t->grid * t->grid + 1) * 8 ||
+        t->buf[B_CSTARS].len != t->n_stars * 8 || t->max_det < K || t->max_det > MAXDET) {
+        PyErr_SetString(PyExc_ValueError, "_hashc.tables: inconsistent array sizes");
+        goto fail;
+    }
+    PyObject *cap = PyCapsule_New(t, "starsense.identify._hashc.Tables", tables_free);
+    if (cap == NULL)
+        goto fail;
+    return cap;
+fail:
+    for (int i = 0; i < NBUF; i++)
+        if (t->buf[i].obj != NULL)
+            PyBuffer_Release(&t->buf[i]);
+    free(t);
+    return NULL;
+}
+
+static PyMethodDef methods[] = {
+    {"tables", py_tables, METH_VARARGS, "Hold a database's arrays for identify (see _hashc.c)."},
+    {"identify", py_identify, METH_VARARGS, "Identify one frame, known field (see _hashc.c)."},
+    {"describe", py_describe, METH_VARARGS, "Patterns of the brightest detections."},
+    {"lookup", py_lookup, METH_VARARGS, "Candidate database patterns of edge ratios."},
+    {"verify", py_verify, METH_VARARGS, "Verify one hypothesis, known field."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_hashc", NULL, -1, methods,
+                                    NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__hashc(void)
+{
+    if (KWNAMES == NULL && (KWNAMES = Py_BuildValue("(ss)", "n_hypothesis", "p_single")) == NULL)
+        return NULL;
+    return PyModule_Create(&module);
+}

@@ -1,0 +1,306 @@
+"""The per-frame work of hashing identification, in two forms that give the same answers.
+
+:func:`descriptors_numpy` (the patterns of a frame, a block at a time) with
+:class:`~starsense.identify.hashing.HashIdentifier`'s look-up and
+:class:`~starsense.identify.verify.Verifier` is the reference: NumPy, one pattern and one
+hypothesis at a time. :class:`HashKernel` runs the same algorithm for a whole frame in the
+compiled kernel ``_hashc`` (``_hashc.c``, built by setup.py as an optional extension): the
+patterns of the brightest detections, their hash look-up and the verification of every
+candidate, in one call. The acceptance decision stays in Python: the kernel calls back
+:meth:`Verifier.accept <starsense.identify.verify.Verifier.accept>` with what it matched.
+
+The descriptors and the look-up are equal bit for bit (but for an ulp of ``asin``, which NumPy
+may take from its own vectorised routine); the attitude of a verification is Davenport's q
+method where the reference takes the SVD (the same rotation to ~1e-15 rad), so a solve gives
+the same matches, the same probability and the same attitude to rounding.
+:class:`~starsense.identify.hashing.HashIdentifier` uses the kernel where it is built and the
+field is known, else the NumPy form (tests/identify/test_hash_kernel.py holds them equal).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+
+import numpy as np
+from numpy.typing import NDArray
+
+from starsense.identify.database import IdentificationDatabase
+from starsense.identify.patterns import edge_ratios, order_by_centroid_distance, pattern_edges
+
+try:  # the compiled kernel (setup.py builds it where a C compiler exists)
+    import starsense.identify._hashc as _hashc
+except ImportError:  # pragma: no cover - exercised on machines without a compiler
+    _hashc = None
+
+__all__ = [
+    "KERNEL_BUILT",
+    "HashKernel",
+    "descriptors_compiled",
+    "descriptors_numpy",
+    "star_grid",
+]
+
+#: whether the compiled kernel ``_hashc`` is importable
+KERNEL_BUILT = _hashc is not None
+#: cells per axis of :func:`star_grid` at most (its index holds ``grid**3 + 1`` int64)
+_MAX_GRID = 64
+
+
+def descriptors_numpy(
+    v: NDArray[np.float64], combos: NDArray[np.intp]
+) -> Iterator[tuple[NDArray[np.intp], NDArray[np.float64], float]]:
+    """Yield (stars in canonical order, edge ratios, largest edge) of the patterns `combos`.
+
+    The patterns of `v` are computed a block at a time (most frames solve on one of the first
+    few patterns); a pattern without a shape (a zero edge: a star listed twice) is skipped.
+
+    Parameters
+    ----------
+    v : ndarray, shape (N, 3)
+        Detection directions, unit vectors, brightest first.
+    combos : ndarray of int, shape (C, 4)
+        The patterns, rows of `v` (:func:`~starsense.identify.patterns.breadth_first_combinations`).
+
+    Yields
+    ------
+    det : ndarray of int, shape (4,)
+        The pattern's detections in canonical order
+        (:func:`~starsense.identify.patterns.order_by_centroid_distance`).
+    ratios : ndarray, shape (5,)
+        Its edge ratios (:func:`~starsense.identify.patterns.edge_ratios`).
+    largest : float
+        Its largest edge, rad.
+    """
+    start = 0
+    for stop in (1, 15, 70, len(combos)):
+        block = combos[start:stop]
+        start = max(start, stop)
+        if len(block) == 0:
+            continue
+        pv = v[block]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dets = np.take_along_axis(block, order_by_centroid_distance(pv), axis=1)
+            ratios, largest = edge_ratios(pattern_edges(pv))
+        ok = (largest > 0) & np.isfinite(ratios).all(axis=1)
+        yield from zip(dets[ok], ratios[ok], largest[ok].tolist(), strict=True)
+
+
+def descriptors_compiled(
+    v: NDArray[np.float64], n_pattern: int
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Describe every pattern of the first `n_pattern` detections in the compiled kernel.
+
+    The kernel's form of :func:`descriptors_numpy`.
+
+    Parameters
+    ----------
+    v : ndarray, shape (N, 3)
+        Detection directions, unit vectors, brightest first.
+    n_pattern : int
+        Patterns are the 4-combinations of the first this many detections, breadth first.
+
+    Returns
+    -------
+    det : ndarray of int64, shape (P, 4)
+    ratios : ndarray, shape (P, 5)
+    largest : ndarray, shape (P,)
+        As :func:`descriptors_numpy` yields them, in the same order.
+    """
+    count, det, ratios, largest = _hashc.describe(np.ascontiguousarray(v, np.float64), n_pattern)
+    return (
+        np.frombuffer(det, np.int64).reshape(count, 4),
+        np.frombuffer(ratios, np.float64).reshape(count, 5),
+        np.frombuffer(largest, np.float64),
+    )
+
+
+def star_grid(
+    vectors: NDArray[np.float64], cell: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64], int, float]:
+    """Index unit vectors by the cell of a cubic grid on [-1, 1]^3 (the kernel's cone search).
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (M, 3)
+        Unit vectors.
+    cell : float
+        Wanted cell size (chord); at most :data:`_MAX_GRID` cells per axis.
+
+    Returns
+    -------
+    cell_start : ndarray of int64, shape (grid**3 + 1,)
+        Cell ``i`` holds ``cell_stars[cell_start[i]:cell_start[i + 1]]``.
+    cell_stars : ndarray of int64, shape (M,)
+        Indices into `vectors`, cell by cell.
+    grid : int
+        Cells per axis.
+    cell : float
+        The cell size used, ``2 / grid``.
+    """
+    grid = int(min(_MAX_GRID, max(1, math.ceil(2.0 / cell))))
+    cell = 2.0 / grid
+    ijk = np.clip(np.floor((vectors + 1.0) / cell).astype(np.int64), 0, grid - 1)
+    flat = (ijk[:, 0] * grid + ijk[:, 1]) * grid + ijk[:, 2]
+    order = np.argsort(flat, kind="stable").astype(np.int64)
+    start = np.zeros(grid**3 + 1, dtype=np.int64)
+    np.cumsum(np.bincount(flat, minlength=grid**3), out=start[1:])
+    return start, order, grid, cell
+
+
+class HashKernel:
+    """A database's arrays held for the compiled kernel, and the kernel's calls.
+
+    Parameters
+    ----------
+    database : IdentificationDatabase
+    pattern_max_error : float
+        Largest difference between a detected and a catalogue edge ratio.
+    scale_tolerance : float
+        Largest relative difference between the detected and catalogue size of a pattern.
+    match_radius : float
+        Verification match radius as a fraction of the field width.
+    max_candidates : int
+        Catalogue patterns verified per detection pattern (nearest ratios first).
+    max_detections : int
+        Detections used in verification.
+
+    Raises
+    ------
+    RuntimeError
+        The kernel is not built (:data:`KERNEL_BUILT` is False).
+    """
+
+    def __init__(
+        self,
+        database: IdentificationDatabase,
+        *,
+        pattern_max_error: float,
+        scale_tolerance: float,
+        match_radius: float,
+        max_candidates: int,
+        max_detections: int,
+    ) -> None:
+        if _hashc is None:
+            raise RuntimeError("the compiled hashing kernel (_hashc) is not built")
+        db = database
+        # the cone of a verification reaches ~0.65 of the field from the boresight
+        reach = min(math.pi / 2, 0.65 * db.params.max_fov_rad)
+        start, stars, grid, cell = star_grid(db.vectors, 2.0 * math.sin(reach / 2.0))
+        self._arrays = (
+            np.ascontiguousarray(db.pattern_keys, np.int64),
+            np.ascontiguousarray(db.pattern_ratios, np.float32),
+            np.ascontiguousarray(db.pattern_largest_rad, np.float32),
+            np.ascontiguousarray(db.patterns, np.int32),
+            np.ascontiguousarray(db.vectors, np.float64),
+            start,
+            stars,
+        )
+        self._tables = _hashc.tables(
+            *self._arrays,
+            grid,
+            cell,
+            int(db.params.n_bins),
+            float(pattern_max_error),
+            float(scale_tolerance),
+            float(match_radius),
+            int(max_candidates),
+            int(max_detections),
+        )
+
+    def lookup(self, ratios: NDArray[np.float64]) -> NDArray[np.int64]:
+        """Return the database patterns within the error of `ratios` (5,), nearest first."""
+        return np.frombuffer(_hashc.lookup(self._tables, *map(float, ratios)), np.int64)
+
+    def verify(
+        self,
+        v: NDArray[np.float64],
+        det: NDArray[np.integer],
+        cat: NDArray[np.integer],
+        *,
+        fov_rad: float,
+        accept: Callable[..., tuple[float, bool]],
+    ) -> tuple | None:
+        """Verify one hypothesis with a known field (as :class:`~.verify.Verifier` does).
+
+        Parameters
+        ----------
+        v : ndarray, shape (N, 3)
+            Detection directions, unit vectors, brightest first.
+        det, cat : array of int, shape (4,)
+            The hypothesis: detection ``det[i]`` is database star ``cat[i]``.
+        fov_rad : float
+            Field width, rad.
+        accept : callable
+            The decision, ``accept(n, matched, n_hypothesis=, p_single=) -> (p_false, ok)``.
+
+        Returns
+        -------
+        None or (rotation_matrix (3, 3), detection_index, catalog_index, rms_rad, p_false)
+        """
+        out = _hashc.verify(
+            self._tables,
+            np.ascontiguousarray(v, np.float64),
+            tuple(int(i) for i in det),
+            tuple(int(i) for i in cat),
+            float(fov_rad),
+            accept,
+        )
+        if out is None:
+            return None
+        r, d, c, rms, p_false = out
+        return (
+            np.asarray(r).reshape(3, 3),
+            np.frombuffer(d, np.int64),
+            np.frombuffer(c, np.int64),
+            rms,
+            p_false,
+        )
+
+    def identify(
+        self,
+        v: NDArray[np.float64],
+        *,
+        n_pattern: int,
+        fov_rad: float,
+        accept: Callable[..., tuple[float, bool]],
+        budget_s: float = math.inf,
+    ) -> tuple:
+        """Search and verify the patterns of one frame with a known field.
+
+        Parameters
+        ----------
+        v : ndarray, shape (N, 3)
+            Detection directions, unit vectors, brightest first (C-contiguous float64).
+        n_pattern : int
+            Patterns are made from the first this many detections.
+        fov_rad : float
+            Field width, rad.
+        accept : callable
+            The decision (see :meth:`verify`).
+        budget_s : float
+            Give up (status 2) after this many seconds.
+
+        Returns
+        -------
+        tuple
+            ``(status, patterns tried, hypotheses verified, least P_false seen, rotation matrix
+            (3, 3) or None, detection_index, catalog_index, rms_rad, p_false)``; status 0: no
+            match, 1: solved, 2: out of time.
+        """
+        status, tried, verified, best, r, d, c, rms, p_false = _hashc.identify(
+            self._tables, v, n_pattern, fov_rad, accept, budget_s
+        )
+        if status != 1:
+            return status, tried, verified, best, None, None, None, rms, p_false
+        return (
+            status,
+            tried,
+            verified,
+            best,
+            np.array(r).reshape(3, 3),
+            np.frombuffer(d, np.int64),
+            np.frombuffer(c, np.int64),
+            rms,
+            p_false,
+        )
