@@ -22,8 +22,9 @@
  * matched, hypothesis stars, p_single) and takes its (p_false, accepted).
  *
  * Arithmetic: the descriptors and the look-up are the NumPy form's operations in the same order
- * (sums of three products left to right, the centroid summed star by star), so they are equal
- * bit for bit but for asin, which NumPy may take from its own vectorised routine (a few ulp).
+ * (the centroid summed star by star, squared norms in einsum's order), so the canonical order of
+ * a pattern's stars is the NumPy form's bit for bit, and its ratios but for asin, which NumPy
+ * may take from its own vectorised routine (a few ulp).
  * The attitude is Davenport's q method (the largest eigenvector of the 4x4 K matrix, cyclic
  * Jacobi) where the NumPy form takes the SVD: the same rotation to ~1e-15 rad. Catalogue stars
  * of a field come from a grid on the cube [-1, 1]^3 (hash_kernels.star_grid) where the NumPy
@@ -46,7 +47,7 @@
 #define NR 5        /* edge ratios per pattern */
 #define MAXDET 1024 /* detections taken part in verification at most */
 
-enum { B_KEYS, B_RATIOS, B_LARGEST, B_PATTERNS, B_STARS, B_CSTART, B_CSTARS, NBUF };
+enum { B_KEYS, B_RATIOS, B_LARGEST, B_PATTERNS, B_STARS, B_CSTART, B_CSTARS, B_CVEC, B_DIR, NBUF };
 
 typedef struct {
     Py_buffer buf[NBUF];
@@ -57,6 +58,9 @@ typedef struct {
     const double *stars;
     const int64_t *cell_start;
     const int64_t *cell_stars;
+    const double *cell_vectors; /* stars[cell_stars]: a cell's stars side by side */
+    const int64_t *dir;         /* keys[dir[b]:dir[b + 1]] are the keys in [b, b + 1) * dir_step */
+    int64_t dir_step, n_dir;
     Py_ssize_t n_patterns, n_stars;
     int grid;
     double cell;
@@ -104,6 +108,13 @@ static inline double dot3(const double *a, const double *b)
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
+/* x . x as NumPy's einsum("...i,...i->...") adds three products on x86-64 (two-lane vectors:
+ * lane 0 takes x0 x0 and x2 x2, lane 1 x1 x1, then the lanes are added). */
+static inline double einsum_sq3(const double *x)
+{
+    return (x[0] * x[0] + x[2] * x[2]) + x[1] * x[1];
+}
+
 /* Describe the pattern of detections idx (rows of v): its stars in canonical order (det), its
  * edge ratios and largest edge. Returns 0 for a pattern without a shape (a zero edge). */
 static int describe(const double *v, const int64_t idx[K], int64_t det[K], double ratios[NR],
@@ -116,12 +127,12 @@ static int describe(const double *v, const int64_t idx[K], int64_t det[K], doubl
         p[k] = v + 3 * idx[k];
     for (int i = 0; i < 3; i++)
         c[i] = ((p[0][i] + p[1][i]) + p[2][i]) + p[3][i];
-    double cn = sqrt(dot3(c, c));
+    double cn = sqrt(einsum_sq3(c));
     for (int i = 0; i < 3; i++)
         c[i] /= cn;
     for (int k = 0; k < K; k++) {
         double d[3] = {p[k][0] - c[0], p[k][1] - c[1], p[k][2] - c[2]};
-        d2[k] = dot3(d, d);
+        d2[k] = einsum_sq3(d);
     }
     for (int k = 0; k < K; k++) { /* stable insertion sort by d2 (NaN last, as argsort) */
         int j = k;
@@ -136,7 +147,7 @@ static int describe(const double *v, const int64_t idx[K], int64_t det[K], doubl
     for (int q = 0; q < 6; q++) {
         const double *a = p[EDGE[q][0]], *b = p[EDGE[q][1]];
         double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
-        double h = sqrt(dot3(d, d)) / 2.0;
+        double h = sqrt(einsum_sq3(d)) / 2.0;
         h = h < 0.0 ? 0.0 : (h > 1.0 ? 1.0 : h);
         e[q] = 2.0 * asin(h);
     }
@@ -189,7 +200,10 @@ static Py_ssize_t lower_bound(const int64_t *k, Py_ssize_t n, int64_t key)
 
 static int add_bucket(const Tables *t, const double r[NR], int64_t key, Vec *out)
 {
-    Py_ssize_t a = lower_bound(t->keys, t->n_patterns, key);
+    int64_t b = key / t->dir_step;
+    if (b < 0 || b >= t->n_dir)
+        return 0;
+    Py_ssize_t lo = t->dir[b], a = lo + lower_bound(t->keys + lo, t->dir[b + 1] - lo, key);
     for (Py_ssize_t c = a; c < t->n_patterns && t->keys[c] == key; c++) {
         double diff = 0.0;
         const float *pr = t->ratios + NR * c;
@@ -362,51 +376,99 @@ static int pair_cmp(const void *a, const void *b)
     return (x->c > y->c) - (x->c < y->c);
 }
 
-static int pair_by_det(const void *a, const void *b)
-{
-    const Pair *x = a, *y = b;
-    return x->d - y->d;
-}
-
 typedef struct {
+    Vec sky;    /* int64 star indices near the first attitude of a hypothesis */
     Vec near;   /* int64 star indices in the cone */
     Vec cam;    /* double[3] of each, camera frame */
     Vec pairs;  /* Pair */
     Vec used;   /* char per near star */
+    double sky_centre[3], sky_cos_reach;
 } Scratch;
 
-/* One-to-one nearest pairs (detection, star) within radius among the stars within cone_rad of
- * the boresight R[6..8]; p_single as Verifier._match. Pairs into det_m/cat_m (sorted by
- * detection), their number into *m. */
-static int match(const Tables *t, Scratch *s, const double *vs, int n, const double R[9],
-                 double cone_rad, double radius, int64_t *det_m, int64_t *cat_m, int *m,
-                 double *p_single)
+/* The detections of a frame: directions (unit, brightest first) and their order in x. */
+typedef struct {
+    const double *vs;
+    int n;
+    double max_off;
+    double xs[MAXDET]; /* x of the detections, ascending */
+    int xi[MAXDET];    /* which detection each is */
+} Frame;
+
+static void frame_init(Frame *f, const double *vs, int n)
 {
-    const double *centre = R + 6;
-    double cone = fmin(cone_rad, M_PI / 2.0), cosc = cos(cone);
-    double chord = sqrt(fmax(2.0 - 2.0 * cosc, 0.0)) * (1.0 + 1e-9) + 1e-12;
+    double zmin = 1.0;
+    f->vs = vs;
+    f->n = n;
+    for (int i = 0; i < n; i++) {
+        double x = vs[3 * i];
+        int j = i;
+        while (j > 0 && f->xs[j - 1] > x) {
+            f->xs[j] = f->xs[j - 1];
+            f->xi[j] = f->xi[j - 1];
+            j--;
+        }
+        f->xs[j] = x;
+        f->xi[j] = i;
+        zmin = fmin(zmin, vs[3 * i + 2]);
+    }
+    f->max_off = acos(fmin(fmax(zmin, -1.0), 1.0));
+}
+
+/* The database stars within `reach` of `centre` (Verifier's _Field: fetched once per
+ * hypothesis, filtered to the cone of each later attitude). */
+static int fetch_sky(const Tables *t, Scratch *s, const double centre[3], double reach)
+{
+    reach = fmin(reach, M_PI);
+    double cosr = cos(reach);
+    double chord = 2.0 * sin(reach / 2.0) * (1.0 + 1e-9) + 1e-12;
     int lo[3], hi[3];
     for (int i = 0; i < 3; i++) {
         lo[i] = (int)floor((centre[i] - chord + 1.0) / t->cell);
         hi[i] = (int)floor((centre[i] + chord + 1.0) / t->cell);
         lo[i] = lo[i] < 0 ? 0 : (lo[i] >= t->grid ? t->grid - 1 : lo[i]);
         hi[i] = hi[i] < 0 ? 0 : (hi[i] >= t->grid ? t->grid - 1 : hi[i]);
+        s->sky_centre[i] = centre[i];
     }
-    s->near.n = 0;
+    s->sky_cos_reach = cosr;
+    s->sky.n = 0;
     for (int a = lo[0]; a <= hi[0]; a++)
         for (int b = lo[1]; b <= hi[1]; b++)
             for (int c = lo[2]; c <= hi[2]; c++) {
                 Py_ssize_t cell = ((Py_ssize_t)a * t->grid + b) * t->grid + c;
                 for (int64_t j = t->cell_start[cell]; j < t->cell_start[cell + 1]; j++) {
-                    int64_t star = t->cell_stars[j];
-                    if (dot3(t->stars + 3 * star, centre) >= cosc) {
-                        if (vec_reserve(&s->near, s->near.n + 1) < 0)
+                    /* the tree's test is on the chord; 1e-12 of margin, the cone test decides */
+                    if (dot3(t->cell_vectors + 3 * j, centre) >= cosr - 1e-12) {
+                        if (vec_reserve(&s->sky, s->sky.n + 1) < 0)
                             return -1;
-                        ((int64_t *)s->near.p)[s->near.n++] = star;
+                        ((int64_t *)s->sky.p)[s->sky.n++] = t->cell_stars[j];
                     }
                 }
             }
-    Py_ssize_t nn = (Py_ssize_t)s->near.n;
+    return 0;
+}
+
+/* One-to-one nearest pairs (detection, star) within radius among the stars within cone_rad of
+ * the boresight R[6..8]; p_single as Verifier._match. Pairs into det_m/cat_m (sorted by
+ * detection), their number into *m. */
+static int match(const Tables *t, Scratch *s, const Frame *f, const double R[9], double cone_rad,
+                 double radius, int64_t *det_m, int64_t *cat_m, int *m, double *p_single)
+{
+    const double *centre = R + 6, *vs = f->vs;
+    double cone = fmin(cone_rad, M_PI / 2.0), cosc = cos(cone);
+    if (dot3(centre, s->sky_centre) < cos(fmax(acos(s->sky_cos_reach) - cone, 0.0))) {
+        /* moved too far for the fetched stars (never seen in practice): fetch again */
+        if (fetch_sky(t, s, centre, cone + 0.05) < 0)
+            return -1;
+    }
+    const int64_t *sky = s->sky.p;
+    s->near.n = 0;
+    if (vec_reserve(&s->near, s->sky.n) < 0)
+        return -1;
+    int64_t *near = s->near.p;
+    for (size_t j = 0; j < s->sky.n; j++)
+        if (dot3(t->stars + 3 * sky[j], centre) >= cosc)
+            near[s->near.n++] = sky[j];
+    size_t nn = s->near.n;
     double solid = 2.0 * M_PI * (1.0 - cos(cone_rad));
     *p_single = (double)nn * M_PI * radius * radius / solid;
     *m = 0;
@@ -415,39 +477,46 @@ static int match(const Tables *t, Scratch *s, const double *vs, int n, const dou
     if (vec_reserve(&s->cam, nn) < 0 || vec_reserve(&s->used, nn) < 0)
         return -1;
     double *cam = s->cam.p;
-    const int64_t *near = s->near.p;
-    for (Py_ssize_t j = 0; j < nn; j++) {
-        const double *st = t->stars + 3 * near[j];
-        for (int i = 0; i < 3; i++)
-            cam[3 * j + i] = R[3 * i] * st[0] + R[3 * i + 1] * st[1] + R[3 * i + 2] * st[2];
-    }
     double limit = 2.0 * sin(radius / 2.0), lim2 = limit * limit;
-    s->pairs.n = 0;
+    double reach = limit * (1.0 + 1e-9) + 1e-12; /* |dx| <= chord: a window in x */
+    int dcount[MAXDET] = {0};
     int contested = 0;
-    char *used = s->used.p;
-    memset(used, 0, (size_t)nn);
-    for (int d = 0; d < n; d++) {
+    s->pairs.n = 0;
+    for (size_t j = 0; j < nn; j++) {
+        const double *st = t->stars + 3 * near[j];
+        double *cj = cam + 3 * j;
+        for (int i = 0; i < 3; i++)
+            cj[i] = R[3 * i] * st[0] + R[3 * i + 1] * st[1] + R[3 * i + 2] * st[2];
+        int lo = 0, hi = f->n; /* first detection with x >= cj[0] - reach */
+        while (lo < hi) {
+            int mid = (lo + hi) / 2;
+            if (f->xs[mid] < cj[0] - reach)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
         int here = 0;
-        for (Py_ssize_t j = 0; j < nn; j++) {
-            double ch2 = 2.0 - 2.0 * dot3(vs + 3 * d, cam + 3 * j);
+        for (int i = lo; i < f->n && f->xs[i] <= cj[0] + reach; i++) {
+            int d = f->xi[i];
+            double ch2 = 2.0 - 2.0 * dot3(vs + 3 * d, cj);
             if (!(ch2 <= lim2))
                 continue;
             if (vec_reserve(&s->pairs, s->pairs.n + 1) < 0)
                 return -1;
             Pair *p = (Pair *)s->pairs.p + s->pairs.n++;
             p->d = d;
-            p->c = j;
+            p->c = (Py_ssize_t)j;
             p->chord2 = ch2;
-            contested |= here++ > 0 || used[j];
-            used[j] = 1;
+            contested |= here++ > 0 || dcount[d]++ > 0;
         }
     }
     Pair *pairs = s->pairs.p;
     Py_ssize_t np_ = (Py_ssize_t)s->pairs.n;
     if (contested) { /* nearest pairs first, each detection and star used once */
-        qsort(pairs, np_, sizeof(Pair), pair_cmp);
-        memset(used, 0, (size_t)nn);
+        char *used = s->used.p;
+        memset(used, 0, nn);
         char dused[MAXDET] = {0};
+        qsort(pairs, np_, sizeof(Pair), pair_cmp);
         Py_ssize_t kept = 0;
         for (Py_ssize_t i = 0; i < np_; i++) {
             if (dused[pairs[i].d] || used[pairs[i].c])
@@ -456,7 +525,15 @@ static int match(const Tables *t, Scratch *s, const double *vs, int n, const dou
             pairs[kept++] = pairs[i];
         }
         np_ = kept;
-        qsort(pairs, np_, sizeof(Pair), pair_by_det);
+    }
+    for (Py_ssize_t i = 1; i < np_; i++) { /* by detection (each one once) */
+        Pair x = pairs[i];
+        Py_ssize_t j = i;
+        while (j > 0 && pairs[j - 1].d > x.d) {
+            pairs[j] = pairs[j - 1];
+            j--;
+        }
+        pairs[j] = x;
     }
     for (Py_ssize_t i = 0; i < np_; i++) {
         det_m[i] = pairs[i].d;
@@ -501,10 +578,11 @@ static int same_pairs(const Verified *o, const int64_t *det, const int64_t *cat,
 
 /* Verify the hypothesis det[i] = star cat[i] (K pairs) with a known field, as Verifier.__call__
  * does with fit_scale=False, scale=1. Returns 1 accepted (out filled), 0 rejected, -1 error. */
-static int verify(const Tables *t, Scratch *s, const double *vs, int n, double max_off,
-                  double fov, const int64_t det[K], const int64_t cat[K], PyObject *accept,
-                  double *best, Verified *out)
+static int verify(const Tables *t, Scratch *s, const Frame *f, double fov, const int64_t det[K],
+                  const int64_t cat[K], PyObject *accept, double *best, Verified *out)
 {
+    const double *vs = f->vs, max_off = f->max_off;
+    const int n = f->n;
     int64_t det_m[MAXDET], cat_m[MAXDET];
     double work[MAXDET], p_single = 0.0;
     int m;
@@ -517,12 +595,16 @@ static int verify(const Tables *t, Scratch *s, const double *vs, int n, double m
         rmax = fmax(rmax, out->resid[k]);
     if (rmax > radius)
         return 0;
+    /* the catalogue stars of the field, once: later attitudes differ from this one by less
+     * than the match radius */
+    if (fetch_sky(t, s, out->R + 6, max_off + 4.0 * radius) < 0)
+        return -1;
     for (int pass = 0; pass < 4; pass++) {
         if (pass >= 2) { /* the radius from the residuals of the last fit */
             double sig = median(out->resid, out->m, work) / sqrt(2.0 * log(2.0));
             radius = fmin(radius, fmax(4.0 * sig, radius / 20.0));
         }
-        if (match(t, s, vs, n, out->R, max_off + radius, radius, det_m, cat_m, &m, &p_single) < 0)
+        if (match(t, s, f, out->R, max_off + radius, radius, det_m, cat_m, &m, &p_single) < 0)
             return -1;
         if (m < K)
             return 0;
@@ -571,6 +653,7 @@ static double now_s(void)
 
 static void scratch_free(Scratch *s)
 {
+    vec_free(&s->sky);
     vec_free(&s->near);
     vec_free(&s->cam);
     vec_free(&s->pairs);
@@ -580,6 +663,7 @@ static void scratch_free(Scratch *s)
 static void scratch_init(Scratch *s)
 {
     memset(s, 0, sizeof(*s));
+    s->sky.item = sizeof(int64_t);
     s->near.item = sizeof(int64_t);
     s->cam.item = 3 * sizeof(double);
     s->pairs.item = sizeof(Pair);
@@ -631,10 +715,12 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
     int n_pat = (int)(nv < n_pattern ? nv : n_pattern);
     if (n_pat > n)
         n_pat = n; /* patterns draw on the verified detections only */
-    double zmin = 1.0;
-    for (int i = 0; i < n; i++)
-        zmin = fmin(zmin, v[3 * i + 2]);
-    double max_off = acos(fmin(fmax(zmin, -1.0), 1.0));
+    Frame *frame = malloc(sizeof(Frame));
+    if (frame == NULL) {
+        PyBuffer_Release(&vb);
+        return PyErr_NoMemory();
+    }
+    frame_init(frame, v, n);
     double t0 = budget < INFINITY ? now_s() : 0.0;
     Vec cands = {NULL, 0, 0, sizeof(Cand)};
     Scratch s;
@@ -675,7 +761,7 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
                         const int32_t *pt = t->patterns + K * cd[i].index;
                         for (int k = 0; k < K; k++)
                             cat[k] = pt[k];
-                        rc = verify(t, &s, v, n, max_off, fov, det, cat, accept, &best, out);
+                        rc = verify(t, &s, frame, fov, det, cat, accept, &best, out);
                         if (rc < 0)
                             goto done;
                         if (rc == 1) {
@@ -700,6 +786,7 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
     }
 done:
     free(out);
+    free(frame);
     free(cands.p);
     scratch_free(&s);
     PyBuffer_Release(&vb);
@@ -799,19 +886,18 @@ static PyObject *py_verify(PyObject *self, PyObject *args)
             PyErr_SetString(PyExc_IndexError, "_hashc.verify: a hypothesis index is out of range");
             return NULL;
         }
-    double zmin = 1.0;
-    for (int i = 0; i < n; i++)
-        zmin = fmin(zmin, v[3 * i + 2]);
-    double max_off = acos(fmin(fmax(zmin, -1.0), 1.0)), best = 1.0;
+    double best = 1.0;
     Scratch s;
     scratch_init(&s);
     Verified *out = malloc(sizeof(Verified));
+    Frame *frame = malloc(sizeof(Frame));
     PyObject *ret = NULL;
-    if (out == NULL) {
+    if (out == NULL || frame == NULL) {
         PyErr_NoMemory();
         goto done;
     }
-    int rc = verify(t, &s, v, n, max_off, fov, det, cat, accept, &best, out);
+    frame_init(frame, v, n);
+    int rc = verify(t, &s, frame, fov, det, cat, accept, &best, out);
     if (rc == 0) {
         Py_INCREF(Py_None);
         ret = Py_None;
@@ -827,9 +913,44 @@ static PyObject *py_verify(PyObject *self, PyObject *args)
     }
 done:
     free(out);
+    free(frame);
     scratch_free(&s);
     PyBuffer_Release(&vb);
     return ret;
+}
+
+/* unit_vectors(v, out) -> bool: out = v / |v| row by row, as result.validate_vectors computes it
+ * ((x0 x0 + x1 x1) + x2 x2, then a square root and a division); False (out undefined) if a row is
+ * not finite, is zero or points behind the camera (z <= 0): the caller then raises its error. */
+static PyObject *py_unit_vectors(PyObject *self, PyObject *args)
+{
+    PyObject *vobj, *oobj;
+    if (!PyArg_ParseTuple(args, "OO", &vobj, &oobj))
+        return NULL;
+    Py_buffer vb, ob;
+    Py_ssize_t nv, no;
+    if (get_vectors(&vb, vobj, &nv) < 0)
+        return NULL;
+    if (PyObject_GetBuffer(oobj, &ob, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0) {
+        PyBuffer_Release(&vb);
+        return NULL;
+    }
+    no = ob.len / 24;
+    int ok = ob.itemsize == 8 && ob.len == vb.len && no == nv;
+    const double *v = vb.buf;
+    double *o = ob.buf;
+    for (Py_ssize_t i = 0; ok && i < nv; i++) {
+        const double *x = v + 3 * i;
+        ok = isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]);
+        double norm = sqrt((x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]);
+        ok = ok && norm != 0.0;
+        for (int j = 0; j < 3; j++)
+            o[3 * i + j] = x[j] / norm;
+        ok = ok && o[3 * i + 2] > 0.0;
+    }
+    PyBuffer_Release(&ob);
+    PyBuffer_Release(&vb);
+    return PyBool_FromLong(ok);
 }
 
 /* the tables ---------------------------------------------------------------------------- */
@@ -845,25 +966,27 @@ static void tables_free(PyObject *capsule)
     free(t);
 }
 
-/* tables(keys, ratios, largest, patterns, stars, cell_start, cell_stars, grid, cell, n_bins,
- *        max_error, scale_tol, match_radius, max_cand, max_det) -> capsule
- * keys int64 (P,), ratios float32 (P, 5), largest float32 (P,), patterns int32 (P, 4), stars
- * float64 (M, 3), cell_start int64 (grid^3 + 1,), cell_stars int64 (M,): all C-contiguous. */
+/* tables(keys, ratios, largest, patterns, stars, cell_start, cell_stars, cell_vectors, dir,
+ *        dir_step, grid, cell, n_bins, max_error, scale_tol, match_radius, max_cand, max_det)
+ * -> capsule. keys int64 (P,), ratios float32 (P, 5), largest float32 (P,), patterns int32
+ * (P, 4), stars float64 (M, 3), cell_start int64 (grid^3 + 1,), cell_stars int64 (M,),
+ * cell_vectors float64 (M, 3) = stars[cell_stars], dir int64 (D + 1,) with dir[b] the first
+ * key >= b * dir_step (dir[D] = P, every key below D * dir_step): all C-contiguous. */
 static PyObject *py_tables(PyObject *self, PyObject *args)
 {
     PyObject *obj[NBUF];
     Tables *t = calloc(1, sizeof(Tables));
     if (t == NULL)
         return PyErr_NoMemory();
-    if (!PyArg_ParseTuple(args, "OOOOOOOididddii", &obj[0], &obj[1], &obj[2], &obj[3],
-                          &obj[4], &obj[5], &obj[6], &t->grid, &t->cell, &t->n_bins,
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOLididddii", &obj[0], &obj[1], &obj[2], &obj[3],
+                          &obj[4], &obj[5], &obj[6], &obj[7], &obj[8], &t->dir_step, &t->grid, &t->cell, &t->n_bins,
                           &t->max_error, &t->scale_tol, &t->match_radius, &t->max_cand,
                           &t->max_det)) {
         free(t);
         return NULL;
     }
-    static const char *fmt[NBUF] = {"l", "f", "f", "i", "d", "l", "l"};
-    static const Py_ssize_t size[NBUF] = {8, 4, 4, 4, 8, 8, 8};
+    static const char *fmt[NBUF] = {"l", "f", "f", "i", "d", "l", "l", "d", "l"};
+    static const Py_ssize_t size[NBUF] = {8, 4, 4, 4, 8, 8, 8, 8, 8};
     for (int i = 0; i < NBUF; i++) {
         if (PyObject_GetBuffer(obj[i], &t->buf[i], PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
             goto fail;
@@ -883,13 +1006,18 @@ static PyObject *py_tables(PyObject *self, PyObject *args)
     t->stars = t->buf[B_STARS].buf;
     t->cell_start = t->buf[B_CSTART].buf;
     t->cell_stars = t->buf[B_CSTARS].buf;
+    t->cell_vectors = t->buf[B_CVEC].buf;
+    t->dir = t->buf[B_DIR].buf;
+    t->n_dir = t->buf[B_DIR].len / 8 - 1;
     t->n_patterns = t->buf[B_KEYS].len / 8;
     t->n_stars = t->buf[B_STARS].len / 24;
     if (t->buf[B_RATIOS].len != t->n_patterns * NR * 4 ||
         t->buf[B_LARGEST].len != t->n_patterns * 4 ||
         t->buf[B_PATTERNS].len != t->n_patterns * K * 4 || t->grid < 1 ||
         t->buf[B_CSTART].len != ((Py_ssize_t)t->grid * t->grid * t->grid + 1) * 8 ||
-        t->buf[B_CSTARS].len != t->n_stars * 8 || t->max_det < K || t->max_det > MAXDET) {
+        t->buf[B_CSTARS].len != t->n_stars * 8 || t->buf[B_CVEC].len != t->n_stars * 24 ||
+        t->n_dir < 1 || t->dir_step < 1 || t->dir[0] != 0 || t->dir[t->n_dir] != t->n_patterns ||
+        t->max_det < K || t->max_det > MAXDET) {
         PyErr_SetString(PyExc_ValueError, "_hashc.tables: inconsistent array sizes");
         goto fail;
     }
@@ -911,6 +1039,7 @@ static PyMethodDef methods[] = {
     {"describe", py_describe, METH_VARARGS, "Patterns of the brightest detections."},
     {"lookup", py_lookup, METH_VARARGS, "Candidate database patterns of edge ratios."},
     {"verify", py_verify, METH_VARARGS, "Verify one hypothesis, known field."},
+    {"unit_vectors", py_unit_vectors, METH_VARARGS, "Checked unit vectors of detections."},
     {NULL, NULL, 0, NULL},
 };
 

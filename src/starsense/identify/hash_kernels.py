@@ -38,13 +38,17 @@ __all__ = [
     "HashKernel",
     "descriptors_compiled",
     "descriptors_numpy",
+    "key_directory",
     "star_grid",
+    "unit_vectors_compiled",
 ]
 
 #: whether the compiled kernel ``_hashc`` is importable
 KERNEL_BUILT = _hashc is not None
 #: cells per axis of :func:`star_grid` at most (its index holds ``grid**3 + 1`` int64)
 _MAX_GRID = 64
+#: buckets of :func:`key_directory` (512 KiB of int64)
+_DIR_BUCKETS = 1 << 16
 
 
 def descriptors_numpy(
@@ -113,6 +117,60 @@ def descriptors_compiled(
         np.frombuffer(ratios, np.float64).reshape(count, 5),
         np.frombuffer(largest, np.float64),
     )
+
+
+def unit_vectors_compiled(vectors_cam: object) -> NDArray[np.float64] | None:
+    """Return detection directions as unit vectors, or None if they need the full check.
+
+    The kernel's form of :func:`~starsense.identify.result.validate_vectors` for the valid
+    case (the same values bit for bit); None for anything else (not an (N, 3) array of
+    numbers, a non-finite or zero vector, one behind the camera), for which the caller runs
+    ``validate_vectors`` and raises its error.
+
+    Parameters
+    ----------
+    vectors_cam : array_like, shape (N, 3)
+        Directions in the camera frame.
+
+    Returns
+    -------
+    ndarray, shape (N, 3), or None
+    """
+    if not isinstance(vectors_cam, np.ndarray) or vectors_cam.dtype != np.float64:
+        return None
+    if vectors_cam.ndim != 2 or vectors_cam.shape[1] != 3 or len(vectors_cam) == 0:
+        return None
+    v = np.ascontiguousarray(vectors_cam)
+    out = np.empty_like(v)
+    return out if _hashc.unit_vectors(v, out) else None
+
+
+def key_directory(keys: NDArray[np.int64], n_keys: int) -> tuple[NDArray[np.int64], int]:
+    """Index sorted hash keys by their leading part, so that a look-up reads a few cache lines.
+
+    A binary search over millions of keys misses the cache at most of its ~20 steps; with the
+    directory it searches only the keys of one bucket of :data:`_DIR_BUCKETS`.
+
+    Parameters
+    ----------
+    keys : ndarray of int64, shape (P,)
+        Hash keys, ascending, each in [0, `n_keys`).
+    n_keys : int
+        Number of possible keys (``n_bins**5``).
+
+    Returns
+    -------
+    directory : ndarray of int64, shape (D + 1,)
+        ``keys[directory[b]:directory[b + 1]]`` are the keys in ``[b, b + 1) * step``.
+    step : int
+        Keys per bucket.
+    """
+    step = max(1, -(-n_keys // _DIR_BUCKETS))
+    n_dir = -(-n_keys // step)
+    bounds = np.arange(n_dir + 1, dtype=np.int64) * step
+    directory = np.searchsorted(keys, bounds, side="left").astype(np.int64)
+    directory[-1] = len(keys)
+    return directory, step
 
 
 def star_grid(
@@ -187,6 +245,7 @@ class HashKernel:
         # the cone of a verification reaches ~0.65 of the field from the boresight
         reach = min(math.pi / 2, 0.65 * db.params.max_fov_rad)
         start, stars, grid, cell = star_grid(db.vectors, 2.0 * math.sin(reach / 2.0))
+        # the arrays stay referenced here while the kernel holds their buffers
         self._arrays = (
             np.ascontiguousarray(db.pattern_keys, np.int64),
             np.ascontiguousarray(db.pattern_ratios, np.float32),
@@ -195,6 +254,8 @@ class HashKernel:
             np.ascontiguousarray(db.vectors, np.float64),
             start,
             stars,
+            np.ascontiguousarray(db.vectors[stars], np.float64),  # a cell's stars side by side
+            *key_directory(db.pattern_keys, int(db.params.n_bins) ** 5),
         )
         self._tables = _hashc.tables(
             *self._arrays,

@@ -28,7 +28,12 @@ from starsense._validate import check_int, check_scalar
 from starsense.errors import InputError
 from starsense.geometry.projection import vectors_to_tangent
 from starsense.identify.database import IdentificationDatabase
-from starsense.identify.hash_kernels import KERNEL_BUILT, HashKernel, descriptors_numpy
+from starsense.identify.hash_kernels import (
+    KERNEL_BUILT,
+    HashKernel,
+    descriptors_numpy,
+    unit_vectors_compiled,
+)
 from starsense.identify.patterns import breadth_first_combinations, hash_keys
 from starsense.identify.result import Identification, result_builder, validate_vectors
 from starsense.identify.verify import Verifier, exact_rotation
@@ -234,7 +239,9 @@ class HashIdentifier:
             camera, or `fov_rad` is outside what the database was built for.
         """
         t0 = time.perf_counter()
-        v = validate_vectors(vectors_cam)
+        v = None if self._kernel is None else unit_vectors_compiled(vectors_cam)
+        if v is None:
+            v = validate_vectors(vectors_cam)
         db = self.database
         known = fov_rad is not None
         if known:
