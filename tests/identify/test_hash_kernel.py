@@ -22,10 +22,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from identify_helpers import SYNTH_FOV_RAD
 
+from starsense.errors import InputError
 from starsense.identify import HashIdentifier
 from starsense.identify import hash_kernels as hk
 from starsense.identify.centroid_sets import centroid_sets
 from starsense.identify.patterns import breadth_first_combinations
+from starsense.identify.result import validate_vectors
 from starsense.solve.pinhole import pinhole_vectors
 
 needs_kernel = pytest.mark.skipif(not hk.KERNEL_BUILT, reason="compiled kernel not built")
@@ -34,6 +36,8 @@ SIZE = (960, 1280)
 REL = 1e-6
 #: rotations agree to this, rad (module docstring)
 ROT_RAD = 1e-11
+#: the module-scoped identifiers are not reset between examples, and need not be
+FIXTURE = HealthCheck.function_scoped_fixture
 
 
 def test_the_kernel_is_built_where_a_compiler_exists():
@@ -102,6 +106,41 @@ def test_lookup_equals_the_numpy_form(pair, index, shift):
     np.testing.assert_array_equal(
         compiled._kernel.lookup(ratios), reference._lookup(ratios.astype(np.float64))
     )
+
+
+@needs_kernel
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 40),
+    log_scale=st.floats(-6, 6),
+    bad=st.sampled_from(["none", "nan", "inf", "zero", "behind", "edge"]),
+)
+def test_unit_vectors_equal_validate_vectors(seed, n, log_scale, bad):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(0, 0.2, (n, 3)) * 10.0**log_scale
+    v[:, 2] = np.abs(v[:, 2]) + 10.0**log_scale
+    row = int(rng.integers(n))
+    if bad != "none":
+        v[row] = {
+            "nan": [0.0, np.nan, 1.0],
+            "inf": [np.inf, 0.0, 1.0],
+            "zero": [0.0, 0.0, 0.0],
+            "behind": [0.1, 0.0, -1.0],
+            "edge": [1.0, 0.0, 0.0],  # z = 0: behind the camera for validate_vectors
+        }[bad]
+    out = hk.unit_vectors_compiled(v)
+    if bad == "none":
+        np.testing.assert_array_equal(out, validate_vectors(v))  # bit for bit
+    else:
+        assert out is None  # the caller runs validate_vectors, which raises
+        with pytest.raises(InputError):
+            validate_vectors(v)
+
+
+def test_unit_vectors_leave_other_inputs_to_validate_vectors():
+    for bad in ([[0.0, 0.0, 1.0]], np.ones((3, 2)), np.ones(3), np.ones((2, 3), np.float32)):
+        assert hk.unit_vectors_compiled(bad) is None
 
 
 def _assert_same(a, b):

@@ -198,29 +198,54 @@ static Py_ssize_t lower_bound(const int64_t *k, Py_ssize_t n, int64_t key)
     return lo;
 }
 
-static int add_bucket(const Tables *t, const double r[NR], int64_t key, Vec *out)
+#if defined(__GNUC__) || defined(__clang__)
+#define PREFETCH(p) __builtin_prefetch(p)
+#else
+#define PREFETCH(p) ((void)0)
+#endif
+
+#define KEY_CHUNK 64
+
+/* Append the candidates of the keys (in their order) to out: the directory entries of all of
+ * them are asked for first, then the middle of their buckets, then the buckets are searched,
+ * so that their cache misses overlap. */
+static int add_keys(const Tables *t, const double r[NR], const int64_t *keys, int nk, Vec *out)
 {
-    int64_t b = key / t->dir_step;
-    if (b < 0 || b >= t->n_dir)
-        return 0;
-    Py_ssize_t lo = t->dir[b], a = lo + lower_bound(t->keys + lo, t->dir[b + 1] - lo, key);
-    for (Py_ssize_t c = a; c < t->n_patterns && t->keys[c] == key; c++) {
-        double diff = 0.0;
-        const float *pr = t->ratios + NR * c;
-        for (int q = 0; q < NR; q++) {
-            double x = fabs((double)pr[q] - r[q]);
-            if (x > diff || isnan(x))
-                diff = x;
+    Py_ssize_t lo[KEY_CHUNK], hi[KEY_CHUNK];
+    for (int i = 0; i < nk; i++) {
+        int64_t b = keys[i] / t->dir_step;
+        if (b >= 0 && b < t->n_dir)
+            PREFETCH(t->dir + b);
+    }
+    for (int i = 0; i < nk; i++) {
+        int64_t b = keys[i] / t->dir_step;
+        lo[i] = hi[i] = 0;
+        if (b >= 0 && b < t->n_dir) {
+            lo[i] = t->dir[b];
+            hi[i] = t->dir[b + 1];
+            PREFETCH(t->keys + lo[i] + (hi[i] - lo[i]) / 2);
         }
-        if (!(diff <= t->max_error))
-            continue;
-        if (vec_reserve(out, out->n + 1) < 0)
-            return -1;
-        Cand *cd = (Cand *)out->p + out->n;
-        cd->index = c;
-        cd->diff = diff;
-        cd->pos = (Py_ssize_t)out->n;
-        out->n++;
+    }
+    for (int i = 0; i < nk; i++) {
+        Py_ssize_t a = lo[i] + lower_bound(t->keys + lo[i], hi[i] - lo[i], keys[i]);
+        for (Py_ssize_t c = a; c < t->n_patterns && t->keys[c] == keys[i]; c++) {
+            double diff = 0.0;
+            const float *pr = t->ratios + NR * c;
+            for (int q = 0; q < NR; q++) {
+                double x = fabs((double)pr[q] - r[q]);
+                if (x > diff || isnan(x))
+                    diff = x;
+            }
+            if (!(diff <= t->max_error))
+                continue;
+            if (vec_reserve(out, out->n + 1) < 0)
+                return -1;
+            Cand *cd = (Cand *)out->p + out->n;
+            cd->index = c;
+            cd->diff = diff;
+            cd->pos = (Py_ssize_t)out->n;
+            out->n++;
+        }
     }
     return 0;
 }
@@ -230,8 +255,9 @@ static int add_bucket(const Tables *t, const double r[NR], int64_t key, Vec *out
  * the ratios' bin ranges, the last ratio fastest. */
 static int lookup(const Tables *t, const double r[NR], Vec *out)
 {
-    int64_t lo[NR], hi[NR], w[NR], bin[NR];
+    int64_t lo[NR], hi[NR], w[NR], bin[NR], keys[KEY_CHUNK];
     double nb = (double)t->n_bins;
+    int nk = 0, done = 0;
     out->n = 0;
     for (int q = 0; q < NR; q++) {
         double a = (r[q] - t->max_error) * nb, b = (r[q] + t->max_error) * nb;
@@ -242,20 +268,25 @@ static int lookup(const Tables *t, const double r[NR], Vec *out)
         w[q] = q ? w[q - 1] * t->n_bins : 1;
         bin[q] = lo[q];
     }
-    for (;;) {
+    while (!done) {
         int64_t key = 0;
         for (int q = 0; q < NR; q++)
             key += bin[q] * w[q];
-        if (add_bucket(t, r, key, out) < 0)
-            return -1;
+        keys[nk++] = key;
         int q = NR - 1;
         while (q >= 0 && bin[q] == hi[q]) {
             bin[q] = lo[q];
             q--;
         }
         if (q < 0)
-            break;
-        bin[q]++;
+            done = 1;
+        else
+            bin[q]++;
+        if (nk == KEY_CHUNK || done) {
+            if (add_keys(t, r, keys, nk, out) < 0)
+                return -1;
+            nk = 0;
+        }
     }
     if (out->n > 1)
         qsort(out->p, out->n, sizeof(Cand), cand_cmp);
