@@ -231,12 +231,14 @@ static int add_keys(const Tables *t, const double r[NR], const int64_t *keys, in
         for (Py_ssize_t c = a; c < t->n_patterns && t->keys[c] == keys[i]; c++) {
             double diff = 0.0;
             const float *pr = t->ratios + NR * c;
-            for (int q = 0; q < NR; q++) {
+            int q = 0;
+            for (; q < NR; q++) { /* the largest difference; out at the first beyond the error */
                 double x = fabs((double)pr[q] - r[q]);
-                if (x > diff || isnan(x))
-                    diff = x;
+                if (!(x <= t->max_error))
+                    break;
+                diff = x > diff ? x : diff;
             }
-            if (!(diff <= t->max_error))
+            if (q < NR)
                 continue;
             if (vec_reserve(out, out->n + 1) < 0)
                 return -1;
@@ -722,10 +724,12 @@ static int get_vectors(Py_buffer *b, PyObject *obj, Py_ssize_t *n)
     return 0;
 }
 
-static PyObject *bytes_of(const void *p, Py_ssize_t n) { return PyBytes_FromStringAndSize(p, n); }
+/* a bytearray: NumPy arrays on it (np.frombuffer) are writable, as the NumPy form's results */
+static PyObject *bytes_of(const void *p, Py_ssize_t n) { return PyByteArray_FromStringAndSize(p, n); }
 
 /* identify(tables, vectors, n_pattern, fov, accept, budget_s) ->
- *   (status, tried, verified, best, R (9-tuple) or None, det bytes, cat bytes, rms, p_false)
+ *   (status, tried, verified, best, R bytes (9 float64) or None, det bytes, cat bytes, rms,
+ *    p_false)
  * status: 0 no match, 1 solved, 2 timeout. */
 static PyObject *py_identify(PyObject *self, PyObject *args)
 {
@@ -806,8 +810,7 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
         for (int k = 0; k < out->m; k++)
             ss += out->resid[k] * out->resid[k];
         const double *R = out->R;
-        ret = Py_BuildValue("(illd(ddddddddd)NNdd)", 1, tried, verified, best, R[0], R[1], R[2],
-                            R[3], R[4], R[5], R[6], R[7], R[8],
+        ret = Py_BuildValue("(illdNNNdd)", 1, tried, verified, best, bytes_of(R, 9 * sizeof(double)),
                             bytes_of(out->det, out->m * sizeof(int64_t)),
                             bytes_of(out->cat, out->m * sizeof(int64_t)),
                             sqrt(ss / out->m), out->p_false);

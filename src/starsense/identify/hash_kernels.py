@@ -359,7 +359,7 @@ class HashKernel:
             tried,
             verified,
             best,
-            np.array(r).reshape(3, 3),
+            np.frombuffer(r, np.float64).reshape(3, 3),
             np.frombuffer(d, np.int64),
             np.frombuffer(c, np.int64),
             rms,
