@@ -16,6 +16,11 @@ threshold (default 1e-9).
 
 The :class:`~starsense.identify.result.Identification` result that the algorithms return is in
 :mod:`starsense.identify.result`.
+
+The compiled kernel of hashing identification (``_hashc.c``, see
+:mod:`starsense.identify.hash_kernels`) repeats :meth:`Verifier.__call__` for a known field step
+by step and calls :meth:`Verifier.accept` for the decision: a change to the matching or fitting
+here must be made there too (tests/identify/test_hash_kernel.py holds the two equal).
 """
 
 from __future__ import annotations
