@@ -1,6 +1,7 @@
 """The compiled hashing kernel (``starsense.identify._hashc``) against the NumPy form.
 
-The pattern descriptors and the hash look-up are the same operations in the same order: equal
+Both a known field and an unknown one (the scale of the tangent plane fitted) are compared. The
+pattern descriptors and the hash look-up are the same operations in the same order: equal
 bit for bit (the ratios to 4 ulp: NumPy may take ``arcsin`` from its own vectorised routine,
 the kernel from the C library). The verification fits the attitude by Davenport's q method
 where the NumPy form takes the SVD; both are exact to rounding, so a solve matches the same
@@ -23,7 +24,7 @@ from hypothesis import strategies as st
 from identify_helpers import SYNTH_FOV_RAD
 
 from starsense.errors import InputError
-from starsense.identify import HashIdentifier
+from starsense.identify import HashIdentifier, build_database
 from starsense.identify import hash_kernels as hk
 from starsense.identify.centroid_sets import centroid_sets
 from starsense.identify.patterns import breadth_first_combinations
@@ -181,6 +182,44 @@ def test_solves_equal_the_numpy_form(pair, hipparcos, seed, which, noise_px, n_f
     v = pinhole_vectors(xy[:, 0], xy[:, 1], shape=SIZE, fov_rad=SYNTH_FOV_RAD)
     compiled, reference = pair
     _assert_same(compiled(v, SYNTH_FOV_RAD), reference(v, SYNTH_FOV_RAD))
+
+
+@pytest.fixture(scope="module")
+def pair_unknown(hipparcos):
+    """Both forms on a multi-scale database (10-20 deg), for frames of unknown field."""
+    db = build_database(hipparcos, math.radians(20), math.radians(10), patterns_per_field=50)
+    return HashIdentifier(db), HashIdentifier(db, compiled=False)
+
+
+@needs_kernel
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    seed=st.integers(0, 2**31),
+    fov_deg=st.floats(11.0, 19.0),
+    assumed_deg=st.floats(12.0, 18.0),
+    noise_px=st.sampled_from([0.3, 1.0]),
+    n_false=st.integers(0, 5),
+)
+def test_unknown_field_solves_equal_the_numpy_form(
+    pair_unknown, hipparcos, seed, fov_deg, assumed_deg, noise_px, n_false
+):
+    # the scale of the tangent plane is fitted: the same scale to 1e-9 (a few rounds of least
+    # squares on tangent points, each exact to rounding)
+    sets = centroid_sets(
+        hipparcos, 1, fov_rad=math.radians(fov_deg), noise_px=noise_px, n_false=n_false, seed=seed
+    )
+    xy = sets[0]
+    assumed = math.radians(assumed_deg)
+    v = pinhole_vectors(xy[:, 0], xy[:, 1], shape=SIZE, fov_rad=assumed)
+    compiled, reference = pair_unknown
+    a = compiled(v, assumed_fov_rad=assumed)
+    b = reference(v, assumed_fov_rad=assumed)
+    _assert_same(a, b)
+    if a.solved:
+        assert math.isclose(a.scale, b.scale, rel_tol=1e-9)
+        assert math.isclose(a.fov_rad, b.fov_rad, rel_tol=1e-9)
 
 
 @needs_kernel

@@ -13,7 +13,8 @@
  *     (binary search), candidates within the error kept, nearest first (HashIdentifier._lookup):
  *     lookup();
  *   - the scale test of a known field, then the verification of each candidate as
- *     verify.Verifier does it for a known field (attitude from the pairs, nearest catalogue star
+ *     verify.Verifier does it, for a known field or with the scale of the tangent plane fitted
+ *     for an unknown one (attitude from the pairs, nearest catalogue star
  *     of every detection within the match radius, refit, two passes with a radius from the
  *     residuals): verify().
  *
@@ -346,12 +347,12 @@ static void largest_eigenvector(double a[4][4], double q[4])
 
 /* The attitude matrix R (body ~ R ref, row-major) of m pairs (Wahba, equal weights) and the
  * residual angles. body: detection directions of det; ref: database stars of cat. */
-static void fit(const Tables *t, const double *vs, const int64_t *det, const int64_t *cat,
-                int m, double R[9], double *resid)
+static void fit_body(const Tables *t, const double *body, const int64_t *cat, int m, double R[9],
+                     double *resid)
 {
     double B[3][3] = {{0}};
     for (int k = 0; k < m; k++) {
-        const double *b = vs + 3 * det[k], *r = t->stars + 3 * cat[k];
+        const double *b = body + 3 * k, *r = t->stars + 3 * cat[k];
         for (int i = 0; i < 3; i++)
             for (int j = 0; j < 3; j++)
                 B[i][j] += b[i] * r[j];
@@ -381,7 +382,7 @@ static void fit(const Tables *t, const double *vs, const int64_t *det, const int
     R[7] = 2 * w * y - 2 * s * x;
     R[8] = d + 2 * w * w;
     for (int k = 0; k < m; k++) {
-        const double *b = vs + 3 * det[k], *r = t->stars + 3 * cat[k];
+        const double *b = body + 3 * k, *r = t->stars + 3 * cat[k];
         double ch2 = 0.0;
         for (int i = 0; i < 3; i++) {
             double e = (R[3 * i] * r[0] + R[3 * i + 1] * r[1] + R[3 * i + 2] * r[2]) - b[i];
@@ -389,6 +390,60 @@ static void fit(const Tables *t, const double *vs, const int64_t *det, const int
         }
         resid[k] = 2.0 * asin(fmin(sqrt(ch2) / 2.0, 1.0));
     }
+}
+
+/* Camera directions of tangent-plane points (x/z, y/z) times scale, as
+ * geometry.projection.tangent_to_vectors computes them. */
+static void scaled_vectors(const double *tan, int n, double scale, double *out)
+{
+    for (int i = 0; i < n; i++) {
+        double x = tan[2 * i] * scale, y = tan[2 * i + 1] * scale;
+        double norm = sqrt((x * x + y * y) + 1.0);
+        out[3 * i] = x / norm;
+        out[3 * i + 1] = y / norm;
+        out[3 * i + 2] = 1.0 / norm;
+    }
+}
+
+/* fit() with the pairs' detections taken from vs (all detections). */
+static void fit(const Tables *t, const double *vs, const int64_t *det, const int64_t *cat, int m,
+                double R[9], double *resid)
+{
+    double body[3 * MAXDET];
+    for (int k = 0; k < m; k++)
+        memcpy(body + 3 * k, vs + 3 * det[k], 3 * sizeof(double));
+    fit_body(t, body, cat, m, R, resid);
+}
+
+/* The attitude and the scale of the tangent plane (Verifier._fit with fit_scale): four rounds of
+ * attitude at the scale, then the scale that maps the detections' tangent points onto the
+ * stars' (least squares), then the attitude at the last scale. */
+static void fit_scaled(const Tables *t, const double *tan, const int64_t *det, const int64_t *cat,
+                       int m, double *scale, double R[9], double *resid)
+{
+    double td[2 * MAXDET], body[3 * MAXDET], denom = 0.0;
+    for (int k = 0; k < m; k++) {
+        td[2 * k] = tan[2 * det[k]];
+        td[2 * k + 1] = tan[2 * det[k] + 1];
+        denom += td[2 * k] * td[2 * k] + td[2 * k + 1] * td[2 * k + 1];
+    }
+    for (int it = 0; it < 4; it++) {
+        scaled_vectors(td, m, *scale, body);
+        fit_body(t, body, cat, m, R, resid);
+        if (denom <= 0.0)
+            break;
+        double num = 0.0;
+        for (int k = 0; k < m; k++) {
+            const double *r = t->stars + 3 * cat[k];
+            double c[3];
+            for (int i = 0; i < 3; i++)
+                c[i] = R[3 * i] * r[0] + R[3 * i + 1] * r[1] + R[3 * i + 2] * r[2];
+            num += td[2 * k] * (c[0] / c[2]) + td[2 * k + 1] * (c[1] / c[2]);
+        }
+        *scale = num / denom;
+    }
+    scaled_vectors(td, m, *scale, body);
+    fit_body(t, body, cat, m, R, resid);
 }
 
 /* matching ------------------------------------------------------------------------------ */
@@ -425,8 +480,11 @@ typedef struct {
     double max_off;
     double xs[MAXDET]; /* x of the detections, ascending */
     int xi[MAXDET];    /* which detection each is */
+    double tan[2 * MAXDET];   /* unknown field: (x/z, y/z) of the detections */
+    double scaled[3 * MAXDET]; /* unknown field: their directions at the current scale */
 } Frame;
 
+/* Take vs as the frame's directions: index them by x, and their largest angle off axis. */
 static void frame_init(Frame *f, const double *vs, int n)
 {
     double zmin = 1.0;
@@ -578,10 +636,16 @@ static int match(const Tables *t, Scratch *s, const Frame *f, const double R[9],
 
 static PyObject *KWNAMES; /* ("n_hypothesis", "p_single") */
 
+/* How a hypothesis is fitted: a known field (fov, scale 1) or the scale fitted within a range. */
+typedef struct {
+    double fov, scale, scale_min, scale_max;
+    int fit_scale;
+} Fit;
+
 /* verification -------------------------------------------------------------------------- */
 
 typedef struct {
-    double R[9];
+    double R[9], scale;
     int m;
     int64_t det[MAXDET], cat[MAXDET];
     double resid[MAXDET];
@@ -609,21 +673,31 @@ static int same_pairs(const Verified *o, const int64_t *det, const int64_t *cat,
            memcmp(o->cat, cat, m * sizeof(int64_t)) == 0;
 }
 
-/* Verify the hypothesis det[i] = star cat[i] (K pairs) with a known field, as Verifier.__call__
- * does with fit_scale=False, scale=1. Returns 1 accepted (out filled), 0 rejected, -1 error. */
-static int verify(const Tables *t, Scratch *s, const Frame *f, double fov, const int64_t det[K],
+/* Verify the hypothesis det[i] = star cat[i] (K pairs) as Verifier.__call__ does: a known field
+ * (how->fov, scale 1) or the scale fitted (how->fit_scale, from how->scale within its range).
+ * Returns 1 accepted (out filled), 0 rejected, -1 error. */
+static int verify(const Tables *t, Scratch *s, Frame *f, const Fit *how, const int64_t det[K],
                   const int64_t cat[K], PyObject *accept, double *best, Verified *out)
 {
-    const double *vs = f->vs, max_off = f->max_off;
     const int n = f->n;
     int64_t det_m[MAXDET], cat_m[MAXDET];
-    double work[MAXDET], p_single = 0.0;
+    double work[MAXDET], p_single = 0.0, scale = how->scale;
     int m;
     memcpy(out->det, det, K * sizeof(int64_t));
     memcpy(out->cat, cat, K * sizeof(int64_t));
     out->m = K;
-    fit(t, vs, out->det, out->cat, K, out->R, out->resid);
-    double radius = t->match_radius * fov, rmax = 0.0;
+    if (how->fit_scale) {
+        fit_scaled(t, f->tan, out->det, out->cat, K, &scale, out->R, out->resid);
+        if (!(how->scale_min <= scale && scale <= how->scale_max))
+            return 0;
+        scaled_vectors(f->tan, n, scale, f->scaled);
+        frame_init(f, f->scaled, n);
+    } else {
+        fit(t, f->vs, out->det, out->cat, K, out->R, out->resid);
+    }
+    const double max_off = f->max_off;
+    double width = how->fit_scale ? 2.0 * max_off : how->fov;
+    double radius = t->match_radius * width, rmax = 0.0;
     for (int k = 0; k < K; k++)
         rmax = fmax(rmax, out->resid[k]);
     if (rmax > radius)
@@ -641,13 +715,26 @@ static int verify(const Tables *t, Scratch *s, const Frame *f, double fov, const
             return -1;
         if (m < K)
             return 0;
-        if (!same_pairs(out, det_m, cat_m, m)) {
+        if (how->fit_scale || !same_pairs(out, det_m, cat_m, m)) {
             memcpy(out->det, det_m, m * sizeof(int64_t));
             memcpy(out->cat, cat_m, m * sizeof(int64_t));
             out->m = m;
-            fit(t, vs, out->det, out->cat, m, out->R, out->resid);
+            if (how->fit_scale)
+                fit_scaled(t, f->tan, out->det, out->cat, m, &scale, out->R, out->resid);
+            else
+                fit(t, f->vs, out->det, out->cat, m, out->R, out->resid);
+        }
+        /* the first two passes check the scale (the last two do not, as Verifier) */
+        if (pass < 2 && !(how->scale_min <= scale && scale <= how->scale_max))
+            return 0;
+        if (how->fit_scale) {
+            scaled_vectors(f->tan, n, scale, f->scaled);
+            double keep = f->max_off; /* the field's extent stays the first fit's */
+            frame_init(f, f->scaled, n);
+            f->max_off = keep;
         }
     }
+    out->scale = scale;
     /* the decision: accept(n, m, n_hypothesis=K, p_single=p) -> (p_false, accepted) */
     PyObject *argv[4] = {PyLong_FromLong(n), PyLong_FromLong(m), PyLong_FromLong(K),
                          PyFloat_FromDouble(p_single)};
@@ -727,17 +814,20 @@ static int get_vectors(Py_buffer *b, PyObject *obj, Py_ssize_t *n)
 /* a bytearray: NumPy arrays on it (np.frombuffer) are writable, as the NumPy form's results */
 static PyObject *bytes_of(const void *p, Py_ssize_t n) { return PyByteArray_FromStringAndSize(p, n); }
 
-/* identify(tables, vectors, n_pattern, fov, accept, budget_s) ->
+/* identify(tables, vectors, n_pattern, fov, accept, budget_s[, scale_min, scale_max]) ->
  *   (status, tried, verified, best, R bytes (9 float64) or None, det bytes, cat bytes, rms,
- *    p_false)
- * status: 0 no match, 1 solved, 2 timeout. */
+ *    p_false, scale)
+ * status: 0 no match, 1 solved, 2 timeout. fov <= 0: the field is unknown, the scale of the
+ * tangent plane is fitted within [scale_min, scale_max] (HashIdentifier with fov_rad=None). */
 static PyObject *py_identify(PyObject *self, PyObject *args)
 {
     PyObject *cap, *vobj, *accept;
     int n_pattern;
-    double fov, budget;
-    if (!PyArg_ParseTuple(args, "OOidOd", &cap, &vobj, &n_pattern, &fov, &accept, &budget))
+    double fov, budget, scale_min = 0.0, scale_max = INFINITY;
+    if (!PyArg_ParseTuple(args, "OOidOd|dd", &cap, &vobj, &n_pattern, &fov, &accept, &budget,
+                          &scale_min, &scale_max))
         return NULL;
+    int known = fov > 0.0;
     Tables *t = get_tables(cap);
     if (t == NULL)
         return NULL;
@@ -756,6 +846,12 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
         return PyErr_NoMemory();
     }
     frame_init(frame, v, n);
+    for (int i = 0; i < n; i++) { /* vectors_to_tangent */
+        frame->tan[2 * i] = v[3 * i] / v[3 * i + 2];
+        frame->tan[2 * i + 1] = v[3 * i + 1] / v[3 * i + 2];
+    }
+    Fit how = {known ? fov : 0.0, 1.0, known ? 0.0 : scale_min, known ? INFINITY : scale_max,
+               !known};
     double t0 = budget < INFINITY ? now_s() : 0.0;
     Vec cands = {NULL, 0, 0, sizeof(Cand)};
     Scratch s;
@@ -788,15 +884,16 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
                     int kept = 0;
                     for (size_t i = 0; i < cands.n && kept < t->max_cand; i++) {
                         double scale = (double)t->largest[cd[i].index] / largest;
-                        if (!(fabs(scale - 1.0) <= t->scale_tol))
+                        if (known && !(fabs(scale - 1.0) <= t->scale_tol))
                             continue;
+                        how.scale = known ? 1.0 : scale;
                         kept++;
                         verified++;
                         int64_t cat[K];
                         const int32_t *pt = t->patterns + K * cd[i].index;
                         for (int k = 0; k < K; k++)
                             cat[k] = pt[k];
-                        rc = verify(t, &s, frame, fov, det, cat, accept, &best, out);
+                        rc = verify(t, &s, frame, &how, det, cat, accept, &best, out);
                         if (rc < 0)
                             goto done;
                         if (rc == 1) {
@@ -810,13 +907,14 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
         for (int k = 0; k < out->m; k++)
             ss += out->resid[k] * out->resid[k];
         const double *R = out->R;
-        ret = Py_BuildValue("(illdNNNdd)", 1, tried, verified, best, bytes_of(R, 9 * sizeof(double)),
+        ret = Py_BuildValue("(illdNNNddd)", 1, tried, verified, best,
+                            bytes_of(R, 9 * sizeof(double)),
                             bytes_of(out->det, out->m * sizeof(int64_t)),
-                            bytes_of(out->cat, out->m * sizeof(int64_t)),
-                            sqrt(ss / out->m), out->p_false);
+                            bytes_of(out->cat, out->m * sizeof(int64_t)), sqrt(ss / out->m),
+                            out->p_false, out->scale);
     } else {
-        ret = Py_BuildValue("(illdOOOdd)", status, tried, verified, best, Py_None, Py_None,
-                            Py_None, NAN, 1.0);
+        ret = Py_BuildValue("(illdOOOddd)", status, tried, verified, best, Py_None, Py_None,
+                            Py_None, NAN, 1.0, 1.0);
     }
 done:
     free(out);
@@ -895,16 +993,21 @@ static PyObject *py_lookup(PyObject *self, PyObject *args)
     return out;
 }
 
-/* verify(tables, vectors, det (4 ints), cat (4 ints), fov, accept) ->
- *   None or (R 9-tuple, det bytes, cat bytes, rms, p_false) */
+/* verify(tables, vectors, det (4 ints), cat (4 ints), fov, accept[, scale, scale_min,
+ *        scale_max]) -> None or (R 9-tuple, det bytes, cat bytes, rms, p_false, scale)
+ * fov <= 0: the field is unknown, the scale fitted from `scale` within the range. */
 static PyObject *py_verify(PyObject *self, PyObject *args)
 {
     PyObject *cap, *vobj, *accept;
     int64_t det[K], cat[K];
-    double fov;
-    if (!PyArg_ParseTuple(args, "OO(LLLL)(LLLL)dO", &cap, &vobj, det, det + 1, det + 2, det + 3,
-                          cat, cat + 1, cat + 2, cat + 3, &fov, &accept))
+    double fov, scale = 1.0, scale_min = 0.0, scale_max = INFINITY;
+    if (!PyArg_ParseTuple(args, "OO(LLLL)(LLLL)dO|ddd", &cap, &vobj, det, det + 1, det + 2, det + 3,
+                          cat, cat + 1, cat + 2, cat + 3, &fov, &accept, &scale, &scale_min,
+                          &scale_max))
         return NULL;
+    int known = fov > 0.0;
+    Fit how = {known ? fov : 0.0, known ? 1.0 : scale, known ? 0.0 : scale_min,
+               known ? INFINITY : scale_max, !known};
     Tables *t = get_tables(cap);
     if (t == NULL)
         return NULL;
@@ -931,7 +1034,11 @@ static PyObject *py_verify(PyObject *self, PyObject *args)
         goto done;
     }
     frame_init(frame, v, n);
-    int rc = verify(t, &s, frame, fov, det, cat, accept, &best, out);
+    for (int i = 0; i < n; i++) {
+        frame->tan[2 * i] = v[3 * i] / v[3 * i + 2];
+        frame->tan[2 * i + 1] = v[3 * i + 1] / v[3 * i + 2];
+    }
+    int rc = verify(t, &s, frame, &how, det, cat, accept, &best, out);
     if (rc == 0) {
         Py_INCREF(Py_None);
         ret = Py_None;
@@ -940,10 +1047,10 @@ static PyObject *py_verify(PyObject *self, PyObject *args)
         for (int k = 0; k < out->m; k++)
             ss += out->resid[k] * out->resid[k];
         const double *R = out->R;
-        ret = Py_BuildValue("((ddddddddd)NNdd)", R[0], R[1], R[2], R[3], R[4], R[5], R[6], R[7],
-                            R[8], bytes_of(out->det, out->m * sizeof(int64_t)),
+        ret = Py_BuildValue("((ddddddddd)NNddd)", R[0], R[1], R[2], R[3], R[4], R[5], R[6],
+                            R[7], R[8], bytes_of(out->det, out->m * sizeof(int64_t)),
                             bytes_of(out->cat, out->m * sizeof(int64_t)), sqrt(ss / out->m),
-                            out->p_false);
+                            out->p_false, out->scale);
     }
 done:
     free(out);
@@ -1069,10 +1176,10 @@ fail:
 
 static PyMethodDef methods[] = {
     {"tables", py_tables, METH_VARARGS, "Hold a database's arrays for identify (see _hashc.c)."},
-    {"identify", py_identify, METH_VARARGS, "Identify one frame, known field (see _hashc.c)."},
+    {"identify", py_identify, METH_VARARGS, "Identify one frame (see _hashc.c)."},
     {"describe", py_describe, METH_VARARGS, "Patterns of the brightest detections."},
     {"lookup", py_lookup, METH_VARARGS, "Candidate database patterns of edge ratios."},
-    {"verify", py_verify, METH_VARARGS, "Verify one hypothesis, known field."},
+    {"verify", py_verify, METH_VARARGS, "Verify one hypothesis."},
     {"unit_vectors", py_unit_vectors, METH_VARARGS, "Checked unit vectors of detections."},
     {NULL, NULL, 0, NULL},
 };

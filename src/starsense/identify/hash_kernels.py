@@ -9,12 +9,13 @@ patterns of the brightest detections, their hash look-up and the verification of
 candidate, in one call. The acceptance decision stays in Python: the kernel calls back
 :meth:`Verifier.accept <starsense.identify.verify.Verifier.accept>` with what it matched.
 
-The descriptors and the look-up are equal bit for bit (but for an ulp of ``asin``, which NumPy
-may take from its own vectorised routine); the attitude of a verification is Davenport's q
-method where the reference takes the SVD (the same rotation to ~1e-15 rad), so a solve gives
-the same matches, the same probability and the same attitude to rounding.
-:class:`~starsense.identify.hashing.HashIdentifier` uses the kernel where it is built and the
-field is known, else the NumPy form (tests/identify/test_hash_kernel.py holds them equal).
+The canonical order of a pattern's stars and the look-up are equal bit for bit, the edge ratios
+to a few ulp (NumPy may take ``arcsin`` from its own vectorised routine); the attitude of a
+verification is Davenport's q method where the reference takes the SVD (the same rotation to
+~1e-13 rad), so a solve, with the field known or its scale fitted, gives the same matches, the
+same probability and the same attitude to rounding.
+:class:`~starsense.identify.hashing.HashIdentifier` uses the kernel where it is built, else the
+NumPy form (tests/identify/test_hash_kernel.py holds them equal).
 """
 
 from __future__ import annotations
@@ -279,10 +280,12 @@ class HashKernel:
         det: NDArray[np.integer],
         cat: NDArray[np.integer],
         *,
-        fov_rad: float,
+        fov_rad: float | None,
         accept: Callable[..., tuple[float, bool]],
+        scale: float = 1.0,
+        scale_range: tuple[float, float] = (0.0, math.inf),
     ) -> tuple | None:
-        """Verify one hypothesis with a known field (as :class:`~.verify.Verifier` does).
+        """Verify one hypothesis (as :class:`~.verify.Verifier` does).
 
         Parameters
         ----------
@@ -290,32 +293,40 @@ class HashKernel:
             Detection directions, unit vectors, brightest first.
         det, cat : array of int, shape (4,)
             The hypothesis: detection ``det[i]`` is database star ``cat[i]``.
-        fov_rad : float
-            Field width, rad.
+        fov_rad : float or None
+            Field width, rad; None: unknown, the scale is fitted.
         accept : callable
             The decision, ``accept(n, matched, n_hypothesis=, p_single=) -> (p_false, ok)``.
+        scale : float
+            With an unknown field: the first guess of the tangent-plane scale.
+        scale_range : (float, float)
+            With an unknown field: the accepted range of the fitted scale.
 
         Returns
         -------
-        None or (rotation_matrix (3, 3), detection_index, catalog_index, rms_rad, p_false)
+        None or (rotation_matrix (3, 3), detection_index, catalog_index, rms_rad, p_false, scale)
         """
         out = _hashc.verify(
             self._tables,
             np.ascontiguousarray(v, np.float64),
             tuple(int(i) for i in det),
             tuple(int(i) for i in cat),
-            float(fov_rad),
+            0.0 if fov_rad is None else float(fov_rad),
             accept,
+            float(scale),
+            float(scale_range[0]),
+            float(scale_range[1]),
         )
         if out is None:
             return None
-        r, d, c, rms, p_false = out
+        r, d, c, rms, p_false, scale = out
         return (
             np.asarray(r).reshape(3, 3),
             np.frombuffer(d, np.int64),
             np.frombuffer(c, np.int64),
             rms,
             p_false,
+            scale,
         )
 
     def identify(
@@ -323,11 +334,12 @@ class HashKernel:
         v: NDArray[np.float64],
         *,
         n_pattern: int,
-        fov_rad: float,
+        fov_rad: float | None,
         accept: Callable[..., tuple[float, bool]],
         budget_s: float = math.inf,
+        scale_range: tuple[float, float] = (0.0, math.inf),
     ) -> tuple:
-        """Search and verify the patterns of one frame with a known field.
+        """Search and verify the patterns of one frame.
 
         Parameters
         ----------
@@ -335,25 +347,33 @@ class HashKernel:
             Detection directions, unit vectors, brightest first (C-contiguous float64).
         n_pattern : int
             Patterns are made from the first this many detections.
-        fov_rad : float
-            Field width, rad.
+        fov_rad : float or None
+            Field width, rad; None: unknown, the scale of each hypothesis is fitted.
         accept : callable
             The decision (see :meth:`verify`).
         budget_s : float
             Give up (status 2) after this many seconds.
+        scale_range : (float, float)
+            With an unknown field: the accepted range of the fitted scale.
 
         Returns
         -------
         tuple
             ``(status, patterns tried, hypotheses verified, least P_false seen, rotation matrix
-            (3, 3) or None, detection_index, catalog_index, rms_rad, p_false)``; status 0: no
-            match, 1: solved, 2: out of time.
+            (3, 3) or None, detection_index, catalog_index, rms_rad, p_false, scale)``; status
+            0: no match, 1: solved, 2: out of time.
         """
-        status, tried, verified, best, r, d, c, rms, p_false = _hashc.identify(
-            self._tables, v, n_pattern, fov_rad, accept, budget_s
+        status, tried, verified, best, r, d, c, rms, p_false, scale = _hashc.identify(
+            self._tables,
+            v,
+            n_pattern,
+            0.0 if fov_rad is None else fov_rad,
+            accept,
+            budget_s,
+            *scale_range,
         )
         if status != 1:
-            return status, tried, verified, best, None, None, None, rms, p_false
+            return status, tried, verified, best, None, None, None, rms, p_false, scale
         return (
             status,
             tried,
@@ -364,4 +384,5 @@ class HashKernel:
             np.frombuffer(c, np.int64),
             rms,
             p_false,
+            scale,
         )

@@ -89,7 +89,7 @@ class HashIdentifier:
     timeout_s : float or None
         Give up (status ``"timeout"``) after this wall time.
     compiled : bool
-        With a known field, search and verify in the compiled kernel
+        Search and verify in the compiled kernel
         (:class:`~starsense.identify.hash_kernels.HashKernel`) where it is built: the same
         answers ~10x faster. False: always the NumPy form.
     """
@@ -152,7 +152,7 @@ class HashIdentifier:
 
     @property
     def compiled(self) -> bool:
-        """Whether a known field is searched by the compiled kernel."""
+        """Whether frames are searched by the compiled kernel."""
         return self._kernel is not None
 
     def _lookup(self, ratios: NDArray[np.float64]) -> NDArray[np.int64]:
@@ -258,7 +258,7 @@ class HashIdentifier:
             return result("too_few_stars", f"{n} detections; the 4-star hashing needs at least 4")
 
         n_pat = min(n, self.n_pattern_detections)
-        if known and self._kernel is not None:
+        if self._kernel is not None:
             search = self._search_compiled(v, n_pat, fov_rad, t0)
         else:
             search = self._search_numpy(v, n_pat, fov_rad, t0)
@@ -301,19 +301,33 @@ class HashIdentifier:
             best_false_match_probability=out.false_match_probability,
         )
 
+    def _scale_range(self, v: NDArray[np.float64]) -> tuple[float, float]:
+        """With an unknown field: the scales the largest pattern in the image allows."""
+        p = self.database.params
+        max_off = float(np.arccos(v[:, 2].min()))
+        return (
+            0.5 * p.min_fov_rad / (2 * max_off + 1e-12),
+            4.0 * p.max_fov_rad / (2 * max_off + 1e-12),
+        )
+
     def _search_compiled(
-        self, v: NDArray[np.float64], n_pat: int, fov_rad: float, t0: float
+        self, v: NDArray[np.float64], n_pat: int, fov_rad: float | None, t0: float
     ) -> _Search:
-        """Search and verify in the compiled kernel (known field)."""
+        """Search and verify in the compiled kernel."""
         budget = math.inf
         if self.timeout_s is not None:
             budget = self.timeout_s - (time.perf_counter() - t0)
-        status, tried, verified, best, r, det, cat, rms, p_false = self._kernel.identify(
-            v, n_pattern=n_pat, fov_rad=fov_rad, accept=self.verifier.accept, budget_s=budget
+        status, tried, verified, best, r, det, cat, rms, p_false, scale = self._kernel.identify(
+            v,
+            n_pattern=n_pat,
+            fov_rad=fov_rad,
+            accept=self.verifier.accept,
+            budget_s=budget,
+            scale_range=(0.0, math.inf) if fov_rad is not None else self._scale_range(v),
         )
         if status != 1:
             return _Search("timeout" if status == 2 else "no_match", tried, verified, best)
-        found = _Found(exact_rotation(r), 1.0, det, cat, rms, p_false)
+        found = _Found(exact_rotation(r), scale, det, cat, rms, p_false)
         return _Search("solved", tried, verified, best, found)
 
     def _search_numpy(
@@ -321,20 +335,13 @@ class HashIdentifier:
     ) -> _Search:
         """Search and verify pattern by pattern in NumPy (the reference form)."""
         db = self.database
-        p = db.params
         known = fov_rad is not None
         combos = self._combos[(self._combos < n_pat).all(axis=1)]
         tried = 0
         verified = 0
         best = [1.0]  # the least false-match probability seen
         # The largest pattern in the image tells the scale; its bounds for an unknown field.
-        scale_range = (0.0, math.inf)
-        if not known:
-            max_off = float(np.arccos(v[:, 2].min()))
-            scale_range = (
-                0.5 * p.min_fov_rad / (2 * max_off + 1e-12),
-                4.0 * p.max_fov_rad / (2 * max_off + 1e-12),
-            )
+        scale_range = (0.0, math.inf) if known else self._scale_range(v)
         tangent = vectors_to_tangent(v[: self.verifier.max_detections])
         keep = self.max_candidates_per_pattern
         for det, ratios, largest in descriptors_numpy(v, combos):

@@ -18,8 +18,8 @@ The :class:`~starsense.identify.result.Identification` result that the algorithm
 :mod:`starsense.identify.result`.
 
 The compiled kernel of hashing identification (``_hashc.c``, see
-:mod:`starsense.identify.hash_kernels`) repeats :meth:`Verifier.__call__` for a known field step
-by step and calls :meth:`Verifier.accept` for the decision: a change to the matching or fitting
+:mod:`starsense.identify.hash_kernels`) repeats :meth:`Verifier.__call__` step by step and
+calls :meth:`Verifier.accept` for the decision: a change to the matching or fitting
 here must be made there too (tests/identify/test_hash_kernel.py holds the two equal).
 """
 
