@@ -27,7 +27,7 @@
  * a pattern's stars is the NumPy form's bit for bit, and its ratios but for asin, which NumPy
  * may take from its own vectorised routine (a few ulp).
  * The attitude is Davenport's q method (the largest eigenvector of the 4x4 K matrix, cyclic
- * Jacobi) where the NumPy form takes the SVD: the same rotation to ~1e-15 rad. Catalogue stars
+ * Jacobi) where the NumPy form takes the SVD: the same rotation to ~1e-13 rad. Catalogue stars
  * of a field come from a grid on the cube [-1, 1]^3 (hash_kernels.star_grid) where the NumPy
  * form asks a k-d tree; the stars inside the cone are the same set. Decisions therefore agree
  * except where a value falls within rounding of a threshold (tests/identify/
