@@ -561,7 +561,7 @@ static int match(const Tables *t, Scratch *s, const Frame *f, const double R[9],
             near[s->near.n++] = sky[j];
     size_t nn = s->near.n;
     double solid = 2.0 * M_PI * (1.0 - cos(cone_rad));
-    *p_single = (double)nn * M_PI * radius * radius / solid;
+    *p_single = (double)nn * M_PI * (radius * radius) / solid; /* radius**2: one rounding */
     *m = 0;
     if (nn == 0)
         return 0;
