@@ -814,6 +814,33 @@ static int get_vectors(Py_buffer *b, PyObject *obj, Py_ssize_t *n)
 /* a bytearray: NumPy arrays on it (np.frombuffer) are writable, as the NumPy form's results */
 static PyObject *bytes_of(const void *p, Py_ssize_t n) { return PyByteArray_FromStringAndSize(p, n); }
 
+/* Verify the candidates of one pattern (det, its largest edge), nearest first: with a known
+ * field those of the same size within scale_tol, at most max_cand of them. Returns 1 when one is
+ * accepted (out filled), 0 when none is, -1 on error; counts them into *verified. */
+static int try_candidates(const Tables *t, Scratch *s, Frame *frame, Fit *how,
+                          const int64_t det[K], double largest, const Vec *cands,
+                          PyObject *accept, double *best, Verified *out, long *verified)
+{
+    const Cand *cd = cands->p;
+    int kept = 0;
+    for (size_t i = 0; i < cands->n && kept < t->max_cand; i++) {
+        double scale = (double)t->largest[cd[i].index] / largest;
+        if (!how->fit_scale && !(fabs(scale - 1.0) <= t->scale_tol))
+            continue;
+        how->scale = how->fit_scale ? scale : 1.0;
+        kept++;
+        (*verified)++;
+        int64_t cat[K];
+        const int32_t *pt = t->patterns + K * cd[i].index;
+        for (int k = 0; k < K; k++)
+            cat[k] = pt[k];
+        int rc = verify(t, s, frame, how, det, cat, accept, best, out);
+        if (rc != 0)
+            return rc;
+    }
+    return 0;
+}
+
 /* identify(tables, vectors, n_pattern, fov, accept, budget_s[, scale_min, scale_max]) ->
  *   (status, tried, verified, best, R bytes (9 float64) or None, det bytes, cat bytes, rms,
  *    p_false, scale)
@@ -880,27 +907,12 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
                     tried++;
                     if (lookup(t, r, &cands) < 0)
                         goto done;
-                    const Cand *cd = cands.p;
-                    int kept = 0;
-                    for (size_t i = 0; i < cands.n && kept < t->max_cand; i++) {
-                        double scale = (double)t->largest[cd[i].index] / largest;
-                        if (known && !(fabs(scale - 1.0) <= t->scale_tol))
-                            continue;
-                        how.scale = known ? 1.0 : scale;
-                        kept++;
-                        verified++;
-                        int64_t cat[K];
-                        const int32_t *pt = t->patterns + K * cd[i].index;
-                        for (int k = 0; k < K; k++)
-                            cat[k] = pt[k];
-                        rc = verify(t, &s, frame, &how, det, cat, accept, &best, out);
-                        if (rc < 0)
-                            goto done;
-                        if (rc == 1) {
-                            status = 1;
-                            break;
-                        }
-                    }
+                    rc = try_candidates(t, &s, frame, &how, det, largest, &cands, accept, &best,
+                                        out, &verified);
+                    if (rc < 0)
+                        goto done;
+                    if (rc == 1)
+                        status = 1;
                 }
     if (status == 1) {
         double ss = 0.0;
