@@ -1,34 +1,34 @@
 """Build the compiled kernels (the metadata is in pyproject.toml).
 
-``starsense.detect._clipc`` runs the background mesh's sigma clipping box by box
-(src/starsense/detect/_clipc.c); ``starsense.detect._windowc`` tracking's window detection
-(src/starsense/detect/_windowc.c); ``starsense.detect._framec`` whole-frame detection's PSF
-correlation, filtered-noise median and labelling (src/starsense/detect/_framec.c). They are optional: where one cannot be compiled the package
-installs without it and uses the NumPy implementation of the same algorithm.
+Each kernel is a C file beside the NumPy implementation of the same algorithm, which stays the
+tested reference. They are optional: where one cannot be compiled the package installs without
+it and uses the NumPy form.
+
+- ``starsense.detect._clipc``: the background mesh's sigma clipping, box by box;
+- ``starsense.detect._windowc``: tracking's window detection;
+- ``starsense.detect._framec``: whole-frame detection's PSF correlation, filtered-noise median
+  and labelling;
+- ``starsense.identify._hashc``: the search and verification of lost-in-space identification by
+  hashing.
 """
 
 from setuptools import Extension, setup
 
+# no fused multiply-add: the kernels' roundings are the NumPy forms'
+NO_FMA = ["-ffp-contract=off"]
+
+
+def kernel(name: str, *, extra: tuple[str, ...] = ()) -> Extension:
+    """The optional extension ``starsense.<name>`` from ``src/starsense/<name>.c``."""
+    path = "src/starsense/" + name.replace(".", "/") + ".c"
+    return Extension("starsense." + name, [path], extra_compile_args=[*NO_FMA, *extra], optional=True)
+
+
 setup(
     ext_modules=[
-        Extension(
-            "starsense.detect._clipc",
-            ["src/starsense/detect/_clipc.c"],
-            optional=True,
-        ),
-        Extension(
-            "starsense.detect._windowc",
-            ["src/starsense/detect/_windowc.c"],
-            # no fused multiply-add: the kernel's roundings are the NumPy form's
-            extra_compile_args=["-ffp-contract=off"],
-            optional=True,
-        ),
-        Extension(
-            "starsense.detect._framec",
-            ["src/starsense/detect/_framec.c"],
-            # no fused multiply-add: the kernel's roundings are the NumPy forms'
-            extra_compile_args=["-O3", "-ffp-contract=off"],
-            optional=True,
-        ),
+        kernel("detect._clipc"),
+        kernel("detect._windowc"),
+        kernel("detect._framec", extra=("-O3",)),
+        kernel("identify._hashc"),
     ]
 )

@@ -16,6 +16,11 @@ threshold (default 1e-9).
 
 The :class:`~starsense.identify.result.Identification` result that the algorithms return is in
 :mod:`starsense.identify.result`.
+
+The compiled kernel of hashing identification (``_hashc.c``, see
+:mod:`starsense.identify.hash_kernels`) repeats :meth:`Verifier.__call__` step by step and
+calls :meth:`Verifier.accept` for the decision: a change to the matching or fitting
+here must be made there too (tests/identify/test_hash_kernel.py holds the two equal).
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ __all__ = [
     "Verifier",
     "apply_scale",
     "estimate_matrix",
+    "exact_rotation",
     "false_match_probability",
 ]
 
@@ -47,6 +53,22 @@ try:
     _VALID_MATRIX: dict = {"assume_valid": True}
 except TypeError:  # scipy < 1.15
     _VALID_MATRIX = {}
+
+
+def exact_rotation(matrix: NDArray[np.float64]) -> Rotation:
+    """Return the Rotation of a rotation matrix that is orthonormal to rounding (a fit's).
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (3, 3)
+        Rotation matrix (from :func:`estimate_matrix` or the compiled kernel).
+
+    Returns
+    -------
+    Rotation
+        Without scipy's re-orthogonalisation where scipy allows it (>= 1.15).
+    """
+    return Rotation.from_matrix(matrix, **_VALID_MATRIX)
 
 
 def apply_scale(vectors_cam: NDArray[np.float64], scale: float) -> NDArray[np.float64]:
@@ -199,6 +221,35 @@ class Verifier:
         self.false_match_threshold = float(false_match_threshold)
         self.max_detections = int(max_detections)
 
+    def accept(
+        self, n_detections: int, n_matched: int, *, n_hypothesis: int, p_single: float
+    ) -> tuple[float, bool]:
+        """Decide whether a verified hypothesis is accepted (the compiled kernel calls this too).
+
+        Parameters
+        ----------
+        n_detections : int
+            Detections that took part in the verification.
+        n_matched : int
+            Detections matched to a catalogue star.
+        n_hypothesis : int
+            Stars of the hypothesis itself.
+        p_single : float
+            Probability that one random detection lands on a catalogue star
+            (:func:`false_match_probability`).
+
+        Returns
+        -------
+        p_false : float
+            The probability of a false match.
+        accepted : bool
+            Whether it is at most :attr:`false_match_threshold`.
+        """
+        p = false_match_probability(
+            n_detections, n_matched, n_hypothesis=n_hypothesis, p_single=p_single
+        )
+        return p, p <= self.false_match_threshold
+
     def _fit(
         self,
         tangent: NDArray[np.float64],
@@ -316,13 +367,13 @@ class Verifier:
                 pairs = (det_m, cat_m)
                 if fit_scale:
                     vs = tangent_to_vectors(tangent * scale)
-        p_false = false_match_probability(n, len(det_m), n_hypothesis=k, p_single=p_single)
+        p_false, accepted = self.accept(n, len(det_m), n_hypothesis=k, p_single=p_single)
         if seen is not None:
             seen[0] = min(seen[0], p_false)
-        if p_false > self.false_match_threshold:
+        if not accepted:
             return None
         return _Verified(
-            rotation=Rotation.from_matrix(r, **_VALID_MATRIX),
+            rotation=exact_rotation(r),
             scale=scale,
             detection_index=det_m,
             catalog_index=cat_m,
