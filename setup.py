@@ -2,7 +2,8 @@
 
 ``starsense.detect._clipc`` runs the background mesh's sigma clipping box by box
 (src/starsense/detect/_clipc.c); ``starsense.detect._windowc`` tracking's window detection
-(src/starsense/detect/_windowc.c). They are optional: where one cannot be compiled the package
+(src/starsense/detect/_windowc.c); ``starsense.identify._trackc`` tracking's pairing, attitude fit
+and covariance (src/starsense/identify/_trackc.c). They are optional: where one cannot be compiled the package
 installs without it and uses the NumPy implementation of the same algorithm.
 """
 
@@ -19,6 +20,12 @@ setup(
             "starsense.detect._windowc",
             ["src/starsense/detect/_windowc.c"],
             # no fused multiply-add: the kernel's roundings are the NumPy form's
+            extra_compile_args=["-ffp-contract=off"],
+            optional=True,
+        ),
+        Extension(
+            "starsense.identify._trackc",
+            ["src/starsense/identify/_trackc.c"],
             extra_compile_args=["-ffp-contract=off"],
             optional=True,
         ),

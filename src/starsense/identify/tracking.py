@@ -39,6 +39,7 @@ from starsense._validate import check_scalar
 from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.result import validate_vectors
+from starsense.identify.track_kernels import fit_compiled, pair_compiled, pair_numpy
 from starsense.identify.verify import estimate_matrix, false_match_probability
 
 __all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch", "TrackingStatus"]
@@ -50,7 +51,16 @@ TrackingStatus: TypeAlias = Literal[
 TRACKING_STATUSES = get_args(TrackingStatus)
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
-_ARANGE = np.arange(1024)
+
+
+def _fit(body: np.ndarray, ref: np.ndarray):
+    """Attitude matrix and residual angles of the pairs: equal weights, two pairs by TRIAD.
+
+    :func:`~starsense.identify.verify.estimate_matrix`, or the same fit in the compiled kernel
+    (:func:`~starsense.identify.track_kernels.fit_compiled`, equal to rounding).
+    """
+    got = fit_compiled(body, ref, np.ones(len(body)), two_exact=True)
+    return estimate_matrix(body, ref) if got is None else got[:2]
 
 
 def _chord(angle_rad: float) -> float:
@@ -180,37 +190,12 @@ class TrackingIdentifier:
     def _pair(self, vectors, cam, radius):
         """Nearest predicted star of each detection within ``radius``; ambiguous ones dropped.
 
-        The two nearest predicted stars of each detection by direct comparison (a few dozen
-        of each: cheaper than a k-d tree built per call), within the chord of ``radius``
-        (strictly, as ``cKDTree.query`` with ``distance_upper_bound``).
-
-        Returns (detection index, predicted index, number dropped as ambiguous).
+        :func:`~starsense.identify.track_kernels.pair_numpy` (compiled where built). Returns
+        (detection index, predicted index, number dropped as ambiguous).
         """
-        m = len(cam)
-        if m == 0:
-            return _EMPTY_INT, _EMPTY_INT, 0
-        n = len(vectors)
-        diff = vectors[:, None, :] - cam[None, :, :]
-        d2 = np.add.reduce(diff * diff, axis=2)  # (N, M) squared chords
-        rows = _ARANGE[:n] if n <= len(_ARANGE) else np.arange(n)
-        first = d2.argmin(axis=1)
-        d1 = d2[rows, first]
         bound2 = _chord(radius) ** 2
-        found = d1 < bound2
-        if m > 1:
-            d2[rows, first] = np.inf
-            second = d2[rows, d2.argmin(axis=1)]
-            # clear: no second star within the search radius, or one much farther
-            clear = (second >= bound2) | (np.sqrt(second) >= self.ambiguity_ratio * np.sqrt(d1))
-        else:
-            clear = np.ones(n, bool)
-        det = (found & clear).nonzero()[0]
-        star = first[det]
-        n_amb = int(np.count_nonzero(found & ~clear))
-        counts = np.bincount(star, minlength=m)
-        unique = counts[star] == 1
-        n_amb += len(unique) - int(np.count_nonzero(unique))
-        return det[unique].astype(np.int64), star[unique].astype(np.int64), n_amb
+        got = pair_compiled(vectors, cam, bound2, self.ambiguity_ratio)
+        return pair_numpy(vectors, cam, bound2, self.ambiguity_ratio) if got is None else got
 
     def __call__(
         self,
@@ -288,7 +273,7 @@ class TrackingIdentifier:
         radius = r_s
         fitted = False  # whether r, resid are the fit to the pairs (det, star)
         for _ in range(3):
-            r, resid = estimate_matrix(v[det], ref[star])
+            r, resid = _fit(v[det], ref[star])
             fitted = True
             sigma = MAD_TO_SIGMA * _median(resid) / math.sqrt(2 * math.log(2))
             radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
@@ -300,7 +285,7 @@ class TrackingIdentifier:
             if fitted:
                 break
         if not fitted:
-            r, resid = estimate_matrix(v[det], ref[star])
+            r, resid = _fit(v[det], ref[star])
         # the fit's departure from the prior, as the displacement of a star at the field edge
         # (the measure of the search radius): cross-boresight plus roll x sin(field radius)
         d = _rotvec(r @ prior_matrix.T)
