@@ -70,8 +70,8 @@ def test_pair_equals_numpy_bit_for_bit(seed, n, m, near, radius, ratio):
         cam[-1] = cam[0] + near * rng.normal(size=3)
         cam[-2] = cam[1]
     bound2 = (2 * math.sin(radius / 2)) ** 2
-    a = tk.pair_numpy(v, cam, bound2, ratio)
-    b = tk.pair_compiled(v, cam, bound2, ratio)
+    a = tk.pair_numpy(v, cam, bound2=bound2, ratio=ratio)
+    b = tk.pair_compiled(v, cam, bound2=bound2, ratio=ratio)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]) and a[2] == b[2]
     assert b[0].dtype == b[1].dtype == np.int64
 
@@ -123,8 +123,8 @@ def test_sandwich_equals_numpy(seed, n):
     cov = a @ a.transpose(0, 2, 1) + 0.01 * np.eye(2)  # positive definite
     w = rng.uniform(1e8, 1e10, n)
     inv = np.linalg.inv(np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None]))
-    p1 = tk.sandwich_numpy(body, g, cov, w, inv)
-    p2 = tk.sandwich_compiled(body, g, cov, w, inv)
+    p1 = tk.sandwich_numpy(body, g, cov, w=w, inv=inv)
+    p2 = tk.sandwich_compiled(body, g, cov, w=w, inv=inv)
     np.testing.assert_allclose(p2, p1, rtol=0, atol=1e-12 * np.abs(p1).max())
 
 

@@ -41,7 +41,7 @@ _ARANGE = np.arange(1024)
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
 
 
-def pair_numpy(vectors: np.ndarray, cam: np.ndarray, bound2: float, ratio: float):
+def pair_numpy(vectors: np.ndarray, cam: np.ndarray, *, bound2: float, ratio: float):
     """Nearest predicted star of each detection within a chord; ambiguous pairs dropped.
 
     The two nearest predicted stars of each detection by direct comparison (a few dozen of
@@ -94,7 +94,7 @@ def pair_numpy(vectors: np.ndarray, cam: np.ndarray, bound2: float, ratio: float
     return det[unique].astype(np.int64), star[unique].astype(np.int64), n_amb
 
 
-def pair_compiled(vectors: np.ndarray, cam: np.ndarray, bound2: float, ratio: float):
+def pair_compiled(vectors: np.ndarray, cam: np.ndarray, *, bound2: float, ratio: float):
     """:func:`pair_numpy` in the compiled kernel (equal bit for bit); None where not built."""
     if _trackc is None:
         return None
@@ -185,7 +185,7 @@ def fit_compiled(body: np.ndarray, ref: np.ndarray, weights: np.ndarray, *, two_
     return c, resid, chord2
 
 
-def sandwich_numpy(body, g, cov, w, inv) -> np.ndarray:
+def sandwich_numpy(body, g, cov, *, w, inv) -> np.ndarray:
     """``inv (sum_i w_i^2 J_i^T G_i C_i G_i^T J_i) inv``, ``J_i = -[b_i]x`` (3, 3).
 
     Parameters
@@ -215,7 +215,7 @@ def sandwich_numpy(body, g, cov, w, inv) -> np.ndarray:
     return inv @ middle @ inv
 
 
-def sandwich_compiled(body, g, cov, w, inv) -> np.ndarray | None:
+def sandwich_compiled(body, g, cov, *, w, inv) -> np.ndarray | None:
     """:func:`sandwich_numpy` in the compiled kernel (to rounding); None where not built."""
     if _trackc is None:
         return None

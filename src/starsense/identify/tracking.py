@@ -194,8 +194,12 @@ class TrackingIdentifier:
         (detection index, predicted index, number dropped as ambiguous).
         """
         bound2 = _chord(radius) ** 2
-        got = pair_compiled(vectors, cam, bound2, self.ambiguity_ratio)
-        return pair_numpy(vectors, cam, bound2, self.ambiguity_ratio) if got is None else got
+        got = pair_compiled(vectors, cam, bound2=bound2, ratio=self.ambiguity_ratio)
+        return (
+            pair_numpy(vectors, cam, bound2=bound2, ratio=self.ambiguity_ratio)
+            if got is None
+            else got
+        )
 
     def __call__(
         self,

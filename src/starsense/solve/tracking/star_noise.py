@@ -102,8 +102,8 @@ class StarNoise:
         if inv is None:
             fisher = np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None, :])
             inv = np.linalg.inv(fisher)
-        got = sandwich_compiled(body, g, self.cov_px2, w, inv)
-        return sandwich_numpy(body, g, self.cov_px2, w, inv) if got is None else got
+        got = sandwich_compiled(body, g, self.cov_px2, w=w, inv=inv)
+        return sandwich_numpy(body, g, self.cov_px2, w=w, inv=inv) if got is None else got
 
 
 def star_noise(
