@@ -8,7 +8,7 @@ OUT    ?= report
 .PHONY: demo test test-fast lint docs bench bench-peers bench-zoo clean
 
 $(STAMP): pyproject.toml setup.py src/starsense/detect/_clipc.c src/starsense/detect/_windowc.c \
-		src/starsense/identify/_trackc.c
+		src/starsense/identify/_trackc.c src/starsense/render/_renderc.c
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev,scale,gaia,web]'
