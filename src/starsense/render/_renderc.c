@@ -118,14 +118,14 @@ static PyObject *normal_quantiles(PyObject *self, PyObject *args)
 
 /* A standard normal from 32 random bits u: bin j = u >> 20 of 4096 equally likely ones, a
  * point (f + 1/2) / 2^20 of the way across it (f the low 20 bits) on the line between its
- * edge quantiles (table[2j], table[2j + 1] = edge, width / 2^20; 32 KB, in cache); the two
+ * edge quantiles (table[2j], table[2j + 1] = edge, width / 2^20; 64 KB, in cache); the two
  * outermost bins (beyond 3.49 sigma) by the quantile function itself. */
-static inline double normal_from_bits(uint32_t u, const float *table)
+static inline double normal_from_bits(uint32_t u, const double *table)
 {
     uint32_t j = u >> 20;
     if (j == 0 || j == 4095)
         return normal_quantile(u);
-    return (double)table[2 * j] + ((double)(u & 0xfffffu) + 0.5) * (double)table[2 * j + 1];
+    return table[2 * j] + ((double)(u & 0xfffffu) + 0.5) * table[2 * j + 1];
 }
 
 /* normal_draws(u, n, table, out): out[k] = normal_from_bits(u[k]) (the read-out's draws). */
@@ -136,7 +136,7 @@ static PyObject *normal_draws(PyObject *self, PyObject *args)
     PyObject *result = NULL;
     if (!PyArg_ParseTuple(args, "y*ny*w*", &ub, &n, &tb, &ob))
         return NULL;
-    if (check(&ub, n * 4, "u") && check(&tb, 4096 * 8, "table") && check(&ob, n * 8, "out")) {
+    if (check(&ub, n * 4, "u") && check(&tb, 4096 * 16, "table") && check(&ob, n * 8, "out")) {
         const uint32_t *u = ub.buf;
         double *out = ob.buf;
         for (Py_ssize_t k = 0; k < n; k++)
@@ -153,7 +153,7 @@ static PyObject *normal_draws(PyObject *self, PyObject *args)
 /* read_out(expected, n, raw, table, pois, pidx, npois, dark, sigma_r, gain, bias, saturation,
  *          full_well, out)
  * expected float32 (n,); raw uint64 ((n + 1) / 2,): pixel 2k takes the low 32 bits of raw[k],
- * pixel 2k + 1 the high; table float32 (4096, 2); pois, pidx int64 (npois,), pidx ascending;
+ * pixel 2k + 1 the high; table float64 (4096, 2); pois, pidx int64 (npois,), pidx ascending;
  * out uint16 (n,). */
 static PyObject *read_out(PyObject *self, PyObject *args)
 {
@@ -165,14 +165,14 @@ static PyObject *read_out(PyObject *self, PyObject *args)
                           &dark, &sigma_r, &gain, &bias, &sat, &fw, &ob))
         return NULL;
     if (!check(&eb, n * 4, "expected") || !check(&rb, ((n + 1) / 2) * 8, "raw") ||
-        !check(&tab, 4096 * 8, "table") ||
+        !check(&tab, 4096 * 16, "table") ||
         !check(&pb, npois * 8, "pois") || !check(&ixb, npois * 8, "pidx") ||
         !check(&ob, n * 2, "out"))
         goto done;
     {
         const float *e = eb.buf;
         const uint64_t *raw = rb.buf;
-        const float *table = tab.buf;
+        const double *table = tab.buf;
         const int64_t *pois = pb.buf, *pidx = ixb.buf;
         uint16_t *out = ob.buf;
         Py_ssize_t next = 0;

@@ -10,7 +10,7 @@ compiled pass (``_renderc.c``):
   generator (``bit_generator.random_raw``: two pixels per 64-bit draw; :func:`normal_draws`):
   the top 12 bits pick one of 4096 equally likely bins, the low 20 a point
   ``(f + 1/2) / 2^20`` of the way across it on the line between the bin's edge quantiles (a
-  32 KB table: the draw costs a cached load, where numpy's ziggurat costs as much as the rest
+  64 KB table: the draw costs a cached load, where numpy's ziggurat costs as much as the rest
   of the read-out); the two outermost bins (beyond 3.49 sigma, where detection thresholds
   lie) take the exact quantile at ``(u + 1/2) / 2^32`` (Acklam's rational approximation,
   relative error < 1.15e-9: :func:`normal_quantiles`). The drawn distribution's CDF differs
@@ -59,7 +59,7 @@ SKEW_LIMIT = 0.02
 def _bins() -> np.ndarray:
     """Return the 4096 bins of the read noise: lower edge quantile and width / 2^20 (4096, 2)."""
     q = ndtri(np.arange(4097) / 4096.0)
-    table = np.zeros((4096, 2), np.float32)
+    table = np.zeros((4096, 2))
     table[1:-1, 0] = q[1:-2]
     table[1:-1, 1] = np.diff(q[1:-1]) / 2.0**20
     return table

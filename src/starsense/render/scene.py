@@ -380,8 +380,8 @@ def render_frame(
         The observer's velocity relative to the geocentre, ICRS axes, m/s (with ``obs_time``).
     fast_noise : bool
         Read the frame out with :func:`~starsense.render.readout.fast_read_out` where it
-        applies: the statistics of the default read-out (within the bounds it states) in a
-        third of the time, other random draws (Monte Carlo runs of thousands of frames).
+        applies: the statistics of the default read-out (within the bounds it states) in about
+        half the time, other random draws (Monte Carlo runs of thousands of frames).
 
     Returns
     -------
