@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 from starsense.catalog import load_catalog
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.identify import track_kernels as tk
+from starsense.identify.tracking import TrackingIdentifier
 from starsense.identify.verify import estimate_matrix
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
@@ -171,3 +172,60 @@ def test_tracking_with_and_without_the_kernel_agree(st16, seed, monkeypatch):
                 atol=1e-12 * np.abs(b.covariance_rad2).max(),
             )
     assert runs[0][0].mode == "tracking"
+
+
+@pytest.fixture(scope="module")
+def st16_db(st16):
+    return Solver(st16, background="known").identifier(2 * st16.half_fov_rad[0]).database
+
+
+@needs_kernel
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n_stars=st.integers(0, 25),
+    n_spurious=st.integers(0, 6),
+    noise_px=st.floats(0.0, 3.0),
+    prior_deg=st.floats(0.0, 0.5),
+    search_deg=st.floats(0.005, 1.0),
+)
+def test_identifier_with_and_without_the_kernel_agree(
+    st16, st16_db, seed, n_stars, n_spurious, noise_px, prior_deg, search_deg
+):
+    """Detections from database stars (centroid noise, spurious ones), priors near and far."""
+    db, f = st16_db, st16.focal_length_px
+    rng = np.random.default_rng(seed)
+    att = Rotation.random(random_state=rng)
+    centre = att.inv().apply([0, 0, 1])
+    near = np.sort(db.tree.query_ball_point(centre, 2 * math.sin(8 * DEG)))
+    pick = rng.permutation(near)[:n_stars]
+    body = att.apply(db.vectors[pick]) if len(pick) else np.zeros((0, 3))
+    body = np.vstack([body, _units(rng, n_spurious) * [0.1, 0.1, 1]]) + rng.normal(
+        scale=noise_px / f, size=(len(pick) + n_spurious, 3)
+    )
+    body[:, 2] = np.abs(body[:, 2]) + 0.5
+    body /= np.linalg.norm(body, axis=1)[:, None]
+    prior = Rotation.from_rotvec(prior_deg * DEG * _units(rng, 1)[0]) * att
+    ident = TrackingIdentifier(st16_db, min_match_radius_rad=2.0 / f)
+    kw = {"search_radius_rad": search_deg * DEG, "field_radius_rad": 0.2}
+    if len(body) == 0:
+        return
+    a = ident(body, prior, **kw)
+    saved = tk._trackc
+    try:
+        tk._trackc = None
+        b = ident(body, prior, **kw)
+    finally:
+        tk._trackc = saved
+    assert (a.status, a.n_ambiguous) == (b.status, b.n_ambiguous)
+    assert np.array_equal(a.detection_index, b.detection_index)
+    assert np.array_equal(a.catalog_index, b.catalog_index)
+    assert (a.rotation is None) == (b.rotation is None)
+    if a.rotation is not None:
+        assert (a.rotation * b.rotation.inv()).magnitude() < 1e-12
+    if a.n_matches >= 2:
+        np.testing.assert_allclose(a.residual_rms_rad, b.residual_rms_rad, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(
+            a.false_match_probability, b.false_match_probability, rtol=1e-9, atol=1e-300
+        )
+        np.testing.assert_allclose(a.innovation_rad, b.innovation_rad, rtol=0, atol=1e-12)

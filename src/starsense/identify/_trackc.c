@@ -14,6 +14,9 @@
  *           as it can (TRIAD; scipy's align_vectors with an infinite primary weight); then the
  *           residual chords and angles. The NumPy form solves the same problem by LAPACK's SVD:
  *           the two agree to rounding (1e-15 rad in the attitude, a few ulp).
+ * match     TrackingIdentifier's loop: pair, fit, shrink the radius, pair again, in one call
+ *           (the same steps; the predicted vectors ref C^T summed without BLAS: equal to
+ *           rounding, so the pairs are the NumPy form's but at a tie with the radius).
  * sandwich  P = F^-1 (sum_i w_i^2 J_i^T G_i C_i G_i^T J_i) F^-1 of star_noise.py: the same sums
  *           in another order (1e-13 relative).
  *
@@ -28,6 +31,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
 static int check(Py_buffer *b, Py_ssize_t bytes, const char *what)
 {
     if (b->len < bytes) {
@@ -36,6 +43,58 @@ static int check(Py_buffer *b, Py_ssize_t bytes, const char *what)
         return 0;
     }
     return 1;
+}
+
+/* The pairing of pair() below; first, counts: scratch (n,), (m,). Returns the pairs kept. */
+static Py_ssize_t pair_core(const double *v, Py_ssize_t n, const double *c, Py_ssize_t m,
+                            double bound2, double ratio, int64_t *det, int64_t *star,
+                            int64_t *first, int64_t *counts, Py_ssize_t *n_ambiguous)
+{
+    Py_ssize_t k = 0, n_amb = 0;
+    for (Py_ssize_t j = 0; j < m; j++)
+        counts[j] = 0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double best = INFINITY, second = INFINITY;
+        Py_ssize_t arg = 0;
+        for (Py_ssize_t j = 0; j < m; j++) {
+            double dx = v[3 * i] - c[3 * j], dy = v[3 * i + 1] - c[3 * j + 1],
+                   dz = v[3 * i + 2] - c[3 * j + 2];
+            double d2 = dx * dx + dy * dy;
+            d2 = d2 + dz * dz;
+            if (d2 < best) { /* argmin: the first of equal minima */
+                second = best;
+                best = d2;
+                arg = j;
+            } else if (d2 < second) {
+                second = d2;
+            }
+        }
+        first[i] = -1;
+        if (m == 0 || !(best < bound2))
+            continue;
+        int clear = 1;
+        if (m > 1)
+            clear = (second >= bound2) || (sqrt(second) >= ratio * sqrt(best));
+        if (!clear) {
+            n_amb++;
+            continue;
+        }
+        first[i] = arg;
+        counts[arg]++;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        if (first[i] < 0)
+            continue;
+        if (counts[first[i]] == 1) {
+            det[k] = i;
+            star[k] = first[i];
+            k++;
+        } else {
+            n_amb++;
+        }
+    }
+    *n_ambiguous = n_amb;
+    return k;
 }
 
 /* pair(v, n, cam, m, bound2, ratio, det_out, star_out, work) -> (k, n_ambiguous)
@@ -49,59 +108,15 @@ static PyObject *pair(PyObject *self, PyObject *args)
     if (!PyArg_ParseTuple(args, "y*ny*nddw*w*w*", &vb, &n, &cb, &m, &bound2, &ratio, &db, &sb,
                           &wb))
         return NULL;
-    if (!check(&vb, n * 3 * 8, "v") || !check(&cb, m * 3 * 8, "cam") ||
-        !check(&db, n * 8, "det_out") || !check(&sb, n * 8, "star_out") ||
-        !check(&wb, (n + m) * 8, "work"))
-        goto done;
-    {
-        const double *v = vb.buf, *c = cb.buf;
-        int64_t *det = db.buf, *star = sb.buf, *first = wb.buf, *counts = first + n;
-        Py_ssize_t k = 0, n_amb = 0;
-        for (Py_ssize_t j = 0; j < m; j++)
-            counts[j] = 0;
-        for (Py_ssize_t i = 0; i < n; i++) {
-            double best = INFINITY, second = INFINITY;
-            Py_ssize_t arg = 0;
-            for (Py_ssize_t j = 0; j < m; j++) {
-                double dx = v[3 * i] - c[3 * j], dy = v[3 * i + 1] - c[3 * j + 1],
-                       dz = v[3 * i + 2] - c[3 * j + 2];
-                double d2 = dx * dx + dy * dy;
-                d2 = d2 + dz * dz;
-                if (d2 < best) { /* argmin: the first of equal minima */
-                    second = best;
-                    best = d2;
-                    arg = j;
-                } else if (d2 < second) {
-                    second = d2;
-                }
-            }
-            first[i] = -1;
-            if (m == 0 || !(best < bound2))
-                continue;
-            int clear = 1;
-            if (m > 1)
-                clear = (second >= bound2) || (sqrt(second) >= ratio * sqrt(best));
-            if (!clear) {
-                n_amb++;
-                continue;
-            }
-            first[i] = arg;
-            counts[arg]++;
-        }
-        for (Py_ssize_t i = 0; i < n; i++) {
-            if (first[i] < 0)
-                continue;
-            if (counts[first[i]] == 1) {
-                det[k] = i;
-                star[k] = first[i];
-                k++;
-            } else {
-                n_amb++;
-            }
-        }
+    if (check(&vb, n * 3 * 8, "v") && check(&cb, m * 3 * 8, "cam") &&
+        check(&db, n * 8, "det_out") && check(&sb, n * 8, "star_out") &&
+        check(&wb, (n + m) * 8, "work")) {
+        int64_t *first = wb.buf;
+        Py_ssize_t n_amb;
+        Py_ssize_t k = pair_core(vb.buf, n, cb.buf, m, bound2, ratio, db.buf, sb.buf, first,
+                                 first + n, &n_amb);
         result = Py_BuildValue("nn", k, n_amb);
     }
-done:
     PyBuffer_Release(&vb);
     PyBuffer_Release(&cb);
     PyBuffer_Release(&db);
@@ -203,6 +218,53 @@ static int triad(const double *b, const double *r, double c[9])
     return 1;
 }
 
+/* The fit of wahba() below (n >= 2). */
+static void fit_core(const double *b, const double *r, const double *w, Py_ssize_t n,
+                     int two_triad, double *c, double *resid, double *chord2)
+{
+    if (!(two_triad && n == 2 && triad(b, r, c))) {
+        double B[3][3] = {{0}};
+        for (Py_ssize_t i = 0; i < n; i++)
+            for (int j = 0; j < 3; j++)
+                for (int k = 0; k < 3; k++)
+                    B[j][k] += (w ? w[i] : 1.0) * b[3 * i + j] * r[3 * i + k];
+        double sigma = B[0][0] + B[1][1] + B[2][2];
+        double z[3] = {B[1][2] - B[2][1], B[2][0] - B[0][2], B[0][1] - B[1][0]};
+        double K[4][4];
+        for (int j = 0; j < 3; j++) {
+            for (int k = 0; k < 3; k++)
+                K[j][k] = B[j][k] + B[k][j] - (j == k ? sigma : 0.0);
+            K[j][3] = K[3][j] = z[j];
+        }
+        K[3][3] = sigma;
+        double q[4];
+        top_eigenvector(K, q);
+        /* Markley's attitude matrix of q = (q1, q2, q3, q4), q4 the scalar part */
+        double x = q[0], y = q[1], zz = q[2], s = q[3];
+        c[0] = x * x - y * y - zz * zz + s * s;
+        c[1] = 2.0 * (x * y + zz * s);
+        c[2] = 2.0 * (x * zz - y * s);
+        c[3] = 2.0 * (x * y - zz * s);
+        c[4] = -x * x + y * y - zz * zz + s * s;
+        c[5] = 2.0 * (y * zz + x * s);
+        c[6] = 2.0 * (x * zz + y * s);
+        c[7] = 2.0 * (y * zz - x * s);
+        c[8] = -x * x - y * y + zz * zz + s * s;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double h = 0.0;
+        for (int j = 0; j < 3; j++) {
+            double p = c[3 * j] * r[3 * i] + c[3 * j + 1] * r[3 * i + 1] +
+                       c[3 * j + 2] * r[3 * i + 2];
+            double d = b[3 * i + j] - p;
+            h += d * d;
+        }
+        chord2[i] = h;
+        double half = sqrt(h) / 2.0;
+        resid[i] = 2.0 * asin(half < 1.0 ? half : 1.0);
+    }
+}
+
 /* wahba(body, ref, w, n, two_triad, c_out, resid_out, chord2_out)
  * body, ref (n, 3); w (n,) weights (any positive scale); c_out (3, 3): body ~ c ref. */
 static PyObject *wahba(PyObject *self, PyObject *args)
@@ -221,53 +283,9 @@ static PyObject *wahba(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "_trackc.wahba: at least 2 pairs are needed");
         goto done;
     }
-    {
-        const double *b = bb.buf, *r = rb.buf, *w = wb.buf;
-        double *c = cb.buf, *resid = eb.buf, *chord2 = hb.buf;
-        if (!(two_triad && n == 2 && triad(b, r, c))) {
-            double B[3][3] = {{0}};
-            for (Py_ssize_t i = 0; i < n; i++)
-                for (int j = 0; j < 3; j++)
-                    for (int k = 0; k < 3; k++)
-                        B[j][k] += w[i] * b[3 * i + j] * r[3 * i + k];
-            double sigma = B[0][0] + B[1][1] + B[2][2];
-            double z[3] = {B[1][2] - B[2][1], B[2][0] - B[0][2], B[0][1] - B[1][0]};
-            double K[4][4];
-            for (int j = 0; j < 3; j++) {
-                for (int k = 0; k < 3; k++)
-                    K[j][k] = B[j][k] + B[k][j] - (j == k ? sigma : 0.0);
-                K[j][3] = K[3][j] = z[j];
-            }
-            K[3][3] = sigma;
-            double q[4];
-            top_eigenvector(K, q);
-            /* Markley's attitude matrix of q = (q1, q2, q3, q4), q4 the scalar part */
-            double x = q[0], y = q[1], zz = q[2], s = q[3];
-            c[0] = x * x - y * y - zz * zz + s * s;
-            c[1] = 2.0 * (x * y + zz * s);
-            c[2] = 2.0 * (x * zz - y * s);
-            c[3] = 2.0 * (x * y - zz * s);
-            c[4] = -x * x + y * y - zz * zz + s * s;
-            c[5] = 2.0 * (y * zz + x * s);
-            c[6] = 2.0 * (x * zz + y * s);
-            c[7] = 2.0 * (y * zz - x * s);
-            c[8] = -x * x - y * y + zz * zz + s * s;
-        }
-        for (Py_ssize_t i = 0; i < n; i++) {
-            double h = 0.0;
-            for (int j = 0; j < 3; j++) {
-                double p = c[3 * j] * r[3 * i] + c[3 * j + 1] * r[3 * i + 1] +
-                           c[3 * j + 2] * r[3 * i + 2];
-                double d = b[3 * i + j] - p;
-                h += d * d;
-            }
-            chord2[i] = h;
-            double half = sqrt(h) / 2.0;
-            resid[i] = 2.0 * asin(half < 1.0 ? half : 1.0);
-        }
-        Py_INCREF(Py_None);
-        result = Py_None;
-    }
+    fit_core(bb.buf, rb.buf, wb.buf, n, two_triad, cb.buf, eb.buf, hb.buf);
+    Py_INCREF(Py_None);
+    result = Py_None;
 done:
     PyBuffer_Release(&bb);
     PyBuffer_Release(&rb);
@@ -275,6 +293,119 @@ done:
     PyBuffer_Release(&cb);
     PyBuffer_Release(&eb);
     PyBuffer_Release(&hb);
+    return result;
+}
+
+static int compare_doubles(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* cam = ref c^T: each star's predicted camera vector. */
+static void rotate_all(const double *ref, Py_ssize_t m, const double *c, double *cam)
+{
+    for (Py_ssize_t i = 0; i < m; i++)
+        for (int k = 0; k < 3; k++)
+            cam[3 * i + k] = ref[3 * i] * c[3 * k] + ref[3 * i + 1] * c[3 * k + 1] +
+                             ref[3 * i + 2] * c[3 * k + 2];
+}
+
+/* Fit the pairs (det, star) with equal weights (two by TRIAD): c, resid (k,). */
+static void fit_pairs(const double *v, const double *ref, const int64_t *det,
+                      const int64_t *star, Py_ssize_t k, double *scratch, double *c,
+                      double *resid)
+{
+    double *b = scratch, *r = scratch + 3 * k, *chord2 = scratch + 6 * k;
+    for (Py_ssize_t i = 0; i < k; i++)
+        for (int j = 0; j < 3; j++) {
+            b[3 * i + j] = v[3 * det[i] + j];
+            r[3 * i + j] = ref[3 * star[i] + j];
+        }
+    fit_core(b, r, NULL, k, 1, c, resid, chord2);
+}
+
+/* match(v, n, ref, m, prior, radius, min_radius, ratio, mad, root, det_out, star_out, c_out,
+ *       resid_out) -> (k, n_ambiguous, radius)
+ * TrackingIdentifier's loop (identify/tracking.py): pair within ``radius`` of the prior
+ * (prior (3, 3), ICRS -> camera); if at least two pairs, up to three times fit them, shrink the
+ * radius to max(5 mad median(resid) / root, min_radius) and pair again, until the pairs stand
+ * (or fewer than two are left: the last fit kept). k < 2: no fit (c_out, resid_out unset). */
+static PyObject *match(PyObject *self, PyObject *args)
+{
+    Py_buffer vb, rb, pb, db, sb, cb, eb;
+    Py_ssize_t n, m;
+    double radius, min_radius, ratio, mad, root;
+    PyObject *result = NULL;
+    if (!PyArg_ParseTuple(args, "y*ny*ny*dddddw*w*w*w*", &vb, &n, &rb, &m, &pb, &radius,
+                          &min_radius, &ratio, &mad, &root, &db, &sb, &cb, &eb))
+        return NULL;
+    int64_t *iwork = NULL;
+    double *dwork = NULL;
+    if (!check(&vb, n * 3 * 8, "v") || !check(&rb, m * 3 * 8, "ref") ||
+        !check(&pb, 9 * 8, "prior") || !check(&db, n * 8, "det_out") ||
+        !check(&sb, n * 8, "star_out") || !check(&cb, 9 * 8, "c_out") ||
+        !check(&eb, n * 8, "resid_out"))
+        goto done;
+    iwork = malloc(sizeof(int64_t) * (3 * n + m + 1));
+    dwork = malloc(sizeof(double) * (3 * m + 9 * n + n + 1));
+    if (!iwork || !dwork) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    {
+        const double *v = vb.buf, *ref = rb.buf;
+        int64_t *det = db.buf, *star = sb.buf;
+        int64_t *det_new = iwork, *star_new = iwork + n, *first = iwork + 2 * n,
+                *counts = iwork + 3 * n;
+        double *cam = dwork, *scratch = dwork + 3 * m, *sorted = scratch + 9 * n;
+        double *c = cb.buf, *resid = eb.buf;
+        Py_ssize_t n_amb, k;
+        double chord = 2.0 * sin((radius < M_PI ? radius : M_PI) / 2.0);
+        rotate_all(ref, m, pb.buf, cam);
+        k = pair_core(v, n, cam, m, chord * chord, ratio, det, star, first, counts, &n_amb);
+        if (k >= 2) {
+            int fitted = 0;
+            for (int it = 0; it < 3; it++) {
+                fit_pairs(v, ref, det, star, k, scratch, c, resid);
+                fitted = 1;
+                memcpy(sorted, resid, sizeof(double) * k);
+                qsort(sorted, k, sizeof(double), compare_doubles);
+                Py_ssize_t h = k / 2;
+                double med = (k % 2) ? sorted[h] : (sorted[h - 1] + sorted[h]) / 2;
+                double sigma = mad * med / root;
+                double grown = 5.0 * sigma > min_radius ? 5.0 * sigma : min_radius;
+                radius = radius < grown ? radius : grown;
+                chord = 2.0 * sin((radius < M_PI ? radius : M_PI) / 2.0);
+                rotate_all(ref, m, c, cam);
+                Py_ssize_t k_new = pair_core(v, n, cam, m, chord * chord, ratio, det_new,
+                                             star_new, first, counts, &n_amb);
+                if (k_new < 2)
+                    break;
+                fitted = k_new == k;
+                for (Py_ssize_t i = 0; fitted && i < k; i++)
+                    fitted = det_new[i] == det[i] && star_new[i] == star[i];
+                memcpy(det, det_new, sizeof(int64_t) * k_new);
+                memcpy(star, star_new, sizeof(int64_t) * k_new);
+                k = k_new;
+                if (fitted)
+                    break;
+            }
+            if (!fitted)
+                fit_pairs(v, ref, det, star, k, scratch, c, resid);
+        }
+        result = Py_BuildValue("nnd", k, n_amb, radius);
+    }
+done:
+    free(iwork);
+    free(dwork);
+    PyBuffer_Release(&vb);
+    PyBuffer_Release(&rb);
+    PyBuffer_Release(&pb);
+    PyBuffer_Release(&db);
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&cb);
+    PyBuffer_Release(&eb);
     return result;
 }
 
@@ -343,6 +474,7 @@ done:
 static PyMethodDef methods[] = {
     {"pair", pair, METH_VARARGS, "Nearest predicted star of each detection (see _trackc.c)."},
     {"wahba", wahba, METH_VARARGS, "Attitude matrix and residuals of paired vectors."},
+    {"match", match, METH_VARARGS, "TrackingIdentifier's pair-fit-pair loop."},
     {"sandwich", sandwich, METH_VARARGS, "Covariance of the weighted SVD attitude."},
     {NULL, NULL, 0, NULL}};
 

@@ -11,6 +11,9 @@ does not have.
 * :func:`fit_compiled` solves Wahba's problem from Davenport's K matrix (its largest
   eigenvector by cyclic Jacobi rotations) where the NumPy form uses LAPACK's SVD: the attitude
   agrees to rounding (~1e-15 rad), the residuals to ~1e-15 rad absolute.
+* :func:`match_compiled` runs TrackingIdentifier's whole pair-fit-pair loop in one call: the
+  same steps, its predicted vectors summed without BLAS (equal to rounding: the same pairs but
+  at a tie with the radius, the attitude to rounding).
 * :func:`sandwich_compiled` sums the same products in another order: ~1e-13 relative.
 """
 
@@ -28,6 +31,7 @@ __all__ = [
     "COMPILED",
     "fit_compiled",
     "fit_numpy",
+    "match_compiled",
     "pair_compiled",
     "pair_numpy",
     "sandwich_compiled",
@@ -114,6 +118,63 @@ def pair_compiled(vectors: np.ndarray, cam: np.ndarray, *, bound2: float, ratio:
         work,
     )
     return det[:k], star[:k], n_amb
+
+
+def match_compiled(vectors, ref, prior, *, radius, min_radius, ratio, mad_scale):
+    """TrackingIdentifier's pair-fit-pair loop in the compiled kernel; None where not built.
+
+    Pair the detections with the stars ``ref`` (ICRS) predicted by ``prior`` (3, 3) within
+    ``radius``; with two pairs or more, up to three times: fit the pairs (equal weights, two by
+    TRIAD), shrink the radius to ``max(5 mad_scale median(residuals), min_radius)`` and pair
+    again, until the pairs stand (fewer than two: the last fit is kept).
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (N, 3)
+        Detections, camera frame.
+    ref : ndarray, shape (M, 3)
+        Predicted stars, ICRS.
+    prior : ndarray, shape (3, 3)
+        Attitude matrix, ICRS -> camera.
+    radius, min_radius : float
+        Search radius and the smallest pairing radius, rad.
+    ratio : float
+        Ambiguity ratio.
+    mad_scale : tuple of float
+        ``(a, b)``: the residuals' sigma is ``a x median / b``.
+
+    Returns
+    -------
+    tuple or None
+        (det, star, n_ambiguous, c, residuals, radius); ``c`` and ``residuals`` None with fewer
+        than two pairs.
+    """
+    if _trackc is None:
+        return None
+    n = len(vectors)
+    det = np.empty(n, np.int64)
+    star = np.empty(n, np.int64)
+    c = np.empty((3, 3))
+    resid = np.empty(n)
+    k, n_amb, radius = _trackc.match(
+        np.ascontiguousarray(vectors, dtype=float),
+        n,
+        np.ascontiguousarray(ref, dtype=float),
+        len(ref),
+        np.ascontiguousarray(prior, dtype=float),
+        float(radius),
+        float(min_radius),
+        float(ratio),
+        float(mad_scale[0]),
+        float(mad_scale[1]),
+        det,
+        star,
+        c,
+        resid,
+    )
+    if k < 2:
+        return det[:k], star[:k], n_amb, None, None, radius
+    return det[:k], star[:k], n_amb, c, resid[:k], radius
 
 
 def _det3(m: np.ndarray) -> float:

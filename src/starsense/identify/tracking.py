@@ -39,7 +39,12 @@ from starsense._validate import check_scalar
 from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.result import validate_vectors
-from starsense.identify.track_kernels import fit_compiled, pair_compiled, pair_numpy
+from starsense.identify.track_kernels import (
+    fit_compiled,
+    match_compiled,
+    pair_compiled,
+    pair_numpy,
+)
 from starsense.identify.verify import estimate_matrix, false_match_probability
 
 __all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch", "TrackingStatus"]
@@ -51,6 +56,9 @@ TrackingStatus: TypeAlias = Literal[
 TRACKING_STATUSES = get_args(TrackingStatus)
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
+#: the residuals' sigma from their median: MAD_TO_SIGMA x median / sqrt(2 ln 2) (the median of
+#: a 2-D Gaussian's radius is sigma sqrt(2 ln 2))
+_MAD_SCALE = (MAD_TO_SIGMA, math.sqrt(2 * math.log(2)))
 
 
 def _fit(body: np.ndarray, ref: np.ndarray):
@@ -201,6 +209,45 @@ class TrackingIdentifier:
             else got
         )
 
+    def _match(self, v, ref, prior_matrix, r_s):
+        """Pair, fit, pair again at the residuals' radius (module docstring, step 3).
+
+        Returns (det, star, n_ambiguous, attitude matrix, residuals, radius); the matrix and
+        residuals None with fewer than two pairs. In the compiled kernel where it is built
+        (:func:`~starsense.identify.track_kernels.match_compiled`), else step by step.
+        """
+        got = match_compiled(
+            v,
+            ref,
+            prior_matrix,
+            radius=r_s,
+            min_radius=self.min_match_radius_rad,
+            ratio=self.ambiguity_ratio,
+            mad_scale=_MAD_SCALE,
+        )
+        if got is not None:
+            return got
+        det, star, n_amb = self._pair(v, ref @ prior_matrix.T, r_s)
+        if len(det) < 2:
+            return det, star, n_amb, None, None, r_s
+        radius = r_s
+        fitted = False  # whether r, resid are the fit to the pairs (det, star)
+        for _ in range(3):
+            r, resid = _fit(v[det], ref[star])
+            fitted = True
+            sigma = _MAD_SCALE[0] * _median(resid) / _MAD_SCALE[1]
+            radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
+            det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
+            if len(det_new) < 2:
+                break
+            fitted = _same(det_new, det) and _same(star_new, star)
+            det, star = det_new, star_new
+            if fitted:
+                break
+        if not fitted:
+            r, resid = _fit(v[det], ref[star])
+        return det, star, n_amb, r, resid, radius
+
     def __call__(
         self,
         vectors_cam,
@@ -265,7 +312,7 @@ class TrackingIdentifier:
 
         ref = db.vectors[near]
         prior_matrix = r
-        det, star, n_amb = self._pair(v, ref @ r.T, r_s)
+        det, star, n_amb, r, resid, radius = self._match(v, ref, prior_matrix, r_s)
         if len(det) < 2:
             why = "ambiguous" if n_amb else "too_few_stars"
             return done(
@@ -274,22 +321,6 @@ class TrackingIdentifier:
                 f"({n_amb} ambiguous, {len(v)} detections, {len(near)} predicted)",
                 n_ambiguous=n_amb,
             )
-        radius = r_s
-        fitted = False  # whether r, resid are the fit to the pairs (det, star)
-        for _ in range(3):
-            r, resid = _fit(v[det], ref[star])
-            fitted = True
-            sigma = MAD_TO_SIGMA * _median(resid) / math.sqrt(2 * math.log(2))
-            radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
-            det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
-            if len(det_new) < 2:
-                break
-            fitted = _same(det_new, det) and _same(star_new, star)
-            det, star = det_new, star_new
-            if fitted:
-                break
-        if not fitted:
-            r, resid = _fit(v[det], ref[star])
         # the fit's departure from the prior, as the displacement of a star at the field edge
         # (the measure of the search radius): cross-boresight plus roll x sin(field radius)
         d = _rotvec(r @ prior_matrix.T)
