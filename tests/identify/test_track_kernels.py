@@ -22,7 +22,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from starsense.attitude.covariance import SINGULAR_RCOND, fisher_covariance
 from starsense.catalog import load_catalog
+from starsense.errors import SingularGeometryError
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.identify import track_kernels as tk
 from starsense.identify.tracking import TrackingIdentifier
@@ -229,3 +231,34 @@ def test_identifier_with_and_without_the_kernel_agree(
             a.false_match_probability, b.false_match_probability, rtol=1e-9, atol=1e-300
         )
         np.testing.assert_allclose(a.innovation_rad, b.innovation_rad, rtol=0, atol=1e-12)
+
+
+@needs_kernel
+@settings(max_examples=300, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 40),
+    spread=st.floats(1e-4, 1.0),
+    degenerate=st.sampled_from(["none", "one", "antipodal"]),
+)
+def test_fisher_inverse_equals_fisher_covariance(seed, n, spread, degenerate):
+    # the stars of a field of `spread` rad; degenerate sets: one direction, or its antipode
+    rng = np.random.default_rng(seed)
+    body = np.column_stack([spread * rng.normal(size=(n, 2)), np.ones(n)])
+    body /= np.linalg.norm(body, axis=1)[:, None]
+    if degenerate == "one":
+        body[:] = body[0]
+    elif degenerate == "antipodal":
+        body[1::2] = -body[0]
+        body[::2] = body[0]
+    sigma = rng.uniform(1e-6, 1e-4, n)
+    got = tk.fisher_inverse_compiled(body, sigma, rcond=SINGULAR_RCOND)
+    try:
+        ref = fisher_covariance(body, sigma)
+    except SingularGeometryError:
+        assert got is False
+        return
+    assert got is not False
+    # the inverse of a matrix of condition number k is known to k x rounding: 1e-16 k
+    k = np.linalg.cond(np.linalg.inv(ref))
+    np.testing.assert_allclose(got, ref, rtol=0, atol=max(1e-12, 1e-15 * k) * np.abs(ref).max())

@@ -14,6 +14,8 @@ does not have.
 * :func:`match_compiled` runs TrackingIdentifier's whole pair-fit-pair loop in one call: the
   same steps, its predicted vectors summed without BLAS (equal to rounding: the same pairs but
   at a tie with the radius, the attitude to rounding).
+* :func:`fisher_inverse_compiled`: the Fisher matrix and its inverse with the singularity test
+  of :func:`~starsense.attitude.covariance.covariance` (to rounding).
 * :func:`sandwich_compiled` sums the same products in another order: ~1e-13 relative.
 """
 
@@ -29,6 +31,7 @@ except ImportError:  # pragma: no cover - exercised on machines without a compil
 
 __all__ = [
     "COMPILED",
+    "fisher_inverse_compiled",
     "fit_compiled",
     "fit_numpy",
     "match_compiled",
@@ -175,6 +178,37 @@ def match_compiled(vectors, ref, prior, *, radius, min_radius, ratio, mad_scale)
     if k < 2:
         return det[:k], star[:k], n_amb, None, None, radius
     return det[:k], star[:k], n_amb, c, resid[:k], radius
+
+
+def fisher_inverse_compiled(body: np.ndarray, sigma: np.ndarray, *, rcond: float):
+    """``F^-1`` of :func:`~starsense.attitude.covariance.fisher_covariance` in the kernel.
+
+    Parameters
+    ----------
+    body : ndarray, shape (N, 3)
+        Unit vectors.
+    sigma : ndarray, shape (N,)
+        Per-star sigma, rad (weights ``sigma^-2``).
+    rcond : float
+        Smallest eigenvalue ratio taken as non-singular.
+
+    Returns
+    -------
+    ndarray, shape (3, 3), or False, or None
+        The covariance, rad^2; False where F is not finite or singular (the NumPy form then
+        raises its error); None where the kernel is not built.
+    """
+    if _trackc is None:
+        return None
+    out = np.empty((3, 3))
+    ok = _trackc.fisher_inverse(
+        np.ascontiguousarray(body, dtype=float),
+        np.ascontiguousarray(sigma, dtype=float),
+        len(body),
+        float(rcond),
+        out,
+    )
+    return out if ok else False
 
 
 def _det3(m: np.ndarray) -> float:

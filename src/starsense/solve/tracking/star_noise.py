@@ -28,11 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.attitude.covariance import fisher_covariance
+from starsense.attitude.covariance import SINGULAR_RCOND, fisher_covariance
 from starsense.attitude.solution import AttitudeSolution
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import columns
 from starsense.identify.track_kernels import (
+    fisher_inverse_compiled,
     fit_compiled,
     fit_numpy,
     sandwich_compiled,
@@ -185,6 +186,14 @@ def _svd_fit(body, ref, sigma):
     return fit_numpy(body, ref, w, two_exact=False) if got is None else got
 
 
+def _fisher_covariance(body, sigma):
+    """:func:`~starsense.attitude.covariance.fisher_covariance`, compiled where built."""
+    got = fisher_inverse_compiled(body, sigma, rcond=SINGULAR_RCOND)
+    if got is None or got is False:  # no kernel; or the reference's error to raise
+        return fisher_covariance(body, sigma)
+    return got
+
+
 def fit_robust(body, ref, sigma):
     """SVD attitude with the worst star dropped while its residual exceeds OUTLIER_SIGMA.
 
@@ -207,7 +216,7 @@ def fit_robust(body, ref, sigma):
     """
     # the estimator's check first: SingularGeometryError for stars that fix no attitude (a
     # subset dropped to is checked again at the end)
-    cov = fisher_covariance(body, sigma)
+    cov = _fisher_covariance(body, sigma)
     keep = np.arange(len(body))
     c, resid, chord2 = _svd_fit(body, ref, sigma)
     while len(keep) > 3:
@@ -218,7 +227,7 @@ def fit_robust(body, ref, sigma):
         keep = np.delete(keep, worst)
         c, resid, chord2 = _svd_fit(body[keep], ref[keep], sigma[keep])
     if len(keep) < len(body):
-        cov = fisher_covariance(body[keep], sigma[keep])
+        cov = _fisher_covariance(body[keep], sigma[keep])
     att = AttitudeSolution(
         # c is orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped
         rotation=Rotation.from_matrix(c, assume_valid=True),
