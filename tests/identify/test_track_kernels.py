@@ -128,7 +128,15 @@ def test_sandwich_equals_numpy(seed, n):
     inv = np.linalg.inv(np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None]))
     p1 = tk.sandwich_numpy(body, g, cov, w=w, inv=inv)
     p2 = tk.sandwich_compiled(body, g, cov, w=w, inv=inv)
-    np.testing.assert_allclose(p2, p1, rtol=0, atol=1e-12 * np.abs(p1).max())
+    # summed in another order: each entry differs by at most a few hundred ulp of the sum of
+    # the absolute values of its terms (the forward error bound of a sum of products)
+    a = np.abs
+    skew = np.zeros((n, 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = body[:, 2], body[:, 1], body[:, 0]
+    skew += skew.transpose(0, 2, 1)
+    noise = a(g) @ a(cov) @ a(g).transpose(0, 2, 1)
+    terms = a(inv) @ np.einsum("i,iaj,iab,ibk->jk", w**2, a(skew), noise, a(skew)) @ a(inv)
+    assert np.all(np.abs(p2 - p1) <= 1e-13 * terms)
 
 
 @pytest.fixture(scope="module")

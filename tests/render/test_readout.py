@@ -155,7 +155,7 @@ def test_a_frame_at_rest_equals_the_star_by_star_rendering(st16, seed):
     tracks = star_tracks(st16, vectors)
     sigmas = np.full(len(stars), st16.detector.psf_sigma_px)
     ref = _star_by_star(st16, tracks, stars.electrons, sigmas)
-    got, table = expected_image(st16, tracks, stars.electrons, "track", sigmas)
+    got, table = expected_image(st16, tracks, stars.electrons, method="track", sigmas=sigmas)
     assert np.array_equal(got, ref)
     assert np.array_equal(got, frame.expected_e)
     np.testing.assert_allclose(table[1], stars.electrons_on_detector, rtol=1e-12)

@@ -426,7 +426,7 @@ def render_frame(
     sigmas = sensor.psf_sigma_at(mid[:, 0], mid[:, 1])  # the field-dependent PSF, per star
     sigmas = np.where(np.isfinite(sigmas), sigmas, _sigma(sensor))
     moved = _residual(sensor, tracks, gen)
-    expected, rendered = expected_image(sensor, moved, electrons, method, sigmas)
+    expected, rendered = expected_image(sensor, moved, electrons, method=method, sigmas=sigmas)
     truth_stars = _star_truth(catalog, stars, tracks, rendered, model)
 
     # 4. detector

@@ -110,7 +110,7 @@ def _on(v: np.ndarray, rows: int, cols: int) -> np.ndarray:
     return (x >= -0.5) & (x < cols - 0.5) & (y >= -0.5) & (y < rows - 0.5)
 
 
-def expected_image(sensor, tracks, electrons: np.ndarray, method: str, sigmas: np.ndarray):
+def expected_image(sensor, tracks, electrons: np.ndarray, *, method: str, sigmas: np.ndarray):
     """Return the float32 expected-electron image of the tracks and the rendered stars' table.
 
     Parameters
