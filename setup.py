@@ -9,7 +9,9 @@ it and uses the NumPy form.
 - ``starsense.detect._framec``: whole-frame detection's PSF correlation, filtered-noise median
   and labelling;
 - ``starsense.identify._hashc``: the search and verification of lost-in-space identification by
-  hashing.
+  hashing;
+- ``starsense.identify._trackc``: tracking's pairing, attitude fit and covariance;
+- ``starsense.render._renderc``: the renderer's stamp sums and fast read-out noise.
 """
 
 from setuptools import Extension, setup
@@ -30,5 +32,7 @@ setup(
         kernel("detect._windowc"),
         kernel("detect._framec", extra=("-O3",)),
         kernel("identify._hashc"),
+        kernel("identify._trackc"),
+        kernel("render._renderc"),
     ]
 )

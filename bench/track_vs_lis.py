@@ -62,7 +62,8 @@ def main() -> None:
     print(
         f"{args.background}: tracking {t_ms[0]:.2f} ms min, {t_ms[1]:.2f} ms median (CPU "
         f"{t_ms[2]:.2f} / {t_ms[3]:.2f}); lost-in-space {s_ms[0]:.1f} ms min, {s_ms[1]:.1f} ms "
-        f"median; ratio {s_ms[0] / t_ms[0]:.1f}x of minima, {s_ms[1] / t_ms[1]:.1f}x of medians"
+        f"median (CPU {s_ms[2]:.1f} / {s_ms[3]:.1f}); ratio {s_ms[0] / t_ms[0]:.1f}x of minima, "
+        f"{s_ms[1] / t_ms[1]:.1f}x of medians, {s_ms[3] / t_ms[3]:.1f}x of CPU medians"
     )
 
 

@@ -11,6 +11,9 @@ mid-exposure:
   small_rotation_angles`): x, y cross-boresight and z roll, against the covariance the
   estimator predicts from each star's photon noise (Fialho & Mortari eq. 21 with per-star sigma).
 
+Frames are read out with :func:`starsense.render.readout.fast_read_out` (the statistics of the
+default read-out within the bounds it states, in about half its time) where it applies.
+
 Seeds: one root seed, a child stream per trial (``numpy.random.SeedSequence.spawn``), so a run is
 reproducible bit for bit and any trial can be replayed alone.
 """
@@ -154,6 +157,7 @@ def _trials(
     model: str,
     max_mag,
     wrong_rad: float,
+    fast_noise: bool = True,
     progress=None,
 ) -> list[tuple]:
     """Run trials ``indices`` of a run of ``n_trials``; one record per trial (see below).
@@ -181,6 +185,7 @@ def _trials(
             max_mag=max_mag,
             rng=rng,
             keep_expected=False,
+            fast_noise=fast_noise,
         )
         render_ms = (time.perf_counter() - t0) * 1e3
         sol = solver(frame.image)
@@ -256,6 +261,7 @@ def montecarlo(
     wrong_rad: float = 60.0 * ARCSEC,
     progress: Callable[[int, int], None] | None = None,
     client=None,
+    fast_noise: bool = True,
 ) -> MonteCarloResult:
     """Run the tracker ``n_trials`` times at random attitudes (see the module docstring).
 
@@ -286,6 +292,10 @@ def montecarlo(
     client : dask.distributed.Client, optional
         Run the trials on this cluster, in chunks; the result is identical to the in-process
         run for the same seed (but for the times).
+    fast_noise : bool
+        Read frames out with :func:`starsense.render.readout.fast_read_out` where it applies
+        (default); False: :func:`starsense.render.noise.apply_noise` (other random draws, the
+        same statistics).
 
     Returns
     -------
@@ -300,7 +310,7 @@ def montecarlo(
     sens = as_sensor(sensor)
     cat = as_catalog(catalog)
     seed = root_seed(rng)
-    args = (sens, cat, seed, float(rate_rad_s), model, max_mag, float(wrong_rad))
+    args = (sens, cat, seed, float(rate_rad_s), model, max_mag, float(wrong_rad), bool(fast_noise))
     if client is not None:
         records = _dask_trials(client, args, n_trials, progress)
     else:

@@ -39,6 +39,12 @@ from starsense._validate import check_scalar
 from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.result import validate_vectors
+from starsense.identify.track_kernels import (
+    fit_compiled,
+    match_compiled,
+    pair_compiled,
+    pair_numpy,
+)
 from starsense.identify.verify import estimate_matrix, false_match_probability
 
 __all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch", "TrackingStatus"]
@@ -50,7 +56,19 @@ TrackingStatus: TypeAlias = Literal[
 TRACKING_STATUSES = get_args(TrackingStatus)
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
-_ARANGE = np.arange(1024)
+#: the residuals' sigma from their median: MAD_TO_SIGMA x median / sqrt(2 ln 2) (the median of
+#: a 2-D Gaussian's radius is sigma sqrt(2 ln 2))
+_MAD_SCALE = (MAD_TO_SIGMA, math.sqrt(2 * math.log(2)))
+
+
+def _fit(body: np.ndarray, ref: np.ndarray):
+    """Attitude matrix and residual angles of the pairs: equal weights, two pairs by TRIAD.
+
+    :func:`~starsense.identify.verify.estimate_matrix`, or the same fit in the compiled kernel
+    (:func:`~starsense.identify.track_kernels.fit_compiled`, equal to rounding).
+    """
+    got = fit_compiled(body, ref, np.ones(len(body)), two_exact=True)
+    return estimate_matrix(body, ref) if got is None else got[:2]
 
 
 def _chord(angle_rad: float) -> float:
@@ -180,37 +198,55 @@ class TrackingIdentifier:
     def _pair(self, vectors, cam, radius):
         """Nearest predicted star of each detection within ``radius``; ambiguous ones dropped.
 
-        The two nearest predicted stars of each detection by direct comparison (a few dozen
-        of each: cheaper than a k-d tree built per call), within the chord of ``radius``
-        (strictly, as ``cKDTree.query`` with ``distance_upper_bound``).
-
-        Returns (detection index, predicted index, number dropped as ambiguous).
+        :func:`~starsense.identify.track_kernels.pair_numpy` (compiled where built). Returns
+        (detection index, predicted index, number dropped as ambiguous).
         """
-        m = len(cam)
-        if m == 0:
-            return _EMPTY_INT, _EMPTY_INT, 0
-        n = len(vectors)
-        diff = vectors[:, None, :] - cam[None, :, :]
-        d2 = np.add.reduce(diff * diff, axis=2)  # (N, M) squared chords
-        rows = _ARANGE[:n] if n <= len(_ARANGE) else np.arange(n)
-        first = d2.argmin(axis=1)
-        d1 = d2[rows, first]
         bound2 = _chord(radius) ** 2
-        found = d1 < bound2
-        if m > 1:
-            d2[rows, first] = np.inf
-            second = d2[rows, d2.argmin(axis=1)]
-            # clear: no second star within the search radius, or one much farther
-            clear = (second >= bound2) | (np.sqrt(second) >= self.ambiguity_ratio * np.sqrt(d1))
-        else:
-            clear = np.ones(n, bool)
-        det = (found & clear).nonzero()[0]
-        star = first[det]
-        n_amb = int(np.count_nonzero(found & ~clear))
-        counts = np.bincount(star, minlength=m)
-        unique = counts[star] == 1
-        n_amb += len(unique) - int(np.count_nonzero(unique))
-        return det[unique].astype(np.int64), star[unique].astype(np.int64), n_amb
+        got = pair_compiled(vectors, cam, bound2=bound2, ratio=self.ambiguity_ratio)
+        return (
+            pair_numpy(vectors, cam, bound2=bound2, ratio=self.ambiguity_ratio)
+            if got is None
+            else got
+        )
+
+    def _match(self, v, ref, prior_matrix, r_s):
+        """Pair, fit, pair again at the residuals' radius (module docstring, step 3).
+
+        Returns (det, star, n_ambiguous, attitude matrix, residuals, radius); the matrix and
+        residuals None with fewer than two pairs. In the compiled kernel where it is built
+        (:func:`~starsense.identify.track_kernels.match_compiled`), else step by step.
+        """
+        got = match_compiled(
+            v,
+            ref,
+            prior_matrix,
+            radius=r_s,
+            min_radius=self.min_match_radius_rad,
+            ratio=self.ambiguity_ratio,
+            mad_scale=_MAD_SCALE,
+        )
+        if got is not None:
+            return got
+        det, star, n_amb = self._pair(v, ref @ prior_matrix.T, r_s)
+        if len(det) < 2:
+            return det, star, n_amb, None, None, r_s
+        radius = r_s
+        fitted = False  # whether r, resid are the fit to the pairs (det, star)
+        for _ in range(3):
+            r, resid = _fit(v[det], ref[star])
+            fitted = True
+            sigma = _MAD_SCALE[0] * _median(resid) / _MAD_SCALE[1]
+            radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
+            det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
+            if len(det_new) < 2:
+                break
+            fitted = _same(det_new, det) and _same(star_new, star)
+            det, star = det_new, star_new
+            if fitted:
+                break
+        if not fitted:
+            r, resid = _fit(v[det], ref[star])
+        return det, star, n_amb, r, resid, radius
 
     def __call__(
         self,
@@ -276,7 +312,7 @@ class TrackingIdentifier:
 
         ref = db.vectors[near]
         prior_matrix = r
-        det, star, n_amb = self._pair(v, ref @ r.T, r_s)
+        det, star, n_amb, r, resid, radius = self._match(v, ref, prior_matrix, r_s)
         if len(det) < 2:
             why = "ambiguous" if n_amb else "too_few_stars"
             return done(
@@ -285,22 +321,6 @@ class TrackingIdentifier:
                 f"({n_amb} ambiguous, {len(v)} detections, {len(near)} predicted)",
                 n_ambiguous=n_amb,
             )
-        radius = r_s
-        fitted = False  # whether r, resid are the fit to the pairs (det, star)
-        for _ in range(3):
-            r, resid = estimate_matrix(v[det], ref[star])
-            fitted = True
-            sigma = MAD_TO_SIGMA * _median(resid) / math.sqrt(2 * math.log(2))
-            radius = min(radius, max(5.0 * sigma, self.min_match_radius_rad))
-            det_new, star_new, n_amb = self._pair(v, ref @ r.T, radius)
-            if len(det_new) < 2:
-                break
-            fitted = _same(det_new, det) and _same(star_new, star)
-            det, star = det_new, star_new
-            if fitted:
-                break
-        if not fitted:
-            r, resid = estimate_matrix(v[det], ref[star])
         # the fit's departure from the prior, as the displacement of a star at the field edge
         # (the measure of the search radius): cross-boresight plus roll x sin(field radius)
         d = _rotvec(r @ prior_matrix.T)

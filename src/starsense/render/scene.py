@@ -41,8 +41,9 @@ from starsense.photometry.colour import ColourModel
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.frame import Frame, FrameTruth, StarTruth
 from starsense.render.noise import apply_noise, quantise
-from starsense.render.psf import Box
+from starsense.render.readout import fast_read_out
 from starsense.render.smear import METHODS, pad_sigma_for, polyline_expected
+from starsense.render.stamps import expected_image
 from starsense.render.tracks import Tracks, check_rate, star_tracks
 
 __all__ = [
@@ -317,54 +318,6 @@ def _with_electrons(stars, sensor, model: str, col: str | None):
     return idx[ok], mags[ok], ci[ok], electrons[ok]
 
 
-def _expected_image(sensor, tracks: Tracks, electrons: np.ndarray, method: str):
-    """Step 3: the expected-electron image of the tracks, only in a box around each.
-
-    Returns the float32 image and, for the stars that touch the detector, their positions in
-    ``tracks``, electrons on the detector, whether the whole track is on it, and segments.
-    """
-    det = sensor.detector
-    mid = tracks.mid if len(tracks) else np.zeros((0, 2))
-    sigmas = sensor.psf_sigma_at(mid[:, 0], mid[:, 1])  # the field-dependent PSF, per star
-    sigmas = np.where(np.isfinite(sigmas), sigmas, _sigma(sensor))
-    pads = pad_sigma_for(electrons, sigmas) * sigmas
-    expected = np.zeros((det.rows, det.columns), dtype=np.float32)
-    rendered, on_det_e, on_det, nseg = [], [], [], []
-    for i in range(electrons.size):
-        if not tracks.valid[i]:
-            continue
-        v = tracks.vertices[i]
-        xs, ys = v[:, 0], v[:, 1]
-        full = Box.around(
-            x_min=xs.min(), x_max=xs.max(), y_min=ys.min(), y_max=ys.max(), pad_px=pads[i]
-        )
-        box = full.clip(det.rows, det.columns)
-        if box is None:
-            continue
-        stamp, _ = polyline_expected(
-            xs,
-            ys,
-            sigma_px=float(sigmas[i]),
-            electrons=electrons[i],
-            pad_sigma=pads[i] / sigmas[i],
-            box=box,
-            method=method,
-        )
-        expected[box.slices] += stamp
-        rendered.append(i)
-        on_det_e.append(float(stamp.sum()))
-        inside = (xs >= -0.5) & (xs < det.columns - 0.5) & (ys >= -0.5) & (ys < det.rows - 0.5)
-        on_det.append(bool(inside.all()))
-        nseg.append(len(xs) - 1)
-    table = (
-        np.asarray(rendered, dtype=np.intp),
-        np.asarray(on_det_e),
-        np.asarray(on_det, dtype=bool),
-        np.asarray(nseg, dtype=np.int64),
-    )
-    return expected, table
-
-
 def render_frame(
     sensor,
     rotation: Rotation,
@@ -382,6 +335,7 @@ def render_frame(
     method: str = "track",
     obs_time=None,
     observer_velocity_m_s=None,
+    fast_noise: bool = False,
 ) -> Frame:
     """Render one detector frame of a catalogue at an attitude and body rate.
 
@@ -424,6 +378,10 @@ def render_frame(
         real camera sees them.
     observer_velocity_m_s : array_like, shape (3,), optional
         The observer's velocity relative to the geocentre, ICRS axes, m/s (with ``obs_time``).
+    fast_noise : bool
+        Read the frame out with :func:`~starsense.render.readout.fast_read_out` where it
+        applies: the statistics of the default read-out (within the bounds it states) in about
+        half the time, other random draws (Monte Carlo runs of thousands of frames).
 
     Returns
     -------
@@ -464,14 +422,23 @@ def render_frame(
         raise InputError("observer_velocity_m_s needs obs_time")
     vectors = rotation.apply(sky) if idx.size else np.zeros((0, 3))
     tracks = star_tracks(sensor, vectors, rate_rad_s=w, exposure_s=te)
-    expected, rendered = _expected_image(sensor, _residual(sensor, tracks, gen), electrons, method)
+    mid = tracks.mid if len(tracks) else np.zeros((0, 2))
+    sigmas = sensor.psf_sigma_at(mid[:, 0], mid[:, 1])  # the field-dependent PSF, per star
+    sigmas = np.where(np.isfinite(sigmas), sigmas, _sigma(sensor))
+    moved = _residual(sensor, tracks, gen)
+    expected, rendered = expected_image(sensor, moved, electrons, method=method, sigmas=sigmas)
     truth_stars = _star_truth(catalog, stars, tracks, rendered, model)
 
     # 4. detector
-    if noise:
-        image = apply_noise(expected, sensor, rng=gen, exposure_s=te)
-    else:
-        image = quantise(expected, sensor)
+    image = None
+    if noise and fast_noise:
+        image = fast_read_out(expected, sensor, rng=gen, exposure_s=te)  # None: not applicable
+    if image is None:
+        image = (
+            apply_noise(expected, sensor, rng=gen, exposure_s=te)
+            if noise
+            else quantise(expected, sensor)
+        )
     ra, dec, roll = radec_roll_from_attitude(rotation)
     truth = FrameTruth(
         sensor=sensor.name,

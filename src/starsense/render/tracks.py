@@ -154,11 +154,11 @@ def star_tracks(
         with np.errstate(invalid="ignore"):
             d_max = np.where(bad, 0.0, np.max(d, axis=(1, 2)))
         done = bad | (d_max <= tol_px) | (k >= max_segments)
+        both = np.stack([xv, yv], axis=2)  # (P, k + 1, 2)
         for j in np.flatnonzero(done):
-            i = pending[j]
-            verts[i] = np.stack([xv[j], yv[j]], axis=1)
-            dev[i] = d_max[j]
-            valid[i] = not bad[j]
+            verts[pending[j]] = both[j]
+        dev[pending[done]] = d_max[done]
+        valid[pending[done]] = ~bad[done]
         pending = pending[~done]
         k *= 2
     return Tracks(

@@ -28,10 +28,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.attitude.covariance import fisher_covariance
+from starsense.attitude.covariance import SINGULAR_RCOND, fisher_covariance
 from starsense.attitude.solution import AttitudeSolution
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import columns
+from starsense.identify.track_kernels import (
+    fisher_inverse_compiled,
+    fit_compiled,
+    fit_numpy,
+    sandwich_compiled,
+    sandwich_numpy,
+)
 
 __all__ = ["OUTLIER_SIGMA", "StarNoise", "fit_robust", "star_noise"]
 
@@ -91,17 +98,13 @@ class StarNoise:
         gy = (v[2 * n : 3 * n] - v[3 * n :]) / (2 * h)
         g = np.empty((n, 3, 2))
         g[:, :, 0], g[:, :, 1] = gx, gy
-        noise = g @ self.cov_px2 @ g.transpose(0, 2, 1)  # (N, 3, 3)
         w = 1.0 / self.sigma_rad**2
-        skew = np.zeros((n, 3, 3))
-        skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -body[:, 2], body[:, 1], -body[:, 0]
-        skew -= skew.transpose(0, 2, 1)
-        middle = np.einsum("i,iaj,iab,ibk->jk", w**2, skew, noise, skew)
         inv = fisher_inv
         if inv is None:
             fisher = np.einsum("i,ijk->jk", w, np.eye(3) - body[:, :, None] * body[:, None, :])
             inv = np.linalg.inv(fisher)
-        return inv @ middle @ inv
+        got = sandwich_compiled(body, g, self.cov_px2, w=w, inv=inv)
+        return sandwich_numpy(body, g, self.cov_px2, w=w, inv=inv) if got is None else got
 
 
 def star_noise(
@@ -170,33 +173,25 @@ def star_noise(
     return StarNoise(sensor, x, y, cov)
 
 
-def _det3(m: np.ndarray) -> float:
-    """Return the determinant of a 3 x 3 matrix (cofactors: here +-1, an orthogonal matrix)."""
-    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-
-
 def _svd_fit(body, ref, sigma):
     """Weighted SVD attitude matrix (body ~ C ref), the residual angles, rad, and chords^2.
 
-    The estimator of :class:`~starsense.attitude.svd.SvdEstimator` (Kabsch / Markley 1988:
-    ``B = sum_i w_i b_i r_i^T = U S V^T``, ``C = U diag(1, 1, det U V^T) V^T``, weights
-    ``sigma^-2`` normalised to sum 1) and the residual angles of
-    :func:`~starsense.attitude.solution.wahba_residuals` (from the chord), on matrices: no
-    Rotation per fit.
+    The estimator of :class:`~starsense.attitude.svd.SvdEstimator` with weights ``sigma^-2``
+    and the residual angles of :func:`~starsense.attitude.solution.wahba_residuals` (from the
+    chord), on matrices: no Rotation per fit (:func:`~starsense.identify.track_kernels.
+    fit_numpy`, compiled where built).
     """
     w = sigma**-2.0
-    w = w / w.sum()
-    u, _, vh = np.linalg.svd((w[:, None] * body).T @ ref)
-    c = u @ vh
-    if _det3(c) < 0:  # an improper rotation (det -1): flip the last axis
-        u[:, -1] = -u[:, -1]
-        c = u @ vh
-    d = body - ref @ c.T
-    chord2 = np.einsum("ij,ij->i", d, d)
-    # the angle from the chord, 2 asin(|b - C r| / 2): as accurate as atan2(|b x Cr|, b . Cr)
-    resid = 2.0 * np.arcsin(np.minimum(np.sqrt(chord2) / 2.0, 1.0))
-    return c, resid, chord2
+    got = fit_compiled(body, ref, w, two_exact=False)
+    return fit_numpy(body, ref, w, two_exact=False) if got is None else got
+
+
+def _fisher_covariance(body, sigma):
+    """:func:`~starsense.attitude.covariance.fisher_covariance`, compiled where built."""
+    got = fisher_inverse_compiled(body, sigma, rcond=SINGULAR_RCOND)
+    if got is None or got is False:  # no kernel; or the reference's error to raise
+        return fisher_covariance(body, sigma)
+    return got
 
 
 def fit_robust(body, ref, sigma):
@@ -221,7 +216,7 @@ def fit_robust(body, ref, sigma):
     """
     # the estimator's check first: SingularGeometryError for stars that fix no attitude (a
     # subset dropped to is checked again at the end)
-    cov = fisher_covariance(body, sigma)
+    cov = _fisher_covariance(body, sigma)
     keep = np.arange(len(body))
     c, resid, chord2 = _svd_fit(body, ref, sigma)
     while len(keep) > 3:
@@ -232,7 +227,7 @@ def fit_robust(body, ref, sigma):
         keep = np.delete(keep, worst)
         c, resid, chord2 = _svd_fit(body[keep], ref[keep], sigma[keep])
     if len(keep) < len(body):
-        cov = fisher_covariance(body[keep], sigma[keep])
+        cov = _fisher_covariance(body[keep], sigma[keep])
     att = AttitudeSolution(
         # c is orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped
         rotation=Rotation.from_matrix(c, assume_valid=True),
