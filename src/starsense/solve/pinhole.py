@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from starsense.geometry.projection import tangent_to_vectors
+from starsense.errors import InputError
 
 __all__ = ["pinhole_vectors"]
 
@@ -33,6 +33,18 @@ def pinhole_vectors(x, y, *, shape, fov_rad: float) -> np.ndarray:
     """
     rows, cols = shape
     f_px = cols / 2.0 / math.tan(fov_rad / 2.0)
-    u = (np.asarray(x, dtype=float) - (cols - 1) / 2.0) / f_px
-    w = (np.asarray(y, dtype=float) - (rows - 1) / 2.0) / f_px
-    return tangent_to_vectors(np.column_stack([u, w]))
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    if x.shape != y.shape or x.ndim != 1:
+        raise InputError(
+            f"x and y must be 1-d arrays of one length, got shapes {x.shape}, {y.shape}"
+        )
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise InputError("x and y must be finite")
+    # tangent_to_vectors of the tangent-plane points, without building the (N, 2) array
+    v = np.empty((len(x), 3))
+    v[:, 0] = (x - (cols - 1) / 2.0) / f_px
+    v[:, 1] = (y - (rows - 1) / 2.0) / f_px
+    v[:, 2] = 1.0
+    v /= np.sqrt(np.add.reduce(v * v, axis=1, keepdims=True))
+    return v
