@@ -10,7 +10,6 @@ distribution function of ``m_(N_min)`` over the pointings: one ``searchsorted`` 
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -26,13 +25,20 @@ from starsense.analysis.availability.checks import Fov, check_fov, check_mag
 from starsense.errors import InputError
 from starsense.geometry.fov import CircularFov
 
-__all__ = ["BrightestInField", "FieldStars", "catalog_stars", "field_pairs", "inside_camera"]
+__all__ = [
+    "BrightestInField",
+    "FieldStars",
+    "catalog_stars",
+    "field_pairs",
+    "field_pairs_cam",
+    "inside_camera",
+]
 
 # Margins on the prefilter chord so that rounding never drops a star the exact test accepts.
 _CHORD_REL_MARGIN = 1e-9
 _CHORD_ABS_MARGIN = 1e-12
 # Upper bound on (pointing, star) candidate pairs held in memory at once.
-_CANDIDATE_BUDGET = 2_000_000
+_CANDIDATE_BUDGET = 1_000_000
 
 
 def inside_camera(fov: Fov, v_cam: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -69,9 +75,7 @@ def field_pairs(
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Return all (pointing, star) pairs with the star inside the field.
 
-    A k-d tree over the stars gives the candidates within the chord of the field's enclosing
-    radius around each boresight; the exact field test is applied to the candidates in NumPy,
-    in blocks of at most a few million pairs.
+    :func:`field_pairs_cam` without the camera-frame vectors.
 
     Parameters
     ----------
@@ -91,40 +95,84 @@ def field_pairs(
     point_idx, star_idx : ndarray of int, shape (P,)
         Pairs in ascending pointing order (star order within a pointing is arbitrary).
     """
+    point, star, _ = field_pairs_cam(fov, matrices, vectors, tree=tree, progress=progress)
+    return point, star
+
+
+def field_pairs_cam(
+    fov: Fov,
+    matrices: NDArray[np.float64],
+    vectors: NDArray[np.float64],
+    *,
+    tree: cKDTree | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
+    """Return all (pointing, star) pairs with the star inside the field, and its camera vector.
+
+    The candidates are the stars within the chord of the field's enclosing radius around each
+    boresight: one :meth:`cKDTree.sparse_distance_matrix` between a tree of the block's
+    boresights and the stars' tree (NumPy arrays, no per-pair Python objects), grouped by
+    pointing with a stable radix sort; each pointing's candidates are rotated into its camera
+    frame by one matrix product and the exact field test keeps those inside. Blocks of
+    pointings hold at most about a million candidate pairs.
+
+    Parameters
+    ----------
+    fov : CircularFov or RectangularFov
+        The field.
+    matrices : ndarray, shape (M, 3, 3)
+        Attitude matrices (ICRS -> camera; row 2 is the boresight).
+    vectors : ndarray, shape (N, 3)
+        Star unit vectors, ICRS.
+    tree : cKDTree, optional
+        Built on exactly `vectors`.
+    progress : callable(done, total), optional
+        Called after each block with the pointings done.
+
+    Returns
+    -------
+    point_idx, star_idx : ndarray of int, shape (P,)
+        Pairs in ascending pointing order (star order within a pointing is arbitrary).
+    v_cam : ndarray, shape (P, 3)
+        The star's unit vector in the pointing's camera frame.
+    """
     check_fov(fov)
     n_att = matrices.shape[0]
     empty = np.zeros(0, dtype=np.intp)
     if n_att == 0 or vectors.shape[0] == 0:
-        return empty, empty.copy()
+        return empty, empty.copy(), np.zeros((0, 3))
     if tree is None:
         tree = cKDTree(vectors)
     radius = min(fov.enclosing_radius_rad, math.pi)
     chord = 2.0 * math.sin(0.5 * radius) * (1.0 + _CHORD_REL_MARGIN) + _CHORD_ABS_MARGIN
     expected = max(1.0, 1.5 * vectors.shape[0] * math.sin(0.5 * radius) ** 2)
-    block = max(1, int(_CANDIDATE_BUDGET // expected))
-    points, stars = [], []
+    block = max(1, min(2**16 - 1, int(_CANDIDATE_BUDGET // expected)))
+    points, stars, cams = [], [], []
     for start in range(0, n_att, block):
-        mats = matrices[start : start + block]
-        lists = tree.query_ball_point(mats[:, 2, :], chord, return_sorted=False)
-        lengths = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
-        total = int(lengths.sum())
-        if total:
-            star_idx = np.fromiter(itertools.chain.from_iterable(lists), np.intp, count=total)
-            point_idx = np.repeat(np.arange(len(mats)), lengths)
-            if isinstance(fov, CircularFov):  # only the boresight matters
-                v_cam = np.empty((total, 3))
-                v_cam[:, :2] = 0.0
-                v_cam[:, 2] = np.einsum("kj,kj->k", mats[point_idx, 2, :], vectors[star_idx])
-            else:
-                v_cam = np.einsum("kij,kj->ki", mats[point_idx], vectors[star_idx])
-            inside = inside_camera(fov, v_cam)
-            points.append(point_idx[inside] + start)
-            stars.append(star_idx[inside])
+        mats = np.asarray(matrices[start : start + block], dtype=np.float64)
+        near = cKDTree(mats[:, 2, :]).sparse_distance_matrix(tree, chord, output_type="ndarray")
+        order = np.argsort(near["i"].astype(np.uint16), kind="stable")  # radix sort
+        point_idx = near["i"][order].astype(np.intp)
+        star_idx = near["j"][order].astype(np.intp)
+        del near, order
+        v_cam = _rotate_grouped(mats, point_idx, np.asarray(vectors, dtype=np.float64)[star_idx])
+        inside = inside_camera(fov, v_cam)
+        points.append(point_idx[inside] + start)
+        stars.append(star_idx[inside])
+        cams.append(v_cam[inside])
         if progress is not None:
             progress(min(start + block, n_att), n_att)
-    if not points:
-        return empty, empty.copy()
-    return np.concatenate(points), np.concatenate(stars)
+    return np.concatenate(points), np.concatenate(stars), np.concatenate(cams)
+
+
+def _rotate_grouped(mats: NDArray[np.float64], point_idx, v: NDArray[np.float64]):
+    """Rotate ``v`` (K, 3), grouped by ascending ``point_idx``, by each group's matrix."""
+    offsets = np.searchsorted(point_idx, np.arange(len(mats) + 1))
+    out = np.empty_like(v)
+    for k in np.flatnonzero(np.diff(offsets)):
+        a, b = offsets[k], offsets[k + 1]
+        np.matmul(v[a:b], mats[k].T, out=out[a:b])
+    return out
 
 
 def _availability(
