@@ -331,7 +331,6 @@ def slew_tolerance(
         if progress is not None:
             progress(j + 1, n_r)
     fraction = np.where(ran, detected.mean(axis=2), np.nan)
-    fraction = detected.mean(axis=2)
     n_det = detected.sum(axis=2)
     total = np.where(detected, intensity, 0.0).sum(axis=2)
     mean_int = np.where(n_det > 0, total / np.maximum(n_det, 1), np.nan)
