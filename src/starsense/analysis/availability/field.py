@@ -10,6 +10,7 @@ distribution function of ``m_(N_min)`` over the pointings: one ``searchsorted`` 
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -37,6 +38,10 @@ __all__ = [
 # Margins on the prefilter chord so that rounding never drops a star the exact test accepts.
 _CHORD_REL_MARGIN = 1e-9
 _CHORD_ABS_MARGIN = 1e-12
+# the last call of field_pairs_cam: {"last": (key, (point, star, v_cam))}
+_LAST_PAIRS: dict = {}
+# the largest result kept (pairs; 40 bytes each)
+_MEMO_MAX_PAIRS = 2_000_000
 # Upper bound on (pointing, star) candidate pairs held in memory at once.
 _CANDIDATE_BUDGET = 1_000_000
 
@@ -114,7 +119,9 @@ def field_pairs_cam(
     boresights and the stars' tree (NumPy arrays, no per-pair Python objects), grouped by
     pointing with a stable radix sort; each pointing's candidates are rotated into its camera
     frame by one matrix product and the exact field test keeps those inside. Blocks of
-    pointings hold at most about a million candidate pairs.
+    pointings hold at most about a million candidate pairs. The last result is kept (read-only
+    arrays): the datasheet asks for the same stars in the same field twice (the availability
+    and the stars per field), and the second call is free.
 
     Parameters
     ----------
@@ -141,6 +148,31 @@ def field_pairs_cam(
     empty = np.zeros(0, dtype=np.intp)
     if n_att == 0 or vectors.shape[0] == 0:
         return empty, empty.copy(), np.zeros((0, 3))
+    key = _pairs_key(fov, matrices, vectors)
+    last = _LAST_PAIRS.get("last")  # one read: safe with threads
+    if last is not None and last[0] == key:
+        if progress is not None:
+            progress(n_att, n_att)
+        return last[1]
+    out = _pairs_cam(fov, matrices, vectors, tree=tree, progress=progress)
+    if len(out[0]) <= _MEMO_MAX_PAIRS:
+        for a in out:
+            a.flags.writeable = False  # shared with the next caller of the same field
+        _LAST_PAIRS["last"] = (key, out)
+    return out
+
+
+def _pairs_key(fov: Fov, matrices, vectors) -> bytes:
+    """Return a digest of the field, the attitudes and the stars (the memo's key)."""
+    h = hashlib.sha1(repr(fov).encode())
+    h.update(np.ascontiguousarray(matrices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(vectors, dtype=np.float64).tobytes())
+    return h.digest()
+
+
+def _pairs_cam(fov: Fov, matrices, vectors, *, tree, progress):
+    """Return what :func:`field_pairs_cam` returns, computed (non-empty inputs)."""
+    n_att = matrices.shape[0]
     if tree is None:
         tree = cKDTree(vectors)
     radius = min(fov.enclosing_radius_rad, math.pi)
