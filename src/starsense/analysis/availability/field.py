@@ -111,6 +111,7 @@ def field_pairs_cam(
     *,
     tree: cKDTree | None = None,
     progress: Callable[[int, int], None] | None = None,
+    keep: bool = True,
 ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
     """Return all (pointing, star) pairs with the star inside the field, and its camera vector.
 
@@ -135,6 +136,9 @@ def field_pairs_cam(
         Built on exactly `vectors`.
     progress : callable(done, total), optional
         Called after each block with the pointings done.
+    keep : bool
+        Keep the result for the next call with the same field, attitudes and stars (False:
+        neither look it up nor keep it, for callers that walk blocks of attitudes once).
 
     Returns
     -------
@@ -148,6 +152,8 @@ def field_pairs_cam(
     empty = np.zeros(0, dtype=np.intp)
     if n_att == 0 or vectors.shape[0] == 0:
         return empty, empty.copy(), np.zeros((0, 3))
+    if not keep:
+        return _pairs_cam(fov, matrices, vectors, tree=tree, progress=progress)
     key = _pairs_key(fov, matrices, vectors)
     last = _LAST_PAIRS.get("last")  # one read: safe with threads
     if last is not None and last[0] == key:
