@@ -185,17 +185,19 @@ def _pairs_cam(fov: Fov, matrices, vectors, *, tree, progress):
     chord = 2.0 * math.sin(0.5 * radius) * (1.0 + _CHORD_REL_MARGIN) + _CHORD_ABS_MARGIN
     expected = max(1.0, 1.5 * vectors.shape[0] * math.sin(0.5 * radius) ** 2)
     block = max(1, min(2**16 - 1, int(_CANDIDATE_BUDGET // expected)))
+    vecs = np.asarray(vectors, dtype=np.float64)
     points, stars, cams = [], [], []
     for start in range(0, n_att, block):
         mats = np.asarray(matrices[start : start + block], dtype=np.float64)
         near = cKDTree(mats[:, 2, :]).sparse_distance_matrix(tree, chord, output_type="ndarray")
-        order = np.argsort(near["i"].astype(np.uint16), kind="stable")  # radix sort
-        point_idx = near["i"][order].astype(np.intp)
-        star_idx = near["j"][order].astype(np.intp)
-        del near, order
-        v_cam = _rotate_grouped(mats, point_idx, np.asarray(vectors, dtype=np.float64)[star_idx])
+        group = near["i"].astype(np.uint16)
+        order = np.argsort(group, kind="stable")  # a radix sort: grouped by pointing
+        star_idx = near["j"][order].astype(np.intp, copy=False)
+        counts = np.bincount(group, minlength=len(mats))
+        del near, order, group
+        v_cam = _rotate_grouped(mats, counts, vecs[star_idx])
         inside = inside_camera(fov, v_cam)
-        points.append(point_idx[inside] + start)
+        points.append(np.repeat(np.arange(start, start + len(mats)), counts)[inside])
         stars.append(star_idx[inside])
         cams.append(v_cam[inside])
         if progress is not None:
@@ -203,11 +205,12 @@ def _pairs_cam(fov: Fov, matrices, vectors, *, tree, progress):
     return np.concatenate(points), np.concatenate(stars), np.concatenate(cams)
 
 
-def _rotate_grouped(mats: NDArray[np.float64], point_idx, v: NDArray[np.float64]):
-    """Rotate ``v`` (K, 3), grouped by ascending ``point_idx``, by each group's matrix."""
-    offsets = np.searchsorted(point_idx, np.arange(len(mats) + 1))
+def _rotate_grouped(mats: NDArray[np.float64], counts, v: NDArray[np.float64]):
+    """Rotate ``v`` (K, 3), grouped by pointing (``counts`` rows each), by each one's matrix."""
+    offsets = np.zeros(len(mats) + 1, dtype=np.intp)
+    np.cumsum(counts, out=offsets[1:])
     out = np.empty_like(v)
-    for k in np.flatnonzero(np.diff(offsets)):
+    for k in np.flatnonzero(counts):
         a, b = offsets[k], offsets[k + 1]
         np.matmul(v[a:b], mats[k].T, out=out[a:b])
     return out
