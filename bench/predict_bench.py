@@ -7,8 +7,9 @@ design in ``bench/results/predict_<design>.json``: wall and CPU seconds of the p
 (target <= 2 s on one core), the process's peak resident memory (target <= 500 MB), and the
 headline numbers. With ``--trade`` it also times the 24-design trade (``starsense trade
 --sensor st16 --vary optics.focal_length_m=0.012:0.035:6 --vary exposure_s=0.05,0.1,0.2,0.4``,
-2 workers; target <= 60 s, <= 1 GB) into ``bench/results/trade_st16_24.json``. The CPU is
-shared with whatever else runs: wall times are noisy, CPU times less so.
+2 workers; target <= 60 s, <= 1 GB) into ``bench/results/trade_st16_24.json``, with the CPU
+seconds of the trade's processes alone and the machine's load average. The CPU is shared with
+whatever else runs: wall times are noisy, CPU times less so.
 
 The three designs are the non-preset sensors users tried (README): an IMX296-class CMOS
 (3.45 um, 25 mm f/1.4, 50 ms), a 768 x 512 9 um CCD behind 25 mm f/0.95 (1 s) and a
@@ -103,7 +104,12 @@ def _one(name: str) -> dict:
 def _write(name: str, record: dict) -> None:
     from starsense._io import atomic_write
 
-    record = {**record, "date": time.strftime("%Y-%m-%d"), "cpus": os.cpu_count()}
+    record = {
+        **record,
+        "date": time.strftime("%Y-%m-%d"),
+        "cpus": os.cpu_count(),
+        "load_average_1min": os.getloadavg()[0],
+    }
     with atomic_write(RESULTS / f"{name}.json") as fh:
         json.dump(record, fh, indent=2)
 
@@ -115,6 +121,7 @@ def _trade() -> dict:
         "--vary", "optics.focal_length_m=0.012:0.035:6", "--vary", "exposure_s=0.05,0.1,0.2,0.4",
         "--workers", "2", "--json",
     ]  # fmt: skip
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)  # the designs' runs above
     t0 = time.perf_counter()
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     peak = 0.0
@@ -124,10 +131,11 @@ def _trade() -> dict:
     out = proc.stdout.read().decode()
     wall = time.perf_counter() - t0
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = usage.ru_utime + usage.ru_stime - before.ru_utime - before.ru_stime
     return {
         "designs": len(out.strip().splitlines()),
         "wall_s": wall,
-        "cpu_s": usage.ru_utime + usage.ru_stime,
+        "cpu_s": cpu,
         "peak_pss_mb": peak,
         "returncode": proc.returncode,
     }

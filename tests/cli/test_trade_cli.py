@@ -52,3 +52,15 @@ def test_json_lines_csv_and_out(capsys, tmp_path):
     names = sorted(p.name for p in (tmp_path / "t").iterdir())
     assert "trade.jsonl" in names and "trade.csv" in names
     assert any(n.startswith("trade_pareto_") and n.endswith(".png") for n in names)
+
+
+@pytest.mark.slow
+def test_dask_and_worker_processes_give_identical_rows(capsys):
+    pytest.importorskip("distributed", reason="the scale extra (dask.distributed) is not installed")
+    grid = ["--vary", "optics.focal_length_m=0.02,0.03", "--vary", "exposure_s=0.05,0.2"]
+    out = {}
+    for where in (["--workers", "2"], ["--dask", "local:2"]):
+        assert main(["trade", "--sensor", "st16", *grid, *where, "--json"]) == 0
+        out[where[0]] = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert len(out["--workers"]) == 4
+    assert out["--workers"] == out["--dask"]  # a design is a pure function of its document

@@ -124,6 +124,7 @@ def sensor_detection(
     n_trials: int = 20,
     rng: int | np.random.Generator | None = 0,
     progress=None,
+    full_grid: bool = True,
 ) -> SensorDetection:
     """Return what ``sensor`` detects: its limit, its slew run and ``m_t(w)`` (module docstring).
 
@@ -139,6 +140,10 @@ def sensor_detection(
         Seed of both Monte Carlo runs (the same seed gives the same numbers in every command).
     progress : callable(str label), optional
         Called after each of the two runs ("static limit", "slew tolerance").
+    full_grid : bool
+        Simulate every (magnitude, rate) cell of the slew run (its Fig. 9 intensities); False
+        stops each magnitude at the first rate where it is lost: the same limit, tolerance and
+        ``m_t(w)``, at a fraction of the renders (:func:`~starsense.analysis.slew.slew_tolerance`).
 
     Returns
     -------
@@ -152,7 +157,13 @@ def sensor_detection(
         return SensorDetection(None, None, None)
     mags, rates = slew_grids(sensor, rough)
     slew = simulate_slew(
-        sensor, model=model, magnitudes=mags, rates_rad_s=rates, n_trials=n_trials, rng=rng
+        sensor,
+        model=model,
+        magnitudes=mags,
+        rates_rad_s=rates,
+        n_trials=n_trials,
+        rng=rng,
+        full_grid=full_grid,
     )
     limit = limiting_magnitude(mags, slew.detected_fraction[:, 0])
     if progress is not None:

@@ -12,8 +12,12 @@ Method, as implemented:
   position in each trial (the pixel phase changes which pixels light up). Rates are rad/s;
   :class:`SlewResult` gives deg/s for output.
 * For each (rate, trial) one noiseless streak of unit flux is rendered (exactly integrated over
-  pixel areas) and scaled by each magnitude's photoelectrons: the expected image is linear in the
-  flux, so all magnitudes share the rendering.
+  pixel areas and time, :func:`starsense.render.smear.row_streaks_expected`) and scaled by
+  each magnitude's photoelectrons: the expected image is linear in the flux, so all
+  magnitudes share the rendering. Each rate has its own random stream (the pixel
+  phases), and each (magnitude, rate) cell a child of it (the noise), so a cell's outcome does
+  not depend on which other cells are simulated: the tolerance can stop each magnitude at the
+  first rate where it is lost (``full_grid=False``) and still equal the whole grid's.
 * Noise, gain and quantisation come from the sensor (:func:`starsense.render.noise.apply_noise`);
   detection applies the sensor's thresholds (:func:`starsense.detect.threshold.detect_stack`)
   with the known background (bias) subtracted, as the flight software subtracts the dark
@@ -39,7 +43,7 @@ from starsense.detect.stack import detect_stack
 from starsense.errors import InputError
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.noise import apply_noise
-from starsense.render.smear import streak_stamp_expected
+from starsense.render.smear import row_streaks_expected
 from starsense.units import DEG, to_edge
 
 __all__ = [
@@ -92,7 +96,8 @@ class SlewResult:
     electrons : array (M,)
         Expected photoelectrons of each magnitude (sensitivity model).
     detected_fraction : array (M, R)
-        Fraction of trials in which the star was detected.
+        Fraction of trials in which the star was detected (NaN: cell not simulated, past the
+        rate where the magnitude was lost, ``full_grid=False``).
     mean_intensity_counts : array (M, R)
         Mean integrated intensity of the detected trials (NaN where none), counts.
     ideal_intensity_counts : array (M,)
@@ -258,6 +263,7 @@ def slew_tolerance(
     rng: int | np.random.Generator | None = 0,
     progress=None,
     colour_index: float = 0.0,
+    full_grid: bool = True,
 ) -> SlewResult:
     """Simulate detection against slew rate, for every magnitude and rate (Figs. 9-10).
 
@@ -284,6 +290,12 @@ def slew_tolerance(
     colour_index : float
         B-V of the simulated stars for the "blackbody" model (default 0: an A0 star, the type of
         Reed's zero-magnitude reference).
+    full_grid : bool
+        Simulate every (magnitude, rate) cell (the intensities of Fig. 9). False stops each
+        magnitude at the first rate where it is lost (detected in fewer than ``criterion`` of
+        the trials): the cells past it hold NaN, and the tolerable rates, ``capped`` and the
+        detection at rest are the same as the whole grid's, bit for bit (each cell draws its
+        noise from its own stream).
 
     Returns
     -------
@@ -306,32 +318,19 @@ def slew_tolerance(
     n_m, n_r = len(mags), len(rates)
     detected = np.zeros((n_m, n_r, n_trials), dtype=bool)
     intensity = np.full((n_m, n_r, n_trials), np.nan)
+    ran = np.zeros((n_m, n_r), dtype=bool)
     root, seed = as_generator(rng)
     streams = root.spawn(n_r)  # for an int seed: the children of SeedSequence(seed)
     for j, rate in enumerate(rates):
-        gen = streams[j]
-        length = sensor.streak_length_px(rate)
-        stamps = []
-        for _ in range(n_trials):
-            x0, y0 = gen.random(2)
-            stamp, _, _ = streak_stamp_expected(
-                sensor, x0=x0, y0=y0, x1=x0 + length, y1=y0, electrons=1.0
-            )
-            stamps.append(stamp)
-        shape = np.max([s.shape for s in stamps], axis=0)
-        unit = np.zeros((n_trials, *shape))
-        for k, s in enumerate(stamps):
-            unit[k, : s.shape[0], : s.shape[1]] = s
-        for chunk in _magnitude_chunks(n_m, unit, rate):
-            expected = electrons[chunk, None, None, None] * unit[None]  # (m, T, H, W)
-            counts = apply_noise(expected.reshape(-1, *shape), sensor, rng=gen)
-            del expected
-            found, integ = detect_stack(counts, sensor.detection, background_counts=det.bias_counts)
-            detected[chunk, j, :] = found.reshape(-1, n_trials)
-            intensity[chunk, j, :] = integ.reshape(-1, n_trials)
+        todo = np.arange(n_m)
+        if not full_grid and j > 0:  # magnitudes not yet lost at a slower rate
+            todo = todo[np.all(detected[:, :j].mean(axis=2) >= criterion, axis=1)]
+        if todo.size:
+            _one_rate(sensor, rate, electrons, todo, streams[j], (detected, intensity, j))
+            ran[todo, j] = True
         if progress is not None:
             progress(j + 1, n_r)
-    fraction = detected.mean(axis=2)
+    fraction = np.where(ran, detected.mean(axis=2), np.nan)
     n_det = detected.sum(axis=2)
     total = np.where(detected, intensity, 0.0).sum(axis=2)
     mean_int = np.where(n_det > 0, total / np.maximum(n_det, 1), np.nan)
@@ -354,6 +353,34 @@ def slew_tolerance(
         seed=seed,
         threshold_counts=float(sensor.detection.min_integrated_counts),
     )
+
+
+def _one_rate(sensor, rate, electrons, todo, gen, out) -> None:
+    """Simulate the magnitudes ``todo`` at one rate; write ``out = (detected, intensity, j)``.
+
+    ``gen`` gives the trials' pixel phases (the unit stamps all magnitudes share), then one
+    child stream per magnitude of the grid (``gen.spawn``) draws that cell's noise, so a cell's
+    result does not depend on which other cells are simulated.
+    """
+    detected, intensity, j = out
+    n_m, n_trials = detected.shape[0], detected.shape[2]
+    phases = gen.random((n_trials, 2))  # x0, y0 of each trial
+    unit, _, _ = row_streaks_expected(
+        phases[:, 0],
+        phases[:, 1],
+        sensor.streak_length_px(rate),
+        sigma_px=float(sensor.detector.psf_sigma_px),
+    )
+    cells = gen.spawn(n_m)
+    det = sensor.detector
+    for chunk in _magnitude_chunks(len(todo), unit, rate):
+        rows = todo[chunk]
+        counts = np.concatenate(
+            [apply_noise(electrons[i] * unit, sensor, rng=cells[i]) for i in rows]
+        )
+        found, integ = detect_stack(counts, sensor.detection, background_counts=det.bias_counts)
+        detected[rows, j, :] = found.reshape(-1, n_trials)
+        intensity[rows, j, :] = integ.reshape(-1, n_trials)
 
 
 def _check_streak_fits(sensor, top_rate_rad_s: float) -> None:

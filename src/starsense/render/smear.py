@@ -67,6 +67,7 @@ import functools
 import math
 
 import numpy as np
+from scipy.special import erfc
 
 from starsense._validate import check_scalar, finite_array, finite_float, positive_float
 from starsense.errors import InputError
@@ -84,6 +85,7 @@ __all__ = [
     "gauss_legendre_order",
     "pad_sigma_for",
     "polyline_expected",
+    "row_streaks_expected",
     "segment_expected",
     "smear_intensity",
     "streak_stamp_expected",
@@ -399,3 +401,61 @@ def streak_stamp_expected(
         method=method,
     )
     return stamp, box.row0, box.col0
+
+
+def _integrated_cdf(u: np.ndarray) -> np.ndarray:
+    """``F(u) = u Phi(u) + phi(u)``, the antiderivative of the standard normal CDF."""
+    return u * (0.5 * erfc(-u / SQRT2)) + np.exp(-0.5 * u * u) / math.sqrt(2.0 * math.pi)
+
+
+def row_streaks_expected(
+    x0, y0, length_px: float, *, sigma_px: float, pad_sigma: float = 5.0
+) -> tuple[np.ndarray, int, int]:
+    """Unit-flux stamps of streaks along +x (a cross-axis slew), exact pixel integrals, batched.
+
+    A star moving uniformly from ``(x0, y0)`` to ``(x0 + L, y0)`` leaves a separable image:
+    the static row profile ``P_y(r)`` (:func:`~starsense.render.psf.pixel_profile`) times the
+    time average of the column profile, which has a closed form: with ``F(u) = u Phi(u) +
+    phi(u)`` (the antiderivative of the normal CDF) and ``G(e) = F((e - x0) / sigma) - F((e -
+    x0 - L) / sigma)`` at each pixel edge ``e``, column ``c`` gets ``sigma / L [G(c + 1/2) -
+    G(c - 1/2)]``. No quadrature: the same integral the "track" method approximates to < 6e-9
+    of the flux, exact up to rounding (absolute error ~1e-16 x L / sigma of the flux per
+    pixel, clipped at 0). A static star (``L < 1e-6 sigma``) is the static pixel profile.
+
+    Parameters
+    ----------
+    x0, y0 : array_like (T,)
+        Start of each streak, px (pixel c spans [c - 1/2, c + 1/2)).
+    length_px : float
+        Streak length, px (>= 0), the same for every streak.
+    sigma_px : float
+        PSF standard deviation, px.
+    pad_sigma : float
+        Box half-width around the tracks, in sigma (as :func:`streak_stamp_expected`).
+
+    Returns
+    -------
+    stamps : ndarray (T, H, W), float64
+        Expected electrons per pixel of a unit-flux star, every streak on the same box (the
+        smallest holding every streak's padded track).
+    row0, col0 : int
+        Detector indices of ``stamps[:, 0, 0]``.
+    """
+    xs = finite_array(x0, "x0").ravel()
+    ys = finite_array(y0, "y0").ravel()
+    sigma = positive_float(sigma_px, "sigma_px")
+    length = check_scalar(length_px, "length_px", 0.0)
+    pad = float(pad_sigma) * sigma
+    box = Box.around(
+        x_min=float(xs.min()), x_max=float(xs.max()) + length,
+        y_min=float(ys.min()), y_max=float(ys.max()), pad_px=pad,
+    )  # fmt: skip
+    py = pixel_profile(box.row0, box.row1, ys, sigma_px=sigma)  # (T, H)
+    if length <= _STATIC_LENGTH_SIGMA * sigma:
+        px = pixel_profile(box.col0, box.col1, xs + 0.5 * length, sigma_px=sigma)
+    else:
+        edges = np.arange(box.col0, box.col1 + 1, dtype=float) - 0.5
+        a = (edges[None, :] - xs[:, None]) / sigma
+        g = _integrated_cdf(a) - _integrated_cdf(a - length / sigma)
+        px = np.maximum(np.diff(g, axis=1) * (sigma / length), 0.0)  # (T, W)
+    return py[:, :, None] * px[:, None, :], box.row0, box.col0

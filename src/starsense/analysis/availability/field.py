@@ -10,7 +10,7 @@ distribution function of ``m_(N_min)`` over the pointings: one ``searchsorted`` 
 
 from __future__ import annotations
 
-import itertools
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -26,13 +26,24 @@ from starsense.analysis.availability.checks import Fov, check_fov, check_mag
 from starsense.errors import InputError
 from starsense.geometry.fov import CircularFov
 
-__all__ = ["BrightestInField", "FieldStars", "catalog_stars", "field_pairs", "inside_camera"]
+__all__ = [
+    "BrightestInField",
+    "FieldStars",
+    "catalog_stars",
+    "field_pairs",
+    "field_pairs_cam",
+    "inside_camera",
+]
 
 # Margins on the prefilter chord so that rounding never drops a star the exact test accepts.
 _CHORD_REL_MARGIN = 1e-9
 _CHORD_ABS_MARGIN = 1e-12
+# the last call of field_pairs_cam: {"last": (key, (point, star, v_cam))}
+_LAST_PAIRS: dict = {}
+# the largest result kept (pairs; 40 bytes each)
+_MEMO_MAX_PAIRS = 2_000_000
 # Upper bound on (pointing, star) candidate pairs held in memory at once.
-_CANDIDATE_BUDGET = 2_000_000
+_CANDIDATE_BUDGET = 1_000_000
 
 
 def inside_camera(fov: Fov, v_cam: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -69,9 +80,7 @@ def field_pairs(
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Return all (pointing, star) pairs with the star inside the field.
 
-    A k-d tree over the stars gives the candidates within the chord of the field's enclosing
-    radius around each boresight; the exact field test is applied to the candidates in NumPy,
-    in blocks of at most a few million pairs.
+    :func:`field_pairs_cam` without the camera-frame vectors.
 
     Parameters
     ----------
@@ -91,40 +100,120 @@ def field_pairs(
     point_idx, star_idx : ndarray of int, shape (P,)
         Pairs in ascending pointing order (star order within a pointing is arbitrary).
     """
+    point, star, _ = field_pairs_cam(fov, matrices, vectors, tree=tree, progress=progress)
+    return point, star
+
+
+def field_pairs_cam(
+    fov: Fov,
+    matrices: NDArray[np.float64],
+    vectors: NDArray[np.float64],
+    *,
+    tree: cKDTree | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    keep: bool = True,
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
+    """Return all (pointing, star) pairs with the star inside the field, and its camera vector.
+
+    The candidates are the stars within the chord of the field's enclosing radius around each
+    boresight: one :meth:`cKDTree.sparse_distance_matrix` between a tree of the block's
+    boresights and the stars' tree (NumPy arrays, no per-pair Python objects), grouped by
+    pointing with a stable radix sort; each pointing's candidates are rotated into its camera
+    frame by one matrix product and the exact field test keeps those inside. Blocks of
+    pointings hold at most about a million candidate pairs. The last result is kept (read-only
+    arrays): the datasheet asks for the same stars in the same field twice (the availability
+    and the stars per field), and the second call is free.
+
+    Parameters
+    ----------
+    fov : CircularFov or RectangularFov
+        The field.
+    matrices : ndarray, shape (M, 3, 3)
+        Attitude matrices (ICRS -> camera; row 2 is the boresight).
+    vectors : ndarray, shape (N, 3)
+        Star unit vectors, ICRS.
+    tree : cKDTree, optional
+        Built on exactly `vectors`.
+    progress : callable(done, total), optional
+        Called after each block with the pointings done.
+    keep : bool
+        Keep the result for the next call with the same field, attitudes and stars (False:
+        neither look it up nor keep it, for callers that walk blocks of attitudes once).
+
+    Returns
+    -------
+    point_idx, star_idx : ndarray of int, shape (P,)
+        Pairs in ascending pointing order (star order within a pointing is arbitrary).
+    v_cam : ndarray, shape (P, 3)
+        The star's unit vector in the pointing's camera frame.
+    """
     check_fov(fov)
     n_att = matrices.shape[0]
     empty = np.zeros(0, dtype=np.intp)
     if n_att == 0 or vectors.shape[0] == 0:
-        return empty, empty.copy()
+        return empty, empty.copy(), np.zeros((0, 3))
+    if not keep:
+        return _pairs_cam(fov, matrices, vectors, tree=tree, progress=progress)
+    key = _pairs_key(fov, matrices, vectors)
+    last = _LAST_PAIRS.get("last")  # one read: safe with threads
+    if last is not None and last[0] == key:
+        if progress is not None:
+            progress(n_att, n_att)
+        return last[1]
+    out = _pairs_cam(fov, matrices, vectors, tree=tree, progress=progress)
+    if len(out[0]) <= _MEMO_MAX_PAIRS:
+        for a in out:
+            a.flags.writeable = False  # shared with the next caller of the same field
+        _LAST_PAIRS["last"] = (key, out)
+    return out
+
+
+def _pairs_key(fov: Fov, matrices, vectors) -> bytes:
+    """Return a digest of the field, the attitudes and the stars (the memo's key)."""
+    h = hashlib.sha1(repr(fov).encode())
+    h.update(np.ascontiguousarray(matrices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(vectors, dtype=np.float64).tobytes())
+    return h.digest()
+
+
+def _pairs_cam(fov: Fov, matrices, vectors, *, tree, progress):
+    """Return what :func:`field_pairs_cam` returns, computed (non-empty inputs)."""
+    n_att = matrices.shape[0]
     if tree is None:
         tree = cKDTree(vectors)
     radius = min(fov.enclosing_radius_rad, math.pi)
     chord = 2.0 * math.sin(0.5 * radius) * (1.0 + _CHORD_REL_MARGIN) + _CHORD_ABS_MARGIN
     expected = max(1.0, 1.5 * vectors.shape[0] * math.sin(0.5 * radius) ** 2)
-    block = max(1, int(_CANDIDATE_BUDGET // expected))
-    points, stars = [], []
+    block = max(1, min(2**16 - 1, int(_CANDIDATE_BUDGET // expected)))
+    vecs = np.asarray(vectors, dtype=np.float64)
+    points, stars, cams = [], [], []
     for start in range(0, n_att, block):
-        mats = matrices[start : start + block]
-        lists = tree.query_ball_point(mats[:, 2, :], chord, return_sorted=False)
-        lengths = np.fromiter(map(len, lists), dtype=np.intp, count=len(lists))
-        total = int(lengths.sum())
-        if total:
-            star_idx = np.fromiter(itertools.chain.from_iterable(lists), np.intp, count=total)
-            point_idx = np.repeat(np.arange(len(mats)), lengths)
-            if isinstance(fov, CircularFov):  # only the boresight matters
-                v_cam = np.empty((total, 3))
-                v_cam[:, :2] = 0.0
-                v_cam[:, 2] = np.einsum("kj,kj->k", mats[point_idx, 2, :], vectors[star_idx])
-            else:
-                v_cam = np.einsum("kij,kj->ki", mats[point_idx], vectors[star_idx])
-            inside = inside_camera(fov, v_cam)
-            points.append(point_idx[inside] + start)
-            stars.append(star_idx[inside])
+        mats = np.asarray(matrices[start : start + block], dtype=np.float64)
+        near = cKDTree(mats[:, 2, :]).sparse_distance_matrix(tree, chord, output_type="ndarray")
+        group = near["i"].astype(np.uint16)
+        order = np.argsort(group, kind="stable")  # a radix sort: grouped by pointing
+        star_idx = near["j"][order].astype(np.intp, copy=False)
+        counts = np.bincount(group, minlength=len(mats))
+        del near, order, group
+        v_cam = _rotate_grouped(mats, counts, vecs[star_idx])
+        inside = inside_camera(fov, v_cam)
+        points.append(np.repeat(np.arange(start, start + len(mats)), counts)[inside])
+        stars.append(star_idx[inside])
+        cams.append(v_cam[inside])
         if progress is not None:
             progress(min(start + block, n_att), n_att)
-    if not points:
-        return empty, empty.copy()
-    return np.concatenate(points), np.concatenate(stars)
+    return np.concatenate(points), np.concatenate(stars), np.concatenate(cams)
+
+
+def _rotate_grouped(mats: NDArray[np.float64], counts, v: NDArray[np.float64]):
+    """Rotate ``v`` (K, 3), grouped by pointing (``counts`` rows each), by each one's matrix."""
+    offsets = np.zeros(len(mats) + 1, dtype=np.intp)
+    np.cumsum(counts, out=offsets[1:])
+    out = np.empty_like(v)
+    for k in np.flatnonzero(counts):
+        a, b = offsets[k], offsets[k + 1]
+        np.matmul(v[a:b], mats[k].T, out=out[a:b])
+    return out
 
 
 def _availability(

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from starsense.analysis.availability.field import field_pairs
+from starsense.analysis.availability.field import field_pairs_cam
 from starsense.attitude.covariance import (
     SINGULAR_RCOND,
     fisher_components,
@@ -59,8 +59,7 @@ class FieldStarsCam:
 
 def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.float64], *, tree=None):
     """Return the :class:`FieldStarsCam` of attitudes ``matrices`` (M, 3, 3), ICRS -> camera."""
-    point, star = field_pairs(fov, matrices, vectors, tree=tree)
-    v_cam = np.einsum("kij,kj->ki", matrices[point], vectors[star])
+    point, star, v_cam = field_pairs_cam(fov, matrices, vectors, tree=tree)
     return FieldStarsCam(point, star, v_cam, n_pointings=matrices.shape[0])
 
 
@@ -76,7 +75,13 @@ def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> n
     """
     comp = fisher_components(pairs.v_cam, weights)
     sums = np.zeros((pairs.n_pointings, 7))
-    np.add.at(sums, pairs.point, comp)
+    point = np.asarray(pairs.point)
+    if point.size and np.all(point[1:] >= point[:-1]):  # grouped by pointing: segment sums
+        starts = np.searchsorted(point, np.arange(pairs.n_pointings))
+        held = np.bincount(point, minlength=pairs.n_pointings) > 0
+        sums[held] = np.add.reduceat(comp, starts[held], axis=0)
+    else:
+        np.add.at(sums, point, comp)
     return fisher_from_components(sums)
 
 

@@ -81,6 +81,10 @@ class DatasheetSettings:
         Sensitivity model (magnitude -> photo-electrons).
     n_rate_trials : int or None
         Frames of the run at ``rate_rad_s`` (None: ``n_trials``).
+    slew_full_grid : bool
+        Simulate every (magnitude, rate) cell of the slew run (the report plots its Fig. 9
+        intensities); False stops each magnitude at the rate where it is lost. Both give the
+        same numbers in the datasheet (limit, tolerance, ``m_t(w)``, availability).
     """
 
     n_trials: int = 100
@@ -90,6 +94,7 @@ class DatasheetSettings:
     n_slew_trials: int = 20
     model: str = "reed"
     n_rate_trials: int | None = None
+    slew_full_grid: bool = True
 
 
 def _arcsec_stats(cross: np.ndarray, roll: np.ndarray) -> AxisSpread:
@@ -107,6 +112,7 @@ def _detection(sensor, settings: DatasheetSettings, tick):
         n_trials=settings.n_slew_trials,
         rng=settings.seed,
         progress=tick,
+        full_grid=settings.slew_full_grid,
     )
     return det.limit_mag, det.slew, det.curve
 

@@ -5,7 +5,8 @@ Fialho & Mortari's per-star information is ``F_i(1 m, 1 s) D^4 t`` (eq. 19,
 scales as ``D^4 t`` and the 1-sigma bound as ``D^-2 t^-1/2``. The bound of every attitude at
 D = 1 m, t = 1 s therefore depends only on the catalogue, the field and the attitudes: it is
 computed once (in blocks of attitudes, so the pairs of a wide field over the whole catalogue
-never sit in memory together) and kept for the next design with the same field.
+never sit in memory together, with one k-d tree of the stars for every field) and kept for
+the next design with the same field.
 """
 
 from __future__ import annotations
@@ -14,8 +15,10 @@ import hashlib
 import math
 
 import numpy as np
+from scipy.spatial import cKDTree
 
-from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam, fisher_per_pointing
+from starsense.analysis.availability.field import field_pairs_cam
+from starsense.analysis.datasheet.field import FieldStarsCam, axis_sigmas, fisher_per_pointing
 from starsense.analysis.limits.sky import star_weights
 from starsense.photometry.stars import BlackBodyStars
 
@@ -25,6 +28,7 @@ _BLOCK = 200  # attitudes per block
 _KEEP = 8  # fields kept
 _UNIT: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 _STARS: dict[int, tuple[object, BlackBodyStars]] = {}
+_TREES: dict[int, tuple[BlackBodyStars, cKDTree]] = {}
 
 
 def black_bodies(catalog) -> BlackBodyStars:
@@ -43,6 +47,15 @@ def black_bodies(catalog) -> BlackBodyStars:
         _STARS.clear()
         _STARS[key] = (catalog, BlackBodyStars.from_catalog(catalog))
     return _STARS[key][1]
+
+
+def _tree(stars: BlackBodyStars) -> cKDTree:
+    """Return a k-d tree over the stars' vectors (built once per star set)."""
+    key = id(stars)
+    if key not in _TREES or _TREES[key][0] is not stars:
+        _TREES.clear()
+        _TREES[key] = (stars, cKDTree(stars.vectors))
+    return _TREES[key][1]
 
 
 def unit_limit_sigmas(catalog, fov, matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -71,11 +84,13 @@ def unit_limit_sigmas(catalog, fov, matrices: np.ndarray) -> tuple[np.ndarray, n
     )
     if key not in _UNIT:
         stars = black_bodies(catalog)
+        tree = _tree(stars)
         w = star_weights(stars, 1.0, 1.0)  # eq. 19 at D = 1 m, t = 1 s
         cross, roll = np.empty(len(mats)), np.empty(len(mats))
         for start in range(0, len(mats), _BLOCK):
             block = mats[start : start + _BLOCK]
-            pairs = field_stars_cam(fov, block, stars.vectors)
+            point, star, v_cam = field_pairs_cam(fov, block, stars.vectors, tree=tree, keep=False)
+            pairs = FieldStarsCam(point, star, v_cam, n_pointings=len(block))
             c, r = axis_sigmas(fisher_per_pointing(pairs, w[pairs.star]))
             cross[start : start + _BLOCK], roll[start : start + _BLOCK] = c, r
         while len(_UNIT) >= _KEEP:

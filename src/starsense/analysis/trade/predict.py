@@ -57,6 +57,7 @@ def prediction_settings(
         n_orientations=n_orientations,
         n_slew_trials=n_slew_trials,
         model=model,
+        slew_full_grid=False,  # the tolerance alone: the same numbers, fewer renders
     )
 
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from starsense.analysis.datasheet.compare import row_values
 from starsense.analysis.datasheet.sheet import DatasheetSettings, build_datasheet
+from starsense.analysis.datasheet.skycache import black_bodies
 from starsense.analysis.inputs import as_catalog
 from starsense.analysis.trade.grid import Design
 from starsense.analysis.trade.predict import prediction_settings
@@ -220,16 +221,54 @@ def _map(func, designs, *, workers: int, client, progress):
                 progress("trade", k + 1, n)
         return out
     ctx = multiprocessing.get_context("fork")  # workers share the parent's catalogue pages
+    out: list = [None] * n
     with concurrent.futures.ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-        out = []
-        # contiguous chunks: neighbours in the grid often share a field, whose sky geometry
-        # a worker then computes once
-        chunk = max(1, n // (4 * workers))
-        for k, row in enumerate(pool.map(func, designs, chunksize=chunk)):
-            out.append(row)
+        jobs = {
+            pool.submit(_evaluate_many, func, [designs[k] for k in chunk]): chunk
+            for chunk in _field_chunks(designs, workers)
+        }
+        done = 0
+        for job in concurrent.futures.as_completed(jobs):
+            for k, row in zip(jobs[job], job.result(), strict=True):
+                out[k] = row
+            done += len(jobs[job])
             if progress is not None:
-                progress("trade", k + 1, n)
+                progress("trade", done, n)
     return out
+
+
+def _evaluate_many(func, designs) -> list:
+    """Evaluate ``func`` over a chunk of designs in one worker."""
+    return [func(d) for d in designs]
+
+
+def _field_key(design) -> tuple | None:
+    """Return the field a design looks through (its sky geometry's key); None if invalid."""
+    try:
+        sensor = design.sensor()
+    except InputError:
+        return None
+    det = sensor.detector
+    return (sensor.optics.focal_length_m, det.columns, det.rows, det.pixel_pitch_m)
+
+
+def _field_chunks(designs, workers: int) -> list[list[int]]:
+    """Split the designs into chunks for ``workers`` processes, each field in as few as can be.
+
+    The designs sharing a field share its sky geometry (computed once per process,
+    :mod:`starsense.analysis.datasheet.skycache`): they are kept in one chunk, unless there
+    are fewer fields than twice the workers, when each field is split evenly so that every
+    worker gets work.
+    """
+    groups: dict = {}
+    for k, d in enumerate(designs):
+        groups.setdefault(_field_key(d), []).append(k)
+    parts = max(1, -(-2 * workers // len(groups)))  # pieces per field
+    chunks = []
+    for idx in groups.values():
+        size = -(-len(idx) // parts)
+        chunks += [idx[i : i + size] for i in range(0, len(idx), size)]
+    return sorted(chunks, key=len, reverse=True)  # the longest first
 
 
 class _Evaluate:
@@ -280,8 +319,11 @@ def run_trade(
     if verify not in ("all", "pareto"):
         raise InputError(f"--verify must be all or pareto, got {verify!r}")
     st = settings or prediction_settings()
-    if client is None:
-        _catalog(catalog)  # loaded before the workers fork
+    if client is None:  # loaded, and its stars fitted as black bodies, before the workers fork
+        try:
+            black_bodies(_catalog(catalog))
+        except InputError:  # no colours: each design's row says so
+            pass
     rows = _map(
         _Evaluate(catalog, st, 0), list(designs), workers=workers, client=client, progress=progress
     )
