@@ -104,22 +104,23 @@ class StarModel:
     def star_sigmas_rad(self, magnitudes, z_cam, kind: str = "nea") -> np.ndarray:
         """Return each star's 1-sigma direction error, rad.
 
-        ``kind``: "nea" (the centroider's temporal noise), "crb" (the pixelated-Gaussian bound),
-        "pixel" (the measured sub-pixel bias, rms over pixel phases), "prnu" (the shift the
+        ``kind``: "nea" (the centroider's temporal noise), "weight" (the noise the solver
+        assumes, whose inverse square weights the star in its attitude fit), "crb" (the
+        pixelated-Gaussian bound), "pixel" (the sub-pixel bias as noisy frames meet it, rms
+        over pixel phases), "prnu" (the shift the
         detector's photo-response non-uniformity gives a centroid) or "residual" (the
         distortion calibration's residual). Off-axis stars scale by the camera-frame z (the
         pinhole's angle per pixel, across the radial direction).
         """
         e = self.sensitivity.electrons(np.asarray(magnitudes, dtype=float))
-        if kind == "nea":
-            px = self.noise.sigma(e)
+        tables = {"nea": "sigma", "weight": "solver_sigma", "pixel": "bias"}
+        if kind in tables:
+            px = getattr(self.noise, tables[kind])(e)
             if self.noise_corner is not None:  # the PSF widens to the corners
                 t = self._corner_weight(z_cam)
-                px = (1.0 - t) * px + t * self.noise_corner.sigma(e)
+                px = (1.0 - t) * px + t * getattr(self.noise_corner, tables[kind])(e)
         elif kind == "crb":
             px = self.noise.crb(e)
-        elif kind == "pixel":
-            px = self.pixel_bias.rms(e)
         elif kind == "prnu":
             px = np.full(np.shape(e), prnu_centroid_px(self.sensor))
         elif kind == "residual":
@@ -128,11 +129,6 @@ class StarModel:
             raise ValueError(f"unknown error kind {kind!r}")
         px = np.where(np.isfinite(px), px, np.inf)
         return px * self.pixel_rad * np.asarray(z_cam, dtype=float)
-
-
-#: the kinds that are the estimator's own noise (a Fisher bound); the others are errors
-#: propagated through its weights (:func:`propagated_sigmas`)
-NOISE_KINDS = ("nea", "crb")
 
 
 def error_kinds(sensor) -> tuple[str, ...]:
@@ -179,11 +175,13 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
     """
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree=tree)
     mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
-    weights = 1.0 / model.star_sigmas_rad(mags, z, "nea") ** 2
+    # the solver's own weights (its assumed noise), which are not the stars' true noise: a
+    # saturated star's centroid is worse than its photons say, and the fit trusts it anyway
+    weights = 1.0 / model.star_sigmas_rad(mags, z, "weight") ** 2
     out = {}
     for kind in kinds:
         sigma = model.star_sigmas_rad(mags, z, kind)
-        if kind in NOISE_KINDS:
+        if kind == "crb":
             out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
         else:
             out[kind] = propagated_sigmas(pairs, weights, np.where(np.isfinite(sigma), sigma, 0))
