@@ -139,6 +139,14 @@ def error_budget(
             "measured in this run (noiseless renders), propagated as an error through eq. 21",
         ),
     ]
+    if "confusion" in errors:
+        rows.append(
+            _sky_row(
+                "confusion (fainter catalogue stars inside the centroid window)",
+                errors["confusion"],
+                "modelled (the catalogue's star counts), rendered in the frames",
+            )
+        )
     if "prnu" in errors:
         rows.append(
             _sky_row(

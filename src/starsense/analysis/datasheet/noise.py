@@ -273,7 +273,8 @@ def centroid_noise(
     (random sub-pixel phases, :func:`_measured`) through the tracker's own detector (the
     noise model of :mod:`starsense.render.noise`: shot, dark, read noise, gain, quantisation
     and clipping): the lit window then moves with the noise, which the linearised window
-    model of :func:`_one` (kept for the bias and the window size) misses for faint stars. The Cramer-Rao bound is analytic.
+    model of :func:`_one` (kept for the bias and the window size) misses for faint stars.
+    The Cramer-Rao bound is analytic.
 
     Parameters
     ----------

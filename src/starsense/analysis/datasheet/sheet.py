@@ -222,8 +222,13 @@ def _warnings(
 def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound."""
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
+    every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
     model = StarModel.build(
-        sensor, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag
+        sensor,
+        model=st.model,
+        bright_mag=float(np.min(mags)),
+        faint_mag=limit_mag,
+        star_counts=every,
     )
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
