@@ -256,6 +256,23 @@ def _measured(sensor, n_e: float, rng, n_stamps: int) -> tuple:
     return math.sqrt(noise2), math.sqrt(max(bias2, 0.0)), float(np.mean(solver**-2.0) ** -0.5)
 
 
+#: table points past the onset of saturation, in units of the onset's electrons
+_SATURATION_STEPS = (1.0, 1.15, 1.3, 1.5, 1.75, 2.0, 2.5, 3.0)
+
+
+def _saturation_points(sensor, lo: float, hi: float) -> np.ndarray:
+    """Electrons at which a star's brightest pixel reaches saturation, and a few steps past.
+
+    Saturation is the full well or the ADC's top count, whichever comes first; a star centred
+    on a pixel puts ``erf(1 / (2 sqrt2 sigma))^2`` of its light in it.
+    """
+    det = sensor.detector
+    sat_e = min(det.full_well_e, (det.saturation_counts - det.bias_counts) / det.gain_counts_per_e)
+    peak = math.erf(0.5 / (math.sqrt(2.0) * det.psf_sigma_px)) ** 2
+    points = sat_e / peak * np.asarray(_SATURATION_STEPS)
+    return points[(points > lo) & (points < hi)]
+
+
 def centroid_noise(
     sensor,
     electrons_min: float,
@@ -285,7 +302,8 @@ def centroid_noise(
     margin_px : int
         Window margin around the lit pixels (the detector's, default 2).
     n_grid : int
-        Table points, log-spaced.
+        Table points, log-spaced; beside them, points where the brightest pixel starts to
+        saturate (the bias of a clipped star rises steeply there, :func:`_saturation_points`).
     n_phase : int
         Sub-pixel positions per axis of the analytic terms (``n_phase^2`` in all).
     n_stamps : int
@@ -300,7 +318,7 @@ def centroid_noise(
     """
     lo = max(float(electrons_min), 1.0)
     hi = max(float(electrons_max), 2.0 * lo)
-    grid = np.geomspace(lo, hi, int(n_grid))
+    grid = np.union1d(np.geomspace(lo, hi, int(n_grid)), _saturation_points(sensor, lo, hi))
     offsets = (np.arange(n_phase) + 0.5) / n_phase - 0.5
     phases = [(float(a), float(b)) for a in offsets for b in offsets]
     rng, _ = as_generator(rng)
