@@ -13,7 +13,8 @@
   star of ``F`` by ``w f x / (F + w f)`` (``w`` the part of the neighbour's light inside the
   window). Over the sky such neighbours fall at random (the catalogue's star counts per
   magnitude, a Poisson density ``rho`` per square pixel), so the shift's variance per axis is
-  ``sum_b rho_b integral (w f_b x / (F + w f_b))^2 dA`` (:func:`confusion_px`); stars brighter
+  ``sum_b rho_b integral (w f_b x / (F + B + w f_b))^2 dA`` (:func:`confusion_px`; ``B`` the
+  mean light all the neighbours put in the window, which dilutes each one's pull); stars brighter
   than the star are left out (they are detected as themselves, and a blend is the solver's).
 * **Stellar aberration, if uncorrected**: the apparent displacement of every star by the
   observer's velocity (first order: ``v/c sin(angle to the apex)``), fitted as a rotation over
@@ -249,9 +250,12 @@ def confusion_px(electrons, window_px, *, sigma_px: float, neighbours, density_p
         # part of a neighbour's light inside the window, per axis: its PSF over [-h, h]
         frac = ndtr((h - x) / sigma_px) - ndtr((-h - x) / sigma_px)
         w = frac[:, None] * frac[None, :]  # (y, x)
+        area = float(np.sum(w)) * step * step
+        # the mean light the other neighbours put in the window: it dilutes each one's pull
+        others = float(np.sum(rho[fainter] * f_nb[fainter])) * area
         acc = 0.0
         for f, r in zip(f_nb[fainter], rho[fainter], strict=True):
-            shift = w * f * x[None, :] / (big + w * f)
+            shift = w * f * x[None, :] / (big + others + w * f)
             acc += r * float(np.sum(shift**2)) * step * step
         out[k] = math.sqrt(acc)
     return out
