@@ -46,6 +46,8 @@ _COUNT_BIN_MAG = 0.25
 def _confusion(sensor, sens, noise: CentroidNoise, mags: np.ndarray) -> np.ndarray:
     """Confusion (px rms per axis) on the electrons of ``noise``, from the catalogue's counts."""
     mags = mags[np.isfinite(mags)]
+    if len(mags) == 0:  # the catalogue ends above the detection limit: nothing unresolved
+        return np.zeros(len(noise.electrons))
     edges = np.arange(np.floor(mags.min()), mags.max() + _COUNT_BIN_MAG, _COUNT_BIN_MAG)
     n, edges = np.histogram(mags, bins=edges)
     pixel_rad = sensor.detector.pixel_pitch_m / sensor.optics.focal_length_m
