@@ -197,12 +197,14 @@ def _one(n_e: float, phase: tuple[float, float], sensor, margin_px: int) -> tupl
     return 0.5 * (var_x + var_y), info, xc - phase[0], yc - phase[1], side
 
 
-def _measured(sensor, n_e: float, rng, n_stamps: int) -> tuple:
+def _measured(sensor, span: tuple[float, float], rng, n_stamps: int) -> tuple:
     """Centroid noise, bias and the solver's own sigma (px, per axis) on noisy single-star renders.
 
     The star is put at ``n_stamps / 4`` random sub-pixel phases (uniform over the pixel: the
     bias of an undersampled or saturated star changes sharply with the phase, which a coarse
-    grid misses), each rendered 4 times with fresh noise and detected by the tracker's
+    grid misses) and brightnesses (log-uniform over ``span``, the table point's cell: the bias
+    of a saturated star changes as sharply with its brightness, and the catalogue's stars
+    fill the cell), each rendered 4 times with fresh noise and detected by the tracker's
     detector. The noise is the scatter about each phase's mean centroid (the deterministic
     error of the phase removed, with the ``n / (n - 1)`` of an estimated mean): a frame meets
     every star at a random phase, so the phase's bias is a separate error (the pixel spatial
@@ -223,9 +225,14 @@ def _measured(sensor, n_e: float, rng, n_stamps: int) -> tuple:
     n_phases = max(n_stamps // _REPEATS, 2)
     phase = np.repeat(np.arange(n_phases), _REPEATS)
     xy = half + (rng.random((n_phases, 2)) - 0.5)[phase]
+    # each phase's brightness drawn log-uniformly over the table point's cell
+    n_e = np.exp(rng.uniform(math.log(span[0]), math.log(span[1]), n_phases))[phase]
     box = (0, size, 0, size)
     stack = np.stack(
-        [gaussian_stamp(x, y, sigma_px=det.psf_sigma_px, electrons=n_e, box=box)[0] for x, y in xy]
+        [
+            gaussian_stamp(x, y, sigma_px=det.psf_sigma_px, electrons=e, box=box)[0]
+            for (x, y), e in zip(xy, n_e, strict=True)
+        ]
     )
     counts = apply_noise(stack, sensor, rng=rng)
     finder = StarDetector.for_sensor(sensor)
@@ -323,11 +330,16 @@ def centroid_noise(
     phases = [(float(a), float(b)) for a in offsets for b in offsets]
     rng, _ = as_generator(rng)
     out = np.empty((len(grid), 8))
+    # each point's cell, symmetric in log: half the step to its nearer neighbour either side
+    step = np.diff(np.log(grid))
+    half = 0.5 * np.minimum(np.r_[step, np.inf], np.r_[np.inf, step])
+    half = np.where(np.isfinite(half), half, 0.0)
+    cells = grid[:, None] * np.exp(np.column_stack([-half, half]))
     for k, n_e in enumerate(grid):
         res = np.array([_one(float(n_e), ph, sensor, margin_px) for ph in phases])
         var, info, bx, by, side = res.T
         bias = np.concatenate([bx, by])
-        noise, noisy_bias, solver = _measured(sensor, float(n_e), rng, n_stamps)
+        noise, noisy_bias, solver = _measured(sensor, tuple(cells[k]), rng, n_stamps)
         out[k] = (
             noise,
             math.sqrt(np.mean(1.0 / info)),
