@@ -17,8 +17,10 @@ The detection logic is derived from each design's noise, not copied from a prese
   PSF sigma, at least 1 px^2), at least lit x pixels.
 
 For each design the datasheet runs at rest and at 1 deg/s (``--frames`` each) and the row
-records the measured / predicted ratios per axis, solved, wrong, time and peak memory (each
-design in its own process, so the peak is that design's). ``python bench/zoo.py [--designs N]
+records the measured / predicted ratios per axis (and the robust ones, from the median
+normalised error), the stars matched, solved, wrong, time and peak memory (each design in its
+own process, so the peak is that design's); the file's summary counts the designs whose ratios
+both lie in 0.8-1.25 at rest. ``python bench/zoo.py [--designs N]
 [--frames N] [--only NAME]``; results in ``bench/results/zoo.json``.
 """
 
@@ -157,7 +159,21 @@ def _run_one(args) -> dict:
         mc = d.get(key) or {}
         row[key] = {
             k: mc.get(k)
-            for k in ("frames", "solved", "wrong", "cross_ratio", "roll_ratio", "median_ms")
+            for k in (
+                "frames",
+                "solved",
+                "wrong",
+                "cross_ratio",
+                "roll_ratio",
+                "cross_ratio_robust",
+                "roll_ratio_robust",
+                "cross_rms_arcsec",
+                "roll_rms_arcsec",
+                "cross_predicted_arcsec",
+                "roll_predicted_arcsec",
+                "stars_matched_median",
+                "median_ms",
+            )
         }
     if d.get("stars_in_fov"):
         row["stars_in_fov"] = d["stars_in_fov"]["median"]
@@ -206,8 +222,22 @@ def main(argv: list[str]) -> int:
         )
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         with atomic_write(args.out) as f:
-            json.dump({"date": time.strftime("%Y-%m-%d"), "rows": rows}, f, indent=1)
+            json.dump(
+                {"date": time.strftime("%Y-%m-%d"), **summary(rows), "rows": rows}, f, indent=1
+            )
+    print(json.dumps(summary(rows)), flush=True)
     return 0
+
+
+def summary(rows: list[dict]) -> dict:
+    """Return how many designs solve at rest and how many of those have both ratios in band."""
+    seeing = [r for r in rows if (r.get("monte_carlo") or {}).get("cross_ratio") is not None]
+    return {
+        "designs": len(rows),
+        "with_ratios": len(seeing),
+        "in_band_0.8_1.25": sum(in_band(r) for r in seeing),
+        "out_of_band": [r["design"] for r in seeing if not in_band(r)],
+    }
 
 
 if __name__ == "__main__":

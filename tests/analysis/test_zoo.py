@@ -58,3 +58,26 @@ def test_small_zoo_has_no_wrong_solution():
         wrong[name] = d.monte_carlo.wrong + d.monte_carlo_at_rate.wrong
     assert len(wrong) >= 6  # designs that see stars
     assert sum(wrong.values()) == 0, wrong
+
+
+@pytest.mark.slow
+def test_small_zoo_nea_prediction_holds_at_rest():
+    """8 designs, 40 frames at rest: measured / predicted NEA in 0.8-1.25 on both axes.
+
+    The band is the acceptance of the datasheet's check; with 40 frames the measured rms is
+    known to ~8 % (cross, 80 samples) and ~11 % (roll, 40), so a right model lands inside at
+    about 2 sigma on each of two axes: one design of six may fall out by chance (all six were
+    inside when this was written, the lowest ratio 0.80). Designs that see too few stars to
+    solve carry no ratio.
+    """
+    cat = load_catalog("hipparcos")
+    settings = DatasheetSettings(n_trials=40, n_rate_trials=0, seed=23, n_orientations=500)
+    ratios = {}
+    for name, p in zoo.zoo_designs(8, 23):
+        d = build_datasheet(zoo.make_sensor(name, **p), cat, settings=settings)
+        mc = d.monte_carlo
+        if d.limiting_magnitude is not None and mc.cross_ratio is not None:
+            ratios[name] = (round(mc.cross_ratio, 3), round(mc.roll_ratio, 3))
+    assert len(ratios) >= 6, ratios  # designs that see stars and solve
+    inside = [n for n, r in ratios.items() if all(0.8 <= x <= 1.25 for x in r)]
+    assert len(inside) >= len(ratios) - 1, ratios

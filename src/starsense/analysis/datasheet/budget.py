@@ -130,15 +130,24 @@ def error_budget(
             "noise-equivalent angle (temporal, 1 sigma, sky median)",
             nea.cross.median,
             nea.roll.median,
-            f"modelled (centroid noise through eq. 21){optics}",
+            f"modelled (centroid noise through the solver's weighted fit, eq. 21){optics}",
         ),
         _sky_row(
             "pixel spatial error (centroid bias"
             + (f", rms {pse_px:.4f} px over the stars used)" if pse_px else ")"),
             errors["pixel"],
-            "measured in this run (noiseless renders), propagated as an error through eq. 21",
+            "measured in this run (noisy renders over pixel phases), propagated as an error "
+            "through the solver's weights",
         ),
     ]
+    if "confusion" in errors:
+        rows.append(
+            _sky_row(
+                "confusion (fainter catalogue stars inside the centroid window)",
+                errors["confusion"],
+                "modelled (the catalogue's star counts), rendered in the frames",
+            )
+        )
     if "prnu" in errors:
         rows.append(
             _sky_row(

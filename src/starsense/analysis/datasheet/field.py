@@ -7,9 +7,15 @@ their per-star information ``1 / sigma_i^2`` summed into the attitude Fisher mat
 Mortari 2019, eq. 21, :func:`starsense.attitude.covariance.fisher_components`). The inverse,
 in the camera frame, gives the 1-sigma cross-boresight (rms of the x and y axes) and roll
 (about z) of that attitude.
+
+The stars are those the tracker fits its attitude to (:func:`tracked_stars`): the matches of
+its identification, which can only be the stars of its database (the brightest few tens per
+field-sized region of the sky), not every star it detects.
 """
 
 from __future__ import annotations
+
+import inspect
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +26,8 @@ from starsense.attitude.covariance import (
     fisher_components,
     fisher_from_components,
 )
+from starsense.identify.database import build_database
+from starsense.identify.patterns import thin_by_region
 
 __all__ = [
     "FieldStarsCam",
@@ -27,7 +35,44 @@ __all__ = [
     "field_stars_cam",
     "fisher_per_pointing",
     "propagated_sigmas",
+    "tracked_stars",
 ]
+
+#: the database's thinning, as the solver builds it (its defaults: one copy, in build_database)
+_DB_DEFAULTS = inspect.signature(build_database).parameters
+
+
+def tracked_stars(vectors, magnitudes, fov_rad: float) -> NDArray[np.bool_]:
+    """Return which stars the tracker can match, and so fits its attitude to.
+
+    The solver's identification database of a known field keeps, in every field-sized region
+    of the sky, its brightest ``verification_stars_per_fov`` stars
+    (:func:`starsense.identify.database.build_database`, thinned by
+    :func:`starsense.identify.patterns.thin_by_region`); the final attitude is fitted to the
+    matched stars alone. In a crowded field (hundreds of detectable stars) that is the
+    brightest few tens: the prediction over every detectable star would be several times too
+    optimistic.
+
+    Parameters
+    ----------
+    vectors : ndarray (N, 3)
+        ICRS unit vectors of the detectable stars.
+    magnitudes : ndarray (N,)
+        Their magnitudes (brightness order).
+    fov_rad : float
+        The field the solver's database is built for (full width of the widest axis), rad.
+
+    Returns
+    -------
+    ndarray of bool (N,)
+    """
+    return thin_by_region(
+        np.asarray(vectors, dtype=float),
+        np.asarray(magnitudes, dtype=float),
+        radius_rad=0.5 * float(fov_rad),
+        n_per_region=int(_DB_DEFAULTS["verification_stars_per_fov"].default),
+        oversampling=float(_DB_DEFAULTS["lattice_oversampling"].default),
+    )
 
 
 class FieldStarsCam:

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from starsense._validate import as_generator
+from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.threshold import StarDetector
 from starsense.render.noise import apply_noise
 from starsense.render.psf import pixel_profile
@@ -35,6 +36,8 @@ from starsense.render.psf import pixel_profile
 __all__ = ["CentroidNoise", "centroid_noise", "clipped_moments"]
 
 _SQRT2PI = math.sqrt(2.0 * math.pi)
+#: noisy renders per sub-pixel phase (the scatter about the phase's mean is the noise)
+_REPEATS = 4
 
 
 def clipped_moments(mu, sigma, *, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
@@ -83,8 +86,9 @@ class CentroidNoise:
     electrons : ndarray (K,)
         Photo-electrons of the star (the lookup grid).
     sigma_px : ndarray (K,)
-        1-sigma noise of the windowed centre of gravity, rms over sub-pixel positions
-        (measured on noisy single-star renders, see :func:`centroid_noise`).
+        1-sigma noise of the windowed centre of gravity about its mean at each sub-pixel
+        position, rms over positions (measured on noisy single-star renders, see
+        :func:`centroid_noise`).
     crb_px : ndarray (K,)
         Cramer-Rao bound of a pixelated Gaussian PSF with the same pixel noise.
     bias_rms_px, bias_max_px : ndarray (K,)
@@ -96,6 +100,12 @@ class CentroidNoise:
         The CoG noise of the linearised model (the window of the expected image, clipped pixel
         moments), for comparison: it misses the window's own noise, which matters for faint
         stars.
+    noisy_bias_px : ndarray (K,)
+        The mean error against sub-pixel position on the noisy renders, rms over positions:
+        the pixel spatial error as frames meet it (the lit window moves with the noise).
+    solver_sigma_px : ndarray (K,)
+        The noise the solver assumes for such a star (its Wahba weight ``1 / sigma^2``,
+        :func:`starsense.detect.centroid.cog_sigma_px`), averaged as a weight.
     """
 
     electrons: np.ndarray
@@ -105,6 +115,8 @@ class CentroidNoise:
     bias_max_px: np.ndarray
     window_px: np.ndarray
     window_model_px: np.ndarray
+    noisy_bias_px: np.ndarray
+    solver_sigma_px: np.ndarray
 
     def _interp(self, values: np.ndarray, electrons) -> np.ndarray:
         e = np.clip(np.asarray(electrons, dtype=float), self.electrons[0], self.electrons[-1])
@@ -119,6 +131,14 @@ class CentroidNoise:
     def sigma(self, electrons) -> np.ndarray:
         """Return the centroid noise (px) of stars of ``electrons`` (log-log interpolation)."""
         return self._interp(self.sigma_px, electrons)
+
+    def bias(self, electrons) -> np.ndarray:
+        """Return the pixel spatial error (px rms) of stars of ``electrons`` on noisy frames."""
+        return self._interp(np.maximum(self.noisy_bias_px, 1e-6), electrons)
+
+    def solver_sigma(self, electrons) -> np.ndarray:
+        """Return the noise (px) the solver assumes for stars of ``electrons`` (its weights)."""
+        return self._interp(self.solver_sigma_px, electrons)
 
     def crb(self, electrons) -> np.ndarray:
         """Return the Cramer-Rao bound (px) of stars of ``electrons``."""
@@ -177,39 +197,85 @@ def _one(n_e: float, phase: tuple[float, float], sensor, margin_px: int) -> tupl
     return 0.5 * (var_x + var_y), info, xc - phase[0], yc - phase[1], side
 
 
-def _measured_sigma(sensor, n_e: float, rng, n_stamps: int) -> float:
-    """Centroid rms error (px, per axis) of the tracker's detector on noisy single-star renders.
+def _measured(sensor, span: tuple[float, float], rng, n_stamps: int) -> tuple:
+    """Centroid noise, bias and the solver's own sigma (px, per axis) on noisy single-star renders.
+
+    The star is put at ``n_stamps / 4`` random sub-pixel phases (uniform over the pixel: the
+    bias of an undersampled or saturated star changes sharply with the phase, which a coarse
+    grid misses) and brightnesses (log-uniform over ``span``, the table point's cell: the bias
+    of a saturated star changes as sharply with its brightness, and the catalogue's stars
+    fill the cell), each rendered 4 times with fresh noise and detected by the tracker's
+    detector. The noise is the scatter about each phase's mean centroid (the deterministic
+    error of the phase removed, with the ``n / (n - 1)`` of an estimated mean): a frame meets
+    every star at a random phase, so the phase's bias is a separate error (the pixel spatial
+    error), not noise. The bias is the rms of the phases' mean errors (less the noise of the
+    means). The solver's sigma is what the solver assumes for these detections
+    (:func:`starsense.detect.centroid.cog_sigma_px`, its Wahba weights ``1 / sigma^2``):
+    ``1 / sqrt(mean(1 / sigma^2))``.
 
     The stamps are laid side by side in one strip, separated by ``margin + 1`` columns at the
     known background (no signal, no noise), and detected in one call: with the detector's
     constant background no lit region or centroid window crosses a gap, so each stamp's
-    detections are those of the stamp alone.
+    detections are those of the stamp alone. NaNs when the star is detected in fewer than half
+    the renders.
     """
     det = sensor.detector
     half = 6 + math.ceil(6.0 * det.psf_sigma_px)
     size = 2 * half + 1
-    xy = half + rng.random((n_stamps, 2)) - 0.5
+    n_phases = max(n_stamps // _REPEATS, 2)
+    phase = np.repeat(np.arange(n_phases), _REPEATS)
+    xy = half + (rng.random((n_phases, 2)) - 0.5)[phase]
+    # each phase's brightness drawn log-uniformly over the table point's cell
+    n_e = np.exp(rng.uniform(math.log(span[0]), math.log(span[1]), n_phases))[phase]
     box = (0, size, 0, size)
     # gaussian_stamp's n_e * outer(P_y, P_x) for every stamp at once (the same numbers)
     p_x = pixel_profile(box[2], box[3], xy[:, 0], sigma_px=det.psf_sigma_px)
     p_y = pixel_profile(box[0], box[1], xy[:, 1], sigma_px=det.psf_sigma_px)
-    stack = float(n_e) * (p_y[:, :, None] * p_x[:, None, :])
+    stack = np.asarray(n_e, dtype=float)[:, None, None] * (p_y[:, :, None] * p_x[:, None, :])
     counts = apply_noise(stack, sensor, rng=rng)
     finder = StarDetector.for_sensor(sensor)
+    n = len(xy)
     pitch = size + finder.margin_px + 1
-    strip = np.full((size, pitch * n_stamps), det.bias_counts, dtype=np.float64)
-    view = strip.reshape(size, n_stamps, pitch)
+    strip = np.full((size, pitch * n), det.bias_counts, dtype=np.float64)
+    view = strip.reshape(size, n, pitch)
     view[:, :, :size] = np.moveaxis(counts, 0, 1)
     found = finder(strip)
     stamp = (found.x // pitch).astype(int) if len(found) else np.empty(0, int)
     # detections come brightest first: the first of each stamp is its brightest
     first = np.unique(stamp, return_index=True)[1] if len(stamp) else np.empty(0, int)
-    if len(first) < n_stamps // 2:  # detected in fewer than half the renders
-        return math.nan
+    if len(first) < n // 2:  # detected in fewer than half the renders
+        return math.nan, math.nan, math.nan
     k = stamp[first]
-    dx = found.x[first] - k * pitch - xy[k, 0]
-    dy = found.y[first] - xy[k, 1]
-    return math.sqrt(float(np.mean(np.concatenate([dx, dy]) ** 2)))
+    err = np.column_stack([found.x[first] - k * pitch - xy[k, 0], found.y[first] - xy[k, 1]])
+    ph = phase[k]
+    n_ph = np.bincount(ph, minlength=n_phases)
+    seen = n_ph >= 2
+    means = np.stack([np.bincount(ph, err[:, a], n_phases) for a in (0, 1)], 1)
+    means = means / np.maximum(n_ph, 1)[:, None]
+    dev = err - means[ph]
+    use = seen[ph]
+    dof = float(np.sum(n_ph[seen] - 1))
+    noise2 = float(np.sum(dev[use] ** 2)) / (2.0 * dof)
+    bias2 = float(np.mean(means[seen] ** 2 - noise2 / n_ph[seen][:, None]))
+    solver = cog_sigma_px(found, first, detector=det, margin_px=finder.margin_px)
+    return math.sqrt(noise2), math.sqrt(max(bias2, 0.0)), float(np.mean(solver**-2.0) ** -0.5)
+
+
+#: table points past the onset of saturation, in units of the onset's electrons
+_SATURATION_STEPS = (1.0, 1.15, 1.3, 1.5, 1.75, 2.0, 2.5, 3.0)
+
+
+def _saturation_points(sensor, lo: float, hi: float) -> np.ndarray:
+    """Electrons at which a star's brightest pixel reaches saturation, and a few steps past.
+
+    Saturation is the full well or the ADC's top count, whichever comes first; a star centred
+    on a pixel puts ``erf(1 / (2 sqrt2 sigma))^2`` of its light in it.
+    """
+    det = sensor.detector
+    sat_e = min(det.full_well_e, (det.saturation_counts - det.bias_counts) / det.gain_counts_per_e)
+    peak = math.erf(0.5 / (math.sqrt(2.0) * det.psf_sigma_px)) ** 2
+    points = sat_e / peak * np.asarray(_SATURATION_STEPS)
+    return points[(points > lo) & (points < hi)]
 
 
 def centroid_noise(
@@ -226,10 +292,11 @@ def centroid_noise(
     """Tabulate the centroid noise of the sensor's centroider against photo-electrons.
 
     The noise is measured on ``n_stamps`` noisy renders of a single star per table point
-    through the tracker's own detector (the noise model of :mod:`starsense.render.noise`:
-    shot, dark, read noise, gain, quantisation and clipping): the lit window then moves with
-    the noise, which the linearised window model of :func:`_one` (kept for the bias and the
-    window size) misses for faint stars. The Cramer-Rao bound is analytic.
+    (random sub-pixel phases, :func:`_measured`) through the tracker's own detector (the
+    noise model of :mod:`starsense.render.noise`: shot, dark, read noise, gain, quantisation
+    and clipping): the lit window then moves with the noise, which the linearised window
+    model of :func:`_one` (kept for the bias and the window size) misses for faint stars.
+    The Cramer-Rao bound is analytic.
 
     Parameters
     ----------
@@ -240,7 +307,8 @@ def centroid_noise(
     margin_px : int
         Window margin around the lit pixels (the detector's, default 2).
     n_grid : int
-        Table points, log-spaced.
+        Table points, log-spaced; beside them, points where the brightest pixel starts to
+        saturate (the bias of a clipped star rises steeply there, :func:`_saturation_points`).
     n_phase : int
         Sub-pixel positions per axis of the analytic terms (``n_phase^2`` in all).
     n_stamps : int
@@ -255,21 +323,29 @@ def centroid_noise(
     """
     lo = max(float(electrons_min), 1.0)
     hi = max(float(electrons_max), 2.0 * lo)
-    grid = np.geomspace(lo, hi, int(n_grid))
+    grid = np.union1d(np.geomspace(lo, hi, int(n_grid)), _saturation_points(sensor, lo, hi))
     offsets = (np.arange(n_phase) + 0.5) / n_phase - 0.5
     phases = [(float(a), float(b)) for a in offsets for b in offsets]
     rng, _ = as_generator(rng)
-    out = np.empty((len(grid), 6))
+    out = np.empty((len(grid), 8))
+    # each point's cell, symmetric in log: half the step to its nearer neighbour either side
+    step = np.diff(np.log(grid))
+    half = 0.5 * np.minimum(np.r_[step, np.inf], np.r_[np.inf, step])
+    half = np.where(np.isfinite(half), half, 0.0)
+    cells = grid[:, None] * np.exp(np.column_stack([-half, half]))
     for k, n_e in enumerate(grid):
         res = np.array([_one(float(n_e), ph, sensor, margin_px) for ph in phases])
         var, info, bx, by, side = res.T
         bias = np.concatenate([bx, by])
+        noise, noisy_bias, solver = _measured(sensor, tuple(cells[k]), rng, n_stamps)
         out[k] = (
-            _measured_sigma(sensor, float(n_e), rng, n_stamps),
+            noise,
             math.sqrt(np.mean(1.0 / info)),
             math.sqrt(np.mean(bias**2)),
             np.max(np.abs(bias)),
             np.mean(side),
             math.sqrt(np.mean(var)),
+            noisy_bias,
+            solver,
         )
     return CentroidNoise(grid, *out.T)

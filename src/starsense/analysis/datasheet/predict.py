@@ -19,7 +19,11 @@ from starsense.analysis.datasheet.field import (
     propagated_sigmas,
 )
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
-from starsense.analysis.datasheet.terms import pixel_spatial_error, prnu_centroid_px
+from starsense.analysis.datasheet.terms import (
+    confusion_px,
+    pixel_spatial_error,
+    prnu_centroid_px,
+)
 from starsense.analysis.sensor_detection import limiting_magnitude, slew_grids
 from starsense.analysis.slew import last_above
 from starsense.photometry.sensitivity import Sensitivity
@@ -34,6 +38,29 @@ __all__ = [
     "nea_at",
     "slew_grids",
 ]
+
+#: width of the magnitude bins of the catalogue's star counts (the confusion term), mag
+_COUNT_BIN_MAG = 0.25
+
+
+def _confusion(sensor, sens, noise: CentroidNoise, mags: np.ndarray) -> np.ndarray:
+    """Confusion (px rms per axis) on the electrons of ``noise``, from the catalogue's counts."""
+    mags = mags[np.isfinite(mags)]
+    if len(mags) == 0:  # the catalogue ends above the detection limit: nothing unresolved
+        return np.zeros(len(noise.electrons))
+    edges = np.arange(np.floor(mags.min()), mags.max() + _COUNT_BIN_MAG, _COUNT_BIN_MAG)
+    n, edges = np.histogram(mags, bins=edges)
+    pixel_rad = sensor.detector.pixel_pitch_m / sensor.optics.focal_length_m
+    density = n / (4.0 * np.pi) * pixel_rad**2  # stars per square pixel, sky mean
+    flux = sens.electrons(0.5 * (edges[:-1] + edges[1:]))
+    return confusion_px(
+        noise.electrons,
+        np.where(np.isfinite(noise.window_px), noise.window_px, 0.0),
+        sigma_px=sensor.detector.psf_sigma_px,
+        neighbours=flux,
+        density_px2=density,
+    )
+
 
 #: the datasheet's availability rates: at rest and 0.5, 1, 2 deg/s (rad/s)
 DEFAULT_RATES_RAD_S = np.array([0.0, 0.5, 1.0, 2.0]) * DEG
@@ -65,6 +92,10 @@ class StarModel:
         The noise table at the corners' PSF (``optics.psf_sigma_corner_px``); a star's noise
         is interpolated between the two tables as its PSF is (with the square of its distance
         from the centre).
+    confusion_px : ndarray or None
+        The confusion of fainter catalogue stars inside the centroid window, px rms per axis,
+        on the electrons of ``noise`` (:func:`starsense.analysis.datasheet.terms.
+        confusion_px`); None without the catalogue's star counts.
     """
 
     sensor: object
@@ -72,10 +103,17 @@ class StarModel:
     noise: CentroidNoise
     pixel_bias: object = None
     noise_corner: CentroidNoise | None = None
+    confusion_px: np.ndarray | None = None
 
     @classmethod
-    def build(cls, sensor, *, model: str, bright_mag: float, faint_mag: float) -> StarModel:
-        """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``."""
+    def build(
+        cls, sensor, *, model: str, bright_mag: float, faint_mag: float, star_counts=None
+    ) -> StarModel:
+        """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``.
+
+        ``star_counts``: the V magnitudes of every star of the catalogue the frames hold (to
+        its faintest), for the confusion of faint neighbours; None leaves it out.
+        """
         sens = Sensitivity.for_sensor(sensor, model)
         e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))
         noise = centroid_noise(sensor, 0.5 * e_lo, 2.0 * e_hi)
@@ -86,7 +124,12 @@ class StarModel:
         if sc > 0 and sc != sensor.detector.psf_sigma_px:
             wide = sensor.with_(detector=dataclasses.replace(sensor.detector, psf_sigma_px=sc))
             corner = centroid_noise(wide, 0.5 * e_lo, 2.0 * e_hi)
-        return cls(sensor, sens, noise, bias, corner)
+        conf = None
+        if star_counts is not None:
+            counts = np.asarray(star_counts, dtype=float)
+            # the stars below the detection limit: unresolved, they sit in the windows
+            conf = _confusion(sensor, sens, noise, counts[counts > faint_mag])
+        return cls(sensor, sens, noise, bias, corner, conf)
 
     def _corner_weight(self, z_cam) -> np.ndarray:
         """Return (r / r_corner)^2 of stars at camera-frame z (r from the detector centre)."""
@@ -104,22 +147,27 @@ class StarModel:
     def star_sigmas_rad(self, magnitudes, z_cam, kind: str = "nea") -> np.ndarray:
         """Return each star's 1-sigma direction error, rad.
 
-        ``kind``: "nea" (the centroider's temporal noise), "crb" (the pixelated-Gaussian bound),
-        "pixel" (the measured sub-pixel bias, rms over pixel phases), "prnu" (the shift the
-        detector's photo-response non-uniformity gives a centroid) or "residual" (the
-        distortion calibration's residual). Off-axis stars scale by the camera-frame z (the
-        pinhole's angle per pixel, across the radial direction).
+        ``kind``: "nea" (the centroider's temporal noise), "weight" (the noise the solver
+        assumes, whose inverse square weights the star in its attitude fit), "crb" (the
+        pixelated-Gaussian bound), "pixel" (the sub-pixel bias as noisy frames meet it, rms
+        over pixel phases), "confusion" (fainter catalogue stars in the centroid window),
+        "prnu" (the shift the detector's photo-response non-uniformity gives a centroid) or
+        "residual" (the distortion calibration's residual). Off-axis stars scale by the
+        camera-frame z (the pinhole's angle per pixel, across the radial direction).
         """
         e = self.sensitivity.electrons(np.asarray(magnitudes, dtype=float))
-        if kind == "nea":
-            px = self.noise.sigma(e)
+        tables = {"nea": "sigma", "weight": "solver_sigma", "pixel": "bias"}
+        if kind in tables:
+            px = getattr(self.noise, tables[kind])(e)
             if self.noise_corner is not None:  # the PSF widens to the corners
                 t = self._corner_weight(z_cam)
-                px = (1.0 - t) * px + t * self.noise_corner.sigma(e)
+                px = (1.0 - t) * px + t * getattr(self.noise_corner, tables[kind])(e)
         elif kind == "crb":
             px = self.noise.crb(e)
-        elif kind == "pixel":
-            px = self.pixel_bias.rms(e)
+        elif kind == "confusion":
+            px = np.zeros(np.shape(e))
+            if self.confusion_px is not None:
+                px = np.interp(np.log(e), np.log(self.noise.electrons), self.confusion_px)
         elif kind == "prnu":
             px = np.full(np.shape(e), prnu_centroid_px(self.sensor))
         elif kind == "residual":
@@ -128,11 +176,6 @@ class StarModel:
             raise ValueError(f"unknown error kind {kind!r}")
         px = np.where(np.isfinite(px), px, np.inf)
         return px * self.pixel_rad * np.asarray(z_cam, dtype=float)
-
-
-#: the kinds that are the estimator's own noise (a Fisher bound); the others are errors
-#: propagated through its weights (:func:`propagated_sigmas`)
-NOISE_KINDS = ("nea", "crb")
 
 
 def error_kinds(sensor) -> tuple[str, ...]:
@@ -145,10 +188,10 @@ def error_kinds(sensor) -> tuple[str, ...]:
     Returns
     -------
     tuple of str
-        ``("nea", "crb", "pixel")``, then ``"prnu"`` with a PRNU and ``"residual"`` with a
-        distortion calibration residual.
+        ``("nea", "crb", "pixel", "confusion")``, then ``"prnu"`` with a PRNU and
+        ``"residual"`` with a distortion calibration residual.
     """
-    kinds = ["nea", "crb", "pixel"]
+    kinds = ["nea", "crb", "pixel", "confusion"]
     if sensor.detector.prnu_fraction > 0:
         kinds.append("prnu")
     if sensor.optics.distortion_residual_px > 0:
@@ -179,11 +222,13 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
     """
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree=tree)
     mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
-    weights = 1.0 / model.star_sigmas_rad(mags, z, "nea") ** 2
+    # the solver's own weights (its assumed noise), which are not the stars' true noise: a
+    # saturated star's centroid is worse than its photons say, and the fit trusts it anyway
+    weights = 1.0 / model.star_sigmas_rad(mags, z, "weight") ** 2
     out = {}
     for kind in kinds:
         sigma = model.star_sigmas_rad(mags, z, kind)
-        if kind in NOISE_KINDS:
+        if kind == "crb":
             out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
         else:
             out[kind] = propagated_sigmas(pairs, weights, np.where(np.isfinite(sigma), sigma, 0))

@@ -21,7 +21,7 @@ from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
 from starsense.analysis.datasheet.checks import sanity_warnings
-from starsense.analysis.datasheet.field import field_stars_cam
+from starsense.analysis.datasheet.field import field_stars_cam, tracked_stars
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
     StarModel,
@@ -228,14 +228,21 @@ def _warnings(
 def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound."""
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
+    every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
     model = StarModel.build(
-        sensor, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag
+        sensor,
+        model=st.model,
+        bright_mag=float(np.min(mags)),
+        faint_mag=limit_mag,
+        star_counts=every,
     )
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
-    sig, counts = nea_at(
-        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=error_kinds(sensor)
-    )
+    counts = field_stars_cam(fov, mats, vectors).counts()  # every detectable star
+    # the NEA of the stars the tracker fits (its database's), not of every detectable one
+    used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
+    vectors, mags = vectors[used], mags[used]
+    sig, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=mags, kinds=error_kinds(sensor))
     lim = _limit(cat, sensor, fov, mats)
     return model, vectors, mags, boresights, mats, sig, counts, lim
 

@@ -8,6 +8,14 @@
   light in pixel k: independent of the star's brightness, ``0.20 p`` px for a well-sampled
   Gaussian (``1 / sqrt(8 pi)``), more for an undersampled one; computed here on the
   pixel-integrated PSF over sub-pixel phases.
+* **Confusion**: catalogue stars fainter than a star, inside its centroid window, pull its
+  centre of gravity towards them: a neighbour of ``f`` electrons at offset ``x`` (px) moves a
+  star of ``F`` by ``w f x / (F + w f)`` (``w`` the part of the neighbour's light inside the
+  window). Over the sky such neighbours fall at random (the catalogue's star counts per
+  magnitude, a Poisson density ``rho`` per square pixel), so the shift's variance per axis is
+  ``sum_b rho_b integral (w f_b x / (F + B + w f_b))^2 dA`` (:func:`confusion_px`; ``B`` the
+  mean light all the neighbours put in the window, which dilutes each one's pull); stars brighter
+  than the star are left out (they are detected as themselves, and a blend is the solver's).
 * **Stellar aberration, if uncorrected**: the apparent displacement of every star by the
   observer's velocity (first order: ``v/c sin(angle to the apex)``), fitted as a rotation over
   the field: the common part is a cross-boresight error, the differential part is left over.
@@ -21,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+from scipy.special import ndtr
 
 from starsense.detect.threshold import StarDetector
 from starsense.render.psf import gaussian_stamp
@@ -30,6 +39,7 @@ __all__ = [
     "SPEED_OF_LIGHT_M_S",
     "PixelSpatialError",
     "aberration_error",
+    "confusion_px",
     "pixel_spatial_error",
     "prnu_centroid_px",
 ]
@@ -201,3 +211,51 @@ def _prnu_lever(sigma_px: float, n_side: int) -> float:
             xc = (f * cols).sum() / total
             acc.append((f**2 * (cols - xc) ** 2).sum() / total**2)
     return math.sqrt(float(np.mean(acc)))
+
+
+def confusion_px(electrons, window_px, *, sigma_px: float, neighbours, density_px2) -> np.ndarray:
+    """Return the centroid error (px rms per axis) faint neighbours give stars (module docstring).
+
+    Parameters
+    ----------
+    electrons : array_like (K,)
+        The stars' photo-electrons.
+    window_px : array_like (K,)
+        Side of each star's centroid window, px.
+    sigma_px : float
+        PSF sigma, px.
+    neighbours : array_like (B,)
+        Photo-electrons of the neighbour classes (magnitude bins of the catalogue).
+    density_px2 : array_like (B,)
+        Their mean density on the sky, stars per square pixel.
+
+    Returns
+    -------
+    ndarray (K,)
+        px; 0 where no fainter neighbour can fall.
+    """
+    e = np.atleast_1d(np.asarray(electrons, dtype=float))
+    side = np.broadcast_to(np.asarray(window_px, dtype=float), e.shape)
+    f_nb = np.asarray(neighbours, dtype=float)
+    rho = np.asarray(density_px2, dtype=float)
+    out = np.zeros(e.shape)
+    for k, (big, s) in enumerate(zip(e, side, strict=True)):
+        fainter = (f_nb < big) & (rho > 0)
+        if not np.isfinite(s) or not fainter.any():
+            continue
+        h = 0.5 * s
+        reach = h + 4.0 * sigma_px
+        step = min(0.25, 0.5 * sigma_px)
+        x = np.arange(-reach, reach + step, step)
+        # part of a neighbour's light inside the window, per axis: its PSF over [-h, h]
+        frac = ndtr((h - x) / sigma_px) - ndtr((-h - x) / sigma_px)
+        w = frac[:, None] * frac[None, :]  # (y, x)
+        area = float(np.sum(w)) * step * step
+        # the mean light the other neighbours put in the window: it dilutes each one's pull
+        others = float(np.sum(rho[fainter] * f_nb[fainter])) * area
+        acc = 0.0
+        for f, r in zip(f_nb[fainter], rho[fainter], strict=True):
+            shift = w * f * x[None, :] / (big + others + w * f)
+            acc += r * float(np.sum(shift**2)) * step * step
+        out[k] = math.sqrt(acc)
+    return out

@@ -3,9 +3,10 @@
 Random attitudes are rendered, detected, identified and solved
 (:func:`starsense.analysis.montecarlo.run_montecarlo`); for every right solution the predicted
 1-sigma of that very attitude comes from the same star model and catalogue as the datasheet
-(:func:`starsense.analysis.datasheet.predict.nea_at`), the temporal noise, the measured pixel
-spatial error and the sensor's rendered errors (PRNU, calibration residual) added in quadrature
-(all vary from frame to frame at random attitudes). The
+(:func:`starsense.analysis.datasheet.predict.nea_at`: the stars the tracker fits, through the
+solver's own weights), the temporal noise, the measured pixel spatial error, the confusion of
+unresolved neighbours and the sensor's rendered errors (PRNU, calibration residual) added in
+quadrature (all vary from frame to frame at random attitudes). The
 ratio measured rms / predicted rms is reported per axis.
 """
 

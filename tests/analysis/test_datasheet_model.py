@@ -1,0 +1,133 @@
+"""The per-star terms of the datasheet's NEA: the stars the tracker fits, its weights, the pixel
+phase of undersampled and saturated stars, the confusion of unresolved neighbours."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from starsense.analysis.datasheet.field import (
+    axis_sigmas,
+    field_stars_cam,
+    fisher_per_pointing,
+    propagated_sigmas,
+    tracked_stars,
+)
+from starsense.analysis.datasheet.noise import centroid_noise
+from starsense.analysis.datasheet.terms import confusion_px, pixel_spatial_error
+from starsense.geometry.sampling import random_attitudes
+from starsense.render.psf import gaussian_stamp
+from starsense.sensor import load_sensor
+from starsense.units import DEG
+
+
+def _st16(**det):
+    s = load_sensor("st16")
+    return dataclasses.replace(s, detector=dataclasses.replace(s.detector, **det))
+
+
+def test_confusion_against_monte_carlo_of_neighbours():
+    # independent: drop Poisson neighbours around a star, render star and neighbours with the
+    # renderer's pixel-integrated PSF, take the windowed centre of gravity; its rms shift per
+    # axis is the confusion. 3,000 fields give the rms to ~4 % (the shift's square is
+    # heavy-tailed: its own spread is ~1.5 x its mean, so 1.5 / sqrt(3000) ~ 3 % on the mean
+    # square); the model's light-in-window is continuous, the render's pixelated: 10 %
+    rng = np.random.default_rng(3)
+    sigma, side, big, small, rho = 1.0, 11, 2.0e4, 2.0e3, 0.01
+    h = side // 2
+    reach = h + 4  # neighbours up to 4 sigma outside the window
+    size = 2 * reach + 1
+    box = (0, size, 0, size)
+    star = gaussian_stamp(reach, reach, sigma_px=sigma, electrons=big, box=box)[0]
+    cols = np.arange(size) - reach
+    win = slice(reach - h, reach + h + 1)
+    shifts = []
+    for _ in range(3000):
+        img = star.copy()
+        for x, y in rng.uniform(-reach - 0.5, reach + 0.5, (rng.poisson(rho * size**2), 2)):
+            img += gaussian_stamp(reach + x, reach + y, sigma_px=sigma, electrons=small, box=box)[0]
+        w = img[win, win]
+        shifts.append(float((w * cols[None, win]).sum() / w.sum()))
+    measured = math.sqrt(np.mean(np.square(shifts)))
+    model = confusion_px([big], [side], sigma_px=sigma, neighbours=[small], density_px2=[rho])
+    assert model[0] == pytest.approx(measured, rel=0.10)
+
+
+def test_confusion_leaves_out_brighter_neighbours_and_grows_with_density():
+    args = {"sigma_px": 1.0, "neighbours": [5e3], "density_px2": [0.01]}
+    assert confusion_px([1e3], [9], **args)[0] == 0.0  # the neighbour is the brighter star
+    one = confusion_px([1e5], [9], **args)[0]
+    four = confusion_px([1e5], [9], sigma_px=1.0, neighbours=[5e3], density_px2=[0.04])[0]
+    # variance linear in the density, but for the dilution by the other neighbours' light
+    assert 1.7 * one < four < 2.0 * one
+
+
+def test_noise_and_bias_of_an_undersampled_star_split_by_phase():
+    # a 0.5 px PSF: the centroid's error depends on where the star falls in its pixel. The
+    # bias the table measures on noisy renders (mean error per phase) must match the bias on
+    # noiseless renders (an independent measurement: the tracker's detector, no noise) for a
+    # bright star, where noise barely moves the lit window: 200 phases x 4 renders give the
+    # rms bias to ~5 % (1 / sqrt(2 x 200)) plus the noise of the phase means: 15 %
+    sens = _st16(psf_sigma_px=0.5, read_noise_e=1.0, full_well_e=1e9, bit_depth=24)
+    table = centroid_noise(sens, 2e6, 4e6, n_grid=2, n_stamps=800, rng=7)
+    noiseless = pixel_spatial_error(sens, table.electrons, n_side=16)
+    assert noiseless.rms_px[0] > 3 * table.sigma_px[0]  # bias-dominated: a real test
+    assert table.noisy_bias_px == pytest.approx(noiseless.rms_px, rel=0.15)
+    # and the noise about the phase mean is the photon-limited CoG noise of that pixelation:
+    # sum over pixels of the star's share times (x - x_c)^2 / N, averaged over phases, within
+    # the same 15 % (800 renders: ~3 % on the rms, the window truncation a few %)
+    assert table.sigma_px[0] < 1.15 * math.sqrt(0.5**2 + 1 / 12) / math.sqrt(2e6)
+
+
+def test_saturated_star_bias_is_in_the_table():
+    # past saturation the flat top's centre of gravity leans towards the pixel centre: a bias
+    # of the phase that noiseless renders show (the independent measurement); the table must
+    # carry it at the electrons where it happens (points are added at the onset), within
+    # 20 % (200 phases, 4 renders each; the bias moves steeply with the electrons there)
+    # a deep well read through a coarse gain: the ADC clips at 82,000 e- a pixel
+    sens = _st16(psf_sigma_px=0.8, read_noise_e=5.0, gain_counts_per_e=0.05, full_well_e=1e5)
+    det = sens.detector
+    sat = min(det.full_well_e, det.saturation_counts / det.gain_counts_per_e)
+    onset = sat / math.erf(0.5 / (math.sqrt(2) * 0.8)) ** 2
+    table = centroid_noise(sens, 0.3 * onset, 10 * onset, n_grid=4, n_stamps=800, rng=2)
+    past = table.electrons > 1.4 * onset
+    noiseless = pixel_spatial_error(sens, table.electrons[past], n_side=12)
+    assert np.all(noiseless.rms_px > 2 * table.sigma_px[past])
+    assert table.noisy_bias_px[past] == pytest.approx(noiseless.rms_px, rel=0.2)
+
+
+def test_solver_weights_equal_to_noise_give_the_fisher_bound():
+    # invariant: the weighted least squares with weights 1 / sigma^2 of the stars' own noise is
+    # the efficient estimator: its sandwich covariance is the inverse Fisher matrix (eq. 21)
+    sens = load_sensor("st16")
+    rng = np.random.default_rng(4)
+    stars = rng.normal(size=(30_000, 3))
+    stars /= np.linalg.norm(stars, axis=1)[:, None]
+    pairs = field_stars_cam(sens.fov(), random_attitudes(6, rng).as_matrix(), stars)
+    sigma = rng.uniform(1.0, 5.0, len(pairs.point)) * 1e-5
+    w = 1.0 / sigma**2
+    fisher = axis_sigmas(fisher_per_pointing(pairs, w))
+    sandwich = propagated_sigmas(pairs, w, sigma)
+    np.testing.assert_allclose(sandwich, fisher, rtol=1e-9)
+    # any other weighting is worse (Gauss-Markov)
+    worse = propagated_sigmas(pairs, 1.0 / sigma**4, sigma)
+    assert np.all(worse[0] > fisher[0]) and np.all(worse[1] > fisher[1])
+
+
+def test_tracked_stars_are_the_brightest_per_field():
+    # the tracker's database keeps the brightest tens per field-sized region: in a crowded
+    # synthetic sky the stars of one field it can match number far fewer than the field holds,
+    # and none is fainter than a star it leaves out nearby
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=(200_000, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    mags = rng.uniform(0.0, 10.0, len(v))
+    fov = 10 * DEG
+    keep = tracked_stars(v, mags, fov)
+    near = np.flatnonzero(v @ np.array([0.0, 0.0, 1.0]) > math.cos(0.5 * fov))
+    assert len(near) > 300
+    assert keep[near].sum() < 0.5 * len(near)
+    assert mags[near][keep[near]].min() == mags[near].min()
