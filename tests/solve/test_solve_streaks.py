@@ -94,8 +94,7 @@ def test_pieces_of_a_streak_centroid_to_its_middle(catalog):
     got = streak_centroids_of(
         sensor,
         frame.image,
-        det.x[matched],
-        det.y[matched],
+        np.column_stack([det.x[matched], det.y[matched]]),
         counts=det.integrated_counts[matched],
         extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
         level=float(sensor.detector.bias_counts),
@@ -133,6 +132,8 @@ def test_frame_at_rest_keeps_its_centroids(catalog):
     matched = np.arange(min(12, len(det)))
     assert len(matched) >= 5
     vectors = sensor.unproject(det.x[matched], det.y[matched])
-    body, sigma = matched_measurements(solver, frame.image, det, matched, det.x, vectors)
+    body, sigma = matched_measurements(
+        solver, frame.image, det, matched=matched, x=det.x, vectors=vectors
+    )
     assert body is vectors
     assert len(np.atleast_1d(sigma)) == len(matched)

@@ -273,7 +273,7 @@ class Solver:
             )
 
         def sigma_px(matched, x, vectors):  # streaks re-centroided: starsense.solve.streaks
-            return matched_measurements(self, a, det, matched, x, vectors)
+            return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
 
         points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
         sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time)

@@ -12,10 +12,14 @@ centroids can be off by more than a pixel: a wrong solution.
 Once the frame is identified, :func:`streak_centroids_of`:
 
 1. measures the streaks of the brightest matched stars (the second moments of their lit pixels,
-   :func:`starsense.solve.tracking.streak_rate.streak_axes`) and fits the body rate to them, up
-   to its sign (:func:`~starsense.solve.tracking.streak_rate.rate_from_streaks`); a frame whose
-   streaks are shorter than 2 PSF sigmas is left as it is (the box holds them whole: the rule
-   of the tracking windows, :mod:`starsense.detect.window_kernels`);
+   :func:`starsense.solve.tracking.streak_rate.streak_axes`) and fits the body rate, up to its
+   sign, to the longest of them (:func:`~starsense.solve.tracking.streak_rate.
+   rate_from_streaks`): a piece of a streak is shorter than the streak, never longer, so only
+   streaks within the lit pixels' shortfall (``SYSTEMATIC``) of the longest take part (with
+   fewer than 3 of them, their mean streak stands for every star's). A frame whose streaks are
+   shorter than 2 PSF sigmas plus the detector's centroid margin on each side is left as it
+   is: its box of lit pixels, widened by that margin, holds each streak whole (frames at rest
+   show up to ~3 px of elongation from pixelisation and noise, and keep their centroids);
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
@@ -53,7 +57,8 @@ __all__ = [
     "streak_centroids_of",
 ]
 
-#: a frame whose measured streaks are shorter than this many PSF sigmas is not re-centroided
+#: a frame whose measured streaks are shorter than this many PSF sigmas (plus the centroid
+#: window's margins) is not re-centroided
 MIN_STREAK_SIGMAS = 2.0
 #: the brightest matched stars whose streaks give the rate (a faint streak breaks into pieces)
 N_RATE_STARS = 5
@@ -139,8 +144,7 @@ def _streak_model(sensor, image, x, y, order, **measure):
 def streak_centroids_of(
     sensor,
     image,
-    x,
-    y,
+    xy,
     *,
     counts,
     extent_px,
@@ -157,8 +161,8 @@ def streak_centroids_of(
         The camera (projection, exposure, PSF, gain and read noise).
     image : ndarray, shape (rows, columns)
         The frame, counts.
-    x, y : array_like, shape (N,)
-        The matched detections' centroids, px.
+    xy : array_like, shape (N, 2)
+        The matched detections' centroids (x = column, y = row), px.
     counts : array_like, shape (N,)
         Their integrated counts (the brightest give the rate).
     extent_px : array_like, shape (N,)
@@ -180,7 +184,8 @@ def streak_centroids_of(
         sigmas) or its rate cannot be measured (fewer than 3 measured streaks): the
         detections' centroids stand.
     """
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    x, y = xy[:, 0].copy(), xy[:, 1].copy()
     counts = np.asarray(counts, dtype=float)
     if len(x) < 3:
         return None
@@ -228,7 +233,7 @@ def streak_centroids_of(
     return StreakCentroids(out_x, out_y, cov, np.asarray(streaks))
 
 
-def matched_measurements(solver, image, det, matched, x, vectors):
+def matched_measurements(solver, image, det, *, matched, x, vectors):
     """Return the matched detections' unit vectors and 1-sigma, px, for the final attitude.
 
     The detections' own centroids and noise (:func:`starsense.detect.centroid.cog_sigma_px`
@@ -272,8 +277,7 @@ def matched_measurements(solver, image, det, matched, x, vectors):
     got = streak_centroids_of(
         sensor,
         image,
-        det.x[matched],
-        det.y[matched],
+        np.column_stack([det.x[matched], det.y[matched]]),
         counts=det.integrated_counts[matched],
         extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
         level=float(sensor.detector.bias_counts) if known else None,
