@@ -54,18 +54,20 @@ def _zoo00():
 
 
 @pytest.mark.parametrize(
-    ("design", "k", "n_trials"),
+    ("design", "k", "n_trials", "background"),
     [
         # 20.5 deg, 2160 x 1616 px, PSF sigma 0.61 px, 0.2 s: 21 px streaks; was 63 arcsec off
-        ("zoo00", 29, 40),
-        # the CCD of the vendor comparison, 0.81 px PSF, 1 s: 49 px streaks; was 74 arcsec off
-        ("ccd768", 54, 200),
+        ("zoo00", 29, 40, "known"),
+        # the CCD of the vendor comparison, 0.8 px PSF, 1 s: 49 px streaks; was 74 arcsec off
+        ("ccd768", 54, 200, "known"),
+        # the same frame with the background estimated (a real frame's path): was 68 off
+        ("ccd768", 54, 200, "auto"),
     ],
 )
-def test_slewing_frame_that_was_wrong_solves_right(catalog, design, k, n_trials):
+def test_slewing_frame_that_was_wrong_solves_right(catalog, design, k, n_trials, background):
     sensor = _zoo00() if design == "zoo00" else zoo.make_sensor("ccd768", **zoo.CCD_768)
     truth, frame = _trial(sensor, catalog, k, n_trials)
-    sol = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")(frame.image)
+    sol = Solver(sensor=sensor, background=background, centroid_sigma_px="snr")(frame.image)
     assert sol.solved
     # the right stars: each matched catalogue star was rendered within its streak's half
     # length (plus 3 px of PSF) of the detection it was matched to
