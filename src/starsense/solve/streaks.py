@@ -38,6 +38,7 @@ Once the frame is identified, :func:`streak_centroids_of`:
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -45,9 +46,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense.detect.centroid import cog_sigma_px
-from starsense.detect.streak import streak_centroid
-from starsense.errors import InputError
-from starsense.solve.tracking.streak_rate import SYSTEMATIC, rate_from_streaks, streak_axes
+from starsense.detect.streak import streak_centroids
+from starsense.solve.tracking.streak_rate import SYSTEMATIC, streak_axes
 
 __all__ = [
     "MIN_STREAK_SIGMAS",
@@ -98,16 +98,48 @@ def _streaks(sensor, x, y, rate_rad_s) -> np.ndarray:
     return np.column_stack([xe - xs, ye - ys])
 
 
-def _crop(image, x, y, reach, level):
-    """Background-subtracted crop around (x, y) of half-width ``reach``, and its corner."""
+def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return windows of 2 half + 1 px around (x, y), less the level, and their corners.
+
+    Shapes (N, 2 half + 1, 2 half + 1), zero off the frame; first rows and columns (N,) each.
+    """
     rows, cols = image.shape
-    r0, c0 = max(math.floor(y - reach), 0), max(math.floor(x - reach), 0)
-    r1, c1 = min(math.ceil(y + reach) + 1, rows), min(math.ceil(x + reach) + 1, cols)
-    sub = np.asarray(image[r0:r1, c0:c1], dtype=float)
-    if level is None:  # the median of the crop's border
-        border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
-        level = float(np.median(border))
-    return sub - level, r0, c0
+    size = 2 * half + 1
+    r0 = np.floor(y).astype(int) - half
+    c0 = np.floor(x).astype(int) - half
+    planes = np.zeros((len(x), size, size))
+    for i in range(len(x)):
+        a, b = max(r0[i], 0), min(r0[i] + size, rows)
+        c, d = max(c0[i], 0), min(c0[i] + size, cols)
+        sub = np.asarray(image[a:b, c:d], dtype=float)
+        base = level
+        if base is None:  # the median of the window's border
+            base = float(np.median(np.concatenate([sub[0], sub[-1], sub[:, 0], sub[:, -1]])))
+        planes[i, a - r0[i] : b - r0[i], c - c0[i] : d - c0[i]] = sub - base
+    return planes, r0, c0
+
+
+def _rate(sensor, x, y, axes) -> np.ndarray:
+    """Return the body rate (up to sign) whose streaks fit ``l l^T`` of stars (x, y), rad/s.
+
+    To first order in the angle turned during the exposure the streak is linear in the rate,
+    ``l_i = A_i w`` (``A_i`` from the projection); each measured streak is ``+-l_i``, the sign
+    unknown: the least-squares ``w`` is found for every choice of the signs (the first fixed)
+    and the best kept.
+    """
+    eps = 1e-6 / sensor.exposure_s  # a turn of 1 microradian over the exposure
+    a = np.stack([_streaks(sensor, x, y, eps * e) / eps for e in np.eye(3)], axis=2)
+    length = np.sqrt(np.maximum(axes[:, 0, 0] + axes[:, 1, 1], 0.0))
+    meas = np.linalg.eigh(axes)[1][:, :, -1] * length[:, None]  # (N, 2), sign unknown
+    a2 = a.reshape(-1, 3)
+    best, rate = math.inf, np.zeros(3)
+    for signs in itertools.product((1.0, -1.0), repeat=len(x) - 1):
+        rhs = (meas * np.array([1.0, *signs])[:, None]).ravel()
+        w = np.linalg.lstsq(a2, rhs, rcond=None)[0]
+        cost = float(np.sum((a2 @ w - rhs) ** 2))
+        if cost < best:
+            best, rate = cost, w
+    return rate
 
 
 def _streak_model(sensor, image, x, y, order, **measure):
@@ -134,10 +166,7 @@ def _streak_model(sensor, image, x, y, order, **measure):
         m = axes[ok].sum(axis=0)
         vec = np.linalg.eigh(m)[1][:, -1] * math.sqrt(float(np.trace(m)) / len(ok))
         return lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))
-    try:
-        rate, _ = rate_from_streaks(sensor, x[use[ok]], y[use[ok]], axes_px2=axes[ok])
-    except InputError:
-        return None
+    rate = _rate(sensor, x[use[ok]], y[use[ok]], axes[ok])
     return lambda xs, ys: _streaks(sensor, xs, ys, rate)
 
 
@@ -209,27 +238,23 @@ def streak_centroids_of(
     radius = 2.5 * sigma + 1.0  # the tracking windows' capsule
     streaks = model(x, y)
     rows, cols = image.shape
-    out_x, out_y = x.copy(), y.copy()
-    cov = np.empty((len(x), 2, 2))
-    for i in range(len(x)):
-        seg = streaks[i] * (1.0 + SYSTEMATIC)
-        along = np.outer(streaks[i], streaks[i]) / 12.0  # a point anywhere on the streak
-        reach = float(np.hypot(*seg)) + radius + 2.0
-        sub, r0, c0 = _crop(image, x[i], y[i], reach, level)
-        got = streak_centroid(sub, x[i] - c0, y[i] - r0, streak=seg, radius=radius)
-        if got is None or not got[2] > 0:
-            cov[i] = along
-            continue
-        gx, gy, total, _, spread = got
-        out_x[i], out_y[i] = gx + c0, gy + r0
-        hx = 0.5 * abs(streaks[i][0]) + radius
-        hy = 0.5 * abs(streaks[i][1]) + radius
-        if not (hx <= out_x[i] <= cols - 1 - hx and hy <= out_y[i] <= rows - 1 - hy):
-            cov[i] = along  # run off the frame: pulled inwards
-            continue
-        n_e = max(total / det.gain_counts_per_e, 1.0)
-        cov[i] = (sigma**2 / n_e) * np.eye(2) + (det.read_noise_e**2 / n_e**2) * spread
-        cov[i] += along / n_e
+    seg = streaks * (1.0 + SYSTEMATIC)
+    half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
+    planes, r0, c0 = _planes(image, x, y, half, level)
+    gx, gy, total, _, spread = streak_centroids(planes, x - c0, y - r0, streaks=seg, radius=radius)
+    along = streaks[:, :, None] * streaks[:, None, :] / 12.0  # a point anywhere on the streak
+    found = np.isfinite(gx) & (total > 0)
+    out_x = np.where(found, gx + c0, x)
+    out_y = np.where(found, gy + r0, y)
+    hx = 0.5 * np.abs(streaks[:, 0]) + radius
+    hy = 0.5 * np.abs(streaks[:, 1]) + radius
+    whole = found & (hx <= out_x) & (out_x <= cols - 1 - hx) & (hy <= out_y)
+    whole &= out_y <= rows - 1 - hy  # a streak run off the frame is pulled inwards
+    n_e = np.maximum(np.where(found, total, 0.0) / det.gain_counts_per_e, 1.0)[:, None, None]
+    cov = (sigma**2 / n_e) * np.eye(2) + (det.read_noise_e**2 / n_e**2) * np.where(
+        found[:, None, None], spread, 0.0
+    )
+    cov = np.where(whole[:, None, None], cov + along / n_e, along)
     return StreakCentroids(out_x, out_y, cov, np.asarray(streaks))
 
 
