@@ -13,10 +13,12 @@ Once the frame is identified, :func:`streak_centroids_of`:
 
 1. measures the streaks of the brightest matched stars (the second moments of their lit pixels,
    :func:`starsense.solve.tracking.streak_rate.streak_axes`) and fits the body rate, up to its
-   sign, to the longest of them (:func:`~starsense.solve.tracking.streak_rate.
-   rate_from_streaks`): a piece of a streak is shorter than the streak, never longer, so only
-   streaks within the lit pixels' shortfall (``SYSTEMATIC``) of the longest take part (with
-   fewer than 3 of them, their mean streak stands for every star's). A frame whose streaks are
+   sign, to the longest of them (the model of :mod:`~starsense.solve.tracking.streak_rate`,
+   linear in the rate to first order in the angle turned during the exposure, solved for
+   every choice of the streaks' unknown signs): a piece of a streak is shorter than the
+   streak, never longer, so only streaks within the lit pixels' shortfall (``SYSTEMATIC``) of
+   the longest take part (with fewer than 3 of them, their mean streak stands for every
+   star's). A frame whose streaks are
    shorter than 2 PSF sigmas plus the detector's centroid margin on each side is left as it
    is: its box of lit pixels, widened by that margin, holds each streak whole (frames at rest
    show up to ~3 px of elongation from pixelisation and noise, and keep their centroids);
@@ -24,7 +26,7 @@ Once the frame is identified, :func:`streak_centroids_of`:
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
 3. centroids each star over the pixels within ``2.5 sigma + 1`` px of its streak, started from
-   the detection and moved until it stays (:func:`starsense.detect.streak.streak_centroid`,
+   the detection and moved until it stays (:func:`starsense.detect.streak.streak_centroids`,
    the tracking windows' centroid);
 4. gives each star the covariance of that centroid (the tracking model,
    :mod:`starsense.solve.tracking.star_noise`)::
