@@ -40,14 +40,13 @@ def test_designs_are_seeded_and_in_range():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="known gap: zoo00 (20.5 deg, 0.61 px PSF, 14 bit) gives 2 wrong attitudes in 40 "
-    "frames at 1 deg/s, and zoo03's (6.4 deg field, limit past V 9) pattern database needs "
-    "more than 4 GB",
-)
 def test_small_zoo_has_no_wrong_solution():
-    """8 designs, 40 frames at rest and 40 at 1 deg/s each: no wrong attitude."""
+    """8 designs, 40 frames at rest and 40 at 1 deg/s each: no wrong attitude.
+
+    At 1 deg/s the streaks of zoo00 (21 px) break into pieces: the matched stars are
+    centroided over their whole streaks (:mod:`starsense.solve.streaks`), or a right
+    identification is fitted 60-120 arcsec off.
+    """
     cat = load_catalog("hipparcos")
     settings = DatasheetSettings(n_trials=40, seed=23, n_orientations=500)
     wrong = {}

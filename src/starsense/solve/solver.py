@@ -32,7 +32,6 @@ from starsense.attitude.robust import robust_attitude
 from starsense.catalog.apparent import apparent_places_of
 from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
-from starsense.detect.centroid import cog_sigma_px
 from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
@@ -47,6 +46,7 @@ from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.radial import refine_identification
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
+from starsense.solve.streaks import matched_measurements
 from starsense.units import DEG
 
 __all__ = [
@@ -272,12 +272,8 @@ class Solver:
                 counts=counts,
             )
 
-        def sigma_px(matched):
-            if self.settings.centroid_sigma_px == "snr":
-                return cog_sigma_px(
-                    det, matched, detector=self.sensor.detector, margin_px=detector.margin_px
-                )
-            return self.settings.centroid_sigma_px
+        def sigma_px(matched, x, vectors):  # streaks re-centroided: starsense.solve.streaks
+            return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
 
         points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
         sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time)
@@ -327,7 +323,7 @@ class Solver:
         sigma = self.settings.centroid_sigma_px
         sigma = sigma if sigma != "snr" else 0.3
         points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
-        return self._solve_points(points, t0, {}, lambda _: sigma, fov_rad, obs_time)
+        return self._solve_points(points, t0, {}, lambda _m, _x, v: (v, sigma), fov_rad, obs_time)
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True):
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
@@ -377,7 +373,8 @@ class Solver:
         matched = np.asarray(ident.detection_index)
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
         pixel_rad = fov / points.shape[1]
-        att, _ = robust_attitude(vectors[matched], ref, sigma_px(matched) * pixel_rad)
+        body, sigma = sigma_px(matched, points.x, vectors[matched])
+        att, _ = robust_attitude(body, ref, sigma * pixel_rad)
         stages["attitude_ms"] = _ms(t3)
         return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
 

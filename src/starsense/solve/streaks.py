@@ -1,0 +1,318 @@
+"""Lost in space on a smeared frame: the matched stars centroided over their whole streaks.
+
+At a body rate ``w`` a star draws a streak ``l`` during the exposure, and its mid-exposure
+position is the centre of that streak. The detector's centre of gravity over a region's box is
+that centre only when the region holds the whole streak; a faint streak breaks into pieces
+above the threshold, and the centroid of a piece is off the star's position by up to half the
+streak (on rendered frames at 1 deg/s: 5-9 px for streaks of 21 px), and the faint ends of a
+streak that taper below the threshold, or a streak cut by the frame's edge, pull the box's
+centroid along the streak. The identification is right, but an attitude fitted to those
+centroids can be off by more than a pixel: a wrong solution.
+
+Once the frame is identified, :func:`streak_centroids_of`:
+
+1. measures the streaks of the brightest matched stars (the second moments of their lit pixels,
+   :func:`starsense.solve.tracking.streak_rate.streak_axes`) and fits the body rate, up to its
+   sign, to the longest of them (the model of :mod:`~starsense.solve.tracking.streak_rate`,
+   linear in the rate to first order in the angle turned during the exposure, solved for
+   every choice of the streaks' unknown signs): a piece of a streak is shorter than the
+   streak, never longer, so only streaks within the lit pixels' shortfall (``SYSTEMATIC``) of
+   the longest take part (with fewer than 3 of them, their mean streak stands for every
+   star's). A frame whose streaks are
+   shorter than 2 PSF sigmas plus the detector's centroid margin on each side is left as it
+   is: its box of lit pixels, widened by that margin, holds each streak whole (frames at rest
+   show up to ~3 px of elongation from pixelisation and noise, and keep their centroids);
+2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
+   shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
+   streak, or a window shorter than the streak would stay wherever it started;
+3. centroids each star over the pixels within ``2.5 sigma + 1`` px of its streak, started from
+   the detection and moved until it stays (:func:`starsense.detect.streak.streak_centroids`,
+   the tracking windows' centroid);
+4. gives each star the covariance of that centroid (the tracking model,
+   :mod:`starsense.solve.tracking.star_noise`)::
+
+       C = (sigma_psf^2 / N) I + (sigma_r^2 / N^2) S + l l^T / (12 N)
+
+   and to a star whose streak runs off the frame, or whose window found no light, the
+   covariance of a point anywhere along its streak, ``l l^T / 12`` (uniform over it): its
+   centroid is pulled inwards by the cut, and the fit all but ignores it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from starsense.detect.centroid import cog_sigma_px
+from starsense.detect.streak import streak_centroids
+from starsense.solve.tracking.streak_rate import SYSTEMATIC, streak_axes
+
+__all__ = [
+    "MIN_STREAK_SIGMAS",
+    "N_RATE_STARS",
+    "StreakCentroids",
+    "matched_measurements",
+    "streak_centroids_of",
+]
+
+#: a frame whose measured streaks are shorter than this many PSF sigmas (plus the centroid
+#: window's margins) is not re-centroided
+MIN_STREAK_SIGMAS = 2.0
+#: the brightest matched stars whose streaks give the rate (a faint streak breaks into pieces)
+N_RATE_STARS = 5
+
+
+@dataclass(frozen=True)
+class StreakCentroids:
+    """Matched stars centroided over their streaks (module docstring).
+
+    Attributes
+    ----------
+    x, y : ndarray, shape (N,)
+        Centroids, px.
+    cov_px2 : ndarray, shape (N, 2, 2)
+        Their covariance, px^2 (x = column, y = row).
+    streaks_px : ndarray, shape (N, 2)
+        Each star's streak, start to end (or end to start), px.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    cov_px2: np.ndarray
+    streaks_px: np.ndarray
+
+    @property
+    def sigma_px(self) -> np.ndarray:
+        """Mean-of-axes 1-sigma of each centroid, px (shape (N,))."""
+        return np.sqrt(0.5 * (self.cov_px2[:, 0, 0] + self.cov_px2[:, 1, 1]))
+
+
+def _streaks(sensor, x, y, rate_rad_s) -> np.ndarray:
+    """Streak (start to end) of the stars at (x, y) at a body rate, px, shape (N, 2)."""
+    b = sensor.unproject(x, y)
+    half = Rotation.from_rotvec(np.asarray(rate_rad_s) * sensor.exposure_s / 2.0)
+    xs, ys = sensor.project(half.apply(b))
+    xe, ye = sensor.project(half.inv().apply(b))
+    return np.column_stack([xe - xs, ye - ys])
+
+
+def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return windows of 2 half + 1 px around (x, y), less the level, and their corners.
+
+    Shapes (N, 2 half + 1, 2 half + 1), zero off the frame; first rows and columns (N,) each.
+    """
+    rows, cols = image.shape
+    size = 2 * half + 1
+    r0 = np.floor(y).astype(int) - half
+    c0 = np.floor(x).astype(int) - half
+    planes = np.zeros((len(x), size, size))
+    for i in range(len(x)):
+        a, b = max(r0[i], 0), min(r0[i] + size, rows)
+        c, d = max(c0[i], 0), min(c0[i] + size, cols)
+        sub = np.asarray(image[a:b, c:d], dtype=float)
+        base = level
+        if base is None:  # the median of the window's border
+            base = float(np.median(np.concatenate([sub[0], sub[-1], sub[:, 0], sub[:, -1]])))
+        planes[i, a - r0[i] : b - r0[i], c - c0[i] : d - c0[i]] = sub - base
+    return planes, r0, c0
+
+
+def _rate(sensor, x, y, axes) -> np.ndarray:
+    """Return the body rate (up to sign) whose streaks fit ``l l^T`` of stars (x, y), rad/s.
+
+    To first order in the angle turned during the exposure the streak is linear in the rate,
+    ``l_i = A_i w`` (``A_i`` from the projection); each measured streak is ``+-l_i``, the sign
+    unknown: the least-squares ``w`` is found for every choice of the signs (the first fixed)
+    and the best kept.
+    """
+    eps = 1e-6 / sensor.exposure_s  # a turn of 1 microradian over the exposure
+    a = np.stack([_streaks(sensor, x, y, eps * e) / eps for e in np.eye(3)], axis=2)
+    length = np.sqrt(np.maximum(axes[:, 0, 0] + axes[:, 1, 1], 0.0))
+    meas = np.linalg.eigh(axes)[1][:, :, -1] * length[:, None]  # (N, 2), sign unknown
+    a2 = a.reshape(-1, 3)
+    best, rate = math.inf, np.zeros(3)
+    for signs in itertools.product((1.0, -1.0), repeat=len(x) - 1):
+        rhs = (meas * np.array([1.0, *signs])[:, None]).ravel()
+        w = np.linalg.lstsq(a2, rhs, rcond=None)[0]
+        cost = float(np.sum((a2 @ w - rhs) ** 2))
+        if cost < best:
+            best, rate = cost, w
+    return rate
+
+
+def _streak_model(sensor, image, x, y, order, **measure):
+    """Return the streaks of stars (x, y) -> (N, 2) px from the brightest ones, or None.
+
+    None when fewer than 3 streaks are measured or they are short (module docstring).
+    """
+    sigma = sensor.detector.psf_sigma_px
+    use = order[: 3 * N_RATE_STARS]
+    half = math.ceil(0.5 * float(np.max(measure.pop("extent_px")[use])) + 3.0 * sigma + 4.0)
+    shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * measure.pop("margin_px")
+    axes = streak_axes(image, x[use], y[use], half_px=half, **measure)
+    length2 = axes[:, 0, 0] + axes[:, 1, 1]  # |l|^2
+    ok = np.flatnonzero(np.isfinite(length2))
+    ok = ok[np.argsort(-length2[ok], kind="stable")]
+    if len(ok) < 3 or np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
+        return None
+    # a piece of a streak is shorter than the streak, never longer, and a whole streak's lit
+    # pixels fall short of it by up to SYSTEMATIC: the rate comes from the streaks within that
+    # of the longest (a rate about the boresight lengthens them with the distance from it: the
+    # outer ring of the field keeps them)
+    ok = ok[length2[ok] >= (1.0 - SYSTEMATIC) ** 2 * length2[ok[0]]][:N_RATE_STARS]
+    if len(ok) < 3:  # one or two whole streaks: theirs, the same everywhere
+        m = axes[ok].sum(axis=0)
+        vec = np.linalg.eigh(m)[1][:, -1] * math.sqrt(float(np.trace(m)) / len(ok))
+        return lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))
+    rate = _rate(sensor, x[use[ok]], y[use[ok]], axes[ok])
+    return lambda xs, ys: _streaks(sensor, xs, ys, rate)
+
+
+def streak_centroids_of(
+    sensor,
+    image,
+    xy,
+    *,
+    counts,
+    extent_px,
+    level: float | None,
+    threshold: float,
+    threshold_sigma: float | None = None,
+    margin_px: int = 2,
+) -> StreakCentroids | None:
+    """Return the matched stars centroided over their whole streaks (module docstring).
+
+    Parameters
+    ----------
+    sensor : Sensor
+        The camera (projection, exposure, PSF, gain and read noise).
+    image : ndarray, shape (rows, columns)
+        The frame, counts.
+    xy : array_like, shape (N, 2)
+        The matched detections' centroids (x = column, y = row), px.
+    counts : array_like, shape (N,)
+        Their integrated counts (the brightest give the rate).
+    extent_px : array_like, shape (N,)
+        The larger side of each detection's box, px (the windows that measure the streaks
+        hold the brightest whole).
+    level : float or None
+        Background level, counts (the known bias); None: the median of each window's border.
+    threshold : float
+        Lit-pixel threshold above the level, counts (the detection logic's).
+    threshold_sigma : float, optional
+        With ``level`` None, the threshold is at least this many times a window's noise.
+    margin_px : int
+        The margin of the detector's centroid window around a region's box, px.
+
+    Returns
+    -------
+    StreakCentroids or None
+        None when the frame is not smeared (streaks shorter than ``MIN_STREAK_SIGMAS`` PSF
+        sigmas) or its rate cannot be measured (fewer than 3 measured streaks): the
+        detections' centroids stand.
+    """
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    x, y = xy[:, 0].copy(), xy[:, 1].copy()
+    counts = np.asarray(counts, dtype=float)
+    if len(x) < 3:
+        return None
+    order = np.argsort(-counts, kind="stable")
+    model = _streak_model(
+        sensor,
+        image,
+        x,
+        y,
+        order,
+        extent_px=np.asarray(extent_px, dtype=float),
+        level=level,
+        threshold=threshold,
+        threshold_sigma=threshold_sigma,
+        margin_px=margin_px,
+    )
+    if model is None:
+        return None
+    det = sensor.detector
+    sigma = det.psf_sigma_px
+    radius = 2.5 * sigma + 1.0  # the tracking windows' capsule
+    streaks = model(x, y)
+    rows, cols = image.shape
+    seg = streaks * (1.0 + SYSTEMATIC)
+    half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
+    planes, r0, c0 = _planes(image, x, y, half, level)
+    gx, gy, total, _, spread = streak_centroids(planes, x - c0, y - r0, streaks=seg, radius=radius)
+    along = streaks[:, :, None] * streaks[:, None, :] / 12.0  # a point anywhere on the streak
+    found = np.isfinite(gx) & (total > 0)
+    out_x = np.where(found, gx + c0, x)
+    out_y = np.where(found, gy + r0, y)
+    hx = 0.5 * np.abs(streaks[:, 0]) + radius
+    hy = 0.5 * np.abs(streaks[:, 1]) + radius
+    whole = found & (hx <= out_x) & (out_x <= cols - 1 - hx) & (hy <= out_y)
+    whole &= out_y <= rows - 1 - hy  # a streak run off the frame is pulled inwards
+    n_e = np.maximum(np.where(found, total, 0.0) / det.gain_counts_per_e, 1.0)[:, None, None]
+    cov = (sigma**2 / n_e) * np.eye(2) + (det.read_noise_e**2 / n_e**2) * np.where(
+        found[:, None, None], spread, 0.0
+    )
+    cov = np.where(whole[:, None, None], cov + along / n_e, along)
+    return StreakCentroids(out_x, out_y, cov, np.asarray(streaks))
+
+
+def matched_measurements(solver, image, det, *, matched, x, vectors):
+    """Return the matched detections' unit vectors and 1-sigma, px, for the final attitude.
+
+    The detections' own centroids and noise (:func:`starsense.detect.centroid.cog_sigma_px`
+    with ``centroid_sigma_px="snr"``, else the Solver's number), unless the frame is smeared:
+    then the centroids over the whole streaks and their noise (:func:`streak_centroids_of`;
+    with a number, the larger of it and a star's own). The mirror image of a frame (``x`` not
+    the detections' own columns) keeps its centroids.
+
+    Parameters
+    ----------
+    solver : Solver
+        The solver (its sensor, settings and detector).
+    image : ndarray, shape (rows, columns)
+        The frame, counts.
+    det : Detections
+        The frame's detections.
+    matched : ndarray of int, shape (N,)
+        The matched detections.
+    x : ndarray, shape (M,)
+        The columns the frame was solved with (``det.x``, or their mirror image).
+    vectors : ndarray, shape (N, 3)
+        The matched detections' camera-frame unit vectors.
+
+    Returns
+    -------
+    vectors : ndarray, shape (N, 3)
+        Camera-frame unit vectors.
+    sigma_px : ndarray, shape (N,), or float
+        Per-axis 1-sigma of each centroid, px.
+    """
+    sensor, fixed = solver.sensor, solver.settings.centroid_sigma_px
+    sigma = fixed
+    if fixed == "snr":
+        sigma = cog_sigma_px(
+            det, matched, detector=sensor.detector, margin_px=solver.detector.margin_px
+        )
+    if sensor is None or x is not det.x or len(matched) < 3:
+        return vectors, sigma
+    known = solver.settings.background == "known"
+    box = det.bbox[matched]
+    got = streak_centroids_of(
+        sensor,
+        image,
+        np.column_stack([det.x[matched], det.y[matched]]),
+        counts=det.integrated_counts[matched],
+        extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
+        level=float(sensor.detector.bias_counts) if known else None,
+        threshold=solver.logic.lit_pixel_counts,
+        threshold_sigma=None if known else solver.settings.threshold_sigma,
+        margin_px=solver.detector.margin_px,
+    )
+    if got is None:
+        return vectors, sigma
+    own = got.sigma_px
+    return sensor.unproject(got.x, got.y), own if fixed == "snr" else np.maximum(own, fixed)
