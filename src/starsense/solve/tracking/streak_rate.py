@@ -68,7 +68,7 @@ def streak_axes(
         ``12 (lambda_1 - lambda_2) e e^T`` of the lit region at the centroid (x = column,
         y = row); NaN where the window leaves the frame or no lit region holds the centroid.
     """
-    a = np.asarray(image, dtype=float)
+    a = np.asarray(image)  # each window is read as float, not the whole frame
     rows, cols = a.shape
     out = np.full((len(x), 2, 2), np.nan)
     for i, (xc, yc) in enumerate(zip(np.asarray(x, float), np.asarray(y, float), strict=True)):
@@ -76,7 +76,7 @@ def streak_axes(
         r1, c1 = r0 + 2 * half_px + 1, c0 + 2 * half_px + 1
         if r0 < 0 or c0 < 0 or r1 > rows or c1 > cols:
             continue
-        sub = a[r0:r1, c0:c1]
+        sub = a[r0:r1, c0:c1].astype(float)
         cut = threshold
         if level is None:
             border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
