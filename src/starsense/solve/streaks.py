@@ -18,9 +18,9 @@ Once the frame is identified, :func:`streak_centroids_of`:
    every choice of the streaks' unknown signs): a piece of a streak is shorter than the
    streak, never longer, so only streaks within the lit pixels' shortfall (``SYSTEMATIC``) of
    the longest take part (with fewer than 3 of them, their mean streak stands for every
-   star's). A frame whose streaks are
-   shorter than 2 PSF sigmas plus the detector's centroid margin on each side is left as it
-   is: its box of lit pixels, widened by that margin, holds each streak whole (frames at rest
+   star's). A frame whose brightest matched stars' streaks (median of the brightest
+   ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the detector's centroid margin on each
+   side is left as it is: its box of lit pixels, widened by that margin, holds each streak whole (frames at rest
    show up to ~3 px of elongation from pixelisation and noise, and keep their centroids);
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
@@ -153,7 +153,17 @@ def _streak_model(sensor, image, x, y, order, **measure):
     use = order[: 3 * N_RATE_STARS]
     half = math.ceil(0.5 * float(np.max(measure.pop("extent_px")[use])) + 3.0 * sigma + 4.0)
     shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * measure.pop("margin_px")
-    axes = streak_axes(image, x[use], y[use], half_px=half, **measure)
+    # the brightest streaks are whole: a frame where theirs are short is not smeared, and the
+    # other windows are not read (a frame at rest pays for N_RATE_STARS windows only)
+    first = streak_axes(
+        image, x[use[:N_RATE_STARS]], y[use[:N_RATE_STARS]], half_px=half, **measure
+    )
+    first2 = first[:, 0, 0] + first[:, 1, 1]
+    first2 = first2[np.isfinite(first2)]
+    if len(first2) == 0 or np.median(first2) < shortest**2:
+        return None
+    rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
+    axes = np.concatenate([first, rest])
     length2 = axes[:, 0, 0] + axes[:, 1, 1]  # |l|^2
     ok = np.flatnonzero(np.isfinite(length2))
     ok = ok[np.argsort(-length2[ok], kind="stable")]
