@@ -4,7 +4,9 @@ A star smeared by the body rate over the exposure draws a segment; its centroid 
 the pixels within a radius (a few PSF sigmas) of that segment, centred on the current estimate,
 and the segment moved there until it stays. :func:`streak_centroid` does one region;
 :func:`streak_centroids` all regions of the tracking windows at once (the same masks, iteration
-and stop rule, vectorised over the regions).
+and stop rule, vectorised over the regions). :func:`streak_axes` measures a streak's length and
+direction from the second moments of its lit pixels (a smeared frame's rate, and whether a frame
+is smeared at all).
 """
 
 from __future__ import annotations
@@ -12,8 +14,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy import ndimage
 
-__all__ = ["columns", "kept_arange", "streak_centroid", "streak_centroids", "windows_view"]
+from starsense.detect.clip import MAD_TO_SIGMA
+
+__all__ = [
+    "SYSTEMATIC",
+    "columns",
+    "kept_arange",
+    "streak_axes",
+    "streak_centroid",
+    "streak_centroids",
+    "windows_view",
+]
 
 #: Float64 zero: ``np.where(mask, float32 counts, _ZERO)`` is float64, so the sums over a
 #: capsule are float64 sums (a Python 0.0 would leave them float32, rounding past 2^24 counts)
@@ -278,3 +291,79 @@ def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
         sxx, syy = np.einsum("kij,kij->k", dx, dx), np.einsum("kij,kij->k", dy, dy)
         spread[done] = columns(sxx, sxy, sxy, syy).reshape(-1, 2, 2)
     return out_x, out_y, total, boxes, spread
+
+
+#: Relative error of a streak rate from the lit pixels' shortened ends (see rate_from_streaks)
+SYSTEMATIC = 0.2
+
+
+def streak_axes(
+    image,
+    x,
+    y,
+    *,
+    half_px: int,
+    threshold: float,
+    level: float | None = 0.0,
+    threshold_sigma: float | None = None,
+) -> np.ndarray:
+    """Return ``l l^T`` of the streak through each centroid, from its lit pixels, px^2.
+
+    Parameters
+    ----------
+    image : ndarray, shape (rows, columns)
+        The frame, counts.
+    x, y : array_like, shape (N,)
+        Centroids, px.
+    half_px : int
+        Half-width of the square window searched around each centroid, px.
+    threshold : float
+        Lit-pixel threshold above ``level``, counts (the detection logic's).
+    level : float or None
+        Background level, counts; None: the median of each window's border.
+    threshold_sigma : float, optional
+        With ``level`` None, the threshold is at least this many times the border's noise
+        (scaled median absolute deviation).
+
+    Returns
+    -------
+    ndarray, shape (N, 2, 2)
+        ``12 (lambda_1 - lambda_2) e e^T`` of the lit region at the centroid (x = column,
+        y = row); NaN where the window leaves the frame or no lit region holds the centroid.
+    """
+    a = np.asarray(image)  # each window is read as float, not the whole frame
+    rows, cols = a.shape
+    out = np.full((len(x), 2, 2), np.nan)
+    for i, (xc, yc) in enumerate(zip(np.asarray(x, float), np.asarray(y, float), strict=True)):
+        r0, c0 = round(yc) - half_px, round(xc) - half_px
+        r1, c1 = r0 + 2 * half_px + 1, c0 + 2 * half_px + 1
+        if r0 < 0 or c0 < 0 or r1 > rows or c1 > cols:
+            continue
+        sub = a[r0:r1, c0:c1].astype(float)
+        cut = threshold
+        if level is None:
+            border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
+            base = float(np.median(border))
+            if threshold_sigma is not None:
+                noise = MAD_TO_SIGMA * float(np.median(np.abs(border - base)))
+                cut = max(threshold, threshold_sigma * noise)
+            sub = sub - base
+        else:
+            sub = sub - level
+        labels, _ = ndimage.label(sub > cut, structure=np.ones((3, 3)))
+        lit = np.argwhere(labels > 0)
+        if len(lit) < 3:
+            continue
+        near = lit[np.argmin(np.hypot(lit[:, 0] - (yc - r0), lit[:, 1] - (xc - c0)))]
+        mine = labels == labels[near[0], near[1]]
+        wgt = np.where(mine, sub, 0.0)
+        total = wgt.sum()
+        py, px = np.nonzero(mine)
+        v = wgt[py, px]
+        cx, cy = v @ px / total, v @ py / total
+        dx, dy = px - cx, py - cy
+        m = np.array([[v @ dx**2, v @ (dx * dy)], [v @ (dx * dy), v @ dy**2]]) / total
+        lam, vec = np.linalg.eigh(m)
+        e = vec[:, 1]
+        out[i] = 12.0 * (lam[1] - lam[0]) * np.outer(e, e)
+    return out

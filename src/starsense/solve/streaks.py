@@ -12,7 +12,7 @@ centroids can be off by more than a pixel: a wrong solution.
 Once the frame is identified, :func:`streak_centroids_of`:
 
 1. measures the streaks of the brightest matched stars (the second moments of their lit pixels,
-   :func:`starsense.solve.tracking.streak_rate.streak_axes`) and fits the body rate, up to its
+   :func:`starsense.detect.streak.streak_axes`) and fits the body rate, up to its
    sign, to the longest of them (the model of :mod:`~starsense.solve.tracking.streak_rate`,
    linear in the rate to first order in the angle turned during the exposure, solved for
    every choice of the streaks' unknown signs): a piece of a streak is shorter than the
@@ -20,8 +20,9 @@ Once the frame is identified, :func:`streak_centroids_of`:
    the longest take part (with fewer than 3 of them, their mean streak stands for every
    star's). A frame whose brightest matched stars' streaks (median of the brightest
    ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the detector's centroid margin on each
-   side is left as it is: its box of lit pixels, widened by that margin, holds each streak whole (frames at rest
-   show up to ~3 px of elongation from pixelisation and noise, and keep their centroids);
+   side is left as it is: its box of lit pixels, widened by that margin, holds each streak
+   whole (frames at rest show up to ~3 px of elongation from pixelisation and noise, and keep
+   their centroids);
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
@@ -48,8 +49,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense.detect.centroid import cog_sigma_px
-from starsense.detect.streak import streak_centroids
-from starsense.solve.tracking.streak_rate import SYSTEMATIC, streak_axes
+from starsense.detect.streak import SYSTEMATIC, streak_axes, streak_centroids
 
 __all__ = [
     "MIN_STREAK_SIGMAS",

@@ -21,89 +21,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from starsense.detect.clip import MAD_TO_SIGMA
+from starsense.detect.streak import SYSTEMATIC, streak_axes
 from starsense.errors import InputError
 
 __all__ = ["SYSTEMATIC", "rate_from_streaks", "streak_axes"]
-
-#: Relative error of a streak rate from the lit pixels' shortened ends (see rate_from_streaks)
-SYSTEMATIC = 0.2
-
-
-def streak_axes(
-    image,
-    x,
-    y,
-    *,
-    half_px: int,
-    threshold: float,
-    level: float | None = 0.0,
-    threshold_sigma: float | None = None,
-) -> np.ndarray:
-    """Return ``l l^T`` of the streak through each centroid, from its lit pixels, px^2.
-
-    Parameters
-    ----------
-    image : ndarray, shape (rows, columns)
-        The frame, counts.
-    x, y : array_like, shape (N,)
-        Centroids, px.
-    half_px : int
-        Half-width of the square window searched around each centroid, px.
-    threshold : float
-        Lit-pixel threshold above ``level``, counts (the detection logic's).
-    level : float or None
-        Background level, counts; None: the median of each window's border.
-    threshold_sigma : float, optional
-        With ``level`` None, the threshold is at least this many times the border's noise
-        (scaled median absolute deviation).
-
-    Returns
-    -------
-    ndarray, shape (N, 2, 2)
-        ``12 (lambda_1 - lambda_2) e e^T`` of the lit region at the centroid (x = column,
-        y = row); NaN where the window leaves the frame or no lit region holds the centroid.
-    """
-    a = np.asarray(image)  # each window is read as float, not the whole frame
-    rows, cols = a.shape
-    out = np.full((len(x), 2, 2), np.nan)
-    for i, (xc, yc) in enumerate(zip(np.asarray(x, float), np.asarray(y, float), strict=True)):
-        r0, c0 = round(yc) - half_px, round(xc) - half_px
-        r1, c1 = r0 + 2 * half_px + 1, c0 + 2 * half_px + 1
-        if r0 < 0 or c0 < 0 or r1 > rows or c1 > cols:
-            continue
-        sub = a[r0:r1, c0:c1].astype(float)
-        cut = threshold
-        if level is None:
-            border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
-            base = float(np.median(border))
-            if threshold_sigma is not None:
-                noise = MAD_TO_SIGMA * float(np.median(np.abs(border - base)))
-                cut = max(threshold, threshold_sigma * noise)
-            sub = sub - base
-        else:
-            sub = sub - level
-        labels, _ = ndimage.label(sub > cut, structure=np.ones((3, 3)))
-        lit = np.argwhere(labels > 0)
-        if len(lit) < 3:
-            continue
-        near = lit[np.argmin(np.hypot(lit[:, 0] - (yc - r0), lit[:, 1] - (xc - c0)))]
-        mine = labels == labels[near[0], near[1]]
-        wgt = np.where(mine, sub, 0.0)
-        total = wgt.sum()
-        py, px = np.nonzero(mine)
-        v = wgt[py, px]
-        cx, cy = v @ px / total, v @ py / total
-        dx, dy = px - cx, py - cy
-        m = np.array([[v @ dx**2, v @ (dx * dy)], [v @ (dx * dy), v @ dy**2]]) / total
-        lam, vec = np.linalg.eigh(m)
-        e = vec[:, 1]
-        out[i] = 12.0 * (lam[1] - lam[0]) * np.outer(e, e)
-    return out
 
 
 def _streaks(sensor, b, w, exposure_s):
@@ -140,6 +63,8 @@ def rate_from_streaks(sensor, x, y, *, axes_px2, exposure_s: float | None = None
     InputError
         Fewer than three usable streaks.
     """
+    from scipy.optimize import least_squares  # the tracker's, not the solver's, import
+
     te = sensor.exposure_or(exposure_s)
     m = np.asarray(axes_px2, dtype=float)
     ok = np.all(np.isfinite(m.reshape(len(m), -1)), axis=1)
