@@ -82,3 +82,33 @@ def test_fast_read_out_keeps_the_measured_errors():
     # the stars each frame shows: detection unchanged in the mean
     m = fast.n_matched - exact.n_matched
     assert abs(m.mean()) < 4 * max(m.std(ddof=1), 0.5) / np.sqrt(len(m))
+
+
+def test_rendered_sky_is_at_the_epoch_of_the_solvers_catalogue():
+    # A narrow field is identified on Gaia DR3 (epoch 2016.0) while the frames are rendered from
+    # Hipparcos (epoch 1991.25). Against Gaia as the independent reference, Hipparcos carried
+    # to 2016.0 agrees to a median 0.03 arcsec (its proper motions' ~1 mas/yr errors over 25
+    # years); left at 1991.25 the median is 0.46 arcsec, which alone would exceed the NEA of a
+    # long-focus design. Bounds: 0.06 and 0.3 arcsec, a factor 2 from each measured median.
+    from scipy.spatial import cKDTree
+
+    from starsense.analysis.inputs import at_epoch
+    from starsense.catalog import load_catalog
+    from starsense.identify.fields import deep_catalog_available
+
+    if not deep_catalog_available():
+        pytest.skip("the bundled Gaia catalogue is not installed")
+    hip, gaia = load_catalog("hipparcos"), load_catalog("gaia")
+    bright = hip.brighter_than("V", 8.0)
+    tree = cKDTree(gaia.vectors)
+    arcsec = np.pi / 180 / 3600
+
+    def median_miss(cat):
+        d, _ = tree.query(cat.vectors, distance_upper_bound=3 * arcsec)
+        return float(np.median(d[np.isfinite(d)])) / arcsec
+
+    moved = at_epoch(bright, gaia.epoch_yr)
+    assert moved.epoch_yr == gaia.epoch_yr
+    assert median_miss(moved) < 0.06
+    assert median_miss(bright) > 0.3
+    assert at_epoch(moved, gaia.epoch_yr) is moved

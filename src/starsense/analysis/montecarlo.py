@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from starsense._validate import finite_float, show
-from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
+from starsense.analysis.inputs import as_catalog, as_sensor, at_epoch, root_seed
 from starsense.errors import InputError
 from starsense.geometry.attitude import angular_separation, boresight, small_rotation_angles
 from starsense.geometry.sampling import random_attitudes
@@ -168,6 +168,7 @@ def _trials(
     matched stars).
     """
     solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
+    catalog = at_epoch(catalog, solver.catalog.epoch_yr)  # the sky the database describes
     children = np.random.SeedSequence(seed).spawn(int(n_trials))
     out = []
     for k in indices:
