@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -124,3 +125,22 @@ def test_false_match_probability():
     # binomial tail: P[X >= 2], X ~ Bin(3, 0.5) = 0.5
     assert false_match_probability(7, 6, n_hypothesis=4, p_single=0.5) == pytest.approx(0.5)
     assert false_match_probability(30, 20, n_hypothesis=4, p_single=0.01) < 1e-20
+
+
+def test_a_rotation_given_as_its_matrix_is_built_when_read(db15, hipparcos, synth_sensor):
+    # the compiled search hands its fitted matrix over; the Rotation read from the result is the
+    # one scipy builds from that matrix (bit for bit), kept once built, and dataclasses.replace
+    # (identify_ranked) carries it over
+    rng = np.random.default_rng(7)
+    truth = Rotation.random(random_state=rng)
+    vectors, _ids = synthetic_frame(hipparcos, synth_sensor, truth, rng)
+    solved = HashIdentifier(db15)(vectors, SYNTH_FOV_RAD)
+    assert solved.solved
+    matrix = solved.rotation.as_matrix()
+    lazy = Identification(status="solved", algorithm="hashing", rotation=matrix)
+    built = lazy.rotation
+    assert isinstance(built, Rotation) and lazy.rotation is built
+    np.testing.assert_array_equal(built.as_quat(), Rotation.from_matrix(matrix).as_quat())
+    copy = dataclasses.replace(lazy, message="copied")
+    assert copy.rotation is built
+    assert Identification(status="no_match", algorithm="hashing").rotation is None
