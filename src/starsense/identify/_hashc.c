@@ -505,6 +505,23 @@ static void frame_init(Frame *f, const double *vs, int n)
     f->max_off = acos(fmin(fmax(zmin, -1.0), 1.0));
 }
 
+/* The first index of the ascending x[0..n) with x[i] >= key (n if none): a binary search
+ * without branches on the data (conditional moves), which a frame's few dozen detections
+ * searched for every star of the field would otherwise mispredict half the time. */
+static inline int first_at_least(const double *x, int n, double key)
+{
+    if (n <= 0)
+        return 0;
+    const double *b = x;
+    int len = n;
+    while (len > 1) {
+        int half = len / 2;
+        b = b[half] < key ? b + half : b;
+        len -= half;
+    }
+    return (int)(b - x) + (b[0] < key);
+}
+
 /* The database stars within `reach` of `centre` (Verifier's _Field: fetched once per
  * hypothesis, filtered to the cone of each later attitude). */
 static int fetch_sky(const Tables *t, Scratch *s, const double centre[3], double reach)
@@ -578,14 +595,7 @@ static int match(const Tables *t, Scratch *s, const Frame *f, const double R[9],
         double *cj = cam + 3 * j;
         for (int i = 0; i < 3; i++)
             cj[i] = R[3 * i] * st[0] + R[3 * i + 1] * st[1] + R[3 * i + 2] * st[2];
-        int lo = 0, hi = f->n; /* first detection with x >= cj[0] - reach */
-        while (lo < hi) {
-            int mid = (lo + hi) / 2;
-            if (f->xs[mid] < cj[0] - reach)
-                lo = mid + 1;
-            else
-                hi = mid;
-        }
+        int lo = first_at_least(f->xs, f->n, cj[0] - reach);
         int here = 0;
         for (int i = lo; i < f->n && f->xs[i] <= cj[0] + reach; i++) {
             int d = f->xi[i];
