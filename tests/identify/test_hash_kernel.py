@@ -144,6 +144,57 @@ def test_unit_vectors_leave_other_inputs_to_validate_vectors():
         assert hk.unit_vectors_compiled(bad) is None
 
 
+@needs_kernel
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(0, 40),
+    fov_deg=st.floats(0.5, 120.0),
+    shape=st.tuples(st.integers(1, 5000), st.integers(1, 5000)),
+    bad=st.sampled_from(["none", "none", "nan", "inf", "-inf"]),
+)
+def test_pinhole_vectors_equal_the_numpy_form(seed, n, fov_deg, shape, bad):
+    rng = np.random.default_rng(seed)
+    # positions on the detector and off it (a star's centroid may come from outside the frame)
+    x = rng.uniform(-0.5, 1.5, n) * shape[1]
+    y = rng.uniform(-0.5, 1.5, n) * shape[0]
+    if bad != "none" and n:
+        (x if rng.integers(2) else y)[int(rng.integers(n))] = float(bad)
+    fov = math.radians(fov_deg)
+    if bad == "none" or not n:
+        out = pinhole_vectors(x, y, shape=shape, fov_rad=fov)
+        np.testing.assert_array_equal(
+            out, pinhole_vectors(x, y, shape=shape, fov_rad=fov, compiled=False)
+        )
+    else:  # the kernel says no; the NumPy form raises
+        assert hk.pinhole_vectors_compiled(x, y, centre=(0.0, 0.0), f_px=1.0) is None
+        for compiled in (True, False):
+            with pytest.raises(InputError, match="finite"):
+                pinhole_vectors(x, y, shape=shape, fov_rad=fov, compiled=compiled)
+
+
+def test_pinhole_vectors_leave_other_inputs_to_the_numpy_form():
+    x = np.arange(5.0)
+    for a, b in (
+        (x, x[:4]),
+        (x.reshape(5, 1), x.reshape(5, 1)),
+        (x.astype(np.float32), x),
+        ([1.0], x),
+    ):
+        assert hk.pinhole_vectors_compiled(a, b, centre=(0.0, 0.0), f_px=1.0) is None
+    # lists, float32 and strided views give the NumPy form's values
+    xy = np.random.default_rng(1).uniform(0, 100, (2, 9))
+    for a, b in (
+        (list(xy[0]), list(xy[1])),
+        (xy[0].astype(np.float32), xy[1]),
+        (xy[0, ::2], xy[1, ::2]),
+    ):
+        np.testing.assert_array_equal(
+            pinhole_vectors(a, b, shape=(100, 100), fov_rad=0.2),
+            pinhole_vectors(a, b, shape=(100, 100), fov_rad=0.2, compiled=False),
+        )
+
+
 def _assert_same(a, b):
     assert a.status == b.status
     assert (a.n_patterns_tried, a.n_candidates) == (b.n_patterns_tried, b.n_candidates)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -11,6 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError
 from starsense.identify import HashIdentifier, Identification, TriangleIdentifier, build_database
+from starsense.identify.result import result_builder
 from starsense.identify.verify import false_match_probability
 
 ARCMIN = math.radians(1.0 / 60.0)
@@ -124,3 +126,60 @@ def test_false_match_probability():
     # binomial tail: P[X >= 2], X ~ Bin(3, 0.5) = 0.5
     assert false_match_probability(7, 6, n_hypothesis=4, p_single=0.5) == pytest.approx(0.5)
     assert false_match_probability(30, 20, n_hypothesis=4, p_single=0.01) < 1e-20
+
+
+def test_a_rotation_given_as_its_matrix_is_built_when_read(db15, hipparcos, synth_sensor):
+    # the compiled search hands its fitted matrix over; the Rotation read from the result is the
+    # one scipy builds from that matrix (bit for bit), kept once built, and dataclasses.replace
+    # (identify_ranked) carries it over
+    rng = np.random.default_rng(7)
+    truth = Rotation.random(random_state=rng)
+    vectors, _ids = synthetic_frame(hipparcos, synth_sensor, truth, rng)
+    solved = HashIdentifier(db15)(vectors, SYNTH_FOV_RAD)
+    assert solved.solved
+    matrix = solved.rotation.as_matrix()
+    lazy = Identification(status="solved", algorithm="hashing", rotation=matrix)
+    built = lazy.rotation
+    assert isinstance(built, Rotation) and lazy.rotation is built
+    np.testing.assert_array_equal(built.as_quat(), Rotation.from_matrix(matrix).as_quat())
+    copy = dataclasses.replace(lazy, message="copied")
+    assert copy.rotation is built
+    assert Identification(status="no_match", algorithm="hashing").rotation is None
+
+
+def test_result_builder_makes_what_the_constructor_makes():
+    # result_builder fills the instance's fields itself (faster than the dataclass's __init__):
+    # every field must read as the constructor's, and an unknown field is still an error
+    fields = {
+        "rotation": Rotation.from_rotvec([0.1, -0.2, 0.3]).as_matrix(),
+        "fov_rad": 0.25,
+        "scale": 1.01,
+        "detection_index": np.array([0, 2, 3]),
+        "catalog_index": np.array([5, 6, 7]),
+        "catalog_id": np.array([50, 60, 70]),
+        "residual_rms_rad": 1e-5,
+        "false_match_probability": 1e-30,
+        "n_patterns_tried": 3,
+        "n_candidates": 2,
+        "best_false_match_probability": 1e-30,
+    }
+    for kw in ({}, fields, {"n_patterns_tried": 9}):
+        built = result_builder("hashing", 22, 0.0)("solved", "a message", **kw)
+        made = Identification(
+            status="solved",
+            algorithm="hashing",
+            n_detections=22,
+            time_ms=built.time_ms,
+            message="a message",
+            **kw,
+        )
+        for f in dataclasses.fields(Identification):
+            a, b = getattr(built, f.name), getattr(made, f.name)
+            if f.name == "rotation" and a is not None:
+                a, b = a.as_quat(), b.as_quat()
+            np.testing.assert_array_equal(a, b, err_msg=f.name)
+            assert type(a) is type(b), f.name
+    with pytest.raises(TypeError, match="no_such_field"):
+        result_builder("hashing", 22, 0.0)("solved", "", no_such_field=1)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        built.status = "no_match"

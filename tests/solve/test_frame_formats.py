@@ -169,3 +169,25 @@ def test_bayer_mosaic_is_noted_then_solved_binned(tmp_path, truth, solver, patte
     fits.PrimaryHDU(_mosaic(image[:48, :64], pattern)).writeto(tmp_path / "corner.fits")
     unbinned = solver.solve_file(tmp_path / "corner.fits")
     assert not unbinned.solved and any("Bayer mosaic" in n for n in unbinned.notes)
+
+
+def _hint_statistics(image):
+    """The hint's statistics as first written: the frame converted to float32, then sliced."""
+    a = np.asarray(image)
+    a = a[: a.shape[0] // 2 * 2, : a.shape[1] // 2 * 2].astype(np.float32)
+    cap = np.float32(np.percentile(a[::3, ::3], 99.0))
+    lattices = [np.minimum(a[r::2, c::2], cap) for r in (0, 1) for c in (0, 1)]
+    return [float(s.mean()) for s in lattices], float(np.mean([s.std() for s in lattices]))
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.int32, np.float32, np.float64])
+def test_bayer_hint_reads_the_frame_as_float32(dtype):
+    # the hint converts each sub-lattice as it caps it: the same float32 values (and so the same
+    # means and noise, bit for bit) as converting the whole frame first
+    rng = np.random.default_rng(3)
+    levels = np.array([[40.0, 70.0], [72.0, 120.0]])  # greens alike on one diagonal
+    frame = rng.normal(np.tile(levels, (61, 83)), 6.0).clip(0, 250).astype(dtype)
+    med, noise = _hint_statistics(frame)
+    hint = bayer_hint(frame)
+    assert hint is not None
+    assert f"sit at {', '.join(f'{m:.1f}' for m in med)} counts, noise {noise:.1f})" in hint

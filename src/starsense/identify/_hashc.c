@@ -505,6 +505,23 @@ static void frame_init(Frame *f, const double *vs, int n)
     f->max_off = acos(fmin(fmax(zmin, -1.0), 1.0));
 }
 
+/* The first index of the ascending x[0..n) with x[i] >= key (n if none): a binary search
+ * without branches on the data (conditional moves), which a frame's few dozen detections
+ * searched for every star of the field would otherwise mispredict half the time. */
+static inline int first_at_least(const double *x, int n, double key)
+{
+    if (n <= 0)
+        return 0;
+    const double *b = x;
+    int len = n;
+    while (len > 1) {
+        int half = len / 2;
+        b = b[half] < key ? b + half : b;
+        len -= half;
+    }
+    return (int)(b - x) + (b[0] < key);
+}
+
 /* The database stars within `reach` of `centre` (Verifier's _Field: fetched once per
  * hypothesis, filtered to the cone of each later attitude). */
 static int fetch_sky(const Tables *t, Scratch *s, const double centre[3], double reach)
@@ -578,14 +595,7 @@ static int match(const Tables *t, Scratch *s, const Frame *f, const double R[9],
         double *cj = cam + 3 * j;
         for (int i = 0; i < 3; i++)
             cj[i] = R[3 * i] * st[0] + R[3 * i + 1] * st[1] + R[3 * i + 2] * st[2];
-        int lo = 0, hi = f->n; /* first detection with x >= cj[0] - reach */
-        while (lo < hi) {
-            int mid = (lo + hi) / 2;
-            if (f->xs[mid] < cj[0] - reach)
-                lo = mid + 1;
-            else
-                hi = mid;
-        }
+        int lo = first_at_least(f->xs, f->n, cj[0] - reach);
         int here = 0;
         for (int i = lo; i < f->n && f->xs[i] <= cj[0] + reach; i++) {
             int d = f->xi[i];
@@ -1106,6 +1116,55 @@ static PyObject *py_unit_vectors(PyObject *self, PyObject *args)
     return PyBool_FromLong(ok);
 }
 
+/* pinhole(x, y, cx, cy, f_px, out) -> bool: out[i] = the unit vector of ((x - cx) / f_px,
+ * (y - cy) / f_px, 1), as solve.pinhole.pinhole_vectors computes it in NumPy (the same operations
+ * in the same order: bit for bit); False (out undefined) if an x or y is not finite: the caller
+ * then raises its error. x, y: C-contiguous float64 of one length; out: (N, 3) float64. */
+static PyObject *py_pinhole(PyObject *self, PyObject *args)
+{
+    PyObject *xobj, *yobj, *oobj;
+    double cx, cy, f;
+    if (!PyArg_ParseTuple(args, "OOdddO", &xobj, &yobj, &cx, &cy, &f, &oobj))
+        return NULL;
+    Py_buffer b[3];
+    PyObject *objs[3] = {xobj, yobj, oobj};
+    int got = 0, ok = 1;
+    for (; got < 3; got++) {
+        int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (got == 2 ? PyBUF_WRITABLE : 0);
+        if (PyObject_GetBuffer(objs[got], &b[got], flags) < 0)
+            break;
+        const char *fmt = b[got].format;
+        while (*fmt == '@' || *fmt == '=' || *fmt == '<')
+            fmt++;
+        ok = ok && b[got].itemsize == 8 && strcmp(fmt, "d") == 0;
+    }
+    if (got < 3) {
+        for (int i = 0; i < got; i++)
+            PyBuffer_Release(&b[i]);
+        return NULL;
+    }
+    Py_ssize_t n = b[0].len / 8;
+    if (!ok || b[1].len != b[0].len || b[2].len != 3 * b[0].len) {
+        for (int i = 0; i < 3; i++)
+            PyBuffer_Release(&b[i]);
+        PyErr_SetString(PyExc_ValueError, "_hashc.pinhole: x, y (N,) and out (N, 3) float64");
+        return NULL;
+    }
+    const double *x = b[0].buf, *y = b[1].buf;
+    double *o = b[2].buf;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        ok = ok && isfinite(x[i]) && isfinite(y[i]);
+        double u = (x[i] - cx) / f, w = (y[i] - cy) / f;
+        double norm = sqrt((u * u + w * w) + 1.0 * 1.0);
+        o[3 * i] = u / norm;
+        o[3 * i + 1] = w / norm;
+        o[3 * i + 2] = 1.0 / norm;
+    }
+    for (int i = 0; i < 3; i++)
+        PyBuffer_Release(&b[i]);
+    return PyBool_FromLong(ok);
+}
+
 /* the tables ---------------------------------------------------------------------------- */
 
 static void tables_free(PyObject *capsule)
@@ -1193,6 +1252,7 @@ static PyMethodDef methods[] = {
     {"lookup", py_lookup, METH_VARARGS, "Candidate database patterns of edge ratios."},
     {"verify", py_verify, METH_VARARGS, "Verify one hypothesis."},
     {"unit_vectors", py_unit_vectors, METH_VARARGS, "Checked unit vectors of detections."},
+    {"pinhole", py_pinhole, METH_VARARGS, "Unit vectors of pixel positions through a pinhole."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -40,6 +40,7 @@ __all__ = [
     "descriptors_compiled",
     "descriptors_numpy",
     "key_directory",
+    "pinhole_vectors_compiled",
     "star_grid",
     "unit_vectors_compiled",
 ]
@@ -144,6 +145,40 @@ def unit_vectors_compiled(vectors_cam: object) -> NDArray[np.float64] | None:
     v = np.ascontiguousarray(vectors_cam)
     out = np.empty_like(v)
     return out if _hashc.unit_vectors(v, out) else None
+
+
+def pinhole_vectors_compiled(
+    x: NDArray[np.float64], y: NDArray[np.float64], *, centre: tuple[float, float], f_px: float
+) -> NDArray[np.float64] | None:
+    """Return the unit vectors of pixel positions through a pinhole, or None if not computed.
+
+    The kernel's form of :func:`~starsense.solve.pinhole.pinhole_vectors` (the same values bit
+    for bit): the unit vectors of ``((x - cx) / f_px, (y - cy) / f_px, 1)``. None when the
+    kernel is not built, the positions are not two 1-d float64 arrays of one length, or one is
+    not finite: the caller then takes its NumPy form, which raises the error.
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (N,)
+        Column and row of each position, pixels.
+    centre : (float, float)
+        Column and row of the principal point, pixels.
+    f_px : float
+        Focal length, pixels.
+
+    Returns
+    -------
+    ndarray, shape (N, 3), or None
+    """
+    if _hashc is None or not (isinstance(x, np.ndarray) and isinstance(y, np.ndarray)):
+        return None
+    if x.dtype != np.float64 or y.dtype != np.float64 or x.ndim != 1 or x.shape != y.shape:
+        return None
+    out = np.empty((len(x), 3))
+    ok = _hashc.pinhole(
+        np.ascontiguousarray(x), np.ascontiguousarray(y), centre[0], centre[1], f_px, out
+    )
+    return out if ok else None
 
 
 def key_directory(keys: NDArray[np.int64], n_keys: int) -> tuple[NDArray[np.int64], int]:

@@ -36,7 +36,7 @@ from starsense.identify.hash_kernels import (
 )
 from starsense.identify.patterns import breadth_first_combinations, hash_keys
 from starsense.identify.result import Identification, result_builder, validate_vectors
-from starsense.identify.verify import Verifier, exact_rotation
+from starsense.identify.verify import Verifier
 from starsense.units import RAD_TO_DEG
 
 __all__ = ["HashIdentifier"]
@@ -55,7 +55,7 @@ class _Search(NamedTuple):
 
 
 class _Found(NamedTuple):
-    rotation: object
+    rotation: object  # a Rotation or its matrix
     scale: float
     detection_index: NDArray[np.int64]
     catalog_index: NDArray[np.int64]
@@ -327,7 +327,8 @@ class HashIdentifier:
         )
         if status != 1:
             return _Search("timeout" if status == 2 else "no_match", tried, verified, best)
-        found = _Found(exact_rotation(r), scale, det, cat, rms, p_false)
+        # the matrix: Identification builds the Rotation when it is first read
+        found = _Found(r, scale, det, cat, rms, p_false)
         return _Search("solved", tried, verified, best, found)
 
     def _search_numpy(

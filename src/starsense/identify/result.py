@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense.errors import InputError
 from starsense.geometry.attitude import radec_roll_from_attitude
+from starsense.identify.verify import exact_rotation
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
 __all__ = [
@@ -41,6 +42,30 @@ STATUSES = get_args(IdentificationStatus)
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
 
 
+class _RotationField:
+    """A dataclass field holding a Rotation, given as one or as its 3x3 matrix.
+
+    A matrix (orthonormal to rounding: a fit's) is turned into the Rotation when the field is
+    first read (:func:`~starsense.identify.verify.exact_rotation`), the same Rotation as
+    building it at once: scipy's constructor (~10 us) is paid only by a caller that reads the
+    attitude as a Rotation.
+    """
+
+    slot = "_rotation"  # where an instance keeps the value (result_builder stores it there)
+
+    def __get__(self, obj: object, objtype: type | None = None) -> Rotation | None:
+        if obj is None:
+            return None  # the field's default
+        value = obj.__dict__[self.slot]
+        if isinstance(value, np.ndarray):
+            value = exact_rotation(value)
+            obj.__dict__[self.slot] = value
+        return value
+
+    def __set__(self, obj: object, value: object) -> None:
+        obj.__dict__[self.slot] = value
+
+
 @dataclass(frozen=True, eq=False)
 class Identification:
     """The answer of a lost-in-space identifier.
@@ -54,7 +79,9 @@ class Identification:
     algorithm : str
         ``"hashing"`` or ``"triangle"``.
     rotation : Rotation or None
-        Attitude, ICRS -> camera (:mod:`starsense.geometry.attitude`), when solved.
+        Attitude, ICRS -> camera (:mod:`starsense.geometry.attitude`), when solved. It may be
+        given as its rotation matrix, shape (3, 3), orthonormal to rounding (a fit's): the
+        Rotation is then built when first read.
     fov_rad : float or None
         Field of view (full width of the widest image axis), rad: the one given, or, when the
         field was unknown and the caller said at which field the vectors were computed, the
@@ -90,7 +117,7 @@ class Identification:
 
     status: IdentificationStatus
     algorithm: str
-    rotation: Rotation | None = None
+    rotation: Rotation | None = _RotationField()  # type: ignore[assignment]
     fov_rad: float | None = None
     scale: float = 1.0
     detection_index: NDArray[np.int64] = field(default_factory=lambda: _EMPTY_INT)
@@ -128,6 +155,15 @@ class Identification:
         )
 
 
+#: Identification's fields, and the defaults of those result_builder does not set
+_FIELD_NAMES = frozenset(f.name for f in dataclasses.fields(Identification))
+_DEFAULTS = {
+    f.name: f.default if f.default_factory is dataclasses.MISSING else f.default_factory()
+    for f in dataclasses.fields(Identification)
+    if f.name != "rotation"
+}
+
+
 def validate_vectors(vectors_cam: object) -> NDArray[np.float64]:
     """Check and normalise detection directions ``(N, 3)``; raise :class:`InputError`."""
     try:
@@ -159,14 +195,21 @@ def result_builder(algorithm: str, n_detections: int, t0: float):
     """
 
     def result(status: str, message: str, **kw) -> Identification:
-        return Identification(
-            status=status,
-            algorithm=algorithm,
-            n_detections=n_detections,
-            time_ms=(time.perf_counter() - t0) * 1e3,
-            message=message,
-            **kw,
-        )
+        if not _FIELD_NAMES.issuperset(kw):
+            raise TypeError(f"Identification has no field {sorted(set(kw) - _FIELD_NAMES)}")
+        # what the dataclass's __init__ stores, without its 17 object.__setattr__ calls (a
+        # quarter of the Python time of a solve); the rotation goes through its field
+        out = object.__new__(Identification)
+        stored = out.__dict__
+        stored.update(_DEFAULTS)
+        stored[_RotationField.slot] = kw.pop("rotation", None)
+        stored.update(kw)
+        stored["status"] = status
+        stored["algorithm"] = algorithm
+        stored["n_detections"] = n_detections
+        stored["time_ms"] = (time.perf_counter() - t0) * 1e3
+        stored["message"] = message
+        return out
 
     return result
 

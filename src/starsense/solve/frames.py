@@ -214,6 +214,8 @@ def _header_time(p: Path) -> tuple[str | None, str | None]:
                             ) from None
                         if value:
                             return str(value), "FITS DATE-OBS"
+        elif suffix in TIFF_SUFFIXES:  # tifffile, which load_image has imported: not Pillow
+            return _tiff_time(p)
         elif suffix in PILLOW_SUFFIXES:
             with _pillow_open(p) as im:
                 exif = im.getexif()
@@ -226,6 +228,30 @@ def _header_time(p: Path) -> tuple[str | None, str | None]:
         raise
     except Exception:  # unreadable headers: load_image reports the frame
         return None, None
+    return None, None
+
+
+def _tiff_time(p: Path) -> tuple[str | None, str | None]:
+    """Return the EXIF time of a TIFF's first page, as Pillow's ``getexif`` reads it."""
+    import tifffile
+
+    log = logging.getLogger("tifffile")
+    log.addFilter(_quiet)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with tifffile.TiffFile(p) as tif:
+                tags = tif.pages[0].tags
+                exif = tags.get(_EXIF_IFD)  # the Exif IFD, which tifffile reads as a dict
+                exif = exif.value if exif is not None and isinstance(exif.value, dict) else {}
+                original = exif.get("DateTimeOriginal")
+                if original:
+                    return str(original).strip("\x00 "), "EXIF DateTimeOriginal"
+                changed = tags.get(_EXIF_DATETIME)
+                if changed is not None and changed.value:
+                    return str(changed.value).strip("\x00 "), "EXIF DateTime"
+    finally:
+        log.removeFilter(_quiet)
     return None, None
 
 

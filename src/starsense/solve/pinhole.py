@@ -7,11 +7,12 @@ import math
 import numpy as np
 
 from starsense.errors import InputError
+from starsense.identify.hash_kernels import pinhole_vectors_compiled
 
 __all__ = ["pinhole_vectors"]
 
 
-def pinhole_vectors(x, y, *, shape, fov_rad: float) -> np.ndarray:
+def pinhole_vectors(x, y, *, shape, fov_rad: float, compiled: bool = True) -> np.ndarray:
     """Return camera-frame unit vectors of pixel positions seen through a pinhole.
 
     The horizontal field across the image width is ``fov_rad``, the principal point at the image
@@ -26,6 +27,9 @@ def pinhole_vectors(x, y, *, shape, fov_rad: float) -> np.ndarray:
         Rows, columns of the image.
     fov_rad : float
         Horizontal field, rad.
+    compiled : bool
+        Take the compiled form for float64 arrays where it is built (the same values bit for
+        bit, ~10x faster on a frame's centroids); False: always the NumPy form.
 
     Returns
     -------
@@ -33,6 +37,10 @@ def pinhole_vectors(x, y, *, shape, fov_rad: float) -> np.ndarray:
     """
     rows, cols = shape
     f_px = cols / 2.0 / math.tan(fov_rad / 2.0)
+    if compiled:
+        v = pinhole_vectors_compiled(x, y, centre=((cols - 1) / 2.0, (rows - 1) / 2.0), f_px=f_px)
+        if v is not None:
+            return v
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     if x.shape != y.shape or x.ndim != 1:
