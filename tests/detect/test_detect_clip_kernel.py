@@ -88,7 +88,10 @@ def test_kernel_refuses_buffers_of_the_wrong_size():
 
 
 @settings(max_examples=30, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), dtype=st.sampled_from([np.uint8, np.uint16, np.int16]))
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    dtype=st.sampled_from([np.uint8, np.int8, np.uint16, np.int16]),
+)
 def test_integer_samples_sorted_as_integers_clip_the_same(seed, dtype):
     # sorting the integers and converting them is sorting their (exact) float32 values
     info = np.iinfo(dtype)
@@ -102,3 +105,43 @@ def test_integer_samples_sorted_as_integers_clip_the_same(seed, dtype):
     expected = clip.sigma_clip_boxes(cells, 3.0)
     for name, g, e in zip(("median", "low", "high", "kept"), got, expected, strict=True):
         np.testing.assert_array_equal(g, e, err_msg=name)
+    # and both are the NumPy form's on np.sort's rows (the kernel sorts the integers itself)
+    reference = clip._clip_sorted_numpy(np.sort(cells, axis=-1), 3.0)
+    for name, g, e in zip(("median", "low", "high", "kept"), got, reference, strict=True):
+        np.testing.assert_array_equal(g, e, err_msg=name)
+
+
+@needs_kernel
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), kept=st.sampled_from([0.3, 0.9, 1.0]))
+def test_kernel_mad_with_kept_nans_and_infinities_equals_the_numpy_form(seed, kept):
+    # the kernel sorts only the kept samples: kept NaN and inf must land where np.sort of the
+    # row (the others set to +inf) puts them, and signed zeros must not change the MAD
+    rng = np.random.default_rng(seed)
+    cells = _cells(seed, int(rng.choice([0, 1])), 0.0, False)
+    odd = rng.random(cells.shape)
+    cells[odd < 0.05] = np.nan
+    cells[(odd >= 0.05) & (odd < 0.08)] = np.inf
+    cells[(odd >= 0.08) & (odd < 0.10)] = -np.inf
+    cells[(odd >= 0.10) & (odd < 0.15)] = np.float32(-0.0)
+    cells[(odd >= 0.15) & (odd < 0.20)] = np.float32(0.0)
+    keep = rng.random(cells.shape) < kept
+    got = clip.robust_sigma(cells, keep)
+    v = np.sort(np.where(keep, cells, np.float32(np.inf)), axis=-1)
+    n = keep.sum(-1)
+    expected = np.empty(n.shape)
+    for i in np.ndindex(n.shape):  # the previous kernel path: MAD of the sorted rows' first n
+        row = np.ascontiguousarray(v[i][None, :])
+        out = np.empty(1)
+        clip._clipc.mad_sorted(row, 1, row.shape[-1], np.array([n[i]], np.int64), out)
+        expected[i] = clip.MAD_TO_SIGMA * out[0]
+    np.testing.assert_array_equal(got, expected)
+
+
+@needs_kernel
+def test_kernel_refuses_an_unknown_sample_type():
+    med, kept = np.empty(1), np.empty(1, np.int64)
+    low, high = np.empty(1, np.float32), np.empty(1, np.float32)
+    args = (np.zeros(4, np.float32), "d", 1, 4, 3.0, clip.MAD_TO_SIGMA, 10)
+    with pytest.raises(ValueError, match="kind d is not one of"):
+        clip._clipc.clip_rows(*args, med, low, high, kept)

@@ -154,7 +154,8 @@ static inline uint32_t key_of(float f)
 {
     uint32_t u;
     memcpy(&u, &f, 4);
-    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+    /* negative: all bits flipped; positive: the sign bit set (no branch: signs are random) */
+    return u ^ ((uint32_t)((int32_t)u >> 31) | 0x80000000u);
 }
 
 static inline float float_of(uint32_t k)
@@ -165,48 +166,68 @@ static inline float float_of(uint32_t k)
     return f;
 }
 
-/* The key of the k-th smallest (0-based) of the n keys, 0 <= k < n, by a radix selection: a
- * histogram of the keys' top 11 bits finds the bin that holds it, the keys in that bin are
- * kept (in ``keys``, compacted in place without branches), then the next 11 and the last 10
- * bits likewise (2,048 counters, in the L1 cache; four copies filled in turn, so that runs of
- * equal bins do not wait on each other). *n_le is how many keys are at most the one returned. */
-static uint32_t select_key(uint32_t *keys, Py_ssize_t n, Py_ssize_t k, Py_ssize_t *n_le)
+/* The key of the k-th smallest (0-based) of the n floats z, 0 <= k < n, by a radix
+ * selection: a histogram of the keys' top 11 bits finds the bin that holds it, the keys in
+ * that bin are kept (in ``keys``, compacted without branches), then the next 11 and the last
+ * 10 bits likewise (2,048 counters, in the L1 cache; four copies filled in turn, so that runs
+ * of equal bins do not wait on each other). The first level reads the floats themselves, so
+ * the whole vector is read twice. *next is the key of the (k + 1)-th smallest (k + 1 < n): the
+ * same key when more than k + 1 keys are at most it, else the least key above it, tracked
+ * among the keys of the bins above the chosen one at each level. */
+static uint32_t select_key(const float *z, Py_ssize_t n, Py_ssize_t k, uint32_t *keys,
+                           uint32_t *next)
 {
     static const int shift[3] = {21, 10, 0}, width[3] = {11, 11, 10};
     uint32_t hist[4][2048];
-    uint32_t prefix = 0;
-    Py_ssize_t below = 0;
+    uint32_t prefix = 0, above = UINT32_MAX;
+    Py_ssize_t below = 0, m = n;
     for (int level = 0; level < 3; level++) {
-        uint32_t bins = 1u << width[level], sh = (uint32_t)shift[level];
+        uint32_t mask = (1u << width[level]) - 1, sh = (uint32_t)shift[level];
         memset(hist, 0, sizeof(hist));
         Py_ssize_t i = 0;
-        for (; i + 4 <= n; i += 4) {
-            hist[0][(keys[i] >> sh) & (bins - 1)]++;
-            hist[1][(keys[i + 1] >> sh) & (bins - 1)]++;
-            hist[2][(keys[i + 2] >> sh) & (bins - 1)]++;
-            hist[3][(keys[i + 3] >> sh) & (bins - 1)]++;
+        if (level == 0) {
+            for (; i + 4 <= m; i += 4) {
+                hist[0][key_of(z[i]) >> sh]++;
+                hist[1][key_of(z[i + 1]) >> sh]++;
+                hist[2][key_of(z[i + 2]) >> sh]++;
+                hist[3][key_of(z[i + 3]) >> sh]++;
+            }
+            for (; i < m; i++)
+                hist[0][key_of(z[i]) >> sh]++;
+        } else {
+            for (; i + 4 <= m; i += 4) {
+                hist[0][(keys[i] >> sh) & mask]++;
+                hist[1][(keys[i + 1] >> sh) & mask]++;
+                hist[2][(keys[i + 2] >> sh) & mask]++;
+                hist[3][(keys[i + 3] >> sh) & mask]++;
+            }
+            for (; i < m; i++)
+                hist[0][(keys[i] >> sh) & mask]++;
         }
-        for (; i < n; i++)
-            hist[0][(keys[i] >> sh) & (bins - 1)]++;
         uint32_t b = 0;
         Py_ssize_t here = 0;
-        for (; b < bins; b++) {
+        for (; b <= mask; b++) {
             here = (Py_ssize_t)hist[0][b] + hist[1][b] + hist[2][b] + hist[3][b];
             if (below + here > k)
                 break;
             below += here;
         }
         prefix |= b << sh;
+        Py_ssize_t kept = 0; /* keep the keys of bin b; below still counts every key under it */
+        for (i = 0; i < m; i++) {
+            uint32_t key = level == 0 ? key_of(z[i]) : keys[i];
+            uint32_t bin = (key >> sh) & mask;
+            above = (bin > b && key < above) ? key : above;
+            if (level < 2) {
+                keys[kept] = key;
+                kept += bin == b;
+            }
+        }
         if (level == 2) {
-            *n_le = below + here;
+            *next = below + here > k + 1 ? prefix : above;
             break;
         }
-        Py_ssize_t m = 0; /* keep the keys of bin b; below still counts every key under it */
-        for (i = 0; i < n; i++) {
-            keys[m] = keys[i];
-            m += ((keys[i] >> sh) & (bins - 1)) == b;
-        }
-        n = m;
+        m = kept;
     }
     return prefix;
 }
@@ -214,20 +235,10 @@ static uint32_t select_key(uint32_t *keys, Py_ssize_t n, Py_ssize_t k, Py_ssize_
 /* The two middle values of the n floats z (n >= 1; equal for odd n). keys: n scratch keys. */
 static void middle_pair(const float *z, Py_ssize_t n, uint32_t *keys, float *lower, float *upper)
 {
-    for (Py_ssize_t i = 0; i < n; i++)
-        keys[i] = key_of(z[i]);
-    Py_ssize_t k = (n - 1) / 2, n_le;
-    uint32_t key = select_key(keys, n, k, &n_le);
+    Py_ssize_t k = (n - 1) / 2;
+    uint32_t next, key = select_key(z, n, k, keys, &next);
     *lower = float_of(key);
-    uint32_t next = key;
-    if (n % 2 == 0 && n_le <= k + 1) { /* the (k + 1)-th: the least value above */
-        next = UINT32_MAX;
-        for (Py_ssize_t i = 0; i < n; i++) {
-            uint32_t other = key_of(z[i]);
-            next = (other > key && other < next) ? other : next;
-        }
-    }
-    *upper = float_of(next);
+    *upper = n % 2 == 0 ? float_of(next) : *lower;
 }
 
 static PyObject *median(PyObject *self, PyObject *args)
