@@ -228,7 +228,9 @@ class StarDetector:
         return constant_background(level, self.noise_counts)
 
     def _lit(self, sub: np.ndarray, bg: Background):
-        """Lit pixels (flat indices, ascending), which of them bound a centroid window, filtered.
+        """Lit pixels (flat indices, ascending), which bound a window, filtered, their noise.
+
+        The noise is the background's at the lit pixels (None without the matched filter).
 
         Without the matched filter the lit pixels bound the window (None). With it, the lit
         region (the star's light spread by the filter) is wider than the star, so the window
@@ -242,7 +244,7 @@ class StarDetector:
                 threshold = np.maximum(
                     np.float32(threshold), bg.threshold_counts(self.threshold_sigma)
                 )
-            return np.flatnonzero(sub > threshold), None, None
+            return np.flatnonzero(sub > threshold), None, None, None
         filtered = scratch("filtered", sub.shape)
         gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
         grid = bg.noise_grid(NOISE_STEP)
@@ -254,10 +256,12 @@ class StarDetector:
         above = scratch("lit", sub.shape, bool)
         np.greater(filtered, cut * np.float32(bg.noise_floor()), out=above)
         idx = np.flatnonzero(above)
+        noise = bg.noise_at(idx)  # evaluated once, pixel by pixel: the same values for a subset
         if bg.varies:
-            idx = idx[filtered.ravel()[idx] > cut * bg.noise_at(idx)]
-        core_at = sub.ravel()[idx] > np.float32(k) * np.float32(bg.noise_at(idx))
-        return idx, core_at, filtered
+            passed = filtered.ravel()[idx] > cut * noise
+            idx, noise = idx[passed], noise[passed]
+        core_at = sub.ravel()[idx] > np.float32(k) * np.float32(noise)
+        return idx, core_at, filtered, noise
 
     def _sharp(self, sub, filtered, idx, lab, n, a) -> np.ndarray:
         """Whether each region 0..n is point-like (matched filter; module docstring).
@@ -316,8 +320,8 @@ class StarDetector:
         if self.background == "auto" and self.remove_hot_pixels:
             hot = hot_pixel_mask(a, bg, subtracted=sub)
             sub[hot] = 0.0
-            counts["hot_pixels"] = int(hot.sum())
-        idx, core, filtered = self._lit(sub, bg)
+            counts["hot_pixels"] = int(np.count_nonzero(hot))
+        idx, core, filtered, lit_noise = self._lit(sub, bg)
         counts["pixels_above_threshold"] = int(idx.size)
         lab, n = label_pixels(idx, a.shape, 4 if self.logic.connectivity == 4 else 8)
         empty = Detections(
@@ -350,7 +354,7 @@ class StarDetector:
             np.maximum.at(peak, lab, sub.ravel()[idx])
             ok &= peak >= np.float32(MIN_PEAK_STEPS * bg.step)
         if self.min_snr is not None:
-            noise = bg.noise_at(idx)
+            noise = bg.noise_at(idx) if lit_noise is None else lit_noise
             var = np.bincount(lab, weights=np.broadcast_to(noise, idx.shape) ** 2, minlength=n + 1)
             with np.errstate(invalid="ignore", divide="ignore"):
                 ok &= sums >= self.min_snr * np.sqrt(var)
