@@ -2,13 +2,13 @@
  *
  * The NumPy implementation in clip.py bisects every box at once, a few hundred small array
  * operations per frame whose cost is NumPy's per-call overhead, not the arithmetic. This
- * kernel runs the same algorithm box by box on the same sorted rows (the sort stays in NumPy,
- * which is SIMD-vectorised), with the same float32 and float64 operations in the same order,
- * so its results are those of clip.py bit for bit (tests/detect/test_detect_clip_kernel.py).
- *
- * clip_rows and mad_masked also sort the rows themselves (an LSD radix sort on the values'
- * bits, which orders them as np.sort does: NaN last), box by box in the cache, in place of
- * NumPy's whole-mesh sort and its copies; mad_masked sorts only the samples it keeps.
+ * kernel runs the same algorithm box by box, with the same float32 and float64 operations in
+ * the same order, so its results are those of clip.py bit for bit
+ * (tests/detect/test_detect_clip_kernel.py). clip_rows, mad_masked and mad_resid sort each
+ * box's samples themselves (an LSD radix sort on the values' bits, which orders them as
+ * np.sort does: NaN last), in the cache, in place of NumPy's sort of the whole mesh and its
+ * copies; mad_masked and mad_resid sort only the samples they keep, and mad_resid forms the
+ * residuals about the level map (background.py) as it goes.
  *
  * Built by setup.py as an optional extension: without a C compiler the package uses
  * clip.py's NumPy path. No NumPy headers: arrays arrive through the buffer protocol.
@@ -444,11 +444,79 @@ done:
     return result;
 }
 
+/* mad_resid(cells, level, cols, ny, nx, my, mx, every, low, high, out): mad_masked of the
+ * mesh's residuals: box (by, bx) of the regular mesh holds the samples cells[by, bx, i mx + j]
+ * of the pixels ((by my + i) every, (bx mx + j) every); a sample is kept where low <= cell
+ * <= high (its box's clipping bounds, float32) and its residual is cell - level at its pixel
+ * (float32): background.py's keep mask, gathered level and subtraction, without their arrays. */
+static PyObject *mad_resid(PyObject *self, PyObject *args)
+{
+    Py_buffer cb, lb, lowb, highb, outb;
+    Py_ssize_t cols, ny, nx, my, mx, every;
+    if (!PyArg_ParseTuple(args, "y*y*nnnnnny*y*w*", &cb, &lb, &cols, &ny, &nx, &my, &mx, &every,
+                          &lowb, &highb, &outb))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t rows = ny * nx, m = my * mx;
+    Py_ssize_t last_row = (ny * my - 1) * every, last_col = (nx * mx - 1) * every;
+    if (rows < 1 || m < 1 || every < 1 || cols <= last_col || check(&cb, rows * m * 4, "cells")
+        || lb.len < (last_row * cols + last_col + 1) * 4 || check(&lowb, rows * 4, "low")
+        || check(&highb, rows * 4, "high") || check(&outb, rows * 8, "out")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    float *buf = malloc((size_t)m * 2 * sizeof(float));
+    uint32_t *keys = malloc((size_t)m * 2 * sizeof(uint32_t));
+    uint8_t *keep = malloc((size_t)m);
+    if (buf == NULL || keys == NULL || keep == NULL) {
+        free(buf);
+        free(keys);
+        free(keep);
+        PyErr_NoMemory();
+        goto done;
+    }
+    const float *cells = (const float *)cb.buf, *level = (const float *)lb.buf;
+    const float *low = (const float *)lowb.buf, *high = (const float *)highb.buf;
+    double *out = (double *)outb.buf;
+    float *v = buf, *s = buf + m;
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t by = 0; by < ny; by++)
+        for (Py_ssize_t bx = 0; bx < nx; bx++) {
+            Py_ssize_t row = by * nx + bx;
+            const float *c = cells + row * m;
+            float lo = low[row], hi = high[row];
+            for (Py_ssize_t i = 0; i < my; i++) {
+                const float *lev = level + (by * my + i) * every * cols + bx * mx * every;
+                for (Py_ssize_t j = 0; j < mx; j++) {
+                    float x = c[i * mx + j];
+                    keep[i * mx + j] = x >= lo && x <= hi;
+                    v[i * mx + j] = x - lev[j * every];
+                }
+            }
+            Py_ssize_t n = kept_sorted(v, keep, m, s, keys, keys + m);
+            out[row] = run_mad(s, 0, n, ranked(s, 0, n));
+        }
+    Py_END_ALLOW_THREADS
+    free(buf);
+    free(keys);
+    free(keep);
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&cb);
+    PyBuffer_Release(&lb);
+    PyBuffer_Release(&lowb);
+    PyBuffer_Release(&highb);
+    PyBuffer_Release(&outb);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"clip_sorted", clip_sorted, METH_VARARGS, "Sigma-clip the sorted rows (see clip.py)."},
     {"mad_sorted", mad_sorted, METH_VARARGS, "MAD of the sorted rows' first n values."},
     {"clip_rows", clip_rows, METH_VARARGS, "Sort each row, then clip it as clip_sorted."},
     {"mad_masked", mad_masked, METH_VARARGS, "MAD of each row's kept samples."},
+    {"mad_resid", mad_resid, METH_VARARGS, "MAD of the mesh's kept residuals (background.py)."},
     {NULL, NULL, 0, NULL},
 };
 
