@@ -16,6 +16,9 @@
  *               sparse, ascending list of lit pixels, numbered 1..n in the order of their first
  *               pixel (scipy.ndimage.label's numbering), by union-find over each pixel's
  *               neighbours to the left and in the row above;
+ *   subtract    background.py's subtract_level: np.subtract(a, level, dtype=float32) and the
+ *               flat indices of the result above a threshold (np.flatnonzero(sub > t)), one
+ *               pass over the frame, block by block (``above``: the indices alone);
  *   hot         background.py's hot_pixel_mask past its first cut: of the candidate pixels
  *               (above the threshold at the frame's lowest noise, with their own noise), those
  *               above the threshold at their noise whose 8 neighbours stay below the allowed
@@ -459,11 +462,140 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------------------------------- */
+/* subtract(a, kind, level, n, out, thr, idx, cap) -> count: out = float32(a) - level (as     */
+/* np.subtract(a, level, dtype=float32)); idx (int64, cap) the flat indices where out > thr.  */
+/* above(x, n, thr, idx, cap) -> count: the same indices of a float32 vector (np.flatnonzero  */
+/* of x > thr). The count is the number above (more than cap: only the first cap written).    */
+
+#define BLOCK 512
+
+/* The indices of x[0:m] above thr, offset by base, appended to idx (at most cap in all). */
+static inline Py_ssize_t collect(const float *x, Py_ssize_t m, float thr, Py_ssize_t base,
+                                 int64_t *idx, Py_ssize_t cap, Py_ssize_t count)
+{
+    int any = 0;
+    for (Py_ssize_t j = 0; j < m; j++) /* vectorised: a block is mostly below */
+        any |= x[j] > thr;
+    if (!any)
+        return count;
+    for (Py_ssize_t j = 0; j < m; j++)
+        if (x[j] > thr) {
+            if (count < cap)
+                idx[count] = base + j;
+            count++;
+        }
+    return count;
+}
+
+#define SUBTRACT_BLOCKS(T)                                                                     \
+    for (Py_ssize_t b0 = 0; b0 < n; b0 += BLOCK) {                                             \
+        Py_ssize_t m = n - b0 < BLOCK ? n - b0 : BLOCK;                                        \
+        const T *src = (const T *)a + b0;                                                      \
+        const float *lev = level + b0;                                                         \
+        float *o = out + b0;                                                                   \
+        for (Py_ssize_t j = 0; j < m; j++)                                                     \
+            o[j] = (float)src[j] - lev[j];                                                     \
+        count = collect(o, m, thr, b0, idx, cap, count);                                       \
+    }
+
+static Py_ssize_t subtract_frame(const void *a, char kind, const float *level, Py_ssize_t n,
+                                 float *out, float thr, int64_t *idx, Py_ssize_t cap)
+{
+    Py_ssize_t count = 0;
+    switch (kind) {
+    case 'B':
+        SUBTRACT_BLOCKS(uint8_t)
+        break;
+    case 'H':
+        SUBTRACT_BLOCKS(uint16_t)
+        break;
+    case 'h':
+        SUBTRACT_BLOCKS(int16_t)
+        break;
+    case 'f':
+        SUBTRACT_BLOCKS(float)
+        break;
+    default: /* 'd': float64 cast to float32 first, as dtype=float32 does */
+        for (Py_ssize_t b0 = 0; b0 < n; b0 += BLOCK) {
+            Py_ssize_t m = n - b0 < BLOCK ? n - b0 : BLOCK;
+            const double *src = (const double *)a + b0;
+            for (Py_ssize_t j = 0; j < m; j++)
+                out[b0 + j] = (float)src[j] - level[b0 + j];
+            count = collect(out + b0, m, thr, b0, idx, cap, count);
+        }
+    }
+    return count;
+}
+
+static PyObject *subtract(PyObject *self, PyObject *args)
+{
+    Py_buffer ab, lb, ob, ib;
+    int kind;
+    Py_ssize_t n, cap;
+    float thr;
+    if (!PyArg_ParseTuple(args, "y*Cy*nw*fw*n", &ab, &kind, &lb, &n, &ob, &thr, &ib, &cap))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t item = kind == 'B' ? 1 : (kind == 'H' || kind == 'h') ? 2 : kind == 'f' ? 4 : 8;
+    if (kind != 'B' && kind != 'H' && kind != 'h' && kind != 'f' && kind != 'd') {
+        PyErr_Format(PyExc_ValueError, "kind %c is not one of B, H, h, f, d", kind);
+        goto done;
+    }
+    if (n < 0 || cap < 0 || check(&ab, n * item, "a") || check(&lb, n * 4, "level")
+        || check(&ob, n * 4, "out") || check(&ib, cap * 8, "idx")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    Py_ssize_t count;
+    Py_BEGIN_ALLOW_THREADS
+    count = subtract_frame(ab.buf, (char)kind, (const float *)lb.buf, n, (float *)ob.buf, thr,
+                           (int64_t *)ib.buf, cap);
+    Py_END_ALLOW_THREADS
+    result = PyLong_FromSsize_t(count);
+done:
+    PyBuffer_Release(&ab);
+    PyBuffer_Release(&lb);
+    PyBuffer_Release(&ob);
+    PyBuffer_Release(&ib);
+    return result;
+}
+
+static PyObject *above(PyObject *self, PyObject *args)
+{
+    Py_buffer xb, ib;
+    Py_ssize_t n, cap;
+    float thr;
+    if (!PyArg_ParseTuple(args, "y*nfw*n", &xb, &n, &thr, &ib, &cap))
+        return NULL;
+    PyObject *result = NULL;
+    if (n < 0 || cap < 0 || check(&xb, n * 4, "x") || check(&ib, cap * 8, "idx")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    Py_ssize_t count = 0;
+    const float *x = (const float *)xb.buf;
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t b0 = 0; b0 < n; b0 += BLOCK)
+        count = collect(x + b0, n - b0 < BLOCK ? n - b0 : BLOCK, thr, b0, (int64_t *)ib.buf, cap,
+                        count);
+    Py_END_ALLOW_THREADS
+    result = PyLong_FromSsize_t(count);
+done:
+    PyBuffer_Release(&xb);
+    PyBuffer_Release(&ib);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"correlate", correlate, METH_VARARGS, "Separable symmetric correlation (matched.py)."},
     {"median", median, METH_VARARGS, "np.median of a float32 vector."},
     {"label", label, METH_VARARGS, "Connected regions of sorted lit pixels (regions.py)."},
     {"hot", hot, METH_VARARGS, "Hot pixels and pairs among candidates (background.py)."},
+    {"subtract", subtract, METH_VARARGS, "Frame minus level map, and the pixels above (float32)."},
+    {"above", above, METH_VARARGS, "Flat indices of a float32 vector's values above a threshold."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -51,6 +51,7 @@ from starsense.detect.quantised import (
     quantisation_step,
     quantised_box_stats,
 )
+from starsense.detect.subtract import floor_threshold
 from starsense.detect.surface import NoiseSurface
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
@@ -364,8 +365,17 @@ def estimate_background(
     )
 
 
+#: excess over the background of a hot pixel, in noise sigmas (hot_pixel_mask)
+HOT_PIXEL_SIGMA = 8.0
+
+
 def hot_pixel_mask(
-    image, background: Background, *, threshold_sigma: float = 8.0, subtracted=None
+    image,
+    background: Background,
+    *,
+    threshold_sigma: float = HOT_PIXEL_SIGMA,
+    subtracted=None,
+    candidates=None,
 ) -> np.ndarray:
     """Isolated pixels or pixel pairs far brighter than all around them (hot pixels, hits).
 
@@ -394,6 +404,10 @@ def hot_pixel_mask(
     subtracted : ndarray, shape (rows, columns), optional
         ``image`` minus ``background.level`` in float32, when the caller has it already
         (saves a whole-frame copy); computed here otherwise.
+    candidates : ndarray of int, optional
+        Flat indices (ascending) of the pixels of ``subtracted`` above ``threshold_sigma``
+        times the frame's lowest noise (:func:`~starsense.detect.subtract.subtract_level` with
+        :func:`~starsense.detect.subtract.floor_threshold`), when the caller has them.
 
     Returns
     -------
@@ -406,10 +420,12 @@ def hot_pixel_mask(
         sub = np.asarray(subtracted, dtype=np.float32)
         if sub.shape != np.shape(image):
             raise InputError(f"subtracted has shape {sub.shape}, the image {np.shape(image)}")
-    floor = np.maximum(background.noise_floor(), np.float32(1e-12))
     # candidates above the threshold at the lowest noise (one pass, no float frame), then the
     # exact per-pixel test on those only
-    flat = np.flatnonzero(sub > threshold_sigma * floor)
+    if candidates is None:
+        flat = np.flatnonzero(sub > floor_threshold(background, threshold_sigma))
+    else:
+        flat = np.asarray(candidates, dtype=np.intp)
     r, c = np.divmod(flat, sub.shape[1])
     hot = np.zeros(sub.shape, dtype=bool)
     if r.size == 0:

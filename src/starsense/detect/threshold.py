@@ -21,6 +21,7 @@ import numpy as np
 
 from starsense._validate import check_int, finite_float, positive_float, show
 from starsense.detect.background import (
+    HOT_PIXEL_SIGMA,
     Background,
     constant_background,
     estimate_background,
@@ -29,6 +30,7 @@ from starsense.detect.background import (
 from starsense.detect.centroid import METHODS, gauss_fit
 from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
 from starsense.detect.regions import label_pixels, region_centroids
+from starsense.detect.subtract import floor_threshold, pixels_above, subtract_level
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
 from starsense.sensor import DetectionThresholds
@@ -253,9 +255,7 @@ class StarDetector:
         )
         k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
         cut = np.float32(k * ratio)
-        above = scratch("lit", sub.shape, bool)
-        np.greater(filtered, cut * np.float32(bg.noise_floor()), out=above)
-        idx = np.flatnonzero(above)
+        idx = pixels_above(filtered, cut * np.float32(bg.noise_floor()))
         noise = bg.noise_at(idx)  # evaluated once, pixel by pixel: the same values for a subset
         if bg.varies:
             passed = filtered.ravel()[idx] > cut * noise
@@ -314,11 +314,12 @@ class StarDetector:
         t0 = time.perf_counter()
         a = _check_image(image)
         bg = self._background(a)
-        sub = scratch("sub", a.shape)
-        np.subtract(a, np.asarray(bg.level, dtype=np.float32), out=sub, dtype=np.float32)
+        remove_hot = self.background == "auto" and self.remove_hot_pixels
+        above = floor_threshold(bg, HOT_PIXEL_SIGMA) if remove_hot else None
+        sub, candidates = subtract_level(a, bg.level, scratch("sub", a.shape), above=above)
         counts = {"hot_pixels": 0}
-        if self.background == "auto" and self.remove_hot_pixels:
-            hot = hot_pixel_mask(a, bg, subtracted=sub)
+        if remove_hot:
+            hot = hot_pixel_mask(a, bg, subtracted=sub, candidates=candidates)
             sub[hot] = 0.0
             counts["hot_pixels"] = int(np.count_nonzero(hot))
         idx, core, filtered, lit_noise = self._lit(sub, bg)
