@@ -8,7 +8,8 @@
  * box's samples themselves (an LSD radix sort on the values' bits, which orders them as
  * np.sort does: NaN last), in the cache, in place of NumPy's sort of the whole mesh and its
  * copies; mad_masked and mad_resid sort only the samples they keep, and mad_resid forms the
- * residuals about the level map (background.py) as it goes.
+ * residuals about the level map (background.py) as it goes. gather reads a regular mesh's
+ * integer samples out of the frame (background.py's _mesh_samples) and converts them.
  *
  * Built by setup.py as an optional extension: without a C compiler the package uses
  * clip.py's NumPy path. No NumPy headers: arrays arrive through the buffer protocol.
@@ -511,11 +512,76 @@ done:
     return result;
 }
 
+/* gather(a, kind, cols, ny, nx, my, mx, every, counts, cells): the samples of the regular mesh
+ * (mesh.py's MeshSampler.gather): counts[by, bx, i mx + j] = a[(by my + i) every,
+ * (bx mx + j) every] as the frame's 8/16-bit integers (kind 'B', 'b', 'H', 'h'), cells the
+ * same as float32 (exact), in one pass. */
+#define GATHER_SAMPLES(T)                                                                      \
+    for (Py_ssize_t by = 0; by < ny; by++)                                                     \
+        for (Py_ssize_t bx = 0; bx < nx; bx++) {                                               \
+            Py_ssize_t at = (by * nx + bx) * my * mx;                                          \
+            for (Py_ssize_t i = 0; i < my; i++) {                                              \
+                const T *src = (const T *)ab.buf + (by * my + i) * every * cols + bx * mx * every; \
+                T *dst = (T *)cb.buf + at + i * mx;                                            \
+                float *f = (float *)fb.buf + at + i * mx;                                      \
+                for (Py_ssize_t j = 0; j < mx; j++) {                                          \
+                    T v = src[j * every];                                                      \
+                    dst[j] = v;                                                                \
+                    f[j] = (float)v;                                                           \
+                }                                                                              \
+            }                                                                                  \
+        }
+
+static PyObject *gather(PyObject *self, PyObject *args)
+{
+    Py_buffer ab, cb, fb;
+    int kind;
+    Py_ssize_t cols, ny, nx, my, mx, every;
+    if (!PyArg_ParseTuple(args, "y*Cnnnnnnw*w*", &ab, &kind, &cols, &ny, &nx, &my, &mx, &every,
+                          &cb, &fb))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t item = (kind == 'H' || kind == 'h') ? 2 : 1, n = ny * nx * my * mx;
+    Py_ssize_t last_row = (ny * my - 1) * every, last_col = (nx * mx - 1) * every;
+    if (kind != 'B' && kind != 'b' && kind != 'H' && kind != 'h') {
+        PyErr_Format(PyExc_ValueError, "kind %c is not one of B, b, H, h", kind);
+        goto done;
+    }
+    if (n < 1 || every < 1 || cols <= last_col || ab.len < (last_row * cols + last_col + 1) * item
+        || check(&cb, n * item, "counts") || check(&fb, n * 4, "cells")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    switch (kind) {
+    case 'B':
+        GATHER_SAMPLES(uint8_t)
+        break;
+    case 'b':
+        GATHER_SAMPLES(int8_t)
+        break;
+    case 'H':
+        GATHER_SAMPLES(uint16_t)
+        break;
+    default:
+        GATHER_SAMPLES(int16_t)
+    }
+    Py_END_ALLOW_THREADS
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&ab);
+    PyBuffer_Release(&cb);
+    PyBuffer_Release(&fb);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"clip_sorted", clip_sorted, METH_VARARGS, "Sigma-clip the sorted rows (see clip.py)."},
     {"mad_sorted", mad_sorted, METH_VARARGS, "MAD of the sorted rows' first n values."},
     {"clip_rows", clip_rows, METH_VARARGS, "Sort each row, then clip it as clip_sorted."},
     {"mad_masked", mad_masked, METH_VARARGS, "MAD of each row's kept samples."},
+    {"gather", gather, METH_VARARGS, "The regular mesh's integer samples and their floats."},
     {"mad_resid", mad_resid, METH_VARARGS, "MAD of the mesh's kept residuals (background.py)."},
     {NULL, NULL, 0, NULL},
 };

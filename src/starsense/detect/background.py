@@ -229,9 +229,15 @@ def _mesh_samples(a: np.ndarray, mesh: MeshSampler, bad: np.ndarray | None):
     """
     counts = None
     if mesh.regular and bad is None and a.dtype.kind in "iu" and a.dtype.itemsize <= 2:
-        counts = mesh.gather(a, None, "bg_counts")
+        ny, nx = mesh.boxes
+        my, mx = mesh.ri.shape[1], mesh.ci.shape[1]
+        counts = scratch("bg_counts", (ny, nx, my * mx), a.dtype)
         cells = scratch("bg_cells", counts.shape)
-        np.copyto(cells, counts)
+        if _clipc is not None and a.dtype.isnative:  # one pass, the same samples and floats
+            geometry = (a.shape[1], ny, nx, my, mx, mesh.every)
+            _clipc.gather(np.ascontiguousarray(a), a.dtype.char, *geometry, counts, cells)
+        else:
+            np.copyto(cells, mesh.gather(a, None, "bg_counts"))  # the same buffer as counts
     else:
         cells = mesh.gather(a, np.float32, "bg_cells")
     if mesh.regular and bad is None:  # every sample is inside its box and unmasked
