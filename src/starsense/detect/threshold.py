@@ -412,8 +412,18 @@ def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
     ``ndimage.uniform_filter(mode="nearest")``), evaluated at the peaks only.
     """
     values = filtered.ravel()[idx]
-    order = np.lexsort((values, lab))  # by region, then by filtered value
-    last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
+    # each region's largest value, at its last pixel holding it (the last of a sort by region,
+    # then by value, stable): two passes instead of the sort, which NaN needs
+    top = np.full(int(lab.max()) + 1, -np.inf, values.dtype)
+    np.maximum.at(top, lab, values)
+    if np.isnan(top).any():
+        order = np.lexsort((values, lab))
+        last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
+    else:
+        at_top = np.flatnonzero(values == top[lab])
+        last = np.full(top.size, -1, np.intp)
+        np.maximum.at(last, lab[at_top], at_top)
+        last = last[last >= 0]
     rows, cols = sub.shape
     r, c = np.divmod(idx[last], cols)
     off = np.arange(-half, half + 1)
