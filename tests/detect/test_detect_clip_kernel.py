@@ -90,7 +90,7 @@ def test_kernel_refuses_buffers_of_the_wrong_size():
 @settings(max_examples=30, deadline=None)
 @given(
     seed=st.integers(0, 2**31 - 1),
-    dtype=st.sampled_from([np.uint8, np.int8, np.uint16, np.int16]),
+    dtype=st.sampled_from([np.uint8, np.int8, np.uint16, np.int16, ">i2", ">u2"]),
 )
 def test_integer_samples_sorted_as_integers_clip_the_same(seed, dtype):
     # sorting the integers and converting them is sorting their (exact) float32 values
@@ -174,7 +174,9 @@ def _background_frame(seed: int, dtype, tile: int = 0) -> np.ndarray:
 @settings(max_examples=60, deadline=None)
 @given(
     seed=st.integers(0, 2**31 - 1),
-    dtype=st.sampled_from([np.uint8, np.int8, np.uint16, np.int16, np.float32, np.float64]),
+    dtype=st.sampled_from(
+        [np.uint8, np.int8, np.uint16, np.int16, ">i2", ">u2", np.float32, ">f4", np.float64]
+    ),
     box=st.sampled_from([16, 32, 64]),
     full=st.booleans(),
     tiled=st.booleans(),

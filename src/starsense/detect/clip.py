@@ -169,6 +169,8 @@ def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float, *, counts: np.ndarray
         # each box sorted and clipped in the kernel (a radix sort, in the cache): the same
         # sorted rows as np.sort's, so the same values
         values = np.ascontiguousarray(counts if ints else cells)
+        if not values.dtype.isnative:  # e.g. FITS's big-endian integers
+            values = values.astype(values.dtype.newbyteorder("="))
         return _clip_in_kernel(values, float(sigma_clip))
     s = scratch("clip_sorted", cells.shape, cells.dtype)
     if ints:
