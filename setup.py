@@ -4,10 +4,11 @@ Each kernel is a C file beside the NumPy implementation of the same algorithm, w
 tested reference. They are optional: where one cannot be compiled the package installs without
 it and uses the NumPy form.
 
-- ``starsense.detect._clipc``: the background mesh's sigma clipping, box by box;
+- ``starsense.detect._clipc``: the background mesh's samples, sigma clipping and noise, box by
+  box;
 - ``starsense.detect._windowc``: tracking's window detection;
-- ``starsense.detect._framec``: whole-frame detection's PSF correlation, filtered-noise median
-  and labelling;
+- ``starsense.detect._framec``: whole-frame detection's background subtraction and threshold
+  search, PSF correlation, filtered-noise median and labelling;
 - ``starsense.identify._hashc``: the search and verification of lost-in-space identification by
   hashing;
 - ``starsense.identify._trackc``: tracking's pairing, attitude fit and covariance;

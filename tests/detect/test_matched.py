@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import ndimage
 from scipy.special import erf
 
 from starsense.detect import StarDetector
 from starsense.detect.matched import _median_in_place, gaussian_correlate, matched_filter
+from starsense.detect.threshold import _box_mean_at_peaks
 from starsense.sensor import DetectionThresholds
 
 SIGMA_PX = 1.0
@@ -128,3 +131,35 @@ def test_median_in_place_is_numpys_median(n):
     expected = np.median(z)
     got = _median_in_place(z.copy())
     assert got == expected and got.dtype == expected.dtype
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), ties=st.booleans())
+def test_box_mean_at_peaks_is_the_box_at_each_regions_last_largest_pixel(seed, ties):
+    # reference: region by region, the last of its pixels (raster order) holding its largest
+    # filtered value, and the mean of the box around it with edge pixels repeated
+    rng = np.random.default_rng(seed)
+    rows, cols, half = int(rng.integers(3, 40)), int(rng.integers(3, 40)), int(rng.integers(0, 4))
+    sub = rng.normal(0, 10, (rows, cols)).astype(np.float32)
+    filtered = rng.normal(0, 10, (rows, cols)).astype(np.float32)
+    if ties:
+        filtered = np.round(filtered / 8).astype(np.float32)  # many equal values
+    idx = np.flatnonzero(rng.random(rows * cols) < 0.3)
+    if idx.size == 0:
+        idx = np.array([0])
+    lab = rng.integers(1, 6, idx.size).astype(np.int32)
+    where, peak, box = _box_mean_at_peaks(sub, filtered, idx, lab, half)
+    regions = np.unique(lab)
+    np.testing.assert_array_equal(where, regions)
+    for k, region in enumerate(regions):
+        pix = idx[lab == region]
+        vals = filtered.ravel()[pix]
+        at = pix[np.flatnonzero(vals == vals.max())[-1]]
+        r, c = divmod(int(at), cols)
+        rr = np.clip(np.arange(r - half, r + half + 1), 0, rows - 1)
+        cc = np.clip(np.arange(c - half, c + half + 1), 0, cols - 1)
+        assert peak[k] == vals.max()
+        # float64 sums of the same float32 values, in a different order: 1e-12 relative
+        np.testing.assert_allclose(
+            box[k], sub[np.ix_(rr, cc)].mean(dtype=np.float64), rtol=1e-12, atol=1e-12
+        )

@@ -16,6 +16,9 @@
  *               sparse, ascending list of lit pixels, numbered 1..n in the order of their first
  *               pixel (scipy.ndimage.label's numbering), by union-find over each pixel's
  *               neighbours to the left and in the row above;
+ *   subtract    background.py's subtract_level: np.subtract(a, level, dtype=float32) and the
+ *               flat indices of the result above a threshold (np.flatnonzero(sub > t)), one
+ *               pass over the frame, block by block (``above``: the indices alone);
  *   hot         background.py's hot_pixel_mask past its first cut: of the candidate pixels
  *               (above the threshold at the frame's lowest noise, with their own noise), those
  *               above the threshold at their noise whose 8 neighbours stay below the allowed
@@ -154,7 +157,8 @@ static inline uint32_t key_of(float f)
 {
     uint32_t u;
     memcpy(&u, &f, 4);
-    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+    /* negative: all bits flipped; positive: the sign bit set (no branch: signs are random) */
+    return u ^ ((uint32_t)((int32_t)u >> 31) | 0x80000000u);
 }
 
 static inline float float_of(uint32_t k)
@@ -165,48 +169,68 @@ static inline float float_of(uint32_t k)
     return f;
 }
 
-/* The key of the k-th smallest (0-based) of the n keys, 0 <= k < n, by a radix selection: a
- * histogram of the keys' top 11 bits finds the bin that holds it, the keys in that bin are
- * kept (in ``keys``, compacted in place without branches), then the next 11 and the last 10
- * bits likewise (2,048 counters, in the L1 cache; four copies filled in turn, so that runs of
- * equal bins do not wait on each other). *n_le is how many keys are at most the one returned. */
-static uint32_t select_key(uint32_t *keys, Py_ssize_t n, Py_ssize_t k, Py_ssize_t *n_le)
+/* The key of the k-th smallest (0-based) of the n floats z, 0 <= k < n, by a radix
+ * selection: a histogram of the keys' top 11 bits finds the bin that holds it, the keys in
+ * that bin are kept (in ``keys``, compacted without branches), then the next 11 and the last
+ * 10 bits likewise (2,048 counters, in the L1 cache; four copies filled in turn, so that runs
+ * of equal bins do not wait on each other). The first level reads the floats themselves, so
+ * the whole vector is read twice. *next is the key of the (k + 1)-th smallest (k + 1 < n): the
+ * same key when more than k + 1 keys are at most it, else the least key above it, tracked
+ * among the keys of the bins above the chosen one at each level. */
+static uint32_t select_key(const float *z, Py_ssize_t n, Py_ssize_t k, uint32_t *keys,
+                           uint32_t *next)
 {
     static const int shift[3] = {21, 10, 0}, width[3] = {11, 11, 10};
     uint32_t hist[4][2048];
-    uint32_t prefix = 0;
-    Py_ssize_t below = 0;
+    uint32_t prefix = 0, above = UINT32_MAX;
+    Py_ssize_t below = 0, m = n;
     for (int level = 0; level < 3; level++) {
-        uint32_t bins = 1u << width[level], sh = (uint32_t)shift[level];
+        uint32_t mask = (1u << width[level]) - 1, sh = (uint32_t)shift[level];
         memset(hist, 0, sizeof(hist));
         Py_ssize_t i = 0;
-        for (; i + 4 <= n; i += 4) {
-            hist[0][(keys[i] >> sh) & (bins - 1)]++;
-            hist[1][(keys[i + 1] >> sh) & (bins - 1)]++;
-            hist[2][(keys[i + 2] >> sh) & (bins - 1)]++;
-            hist[3][(keys[i + 3] >> sh) & (bins - 1)]++;
+        if (level == 0) {
+            for (; i + 4 <= m; i += 4) {
+                hist[0][key_of(z[i]) >> sh]++;
+                hist[1][key_of(z[i + 1]) >> sh]++;
+                hist[2][key_of(z[i + 2]) >> sh]++;
+                hist[3][key_of(z[i + 3]) >> sh]++;
+            }
+            for (; i < m; i++)
+                hist[0][key_of(z[i]) >> sh]++;
+        } else {
+            for (; i + 4 <= m; i += 4) {
+                hist[0][(keys[i] >> sh) & mask]++;
+                hist[1][(keys[i + 1] >> sh) & mask]++;
+                hist[2][(keys[i + 2] >> sh) & mask]++;
+                hist[3][(keys[i + 3] >> sh) & mask]++;
+            }
+            for (; i < m; i++)
+                hist[0][(keys[i] >> sh) & mask]++;
         }
-        for (; i < n; i++)
-            hist[0][(keys[i] >> sh) & (bins - 1)]++;
         uint32_t b = 0;
         Py_ssize_t here = 0;
-        for (; b < bins; b++) {
+        for (; b <= mask; b++) {
             here = (Py_ssize_t)hist[0][b] + hist[1][b] + hist[2][b] + hist[3][b];
             if (below + here > k)
                 break;
             below += here;
         }
         prefix |= b << sh;
+        Py_ssize_t kept = 0; /* keep the keys of bin b; below still counts every key under it */
+        for (i = 0; i < m; i++) {
+            uint32_t key = level == 0 ? key_of(z[i]) : keys[i];
+            uint32_t bin = (key >> sh) & mask;
+            above = (bin > b && key < above) ? key : above;
+            if (level < 2) {
+                keys[kept] = key;
+                kept += bin == b;
+            }
+        }
         if (level == 2) {
-            *n_le = below + here;
+            *next = below + here > k + 1 ? prefix : above;
             break;
         }
-        Py_ssize_t m = 0; /* keep the keys of bin b; below still counts every key under it */
-        for (i = 0; i < n; i++) {
-            keys[m] = keys[i];
-            m += ((keys[i] >> sh) & (bins - 1)) == b;
-        }
-        n = m;
+        m = kept;
     }
     return prefix;
 }
@@ -214,20 +238,10 @@ static uint32_t select_key(uint32_t *keys, Py_ssize_t n, Py_ssize_t k, Py_ssize_
 /* The two middle values of the n floats z (n >= 1; equal for odd n). keys: n scratch keys. */
 static void middle_pair(const float *z, Py_ssize_t n, uint32_t *keys, float *lower, float *upper)
 {
-    for (Py_ssize_t i = 0; i < n; i++)
-        keys[i] = key_of(z[i]);
-    Py_ssize_t k = (n - 1) / 2, n_le;
-    uint32_t key = select_key(keys, n, k, &n_le);
+    Py_ssize_t k = (n - 1) / 2;
+    uint32_t next, key = select_key(z, n, k, keys, &next);
     *lower = float_of(key);
-    uint32_t next = key;
-    if (n % 2 == 0 && n_le <= k + 1) { /* the (k + 1)-th: the least value above */
-        next = UINT32_MAX;
-        for (Py_ssize_t i = 0; i < n; i++) {
-            uint32_t other = key_of(z[i]);
-            next = (other > key && other < next) ? other : next;
-        }
-    }
-    *upper = float_of(next);
+    *upper = n % 2 == 0 ? float_of(next) : *lower;
 }
 
 static PyObject *median(PyObject *self, PyObject *args)
@@ -448,11 +462,140 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------------------------------- */
+/* subtract(a, kind, level, n, out, thr, idx, cap) -> count: out = float32(a) - level (as     */
+/* np.subtract(a, level, dtype=float32)); idx (int64, cap) the flat indices where out > thr.  */
+/* above(x, n, thr, idx, cap) -> count: the same indices of a float32 vector (np.flatnonzero  */
+/* of x > thr). The count is the number above (more than cap: only the first cap written).    */
+
+#define BLOCK 512
+
+/* The indices of x[0:m] above thr, offset by base, appended to idx (at most cap in all). */
+static inline Py_ssize_t collect(const float *x, Py_ssize_t m, float thr, Py_ssize_t base,
+                                 int64_t *idx, Py_ssize_t cap, Py_ssize_t count)
+{
+    int any = 0;
+    for (Py_ssize_t j = 0; j < m; j++) /* vectorised: a block is mostly below */
+        any |= x[j] > thr;
+    if (!any)
+        return count;
+    for (Py_ssize_t j = 0; j < m; j++)
+        if (x[j] > thr) {
+            if (count < cap)
+                idx[count] = base + j;
+            count++;
+        }
+    return count;
+}
+
+#define SUBTRACT_BLOCKS(T)                                                                     \
+    for (Py_ssize_t b0 = 0; b0 < n; b0 += BLOCK) {                                             \
+        Py_ssize_t m = n - b0 < BLOCK ? n - b0 : BLOCK;                                        \
+        const T *src = (const T *)a + b0;                                                      \
+        const float *lev = level + b0;                                                         \
+        float *o = out + b0;                                                                   \
+        for (Py_ssize_t j = 0; j < m; j++)                                                     \
+            o[j] = (float)src[j] - lev[j];                                                     \
+        count = collect(o, m, thr, b0, idx, cap, count);                                       \
+    }
+
+static Py_ssize_t subtract_frame(const void *a, char kind, const float *level, Py_ssize_t n,
+                                 float *out, float thr, int64_t *idx, Py_ssize_t cap)
+{
+    Py_ssize_t count = 0;
+    switch (kind) {
+    case 'B':
+        SUBTRACT_BLOCKS(uint8_t)
+        break;
+    case 'H':
+        SUBTRACT_BLOCKS(uint16_t)
+        break;
+    case 'h':
+        SUBTRACT_BLOCKS(int16_t)
+        break;
+    case 'f':
+        SUBTRACT_BLOCKS(float)
+        break;
+    default: /* 'd': float64 cast to float32 first, as dtype=float32 does */
+        for (Py_ssize_t b0 = 0; b0 < n; b0 += BLOCK) {
+            Py_ssize_t m = n - b0 < BLOCK ? n - b0 : BLOCK;
+            const double *src = (const double *)a + b0;
+            for (Py_ssize_t j = 0; j < m; j++)
+                out[b0 + j] = (float)src[j] - level[b0 + j];
+            count = collect(out + b0, m, thr, b0, idx, cap, count);
+        }
+    }
+    return count;
+}
+
+static PyObject *subtract(PyObject *self, PyObject *args)
+{
+    Py_buffer ab, lb, ob, ib;
+    int kind;
+    Py_ssize_t n, cap;
+    float thr;
+    if (!PyArg_ParseTuple(args, "y*Cy*nw*fw*n", &ab, &kind, &lb, &n, &ob, &thr, &ib, &cap))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t item = kind == 'B' ? 1 : (kind == 'H' || kind == 'h') ? 2 : kind == 'f' ? 4 : 8;
+    if (kind != 'B' && kind != 'H' && kind != 'h' && kind != 'f' && kind != 'd') {
+        PyErr_Format(PyExc_ValueError, "kind %c is not one of B, H, h, f, d", kind);
+        goto done;
+    }
+    if (n < 0 || cap < 0 || check(&ab, n * item, "a") || check(&lb, n * 4, "level")
+        || check(&ob, n * 4, "out") || check(&ib, cap * 8, "idx")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    Py_ssize_t count;
+    Py_BEGIN_ALLOW_THREADS
+    count = subtract_frame(ab.buf, (char)kind, (const float *)lb.buf, n, (float *)ob.buf, thr,
+                           (int64_t *)ib.buf, cap);
+    Py_END_ALLOW_THREADS
+    result = PyLong_FromSsize_t(count);
+done:
+    PyBuffer_Release(&ab);
+    PyBuffer_Release(&lb);
+    PyBuffer_Release(&ob);
+    PyBuffer_Release(&ib);
+    return result;
+}
+
+static PyObject *above(PyObject *self, PyObject *args)
+{
+    Py_buffer xb, ib;
+    Py_ssize_t n, cap;
+    float thr;
+    if (!PyArg_ParseTuple(args, "y*nfw*n", &xb, &n, &thr, &ib, &cap))
+        return NULL;
+    PyObject *result = NULL;
+    if (n < 0 || cap < 0 || check(&xb, n * 4, "x") || check(&ib, cap * 8, "idx")) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "bad shape");
+        goto done;
+    }
+    Py_ssize_t count = 0;
+    const float *x = (const float *)xb.buf;
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t b0 = 0; b0 < n; b0 += BLOCK)
+        count = collect(x + b0, n - b0 < BLOCK ? n - b0 : BLOCK, thr, b0, (int64_t *)ib.buf, cap,
+                        count);
+    Py_END_ALLOW_THREADS
+    result = PyLong_FromSsize_t(count);
+done:
+    PyBuffer_Release(&xb);
+    PyBuffer_Release(&ib);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"correlate", correlate, METH_VARARGS, "Separable symmetric correlation (matched.py)."},
     {"median", median, METH_VARARGS, "np.median of a float32 vector."},
     {"label", label, METH_VARARGS, "Connected regions of sorted lit pixels (regions.py)."},
     {"hot", hot, METH_VARARGS, "Hot pixels and pairs among candidates (background.py)."},
+    {"subtract", subtract, METH_VARARGS, "Frame minus level map, and the pixels above (float32)."},
+    {"above", above, METH_VARARGS, "Flat indices of a float32 vector's values above a threshold."},
     {NULL, NULL, 0, NULL},
 };
 

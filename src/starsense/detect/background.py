@@ -51,6 +51,7 @@ from starsense.detect.quantised import (
     quantisation_step,
     quantised_box_stats,
 )
+from starsense.detect.subtract import floor_threshold
 from starsense.detect.surface import NoiseSurface
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
@@ -59,6 +60,10 @@ try:
     import starsense.detect._framec as _framec
 except ImportError:  # built without a C compiler: the NumPy form below
     _framec = None
+try:
+    import starsense.detect._clipc as _clipc
+except ImportError:  # built without a C compiler: the NumPy form of the noise mesh
+    _clipc = None
 
 # Boxes of at least this size are sampled at every second pixel each way.
 _SUBSAMPLE_MIN_BOX_PX = 32
@@ -159,13 +164,50 @@ def _is_int(value: object) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
-def _quantised_step(cells: np.ndarray, keep: np.ndarray) -> float | None:
-    """Return the quantisation step when the frame's noise is below a few steps, else None."""
-    step = quantisation_step(cells[:, :, ::7])
+#: the quantisation step is judged on every this-many-th sample of each box
+_STEP_SAMPLES_EVERY = 7
+
+
+def _quantised_step(sampled: np.ndarray, keep: np.ndarray) -> float | None:
+    """Return the quantisation step when the frame's noise is below a few steps, else None.
+
+    ``sampled`` is every :data:`_STEP_SAMPLES_EVERY`-th sample of each box, ``keep`` which of
+    them the clipping kept.
+    """
+    step = quantisation_step(sampled)
     if step is None:
         return None
-    mad = np.nanmedian(robust_sigma(cells[:, :, ::7], keep[:, :, ::7]))
+    mad = np.nanmedian(robust_sigma(sampled, keep))
     return step if not mad >= QUANTISED_BELOW_STEPS * step else None
+
+
+def _kept(cells: np.ndarray, low: np.ndarray, high: np.ndarray, ok, name: str) -> np.ndarray:
+    """Which samples lie within their box's clipping bounds (and are valid: ``ok``)."""
+    keep = scratch(name, cells.shape, bool)
+    with np.errstate(invalid="ignore"):
+        np.greater_equal(cells, low[..., None], out=keep)
+        keep &= np.less_equal(cells, high[..., None], out=scratch(name + "_le", cells.shape, bool))
+    if ok is not True:
+        keep &= ok
+    return keep
+
+
+def _residual_noise(cells, level, mesh: MeshSampler, low, high, keep) -> np.ndarray:
+    """Robust noise of each box: 1.4826 MAD of its kept samples minus the level map.
+
+    ``keep`` is the kept samples, or None on a regular mesh without missing samples, where the
+    compiled kernel (``_clipc.mad_resid``) tests the bounds and subtracts the map's values
+    sample by sample: the same float32 comparisons and subtractions, the same MAD.
+    """
+    if keep is None:
+        (ny, nx), my, mx = mesh.boxes, mesh.ri.shape[1], mesh.ci.shape[1]
+        level = np.ascontiguousarray(level, dtype=np.float32)
+        out = np.empty((ny, nx), np.float64)
+        geometry = (level.shape[1], ny, nx, my, mx, mesh.every)
+        _clipc.mad_resid(np.ascontiguousarray(cells), level, *geometry, low, high, out)
+        return MAD_TO_SIGMA * out
+    resid = mesh.gather(level, None, "bg_resid")
+    return robust_sigma(np.subtract(cells, resid, out=resid), keep)
 
 
 def _masked_std(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -187,9 +229,15 @@ def _mesh_samples(a: np.ndarray, mesh: MeshSampler, bad: np.ndarray | None):
     """
     counts = None
     if mesh.regular and bad is None and a.dtype.kind in "iu" and a.dtype.itemsize <= 2:
-        counts = mesh.gather(a, None, "bg_counts")
+        ny, nx = mesh.boxes
+        my, mx = mesh.ri.shape[1], mesh.ci.shape[1]
+        counts = scratch("bg_counts", (ny, nx, my * mx), a.dtype)
         cells = scratch("bg_cells", counts.shape)
-        np.copyto(cells, counts)
+        if _clipc is not None and a.dtype.isnative:  # one pass, the same samples and floats
+            geometry = (a.shape[1], ny, nx, my, mx, mesh.every)
+            _clipc.gather(np.ascontiguousarray(a), a.dtype.char, *geometry, counts, cells)
+        else:
+            np.copyto(cells, mesh.gather(a, None, "bg_counts"))  # the same buffer as counts
     else:
         cells = mesh.gather(a, np.float32, "bg_cells")
     if mesh.regular and bad is None:  # every sample is inside its box and unmasked
@@ -278,13 +326,13 @@ def estimate_background(
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
     cells, counts, ok, n_samples = _mesh_samples(a, mesh, bad)
     med, low, high, kept = sigma_clip_boxes(cells, float(sigma_clip), counts=counts)
-    keep = scratch("bg_keep", cells.shape, bool)
-    with np.errstate(invalid="ignore"):
-        np.greater_equal(cells, low[..., None], out=keep)
-        keep &= np.less_equal(cells, high[..., None], out=scratch("bg_mask", cells.shape, bool))
-        if ok is not True:
-            keep &= ok
-    step = _quantised_step(cells, keep)
+    sampled = cells[:, :, ::_STEP_SAMPLES_EVERY]
+    keep = None  # the kept samples: needed whole only without the fused noise kernel
+    if _clipc is not None and ok is True and cells.dtype == np.float32:
+        step = _quantised_step(sampled, _kept(sampled, low, high, ok, "bg_keep_step"))
+    else:
+        keep = _kept(cells, low, high, ok, "bg_keep")
+        step = _quantised_step(sampled, keep[:, :, ::_STEP_SAMPLES_EVERY])
     if step is not None:  # 8-bit-like data: box means and standard deviations (quantised.py)
         med, _, keep = quantised_box_stats(cells, med, step)
         kept = keep.sum(-1)
@@ -299,8 +347,7 @@ def estimate_background(
     # noise: MAD of the clipped samples about the smooth map (not quantised like the raw MAD);
     # for coarsely quantised data their standard deviation, at least the quantisation noise
     if step is None:
-        resid = gather(level, None, "bg_resid")
-        noise_mesh = robust_sigma(np.subtract(cells, resid, out=resid), keep)
+        noise_mesh = _residual_noise(cells, level, mesh, low, high, keep)
     else:
         noise_mesh = np.maximum(_masked_std(cells - gather(level), keep), step / np.sqrt(12.0))
     noise_mesh[~trusted] = np.nan
@@ -324,8 +371,17 @@ def estimate_background(
     )
 
 
+#: excess over the background of a hot pixel, in noise sigmas (hot_pixel_mask)
+HOT_PIXEL_SIGMA = 8.0
+
+
 def hot_pixel_mask(
-    image, background: Background, *, threshold_sigma: float = 8.0, subtracted=None
+    image,
+    background: Background,
+    *,
+    threshold_sigma: float = HOT_PIXEL_SIGMA,
+    subtracted=None,
+    candidates=None,
 ) -> np.ndarray:
     """Isolated pixels or pixel pairs far brighter than all around them (hot pixels, hits).
 
@@ -354,6 +410,10 @@ def hot_pixel_mask(
     subtracted : ndarray, shape (rows, columns), optional
         ``image`` minus ``background.level`` in float32, when the caller has it already
         (saves a whole-frame copy); computed here otherwise.
+    candidates : ndarray of int, optional
+        Flat indices (ascending) of the pixels of ``subtracted`` above ``threshold_sigma``
+        times the frame's lowest noise (:func:`~starsense.detect.subtract.subtract_level` with
+        :func:`~starsense.detect.subtract.floor_threshold`), when the caller has them.
 
     Returns
     -------
@@ -366,10 +426,12 @@ def hot_pixel_mask(
         sub = np.asarray(subtracted, dtype=np.float32)
         if sub.shape != np.shape(image):
             raise InputError(f"subtracted has shape {sub.shape}, the image {np.shape(image)}")
-    floor = np.maximum(background.noise_floor(), np.float32(1e-12))
     # candidates above the threshold at the lowest noise (one pass, no float frame), then the
     # exact per-pixel test on those only
-    flat = np.flatnonzero(sub > threshold_sigma * floor)
+    if candidates is None:
+        flat = np.flatnonzero(sub > floor_threshold(background, threshold_sigma))
+    else:
+        flat = np.asarray(candidates, dtype=np.intp)
     r, c = np.divmod(flat, sub.shape[1])
     hot = np.zeros(sub.shape, dtype=bool)
     if r.size == 0:

@@ -4,11 +4,13 @@ The samples of every box are sorted once; the samples kept by clipping are then 
 run of the sorted row, whose median is a rank lookup and whose median absolute deviation (MAD)
 is found by bisection over the run's two halves, below and above the median (no second sort).
 
-The sort is NumPy's. The bisections run in the compiled kernel ``_clipc`` (``_clipc.c``, built
-by setup.py) box by box when it is installed: the NumPy form below bisects every box at once
-in a few hundred small array operations, whose per-call cost was a sixth of a frame's
-detection time. Both give the same values, bit for bit (tests/detect/test_detect_clip_kernel.py);
-without a C compiler at install time the package runs the NumPy form.
+The compiled kernel ``_clipc`` (``_clipc.c``, built by setup.py), when it is installed, runs
+the same algorithm box by box: it sorts each box's samples itself (a radix sort on the values'
+bits, in the cache, in place of NumPy's sort of the whole mesh and its copies) and bisects
+them; the NumPy form below sorts with NumPy and bisects every box at once in a few hundred
+small array operations. Both give the same values, bit for bit
+(tests/detect/test_detect_clip_kernel.py); without a C compiler at install time the package
+runs the NumPy form.
 """
 
 from __future__ import annotations
@@ -162,8 +164,16 @@ def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float, *, counts: np.ndarray
     kept : ndarray of int, shape (...)
         The number of samples kept.
     """
+    ints = counts is not None and counts.dtype.itemsize <= 2 and counts.dtype.kind in "iu"
+    if _clipc is not None and (ints or cells.dtype == np.float32):
+        # each box sorted and clipped in the kernel (a radix sort, in the cache): the same
+        # sorted rows as np.sort's, so the same values
+        values = np.ascontiguousarray(counts if ints else cells)
+        if not values.dtype.isnative:  # e.g. FITS's big-endian integers
+            values = values.astype(values.dtype.newbyteorder("="))
+        return _clip_in_kernel(values, float(sigma_clip))
     s = scratch("clip_sorted", cells.shape, cells.dtype)
-    if counts is not None and counts.dtype.itemsize <= 2 and counts.dtype.kind in "iu":
+    if ints:
         ints = scratch("clip_sorted_counts", counts.shape, counts.dtype)
         np.copyto(ints, counts)
         ints.sort(axis=-1)
@@ -171,15 +181,22 @@ def sigma_clip_boxes(cells: np.ndarray, sigma_clip: float, *, counts: np.ndarray
     else:
         np.copyto(s, cells)
         s.sort(axis=-1)  # NaN last
-    if _clipc is None or s.dtype != np.float32:
-        return _clip_sorted_numpy(s, sigma_clip)
-    lead, m = s.shape[:-1], s.shape[-1]
+    return _clip_sorted_numpy(s, sigma_clip)
+
+
+#: the kernel's name of each sample type it sorts (clip_rows in _clipc.c)
+_KINDS = {"float32": "f", "uint8": "B", "int8": "b", "uint16": "H", "int16": "h"}
+
+
+def _clip_in_kernel(values: np.ndarray, sigma_clip: float):
+    """:func:`sigma_clip_boxes` by the kernel on the unsorted, C-contiguous samples."""
+    lead, m = values.shape[:-1], values.shape[-1]
     rows = int(np.prod(lead))
     med, kept = np.empty(lead, np.float64), np.empty(lead, np.int64)
     low, high = np.empty(lead, np.float32), np.empty(lead, np.float32)
-    _clipc.clip_sorted(
-        s, rows, m, float(sigma_clip), MAD_TO_SIGMA, _MAX_CLIP_ITERATIONS, med, low, high, kept
-    )
+    kind = _KINDS[values.dtype.name]
+    args = (values, kind, rows, m, sigma_clip, MAD_TO_SIGMA, _MAX_CLIP_ITERATIONS)
+    _clipc.clip_rows(*args, med, low, high, kept)
     return med, low, high, kept.astype(np.intp, copy=False)
 
 
@@ -224,18 +241,15 @@ def robust_sigma(cells: np.ndarray, keep: np.ndarray) -> np.ndarray:
     ndarray, shape (...)
         The robust noise of each box, counts.
     """
-    n = np.count_nonzero(keep, axis=-1)
-    if _clipc is not None and cells.dtype == np.float32:
-        v = scratch("robust_sorted", cells.shape, cells.dtype)
-        np.copyto(v, cells)
-        np.copyto(
-            v, np.inf, where=np.logical_not(keep, out=scratch("robust_mask", keep.shape, bool))
-        )
-        v.sort(axis=-1)  # the kept samples first, ascending
-        out = np.empty(n.shape, np.float64)
-        _clipc.mad_sorted(v, int(n.size), v.shape[-1], n.astype(np.int64), out)
+    if _clipc is not None and cells.dtype == np.float32 and cells.shape[-1] > 0:
+        # each box's kept samples sorted (a radix sort) and their MAD taken in the kernel:
+        # the values of the NumPy form's sorted rows, so the same MAD
+        values = np.ascontiguousarray(cells)
+        kept = np.ascontiguousarray(np.broadcast_to(keep, cells.shape)).view(np.uint8)
+        out = np.empty(cells.shape[:-1], np.float64)
+        _clipc.mad_masked(values, kept, int(out.size), cells.shape[-1], out)
         return MAD_TO_SIGMA * out
-    return _robust_sigma_numpy(cells, keep, n)
+    return _robust_sigma_numpy(cells, keep)
 
 
 def _robust_sigma_numpy(cells: np.ndarray, keep: np.ndarray, n: np.ndarray | None = None):

@@ -21,6 +21,7 @@ import numpy as np
 
 from starsense._validate import check_int, finite_float, positive_float, show
 from starsense.detect.background import (
+    HOT_PIXEL_SIGMA,
     Background,
     constant_background,
     estimate_background,
@@ -29,6 +30,7 @@ from starsense.detect.background import (
 from starsense.detect.centroid import METHODS, gauss_fit
 from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
 from starsense.detect.regions import label_pixels, region_centroids
+from starsense.detect.subtract import floor_threshold, pixels_above, subtract_level
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
 from starsense.sensor import DetectionThresholds
@@ -228,7 +230,9 @@ class StarDetector:
         return constant_background(level, self.noise_counts)
 
     def _lit(self, sub: np.ndarray, bg: Background):
-        """Lit pixels (flat indices, ascending), which of them bound a centroid window, filtered.
+        """Lit pixels (flat indices, ascending), which bound a window, filtered, their noise.
+
+        The noise is the background's at the lit pixels (None without the matched filter).
 
         Without the matched filter the lit pixels bound the window (None). With it, the lit
         region (the star's light spread by the filter) is wider than the star, so the window
@@ -242,7 +246,7 @@ class StarDetector:
                 threshold = np.maximum(
                     np.float32(threshold), bg.threshold_counts(self.threshold_sigma)
                 )
-            return np.flatnonzero(sub > threshold), None, None
+            return np.flatnonzero(sub > threshold), None, None, None
         filtered = scratch("filtered", sub.shape)
         gaussian_correlate(sub, self.psf_sigma_px, out=filtered)
         grid = bg.noise_grid(NOISE_STEP)
@@ -251,13 +255,13 @@ class StarDetector:
         )
         k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
         cut = np.float32(k * ratio)
-        above = scratch("lit", sub.shape, bool)
-        np.greater(filtered, cut * np.float32(bg.noise_floor()), out=above)
-        idx = np.flatnonzero(above)
+        idx = pixels_above(filtered, cut * np.float32(bg.noise_floor()))
+        noise = bg.noise_at(idx)  # evaluated once, pixel by pixel: the same values for a subset
         if bg.varies:
-            idx = idx[filtered.ravel()[idx] > cut * bg.noise_at(idx)]
-        core_at = sub.ravel()[idx] > np.float32(k) * np.float32(bg.noise_at(idx))
-        return idx, core_at, filtered
+            passed = filtered.ravel()[idx] > cut * noise
+            idx, noise = idx[passed], noise[passed]
+        core_at = sub.ravel()[idx] > np.float32(k) * np.float32(noise)
+        return idx, core_at, filtered, noise
 
     def _sharp(self, sub, filtered, idx, lab, n, a) -> np.ndarray:
         """Whether each region 0..n is point-like (matched filter; module docstring).
@@ -310,14 +314,15 @@ class StarDetector:
         t0 = time.perf_counter()
         a = _check_image(image)
         bg = self._background(a)
-        sub = scratch("sub", a.shape)
-        np.subtract(a, np.asarray(bg.level, dtype=np.float32), out=sub, dtype=np.float32)
+        remove_hot = self.background == "auto" and self.remove_hot_pixels
+        above = floor_threshold(bg, HOT_PIXEL_SIGMA) if remove_hot else None
+        sub, candidates = subtract_level(a, bg.level, scratch("sub", a.shape), above=above)
         counts = {"hot_pixels": 0}
-        if self.background == "auto" and self.remove_hot_pixels:
-            hot = hot_pixel_mask(a, bg, subtracted=sub)
+        if remove_hot:
+            hot = hot_pixel_mask(a, bg, subtracted=sub, candidates=candidates)
             sub[hot] = 0.0
-            counts["hot_pixels"] = int(hot.sum())
-        idx, core, filtered = self._lit(sub, bg)
+            counts["hot_pixels"] = int(np.count_nonzero(hot))
+        idx, core, filtered, lit_noise = self._lit(sub, bg)
         counts["pixels_above_threshold"] = int(idx.size)
         lab, n = label_pixels(idx, a.shape, 4 if self.logic.connectivity == 4 else 8)
         empty = Detections(
@@ -350,7 +355,7 @@ class StarDetector:
             np.maximum.at(peak, lab, sub.ravel()[idx])
             ok &= peak >= np.float32(MIN_PEAK_STEPS * bg.step)
         if self.min_snr is not None:
-            noise = bg.noise_at(idx)
+            noise = bg.noise_at(idx) if lit_noise is None else lit_noise
             var = np.bincount(lab, weights=np.broadcast_to(noise, idx.shape) ** 2, minlength=n + 1)
             with np.errstate(invalid="ignore", divide="ignore"):
                 ok &= sums >= self.min_snr * np.sqrt(var)
@@ -407,8 +412,18 @@ def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
     ``ndimage.uniform_filter(mode="nearest")``), evaluated at the peaks only.
     """
     values = filtered.ravel()[idx]
-    order = np.lexsort((values, lab))  # by region, then by filtered value
-    last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
+    # each region's largest value, at its last pixel holding it (the last of a sort by region,
+    # then by value, stable): two passes instead of the sort, which NaN needs
+    top = np.full(int(lab.max()) + 1, -np.inf, values.dtype)
+    np.maximum.at(top, lab, values)
+    if np.isnan(top).any():
+        order = np.lexsort((values, lab))
+        last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
+    else:
+        at_top = np.flatnonzero(values == top[lab])
+        last = np.full(top.size, -1, np.intp)
+        np.maximum.at(last, lab[at_top], at_top)
+        last = last[last >= 0]
     rows, cols = sub.shape
     r, c = np.divmod(idx[last], cols)
     off = np.arange(-half, half + 1)
