@@ -11,14 +11,17 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from starsense.analysis.datasheet.field import (
     axis_sigmas,
     field_stars_cam,
     fisher_per_pointing,
+    propagated_covariance,
     propagated_sigmas,
 )
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
+from starsense.analysis.datasheet.streak_noise import is_streaked, streak_errors
 from starsense.analysis.datasheet.terms import (
     confusion_px,
     pixel_spatial_error,
@@ -36,6 +39,7 @@ __all__ = [
     "fastest_rate",
     "limiting_magnitude",
     "nea_at",
+    "nea_at_rate",
     "slew_grids",
 ]
 
@@ -233,3 +237,82 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
         else:
             out[kind] = propagated_sigmas(pairs, weights, np.where(np.isfinite(sigma), sigma, 0))
     return out, pairs.counts()
+
+
+def _streaks_px(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
+    """Mid-exposure pixel positions (P, 2) and streaks, start to end (P, 2), of stars v_cam."""
+    v_cam = np.array(v_cam, dtype=float)  # a writable copy (Rotation.apply needs one)
+    half = Rotation.from_rotvec(np.asarray(rates_rad_s) * 0.5 * sensor.exposure_s)
+    x, y = sensor.project(v_cam)
+    xs, ys = sensor.project(half.apply(v_cam))
+    xe, ye = sensor.project(half.inv().apply(v_cam))
+    return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
+
+
+def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnitudes, margin_px=2):
+    """Return the 1-sigma (cross, roll) of attitudes at body rates, rad, from smeared stars.
+
+    Each star of the field is a streak (the attitude's rate over the exposure): its centroid's
+    noise, bias (a streak cut by the frame's edge) and the covariance the solver assumes come
+    from :func:`starsense.analysis.datasheet.streak_noise.streak_errors` (the solver's capsule
+    over the whole streak, or the detector's box where the streaks are short), and go through
+    the solver's weights (``2 / trace`` of its assumed covariance) as at rest
+    (:func:`starsense.analysis.datasheet.field.propagated_covariance`, the anisotropic form of
+    :func:`nea_at`'s propagation), with the PRNU and calibration residual of
+    :func:`error_kinds` added per star.
+
+    Parameters
+    ----------
+    model : StarModel
+    fov : RectangularFov
+        The sensor's field.
+    matrices : ndarray (M, 3, 3)
+        Attitudes, ICRS -> camera.
+    rates_rad_s : ndarray (M, 3)
+        Body rate of each attitude, camera frame, rad/s.
+    vectors, magnitudes : ndarray (N, 3), (N,)
+        The stars the tracker uses (those it detects at the rate), ICRS.
+    margin_px : int
+        The detector's centroid margin, px.
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad; NaN where fewer than two stars are in the field.
+    """
+    sensor = model.sensor
+    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors))
+    rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[pairs.point]
+    mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
+    centres, streaks = _streaks_px(sensor, pairs.v_cam, rates)
+    length = np.hypot(streaks[:, 0], streaks[:, 1])
+    # the solver re-centroids a frame over the streaks when its streaks are long (per frame)
+    frame_len = np.zeros(pairs.n_pointings)
+    np.maximum.at(frame_len, pairs.point, length)
+    capsule = np.array([is_streaked(sensor, float(v), margin_px) for v in frame_len])
+    electrons = model.sensitivity.electrons(mags)
+    cov = np.full((len(mags), 2, 2), np.nan)
+    bias = np.full((len(mags), 2), np.nan)
+    solver = np.full((len(mags), 2, 2), np.nan)
+    for flag in (True, False):
+        at = np.flatnonzero(capsule[pairs.point] == flag)
+        got = streak_errors(
+            sensor, electrons[at], centres[at], streaks[at], capsule=flag, margin_px=margin_px
+        )
+        cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
+    scale = (model.pixel_rad * z) ** 2  # px^2 -> rad^2, the pinhole's angle per pixel
+    other = sum(
+        model.star_sigmas_rad(mags, z, k) ** 2
+        for k in error_kinds(sensor)
+        if k in ("prnu", "residual")
+    )
+    err = cov + bias[:, :, None] * bias[:, None, :]
+    err3 = np.zeros((len(mags), 3, 3))
+    err3[:, :2, :2] = err * scale[:, None, None]
+    err3[:, :2, :2] += (
+        np.asarray(other + 0.0)[..., None, None] * np.eye(2) if np.ndim(other) else 0.0
+    )
+    proj = np.eye(3) - pairs.v_cam[:, :, None] * pairs.v_cam[:, None, :]
+    err3 = proj @ err3 @ proj
+    weights = 2.0 / (np.trace(solver, axis1=1, axis2=2) * scale)
+    return propagated_covariance(pairs, np.where(np.isfinite(weights), weights, 0.0), err3)

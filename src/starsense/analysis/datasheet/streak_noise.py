@@ -84,7 +84,7 @@ def is_streaked(sensor, streak_px: float, margin_px: int = 2) -> bool:
 
 
 def _pixels(sensor, n_e: float, centre, streak, half: tuple[int, int]):
-    """Expected counts less the bias, their variance, pixel coordinates, on-frame mask."""
+    """Return the expected counts less the bias, their variance, pixel grid, on-frame mask."""
     det = sensor.detector
     g = det.gain_counts_per_e
     x, y = float(centre[0]), float(centre[1])
@@ -121,13 +121,15 @@ def _capsule(cols, rows, centre, seg, radius: float) -> np.ndarray:
 
 
 def _lit_box(sub, on, lit: float, margin: int) -> np.ndarray:
-    """The detector's window: the lit pixels' bounding box widened by its margin."""
+    """Return the detector's window: the lit pixels' bounding box widened by its margin."""
     hit = (sub > lit) & on
     if not hit.any():
         return np.zeros_like(on)
     rr, cc = np.flatnonzero(hit.any(axis=1)), np.flatnonzero(hit.any(axis=0))
     box = np.zeros_like(on)
-    box[max(rr[0] - margin, 0) : rr[-1] + margin + 1, max(cc[0] - margin, 0) : cc[-1] + margin + 1] = 1
+    box[
+        max(rr[0] - margin, 0) : rr[-1] + margin + 1, max(cc[0] - margin, 0) : cc[-1] + margin + 1
+    ] = 1
     return box & on
 
 
