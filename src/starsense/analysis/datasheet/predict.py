@@ -8,6 +8,7 @@ stars). :mod:`starsense.analysis.datasheet.verify` checks it against rendered fr
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +30,7 @@ from starsense.analysis.datasheet.terms import (
 )
 from starsense.analysis.sensor_detection import limiting_magnitude, slew_grids
 from starsense.analysis.slew import last_above
+from starsense.attitude.robust import OUTLIER_SIGMA, robust_attitude
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.units import DEG
 
@@ -249,6 +251,27 @@ def _streaks_px(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
     return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
 
 
+#: the stars the solver's final fit drops at most (robust_attitude's default)
+_MAX_DROP = int(inspect.signature(robust_attitude).parameters["max_drop"].default)
+
+
+def _outliers(point, z) -> np.ndarray:
+    """Return the pairs the solver's final fit drops: residual > OUTLIER_SIGMA of its sigma.
+
+    A star whose centroid is biased by many of the sigma the solver assumes for it (a streak
+    cut by the frame's edge in a frame kept at the detector's centroids) leaves that residual,
+    and :func:`starsense.attitude.robust.robust_attitude` drops it, the worst first, at most
+    ``max_drop`` per frame.
+    """
+    z = np.where(np.isfinite(z), z, 0.0)
+    out = np.zeros(len(z), dtype=bool)
+    for p in np.unique(point[z > OUTLIER_SIGMA]):
+        at = np.flatnonzero(point == p)
+        worst = at[np.argsort(-z[at], kind="stable")][:_MAX_DROP]
+        out[worst[z[worst] > OUTLIER_SIGMA]] = True
+    return out
+
+
 def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnitudes, margin_px=2):
     """Return the 1-sigma (cross, roll) of attitudes at body rates, rad, from smeared stars.
 
@@ -300,6 +323,9 @@ def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnit
             sensor, electrons[at], centres[at], streaks[at], capsule=flag, margin_px=margin_px
         )
         cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
+    weights = 2.0 / np.trace(solver, axis1=1, axis2=2)  # px^-2
+    dropped = _outliers(pairs.point, np.hypot(bias[:, 0], bias[:, 1]) * np.sqrt(weights))
+    weights[dropped], cov[dropped], bias[dropped] = 0.0, 0.0, 0.0
     scale = (model.pixel_rad * z) ** 2  # px^2 -> rad^2, the pinhole's angle per pixel
     other = sum(
         model.star_sigmas_rad(mags, z, k) ** 2
@@ -314,5 +340,5 @@ def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnit
     )
     proj = np.eye(3) - pairs.v_cam[:, :, None] * pairs.v_cam[:, None, :]
     err3 = proj @ err3 @ proj
-    weights = 2.0 / (np.trace(solver, axis1=1, axis2=2) * scale)
+    weights = weights / scale
     return propagated_covariance(pairs, np.where(np.isfinite(weights), weights, 0.0), err3)
