@@ -255,21 +255,67 @@ def _streaks_px(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
 _MAX_DROP = int(inspect.signature(robust_attitude).parameters["max_drop"].default)
 
 
-def _outliers(point, z) -> np.ndarray:
-    """Return the pairs the solver's final fit drops: residual > OUTLIER_SIGMA of its sigma.
+def _outliers(pairs, weights, bias_rad) -> np.ndarray:
+    """Return the pairs the solver's final fit drops, from their centroids' biases.
 
-    A star whose centroid is biased by many of the sigma the solver assumes for it (a streak
-    cut by the frame's edge in a frame kept at the detector's centroids) leaves that residual,
-    and :func:`starsense.attitude.robust.robust_attitude` drops it, the worst first, at most
-    ``max_drop`` per frame.
+    :func:`starsense.attitude.robust.robust_attitude` on the expected centroids: the weighted
+    fit of each frame, the residual of every star (its bias less the fitted attitude's share,
+    ``b + [r]x dtheta``), and while the worst exceeds ``OUTLIER_SIGMA`` of that star's sigma
+    (and more than 3 stars remain) that star is dropped, at most ``max_drop`` per frame. A
+    star biased by many of the sigma the solver assumes for it (a saturated streak clipped
+    unevenly, a star cut by the frame's edge in a frame kept at the detector's centroids) is
+    dropped, as it is from the frames.
+
+    Parameters
+    ----------
+    pairs : FieldStarsCam
+    weights : ndarray (P,)
+        The solver's weights, rad^-2.
+    bias_rad : ndarray (P, 3)
+        Each centroid's bias, camera frame (normal to the star), rad.
     """
-    z = np.where(np.isfinite(z), z, 0.0)
-    out = np.zeros(len(z), dtype=bool)
-    for p in np.unique(point[z > OUTLIER_SIGMA]):
-        at = np.flatnonzero(point == p)
-        worst = at[np.argsort(-z[at], kind="stable")][:_MAX_DROP]
-        out[worst[z[worst] > OUTLIER_SIGMA]] = True
+    point, r = np.asarray(pairs.point), np.asarray(pairs.v_cam, dtype=float)
+    z = np.linalg.norm(bias_rad, axis=1) * np.sqrt(weights)
+    out = np.zeros(len(point), dtype=bool)
+    for p in np.unique(point[np.nan_to_num(z) > OUTLIER_SIGMA]):
+        at = np.flatnonzero((point == p) & (weights > 0) & np.isfinite(z))
+        keep = np.ones(len(at), dtype=bool)
+        rr, ww, bb = r[at], weights[at], bias_rad[at]
+        for _ in range(_MAX_DROP):
+            if keep.sum() <= 3:
+                break
+            wk = np.where(keep, ww, 0.0)
+            proj = np.eye(3) - rr[:, :, None] * rr[:, None, :]
+            f = np.einsum("i,ijk->jk", wk, proj)
+            # the fit: residual b + [r]x dtheta; normal equations F dtheta = -sum w [r]x^T b
+            rhs = np.einsum("i,ij->j", wk, np.cross(rr, bb))
+            dtheta = np.linalg.lstsq(f, -rhs, rcond=None)[0]
+            res = np.linalg.norm(bb + np.cross(dtheta[None, :], rr), axis=1) * np.sqrt(ww)
+            res[~keep] = -np.inf
+            worst = int(np.argmax(res))
+            if res[worst] <= OUTLIER_SIGMA:
+                break
+            keep[worst] = False
+        out[at[~keep]] = True
     return out
+
+
+def _confusion_at_rate(model: StarModel, electrons, mags, z) -> np.ndarray:
+    """Return the per-pixel variance (e^2) unresolved neighbours give each star's window.
+
+    The at-rest confusion (:func:`starsense.analysis.datasheet.terms.confusion_px`, px rms per
+    axis over a square window of side ``s``) is a per-pixel variance ``v`` of the neighbours'
+    light times the window's ``sum (x - x_c)^2 = s^2 (s^2 - 1) / 12`` over the star's
+    electrons squared: ``v = conf^2 N^2 12 / (s^2 (s^2 - 1))``, the same in any window, so
+    the streak's longer capsule takes in more of it.
+    """
+    conf = model.star_sigmas_rad(mags, z, "confusion") / (model.pixel_rad * z)
+    side = np.interp(
+        np.log(electrons), np.log(model.noise.electrons), np.nan_to_num(model.noise.window_px)
+    )
+    s2 = np.maximum(side * side, 2.0)
+    v = conf**2 * np.asarray(electrons, dtype=float) ** 2 * 12.0 / (s2 * (s2 - 1.0))
+    return np.where(np.isfinite(v), v, 0.0)
 
 
 def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnitudes, margin_px=2):
@@ -317,16 +363,23 @@ def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnit
     cov = np.full((len(mags), 2, 2), np.nan)
     bias = np.full((len(mags), 2), np.nan)
     solver = np.full((len(mags), 2, 2), np.nan)
+    spread = np.full((len(mags), 2, 2), np.nan)
     for flag in (True, False):
         at = np.flatnonzero(capsule[pairs.point] == flag)
         got = streak_errors(
             sensor, electrons[at], centres[at], streaks[at], capsule=flag, margin_px=margin_px
         )
         cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
-    weights = 2.0 / np.trace(solver, axis1=1, axis2=2)  # px^-2
-    dropped = _outliers(pairs.point, np.hypot(bias[:, 0], bias[:, 1]) * np.sqrt(weights))
-    weights[dropped], cov[dropped], bias[dropped] = 0.0, 0.0, 0.0
+        spread[at] = got.spread_px2
+    cov += _confusion_at_rate(model, electrons, mags, z)[:, None, None] * spread
     scale = (model.pixel_rad * z) ** 2  # px^2 -> rad^2, the pinhole's angle per pixel
+    weights = 2.0 / (np.trace(solver, axis1=1, axis2=2) * scale)  # rad^-2
+    weights = np.where(np.isfinite(weights), weights, 0.0)
+    proj = np.eye(3) - pairs.v_cam[:, :, None] * pairs.v_cam[:, None, :]
+    bias3 = np.einsum("pij,pj->pi", proj, np.column_stack([bias, np.zeros(len(bias))]))
+    bias3 *= np.sqrt(scale)[:, None]
+    dropped = _outliers(pairs, weights, np.nan_to_num(bias3))
+    weights[dropped], cov[dropped], bias[dropped] = 0.0, 0.0, 0.0
     other = sum(
         model.star_sigmas_rad(mags, z, k) ** 2
         for k in error_kinds(sensor)
@@ -338,7 +391,5 @@ def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnit
     err3[:, :2, :2] += (
         np.asarray(other + 0.0)[..., None, None] * np.eye(2) if np.ndim(other) else 0.0
     )
-    proj = np.eye(3) - pairs.v_cam[:, :, None] * pairs.v_cam[:, None, :]
     err3 = proj @ err3 @ proj
-    weights = weights / scale
-    return propagated_covariance(pairs, np.where(np.isfinite(weights), weights, 0.0), err3)
+    return propagated_covariance(pairs, weights, err3)

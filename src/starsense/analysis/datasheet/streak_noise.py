@@ -66,11 +66,16 @@ class StreakErrors:
         The centroid's noise covariance, px^2.
     solver_cov_px2 : ndarray (N, 2, 2)
         The covariance the solver assumes, px^2 (its weight is ``2 / trace``).
+    spread_px2 : ndarray (N, 2, 2)
+        Sum over the window's pixels of (pixel - centroid)(pixel - centroid)^T over the square
+        of the star's electrons, px^2 e^-2: a noise of variance ``v`` (e^2) in every pixel of
+        the window adds ``v spread_px2`` to the covariance.
     """
 
     bias_px: np.ndarray
     cov_px2: np.ndarray
     solver_cov_px2: np.ndarray
+    spread_px2: np.ndarray
 
 
 def is_streaked(sensor, streak_px: float, margin_px: int = 2) -> bool:
@@ -142,7 +147,7 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
     pad = radius + 5.0 * sigma + margin + 3.0
     half = (math.ceil(0.5 * abs(seg[1]) + pad), math.ceil(0.5 * abs(seg[0]) + pad))
     sub, var, cols, rows, on = _pixels(sensor, n_e, centre, streak, half)
-    nan = np.full(2, np.nan), np.full((2, 2), np.nan), np.full((2, 2), np.nan)
+    nan = np.full(2, np.nan), *np.full((3, 2, 2), np.nan)
     c = np.asarray(centre, dtype=float)
     if capsule:
         for _ in range(_ITERATIONS):  # the solver's fixed point, on the expected image
@@ -166,6 +171,7 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
     v = var[win]
     cov = np.array([[v @ (dx * dx), v @ (dx * dy)], [v @ (dx * dy), v @ (dy * dy)]]) / s**2
     g = det.gain_counts_per_e
+    spread = np.array([[dx @ dx, dx @ dy], [dx @ dy, dy @ dy]])
     if capsule:
         # the fixed point: a window moved by d moves the centroid of the background's mean
         # in it (a pedestal where the ADC clips the noise at 0) by d too, so the noise's pull
@@ -173,11 +179,11 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
         pedestal = float(_pixels(sensor, 0.0, centre, (0.0, 0.0), (0, 0))[0][0, 0])
         star = s - max(pedestal, 0.0) * int(np.sum(win))
         cov = cov * (s / star) ** 2 if star > 0 else np.full((2, 2), np.inf)
-        spread = np.array([[dx @ dx, dx @ dy], [dx @ dy, dy @ dy]])
+        total, s = s, star  # the window's sum (the solver's N), the light pulls divide by
         hx, hy = 0.5 * abs(streak[0]) + radius, 0.5 * abs(streak[1]) + radius
         whole = hx <= c[0] <= det.columns - 1 - hx and hy <= c[1] <= det.rows - 1 - hy
         solver = streak_cov_px2(
-            [s / g],
+            [total / g],
             spread[None],
             np.asarray(streak, dtype=float)[None],
             whole=[whole],
@@ -193,7 +199,7 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
         )
         sig = float(cog_sigma_px(found, [0], detector=det, margin_px=margin)[0])
         solver = sig * sig * np.eye(2)
-    return c - np.asarray(centre, dtype=float), cov, solver
+    return c - np.asarray(centre, dtype=float), cov, solver, spread * (g / s) ** 2
 
 
 def streak_errors(
@@ -227,6 +233,5 @@ def streak_errors(
     ls = np.asarray(streaks_px, dtype=float).reshape(-1, 2)
     out = [_one(sensor, float(e[i]), xy[i], ls[i], capsule, int(margin_px)) for i in range(len(e))]
     if not out:
-        return StreakErrors(np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros((0, 2, 2)))
-    bias, cov, solver = (np.array(z) for z in zip(*out, strict=True))
-    return StreakErrors(bias, cov, solver)
+        return StreakErrors(np.zeros((0, 2)), *np.zeros((3, 0, 2, 2)))
+    return StreakErrors(*(np.array(z) for z in zip(*out, strict=True)))
