@@ -22,7 +22,7 @@ from starsense.analysis.datasheet.field import (
     propagated_sigmas,
 )
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
-from starsense.analysis.datasheet.streak_noise import is_streaked, streak_errors
+from starsense.analysis.datasheet.streak_noise import blend_cov_px2, is_streaked, streak_errors
 from starsense.analysis.datasheet.terms import (
     confusion_px,
     pixel_spatial_error,
@@ -49,16 +49,23 @@ __all__ = [
 _COUNT_BIN_MAG = 0.25
 
 
-def _confusion(sensor, sens, noise: CentroidNoise, mags: np.ndarray) -> np.ndarray:
-    """Confusion (px rms per axis) on the electrons of ``noise``, from the catalogue's counts."""
+def _neighbour_classes(sensor, sens, mags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return the catalogue's stars as classes: photo-electrons (B,), sky-mean density (px^-2)."""
     mags = mags[np.isfinite(mags)]
-    if len(mags) == 0:  # the catalogue ends above the detection limit: nothing unresolved
-        return np.zeros(len(noise.electrons))
+    if len(mags) == 0:
+        return np.zeros(0), np.zeros(0)
     edges = np.arange(np.floor(mags.min()), mags.max() + _COUNT_BIN_MAG, _COUNT_BIN_MAG)
     n, edges = np.histogram(mags, bins=edges)
     pixel_rad = sensor.detector.pixel_pitch_m / sensor.optics.focal_length_m
     density = n / (4.0 * np.pi) * pixel_rad**2  # stars per square pixel, sky mean
-    flux = sens.electrons(0.5 * (edges[:-1] + edges[1:]))
+    return sens.electrons(0.5 * (edges[:-1] + edges[1:])), density
+
+
+def _confusion(sensor, sens, noise: CentroidNoise, mags: np.ndarray) -> np.ndarray:
+    """Confusion (px rms per axis) on the electrons of ``noise``, from the catalogue's counts."""
+    flux, density = _neighbour_classes(sensor, sens, mags)
+    if len(flux) == 0:  # the catalogue ends above the detection limit: nothing unresolved
+        return np.zeros(len(noise.electrons))
     return confusion_px(
         noise.electrons,
         np.where(np.isfinite(noise.window_px), noise.window_px, 0.0),
@@ -102,6 +109,9 @@ class StarModel:
         The confusion of fainter catalogue stars inside the centroid window, px rms per axis,
         on the electrons of ``noise`` (:func:`starsense.analysis.datasheet.terms.
         confusion_px`); None without the catalogue's star counts.
+    neighbours : (ndarray, ndarray) or None
+        Every catalogue star the frames hold, as classes: photo-electrons (B,) and sky-mean
+        density (B,), px^-2 (the blends of streaks under slew); None without the counts.
     """
 
     sensor: object
@@ -110,6 +120,7 @@ class StarModel:
     pixel_bias: object = None
     noise_corner: CentroidNoise | None = None
     confusion_px: np.ndarray | None = None
+    neighbours: tuple | None = None
 
     @classmethod
     def build(
@@ -130,12 +141,13 @@ class StarModel:
         if sc > 0 and sc != sensor.detector.psf_sigma_px:
             wide = sensor.with_(detector=dataclasses.replace(sensor.detector, psf_sigma_px=sc))
             corner = centroid_noise(wide, 0.5 * e_lo, 2.0 * e_hi)
-        conf = None
+        conf = near = None
         if star_counts is not None:
             counts = np.asarray(star_counts, dtype=float)
             # the stars below the detection limit: unresolved, they sit in the windows
             conf = _confusion(sensor, sens, noise, counts[counts > faint_mag])
-        return cls(sensor, sens, noise, bias, corner, conf)
+            near = _neighbour_classes(sensor, sens, counts)
+        return cls(sensor, sens, noise, bias, corner, conf, near)
 
     def _corner_weight(self, z_cam) -> np.ndarray:
         """Return (r / r_corner)^2 of stars at camera-frame z (r from the detector centre)."""
@@ -300,24 +312,6 @@ def _outliers(pairs, weights, bias_rad) -> np.ndarray:
     return out
 
 
-def _confusion_at_rate(model: StarModel, electrons, mags, z) -> np.ndarray:
-    """Return the per-pixel variance (e^2) unresolved neighbours give each star's window.
-
-    The at-rest confusion (:func:`starsense.analysis.datasheet.terms.confusion_px`, px rms per
-    axis over a square window of side ``s``) is a per-pixel variance ``v`` of the neighbours'
-    light times the window's ``sum (x - x_c)^2 = s^2 (s^2 - 1) / 12`` over the star's
-    electrons squared: ``v = conf^2 N^2 12 / (s^2 (s^2 - 1))``, the same in any window, so
-    the streak's longer capsule takes in more of it.
-    """
-    conf = model.star_sigmas_rad(mags, z, "confusion") / (model.pixel_rad * z)
-    side = np.interp(
-        np.log(electrons), np.log(model.noise.electrons), np.nan_to_num(model.noise.window_px)
-    )
-    s2 = np.maximum(side * side, 2.0)
-    v = conf**2 * np.asarray(electrons, dtype=float) ** 2 * 12.0 / (s2 * (s2 - 1.0))
-    return np.where(np.isfinite(v), v, 0.0)
-
-
 def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnitudes, margin_px=2):
     """Return the 1-sigma (cross, roll) of attitudes at body rates, rad, from smeared stars.
 
@@ -363,15 +357,22 @@ def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnit
     cov = np.full((len(mags), 2, 2), np.nan)
     bias = np.full((len(mags), 2), np.nan)
     solver = np.full((len(mags), 2, 2), np.nan)
-    spread = np.full((len(mags), 2, 2), np.nan)
     for flag in (True, False):
         at = np.flatnonzero(capsule[pairs.point] == flag)
         got = streak_errors(
             sensor, electrons[at], centres[at], streaks[at], capsule=flag, margin_px=margin_px
         )
         cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
-        spread[at] = got.spread_px2
-    cov += _confusion_at_rate(model, electrons, mags, z)[:, None, None] * spread
+    if model.neighbours is not None:  # the other stars' streaks across each capsule
+        sig = np.sqrt(0.5 * np.trace(solver, axis1=1, axis2=2))
+        for i in np.flatnonzero(np.isfinite(sig) & capsule[pairs.point]):
+            cov[i] += blend_cov_px2(
+                electrons[i],
+                streaks[i],
+                sig[i],
+                sigma_px=sensor.detector.psf_sigma_px,
+                neighbours=model.neighbours,
+            )
     scale = (model.pixel_rad * z) ** 2  # px^2 -> rad^2, the pinhole's angle per pixel
     weights = 2.0 / (np.trace(solver, axis1=1, axis2=2) * scale)  # rad^-2
     weights = np.where(np.isfinite(weights), weights, 0.0)

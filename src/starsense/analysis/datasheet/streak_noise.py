@@ -34,8 +34,10 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
+from scipy.special import ndtr
 
 from starsense.analysis.datasheet.noise import clipped_moments
+from starsense.attitude.robust import OUTLIER_SIGMA
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import SYSTEMATIC
 from starsense.render.smear import streak_stamp_expected
@@ -46,7 +48,7 @@ from starsense.solve.streaks import (
     streak_cov_px2,
 )
 
-__all__ = ["StreakErrors", "is_streaked", "streak_errors"]
+__all__ = ["StreakErrors", "blend_cov_px2", "is_streaked", "streak_errors"]
 
 #: iterations of the window's fixed point (the solver's :func:`starsense.detect.streak.
 #: streak_centroids` stops at 6 or when it moves less than 0.01 px)
@@ -235,3 +237,76 @@ def streak_errors(
     if not out:
         return StreakErrors(np.zeros((0, 2)), *np.zeros((3, 0, 2, 2)))
     return StreakErrors(*(np.array(z) for z in zip(*out, strict=True)))
+
+
+#: offsets of a neighbour along and across the streak at which its pull is summed
+_BLEND_ALONG, _BLEND_ACROSS = 161, 41
+
+
+def blend_cov_px2(electrons, streak_px, solver_sigma_px: float, *, sigma_px: float, neighbours):
+    """Return the covariance of a streak centroid from the catalogue's other stars, px^2.
+
+    Under slew every star of the field is a streak parallel to the target's, as long, and the
+    target's capsule (``(1 + SYSTEMATIC) l`` long, ``2.5 sigma + 1`` px half-wide) takes in
+    the part of any neighbour's streak that overlaps it, fainter or brighter: a neighbour of
+    ``f`` electrons at offset ``(u, v)`` (along, across) puts ``f_in = f f_u f_v`` in the
+    window (``f_u`` the overlap of the two segments over ``l``, ``f_v`` its PSF's share of the
+    window's width) at the centre ``c_n`` of that overlap, and moves the fixed point of the
+    centre of gravity by ``f_in c_n / (N + f_in)``. Over a Poisson field of neighbours (the
+    catalogue's sky-mean density per class) the pulls add in variance: ``sum_k rho_k
+    integral of pull pull^T du dv``. A pull of more than ``OUTLIER_SIGMA`` of the solver's
+    sigma for the star is left out: the robust fit drops that star
+    (:func:`starsense.attitude.robust.robust_attitude`).
+
+    Parameters
+    ----------
+    electrons : float
+        The target's photo-electrons.
+    streak_px : array_like (2,)
+        Its streak, px.
+    solver_sigma_px : float
+        The sigma the solver assumes for it, px per axis.
+    sigma_px : float
+        PSF sigma, px.
+    neighbours : (ndarray, ndarray)
+        Photo-electrons (B,) and density (B,), px^-2, of the catalogue's classes.
+
+    Returns
+    -------
+    ndarray (2, 2)
+        px^2 (x = column, y = row).
+    """
+    flux, rho = (np.asarray(a, dtype=float) for a in neighbours)
+    use = rho > 0
+    flux, rho = flux[use, None, None], rho[use, None, None]
+    streak = np.asarray(streak_px, dtype=float)
+    length = float(np.hypot(*streak))
+    radius = CAPSULE_SIGMAS * sigma_px + CAPSULE_PAD_PX
+    # the capsule as a rectangle of its area: half-length (1 + S) l / 2 + pi R / 4
+    half_w = 0.5 * (1.0 + SYSTEMATIC) * length + 0.25 * math.pi * radius
+    reach_u = half_w + 0.5 * length
+    reach_v = radius + 4.0 * sigma_px
+    u = np.linspace(-reach_u, reach_u, _BLEND_ALONG)[None, None, :]
+    v = np.linspace(-reach_v, reach_v, _BLEND_ACROSS)[None, :, None]
+    cell = (u[0, 0, 1] - u[0, 0, 0]) * (v[0, 1, 0] - v[0, 0, 0])
+    lo, hi = np.maximum(u - 0.5 * length, -half_w), np.minimum(u + 0.5 * length, half_w)
+    f_u = np.where(
+        length > 1e-9, np.clip(hi - lo, 0.0, None) / max(length, 1e-9), np.abs(u) <= half_w
+    )
+    a, b = (-radius - v) / sigma_px, (radius - v) / sigma_px
+    f_v = ndtr(b) - ndtr(a)
+    c_v = v + sigma_px * (np.exp(-0.5 * a * a) - np.exp(-0.5 * b * b)) / (
+        math.sqrt(2.0 * math.pi) * np.maximum(f_v, 1e-300)
+    )
+    f_in = flux * f_u * f_v
+    share = f_in / (float(electrons) + f_in)
+    pull_u, pull_v = share * 0.5 * (lo + hi), share * c_v
+    kept = np.hypot(pull_u, pull_v) <= OUTLIER_SIGMA * solver_sigma_px
+    w = rho * cell * kept
+    uu, vv, uv = (
+        float(np.sum(w * p * q)) for p, q in ((pull_u, pull_u), (pull_v, pull_v), (pull_u, pull_v))
+    )
+    cov_uv = np.array([[uu, uv], [uv, vv]])
+    d = streak / length if length > 1e-9 else np.array([1.0, 0.0])
+    rot = np.array([[d[0], -d[1]], [d[1], d[0]]])  # columns: along, across
+    return rot @ cov_uv @ rot.T
