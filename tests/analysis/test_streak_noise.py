@@ -15,7 +15,7 @@ from starsense.analysis.datasheet.field import (
     propagated_covariance,
     propagated_sigmas,
 )
-from starsense.analysis.datasheet.streak_noise import is_streaked, streak_errors
+from starsense.analysis.datasheet.streak_noise import blend_cov_px2, is_streaked, streak_errors
 from starsense.detect.streak import SYSTEMATIC, streak_centroids
 from starsense.render.noise import apply_noise
 from starsense.render.smear import streak_stamp_expected
@@ -171,3 +171,54 @@ def test_along_streak_errors_move_the_attitude_along_them():
     cross, _ = propagated_covariance(pairs, np.ones(40), cov)
     # the mean of 40 equal, independent x errors: 1e-4 / sqrt(40) on one axis, 0 on the other
     assert cross[0] == pytest.approx(math.sqrt(0.5 * 1e-8 / 40), rel=0.05)
+
+
+def test_blends_of_neighbour_streaks_against_rendered_fields():
+    # independent: drop Poisson neighbours (one class) around a streak, render the target and
+    # the neighbours' streaks (parallel, as long) noiselessly, take the solver's capsule
+    # centroid from the truth; the covariance of its shift against blend_cov_px2. The mean
+    # square of a heavy-tailed shift: its tolerance is 4 of its own standard errors (from the
+    # sample) plus 10 % for the model's capsule taken as a rectangle of the same area
+    sensor = _sensor(psf_sigma_px=1.0)
+    sigma = sensor.detector.psf_sigma_px
+    radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
+    rng = np.random.default_rng(7)
+    n_e, f_nb, rho = 1.0e4, 3.0e3, 2.0e-3
+    streak = np.array([20.0, 0.0])
+    half = 40
+    size = 2 * half + 1
+    centre = float(half)
+
+    def stamp(x, y, e):
+        out = np.zeros((size, size))
+        st, r0, c0 = streak_stamp_expected(
+            sensor, x0=x - 10.0, y0=y, x1=x + 10.0, y1=y, electrons=e
+        )
+        a, b = max(r0, 0), min(r0 + st.shape[0], size)
+        c, d = max(c0, 0), min(c0 + st.shape[1], size)
+        if a < b and c < d:
+            out[a:b, c:d] = st[a - r0 : b - r0, c - c0 : d - c0]
+        return out
+
+    target = stamp(centre, centre, n_e)
+    planes = []
+    for _ in range(1500):
+        img = target.copy()
+        n = rng.poisson(rho * size * size)
+        for x, y in rng.uniform(-0.5, size - 0.5, (n, 2)):
+            img += stamp(x, y, f_nb)
+        planes.append(img)
+    gx, gy, _, _, _ = streak_centroids(
+        np.array(planes),
+        np.full(len(planes), centre),
+        np.full(len(planes), centre),
+        streaks=np.tile(streak * (1.0 + SYSTEMATIC), (len(planes), 1)),
+        radius=radius,
+    )
+    shift = np.column_stack([gx, gy]) - centre
+    model = blend_cov_px2(n_e, streak, 1e9, sigma_px=sigma, neighbours=([f_nb], [rho]))
+    for k in (0, 1):  # along and across the streak
+        s2 = shift[:, k] ** 2
+        tol = 4.0 * np.std(s2) / math.sqrt(len(s2)) + 0.10 * np.mean(s2)
+        assert model[k, k] == pytest.approx(np.mean(s2), abs=tol)
+    assert model[0, 0] > 2.0 * model[1, 1]  # a neighbour's light lies along the streak

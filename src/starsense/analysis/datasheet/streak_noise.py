@@ -252,7 +252,8 @@ def blend_cov_px2(electrons, streak_px, solver_sigma_px: float, *, sigma_px: flo
     ``f`` electrons at offset ``(u, v)`` (along, across) puts ``f_in = f f_u f_v`` in the
     window (``f_u`` the overlap of the two segments over ``l``, ``f_v`` its PSF's share of the
     window's width) at the centre ``c_n`` of that overlap, and moves the fixed point of the
-    centre of gravity by ``f_in c_n / (N + f_in)``. Over a Poisson field of neighbours (the
+    centre of gravity by ``f_in c_n / (N + f_in)`` (along, grown by the window's own move
+    where its ends cut the neighbour's streak). Over a Poisson field of neighbours (the
     catalogue's sky-mean density per class) the pulls add in variance: ``sum_k rho_k
     integral of pull pull^T du dv``. A pull of more than ``OUTLIER_SIGMA`` of the solver's
     sigma for the star is left out: the robust fit drops that star
@@ -300,8 +301,17 @@ def blend_cov_px2(electrons, streak_px, solver_sigma_px: float, *, sigma_px: flo
     )
     f_in = flux * f_u * f_v
     share = f_in / (float(electrons) + f_in)
-    pull_u, pull_v = share * 0.5 * (lo + hi), share * c_v
+    # the fixed point: a window moved by d along gains (loses) the neighbour's light at its
+    # ends where they lie on the neighbour's streak, d f f_v / l at +-half_w each, which
+    # moves its centre of gravity by J d: the pull grows by 1 / (1 - J) (J >= 1: the window
+    # runs off with the neighbour, an outlier)
+    ends = (np.abs(half_w - u) < 0.5 * length).astype(float)
+    ends += np.abs(-half_w - u) < 0.5 * length
+    gain = flux * f_v / max(length, 1e-9) * half_w * ends / (float(electrons) + f_in)
+    grow = np.where(gain < 1.0, 1.0 / np.maximum(1.0 - gain, 1e-12), np.inf)
+    pull_u, pull_v = share * 0.5 * (lo + hi) * grow, share * c_v
     kept = np.hypot(pull_u, pull_v) <= OUTLIER_SIGMA * solver_sigma_px
+    pull_u = np.where(kept, pull_u, 0.0)
     w = rho * cell * kept
     uu, vv, uv = (
         float(np.sum(w * p * q)) for p, q in ((pull_u, pull_u), (pull_v, pull_v), (pull_u, pull_v))
