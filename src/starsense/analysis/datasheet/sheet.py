@@ -250,8 +250,7 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
 def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
     """Return the Monte Carlo checks at rest and at the settings' rate, scored.
 
-    ``sky``: the star model, field, tracked stars and their magnitudes, and the faintest
-    magnitude detected at the settings' rate (the prediction at the rate keeps those).
+    ``sky``: model, field, tracked stars, their magnitudes, the faintest detected at the rate.
     """
     model, fov, vectors, mags, limit = sky
     runs = {}
@@ -340,10 +339,8 @@ def build_datasheet(
         else None
         for k in ("cross", "roll")
     }
-    at_rate = float(
-        np.interp(st.rate_rad_s * RAD_TO_DEG, avail.rates_deg_s, avail.threshold_mag_at_rate)
-    )
-    runs = _runs(sensor, cat, st, (model, fov, vectors, mags, at_rate), client, tick)
+    at_rate = np.interp(st.rate_rad_s * RAD_TO_DEG, avail.rates_deg_s, avail.threshold_mag_at_rate)
+    runs = _runs(sensor, cat, st, (model, fov, vectors, mags, float(at_rate)), client, tick)
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
