@@ -84,7 +84,7 @@ def test_streak_centroid_noise_against_rendered_streaks(det, n_e, length):
     centre = (400.3, 300.7)
     err = _rendered(sensor, n_e, centre, streak, rng)
     assert np.isfinite(err).all()
-    pred = streak_errors(sensor, [n_e], [centre], [streak])
+    pred = streak_errors(sensor, [n_e], [centre], streaks_px=[streak])
     u = streak / np.hypot(*streak)
     v = np.array([-u[1], u[0]])
     cov = pred.cov_px2[0]
@@ -103,7 +103,7 @@ def test_streak_cut_by_the_frame_edge_is_pulled_inwards():
     rng = np.random.default_rng(5)
     streak = np.array([30.0, 0.0])
     centre = (8.0, 300.0)  # a third of the streak runs off the left edge (column < -0.5)
-    pred = streak_errors(sensor, [5.0e4], [centre], [streak])
+    pred = streak_errors(sensor, [5.0e4], [centre], streaks_px=[streak])
     # the pixels off the frame hold nothing: render, then zero the columns left of the frame
     err = _rendered_cut(sensor, 5.0e4, centre, streak, rng)
     sem = np.std(err, axis=0) / math.sqrt(len(err))

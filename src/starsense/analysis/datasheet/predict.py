@@ -312,7 +312,7 @@ def _outliers(pairs, weights, bias_rad) -> np.ndarray:
     return out
 
 
-def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnitudes, margin_px=2):
+def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnitudes, margin_px=2):
     """Return the 1-sigma (cross, roll) of attitudes at body rates, rad, from smeared stars.
 
     Each star of the field is a streak (the attitude's rate over the exposure): its centroid's
@@ -360,7 +360,12 @@ def nea_at_rate(model: StarModel, fov, matrices, rates_rad_s, *, vectors, magnit
     for flag in (True, False):
         at = np.flatnonzero(capsule[pairs.point] == flag)
         got = streak_errors(
-            sensor, electrons[at], centres[at], streaks[at], capsule=flag, margin_px=margin_px
+            sensor,
+            electrons[at],
+            centres[at],
+            streaks_px=streaks[at],
+            capsule=flag,
+            margin_px=margin_px,
         )
         cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
     if model.neighbours is not None:  # the other stars' streaks across each capsule

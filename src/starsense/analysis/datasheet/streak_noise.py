@@ -205,7 +205,7 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
 
 
 def streak_errors(
-    sensor, electrons, centres_px, streaks_px, *, capsule: bool = True, margin_px: int = 2
+    sensor, electrons, centres_px, *, streaks_px, capsule: bool = True, margin_px: int = 2
 ) -> StreakErrors:
     """Return the predicted centroid errors of smeared stars (module docstring).
 

@@ -110,7 +110,7 @@ def score_montecarlo(
             model,
             fov,
             mats,
-            res.rates_rad_s,
+            rates_rad_s=res.rates_rad_s,
             vectors=np.asarray(vectors)[keep],
             magnitudes=mags[keep],
         )
