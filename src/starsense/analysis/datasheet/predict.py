@@ -378,6 +378,9 @@ def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnit
                 sigma_px=sensor.detector.psf_sigma_px,
                 neighbours=model.neighbours,
             )
+    box = ~capsule[pairs.point]  # the detector's windows: the confusion of the rest model
+    conf = model.star_sigmas_rad(mags[box], z[box], "confusion") / (model.pixel_rad * z[box])
+    cov[box] += (conf**2)[:, None, None] * np.eye(2)
     scale = (model.pixel_rad * z) ** 2  # px^2 -> rad^2, the pinhole's angle per pixel
     weights = 2.0 / (np.trace(solver, axis1=1, axis2=2) * scale)  # rad^-2
     weights = np.where(np.isfinite(weights), weights, 0.0)
