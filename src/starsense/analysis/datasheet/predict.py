@@ -318,11 +318,14 @@ def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnit
     Each star of the field is a streak (the attitude's rate over the exposure): its centroid's
     noise, bias (a streak cut by the frame's edge) and the covariance the solver assumes come
     from :func:`starsense.analysis.datasheet.streak_noise.streak_errors` (the solver's capsule
-    over the whole streak, or the detector's box where the streaks are short), and go through
-    the solver's weights (``2 / trace`` of its assumed covariance) as at rest
-    (:func:`starsense.analysis.datasheet.field.propagated_covariance`, the anisotropic form of
-    :func:`nea_at`'s propagation), with the PRNU and calibration residual of
-    :func:`error_kinds` added per star.
+    over the whole streak, or the detector's box where the streaks are short), with the blends
+    of the other stars' streaks across each capsule
+    (:func:`~starsense.analysis.datasheet.streak_noise.blend_cov_px2`; in the detector's boxes
+    the rest model's confusion), and go through the solver's weights (``2 / trace`` of its
+    assumed covariance) as at rest (:func:`starsense.analysis.datasheet.field.
+    propagated_covariance`, the anisotropic form of :func:`nea_at`'s propagation), with the
+    PRNU and calibration residual of :func:`error_kinds` added per star. The stars the
+    solver's robust fit drops (:func:`_outliers`) are left out.
 
     Parameters
     ----------
