@@ -308,8 +308,10 @@ def blend_cov_px2(electrons, streak_px, solver_sigma_px: float, *, sigma_px: flo
     ends = (np.abs(half_w - u) < 0.5 * length).astype(float)
     ends += np.abs(-half_w - u) < 0.5 * length
     gain = flux * f_v / max(length, 1e-9) * half_w * ends / (float(electrons) + f_in)
-    grow = np.where(gain < 1.0, 1.0 / np.maximum(1.0 - gain, 1e-12), np.inf)
-    pull_u, pull_v = share * 0.5 * (lo + hi) * grow, share * c_v
+    held = gain < 1.0
+    pull_u = np.where(held, share * 0.5 * (lo + hi) / np.where(held, 1.0 - gain, 1.0), np.inf)
+    pull_u = np.where(share > 0, pull_u, 0.0)
+    pull_v = share * c_v
     kept = np.hypot(pull_u, pull_v) <= OUTLIER_SIGMA * solver_sigma_px
     pull_u = np.where(kept, pull_u, 0.0)
     w = rho * cell * kept
