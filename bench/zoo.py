@@ -20,7 +20,7 @@ For each design the datasheet runs at rest and at 1 deg/s (``--frames`` each) an
 records the measured / predicted ratios per axis (and the robust ones, from the median
 normalised error), the stars matched, solved, wrong, time and peak memory (each design in its
 own process, so the peak is that design's); the file's summary counts the designs whose ratios
-both lie in 0.8-1.25 at rest. ``python bench/zoo.py [--designs N]
+both lie in 0.8-1.25, at rest and at 1 deg/s. ``python bench/zoo.py [--designs N]
 [--frames N] [--only NAME]``; results in ``bench/results/zoo.json``.
 """
 
@@ -180,9 +180,9 @@ def _run_one(args) -> dict:
     return row
 
 
-def in_band(row: dict) -> bool:
-    """Whether measured / predicted lies in 0.8-1.25 on both axes at rest."""
-    mc = row["monte_carlo"]
+def in_band(row: dict, key: str = "monte_carlo") -> bool:
+    """Whether measured / predicted lies in 0.8-1.25 on both axes (at rest, or ``key``)."""
+    mc = row.get(key) or {}
     return all(
         mc.get(k) is not None and 0.8 <= mc[k] <= 1.25 for k in ("cross_ratio", "roll_ratio")
     )
@@ -217,7 +217,8 @@ def main(argv: list[str]) -> int:
         print(
             f"{name}: rest {mc['solved']}/{mc['frames']} solved, {mc['wrong']} wrong, ratios "
             f"{mc['cross_ratio']} / {mc['roll_ratio']}; 1 deg/s {mr['solved']}/{mr['frames']}"
-            f", {mr['wrong']} wrong; {row['seconds']:.0f} s, {row['peak_mb']:.0f} MB",
+            f", {mr['wrong']} wrong, ratios {mr['cross_ratio']} / {mr['roll_ratio']}; "
+            f"{row['seconds']:.0f} s, {row['peak_mb']:.0f} MB",
             flush=True,
         )
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
@@ -230,14 +231,14 @@ def main(argv: list[str]) -> int:
 
 
 def summary(rows: list[dict]) -> dict:
-    """Return how many designs solve at rest and how many of those have both ratios in band."""
-    seeing = [r for r in rows if (r.get("monte_carlo") or {}).get("cross_ratio") is not None]
-    return {
-        "designs": len(rows),
-        "with_ratios": len(seeing),
-        "in_band_0.8_1.25": sum(in_band(r) for r in seeing),
-        "out_of_band": [r["design"] for r in seeing if not in_band(r)],
-    }
+    """Return the designs that solve (at rest, at the rate) and those with both ratios in band."""
+    out = {"designs": len(rows)}
+    for key, suffix in (("monte_carlo", ""), ("monte_carlo_at_rate", "_at_rate")):
+        seeing = [r for r in rows if (r.get(key) or {}).get("cross_ratio") is not None]
+        out[f"with_ratios{suffix}"] = len(seeing)
+        out[f"in_band_0.8_1.25{suffix}"] = sum(in_band(r, key) for r in seeing)
+        out[f"out_of_band{suffix}"] = [r["design"] for r in seeing if not in_band(r, key)]
+    return out
 
 
 if __name__ == "__main__":

@@ -69,6 +69,8 @@ class MonteCarloResult:
         Time of each solve (detection, identification, attitude; the database load excluded), ms.
     n_matched : ndarray, shape (n_solved_right,)
         Stars matched in each right solution.
+    rates_rad_s : ndarray, shape (n_solved_right, 3)
+        Body rate of each right solution's trial, camera frame, rad/s.
     """
 
     sensor: str
@@ -85,6 +87,7 @@ class MonteCarloResult:
     truth_quat: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     solve_ms: np.ndarray = field(default_factory=lambda: np.zeros(0))
     n_matched: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    rates_rad_s: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def solve_rate(self) -> float:
@@ -165,7 +168,7 @@ def _trials(
     A top-level function so that a Dask worker can run a chunk: trial k always uses the k-th
     child of ``SeedSequence(seed)``, wherever it runs. Record: (status, solved, wrong, error
     (3,) or None, predicted sigma (3,) or None, truth quaternion (4,), render ms, solve ms,
-    matched stars).
+    matched stars, body rate (3,)).
     """
     solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
     catalog = at_epoch(catalog, solver.catalog.epoch_yr)  # the sky the database describes
@@ -210,6 +213,7 @@ def _trials(
                 render_ms,
                 solve_ms,
                 sol.n_matched,
+                rate,
             )
         )
         if progress is not None:
@@ -356,4 +360,5 @@ def _result(
         truth_quat=np.array([r[5] for r in right]).reshape(-1, 4),
         solve_ms=np.array([r[7] for r in records], dtype=float),
         n_matched=np.array([r[8] for r in right], dtype=int),
+        rates_rad_s=np.array([r[9] for r in right], dtype=float).reshape(-1, 3),
     )

@@ -69,8 +69,10 @@ def datasheet_lines(d: dict) -> list[str]:
             f"  lost in space {label}: {run['solved']}/{run['frames']} solved, {run['wrong']} "
             f"wrong (rate < {run['wrong_rate_upper95']:.2g}, 95 %), {_f(run['median_ms'], '.0f')}"
             f" ms median, {_f(run['p95_ms'], '.0f')} ms 95 %; rms cross "
-            f"{_f(run['cross_rms_arcsec'])} / roll {_f(run['roll_rms_arcsec'])} arcsec, "
-            f"measured/predicted {_f(run['cross_ratio'])} / {_f(run['roll_ratio'])}"
+            f"{_f(run['cross_rms_arcsec'])} / roll {_f(run['roll_rms_arcsec'])} arcsec "
+            f"(predicted {_f(run['cross_predicted_arcsec'])} / "
+            f"{_f(run['roll_predicted_arcsec'])}), measured/predicted {_f(run['cross_ratio'])}"
+            f" / {_f(run['roll_ratio'])}"
         )
     lines += [
         "  availability (lost in space N>=3 / tracking N>=2): "

@@ -66,6 +66,17 @@ def _main_rows(d: dict) -> list[list[str]]:
             "",
         ],
     ]
+    mr = d.get("monte_carlo_at_rate")
+    if mr and mr["frames"]:  # the smeared frames against the prediction for streaks
+        rows += [
+            [
+                f"Attitude error at {mr['rate_deg_s']:g} deg/s, rms (cross / roll)",
+                f"{_cell(mr['cross_predicted_arcsec'])} / {_cell(mr['roll_predicted_arcsec'])}"
+                " arcsec",
+                f"{_cell(mr['cross_rms_arcsec'])} / {_cell(mr['roll_rms_arcsec'])} arcsec",
+                f"{_cell(mr['cross_ratio'], 2)} / {_cell(mr['roll_ratio'], 2)}",
+            ]
+        ]
     av = d["availability"]
     for r, a, t in zip(
         av["rates_deg_s"], av["lost_in_space_at_rate"], av["tracking_at_rate"], strict=True

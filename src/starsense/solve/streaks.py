@@ -52,16 +52,22 @@ from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import SYSTEMATIC, streak_axes, streak_centroids
 
 __all__ = [
+    "CAPSULE_PAD_PX",
+    "CAPSULE_SIGMAS",
     "MIN_STREAK_SIGMAS",
     "N_RATE_STARS",
     "StreakCentroids",
     "matched_measurements",
     "streak_centroids_of",
+    "streak_cov_px2",
 ]
 
 #: a frame whose measured streaks are shorter than this many PSF sigmas (plus the centroid
 #: window's margins) is not re-centroided
 MIN_STREAK_SIGMAS = 2.0
+#: the capsule each streak is centroided over: within CAPSULE_SIGMAS PSF sigmas plus
+#: CAPSULE_PAD_PX px of the streak (the tracking windows' capsule)
+CAPSULE_SIGMAS, CAPSULE_PAD_PX = 2.5, 1.0
 #: the brightest matched stars whose streaks give the rate (a faint streak breaks into pieces)
 N_RATE_STARS = 5
 
@@ -247,14 +253,13 @@ def streak_centroids_of(
         return None
     det = sensor.detector
     sigma = det.psf_sigma_px
-    radius = 2.5 * sigma + 1.0  # the tracking windows' capsule
+    radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX  # the tracking windows' capsule
     streaks = model(x, y)
     rows, cols = image.shape
     seg = streaks * (1.0 + SYSTEMATIC)
     half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
     planes, r0, c0 = _planes(image, x, y, half, level)
     gx, gy, total, _, spread = streak_centroids(planes, x - c0, y - r0, streaks=seg, radius=radius)
-    along = streaks[:, :, None] * streaks[:, None, :] / 12.0  # a point anywhere on the streak
     found = np.isfinite(gx) & (total > 0)
     out_x = np.where(found, gx + c0, x)
     out_y = np.where(found, gy + r0, y)
@@ -262,12 +267,46 @@ def streak_centroids_of(
     hy = 0.5 * np.abs(streaks[:, 1]) + radius
     whole = found & (hx <= out_x) & (out_x <= cols - 1 - hx) & (hy <= out_y)
     whole &= out_y <= rows - 1 - hy  # a streak run off the frame is pulled inwards
-    n_e = np.maximum(np.where(found, total, 0.0) / det.gain_counts_per_e, 1.0)[:, None, None]
-    cov = (sigma**2 / n_e) * np.eye(2) + (det.read_noise_e**2 / n_e**2) * np.where(
-        found[:, None, None], spread, 0.0
+    cov = streak_cov_px2(
+        np.where(found, total, 0.0) / det.gain_counts_per_e,
+        np.where(found[:, None, None], spread, 0.0),
+        streaks,
+        whole=whole,
+        sigma_px=sigma,
+        read_noise_e=det.read_noise_e,
     )
-    cov = np.where(whole[:, None, None], cov + along / n_e, along)
     return StreakCentroids(out_x, out_y, cov, np.asarray(streaks))
+
+
+def streak_cov_px2(electrons, spread_px2, streaks_px, *, whole, sigma_px: float, read_noise_e):
+    """Return the covariance the solver gives streak centroids (module docstring, step 4), px^2.
+
+    Parameters
+    ----------
+    electrons : array_like, shape (N,)
+        Electrons summed over each star's capsule (at least 1 is used).
+    spread_px2 : array_like, shape (N, 2, 2)
+        Sum over the capsule of (pixel - centroid)(pixel - centroid)^T, px^2.
+    streaks_px : array_like, shape (N, 2)
+        Each star's streak, px.
+    whole : array_like of bool, shape (N,)
+        Whether the streak lies whole inside the frame (else the covariance of a point
+        anywhere along it).
+    sigma_px : float
+        PSF sigma, px.
+    read_noise_e : float
+        Read noise, electrons rms.
+
+    Returns
+    -------
+    ndarray, shape (N, 2, 2)
+        px^2 (x = column, y = row).
+    """
+    streaks = np.asarray(streaks_px, dtype=float).reshape(-1, 2)
+    along = streaks[:, :, None] * streaks[:, None, :] / 12.0  # a point anywhere on the streak
+    n_e = np.maximum(np.asarray(electrons, dtype=float), 1.0)[:, None, None]
+    cov = (sigma_px**2 / n_e) * np.eye(2) + (read_noise_e**2 / n_e**2) * np.asarray(spread_px2)
+    return np.where(np.asarray(whole)[:, None, None], cov + along / n_e, along)
 
 
 def matched_measurements(solver, image, det, *, matched, x, vectors):

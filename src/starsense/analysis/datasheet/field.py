@@ -34,6 +34,7 @@ __all__ = [
     "axis_sigmas",
     "field_stars_cam",
     "fisher_per_pointing",
+    "propagated_covariance",
     "propagated_sigmas",
     "tracked_stars",
 ]
@@ -185,6 +186,53 @@ def propagated_sigmas(
     e2 = np.where(np.isfinite(error_rad), np.asarray(error_rad, dtype=float) ** 2, 0.0)
     f = fisher_per_pointing(pairs, w)
     g = fisher_per_pointing(pairs, w * w * e2)
+    eig = np.linalg.eigvalsh(f)
+    ok = eig[:, 0] > SINGULAR_RCOND * np.maximum(eig[:, -1], np.finfo(float).tiny)
+    cross = np.full(len(f), np.nan)
+    roll = np.full(len(f), np.nan)
+    if ok.any():
+        finv = np.linalg.inv(f[ok])
+        cov = finv @ g[ok] @ finv
+        cross[ok] = np.sqrt(0.5 * (cov[:, 0, 0] + cov[:, 1, 1]))
+        roll[ok] = np.sqrt(cov[:, 2, 2])
+    return cross, roll
+
+
+def propagated_covariance(
+    pairs: FieldStarsCam, weights: NDArray[np.float64], cov_rad2: NDArray[np.float64]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the attitude error per-star error covariances make through the weighted estimate.
+
+    :func:`propagated_sigmas` for errors that are not the same on both axes (a streak's
+    centroid is worse along it than across): the weighted least-squares sandwich
+    ``F^-1 G F^-1`` with ``F = sum w (I - r r^T)`` and ``G = sum w^2 [r]x^T C [r]x``, ``C``
+    each star's 3 x 3 error covariance in the plane normal to it (for ``C = e^2 (I - r r^T)``
+    this is :func:`propagated_sigmas`).
+
+    Parameters
+    ----------
+    pairs : FieldStarsCam
+        Stars in the field of each attitude.
+    weights : ndarray (P,)
+        The estimator's weight of each pair, rad^-2.
+    cov_rad2 : ndarray (P, 3, 3)
+        Each pair's error covariance (camera frame), rad^2.
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad (rms of x and y; about z); NaN where F is singular.
+    """
+    w = np.where(np.isfinite(weights), weights, 0.0)
+    c = np.where(np.isfinite(cov_rad2), np.asarray(cov_rad2, dtype=float), 0.0)
+    r = np.asarray(pairs.v_cam, dtype=float)
+    skew = np.zeros((len(r), 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
+    skew -= np.transpose(skew, (0, 2, 1))
+    terms = (w * w)[:, None, None] * np.einsum("pji,pjk,pkl->pil", skew, c, skew)
+    g = np.zeros((pairs.n_pointings, 3, 3))
+    np.add.at(g, np.asarray(pairs.point), terms)
+    f = fisher_per_pointing(pairs, w)
     eig = np.linalg.eigvalsh(f)
     ok = eig[:, 0] > SINGULAR_RCOND * np.maximum(eig[:, -1], np.finfo(float).tiny)
     cross = np.full(len(f), np.nan)

@@ -8,17 +8,21 @@ stars). :mod:`starsense.analysis.datasheet.verify` checks it against rendered fr
 from __future__ import annotations
 
 import dataclasses
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from starsense.analysis.datasheet.field import (
     axis_sigmas,
     field_stars_cam,
     fisher_per_pointing,
+    propagated_covariance,
     propagated_sigmas,
 )
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
+from starsense.analysis.datasheet.streak_noise import blend_cov_px2, is_streaked, streak_errors
 from starsense.analysis.datasheet.terms import (
     confusion_px,
     pixel_spatial_error,
@@ -26,6 +30,7 @@ from starsense.analysis.datasheet.terms import (
 )
 from starsense.analysis.sensor_detection import limiting_magnitude, slew_grids
 from starsense.analysis.slew import last_above
+from starsense.attitude.robust import OUTLIER_SIGMA, robust_attitude
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.units import DEG
 
@@ -36,6 +41,7 @@ __all__ = [
     "fastest_rate",
     "limiting_magnitude",
     "nea_at",
+    "nea_at_rate",
     "slew_grids",
 ]
 
@@ -43,16 +49,23 @@ __all__ = [
 _COUNT_BIN_MAG = 0.25
 
 
-def _confusion(sensor, sens, noise: CentroidNoise, mags: np.ndarray) -> np.ndarray:
-    """Confusion (px rms per axis) on the electrons of ``noise``, from the catalogue's counts."""
+def _neighbour_classes(sensor, sens, mags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return the catalogue's stars as classes: photo-electrons (B,), sky-mean density (px^-2)."""
     mags = mags[np.isfinite(mags)]
-    if len(mags) == 0:  # the catalogue ends above the detection limit: nothing unresolved
-        return np.zeros(len(noise.electrons))
+    if len(mags) == 0:
+        return np.zeros(0), np.zeros(0)
     edges = np.arange(np.floor(mags.min()), mags.max() + _COUNT_BIN_MAG, _COUNT_BIN_MAG)
     n, edges = np.histogram(mags, bins=edges)
     pixel_rad = sensor.detector.pixel_pitch_m / sensor.optics.focal_length_m
     density = n / (4.0 * np.pi) * pixel_rad**2  # stars per square pixel, sky mean
-    flux = sens.electrons(0.5 * (edges[:-1] + edges[1:]))
+    return sens.electrons(0.5 * (edges[:-1] + edges[1:])), density
+
+
+def _confusion(sensor, sens, noise: CentroidNoise, mags: np.ndarray) -> np.ndarray:
+    """Confusion (px rms per axis) on the electrons of ``noise``, from the catalogue's counts."""
+    flux, density = _neighbour_classes(sensor, sens, mags)
+    if len(flux) == 0:  # the catalogue ends above the detection limit: nothing unresolved
+        return np.zeros(len(noise.electrons))
     return confusion_px(
         noise.electrons,
         np.where(np.isfinite(noise.window_px), noise.window_px, 0.0),
@@ -96,6 +109,9 @@ class StarModel:
         The confusion of fainter catalogue stars inside the centroid window, px rms per axis,
         on the electrons of ``noise`` (:func:`starsense.analysis.datasheet.terms.
         confusion_px`); None without the catalogue's star counts.
+    neighbours : (ndarray, ndarray) or None
+        Every catalogue star the frames hold, as classes: photo-electrons (B,) and sky-mean
+        density (B,), px^-2 (the blends of streaks under slew); None without the counts.
     """
 
     sensor: object
@@ -104,6 +120,7 @@ class StarModel:
     pixel_bias: object = None
     noise_corner: CentroidNoise | None = None
     confusion_px: np.ndarray | None = None
+    neighbours: tuple | None = None
 
     @classmethod
     def build(
@@ -124,12 +141,13 @@ class StarModel:
         if sc > 0 and sc != sensor.detector.psf_sigma_px:
             wide = sensor.with_(detector=dataclasses.replace(sensor.detector, psf_sigma_px=sc))
             corner = centroid_noise(wide, 0.5 * e_lo, 2.0 * e_hi)
-        conf = None
+        conf = near = None
         if star_counts is not None:
             counts = np.asarray(star_counts, dtype=float)
             # the stars below the detection limit: unresolved, they sit in the windows
             conf = _confusion(sensor, sens, noise, counts[counts > faint_mag])
-        return cls(sensor, sens, noise, bias, corner, conf)
+            near = _neighbour_classes(sensor, sens, counts)
+        return cls(sensor, sens, noise, bias, corner, conf, near)
 
     def _corner_weight(self, z_cam) -> np.ndarray:
         """Return (r / r_corner)^2 of stars at camera-frame z (r from the detector centre)."""
@@ -233,3 +251,157 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
         else:
             out[kind] = propagated_sigmas(pairs, weights, np.where(np.isfinite(sigma), sigma, 0))
     return out, pairs.counts()
+
+
+def _streaks_px(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
+    """Mid-exposure pixel positions (P, 2) and streaks, start to end (P, 2), of stars v_cam."""
+    v_cam = np.array(v_cam, dtype=float)  # a writable copy (Rotation.apply needs one)
+    half = Rotation.from_rotvec(np.asarray(rates_rad_s) * 0.5 * sensor.exposure_s)
+    x, y = sensor.project(v_cam)
+    xs, ys = sensor.project(half.apply(v_cam))
+    xe, ye = sensor.project(half.inv().apply(v_cam))
+    return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
+
+
+#: the stars the solver's final fit drops at most (robust_attitude's default)
+_MAX_DROP = int(inspect.signature(robust_attitude).parameters["max_drop"].default)
+
+
+def _outliers(pairs, weights, bias_rad) -> np.ndarray:
+    """Return the pairs the solver's final fit drops, from their centroids' biases.
+
+    :func:`starsense.attitude.robust.robust_attitude` on the expected centroids: the weighted
+    fit of each frame, the residual of every star (its bias less the fitted attitude's share,
+    ``b + [r]x dtheta``), and while the worst exceeds ``OUTLIER_SIGMA`` of that star's sigma
+    (and more than 3 stars remain) that star is dropped, at most ``max_drop`` per frame. A
+    star biased by many of the sigma the solver assumes for it (a saturated streak clipped
+    unevenly, a star cut by the frame's edge in a frame kept at the detector's centroids) is
+    dropped, as it is from the frames.
+
+    Parameters
+    ----------
+    pairs : FieldStarsCam
+    weights : ndarray (P,)
+        The solver's weights, rad^-2.
+    bias_rad : ndarray (P, 3)
+        Each centroid's bias, camera frame (normal to the star), rad.
+    """
+    point, r = np.asarray(pairs.point), np.asarray(pairs.v_cam, dtype=float)
+    z = np.linalg.norm(bias_rad, axis=1) * np.sqrt(weights)
+    out = np.zeros(len(point), dtype=bool)
+    for p in np.unique(point[np.nan_to_num(z) > OUTLIER_SIGMA]):
+        at = np.flatnonzero((point == p) & (weights > 0) & np.isfinite(z))
+        keep = np.ones(len(at), dtype=bool)
+        rr, ww, bb = r[at], weights[at], bias_rad[at]
+        for _ in range(_MAX_DROP):
+            if keep.sum() <= 3:
+                break
+            wk = np.where(keep, ww, 0.0)
+            proj = np.eye(3) - rr[:, :, None] * rr[:, None, :]
+            f = np.einsum("i,ijk->jk", wk, proj)
+            # the fit: residual b + [r]x dtheta; normal equations F dtheta = -sum w [r]x^T b
+            rhs = np.einsum("i,ij->j", wk, np.cross(rr, bb))
+            dtheta = np.linalg.lstsq(f, -rhs, rcond=None)[0]
+            res = np.linalg.norm(bb + np.cross(dtheta[None, :], rr), axis=1) * np.sqrt(ww)
+            res[~keep] = -np.inf
+            worst = int(np.argmax(res))
+            if res[worst] <= OUTLIER_SIGMA:
+                break
+            keep[worst] = False
+        out[at[~keep]] = True
+    return out
+
+
+def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnitudes, margin_px=2):
+    """Return the 1-sigma (cross, roll) of attitudes at body rates, rad, from smeared stars.
+
+    Each star of the field is a streak (the attitude's rate over the exposure): its centroid's
+    noise, bias (a streak cut by the frame's edge) and the covariance the solver assumes come
+    from :func:`starsense.analysis.datasheet.streak_noise.streak_errors` (the solver's capsule
+    over the whole streak, or the detector's box where the streaks are short), with the blends
+    of the other stars' streaks across each capsule
+    (:func:`~starsense.analysis.datasheet.streak_noise.blend_cov_px2`; in the detector's boxes
+    the rest model's confusion), and go through the solver's weights (``2 / trace`` of its
+    assumed covariance) as at rest (:func:`starsense.analysis.datasheet.field.
+    propagated_covariance`, the anisotropic form of :func:`nea_at`'s propagation), with the
+    PRNU and calibration residual of :func:`error_kinds` added per star. The stars the
+    solver's robust fit drops (:func:`_outliers`) are left out.
+
+    Parameters
+    ----------
+    model : StarModel
+    fov : RectangularFov
+        The sensor's field.
+    matrices : ndarray (M, 3, 3)
+        Attitudes, ICRS -> camera.
+    rates_rad_s : ndarray (M, 3)
+        Body rate of each attitude, camera frame, rad/s.
+    vectors, magnitudes : ndarray (N, 3), (N,)
+        The stars the tracker uses (those it detects at the rate), ICRS.
+    margin_px : int
+        The detector's centroid margin, px.
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad; NaN where fewer than two stars are in the field.
+    """
+    sensor = model.sensor
+    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors))
+    rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[pairs.point]
+    mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
+    centres, streaks = _streaks_px(sensor, pairs.v_cam, rates)
+    length = np.hypot(streaks[:, 0], streaks[:, 1])
+    # the solver re-centroids a frame over the streaks when its streaks are long (per frame)
+    frame_len = np.zeros(pairs.n_pointings)
+    np.maximum.at(frame_len, pairs.point, length)
+    capsule = np.array([is_streaked(sensor, float(v), margin_px) for v in frame_len])
+    electrons = model.sensitivity.electrons(mags)
+    cov = np.full((len(mags), 2, 2), np.nan)
+    bias = np.full((len(mags), 2), np.nan)
+    solver = np.full((len(mags), 2, 2), np.nan)
+    for flag in (True, False):
+        at = np.flatnonzero(capsule[pairs.point] == flag)
+        got = streak_errors(
+            sensor,
+            electrons[at],
+            centres[at],
+            streaks_px=streaks[at],
+            capsule=flag,
+            margin_px=margin_px,
+        )
+        cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
+    if model.neighbours is not None:  # the other stars' streaks across each capsule
+        sig = np.sqrt(0.5 * np.trace(solver, axis1=1, axis2=2))
+        for i in np.flatnonzero(np.isfinite(sig) & capsule[pairs.point]):
+            cov[i] += blend_cov_px2(
+                electrons[i],
+                streaks[i],
+                sig[i],
+                sigma_px=sensor.detector.psf_sigma_px,
+                neighbours=model.neighbours,
+            )
+    box = ~capsule[pairs.point]  # the detector's windows: the confusion of the rest model
+    conf = model.star_sigmas_rad(mags[box], z[box], "confusion") / (model.pixel_rad * z[box])
+    cov[box] += (conf**2)[:, None, None] * np.eye(2)
+    scale = (model.pixel_rad * z) ** 2  # px^2 -> rad^2, the pinhole's angle per pixel
+    weights = 2.0 / (np.trace(solver, axis1=1, axis2=2) * scale)  # rad^-2
+    weights = np.where(np.isfinite(weights), weights, 0.0)
+    proj = np.eye(3) - pairs.v_cam[:, :, None] * pairs.v_cam[:, None, :]
+    bias3 = np.einsum("pij,pj->pi", proj, np.column_stack([bias, np.zeros(len(bias))]))
+    bias3 *= np.sqrt(scale)[:, None]
+    dropped = _outliers(pairs, weights, np.nan_to_num(bias3))
+    weights[dropped], cov[dropped], bias[dropped] = 0.0, 0.0, 0.0
+    other = sum(
+        model.star_sigmas_rad(mags, z, k) ** 2
+        for k in error_kinds(sensor)
+        if k in ("prnu", "residual")
+    )
+    err = cov + bias[:, :, None] * bias[:, None, :]
+    err3 = np.zeros((len(mags), 3, 3))
+    err3[:, :2, :2] = err * scale[:, None, None]
+    err3[:, :2, :2] += (
+        np.asarray(other + 0.0)[..., None, None] * np.eye(2) if np.ndim(other) else 0.0
+    )
+    err3 = proj @ err3 @ proj
+    return propagated_covariance(pairs, weights, err3)

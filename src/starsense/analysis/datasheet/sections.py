@@ -155,8 +155,9 @@ class MonteCarloCheck(_Section):
     """A Monte Carlo run scored against the prediction (keys of ``monte_carlo`` in the JSON).
 
     ``frames`` rendered, ``solved`` right, ``wrong``; rms errors measured and predicted
-    (arcsec) and their ratios, None where not predicted (a run at a rate) or nothing solved;
-    ``stars_matched_median`` only where predicted (absent from the JSON otherwise).
+    (arcsec; at a rate, the prediction of the smeared stars' streak centroids) and their
+    ratios, None where nothing solved; ``stars_matched_median`` only where predicted (absent
+    from the JSON otherwise).
     """
 
     frames: int

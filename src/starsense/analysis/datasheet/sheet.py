@@ -248,8 +248,11 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
 
 
 def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
-    """Return the Monte Carlo checks at rest and at the settings' rate, scored."""
-    model, fov, vectors, mags = sky
+    """Return the Monte Carlo checks at rest and at the settings' rate, scored.
+
+    ``sky``: model, field, tracked stars, their magnitudes, the faintest detected at the rate.
+    """
+    model, fov, vectors, mags, limit = sky
     runs = {}
     rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
     for key, rate, n in (
@@ -264,7 +267,7 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
         )
         runs[key] = MonteCarloCheck(
             **score_montecarlo(
-                res, model, fov=fov, vectors=vectors, magnitudes=mags, predict=rate == 0.0
+                res, model, fov=fov, vectors=vectors, magnitudes=mags, limit_mag_at_rate=limit
             )
         )
         tick(key.replace("_", " "))
@@ -336,7 +339,8 @@ def build_datasheet(
         else None
         for k in ("cross", "roll")
     }
-    runs = _runs(sensor, cat, st, (model, fov, vectors, mags), client, tick)
+    at_rate = np.interp(st.rate_rad_s * RAD_TO_DEG, avail.rates_deg_s, avail.threshold_mag_at_rate)
+    runs = _runs(sensor, cat, st, (model, fov, vectors, mags, float(at_rate)), client, tick)
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}

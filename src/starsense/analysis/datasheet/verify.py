@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import beta
 
-from starsense.analysis.datasheet.predict import error_kinds, nea_at
+from starsense.analysis.datasheet.predict import error_kinds, nea_at, nea_at_rate
 from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
@@ -53,7 +53,7 @@ def _pct(values: np.ndarray, q: float) -> float | None:
 
 
 def score_montecarlo(
-    res, model, *, fov, vectors, magnitudes, predict: bool = True
+    res, model, *, fov, vectors, magnitudes, predict: bool = True, limit_mag_at_rate=None
 ) -> dict[str, Any]:
     """Return the JSON-ready summary of a Monte Carlo run against the datasheet's prediction.
 
@@ -66,10 +66,14 @@ def score_montecarlo(
     fov : RectangularFov
         The sensor's field.
     vectors, magnitudes : ndarray
-        The stars the prediction uses (those detected at rest).
+        The stars the prediction uses (those the tracker fits, detectable at rest).
     predict : bool
-        Compare with the static prediction (False for a run at a rate: the model's noise is
-        that of a star at rest, so only the measurement is reported).
+        Compare with the prediction (False: only the measurement is reported).
+    limit_mag_at_rate : float, optional
+        For a run at a rate: the faintest magnitude detected at that rate (the datasheet's
+        threshold at the rate); the prediction is that of the smeared stars
+        (:func:`starsense.analysis.datasheet.predict.nea_at_rate`) brighter than it. None
+        keeps every star of ``magnitudes``.
 
     Returns
     -------
@@ -99,11 +103,31 @@ def score_montecarlo(
             out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
         return out
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
-    kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
-    pred, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=magnitudes, kinds=kinds)
-    cross = np.sqrt(sum(pred[k][0] ** 2 for k in kinds))
-    roll = np.sqrt(sum(pred[k][1] ** 2 for k in kinds))
-    e = res.errors_rad
+    if res.rate_rad_s > 0:
+        mags = np.asarray(magnitudes, dtype=float)
+        keep = mags <= (np.inf if limit_mag_at_rate is None else limit_mag_at_rate)
+        cross, roll = nea_at_rate(
+            model,
+            fov,
+            mats,
+            rates_rad_s=res.rates_rad_s,
+            vectors=np.asarray(vectors)[keep],
+            magnitudes=mags[keep],
+        )
+    else:
+        kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
+        pred, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=magnitudes, kinds=kinds)
+        cross = np.sqrt(sum(pred[k][0] ** 2 for k in kinds))
+        roll = np.sqrt(sum(pred[k][1] ** 2 for k in kinds))
+    return {
+        **out,
+        **_ratios(res.errors_rad, cross, roll),
+        "stars_matched_median": float(np.median(res.n_matched)),
+    }
+
+
+def _ratios(e: np.ndarray, cross: np.ndarray, roll: np.ndarray) -> dict[str, Any]:
+    """Measured and predicted rms per axis, arcsec, their ratios, robust ratios, outliers."""
     meas_cross = math.sqrt(float(np.mean(0.5 * (e[:, 0] ** 2 + e[:, 1] ** 2))))
     meas_roll = math.sqrt(float(np.mean(e[:, 2] ** 2)))
     pc = math.sqrt(float(np.nanmean(cross**2)))
@@ -114,7 +138,6 @@ def score_montecarlo(
     z_roll = np.abs(e[:, 2]) / roll
     median_cross = math.sqrt(2.0 * math.log(2.0)) / math.sqrt(2.0)
     return {
-        **out,
         "cross_rms_arcsec": meas_cross * RAD_TO_ARCSEC,
         "roll_rms_arcsec": meas_roll * RAD_TO_ARCSEC,
         "cross_predicted_arcsec": pc * RAD_TO_ARCSEC,
@@ -124,7 +147,6 @@ def score_montecarlo(
         "cross_ratio_robust": float(np.nanmedian(z_cross)) / median_cross,
         "roll_ratio_robust": float(np.nanmedian(z_roll)) / 0.6744897501960817,
         "outliers_5sigma": int(np.sum((z_cross > 5) | (z_roll > 5))),
-        "stars_matched_median": float(np.median(res.n_matched)),
     }
 
 
