@@ -59,7 +59,7 @@ $(PEERS_STAMP):
 	touch $@
 
 bench-zoo: $(STAMP)  ## the sensor zoo (40 seeded designs + the 768x512 CCD), at rest and 1 deg/s; bench/results/zoo.json
-	$(BIN)/python bench/zoo.py --designs 40 --frames 100
+	$(BIN)/python bench/zoo.py --designs 40 --frames 100 --jobs 2
 	$(BIN)/python bench/zoo_table.py bench/results/zoo.json
 
 $(T3RS_STAMP):

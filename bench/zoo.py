@@ -188,6 +188,28 @@ def in_band(row: dict, key: str = "monte_carlo") -> bool:
     )
 
 
+def _run_safely(job) -> dict:
+    """Return a design's row; a design the package cannot handle is a row, not the end."""
+    try:
+        return _run_one(job)
+    except Exception as exc:
+        return {"design": job[0], "params": job[1], "error": f"{type(exc).__name__}: {exc}"}
+
+
+def _print_row(name: str, row: dict) -> None:
+    if "error" in row:
+        print(f"{name}: failed: {row['error']}", flush=True)
+        return
+    mc, mr = row["monte_carlo"], row["monte_carlo_at_rate"]
+    print(
+        f"{name}: rest {mc['solved']}/{mc['frames']} solved, {mc['wrong']} wrong, ratios "
+        f"{mc['cross_ratio']} / {mc['roll_ratio']}; 1 deg/s {mr['solved']}/{mr['frames']}"
+        f", {mr['wrong']} wrong, ratios {mr['cross_ratio']} / {mr['roll_ratio']}; "
+        f"{row['seconds']:.0f} s, {row['peak_mb']:.0f} MB",
+        flush=True,
+    )
+
+
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--designs", type=int, default=40)
@@ -196,36 +218,26 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--seed", type=int, default=23)
     ap.add_argument("--only", default=None, help="run one design (a zoo name, or ccd768)")
     ap.add_argument("--out", default=str(RESULTS / "zoo.json"))
+    ap.add_argument("--jobs", type=int, default=1, help="designs run at once (one process each)")
     args = ap.parse_args(argv)
     designs = [*zoo_designs(args.designs, args.seed), ("ccd768", CCD_768)]
     if args.only:
         designs = [d for d in designs if d[0] == args.only]
     rows = []
-    ctx = mp.get_context("spawn")  # one process per design: its own peak memory
-    for name, params in designs:
-        job = (name, params, args.frames, args.rate_frames or args.frames, args.seed)
-        try:
-            with ctx.Pool(1) as pool:
-                row = pool.apply(_run_one, (job,))
-        except Exception as exc:  # a design the package cannot handle is a row, not the end
-            row = {"design": name, "params": params, "error": f"{type(exc).__name__}: {exc}"}
+    jobs = [
+        (name, params, args.frames, args.rate_frames or args.frames, args.seed)
+        for name, params in designs
+    ]
+    # one process per design (maxtasksperchild=1): its own peak memory; --jobs designs at once
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(max(1, args.jobs), maxtasksperchild=1) as pool:
+        for job, row in zip(jobs, pool.imap(_run_safely, jobs), strict=True):
             rows.append(row)
-            print(f"{name}: failed: {row['error']}", flush=True)
-            continue
-        rows.append(row)
-        mc, mr = row["monte_carlo"], row["monte_carlo_at_rate"]
-        print(
-            f"{name}: rest {mc['solved']}/{mc['frames']} solved, {mc['wrong']} wrong, ratios "
-            f"{mc['cross_ratio']} / {mc['roll_ratio']}; 1 deg/s {mr['solved']}/{mr['frames']}"
-            f", {mr['wrong']} wrong, ratios {mr['cross_ratio']} / {mr['roll_ratio']}; "
-            f"{row['seconds']:.0f} s, {row['peak_mb']:.0f} MB",
-            flush=True,
-        )
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        with atomic_write(args.out) as f:
-            json.dump(
-                {"date": time.strftime("%Y-%m-%d"), **summary(rows), "rows": rows}, f, indent=1
-            )
+            _print_row(job[0], row)
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            with atomic_write(args.out) as f:
+                record = {"date": time.strftime("%Y-%m-%d"), **summary(rows), "rows": rows}
+                json.dump(record, f, indent=1)
     print(json.dumps(summary(rows)), flush=True)
     return 0
 
