@@ -709,6 +709,8 @@ static int verify(const Tables *t, Scratch *s, Frame *f, const Fit *how, const i
     for (int pass = 0; pass < 4; pass++) {
         if (pass >= 2) { /* the radius from the residuals of the last fit */
             double sig = median(out->resid, out->m, work) / sqrt(2.0 * log(2.0));
+            if (pass == 2 && !how->fit_scale && 4.0 * sig >= radius)
+                return 0; /* known optics, residuals filling the radius: not a rigid rotation */
             radius = fmin(radius, fmax(4.0 * sig, radius / 20.0));
         }
         if (match(t, s, f, out->R, max_off + radius, radius, det_m, cat_m, &m, &p_single) < 0)

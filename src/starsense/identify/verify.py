@@ -356,8 +356,19 @@ class Verifier:
         # 70 arcsec). The residual of a true pair is Rayleigh-distributed: its median is
         # sigma sqrt(2 ln 2) for a per-axis sigma, and 4 sigma leaves out 1 true pair in 3,000
         # (exp(-8)). Twice: the second radius comes from a fit free of the outliers.
-        for _ in range(2):
+        # With the optics known, the first 4 sigma must lie inside the search radius, else the
+        # pairs are not a rigid rotation of the sky: the radius would have cut off part of a
+        # Rayleigh spread that wide. Residuals that fill the radius are what chance pairs leave,
+        # or an attitude pulled between right pairs and the wrong ones of a hypothesis matched
+        # to a self-similar group of stars (the Pleiades onto themselves): the right pairs make
+        # P_false tiny however far off that attitude is (0.03-0.4 deg in a 20 deg field), so
+        # the hypothesis is refused and the search goes on. With the scale fitted, a distorted
+        # lens seen as a pinhole fills the radius with true pairs (its distortion is fitted
+        # afterwards), so there the test is not made.
+        for i in range(2):
             sigma = float(np.median(resid)) / math.sqrt(2.0 * math.log(2.0))
+            if i == 0 and not fit_scale and 4.0 * sigma >= radius:
+                return None
             radius = min(radius, max(4.0 * sigma, radius / 20.0))
             det_m, cat_m, p_single = self._match(sky, vs, r, max_off + radius, radius)
             if len(det_m) < k:
