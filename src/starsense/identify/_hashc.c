@@ -16,7 +16,8 @@
  *     verify.Verifier does it, for a known field or with the scale of the tangent plane fitted
  *     for an unknown one (attitude from the pairs, nearest catalogue star
  *     of every detection within the match radius, refit, two passes with a radius from the
- *     residuals): verify().
+ *     residuals; a known field whose first such radius is not inside the match radius is
+ *     refused, as the Verifier refuses it): verify().
  *
  * The acceptance decision (the false-match probability and its threshold) is not made here:
  * verify() calls back the Python callable it is given, Verifier.accept, with (detections,

@@ -12,7 +12,8 @@ al. 2023; Mortari et al. 2004 use the same reasoning for the pyramid algorithm):
 
 with ``N`` detections, ``n`` of them matched and ``k`` the stars of the hypothesis itself
 (which match by construction). A solution is accepted only when ``P_false`` is below a
-threshold (default 1e-9).
+threshold (default 1e-9) and, with the optics known, when its pairs are a rigid rotation of the
+sky: their residuals' Rayleigh spread (4 sigma) lies inside the match radius.
 
 The :class:`~starsense.identify.result.Identification` result that the algorithms return is in
 :mod:`starsense.identify.result`.
