@@ -11,9 +11,12 @@ al. 2023; Mortari et al. 2004 use the same reasoning for the pyramid algorithm):
     P_false = P[X >= n - k],  X ~ Binomial(N - k, p)
 
 with ``N`` detections, ``n`` of them matched and ``k`` the stars of the hypothesis itself
-(which match by construction). A solution is accepted only when ``P_false`` is below a
-threshold (default 1e-9) and, with the optics known, when its pairs are a rigid rotation of the
-sky: their residuals' Rayleigh spread (4 sigma) lies inside the match radius.
+(which match by construction); ``p`` is at least the mean, over the other detections, of the
+same chance at the catalogue density around each (a cluster's matches are not evidence at the
+field's mean density, ``Verifier._local_p``). A solution is accepted only when
+``P_false`` is below a threshold (default 1e-9) and, with the optics known, when its pairs are a
+rigid rotation of the sky: their residuals' Rayleigh spread (4 sigma) lies inside the match
+radius.
 
 The :class:`~starsense.identify.result.Identification` result that the algorithms return is in
 :mod:`starsense.identify.result`.
