@@ -16,7 +16,8 @@
  *     verify.Verifier does it, for a known field or with the scale of the tangent plane fitted
  *     for an unknown one (attitude from the pairs, nearest catalogue star
  *     of every detection within the match radius, refit, two passes with a radius from the
- *     residuals): verify().
+ *     residuals; a known field whose first such radius is not inside the match radius is
+ *     refused, as the Verifier refuses it): verify().
  *
  * The acceptance decision (the false-match probability and its threshold) is not made here:
  * verify() calls back the Python callable it is given, Verifier.accept, with (detections,
@@ -683,6 +684,72 @@ static int same_pairs(const Verified *o, const int64_t *det, const int64_t *cat,
            memcmp(o->cat, cat, m * sizeof(int64_t)) == 0;
 }
 
+/* The neighbourhood of a detection whose catalogue stars give its chance of a false match, in
+ * initial match radii (verify.LOCAL_RADII). */
+#define LOCAL_RADII 5.0
+
+/* Mean chance of a match of the detections outside the hypothesis hyp, each at the catalogue
+ * density within `wide` of it (its own pair o->det/o->cat left out), among the stars within
+ * cone_rad of the boresight R[6..8]: Verifier._local_p. */
+static double local_p(const Tables *t, const Scratch *s, const Frame *f, const double R[9],
+                      double cone_rad, double radius, double wide, const int64_t hyp[K],
+                      const Verified *o)
+{
+    const double *centre = R + 6, *vs = f->vs;
+    const double cosc = cos(fmin(cone_rad, M_PI / 2.0));
+    const double limit = 2.0 * sin(wide / 2.0), lim2 = limit * limit;
+    const double reach = limit * (1.0 + 1e-9) + 1e-12; /* |dx| <= chord: a window in x */
+    const int64_t *sky = s->sky.p;
+    int count[MAXDET] = {0}, any = 0;
+    for (size_t j = 0; j < s->sky.n; j++) {
+        const double *st = t->stars + 3 * sky[j];
+        if (!(dot3(st, centre) >= cosc))
+            continue;
+        any = 1;
+        double c[3];
+        for (int i = 0; i < 3; i++)
+            c[i] = R[3 * i] * st[0] + R[3 * i + 1] * st[1] + R[3 * i + 2] * st[2];
+        int lo = 0, hi = f->n; /* first detection with x >= c[0] - reach */
+        while (lo < hi) {
+            int mid = (lo + hi) / 2;
+            if (f->xs[mid] < c[0] - reach)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        for (int i = lo; i < f->n && f->xs[i] <= c[0] + reach; i++) {
+            int d = f->xi[i];
+            if (2.0 - 2.0 * dot3(vs + 3 * d, c) <= lim2)
+                count[d]++;
+        }
+    }
+    if (!any)
+        return 0.0;
+    for (int i = 0; i < o->m; i++) { /* the detection's own pair is not its neighbourhood */
+        const double *st = t->stars + 3 * o->cat[i], *v = vs + 3 * o->det[i];
+        double ss = 0.0;
+        for (int a = 0; a < 3; a++) {
+            double e = R[3 * a] * st[0] + R[3 * a + 1] * st[1] + R[3 * a + 2] * st[2] - v[a];
+            ss += e * e;
+        }
+        if (sqrt(ss) <= limit)
+            count[o->det[i]]--;
+    }
+    char in_hyp[MAXDET] = {0};
+    for (int k = 0; k < K; k++)
+        in_hyp[hyp[k]] = 1;
+    const double per = M_PI * (radius * radius) / (2.0 * M_PI * (1.0 - cos(wide)));
+    double sum = 0.0;
+    int others = 0;
+    for (int d = 0; d < f->n; d++) {
+        if (in_hyp[d])
+            continue;
+        sum += fmin((double)count[d] * per, 1.0);
+        others++;
+    }
+    return others ? sum / others : 0.0;
+}
+
 /* Verify the hypothesis det[i] = star cat[i] (K pairs) as Verifier.__call__ does: a known field
  * (how->fov, scale 1) or the scale fitted (how->fit_scale, from how->scale within its range).
  * Returns 1 accepted (out filled), 0 rejected, -1 error. */
@@ -719,6 +786,8 @@ static int verify(const Tables *t, Scratch *s, Frame *f, const Fit *how, const i
     for (int pass = 0; pass < 4; pass++) {
         if (pass >= 2) { /* the radius from the residuals of the last fit */
             double sig = median(out->resid, out->m, work) / sqrt(2.0 * log(2.0));
+            if (pass == 2 && !how->fit_scale && 4.0 * sig >= radius)
+                return 0; /* known optics, residuals filling the radius: not a rigid rotation */
             radius = fmin(radius, fmax(4.0 * sig, radius / 20.0));
         }
         if (match(t, s, f, out->R, max_off + radius, radius, det_m, cat_m, &m, &p_single) < 0)
@@ -745,6 +814,11 @@ static int verify(const Tables *t, Scratch *s, Frame *f, const Fit *how, const i
         }
     }
     out->scale = scale;
+    /* a cluster's detections land on its stars by chance more often than the mean says */
+    double p_local = local_p(t, s, f, out->R, max_off + radius, radius,
+                             LOCAL_RADII * t->match_radius * width, det, out);
+    if (p_local > p_single)
+        p_single = p_local;
     /* the decision: accept(n, m, n_hypothesis=K, p_single=p) -> (p_false, accepted) */
     PyObject *argv[4] = {PyLong_FromLong(n), PyLong_FromLong(m), PyLong_FromLong(K),
                          PyFloat_FromDouble(p_single)};

@@ -11,8 +11,12 @@ al. 2023; Mortari et al. 2004 use the same reasoning for the pyramid algorithm):
     P_false = P[X >= n - k],  X ~ Binomial(N - k, p)
 
 with ``N`` detections, ``n`` of them matched and ``k`` the stars of the hypothesis itself
-(which match by construction). A solution is accepted only when ``P_false`` is below a
-threshold (default 1e-9).
+(which match by construction); ``p`` is at least the mean, over the other detections, of the
+same chance at the catalogue density around each (a cluster's matches are not evidence at the
+field's mean density, ``Verifier._local_p``). A solution is accepted only when
+``P_false`` is below a threshold (default 1e-9) and, with the optics known, when its pairs are a
+rigid rotation of the sky: their residuals' Rayleigh spread (4 sigma) lies inside the match
+radius.
 
 The :class:`~starsense.identify.result.Identification` result that the algorithms return is in
 :mod:`starsense.identify.result`.
@@ -46,6 +50,12 @@ __all__ = [
 ]
 
 _EMPTY_INT = np.zeros(0, dtype=np.int64)
+
+#: the neighbourhood of a detection whose catalogue stars give its chance of a false match, in
+#: initial match radii (5: a cone of radius 5 % of the field's width, 1 deg in a 20 deg field,
+#: the scale of an open cluster such as the Pleiades; wide against the match radius, so that a
+#: count of a few stars measures a density)
+LOCAL_RADII = 5.0
 
 # The SVD fit returns an exact rotation matrix: skip scipy's re-orthogonalisation where it can.
 try:
@@ -356,8 +366,19 @@ class Verifier:
         # 70 arcsec). The residual of a true pair is Rayleigh-distributed: its median is
         # sigma sqrt(2 ln 2) for a per-axis sigma, and 4 sigma leaves out 1 true pair in 3,000
         # (exp(-8)). Twice: the second radius comes from a fit free of the outliers.
-        for _ in range(2):
+        # With the optics known, the first 4 sigma must lie inside the search radius, else the
+        # pairs are not a rigid rotation of the sky: the radius would have cut off part of a
+        # Rayleigh spread that wide. Residuals that fill the radius are what chance pairs leave,
+        # or an attitude pulled between right pairs and the wrong ones of a hypothesis matched
+        # to a self-similar group of stars (the Pleiades onto themselves): the right pairs make
+        # P_false tiny however far off that attitude is (0.03-0.4 deg in a 20 deg field), so
+        # the hypothesis is refused and the search goes on. With the scale fitted, a distorted
+        # lens seen as a pinhole fills the radius with true pairs (its distortion is fitted
+        # afterwards), so there the test is not made.
+        for i in range(2):
             sigma = float(np.median(resid)) / math.sqrt(2.0 * math.log(2.0))
+            if i == 0 and not fit_scale and 4.0 * sigma >= radius:
+                return None
             radius = min(radius, max(4.0 * sigma, radius / 20.0))
             det_m, cat_m, p_single = self._match(sky, vs, r, max_off + radius, radius)
             if len(det_m) < k:
@@ -367,6 +388,9 @@ class Verifier:
                 pairs = (det_m, cat_m)
                 if fit_scale:
                     vs = tangent_to_vectors(tangent * scale)
+        local = LOCAL_RADII * self.match_radius * width
+        p_local = self._local_p(sky, vs, r, (max_off + radius, radius, local), det, (det_m, cat_m))
+        p_single = max(p_single, p_local)
         p_false, accepted = self.accept(n, len(det_m), n_hypothesis=k, p_single=p_single)
         if seen is not None:
             seen[0] = min(seen[0], p_false)
@@ -380,6 +404,44 @@ class Verifier:
             residual_rms_rad=float(np.sqrt(np.mean(resid**2))),
             false_match_probability=p_false,
         )
+
+    def _local_p(
+        self,
+        sky: _Field,
+        vs: NDArray[np.float64],
+        r: NDArray[np.float64],
+        radii: tuple[float, float, float],
+        hypothesis: NDArray[np.int64],
+        pairs: tuple[NDArray[np.int64], NDArray[np.int64]],
+    ) -> float:
+        """Mean chance of a match of the detections outside the hypothesis, at their own density.
+
+        A cluster (the Pleiades) holds many catalogue stars where the field's mean density
+        holds one: a detection there lands on a star by chance far more often than the mean
+        ``p_single`` says, and a hypothesis inside the cluster collects matches there that
+        are not evidence for the attitude. Each detection's chance is counted from the
+        catalogue stars within ``LOCAL_RADII`` initial match radii of it (its own pair left
+        out): ``p_i = n_i pi r^2 / (solid angle of that cone)``. Their mean bounds the false
+        match probability from above through the binomial (Hoeffding 1956: the tail of a sum
+        of Bernoulli(p_i) past its mean is at most that of the binomial of the mean p).
+        """
+        cone_rad, radius, wide = radii  # the field's cone, the match radius, the local one
+        inside = sky.vectors @ r[2] >= math.cos(min(cone_rad, math.pi / 2))
+        if not inside.any():
+            return 0.0
+        cam = sky.vectors[inside] @ r.T
+        limit = 2.0 * math.sin(wide / 2.0)
+        count = np.count_nonzero(2.0 - 2.0 * (vs @ cam.T) <= limit * limit, axis=1)
+        det_m, cat_m = pairs
+        own = np.sqrt(np.add.reduce((self.database.vectors[cat_m] @ r.T - vs[det_m]) ** 2, axis=1))
+        count[det_m] -= own <= limit  # the detection's own pair is not its neighbourhood
+        others = np.ones(len(vs), dtype=bool)
+        others[hypothesis] = False
+        if not others.any():
+            return 0.0
+        cap = 2.0 * math.pi * (1.0 - math.cos(wide))
+        p = np.minimum(count[others] * (math.pi * radius**2 / cap), 1.0)
+        return float(p.mean())
 
     def _match(
         self,
