@@ -14,10 +14,21 @@ background-subtracted counts, in the pixel-centre convention of :mod:`starsense.
 
 from __future__ import annotations
 
+import functools
+import math
+
 import numpy as np
 from scipy.special import erf
 
 METHODS = ("cog", "iwcog", "gauss")
+
+#: sub-pixel phases per axis over which the centre of gravity's deterministic error is averaged
+_N_PHASE = 8
+#: brightness points of that table (log-spaced), and its reach past the onset of saturation
+_N_BRIGHTNESS = 40
+_PAST_SATURATION = 1e4
+#: the lit threshold assumed for the window of the table, in background noise sigmas
+_LIT_SIGMAS = 5.0
 
 
 def _grid(window: np.ndarray, row0: int, col0: int):
@@ -72,12 +83,113 @@ def gauss_fit(window: np.ndarray, row0: int, col0: int, *, sigma0: float = 1.5):
     return float(res.x[0]), float(res.x[1]), float(res.x[2]), True
 
 
-def cog_sigma_px(det, index, *, detector, margin_px: int) -> np.ndarray:
-    """Return the per-axis noise of a centre-of-gravity centroid, pixels, of detections ``index``.
+def _profiles(centres: np.ndarray, offsets: np.ndarray, sigma: float) -> np.ndarray:
+    """Pixel-integrated 1-d Gaussians (P, C) of unit flux centred at ``offsets`` (P,)."""
+    s = math.sqrt(2.0) * sigma
+    d = centres[None, :] - offsets[:, None]
+    return 0.5 * (erf((d + 0.5) / s) - erf((d - 0.5) / s))
 
-    Photon noise: sigma_psf^2 / N_e (N_e = integrated counts / gain). Read noise: each pixel of
-    the CoG window adds sigma_read^2 (x - x_c)^2 / N_e^2; over a w x h window centred on the star
-    the sum of (x - x_c)^2 is h w (w^2 - 1) / 12 (the mean of the two axes is used).
+
+@functools.lru_cache(maxsize=32)
+def _bias_table(
+    psf_sigma_px: float, saturation_e: float, lit_e: float, margin_px: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the windowed CoG's deterministic error of a noise-free star against its lit sum.
+
+    A star of ``n`` electrons at sub-pixel phase ``(ox, oy)`` (``_N_PHASE`` per axis, uniform
+    over the pixel), pixels clipped at ``saturation_e`` (a flat-topped profile: full well or
+    ADC top), lit where above ``lit_e``; the window is the lit box grown by ``margin_px``, as
+    the detector's (:func:`starsense.detect.regions.region_centroids`). Returns the mean
+    clipped sum over the lit pixels (electrons, what a detection's integrated counts measure,
+    increasing) and the rms over phases and axes of ``CoG - true centre`` (px): the pixel-phase
+    error of an undersampled PSF, and the far larger one of a saturated core.
+    """
+    peak = math.erf(0.5 / (math.sqrt(2.0) * psf_sigma_px)) ** 2
+    top = saturation_e / peak if math.isfinite(saturation_e) else 1e9 * lit_e
+    n_grid = np.geomspace(2.0 * lit_e, max(_PAST_SATURATION * top, 4.0 * lit_e), _N_BRIGHTNESS)
+    off = (np.arange(_N_PHASE) + 0.5) / _N_PHASE - 0.5
+    ox, oy = (a.ravel() for a in np.meshgrid(off, off))
+    obs, rms = np.empty(len(n_grid)), np.empty(len(n_grid))
+    for k, n in enumerate(n_grid):
+        reach = psf_sigma_px * math.sqrt(2.0 * math.log(max(n / lit_e, 1.0)))
+        half = math.ceil(reach + 3.0 * psf_sigma_px) + margin_px + 2
+        c = np.arange(-half, half + 1, dtype=float)
+        img = (
+            n
+            * _profiles(c, oy, psf_sigma_px)[:, :, None]
+            * _profiles(c, ox, psf_sigma_px)[:, None, :]
+        )
+        img = np.minimum(img, saturation_e)
+        lit = img > lit_e
+        rows, cols = lit.any(axis=2), lit.any(axis=1)
+        idx = np.arange(len(c))
+        big = len(c) + 1
+        r0 = np.where(rows, idx, big).min(axis=1) - margin_px
+        r1 = np.where(rows, idx, -1).max(axis=1) + margin_px
+        c0 = np.where(cols, idx, big).min(axis=1) - margin_px
+        c1 = np.where(cols, idx, -1).max(axis=1) + margin_px
+        inr = (idx[None, :] >= r0[:, None]) & (idx[None, :] <= r1[:, None])
+        inc = (idx[None, :] >= c0[:, None]) & (idx[None, :] <= c1[:, None])
+        w = img * (inr[:, :, None] & inc[:, None, :])
+        total = w.sum(axis=(1, 2))
+        ok = total > 0
+        safe = np.where(ok, total, 1.0)
+        bx = (w.sum(axis=1) @ c) / safe - ox
+        by = (w.sum(axis=2) @ c) / safe - oy
+        obs[k] = np.mean(np.where(lit, img, 0.0).sum(axis=(1, 2)))
+        rms[k] = math.sqrt(np.mean(np.r_[bx[ok], by[ok]] ** 2)) if ok.any() else 0.0
+    seen = obs > 0  # the faintest points light no pixel
+    return np.maximum.accumulate(obs[seen]), rms[seen]
+
+
+def cog_bias_px(det, index, *, detector, margin_px: int) -> np.ndarray:
+    """Return the deterministic error (px rms per axis) of the CoG centroids of ``index``.
+
+    The centre of gravity of a symmetric PSF integrated over pixels is off its centre by an
+    amount that depends on where in its pixel the star falls: negligible for a well-sampled
+    PSF, a few hundredths of a pixel for an undersampled one cut by its lit window, and up to
+    a tenth of a pixel for a saturated star, whose flat top no longer follows the PSF. A frame
+    meets each star at a random phase, so to the attitude fit this is a per-star error like
+    the noise. It is the rms over phases of a noise-free star of the same lit sum
+    (:func:`_bias_table`, cached per detector), clipped at the full well or the ADC's top.
+
+    Parameters
+    ----------
+    det : Detections
+        The frame's detections (integrated counts, noise).
+    index : array_like of int, shape (N,)
+        The detections to evaluate.
+    detector : starsense.sensor.Detector
+        The camera's detector: gain, read noise, full well, ADC range, PSF sigma.
+    margin_px : int
+        The CoG window's margin around each bounding box, px.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Per-axis rms error over sub-pixel phases, px.
+    """
+    g = detector.gain_counts_per_e
+    sat_e = min(detector.full_well_e, (detector.saturation_counts - detector.bias_counts) / g)
+    noise = det.noise_counts if det.noise_counts > 0 else detector.read_noise_e * g
+    lit = max(_LIT_SIGMAS * noise, 1.0) / g
+    # cached per detector: the lit level rounded to 1/8 of a decade (a frame's noise estimate)
+    lit = float(10.0 ** (round(8.0 * math.log10(lit)) / 8.0))
+    obs, rms = _bias_table(float(detector.psf_sigma_px), float(sat_e), lit, int(margin_px))
+    n_e = np.maximum(np.asarray(det.integrated_counts[index], dtype=float) / g, obs[0])
+    return np.interp(np.log(n_e), np.log(obs), rms)
+
+
+def cog_sigma_px(det, index, *, detector, margin_px: int) -> np.ndarray:
+    """Return the per-axis error of a centre-of-gravity centroid, pixels, of detections ``index``.
+
+    Photon noise: sigma_psf^2 / N_e (N_e = integrated counts / gain). Read noise and the ADC's
+    quantisation (1/12 count^2): each pixel of the CoG window adds their variance times
+    (x - x_c)^2 / N_e^2; over a w x h window centred on the star the sum of (x - x_c)^2 is
+    h w (w^2 - 1) / 12 (the mean of the two axes is used). The centroider's deterministic
+    error over the sub-pixel phase (:func:`cog_bias_px`: undersampled and saturated stars) is
+    added in quadrature: it is how far such a star's centroid is from the truth in a frame,
+    which the attitude fit's weights ``1 / sigma^2`` and its outlier test need to know.
 
     Parameters
     ----------
@@ -86,19 +198,22 @@ def cog_sigma_px(det, index, *, detector, margin_px: int) -> np.ndarray:
     index : array_like of int, shape (N,)
         The detections to evaluate.
     detector : starsense.sensor.Detector
-        The camera's detector: gain, read noise, PSF sigma.
+        The camera's detector: gain, read noise, PSF sigma, full well and ADC range.
     margin_px : int
         The CoG window's margin around each bounding box, px.
 
     Returns
     -------
     ndarray, shape (N,)
-        Centroid noise per axis, px.
+        Centroid error per axis, px.
     """
-    n_e = np.maximum(det.integrated_counts[index] / detector.gain_counts_per_e, 1.0)
+    g = detector.gain_counts_per_e
+    n_e = np.maximum(det.integrated_counts[index] / g, 1.0)
     r0, r1, c0, c1 = det.bbox[index].T
     w = (c1 - c0 + 2 * margin_px).astype(float)
     h = (r1 - r0 + 2 * margin_px).astype(float)
     spread = 0.5 * (h * w * (w**2 - 1) + w * h * (h**2 - 1)) / 12.0
-    var = detector.psf_sigma_px**2 / n_e + detector.read_noise_e**2 * spread / n_e**2
-    return np.sqrt(var)
+    pixel_var = detector.read_noise_e**2 + 1.0 / (12.0 * g * g)
+    var = detector.psf_sigma_px**2 / n_e + pixel_var * spread / n_e**2
+    bias = cog_bias_px(det, index, detector=detector, margin_px=margin_px)
+    return np.sqrt(var + bias**2)
