@@ -25,8 +25,11 @@ METHODS = ("cog", "iwcog", "gauss")
 #: sub-pixel phases per axis over which the centre of gravity's deterministic error is averaged
 _N_PHASE = 8
 #: brightness points of that table (log-spaced), and its reach past the onset of saturation
-_N_BRIGHTNESS = 40
+_N_BRIGHTNESS = 120
 _PAST_SATURATION = 1e4
+#: the table's step in lit sum, and the half-width of the lit sums averaged at each step, dex
+_STEP_DEX = 0.05
+_SMOOTH_DEX = 0.03
 #: the lit threshold assumed for the window of the table, in background noise sigmas
 _LIT_SIGMAS = 5.0
 
@@ -90,56 +93,70 @@ def _profiles(centres: np.ndarray, offsets: np.ndarray, sigma: float) -> np.ndar
     return 0.5 * (erf((d + 0.5) / s) - erf((d - 0.5) / s))
 
 
+def _phase_errors(n_e: float, ox, oy, sigma: float, saturation_e: float, lit_e: float, margin):
+    """Lit sums (e-) and squared CoG errors (px^2, mean of the axes) of a star at phases ox, oy."""
+    reach = sigma * math.sqrt(2.0 * math.log(max(n_e / lit_e, 1.0)))
+    half = math.ceil(reach + 3.0 * sigma) + margin + 2
+    c = np.arange(-half, half + 1, dtype=float)
+    img = n_e * _profiles(c, oy, sigma)[:, :, None] * _profiles(c, ox, sigma)[:, None, :]
+    img = np.minimum(img, saturation_e)
+    lit = img > lit_e
+    idx = np.arange(len(c))
+    rows, cols = lit.any(axis=2), lit.any(axis=1)
+    r0 = np.where(rows, idx, len(c)).min(axis=1) - margin
+    r1 = np.where(rows, idx, -1).max(axis=1) + margin
+    c0 = np.where(cols, idx, len(c)).min(axis=1) - margin
+    c1 = np.where(cols, idx, -1).max(axis=1) + margin
+    inr = (idx[None, :] >= r0[:, None]) & (idx[None, :] <= r1[:, None])
+    inc = (idx[None, :] >= c0[:, None]) & (idx[None, :] <= c1[:, None])
+    w = img * (inr[:, :, None] & inc[:, None, :])
+    total = w.sum(axis=(1, 2))
+    safe = np.where(total > 0, total, 1.0)
+    bx = (w.sum(axis=1) @ c) / safe - ox
+    by = (w.sum(axis=2) @ c) / safe - oy
+    return np.where(lit, img, 0.0).sum(axis=(1, 2)), 0.5 * (bx * bx + by * by)
+
+
 @functools.lru_cache(maxsize=32)
 def _bias_table(
     psf_sigma_px: float, saturation_e: float, lit_e: float, margin_px: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return the windowed CoG's deterministic error of a noise-free star against its lit sum.
 
-    A star of ``n`` electrons at sub-pixel phase ``(ox, oy)`` (``_N_PHASE`` per axis, uniform
-    over the pixel), pixels clipped at ``saturation_e`` (a flat-topped profile: full well or
-    ADC top), lit where above ``lit_e``; the window is the lit box grown by ``margin_px``, as
-    the detector's (:func:`starsense.detect.regions.region_centroids`). Returns the mean
-    clipped sum over the lit pixels (electrons, what a detection's integrated counts measure,
-    increasing) and the rms over phases and axes of ``CoG - true centre`` (px): the pixel-phase
-    error of an undersampled PSF, and the far larger one of a saturated core.
+    Stars of ``n`` electrons (log-uniform from the lit level to ``_PAST_SATURATION`` times the
+    onset of saturation) at sub-pixel phases ``(ox, oy)`` (``_N_PHASE`` per axis, uniform over
+    the pixel), pixels clipped at ``saturation_e`` (a flat-topped profile: full well or ADC
+    top), lit where above ``lit_e``; the window is the lit box grown by ``margin_px``, as the
+    detector's (:func:`starsense.detect.regions.region_centroids`). The squared error
+    ``CoG - true centre`` is averaged over the stars whose clipped sum over the lit pixels
+    lies within ``_SMOOTH_DEX`` of each table point (what a
+    detection's integrated counts measure): the error a star of that lit sum has, whatever
+    its brightness and phase, as a frame meets it. Returns the bins' median lit sums
+    (electrons, increasing) and rms errors per axis (px): the pixel-phase error of an
+    undersampled PSF, and the far larger one of a saturated core.
     """
     peak = math.erf(0.5 / (math.sqrt(2.0) * psf_sigma_px)) ** 2
     top = saturation_e / peak if math.isfinite(saturation_e) else 1e9 * lit_e
     n_grid = np.geomspace(2.0 * lit_e, max(_PAST_SATURATION * top, 4.0 * lit_e), _N_BRIGHTNESS)
     off = (np.arange(_N_PHASE) + 0.5) / _N_PHASE - 0.5
     ox, oy = (a.ravel() for a in np.meshgrid(off, off))
-    obs, rms = np.empty(len(n_grid)), np.empty(len(n_grid))
-    for k, n in enumerate(n_grid):
-        reach = psf_sigma_px * math.sqrt(2.0 * math.log(max(n / lit_e, 1.0)))
-        half = math.ceil(reach + 3.0 * psf_sigma_px) + margin_px + 2
-        c = np.arange(-half, half + 1, dtype=float)
-        img = (
-            n
-            * _profiles(c, oy, psf_sigma_px)[:, :, None]
-            * _profiles(c, ox, psf_sigma_px)[:, None, :]
-        )
-        img = np.minimum(img, saturation_e)
-        lit = img > lit_e
-        rows, cols = lit.any(axis=2), lit.any(axis=1)
-        idx = np.arange(len(c))
-        big = len(c) + 1
-        r0 = np.where(rows, idx, big).min(axis=1) - margin_px
-        r1 = np.where(rows, idx, -1).max(axis=1) + margin_px
-        c0 = np.where(cols, idx, big).min(axis=1) - margin_px
-        c1 = np.where(cols, idx, -1).max(axis=1) + margin_px
-        inr = (idx[None, :] >= r0[:, None]) & (idx[None, :] <= r1[:, None])
-        inc = (idx[None, :] >= c0[:, None]) & (idx[None, :] <= c1[:, None])
-        w = img * (inr[:, :, None] & inc[:, None, :])
-        total = w.sum(axis=(1, 2))
-        ok = total > 0
-        safe = np.where(ok, total, 1.0)
-        bx = (w.sum(axis=1) @ c) / safe - ox
-        by = (w.sum(axis=2) @ c) / safe - oy
-        obs[k] = np.mean(np.where(lit, img, 0.0).sum(axis=(1, 2)))
-        rms[k] = math.sqrt(np.mean(np.r_[bx[ok], by[ok]] ** 2)) if ok.any() else 0.0
-    seen = obs > 0  # the faintest points light no pixel
-    return np.maximum.accumulate(obs[seen]), rms[seen]
+    got = [
+        _phase_errors(float(n), ox, oy, psf_sigma_px, saturation_e, lit_e, margin_px)
+        for n in n_grid
+    ]
+    obs = np.concatenate([g[0] for g in got])
+    err2 = np.concatenate([g[1] for g in got])
+    seen = obs > 0  # the faintest light no pixel
+    log_obs, err2 = np.log10(obs[seen]), err2[seen]
+    # each point: the stars within a factor 10^_SMOOTH_DEX of its lit sum (the bias of a
+    # saturated star swings with the plateau's growth pixel by pixel, which the lit sum of a
+    # star met at a random phase does not resolve: the weight is the expected error)
+    mid = np.arange(log_obs.min(), log_obs.max() + _STEP_DEX, _STEP_DEX)
+    near = np.abs(log_obs[None, :] - mid[:, None]) <= _SMOOTH_DEX
+    held = near.any(axis=1)
+    near = near[held]
+    rms = np.sqrt((near * err2[None, :]).sum(axis=1) / near.sum(axis=1))
+    return 10.0 ** mid[held], rms
 
 
 def cog_bias_px(det, index, *, detector, margin_px: int) -> np.ndarray:
