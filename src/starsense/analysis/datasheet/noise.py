@@ -106,11 +106,6 @@ class CentroidNoise:
     solver_sigma_px : ndarray (K,)
         The noise the solver assumes for such a star (its Wahba weight ``1 / sigma^2``,
         :func:`starsense.detect.centroid.cog_sigma_px`), averaged as a weight.
-    weighted_sigma_px, weighted_bias_px : ndarray (K,)
-        The noise and the pixel spatial error as the solver's weights meet them,
-        ``sqrt(E[w^2 e^2]) / E[w]`` over the renders: what a star adds to the attitude's
-        variance through the weighted fit when its weight varies from star to star with its
-        phase and brightness (equal to ``sigma_px`` and ``noisy_bias_px`` for a constant weight).
     """
 
     electrons: np.ndarray
@@ -122,8 +117,6 @@ class CentroidNoise:
     window_model_px: np.ndarray
     noisy_bias_px: np.ndarray
     solver_sigma_px: np.ndarray
-    weighted_sigma_px: np.ndarray
-    weighted_bias_px: np.ndarray
 
     def _interp(self, values: np.ndarray, electrons) -> np.ndarray:
         e = np.clip(np.asarray(electrons, dtype=float), self.electrons[0], self.electrons[-1])
@@ -146,14 +139,6 @@ class CentroidNoise:
     def solver_sigma(self, electrons) -> np.ndarray:
         """Return the noise (px) the solver assumes for stars of ``electrons`` (its weights)."""
         return self._interp(self.solver_sigma_px, electrons)
-
-    def weighted_sigma(self, electrons) -> np.ndarray:
-        """Return the noise (px) of stars of ``electrons`` as the solver's weights meet it."""
-        return self._interp(self.weighted_sigma_px, electrons)
-
-    def weighted_bias(self, electrons) -> np.ndarray:
-        """Return the pixel spatial error (px) as the solver's weights meet it."""
-        return self._interp(np.maximum(self.weighted_bias_px, 1e-6), electrons)
 
     def crb(self, electrons) -> np.ndarray:
         """Return the Cramer-Rao bound (px) of stars of ``electrons``."""
@@ -259,7 +244,7 @@ def _measured(sensor, span: tuple[float, float], rng, n_stamps: int) -> tuple:
     # detections come brightest first: the first of each stamp is its brightest
     first = np.unique(stamp, return_index=True)[1] if len(stamp) else np.empty(0, int)
     if len(first) < n // 2:  # detected in fewer than half the renders
-        return (math.nan,) * 5
+        return math.nan, math.nan, math.nan
     k = stamp[first]
     err = np.column_stack([found.x[first] - k * pitch - xy[k, 0], found.y[first] - xy[k, 1]])
     ph = phase[k]
@@ -273,20 +258,7 @@ def _measured(sensor, span: tuple[float, float], rng, n_stamps: int) -> tuple:
     noise2 = float(np.sum(dev[use] ** 2)) / (2.0 * dof)
     bias2 = float(np.mean(means[seen] ** 2 - noise2 / n_ph[seen][:, None]))
     solver = cog_sigma_px(found, first, detector=det, margin_px=finder.margin_px)
-    # the same errors as the solver's weights meet them: E[w^2 e^2] / E[w]^2 (w = 1 / sigma^2
-    # of each render; a star whose weight happens to be high counts for more)
-    w = solver[use] ** -2.0
-    w_mean = float(np.mean(w))
-    noise_w2 = float(np.sum(w[:, None] ** 2 * dev[use] ** 2)) / (2.0 * dof)
-    b2 = np.mean(means[ph[use]] ** 2, axis=1) - noise2 / n_ph[ph[use]]
-    bias_w2 = float(np.mean(w**2 * b2))
-    return (
-        math.sqrt(noise2),
-        math.sqrt(max(bias2, 0.0)),
-        float(np.mean(solver**-2.0) ** -0.5),
-        math.sqrt(noise_w2) / w_mean,
-        math.sqrt(max(bias_w2, 0.0)) / w_mean,
-    )
+    return math.sqrt(noise2), math.sqrt(max(bias2, 0.0)), float(np.mean(solver**-2.0) ** -0.5)
 
 
 #: table points past the onset of saturation, in units of the onset's electrons
@@ -355,7 +327,7 @@ def centroid_noise(
     offsets = (np.arange(n_phase) + 0.5) / n_phase - 0.5
     phases = [(float(a), float(b)) for a in offsets for b in offsets]
     rng, _ = as_generator(rng)
-    out = np.empty((len(grid), 10))
+    out = np.empty((len(grid), 8))
     # each point's cell, symmetric in log: half the step to its nearer neighbour either side
     step = np.diff(np.log(grid))
     half = 0.5 * np.minimum(np.r_[step, np.inf], np.r_[np.inf, step])
@@ -365,7 +337,7 @@ def centroid_noise(
         res = np.array([_one(float(n_e), ph, sensor, margin_px) for ph in phases])
         var, info, bx, by, side = res.T
         bias = np.concatenate([bx, by])
-        noise, noisy_bias, solver, *weighted = _measured(sensor, tuple(cells[k]), rng, n_stamps)
+        noise, noisy_bias, solver = _measured(sensor, tuple(cells[k]), rng, n_stamps)
         out[k] = (
             noise,
             math.sqrt(np.mean(1.0 / info)),
@@ -375,6 +347,5 @@ def centroid_noise(
             math.sqrt(np.mean(var)),
             noisy_bias,
             solver,
-            *weighted,
         )
     return CentroidNoise(grid, *out.T)

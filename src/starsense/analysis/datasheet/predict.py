@@ -152,20 +152,11 @@ class StarModel:
         pixelated-Gaussian bound), "pixel" (the sub-pixel bias as noisy frames meet it, rms
         over pixel phases), "confusion" (fainter catalogue stars in the centroid window),
         "prnu" (the shift the detector's photo-response non-uniformity gives a centroid) or
-        "residual" (the distortion calibration's residual); "nea_weighted" and
-        "pixel_weighted" are "nea" and "pixel" as the solver's varying weights meet them
-        (:class:`starsense.analysis.datasheet.noise.CentroidNoise`), what the weighted fit
-        propagates. Off-axis stars scale by the
+        "residual" (the distortion calibration's residual). Off-axis stars scale by the
         camera-frame z (the pinhole's angle per pixel, across the radial direction).
         """
         e = self.sensitivity.electrons(np.asarray(magnitudes, dtype=float))
-        tables = {
-            "nea": "sigma",
-            "weight": "solver_sigma",
-            "pixel": "bias",
-            "nea_weighted": "weighted_sigma",
-            "pixel_weighted": "weighted_bias",
-        }
+        tables = {"nea": "sigma", "weight": "solver_sigma", "pixel": "bias"}
         if kind in tables:
             px = getattr(self.noise, tables[kind])(e)
             if self.noise_corner is not None:  # the PSF widens to the corners
@@ -208,10 +199,6 @@ def error_kinds(sensor) -> tuple[str, ...]:
     return tuple(kinds)
 
 
-#: the per-star error the weighted fit propagates for a kind: its weighted form where it has one
-_PROPAGATED = {"nea": "nea_weighted", "pixel": "pixel_weighted"}
-
-
 def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea",), tree=None):
     """Return {kind: (cross, roll)} per attitude, rad, from the stars in the field.
 
@@ -240,7 +227,7 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
     weights = 1.0 / model.star_sigmas_rad(mags, z, "weight") ** 2
     out = {}
     for kind in kinds:
-        sigma = model.star_sigmas_rad(mags, z, _PROPAGATED.get(kind, kind))
+        sigma = model.star_sigmas_rad(mags, z, kind)
         if kind == "crb":
             out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
         else:
