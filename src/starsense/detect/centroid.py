@@ -150,8 +150,8 @@ def _bias_table(
     log_obs, err2 = np.log10(obs[seen]), err2[seen]
     # each point: the stars within a factor 10^_SMOOTH_DEX of its lit sum. The bias of a
     # saturated star swings as its plateau grows pixel by pixel; the lit sum follows that
-    # growth, so a narrow average keeps what it tells (a 0.15 dex average gave the zoo's
-    # saturated designs 10-20 % worse attitudes)
+    # growth, so a narrow average keeps what it tells (a 0.15 dex average left a saturated
+    # zoo design's attitude 20 % worse)
     mid = np.arange(log_obs.min(), log_obs.max() + _STEP_DEX, _STEP_DEX)
     near = np.abs(log_obs[None, :] - mid[:, None]) <= _SMOOTH_DEX
     held = near.any(axis=1)
