@@ -6,7 +6,8 @@ suspicious is said here, in the datasheet's ``warnings``:
 
 * a lit-pixel threshold at less than 3 or more than 20 sigma of the noise of an empty pixel
   (read noise, dark current over the exposure and quantisation, in counts);
-* fewer than half the frames solved at rest while an NEA is quoted;
+* fewer than half the frames solved at rest while an NEA is quoted, and too few to check it
+  (:data:`starsense.analysis.datasheet.verify.MIN_CHECKED_FRAMES`);
 * a limiting magnitude past the catalogue's completeness (the stars in the field, the
   availability and the NEA then count too few stars).
 """
@@ -94,6 +95,12 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
         out.append(
             f"only {mc.solved} of {mc.frames} frames solved at rest: the NEA quoted is that of "
             "the frames that solve, not what the sensor delivers"
+        )
+    if mc is not None and mc.frames and mc.solved and mc.cross_ratio is None:
+        out.append(
+            f"the NEA is not checked against the rendered frames: {mc.solved} right "
+            f"solution(s) at rest measure an rms to no better than "
+            f"{100 / math.sqrt(2 * mc.solved):.0f} %, too coarse for the 0.8-1.25 acceptance"
         )
     known = COMPLETENESS_V.get(catalog_name)
     if known is not None and limit_mag is not None and limit_mag > known[0]:

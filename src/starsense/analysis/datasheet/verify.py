@@ -23,7 +23,18 @@ from starsense.analysis.datasheet.predict import error_kinds, nea_at, nea_at_rat
 from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
-__all__ = ["MEASURED_KEYS", "no_frames_check", "score_montecarlo", "wrong_rate_upper"]
+__all__ = [
+    "MEASURED_KEYS",
+    "MIN_CHECKED_FRAMES",
+    "no_frames_check",
+    "score_montecarlo",
+    "wrong_rate_upper",
+]
+
+#: right solutions needed to check the NEA: the rms of n frames is known to ~1 / sqrt(2 n)
+#: (roll: one error per frame), 22 % at 10 frames, already the half-width of the 0.8-1.25
+#: acceptance band (ln 1.25 = 0.22): with fewer, a right model cannot be told from a wrong one
+MIN_CHECKED_FRAMES = 10
 
 #: the fields of a Monte Carlo check measured on solved frames (None when none was measured)
 MEASURED_KEYS = (
@@ -80,7 +91,8 @@ def score_montecarlo(
     dict
         frames, solved, wrong, wrong_rate_upper95, measured and predicted rms per axis (arcsec)
         and their ratios (also from the median normalised error, and the count of frames off
-        by more than 5 sigma), median and 95th-percentile solve time (ms), rate (deg/s).
+        by more than 5 sigma), median and 95th-percentile solve time (ms), rate (deg/s). With
+        fewer than ``MIN_CHECKED_FRAMES`` right solutions only the measured rms is reported.
     """
     right = len(res.errors_rad)
     out = {
@@ -93,7 +105,7 @@ def score_montecarlo(
         "p95_ms": _pct(res.solve_ms, 95),
         "statuses": dict(res.statuses),
     }
-    if right == 0 or not predict:
+    if right < MIN_CHECKED_FRAMES or not predict:  # measured, but too few frames to check
         out = {**out, **dict.fromkeys(MEASURED_KEYS)}
         if right:
             e = res.errors_rad
