@@ -72,6 +72,7 @@ def _confusion(sensor, sens, noise: CentroidNoise, mags: np.ndarray) -> np.ndarr
         sigma_px=sensor.detector.psf_sigma_px,
         neighbours=flux,
         density_px2=density,
+        reject_px=OUTLIER_SIGMA * noise.solver_sigma_px,  # pulled further, the star is dropped
     )
 
 

@@ -213,7 +213,9 @@ def _prnu_lever(sigma_px: float, n_side: int) -> float:
     return math.sqrt(float(np.mean(acc)))
 
 
-def confusion_px(electrons, window_px, *, sigma_px: float, neighbours, density_px2) -> np.ndarray:
+def confusion_px(
+    electrons, window_px, *, sigma_px: float, neighbours, density_px2, reject_px=None
+) -> np.ndarray:
     """Return the centroid error (px rms per axis) faint neighbours give stars (module docstring).
 
     Parameters
@@ -228,6 +230,10 @@ def confusion_px(electrons, window_px, *, sigma_px: float, neighbours, density_p
         Photo-electrons of the neighbour classes (magnitude bins of the catalogue).
     density_px2 : array_like (B,)
         Their mean density on the sky, stars per square pixel.
+    reject_px : array_like (K,), optional
+        The pull (px, in angle) past which the solver's robust fit drops the star instead
+        (:data:`starsense.attitude.robust.OUTLIER_SIGMA` of its sigma): such pulls are left
+        out. None keeps every pull.
 
     Returns
     -------
@@ -238,6 +244,7 @@ def confusion_px(electrons, window_px, *, sigma_px: float, neighbours, density_p
     side = np.broadcast_to(np.asarray(window_px, dtype=float), e.shape)
     f_nb = np.asarray(neighbours, dtype=float)
     rho = np.asarray(density_px2, dtype=float)
+    limit = np.broadcast_to(np.inf if reject_px is None else np.asarray(reject_px, float), e.shape)
     out = np.zeros(e.shape)
     for k, (big, s) in enumerate(zip(e, side, strict=True)):
         fainter = (f_nb < big) & (rho > 0)
@@ -249,13 +256,19 @@ def confusion_px(electrons, window_px, *, sigma_px: float, neighbours, density_p
         x = np.arange(-reach, reach + step, step)
         # part of a neighbour's light inside the window, per axis: its PSF over [-h, h]
         frac = ndtr((h - x) / sigma_px) - ndtr((-h - x) / sigma_px)
+        # where that light lies: the centroid of its PSF cut to [-h, h] (inside of x when the
+        # neighbour straddles the window's edge)
+        gauss = np.exp(-0.5 * ((-h - x) / sigma_px) ** 2) - np.exp(-0.5 * ((h - x) / sigma_px) ** 2)
+        xc = x + sigma_px / math.sqrt(2.0 * math.pi) * gauss / np.maximum(frac, 1e-300)
         w = frac[:, None] * frac[None, :]  # (y, x)
         area = float(np.sum(w)) * step * step
         # the mean light the other neighbours put in the window: it dilutes each one's pull
         others = float(np.sum(rho[fainter] * f_nb[fainter])) * area
+        radius = np.hypot(xc[None, :], xc[:, None])
         acc = 0.0
         for f, r in zip(f_nb[fainter], rho[fainter], strict=True):
-            shift = w * f * x[None, :] / (big + others + w * f)
-            acc += r * float(np.sum(shift**2)) * step * step
+            pull = w * f / (big + others + w * f)
+            kept = pull * radius <= limit[k]  # a larger pull drops the star from the fit
+            acc += r * float(np.sum(np.where(kept, (pull * xc[None, :]) ** 2, 0.0))) * step * step
         out[k] = math.sqrt(acc)
     return out
