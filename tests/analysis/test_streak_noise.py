@@ -142,6 +142,14 @@ def _rendered_cut(sensor, n_e, centre, streak, rng):
 def test_short_streaks_keep_the_detector_centroid():
     sensor = _sensor()  # sigma 1.5 px, margin 2: re-centroided from 2 sigma + 4 = 7 px
     assert not is_streaked(sensor, 6.9) and is_streaked(sensor, 7.0)
+    # below that length the solver weights the star by the detector's own noise model (the
+    # CoG's sigma on its lit box): isotropic, and within the noise of the star at rest
+    # (independent: photon noise alone, sigma_psf / sqrt(N), is its floor)
+    n_e = 2.0e4
+    got = streak_errors(sensor, [n_e], [[400.0, 300.0]], streaks_px=[[3.0, 0.0]], capsule=False)
+    solver = got.solver_cov_px2[0]
+    assert solver[0, 1] == 0.0 and solver[0, 0] == solver[1, 1]
+    assert math.sqrt(solver[0, 0]) >= sensor.detector.psf_sigma_px / math.sqrt(n_e)
 
 
 def test_anisotropic_propagation_reduces_to_the_isotropic_one():

@@ -198,6 +198,7 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
         found = SimpleNamespace(
             integrated_counts=np.array([float(np.sum(sub[lit]))]),
             bbox=np.array([[rr[0], rr[-1] + 1, cc[0], cc[-1] + 1]]),
+            noise_counts=0.0,  # the detector's own read noise (a frame of known background)
         )
         sig = float(cog_sigma_px(found, [0], detector=det, margin_px=margin)[0])
         solver = sig * sig * np.eye(2)
