@@ -94,6 +94,29 @@ def test_sanity_warnings_in_words(tmp_path):
     assert "1.8 sigma" in w  # 40 / 22.75 counts
 
 
+def test_a_run_at_the_rate_without_a_prediction_is_said_in_words():
+    from types import SimpleNamespace
+
+    from starsense.analysis.datasheet.verify import _ratios
+
+    sens = load_sensor("st16")
+    # every frame's prediction NaN (no star predicted bright enough at the rate): the measured
+    # rms is kept, nothing is divided by NaN
+    e = np.full((12, 3), 1e-5)
+    out = _ratios(e, np.full(12, np.nan), np.full(12, np.nan))
+    assert out["cross_ratio"] is None and out["cross_rms_arcsec"] > 0
+    run = SimpleNamespace(
+        solved=12,
+        rate_deg_s=1.0,
+        cross_rms_arcsec=out["cross_rms_arcsec"],
+        cross_predicted_arcsec=None,
+    )
+    (w,) = sanity_warnings(
+        sens, catalog_name="hip2", limit_mag=5.7, runs={"monte_carlo_at_rate": run}
+    )
+    assert "at 1 deg/s 12 frames solved" in w and "measured, not predicted" in w
+
+
 def test_gaia_v_agrees_with_an_independent_relation():
     # Riello et al. 2021 (EDR3) and Evans et al. 2018 (DR2) fit G - V against BP - RP on
     # different data: over the range both cover they agree within their combined scatter

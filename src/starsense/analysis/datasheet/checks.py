@@ -102,6 +102,14 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             f"solution(s) at rest measure an rms to no better than "
             f"{100 / math.sqrt(2 * mc.solved):.0f} %, too coarse for the 0.8-1.25 acceptance"
         )
+    at_rate = runs.get("monte_carlo_at_rate")
+    if at_rate is not None and at_rate.solved and at_rate.cross_rms_arcsec is not None:
+        if at_rate.cross_predicted_arcsec is None and at_rate.solved >= 10:
+            out.append(
+                f"at {at_rate.rate_deg_s:g} deg/s {at_rate.solved} frames solved, but the "
+                "prediction at the rate holds no star bright enough to be detected there: the "
+                "NEA under slew is measured, not predicted"
+            )
     known = COMPLETENESS_V.get(catalog_name)
     if known is not None and limit_mag is not None and limit_mag > known[0]:
         out.append(

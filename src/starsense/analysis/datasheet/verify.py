@@ -142,6 +142,12 @@ def _ratios(e: np.ndarray, cross: np.ndarray, roll: np.ndarray) -> dict[str, Any
     """Measured and predicted rms per axis, arcsec, their ratios, robust ratios, outliers."""
     meas_cross = math.sqrt(float(np.mean(0.5 * (e[:, 0] ** 2 + e[:, 1] ** 2))))
     meas_roll = math.sqrt(float(np.mean(e[:, 2] ** 2)))
+    if not (np.isfinite(cross).any() and np.isfinite(roll).any()):  # no star predicted seen
+        return {
+            **dict.fromkeys(MEASURED_KEYS),
+            "cross_rms_arcsec": meas_cross * RAD_TO_ARCSEC,
+            "roll_rms_arcsec": meas_roll * RAD_TO_ARCSEC,
+        }
     pc = math.sqrt(float(np.nanmean(cross**2)))
     pr = math.sqrt(float(np.nanmean(roll**2)))
     # robust ratios: the median normalised error against its Gaussian value (0.8326 for the
