@@ -186,6 +186,11 @@ def propagated_sigmas(
     e2 = np.where(np.isfinite(error_rad), np.asarray(error_rad, dtype=float) ** 2, 0.0)
     f = fisher_per_pointing(pairs, w)
     g = fisher_per_pointing(pairs, w * w * e2)
+    return _sandwich(f, g)
+
+
+def _sandwich(f: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return cross and roll (rad) of ``F^-1 G F^-1`` per pointing; NaN where F is singular."""
     eig = np.linalg.eigvalsh(f)
     ok = eig[:, 0] > SINGULAR_RCOND * np.maximum(eig[:, -1], np.finfo(float).tiny)
     cross = np.full(len(f), np.nan)
@@ -233,13 +238,4 @@ def propagated_covariance(
     g = np.zeros((pairs.n_pointings, 3, 3))
     np.add.at(g, np.asarray(pairs.point), terms)
     f = fisher_per_pointing(pairs, w)
-    eig = np.linalg.eigvalsh(f)
-    ok = eig[:, 0] > SINGULAR_RCOND * np.maximum(eig[:, -1], np.finfo(float).tiny)
-    cross = np.full(len(f), np.nan)
-    roll = np.full(len(f), np.nan)
-    if ok.any():
-        finv = np.linalg.inv(f[ok])
-        cov = finv @ g[ok] @ finv
-        cross[ok] = np.sqrt(0.5 * (cov[:, 0, 0] + cov[:, 1, 1]))
-        roll[ok] = np.sqrt(cov[:, 2, 2])
-    return cross, roll
+    return _sandwich(f, g)
