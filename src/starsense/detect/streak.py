@@ -333,37 +333,57 @@ def streak_axes(
     """
     a = np.asarray(image)  # each window is read as float, not the whole frame
     rows, cols = a.shape
+    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
     out = np.full((len(x), 2, 2), np.nan)
-    for i, (xc, yc) in enumerate(zip(np.asarray(x, float), np.asarray(y, float), strict=True)):
-        r0, c0 = round(yc) - half_px, round(xc) - half_px
-        r1, c1 = r0 + 2 * half_px + 1, c0 + 2 * half_px + 1
-        if r0 < 0 or c0 < 0 or r1 > rows or c1 > cols:
-            continue
-        sub = a[r0:r1, c0:c1].astype(float)
-        cut = threshold
-        if level is None:
-            border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
-            base = float(np.median(border))
-            if threshold_sigma is not None:
-                noise = MAD_TO_SIGMA * float(np.median(np.abs(border - base)))
-                cut = max(threshold, threshold_sigma * noise)
-            sub = sub - base
-        else:
-            sub = sub - level
-        labels, _ = ndimage.label(sub > cut, structure=np.ones((3, 3)))
-        lit = np.argwhere(labels > 0)
-        if len(lit) < 3:
-            continue
-        near = lit[np.argmin(np.hypot(lit[:, 0] - (yc - r0), lit[:, 1] - (xc - c0)))]
-        mine = labels == labels[near[0], near[1]]
-        wgt = np.where(mine, sub, 0.0)
-        total = wgt.sum()
-        py, px = np.nonzero(mine)
-        v = wgt[py, px]
-        cx, cy = v @ px / total, v @ py / total
-        dx, dy = px - cx, py - cy
-        m = np.array([[v @ dx**2, v @ (dx * dy)], [v @ (dx * dy), v @ dy**2]]) / total
-        lam, vec = np.linalg.eigh(m)
-        e = vec[:, 1]
-        out[i] = 12.0 * (lam[1] - lam[0]) * np.outer(e, e)
+    w = 2 * half_px + 1
+    r0 = np.array([round(v) for v in y], dtype=np.int64) - half_px
+    c0 = np.array([round(v) for v in x], dtype=np.int64) - half_px
+    k = np.flatnonzero((r0 >= 0) & (c0 >= 0) & (r0 + w <= rows) & (c0 + w <= cols))
+    if len(k) == 0:
+        return out
+    # every window at once: (K, w, w) float64
+    ar = np.arange(w)
+    sub = a[r0[k, None, None] + ar[None, :, None], c0[k, None, None] + ar[None, None, :]]
+    sub = sub.astype(float)
+    cut = np.full(len(k), float(threshold))
+    if level is None:
+        border = np.concatenate([sub[:, 0], sub[:, -1], sub[:, 1:-1, 0], sub[:, 1:-1, -1]], axis=1)
+        base = np.median(border, axis=1)
+        if threshold_sigma is not None:
+            noise = MAD_TO_SIGMA * np.median(np.abs(border - base[:, None]), axis=1)
+            cut = np.maximum(cut, threshold_sigma * noise)
+        sub -= base[:, None, None]
+    else:
+        sub -= level
+    lit = sub > cut[:, None, None]
+    # one labelling for all windows: 8-connected within a window, never across windows
+    structure = np.zeros((3, 3, 3), bool)
+    structure[1] = True
+    labels, _ = ndimage.label(lit, structure=structure)
+    # the lit pixel nearest the centroid (the first in row-major order among equals)
+    dy = ar[None, :, None] - (y[k] - r0[k])[:, None, None]
+    dx = ar[None, None, :] - (x[k] - c0[k])[:, None, None]
+    dist = np.where(lit, np.hypot(dy, dx), np.inf).reshape(len(k), -1)
+    near = np.argmin(dist, axis=1)
+    ok = lit.reshape(len(k), -1).sum(axis=1) >= 3
+    own = labels.reshape(len(k), -1)[np.arange(len(k)), near]
+    mine = labels == own[:, None, None]
+    wgt = np.where(mine, sub, 0.0)
+    total = wgt.sum(axis=(1, 2))
+    ok &= total != 0
+    px, py = ar[None, None, :] * mine, ar[None, :, None] * mine
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cx = (wgt * px).sum(axis=(1, 2)) / total
+        cy = (wgt * py).sum(axis=(1, 2)) / total
+        ddx = np.where(mine, ar[None, None, :] - cx[:, None, None], 0.0)
+        ddy = np.where(mine, ar[None, :, None] - cy[:, None, None], 0.0)
+        sxx = (wgt * ddx * ddx).sum(axis=(1, 2)) / total
+        sxy = (wgt * ddx * ddy).sum(axis=(1, 2)) / total
+        syy = (wgt * ddy * ddy).sum(axis=(1, 2)) / total
+    m = columns(sxx, sxy, sxy, syy).reshape(-1, 2, 2)[ok]
+    if len(m) == 0:
+        return out
+    lam, vec = np.linalg.eigh(m)
+    e = vec[:, :, 1]
+    out[k[ok]] = 12.0 * (lam[:, 1] - lam[:, 0])[:, None, None] * (e[:, :, None] * e[:, None, :])
     return out

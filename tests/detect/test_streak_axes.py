@@ -1,0 +1,90 @@
+"""The streak measure of all windows at once equals the window-by-window measure it replaced."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from starsense.detect.clip import MAD_TO_SIGMA
+from starsense.detect.streak import streak_axes
+
+
+def _one_by_one(image, x, y, *, half_px, threshold, level=0.0, threshold_sigma=None):
+    """The reference: one window at a time, scipy's labelling and a 2 x 2 eigh per window."""
+    a = np.asarray(image)
+    rows, cols = a.shape
+    out = np.full((len(x), 2, 2), np.nan)
+    for i, (xc, yc) in enumerate(zip(np.asarray(x, float), np.asarray(y, float), strict=True)):
+        r0, c0 = round(yc) - half_px, round(xc) - half_px
+        r1, c1 = r0 + 2 * half_px + 1, c0 + 2 * half_px + 1
+        if r0 < 0 or c0 < 0 or r1 > rows or c1 > cols:
+            continue
+        sub = a[r0:r1, c0:c1].astype(float)
+        cut = threshold
+        if level is None:
+            border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
+            base = float(np.median(border))
+            if threshold_sigma is not None:
+                noise = MAD_TO_SIGMA * float(np.median(np.abs(border - base)))
+                cut = max(threshold, threshold_sigma * noise)
+            sub = sub - base
+        else:
+            sub = sub - level
+        labels, _ = ndimage.label(sub > cut, structure=np.ones((3, 3)))
+        lit = np.argwhere(labels > 0)
+        if len(lit) < 3:
+            continue
+        near = lit[np.argmin(np.hypot(lit[:, 0] - (yc - r0), lit[:, 1] - (xc - c0)))]
+        mine = labels == labels[near[0], near[1]]
+        wgt = np.where(mine, sub, 0.0)
+        total = wgt.sum()
+        py, px = np.nonzero(mine)
+        v = wgt[py, px]
+        cx, cy = v @ px / total, v @ py / total
+        dx, dy = px - cx, py - cy
+        m = np.array([[v @ dx**2, v @ (dx * dy)], [v @ (dx * dy), v @ dy**2]]) / total
+        lam, vec = np.linalg.eigh(m)
+        e = vec[:, 1]
+        out[i] = 12.0 * (lam[1] - lam[0]) * np.outer(e, e)
+    return out
+
+
+def _frame(rng, n_stars, length_px, sigma_px, shape=(120, 160)):
+    """Streaks of random direction and brightness on a noisy pedestal, uint16."""
+    rows, cols = shape
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    img = rng.normal(100.0, 3.0, shape)
+    xs, ys = rng.uniform(-5, cols + 5, n_stars), rng.uniform(-5, rows + 5, n_stars)
+    for x0, y0 in zip(xs, ys, strict=True):
+        ang, flux = rng.uniform(0, np.pi), rng.uniform(200, 5000)
+        for t in np.linspace(-0.5, 0.5, 24):
+            cx, cy = x0 + t * length_px * np.cos(ang), y0 + t * length_px * np.sin(ang)
+            img += flux / 24 * np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * sigma_px**2))
+    return np.clip(np.round(img), 0, 65535).astype(np.uint16), xs, ys
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_all_windows_at_once_equal_one_by_one(seed):
+    rng = np.random.default_rng(seed)
+    img, xs, ys = _frame(rng, 8, rng.uniform(0, 30), rng.uniform(0.6, 2.5))
+    # centroids near the stars (and some anywhere: empty windows, windows off the frame)
+    x = np.concatenate([xs + rng.normal(0, 1, len(xs)), rng.uniform(0, 160, 4)])
+    y = np.concatenate([ys + rng.normal(0, 1, len(ys)), rng.uniform(0, 120, 4)])
+    half = int(rng.integers(3, 25))
+    for level, tsig in ((100.0, None), (None, None), (None, 5.0)):
+        kw = {"half_px": half, "threshold": 15.0, "level": level, "threshold_sigma": tsig}
+        got, ref = streak_axes(img, x, y, **kw), _one_by_one(img, x, y, **kw)
+        # the same windows measured (NaN where the reference has NaN) ...
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(ref))
+        # ... and the same moments up to the order of float64 summation (~1e-16 per term of
+        # a few hundred pixel sums: 1e-12 of the largest element bounds it)
+        scale = np.nanmax(np.abs(ref)) if np.isfinite(ref).any() else 1.0
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12 * scale)
+
+
+def test_no_window_and_no_centroid():
+    img = np.zeros((20, 20), np.uint16)
+    assert streak_axes(img, [], [], half_px=3, threshold=1.0).shape == (0, 2, 2)
+    assert np.isnan(streak_axes(img, [1.0], [1.0], half_px=5, threshold=1.0)).all()
+    assert np.isnan(streak_axes(img, [10.0], [10.0], half_px=5, threshold=1.0)).all()
