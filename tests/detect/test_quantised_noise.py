@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from camera8 import camera8
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.stats import norm
 
 from starsense.detect import estimate_background
@@ -127,3 +129,23 @@ def test_12bit_data_in_16bit_words_with_low_noise():
     assert bg.step == 16.0
     assert bg.noise == pytest.approx(16 * std, rel=0.03)
     assert float(np.median(bg.level)) == pytest.approx(16 * mean, abs=16 * 0.02)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    step=st.sampled_from([1, 2, 3, 16, 48]),
+    n=st.integers(1, 3000),
+    late=st.booleans(),
+)
+def test_quantisation_step_is_the_gcd_of_all_differences(seed, step, n, late):
+    # the gcd taken on a prefix first must give the gcd of every difference, also when the
+    # prefix's is larger (a value off the prefix's lattice comes late)
+    rng = np.random.default_rng(seed)
+    v = (rng.integers(0, 400, n) * step * 2 + 1000).astype(np.uint16)
+    if late and n > 300:
+        v[-1] += step  # breaks the lattice of 2 step only after the prefix
+    d = v.astype(np.int64) - int(v.min())
+    d = d[d > 0]
+    expected = float(np.gcd.reduce(d)) if d.size else None
+    assert quantisation_step(v) == expected

@@ -168,13 +168,14 @@ def _is_int(value: object) -> bool:
 _STEP_SAMPLES_EVERY = 7
 
 
-def _quantised_step(sampled: np.ndarray, keep: np.ndarray) -> float | None:
+def _quantised_step(sampled: np.ndarray, keep: np.ndarray, counts=None) -> float | None:
     """Return the quantisation step when the frame's noise is below a few steps, else None.
 
     ``sampled`` is every :data:`_STEP_SAMPLES_EVERY`-th sample of each box, ``keep`` which of
-    them the clipping kept.
+    them the clipping kept; ``counts`` the same samples of every box as integers, if any.
     """
-    step = quantisation_step(sampled)
+    ints = None if counts is None else counts[:, :, ::_STEP_SAMPLES_EVERY]
+    step = quantisation_step(sampled if ints is None else ints)
     if step is None:
         return None
     mad = np.nanmedian(robust_sigma(sampled, keep))
@@ -329,7 +330,8 @@ def estimate_background(
     sampled = cells[:, :, ::_STEP_SAMPLES_EVERY]
     keep = None  # the kept samples: needed whole only without the fused noise kernel
     if _clipc is not None and ok is True and cells.dtype == np.float32:
-        step = _quantised_step(sampled, _kept(sampled, low, high, ok, "bg_keep_step"))
+        # the step from the integer samples if any (the same values, no float pass)
+        step = _quantised_step(sampled, _kept(sampled, low, high, ok, "bg_keep_step"), counts)
     else:
         keep = _kept(cells, low, high, ok, "bg_keep")
         step = _quantised_step(sampled, keep[:, :, ::_STEP_SAMPLES_EVERY])

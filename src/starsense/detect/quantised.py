@@ -64,17 +64,33 @@ def quantisation_step(values: np.ndarray) -> float | None:
         (x = a + k q), else the median spacing of the distinct values between the 1st and 99th
         percentiles. None for continuous data or a constant frame.
     """
-    v = np.asarray(values, dtype=np.float64).ravel()
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return None
-    if not np.all(v == np.round(v)):
-        return _float_step(v)
-    d = (v - v.min()).astype(np.int64)
+    v = np.asarray(values)
+    if v.dtype.kind in "iu":  # integers: finite, on the unit lattice
+        v = v.ravel()
+        if v.size == 0:
+            return None
+    else:
+        v = np.asarray(v, dtype=np.float64).ravel()
+        v = v[np.isfinite(v)]
+        if v.size == 0:
+            return None
+        if not np.all(v == np.round(v)):
+            return _float_step(v)
+    d = v.astype(np.int64)
+    d -= d.min()
     d = d[d > 0]  # the gcd of all the differences is that of the distinct ones
     if d.size == 0:
         return None
+    # the gcd of a prefix divides the whole one: 1 is final, and a prefix gcd that divides
+    # every difference is the whole one (a modulus per value, not a gcd per value)
+    g = int(np.gcd.reduce(d[:_GCD_PREFIX]))
+    if g == 1 or not np.any(d % g):
+        return float(g)
     return float(np.gcd.reduce(d))
+
+
+#: differences whose gcd is taken first (quantisation_step)
+_GCD_PREFIX = 256
 
 
 def _float_step(v: np.ndarray) -> float | None:
