@@ -13,6 +13,7 @@ is ambiguous it falls back to lost-in-space (the Solver itself) and says so in t
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -27,9 +28,9 @@ from starsense.detect.streak import columns
 from starsense.detect.windows import streak_px
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_attitude
-from starsense.solve.solution import Solution, SolveStatus
+from starsense.solve.solution import Deferred, Solution, SolveStatus
 from starsense.solve.tracking.field import half_turn, predicted_field, tracking_setup, unblended
-from starsense.solve.tracking.star_noise import fit_robust, star_noise
+from starsense.solve.tracking.star_noise import fit_robust_matrix, rms_angle, star_noise
 from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = ["Prior", "TrackMode", "TrackSolution", "track_frame"]
@@ -228,34 +229,54 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         half_turn=turn,
         margin_px=setup.margin_px,
     )
-    att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
+    c, fisher_inv, resid, _, keep = fit_robust_matrix(
+        vectors[matched], db.vectors[cat_index], noise.sigma_rad
+    )
     matched, cat_ids = matched[keep], cat_ids[keep]
-    covariance = noise.subset(keep).attitude_covariance(vectors[matched], att.covariance_rad2)
+    covariance = noise.subset(keep).attitude_covariance(vectors[matched], fisher_inv)
     stages["match_ms"] = match.time_ms
-    ra, dec, roll = radec_roll_from_attitude(att.rotation)
+    rotation, angles = _deferred_attitude(c)
     where = f"{found.n_windows} windows" if found.n_windows else "the whole frame"
     sol = Solution(
         "solved" if match.status == "verified" else "unverified",
         f"tracked: {len(matched)} of {len(det)} detections ({where}) matched, "
         f"P_false {match.false_match_probability:.1e}",
-        ra_rad=float(ra),
-        dec_rad=float(dec),
-        roll_rad=float(roll),
+        ra_rad=Deferred(angles, index=0),
+        dec_rad=Deferred(angles, index=1),
+        roll_rad=Deferred(angles, index=2),
         fov_rad=2.0 * sensor.half_fov_rad[0],
         n_detections=len(det),
         n_matched=len(matched),
-        rmse_rad=float(att.residual_rms_rad),
+        rmse_rad=rms_angle(resid),
         false_match_probability=float(match.false_match_probability),
         sigma_rad=tuple(np.sqrt(covariance.diagonal()).tolist()),
         time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
-        rotation=att.rotation,
+        rotation=Deferred(rotation),
         matches=tuple(zip(matched.tolist(), cat_ids.tolist(), strict=True)),
         centroids_px=columns(det.x, det.y),
         image_shape=image.shape,
         focal_px=f,
     )
     return (sol, covariance), ""
+
+
+def _deferred_attitude(matrix: np.ndarray):
+    """Return the Rotation and (RA, Dec, roll) of an attitude matrix, as calls made when read.
+
+    ``matrix`` is orthonormal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped.
+    """
+
+    @functools.cache
+    def rotation() -> Rotation:
+        return Rotation.from_matrix(matrix, assume_valid=True)
+
+    @functools.cache
+    def angles() -> tuple[float, float, float]:
+        ra, dec, roll = radec_roll_from_attitude(rotation())
+        return float(ra), float(dec), float(roll)
+
+    return rotation, angles
 
 
 def _done(sol: Solution, t0: float) -> Solution:
