@@ -142,8 +142,8 @@ def predicted_field(sensor, db, rot, *, r_s, field_r, half_turn_matrix):
         Projects camera-frame vectors to pixels.
     db : IdentificationDatabase
         The stars (unit vectors, KD-tree), brightest first.
-    rot : Rotation
-        The predicted attitude (ICRS -> camera).
+    rot : ndarray, shape (3, 3)
+        The predicted attitude's matrix (ICRS -> camera).
     r_s : float
         Search radius, rad.
     field_r : float
@@ -162,7 +162,7 @@ def predicted_field(sensor, db, rot, *, r_s, field_r, half_turn_matrix):
     streaks : ndarray, shape (N, 2) or None
         The streak (start to end, px) of each over the exposure; None without a rate.
     """
-    r = rot.as_matrix()
+    r = rot
     centre = r[2]  # the boresight in ICRS: R^T z
     near = db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2), return_sorted=True)
     near = np.asarray(near, dtype=np.intp)

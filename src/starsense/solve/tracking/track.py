@@ -180,8 +180,9 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     if r_s > MAX_SEARCH_RAD:
         return None, f"prior uncertainty {r_s * RAD_TO_DEG:.2f} deg exceeds tracking's reach"
     turn = half_turn(sensor, rate)
+    prior_matrix = rot_pred.as_matrix()
     near, x, y, margin_on, streaks = predicted_field(
-        sensor, db, rot_pred, r_s=r_s, field_r=field_r, half_turn_matrix=turn
+        sensor, db, prior_matrix, r_s=r_s, field_r=field_r, half_turn_matrix=turn
     )
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
@@ -205,9 +206,12 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
-    match = setup.identifier(
-        vectors,
-        rot_pred,
+    # unit, finite, in front of the camera (the sensor's unprojection): normalised as the
+    # identifier's own check does, its other checks skipped
+    unit = vectors / np.sqrt(np.add.reduce(vectors * vectors, axis=1))[:, None]
+    match = setup.identifier.match_checked(
+        unit,
+        prior_matrix,
         search_radius_rad=r_s,
         field_radius_rad=field_r,
         region=region,
