@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 from starsense.solve.wcs import solution_wcs, write_solution_wcs
 from starsense.units import RAD_TO_ARCSEC
 
-__all__ = ["Deferred", "Solution", "SolveStatus"]
+__all__ = ["Deferred", "Solution", "SolveStatus", "allow_deferred"]
 
 #: The values of :attr:`Solution.status`: "solved", or why not (the identification's own
 #: reasons, :data:`starsense.identify.result.IdentificationStatus`, among them); tracking adds
@@ -86,8 +86,37 @@ class _DeferredField:
         obj.__dict__[self.slot] = value
 
 
-#: the fields of Solution that may be given as Deferred
-_DEFERRABLE = ("ra_rad", "dec_rad", "roll_rad", "sigma_rad", "rotation")
+def _resolved_state(self) -> dict:
+    """Return the instance's fields with every deferred one computed (for pickle and copy)."""
+    for name in type(self).deferred_fields:
+        getattr(self, name)
+    return dict(self.__dict__)
+
+
+def allow_deferred(cls: type, *names: str) -> type:
+    """Let the fields ``names`` of the dataclass ``cls`` be given as :class:`Deferred`.
+
+    Installs a descriptor per field (the dataclass's ``__init__`` stores through it; a read
+    computes a :class:`Deferred` once and keeps the value) and a ``__getstate__`` that computes
+    them all, so that pickle and copy keep values, not the calls.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass (frozen or not, without ``__slots__``).
+    *names : str
+        Its fields that may be deferred.
+
+    Returns
+    -------
+    type
+        ``cls``, changed in place.
+    """
+    for name in names:
+        setattr(cls, name, _DeferredField(name))
+    cls.deferred_fields = (*getattr(cls, "deferred_fields", ()), *names)
+    cls.__getstate__ = _resolved_state
+    return cls
 
 
 def _deg(angle_rad: float | None) -> float | None:
@@ -230,12 +259,6 @@ class Solution:
         """Whether the frame solved."""
         return self.status == "solved"
 
-    def __getstate__(self) -> dict:
-        """Return the fields with every deferred one computed (what pickle and copy keep)."""
-        for name in _DEFERRABLE:
-            getattr(self, name)
-        return dict(self.__dict__)
-
     def to_dict(self) -> dict:
         """Return the solution as JSON-ready values (degrees and arcseconds, as the CLI prints)."""
         sigma = self.sigma_arcsec
@@ -260,5 +283,4 @@ class Solution:
         }
 
 
-for _name in _DEFERRABLE:
-    setattr(Solution, _name, _DeferredField(_name))
+allow_deferred(Solution, "ra_rad", "dec_rad", "roll_rad", "sigma_rad", "rotation")

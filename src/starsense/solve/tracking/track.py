@@ -13,7 +13,6 @@ is ambiguous it falls back to lost-in-space (the Solver itself) and says so in t
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -28,7 +27,7 @@ from starsense.detect.streak import columns
 from starsense.detect.windows import streak_px
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_attitude
-from starsense.solve.solution import Deferred, Solution, SolveStatus
+from starsense.solve.solution import Deferred, Solution, SolveStatus, allow_deferred
 from starsense.solve.tracking.field import half_turn, predicted_field, tracking_setup, unblended
 from starsense.solve.tracking.star_noise import fit_robust_matrix, rms_angle, star_noise
 from starsense.units import DEG, RAD_TO_DEG
@@ -109,7 +108,8 @@ class TrackSolution:
         "tracking" or "lost_in_space" (for an unreadable frame, the mode it would have been
         processed in).
     covariance_rad2 : ndarray, shape (3, 3) or None
-        Camera-frame attitude covariance, rad^2.
+        Camera-frame attitude covariance, rad^2 (of a tracked frame: computed when first read,
+        as the solution's RA/Dec/roll, ``sigma_rad`` and ``rotation``).
     rate_rad_s, rate_cov_rad2_s2 : ndarray or None
         Body rate (3,), rad/s, and its covariance (3, 3), from this frame and the last solved.
     time_s : float or None
@@ -162,6 +162,9 @@ class TrackSolution:
             "time_ms": s.time_ms,
             "message": s.message,
         }
+
+
+allow_deferred(TrackSolution, "covariance_rad2")
 
 
 def _search_radius(cov: np.ndarray, field_radius: float) -> float:
@@ -237,9 +240,10 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         vectors[matched], db.vectors[cat_index], noise.sigma_rad
     )
     matched, cat_ids = matched[keep], cat_ids[keep]
-    covariance = noise.subset(keep).attitude_covariance(vectors[matched], fisher_inv)
+    covariance = _Once(_covariance, noise, keep, vectors[matched], fisher_inv)
     stages["match_ms"] = match.time_ms
-    rotation, angles = _deferred_attitude(c)
+    rotation = _Once(Rotation.from_matrix, c, assume_valid=True)  # c: an SVD's U V^T
+    angles = _Once(_radec_roll, rotation)
     where = f"{found.n_windows} windows" if found.n_windows else "the whole frame"
     sol = Solution(
         "solved" if match.status == "verified" else "unverified",
@@ -253,7 +257,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         n_matched=len(matched),
         rmse_rad=rms_angle(resid),
         false_match_probability=float(match.false_match_probability),
-        sigma_rad=tuple(np.sqrt(covariance.diagonal()).tolist()),
+        sigma_rad=Deferred(_Once(_sigmas, covariance)),
         time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
         rotation=Deferred(rotation),
@@ -262,25 +266,35 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         image_shape=image.shape,
         focal_px=f,
     )
-    return (sol, covariance), ""
+    return (sol, Deferred(covariance)), ""
 
 
-def _deferred_attitude(matrix: np.ndarray):
-    """Return the Rotation and (RA, Dec, roll) of an attitude matrix, as calls made when read.
+class _Once:
+    """``fn(*args, **kw)``, called on the first call of this object only (then its value)."""
 
-    ``matrix`` is orthonormal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped.
-    """
+    __slots__ = ("call", "value")
 
-    @functools.cache
-    def rotation() -> Rotation:
-        return Rotation.from_matrix(matrix, assume_valid=True)
+    def __init__(self, fn, *args, **kw) -> None:
+        self.call = (fn, args, kw)
 
-    @functools.cache
-    def angles() -> tuple[float, float, float]:
-        ra, dec, roll = radec_roll_from_attitude(rotation())
-        return float(ra), float(dec), float(roll)
+    def __call__(self):
+        if self.call is not None:
+            fn, args, kw = self.call
+            self.value, self.call = fn(*args, **kw), None
+        return self.value
 
-    return rotation, angles
+
+def _radec_roll(rotation: _Once) -> tuple[float, float, float]:
+    ra, dec, roll = radec_roll_from_attitude(rotation())
+    return float(ra), float(dec), float(roll)
+
+
+def _covariance(noise, keep, body, fisher_inv) -> np.ndarray:
+    return noise.subset(keep).attitude_covariance(body, fisher_inv)
+
+
+def _sigmas(covariance: _Once) -> tuple[float, float, float]:
+    return tuple(np.sqrt(covariance().diagonal()).tolist())
 
 
 def _done(sol: Solution, t0: float) -> Solution:
