@@ -582,11 +582,45 @@ static PyObject *apart(PyObject *self, PyObject *args)
     return result;
 }
 
+/* count_inside(boxes, x, y, k, n) -> how many of the n points (x, y), rounded half to even
+ * (np.rint), lie in one of the k boxes (row0, row1, col0, col1; half-open), as
+ * window_kernels.count_inside_numpy. */
+static PyObject *count_inside(PyObject *self, PyObject *args)
+{
+    Py_buffer bb, xb, yb;
+    Py_ssize_t k, n;
+    if (!PyArg_ParseTuple(args, "y*y*y*nn", &bb, &xb, &yb, &k, &n))
+        return NULL;
+    PyObject *result = NULL;
+    if (check(&bb, k * 32, "boxes") && check(&xb, n * 8, "x") && check(&yb, n * 8, "y")) {
+        const int64_t *box = bb.buf;
+        const double *x = xb.buf, *y = yb.buf;
+        Py_ssize_t count = 0;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            double xi = nearbyint(x[i]), yi = nearbyint(y[i]);
+            for (Py_ssize_t j = 0; j < k; j++) {
+                const int64_t *b = box + 4 * j;
+                if (yi >= (double)b[0] && yi < (double)b[1] && xi >= (double)b[2] &&
+                    xi < (double)b[3]) {
+                    count++;
+                    break;
+                }
+            }
+        }
+        result = PyLong_FromSsize_t(count);
+    }
+    PyBuffer_Release(&bb);
+    PyBuffer_Release(&xb);
+    PyBuffer_Release(&yb);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"detect_windows", detect_windows, METH_VARARGS,
      "Detect and centroid the stars of tracking windows (see _windowc.c)."},
     {"union_area", union_area, METH_VARARGS, "Pixels covered by a union of boxes."},
     {"apart", apart, METH_VARARGS, "Rows kept at least 2 px from those kept before."},
+    {"count_inside", count_inside, METH_VARARGS, "Points inside a union of boxes."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_windowc", NULL, -1, methods};

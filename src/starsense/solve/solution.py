@@ -1,7 +1,8 @@
 """The answer of a solve: :class:`Solution` (attitude, matches, residuals, WCS).
 
 A solver that holds its attitude as a matrix may give the fields derived from it (the
-Rotation, RA/Dec/roll, the 1-sigma errors) as :class:`Deferred` values: each is computed when
+Rotation, RA/Dec/roll, the 1-sigma errors, the match and centroid tables) as :class:`Deferred`
+values: each is computed when
 first read, by the same code and with the same result as computing it at once, so a caller
 that never reads it (a tracking loop that keeps the matrix) does not pay for it.
 """
@@ -143,8 +144,8 @@ class Solution:
     message : str
         A sentence about the outcome.
     ra_rad, dec_rad, roll_rad : float or None
-        Boresight and roll of the attitude, rad. These, ``sigma_rad`` and ``rotation`` may be
-        given as :class:`Deferred` (module docstring).
+        Boresight and roll of the attitude, rad. These, ``sigma_rad``, ``rotation``,
+        ``matches`` and ``centroids_px`` may be given as :class:`Deferred` (module docstring).
     fov_rad : float or None
         Horizontal field across the image width, rad (given, or found by the scale search).
     n_detections, n_matched : int
@@ -283,4 +284,6 @@ class Solution:
         }
 
 
-allow_deferred(Solution, "ra_rad", "dec_rad", "roll_rad", "sigma_rad", "rotation")
+allow_deferred(
+    Solution, "ra_rad", "dec_rad", "roll_rad", "sigma_rad", "rotation", "matches", "centroids_px"
+)

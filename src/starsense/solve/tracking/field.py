@@ -45,6 +45,8 @@ class TrackingSetup:
         The CoG window's margin, px.
     corners : ndarray, shape (4, 3)
         Unit vectors of the field's corners, camera frame.
+    fov_rad : float
+        Full width of the field across the columns, rad (``2 half_fov_rad[0]``).
     """
 
     sensor: object
@@ -55,6 +57,7 @@ class TrackingSetup:
     field_r: float
     margin_px: int
     corners: np.ndarray
+    fov_rad: float
 
 
 _SETUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -90,8 +93,9 @@ def tracking_setup(solver) -> TrackingSetup:
         tx, ty = (math.tan(h) for h in sensor.half_fov_rad)
         corners = np.array([[-tx, -ty, 1.0], [-tx, ty, 1.0], [tx, -ty, 1.0], [tx, ty, 1.0]])
         corners /= math.sqrt(tx * tx + ty * ty + 1.0)
+        fov = 2.0 * sensor.half_fov_rad[0]
         got = TrackingSetup(
-            sensor, settings.background, db, ident, windows, field_r, margin, corners
+            sensor, settings.background, db, ident, windows, field_r, margin, corners, fov
         )
         _SETUPS[solver] = got
     return got
@@ -205,10 +209,13 @@ def unblended(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
     ndarray of bool, shape (M,)
     """
     ok = np.isfinite(x) & np.isfinite(y)
-    xo, yo = x[ok], y[ok]
+    if ok.all():  # (every predicted star in front of the camera): no selection
+        xo, yo, near_ok = x, y, near
+    else:
+        xo, yo, near_ok = x[ok], y[ok], near[ok]
     if len(xo) < 2:
         return np.ones(len(cat_index), bool)
-    where = np.minimum(np.searchsorted(near[ok], cat_index), len(xo) - 1)
+    where = np.minimum(near_ok.searchsorted(cat_index), len(xo) - 1)
     dx = xo[where][:, None] - xo[None, :]
     dy = yo[where][:, None] - yo[None, :]
     d2 = dx * dx + dy * dy

@@ -165,7 +165,7 @@ def star_noise(
         cog = cog * eye
         cog[along] = cov[along]
         cov = cog
-    if rate_rad_s is None or not np.any(rate_rad_s):
+    if rate_rad_s is None or not np.asarray(rate_rad_s).any():
         return StarNoise(sensor, x, y, cov)
     b = sensor.unproject(x, y) if vectors is None else vectors
     h = half_turn

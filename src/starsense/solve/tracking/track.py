@@ -206,7 +206,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     vectors = sensor.unproject(det.x, det.y)
     # the brightest stars that may be on the detector: a frame showing N stars shows about
     # the N brightest, and fewer candidates leave fewer ambiguous pairs
-    cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
+    cand = margin_on.nonzero()[0][: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
     # unit, finite, in front of the camera (the sensor's unprojection): normalised as the
@@ -227,20 +227,19 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     alone = unblended(cat_index, near, x=x, y=y, blend_px=blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
+    body = vectors[matched]
     noise = star_noise(
         solver,
         det,
         matched,
         rate_rad_s=rate,
-        vectors=vectors[matched],
+        vectors=body,
         half_turn=turn,
         margin_px=setup.margin_px,
     )
-    c, fisher_inv, resid, _, keep = fit_robust_matrix(
-        vectors[matched], db.vectors[cat_index], noise.sigma_rad
-    )
+    c, fisher_inv, resid, _, keep = fit_robust_matrix(body, db.vectors[cat_index], noise.sigma_rad)
     matched, cat_ids = matched[keep], cat_ids[keep]
-    covariance = _Once(_covariance, noise, keep, vectors[matched], fisher_inv)
+    covariance = _Once(_covariance, noise, keep, body[keep], fisher_inv)
     stages["match_ms"] = match.time_ms
     rotation = _Once(Rotation.from_matrix, c, assume_valid=True)  # c: an SVD's U V^T
     angles = _Once(_radec_roll, rotation)
@@ -252,7 +251,7 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         ra_rad=Deferred(angles, index=0),
         dec_rad=Deferred(angles, index=1),
         roll_rad=Deferred(angles, index=2),
-        fov_rad=2.0 * sensor.half_fov_rad[0],
+        fov_rad=setup.fov_rad,
         n_detections=len(det),
         n_matched=len(matched),
         rmse_rad=rms_angle(resid),
@@ -261,8 +260,8 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
         time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
         rotation=Deferred(rotation),
-        matches=tuple(zip(matched.tolist(), cat_ids.tolist(), strict=True)),
-        centroids_px=columns(det.x, det.y),
+        matches=Deferred(_Once(_pairs, matched, cat_ids)),
+        centroids_px=Deferred(_Once(columns, det.x, det.y)),
         image_shape=image.shape,
         focal_px=f,
     )
@@ -291,6 +290,10 @@ def _radec_roll(rotation: _Once) -> tuple[float, float, float]:
 
 def _covariance(noise, keep, body, fisher_inv) -> np.ndarray:
     return noise.subset(keep).attitude_covariance(body, fisher_inv)
+
+
+def _pairs(matched: np.ndarray, cat_ids: np.ndarray) -> tuple[tuple[int, int], ...]:
+    return tuple(zip(matched.tolist(), cat_ids.tolist(), strict=True))
 
 
 def _sigmas(covariance: _Once) -> tuple[float, float, float]:
