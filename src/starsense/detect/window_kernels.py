@@ -455,15 +455,15 @@ def detect_stack_compiled(image, size, *, corners, level, threshold, logic, sigm
     )
     if n == 0:
         return NO_ROWS, 0
-    o = out[:m]
+    o = out[:m].copy()  # nothing returned is the scratch buffer: views of one copy
     rows = (
-        o[:, 0].copy(),
-        o[:, 1].copy(),
-        o[:, 2].copy(),
+        o[:, 0],
+        o[:, 1],
+        o[:, 2],
         o[:, 3].astype(np.intp),
-        o[:, 4].copy(),
+        o[:, 4],
         o[:, 5:9].astype(np.intp),
-        o[:, 9:13].reshape(m, 2, 2).copy(),  # nothing returned is the scratch buffer
+        o[:, 9:13].reshape(m, 2, 2),
     )
     return rows, n
 

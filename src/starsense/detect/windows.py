@@ -199,20 +199,21 @@ def _detections(rows, noise: float, n_candidates: int, saturation, compiled: boo
     keep = apart_compiled(x, y, order) if compiled else None
     keep = apart_numpy(x, y, order) if keep is None else keep
     sel = order[keep]
-    peak = peak[sel].astype(float)
+    # (the selections are copies already: no second copy to change a type it has)
+    peak = peak[sel].astype(float, copy=False)
     return Detections(
-        x=x[sel].astype(float),
-        y=y[sel].astype(float),
-        integrated_counts=counts[sel].astype(float),
-        n_pixels=n_pixels[sel].astype(int),
+        x=x[sel].astype(float, copy=False),
+        y=y[sel].astype(float, copy=False),
+        integrated_counts=counts[sel].astype(float, copy=False),
+        n_pixels=n_pixels[sel].astype(int, copy=False),
         peak_counts=peak,
         saturated=peak >= saturation if saturation is not None else np.zeros(len(sel), bool),
-        bbox=box[sel].astype(int).reshape(-1, 4),
+        bbox=box[sel].astype(int, copy=False).reshape(-1, 4),
         fit_ok=np.ones(len(sel), bool),
         n_candidates=int(n_candidates),
         noise_counts=noise,
         method="cog",
-        extra={"spread_px2": spread[sel].astype(float).reshape(-1, 2, 2)},
+        extra={"spread_px2": spread[sel].astype(float, copy=False).reshape(-1, 2, 2)},
     )
 
 
