@@ -26,7 +26,7 @@ from starsense.attitude.rate import predict_attitude
 from starsense.detect.streak import columns
 from starsense.detect.windows import streak_px
 from starsense.errors import InputError
-from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_attitude
+from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_matrix
 from starsense.solve.solution import Deferred, Solution, SolveStatus, allow_deferred
 from starsense.solve.tracking.field import half_turn, predicted_field, tracking_setup, unblended
 from starsense.solve.tracking.star_noise import fit_robust_matrix, rms_angle, star_noise
@@ -284,8 +284,8 @@ class _Once:
 
 
 def _radec_roll(rotation: _Once) -> tuple[float, float, float]:
-    ra, dec, roll = radec_roll_from_attitude(rotation())
-    return float(ra), float(dec), float(roll)
+    # radec_roll_from_attitude(rotation()), bit for bit
+    return radec_roll_from_matrix(rotation().as_matrix())
 
 
 def _covariance(noise, keep, body, fisher_inv) -> np.ndarray:
