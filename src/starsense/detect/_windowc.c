@@ -85,8 +85,9 @@ static void join(int32_t *parent, int32_t a, int32_t b)
         parent[a] = b;
 }
 
-/* Scratch kept between calls (the GIL serialises them): per pixel of the windows the counts
- * less the level, whether lit, and the label; the flat indices of the lit pixels; the
+/* Scratch kept between calls (the GIL serialises them): one window's counts less the level
+ * (g_sub, plane(); sized as the others, its pages touched only as far as one window); per
+ * pixel of the windows whether lit, and the label; the flat indices of the lit pixels; the
  * union-find parents and final labels of the provisional labels. */
 static float *g_sub;
 static unsigned char *g_lit;
