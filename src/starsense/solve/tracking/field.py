@@ -18,6 +18,7 @@ import numpy as np
 
 from starsense.detect.streak import columns
 from starsense.detect.windows import WindowDetector
+from starsense.identify.track_kernels import unblended_compiled, unblended_numpy
 from starsense.identify.tracking import TrackingIdentifier
 
 __all__ = ["TrackingSetup", "half_turn", "predicted_field", "tracking_setup", "unblended"]
@@ -193,7 +194,8 @@ def unblended(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
 
     A double star (two catalogue stars a few pixels apart) is detected as one blended spot
     whose centroid lies between them: it is left out of the fit when others remain. The
-    nearest other predicted star of each, by direct comparison (a few dozen stars).
+    nearest other predicted star of each, by direct comparison (a few dozen stars;
+    :func:`~starsense.identify.track_kernels.unblended_numpy`, compiled where built).
 
     Parameters
     ----------
@@ -208,16 +210,5 @@ def unblended(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
     -------
     ndarray of bool, shape (M,)
     """
-    ok = np.isfinite(x) & np.isfinite(y)
-    if ok.all():  # (every predicted star in front of the camera): no selection
-        xo, yo, near_ok = x, y, near
-    else:
-        xo, yo, near_ok = x[ok], y[ok], near[ok]
-    if len(xo) < 2:
-        return np.ones(len(cat_index), bool)
-    where = np.minimum(near_ok.searchsorted(cat_index), len(xo) - 1)
-    dx = xo[where][:, None] - xo[None, :]
-    dy = yo[where][:, None] - yo[None, :]
-    d2 = dx * dx + dy * dy
-    d2[np.arange(len(where)), where] = np.inf  # the star itself
-    return np.sqrt(d2.min(axis=1)) > blend_px
+    got = unblended_compiled(cat_index, near, x, y, blend_px)
+    return unblended_numpy(cat_index, near, x, y, blend_px) if got is None else got
