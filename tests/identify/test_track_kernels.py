@@ -154,8 +154,8 @@ def test_unblended_equals_numpy_bit_for_bit(seed, n, m):
     finite = near[np.isfinite(x)]
     cat = rng.choice(finite, size=min(m, len(finite)), replace=False) if len(finite) else near[:0]
     blend = float(rng.choice([3.0, 5.0, rng.uniform(1, 10)]))
-    got = tk.unblended_compiled(cat, near, x, y, blend)
-    ref = tk.unblended_numpy(cat, near, x, y, blend)
+    got = tk.unblended_compiled(cat, near, x=x, y=y, blend_px=blend)
+    ref = tk.unblended_numpy(cat, near, x=x, y=y, blend_px=blend)
     assert got.dtype == bool and np.array_equal(got, ref)
     # and against the distances themselves, star by star
     ok = np.isfinite(x)

@@ -331,7 +331,7 @@ def sandwich_compiled(body, g, cov, *, w, inv) -> np.ndarray | None:
     return out
 
 
-def unblended_numpy(cat_index, near, x, y, blend_px: float) -> np.ndarray:
+def unblended_numpy(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
     """Return whether each matched star has no other predicted star within ``blend_px``.
 
     The nearest other predicted star of each, by direct comparison (a few dozen stars), among
@@ -367,7 +367,7 @@ def unblended_numpy(cat_index, near, x, y, blend_px: float) -> np.ndarray:
     return np.sqrt(d2.min(axis=1)) > blend_px
 
 
-def unblended_compiled(cat_index, near, x, y, blend_px: float) -> np.ndarray | None:
+def unblended_compiled(cat_index, near, *, x, y, blend_px: float) -> np.ndarray | None:
     """:func:`unblended_numpy` in the compiled kernel (bit for bit); None where not built."""
     if _trackc is None:
         return None

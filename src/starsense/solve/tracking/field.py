@@ -210,5 +210,5 @@ def unblended(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
     -------
     ndarray of bool, shape (M,)
     """
-    got = unblended_compiled(cat_index, near, x, y, blend_px)
-    return unblended_numpy(cat_index, near, x, y, blend_px) if got is None else got
+    got = unblended_compiled(cat_index, near, x=x, y=y, blend_px=blend_px)
+    return unblended_numpy(cat_index, near, x=x, y=y, blend_px=blend_px) if got is None else got
