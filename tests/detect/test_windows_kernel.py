@@ -192,12 +192,39 @@ def test_kernel_apart_equals_the_numpy_form(seed, n):
     assert (d[~np.eye(len(kept), dtype=bool)] >= 2.0).all()
 
 
+@needs_kernel
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 40), n=st.integers(0, 60))
+def test_kernel_count_inside_equals_the_numpy_form(seed, k, n):
+    # the same rounding (half to even) and comparisons: equal; checked against a painted mask
+    rng = np.random.default_rng(seed)
+    r0, c0 = rng.integers(0, 60, k), rng.integers(0, 60, k)
+    boxes = np.column_stack([r0, r0 + rng.integers(1, 30, k), c0, c0 + rng.integers(1, 30, k)])
+    x, y = rng.uniform(-3, 95, n), rng.uniform(-3, 95, n)
+    half = rng.random(n) < 0.3  # some on the half pixel, where the rounding decides
+    x[half], y[half] = np.round(2 * x[half]) / 2, np.round(2 * y[half]) / 2
+    x[: n // 8] = np.nan  # behind the camera: in no window
+    got = wk.count_inside_compiled(boxes, x, y)
+    assert got == wk.count_inside_numpy(boxes, x, y)
+    paint = np.zeros((100, 100), bool)
+    for a, b, c, d in boxes:
+        paint[a:b, c:d] = True
+    ok = np.isfinite(x)
+    xi, yi = np.rint(x[ok]).astype(int), np.rint(y[ok]).astype(int)
+    on = (xi >= 0) & (yi >= 0)
+    assert got == int(paint[yi[on], xi[on]].sum())
+
+
 def test_without_the_kernel_the_numpy_form_answers(monkeypatch):
     # a machine without a C compiler: the compiled entry points say so (None) and the
     # detector falls back to the NumPy form
     monkeypatch.setattr(wk, "_windowc", None)
     boxes = np.array([[0, 10, 0, 10], [5, 15, 5, 15]])
     assert wk.union_area_compiled(boxes) is None and wk.union_area_numpy(boxes) == 175
+    # (0, 0) and (9.5 -> 10, 12) lie in a box, (20, 3) in none
+    px, py = np.array([0.0, 9.5, 20.0]), np.array([0.0, 12.0, 3.0])
+    assert wk.count_inside_compiled(boxes, px, py) is None
+    assert wk.count_inside_numpy(boxes, px, py) == 2
     x = np.array([0.0, 1.0, 5.0])
     assert wk.apart_compiled(x, x, np.arange(3)) is None
     np.testing.assert_array_equal(wk.apart_numpy(x, x, np.arange(3)), [0, 2])

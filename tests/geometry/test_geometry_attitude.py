@@ -15,6 +15,7 @@ from starsense.geometry.attitude import (
     boresight,
     east_north,
     radec_roll_from_attitude,
+    radec_roll_from_matrix,
     radec_to_vectors,
     small_rotation_angles,
     vectors_to_radec,
@@ -68,6 +69,23 @@ def test_arbitrary_rotation_round_trips(q: list[float]) -> None:
     assert rotation_distance(rot, attitude_from_radec_roll(*radec_roll_from_attitude(rot))) < (
         ROT_TOL_RAD
     )
+
+
+@settings(deadline=None, max_examples=300)
+@given(
+    q=quaternion,
+    ra=angle_ra,
+    offset=pole_offset,
+    south=st.booleans(),
+    roll=st.sampled_from([0.0, HALF_PI, np.pi, 1.3]),
+)
+def test_radec_roll_from_matrix_equals_the_rotation_form(q, ra, offset, south, roll) -> None:
+    # the same NumPy operations on the same matrix: equal bit for bit, for any rotation and
+    # at and near the poles (and at the roll angles whose matrices hold exact zeros)
+    dec = (HALF_PI - offset) * (-1.0 if south else 1.0)
+    for rot in (Rotation.from_quat(q), attitude_from_radec_roll(ra, dec, roll)):
+        ref = tuple(float(a) for a in radec_roll_from_attitude(rot))
+        assert radec_roll_from_matrix(rot.as_matrix()) == ref
 
 
 @settings(deadline=None)

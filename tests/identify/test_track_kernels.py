@@ -139,6 +139,33 @@ def test_sandwich_equals_numpy(seed, n):
     assert np.all(np.abs(p2 - p1) <= 1e-13 * terms)
 
 
+@needs_kernel
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 40), m=st.integers(0, 12))
+def test_unblended_equals_numpy_bit_for_bit(seed, n, m):
+    # crowded predicted fields (neighbours at and around the blend distance), some stars behind
+    # the camera (NaN), matched stars drawn from the finite ones
+    rng = np.random.default_rng(seed)
+    near = np.sort(rng.choice(10 * n + 1, size=n, replace=False))
+    x, y = rng.uniform(0, 60, n), rng.uniform(0, 60, n)
+    x[: n // 3] = np.round(x[: n // 3])  # whole pixels: distances exactly at the blend distance
+    y[: n // 3] = np.round(y[: n // 3])
+    x[rng.random(n) < 0.1] = np.nan
+    finite = near[np.isfinite(x)]
+    cat = rng.choice(finite, size=min(m, len(finite)), replace=False) if len(finite) else near[:0]
+    blend = float(rng.choice([3.0, 5.0, rng.uniform(1, 10)]))
+    got = tk.unblended_compiled(cat, near, x=x, y=y, blend_px=blend)
+    ref = tk.unblended_numpy(cat, near, x=x, y=y, blend_px=blend)
+    assert got.dtype == bool and np.array_equal(got, ref)
+    # and against the distances themselves, star by star
+    ok = np.isfinite(x)
+    for c, alone in zip(cat, got, strict=True):
+        i = int(np.flatnonzero(near == c)[0])
+        d = np.hypot(x[ok] - x[i], y[ok] - y[i])
+        others = d[near[ok] != c]
+        assert alone == (len(others) == 0 or bool(others.min() > blend))
+
+
 @pytest.fixture(scope="module")
 def st16():
     return load_sensor("st16")

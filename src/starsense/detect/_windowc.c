@@ -85,8 +85,9 @@ static void join(int32_t *parent, int32_t a, int32_t b)
         parent[a] = b;
 }
 
-/* Scratch kept between calls (the GIL serialises them): per pixel of the windows the counts
- * less the level, whether lit, and the label; the flat indices of the lit pixels; the
+/* Scratch kept between calls (the GIL serialises them): one window's counts less the level
+ * (g_sub, plane(); sized as the others, its pages touched only as far as one window); per
+ * pixel of the windows whether lit, and the label; the flat indices of the lit pixels; the
  * union-find parents and final labels of the provisional labels. */
 static float *g_sub;
 static unsigned char *g_lit;
@@ -160,21 +161,21 @@ static Py_ssize_t label_windows(const unsigned char *lit, int32_t *lab, const in
     return n;
 }
 
-/* The windows cut from the frame less their level (float32), lit where above the threshold;
- * the lit pixels' flat indices in idx. Returns their number. */
+/* The windows cut from the frame less their level (float32) are lit where above the threshold:
+ * lit per pixel, and the lit pixels' flat indices in idx. Returns their number. The values
+ * themselves are written out only for the windows whose regions are centroided (plane()): a
+ * few of the windows' pixels, which keeps the caches of the caller's next steps. */
 #define CUT(T)                                                                              \
     for (Py_ssize_t p = 0; p < k; p++) {                                                    \
         float lv = level[p], th = thr[p];                                                   \
         for (Py_ssize_t i = 0; i < h; i++) {                                                \
             const T *restrict src = (const T *)f->data + (r0[p] + i) * f->cols + c0[p];     \
             Py_ssize_t at = (p * h + i) * w;                                                \
-            float *restrict d = sub + at;                                                   \
             unsigned char *restrict l = lit + at;                                           \
             unsigned char any = 0;                                                          \
             for (Py_ssize_t j = 0; j < w; j++) {                                            \
                 float v = (float)src[j] - lv;                                               \
                 unsigned char on = v > th;                                                  \
-                d[j] = v;                                                                   \
                 l[j] = on;                                                                  \
                 any |= on;                                                                  \
             }                                                                               \
@@ -188,7 +189,7 @@ static Py_ssize_t label_windows(const unsigned char *lit, int32_t *lab, const in
 
 static Py_ssize_t cut(const Frame *f, const int64_t *r0, const int64_t *c0, Py_ssize_t k,
                       Py_ssize_t h, Py_ssize_t w, const float *level, const float *thr,
-                      float *sub, unsigned char *lit, int32_t *idx)
+                      unsigned char *lit, int32_t *idx)
 {
     Py_ssize_t nlit = 0;
     switch (f->fmt) {
@@ -202,6 +203,31 @@ static Py_ssize_t cut(const Frame *f, const int64_t *r0, const int64_t *c0, Py_s
     default: CUT(double)
     }
     return nlit;
+}
+
+/* Window (rows r0.., columns c0.., h x w) of the frame less its level lv: CUT's values. */
+#define PLANE(T)                                                                            \
+    for (Py_ssize_t i = 0; i < h; i++) {                                                    \
+        const T *restrict src = (const T *)f->data + (r0 + i) * f->cols + c0;               \
+        float *restrict d = sub + i * w;                                                    \
+        for (Py_ssize_t j = 0; j < w; j++)                                                  \
+            d[j] = (float)src[j] - lv;                                                      \
+    }                                                                                       \
+    break;
+
+static void plane(const Frame *f, int64_t r0, int64_t c0, Py_ssize_t h, Py_ssize_t w, float lv,
+                  float *sub)
+{
+    switch (f->fmt) {
+    case 'B': PLANE(uint8_t)
+    case 'b': PLANE(int8_t)
+    case 'H': PLANE(uint16_t)
+    case 'h': PLANE(int16_t)
+    case 'I': PLANE(uint32_t)
+    case 'i': PLANE(int32_t)
+    case 'f': PLANE(float)
+    default: PLANE(double)
+    }
 }
 
 typedef struct {
@@ -376,9 +402,9 @@ static PyObject *detect_windows(PyObject *self, PyObject *args)
         PyErr_NoMemory();
         goto done;
     }
-    float *sub = g_sub;
+    float *sub = g_sub; /* one window's values at a time (plane()) */
     int32_t *lab = g_lab, *idx = g_idx;
-    Py_ssize_t nlit = cut(&frame, r0, c0, k, h, w, level, thr, sub, g_lit, idx);
+    Py_ssize_t nlit = cut(&frame, r0, c0, k, h, w, level, thr, g_lit, idx);
     Py_ssize_t n = label_windows(g_lit, lab, idx, nlit, h, w, connectivity != 4);
     reg = calloc(n + 1, sizeof(Region));
     if (reg == NULL) {
@@ -395,16 +421,16 @@ static PyObject *detect_windows(PyObject *self, PyObject *args)
         Region *g = &reg[lab[at]];
         g->plane = p;
         g->size++;
-        g->sum += (double)sub[at];
+        float v = pixel(&frame, r0[p] + i, c0[p] + j);
+        g->sum += (double)(v - level[p]); /* the value CUT thresholded */
         if (i < g->a) g->a = i;
         if (i + 1 > g->b) g->b = i + 1;
         if (j < g->c) g->c = j;
         if (j + 1 > g->d) g->d = j + 1;
-        float v = pixel(&frame, r0[p] + i, c0[p] + j);
         if (v > g->peak) g->peak = v;
     }
     double reach = 2.5 * sigma + 1.0;
-    Py_ssize_t m = 0;
+    Py_ssize_t m = 0, filled = -1; /* the window whose values sub holds */
     for (Py_ssize_t q = 1; q <= n; q++) {
         Region *g = &reg[q];
         Py_ssize_t p = g->plane;
@@ -419,9 +445,12 @@ static PyObject *detect_windows(PyObject *self, PyObject *args)
             goto done;
         }
         double *row = out + m * NCOL;
-        const float *plane = sub + p * h * w;
+        if (filled != p) {
+            plane(&frame, r0[p], c0[p], h, w, level[p], sub);
+            filled = p;
+        }
         double x, y;
-        cog(plane, h, w, g, margin, &x, &y);
+        cog(sub, h, w, g, margin, &x, &y);
         row[X] = x;
         row[Y] = y;
         row[COUNTS] = g->sum;
@@ -435,7 +464,7 @@ static PyObject *detect_windows(PyObject *self, PyObject *args)
         if (has_streaks) {
             double stx = streaks[2 * p], sty = streaks[2 * p + 1];
             if (hypot(stx, sty) >= 2.0 * sigma &&
-                streak_centroid(plane, h, w, x, y, stx, sty, reach, row)) {
+                streak_centroid(sub, h, w, x, y, stx, sty, reach, row)) {
                 /* a streak running off the frame: its centroid is pulled inwards */
                 double fx = row[X] + (double)c0[p], fy = row[Y] + (double)r0[p];
                 double hx = 0.5 * fabs(stx) + reach, hy = 0.5 * fabs(sty) + reach;
@@ -582,11 +611,45 @@ static PyObject *apart(PyObject *self, PyObject *args)
     return result;
 }
 
+/* count_inside(boxes, x, y, k, n) -> how many of the n points (x, y), rounded half to even
+ * (np.rint), lie in one of the k boxes (row0, row1, col0, col1; half-open), as
+ * window_kernels.count_inside_numpy. */
+static PyObject *count_inside(PyObject *self, PyObject *args)
+{
+    Py_buffer bb, xb, yb;
+    Py_ssize_t k, n;
+    if (!PyArg_ParseTuple(args, "y*y*y*nn", &bb, &xb, &yb, &k, &n))
+        return NULL;
+    PyObject *result = NULL;
+    if (check(&bb, k * 32, "boxes") && check(&xb, n * 8, "x") && check(&yb, n * 8, "y")) {
+        const int64_t *box = bb.buf;
+        const double *x = xb.buf, *y = yb.buf;
+        Py_ssize_t count = 0;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            double xi = nearbyint(x[i]), yi = nearbyint(y[i]);
+            for (Py_ssize_t j = 0; j < k; j++) {
+                const int64_t *b = box + 4 * j;
+                if (yi >= (double)b[0] && yi < (double)b[1] && xi >= (double)b[2] &&
+                    xi < (double)b[3]) {
+                    count++;
+                    break;
+                }
+            }
+        }
+        result = PyLong_FromSsize_t(count);
+    }
+    PyBuffer_Release(&bb);
+    PyBuffer_Release(&xb);
+    PyBuffer_Release(&yb);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"detect_windows", detect_windows, METH_VARARGS,
      "Detect and centroid the stars of tracking windows (see _windowc.c)."},
     {"union_area", union_area, METH_VARARGS, "Pixels covered by a union of boxes."},
     {"apart", apart, METH_VARARGS, "Rows kept at least 2 px from those kept before."},
+    {"count_inside", count_inside, METH_VARARGS, "Points inside a union of boxes."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_windowc", NULL, -1, methods};

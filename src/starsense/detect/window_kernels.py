@@ -30,6 +30,8 @@ __all__ = [
     "NO_ROWS",
     "apart_compiled",
     "apart_numpy",
+    "count_inside_compiled",
+    "count_inside_numpy",
     "detect_stack_compiled",
     "detect_stack_numpy",
     "float32_below",
@@ -315,6 +317,41 @@ def union_area_compiled(boxes: np.ndarray) -> int | None:
     return _windowc.union_area(boxes, len(boxes))
 
 
+def count_inside_numpy(boxes: np.ndarray, x, y) -> int:
+    """Return how many positions (x, y), px, rounded (``np.rint``), lie in one of the boxes.
+
+    Parameters
+    ----------
+    boxes : ndarray of int, shape (K, 4)
+        Row0, row1, col0, col1 (half-open) of each box.
+    x, y : array_like, shape (N,)
+        Positions, px (x = column, y = row); NaN lies in none.
+
+    Returns
+    -------
+    int
+    """
+    xi = np.rint(np.asarray(x, dtype=float))[:, None]
+    yi = np.rint(np.asarray(y, dtype=float))[:, None]
+    r0, r1, c0, c1 = np.asarray(boxes).T
+    inside = (yi >= r0) & (yi < r1) & (xi >= c0) & (xi < c1)
+    return int(np.count_nonzero(inside.any(axis=1)))
+
+
+def count_inside_compiled(boxes: np.ndarray, x, y) -> int | None:
+    """:func:`count_inside_numpy` in the compiled kernel (the same comparisons); None if unbuilt."""
+    if _windowc is None:
+        return None
+    x = np.ascontiguousarray(x, dtype=float)
+    return _windowc.count_inside(
+        np.ascontiguousarray(boxes, dtype=np.int64),
+        x,
+        np.ascontiguousarray(y, dtype=float),
+        len(boxes),
+        len(x),
+    )
+
+
 def apart_numpy(x: np.ndarray, y: np.ndarray, order: np.ndarray) -> np.ndarray:
     """Return the positions in ``order`` of the rows kept at least 2 px from those kept before.
 
@@ -418,15 +455,15 @@ def detect_stack_compiled(image, size, *, corners, level, threshold, logic, sigm
     )
     if n == 0:
         return NO_ROWS, 0
-    o = out[:m]
+    o = out[:m].copy()  # nothing returned is the scratch buffer: views of one copy
     rows = (
-        o[:, 0].copy(),
-        o[:, 1].copy(),
-        o[:, 2].copy(),
+        o[:, 0],
+        o[:, 1],
+        o[:, 2],
         o[:, 3].astype(np.intp),
-        o[:, 4].copy(),
+        o[:, 4],
         o[:, 5:9].astype(np.intp),
-        o[:, 9:13].reshape(m, 2, 2).copy(),  # nothing returned is the scratch buffer
+        o[:, 9:13].reshape(m, 2, 2),
     )
     return rows, n
 

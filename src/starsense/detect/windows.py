@@ -31,6 +31,8 @@ from starsense.detect.threshold import Detections, StarDetector
 from starsense.detect.window_kernels import (
     apart_compiled,
     apart_numpy,
+    count_inside_compiled,
+    count_inside_numpy,
     detect_stack_compiled,
     detect_stack_numpy,
     float32_below,
@@ -61,22 +63,26 @@ class WindowDetections:
         Pixels searched (the union of the windows).
     boxes : ndarray of int, shape (K, 4) or None
         Row0, row1, col0, col1 (half-open) of each window (None: the whole frame).
+    compiled : bool
+        Whether :meth:`count_inside` uses the compiled kernel where it is built.
     """
 
     detections: object
     n_windows: int
     region_px: int
     boxes: np.ndarray | None = None
+    compiled: bool = True
 
     def count_inside(self, x, y) -> int:
-        """Return how many of the positions (x, y), px, lie in a window (-1: whole frame)."""
+        """Return how many of the positions (x, y), px, lie in a window (-1: whole frame).
+
+        A position is rounded to its pixel (``np.rint``); in the compiled kernel where it is
+        built and ``compiled``, else :func:`~starsense.detect.window_kernels.count_inside_numpy`.
+        """
         if self.boxes is None:
             return -1
-        xi = np.rint(np.asarray(x, dtype=float))[:, None]
-        yi = np.rint(np.asarray(y, dtype=float))[:, None]
-        r0, r1, c0, c1 = self.boxes.T
-        inside = (yi >= r0) & (yi < r1) & (xi >= c0) & (xi < c1)
-        return int(np.count_nonzero(inside.any(axis=1)))
+        got = count_inside_compiled(self.boxes, x, y) if self.compiled else None
+        return count_inside_numpy(self.boxes, x, y) if got is None else got
 
 
 def union_area(boxes: np.ndarray, *, compiled: bool = True) -> int:
@@ -193,20 +199,21 @@ def _detections(rows, noise: float, n_candidates: int, saturation, compiled: boo
     keep = apart_compiled(x, y, order) if compiled else None
     keep = apart_numpy(x, y, order) if keep is None else keep
     sel = order[keep]
-    peak = peak[sel].astype(float)
+    # (the selections are copies already: no second copy to change a type it has)
+    peak = peak[sel].astype(float, copy=False)
     return Detections(
-        x=x[sel].astype(float),
-        y=y[sel].astype(float),
-        integrated_counts=counts[sel].astype(float),
-        n_pixels=n_pixels[sel].astype(int),
+        x=x[sel].astype(float, copy=False),
+        y=y[sel].astype(float, copy=False),
+        integrated_counts=counts[sel].astype(float, copy=False),
+        n_pixels=n_pixels[sel].astype(int, copy=False),
         peak_counts=peak,
         saturated=peak >= saturation if saturation is not None else np.zeros(len(sel), bool),
-        bbox=box[sel].astype(int).reshape(-1, 4),
+        bbox=box[sel].astype(int, copy=False).reshape(-1, 4),
         fit_ok=np.ones(len(sel), bool),
         n_candidates=int(n_candidates),
         noise_counts=noise,
         method="cog",
-        extra={"spread_px2": spread[sel].astype(float).reshape(-1, 2, 2)},
+        extra={"spread_px2": spread[sel].astype(float, copy=False).reshape(-1, 2, 2)},
     )
 
 
@@ -286,4 +293,5 @@ class WindowDetector:
             got[0], _median_noise(noise), got[1], self.camera.saturation_counts, self.compiled
         )
         boxes = columns(r0, r0 + h, c0, c0 + w)
-        return WindowDetections(det, n, union_area(boxes, compiled=self.compiled), boxes)
+        area = union_area(boxes, compiled=self.compiled)
+        return WindowDetections(det, n, area, boxes, self.compiled)

@@ -63,6 +63,7 @@ from starsense._validate import finite_array as _finite_array
 from starsense._validate import vectors3 as _as_vectors
 from starsense.errors import InputError
 from starsense.geometry.projection import (
+    POLE_COS_DEC,
     radec_to_vectors,
     scalar_or_array,
     vectors_to_radec,
@@ -75,6 +76,7 @@ __all__ = [
     "boresight",
     "east_north",
     "radec_roll_from_attitude",
+    "radec_roll_from_matrix",
     "radec_to_vectors",
     "small_rotation_angles",
     "vectors_to_radec",
@@ -227,6 +229,45 @@ def radec_roll_from_attitude(
     y_east = np.einsum("...i,...i->...", y, east)
     roll = wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
     return ra, dec, scalar_or_array(np.asarray(roll))
+
+
+def radec_roll_from_matrix(matrix: ArrayLike) -> tuple[float, float, float]:
+    """(RA, Dec, roll) of one attitude given as its matrix, rad: a per-frame loop's form.
+
+    :func:`radec_roll_from_attitude` of ``Rotation.from_matrix(matrix)`` when ``matrix`` is
+    that Rotation's ``as_matrix()``: the same NumPy operations on the same values, equal bit
+    for bit, without the checks of a user's input and the batch handling (a third of the time).
+
+    Parameters
+    ----------
+    matrix : array_like, shape (3, 3)
+        Attitude matrix (ICRS -> camera), rows the camera axes in ICRS.
+
+    Returns
+    -------
+    ra_rad, dec_rad, roll_rad : float
+        As :func:`radec_roll_from_attitude`.
+    """
+    m = np.asarray(matrix, dtype=np.float64)
+    x, y, z = m[0], m[1], m[2]
+    # vectors_to_radec(z)
+    rho = np.hypot(z[0], z[1])
+    if rho == 0.0 and z[2] == 0.0:
+        raise InputError("vectors contains a zero vector, which has no direction")
+    ra = wrap_two_pi(np.arctan2(z[1], z[0]))
+    ra = np.where(rho <= POLE_COS_DEC * np.abs(z[2]), 0.0, ra)
+    dec = np.arctan2(z[2], rho)
+    # east_north(ra, dec) and the roll, as radec_roll_from_attitude
+    sin_ra, cos_ra = np.sin(ra), np.cos(ra)
+    sin_dec, cos_dec = np.sin(dec), np.cos(dec)
+    east = np.array([-sin_ra, cos_ra, 0.0])  # np.stack of the 0-d values, without its cost
+    north = np.array([-sin_dec * cos_ra, -sin_dec * sin_ra, cos_dec])
+    x_north = np.einsum("...i,...i->...", x, north)
+    y_north = np.einsum("...i,...i->...", y, north)
+    x_east = np.einsum("...i,...i->...", x, east)
+    y_east = np.einsum("...i,...i->...", y, east)
+    roll = wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
+    return float(ra), float(dec), float(roll)
 
 
 def angular_separation(u: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | np.float64:

@@ -16,6 +16,7 @@ from starsense._validate import vectors3 as _as_vectors
 from starsense.errors import InputError
 
 __all__ = [
+    "POLE_COS_DEC",
     "radec_to_vectors",
     "scalar_or_array",
     "tangent_to_vectors",
@@ -28,9 +29,9 @@ __all__ = [
 TWO_PI = 2.0 * np.pi
 HALF_PI = 0.5 * np.pi
 
-# Below this value of cos(dec) a direction is treated as being exactly at a pole and RA is set
-# to 0 (a few ulp of a unit vector component).
-_POLE_COS_DEC = 1e-15
+#: Below this value of cos(dec) a direction is treated as being exactly at a pole and RA is set
+#: to 0 (a few ulp of a unit vector component).
+POLE_COS_DEC = 1e-15
 
 
 def wrap_two_pi(angle_rad: ArrayLike) -> NDArray[np.float64]:
@@ -136,7 +137,7 @@ def vectors_to_radec(
     if np.any((rho == 0.0) & (v[..., 2] == 0.0)):
         raise InputError("vectors contains a zero vector, which has no direction")
     ra = wrap_two_pi(np.arctan2(v[..., 1], v[..., 0]))
-    ra = np.where(rho <= _POLE_COS_DEC * np.abs(v[..., 2]), 0.0, ra)
+    ra = np.where(rho <= POLE_COS_DEC * np.abs(v[..., 2]), 0.0, ra)
     dec = np.arctan2(v[..., 2], rho)
     return scalar_or_array(ra), scalar_or_array(dec)
 

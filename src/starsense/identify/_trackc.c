@@ -22,6 +22,9 @@
  *           equal to rounding, 1e-13 relative for the condition numbers of a star field).
  * sandwich  P = F^-1 (sum_i w_i^2 J_i^T G_i C_i G_i^T J_i) F^-1 of star_noise.py: the same sums
  *           in another order (1e-13 relative).
+ * unblended whether each matched star has no other predicted star within the blend distance
+ *           (solve/tracking/field.py): the same squared distances, minimum and square root,
+ *           equal to the NumPy form bit for bit.
  *
  * Built with -ffp-contract=off (no fused multiply-add), as an optional extension: without a C
  * compiler the package uses the NumPy form. No NumPy headers: arrays arrive through the buffer
@@ -474,6 +477,80 @@ done:
     return result;
 }
 
+/* unblended(x, y, near, n, cat_index, m, blend_px, out) -> None
+ * out[j] (uint8) = 1 where matched star cat_index[j] has no other predicted star within
+ * blend_px: over the predicted stars with finite x and y (near ascending), the star's position
+ * by a left binary search of cat_index[j] in their near (the last where beyond), the least
+ * dx^2 + dy^2 to the others, compared after its square root; every out 1 with fewer than two
+ * such stars (track_kernels.unblended_numpy). */
+static PyObject *unblended(PyObject *self, PyObject *args)
+{
+    Py_buffer xb, yb, nb, cb, ob;
+    Py_ssize_t n, m;
+    double blend;
+    PyObject *result = NULL;
+    double *xo = NULL;
+    if (!PyArg_ParseTuple(args, "y*y*y*ny*ndw*", &xb, &yb, &nb, &n, &cb, &m, &blend, &ob))
+        return NULL;
+    if (!check(&xb, n * 8, "x") || !check(&yb, n * 8, "y") || !check(&nb, n * 8, "near") ||
+        !check(&cb, m * 8, "cat_index") || !check(&ob, m, "out"))
+        goto done;
+    xo = malloc((n > 0 ? n : 1) * (2 * sizeof(double) + sizeof(int64_t)));
+    if (xo == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    {
+        const double *x = xb.buf, *y = yb.buf;
+        const int64_t *near = nb.buf, *cat = cb.buf;
+        unsigned char *out = ob.buf;
+        double *yo = xo + n;
+        int64_t *no = (int64_t *)(yo + n);
+        Py_ssize_t k = 0;
+        for (Py_ssize_t i = 0; i < n; i++)
+            if (isfinite(x[i]) && isfinite(y[i])) {
+                xo[k] = x[i];
+                yo[k] = y[i];
+                no[k++] = near[i];
+            }
+        for (Py_ssize_t j = 0; j < m; j++) {
+            if (k < 2) {
+                out[j] = 1;
+                continue;
+            }
+            Py_ssize_t lo = 0, hi = k; /* np.searchsorted(no, cat[j]) (side "left") */
+            while (lo < hi) {
+                Py_ssize_t mid = lo + (hi - lo) / 2;
+                if (no[mid] < cat[j])
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            Py_ssize_t w = lo < k - 1 ? lo : k - 1;
+            double best = INFINITY;
+            for (Py_ssize_t i = 0; i < k; i++) {
+                if (i == w)
+                    continue; /* the star itself */
+                double dx = xo[w] - xo[i], dy = yo[w] - yo[i];
+                double d2 = dx * dx + dy * dy;
+                if (d2 < best)
+                    best = d2;
+            }
+            out[j] = sqrt(best) > blend;
+        }
+        Py_INCREF(Py_None);
+        result = Py_None;
+    }
+done:
+    free(xo);
+    PyBuffer_Release(&xb);
+    PyBuffer_Release(&yb);
+    PyBuffer_Release(&nb);
+    PyBuffer_Release(&cb);
+    PyBuffer_Release(&ob);
+    return result;
+}
+
 /* fisher_inverse(body, sigma, n, rcond, out) -> bool
  * F = sum_i sigma_i^-2 (I - b_i b_i^T) (Fialho & Mortari 2019 eq. 21, attitude/covariance.py)
  * and out = F^-1 (adjugate / determinant); False (out unset) where F is not finite or singular
@@ -572,6 +649,7 @@ static PyMethodDef methods[] = {
     {"match", match, METH_VARARGS, "TrackingIdentifier's pair-fit-pair loop."},
     {"fisher_inverse", fisher_inverse, METH_VARARGS, "Inverse Fisher matrix of weighted stars."},
     {"sandwich", sandwich, METH_VARARGS, "Covariance of the weighted SVD attitude."},
+    {"unblended", unblended, METH_VARARGS, "Matched stars with no predicted neighbour near."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_trackc", NULL, -1, methods};

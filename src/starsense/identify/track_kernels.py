@@ -17,6 +17,8 @@ does not have.
 * :func:`fisher_inverse_compiled`: the Fisher matrix and its inverse with the singularity test
   of :func:`~starsense.attitude.covariance.covariance` (to rounding).
 * :func:`sandwich_compiled` sums the same products in another order: ~1e-13 relative.
+* :func:`unblended_compiled` equals :func:`unblended_numpy` bit for bit (the same squared
+  distances, minimum and square root).
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ __all__ = [
     "pair_numpy",
     "sandwich_compiled",
     "sandwich_numpy",
+    "unblended_compiled",
+    "unblended_numpy",
 ]
 
 #: Whether the compiled kernel is built.
@@ -325,3 +329,59 @@ def sandwich_compiled(body, g, cov, *, w, inv) -> np.ndarray | None:
         out,
     )
     return out
+
+
+def unblended_numpy(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
+    """Return whether each matched star has no other predicted star within ``blend_px``.
+
+    The nearest other predicted star of each, by direct comparison (a few dozen stars), among
+    those with a finite position.
+
+    Parameters
+    ----------
+    cat_index : ndarray of int, shape (M,)
+        Database indices of the matched stars (all in ``near``).
+    near : ndarray of int, shape (N,)
+        Database indices of the predicted stars, ascending.
+    x, y : ndarray, shape (N,)
+        Their predicted positions, px (NaN: behind the camera).
+    blend_px : float
+        Distance below which two stars blend, px.
+
+    Returns
+    -------
+    ndarray of bool, shape (M,)
+    """
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.all():  # (every predicted star in front of the camera): no selection
+        xo, yo, near_ok = x, y, near
+    else:
+        xo, yo, near_ok = x[ok], y[ok], near[ok]
+    if len(xo) < 2:
+        return np.ones(len(cat_index), bool)
+    where = np.minimum(near_ok.searchsorted(cat_index), len(xo) - 1)
+    dx = xo[where][:, None] - xo[None, :]
+    dy = yo[where][:, None] - yo[None, :]
+    d2 = dx * dx + dy * dy
+    d2[np.arange(len(where)), where] = np.inf  # the star itself
+    return np.sqrt(d2.min(axis=1)) > blend_px
+
+
+def unblended_compiled(cat_index, near, *, x, y, blend_px: float) -> np.ndarray | None:
+    """:func:`unblended_numpy` in the compiled kernel (bit for bit); None where not built."""
+    if _trackc is None:
+        return None
+    cat_index = np.ascontiguousarray(cat_index, dtype=np.int64)
+    x = np.ascontiguousarray(x, dtype=float)
+    out = np.empty(len(cat_index), np.uint8)
+    _trackc.unblended(
+        x,
+        np.ascontiguousarray(y, dtype=float),
+        np.ascontiguousarray(near, dtype=np.int64),
+        len(x),
+        cat_index,
+        len(cat_index),
+        float(blend_px),
+        out,
+    )
+    return out.view(bool)

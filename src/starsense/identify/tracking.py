@@ -288,15 +288,62 @@ class TrackingIdentifier:
         v = validate_vectors(vectors_cam)
         r_s = check_scalar(search_radius_rad, "search_radius_rad", 0.0, 0.5, lo_open=True)
         field_r = check_scalar(field_radius_rad, "field_radius_rad", 0.0, math.pi / 2)
+        if candidates is not None:
+            candidates = np.asarray(candidates, dtype=np.int64).reshape(-1)
+        return self.match_checked(
+            v,
+            prior.as_matrix(),
+            search_radius_rad=r_s,
+            field_radius_rad=field_r,
+            region=region,
+            candidates=candidates,
+            t0=t0,
+        )
+
+    def match_checked(
+        self,
+        vectors_cam: np.ndarray,
+        prior_matrix: np.ndarray,
+        *,
+        search_radius_rad: float,
+        field_radius_rad: float,
+        region: tuple[float, int] | None = None,
+        candidates: np.ndarray | None = None,
+        t0: float | None = None,
+    ) -> TrackingMatch:
+        """:meth:`__call__` on inputs already checked: a caller's per-frame loop (tracking).
+
+        Parameters
+        ----------
+        vectors_cam : ndarray of float64, shape (N, 3)
+            Unit detection directions in the camera frame (z > 0), brightest first (as
+            :func:`~starsense.identify.result.validate_vectors` returns them).
+        prior_matrix : ndarray, shape (3, 3)
+            The predicted attitude's matrix (ICRS -> camera).
+        search_radius_rad, field_radius_rad : float
+            As :meth:`__call__`, in its ranges.
+        region : (float, int), optional
+            As :meth:`__call__`.
+        candidates : ndarray of int64, shape (M,), optional
+            As :meth:`__call__`.
+        t0 : float, optional
+            ``time.perf_counter()`` at the start of the call (default now).
+
+        Returns
+        -------
+        TrackingMatch
+        """
+        t0 = time.perf_counter() if t0 is None else t0
+        v, r_s, field_r = vectors_cam, search_radius_rad, field_radius_rad
         db = self.database
         cone = min(field_r + r_s, math.pi / 2)
-        r = prior.as_matrix()
+        r = prior_matrix
         if candidates is None:
             centre = r[2]  # the boresight in ICRS: R^T z
             near = np.asarray(db.tree.query_ball_point(centre, _chord(cone)), dtype=np.int64)
             near.sort()
         else:
-            near = np.asarray(candidates, dtype=np.int64).reshape(-1)
+            near = candidates
         if region is None:
             region = (2 * math.pi * (1 - math.cos(cone)), len(near))
 

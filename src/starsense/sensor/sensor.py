@@ -25,7 +25,6 @@ from starsense._validate import check_scalar
 from starsense.errors import InputError
 from starsense.geometry.distortion import distort, distortion_jacobian, undistort
 from starsense.geometry.fov import RectangularFov
-from starsense.geometry.projection import tangent_to_vectors
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
 from starsense.sensor.optics import Optics
@@ -280,7 +279,16 @@ class Sensor:
                 raise InputError(
                     "pixel position beyond the fold of the distortion model (optics.distortion_*)"
                 )
-        return tangent_to_vectors(np.stack([u, w], axis=-1))
+        # tangent_to_vectors(stack([u, w])) without its copies: the same norm, summed in the
+        # same order (u^2 + w^2 + 1), and the same quotients
+        norm = np.sqrt(u * u + w * w + 1.0)
+        if not np.isfinite(norm).all():
+            raise InputError("pixel coordinates must be finite")
+        out = np.empty((*norm.shape, 3))
+        np.divide(u, norm, out=out[..., 0])
+        np.divide(w, norm, out=out[..., 1])
+        np.divide(1.0, norm, out=out[..., 2])
+        return out
 
     def exposure_or(self, exposure_s: float | None = None) -> float:
         """Return the exposure to use: ``exposure_s`` if given, else the sensor's own, s.

@@ -1,7 +1,15 @@
-"""The answer of a solve: :class:`Solution` (attitude, matches, residuals, WCS)."""
+"""The answer of a solve: :class:`Solution` (attitude, matches, residuals, WCS).
+
+A solver that holds its attitude as a matrix may give the fields derived from it (the
+Rotation, RA/Dec/roll, the 1-sigma errors, the match and centroid tables) as :class:`Deferred`
+values: each is computed when
+first read, by the same code and with the same result as computing it at once, so a caller
+that never reads it (a tracking loop that keeps the matrix) does not pay for it.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, TypeAlias
@@ -12,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from starsense.solve.wcs import solution_wcs, write_solution_wcs
 from starsense.units import RAD_TO_ARCSEC
 
-__all__ = ["Solution", "SolveStatus"]
+__all__ = ["Deferred", "Solution", "SolveStatus", "allow_deferred"]
 
 #: The values of :attr:`Solution.status`: "solved", or why not (the identification's own
 #: reasons, :data:`starsense.identify.result.IdentificationStatus`, among them); tracking adds
@@ -29,6 +37,87 @@ SolveStatus: TypeAlias = Literal[
     "unverified",
     "unreadable",
 ]
+
+
+class Deferred:
+    """A field value computed on first read: ``Deferred(compute)``, ``compute()`` the value.
+
+    Several fields computed together share one call: ``Deferred(compute, index=i)`` is item
+    ``i`` of ``compute()``; wrap ``compute`` in :func:`functools.cache` so it runs once.
+
+    Parameters
+    ----------
+    compute : callable
+        Takes no argument, returns the value (or a sequence of values with ``index``).
+    index : int, optional
+        The item of ``compute()`` this field takes.
+    """
+
+    __slots__ = ("compute", "index")
+
+    def __init__(self, compute: Callable[[], object], *, index: int | None = None) -> None:
+        self.compute = compute
+        self.index = index
+
+    def value(self) -> object:
+        """Return the value (calls ``compute``)."""
+        got = self.compute()
+        return got if self.index is None else got[self.index]
+
+
+class _DeferredField:
+    """A dataclass field whose stored value may be :class:`Deferred`: computed when read.
+
+    Installed on the class after the dataclass is made (its ``__init__`` stores through it).
+    """
+
+    def __init__(self, name: str) -> None:
+        self.slot = "_" + name  # where an instance keeps the value
+
+    def __get__(self, obj: object, objtype: type | None = None) -> object:
+        if obj is None:
+            return self
+        value = obj.__dict__[self.slot]
+        if isinstance(value, Deferred):
+            value = value.value()
+            obj.__dict__[self.slot] = value
+        return value
+
+    def __set__(self, obj: object, value: object) -> None:
+        obj.__dict__[self.slot] = value
+
+
+def _resolved_state(self) -> dict:
+    """Return the instance's fields with every deferred one computed (for pickle and copy)."""
+    for name in type(self).deferred_fields:
+        getattr(self, name)
+    return dict(self.__dict__)
+
+
+def allow_deferred(cls: type, *names: str) -> type:
+    """Let the fields ``names`` of the dataclass ``cls`` be given as :class:`Deferred`.
+
+    Installs a descriptor per field (the dataclass's ``__init__`` stores through it; a read
+    computes a :class:`Deferred` once and keeps the value) and a ``__getstate__`` that computes
+    them all, so that pickle and copy keep values, not the calls.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass (frozen or not, without ``__slots__``).
+    *names : str
+        Its fields that may be deferred.
+
+    Returns
+    -------
+    type
+        ``cls``, changed in place.
+    """
+    for name in names:
+        setattr(cls, name, _DeferredField(name))
+    cls.deferred_fields = (*getattr(cls, "deferred_fields", ()), *names)
+    cls.__getstate__ = _resolved_state
+    return cls
 
 
 def _deg(angle_rad: float | None) -> float | None:
@@ -55,7 +144,8 @@ class Solution:
     message : str
         A sentence about the outcome.
     ra_rad, dec_rad, roll_rad : float or None
-        Boresight and roll of the attitude, rad.
+        Boresight and roll of the attitude, rad. These, ``sigma_rad``, ``rotation``,
+        ``matches`` and ``centroids_px`` may be given as :class:`Deferred` (module docstring).
     fov_rad : float or None
         Horizontal field across the image width, rad (given, or found by the scale search).
     n_detections, n_matched : int
@@ -192,3 +282,8 @@ class Solution:
             "counts": self.counts,
             "notes": list(self.notes),
         }
+
+
+allow_deferred(
+    Solution, "ra_rad", "dec_rad", "roll_rad", "sigma_rad", "rotation", "matches", "centroids_px"
+)

@@ -18,6 +18,7 @@ import numpy as np
 
 from starsense.detect.streak import columns
 from starsense.detect.windows import WindowDetector
+from starsense.identify.track_kernels import unblended_compiled, unblended_numpy
 from starsense.identify.tracking import TrackingIdentifier
 
 __all__ = ["TrackingSetup", "half_turn", "predicted_field", "tracking_setup", "unblended"]
@@ -45,6 +46,8 @@ class TrackingSetup:
         The CoG window's margin, px.
     corners : ndarray, shape (4, 3)
         Unit vectors of the field's corners, camera frame.
+    fov_rad : float
+        Full width of the field across the columns, rad (``2 half_fov_rad[0]``).
     """
 
     sensor: object
@@ -55,6 +58,7 @@ class TrackingSetup:
     field_r: float
     margin_px: int
     corners: np.ndarray
+    fov_rad: float
 
 
 _SETUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -90,8 +94,9 @@ def tracking_setup(solver) -> TrackingSetup:
         tx, ty = (math.tan(h) for h in sensor.half_fov_rad)
         corners = np.array([[-tx, -ty, 1.0], [-tx, ty, 1.0], [tx, -ty, 1.0], [tx, ty, 1.0]])
         corners /= math.sqrt(tx * tx + ty * ty + 1.0)
+        fov = 2.0 * sensor.half_fov_rad[0]
         got = TrackingSetup(
-            sensor, settings.background, db, ident, windows, field_r, margin, corners
+            sensor, settings.background, db, ident, windows, field_r, margin, corners, fov
         )
         _SETUPS[solver] = got
     return got
@@ -142,8 +147,8 @@ def predicted_field(sensor, db, rot, *, r_s, field_r, half_turn_matrix):
         Projects camera-frame vectors to pixels.
     db : IdentificationDatabase
         The stars (unit vectors, KD-tree), brightest first.
-    rot : Rotation
-        The predicted attitude (ICRS -> camera).
+    rot : ndarray, shape (3, 3)
+        The predicted attitude's matrix (ICRS -> camera).
     r_s : float
         Search radius, rad.
     field_r : float
@@ -162,7 +167,7 @@ def predicted_field(sensor, db, rot, *, r_s, field_r, half_turn_matrix):
     streaks : ndarray, shape (N, 2) or None
         The streak (start to end, px) of each over the exposure; None without a rate.
     """
-    r = rot.as_matrix()
+    r = rot
     centre = r[2]  # the boresight in ICRS: R^T z
     near = db.tree.query_ball_point(centre, 2 * math.sin((field_r + r_s) / 2), return_sorted=True)
     near = np.asarray(near, dtype=np.intp)
@@ -189,7 +194,8 @@ def unblended(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
 
     A double star (two catalogue stars a few pixels apart) is detected as one blended spot
     whose centroid lies between them: it is left out of the fit when others remain. The
-    nearest other predicted star of each, by direct comparison (a few dozen stars).
+    nearest other predicted star of each, by direct comparison (a few dozen stars;
+    :func:`~starsense.identify.track_kernels.unblended_numpy`, compiled where built).
 
     Parameters
     ----------
@@ -204,13 +210,5 @@ def unblended(cat_index, near, *, x, y, blend_px: float) -> np.ndarray:
     -------
     ndarray of bool, shape (M,)
     """
-    ok = np.isfinite(x) & np.isfinite(y)
-    xo, yo = x[ok], y[ok]
-    if len(xo) < 2:
-        return np.ones(len(cat_index), bool)
-    where = np.minimum(np.searchsorted(near[ok], cat_index), len(xo) - 1)
-    dx = xo[where][:, None] - xo[None, :]
-    dy = yo[where][:, None] - yo[None, :]
-    d2 = dx * dx + dy * dy
-    d2[np.arange(len(where)), where] = np.inf  # the star itself
-    return np.sqrt(d2.min(axis=1)) > blend_px
+    got = unblended_compiled(cat_index, near, x=x, y=y, blend_px=blend_px)
+    return unblended_numpy(cat_index, near, x=x, y=y, blend_px=blend_px) if got is None else got

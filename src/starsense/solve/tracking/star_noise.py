@@ -40,7 +40,14 @@ from starsense.identify.track_kernels import (
     sandwich_numpy,
 )
 
-__all__ = ["OUTLIER_SIGMA", "StarNoise", "fit_robust", "star_noise"]
+__all__ = [
+    "OUTLIER_SIGMA",
+    "StarNoise",
+    "fit_robust",
+    "fit_robust_matrix",
+    "rms_angle",
+    "star_noise",
+]
 
 _EYE2 = np.eye(2)
 
@@ -158,7 +165,7 @@ def star_noise(
         cog = cog * eye
         cog[along] = cov[along]
         cov = cog
-    if rate_rad_s is None or not np.any(rate_rad_s):
+    if rate_rad_s is None or not np.asarray(rate_rad_s).any():
         return StarNoise(sensor, x, y, cov)
     b = sensor.unproject(x, y) if vectors is None else vectors
     h = half_turn
@@ -194,6 +201,39 @@ def _fisher_covariance(body, sigma):
     return got
 
 
+def fit_robust_matrix(body, ref, sigma):
+    """:func:`fit_robust` with the attitude as a matrix (no Rotation is built).
+
+    Returns
+    -------
+    matrix : ndarray, shape (3, 3)
+        The attitude (ICRS -> camera), orthonormal to rounding (an SVD's U V^T).
+    covariance_rad2 : ndarray, shape (3, 3)
+        ``F^-1`` of the stars kept, rad^2.
+    residuals_rad : ndarray, shape (M,)
+        Residual angles of the stars kept, rad.
+    loss : float
+        Wahba's loss of the fit.
+    keep : ndarray of int, shape (M,)
+        The indices of the stars kept.
+    """
+    # the estimator's check first: SingularGeometryError for stars that fix no attitude (a
+    # subset dropped to is checked again at the end)
+    cov = _fisher_covariance(body, sigma)
+    keep = np.arange(len(body))
+    c, resid, chord2 = _svd_fit(body, ref, sigma)
+    while len(keep) > 3:
+        z = resid / sigma[keep]
+        worst = int(z.argmax())
+        if z[worst] <= OUTLIER_SIGMA:
+            break
+        keep = np.delete(keep, worst)
+        c, resid, chord2 = _svd_fit(body[keep], ref[keep], sigma[keep])
+    if len(keep) < len(body):
+        cov = _fisher_covariance(body[keep], sigma[keep])
+    return c, cov, resid, 0.5 * float(np.add.reduce(chord2 / sigma[keep] ** 2)), keep
+
+
 def fit_robust(body, ref, sigma):
     """SVD attitude with the worst star dropped while its residual exceeds OUTLIER_SIGMA.
 
@@ -214,28 +254,20 @@ def fit_robust(body, ref, sigma):
         The fit (SVD, as :func:`~starsense.attitude.estimate_attitude` with "svd"), and the
         indices of the stars kept.
     """
-    # the estimator's check first: SingularGeometryError for stars that fix no attitude (a
-    # subset dropped to is checked again at the end)
-    cov = _fisher_covariance(body, sigma)
-    keep = np.arange(len(body))
-    c, resid, chord2 = _svd_fit(body, ref, sigma)
-    while len(keep) > 3:
-        z = resid / sigma[keep]
-        worst = int(z.argmax())
-        if z[worst] <= OUTLIER_SIGMA:
-            break
-        keep = np.delete(keep, worst)
-        c, resid, chord2 = _svd_fit(body[keep], ref[keep], sigma[keep])
-    if len(keep) < len(body):
-        cov = _fisher_covariance(body[keep], sigma[keep])
+    c, cov, resid, loss, keep = fit_robust_matrix(body, ref, sigma)
     att = AttitudeSolution(
         # c is orthogonal to rounding (an SVD's U V^T): scipy's re-normalisation is skipped
         rotation=Rotation.from_matrix(c, assume_valid=True),
         covariance_rad2=cov,
-        residual_rms_rad=math.sqrt(float(np.add.reduce(resid * resid)) / len(resid)),
+        residual_rms_rad=rms_angle(resid),
         residuals_rad=resid,
         method="svd",
         n_stars=len(keep),
-        loss=0.5 * float(np.add.reduce(chord2 / sigma[keep] ** 2)),
+        loss=loss,
     )
     return att, keep
+
+
+def rms_angle(resid: np.ndarray) -> float:
+    """Return the rms of residual angles, rad (as :func:`fit_robust` reports it)."""
+    return math.sqrt(float(np.add.reduce(resid * resid)) / len(resid))

@@ -26,10 +26,10 @@ from starsense.attitude.rate import predict_attitude
 from starsense.detect.streak import columns
 from starsense.detect.windows import streak_px
 from starsense.errors import InputError
-from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_attitude
-from starsense.solve.solution import Solution, SolveStatus
+from starsense.geometry.attitude import attitude_from_radec_roll, radec_roll_from_matrix
+from starsense.solve.solution import Deferred, Solution, SolveStatus, allow_deferred
 from starsense.solve.tracking.field import half_turn, predicted_field, tracking_setup, unblended
-from starsense.solve.tracking.star_noise import fit_robust, star_noise
+from starsense.solve.tracking.star_noise import fit_robust_matrix, rms_angle, star_noise
 from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = ["Prior", "TrackMode", "TrackSolution", "track_frame"]
@@ -108,7 +108,8 @@ class TrackSolution:
         "tracking" or "lost_in_space" (for an unreadable frame, the mode it would have been
         processed in).
     covariance_rad2 : ndarray, shape (3, 3) or None
-        Camera-frame attitude covariance, rad^2.
+        Camera-frame attitude covariance, rad^2 (of a tracked frame: computed when first read,
+        as the solution's RA/Dec/roll, ``sigma_rad`` and ``rotation``).
     rate_rad_s, rate_cov_rad2_s2 : ndarray or None
         Body rate (3,), rad/s, and its covariance (3, 3), from this frame and the last solved.
     time_s : float or None
@@ -163,6 +164,9 @@ class TrackSolution:
         }
 
 
+allow_deferred(TrackSolution, "covariance_rad2")
+
+
 def _search_radius(cov: np.ndarray, field_radius: float) -> float:
     """Return a star's possible displacement at the field edge, N_SIGMA_SEARCH sigma, rad."""
     cross = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
@@ -179,8 +183,9 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     if r_s > MAX_SEARCH_RAD:
         return None, f"prior uncertainty {r_s * RAD_TO_DEG:.2f} deg exceeds tracking's reach"
     turn = half_turn(sensor, rate)
+    prior_matrix = rot_pred.as_matrix()
     near, x, y, margin_on, streaks = predicted_field(
-        sensor, db, rot_pred, r_s=r_s, field_r=field_r, half_turn_matrix=turn
+        sensor, db, prior_matrix, r_s=r_s, field_r=field_r, half_turn_matrix=turn
     )
     on = (x >= 0) & (x <= sensor.detector.columns - 1) & (y >= 0)
     on &= y <= sensor.detector.rows - 1
@@ -201,12 +206,15 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     vectors = sensor.unproject(det.x, det.y)
     # the brightest stars that may be on the detector: a frame showing N stars shows about
     # the N brightest, and fewer candidates leave fewer ambiguous pairs
-    cand = np.flatnonzero(margin_on)[: max(3 * len(det), 10)]
+    cand = margin_on.nonzero()[0][: max(3 * len(det), 10)]
     n_in = found.count_inside(x[cand], y[cand])
     region = None if n_in < 0 else (found.region_px / f**2, max(n_in, 1))
-    match = setup.identifier(
-        vectors,
-        rot_pred,
+    # unit, finite, in front of the camera (the sensor's unprojection): normalised as the
+    # identifier's own check does, its other checks skipped
+    unit = vectors / np.sqrt(np.add.reduce(vectors * vectors, axis=1))[:, None]
+    match = setup.identifier.match_checked(
+        unit,
+        prior_matrix,
         search_radius_rad=r_s,
         field_radius_rad=field_r,
         region=region,
@@ -219,43 +227,77 @@ def _track_core(solver, image, rot_pred, cov_pred, rate, t0):
     alone = unblended(cat_index, near, x=x, y=y, blend_px=blend_px)
     if alone.sum() >= 2:
         matched, cat_index, cat_ids = matched[alone], cat_index[alone], cat_ids[alone]
+    body = vectors[matched]
     noise = star_noise(
         solver,
         det,
         matched,
         rate_rad_s=rate,
-        vectors=vectors[matched],
+        vectors=body,
         half_turn=turn,
         margin_px=setup.margin_px,
     )
-    att, keep = fit_robust(vectors[matched], db.vectors[cat_index], noise.sigma_rad)
+    c, fisher_inv, resid, _, keep = fit_robust_matrix(body, db.vectors[cat_index], noise.sigma_rad)
     matched, cat_ids = matched[keep], cat_ids[keep]
-    covariance = noise.subset(keep).attitude_covariance(vectors[matched], att.covariance_rad2)
+    covariance = _Once(_covariance, noise, keep, body[keep], fisher_inv)
     stages["match_ms"] = match.time_ms
-    ra, dec, roll = radec_roll_from_attitude(att.rotation)
+    rotation = _Once(Rotation.from_matrix, c, assume_valid=True)  # c: an SVD's U V^T
+    angles = _Once(_radec_roll, rotation)
     where = f"{found.n_windows} windows" if found.n_windows else "the whole frame"
     sol = Solution(
         "solved" if match.status == "verified" else "unverified",
         f"tracked: {len(matched)} of {len(det)} detections ({where}) matched, "
         f"P_false {match.false_match_probability:.1e}",
-        ra_rad=float(ra),
-        dec_rad=float(dec),
-        roll_rad=float(roll),
-        fov_rad=2.0 * sensor.half_fov_rad[0],
+        ra_rad=Deferred(angles, index=0),
+        dec_rad=Deferred(angles, index=1),
+        roll_rad=Deferred(angles, index=2),
+        fov_rad=setup.fov_rad,
         n_detections=len(det),
         n_matched=len(matched),
-        rmse_rad=float(att.residual_rms_rad),
+        rmse_rad=rms_angle(resid),
         false_match_probability=float(match.false_match_probability),
-        sigma_rad=tuple(np.sqrt(covariance.diagonal()).tolist()),
+        sigma_rad=Deferred(_Once(_sigmas, covariance)),
         time_ms=(time.perf_counter() - t0) * 1e3,
         stage_ms=stages,
-        rotation=att.rotation,
-        matches=tuple(zip(matched.tolist(), cat_ids.tolist(), strict=True)),
-        centroids_px=columns(det.x, det.y),
+        rotation=Deferred(rotation),
+        matches=Deferred(_Once(_pairs, matched, cat_ids)),
+        centroids_px=Deferred(_Once(columns, det.x, det.y)),
         image_shape=image.shape,
         focal_px=f,
     )
-    return (sol, covariance), ""
+    return (sol, Deferred(covariance)), ""
+
+
+class _Once:
+    """``fn(*args, **kw)``, called on the first call of this object only (then its value)."""
+
+    __slots__ = ("call", "value")
+
+    def __init__(self, fn, *args, **kw) -> None:
+        self.call = (fn, args, kw)
+
+    def __call__(self):
+        if self.call is not None:
+            fn, args, kw = self.call
+            self.value, self.call = fn(*args, **kw), None
+        return self.value
+
+
+def _radec_roll(rotation: _Once) -> tuple[float, float, float]:
+    # radec_roll_from_attitude(rotation()), bit for bit
+    return radec_roll_from_matrix(rotation().as_matrix())
+
+
+def _covariance(noise, keep, body, fisher_inv) -> np.ndarray:
+    return noise.subset(keep).attitude_covariance(body, fisher_inv)
+
+
+def _pairs(matched: np.ndarray, cat_ids: np.ndarray) -> tuple[tuple[int, int], ...]:
+    return tuple(zip(matched.tolist(), cat_ids.tolist(), strict=True))
+
+
+def _sigmas(covariance: _Once) -> tuple[float, float, float]:
+    return tuple(np.sqrt(covariance().diagonal()).tolist())
 
 
 def _done(sol: Solution, t0: float) -> Solution:
