@@ -9,8 +9,9 @@ ending at V = 6):
    magnitude grid (V -2 ... 16 by 0.25) gives a first limit: the faintest magnitude detected in
    half the noisy renders;
 2. the Monte Carlo again on the grid the sensor needs (:func:`slew_grids`: 0.25 mag steps ending
-   just past that limit, rates up to what the detector can hold in one exposure) gives the limit
-   (interpolated) and the threshold curve ``m_t(w)`` (Dzamba & Enright 2014, Fig. 10).
+   just past that limit, 0.5 mag steps from there to the sky's brightest stars, rates up to
+   what the detector can hold in one exposure) gives the limit (interpolated) and the threshold
+   curve ``m_t(w)`` (Dzamba & Enright 2014, Fig. 10).
 
 The static threshold an availability analysis uses is ``min(m_t(0), limit)``: the faintest
 simulated magnitude detected at rest, never past the interpolated limit.
@@ -29,6 +30,7 @@ from starsense.analysis.slew import SlewResult, default_rates_rad_s, last_above,
 from starsense.units import DEG
 
 __all__ = [
+    "BRIGHTEST_V",
     "WIDE_MAGNITUDES",
     "SensorDetection",
     "limiting_magnitude",
@@ -36,6 +38,8 @@ __all__ = [
     "slew_grids",
 ]
 
+#: the sky's brightest stars (Sirius, V = -1.46): the slew grid's magnitudes reach them
+BRIGHTEST_V = -1.5
 #: the first, wide grid at rest: V -2 ... 16 by 0.25 (any sensor's limit lies inside)
 WIDE_MAGNITUDES = np.arange(-2.0, 16.0001, 0.25)
 
@@ -62,10 +66,15 @@ def limiting_magnitude(magnitudes, fraction, criterion: float = 0.5) -> float | 
 
 
 def slew_grids(sensor, static_limit: float, *, n_mag: int = 20, n_rate: int = 40):
-    """Return the magnitudes (0.25 mag steps ending just past the limit) and rates to simulate.
+    """Return the magnitudes and rates to simulate: from the sky's brightest stars to the limit.
 
-    The rates run from rest to 10 deg/s (the paper's range), or less when a faster slew would
-    sweep a star over more than half the detector's columns in one exposure.
+    ``n_mag`` magnitudes in 0.25 mag steps end just past the limit (the paper's grid for the
+    ST-16); brighter ones, in 0.5 mag steps, reach the sky's brightest stars
+    (:data:`BRIGHTEST_V`): a long exposure or a fine pixel scale smears the stars of the fine
+    part away at a fraction of the rates the detector can hold, and ``m_t(w)`` beyond that rate
+    is the magnitude of the brighter stars that stay detected, not nothing. The rates run from
+    rest to 10 deg/s (the paper's range), or less when a faster slew would sweep a star over
+    more than half the detector's columns in one exposure.
 
     Parameters
     ----------
@@ -74,15 +83,18 @@ def slew_grids(sensor, static_limit: float, *, n_mag: int = 20, n_rate: int = 40
     static_limit : float
         Its limiting magnitude at rest (V).
     n_mag, n_rate : int
-        Grid sizes.
+        Sizes of the fine magnitude grid and of the rate grid.
 
     Returns
     -------
-    magnitudes : ndarray (n_mag,)
+    magnitudes : ndarray, ascending
+        V: the 0.5 mag steps down to BRIGHTEST_V or past it, then the ``n_mag`` fine ones.
     rates_rad_s : ndarray (n_rate,)
     """
     top = math.ceil(static_limit * 4.0) / 4.0 + 0.25
-    mags = top - 0.25 * np.arange(n_mag)[::-1]
+    fine = top - 0.25 * np.arange(n_mag)[::-1]
+    bright = np.arange(fine[0] - 0.5, BRIGHTEST_V - 0.5, -0.5)[::-1]
+    mags = np.concatenate([bright, fine])
     det = sensor.detector
     half_width = 0.5 * det.columns * det.pixel_pitch_m / sensor.optics.focal_length_m
     max_rate = math.atan(half_width) / sensor.exposure_s
@@ -232,7 +244,7 @@ def sensor_grids(
 
     Returns
     -------
-    magnitudes : ndarray (20,)
+    magnitudes : ndarray, ascending
     rates_rad_s : ndarray (40,)
     """
     rough = rest_limit(sensor, model=model, n_trials=n_trials, rng=rng, colour_index=colour_index)
