@@ -7,7 +7,7 @@ suspicious is said here, in the datasheet's ``warnings``:
 * a lit-pixel threshold at less than 3 or more than 20 sigma of the noise of an empty pixel
   (read noise, dark current over the exposure and quantisation, in counts);
 * fewer than half the frames solved at rest while an NEA is quoted, and too few to check it
-  (:data:`starsense.analysis.datasheet.verify.MIN_CHECKED_FRAMES`);
+  (:data:`starsense.analysis.datasheet.verify.MIN_CHECKED_FRAMES`), at rest or at the rate;
 * a limiting magnitude past the catalogue's completeness (the stars in the field, the
   availability and the NEA then count too few stars).
 """
@@ -15,6 +15,8 @@ suspicious is said here, in the datasheet's ``warnings``:
 from __future__ import annotations
 
 import math
+
+from starsense.analysis.datasheet.verify import MIN_CHECKED_FRAMES
 
 __all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings"]
 
@@ -103,6 +105,8 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             f"{100 / math.sqrt(2 * mc.solved):.0f} %, too coarse for the 0.8-1.25 acceptance"
         )
     at_rate = runs.get("monte_carlo_at_rate")
+    if at_rate is not None and at_rate.frames and at_rate.solved < MIN_CHECKED_FRAMES:
+        out.append(_few_at_rate(at_rate))
     if at_rate is not None and at_rate.solved and at_rate.cross_rms_arcsec is not None:
         if at_rate.cross_predicted_arcsec is None and at_rate.solved >= 10:
             out.append(
@@ -118,3 +122,18 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             "few stars; use a deeper catalogue (--catalog gaia, or tycho2)"
         )
     return out
+
+
+def _few_at_rate(run) -> str:
+    """Say why a run at a rate with too few right solutions quotes no prediction or ratio."""
+    if not run.solved:
+        return (
+            f"no frame of {run.frames} solved at {run.rate_deg_s:g} deg/s: the NEA under slew "
+            "is neither measured nor predicted"
+        )
+    return (
+        f"only {run.solved} of {run.frames} frames solved at {run.rate_deg_s:g} deg/s: too few "
+        f"to check the NEA under slew (their rms is known to no better than "
+        f"{100 / math.sqrt(2 * run.solved):.0f} %, the acceptance is 0.8-1.25), so neither the "
+        "prediction at the rate nor its ratio is quoted"
+    )
