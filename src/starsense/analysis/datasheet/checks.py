@@ -18,7 +18,7 @@ import math
 
 from starsense.analysis.datasheet.verify import MIN_CHECKED_FRAMES
 
-__all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings"]
+__all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings", "solving_warnings"]
 
 #: V to which each catalogue is complete, and the source of the figure
 COMPLETENESS_V = {
@@ -137,3 +137,45 @@ def _few_at_rate(run) -> str:
         f"{100 / math.sqrt(2 * run.solved):.0f} %, the acceptance is 0.8-1.25), so neither the "
         "prediction at the rate nor its ratio is quoted"
     )
+
+
+def solving_warnings(stars, avail, runs, *, n_min: int) -> list[str]:
+    """Say in words what the numbers cannot: too few stars, no attitude, wrong solutions.
+
+    Parameters
+    ----------
+    stars : StarsInFov
+        Detectable stars per field.
+    avail : AvailabilitySummary
+        The availability (lost in space, tracking).
+    runs : dict of str -> MonteCarloCheck
+        The Monte Carlo runs (``monte_carlo`` at rest, first).
+    n_min : int
+        The stars lost in space needs.
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    if (stars.median or 0) < n_min:
+        out.append(
+            f"the median field holds {stars.median} detectable stars, fewer than the "
+            f"{n_min} lost in space needs"
+        )
+    if avail.tracking == 0.0:
+        out.append("no boresight of the sky holds the 2 stars an attitude needs")
+    mc, lis = runs["monte_carlo"], avail.lost_in_space
+    if mc.frames:
+        solved = mc.solved / mc.frames
+        margin = 2.0 * math.sqrt(max(solved * (1 - solved), 1e-4) / mc.frames)  # ~95 %
+        if solved < lis - margin:
+            out.append(
+                f"lost in space solved {solved:.1%} of the rendered frames at rest, below the "
+                f"{lis:.1%} of the sky with >= {n_min} detectable stars: identification "
+                f"needs more than that (statuses {mc.statuses})"
+            )
+    for key, run in runs.items():
+        if run.wrong:
+            out.append(f"{key}: {run.wrong} wrong identifications in {run.frames} frames")
+    return out
