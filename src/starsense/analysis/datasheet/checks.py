@@ -105,7 +105,8 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             f"{100 / math.sqrt(2 * mc.solved):.0f} %, too coarse for the 0.8-1.25 acceptance"
         )
     at_rate = runs.get("monte_carlo_at_rate")
-    if at_rate is not None and at_rate.frames and at_rate.solved < MIN_CHECKED_FRAMES:
+    few = at_rate is not None and at_rate.frames and at_rate.solved < MIN_CHECKED_FRAMES
+    if few and (at_rate.solved or (mc is not None and mc.solved)):  # else nothing solves
         out.append(_few_at_rate(at_rate))
     if at_rate is not None and at_rate.solved and at_rate.cross_rms_arcsec is not None:
         if at_rate.cross_predicted_arcsec is None and at_rate.solved >= 10:
