@@ -21,7 +21,11 @@ from starsense.analysis.datasheet.field import (
 from starsense.analysis.datasheet.noise import centroid_noise
 from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.analysis.datasheet.terms import confusion_px, pixel_spatial_error
-from starsense.analysis.datasheet.verify import MIN_CHECKED_FRAMES, score_montecarlo
+from starsense.analysis.datasheet.verify import (
+    MEASURED_KEYS,
+    MIN_CHECKED_FRAMES,
+    score_montecarlo,
+)
 from starsense.geometry.sampling import random_attitudes
 from starsense.render.psf import gaussian_stamp
 from starsense.sensor import load_sensor
@@ -181,6 +185,49 @@ def test_too_few_solved_frames_are_not_checked():
     )
     assert any("not checked against the rendered frames: 3 right" in w for w in said), said
     assert MIN_CHECKED_FRAMES == 10
+
+
+def test_too_few_solved_frames_at_a_rate_are_said():
+    # at a rate, a run with fewer right solutions than MIN_CHECKED_FRAMES quotes neither the
+    # prediction nor the ratio: the datasheet says so in words, with the count and the rms's
+    # own uncertainty (4 frames: 1 / sqrt(8) = 35 %), and says when none solved at all
+    rest = MonteCarloCheck(
+        frames=40,
+        solved=40,
+        wrong=0,
+        wrong_rate_upper95=0.07,
+        rate_deg_s=0.0,
+        median_ms=5.0,
+        p95_ms=6.0,
+        statuses={"solved": 40},
+        **dict.fromkeys(MEASURED_KEYS),
+    )
+    for solved, said_text in ((4, "only 4 of 40 frames solved at 1 deg/s"), (0, "no frame")):
+        res = SimpleNamespace(
+            errors_rad=np.full((solved, 3), 1e-5),
+            n_trials=40,
+            n_solved=solved,
+            n_wrong=0,
+            rate_rad_s=math.radians(1.0),
+            solve_ms=np.ones(solved),
+            statuses={"solved": solved, "too_few_stars": 40 - solved},
+        )
+        out = score_montecarlo(res, None, fov=None, vectors=None, magnitudes=None)
+        assert out["roll_predicted_arcsec"] is None and out["roll_ratio"] is None
+        check = MonteCarloCheck(
+            **{k: v for k, v in out.items() if k in MonteCarloCheck.__dataclass_fields__}
+        )
+        runs = {"monte_carlo": rest, "monte_carlo_at_rate": check}
+        said = sanity_warnings(load_sensor("st16"), catalog_name="hip2", limit_mag=5.7, runs=runs)
+        hits = [w for w in said if said_text in w and "deg/s" in w]
+        assert len(hits) == 1, said
+        if solved:
+            assert "35 %" in hits[0] and "neither the prediction" in hits[0]
+    # ten right solutions at the rate are checked: no such warning
+    many = MonteCarloCheck(**{**vars(rest), "rate_deg_s": 1.0, "solved": MIN_CHECKED_FRAMES})
+    runs = {"monte_carlo": rest, "monte_carlo_at_rate": many}
+    said = sanity_warnings(load_sensor("st16"), catalog_name="hip2", limit_mag=5.7, runs=runs)
+    assert not [w for w in said if "deg/s" in w], said
 
 
 def test_solver_weights_equal_to_noise_give_the_fisher_bound():

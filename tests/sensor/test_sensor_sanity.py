@@ -106,6 +106,7 @@ def test_a_run_at_the_rate_without_a_prediction_is_said_in_words():
     out = _ratios(e, np.full(12, np.nan), np.full(12, np.nan))
     assert out["cross_ratio"] is None and out["cross_rms_arcsec"] > 0
     run = SimpleNamespace(
+        frames=40,
         solved=12,
         rate_deg_s=1.0,
         cross_rms_arcsec=out["cross_rms_arcsec"],

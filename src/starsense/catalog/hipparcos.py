@@ -34,7 +34,7 @@ from starsense.catalog._parse import (
 from starsense.catalog.table import Catalog
 from starsense.units import MAS
 
-READER_VERSION = 1
+READER_VERSION = 2
 """Bump when the output of these readers changes (invalidates cached catalogues)."""
 
 HIPPARCOS_EPOCH_YR = 1991.25
@@ -225,7 +225,9 @@ def load_hip2(path: str | Path | None = None) -> Catalog:
         ``name="hip2"``, epoch 1991.25, ``ids`` = HIP numbers; mags ``Hp`` and ``V``
         (derived, see :func:`v_from_hp` and :data:`BRIGHT_STAR_V`), colours ``B-V`` and
         ``V-I``; proper motions and parallax; ``extra``: ``e_Hpmag`` and ``sHp`` (Hp error and
-        scatter, mag), ``Nc`` (number of components), ``V_from_literature`` (bool).
+        scatter, mag), ``e_ra_rad``, ``e_dec_rad`` (standard errors of the position at the
+        epoch, rad; RA's times cos Dec), ``e_pm_ra_rad_yr``, ``e_pm_dec_rad_yr`` (of the proper
+        motions, rad/yr), ``Nc`` (number of components), ``V_from_literature`` (bool).
 
     Raises
     ------
@@ -281,6 +283,11 @@ def load_hip2(path: str | Path | None = None) -> Catalog:
         extra={
             "e_Hpmag": rec.floats(f["e_Hpmag"]),
             "sHp": rec.floats(f["sHp"]),
+            # the stated standard errors of the astrometry (e_RA* includes cos Dec)
+            "e_ra_rad": rec.floats(f["e_RArad"]) * MAS,
+            "e_dec_rad": rec.floats(f["e_DErad"]) * MAS,
+            "e_pm_ra_rad_yr": rec.floats(f["e_pmRA"]) * MAS,
+            "e_pm_dec_rad_yr": rec.floats(f["e_pmDE"]) * MAS,
             "Nc": rec.ints(f["Nc"]),
             "V_from_literature": literature,
         },

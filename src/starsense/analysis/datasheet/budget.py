@@ -105,7 +105,8 @@ def error_budget(
         The noise-equivalent angle over the sky, arcsec.
     errors : dict of str -> tuple of ndarray (M,)
         Per-attitude (cross, roll) errors, rad, propagated through the estimator's weights:
-        ``"pixel"`` (centroid bias), ``"prnu"`` and ``"residual"`` (when the sensor has them).
+        ``"pixel"`` (centroid bias), ``"prnu"`` and ``"residual"`` (when the sensor has them),
+        ``"catalogue"`` (star positions, when the frames and the database differ).
     pse_px : float or None
         Rms sub-pixel centroid bias over the stars used, px (the value propagated).
     dsnu : AxisPair or None
@@ -146,6 +147,15 @@ def error_budget(
                 "confusion (fainter catalogue stars inside the centroid window)",
                 errors["confusion"],
                 "modelled (the catalogue's star counts), rendered in the frames",
+            )
+        )
+    if "catalogue" in errors:
+        rows.append(
+            _sky_row(
+                "catalogue positions (the frames' catalogue against the solver's database)",
+                errors["catalogue"],
+                "modelled per star (both catalogues' stated errors at the database's epoch, "
+                "proper motions' over the years between), through the solver's weights",
             )
         )
     if "prnu" in errors:

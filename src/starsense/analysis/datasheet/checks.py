@@ -7,7 +7,7 @@ suspicious is said here, in the datasheet's ``warnings``:
 * a lit-pixel threshold at less than 3 or more than 20 sigma of the noise of an empty pixel
   (read noise, dark current over the exposure and quantisation, in counts);
 * fewer than half the frames solved at rest while an NEA is quoted, and too few to check it
-  (:data:`starsense.analysis.datasheet.verify.MIN_CHECKED_FRAMES`);
+  (:data:`starsense.analysis.datasheet.verify.MIN_CHECKED_FRAMES`), at rest or at the rate;
 * a limiting magnitude past the catalogue's completeness (the stars in the field, the
   availability and the NEA then count too few stars).
 """
@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings"]
+from starsense.analysis.datasheet.verify import MIN_CHECKED_FRAMES
+
+__all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings", "solving_warnings"]
 
 #: V to which each catalogue is complete, and the source of the figure
 COMPLETENESS_V = {
@@ -103,6 +105,9 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             f"{100 / math.sqrt(2 * mc.solved):.0f} %, too coarse for the 0.8-1.25 acceptance"
         )
     at_rate = runs.get("monte_carlo_at_rate")
+    few = at_rate is not None and at_rate.frames and at_rate.solved < MIN_CHECKED_FRAMES
+    if few and (at_rate.solved or (mc is not None and mc.solved)):  # else nothing solves
+        out.append(_few_at_rate(at_rate))
     if at_rate is not None and at_rate.solved and at_rate.cross_rms_arcsec is not None:
         if at_rate.cross_predicted_arcsec is None and at_rate.solved >= 10:
             out.append(
@@ -117,4 +122,61 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             f"(V = {known[0]:g}, {known[1]}): stars in the field, availability and NEA count too "
             "few stars; use a deeper catalogue (--catalog gaia, or tycho2)"
         )
+    return out
+
+
+def _few_at_rate(run) -> str:
+    """Say why a run at a rate with too few right solutions quotes no prediction or ratio."""
+    if not run.solved:
+        return (
+            f"no frame of {run.frames} solved at {run.rate_deg_s:g} deg/s: the NEA under slew "
+            "is neither measured nor predicted"
+        )
+    return (
+        f"only {run.solved} of {run.frames} frames solved at {run.rate_deg_s:g} deg/s: too few "
+        f"to check the NEA under slew (their rms is known to no better than "
+        f"{100 / math.sqrt(2 * run.solved):.0f} %, the acceptance is 0.8-1.25), so neither the "
+        "prediction at the rate nor its ratio is quoted"
+    )
+
+
+def solving_warnings(stars, avail, runs, *, n_min: int) -> list[str]:
+    """Say in words what the numbers cannot: too few stars, no attitude, wrong solutions.
+
+    Parameters
+    ----------
+    stars : StarsInFov
+        Detectable stars per field.
+    avail : AvailabilitySummary
+        The availability (lost in space, tracking).
+    runs : dict of str -> MonteCarloCheck
+        The Monte Carlo runs (``monte_carlo`` at rest, first).
+    n_min : int
+        The stars lost in space needs.
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    if (stars.median or 0) < n_min:
+        out.append(
+            f"the median field holds {stars.median} detectable stars, fewer than the "
+            f"{n_min} lost in space needs"
+        )
+    if avail.tracking == 0.0:
+        out.append("no boresight of the sky holds the 2 stars an attitude needs")
+    mc, lis = runs["monte_carlo"], avail.lost_in_space
+    if mc.frames:
+        solved = mc.solved / mc.frames
+        margin = 2.0 * math.sqrt(max(solved * (1 - solved), 1e-4) / mc.frames)  # ~95 %
+        if solved < lis - margin:
+            out.append(
+                f"lost in space solved {solved:.1%} of the rendered frames at rest, below the "
+                f"{lis:.1%} of the sky with >= {n_min} detectable stars: identification "
+                f"needs more than that (statuses {mc.statuses})"
+            )
+    for key, run in runs.items():
+        if run.wrong:
+            out.append(f"{key}: {run.wrong} wrong identifications in {run.frames} frames")
     return out

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -218,7 +219,17 @@ def error_kinds(sensor) -> tuple[str, ...]:
     return tuple(kinds)
 
 
-def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea",), tree=None):
+def nea_at(
+    model: StarModel,
+    fov,
+    matrices,
+    *,
+    vectors,
+    magnitudes,
+    kinds=("nea",),
+    tree=None,
+    catalogue=None,
+):
     """Return {kind: (cross, roll)} per attitude, rad, from the stars in the field.
 
     Parameters
@@ -234,6 +245,9 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
         Per-star error kinds of :meth:`StarModel.star_sigmas_rad`.
     tree : cKDTree, optional
         Built on ``vectors``.
+    catalogue : ndarray (N, 3), optional
+        Each star's database position less its rendered one, ICRS, rad
+        (:mod:`starsense.analysis.datasheet.catalogue`): the kind ``"catalogue"``.
 
     Returns
     -------
@@ -246,6 +260,9 @@ def nea_at(model: StarModel, fov, matrices, *, vectors, magnitudes, kinds=("nea"
     weights = 1.0 / model.star_sigmas_rad(mags, z, "weight") ** 2
     out = {}
     for kind in kinds:
+        if kind == "catalogue":  # per star, not per magnitude: each star's own offset
+            out[kind] = _catalogue_errors(pairs, matrices, weights, catalogue)
+            continue
         sigma = model.star_sigmas_rad(mags, z, kind)
         if kind == "crb":
             out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
@@ -266,6 +283,39 @@ def _streaks_px(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
 
 #: the stars the solver's final fit drops at most (robust_attitude's default)
 _MAX_DROP = int(inspect.signature(robust_attitude).parameters["max_drop"].default)
+
+
+def _camera_offsets(pairs, matrices, offsets) -> np.ndarray:
+    """Return the ICRS offsets (N, 3) of the stars of ``pairs`` in the camera frame (P, 3)."""
+    mats = np.asarray(matrices, dtype=float)[pairs.point]
+    off = np.einsum("pij,pj->pi", mats, np.asarray(offsets, dtype=float)[pairs.star])
+    r = np.asarray(pairs.v_cam, dtype=float)
+    return off - np.sum(off * r, axis=1)[:, None] * r  # normal to the star
+
+
+def _catalogue_errors(pairs, matrices, weights, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """Return the attitude error (cross, roll) per pointing (M,), rad, from the stars' offsets.
+
+    The offset of a star's database position is the same bias in every frame that holds it,
+    and the offsets of neighbouring stars are not independent (the two catalogues' frames
+    turn against each other by a few mas): the fit's answer to them is computed, not
+    modelled, per pointing. The solver's weighted fit of the offsets alone, after its robust
+    fit drops the stars they pull past ``OUTLIER_SIGMA`` (:func:`_outliers`): ``dtheta =
+    -F^-1 sum_i w_i [r_i]x b_i``, ``F = sum_i w_i (I - r_i r_i^T)``; cross the rms of its x and
+    y, roll its z.
+    """
+    off = _camera_offsets(pairs, matrices, offsets)
+    w = np.where(_outliers(pairs, weights, off), 0.0, weights)
+    r = np.asarray(pairs.v_cam, dtype=float)
+    f = np.zeros((pairs.n_pointings, 3, 3))
+    rhs = np.zeros((pairs.n_pointings, 3))
+    np.add.at(f, pairs.point, w[:, None, None] * (np.eye(3) - r[:, :, None] * r[:, None, :]))
+    np.add.at(rhs, pairs.point, w[:, None] * np.cross(r, off))
+    ev = np.linalg.eigvalsh(f)  # fewer than two stars: singular, no attitude
+    ok = ev[:, 0] > 1e-12 * ev[:, -1]
+    dtheta = np.full((pairs.n_pointings, 3), np.nan)
+    dtheta[ok] = -np.linalg.solve(f[ok], rhs[ok][:, :, None])[:, :, 0]
+    return np.hypot(dtheta[:, 0], dtheta[:, 1]) / math.sqrt(2.0), np.abs(dtheta[:, 2])
 
 
 def _outliers(pairs, weights, bias_rad) -> np.ndarray:
@@ -313,7 +363,17 @@ def _outliers(pairs, weights, bias_rad) -> np.ndarray:
     return out
 
 
-def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnitudes, margin_px=2):
+def nea_at_rate(
+    model: StarModel,
+    fov,
+    matrices,
+    *,
+    rates_rad_s,
+    vectors,
+    magnitudes,
+    margin_px=2,
+    catalogue=None,
+):
     """Return the 1-sigma (cross, roll) of attitudes at body rates, rad, from smeared stars.
 
     Each star of the field is a streak (the attitude's rate over the exposure): its centroid's
@@ -325,7 +385,7 @@ def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnit
     the rest model's confusion), and go through the solver's weights (``2 / trace`` of its
     assumed covariance) as at rest (:func:`starsense.analysis.datasheet.field.
     propagated_covariance`, the anisotropic form of :func:`nea_at`'s propagation), with the
-    PRNU and calibration residual of :func:`error_kinds` added per star. The stars the
+    PRNU, calibration residual of :func:`error_kinds` and catalogue error added per star. The
     solver's robust fit drops (:func:`_outliers`) are left out.
 
     Parameters
@@ -341,6 +401,9 @@ def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnit
         The stars the tracker uses (those it detects at the rate), ICRS.
     margin_px : int
         The detector's centroid margin, px.
+    catalogue : ndarray (N, 3), optional
+        Each star's database position less its rendered one, ICRS, rad: added to the star's
+        centroid bias (the fit meets both alike).
 
     Returns
     -------
@@ -389,6 +452,9 @@ def nea_at_rate(model: StarModel, fov, matrices, *, rates_rad_s, vectors, magnit
     weights = 2.0 / (np.trace(solver, axis1=1, axis2=2) * scale)  # rad^-2
     weights = np.where(np.isfinite(weights), weights, 0.0)
     proj = np.eye(3) - pairs.v_cam[:, :, None] * pairs.v_cam[:, None, :]
+    if catalogue is not None:  # the database's offsets, camera frame, px
+        off = _camera_offsets(pairs, matrices, catalogue)
+        bias = bias + off[:, :2] / np.sqrt(scale)[:, None]
     bias3 = np.einsum("pij,pj->pi", proj, np.column_stack([bias, np.zeros(len(bias))]))
     bias3 *= np.sqrt(scale)[:, None]
     dropped = _outliers(pairs, weights, np.nan_to_num(bias3))

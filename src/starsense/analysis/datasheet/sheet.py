@@ -20,7 +20,8 @@ from starsense.analysis.availability.analysis import AvailabilityAnalysis
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
-from starsense.analysis.datasheet.checks import sanity_warnings
+from starsense.analysis.datasheet.catalogue import catalogue_term_rad
+from starsense.analysis.datasheet.checks import sanity_warnings, solving_warnings
 from starsense.analysis.datasheet.field import field_stars_cam, tracked_stars
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
@@ -197,34 +198,6 @@ def _settings(settings: DatasheetSettings, catalog_name: str, cut: float | None)
     )
 
 
-def _warnings(
-    stars: StarsInFov, avail: AvailabilitySummary, runs: dict[str, MonteCarloCheck]
-) -> list[str]:
-    """Say in words what the numbers cannot: too few stars, no attitude, wrong solutions."""
-    out = []
-    if (stars.median or 0) < _N_MIN_LIS:
-        out.append(
-            f"the median field holds {stars.median} detectable stars, fewer than the "
-            f"{_N_MIN_LIS} lost in space needs"
-        )
-    if avail.tracking == 0.0:
-        out.append("no boresight of the sky holds the 2 stars an attitude needs")
-    mc, lis = runs["monte_carlo"], avail.lost_in_space
-    if mc.frames:
-        solved = mc.solved / mc.frames
-        margin = 2.0 * math.sqrt(max(solved * (1 - solved), 1e-4) / mc.frames)  # ~95 %
-        if solved < lis - margin:
-            out.append(
-                f"lost in space solved {solved:.1%} of the rendered frames at rest, below the "
-                f"{lis:.1%} of the sky with >= {_N_MIN_LIS} detectable stars: identification "
-                f"needs more than that (statuses {mc.statuses})"
-            )
-    for key, run in runs.items():
-        if run.wrong:
-            out.append(f"{key}: {run.wrong} wrong identifications in {run.frames} frames")
-    return out
-
-
 def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound."""
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
@@ -242,9 +215,14 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
     # the NEA of the stars the tracker fits (its database's), not of every detectable one
     used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
     vectors, mags = vectors[used], mags[used]
-    sig, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=mags, kinds=error_kinds(sensor))
+    catalogue = catalogue_term_rad(cat, sensor, max_mag=limit_mag)  # frames vs the database
+    catalogue = None if catalogue is None else catalogue[used]
+    kinds = error_kinds(sensor) + (() if catalogue is None else ("catalogue",))
+    sig, _ = nea_at(
+        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=kinds, catalogue=catalogue
+    )
     lim = _limit(cat, sensor, fov, mats)
-    return model, vectors, mags, boresights, mats, sig, counts, lim
+    return model, (vectors, catalogue), mags, boresights, mats, sig, counts, lim
 
 
 def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
@@ -252,7 +230,7 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
 
     ``sky``: model, field, tracked stars, their magnitudes, the faintest detected at the rate.
     """
-    model, fov, vectors, mags, limit = sky
+    model, fov, (vectors, catalogue), mags, limit = sky
     runs = {}
     rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
     for key, rate, n in (
@@ -267,7 +245,13 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
         )
         runs[key] = MonteCarloCheck(
             **score_montecarlo(
-                res, model, fov=fov, vectors=vectors, magnitudes=mags, limit_mag_at_rate=limit
+                res,
+                model,
+                fov=fov,
+                vectors=vectors,
+                magnitudes=mags,
+                limit_mag_at_rate=limit,
+                catalogue=catalogue,
             )
         )
         tick(key.replace("_", " "))
@@ -326,9 +310,10 @@ def build_datasheet(
     )
     avail, fine = _availability(analysis, curve, st.rate_rad_s)
     tick("availability")
-    model, vectors, mags, boresights, mats, sig, counts, lim = _sky_noise(
+    model, stars_used, mags, boresights, mats, sig, counts, lim = _sky_noise(
         cat, sensor, st, limit_mag, fov
     )
+    vectors = stars_used[0]
     tick("noise")
     nea = _arcsec_stats(*sig["nea"])
     stars = StarsInFov(float(np.median(counts)), float(np.percentile(counts, 5)))
@@ -340,7 +325,7 @@ def build_datasheet(
         for k in ("cross", "roll")
     }
     at_rate = np.interp(st.rate_rad_s * RAD_TO_DEG, avail.rates_deg_s, avail.threshold_mag_at_rate)
-    runs = _runs(sensor, cat, st, (model, fov, vectors, mags, float(at_rate)), client, tick)
+    runs = _runs(sensor, cat, st, (model, fov, stars_used, mags, float(at_rate)), client, tick)
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
@@ -379,7 +364,7 @@ def build_datasheet(
         settings=_settings(st, getattr(cat, "name", ""), limit_mag),
         warnings=(
             *([colour_note] if colour_note else []),
-            *_warnings(stars, avail, runs),
+            *solving_warnings(stars, avail, runs, n_min=_N_MIN_LIS),
             *sanity_warnings(
                 sensor, catalog_name=getattr(cat, "name", ""), limit_mag=limit_mag, runs=runs
             ),

@@ -64,7 +64,15 @@ def _pct(values: np.ndarray, q: float) -> float | None:
 
 
 def score_montecarlo(
-    res, model, *, fov, vectors, magnitudes, predict: bool = True, limit_mag_at_rate=None
+    res,
+    model,
+    *,
+    fov,
+    vectors,
+    magnitudes,
+    predict: bool = True,
+    limit_mag_at_rate=None,
+    catalogue=None,
 ) -> dict[str, Any]:
     """Return the JSON-ready summary of a Monte Carlo run against the datasheet's prediction.
 
@@ -85,6 +93,10 @@ def score_montecarlo(
         threshold at the rate); the prediction is that of the smeared stars
         (:func:`starsense.analysis.datasheet.predict.nea_at_rate`) brighter than it. None
         keeps every star of ``magnitudes``.
+    catalogue : ndarray (N,), optional
+        Each star's database position less its rendered one, ICRS, rad (frames
+        rendered from another catalogue than the solver's database:
+        :func:`starsense.analysis.datasheet.catalogue.rendered_against_database_rad`).
 
     Returns
     -------
@@ -125,10 +137,20 @@ def score_montecarlo(
             rates_rad_s=res.rates_rad_s,
             vectors=np.asarray(vectors)[keep],
             magnitudes=mags[keep],
+            catalogue=None if catalogue is None else np.asarray(catalogue)[keep],
         )
     else:
         kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
-        pred, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=magnitudes, kinds=kinds)
+        kinds += ("catalogue",) if catalogue is not None else ()
+        pred, _ = nea_at(
+            model,
+            fov,
+            mats,
+            vectors=vectors,
+            magnitudes=magnitudes,
+            kinds=kinds,
+            catalogue=catalogue,
+        )
         cross = np.sqrt(sum(pred[k][0] ** 2 for k in kinds))
         roll = np.sqrt(sum(pred[k][1] ** 2 for k in kinds))
     return {
