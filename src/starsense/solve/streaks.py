@@ -344,7 +344,11 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
     sigma = fixed
     if fixed == "snr":
         sigma = cog_sigma_px(
-            det, matched, detector=sensor.detector, margin_px=solver.detector.margin_px
+            det,
+            matched,
+            detector=sensor.detector,
+            margin_px=solver.detector.margin_px,
+            shape=np.shape(image),
         )
     if sensor is None or x is not det.x or len(matched) < 3:
         return vectors, sigma

@@ -161,7 +161,9 @@ def star_noise(
         detector.read_noise_e**2 / n_e**2
     )[:, None, None] * spread
     if not along.all():  # the others: the CoG over the region's box
-        cog = (cog_sigma_px(det, matched, detector=detector, margin_px=margin) ** 2)[:, None, None]
+        frame = (detector.rows, detector.columns)
+        cog = cog_sigma_px(det, matched, detector=detector, margin_px=margin, shape=frame)
+        cog = (cog**2)[:, None, None]
         cog = cog * eye
         cog[along] = cov[along]
         cov = cog
