@@ -30,6 +30,8 @@ from starsense.detect.background import (
 from starsense.detect.centroid import METHODS, gauss_fit
 from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
 from starsense.detect.regions import label_pixels, region_centroids
+from starsense.detect.quantised import QUANTISED_BELOW_STEPS
+from starsense.detect.quick import quick_background, quick_subtract
 from starsense.detect.subtract import floor_threshold, pixels_above, subtract_level
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
@@ -123,6 +125,11 @@ def _check_image(image) -> np.ndarray:
     return a
 
 
+#: quick extraction declines a frame with more than this fraction of its background samples at
+#: their lowest value (noise clipped at a floor; Gaussian noise puts a few in a million there)
+QUICK_FLOOR_FRACTION = 0.01
+
+
 class StarDetector:
     """Configure, then call: ``StarDetector(logic)(image) -> Detections``.
 
@@ -130,8 +137,10 @@ class StarDetector:
     ----------
     logic : DetectionThresholds
     centroid : {"cog", "iwcog", "gauss"}
-    background : "auto", float, Background or None
-        "auto" estimates a background map and noise (real frames); a number is a flat known level
+    background : "auto", "quick", float, Background or None
+        "auto" estimates a background map and noise (real frames); "quick" a coarse one, with a
+        plain threshold in one pass (:mod:`starsense.detect.quick`: no hot-pixel removal, no
+        matched filter; ``threshold_sigma`` default 5); a number is a flat known level
         (simulated frames: the bias); None means zero.
     noise_counts : float
         Noise of a known background (used with a numeric background), counts.
@@ -196,8 +205,10 @@ class StarDetector:
                     "max_pixels must be None or an integer >= min_pixels "
                     f"({self.logic.min_pixels}), got {max_pixels!r}"
                 )
-        if isinstance(background, str) and background != "auto":
-            raise InputError(f"background must be 'auto', a number or None, got {background!r}")
+        if isinstance(background, str) and background not in ("auto", "quick"):
+            raise InputError(
+                f"background must be 'auto', 'quick', a number or None, got {background!r}"
+            )
         self.centroid = centroid
         self.background = background
         self.noise_counts = float(noise_counts)
@@ -228,6 +239,31 @@ class StarDetector:
             return estimate_background(a, full_noise_map=not self.matched_filter)
         level = 0.0 if self.background is None else float(self.background)
         return constant_background(level, self.noise_counts)
+
+    def _subtract_and_light(self, a: np.ndarray):
+        """Background, subtracted frame, hot-pixel count and :meth:`_lit`'s lit pixels."""
+        if self.background == "quick":
+            qb = quick_background(a)
+            k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
+            sub, idx, noise = quick_subtract(a, qb, k=k, floor=self.logic.lit_pixel_counts)
+            if (a.dtype.kind in "iu" and not qb.noise >= QUANTISED_BELOW_STEPS) or (
+                qb.floor_fraction > QUICK_FLOOR_FRACTION
+            ):
+                # noise below 3 integer steps (8-bit, JPEG) or clipped at a floor: a plain
+                # threshold lights plateaus, compression's blocks and the noise's clipped
+                # tail; such frames are for the robust detector
+                idx, noise = idx[:0], noise[:0]
+            return Background(0.0, qb.noise), sub, {"hot_pixels": 0}, (idx, None, None, noise)
+        bg = self._background(a)
+        remove_hot = self.background == "auto" and self.remove_hot_pixels
+        above = floor_threshold(bg, HOT_PIXEL_SIGMA) if remove_hot else None
+        sub, candidates = subtract_level(a, bg.level, scratch("sub", a.shape), above=above)
+        counts = {"hot_pixels": 0}
+        if remove_hot:
+            hot = hot_pixel_mask(a, bg, subtracted=sub, candidates=candidates)
+            sub[hot] = 0.0
+            counts["hot_pixels"] = int(np.count_nonzero(hot))
+        return bg, sub, counts, self._lit(sub, bg)
 
     def _lit(self, sub: np.ndarray, bg: Background):
         """Lit pixels (flat indices, ascending), which bound a window, filtered, their noise.
@@ -313,16 +349,7 @@ class StarDetector:
         """
         t0 = time.perf_counter()
         a = _check_image(image)
-        bg = self._background(a)
-        remove_hot = self.background == "auto" and self.remove_hot_pixels
-        above = floor_threshold(bg, HOT_PIXEL_SIGMA) if remove_hot else None
-        sub, candidates = subtract_level(a, bg.level, scratch("sub", a.shape), above=above)
-        counts = {"hot_pixels": 0}
-        if remove_hot:
-            hot = hot_pixel_mask(a, bg, subtracted=sub, candidates=candidates)
-            sub[hot] = 0.0
-            counts["hot_pixels"] = int(np.count_nonzero(hot))
-        idx, core, filtered, lit_noise = self._lit(sub, bg)
+        bg, sub, counts, (idx, core, filtered, lit_noise) = self._subtract_and_light(a)
         counts["pixels_above_threshold"] = int(idx.size)
         lab, n = label_pixels(idx, a.shape, 4 if self.logic.connectivity == 4 else 8)
         empty = Detections(

@@ -45,6 +45,8 @@ class SolverSettings:
         Centroid noise assumed for the attitude covariance, px, or "snr" (each star's own).
     background : {"auto", "known"}
         Background mode.
+    extraction : {"auto", "quick", "robust"}
+        Star extraction (:mod:`starsense.solve.extraction`).
     apparent : bool
         Fit to the stars' apparent places when the frame's time is known.
     observer_velocity_m_s : ndarray, shape (3,), or None
@@ -58,6 +60,7 @@ class SolverSettings:
     threshold_sigma: float = 5.0
     centroid_sigma_px: float | Literal["snr"] = 0.3
     background: BackgroundMode = "auto"
+    extraction: str = "auto"
     apparent: bool = True
     observer_velocity_m_s: np.ndarray | None = None
     fov_rad: float | None = None
@@ -100,6 +103,10 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
         raise InputError(f"centroid_sigma_px must be > 0 or 'snr', got {show(sigma)}")
     if s.background not in ("auto", "known"):
         raise InputError(f"background must be 'auto' or 'known', got {s.background!r}")
+    if s.extraction not in ("auto", "quick", "robust"):
+        raise InputError(f"extraction must be 'auto', 'quick' or 'robust', got {s.extraction!r}")
+    if s.extraction == "quick" and s.background == "known":
+        raise InputError("extraction='quick' estimates the background: use background='auto'")
     if sensor is None and (s.background == "known" or sigma == "snr"):
         raise InputError("background='known' and centroid_sigma_px='snr' need a sensor")
     return SolverSettings(**{**options, "fov_rad": fov_rad, "apparent": bool(s.apparent)})

@@ -39,6 +39,7 @@ from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import blend_radius_px, photocentres
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import detection_counts, identification_counts, max_candidates
+from starsense.solve.extraction import Extraction, quick_detector, robust_detector
 from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
@@ -63,9 +64,6 @@ __all__ = [
 UNKNOWN_FOV_RANGE_RAD = (2.8 * DEG, 70.0 * DEG)
 #: the field the centroids are unprojected with before the scale is found, rad (15 deg)
 NOMINAL_FOV_RAD = 15.0 * DEG
-#: PSF sigma of the matched filter when no sensor is given, px (a focused star tracker:
-#: 0.7-1.5 px; the filter's gain is within 10 % of optimal for 0.6-1.6 px)
-DEFAULT_PSF_SIGMA_PX = 1.0
 
 
 class Solver:
@@ -94,6 +92,10 @@ class Solver:
     background : {"auto", "known"}
         "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
         subtracts the sensor's bias and applies its detection logic as is (simulated frames).
+    extraction : {"auto", "quick", "robust"}
+        With ``background="auto"``: "auto" solves a frame of a known field first from a quick
+        extraction, then, if that does not solve, from the robust one; "quick" or "robust"
+        alone (:mod:`starsense.solve.extraction`).
     apparent : bool
         Fit the attitude to the stars' apparent places when the frame's time is known (default).
     observer_velocity_m_s : array_like, shape (3,), optional
@@ -119,6 +121,7 @@ class Solver:
         threshold_sigma: float = 5.0,
         centroid_sigma_px: float | Literal["snr"] = 0.3,
         background: BackgroundMode = "auto",
+        extraction: Extraction = "auto",
         apparent: bool = True,
         observer_velocity_m_s=None,
     ) -> None:
@@ -129,6 +132,7 @@ class Solver:
             threshold_sigma=threshold_sigma,
             centroid_sigma_px=centroid_sigma_px,
             background=background,
+            extraction=extraction,
             apparent=apparent,
             observer_velocity_m_s=observer_velocity_m_s,
             fov_rad=fov_rad,
@@ -147,6 +151,7 @@ class Solver:
         catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
         self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
         self._detector: StarDetector | None = None
+        self._quick: StarDetector | None | bool = False  # not built yet
 
     @property
     def catalog(self) -> Catalog:
@@ -172,32 +177,17 @@ class Solver:
 
     @property
     def detector(self) -> StarDetector:
-        """The full-frame star detector of this Solver (built once).
-
-        With ``background="known"`` the sensor's own (:meth:`StarDetector.for_sensor`); else
-        a background map, a matched filter of the sensor's PSF (1 px without a sensor) and the
-        ``threshold_sigma`` threshold.
-        """
+        """The robust star detector (:func:`starsense.solve.extraction.robust_detector`)."""
         if self._detector is None:
-            s = self.settings
-            if s.background == "known":
-                self._detector = StarDetector.for_sensor(self.sensor)
-            else:
-                psf = (
-                    self.sensor.detector.psf_sigma_px
-                    if self.sensor is not None
-                    else DEFAULT_PSF_SIGMA_PX
-                )
-                self._detector = StarDetector(
-                    self.logic,
-                    "cog",
-                    background="auto",
-                    threshold_sigma=s.threshold_sigma,
-                    matched_filter=True,
-                    min_snr=s.threshold_sigma,
-                    psf_sigma_px=psf,
-                )
+            self._detector = robust_detector(self.sensor, self.logic, self.settings)
         return self._detector
+
+    @property
+    def quick_detector(self) -> StarDetector | None:
+        """The quick detector tried first, or None (:mod:`starsense.solve.extraction`)."""
+        if self._quick is False:
+            self._quick = quick_detector(self.sensor, self.logic, self.settings)
+        return self._quick
 
     def field_plan(self) -> list[FieldRange]:
         """Return the field ranges searched, in order, when the field is not known.
@@ -256,12 +246,22 @@ class Solver:
             Solved, or the reason why not (no exception for a frame that does not solve).
         """
         t0 = time.perf_counter()
-        stages: dict[str, float] = {}
         a = np.asarray(image)
         check_frame_shape(a.shape, self.sensor)
-        detector = self.detector
+        stages: dict[str, float] = {}
+        quick = self.quick_detector
+        if quick is not None:
+            sol = self._solve_frame(a, quick, t0, stages, obs_time)
+            if sol.solved or self.settings.extraction == "quick":
+                return sol
+            stages = {"quick_ms": _ms(t0)}
+        return self._solve_frame(a, self.detector, t0, stages, obs_time)
+
+    def _solve_frame(self, a, detector, t0, stages, obs_time) -> Solution:
+        """Detect the stars of frame ``a`` with ``detector`` and solve them."""
+        t1 = time.perf_counter()
         det = detector(a)
-        stages["detect_ms"] = _ms(t0)
+        stages["detect_ms"] = _ms(t1)
         counts = detection_counts(a, det)
         if len(det) == 0:
             return Solution(
@@ -471,7 +471,9 @@ class Solver:
         if self.sensor is not None:
             _ = self.identifier(2.0 * self.sensor.half_fov_rad[0]).database.tree
             shape = (self.sensor.detector.rows, self.sensor.detector.columns)
-            self.detector(np.zeros(shape, dtype=np.float32))
+            for detector in (self.quick_detector, self.detector):
+                if detector is not None:
+                    detector(np.zeros(shape, dtype=np.float32))
         else:
             self.identifier(self.settings.fov_rad)
 
