@@ -27,6 +27,7 @@ from starsense.errors import InputError, StarsenseError
 from starsense.geometry.apparent import parse_time
 from starsense.solve.bayer import check_bayer
 from starsense.solve.centroids import read_centroids
+from starsense.solve.extraction import solution_detector
 from starsense.solve.frames import FITS_SUFFIXES, PILLOW_SUFFIXES, load_image
 from starsense.solve.solver import Solver
 from starsense.units import DEG
@@ -76,7 +77,20 @@ def parse_image_size(text: str) -> tuple[int, int]:
     return int(parts[0]), int(parts[1])
 
 
-def _solver(sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocity_km_s=None):
+#: which star extraction the Solver runs (starsense.solve.extraction)
+ExtractionOpt = Annotated[
+    str,
+    typer.Option(
+        "--extraction",
+        help="auto (default: a quick extraction first when the field is known, the robust one "
+        "if that does not solve), quick or robust.",
+    ),
+]
+
+
+def _solver(
+    sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocity_km_s=None, **options
+):
     if sensor is not None and fov_deg is not None:
         raise InputError("give --sensor or --fov-deg, not both")
     if fov_deg is not None and not (0.5 <= fov_deg <= 120.0):
@@ -95,6 +109,7 @@ def _solver(sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocit
         algorithm=algorithm,
         apparent=apparent,
         observer_velocity_m_s=v_obs,
+        **options,
     )
 
 
@@ -115,7 +130,7 @@ def _notes(sol) -> list[str]:
 def _explain(solver, image: Path, sol, out: Path, bayer: str | None) -> None:
     """Draw the frame, its detections, pattern stars, matches and the reason to ``out``."""
     frame = load_image(image, bayer=bayer)
-    det = solver.detector(frame)
+    det = solution_detector(solver, sol)(frame)
     catalog = solver.catalog if sol.solved else None
     fig = plotting.explain.explain_figure(frame, det, sol, catalog=catalog, title=str(image))
     plotting.figure.save_png(fig, out)
@@ -312,6 +327,7 @@ def solve(
             callback=output_file,
         ),
     ] = None,
+    extraction: ExtractionOpt = "auto",
     jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,
     as_json: JsonOpt = False,
 ) -> None:
@@ -334,7 +350,8 @@ def solve(
         raise InputError(f"--explain writes a PNG figure: give a .png file, got {explain}")
 
     when = None if time_utc is None else parse_time(time_utc, "--time")
-    solver = _solver(sensor, fov_deg, catalog, algorithm, not no_apparent, observer_velocity_km_s)
+    velocity, apparent = observer_velocity_km_s, not no_apparent
+    solver = _solver(sensor, fov_deg, catalog, algorithm, apparent, velocity, extraction=extraction)
     if centroids is not None:
         if images:
             raise InputError("give frames or --centroids, not both")

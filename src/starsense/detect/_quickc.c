@@ -1,8 +1,8 @@
 /* Compiled kernels of quick extraction (quick.py): the clipped box statistics of the coarse
  * background, and the one pass that subtracts the interpolated level and finds the lit pixels.
  *
- *   box_stats       quick.py's _clipped_stats on a regular mesh: per box, the samples at every
- *                   ``every``-th pixel each way; their mean and standard deviation (n - 1),
+ *   box_stats       quick.py's _clipped_stats: per box, its samples (rows ``ri`` x columns
+ *                   ``ci`` where valid, MeshSampler's indices); their mean and standard deviation (n - 1),
  *                   clipped at ``clip`` standard deviations about the mean until nothing more
  *                   is clipped (at most ``max_iter`` times). float64 sums of the deviations
  *                   from the box's middle sample, updated as samples leave or return (NumPy
@@ -96,39 +96,55 @@ static void clipped(const double *x, unsigned char *keep, unsigned char *next, P
 #define GATHER(T)                                                                          \
     do {                                                                                       \
         const T *in = (const T *)ab.buf;                                                       \
-        Py_ssize_t k = 0;                                                                      \
         for (Py_ssize_t u = 0; u < my; u++) {                                                  \
-            const T *row = in + (by * my + u) * every * cols + bx * mx * every;                \
+            if (!rv[by * my + u])                                                              \
+                continue;                                                                      \
+            const T *row = in + ri[by * my + u] * cols;                                        \
             for (Py_ssize_t v = 0; v < mx; v++)                                                \
-                x[k++] = (double)row[v * every];                                               \
+                if (cv[bx * mx + v])                                                           \
+                    x[k++] = (double)row[ci[bx * mx + v]];                                     \
         }                                                                                      \
     } while (0)
 
 static PyObject *box_stats(PyObject *self, PyObject *args)
 {
-    Py_buffer ab, mb, sb, nb;
+    Py_buffer ab, rib, rvb, cib, cvb, mb, sb, nb;
     int kind, max_iter;
-    Py_ssize_t cols, ny, nx, my, mx, every;
+    Py_ssize_t rows, cols, ny, nx, my, mx;
     double clip;
-    if (!PyArg_ParseTuple(args, "y*Cnnnnnndiw*w*w*", &ab, &kind, &cols, &ny, &nx, &my, &mx,
-                          &every, &clip, &max_iter, &mb, &sb, &nb))
+    if (!PyArg_ParseTuple(args, "y*Cnny*y*y*y*nnnndiw*w*w*", &ab, &kind, &rows, &cols, &rib,
+                          &rvb, &cib, &cvb, &ny, &nx, &my, &mx, &clip, &max_iter, &mb, &sb,
+                          &nb))
         return NULL;
     PyObject *result = NULL;
+    double *x = NULL;
+    unsigned char *keep = NULL;
     Py_ssize_t item = item_size(kind), m = my * mx;
-    if (item == 0 || ny < 1 || nx < 1 || my < 1 || mx < 1 || every < 1 || max_iter < 1
-        || nx * mx * every > cols) {
+    if (item == 0 || rows < 1 || cols < 1 || ny < 1 || nx < 1 || my < 1 || mx < 1
+        || max_iter < 1) {
         PyErr_SetString(PyExc_ValueError, "bad kind or mesh geometry");
         goto done;
     }
-    if (check(&ab, ((ny * my - 1) * every * cols + (nx * mx - 1) * every + 1) * item, "a")
-        || check(&mb, ny * nx * 8, "mean") || check(&sb, ny * nx * 8, "sd")
-        || check(&nb, ny * nx * 8, "n"))
+    if (check(&ab, rows * cols * item, "a") || check(&rib, ny * my * 8, "ri")
+        || check(&rvb, ny * my, "rvalid") || check(&cib, nx * mx * 8, "ci")
+        || check(&cvb, nx * mx, "cvalid") || check(&mb, ny * nx * 8, "mean")
+        || check(&sb, ny * nx * 8, "sd") || check(&nb, ny * nx * 8, "n"))
         goto done;
-    double *x = malloc(m * sizeof(double));
-    unsigned char *keep = malloc(2 * m);
+    const int64_t *ri = rib.buf, *ci = cib.buf;
+    const unsigned char *rv = rvb.buf, *cv = cvb.buf;
+    for (Py_ssize_t j = 0; j < ny * my; j++)
+        if (ri[j] < 0 || ri[j] >= rows) {
+            PyErr_SetString(PyExc_ValueError, "ri outside the frame");
+            goto done;
+        }
+    for (Py_ssize_t j = 0; j < nx * mx; j++)
+        if (ci[j] < 0 || ci[j] >= cols) {
+            PyErr_SetString(PyExc_ValueError, "ci outside the frame");
+            goto done;
+        }
+    x = malloc(m * sizeof(double));
+    keep = malloc(2 * m);
     if (x == NULL || keep == NULL) {
-        free(x);
-        free(keep);
         PyErr_NoMemory();
         goto done;
     }
@@ -137,6 +153,7 @@ static PyObject *box_stats(PyObject *self, PyObject *args)
     Py_BEGIN_ALLOW_THREADS
     for (Py_ssize_t by = 0; by < ny; by++)
         for (Py_ssize_t bx = 0; bx < nx; bx++) {
+            Py_ssize_t k = 0;
             switch (kind) { /* one loop per sample type */
             case 'B': GATHER(uint8_t); break;
             case 'H': GATHER(uint16_t); break;
@@ -144,7 +161,7 @@ static PyObject *box_stats(PyObject *self, PyObject *args)
             case 'f': GATHER(float); break;
             default: GATHER(double); break;
             }
-            for (Py_ssize_t j = 0; j < m; j++) {
+            for (Py_ssize_t j = 0; j < k; j++) {
                 if (x[j] < lowest) {
                     lowest = x[j];
                     at_lowest = 0;
@@ -152,15 +169,24 @@ static PyObject *box_stats(PyObject *self, PyObject *args)
                 at_lowest += x[j] == lowest;
             }
             Py_ssize_t b = by * nx + bx;
-            clipped(x, keep, keep + m, m, clip, max_iter, (double *)mb.buf + b,
+            if (k == 0) {
+                ((double *)mb.buf)[b] = ((double *)sb.buf)[b] = NAN;
+                ((int64_t *)nb.buf)[b] = 0;
+                continue;
+            }
+            clipped(x, keep, keep + k, k, clip, max_iter, (double *)mb.buf + b,
                     (double *)sb.buf + b, (int64_t *)nb.buf + b);
         }
     Py_END_ALLOW_THREADS
-    free(x);
-    free(keep);
     result = Py_BuildValue("dn", lowest, at_lowest);
 done:
+    free(x);
+    free(keep);
     PyBuffer_Release(&ab);
+    PyBuffer_Release(&rib);
+    PyBuffer_Release(&rvb);
+    PyBuffer_Release(&cib);
+    PyBuffer_Release(&cvb);
     PyBuffer_Release(&mb);
     PyBuffer_Release(&sb);
     PyBuffer_Release(&nb);
@@ -241,11 +267,11 @@ static Py_ssize_t subtract_pass(const Pass *p, double *lr, double *nr)
         }
         /* no pixel of the row has a threshold below the row's lowest noise: the noise along
          * the row is piecewise linear, least at a box centre or an end (less a margin for
-         * the rounding of its interpolation) */
+         * the rounding of its interpolation), and clipped to [lo, hi] like each pixel's */
         double least = fmin(lerp_at(nr, nx, p, 0), lerp_at(nr, nx, p, cols - 1));
         for (Py_ssize_t i = 0; i < nx; i++)
             least = fmin(least, nr[i]);
-        least = fmax(least - 1e-9 * fabs(least), p->lo);
+        least = fmin(fmax(least - 1e-9 * fabs(least), p->lo), p->hi);
         float lowest = (float)fmax(p->k * least, p->floor);
         lowest = lowest > frame_lowest ? lowest : frame_lowest;
         Py_ssize_t base = r * cols;

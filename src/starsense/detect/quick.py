@@ -41,10 +41,10 @@ try:
 except ImportError:  # built without a C compiler: the NumPy forms below
     _quickc = None
 
-__all__ = ["QuickBackground", "quick_background", "quick_subtract", "TRUNCATED_SD_3SIGMA"]
+__all__ = ["TRUNCATED_SD_3SIGMA", "QuickBackground", "quick_background", "quick_subtract"]
 
 #: the standard deviation of a unit Gaussian clipped at +-3: sqrt(1 - 6 phi(3) / (2 Phi(3) - 1))
-TRUNCATED_SD_3SIGMA = 0.9865811
+TRUNCATED_SD_3SIGMA = 0.98657839
 #: clipping iterations at most (a box converges in 2-4)
 MAX_CLIP_ITERATIONS = 10
 #: sample types the kernel reads (NumPy's type characters)
@@ -116,13 +116,14 @@ def quick_background(
     """
     mesh = MeshSampler(a.shape, box_px=box_px, every=every, interpolation="linear")
     ny, nx = mesh.boxes
-    if _quickc is not None and mesh.regular and a.dtype.char in _KINDS and a.dtype.isnative:
+    n_valid = mesh.rvalid.sum(axis=1)[:, None] * mesh.cvalid.sum(axis=1)[None, :]
+    if _quickc is not None and a.dtype.char in _KINDS and a.dtype.isnative:
         mean, sd, n = np.empty((ny, nx)), np.empty((ny, nx)), np.empty((ny, nx), np.int64)
-        my, mx = mesh.ri.shape[1], mesh.ci.shape[1]
-        geometry = (a.shape[1], ny, nx, my, mx, every)
+        ri, ci = (np.ascontiguousarray(i, np.int64) for i in (mesh.ri, mesh.ci))
+        rv, cv = (np.ascontiguousarray(v, np.uint8) for v in (mesh.rvalid, mesh.cvalid))
         lowest, at_lowest = _quickc.box_stats(
-            np.ascontiguousarray(a), a.dtype.char, *geometry, sigma_clip, MAX_CLIP_ITERATIONS,
-            mean, sd, n,
+            np.ascontiguousarray(a), a.dtype.char, *a.shape, ri, rv, ci, cv, ny, nx,
+            *ri.shape[1:], *ci.shape[1:], sigma_clip, MAX_CLIP_ITERATIONS, mean, sd, n,
         )  # fmt: skip
     else:
         ok = True if mesh.regular else mesh.valid()
@@ -130,9 +131,8 @@ def quick_background(
         mean, sd, n = _clipped_stats(cells, ok, sigma_clip)
         lowest = float(np.min(cells, where=ok, initial=np.inf))
         at_lowest = int(np.count_nonzero((cells == lowest) & ok))
-    n_samples = mesh.ri.shape[1] * mesh.ci.shape[1]
-    floor_fraction = at_lowest / max(1, int(np.sum(n_samples * ny * nx)))
-    bad = n < max(2, 0.1 * n_samples)  # a box mostly clipped or outside the frame
+    floor_fraction = at_lowest / int(n_valid.sum())
+    bad = n < np.maximum(2, 0.1 * n_valid)  # a box mostly clipped
     mean, sd = np.where(bad, np.nan, mean), np.where(bad, np.nan, sd / TRUNCATED_SD_3SIGMA)
     if np.isnan(mean).all():
         mean = sd = np.zeros((ny, nx))
@@ -142,7 +142,7 @@ def quick_background(
 
 
 def _axis_weights(centres: np.ndarray, n: int):
-    """Segment and weights of each pixel between the box centres, one axis (linear, extrapolated)."""
+    """Return each pixel's segment and weights between the box centres, one axis (linear)."""
     m = centres.size
     pix = np.arange(n, dtype=np.float64)
     if m == 1:
@@ -153,7 +153,7 @@ def _axis_weights(centres: np.ndarray, n: int):
 
 
 def _interpolated(mesh: np.ndarray, ry, rx, dtype=np.float64) -> np.ndarray:
-    """The mesh interpolated to every pixel (NumPy form of the kernel's arithmetic).
+    """Return the mesh interpolated to every pixel (NumPy form of the kernel's arithmetic).
 
     Between the box rows in float64, then along the rows in ``dtype``.
     """
@@ -165,7 +165,7 @@ def _interpolated(mesh: np.ndarray, ry, rx, dtype=np.float64) -> np.ndarray:
 
 
 def quick_subtract(a: np.ndarray, bg: QuickBackground, *, k: float, floor: float):
-    """The frame minus its level, and the pixels above ``k`` times their noise and ``floor``.
+    """Return the frame minus its level, and its pixels above ``k`` noise sigmas and ``floor``.
 
     Parameters
     ----------

@@ -29,9 +29,9 @@ from starsense.detect.background import (
 )
 from starsense.detect.centroid import METHODS, gauss_fit
 from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
-from starsense.detect.regions import label_pixels, region_centroids
 from starsense.detect.quantised import QUANTISED_BELOW_STEPS
 from starsense.detect.quick import quick_background, quick_subtract
+from starsense.detect.regions import label_pixels, region_centroids
 from starsense.detect.subtract import floor_threshold, pixels_above, subtract_level
 from starsense.detect.workspace import scratch
 from starsense.errors import InputError
@@ -245,15 +245,17 @@ class StarDetector:
         if self.background == "quick":
             qb = quick_background(a)
             k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
-            sub, idx, noise = quick_subtract(a, qb, k=k, floor=self.logic.lit_pixel_counts)
+            bg = Background(0.0, qb.noise)
             if (a.dtype.kind in "iu" and not qb.noise >= QUANTISED_BELOW_STEPS) or (
                 qb.floor_fraction > QUICK_FLOOR_FRACTION
             ):
                 # noise below 3 integer steps (8-bit, JPEG) or clipped at a floor: a plain
                 # threshold lights plateaus, compression's blocks and the noise's clipped
                 # tail; such frames are for the robust detector
-                idx, noise = idx[:0], noise[:0]
-            return Background(0.0, qb.noise), sub, {"hot_pixels": 0}, (idx, None, None, noise)
+                none = (np.empty(0, np.int64), None, None, np.empty(0, np.float32))
+                return bg, scratch("quick_sub", a.shape), {"hot_pixels": 0}, none
+            sub, idx, noise = quick_subtract(a, qb, k=k, floor=self.logic.lit_pixel_counts)
+            return bg, sub, {"hot_pixels": 0}, (idx, None, None, noise)
         bg = self._background(a)
         remove_hot = self.background == "auto" and self.remove_hot_pixels
         above = floor_threshold(bg, HOT_PIXEL_SIGMA) if remove_hot else None

@@ -29,7 +29,7 @@ DEFAULT_PSF_SIGMA_PX = 1.0
 
 
 def robust_detector(sensor, logic, settings) -> StarDetector:
-    """The Solver's robust full-frame detector.
+    """Return the Solver's robust full-frame detector.
 
     With ``background="known"`` the sensor's own (:meth:`StarDetector.for_sensor`); else a
     background map, a matched filter of the sensor's PSF (1 px without a sensor) and the
@@ -61,7 +61,7 @@ def robust_detector(sensor, logic, settings) -> StarDetector:
 
 
 def quick_detector(sensor, logic, settings) -> StarDetector | None:
-    """The quick detector tried before the robust one, or None when it is not tried.
+    """Return the quick detector tried before the robust one, or None when it is not tried.
 
     Tried with ``extraction="quick"``, or "auto" on real frames (``background="auto"``) of
     a known field (a sensor or ``fov_rad``).
@@ -89,3 +89,22 @@ def quick_detector(sensor, logic, settings) -> StarDetector | None:
         min_snr=settings.threshold_sigma,
         psf_sigma_px=psf,
     )
+
+
+def solution_detector(solver, solution) -> StarDetector:
+    """Return the detector whose detections a frame's solution indexes (its ``matches``).
+
+    Parameters
+    ----------
+    solver : Solver
+        The solver that solved the frame.
+    solution : Solution
+        Its solution of the frame.
+
+    Returns
+    -------
+    StarDetector
+        The quick detector, unless it was not tried or the robust one followed it.
+    """
+    quick = solver.quick_detector
+    return solver.detector if quick is None or "quick_ms" in solution.stage_ms else quick

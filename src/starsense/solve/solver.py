@@ -151,7 +151,7 @@ class Solver:
         catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
         self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
         self._detector: StarDetector | None = None
-        self._quick: StarDetector | None | bool = False  # not built yet
+        self._quick: StarDetector | bool | None = False  # not built yet
 
     @property
     def catalog(self) -> Catalog:
