@@ -79,19 +79,43 @@ def test_st16_logic_on_a_low_gain_detector_is_said(tmp_path, capsys):
     d = json.loads(capsys.readouterr().out)
     said = [w for w in d["warnings"] if "sigma of an empty pixel" in w]
     assert len(said) == 1 and "68 sigma" in said[0]
+    # its bias at 0 counts is said too, in the JSON and the text
+    bias = "bias 0 counts is 0.0 sigma of the read noise (1.77 counts): the ADC clips"
+    assert sum(w.startswith(bias) for w in d["warnings"]) == 1
     assert main(argv) == 0
-    assert "lowgain: the lit-pixel threshold (120 counts) is 68 sigma" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "lowgain: the lit-pixel threshold (120 counts) is 68 sigma" in text
+    assert f"lowgain: {bias}" in text
 
 
 def test_sanity_warnings_in_words(tmp_path):
-    sens = load_sensor("st16")  # 120 counts / (6.5 x 3.5 e-) = 5.3 sigma: nothing to say
+    # 120 counts / (6.5 x 3.5 e-) = 5.3 sigma, and a bias of 100 counts (4.4 sigma) keeps the
+    # noise off the ADC's zero: nothing to say
+    sens = load_sensor(str(_toml(tmp_path, "biased", detector__bias_counts=100.0)))
     assert sanity_warnings(sens, catalog_name="hip2", limit_mag=5.7, runs={}) == []
     # past Hipparcos's completeness (V = 7.3): the warning names it and suggests Gaia
     (w,) = sanity_warnings(sens, catalog_name="hip2", limit_mag=8.4, runs={})
     assert "past hip2's completeness (V = 7.3" in w and "--catalog gaia" in w
-    noisy = load_sensor(str(_toml(tmp_path, detection__lit_pixel_counts=40.0)))
+    noisy = load_sensor(
+        str(_toml(tmp_path, detection__lit_pixel_counts=40.0, detector__bias_counts=100.0))
+    )
     (w,) = sanity_warnings(noisy, catalog_name="hip2", limit_mag=5.7, runs={})
     assert "1.8 sigma" in w  # 40 / 22.75 counts
+
+
+def test_a_bias_below_three_sigma_is_said_in_words(tmp_path):
+    # the ST-16's bias is 0: its read noise, 22.75 counts (22.75 with the ADC's 1/12 count^2),
+    # is clipped at zero. The rectified Gaussian's closed form (mean s phi(0) = 0.3989 s, rms
+    # s sqrt(1/2 - 1/(2 pi)) = 0.5838 s, 50 % at 0) with the rounding's half count (the pixels
+    # below +0.5 read 0: 50.9 %) gives 9.08 counts above the bias and 13.3 rms
+    (w,) = sanity_warnings(load_sensor("st16"), catalog_name="hip2", limit_mag=5.7, runs={})
+    assert w.startswith("bias 0 counts is 0.0 sigma of the read noise (22.8 counts): the ADC")
+    assert "9.08 counts above the bias with 13.3 counts rms, 51% of them 0" in w
+    # at 2.9 sigma (66 counts) still said, at 3.0 sigma (69 counts) not
+    for bias, said in ((66.0, 1), (69.0, 0)):
+        sens = load_sensor(str(_toml(tmp_path, f"b{bias:g}", detector__bias_counts=bias)))
+        got = sanity_warnings(sens, catalog_name="hip2", limit_mag=5.7, runs={})
+        assert len(got) == said, got
 
 
 def test_a_run_at_the_rate_without_a_prediction_is_said_in_words():
@@ -112,9 +136,10 @@ def test_a_run_at_the_rate_without_a_prediction_is_said_in_words():
         cross_rms_arcsec=out["cross_rms_arcsec"],
         cross_predicted_arcsec=None,
     )
-    (w,) = sanity_warnings(
+    said = sanity_warnings(
         sens, catalog_name="hip2", limit_mag=5.7, runs={"monte_carlo_at_rate": run}
     )
+    (w,) = [w for w in said if "deg/s" in w]  # beside the ST-16's bias at 0 counts
     assert "at 1 deg/s 12 frames solved" in w and "measured, not predicted" in w
 
 

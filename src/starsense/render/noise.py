@@ -25,12 +25,24 @@ draw, ~130 ms more for 5 Mpixel).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from scipy.special import ndtr
 
 from starsense._validate import as_generator
 from starsense.errors import InputError
 
-__all__ = ["apply_noise", "as_generator", "count_dtype", "quantise"]  # as_generator: re-exported
+__all__ = [  # as_generator: re-exported
+    "apply_noise",
+    "as_generator",
+    "count_dtype",
+    "empty_pixel_moments",
+    "quantise",
+]
+
+#: the empty pixel's Gaussian is summed over this many sigma either side of its mean
+_MOMENT_SIGMAS = 12.0
 
 
 def count_dtype(bit_depth: int) -> type:
@@ -162,3 +174,47 @@ def apply_noise(expected_e, sensor, *, rng=None, exposure_s: float | None = None
                 raise InputError("expected_e must be finite and >= 0 electrons")
             work.reshape(-1)[flat] += np.minimum(gen.poisson(lam), det.full_well_e)
     return _to_counts(work, det)
+
+
+def empty_pixel_moments(detector, *, dark_e: float = 0.0) -> tuple[float, float]:
+    """Return the mean and variance of the counts of a pixel without a star.
+
+    The ADC's output of read noise and dark signal (a Gaussian of mean ``g dark_e + bias``
+    and variance ``g^2 (read_noise_e^2 + dark_e)`` counts, the dark shot noise as a Gaussian),
+    rounded to the nearest count and clipped to ``[0, 2^bits - 1]``, as :func:`apply_noise`
+    renders it. The sum over the counts ``k`` of ``k P(k)`` and ``k^2 P(k)`` with
+    ``P(k) = Phi((k + 1/2 - mu) / s) - Phi((k - 1/2 - mu) / s)`` (the ends take the tails),
+    exact for the Gaussian. Where the bias sits several sigma above zero this is the mean
+    ``mu`` and the variance ``s^2 + 1/12`` (the quantisation, Sheppard's correction); at a bias
+    of 0 half the pixels read 0, the mean sits ``s / sqrt(2 pi)`` (0.40 s) above the bias
+    and the variance is ``s^2 (1/2 - 1/(2 pi))`` (0.58 s rms) plus the rounding's share.
+
+    Parameters
+    ----------
+    detector : Detector
+        Gain, read noise, bias and bit depth.
+    dark_e : float
+        Dark signal over the exposure, electrons (>= 0).
+
+    Returns
+    -------
+    mean : float
+        counts (the bias included).
+    var : float
+        counts^2.
+    """
+    g = detector.gain_counts_per_e
+    mu = g * dark_e + detector.bias_counts
+    s = g * math.sqrt(detector.read_noise_e**2 + dark_e)
+    top = detector.saturation_counts
+    if s == 0.0:  # no noise: the rounded, clipped mean itself
+        return float(min(max(round(mu), 0), top)), 0.0
+    lo = max(math.floor(mu - _MOMENT_SIGMAS * s), 0)
+    hi = min(math.ceil(mu + _MOMENT_SIGMAS * s), top)
+    k = np.arange(lo, hi + 1, dtype=float)
+    cdf = ndtr((np.append(k, hi + 1.0) - 0.5 - mu) / s)
+    p = np.diff(cdf)
+    p[0] += cdf[0]  # below the first count: rounded up to it (0 when clipped there)
+    p[-1] += 1.0 - cdf[-1]  # above the last: the top count's
+    mean = float(p @ k)
+    return mean, float(p @ (k - mean) ** 2)

@@ -6,6 +6,8 @@ suspicious is said here, in the datasheet's ``warnings``:
 
 * a lit-pixel threshold at less than 3 or more than 20 sigma of the noise of an empty pixel
   (read noise, dark current over the exposure and quantisation, in counts);
+* a bias below 3 sigma of that noise: the ADC clips the noise below zero, and the background
+  is a rectified Gaussian (its mean above the bias, its smaller rms, the share of pixels at 0);
 * fewer than half the frames solved at rest while an NEA is quoted, and too few to check it
   (:data:`starsense.analysis.datasheet.verify.MIN_CHECKED_FRAMES`), at rest or at the rate;
 * a limiting magnitude past the catalogue's completeness (the stars in the field, the
@@ -17,6 +19,7 @@ from __future__ import annotations
 import math
 
 from starsense.analysis.datasheet.verify import MIN_CHECKED_FRAMES
+from starsense.render.noise import empty_pixel_moments
 
 __all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings", "solving_warnings"]
 
@@ -36,6 +39,9 @@ COMPLETENESS_V = {
 }
 #: the detection logic's threshold, in sigma of an empty pixel, outside which it is suspicious
 SIGMA_RANGE = (3.0, 20.0)
+#: a bias below this many sigma of an empty pixel's noise lets the ADC clip the noise at 0
+#: (at 3 sigma 0.13 % of the pixels are clipped, their mean moves by 0.0004 sigma)
+BIAS_SIGMAS = 3.0
 
 
 def empty_pixel_sigma_counts(sensor) -> float:
@@ -92,6 +98,8 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             f"an empty pixel's noise ({sigma:.3g} counts): stars the noise would let through "
             f"are lost (a detection logic usually sits at ~5 sigma, {5 * sigma:.3g} counts)"
         )
+    if sensor.detector.bias_counts < BIAS_SIGMAS * sigma:
+        out.append(_clipped_bias(sensor, sigma))
     mc = runs.get("monte_carlo")
     if mc is not None and mc.frames and mc.solved < 0.5 * mc.frames:
         out.append(
@@ -123,6 +131,27 @@ def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs)
             "few stars; use a deeper catalogue (--catalog gaia, or tycho2)"
         )
     return out
+
+
+def _clipped_bias(sensor, sigma: float) -> str:
+    """Say what a bias of less than ``BIAS_SIGMAS`` sigma does to an empty pixel, in counts."""
+    det = sensor.detector
+    dark_e = det.dark_current_e_s * sensor.exposure_s
+    mean, var = empty_pixel_moments(det, dark_e=dark_e)
+    g = det.gain_counts_per_e
+    s = g * math.sqrt(det.read_noise_e**2 + dark_e)
+    # the pixels that read 0: the Gaussian below half a count, rounded to 0 or clipped there
+    zero = 0.5 * (1.0 + math.erf((0.5 - g * dark_e - det.bias_counts) / (math.sqrt(2) * s)))
+    return (
+        f"bias {det.bias_counts:g} counts is {det.bias_counts / sigma:.1f} sigma of the read "
+        f"noise ({sigma:.3g} counts): the ADC clips the noise below zero; an empty pixel reads "
+        f"{mean - det.bias_counts - g * dark_e:.3g} counts above the bias with "
+        f"{math.sqrt(var):.3g} counts rms, {zero:.0%} of them 0. The frames and the NEA's "
+        "centroid model see that clipped background; the solver's centroid weights assume the "
+        "unclipped noise (they overstate a faint star's sigma). A camera's bias "
+        f"usually sits at >= {BIAS_SIGMAS:g} sigma ({BIAS_SIGMAS * sigma:.3g} counts), where "
+        "the noise is Gaussian"
+    )
 
 
 def _few_at_rate(run) -> str:
