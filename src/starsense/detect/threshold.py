@@ -246,12 +246,12 @@ class StarDetector:
             qb = quick_background(a)
             k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
             bg = Background(0.0, qb.noise)
-            if (a.dtype.kind in "iu" and not qb.noise >= QUANTISED_BELOW_STEPS) or (
+            if (a.dtype.itemsize == 1 and not qb.noise >= QUANTISED_BELOW_STEPS) or (
                 qb.floor_fraction > QUICK_FLOOR_FRACTION
             ):
-                # noise below 3 integer steps (8-bit, JPEG) or clipped at a floor: a plain
-                # threshold lights plateaus, compression's blocks and the noise's clipped
-                # tail; such frames are for the robust detector
+                # 8-bit noise below 3 steps (JPEG's blocks stand out of it) or noise clipped
+                # at a floor: a plain threshold lights the blocks, plateaus and the noise's
+                # clipped tail; such frames are for the robust detector
                 none = (np.empty(0, np.int64), None, None, np.empty(0, np.float32))
                 return bg, scratch("quick_sub", a.shape), {"hot_pixels": 0}, none
             sub, idx, noise = quick_subtract(a, qb, k=k, floor=self.logic.lit_pixel_counts)
