@@ -76,3 +76,14 @@ def test_a_frame_the_quick_extraction_cannot_solve_goes_to_the_robust_one():
 def test_bad_extraction_options_are_refused_by_name(options, message):
     with pytest.raises(InputError, match=message):
         Solver(sensor="esa_blackfly", **options)
+
+
+def test_a_first_quick_attempt_tries_only_the_field_given(esa):
+    # the field given 1.3x too wide: the quick attempt fails at that field without searching
+    # the scale (the robust attempt that follows searches it, once), and the frame solves with
+    # the field found (the reference fits give 11.422-11.425 deg)
+    folder, reference = esa
+    name = next(iter(reference))
+    sol = Solver(fov_rad=math.radians(1.3 * 11.42)).solve_file(folder / name)
+    assert sol.solved and "quick_ms" in sol.stage_ms
+    assert sol.fov_deg == pytest.approx(reference[name]["fov_deg"], rel=1e-3)

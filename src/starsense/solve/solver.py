@@ -251,32 +251,28 @@ class Solver:
         stages: dict[str, float] = {}
         quick = self.quick_detector
         if quick is not None:
-            sol = self._solve_frame(a, quick, t0, stages, obs_time)
-            if sol.solved or self.settings.extraction == "quick":
+            alone = self.settings.extraction == "quick"
+            sol = self._solve_frame(a, quick, t0, stages, obs_time, first=not alone)
+            if sol.solved or alone:
                 return sol
             stages = {"quick_ms": _ms(t0)}
         return self._solve_frame(a, self.detector, t0, stages, obs_time)
 
-    def _solve_frame(self, a, detector, t0, stages, obs_time) -> Solution:
-        """Detect the stars of frame ``a`` with ``detector`` and solve them."""
+    def _solve_frame(self, a, detector, t0, stages, obs_time, first=False) -> Solution:
+        """Detect and solve frame ``a`` (a ``first`` attempt: at the known field only)."""
         t1 = time.perf_counter()
         det = detector(a)
         stages["detect_ms"] = _ms(t1)
         counts = detection_counts(a, det)
         if len(det) == 0:
-            return Solution(
-                "no_stars",
-                "no star passed the detection logic",
-                time_ms=_ms(t0),
-                stage_ms=stages,
-                counts=counts,
-            )
+            why = "no star passed the detection logic"
+            return Solution("no_stars", why, time_ms=_ms(t0), stage_ms=stages, counts=counts)
 
         def sigma_px(matched, x, vectors):  # streaks re-centroided: starsense.solve.streaks
             return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
 
         points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
-        sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time)
+        sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time, not first, not first)
         return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
     def solve_centroids(
@@ -325,11 +321,13 @@ class Solver:
         points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
         return self._solve_points(points, t0, {}, lambda _m, _x, v: (v, sigma), fov_rad, obs_time)
 
-    def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True):
+    def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True,
+                      search=True):  # fmt: skip
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
 
         When they do not solve (and are not clutter), their mirror image is tried
-        (:func:`starsense.solve.parity.solve_mirrored`, unless ``parity`` is False).
+        (:func:`starsense.solve.parity.solve_mirrored`, unless ``parity`` is False); without
+        a sensor, the scale around the given field (unless ``search`` is False).
         """
         n = len(points.x)
         if n < 3:
@@ -355,7 +353,7 @@ class Solver:
             points.flux,
             fov_known_rad=fov_known,
             fov_assumed_rad=fov_assumed,
-            estimate=self.sensor is None,
+            estimate=self.sensor is None and search,
         )
         stages["identify_ms"] = _ms(t2)
         if not ident.solved:
