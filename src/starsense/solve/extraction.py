@@ -48,16 +48,7 @@ def robust_detector(sensor, logic, settings) -> StarDetector:
     """
     if settings.background == "known":
         return StarDetector.for_sensor(sensor)
-    psf = sensor.detector.psf_sigma_px if sensor is not None else DEFAULT_PSF_SIGMA_PX
-    return StarDetector(
-        logic,
-        "cog",
-        background="auto",
-        threshold_sigma=settings.threshold_sigma,
-        matched_filter=True,
-        min_snr=settings.threshold_sigma,
-        psf_sigma_px=psf,
-    )
+    return _detector(sensor, logic, settings, background="auto", matched_filter=True)
 
 
 def quick_detector(sensor, logic, settings) -> StarDetector | None:
@@ -80,14 +71,18 @@ def quick_detector(sensor, logic, settings) -> StarDetector | None:
         return None
     if settings.extraction == "auto" and sensor is None and settings.fov_rad is None:
         return None
-    psf = sensor.detector.psf_sigma_px if sensor is not None else DEFAULT_PSF_SIGMA_PX
+    return _detector(sensor, logic, settings, background="quick")
+
+
+def _detector(sensor, logic, settings, **options) -> StarDetector:
+    """Return a CoG detector at the settings' threshold and SNR, with the sensor's PSF."""
     return StarDetector(
         logic,
         "cog",
-        background="quick",
         threshold_sigma=settings.threshold_sigma,
         min_snr=settings.threshold_sigma,
-        psf_sigma_px=psf,
+        psf_sigma_px=sensor.detector.psf_sigma_px if sensor is not None else DEFAULT_PSF_SIGMA_PX,
+        **options,
     )
 
 
