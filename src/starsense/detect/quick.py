@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from starsense.detect.mesh import MeshSampler, fill_from_nearest, median_filter_mesh
+from starsense.detect.quantised import QUANTISED_BELOW_STEPS
 from starsense.detect.workspace import scratch
 
 try:
@@ -45,6 +46,9 @@ __all__ = ["TRUNCATED_SD_3SIGMA", "QuickBackground", "quick_background", "quick_
 
 #: the standard deviation of a unit Gaussian clipped at +-3: sqrt(1 - 6 phi(3) / (2 Phi(3) - 1))
 TRUNCATED_SD_3SIGMA = 0.98657839
+#: a frame with more than this fraction of its background samples at their lowest value is
+#: declined (noise clipped at a floor; Gaussian noise puts a few in a million there)
+QUICK_FLOOR_FRACTION = 0.01
 #: clipping iterations at most (a box converges in 2-4)
 MAX_CLIP_ITERATIONS = 10
 #: sample types the kernel reads (NumPy's type characters)
@@ -75,6 +79,16 @@ class QuickBackground:
     col_centres: np.ndarray
     noise: float
     floor_fraction: float = 0.0
+
+    def declines(self, dtype) -> bool:
+        """Whether a plain threshold is wrong for this frame (of sample type ``dtype``).
+
+        Noise clipped at a floor (more than :data:`QUICK_FLOOR_FRACTION` of the samples at
+        their lowest value), or 8-bit noise under 3 counts (JPEG's blocks stand out of it): a
+        plain threshold lights the noise's clipped tail, plateaus and blocks.
+        """
+        low_8bit = np.dtype(dtype).itemsize == 1 and not self.noise >= QUANTISED_BELOW_STEPS
+        return bool(low_8bit or self.floor_fraction > QUICK_FLOOR_FRACTION)
 
 
 def _clipped_stats(cells: np.ndarray, ok, sigma_clip: float):

@@ -29,7 +29,6 @@ from starsense.detect.background import (
 )
 from starsense.detect.centroid import METHODS, gauss_fit
 from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
-from starsense.detect.quantised import QUANTISED_BELOW_STEPS
 from starsense.detect.quick import quick_background, quick_subtract
 from starsense.detect.regions import label_pixels, region_centroids
 from starsense.detect.subtract import floor_threshold, pixels_above, subtract_level
@@ -123,11 +122,6 @@ def _check_image(image) -> np.ndarray:
         if bad:
             raise InputError(f"image has {bad} non-finite (NaN or inf) pixel(s)")
     return a
-
-
-#: quick extraction declines a frame with more than this fraction of its background samples at
-#: their lowest value (noise clipped at a floor; Gaussian noise puts a few in a million there)
-QUICK_FLOOR_FRACTION = 0.01
 
 
 class StarDetector:
@@ -246,12 +240,7 @@ class StarDetector:
             qb = quick_background(a)
             k = 5.0 if self.threshold_sigma is None else self.threshold_sigma
             bg = Background(0.0, qb.noise)
-            if (a.dtype.itemsize == 1 and not qb.noise >= QUANTISED_BELOW_STEPS) or (
-                qb.floor_fraction > QUICK_FLOOR_FRACTION
-            ):
-                # 8-bit noise below 3 steps (JPEG's blocks stand out of it) or noise clipped
-                # at a floor: a plain threshold lights the blocks, plateaus and the noise's
-                # clipped tail; such frames are for the robust detector
+            if qb.declines(a.dtype):  # such frames are for the robust detector
                 none = (np.empty(0, np.int64), None, None, np.empty(0, np.float32))
                 return bg, scratch("quick_sub", a.shape), {"hot_pixels": 0}, none
             sub, idx, noise = quick_subtract(a, qb, k=k, floor=self.logic.lit_pixel_counts)
