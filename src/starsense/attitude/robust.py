@@ -6,7 +6,7 @@ import numpy as np
 
 from starsense.attitude.estimate import estimate_attitude
 
-__all__ = ["OUTLIER_SIGMA", "robust_attitude"]
+__all__ = ["OUTLIER_SIGMA", "pair_outliers", "robust_attitude"]
 
 
 #: a matched star whose residual exceeds this many of its own 1-sigma (per axis, so ~ sqrt(2)
@@ -14,13 +14,58 @@ __all__ = ["OUTLIER_SIGMA", "robust_attitude"]
 OUTLIER_SIGMA = 7.0
 
 
+def pair_outliers(body, reference, sigma_rad) -> np.ndarray:
+    """Return the stars whose angles to the others disagree with the catalogue's.
+
+    The angle between two stars does not depend on the attitude: measured less catalogue, it
+    is a normal error of variance ``sigma_i^2 + sigma_j^2`` (each star's error along the line
+    joining them). A star centroided far from its own light (two streaks crossing, a capsule
+    slid onto a neighbour) disagrees with most others; a right one agrees with every right one.
+    A star is an outlier when the median of its normalised disagreements exceeds
+    ``OUTLIER_SIGMA`` times the median of a half-normal (0.674): the median ignores the other
+    outliers as long as they are fewer than half. Unlike the residuals of a fit, which one
+    heavily weighted outlier can drag onto itself, this cannot be masked.
+
+    Parameters
+    ----------
+    body, reference : ndarray (N, 3)
+        Measured (camera) and catalogue (ICRS) unit vectors of the matched stars.
+    sigma_rad : ndarray (N,)
+        Each star's 1-sigma direction noise per axis, rad.
+
+    Returns
+    -------
+    ndarray of bool (N,)
+        True for an outlier (none when fewer than 5 stars, or half or more disagree).
+    """
+    n = len(body)
+    if n < 5:
+        return np.zeros(n, dtype=bool)
+
+    def angles(v):
+        cross = np.linalg.norm(np.cross(v[:, None, :], v[None, :, :]), axis=2)
+        return np.arctan2(cross, v @ v.T)
+
+    var = sigma_rad[:, None] ** 2 + sigma_rad[None, :] ** 2
+    z = np.abs(angles(body) - angles(reference)) / np.sqrt(var)
+    np.fill_diagonal(z, np.nan)
+    bad = np.nanmedian(z, axis=1) > OUTLIER_SIGMA * _HALF_NORMAL_MEDIAN
+    return bad if 2 * bad.sum() < n else np.zeros(n, dtype=bool)
+
+
+#: the median of |x| for a unit normal x
+_HALF_NORMAL_MEDIAN = 0.6744897501960817
+
+
 def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
-    """Estimate the attitude, dropping one by one the stars whose residual is an outlier.
+    """Estimate the attitude, dropping the stars whose residual is an outlier.
 
     A blended or double star is identified right but centroided at the photocentre of the
-    pair: its residual is many of its own sigma, and left in it pulls the attitude. While the
-    worst residual exceeds ``OUTLIER_SIGMA`` sigma and more than three stars remain, that star
-    is dropped and the attitude re-estimated (SVD, Wahba weights 1 / sigma^2).
+    pair: its residual is many of its own sigma, and left in it pulls the attitude. The stars
+    whose angles to the others disagree with the catalogue's are dropped first
+    (:func:`pair_outliers`: several gross outliers, one of which a fit would follow); then,
+    while the worst residual exceeds ``OUTLIER_SIGMA`` sigma and more than three stars remain,
+    that star is dropped and the attitude re-estimated (SVD, Wahba weights 1 / sigma^2).
 
     Parameters
     ----------
@@ -36,8 +81,8 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
     AttitudeSolution, and the mask of the stars kept (N,)
     """
     sigma = np.broadcast_to(np.asarray(sigma_rad, dtype=float), (len(body),))
-    keep = np.ones(len(body), dtype=bool)
-    att = estimate_attitude(body, reference, sigma, method="svd")
+    keep = ~pair_outliers(body, reference, sigma)
+    att = estimate_attitude(body[keep], reference[keep], sigma[keep], method="svd")
     for _ in range(max_drop):
         if keep.sum() <= 3:
             break

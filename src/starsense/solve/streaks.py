@@ -13,12 +13,14 @@ Once the frame is identified, :func:`streak_centroids_of`:
 
 1. measures the streaks of the brightest matched stars (the second moments of their lit pixels,
    :func:`starsense.detect.streak.streak_axes`) and fits the body rate, up to its
-   sign, to the longest of them (the model of :mod:`~starsense.solve.tracking.streak_rate`,
+   sign, to the longest whole ones (the model of :mod:`~starsense.solve.tracking.streak_rate`,
    linear in the rate to first order in the angle turned during the exposure, solved for
    every choice of the streaks' unknown signs): a piece of a streak is shorter than the
-   streak, never longer, so only streaks within the lit pixels' shortfall (``SYSTEMATIC``) of
-   the longest take part (with fewer than 3 of them, their mean streak stands for every
-   star's). A frame whose brightest matched stars' streaks (median of the brightest
+   streak and a blend of two streaks longer or turned, so the reference is the streak the
+   most others confirm (as long within the lit pixels' shortfall, ``SYSTEMATIC``, and as
+   turned within the PSF's width), only streaks within that shortfall of it take part, and a
+   streak the fitted rate does not predict is dropped and the rate refitted (with fewer than
+   3 of them, their mean streak stands for every star's). A frame whose brightest matched stars' streaks (median of the brightest
    ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the detector's centroid margin on each
    side is left as it is: its box of lit pixels, widened by that margin, holds each streak
    whole (frames at rest show up to ~3 px of elongation from pixelisation and noise, and keep
@@ -127,6 +129,12 @@ def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.n
     return planes, r0, c0
 
 
+def _measured(axes) -> np.ndarray:
+    """Return the streaks ``l`` (N, 2), px, sign unknown, whose ``l l^T`` are ``axes``."""
+    length = np.sqrt(np.maximum(axes[:, 0, 0] + axes[:, 1, 1], 0.0))
+    return np.linalg.eigh(axes)[1][:, :, -1] * length[:, None]
+
+
 def _rate(sensor, x, y, axes) -> np.ndarray:
     """Return the body rate (up to sign) whose streaks fit ``l l^T`` of stars (x, y), rad/s.
 
@@ -137,8 +145,7 @@ def _rate(sensor, x, y, axes) -> np.ndarray:
     """
     eps = 1e-6 / sensor.exposure_s  # a turn of 1 microradian over the exposure
     a = np.stack([_streaks(sensor, x, y, eps * e) / eps for e in np.eye(3)], axis=2)
-    length = np.sqrt(np.maximum(axes[:, 0, 0] + axes[:, 1, 1], 0.0))
-    meas = np.linalg.eigh(axes)[1][:, :, -1] * length[:, None]  # (N, 2), sign unknown
+    meas = _measured(axes)
     a2 = a.reshape(-1, 3)
     best, rate = math.inf, np.zeros(3)
     for signs in itertools.product((1.0, -1.0), repeat=len(x) - 1):
@@ -172,20 +179,63 @@ def _streak_model(sensor, image, x, y, order, **measure):
     axes = np.concatenate([first, rest])
     length2 = axes[:, 0, 0] + axes[:, 1, 1]  # |l|^2
     ok = np.flatnonzero(np.isfinite(length2))
-    ok = ok[np.argsort(-length2[ok], kind="stable")]
-    if len(ok) < 3 or np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
+    if len(ok) < 3:
         return None
-    # a piece of a streak is shorter than the streak, never longer, and a whole streak's lit
-    # pixels fall short of it by up to SYSTEMATIC: the rate comes from the streaks within that
-    # of the longest (a rate about the boresight lengthens them with the distance from it: the
-    # outer ring of the field keeps them)
-    ok = ok[length2[ok] >= (1.0 - SYSTEMATIC) ** 2 * length2[ok[0]]][:N_RATE_STARS]
+    # a piece of a streak is shorter than the streak, a blend of two crossing or end-to-end
+    # streaks longer (or turned), and a whole streak's lit pixels fall short of it by up to
+    # SYSTEMATIC: the rate comes from the streaks within that of the streak the most others
+    # confirm (shorter within SYSTEMATIC, turned within the angle its PSF's width spans: whole
+    # streaks agree, blends and pieces scatter; of equals the longest), the longest first (a
+    # rate about the boresight lengthens them with the distance from it: the outer ring of the
+    # field keeps them)
+    ok = ok[np.argsort(-length2[ok], kind="stable")]
+    if np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
+        return None
+    low = (1.0 - SYSTEMATIC) ** 2
+    top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0, shortest)
+    typical2 = float(length2[ok[top]])
+    ok = ok[top:][length2[ok[top:]] >= low * typical2]
+    ok = ok[np.argsort(-length2[ok], kind="stable")][:N_RATE_STARS]
     if len(ok) < 3:  # one or two whole streaks: theirs, the same everywhere
         m = axes[ok].sum(axis=0)
         vec = np.linalg.eigh(m)[1][:, -1] * math.sqrt(float(np.trace(m)) / len(ok))
         return lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))
-    rate = _rate(sensor, x[use[ok]], y[use[ok]], axes[ok])
+    rate = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
     return lambda xs, ys: _streaks(sensor, xs, ys, rate)
+
+
+def _confirmed(axes, length2, low: float, width_px: float, shortest_px: float) -> int:
+    """Return the streak (longest first) the most others confirm (:func:`_streak_model`)."""
+    direction = np.linalg.eigh(axes)[1][:, :, -1]
+    length = np.sqrt(length2)
+    support = np.zeros(len(length2), dtype=int)
+    for i in np.flatnonzero(length >= shortest_px):
+        near = (length2 >= low * length2[i]) & (length2 <= length2[i])
+        turned = np.abs(direction @ np.array([-direction[i, 1], direction[i, 0]]))
+        support[i] = np.count_nonzero(near & (turned <= width_px / float(length[i])))
+    return int(np.argmax(support))
+
+
+def _consensus_rate(sensor, x, y, axes, typical_px: float) -> np.ndarray:
+    """Return the rate of :func:`_rate`, refitted without the streaks it does not predict.
+
+    A streak farther from the fitted one (either sign) than the lit pixels' shortfall
+    (``SYSTEMATIC`` of the typical streak) plus 2 PSF sigmas is a blend whose direction the
+    length window did not catch: the worst is dropped and the rate refitted, while 3 remain.
+    """
+    keep = np.arange(len(x))
+    tol = SYSTEMATIC * typical_px + 2.0 * sensor.detector.psf_sigma_px
+    while True:
+        rate = _rate(sensor, x[keep], y[keep], axes[keep])
+        if len(keep) <= 3:
+            return rate
+        model = _streaks(sensor, x[keep], y[keep], rate)
+        meas = _measured(axes[keep])
+        miss = np.minimum(np.hypot(*(meas - model).T), np.hypot(*(meas + model).T))
+        worst = int(np.argmax(miss))
+        if miss[worst] <= tol:
+            return rate
+        keep = np.delete(keep, worst)
 
 
 def streak_centroids_of(
