@@ -16,15 +16,16 @@ Once the frame is identified, :func:`streak_centroids_of`:
    sign, to the longest whole ones (the model of :mod:`~starsense.solve.tracking.streak_rate`,
    linear in the rate to first order in the angle turned during the exposure, solved for
    every choice of the streaks' unknown signs): a piece of a streak is shorter than the
-   streak and a blend of two streaks longer or turned, so the reference is the streak the
-   most others confirm (as long within the lit pixels' shortfall, ``SYSTEMATIC``, and as
-   turned within the PSF's width), only streaks within that shortfall of it take part, and a
-   streak the fitted rate does not predict is dropped and the rate refitted (with fewer than
-   3 of them, their mean streak stands for every star's). A frame whose brightest matched stars' streaks (median of the brightest
-   ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the detector's centroid margin on each
-   side is left as it is: its box of lit pixels, widened by that margin, holds each streak
-   whole (frames at rest show up to ~3 px of elongation from pixelisation and noise, and keep
-   their centroids);
+   streak and a blend of two streaks longer (at most twice) or turned, so the reference is
+   the streak the most others confirm (as long within the lit pixels' shortfall,
+   ``SYSTEMATIC``, and as turned within the PSF's width) of those at least half as long as
+   the longest; only streaks within that shortfall of it take part, and a streak the fitted
+   rate does not predict is dropped and the rate refitted (with fewer than 3 of them, their
+   mean streak stands for every star's). A frame whose brightest matched stars' streaks
+   (median of the brightest ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the
+   detector's centroid margin on each side is left as it is: its box of lit pixels, widened
+   by that margin, holds each streak whole (frames at rest show up to ~3 px of elongation
+   from pixelisation and noise, and keep their centroids);
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
@@ -182,17 +183,17 @@ def _streak_model(sensor, image, x, y, order, **measure):
     if len(ok) < 3:
         return None
     # a piece of a streak is shorter than the streak, a blend of two crossing or end-to-end
-    # streaks longer (or turned), and a whole streak's lit pixels fall short of it by up to
-    # SYSTEMATIC: the rate comes from the streaks within that of the streak the most others
-    # confirm (shorter within SYSTEMATIC, turned within the angle its PSF's width spans: whole
-    # streaks agree, blends and pieces scatter; of equals the longest), the longest first (a
-    # rate about the boresight lengthens them with the distance from it: the outer ring of the
-    # field keeps them)
+    # streaks longer (or turned), at most twice as long, and a whole streak's lit pixels fall
+    # short of it by up to SYSTEMATIC: the rate comes from the streaks within that of the
+    # streak the most others confirm (shorter within SYSTEMATIC, turned within the angle its
+    # PSF's width spans: whole streaks agree, blends scatter), of those at least half as long
+    # as the longest (pieces are left out), the longest first (a rate about the boresight
+    # lengthens them with the distance from it: the outer ring of the field keeps them)
     ok = ok[np.argsort(-length2[ok], kind="stable")]
     if np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
         return None
     low = (1.0 - SYSTEMATIC) ** 2
-    top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0, shortest)
+    top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0)
     typical2 = float(length2[ok[top]])
     ok = ok[top:][length2[ok[top:]] >= low * typical2]
     ok = ok[np.argsort(-length2[ok], kind="stable")][:N_RATE_STARS]
@@ -204,12 +205,13 @@ def _streak_model(sensor, image, x, y, order, **measure):
     return lambda xs, ys: _streaks(sensor, xs, ys, rate)
 
 
-def _confirmed(axes, length2, low: float, width_px: float, shortest_px: float) -> int:
-    """Return the streak (longest first) the most others confirm (:func:`_streak_model`)."""
+def _confirmed(axes, length2, low: float, width_px: float) -> int:
+    """Return the reference streak of :func:`_streak_model` (index into length-sorted ones)."""
     direction = np.linalg.eigh(axes)[1][:, :, -1]
     length = np.sqrt(length2)
     support = np.zeros(len(length2), dtype=int)
-    for i in np.flatnonzero(length >= shortest_px):
+    # a blend of two streaks is at most twice as long as either
+    for i in np.flatnonzero(length >= 0.5 * length[0]):
         near = (length2 >= low * length2[i]) & (length2 <= length2[i])
         turned = np.abs(direction @ np.array([-direction[i, 1], direction[i, 0]]))
         support[i] = np.count_nonzero(near & (turned <= width_px / float(length[i])))
