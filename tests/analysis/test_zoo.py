@@ -110,3 +110,12 @@ def test_narrow_zoo_designs_include_the_catalogue_term():
         ratios[name] = (round(d.monte_carlo.cross_ratio, 3), round(d.monte_carlo.roll_ratio, 3))
     assert len(ratios) >= 2, ratios
     assert all(0.8 <= x <= 1.25 for r in ratios.values() for x in r), ratios
+
+
+def test_designs_that_seldom_solve_run_more_frames():
+    # 10 right of 100 -> ~100 right needs 1,000 frames (10 % margin, capped at 10 times)
+    assert zoo._more_frames(10, 100, 100) == 1000
+    assert zoo._more_frames(50, 100, 100) == 220
+    # solved often enough, or never: no more frames (none would check a ratio)
+    assert zoo._more_frames(100, 100, 100) == 0
+    assert zoo._more_frames(0, 100, 100) == 0

@@ -174,3 +174,17 @@ def test_blended_streaks_do_not_set_the_rate(catalog, k):
     # capsule (2.5 sigma + 1 px half-wide) then holds each whole streak
     miss = np.hypot(*(got.streaks_px * sign - true).T)
     assert np.all(miss < 2.0 * sensor.detector.psf_sigma_px), miss.max()
+
+
+def test_pieces_of_like_lengths_do_not_set_the_rate(catalog):
+    """Trial 87 of a 155-frame Monte Carlo of zoo00 at 1 deg/s, exactly as the datasheet runs
+    it: one whole 22 px streak among pieces of 6-13 px, two of them alike; taking the pair of
+    pieces for the streak put the attitude 79 arcsec off, a wrong solution."""
+    from starsense.analysis import montecarlo as mc
+
+    status, solved, wrong, err, sig = mc._trials(
+        _zoo00(), catalog, 23, 155, [87], 1.0 * DEG, "reed", None, WRONG_RAD
+    )[0][:5]
+    assert solved and not wrong, status
+    # within 4 of its own sigma on each cross-boresight axis (probability 6e-5 per axis)
+    assert np.all(np.abs(err[:2]) < 4.0 * np.asarray(sig[:2])), (err, sig)
