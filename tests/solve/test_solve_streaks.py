@@ -48,6 +48,23 @@ def _trial(sensor, catalog, k: int, n_trials: int, rate_deg_s: float = 1.0, seed
     return truth, frame
 
 
+def _recentroided(solver, sensor, frame, sol):
+    """Return the frame's detections, the matched ones and their streak centroids."""
+    det = solver.detector(frame.image)
+    matched = np.array([d for d, _ in sol.matches])
+    box = det.bbox[matched]
+    got = streak_centroids_of(
+        sensor,
+        frame.image,
+        np.column_stack([det.x[matched], det.y[matched]]),
+        counts=det.integrated_counts[matched],
+        extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
+        level=float(sensor.detector.bias_counts),
+        threshold=sensor.detection.lit_pixel_counts,
+    )
+    return det, matched, got
+
+
 def _zoo00():
     name, params = zoo.zoo_designs(8, 23)[0]
     return zoo.make_sensor(name, **params)
@@ -90,18 +107,7 @@ def test_pieces_of_a_streak_centroid_to_its_middle(catalog):
     _, frame = _trial(sensor, catalog, 29, 40)
     solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
     sol = solver(frame.image)
-    det = solver.detector(frame.image)
-    matched = np.array([d for d, _ in sol.matches])
-    box = det.bbox[matched]
-    got = streak_centroids_of(
-        sensor,
-        frame.image,
-        np.column_stack([det.x[matched], det.y[matched]]),
-        counts=det.integrated_counts[matched],
-        extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
-        level=float(sensor.detector.bias_counts),
-        threshold=sensor.detection.lit_pixel_counts,
-    )
+    det, matched, got = _recentroided(solver, sensor, frame, sol)
     assert got is not None
     st = frame.truth.stars
     j = np.array([int(np.flatnonzero(st.ids == c)[0]) for _, c in sol.matches])
@@ -154,18 +160,7 @@ def test_blended_streaks_do_not_set_the_rate(catalog, k):
     solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
     sol = solver(frame.image)
     assert sol.solved
-    det = solver.detector(frame.image)
-    matched = np.array([d for d, _ in sol.matches])
-    box = det.bbox[matched]
-    got = streak_centroids_of(
-        sensor,
-        frame.image,
-        np.column_stack([det.x[matched], det.y[matched]]),
-        counts=det.integrated_counts[matched],
-        extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
-        level=float(sensor.detector.bias_counts),
-        threshold=sensor.detection.lit_pixel_counts,
-    )
+    got = _recentroided(solver, sensor, frame, sol)[2]
     st = frame.truth.stars
     j = np.array([int(np.flatnonzero(st.ids == c)[0]) for _, c in sol.matches])
     true = np.column_stack([st.x_end[j] - st.x_start[j], st.y_end[j] - st.y_start[j]])
