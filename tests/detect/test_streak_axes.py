@@ -88,3 +88,66 @@ def test_no_window_and_no_centroid():
     assert streak_axes(img, [], [], half_px=3, threshold=1.0).shape == (0, 2, 2)
     assert np.isnan(streak_axes(img, [1.0], [1.0], half_px=5, threshold=1.0)).all()
     assert np.isnan(streak_axes(img, [10.0], [10.0], half_px=5, threshold=1.0)).all()
+
+
+def _cut_streak(length_px, sigma_px, ang, gaps, neighbour_offset_px=None):
+    """A bright noiseless streak on a zero pedestal, dark across it at ``gaps`` (t, px wide)."""
+    shape = (121, 121)
+    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]].astype(float)
+    img = np.zeros(shape)
+    ux, uy = np.cos(ang), np.sin(ang)
+
+    def draw(x0, y0):
+        for t in np.linspace(-0.5, 0.5, 64):
+            cx, cy = x0 + t * length_px * ux, y0 + t * length_px * uy
+            img[:] += 4000 / 64 * np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * sigma_px**2))
+
+    draw(60.3, 60.6)
+    if neighbour_offset_px is not None:  # a parallel streak beside it
+        draw(60.3 - neighbour_offset_px * uy, 60.6 + neighbour_offset_px * ux)
+    whole = img.copy()
+    along = (xx - 60.3) * ux + (yy - 60.6) * uy
+    for t, width in gaps:
+        img[np.abs(along - t) < width / 2] = 0.0
+    return whole, img
+
+
+def _length(axes):
+    return float(np.sqrt(axes[0, 0, 0] + axes[0, 1, 1]))
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_collinear_pieces_bridge_into_the_whole_streak(seed):
+    """A faint streak breaks where its ridge dips below the threshold: bridged along its line
+    the pieces measure as the unbroken streak; left as they are, the centroid's piece is short."""
+    rng = np.random.default_rng(seed)
+    sigma, length, ang = rng.uniform(0.6, 1.5), rng.uniform(20, 40), rng.uniform(0, np.pi)
+    band = 2.5 * sigma + 1.0  # the solver's capsule half-width
+    # two gaps of 1.5-2.5 px (wide enough to part 8-connected pixels at any angle) on either
+    # side of the centre, no wider than the band
+    gaps = [(-length / 4, rng.uniform(1.5, 2.5)), (length / 5, rng.uniform(1.5, 2.5))]
+    whole, cut = _cut_streak(length, sigma, ang, gaps)
+    kw = {"half_px": 40, "threshold": 5.0}
+    ref = _length(streak_axes(whole, [60.3], [60.6], **kw))
+    alone = _length(streak_axes(cut, [60.3], [60.6], **kw))
+    bridged = _length(streak_axes(cut, [60.3], [60.6], bridge_px=band, **kw))
+    # the centre piece spans the middle ~45 % of the streak
+    assert alone < 0.7 * ref, (alone, ref)
+    # the gaps' few pixels (each under 2.5 px of a 20-40 px streak) take little of the moments:
+    # within 5 % of the unbroken streak
+    assert abs(bridged - ref) < 0.05 * ref, (bridged, ref)
+
+
+def test_a_parallel_neighbour_is_not_bridged():
+    """A streak beside the star's (4 bands away across its line) stays out of its measure."""
+    sigma = 0.8
+    band = 2.5 * sigma + 1.0
+    _, alone = _cut_streak(30.0, sigma, 0.4, [])
+    _, pair = _cut_streak(30.0, sigma, 0.4, [], neighbour_offset_px=4 * band)
+    kw = {"half_px": 40, "threshold": 5.0}
+    np.testing.assert_allclose(
+        streak_axes(pair, [60.3], [60.6], bridge_px=band, **kw),
+        streak_axes(alone, [60.3], [60.6], **kw),
+        rtol=0,
+        atol=1e-9,
+    )

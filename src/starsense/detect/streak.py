@@ -306,8 +306,16 @@ def streak_axes(
     threshold: float,
     level: float | None = 0.0,
     threshold_sigma: float | None = None,
+    bridge_px: float = 0.0,
 ) -> np.ndarray:
     """Return ``l l^T`` of the streak through each centroid, from its lit pixels, px^2.
+
+    The streak is the 8-connected lit region nearest the centroid. A faint streak breaks into
+    pieces where the noise takes its ridge below the threshold (gaps of a pixel or two); with
+    ``bridge_px`` the lit pixels on its line are added to it: within ``bridge_px`` of the line
+    through the region's second moments and at most ``bridge_px`` beyond its ends, repeated
+    with the line refitted until none is added. Collinear pieces then measure as the whole
+    streak they are part of.
 
     Parameters
     ----------
@@ -324,6 +332,9 @@ def streak_axes(
     threshold_sigma : float, optional
         With ``level`` None, the threshold is at least this many times the border's noise
         (scaled median absolute deviation).
+    bridge_px : float
+        Half-width of the band along the region's line whose lit pixels join it, and the
+        longest gap bridged, px (0: the connected region only).
 
     Returns
     -------
@@ -368,22 +379,53 @@ def streak_axes(
     ok = lit.reshape(len(k), -1).sum(axis=1) >= 3
     own = labels.reshape(len(k), -1)[np.arange(len(k)), near]
     mine = labels == own[:, None, None]
-    wgt = np.where(mine, sub, 0.0)
-    total = wgt.sum(axis=(1, 2))
+    total = np.where(mine, sub, 0.0).sum(axis=(1, 2))
     ok &= total != 0
-    px, py = ar[None, None, :] * mine, ar[None, :, None] * mine
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cx = (wgt * px).sum(axis=(1, 2)) / total
-        cy = (wgt * py).sum(axis=(1, 2)) / total
-        ddx = np.where(mine, ar[None, None, :] - cx[:, None, None], 0.0)
-        ddy = np.where(mine, ar[None, :, None] - cy[:, None, None], 0.0)
-        sxx = (wgt * ddx * ddx).sum(axis=(1, 2)) / total
-        sxy = (wgt * ddx * ddy).sum(axis=(1, 2)) / total
-        syy = (wgt * ddy * ddy).sum(axis=(1, 2)) / total
-    m = columns(sxx, sxy, sxy, syy).reshape(-1, 2, 2)[ok]
+    m = _moments(sub, mine, ar)
+    if bridge_px > 0.0:
+        m = _bridged(sub, lit, mine, m, ar, float(bridge_px))
+    m = m[ok, :2]
     if len(m) == 0:
         return out
     lam, vec = np.linalg.eigh(m)
     e = vec[:, :, 1]
     out[k[ok]] = 12.0 * (lam[:, 1] - lam[:, 0])[:, None, None] * (e[:, :, None] * e[:, None, :])
     return out
+
+
+def _moments(sub, mask, ar) -> np.ndarray:
+    """Return the centroid (K, 2) and second moments (K, 2, 2) of ``sub`` over ``mask``.
+
+    Packed as (K, 3, 2): rows 0-1 the moments (x = column, y = row), row 2 the centroid.
+    """
+    wgt = np.where(mask, sub, 0.0)
+    total = wgt.sum(axis=(1, 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cx = (wgt * ar[None, None, :]).sum(axis=(1, 2)) / total
+        cy = (wgt * ar[None, :, None]).sum(axis=(1, 2)) / total
+        ddx = np.where(mask, ar[None, None, :] - cx[:, None, None], 0.0)
+        ddy = np.where(mask, ar[None, :, None] - cy[:, None, None], 0.0)
+        sxx = (wgt * ddx * ddx).sum(axis=(1, 2)) / total
+        sxy = (wgt * ddx * ddy).sum(axis=(1, 2)) / total
+        syy = (wgt * ddy * ddy).sum(axis=(1, 2)) / total
+    return columns(sxx, sxy, sxy, syy, cx, cy).reshape(-1, 3, 2)
+
+
+def _bridged(sub, lit, mine, m, ar, band: float) -> np.ndarray:
+    """Return :func:`_moments` over ``mine`` and the lit pixels on its line (``bridge_px``)."""
+    for _ in range(64):  # each pass adds at least one pixel; a window holds few pieces
+        good = np.isfinite(m).all(axis=(1, 2))
+        vec = np.linalg.eigh(np.where(good[:, None, None], m[:, :2], np.eye(2)))[1][:, :, 1]
+        ex, ey = vec[:, 0, None, None], vec[:, 1, None, None]
+        dx = ar[None, None, :] - m[:, 2, 0, None, None]
+        dy = ar[None, :, None] - m[:, 2, 1, None, None]
+        along, across = dx * ex + dy * ey, dx * ey - dy * ex
+        lo = np.where(mine, along, np.inf).min(axis=(1, 2))[:, None, None]
+        hi = np.where(mine, along, -np.inf).max(axis=(1, 2))[:, None, None]
+        near = lit & (np.abs(across) <= band) & (along >= lo - band) & (along <= hi + band)
+        grown = mine | (near & good[:, None, None])
+        if not (grown != mine).any():
+            return m
+        mine = grown
+        m = _moments(sub, mine, ar)
+    return m

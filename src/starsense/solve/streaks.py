@@ -167,6 +167,9 @@ def _streak_model(sensor, image, x, y, order, **measure):
     use = order[: 3 * N_RATE_STARS]
     half = math.ceil(0.5 * float(np.max(measure.pop("extent_px")[use])) + 3.0 * sigma + 4.0)
     shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * measure.pop("margin_px")
+    # a faint streak's pieces join along its line (gaps where the noise took the ridge below
+    # the threshold), within the capsule the stars are centroided over
+    measure["bridge_px"] = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
     # the brightest streaks are whole: a frame where theirs are short is not smeared, and the
     # other windows are not read (a frame at rest pays for N_RATE_STARS windows only)
     first = streak_axes(
