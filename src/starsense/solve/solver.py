@@ -36,7 +36,7 @@ from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
-from starsense.solve.blends import blend_radius_px, photocentres
+from starsense.solve.blends import blend_radius_px, photocentres, streak_reference
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import detection_counts, identification_counts, max_candidates
 from starsense.solve.extraction import Extraction, quick_detector, robust_detector
@@ -319,7 +319,8 @@ class Solver:
         sigma = self.settings.centroid_sigma_px
         sigma = sigma if sigma != "snr" else 0.3
         points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
-        return self._solve_points(points, t0, {}, lambda _m, _x, v: (v, sigma), fov_rad, obs_time)
+        fixed = lambda _m, _x, v: (v, sigma, None)  # noqa: E731
+        return self._solve_points(points, t0, {}, fixed, fov_rad, obs_time)
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True,
                       search=True):  # fmt: skip
@@ -371,8 +372,14 @@ class Solver:
         matched = np.asarray(ident.detection_index)
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
         pixel_rad = fov / points.shape[1]
-        body, sigma = sigma_px(matched, points.x, vectors[matched])
+        body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, _ = robust_attitude(body, ref, sigma * pixel_rad)
+        if streaks is not None:  # neighbours' streaks through the capsules: their photocentres
+            ref = streak_reference(
+                self.sensor, identifier.database, ident.catalog_index, ref, att.rotation,
+                streaks, pixel_rad,
+            )  # fmt: skip
+            att, _ = robust_attitude(body, ref, sigma * pixel_rad)
         stages["attitude_ms"] = _ms(t3)
         return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
 
@@ -383,20 +390,12 @@ class Solver:
         limit = max_candidates(shape)
         if parity and n <= limit:  # a mirrored frame fails identification: flip, retry
             mirrored = solve_mirrored(
-                points.x,
-                points.y,
-                points.flux,
-                shape=shape,
+                points.x, points.y, points.flux, shape=shape,
                 solve_points=lambda mx, my, f: self._solve_points(
-                    CentroidPoints(mx, my, f, shape, points.what),
-                    t0,
-                    stages,
-                    sigma_px,
-                    fov_given,
-                    obs_time,
-                    parity=False,
+                    CentroidPoints(mx, my, f, shape, points.what), t0, stages, sigma_px,
+                    fov_given, obs_time, parity=False,
                 ),
-            )
+            )  # fmt: skip
             if mirrored is not None:
                 return mirrored
         if n > limit:

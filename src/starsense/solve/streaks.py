@@ -394,6 +394,8 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         Camera-frame unit vectors.
     sigma_px : ndarray, shape (N,), or float
         Per-axis 1-sigma of each centroid, px.
+    streaks_px : ndarray, shape (N, 2), or None
+        The streaks the stars were centroided over, px (None: the detections' centroids).
     """
     sensor, fixed = solver.sensor, solver.settings.centroid_sigma_px
     sigma = fixed
@@ -406,7 +408,7 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
             shape=np.shape(image),
         )
     if sensor is None or x is not det.x or len(matched) < 3:
-        return vectors, sigma
+        return vectors, sigma, None
     known = solver.settings.background == "known"
     box = det.bbox[matched]
     got = streak_centroids_of(
@@ -421,6 +423,7 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         margin_px=solver.detector.margin_px,
     )
     if got is None:
-        return vectors, sigma
+        return vectors, sigma, None
     own = got.sigma_px
-    return sensor.unproject(got.x, got.y), own if fixed == "snr" else np.maximum(own, fixed)
+    sigma = own if fixed == "snr" else np.maximum(own, fixed)
+    return sensor.unproject(got.x, got.y), sigma, got.streaks_px
