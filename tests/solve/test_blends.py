@@ -75,7 +75,8 @@ def test_a_neighbours_streak_in_the_capsule_moves_its_centroid_as_predicted(seed
     sky = xy - [x0, y0] + centre
     vectors = sensor.unproject(sky[:, 0], sky[:, 1])
     got = streak_photocentres(
-        sensor, Rotation.identity(), vectors, np.array([5.0, 5.0 + dmag]), cKDTree(vectors),
+        sensor, Rotation.identity(), vectors, mags=np.array([5.0, 5.0 + dmag]),
+        tree=cKDTree(vectors),
         index=[0], streaks_px=(length * u)[None], radius_px=radius,
         length_px=np.array([length * (1 + SYSTEMATIC)]),
     )  # fmt: skip

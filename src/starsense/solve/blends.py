@@ -75,7 +75,7 @@ def photocentres(vectors, mags, tree, *, index, radius_rad: float) -> np.ndarray
 
 
 def streak_photocentres(
-    sensor, rotation, vectors, mags, tree, *, index, streaks_px, radius_px: float, length_px
+    sensor, rotation, vectors, *, mags, tree, index, streaks_px, radius_px: float, length_px
 ) -> np.ndarray:
     """Return the reference directions of stars ``index`` centroided over their capsules.
 
@@ -138,7 +138,7 @@ def streak_photocentres(
     return out
 
 
-def streak_reference(sensor, db, index, ref, rotation, streaks, pixel_rad) -> np.ndarray:
+def streak_reference(sensor, db, ref, *, index, rotation, streaks, pixel_rad) -> np.ndarray:
     """Return ``ref`` with each smeared star's blend replaced by its capsule's photocentre.
 
     ``ref`` (K, 3) holds the matched stars' reference directions with their close doubles'
@@ -154,8 +154,8 @@ def streak_reference(sensor, db, index, ref, rotation, streaks, pixel_rad) -> np
         sensor,
         rotation,
         db.vectors,
-        db.mags,
-        db.tree,
+        mags=db.mags,
+        tree=db.tree,
         index=index,
         streaks_px=streaks,
         radius_px=CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX,

@@ -376,8 +376,8 @@ class Solver:
         att, _ = robust_attitude(body, ref, sigma * pixel_rad)
         if streaks is not None:  # neighbours' streaks through the capsules: their photocentres
             ref = streak_reference(
-                self.sensor, identifier.database, ident.catalog_index, ref, att.rotation,
-                streaks, pixel_rad,
+                self.sensor, identifier.database, ref, index=ident.catalog_index,
+                rotation=att.rotation, streaks=streaks, pixel_rad=pixel_rad,
             )  # fmt: skip
             att, _ = robust_attitude(body, ref, sigma * pixel_rad)
         stages["attitude_ms"] = _ms(t3)
