@@ -12,7 +12,8 @@ centroids can be off by more than a pixel: a wrong solution.
 Once the frame is identified, :func:`streak_centroids_of`:
 
 1. measures the streaks of the brightest matched stars (the second moments of their lit pixels,
-   :func:`starsense.detect.streak.streak_axes`) and fits the body rate, up to its
+   :func:`starsense.detect.streak.streak_axes`, the collinear pieces of a faint streak broken
+   by the noise bridged into it, ``bridge_px``) and fits the body rate, up to its
    sign, to the longest whole ones (the model of :mod:`~starsense.solve.tracking.streak_rate`,
    linear in the rate to first order in the angle turned during the exposure, solved for
    every choice of the streaks' unknown signs): a piece of a streak is shorter than the
@@ -40,6 +41,9 @@ Once the frame is identified, :func:`streak_centroids_of`:
    and to a star whose streak runs off the frame, or whose window found no light, the
    covariance of a point anywhere along its streak, ``l l^T / 12`` (uniform over it): its
    centroid is pulled inwards by the cut, and the fit all but ignores it.
+
+The streaks are returned with the centroids: the solver references each star to the light its
+capsule holds, neighbours' streaks included (:func:`starsense.solve.blends.streak_reference`).
 """
 
 from __future__ import annotations
