@@ -38,9 +38,12 @@ Once the frame is identified, :func:`streak_centroids_of`:
 
        C = (sigma_psf^2 / N) I + (sigma_r^2 / N^2) S + l l^T / (12 N)
 
-   and to a star whose streak runs off the frame, or whose window found no light, the
-   covariance of a point anywhere along its streak, ``l l^T / 12`` (uniform over it): its
-   centroid is pulled inwards by the cut, and the fit all but ignores it.
+   (``sigma_r`` the read noise and the ADC's quantisation, 1/12 count^2), plus, for a star
+   whose capsule holds a clipped pixel, the error of a clipped streak over its sub-pixel phase
+   (:mod:`starsense.solve.streak_bias`); and to a star whose streak runs off the frame, or
+   whose window found no light, the covariance of a point anywhere along its streak,
+   ``l l^T / 12`` (uniform over it): its centroid is pulled inwards by the cut, and the fit
+   all but ignores it.
 
 The streaks are returned with the centroids: the solver references each star to the light its
 capsule holds, neighbours' streaks included (:func:`starsense.solve.blends.streak_reference`).
@@ -57,6 +60,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import SYSTEMATIC, streak_axes, streak_centroids
+from starsense.solve.streak_bias import saturated_streak_bias_px
 
 __all__ = [
     "CAPSULE_PAD_PX",
@@ -318,7 +322,9 @@ def streak_centroids_of(
     seg = streaks * (1.0 + SYSTEMATIC)
     half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
     planes, r0, c0 = _planes(image, x, y, half, level)
-    gx, gy, total, _, spread = streak_centroids(planes, x - c0, y - r0, streaks=seg, radius=radius)
+    gx, gy, total, boxes, spread = streak_centroids(
+        planes, x - c0, y - r0, streaks=seg, radius=radius
+    )
     found = np.isfinite(gx) & (total > 0)
     out_x = np.where(found, gx + c0, x)
     out_y = np.where(found, gy + r0, y)
@@ -326,15 +332,41 @@ def streak_centroids_of(
     hy = 0.5 * np.abs(streaks[:, 1]) + radius
     whole = found & (hx <= out_x) & (out_x <= cols - 1 - hx) & (hy <= out_y)
     whole &= out_y <= rows - 1 - hy  # a streak run off the frame is pulled inwards
+    g = det.gain_counts_per_e
+    electrons = np.where(found, total, 0.0) / g
     cov = streak_cov_px2(
-        np.where(found, total, 0.0) / det.gain_counts_per_e,
+        electrons,
         np.where(found[:, None, None], spread, 0.0),
         streaks,
         whole=whole,
         sigma_px=sigma,
-        read_noise_e=det.read_noise_e,
+        read_noise_e=math.hypot(det.read_noise_e, 1.0 / (math.sqrt(12.0) * g)),  # + quantising
     )
+    top_e = min(det.full_well_e, (det.saturation_counts - det.bias_counts) / g)  # a pixel clips
+    clipped = found & _clipped(image, boxes, r0, c0, det.bias_counts + top_e * g - 0.5)
+    if clipped.any():  # a clipped ridge: the error over the pixel phase (solve.streak_bias)
+        typical = streaks[clipped] * np.sign(streaks[clipped] @ streaks[clipped][0])[:, None]
+        bias = saturated_streak_bias_px(
+            typical.mean(axis=0),
+            electrons[clipped],
+            sigma_px=sigma,
+            saturation_e=top_e,
+            radius_px=radius,
+            segment_px=float(np.hypot(*typical.mean(axis=0))) * (1.0 + SYSTEMATIC),
+        )
+        cov[clipped] += (bias**2)[:, None, None] * np.eye(2)
     return StreakCentroids(out_x, out_y, cov, np.asarray(streaks))
+
+
+def _clipped(image, boxes, r0, c0, level) -> np.ndarray:
+    """Return whether each capsule's box (rows, columns in its window) reaches ``level``."""
+    out = np.zeros(len(boxes), dtype=bool)
+    rows, cols = image.shape
+    for i, (a, b, c, d) in enumerate(boxes):
+        a, b = max(a + r0[i], 0), min(b + r0[i], rows)
+        c, d = max(c + c0[i], 0), min(d + c0[i], cols)
+        out[i] = b > a and d > c and bool(np.max(image[a:b, c:d]) >= level)
+    return out
 
 
 def streak_cov_px2(electrons, spread_px2, streaks_px, *, whole, sigma_px: float, read_noise_e):
