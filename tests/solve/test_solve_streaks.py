@@ -171,18 +171,24 @@ def test_blended_streaks_do_not_set_the_rate(catalog, k):
     assert np.all(miss < 2.0 * sensor.detector.psf_sigma_px), miss.max()
 
 
+def _right_within_4_sigma(sensor, catalog, n_trials, k):
+    """Run trial ``k`` of an ``n_trials`` Monte Carlo at 1 deg/s (seed 23) as the datasheet
+    does: it must solve right, within 4 of its own sigma on each cross-boresight axis
+    (probability 6e-5 per axis)."""
+    from starsense.analysis import montecarlo as mc
+
+    status, solved, wrong, err, sig = mc._trials(
+        sensor, catalog, 23, n_trials, [k], 1.0 * DEG, "reed", None, WRONG_RAD
+    )[0][:5]
+    assert solved and not wrong, status
+    assert np.all(np.abs(err[:2]) < 4.0 * np.asarray(sig[:2])), (err, sig)
+
+
 def test_pieces_of_like_lengths_do_not_set_the_rate(catalog):
     """Trial 87 of a 155-frame Monte Carlo of zoo00 at 1 deg/s, exactly as the datasheet runs
     it: one whole 22 px streak among pieces of 6-13 px, two of them alike; taking the pair of
     pieces for the streak put the attitude 79 arcsec off, a wrong solution."""
-    from starsense.analysis import montecarlo as mc
-
-    status, solved, wrong, err, sig = mc._trials(
-        _zoo00(), catalog, 23, 155, [87], 1.0 * DEG, "reed", None, WRONG_RAD
-    )[0][:5]
-    assert solved and not wrong, status
-    # within 4 of its own sigma on each cross-boresight axis (probability 6e-5 per axis)
-    assert np.all(np.abs(err[:2]) < 4.0 * np.asarray(sig[:2])), (err, sig)
+    _right_within_4_sigma(_zoo00(), catalog, 155, 87)
 
 
 def test_a_faint_streak_broken_into_pieces_measures_whole(catalog):
@@ -191,14 +197,7 @@ def test_a_faint_streak_broken_into_pieces_measures_whole(catalog):
     threshold into collinear pieces of 11-12 px that confirm each other. Taken for the streak,
     they put the attitude 39 arcsec (13 sigma) off; bridged along their lines, they measure
     20 px and confirm the whole one."""
-    from starsense.analysis import montecarlo as mc
-
-    status, solved, wrong, err, sig = mc._trials(
-        _zoo00(), catalog, 23, 153, [12], 1.0 * DEG, "reed", None, WRONG_RAD
-    )[0][:5]
-    assert solved and not wrong, status
-    # within 4 of its own sigma on each cross-boresight axis (probability 6e-5 per axis)
-    assert np.all(np.abs(err[:2]) < 4.0 * np.asarray(sig[:2])), (err, sig)
+    _right_within_4_sigma(_zoo00(), catalog, 153, 12)
 
 
 def test_a_neighbours_streak_through_the_capsule_is_in_the_reference(catalog):
@@ -207,13 +206,5 @@ def test_a_neighbours_streak_through_the_capsule_is_in_the_reference(catalog):
     streaks run through its capsule. Their light moved its centroid 0.44 px, 35 times its
     noise, and the attitude 1 arcsec (14 sigma) across the boresight; the reference is now
     the light its capsule holds."""
-    from starsense.analysis import montecarlo as mc
-
     name, params = zoo.zoo_designs(40, 23)[33]
-    sensor = zoo.make_sensor(name, **params)
-    status, solved, wrong, err, sig = mc._trials(
-        sensor, catalog, 23, 100, [47], 1.0 * DEG, "reed", None, WRONG_RAD
-    )[0][:5]
-    assert solved and not wrong, status
-    # within 4 of its own sigma on each cross-boresight axis (probability 6e-5 per axis)
-    assert np.all(np.abs(err[:2]) < 4.0 * np.asarray(sig[:2])), (err, sig)
+    _right_within_4_sigma(zoo.make_sensor(name, **params), catalog, 100, 47)
