@@ -144,7 +144,8 @@ def streak_reference(sensor, db, ref, *, index, rotation, streaks, pixel_rad) ->
     ``ref`` (K, 3) holds the matched stars' reference directions with their close doubles'
     photocentres (:func:`photocentres`, taken out here); ``streaks`` (K, 2) px are the
     streaks the stars were centroided over (:mod:`starsense.solve.streaks`, whose capsule
-    this is), ``rotation`` a first fit and ``pixel_rad`` the pixel's angle.
+    this is), ``rotation`` a first fit and ``pixel_rad`` the pixel's angle. Returns ``ref``
+    itself when no capsule holds a neighbour the blend did not (nothing to refit).
     """
     sigma = sensor.detector.psf_sigma_px
     blended = photocentres(
@@ -161,8 +162,13 @@ def streak_reference(sensor, db, ref, *, index, rotation, streaks, pixel_rad) ->
         radius_px=CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX,
         length_px=np.hypot(streaks[:, 0], streaks[:, 1]) * (1.0 + SYSTEMATIC),
     )
-    out = ref - blended + capsule
-    return out / np.linalg.norm(out, axis=1)[:, None]
+    moved = np.any(capsule != blended, axis=1)
+    if not moved.any():  # no capsule holds a neighbour the blend did not: ``ref`` itself
+        return ref
+    out = np.array(ref, dtype=float)
+    new = ref[moved] - blended[moved] + capsule[moved]
+    out[moved] = new / np.linalg.norm(new, axis=1)[:, None]
+    return out
 
 
 def _capsule_centre(along, across, flux, length, segment, radius, sigma):

@@ -375,11 +375,12 @@ class Solver:
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, _ = robust_attitude(body, ref, sigma * pixel_rad)
         if streaks is not None:  # neighbours' streaks through the capsules: their photocentres
-            ref = streak_reference(
+            held = streak_reference(
                 self.sensor, identifier.database, ref, index=ident.catalog_index,
                 rotation=att.rotation, streaks=streaks, pixel_rad=pixel_rad,
             )  # fmt: skip
-            att, _ = robust_attitude(body, ref, sigma * pixel_rad)
+            if held is not ref:
+                att, _ = robust_attitude(body, held, sigma * pixel_rad)
         stages["attitude_ms"] = _ms(t3)
         return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
 
