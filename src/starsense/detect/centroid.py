@@ -188,7 +188,7 @@ def cog_bias_px(det, index, *, detector, margin_px: int) -> np.ndarray:
         Per-axis rms error over sub-pixel phases, px.
     """
     g = detector.gain_counts_per_e
-    sat_e = min(detector.full_well_e, (detector.saturation_counts - detector.bias_counts) / g)
+    sat_e = detector.clip_e
     noise = det.noise_counts if det.noise_counts > 0 else detector.read_noise_e * g
     lit = max(_LIT_SIGMAS * noise, 1.0) / g
     # cached per detector: the lit level rounded to 1/8 of a decade (a frame's noise estimate)

@@ -116,6 +116,13 @@ class Detector:
         """Largest count the ADC can output, 2^bits - 1."""
         return 2**self.bit_depth - 1
 
+    @property
+    def clip_e(self) -> float:
+        """Signal at which a pixel clips, electrons: the full well or the ADC's top (less bias)."""
+        return min(
+            self.full_well_e, (self.saturation_counts - self.bias_counts) / self.gain_counts_per_e
+        )
+
     def qe(self, wavelength_m) -> np.ndarray:
         """Return the QE at the given wavelengths.
 

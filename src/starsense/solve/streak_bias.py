@@ -22,7 +22,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.special import erf
+
+from starsense.render.psf import pixel_profile
 
 __all__ = ["N_PHASE", "saturated_streak_bias_px"]
 
@@ -33,13 +34,6 @@ _N_BRIGHTNESS, _PAST = 16, 1e3
 #: node spacing along the streak, PSF sigmas (pixel-integrated Gaussians that close sum to a
 #: smooth streak: the pixel widens each to sqrt(sigma^2 + 1/12))
 _NODE_SIGMAS = 0.5
-
-
-def _profiles(centres: np.ndarray, offsets: np.ndarray, sigma: float) -> np.ndarray:
-    """Pixel-integrated 1-d Gaussians (..., C) of unit flux centred at ``offsets`` (...)."""
-    s = math.sqrt(2.0) * sigma
-    d = centres - offsets[..., None]
-    return 0.5 * (erf((d + 0.5) / s) - erf((d - 0.5) / s))
 
 
 def saturated_streak_bias_px(
@@ -82,8 +76,15 @@ def saturated_streak_bias_px(
     half_y = math.ceil(0.5 * abs(streak[1]) + radius_px + 3.0 * sigma) + 1
     cx = np.arange(-half_x, half_x + 1, dtype=float)
     cy = np.arange(-half_y, half_y + 1, dtype=float)
-    px = _profiles(cx, ox[:, None] + t[None, :] * u[0], sigma)  # (P, nodes, w)
-    py = _profiles(cy, oy[:, None] + t[None, :] * u[1], sigma)  # (P, nodes, h)
+    # the renderer's pixel-integrated Gaussians at every node of every phase
+    px = pixel_profile(
+        -half_x, half_x + 1, (ox[:, None] + t[None, :] * u[0]).ravel(), sigma_px=sigma
+    )
+    py = pixel_profile(
+        -half_y, half_y + 1, (oy[:, None] + t[None, :] * u[1]).ravel(), sigma_px=sigma
+    )
+    px = px.reshape(len(ox), n_nodes, -1)  # (P, nodes, w)
+    py = py.reshape(len(oy), n_nodes, -1)  # (P, nodes, h)
     unit = np.matmul(py.transpose(0, 2, 1), px) / n_nodes  # (P, h, w), one electron each
     # the capsule around each phase's true centre
     dx = cx[None, None, :] - ox[:, None, None]

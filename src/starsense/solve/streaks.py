@@ -342,7 +342,7 @@ def streak_centroids_of(
         sigma_px=sigma,
         read_noise_e=math.hypot(det.read_noise_e, 1.0 / (math.sqrt(12.0) * g)),  # + quantising
     )
-    top_e = min(det.full_well_e, (det.saturation_counts - det.bias_counts) / g)  # a pixel clips
+    top_e = det.clip_e  # where a pixel clips
     clipped = found & _clipped(image, boxes, r0, c0, det.bias_counts + top_e * g - 0.5)
     if clipped.any():  # a clipped ridge: the error over the pixel phase (solve.streak_bias)
         typical = streaks[clipped] * np.sign(streaks[clipped] @ streaks[clipped][0])[:, None]

@@ -272,7 +272,7 @@ def _saturation_points(sensor, lo: float, hi: float) -> np.ndarray:
     on a pixel puts ``erf(1 / (2 sqrt2 sigma))^2`` of its light in it.
     """
     det = sensor.detector
-    sat_e = min(det.full_well_e, (det.saturation_counts - det.bias_counts) / det.gain_counts_per_e)
+    sat_e = det.clip_e
     peak = math.erf(0.5 / (math.sqrt(2.0) * det.psf_sigma_px)) ** 2
     points = sat_e / peak * np.asarray(_SATURATION_STEPS)
     return points[(points > lo) & (points < hi)]
