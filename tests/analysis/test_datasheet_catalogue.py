@@ -14,7 +14,7 @@ from starsense.analysis.datasheet.catalogue import (
     rendered_against_database_rad,
 )
 from starsense.analysis.datasheet.predict import nea_at
-from starsense.analysis.inputs import at_epoch
+from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch, completed_sky
 from starsense.catalog import load_catalog
 from starsense.geometry.sampling import random_attitudes
 from starsense.identify.fields import deep_catalog_available
@@ -101,3 +101,28 @@ def test_catalogue_term_of_a_rotated_catalogue_is_the_rotation():
     # to the rotation's second order (|w| ~ 3e-8 rad: 1e-15 relative) and float sums
     np.testing.assert_allclose(cross, np.hypot(w_cam[:, 0], w_cam[:, 1]) / math.sqrt(2), rtol=1e-6)
     np.testing.assert_allclose(roll, np.abs(w_cam[:, 2]), rtol=1e-6)
+
+
+def test_the_frames_sky_holds_every_database_star_once():
+    # the sky a simulated frame shows: the rendering catalogue (Hipparcos) and every star of
+    # the solver's database (the narrow field's Gaia) it lacks. Invariants: each database star
+    # has a sky star within the same-star radius at the database's epoch; no added star lies
+    # within that radius of a catalogue star (nothing drawn twice); every rendered star keeps
+    # its catalogue's position (the catalogue term is their difference); added stars carry a V
+    # and a B - V for the renderer; completing twice adds nothing
+    hip, gaia = load_catalog("hipparcos"), _gaia()
+    sky = completed_sky(hip, gaia)
+    assert sky.epoch_yr == hip.epoch_yr
+    assert np.array_equal(sky.vectors[: len(hip)], hip.vectors)
+    added = sky.subset(np.arange(len(hip), len(sky)))
+    assert 0 < len(added) < len(gaia)
+    assert np.isfinite(added.mags["V"]).all() and np.isfinite(added.colours["B-V"]).all()
+    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
+    then = at_epoch(sky, gaia.epoch_yr)
+    d, _ = cKDTree(then.vectors).query(gaia.vectors)
+    assert d.max() <= chord
+    d, _ = cKDTree(at_epoch(hip, gaia.epoch_yr).vectors).query(then.vectors[len(hip) :])
+    assert d.min() > chord
+    again = completed_sky(sky, gaia)
+    assert again is sky
+    assert completed_sky(hip, load_catalog("hipparcos")) is hip

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from starsense.detect import regions
 from starsense.detect.centroid import cog
 from starsense.detect.regions import label_pixels, region_centroids
 
@@ -31,9 +32,14 @@ def test_label_pixels_is_ndimage_label(shape, fill, connectivity):
     assert np.array_equal(lab, expected.ravel()[idx])
 
 
-def test_region_centroids_is_the_per_window_cog():
+@pytest.mark.parametrize("chunk", [None, 1, 40, 300])
+def test_region_centroids_is_the_per_window_cog(chunk, monkeypatch):
     # the per-star cog() over each window (box grown by the margin, cut at the frame) is the
-    # reference; float64 sums in a different order: equal to 1e-9 px
+    # reference; float64 sums in a different order: equal to 1e-9 px. The windows are taken in
+    # chunks of pixels (bounded memory): a chunk smaller than one window, than two, and the
+    # default must all give the reference
+    if chunk is not None:
+        monkeypatch.setattr(regions, "_CHUNK_PIXELS", chunk)
     rng = np.random.default_rng(3)
     sub = rng.normal(0, 1, (50, 70)).astype(np.float32)
     yy, xx = np.mgrid[0:50, 0:70]

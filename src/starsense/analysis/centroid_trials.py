@@ -41,7 +41,7 @@ from starsense._validate import as_generator, check_int
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.datasheet.predict import StarModel, limiting_magnitude
 from starsense.analysis.datasheet.verify import wrong_rate_upper
-from starsense.analysis.inputs import as_catalog, as_sensor, at_epoch, root_seed
+from starsense.analysis.inputs import as_catalog, as_sensor, at_epoch, completed_sky, root_seed
 from starsense.analysis.slew import simulate_slew
 from starsense.errors import InputError
 from starsense.geometry.attitude import angular_separation, boresight
@@ -455,7 +455,8 @@ def centroid_trials(
     cat = as_catalog(catalog)
     seed = root_seed(rng)
     cm = cmodel if cmodel is not None else centroid_model(sens, model=model, rng=seed)
-    cat = at_epoch(cat, Solver(sensor=sens).catalog.epoch_yr)  # the sky the database describes
+    database = Solver(sensor=sens).catalog
+    cat = at_epoch(completed_sky(cat, database), database.epoch_yr)  # the sky it describes
     vectors, mags = catalog_stars(cat, cm.max_mag, band="V")
     args = (sens, vectors, mags, cm, seed, float(wrong_rad))
     t0 = time.perf_counter()

@@ -9,18 +9,36 @@ functions read them the one way.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from starsense._validate import as_generator
 from starsense.catalog import Catalog, load_catalog
+from starsense.catalog.table import concat
+from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.sensor import Sensor, load_sensor
+from starsense.units import ARCSEC
 
-__all__ = ["DEFAULT_CATALOG_SPEC", "as_catalog", "as_sensor", "root_seed"]
+__all__ = [
+    "DEFAULT_CATALOG_SPEC",
+    "SAME_STAR_RAD",
+    "as_catalog",
+    "as_sensor",
+    "at_epoch",
+    "completed_sky",
+    "root_seed",
+]
 
 #: the catalogue an analysis uses when given none
 DEFAULT_CATALOG_SPEC = "hipparcos"
+
+#: a star of one catalogue within this of a star of another, at one epoch, is that star: the
+#: catalogues' errors over decades stay under 0.1" (Hipparcos' ~1 mas/yr), and a frame does not
+#: separate two stars 1" apart
+SAME_STAR_RAD = 1.0 * ARCSEC
 
 
 def as_sensor(sensor: Sensor | str | Path) -> Sensor:
@@ -80,6 +98,49 @@ def at_epoch(catalog: Catalog, epoch_yr: float) -> Catalog:
     if catalog.epoch_yr == epoch_yr or catalog.pm_ra_rad_yr is None:
         return catalog
     return catalog.propagate(epoch_yr)
+
+
+def completed_sky(catalog: Catalog, database: Catalog) -> Catalog:
+    """Return ``catalog`` and the stars of the solver's ``database`` it lacks: a frame's sky.
+
+    A simulated frame rendered from one catalogue and solved against another (Hipparcos and the
+    narrow field's Gaia DR3) would lack the database's stars the rendering catalogue does not
+    hold (Hipparcos is complete to V = 7.3 only), while the solver models its matched stars'
+    neighbours from the database, as it must on the real sky. The rendered sky is therefore
+    ``catalog`` (its positions: the catalogue term of the datasheet is their difference), plus
+    every database star with no ``catalog`` star within :data:`SAME_STAR_RAD` (V and B - V from
+    G and BP - RP when the database has only those,
+    :func:`starsense.photometry.colour.with_johnson_from_gaia`). A ``catalog`` that already
+    holds them all is returned as is.
+
+    Parameters
+    ----------
+    catalog : Catalog
+        The catalogue the frames are rendered from.
+    database : Catalog
+        The catalogue the solver identifies against.
+
+    Returns
+    -------
+    Catalog
+        At the epoch of ``catalog``; named ``"<catalog>+<database>"`` when stars were added.
+    """
+    same = database.name == catalog.name and len(database) == len(catalog)
+    if database is catalog or same or len(database) == 0:
+        return catalog
+    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
+    missing = np.ones(len(database), dtype=bool)
+    if len(catalog):  # matched where the frames are rendered: at the database's epoch
+        sky = at_epoch(catalog, database.epoch_yr).vectors
+        dist, _ = cKDTree(sky).query(database.vectors, distance_upper_bound=chord)
+        missing = ~np.isfinite(dist)
+    extra, _ = with_johnson_from_gaia(database.subset(missing))
+    if not missing.any() or "V" not in extra.mags:
+        return catalog
+    extra = at_epoch(extra, catalog.epoch_yr)
+    if extra.epoch_yr != catalog.epoch_yr:  # no proper motions: the same positions at any epoch
+        extra = replace(extra, epoch_yr=catalog.epoch_yr)
+    return concat([catalog, extra], name=f"{catalog.name}+{database.name}")
 
 
 def root_seed(rng: int | np.random.Generator | None) -> int:

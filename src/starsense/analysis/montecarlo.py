@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from starsense._validate import finite_float, show
-from starsense.analysis.inputs import as_catalog, as_sensor, at_epoch, root_seed
+from starsense.analysis.inputs import as_catalog, as_sensor, at_epoch, completed_sky, root_seed
 from starsense.errors import InputError
 from starsense.geometry.attitude import angular_separation, boresight, small_rotation_angles
 from starsense.geometry.sampling import random_attitudes
@@ -275,8 +275,9 @@ def montecarlo(
     sensor : str, Path or Sensor
         Sensor preset, TOML file or object.
     catalog : Catalog, str or None
-        Stars to render and identify: a catalogue, a specification (``"hipparcos"``,
-        ``"bsc5:PATH"``) or None for the bundled Hipparcos.
+        Stars to render: a catalogue, a specification (``"hipparcos"``, ``"bsc5:PATH"``) or
+        None for the bundled Hipparcos, with the stars of the solver's database it lacks
+        (:func:`starsense.analysis.inputs.completed_sky`).
     n_trials : int
         Random attitudes to render and solve, >= 1.
     rate_rad_s : float
@@ -313,7 +314,8 @@ def montecarlo(
     if rate_rad_s < 0:
         raise InputError(f"rate_rad_s must be >= 0, got {show(rate_rad_s)}")
     sens = as_sensor(sensor)
-    cat = as_catalog(catalog)
+    # the frames show the catalogue's stars and the database's it lacks (the real sky holds both)
+    cat = completed_sky(as_catalog(catalog), Solver(sensor=sens).catalog)
     seed = root_seed(rng)
     args = (sens, cat, seed, float(rate_rad_s), model, max_mag, float(wrong_rad), bool(fast_noise))
     if client is not None:

@@ -122,6 +122,32 @@ def _cog(box, rows, cols, weights, n):
     return x, y
 
 
+#: the most window pixels whose CoG is taken at once: the windows of a frame's regions can
+#: cover it many times over (hundreds of long, crossing streaks), and the pixel lists of all
+#: of them at once would take gigabytes; chunks of this many pixels take ~40 MB
+_CHUNK_PIXELS = 1 << 20
+
+
+def _window_cogs(sub, windows, power: int):
+    """(x, y) CoG of ``sub`` over each window (row0, row1, col0, col1 arrays), in chunks."""
+    wr0, wr1, wc0, wc1 = windows
+    n = wr0.size
+    x, y = np.full(n, np.nan), np.full(n, np.nan)
+    ends = np.cumsum((wr1 - wr0) * (wc1 - wc0))
+    start = 0
+    while start < n:
+        base = ends[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(ends, base + _CHUNK_PIXELS, side="right")))
+        part = slice(start, stop)
+        box, rows, cols = _ragged(wr0[part], wr1[part], wc0[part], wc1[part])
+        w = sub[rows, cols].astype(np.float64)
+        if power != 1:
+            w = np.maximum(w, 0.0) ** power
+        x[part], y[part] = _cog(box, rows, cols, w, stop - start)
+        start = stop
+    return x, y
+
+
 def region_centroids(sub, a, *, idx, lab, keep, core, margin: int, power: int = 1):
     """Box, peak and CoG of each kept region, in the order of ``keep``.
 
@@ -178,11 +204,7 @@ def region_centroids(sub, a, *, idx, lab, keep, core, margin: int, power: int = 
     np.maximum.at(peaks, pos[inside], a.ravel()[idx[inside]].astype(np.float64))
     wr0, wr1 = np.maximum(r0 - margin, 0), np.minimum(r1 + margin, n_rows)
     wc0, wc1 = np.maximum(c0 - margin, 0), np.minimum(c1 + margin, n_cols)
-    box, rows, cols = _ragged(wr0, wr1, wc0, wc1)
-    w = sub[rows, cols].astype(np.float64)
-    if power != 1:
-        w = np.maximum(w, 0.0) ** power
-    x, y = _cog(box, rows, cols, w, n)
+    x, y = _window_cogs(sub, (wr0, wr1, wc0, wc1), power)
     ok = np.isfinite(x)
     if not ok.all():
         # a faint region whose window sums to <= 0 (noise): the CoG of its lit pixels in its box

@@ -23,9 +23,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starsense.analysis.inputs import at_epoch
+from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch
 from starsense.solve.solver import Solver
-from starsense.units import ARCSEC, MAS
+from starsense.units import MAS
 
 __all__ = [
     "GAIA_DR3_SIGMA_RAD",
@@ -42,7 +42,7 @@ GAIA_DR3_SIGMA_RAD = (0.02 * MAS, 0.03 * MAS)
 
 #: the farthest a rendered star's database counterpart is sought, rad: the solver's match
 #: radius is a few pixels, and no star moved by its catalogue errors lies 1" away
-MATCH_RAD = 1.0 * ARCSEC
+MATCH_RAD = SAME_STAR_RAD
 
 #: the columns of a catalogue's stated astrometric errors (:func:`starsense.catalog.load_hip2`)
 _ERROR_COLUMNS = ("e_ra_rad", "e_dec_rad", "e_pm_ra_rad_yr", "e_pm_dec_rad_yr")

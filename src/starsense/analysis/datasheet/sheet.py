@@ -47,11 +47,12 @@ from starsense.analysis.datasheet.sections import (
 )
 from starsense.analysis.datasheet.skycache import limit_sigmas
 from starsense.analysis.datasheet.verify import no_frames_check, score_montecarlo
-from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
+from starsense.analysis.inputs import as_catalog, as_sensor, completed_sky, root_seed
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.sensor_detection import sensor_detection
 from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.render.scene import check_frame_size
+from starsense.solve.solver import Solver
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
 
 __all__ = ["SCHEMA", "Datasheet", "DatasheetSettings", "build_datasheet", "datasheet"]
@@ -310,8 +311,11 @@ def build_datasheet(
     )
     avail, fine = _availability(analysis, curve, st.rate_rad_s)
     tick("availability")
+    # the frames' sky: the catalogue and the database stars it lacks (the prediction and the
+    # frames see one sky, the one the solver models)
+    sky_cat = completed_sky(cat, Solver(sensor=sensor).catalog)
     model, stars_used, mags, boresights, mats, sig, counts, lim = _sky_noise(
-        cat, sensor, st, limit_mag, fov
+        sky_cat, sensor, st, limit_mag, fov
     )
     vectors = stars_used[0]
     tick("noise")
@@ -325,7 +329,7 @@ def build_datasheet(
         for k in ("cross", "roll")
     }
     at_rate = np.interp(st.rate_rad_s * RAD_TO_DEG, avail.rates_deg_s, avail.threshold_mag_at_rate)
-    runs = _runs(sensor, cat, st, (model, fov, stars_used, mags, float(at_rate)), client, tick)
+    runs = _runs(sensor, sky_cat, st, (model, fov, stars_used, mags, float(at_rate)), client, tick)
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
