@@ -21,6 +21,7 @@ from starsense.geometry.attitude import angular_separation, boresight, small_rot
 from starsense.geometry.sampling import random_attitudes
 from starsense.render.scene import render_frame
 from starsense.solve import Solver
+from starsense.solve import streaks as streaks_module
 from starsense.solve.streaks import matched_measurements, streak_centroids_of
 from starsense.units import ARCSEC, DEG
 
@@ -127,6 +128,23 @@ def test_pieces_of_a_streak_centroid_to_its_middle(catalog):
     assert before.max() > 5.0
     assert np.all(after < 5.0 * got.sigma_px * math.sqrt(2.0)), (after, got.sigma_px)
     assert np.median(after) < 0.5 * np.median(before)
+
+
+@pytest.mark.parametrize("chunk", [1, 20_000])
+def test_capsules_taken_in_chunks_are_the_same(catalog, chunk, monkeypatch):
+    """The stars' windows are taken a few at a time (bounded memory): the same centroids.
+
+    A chunk of one pixel holds one star a time, one of 20,000 a few; every star's centroid,
+    sigma and streak are those of all of them at once (each star's capsule is its own)."""
+    sensor = _zoo00()
+    _, frame = _trial(sensor, catalog, 29, 40)
+    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
+    sol = solver(frame.image)
+    _, _, whole = _recentroided(solver, sensor, frame, sol)
+    monkeypatch.setattr(streaks_module, "_CHUNK_PIXELS", chunk)
+    _, _, parts = _recentroided(solver, sensor, frame, sol)
+    for a, b in ((whole.x, parts.x), (whole.y, parts.y), (whole.sigma_px, parts.sigma_px)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
 
 
 def test_frame_at_rest_keeps_its_centroids(catalog):

@@ -138,6 +138,27 @@ def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.n
     return planes, r0, c0
 
 
+#: the most window pixels held at once: each star's window spans twice its streak, and a
+#: frame of 600 px streaks holds 2 M pixels per star; chunks of stars of this many pixels
+#: keep it to ~32 MB
+_CHUNK_PIXELS = 1 << 22
+
+
+def _capsule_centroids(image, x, y, seg, half: int, level, radius: float) -> tuple:
+    """Return :func:`streak_centroids` over the stars' windows (:func:`_planes`), in chunks.
+
+    (x, y, counts, boxes, spread) in the windows, and the windows' first rows and columns.
+    """
+    step = max(1, _CHUNK_PIXELS // (2 * half + 1) ** 2)
+    parts = []
+    for k in range(0, max(len(x), 1), step):
+        at = slice(k, k + step)
+        planes, r0, c0 = _planes(image, x[at], y[at], half, level)
+        got = streak_centroids(planes, x[at] - c0, y[at] - r0, streaks=seg[at], radius=radius)
+        parts.append((*got, r0, c0))
+    return tuple(np.concatenate(z) for z in zip(*parts, strict=True))
+
+
 def _measured(axes) -> np.ndarray:
     """Return the streaks ``l`` (N, 2), px, sign unknown, whose ``l l^T`` are ``axes``."""
     length = np.sqrt(np.maximum(axes[:, 0, 0] + axes[:, 1, 1], 0.0))
@@ -321,10 +342,7 @@ def streak_centroids_of(
     rows, cols = image.shape
     seg = streaks * (1.0 + SYSTEMATIC)
     half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
-    planes, r0, c0 = _planes(image, x, y, half, level)
-    gx, gy, total, boxes, spread = streak_centroids(
-        planes, x - c0, y - r0, streaks=seg, radius=radius
-    )
+    gx, gy, total, boxes, spread, r0, c0 = _capsule_centroids(image, x, y, seg, half, level, radius)
     found = np.isfinite(gx) & (total > 0)
     out_x = np.where(found, gx + c0, x)
     out_y = np.where(found, gy + r0, y)
