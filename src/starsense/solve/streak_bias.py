@@ -76,27 +76,28 @@ def saturated_streak_bias_px(
     half_y = math.ceil(0.5 * abs(streak[1]) + radius_px + 3.0 * sigma) + 1
     cx = np.arange(-half_x, half_x + 1, dtype=float)
     cy = np.arange(-half_y, half_y + 1, dtype=float)
-    # one phase at a time (the window of a long streak holds ~0.2 M pixels): the renderer's
-    # pixel-integrated Gaussians at every node, and the capsule around the true centre
-    units, insides = [], []
+    # the renderer's pixel-integrated Gaussians at every node, one phase at a time (a long
+    # streak's nodes times its window's width would take ~100 MB for all phases at once), and
+    # the capsule around each phase's true centre
+    unit = np.empty((len(ox), len(cy), len(cx)))
     for p in range(len(ox)):
         px = pixel_profile(-half_x, half_x + 1, ox[p] + t * u[0], sigma_px=sigma)  # (nodes, w)
         py = pixel_profile(-half_y, half_y + 1, oy[p] + t * u[1], sigma_px=sigma)  # (nodes, h)
-        units.append(py.T @ px / n_nodes)  # (h, w), one electron
-        dx = cx[None, :] - ox[p]
-        dy = cy[:, None] - oy[p]
-        beyond = np.maximum(np.abs(dx * u[0] + dy * u[1]) - 0.5 * float(segment_px), 0.0)
-        insides.append(np.hypot(beyond, -dx * u[1] + dy * u[0]) <= radius_px)
-    top = max(float(a.max()) for a in units)  # where the first phase clips, per electron
+        unit[p] = py.T @ px / n_nodes  # one electron
+    dx = cx[None, None, :] - ox[:, None, None]
+    dy = cy[None, :, None] - oy[:, None, None]
+    beyond = np.maximum(np.abs(dx * u[0] + dy * u[1]) - 0.5 * float(segment_px), 0.0)
+    inside = np.hypot(beyond, -dx * u[1] + dy * u[0]) <= radius_px
+    del dx, dy, beyond
+    top = float(unit.max())  # where the first phase clips, per electron
     grid = np.geomspace(saturation_e / top, _PAST * saturation_e / top, _N_BRIGHTNESS)
-    total, gx, gy = np.zeros((3, len(grid), len(ox)))
-    for p, (unit, inside) in enumerate(zip(units, insides, strict=True)):
-        for k, n_e in enumerate(grid):
-            img = np.where(inside, np.minimum(n_e * unit, saturation_e), 0.0)
-            total[k, p] = img.sum()
-            gx[k, p] = (img.sum(axis=0) * cx).sum() / total[k, p] - ox[p]
-            gy[k, p] = (img.sum(axis=1) * cy).sum() / total[k, p] - oy[p]
-    sums = total.mean(axis=1)
-    rms = np.sqrt(np.mean(0.5 * (gx * gx + gy * gy), axis=1))
+    sums, rms = np.zeros(len(grid)), np.zeros(len(grid))
+    for k, n_e in enumerate(grid):
+        img = np.where(inside, np.minimum(n_e * unit, saturation_e), 0.0)
+        total = img.sum(axis=(1, 2))
+        gx = (img.sum(axis=1) * cx).sum(axis=1) / total - ox
+        gy = (img.sum(axis=2) * cy).sum(axis=1) / total - oy
+        sums[k] = total.mean()
+        rms[k] = math.sqrt(float(np.mean(0.5 * (gx * gx + gy * gy))))
     out = np.interp(electrons, sums, rms, left=0.0, right=rms[-1])
     return np.where(electrons >= sums[0], out, 0.0)
