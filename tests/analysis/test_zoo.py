@@ -90,15 +90,17 @@ def test_narrow_zoo_designs_include_the_catalogue_term():
     The two catalogues disagree by tens of mas per star at Gaia's epoch (and the Hipparcos
     frame turns ~5 mas against Gaia's), several times the centroid noise of a long focal
     length: without the catalogue term zoo29's measured / predicted was 3.43 / 2.60. With it
-    every such design with a ratio lands in 0.8-1.25 (as measured: zoo12 1.06 / 1.06, zoo29
-    1.03 / 1.10), and the budget names the term.
+    every such design with a ratio lands in 0.8-1.25, and the budget names the term. 160
+    frames, as the zoo's acceptance run uses for a design that solves 3 frames in 4 (about 100
+    right solutions, roll known to ~7 %): on its first 40 frames zoo12's roll rms rests on 29
+    solutions and measured 0.70; on 160, zoo12 0.91 / 1.01 and zoo29 1.04 / 0.95.
     """
     from starsense.identify.fields import DEEP_KNOWN_FIELD_RAD, deep_catalog_available
 
     if not deep_catalog_available():
         pytest.skip("the bundled Gaia catalogue is not installed")
     cat = load_catalog("hipparcos")
-    settings = DatasheetSettings(n_trials=40, n_rate_trials=0, seed=23, n_orientations=500)
+    settings = DatasheetSettings(n_trials=160, n_rate_trials=0, seed=23, n_orientations=500)
     ratios = {}
     for name, p in zoo.zoo_designs(40, 23):
         if math.radians(p["fov_deg"]) >= DEEP_KNOWN_FIELD_RAD:
