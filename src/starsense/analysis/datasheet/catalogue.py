@@ -8,14 +8,15 @@ that of the proper motion over the years to the epoch the positions are used at,
 ``e_pos^2 + (dt e_pm)^2`` (Hipparcos' proper-motion errors of ~1 mas/yr grow past its
 positions' ~0.5 mas within a year).
 
-The datasheet's frames are rendered from one catalogue at the epoch of the solver's database
+The datasheet's frames are rendered from one catalogue, completed with the database's stars it
+lacks (:func:`starsense.analysis.inputs.completed_sky`), at the epoch of the solver's database
 (:func:`starsense.analysis.inputs.at_epoch`). When the database is another catalogue (a narrow
-field's Gaia DR3 database, a sky rendered from Hipparcos), the two disagree on every star by
-the errors of both at that epoch: the attitude measured against the rendering carries them, and
-the prediction includes them (:func:`rendered_against_database_rad`). A star the database holds
-under the rendering's own identifier (the Hipparcos stars merged into the bundled Gaia file
-above its bright limit) has the same position in both: no term. When the rendering is the
-database itself the frames are exact and the term is zero.
+field's Gaia DR3 database, a sky rendered from Hipparcos), the two disagree on every star they
+share by the errors of both at that epoch: the attitude measured against the rendering carries
+them, and the prediction includes them (:func:`rendered_against_database_rad`). A star the
+database holds under the rendering's own identifier (the Hipparcos stars merged into the
+bundled Gaia file above its bright limit) has the same position in both: no term. When the
+rendering is the database itself the frames are exact and the term is zero.
 """
 
 from __future__ import annotations
