@@ -17,11 +17,11 @@ The detection logic is derived from each design's noise, not copied from a prese
   PSF sigma, at least 1 px^2), at least lit x pixels.
 
 For each design the datasheet runs at rest and at 1 deg/s (``--frames`` each) and the row
-records the measured / predicted ratios per axis (and the robust ones, from the median
-normalised error), the stars matched, solved, wrong, time and peak memory (each design in its
-own process, so the peak is that design's); the file's summary counts the designs whose ratios
-both lie in 0.8-1.25, at rest and at 1 deg/s. ``python bench/zoo.py [--designs N]
-[--frames N] [--only NAME]``; results in ``bench/results/zoo.json``.
+records the measured / predicted ratios per axis (with their 95 % intervals over the frames, and
+the robust ones, from the median normalised error), the stars matched, solved, wrong, time and
+peak memory (each design in its own process, so the peak is that design's); the file's summary
+counts the designs whose ratios both lie in 0.8-1.25, at rest and at 1 deg/s. ``python
+bench/zoo.py [--designs N] [--frames N] [--only NAME]``; results in ``bench/results/zoo.json``.
 """
 
 from __future__ import annotations
@@ -193,6 +193,8 @@ def _run_one(args) -> dict:
                 "roll_ratio",
                 "cross_ratio_robust",
                 "roll_ratio_robust",
+                "cross_ratio_ci95",
+                "roll_ratio_ci95",
                 "cross_rms_arcsec",
                 "roll_rms_arcsec",
                 "cross_predicted_arcsec",

@@ -55,6 +55,13 @@ def test_small_zoo_has_no_wrong_solution():
         if d.limiting_magnitude is None:
             continue
         wrong[name] = d.monte_carlo.wrong + d.monte_carlo_at_rate.wrong
+        for mc in (d.monte_carlo, d.monte_carlo_at_rate):  # each ratio inside its interval
+            for ratio, ci in (
+                (mc.cross_ratio, mc.cross_ratio_ci95),
+                (mc.roll_ratio, mc.roll_ratio_ci95),
+            ):
+                assert (ci is None) == (ratio is None)
+                assert ci is None or ci[0] < ratio < ci[1]
     assert len(wrong) >= 6  # designs that see stars
     assert sum(wrong.values()) == 0, wrong
 

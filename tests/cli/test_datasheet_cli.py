@@ -77,6 +77,9 @@ def test_interface_keys(st16_sheet):
         "median_ms",
     }
     assert set(d["monte_carlo"]) >= mc_keys
+    for axis in ("cross", "roll"):  # each ratio with its 95 % interval (none: too few frames)
+        mc = d["monte_carlo"]
+        assert (mc[f"{axis}_ratio_ci95"] is None) == (mc[f"{axis}_ratio"] is None)
     assert set(d["availability"]) >= {
         "lost_in_space",
         "tracking",

@@ -41,6 +41,13 @@ def _pct(value) -> str:
     return "n/a" if value is None else f"{value:.1%}"
 
 
+def _ratio(run: dict, axis: str) -> str:
+    """Return a ratio and its 95 % interval over the frames: ``1.04 (0.91-1.19)``."""
+    ci = run.get(f"{axis}_ratio_ci95")
+    band = "" if ci is None else f" ({ci[0]:.2f}-{ci[1]:.2f})"
+    return _f(run[f"{axis}_ratio"]) + band
+
+
 def datasheet_lines(d: dict) -> list[str]:
     """Return the datasheet as text lines (what the command prints without ``--json``)."""
     if d.get("limiting_magnitude") is None:
@@ -71,8 +78,8 @@ def datasheet_lines(d: dict) -> list[str]:
             f" ms median, {_f(run['p95_ms'], '.0f')} ms 95 %; rms cross "
             f"{_f(run['cross_rms_arcsec'])} / roll {_f(run['roll_rms_arcsec'])} arcsec "
             f"(predicted {_f(run['cross_predicted_arcsec'])} / "
-            f"{_f(run['roll_predicted_arcsec'])}), measured/predicted {_f(run['cross_ratio'])}"
-            f" / {_f(run['roll_ratio'])}"
+            f"{_f(run['roll_predicted_arcsec'])}), measured/predicted {_ratio(run, 'cross')}"
+            f" / {_ratio(run, 'roll')} (95 % over the frames)"
         )
     lines += [
         "  availability (lost in space N>=3 / tracking N>=2): "

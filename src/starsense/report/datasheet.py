@@ -16,6 +16,13 @@ def _cell(x, digits: int = 3) -> str:
     return "n/a" if x is None else fmt(x, digits)
 
 
+def _ratio(run: dict, axis: str) -> str:
+    """Return a ratio and its 95 % interval over the frames: ``1.0 (0.91-1.2)``."""
+    ci = run.get(f"{axis}_ratio_ci95")
+    band = "" if ci is None else f" ({fmt(ci[0], 2)}-{fmt(ci[1], 2)})"
+    return _cell(run[f"{axis}_ratio"], 2) + band
+
+
 def _pct(x) -> str:
     return "n/a" if x is None else f"{100 * x:.1f} %"
 
@@ -38,13 +45,13 @@ def _main_rows(d: dict) -> list[list[str]]:
             "NEA cross-boresight, 1 sigma (median / 95 %)",
             f"{_cell(nea['cross']['median'])} / {_cell(nea['cross']['p95'])} arcsec",
             f"{_cell(mc['cross_rms_arcsec'])} arcsec rms",
-            _cell(mc["cross_ratio"], 2),
+            _ratio(mc, "cross"),
         ],
         [
             "NEA about the boresight, 1 sigma (median / 95 %)",
             f"{_cell(nea['roll']['median'])} / {_cell(nea['roll']['p95'])} arcsec",
             f"{_cell(mc['roll_rms_arcsec'])} arcsec rms",
-            _cell(mc["roll_ratio"], 2),
+            _ratio(mc, "roll"),
         ],
         [
             "Physical limit for this D, t and field (cross / roll)",
@@ -74,7 +81,7 @@ def _main_rows(d: dict) -> list[list[str]]:
                 f"{_cell(mr['cross_predicted_arcsec'])} / {_cell(mr['roll_predicted_arcsec'])}"
                 " arcsec",
                 f"{_cell(mr['cross_rms_arcsec'])} / {_cell(mr['roll_rms_arcsec'])} arcsec",
-                f"{_cell(mr['cross_ratio'], 2)} / {_cell(mr['roll_ratio'], 2)}",
+                f"{_ratio(mr, 'cross')} / {_ratio(mr, 'roll')}",
             ]
         ]
     av = d["availability"]

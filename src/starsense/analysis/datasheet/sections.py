@@ -156,8 +156,9 @@ class MonteCarloCheck(_Section):
 
     ``frames`` rendered, ``solved`` right, ``wrong``; rms errors measured and predicted
     (arcsec; at a rate, the prediction of the smeared stars' streak centroids) and their
-    ratios, None where nothing solved; ``stars_matched_median`` only where predicted (absent
-    from the JSON otherwise).
+    ratios, None where nothing solved, with each ratio's 95 % interval over the frames
+    (``[low, high]``, :func:`starsense.analysis.datasheet.verify.ratio_interval`);
+    ``stars_matched_median`` only where predicted (absent from the JSON otherwise).
     """
 
     frames: int
@@ -177,6 +178,8 @@ class MonteCarloCheck(_Section):
     cross_ratio_robust: float | None
     roll_ratio_robust: float | None
     outliers_5sigma: int | None
+    cross_ratio_ci95: list[float] | None = None
+    roll_ratio_ci95: list[float] | None = None
     stars_matched_median: float | None = field(default=None, metadata={"omit_none": True})
 
     @property
