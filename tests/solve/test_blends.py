@@ -89,3 +89,95 @@ def test_a_neighbours_streak_in_the_capsule_moves_its_centroid_as_predicted(seed
     assert np.hypot(*(predicted - measured)) < 0.15 * np.hypot(*measured) + 0.01, (
         predicted, measured, a, p, dmag,
     )  # fmt: skip
+
+
+def _pixel_integrated_streak(shape, xy, flux, u, length, sigma):
+    """A hand-made noiseless image: each source a uniform streak of Gaussians integrated over
+    the pixels (erf differences), 400 steps along its length."""
+    from scipy.special import ndtr
+
+    rows, cols = shape
+    img = np.zeros(shape)
+    ex, ey = np.arange(cols + 1) - 0.5, np.arange(rows + 1) - 0.5
+    for (cx, cy), f in zip(xy, flux, strict=True):
+        for t in np.linspace(-0.5, 0.5, 400):
+            px, py = cx + t * length * u[0], cy + t * length * u[1]
+            gx = np.diff(ndtr((ex - px) / sigma))
+            gy = np.diff(ndtr((ey - py) / sigma))
+            img += f / 400 * np.outer(gy, gx)
+    return img
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_the_capsule_reference_follows_the_centroider_from_where_it_started(seed):
+    """Neighbours on either side, the centroider started away from the star (a detection on a
+    piece of its streak): given where it started, the reference lands where the solver's own
+    capsule centroider does on an independent noiseless rendering of the scene."""
+    from scipy.spatial.transform import Rotation
+
+    from starsense.detect.streak import SYSTEMATIC, streak_centroids
+    from starsense.sensor import load_sensor
+    from starsense.solve.blends import streak_photocentres
+    from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
+
+    rng = np.random.default_rng(100 + seed)
+    sensor = load_sensor("st16")
+    sigma = sensor.detector.psf_sigma_px
+    length, ang = rng.uniform(15.0, 40.0), rng.uniform(0.0, np.pi)
+    u = np.array([np.cos(ang), np.sin(ang)])
+    n = np.array([-u[1], u[0]])
+    radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
+    k = int(rng.integers(1, 4))  # neighbours, anywhere along, within 1.2 radii across
+    a = rng.uniform(-1.2, 1.2, k) * length
+    p = rng.uniform(-1.2, 1.2, k) * radius
+    dmag = rng.uniform(0.0, 2.5, k)
+    size = 161
+    x0, y0 = 80.3, 80.6
+    xy = np.array(
+        [[x0, y0], *np.column_stack([x0 + a * u[0] + p * n[0], y0 + a * u[1] + p * n[1]])]
+    )
+    flux = np.concatenate([[1.0], 10 ** (-0.4 * dmag)])
+    start = np.array([x0, y0]) + rng.uniform(-0.4, 0.4) * length * u  # on a piece of the streak
+    seg = length * (1 + SYSTEMATIC) * u
+    img = _pixel_integrated_streak((size, size), xy, flux, u, length, sigma)
+    alone = _pixel_integrated_streak((size, size), xy[:1], flux[:1], u, length, sigma)
+    got = streak_centroids(
+        np.stack([img, alone]), np.full(2, start[0]), np.full(2, start[1]),
+        streaks=np.stack([seg, seg]), radius=radius,
+    )[:2]  # fmt: skip
+    measured = np.array([got[0][0] - got[0][1], got[1][0] - got[1][1]])
+    # the same scene on the sky, at the same pixel phase, the detection's start given
+    det = sensor.detector
+    centre = np.add(np.floor([det.columns / 2.0, det.rows / 2.0]), [0.3, 0.6])
+    sky = xy - [x0, y0] + centre
+    vectors = sensor.unproject(sky[:, 0], sky[:, 1])
+    ref = streak_photocentres(
+        sensor, Rotation.identity(), vectors, mags=5.0 + np.concatenate([[0.0], dmag]),
+        tree=cKDTree(vectors), index=[0], streaks_px=(length * u)[None], radius_px=radius,
+        length_px=np.array([length * (1 + SYSTEMATIC)]),
+        starts_px=(start - [x0, y0] + centre)[None],
+    )  # fmt: skip
+    px, py = sensor.project(ref)
+    predicted = np.array([px[0], py[0]]) - centre
+    # the same centroider on two renderings of one scene, which differ by the pixel
+    # quadrature only (400 steps here, the renderer's track): 2 % of the shift plus 0.01 px
+    assert np.hypot(*(predicted - measured)) < 0.02 * np.hypot(*measured) + 0.01, (
+        predicted, measured, a, p, dmag, start,
+    )  # fmt: skip
+
+
+def test_the_capsule_neighbours_come_from_the_whole_catalogue():
+    """The solver's sky for the capsules holds every star of its catalogue with a magnitude in
+    the band, not only the identification database's few per field."""
+    from starsense.catalog import load_catalog
+    from starsense.solve.identifiers import FieldIdentifiers
+
+    cat = load_catalog("hipparcos")
+    ids = FieldIdentifiers(cat, algorithm="hashing")
+    vectors, mags, tree = ids.sky("V")
+    finite = np.isfinite(np.asarray(cat.mags["V"], dtype=float))
+    assert len(mags) == int(finite.sum()) and np.isfinite(mags).all()
+    np.testing.assert_array_equal(vectors, np.asarray(cat.vectors)[finite])
+    assert ids.sky("V")[2] is tree  # built once
+    # the tree finds each star at its own place
+    assert (tree.query(vectors[::997])[1] == np.arange(len(vectors))[::997]).all()

@@ -23,13 +23,17 @@ import math
 
 import numpy as np
 
-from starsense.detect.streak import SYSTEMATIC
+from starsense.detect.streak import SYSTEMATIC, streak_centroids
+from starsense.render.smear import streak_stamp_expected
 from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
 
 __all__ = ["blend_radius_px", "photocentres", "streak_photocentres", "streak_reference"]
 
+#: two catalogue directions closer than this are one star, rad (0.2 arcsec)
+SAME_STAR_RAD = 1e-6
 #: slices across a capsule its light is integrated over (Gauss-Legendre nodes)
 _SLICES = 24
+_GAUSS = np.polynomial.legendre.leggauss(_SLICES)
 
 
 def blend_radius_px(psf_sigma_px: float) -> float:
@@ -75,7 +79,18 @@ def photocentres(vectors, mags, tree, *, index, radius_rad: float) -> np.ndarray
 
 
 def streak_photocentres(
-    sensor, rotation, vectors, *, mags, tree, index, streaks_px, radius_px: float, length_px
+    sensor,
+    rotation,
+    vectors,
+    *,
+    mags,
+    tree,
+    index,
+    streaks_px,
+    radius_px: float,
+    length_px,
+    starts_px=None,
+    sky=None,
 ) -> np.ndarray:
     """Return the reference directions of stars ``index`` centroided over their capsules.
 
@@ -96,6 +111,15 @@ def streak_photocentres(
     length_px : ndarray (K,)
         The length of the segment the capsule is drawn around, px (the streak lengthened by
         the centroider's allowance).
+    starts_px : ndarray (K, 2), optional
+        Where the centroider started each capsule (the detections' centroids), px: the
+        centroider is then run on a noiseless rendering of the star and its neighbours
+        (:func:`_pixel_shift`), from there, as on the frame. None: the continuous capsule's
+        fixed point from the star (:func:`_capsule_centre`).
+    sky : (vectors, mags, tree), optional
+        The stars that may lie in a capsule (default ``vectors``, ``mags``, ``tree``: the
+        matched stars' own catalogue); a star of it within :data:`SAME_STAR_RAD` of the
+        matched star is that star.
 
     Returns
     -------
@@ -112,25 +136,49 @@ def streak_photocentres(
     # reach: half the capsule's segment, its radius, and the PSF's tail beyond it, px -> rad
     reach = 0.5 * np.asarray(length_px, dtype=float) + radius_px + 3.0 * sigma
     mags = np.asarray(mags, dtype=float)
+    sky_vectors, sky_mags, sky_tree = (vectors, mags, tree) if sky is None else sky
     for k, i in enumerate(index):
         # a neighbour's streak reaches the capsule from half a streak beyond it
         far = reach[k] + 0.5 * length[k]
         side = sensor.unproject(np.array([x0[k], x0[k] + far]), np.array([y0[k]] * 2))
         angle = math.acos(min(1.0, float(side[0] @ side[1])))
-        near = np.asarray(tree.query_ball_point(out[k], 2.0 * math.sin(0.5 * angle)), dtype=int)
-        near = near[near != i]
+        near = np.asarray(sky_tree.query_ball_point(out[k], 2.0 * math.sin(0.5 * angle)), dtype=int)
+        if sky is None:
+            near = near[near != i]
+        else:  # the matched star itself is in the sky too
+            near = near[np.linalg.norm(sky_vectors[near] - out[k], axis=1) > SAME_STAR_RAD]
         if len(near) == 0 or length[k] == 0.0:
             continue
         u = streaks[k] / length[k]
-        xn, yn = sensor.project(rotation.apply(vectors[near]))
-        along = np.concatenate([[0.0], (xn - x0[k]) * u[0] + (yn - y0[k]) * u[1]])
-        across = np.concatenate([[0.0], (xn - x0[k]) * -u[1] + (yn - y0[k]) * u[0]])
-        flux = 10.0 ** (-0.4 * np.concatenate([[mags[i]], mags[near]]))
+        xn, yn = sensor.project(rotation.apply(sky_vectors[near]))
+        along_n = (xn - x0[k]) * u[0] + (yn - y0[k]) * u[1]
+        across_n = (xn - x0[k]) * -u[1] + (yn - y0[k]) * u[0]
+        # only streaks that reach a capsule between where the centroider started and the star
+        # (across: its radius and the PSF's tail; along: half the segment, the radius, half a
+        # streak and the PSF's tail)
+        moved = np.zeros(2) if starts_px is None else np.asarray(starts_px[k]) - [x0[k], y0[k]]
+        path_along, path_across = abs(moved @ u), abs(moved @ [-u[1], u[0]])
+        reach_along = 0.5 * (float(length_px[k]) + length[k]) + radius_px + 4.0 * sigma
+        can = np.abs(across_n) <= radius_px + 4.0 * sigma + path_across
+        can &= np.abs(along_n) <= reach_along + path_along
+        if not can.any():
+            continue
+        near, xn, yn = near[can], xn[can], yn[can]
+        along = np.concatenate([[0.0], along_n[can]])
+        across = np.concatenate([[0.0], across_n[can]])
+        flux = 10.0 ** (-0.4 * np.concatenate([[mags[i]], np.asarray(sky_mags)[near]]))
         shift = _capsule_centre(
             along, across, flux, length[k], float(length_px[k]), radius_px, sigma
         )
         if shift is None:
             continue
+        if starts_px is not None:  # the centroider itself, from where it started
+            shift = _pixel_shift(
+                sensor, np.column_stack([np.append(x0[k], xn), np.append(y0[k], yn)]), flux,
+                streak=streaks[k] * float(length_px[k]) / length[k], start=starts_px[k],
+                length=length[k], radius=radius_px,
+            )  # fmt: skip
+            shift = np.array([shift @ u, shift @ [-u[1], u[0]]])
         dx = shift[0] * u[0] - shift[1] * u[1]
         dy = shift[0] * u[1] + shift[1] * u[0]
         cam_k = sensor.unproject(np.array([x0[k] + dx]), np.array([y0[k] + dy]))[0]
@@ -138,7 +186,9 @@ def streak_photocentres(
     return out
 
 
-def streak_reference(sensor, db, ref, *, index, rotation, streaks, pixel_rad) -> np.ndarray:
+def streak_reference(
+    sensor, db, ref, *, index, rotation, streaks, pixel_rad, starts_px=None, sky=None
+) -> np.ndarray:
     """Return ``ref`` with each smeared star's blend replaced by its capsule's photocentre.
 
     ``ref`` (K, 3) holds the matched stars' reference directions with their close doubles'
@@ -161,6 +211,8 @@ def streak_reference(sensor, db, ref, *, index, rotation, streaks, pixel_rad) ->
         streaks_px=streaks,
         radius_px=CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX,
         length_px=np.hypot(streaks[:, 0], streaks[:, 1]) * (1.0 + SYSTEMATIC),
+        starts_px=starts_px,
+        sky=sky,
     )
     moved = np.any(capsule != blended, axis=1)
     if not moved.any():  # no capsule holds a neighbour the blend did not: ``ref`` itself
@@ -169,6 +221,45 @@ def streak_reference(sensor, db, ref, *, index, rotation, streaks, pixel_rad) ->
     new = ref[moved] - blended[moved] + capsule[moved]
     out[moved] = new / np.linalg.norm(new, axis=1)[:, None]
     return out
+
+
+def _pixel_shift(sensor, xy, flux, *, streak, start, length: float, radius: float) -> np.ndarray:
+    """Return how far the capsule centroider lands from where it lands on the star alone, px.
+
+    Sources at ``xy`` (S, 2) px (the star first) draw parallel streaks of ``length`` px along
+    ``streak`` (the capsule's segment, px); each is rendered noiselessly with the camera's PSF
+    (:func:`starsense.render.smear.streak_stamp_expected`) into the window the solver reads
+    around ``start`` (the detection it started from), and
+    :func:`starsense.detect.streak.streak_centroids` is run from there on the star with its
+    neighbours and on the star alone: the same pixels, the same start, the same stop rule.
+    Returns (dx, dy), px.
+    """
+    seg = np.asarray(streak, dtype=float)
+    u = seg / math.hypot(*seg)
+    half = math.ceil(math.hypot(*seg) + radius + 2.0)
+    r0, c0 = math.floor(start[1]) - half, math.floor(start[0]) - half
+    size = 2 * half + 1
+    planes = np.zeros((2, size, size))
+    for s, ((x, y), f) in enumerate(zip(xy, flux, strict=True)):
+        dx, dy = 0.5 * length * u
+        stamp, row0, col0 = streak_stamp_expected(
+            sensor, x0=x - dx, y0=y - dy, x1=x + dx, y1=y + dy, electrons=float(f), pad_sigma=8.0
+        )
+        a, b = max(row0, r0), min(row0 + stamp.shape[0], r0 + size)
+        c, d = max(col0, c0), min(col0 + stamp.shape[1], c0 + size)
+        if b <= a or d <= c:
+            continue
+        piece = stamp[a - row0 : b - row0, c - col0 : d - col0]
+        planes[0, a - r0 : b - r0, c - c0 : d - c0] += piece
+        if s == 0:
+            planes[1, a - r0 : b - r0, c - c0 : d - c0] += piece
+    gx, gy = streak_centroids(
+        planes, np.full(2, start[0] - c0), np.full(2, start[1] - r0),
+        streaks=np.stack([seg, seg]), radius=radius,
+    )[:2]  # fmt: skip
+    if not (np.isfinite(gx).all() and np.isfinite(gy).all()):
+        return np.zeros(2)
+    return np.array([gx[0] - gx[1], gy[0] - gy[1]])
 
 
 def _capsule_centre(along, across, flux, length, segment, radius, sigma):
@@ -181,7 +272,7 @@ def _capsule_centre(along, across, flux, length, segment, radius, sigma):
     source holds its Gaussian's density there times its streak's overlap with the capsule,
     whose round ends reach ``sqrt(radius^2 - t^2)`` past the segment.
     """
-    nodes, weights = np.polynomial.legendre.leggauss(_SLICES)
+    nodes, weights = _GAUSS
     t = radius * nodes[None, :]  # (1, S) across, from the capsule's centre line
     dt = radius * weights[None, :]
     ends = 0.5 * segment + np.sqrt(np.maximum(radius**2 - t**2, 0.0))

@@ -11,6 +11,7 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from starsense.catalog import load_catalog
 from starsense.catalog.table import Catalog
@@ -47,6 +48,7 @@ class FieldIdentifiers:
         self._catalog: Catalog | None = catalog if isinstance(catalog, Catalog) else None
         self._plan: list[FieldRange] | None = None
         self._built: dict = {}
+        self._skies: dict = {}
 
     @property
     def catalog(self) -> Catalog:
@@ -54,6 +56,27 @@ class FieldIdentifiers:
         if self._catalog is None:
             self._catalog = load_catalog(self.spec)
         return self._catalog
+
+    def sky(self, band: str) -> tuple:
+        """Return every star of the catalogue with a magnitude in ``band``, built once per band.
+
+        The stars whose streaks may run through a matched star's capsule
+        (:func:`starsense.solve.blends.streak_reference`): the whole catalogue, not the
+        identification database, which keeps a few stars per field.
+
+        Returns
+        -------
+        vectors : ndarray (N, 3)
+        mags : ndarray (N,)
+        tree : scipy.spatial.cKDTree
+            Over ``vectors``.
+        """
+        if band not in self._skies:
+            mags = np.asarray(self.catalog.mags[band], dtype=float)
+            keep = np.flatnonzero(np.isfinite(mags))
+            vectors = np.asarray(self.catalog.vectors)[keep]
+            self._skies[band] = (vectors, mags[keep], cKDTree(vectors))
+        return self._skies[band]
 
     def plan(self) -> list[FieldRange]:
         """Return the field ranges searched, in order, when the field is not known."""

@@ -378,6 +378,8 @@ class Solver:
             held = streak_reference(
                 self.sensor, identifier.database, ref, index=ident.catalog_index,
                 rotation=att.rotation, streaks=streaks, pixel_rad=pixel_rad,
+                starts_px=np.column_stack([points.x[matched], points.y[matched]]),
+                sky=self._identifiers.sky(identifier.database.params.band),
             )  # fmt: skip
             if held is not ref:
                 att, _ = robust_attitude(body, held, sigma * pixel_rad)

@@ -112,8 +112,9 @@ class StarModel:
         on the electrons of ``noise`` (:func:`starsense.analysis.datasheet.terms.
         confusion_px`); None without the catalogue's star counts.
     neighbours : (ndarray, ndarray) or None
-        Every catalogue star the frames hold, as classes: photo-electrons (B,) and sky-mean
-        density (B,), px^-2 (the blends of streaks under slew); None without the counts.
+        The catalogue stars the frames hold and the solver's catalogue lacks, as classes:
+        photo-electrons (B,) and sky-mean density (B,), px^-2 (the unmodelled blends of
+        streaks under slew); None without the counts.
     """
 
     sensor: object
@@ -126,12 +127,22 @@ class StarModel:
 
     @classmethod
     def build(
-        cls, sensor, *, model: str, bright_mag: float, faint_mag: float, star_counts=None
+        cls,
+        sensor,
+        *,
+        model: str,
+        bright_mag: float,
+        faint_mag: float,
+        star_counts=None,
+        unmodelled=None,
     ) -> StarModel:
         """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``.
 
         ``star_counts``: the V magnitudes of every star of the catalogue the frames hold (to
         its faintest), for the confusion of faint neighbours; None leaves it out.
+        ``unmodelled``: the V magnitudes of those the solver's catalogue lacks, whose streaks
+        blend unmodelled under slew (the solver models the others',
+        :func:`starsense.solve.blends.streak_reference`); None: all of ``star_counts``.
         """
         sens = Sensitivity.for_sensor(sensor, model)
         e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))
@@ -148,7 +159,8 @@ class StarModel:
             counts = np.asarray(star_counts, dtype=float)
             # the stars below the detection limit: unresolved, they sit in the windows
             conf = _confusion(sensor, sens, noise, counts[counts > faint_mag])
-            near = _neighbour_classes(sensor, sens, counts)
+            blends = counts if unmodelled is None else np.asarray(unmodelled, dtype=float)
+            near = _neighbour_classes(sensor, sens, blends)
         return cls(sensor, sens, noise, bias, corner, conf, near)
 
     def _corner_weight(self, z_cam) -> np.ndarray:

@@ -47,7 +47,13 @@ from starsense.analysis.datasheet.sections import (
 )
 from starsense.analysis.datasheet.skycache import limit_sigmas
 from starsense.analysis.datasheet.verify import no_frames_check, score_montecarlo
-from starsense.analysis.inputs import as_catalog, as_sensor, completed_sky, root_seed
+from starsense.analysis.inputs import (
+    as_catalog,
+    as_sensor,
+    completed_sky,
+    held_by,
+    root_seed,
+)
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.sensor_detection import sensor_detection
 from starsense.photometry.colour import with_johnson_from_gaia
@@ -199,8 +205,11 @@ def _settings(settings: DatasheetSettings, catalog_name: str, cut: float | None)
     )
 
 
-def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
-    """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound."""
+def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, database):
+    """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound.
+
+    ``database``: the solver's catalogue (whose stars' streak blends the solver models).
+    """
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
     every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
     model = StarModel.build(
@@ -209,6 +218,7 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov):
         bright_mag=float(np.min(mags)),
         faint_mag=limit_mag,
         star_counts=every,
+        unmodelled=every[~held_by(cat, database)],
     )
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
@@ -313,9 +323,10 @@ def build_datasheet(
     tick("availability")
     # the frames' sky: the catalogue and the database stars it lacks (the prediction and the
     # frames see one sky, the one the solver models)
-    sky_cat = completed_sky(cat, Solver(sensor=sensor).catalog)
+    database = Solver(sensor=sensor).catalog
+    sky_cat = completed_sky(cat, database)
     model, stars_used, mags, boresights, mats, sig, counts, lim = _sky_noise(
-        sky_cat, sensor, st, limit_mag, fov
+        sky_cat, sensor, st, limit_mag, fov, database
     )
     vectors = stars_used[0]
     tick("noise")
