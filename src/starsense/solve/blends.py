@@ -12,9 +12,15 @@ On a smeared frame each star is centroided over a capsule around its whole strea
 (:mod:`starsense.solve.streaks`), and a neighbour's streak that runs through that capsule adds
 its light there, even when the two stars are well apart at rest: a neighbour of a third of the
 star's flux 2.6 px away across a 13 px streak moved the centroid 0.4 px, 35 times the bright
-star's noise. :func:`streak_photocentres` gives each such star the centre of the light its
-capsule holds: every catalogue star's streak (the same streak, shifted to the star's place)
-clipped to the capsule, along the streak by its overlap and across it by the PSF's Gaussian.
+star's noise. :func:`streak_photocentres` gives each such star the place its capsule centroider
+lands: told where the centroider started (the solver's detections), that centroider itself on a
+noiseless rendering of the star and of every catalogue star whose streak crosses its capsule,
+less where it lands on the star alone (the same pixels, start and stop rule: a capsule can stay
+on more than one place when a neighbour's streak runs through it); else the continuous fixed
+point from the star, every catalogue star's streak (the same streak, shifted to the star's
+place) clipped to the capsule, along the streak by its overlap and across it by the PSF's
+Gaussian. The solver passes its whole catalogue as the neighbours (its identification database
+keeps a few stars per field).
 """
 
 from __future__ import annotations
