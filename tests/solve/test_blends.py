@@ -36,6 +36,26 @@ def test_blend_radius_grows_with_the_psf():
     assert blend_radius_px(0.8) > 2 * 0.8
 
 
+def _streak_scene(rng, shortest: float, longest: float):
+    """The ST-16, a streak of random length and direction: sensor, PSF sigma, length, unit
+    vectors along and across, and the capsule's radius."""
+    from starsense.sensor import load_sensor
+    from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
+
+    sensor = load_sensor("st16")
+    sigma = sensor.detector.psf_sigma_px
+    length, ang = rng.uniform(shortest, longest), rng.uniform(0.0, np.pi)
+    u = np.array([np.cos(ang), np.sin(ang)])
+    return (
+        sensor,
+        sigma,
+        length,
+        u,
+        np.array([-u[1], u[0]]),
+        CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX,
+    )
+
+
 @pytest.mark.parametrize("seed", range(40))
 def test_a_neighbours_streak_in_the_capsule_moves_its_centroid_as_predicted(seed):
     """Two parallel streaks, the neighbour anywhere near the star's capsule: the solver's own
@@ -43,17 +63,10 @@ def test_a_neighbours_streak_in_the_capsule_moves_its_centroid_as_predicted(seed
     from scipy.spatial.transform import Rotation
 
     from starsense.detect.streak import SYSTEMATIC, streak_centroids
-    from starsense.sensor import load_sensor
     from starsense.solve.blends import streak_photocentres
-    from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
 
     rng = np.random.default_rng(seed)
-    sensor = load_sensor("st16")
-    sigma = sensor.detector.psf_sigma_px
-    length, ang = rng.uniform(8.0, 30.0), rng.uniform(0.0, np.pi)
-    u = np.array([np.cos(ang), np.sin(ang)])
-    n = np.array([-u[1], u[0]])
-    radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
+    sensor, sigma, length, u, n, radius = _streak_scene(rng, 8.0, 30.0)
     # the neighbour: along anywhere over the streak, across within 1.5 capsule radii
     a, p = rng.uniform(-length, length), rng.uniform(-1.5, 1.5) * radius
     dmag = rng.uniform(0.0, 2.5)
@@ -116,17 +129,10 @@ def test_the_capsule_reference_follows_the_centroider_from_where_it_started(seed
     from scipy.spatial.transform import Rotation
 
     from starsense.detect.streak import SYSTEMATIC, streak_centroids
-    from starsense.sensor import load_sensor
     from starsense.solve.blends import streak_photocentres
-    from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
 
     rng = np.random.default_rng(100 + seed)
-    sensor = load_sensor("st16")
-    sigma = sensor.detector.psf_sigma_px
-    length, ang = rng.uniform(15.0, 40.0), rng.uniform(0.0, np.pi)
-    u = np.array([np.cos(ang), np.sin(ang)])
-    n = np.array([-u[1], u[0]])
-    radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
+    sensor, sigma, length, u, n, radius = _streak_scene(rng, 15.0, 40.0)
     k = int(rng.integers(1, 4))  # neighbours, anywhere along, within 1.2 radii across
     a = rng.uniform(-1.2, 1.2, k) * length
     p = rng.uniform(-1.2, 1.2, k) * radius
