@@ -121,9 +121,13 @@ def held_by(catalog: Catalog, database: Catalog) -> np.ndarray:
     """
     if database is catalog or len(database) == 0 or len(catalog) == 0:
         return np.full(len(catalog), database is catalog and len(catalog) > 0, dtype=bool)
+    return _has_same_star(at_epoch(catalog, database.epoch_yr).vectors, database.vectors)
+
+
+def _has_same_star(vectors: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Return whether each of ``vectors`` has one of ``others`` within :data:`SAME_STAR_RAD`."""
     chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
-    sky = at_epoch(catalog, database.epoch_yr).vectors
-    dist, _ = cKDTree(database.vectors).query(sky, distance_upper_bound=chord)
+    dist, _ = cKDTree(others).query(vectors, distance_upper_bound=chord)
     return np.isfinite(dist)
 
 
@@ -155,12 +159,10 @@ def completed_sky(catalog: Catalog, database: Catalog) -> Catalog:
     same = database.name == catalog.name and len(database) == len(catalog)
     if database is catalog or same or len(database) == 0:
         return catalog
-    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
     missing = np.ones(len(database), dtype=bool)
     if len(catalog):  # matched where the frames are rendered: at the database's epoch
         sky = at_epoch(catalog, database.epoch_yr).vectors
-        dist, _ = cKDTree(sky).query(database.vectors, distance_upper_bound=chord)
-        missing = ~np.isfinite(dist)
+        missing = ~_has_same_star(database.vectors, sky)
     extra, _ = with_johnson_from_gaia(database.subset(missing))
     if not missing.any() or "V" not in extra.mags:
         return catalog

@@ -173,18 +173,19 @@ def streak_photocentres(
         along = np.concatenate([[0.0], along_n[can]])
         across = np.concatenate([[0.0], across_n[can]])
         flux = 10.0 ** (-0.4 * np.concatenate([[mags[i]], np.asarray(sky_mags)[near]]))
-        shift = _capsule_centre(
-            along, across, flux, length[k], float(length_px[k]), radius_px, sigma
-        )
-        if shift is None:
-            continue
         if starts_px is not None:  # the centroider itself, from where it started
-            shift = _pixel_shift(
+            got = _pixel_shift(
                 sensor, np.column_stack([np.append(x0[k], xn), np.append(y0[k], yn)]), flux,
                 streak=streaks[k] * float(length_px[k]) / length[k], start=starts_px[k],
                 length=length[k], radius=radius_px,
             )  # fmt: skip
-            shift = np.array([shift @ u, shift @ [-u[1], u[0]]])
+            shift = np.array([got @ u, got @ [-u[1], u[0]]])
+        else:
+            shift = _capsule_centre(
+                along, across, flux, length[k], float(length_px[k]), radius_px, sigma
+            )
+            if shift is None:
+                continue
         dx = shift[0] * u[0] - shift[1] * u[1]
         dy = shift[0] * u[1] + shift[1] * u[0]
         cam_k = sensor.unproject(np.array([x0[k] + dx]), np.array([y0[k] + dy]))[0]
