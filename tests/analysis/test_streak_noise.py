@@ -20,7 +20,7 @@ from starsense.detect.streak import SYSTEMATIC, streak_centroids
 from starsense.render.noise import apply_noise
 from starsense.render.smear import streak_stamp_expected
 from starsense.sensor import load_sensor
-from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
+from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS, streak_centroids_of
 
 #: noisy renders per case: the sample standard deviation of K Gaussian draws has a relative
 #: standard error of 1 / sqrt(2 (K - 1)) = 2.9 % at K = 600; the tolerance is 3.5 of those
@@ -112,6 +112,43 @@ def test_streak_cut_by_the_frame_edge_is_pulled_inwards():
     assert abs(np.mean(err[:, 0]) - pred.bias_px[0, 0]) < 4 * sem[0] + 0.02 * pred.bias_px[0, 0]
     # the solver treats it as a point anywhere along its streak: l l^T / 12
     assert pred.solver_cov_px2[0, 0, 0] == pytest.approx(streak[0] ** 2 / 12.0)
+
+
+def test_a_clipped_streak_is_weighted_as_the_solver_weights_it():
+    # the 12-bit ADC clips the ridge of 2e6 e- streaks: the solver gives each the error of a
+    # clipped streak over its pixel phase (solve.streak_bias) on top of its photon noise, and
+    # the prediction must weight them alike, or their biases count many times in the attitude
+    sensor = _sensor(psf_sigma_px=0.8, read_noise_e=3.5, gain_counts_per_e=0.5, bias_counts=20)
+    det = sensor.detector
+    n_e = 2.0e6
+    streak = 25.0 * np.array([math.cos(0.4), math.sin(0.4)])
+    # three parallel streaks near the middle of the frame (the solver fits the rate to >= 3)
+    offsets = np.array([[0.3, 0.6], [-60.7, 50.2], [70.4, 40.9]])
+    centres = np.array([det.columns / 2, det.rows / 2]) + offsets
+    image = np.zeros((det.rows, det.columns))
+    for c in centres:
+        stamp, sr, sc = streak_stamp_expected(
+            sensor, x0=c[0] - streak[0] / 2, y0=c[1] - streak[1] / 2,
+            x1=c[0] + streak[0] / 2, y1=c[1] + streak[1] / 2, electrons=n_e,
+        )  # fmt: skip
+        image[sr : sr + stamp.shape[0], sc : sc + stamp.shape[1]] += stamp
+    image = apply_noise(image, sensor, rng=np.random.default_rng(3))
+    got = streak_centroids_of(
+        sensor, image, centres + 0.4, counts=np.full(3, n_e * det.gain_counts_per_e),
+        extent_px=np.full(3, 27.0), level=float(det.bias_counts),
+        threshold=sensor.detection.lit_pixel_counts,
+    )  # fmt: skip
+    pred = streak_errors(sensor, np.full(3, n_e), centres, streaks_px=np.tile(streak, (3, 1)))
+    solver = np.trace(got.cov_px2, axis1=1, axis2=2)
+    predicted = np.trace(pred.solver_cov_px2, axis1=1, axis2=2)
+    # the clipped-streak term dominates (photon noise alone is 0.8 / sqrt(2e6) = 6e-4 px)
+    assert np.all(solver > 100 * (0.8**2 / n_e))
+    # the same term, the frame's from its measured streak and sum, the model's from the
+    # expected ones: sigmas within 40 %. A clipped streak's lit pixels reach past its ends
+    # (the solver measures 26.1 px for these 25), and the clipped-streak error over the phase
+    # swings with the length by whole pixels (0.013 px at 26.1, 0.018 at 25); without the
+    # term the prediction's sigma is 0.0006 px, 30x below the solver's
+    np.testing.assert_allclose(np.sqrt(predicted), np.sqrt(solver), rtol=0.4)
 
 
 def _rendered_cut(sensor, n_e, centre, streak, rng):

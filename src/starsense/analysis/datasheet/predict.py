@@ -445,6 +445,7 @@ def nea_at_rate(
             streaks_px=streaks[at],
             capsule=flag,
             margin_px=margin_px,
+            frames=pairs.point[at],
         )
         cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
     if model.neighbours is not None:  # the other stars' streaks across each capsule

@@ -23,8 +23,11 @@ rest:
   ``(sigma^2 + l^2 / 12) / N`` along and ``sigma^2 / N`` across, and the window's longer side
   takes in more background and read noise per unit of signal;
 * the covariance the solver assumes for the same centroid
-  (:func:`starsense.solve.streaks.streak_cov_px2`), whose inverse trace weights the star in its
-  attitude fit.
+  (:func:`starsense.solve.streaks.streak_cov_px2`, its read noise with the ADC's quantising,
+  plus the clipped streak's error over its pixel phase where the expected ridge reaches the
+  ADC's top, :func:`starsense.solve.streak_bias.saturated_streak_bias_px`, as the solver adds
+  it), whose inverse trace weights the star in its attitude fit: a clipped streak weighted by
+  its photon noise alone would carry its clipping's bias into the attitude many times over.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from starsense.attitude.robust import OUTLIER_SIGMA
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import SYSTEMATIC
 from starsense.render.smear import streak_stamp_expected
+from starsense.solve.streak_bias import saturated_streak_bias_px
 from starsense.solve.streaks import (
     CAPSULE_PAD_PX,
     CAPSULE_SIGMAS,
@@ -91,7 +95,11 @@ def is_streaked(sensor, streak_px: float, margin_px: int = 2) -> bool:
 
 
 def _pixels(sensor, n_e: float, centre, streak, half: tuple[int, int]):
-    """Return the expected counts less the bias, their variance, pixel grid, on-frame mask."""
+    """Return the expected counts less the bias, their variance, pixel grid, on-frame mask.
+
+    Also the counts less the bias before the ADC clips them (the solver's test for a clipped
+    ridge).
+    """
     det = sensor.detector
     g = det.gain_counts_per_e
     x, y = float(centre[0]), float(centre[1])
@@ -115,7 +123,7 @@ def _pixels(sensor, n_e: float, centre, streak, half: tuple[int, int]):
     sd = np.sqrt(g * g * (star + dark_e + det.read_noise_e**2) + 1.0 / 12.0)
     mean, var = clipped_moments(mu, sd, lo=0.0, hi=float(det.saturation_counts))
     # the solver subtracts the known bias; the dark signal's mean is the background it leaves
-    return mean - det.bias_counts, var, cols, rows, on
+    return mean - det.bias_counts, var, cols, rows, on, mu - det.bias_counts
 
 
 def _capsule(cols, rows, centre, seg, radius: float) -> np.ndarray:
@@ -148,8 +156,9 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
     seg = np.asarray(streak, dtype=float) * (1.0 + SYSTEMATIC)
     pad = radius + 5.0 * sigma + margin + 3.0
     half = (math.ceil(0.5 * abs(seg[1]) + pad), math.ceil(0.5 * abs(seg[0]) + pad))
-    sub, var, cols, rows, on = _pixels(sensor, n_e, centre, streak, half)
-    nan = np.full(2, np.nan), *np.full((3, 2, 2), np.nan)
+    sub, var, cols, rows, on, raw = _pixels(sensor, n_e, centre, streak, half)
+    nan = np.full(2, np.nan), *np.full((3, 2, 2), np.nan), np.nan
+    clipped_e = np.nan  # the electrons of a clipped streak's window (the solver's measure)
     c = np.asarray(centre, dtype=float)
     if capsule:
         for _ in range(_ITERATIONS):  # the solver's fixed point, on the expected image
@@ -190,8 +199,10 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
             np.asarray(streak, dtype=float)[None],
             whole=[whole],
             sigma_px=sigma,
-            read_noise_e=det.read_noise_e,
+            read_noise_e=math.hypot(det.read_noise_e, 1.0 / (math.sqrt(12.0) * g)),
         )[0]
+        if np.max(raw[win]) >= det.clip_e * g - 0.5:  # a clipped ridge, as the solver sees it
+            clipped_e = total / g
     else:  # the detector's own noise model on the lit box (cog_sigma_px)
         lit = (sub > sensor.detection.lit_pixel_counts) & on
         rr, cc = np.flatnonzero(lit.any(axis=1)), np.flatnonzero(lit.any(axis=0))
@@ -202,11 +213,42 @@ def _one(sensor, n_e: float, centre, streak, capsule: bool, margin: int):
         )
         sig = float(cog_sigma_px(found, [0], detector=det, margin_px=margin)[0])
         solver = sig * sig * np.eye(2)
-    return c - np.asarray(centre, dtype=float), cov, solver, spread * (g / s) ** 2
+    return c - np.asarray(centre, dtype=float), cov, solver, spread * (g / s) ** 2, clipped_e
+
+
+def _add_clipping(sensor, solver, clipped_e, streaks, frames) -> None:
+    """In place: the solver's clipped-streak term in ``solver`` (N, 2, 2), one call per frame.
+
+    As :func:`starsense.solve.streaks.streak_centroids_of` does: the frame's clipped stars
+    share one streak (their mean, signs aligned) and their capsule sums set their brightness.
+    """
+    sigma = sensor.detector.psf_sigma_px
+    radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
+    hit = np.flatnonzero(np.isfinite(clipped_e))
+    for f in np.unique(frames[hit]):
+        at = hit[frames[hit] == f]
+        typical = streaks[at] * np.sign(streaks[at] @ streaks[at][0])[:, None]
+        mean = typical.mean(axis=0)
+        bias = saturated_streak_bias_px(
+            mean,
+            clipped_e[at],
+            sigma_px=sigma,
+            saturation_e=sensor.detector.clip_e,
+            radius_px=radius,
+            segment_px=float(np.hypot(*mean)) * (1.0 + SYSTEMATIC),
+        )
+        solver[at] += (bias**2)[:, None, None] * np.eye(2)
 
 
 def streak_errors(
-    sensor, electrons, centres_px, *, streaks_px, capsule: bool = True, margin_px: int = 2
+    sensor,
+    electrons,
+    centres_px,
+    *,
+    streaks_px,
+    capsule: bool = True,
+    margin_px: int = 2,
+    frames=None,
 ) -> StreakErrors:
     """Return the predicted centroid errors of smeared stars (module docstring).
 
@@ -225,6 +267,9 @@ def streak_errors(
         lit box widened by ``margin_px`` (a frame whose streaks are short, :func:`is_streaked`).
     margin_px : int
         The detector's centroid margin, px.
+    frames : array_like (N,) of int, optional
+        The frame of each star: a frame's clipped streaks share the solver's one clipped-streak
+        error call (their mean streak). None: each star its own frame.
 
     Returns
     -------
@@ -237,7 +282,10 @@ def streak_errors(
     out = [_one(sensor, float(e[i]), xy[i], ls[i], capsule, int(margin_px)) for i in range(len(e))]
     if not out:
         return StreakErrors(np.zeros((0, 2)), *np.zeros((3, 0, 2, 2)))
-    return StreakErrors(*(np.array(z) for z in zip(*out, strict=True)))
+    bias, cov, solver, spread, clipped_e = (np.array(z) for z in zip(*out, strict=True))
+    frames = np.arange(len(e)) if frames is None else np.asarray(frames).reshape(len(e))
+    _add_clipping(sensor, solver, clipped_e, ls, frames)
+    return StreakErrors(bias, cov, solver, spread)
 
 
 #: offsets of a neighbour along and across the streak at which its pull is summed
