@@ -10,14 +10,16 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from starsense.analysis.datasheet.catalogue import (
+    flux_ratio_error,
     position_sigma_rad,
     rendered_against_database_rad,
 )
 from starsense.analysis.datasheet.predict import nea_at
 from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch, completed_sky, held_by
-from starsense.catalog import load_catalog
+from starsense.catalog import Catalog, load_catalog
 from starsense.geometry.sampling import random_attitudes
 from starsense.identify.fields import deep_catalog_available
+from starsense.photometry.sensitivity import Sensitivity
 from starsense.sensor import load_sensor
 from starsense.units import MAS
 
@@ -144,3 +146,34 @@ def test_the_stars_the_solver_models_are_those_its_catalogue_holds():
     # Gaia stops at G = 10 and its bright end is incomplete: some Hipparcos stars (7 %) are
     # not modelled, and most are
     assert 0.5 < held[: len(hip)].mean() < 1.0
+
+
+def _synthetic(rng, n: int, band: str, mags, name: str) -> object:
+    """A catalogue of ``n`` stars spread over the sky, magnitudes ``mags`` in ``band``."""
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    return Catalog.from_columns(
+        name=name, source="test", epoch_yr=2016.0, ids=np.arange(n),
+        ra_deg=np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0,
+        dec_deg=np.degrees(np.arcsin(v[:, 2])), mags={band: mags},
+    )  # fmt: skip
+
+
+def test_the_flux_ratio_error_is_the_scatter_between_the_two_bands():
+    # the frames' response follows V (the "reed" model); a database in G whose magnitudes
+    # differ from V by a Gaussian colour term of 0.1 mag: each star's flux is off by
+    # 0.4 ln 10 x 0.1 = 9.2 % rms, a ratio of two by sqrt 2 of it (13.0 %); 20,000 stars give
+    # the rms to 0.5 % (1 / sqrt(2 n)), 3 % allows for the lognormal's higher moments
+    rng = np.random.default_rng(4)
+    n = 20_000
+    v_mag = rng.uniform(4.0, 9.0, n)
+    rendered = _synthetic(np.random.default_rng(5), n, "V", v_mag, "frames")
+    database = _synthetic(np.random.default_rng(5), n, "G", v_mag + rng.normal(0.0, 0.1, n), "db")
+    sens = Sensitivity.for_sensor(load_sensor("st16"), "reed")
+    expected = math.sqrt(2.0) * 0.4 * math.log(10.0) * 0.1
+    assert flux_ratio_error(rendered, database, sens) == pytest.approx(expected, rel=0.03)
+    # the solver's catalogue in the response's own band: no error
+    assert flux_ratio_error(rendered, rendered, sens) == pytest.approx(0.0, abs=1e-12)
+    # no star in common (the database elsewhere on the sky): nothing to scatter
+    elsewhere = _synthetic(np.random.default_rng(6), 50, "G", np.full(50, 5.0), "far")
+    assert flux_ratio_error(rendered.subset(np.arange(1)), elsewhere, sens) == 0.0

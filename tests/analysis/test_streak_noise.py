@@ -267,3 +267,29 @@ def test_blends_of_neighbour_streaks_against_rendered_fields():
         tol = 4.0 * np.std(s2) / math.sqrt(len(s2)) + 0.10 * np.mean(s2)
         assert model[k, k] == pytest.approx(np.mean(s2), abs=tol)
     assert model[0, 0] > 2.0 * model[1, 1]  # a neighbour's light lies along the streak
+
+
+def test_modelled_neighbours_leave_the_error_of_their_flux_ratio():
+    # a neighbour the solver models from a flux off by a relative error e leaves the error of
+    # its share of the light: d/d ln f of f / (N + f) = e N f / (N + f)^2, i.e. e N / (N + f)
+    # of its pull (f the light it puts in the capsule, at most its own). One class, against
+    # the same class unmodelled: a faint one leaves e^2 of the variance, one as bright as the
+    # star between e^2 / 4 and e^2
+    streak = np.array([20.0, 0.0])
+    n_e, e = 1.0e4, 0.1
+    for f_nb in (10.0, 1.0e4):
+        whole = np.diag(
+            blend_cov_px2(n_e, streak, 1e9, sigma_px=1.0, neighbours=([f_nb], [1e-3], [1.0]))
+        )
+        left = np.diag(
+            blend_cov_px2(n_e, streak, 1e9, sigma_px=1.0, neighbours=([f_nb], [1e-3], [e]))
+        )
+        assert np.all(left <= e**2 * whole * (1 + 1e-9))
+        assert np.all(left >= 0.25 * e**2 * whole * (1 - 1e-9))
+        if f_nb < 100:  # f << N: N / (N + f) > 0.999
+            np.testing.assert_allclose(left, e**2 * whole, rtol=2e-3)
+    # the default: unmodelled
+    default = blend_cov_px2(n_e, streak, 1e9, sigma_px=1.0, neighbours=([10.0], [1e-3]))
+    np.testing.assert_array_equal(
+        default, blend_cov_px2(n_e, streak, 1e9, sigma_px=1.0, neighbours=([10.0], [1e-3], [1]))
+    )

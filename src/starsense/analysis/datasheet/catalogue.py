@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch
+from starsense.identify.fields import plan_band
 from starsense.solve.solver import Solver
 from starsense.units import MAS
 
@@ -32,6 +33,7 @@ __all__ = [
     "GAIA_DR3_SIGMA_RAD",
     "MATCH_RAD",
     "catalogue_term_rad",
+    "flux_ratio_error",
     "position_sigma_rad",
     "rendered_against_database_rad",
 ]
@@ -153,3 +155,52 @@ def catalogue_term_rad(rendered, sensor, *, max_mag: float, band: str = "V"):
     """
     database = Solver(sensor=sensor).catalog
     return rendered_against_database_rad(rendered, database, max_mag=max_mag, band=band)
+
+
+def flux_ratio_error(rendered, database, sensitivity, *, colour: str = "B-V") -> float:
+    """Return the relative rms error of two stars' flux ratio as the solver's catalogue gives it.
+
+    The solver models a smeared star's neighbours from its catalogue's magnitudes in the band
+    it orders stars by (:func:`starsense.identify.fields.plan_band`: G for a Gaia database),
+    and a neighbour pulls the capsule's centroid by its share of their light
+    (:func:`starsense.solve.blends.streak_reference`); the frames hold each star's light as
+    the sensor's response gives it (``sensitivity``, from V and, for the black body, the
+    colour). Over the stars both catalogues hold, each star's flux less the catalogue's (about
+    their common scale) scatters by the colour terms between the two bands; a ratio of two
+    stars carries both: ``sqrt(2)`` times that scatter. Zero when the solver's magnitudes are
+    the response's own (a V catalogue and a V-only model).
+
+    Parameters
+    ----------
+    rendered : Catalog
+        The frames' sky (V, and ``colour`` for the black body).
+    database : Catalog
+        The solver's catalogue.
+    sensitivity : Sensitivity
+        The frames' response (:class:`starsense.photometry.sensitivity.Sensitivity`).
+    colour : str
+        The colour index of the black-body model.
+
+    Returns
+    -------
+    float
+        Relative rms error (0.2: 20 %).
+    """
+    if "V" not in rendered.mags or len(rendered.ids) == 0 or len(database.ids) == 0:
+        return 0.0
+    sky = at_epoch(rendered, database.epoch_yr)
+    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
+    dist, idx = cKDTree(database.vectors).query(sky.vectors, distance_upper_bound=chord)
+    found = np.flatnonzero(np.isfinite(dist))
+    v = np.asarray(rendered.mags["V"], dtype=float)[found]
+    ci = None
+    if sensitivity.model == "blackbody" and colour in rendered.colours:
+        ci = np.asarray(rendered.colours[colour], dtype=float)[found]
+    e = np.asarray(sensitivity.electrons(v, ci), dtype=float)
+    m_db = np.asarray(database.mags[plan_band(database)], dtype=float)[idx[found]]
+    ok = np.isfinite(e) & (e > 0) & np.isfinite(m_db)
+    if ok.sum() < 2:
+        return 0.0
+    d = -2.5 * np.log10(e[ok]) - m_db[ok]  # the response's magnitude less the catalogue's
+    flux = 10.0 ** (-0.4 * (d - np.median(d)))  # each star's flux over the catalogue's
+    return float(np.sqrt(2.0) * np.std(flux) / np.mean(flux))

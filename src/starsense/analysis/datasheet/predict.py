@@ -111,10 +111,11 @@ class StarModel:
         The confusion of fainter catalogue stars inside the centroid window, px rms per axis,
         on the electrons of ``noise`` (:func:`starsense.analysis.datasheet.terms.
         confusion_px`); None without the catalogue's star counts.
-    neighbours : (ndarray, ndarray) or None
-        The catalogue stars the frames hold and the solver's catalogue lacks, as classes:
-        photo-electrons (B,) and sky-mean density (B,), px^-2 (the unmodelled blends of
-        streaks under slew); None without the counts.
+    neighbours : (ndarray, ndarray, ndarray) or None
+        The catalogue stars whose streaks blend under slew, as classes: photo-electrons (B,),
+        sky-mean density (B,), px^-2, and the share of each one's pull the solver's model
+        leaves (B,): 1 for those the solver's catalogue lacks, the catalogue's flux-ratio error
+        for those it models; None without the counts.
     """
 
     sensor: object
@@ -135,6 +136,8 @@ class StarModel:
         faint_mag: float,
         star_counts=None,
         unmodelled=None,
+        modelled=None,
+        flux_error: float = 0.0,
     ) -> StarModel:
         """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``.
 
@@ -143,6 +146,9 @@ class StarModel:
         ``unmodelled``: the V magnitudes of those the solver's catalogue lacks, whose streaks
         blend unmodelled under slew (the solver models the others',
         :func:`starsense.solve.blends.streak_reference`); None: all of ``star_counts``.
+        ``modelled``: the V magnitudes of those it models, whose pulls it misses by
+        ``flux_error`` of them (the flux ratio its catalogue gives,
+        :func:`starsense.analysis.datasheet.catalogue.flux_ratio_error`).
         """
         sens = Sensitivity.for_sensor(sensor, model)
         e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))
@@ -160,7 +166,13 @@ class StarModel:
             # the stars below the detection limit: unresolved, they sit in the windows
             conf = _confusion(sensor, sens, noise, counts[counts > faint_mag])
             blends = counts if unmodelled is None else np.asarray(unmodelled, dtype=float)
-            near = _neighbour_classes(sensor, sens, blends)
+            flux, rho = _neighbour_classes(sensor, sens, blends)
+            share = np.ones(len(flux))
+            if modelled is not None and flux_error > 0:
+                f_m, rho_m = _neighbour_classes(sensor, sens, np.asarray(modelled, dtype=float))
+                flux, rho = np.append(flux, f_m), np.append(rho, rho_m)
+                share = np.append(share, np.full(len(f_m), float(flux_error)))
+            near = (flux, rho, share)
         return cls(sensor, sens, noise, bias, corner, conf, near)
 
     def _corner_weight(self, z_cam) -> np.ndarray:

@@ -20,7 +20,7 @@ from starsense.analysis.availability.analysis import AvailabilityAnalysis
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
-from starsense.analysis.datasheet.catalogue import catalogue_term_rad
+from starsense.analysis.datasheet.catalogue import catalogue_term_rad, flux_ratio_error
 from starsense.analysis.datasheet.checks import sanity_warnings, solving_warnings
 from starsense.analysis.datasheet.field import field_stars_cam, tracked_stars
 from starsense.analysis.datasheet.predict import (
@@ -57,6 +57,7 @@ from starsense.analysis.inputs import (
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.sensor_detection import sensor_detection
 from starsense.photometry.colour import with_johnson_from_gaia
+from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.scene import check_frame_size
 from starsense.solve.solver import Solver
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
@@ -212,14 +213,12 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     """
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
     every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
+    held, sens = held_by(cat, database), Sensitivity.for_sensor(sensor, st.model)
     model = StarModel.build(
-        sensor,
-        model=st.model,
-        bright_mag=float(np.min(mags)),
-        faint_mag=limit_mag,
-        star_counts=every,
-        unmodelled=every[~held_by(cat, database)],
-    )
+        sensor, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag,
+        star_counts=every, unmodelled=every[~held], modelled=every[held],
+        flux_error=flux_ratio_error(cat, database, sens),
+    )  # fmt: skip
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     counts = field_stars_cam(fov, mats, vectors).counts()  # every detectable star

@@ -318,17 +318,20 @@ def blend_cov_px2(electrons, streak_px, solver_sigma_px: float, *, sigma_px: flo
         The sigma the solver assumes for it, px per axis.
     sigma_px : float
         PSF sigma, px.
-    neighbours : (ndarray, ndarray)
-        Photo-electrons (B,) and density (B,), px^-2, of the catalogue's classes.
+    neighbours : (ndarray, ndarray[, ndarray])
+        Photo-electrons (B,) and density (B,), px^-2, of the catalogue's classes, and (B,)
+        1 for a class the solver does not model (its whole pull), or the relative error of
+        the flux ratio it models the class with (default all 1).
 
     Returns
     -------
     ndarray (2, 2)
         px^2 (x = column, y = row).
     """
-    flux, rho = (np.asarray(a, dtype=float) for a in neighbours)
+    flux, rho, *share = (np.asarray(a, dtype=float) for a in neighbours)
+    share = share[0] if share else np.ones(len(flux))
     use = rho > 0
-    flux, rho = flux[use, None, None], rho[use, None, None]
+    flux, rho, share = flux[use, None, None], rho[use, None, None], share[use, None, None]
     streak = np.asarray(streak_px, dtype=float)
     length = float(np.hypot(*streak))
     radius = CAPSULE_SIGMAS * sigma_px + CAPSULE_PAD_PX
@@ -349,7 +352,7 @@ def blend_cov_px2(electrons, streak_px, solver_sigma_px: float, *, sigma_px: flo
         math.sqrt(2.0 * math.pi) * np.maximum(f_v, 1e-300)
     )
     f_in = flux * f_u * f_v
-    share = f_in / (float(electrons) + f_in)
+    frac = f_in / (float(electrons) + f_in)
     # the fixed point: a window moved by d along gains (loses) the neighbour's light at its
     # ends where they lie on the neighbour's streak, d f f_v / l at +-half_w each, which
     # moves its centre of gravity by J d: the pull grows by 1 / (1 - J) (J >= 1: the window
@@ -358,9 +361,13 @@ def blend_cov_px2(electrons, streak_px, solver_sigma_px: float, *, sigma_px: flo
     ends += np.abs(-half_w - u) < 0.5 * length
     gain = flux * f_v / max(length, 1e-9) * half_w * ends / (float(electrons) + f_in)
     held = gain < 1.0
-    pull_u = np.where(held, share * 0.5 * (lo + hi) / np.where(held, 1.0 - gain, 1.0), np.inf)
-    pull_u = np.where(share > 0, pull_u, 0.0)
-    pull_v = share * c_v
+    pull_u = np.where(held, frac * 0.5 * (lo + hi) / np.where(held, 1.0 - gain, 1.0), np.inf)
+    pull_u = np.where(frac > 0, pull_u, 0.0)
+    pull_v = frac * c_v
+    # the part of each pull the solver's model leaves: all of it, or, modelled from fluxes
+    # with a relative error e, e d(share of light)/d(ln f) / share = e N / (N + f_in) of it
+    left = np.where(share < 1.0, share * (1.0 - frac), 1.0)
+    pull_u, pull_v = left * pull_u, left * pull_v
     kept = np.hypot(pull_u, pull_v) <= OUTLIER_SIGMA * solver_sigma_px
     pull_u = np.where(kept, pull_u, 0.0)
     w = rho * cell * kept
