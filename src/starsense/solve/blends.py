@@ -44,6 +44,9 @@ __all__ = [
 
 #: nodes of the average of a smeared star's image over the exposure (track_mean)
 _TRACK_NODES = 4
+#: a star's image moved by less than this is left where it is (a centroid's noise is 1e-3 px
+#: at 1e6 electrons), px
+_TRACK_FLOOR_PX = 1e-4
 #: two catalogue directions closer than this are one star, rad (0.2 arcsec)
 SAME_STAR_RAD = 1e-6
 #: slices across a capsule its light is integrated over (Gauss-Legendre nodes)
@@ -235,26 +238,28 @@ def streak_reference(
     if moved.any():  # a capsule holds a neighbour the blend did not
         new = ref[moved] - blended[moved] + capsule[moved]
         out[moved] = new / np.linalg.norm(new, axis=1)[:, None]
-    return track_mean(sensor, out, rotation=rotation, streaks_px=streaks)
+    mean = track_mean(sensor, out, rotation=rotation, streaks_px=streaks)
+    if mean is out and not moved.any():  # nothing to refit
+        return ref
+    return mean
 
 
-def _body_rate(sensor, x, y, streaks_px) -> np.ndarray:
+def _body_rate(sensor, cam, streaks_px) -> np.ndarray:
     """Return the body rate (rad/s, camera frame) whose streaks fit ``streaks_px`` (N, 2).
 
     The streaks the solver centroided over come from one rate (:mod:`starsense.solve.
     streaks`), their signs consistent; to first order they are linear in it (``l_i = A_i w``,
     ``A_i`` the projection's), the least-squares ``w`` their rate (up to the sign every
-    streak shares: :func:`track_mean` is even in it).
+    streak shares: :func:`track_mean` is even in it). ``cam`` (N, 3): the stars, camera frame.
     """
-    b = sensor.unproject(x, y)
-    eps = 1e-6 / sensor.exposure_s  # a turn of 1 microradian over the exposure
-    cols = []
-    for e in np.eye(3):
-        half = Rotation.from_rotvec(eps * e * sensor.exposure_s / 2.0)
-        xs, ys = sensor.project(half.apply(b))
-        xe, ye = sensor.project(half.inv().apply(b))
-        cols.append(np.column_stack([xe - xs, ye - ys]).ravel() / eps)
-    return np.linalg.lstsq(np.column_stack(cols), np.ravel(streaks_px), rcond=None)[0]
+    n = len(cam)
+    eps = 1e-6  # a turn of 1 microradian over the exposure
+    turns = np.concatenate([[0.5 * eps * e, -0.5 * eps * e] for e in np.eye(3)])  # (6, 3)
+    x, y = sensor.project(np.concatenate([Rotation.from_rotvec(t).apply(cam) for t in turns]))
+    x, y = x.reshape(6, n), y.reshape(6, n)
+    cols = [np.column_stack([x[2 * k + 1] - x[2 * k], y[2 * k + 1] - y[2 * k]]) for k in range(3)]
+    a = np.column_stack([c.ravel() for c in cols]) / (eps / sensor.exposure_s)
+    return np.linalg.lstsq(a, np.ravel(streaks_px), rcond=None)[0]
 
 
 def track_mean(sensor, ref, *, rotation, streaks_px) -> np.ndarray:
@@ -268,18 +273,23 @@ def track_mean(sensor, ref, *, rotation, streaks_px) -> np.ndarray:
     which the capsule centroid measures to 0.001 px). The average over the exposure
     (Gauss-Legendre, exact for a polynomial of degree 7 in time) at the rate the streaks give
     (:func:`_body_rate`), with the first fit's ``rotation`` (ICRS -> camera). Even in the rate:
-    the streaks' common sign does not matter.
+    the streaks' common sign does not matter. ``ref`` itself where no star moves by
+    :data:`_TRACK_FLOOR_PX` (below any centroid's noise).
     """
     ref = np.asarray(ref, dtype=float)
     cam = rotation.apply(ref)
-    x, y = sensor.project(cam)
-    rate = _body_rate(sensor, x, y, streaks_px)
+    n = len(cam)
+    rate = _body_rate(sensor, cam, streaks_px)
     nodes, weights = np.polynomial.legendre.leggauss(_TRACK_NODES)
-    mean = np.zeros((len(ref), 2))
-    for s, w in zip(0.5 * nodes, 0.5 * weights, strict=True):  # s in (-1/2, 1/2) of the exposure
-        xs, ys = sensor.project(Rotation.from_rotvec(-rate * sensor.exposure_s * s).apply(cam))
-        mean += w * np.column_stack([xs, ys])
-    moved = sensor.unproject(mean[:, 0], mean[:, 1])  # the light's centre, camera frame
+    # s in (-1/2, 1/2) of the exposure, every node's turn of every star in one projection
+    turned = [Rotation.from_rotvec(-rate * sensor.exposure_s * 0.5 * t).apply(cam) for t in nodes]
+    xs, ys = sensor.project(np.concatenate([cam, *turned]))
+    w = np.concatenate([[0.0], 0.5 * weights])[:, None]
+    mx = np.sum(w * xs.reshape(-1, n), axis=0)
+    my = np.sum(w * ys.reshape(-1, n), axis=0)
+    if np.max(np.hypot(mx - xs[:n], my - ys[:n]), initial=0.0) < _TRACK_FLOOR_PX:
+        return ref
+    moved = sensor.unproject(mx, my)  # the light's centre, camera frame
     out = ref + rotation.inv().apply(moved - cam)
     return out / np.linalg.norm(out, axis=1)[:, None]
 
