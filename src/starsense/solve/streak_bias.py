@@ -23,9 +23,10 @@ import math
 
 import numpy as np
 
+from starsense.detect.streak import SYSTEMATIC
 from starsense.render.psf import pixel_profile
 
-__all__ = ["N_PHASE", "saturated_streak_bias_px"]
+__all__ = ["N_PHASE", "frame_clipped_bias_px", "saturated_streak_bias_px"]
 
 #: sub-pixel offsets per axis the streak is rendered at
 N_PHASE = 4
@@ -101,3 +102,26 @@ def saturated_streak_bias_px(
         rms[k] = math.sqrt(float(np.mean(0.5 * (gx * gx + gy * gy))))
     out = np.interp(electrons, sums, rms, left=0.0, right=rms[-1])
     return np.where(electrons >= sums[0], out, 0.0)
+
+
+def frame_clipped_bias_px(
+    streaks_px, electrons, *, sigma_px: float, saturation_e: float, radius_px
+):
+    """Return :func:`saturated_streak_bias_px` of a frame's clipped stars (N,), px.
+
+    They share one streak, their mean (signs aligned to the first: a rate's streaks are
+    parallel, their start and end unknown), over the capsule's segment (``SYSTEMATIC`` longer,
+    :mod:`starsense.solve.streaks`).
+    """
+    streaks = np.asarray(streaks_px, dtype=float).reshape(-1, 2)
+    if len(streaks) == 0:
+        return np.zeros(0)
+    typical = (streaks * np.sign(streaks @ streaks[0])[:, None]).mean(axis=0)
+    return saturated_streak_bias_px(
+        typical,
+        electrons,
+        sigma_px=sigma_px,
+        saturation_e=saturation_e,
+        radius_px=radius_px,
+        segment_px=float(np.hypot(*typical)) * (1.0 + SYSTEMATIC),
+    )

@@ -60,7 +60,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import SYSTEMATIC, streak_axes, streak_centroids
-from starsense.solve.streak_bias import saturated_streak_bias_px
+from starsense.solve.streak_bias import frame_clipped_bias_px
 
 __all__ = [
     "CAPSULE_PAD_PX",
@@ -363,15 +363,10 @@ def streak_centroids_of(
     top_e = det.clip_e  # where a pixel clips
     clipped = found & _clipped(image, boxes, r0, c0, det.bias_counts + top_e * g - 0.5)
     if clipped.any():  # a clipped ridge: the error over the pixel phase (solve.streak_bias)
-        typical = streaks[clipped] * np.sign(streaks[clipped] @ streaks[clipped][0])[:, None]
-        bias = saturated_streak_bias_px(
-            typical.mean(axis=0),
-            electrons[clipped],
-            sigma_px=sigma,
-            saturation_e=top_e,
+        bias = frame_clipped_bias_px(
+            streaks[clipped], electrons[clipped], sigma_px=sigma, saturation_e=top_e,
             radius_px=radius,
-            segment_px=float(np.hypot(*typical.mean(axis=0))) * (1.0 + SYSTEMATIC),
-        )
+        )  # fmt: skip
         cov[clipped] += (bias**2)[:, None, None] * np.eye(2)
     return StreakCentroids(out_x, out_y, cov, np.asarray(streaks))
 

@@ -44,7 +44,7 @@ from starsense.attitude.robust import OUTLIER_SIGMA
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import SYSTEMATIC
 from starsense.render.smear import streak_stamp_expected
-from starsense.solve.streak_bias import saturated_streak_bias_px
+from starsense.solve.streak_bias import frame_clipped_bias_px
 from starsense.solve.streaks import (
     CAPSULE_PAD_PX,
     CAPSULE_SIGMAS,
@@ -227,16 +227,10 @@ def _add_clipping(sensor, solver, clipped_e, streaks, frames) -> None:
     hit = np.flatnonzero(np.isfinite(clipped_e))
     for f in np.unique(frames[hit]):
         at = hit[frames[hit] == f]
-        typical = streaks[at] * np.sign(streaks[at] @ streaks[at][0])[:, None]
-        mean = typical.mean(axis=0)
-        bias = saturated_streak_bias_px(
-            mean,
-            clipped_e[at],
-            sigma_px=sigma,
-            saturation_e=sensor.detector.clip_e,
+        bias = frame_clipped_bias_px(
+            streaks[at], clipped_e[at], sigma_px=sigma, saturation_e=sensor.detector.clip_e,
             radius_px=radius,
-            segment_px=float(np.hypot(*mean)) * (1.0 + SYSTEMATIC),
-        )
+        )  # fmt: skip
         solver[at] += (bias**2)[:, None, None] * np.eye(2)
 
 
