@@ -140,8 +140,10 @@ CCD_768 = {
 }
 
 
-#: at most this many times the frames asked for, to reach ``--min-right`` right solutions
-MAX_FRAMES_FACTOR = 10
+#: at most this many times the frames asked for, to reach ``--min-right`` right solutions: a
+#: design that solves 3 % of its slewing frames still gets ~100 (an rms ratio on 30 frames is
+#: known to +-40 % at 95 %, wider than the 0.8-1.25 band it is judged against)
+MAX_FRAMES_FACTOR = 40
 
 
 def _more_frames(right: int, frames: int, min_right: int) -> int:
@@ -251,7 +253,7 @@ def main(argv: list[str]) -> int:
         "--min-right",
         type=int,
         default=100,
-        help="a design with fewer right solutions runs more frames (up to 10x) to reach this",
+        help="a design with fewer right solutions runs more frames (up to 40x) to reach this",
     )
     args = ap.parse_args(argv)
     designs = [*zoo_designs(args.designs, args.seed), ("ccd768", CCD_768)]
