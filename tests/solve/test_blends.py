@@ -178,6 +178,81 @@ def test_the_capsule_reference_follows_the_centroider_from_where_it_started(seed
     )  # fmt: skip
 
 
+@pytest.mark.parametrize("seed", range(16))
+def test_the_capsule_reference_sees_the_frames_edge_and_its_clipping(seed):
+    """A bright, saturated streak by the detector's edge, its neighbours' streaks running off
+    it: the reference lands where the capsule centroider does on an independent rendering of
+    the frame (pixels off the detector absent, every pixel clipped at the detector's clip)."""
+    from scipy.spatial.transform import Rotation
+
+    from starsense.detect.streak import SYSTEMATIC, streak_centroids
+    from starsense.solve.blends import streak_photocentres
+
+    rng = np.random.default_rng(300 + seed)
+    sensor, sigma, length, u, n, radius = _streak_scene(rng, 30.0, 60.0)
+    u = np.array([1.0, rng.uniform(-0.3, 0.3)])  # towards the right edge
+    u /= np.hypot(*u)
+    n = np.array([-u[1], u[0]])
+    k = int(rng.integers(1, 4))  # neighbours, anywhere along, within 1.2 radii across
+    a = rng.uniform(-1.2, 1.2, k) * length
+    p = rng.uniform(-1.2, 1.2, k) * radius
+    dmag = rng.uniform(0.0, 2.0, k)
+    size = 161
+    det = sensor.detector
+    x0, y0 = size - 1 - 0.45 * length + rng.uniform(-3.0, 3.0), 80.6  # its end near the edge
+    xy = np.array(
+        [[x0, y0], *np.column_stack([x0 + a * u[0] + p * n[0], y0 + a * u[1] + p * n[1]])]
+    )
+    # the star's ridge 2-8 times what a pixel holds before it clips
+    peak = 1.0 / (length * math.sqrt(2.0 * math.pi) * sigma)  # of one electron, per pixel
+    electrons = rng.uniform(2.0, 8.0) * det.clip_e / peak
+    flux = electrons * np.concatenate([[1.0], 10 ** (-0.4 * dmag)])
+    start = np.array([x0, y0]) + rng.uniform(-0.3, 0.3) * length * u
+    seg = length * (1 + SYSTEMATIC) * u
+    # the frame: the window's right edge is the detector's (nothing beyond it), clipped
+    img = _pixel_integrated_streak((size, size), xy, flux, u, length, sigma)
+    alone = _pixel_integrated_streak((size, size), xy[:1], flux[:1], u, length, sigma)
+    planes = np.minimum(np.stack([img, alone]), det.clip_e)
+    got = streak_centroids(
+        planes, np.full(2, start[0]), np.full(2, start[1]), streaks=np.stack([seg, seg]),
+        radius=radius,
+    )[:2]  # fmt: skip
+    measured = np.array([got[0][0] - got[0][1], got[1][0] - got[1][1]])
+    # the same scene on the detector: window column size - 1 is its last column
+    corner = np.array([det.columns - size, math.floor(det.rows / 2.0) - 80.0])
+    vectors = sensor.unproject(*(xy + corner).T)
+    ref = streak_photocentres(
+        sensor, Rotation.identity(), vectors, mags=5.0 + np.concatenate([[0.0], dmag]),
+        tree=cKDTree(vectors), index=[0], streaks_px=(length * u)[None], radius_px=radius,
+        length_px=np.array([length * (1 + SYSTEMATIC)]), starts_px=(start + corner)[None],
+        zero_point_e=electrons / 10 ** (-0.4 * 5.0),
+    )  # fmt: skip
+    px, py = sensor.project(ref)
+    predicted = np.array([px[0], py[0]]) - corner - [x0, y0]
+    # as the test above (the same centroider on two renderings of one scene, which differ by
+    # the pixel quadrature only): 2 % of the shift plus 0.01 px
+    assert np.hypot(*(predicted - measured)) < 0.02 * np.hypot(*measured) + 0.01, (
+        predicted, measured, a, p, dmag, start,
+    )  # fmt: skip
+
+
+def test_a_frames_zero_point_from_its_brightest_unclipped_streaks():
+    from starsense.solve.blends import frame_zero_point_e
+
+    mags = np.array([4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0])
+    zero = 2.0e8
+    electrons = zero * 10 ** (-0.4 * mags)
+    clipped = mags < 5.5
+    # a neighbour's light in one capsule (the third brightest unclipped) does not move it
+    noisy = electrons * np.array([1, 1, 1, 1, 1.3, 1, 1, 1])
+    assert frame_zero_point_e(noisy, clipped, mags) == pytest.approx(zero, rel=1e-12)
+    # clipped streaks only: the largest lower bound
+    low = electrons * np.array([0.5, 0.7, 0.6, 0.6, 0.6, 0.6, 0.6, 0.6])
+    assert frame_zero_point_e(low, np.ones(8, bool), mags) == pytest.approx(0.7 * zero)
+    # nothing measured
+    assert frame_zero_point_e(np.zeros(3), None, mags[:3]) is None
+
+
 def test_the_capsule_neighbours_come_from_the_whole_catalogue():
     """The solver's sky for the capsules holds every star of its catalogue with a magnitude in
     the band, not only the identification database's few per field."""

@@ -377,9 +377,10 @@ class Solver:
         if streaks is not None:  # neighbours' streaks through the capsules: their photocentres
             held = streak_reference(
                 self.sensor, identifier.database, ref, index=ident.catalog_index,
-                rotation=att.rotation, streaks=streaks, pixel_rad=pixel_rad,
+                rotation=att.rotation, streaks=streaks.streaks_px, pixel_rad=pixel_rad,
                 starts_px=np.column_stack([points.x[matched], points.y[matched]]),
                 sky=self._identifiers.sky(identifier.database.params.band),
+                electrons=streaks.electrons, clipped=streaks.clipped,
             )  # fmt: skip
             if held is not ref:
                 att, _ = robust_attitude(body, held, sigma * pixel_rad)

@@ -95,12 +95,18 @@ class StreakCentroids:
         Their covariance, px^2 (x = column, y = row).
     streaks_px : ndarray, shape (N, 2)
         Each star's streak, start to end (or end to start), px.
+    electrons : ndarray, shape (N,), optional
+        Each capsule's sum above the level, electrons (0 where none was found).
+    clipped : ndarray of bool, shape (N,), optional
+        Whether a pixel of the capsule reached the ADC's top (or the full well).
     """
 
     x: np.ndarray
     y: np.ndarray
     cov_px2: np.ndarray
     streaks_px: np.ndarray
+    electrons: np.ndarray | None = None
+    clipped: np.ndarray | None = None
 
     @property
     def sigma_px(self) -> np.ndarray:
@@ -368,7 +374,7 @@ def streak_centroids_of(
             radius_px=radius,
         )  # fmt: skip
         cov[clipped] += (bias**2)[:, None, None] * np.eye(2)
-    return StreakCentroids(out_x, out_y, cov, np.asarray(streaks))
+    return StreakCentroids(out_x, out_y, cov, np.asarray(streaks), electrons, clipped)
 
 
 def _clipped(image, boxes, r0, c0, level) -> np.ndarray:
@@ -443,8 +449,9 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         Camera-frame unit vectors.
     sigma_px : ndarray, shape (N,), or float
         Per-axis 1-sigma of each centroid, px.
-    streaks_px : ndarray, shape (N, 2), or None
-        The streaks the stars were centroided over, px (None: the detections' centroids).
+    streaks : StreakCentroids or None
+        The streak centroids (their streaks, px, capsule sums and clipping), None where the
+        detections' centroids stand.
     """
     sensor, fixed = solver.sensor, solver.settings.centroid_sigma_px
     sigma = fixed
@@ -475,4 +482,4 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         return vectors, sigma, None
     own = got.sigma_px
     sigma = own if fixed == "snr" else np.maximum(own, fixed)
-    return sensor.unproject(got.x, got.y), sigma, got.streaks_px
+    return sensor.unproject(got.x, got.y), sigma, got
