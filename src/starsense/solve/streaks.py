@@ -19,8 +19,10 @@ Once the frame is identified, :func:`streak_centroids_of`:
    every choice of the streaks' unknown signs): a piece of a streak is shorter than the
    streak and a blend of two streaks longer (at most twice) or turned, so the reference is
    the streak the most others confirm (as long within the lit pixels' shortfall,
-   ``SYSTEMATIC``, and as turned within the PSF's width) of those at least half as long as
-   the longest; only streaks within that shortfall of it take part, and a streak the fitted
+   ``SYSTEMATIC``, and as turned within the PSF's width), counting the brightest
+   ``N_RATE_STARS`` first (a bright streak is whole; the pieces of faint ones, broken alike
+   where their ridges cross the pixel rows, can outnumber them), of those at least half as
+   long as the longest; only streaks within that shortfall of it take part, and a streak the fitted
    rate does not predict is dropped and the rate refitted (with fewer than 3 of them, their
    mean streak stands for every star's). A frame whose brightest matched stars' streaks
    (median of the brightest ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the
@@ -231,7 +233,7 @@ def _streak_model(sensor, image, x, y, order, **measure):
     if np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
         return None
     low = (1.0 - SYSTEMATIC) ** 2
-    top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0)
+    top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0, ok < N_RATE_STARS)
     typical2 = float(length2[ok[top]])
     ok = ok[top:][length2[ok[top:]] >= low * typical2]
     ok = ok[np.argsort(-length2[ok], kind="stable")][:N_RATE_STARS]
@@ -243,16 +245,24 @@ def _streak_model(sensor, image, x, y, order, **measure):
     return lambda xs, ys: _streaks(sensor, xs, ys, rate)
 
 
-def _confirmed(axes, length2, low: float, width_px: float) -> int:
-    """Return the reference streak of :func:`_streak_model` (index into length-sorted ones)."""
+def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
+    """Return the reference streak of :func:`_streak_model` (index into length-sorted ones).
+
+    The streak the most of the brightest (``bright``, the ``N_RATE_STARS`` brightest
+    measured) confirm, then the most of all: a bright streak is whole, and the pieces of
+    fainter ones, all broken alike where their ridges cross the pixel rows (an undersampled
+    PSF), can outnumber the whole ones and agree with each other.
+    """
     direction = np.linalg.eigh(axes)[1][:, :, -1]
     length = np.sqrt(length2)
     support = np.zeros(len(length2), dtype=int)
     # a blend of two streaks is at most twice as long as either
     for i in np.flatnonzero(length >= 0.5 * length[0]):
         near = (length2 >= low * length2[i]) & (length2 <= length2[i])
-        turned = np.abs(direction @ np.array([-direction[i, 1], direction[i, 0]]))
-        support[i] = np.count_nonzero(near & (turned <= width_px / float(length[i])))
+        agree = near & (
+            np.abs(direction @ [-direction[i, 1], direction[i, 0]]) <= width_px / length[i]
+        )
+        support[i] = (len(length2) + 1) * np.count_nonzero(agree & bright) + np.count_nonzero(agree)
     return int(np.argmax(support))
 
 
