@@ -384,9 +384,9 @@ def _pixel_shift(
         planes[0, a - r0 : b - r0, c - c0 : d - c0] += piece
         if s == 0:
             planes[1, a - r0 : b - r0, c - c0 : d - c0] += piece
-    det = sensor.detector  # what lies off the detector is not in the frame
-    planes[:, ~((r0 + np.arange(size) >= 0) & (r0 + np.arange(size) < det.rows)), :] = 0.0
-    planes[:, :, ~((c0 + np.arange(size) >= 0) & (c0 + np.arange(size) < det.columns))] = 0.0
+    det, at = sensor.detector, np.arange(size)  # what lies off the detector is not in the frame
+    planes[:, (r0 + at < 0) | (r0 + at >= det.rows), :] = 0.0
+    planes[:, :, (c0 + at < 0) | (c0 + at >= det.columns)] = 0.0
     if zero_point_e is not None:  # in electrons, clipped where the frame clips
         planes = np.minimum(planes * zero_point_e, det.clip_e)
     gx, gy = streak_centroids(
