@@ -44,6 +44,7 @@ from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
 
 __all__ = [
     "blend_radius_px",
+    "blended",
     "frame_zero_point_e",
     "photocentres",
     "streak_photocentres",
@@ -103,6 +104,18 @@ def photocentres(vectors, mags, tree, *, index, radius_rad: float) -> np.ndarray
             v = (w[:, None] * vectors[near]).sum(axis=0)
             out[k] = v / np.linalg.norm(v)
     return out
+
+
+def blended(ref, plain, db, *, index, radius_rad: float) -> np.ndarray:
+    """Return reference directions ``ref`` (K, 3) moved as ``plain``'s are to photocentres.
+
+    ``ref``: the matched stars' references (apparent places of ``plain``, their database
+    directions); each is moved by the offset of its photocentre with the database's
+    neighbours within ``radius_rad`` (:func:`photocentres`) from ``plain``.
+    """
+    out = ref + photocentres(db.vectors, db.mags, db.tree, index=index, radius_rad=radius_rad)
+    out = out - plain
+    return out / np.linalg.norm(out, axis=1)[:, None]
 
 
 def streak_photocentres(

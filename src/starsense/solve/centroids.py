@@ -313,6 +313,9 @@ class CentroidPoints:
         The image's (rows, columns).
     what : str
         What the points are ("detections" or "centroids"), for messages.
+    sigma_px : ndarray (N,), optional
+        Each centroid's per-axis noise, px, where the camera is known: every detection is
+        then held against the identified sky at its own noise (:mod:`starsense.solve.rematch`).
     """
 
     x: np.ndarray
@@ -320,6 +323,7 @@ class CentroidPoints:
     flux: np.ndarray
     shape: tuple
     what: str
+    sigma_px: np.ndarray | None = None
 
 
 def _size_card(header, key: str, path: Path) -> int:

@@ -36,7 +36,7 @@ from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
-from starsense.solve.blends import blend_radius_px, photocentres, streak_reference
+from starsense.solve.blends import blend_radius_px, blended, streak_reference
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import detection_counts, identification_counts, max_candidates
 from starsense.solve.extraction import Extraction, quick_detector, robust_detector
@@ -45,6 +45,7 @@ from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.radial import refine_identification
+from starsense.solve.rematch import detection_sigmas_px, rematched
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
 from starsense.solve.streaks import matched_measurements
@@ -271,7 +272,8 @@ class Solver:
         def sigma_px(matched, x, vectors):  # streaks re-centroided: starsense.solve.streaks
             return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
 
-        points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
+        own = detection_sigmas_px(self.sensor, det, margin_px=detector.margin_px, shape=a.shape)
+        points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections", own)
         sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time, not first, not first)
         return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
@@ -360,8 +362,7 @@ class Solver:
         if not ident.solved:
             sol = self._unsolved(points, ident, t0, stages, sigma_px, fov_given, obs_time, parity)
             return dataclasses.replace(sol, counts={**identification_counts(ident), **sol.counts})
-        # final attitude from all matches, with its covariance
-        t3 = time.perf_counter()
+        t3, n_cols = time.perf_counter(), points.shape[1]  # the attitude from all matches
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
         radial = None
         if self.sensor is None:  # an unknown camera: fit its focal length and radial distortion
@@ -369,9 +370,11 @@ class Solver:
                 ident, identifier.database, np.column_stack([points.x, points.y]),
                 flux=points.flux, shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
             )  # fmt: skip
-        matched = np.asarray(ident.detection_index)
+        elif points.sigma_px is not None:  # every detection at its own noise
+            own = points.sigma_px * fov / n_cols
+            ident = rematched(ident, identifier.database, vectors, sigma_rad=own)
+        matched, pixel_rad = np.asarray(ident.detection_index), fov / n_cols
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
-        pixel_rad = fov / points.shape[1]
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, _ = robust_attitude(body, ref, sigma * pixel_rad)
         if streaks is not None:  # neighbours' streaks through the capsules: their photocentres
@@ -417,11 +420,7 @@ class Solver:
         ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
         if self.sensor is not None:  # blended close doubles: their photocentre, not one star
             radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / points.shape[1]
-            ref = ref + photocentres(
-                db.vectors, db.mags, db.tree, index=ident.catalog_index, radius_rad=radius
-            )
-            ref = ref - plain
-            ref /= np.linalg.norm(ref, axis=1)[:, None]
+            ref = blended(ref, plain, db, index=ident.catalog_index, radius_rad=radius)
         return ref, apparent
 
     def _solution(self, points, ident, att, fov, apparent, t0, stages, radial=None) -> Solution:
