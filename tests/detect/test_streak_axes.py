@@ -1,4 +1,5 @@
-"""The streak measure of all windows at once equals the window-by-window measure it replaced."""
+"""The streak measure of all windows at once equals the window-by-window measure it replaced
+(a window cut at the frame's edges)."""
 
 from __future__ import annotations
 
@@ -17,13 +18,17 @@ def _one_by_one(image, x, y, *, half_px, threshold, level=0.0, threshold_sigma=N
     out = np.full((len(x), 2, 2), np.nan)
     for i, (xc, yc) in enumerate(zip(np.asarray(x, float), np.asarray(y, float), strict=True)):
         r0, c0 = round(yc) - half_px, round(xc) - half_px
-        r1, c1 = r0 + 2 * half_px + 1, c0 + 2 * half_px + 1
-        if r0 < 0 or c0 < 0 or r1 > rows or c1 > cols:
-            continue
-        sub = a[r0:r1, c0:c1].astype(float)
+        w = 2 * half_px + 1
+        # the window cut at the frame's edges: its pixels off the frame are never lit
+        sub = np.full((w, w), np.nan)
+        ra, rb, ca, cb = max(r0, 0), min(r0 + w, rows), max(c0, 0), min(c0 + w, cols)
+        sub[ra - r0 : rb - r0, ca - c0 : cb - c0] = a[ra:rb, ca:cb]
         cut = threshold
         if level is None:
             border = np.concatenate([sub[0], sub[-1], sub[1:-1, 0], sub[1:-1, -1]])
+            border = border[np.isfinite(border)]
+            if len(border) == 0:
+                continue
             base = float(np.median(border))
             if threshold_sigma is not None:
                 noise = MAD_TO_SIGMA * float(np.median(np.abs(border - base)))
@@ -31,13 +36,13 @@ def _one_by_one(image, x, y, *, half_px, threshold, level=0.0, threshold_sigma=N
             sub = sub - base
         else:
             sub = sub - level
-        labels, _ = ndimage.label(sub > cut, structure=np.ones((3, 3)))
+        labels, _ = ndimage.label(np.nan_to_num(sub, nan=-np.inf) > cut, structure=np.ones((3, 3)))
         lit = np.argwhere(labels > 0)
         if len(lit) < 3:
             continue
         near = lit[np.argmin(np.hypot(lit[:, 0] - (yc - r0), lit[:, 1] - (xc - c0)))]
         mine = labels == labels[near[0], near[1]]
-        wgt = np.where(mine, sub, 0.0)
+        wgt = np.where(mine, np.nan_to_num(sub), 0.0)
         total = wgt.sum()
         py, px = np.nonzero(mine)
         v = wgt[py, px]
@@ -151,3 +156,15 @@ def test_a_parallel_neighbour_is_not_bridged():
         rtol=0,
         atol=1e-9,
     )
+
+
+def test_windows_in_chunks_equal_all_at_once(monkeypatch):
+    import starsense.detect.streak as streak_module
+
+    rng = np.random.default_rng(3)
+    img, xs, ys = _frame(rng, 8, 20.0, 1.2)
+    kw = {"half_px": 20, "threshold": 15.0, "level": 100.0}
+    whole = streak_axes(img, xs, ys, **kw)
+    monkeypatch.setattr(streak_module, "_WINDOW_PIXELS", 3 * 41 * 41)  # three windows a chunk
+    parts = streak_axes(img, xs, ys, **kw)
+    np.testing.assert_array_equal(whole, parts)

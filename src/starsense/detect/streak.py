@@ -12,6 +12,7 @@ is smeared at all).
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 from scipy import ndimage
@@ -295,6 +296,8 @@ def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
 
 #: Relative error of a streak rate from the lit pixels' shortened ends (see rate_from_streaks)
 SYSTEMATIC = 0.2
+#: the most window pixels :func:`streak_axes` holds at once (~32 MB of float64)
+_WINDOW_PIXELS = 1 << 22
 
 
 def streak_axes(
@@ -340,33 +343,46 @@ def streak_axes(
     -------
     ndarray, shape (N, 2, 2)
         ``12 (lambda_1 - lambda_2) e e^T`` of the lit region at the centroid (x = column,
-        y = row); NaN where the window leaves the frame or no lit region holds the centroid.
+        y = row); NaN where no lit region holds the centroid. A window is cut at the frame's
+        edges (a streak that runs off the frame measures as its part on it).
     """
     a = np.asarray(image)  # each window is read as float, not the whole frame
-    rows, cols = a.shape
     x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
-    out = np.full((len(x), 2, 2), np.nan)
     w = 2 * half_px + 1
+    step = max(1, _WINDOW_PIXELS // (w * w))
+    if len(x) > step:  # chunks of windows: a frame of long streaks holds millions per star
+        kw = dict(half_px=half_px, threshold=threshold, level=level)
+        kw.update(threshold_sigma=threshold_sigma, bridge_px=bridge_px)
+        return np.concatenate(
+            [streak_axes(a, x[i : i + step], y[i : i + step], **kw) for i in range(0, len(x), step)]
+        )
+    out = np.full((len(x), 2, 2), np.nan)
     r0 = np.array([round(v) for v in y], dtype=np.int64) - half_px
     c0 = np.array([round(v) for v in x], dtype=np.int64) - half_px
-    k = np.flatnonzero((r0 >= 0) & (c0 >= 0) & (r0 + w <= rows) & (c0 + w <= cols))
+    k = np.arange(len(x))
     if len(k) == 0:
         return out
-    # every window at once: (K, w, w) float64
+    # every window at once: (K, w, w) float64, cut at the frame's edges (off it: NaN, unlit)
     ar = np.arange(w)
-    sub = a[r0[k, None, None] + ar[None, :, None], c0[k, None, None] + ar[None, None, :]]
-    sub = sub.astype(float)
+    rr, cc = r0[:, None] + ar[None, :], c0[:, None] + ar[None, :]
+    on = ((rr >= 0) & (rr < a.shape[0]))[:, :, None] & ((cc >= 0) & (cc < a.shape[1]))[:, None, :]
+    rr, cc = np.clip(rr, 0, a.shape[0] - 1), np.clip(cc, 0, a.shape[1] - 1)
+    sub = a[rr[:, :, None], cc[:, None, :]].astype(float)
+    sub[~on] = np.nan
     cut = np.full(len(k), float(threshold))
     if level is None:
         border = np.concatenate([sub[:, 0], sub[:, -1], sub[:, 1:-1, 0], sub[:, 1:-1, -1]], axis=1)
-        base = np.median(border, axis=1)
-        if threshold_sigma is not None:
-            noise = MAD_TO_SIGMA * np.median(np.abs(border - base[:, None]), axis=1)
-            cut = np.maximum(cut, threshold_sigma * noise)
+        with warnings.catch_warnings():  # a window with its whole border off the frame
+            warnings.simplefilter("ignore", RuntimeWarning)
+            base = np.nanmedian(border, axis=1)
+            if threshold_sigma is not None:
+                noise = MAD_TO_SIGMA * np.nanmedian(np.abs(border - base[:, None]), axis=1)
+                cut = np.maximum(cut, threshold_sigma * noise)
         sub -= base[:, None, None]
     else:
         sub -= level
-    lit = sub > cut[:, None, None]
+    with np.errstate(invalid="ignore"):
+        lit = sub > cut[:, None, None]
     # one labelling for all windows: 8-connected within a window, never across windows
     structure = np.zeros((3, 3, 3), bool)
     structure[1] = True
