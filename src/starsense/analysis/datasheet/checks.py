@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 
+from starsense.analysis.datasheet.noise import empty_pixel_sigma_counts
 from starsense.analysis.datasheet.verify import MIN_CHECKED_FRAMES
 from starsense.render.noise import empty_pixel_moments
 
@@ -42,26 +43,6 @@ SIGMA_RANGE = (3.0, 20.0)
 #: a bias below this many sigma of an empty pixel's noise lets the ADC clip the noise at 0
 #: (at 3 sigma 0.13 % of the pixels are clipped, their mean moves by 0.0004 sigma)
 BIAS_SIGMAS = 3.0
-
-
-def empty_pixel_sigma_counts(sensor) -> float:
-    """Return the noise of a pixel without a star, counts rms.
-
-    Read noise and the shot noise of the dark current over the exposure (electrons) times the
-    gain, and the ADC's quantisation (1 / sqrt(12) counts), in quadrature.
-
-    Parameters
-    ----------
-    sensor : Sensor
-
-    Returns
-    -------
-    float
-        counts rms.
-    """
-    det = sensor.detector
-    electrons2 = det.read_noise_e**2 + det.dark_current_e_s * sensor.exposure_s
-    return math.sqrt((det.gain_counts_per_e**2) * electrons2 + 1.0 / 12.0)
 
 
 def sanity_warnings(sensor, *, catalog_name: str, limit_mag: float | None, runs) -> list[str]:

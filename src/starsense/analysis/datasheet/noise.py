@@ -33,7 +33,7 @@ from starsense.detect.threshold import StarDetector
 from starsense.render.noise import apply_noise
 from starsense.render.psf import pixel_profile
 
-__all__ = ["CentroidNoise", "centroid_noise", "clipped_moments"]
+__all__ = ["CentroidNoise", "centroid_noise", "clipped_moments", "empty_pixel_sigma_counts"]
 
 _SQRT2PI = math.sqrt(2.0 * math.pi)
 #: noisy renders per sub-pixel phase (the scatter about the phase's mean is the noise)
@@ -349,3 +349,23 @@ def centroid_noise(
             solver,
         )
     return CentroidNoise(grid, *out.T)
+
+
+def empty_pixel_sigma_counts(sensor) -> float:
+    """Return the noise of a pixel without a star, counts rms.
+
+    Read noise and the shot noise of the dark current over the exposure (electrons) times the
+    gain, and the ADC's quantisation (1 / sqrt(12) counts), in quadrature.
+
+    Parameters
+    ----------
+    sensor : Sensor
+
+    Returns
+    -------
+    float
+        counts rms.
+    """
+    det = sensor.detector
+    electrons2 = det.read_noise_e**2 + det.dark_current_e_s * sensor.exposure_s
+    return math.sqrt((det.gain_counts_per_e**2) * electrons2 + 1.0 / 12.0)

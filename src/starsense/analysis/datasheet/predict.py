@@ -13,7 +13,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from starsense.analysis.datasheet.field import (
     axis_sigmas,
@@ -22,6 +21,7 @@ from starsense.analysis.datasheet.field import (
     propagated_covariance,
     propagated_sigmas,
 )
+from starsense.analysis.datasheet.merges import match_chances, streaks_px_of
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
 from starsense.analysis.datasheet.streak_noise import blend_cov_px2, is_streaked, streak_errors
 from starsense.analysis.datasheet.terms import (
@@ -295,16 +295,6 @@ def nea_at(
     return out, pairs.counts()
 
 
-def _streaks_px(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
-    """Mid-exposure pixel positions (P, 2) and streaks, start to end (P, 2), of stars v_cam."""
-    v_cam = np.array(v_cam, dtype=float)  # a writable copy (Rotation.apply needs one)
-    half = Rotation.from_rotvec(np.asarray(rates_rad_s) * 0.5 * sensor.exposure_s)
-    x, y = sensor.project(v_cam)
-    xs, ys = sensor.project(half.apply(v_cam))
-    xe, ye = sensor.project(half.inv().apply(v_cam))
-    return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
-
-
 #: the stars the solver's final fit drops at most (robust_attitude's default)
 _MAX_DROP = int(inspect.signature(robust_attitude).parameters["max_drop"].default)
 
@@ -397,6 +387,7 @@ def nea_at_rate(
     magnitudes,
     margin_px=2,
     catalogue=None,
+    detectable=None,
 ):
     """Return the 1-sigma (cross, roll) of attitudes at body rates, rad, from smeared stars.
 
@@ -428,6 +419,10 @@ def nea_at_rate(
     catalogue : ndarray (N, 3), optional
         Each star's database position less its rendered one, ICRS, rad: added to the star's
         centroid bias (the fit meets both alike).
+    detectable : (ndarray (K, 3), ndarray (K,)), optional
+        Every star the frames hold down to the faintest detected at the rate (ICRS, V): a
+        star whose detection runs into their streaks is not matched, one lit in pieces seldom
+        (:func:`starsense.analysis.datasheet.merges.match_chances`). None: all are matched.
 
     Returns
     -------
@@ -438,7 +433,7 @@ def nea_at_rate(
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors))
     rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[pairs.point]
     mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
-    centres, streaks = _streaks_px(sensor, pairs.v_cam, rates)
+    centres, streaks = streaks_px_of(sensor, pairs.v_cam, rates)
     length = np.hypot(streaks[:, 0], streaks[:, 1])
     # the solver re-centroids a frame over the streaks when its streaks are long (per frame)
     frame_len = np.zeros(pairs.n_pointings)
@@ -450,16 +445,15 @@ def nea_at_rate(
     solver = np.full((len(mags), 2, 2), np.nan)
     for flag in (True, False):
         at = np.flatnonzero(capsule[pairs.point] == flag)
-        got = streak_errors(
-            sensor,
-            electrons[at],
-            centres[at],
-            streaks_px=streaks[at],
-            capsule=flag,
-            margin_px=margin_px,
-            frames=pairs.point[at],
-        )
+        got = streak_errors(sensor, electrons[at], centres[at], streaks_px=streaks[at],
+                            capsule=flag, margin_px=margin_px, frames=pairs.point[at])  # fmt: skip
         cov[at], bias[at], solver[at] = got.cov_px2, got.bias_px, got.solver_cov_px2
+    chance = np.ones(len(mags))  # of being matched: a streak run into, or lit in pieces
+    if detectable is not None:
+        chance = match_chances(model, fov, matrices=matrices, rates_rad_s=rates_rad_s,
+                               detectable=detectable, frames=pairs.point,
+                               centres_px=centres, streaks_px=streaks, electrons=electrons,
+                               cov_px2=cov)  # fmt: skip
     if model.neighbours is not None:  # the other stars' streaks across each capsule
         sig = np.sqrt(0.5 * np.trace(solver, axis1=1, axis2=2))
         for i in np.flatnonzero(np.isfinite(sig) & capsule[pairs.point]):
@@ -482,7 +476,7 @@ def nea_at_rate(
         bias = bias + off[:, :2] / np.sqrt(scale)[:, None]
     bias3 = np.einsum("pij,pj->pi", proj, np.column_stack([bias, np.zeros(len(bias))]))
     bias3 *= np.sqrt(scale)[:, None]
-    dropped = _outliers(pairs, weights, np.nan_to_num(bias3))
+    dropped = _outliers(pairs, weights, np.nan_to_num(bias3)) | (chance <= 0)
     weights[dropped], cov[dropped], bias[dropped] = 0.0, 0.0, 0.0
     other = sum(
         model.star_sigmas_rad(mags, z, k) ** 2
@@ -496,4 +490,8 @@ def nea_at_rate(
         np.asarray(other + 0.0)[..., None, None] * np.eye(2) if np.ndim(other) else 0.0
     )
     err3 = proj @ err3 @ proj
-    return propagated_covariance(pairs, weights, err3)
+    # a star matched in a fraction of the frames: that fraction of its information (its
+    # weight in the fit's normal matrix, its weight squared times its error in the sum)
+    some = chance > 0
+    err3[some] /= chance[some, None, None]
+    return propagated_covariance(pairs, weights * chance, err3)

@@ -212,6 +212,7 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     ``database``: the solver's catalogue (whose stars' streak blends the solver models).
     """
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
+    detectable = (vectors, mags)  # every detectable star (those the tracker fits: below)
     every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
     held, sens = held_by(cat, database), Sensitivity.for_sensor(sensor, st.model)
     model = StarModel.build(
@@ -232,7 +233,7 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
         model, fov, mats, vectors=vectors, magnitudes=mags, kinds=kinds, catalogue=catalogue
     )
     lim = _limit(cat, sensor, fov, mats)
-    return model, (vectors, catalogue), mags, boresights, mats, sig, counts, lim
+    return model, (vectors, catalogue, detectable), mags, boresights, mats, sig, counts, lim
 
 
 def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
@@ -240,7 +241,7 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
 
     ``sky``: model, field, tracked stars, their magnitudes, the faintest detected at the rate.
     """
-    model, fov, (vectors, catalogue), mags, limit = sky
+    model, fov, (vectors, catalogue, detectable), mags, limit = sky
     runs = {}
     rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
     for key, rate, n in (
@@ -262,6 +263,7 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
                 magnitudes=mags,
                 limit_mag_at_rate=limit,
                 catalogue=catalogue,
+                detectable=detectable,
             )
         )
         tick(key.replace("_", " "))

@@ -123,6 +123,7 @@ def score_montecarlo(
     predict: bool = True,
     limit_mag_at_rate=None,
     catalogue=None,
+    detectable=None,
 ) -> dict[str, Any]:
     """Return the JSON-ready summary of a Monte Carlo run against the datasheet's prediction.
 
@@ -147,6 +148,10 @@ def score_montecarlo(
         Each star's database position less its rendered one, ICRS, rad (frames
         rendered from another catalogue than the solver's database:
         :func:`starsense.analysis.datasheet.catalogue.rendered_against_database_rad`).
+    detectable : (ndarray (K, 3), ndarray (K,)), optional
+        For a run at a rate: every star the frames hold that is detectable at rest (ICRS, V);
+        those brighter than ``limit_mag_at_rate`` are the streaks a predicted star can run
+        into (:func:`starsense.analysis.datasheet.merges.lost_in_frames`). None: none.
 
     Returns
     -------
@@ -188,6 +193,7 @@ def score_montecarlo(
             vectors=np.asarray(vectors)[keep],
             magnitudes=mags[keep],
             catalogue=None if catalogue is None else np.asarray(catalogue)[keep],
+            detectable=_brighter(detectable, limit_mag_at_rate),
         )
     else:
         kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
@@ -208,6 +214,15 @@ def score_montecarlo(
         **_ratios(res.errors_rad, cross, roll),
         "stars_matched_median": float(np.median(res.n_matched)),
     }
+
+
+def _brighter(stars, limit):
+    """Return the (vectors, magnitudes) of ``stars`` at most ``limit`` (all with None)."""
+    if stars is None:
+        return None
+    v, m = (np.asarray(a, dtype=float) for a in stars)
+    keep = m <= (np.inf if limit is None else limit)
+    return v[keep], m[keep]
 
 
 def _ratios(e: np.ndarray, cross: np.ndarray, roll: np.ndarray) -> dict[str, Any]:

@@ -1,0 +1,292 @@
+"""Streaks that run into each other: one detection for two stars, matched to neither.
+
+Under slew every star of a frame is a streak, all parallel and as long. Where two streaks
+lie side by side or end to end closer than their lit footprints reach, the detector's
+connected-component labelling makes one region of them, and its centre of gravity is the
+flux-weighted mean of the stars' positions, not either star's. The solver identifies a
+detection by its centroid, within a few of its own sigma of a database star
+(:mod:`starsense.solve.rematch`, ``MATCH_SIGMAS``): a star whose region is pulled further than
+that by the streaks it has run into is not matched, and its light is not in the attitude fit.
+At rest the same happens only to doubles closer than the PSF, which the solver references at
+their photocentre; at a rate a star's reach is the streak's length, and in the frames of a
+long exposure one star in five or more is lost that way.
+
+:func:`match_chances` says which stars of the datasheet's prediction under slew are lost, from
+the stars the frames hold down to the faintest detected at that rate:
+
+* a streak's lit footprint: its ridge, ``N / ((l + sqrt(2 pi) s) sqrt(2 pi) s)`` electrons per
+  pixel (``N`` the star's electrons, ``l`` its streak, ``s`` the PSF sigma; ``N / 2 pi s^2`` at
+  rest), times the gain, against the lit-pixel threshold less ``BRIDGE_SIGMAS`` of an empty
+  pixel's noise (along a streak a hundred pixels long the noise lights the odd pixel in a gap):
+  lit to ``w = s sqrt(2 ln(ridge / threshold))`` px either side of the streak's line, and as
+  far past its ends;
+* two footprints are one region where they overlap or touch diagonally (8-connectivity):
+  across the streaks ``|v| <= w_1 + w_2 + sqrt 2``, along them ``|u| <= l + w_1 + w_2 +
+  sqrt 2``; that region's centroid window is its box grown by the detector's margin, and a
+  streak that does not touch but crosses the window adds the part inside;
+* the window's centre of gravity moves a star by ``|sum_k f_k d_k| / (N + sum_k f_k)`` (``f_k``
+  the electrons of each star's light in the window, ``d_k`` its offset, :func:`pulled_px`):
+  past the match radius (:func:`match_radius_px`: four of the star's own centroid sigma, or
+  of its frame's median, the verification's), it is not matched;
+* a streak too faint for its ridge to reach the threshold is lit in pieces, and its detection
+  is a piece anywhere along it: matched in the fraction of frames where the piece's centre
+  lands within the match radius (:func:`fragment_chance`).
+
+The prediction counts each star's information times its chance of being matched.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+from scipy.special import ndtr
+
+from starsense.analysis.datasheet.field import field_stars_cam
+from starsense.analysis.datasheet.noise import empty_pixel_sigma_counts
+from starsense.solve.rematch import MATCH_SIGMAS
+
+__all__ = [
+    "footprint_half_width_px",
+    "fragment_chance",
+    "match_chances",
+    "match_radius_px",
+    "pulled_px",
+    "ridge_counts",
+    "streaks_px_of",
+]
+
+
+#: a gap is bridged where the noise lights a chain of pixels across it at one place at least
+#: along the streaks with this chance
+BRIDGED_CHANCE = 0.5
+
+
+def streaks_px_of(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
+    """Mid-exposure pixel positions (P, 2) and streaks, start to end (P, 2), of stars v_cam."""
+    v_cam = np.array(v_cam, dtype=float)  # a writable copy (Rotation.apply needs one)
+    half = Rotation.from_rotvec(np.asarray(rates_rad_s) * 0.5 * sensor.exposure_s)
+    x, y = sensor.project(v_cam)
+    xs, ys = sensor.project(half.apply(v_cam))
+    xe, ye = sensor.project(half.inv().apply(v_cam))
+    return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
+
+
+def ridge_counts(sensor, electrons, length_px) -> np.ndarray:
+    """Return the expected counts above the bias along a streak's ridge (module docstring)."""
+    s = sensor.detector.psf_sigma_px
+    root = math.sqrt(2.0 * math.pi) * s
+    e = np.asarray(electrons, dtype=float) / ((np.asarray(length_px, dtype=float) + root) * root)
+    return e * sensor.detector.gain_counts_per_e
+
+
+def footprint_half_width_px(sensor, electrons, length_px) -> np.ndarray:
+    """Return how far either side of its line a streak's expected counts pass the threshold, px.
+
+    0 where its ridge does not reach the detection logic's lit-pixel threshold.
+    """
+    over = ridge_counts(sensor, electrons, length_px) / float(sensor.detection.lit_pixel_counts)
+    return sensor.detector.psf_sigma_px * np.sqrt(2.0 * np.log(np.maximum(over, 1.0)))
+
+
+def _joined(sensor, ridges, along, across, length: float) -> np.ndarray:
+    """Return whether a streak's lit region joins each neighbour's (module docstring).
+
+    ``ridges``: the streak's ridge and the neighbours' (K,), counts; ``along``, ``across``:
+    the neighbours' offsets, px. Where the two streaks overlap along their length by ``o``
+    px, each is ``o / 2`` from its end there, where its ridge is ``Phi(o / 2 s)`` of the
+    whole (the PSF's edge; a half at the very end, beyond it the gap between the ends).
+    """
+    s = sensor.detector.psf_sigma_px
+    lit = float(sensor.detection.lit_pixel_counts)
+    overlap = length - np.abs(along)
+    end = ndtr(np.maximum(overlap, 0.0) / (2.0 * s))
+    r_i, r_k = ridges[0] * end, ridges[1] * end
+    w_i, w_k = (s * np.sqrt(2.0 * np.log(np.maximum(r / lit, 1.0))) for r in (r_i, r_k))
+    gap = np.hypot(np.maximum(-overlap, 0.0), np.abs(across))
+    joined = (gap <= w_i + w_k + math.sqrt(2.0)) & (np.minimum(r_i, r_k) >= lit)
+    # beyond: the dark pixels between the footprints, each lit by the noise with the chance
+    # of the gap's darkest point (the two profiles' sum), as a chain at one place at least
+    # along the streaks
+    v = np.linspace(0.0, 1.0, 17)[None, :] * gap[:, None]
+    prof = r_i[:, None] * np.exp(-0.5 * (v / s) ** 2)
+    prof = prof + r_k[:, None] * np.exp(-0.5 * ((gap[:, None] - v) / s) ** 2)
+    chance = ndtr((prof.min(axis=1) - lit) / empty_pixel_sigma_counts(sensor))
+    chain = np.maximum(np.ceil((gap - w_i - w_k) / math.sqrt(2.0)) - 1.0, 1.0)
+    places = np.maximum(overlap, 0.0) + np.minimum(w_i, w_k) + 1.0
+    bridged = 1.0 - (1.0 - chance**chain) ** places
+    return joined | (bridged >= BRIDGED_CHANCE)
+
+
+def match_radius_px(frames, sigma_px) -> np.ndarray:
+    """Return how far from its star each detection can be and be matched, px.
+
+    ``MATCH_SIGMAS`` of its own sigma (:mod:`starsense.solve.rematch`), or of its frame's
+    median sigma, whichever is wider: the identification's verification pairs a frame's
+    detections within four times the sigma its median residual implies
+    (:class:`starsense.identify.verify.Verifier`).
+
+    Parameters
+    ----------
+    frames : ndarray (N,) of int
+        The frame of each star.
+    sigma_px : ndarray (N,)
+        Its centroid's sigma per axis, px.
+    """
+    frames, sigma = np.asarray(frames), np.asarray(sigma_px, dtype=float)
+    out = np.zeros(len(sigma))
+    for f in np.unique(frames):
+        at = frames == f
+        out[at] = MATCH_SIGMAS * np.maximum(sigma[at], float(np.median(sigma[at])))
+    return out
+
+
+def _inside_fraction(p0, p1, box) -> tuple[np.ndarray, np.ndarray]:
+    """Return the fraction of segments p0 -> p1 (K, 2) inside ``box`` and that part's middle.
+
+    ``box`` = (x0, x1, y0, y1); Liang-Barsky clipping.
+    """
+    d = p1 - p0
+    t0, t1 = np.zeros(len(p0)), np.ones(len(p0))
+    x0, x1, y0, y1 = box
+    for q, lo, hi in ((0, x0, x1), (1, y0, y1)):
+        dq = d[:, q]
+        flat = np.abs(dq) < 1e-12
+        outside = flat & ((p0[:, q] < lo) | (p0[:, q] > hi))
+        t1 = np.where(outside, -1.0, t1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = (lo - p0[:, q]) / dq, (hi - p0[:, q]) / dq
+        enter, leave = np.minimum(ta, tb), np.maximum(ta, tb)
+        t0 = np.where(flat, t0, np.maximum(t0, enter))
+        t1 = np.where(flat, t1, np.minimum(t1, leave))
+    frac = np.clip(t1 - t0, 0.0, 1.0)
+    mid = p0 + 0.5 * (t0 + t1)[:, None] * d
+    return frac, mid
+
+
+def pulled_px(sensor, frames, *, centres_px, streaks_px, electrons, others,
+              margin_px: int = 2) -> np.ndarray:  # fmt: skip
+    """Return how far the other stars' streaks pull each star's detection centroid, px.
+
+    The module docstring: a star run into joins the region with its whole streak, another's
+    streak through the region's window (its box, the streak and its lit half-width, grown by
+    ``margin_px``) adds the part inside.
+
+    Parameters
+    ----------
+    sensor : Sensor
+        The camera (PSF, gain, noise, lit-pixel threshold).
+    frames : ndarray (N,) of int
+        The frame of each star.
+    centres_px, streaks_px : ndarray (N, 2)
+        Each star's mid-exposure position and streak, px.
+    electrons : ndarray (N,)
+        Its electrons over the exposure.
+    others : (ndarray (M,) of int, ndarray (M, 2), ndarray (M,))
+        Every detectable star of the frames (the stars themselves among them): frame, position
+        (px) and electrons.
+    margin_px : int
+        The detector's centroid window margin around a region's box, px.
+
+    Returns
+    -------
+    ndarray (N,)
+        px; 0 where nothing is in reach.
+    """
+    frames = np.asarray(frames)
+    xy = np.asarray(centres_px, dtype=float).reshape(-1, 2)
+    streak = np.asarray(streaks_px, dtype=float).reshape(-1, 2)
+    n_e = np.asarray(electrons, dtype=float)
+    o_frame, o_xy, o_e = (np.asarray(a) for a in others)
+    o_xy, o_e = o_xy.astype(float).reshape(-1, 2), o_e.astype(float)
+    length = np.hypot(streak[:, 0], streak[:, 1])
+    w = footprint_half_width_px(sensor, n_e, length)
+    ridge = ridge_counts(sensor, n_e, length)
+    out = np.zeros(len(n_e))
+    order = np.argsort(o_frame, kind="stable")
+    starts = np.searchsorted(o_frame[order], np.unique(frames))
+    ends = np.searchsorted(o_frame[order], np.unique(frames), side="right")
+    for f, a, b in zip(np.unique(frames), starts, ends, strict=True):
+        mine = np.flatnonzero((frames == f) & (length > 0) & (n_e > 0))
+        theirs = order[a:b]
+        if len(theirs) < 2 or len(mine) == 0:
+            continue
+        pos, e_k = o_xy[theirs], o_e[theirs]
+        ridge_k = ridge_counts(sensor, e_k, float(np.median(length[mine])))
+        w_k = footprint_half_width_px(sensor, e_k, float(np.median(length[mine])))
+        reach = 1.5 * length[mine] + w[mine] + float(w_k.max()) + margin_px + 2.0
+        near_all = cKDTree(pos).query_ball_point(xy[mine], reach)
+        for i, near in zip(mine, near_all, strict=True):
+            d = pos[near] - xy[i]
+            far = np.hypot(d[:, 0], d[:, 1]) > 1e-6  # not the star itself
+            k, d = np.asarray(near, dtype=int)[far], d[far]
+            if len(k) == 0:
+                continue
+            u = streak[i] / length[i]
+            across = d[:, 0] * u[1] - d[:, 1] * u[0]
+            touch = _joined(sensor, (ridge[i], ridge_k[k]), d @ u, across, float(length[i]))
+            half = 0.5 * np.abs(streak[i]) + w[i] + margin_px
+            box = (-half[0], half[0], -half[1], half[1])
+            frac, mid = _inside_fraction(d - 0.5 * streak[i], d + 0.5 * streak[i], box)
+            frac, mid = np.where(touch, 1.0, frac), np.where(touch[:, None], d, mid)
+            pull = e_k[k] * frac
+            out[i] = np.hypot(*(pull @ mid)) / (n_e[i] + pull.sum())
+    return out
+
+
+def fragment_chance(sensor, electrons, *, length_px, radius_px) -> np.ndarray:
+    """Return the chance that a streak's detection is centred close enough to be matched.
+
+    A streak whose ridge's expected counts reach the lit-pixel threshold is lit whole (a gap
+    needs every pixel across the ridge dark at once). One whose ridge falls short is lit in
+    pieces where the noise lifts it: its detection is a piece, anywhere along the streak, and
+    is matched only where its centre falls within the match radius ``r`` of the middle
+    (:func:`match_radius_px`), ``min(1, 2 r / l)``.
+    """
+    length = np.asarray(length_px, dtype=float)
+    whole = ridge_counts(sensor, electrons, length) >= sensor.detection.lit_pixel_counts
+    part = np.minimum(1.0, 2.0 * np.asarray(radius_px) / np.maximum(length, 1e-9))
+    return np.where(whole, 1.0, part)
+
+
+def match_chances(model, fov, *, matrices, rates_rad_s, detectable, frames, centres_px,
+                  streaks_px, electrons, cov_px2):  # fmt: skip
+    """Return each predicted star's chance of being matched under slew (module docstring).
+
+    0 where other streaks pull its detection further than the match radius
+    (:func:`pulled_px`, :func:`match_radius_px`), the chance of a
+    piece's centre landing close enough where it is lit in pieces (:func:`fragment_chance`),
+    else 1.
+
+    Parameters
+    ----------
+    model : StarModel
+        The datasheet's star model (sensor, sensitivity).
+    fov : RectangularFov
+    matrices : ndarray (M, 3, 3)
+        The frames' attitudes, ICRS -> camera.
+    rates_rad_s : ndarray (M, 3)
+        Their body rates, camera frame.
+    detectable : (ndarray (K, 3), ndarray (K,))
+        Every star the frames hold down to the faintest detected at the rate: ICRS vectors
+        and V magnitudes.
+    frames, centres_px, streaks_px, electrons : ndarray (P,), (P, 2), (P, 2), (P,)
+        The predicted stars: frame, mid-exposure position and streak (px), electrons.
+    cov_px2 : ndarray (P, 2, 2)
+        Their centroid covariance (own noise), px^2.
+    """
+    vectors, mags = (np.asarray(a, dtype=float) for a in detectable)
+    everyone = field_stars_cam(fov, np.asarray(matrices), vectors)
+    rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)
+    centres_o, _ = streaks_px_of(model.sensor, everyone.v_cam, rates[everyone.point])
+    sigma = np.sqrt(0.5 * np.trace(np.nan_to_num(cov_px2), axis1=1, axis2=2))
+    others = (everyone.point, centres_o, model.sensitivity.electrons(mags[everyone.star]))
+    frames = np.asarray(frames)
+    radius = match_radius_px(frames, sigma)
+    pull = pulled_px(model.sensor, frames, centres_px=centres_px, streaks_px=streaks_px,
+                     electrons=electrons, others=others)  # fmt: skip
+    length = np.hypot(*np.asarray(streaks_px, dtype=float).reshape(-1, 2).T)
+    chance = fragment_chance(model.sensor, electrons, length_px=length, radius_px=radius)
+    return np.where(pull > radius, 0.0, chance)
