@@ -92,8 +92,14 @@ def test_a_streak_lit_in_pieces_is_seldom_matched():
     assert math.isclose(got[1], 2.0 / 40.0)
 
 
-def test_the_match_radius_is_the_wider_of_a_stars_and_its_frames_median():
-    frames = np.array([0, 0, 0, 1])
-    sigma = np.array([0.01, 0.1, 0.5, 0.2])
-    got = match_radius_px(frames, sigma)
-    assert np.allclose(got, MATCH_SIGMAS * np.array([0.1, 0.1, 0.5, 0.2]))
+def test_the_match_radius_is_the_verifications_or_a_stars_own():
+    sensor = load_sensor("st16")
+    frames = np.array([0, 0, 0, 1, 1, 1])
+    sigma = np.array([0.01, 0.1, 0.5, 0.02, 0.02, 0.02])
+    # frame 0: no pull, the median residual is that of sigma 0.1 (Rayleigh); frame 1: two of
+    # three detections pulled 3 px, the median residual 3 px
+    pull = np.array([0.0, 0.0, 0.0, 3.0, 3.0, 0.0])
+    got = match_radius_px(sensor, frames, sigma, pull)
+    four = MATCH_SIGMAS * np.hypot(pull, math.sqrt(2 * math.log(2)) * sigma)
+    assert np.allclose(got[:3], np.maximum(MATCH_SIGMAS * 0.1, MATCH_SIGMAS * sigma[:3]))
+    assert np.allclose(got[3:], np.median(four[3:]) / math.sqrt(2 * math.log(2)))

@@ -27,7 +27,7 @@ the stars the frames hold down to the faintest detected at that rate:
 * the window's centre of gravity moves a star by ``|sum_k f_k d_k| / (N + sum_k f_k)`` (``f_k``
   the electrons of each star's light in the window, ``d_k`` its offset, :func:`pulled_px`):
   past the match radius (:func:`match_radius_px`: four of the star's own centroid sigma, or
-  of its frame's median, the verification's), it is not matched;
+  the verification's four sigma of its frame's median residual), it is not matched;
 * a streak too faint for its ridge to reach the threshold is lit in pieces, and its detection
   is a piece anywhere along it: matched in the fraction of frames where the piece's centre
   lands within the match radius (:func:`fragment_chance`).
@@ -37,6 +37,7 @@ The prediction counts each star's information times its chance of being matched.
 
 from __future__ import annotations
 
+import inspect
 import math
 
 import numpy as np
@@ -46,6 +47,7 @@ from scipy.special import ndtr
 
 from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.noise import empty_pixel_sigma_counts
+from starsense.identify.verify import Verifier
 from starsense.solve.rematch import MATCH_SIGMAS
 
 __all__ = [
@@ -59,6 +61,10 @@ __all__ = [
 ]
 
 
+#: the verification's initial match radius, a fraction of the field's width (its default)
+_VERIFY_RADIUS = float(inspect.signature(Verifier).parameters["match_radius"].default)
+#: the median of a 2-d residual of per-axis sigma 1 (Rayleigh): sqrt(2 ln 2)
+_RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
 #: a gap is bridged where the noise lights a chain of pixels across it at one place at least
 #: along the streaks with this chance
 BRIDGED_CHANCE = 0.5
@@ -120,26 +126,39 @@ def _joined(sensor, ridges, along, across, length: float) -> np.ndarray:
     return joined | (bridged >= BRIDGED_CHANCE)
 
 
-def match_radius_px(frames, sigma_px) -> np.ndarray:
+def match_radius_px(sensor, frames, sigma_px, pull_px) -> np.ndarray:
     """Return how far from its star each detection can be and be matched, px.
 
-    ``MATCH_SIGMAS`` of its own sigma (:mod:`starsense.solve.rematch`), or of its frame's
-    median sigma, whichever is wider: the identification's verification pairs a frame's
-    detections within four times the sigma its median residual implies
-    (:class:`starsense.identify.verify.Verifier`).
+    The identification's verification pairs a frame's detections within four times the sigma
+    its median residual implies (:class:`starsense.identify.verify.Verifier`: twice
+    ``min(r, max(4 sigma, r / 20))`` from its initial radius ``r``, a fraction of the field's
+    width), and the solver then each one within ``MATCH_SIGMAS`` of its own sigma
+    (:mod:`starsense.solve.rematch`): the wider of the two. A residual is a detection's pull
+    and its noise, whose median is ``1.1774 sigma`` (Rayleigh).
 
     Parameters
     ----------
+    sensor : Sensor
+        The camera (its detector's width).
     frames : ndarray (N,) of int
         The frame of each star.
     sigma_px : ndarray (N,)
         Its centroid's sigma per axis, px.
+    pull_px : ndarray (N,)
+        Its detection's pull (:func:`pulled_px`), px.
     """
     frames, sigma = np.asarray(frames), np.asarray(sigma_px, dtype=float)
+    residual = np.hypot(np.asarray(pull_px, dtype=float), _RAYLEIGH_MEDIAN * sigma)
+    first = _VERIFY_RADIUS * max(sensor.detector.columns, sensor.detector.rows)  # the field
     out = np.zeros(len(sigma))
     for f in np.unique(frames):
         at = frames == f
-        out[at] = MATCH_SIGMAS * np.maximum(sigma[at], float(np.median(sigma[at])))
+        r = first
+        for _ in range(2):
+            r = min(
+                r, max(MATCH_SIGMAS * float(np.median(residual[at])) / _RAYLEIGH_MEDIAN, r / 20)
+            )
+        out[at] = np.maximum(r, MATCH_SIGMAS * sigma[at])
     return out
 
 
@@ -284,9 +303,9 @@ def match_chances(model, fov, *, matrices, rates_rad_s, detectable, frames, cent
     sigma = np.sqrt(0.5 * np.trace(np.nan_to_num(cov_px2), axis1=1, axis2=2))
     others = (everyone.point, centres_o, model.sensitivity.electrons(mags[everyone.star]))
     frames = np.asarray(frames)
-    radius = match_radius_px(frames, sigma)
     pull = pulled_px(model.sensor, frames, centres_px=centres_px, streaks_px=streaks_px,
                      electrons=electrons, others=others)  # fmt: skip
+    radius = match_radius_px(model.sensor, frames, sigma, pull)
     length = np.hypot(*np.asarray(streaks_px, dtype=float).reshape(-1, 2).T)
     chance = fragment_chance(model.sensor, electrons, length_px=length, radius_px=radius)
     return np.where(pull > radius, 0.0, chance)
