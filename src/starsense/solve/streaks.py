@@ -248,26 +248,32 @@ def _streak_model(sensor, image, x, y, order, **measure):
 def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
     """Return the reference streak of :func:`_streak_model` (index into length-sorted ones).
 
-    The streak the most of the brightest (``bright``, the ``N_RATE_STARS`` brightest
-    measured) measure as long as, to within ``width_px`` (a bright streak is whole, and a
-    whole streak's length is measured to a pixel or two: a blend that the others fall short
-    of by 10-20 % gathers none of them); then the one the most of the brightest confirm
-    (shorter within ``low``, turned within the angle ``width_px`` spans); then the most of
-    all: the pieces of fainter ones, all broken alike where their ridges cross the pixel rows
-    (an undersampled PSF), can outnumber the whole ones and agree with each other.
+    A whole bright streak's length is measured to within ``width_px``; a faint whole one falls
+    short by up to ``low``; pieces are shorter and blends of streaks that cross or run end to
+    end longer. The candidates are the streaks at least half as long as the longest that
+    another measures as long as (to ``width_px``, turned within the angle ``width_px`` spans):
+    blends seldom agree with each other, and pieces bridged along one line can make a blend
+    of several streaks, longer than twice any of them. Of those, the one the most of the
+    brightest (``bright``, the ``N_RATE_STARS`` brightest measured) measure as long as (a
+    bright streak is whole; a blend, itself bright, that the others fall short of by 10-20 %
+    gathers none of them), then the one the most of the brightest confirm (shorter within
+    ``low``), then the most of all: the pieces of fainter ones, all broken alike where their
+    ridges cross the pixel rows (an undersampled PSF), can outnumber the whole ones and agree
+    with each other.
     """
     direction = np.linalg.eigh(axes)[1][:, :, -1]
     length = np.sqrt(length2)
+    across = np.abs(direction @ np.column_stack([-direction[:, 1], direction[:, 0]]).T)
+    turned = across > width_px / length[None, :]  # [j, i]: streak j turned from streak i
+    alike = (np.abs(length[:, None] - length[None, :]) <= width_px) & ~turned
+    others = alike & ~np.eye(len(length), dtype=bool)
+    longest = float(length[others.any(axis=0)].max()) if others.any() else float(length[0])
     n = len(length2) + 1
-    support = np.zeros(len(length2), dtype=np.int64)
-    # every streak a candidate: pieces bridged end to end along one line can make a blend
-    # of several streaks, longer than twice any of them
-    for i in range(len(length2)):
-        turned = np.abs(direction @ [-direction[i, 1], direction[i, 0]]) > width_px / length[i]
-        near = (length2 >= low * length2[i]) & (length2 <= length2[i]) & ~turned
-        alike = (np.abs(length - length[i]) <= width_px) & ~turned & bright
-        support[i] = n * n * np.count_nonzero(alike) + n * np.count_nonzero(near & bright)
-        support[i] += np.count_nonzero(near)
+    support = np.full(len(length2), -1, dtype=np.int64)
+    for i in np.flatnonzero(length >= 0.5 * longest):
+        near = (length2 >= low * length2[i]) & (length2 <= length2[i]) & ~turned[:, i]
+        support[i] = n * n * np.count_nonzero(alike[:, i] & bright)
+        support[i] += n * np.count_nonzero(near & bright) + np.count_nonzero(near)
     return int(np.argmax(support))
 
 
