@@ -250,11 +250,11 @@ def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
 
     A whole bright streak's length is measured to within ``width_px``; a faint whole one falls
     short by up to ``low``; pieces are shorter and blends of streaks that cross or run end to
-    end longer. The candidates are the streaks at least half as long as the longest that
-    another measures as long as (to ``width_px``, turned within the angle ``width_px`` spans):
-    blends seldom agree with each other, and pieces bridged along one line can make a blend
-    of several streaks, longer than twice any of them. Of those, the one the most of the
-    brightest (``bright``, the ``N_RATE_STARS`` brightest measured) measure as long as (a
+    end longer. The candidates are the streaks at least half as long as the longest of the
+    brightest that another confirms (shorter within ``low``, turned within the angle
+    ``width_px`` spans): a blend is seldom confirmed, and pieces bridged along one line can
+    make a blend of several streaks, longer than twice any of them. Of those, the one the most
+    of the brightest (``bright``, the ``N_RATE_STARS`` brightest measured) measure as long as (a
     bright streak is whole; a blend, itself bright, that the others fall short of by 10-20 %
     gathers none of them), then the one the most of the brightest confirm (shorter within
     ``low``), then the most of all: the pieces of fainter ones, all broken alike where their
@@ -266,8 +266,10 @@ def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
     across = np.abs(direction @ np.column_stack([-direction[:, 1], direction[:, 0]]).T)
     turned = across > width_px / length[None, :]  # [j, i]: streak j turned from streak i
     alike = (np.abs(length[:, None] - length[None, :]) <= width_px) & ~turned
-    others = alike & ~np.eye(len(length), dtype=bool)
-    longest = float(length[others.any(axis=0)].max()) if others.any() else float(length[0])
+    within = (length2[:, None] >= low * length2[None, :]) & (length2[:, None] <= length2[None, :])
+    within &= ~turned & ~np.eye(len(length), dtype=bool)  # [j, i]: j confirms i
+    held = np.asarray(bright, dtype=bool) & within.any(axis=0)
+    longest = float(length[held].max()) if held.any() else float(length[0])
     n = len(length2) + 1
     support = np.full(len(length2), -1, dtype=np.int64)
     for i in np.flatnonzero(length >= 0.5 * longest):
