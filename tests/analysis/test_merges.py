@@ -99,7 +99,7 @@ def test_the_match_radius_is_the_verifications_or_a_stars_own():
     # frame 0: no pull, the median residual is that of sigma 0.1 (Rayleigh); frame 1: two of
     # three detections pulled 3 px, the median residual 3 px
     pull = np.array([0.0, 0.0, 0.0, 3.0, 3.0, 0.0])
-    got = match_radius_px(sensor, frames, sigma, pull)
+    got = match_radius_px(sensor, frames, sigma_px=sigma, pull_px=pull)
     four = MATCH_SIGMAS * np.hypot(pull, math.sqrt(2 * math.log(2)) * sigma)
     assert np.allclose(got[:3], np.maximum(MATCH_SIGMAS * 0.1, MATCH_SIGMAS * sigma[:3]))
     assert np.allclose(got[3:], np.median(four[3:]) / math.sqrt(2 * math.log(2)))

@@ -222,13 +222,9 @@ def _streak_model(sensor, image, x, y, order, **measure):
     ok = np.flatnonzero(np.isfinite(length2))
     if len(ok) < 3:
         return None
-    # a piece of a streak is shorter than the streak, a blend of two crossing or end-to-end
-    # streaks longer (or turned), at most twice as long, and a whole streak's lit pixels fall
-    # short of it by up to SYSTEMATIC: the rate comes from the streaks within that of the
-    # streak the most others confirm (shorter within SYSTEMATIC, turned within the angle its
-    # PSF's width spans: whole streaks agree, blends scatter), of those at least half as long
-    # as the longest (pieces are left out), the longest first (a rate about the boresight
-    # lengthens them with the distance from it: the outer ring of the field keeps them)
+    # the rate comes from the streaks within SYSTEMATIC of the reference one (_confirmed),
+    # the longest first (a rate about the boresight lengthens them with the distance from it:
+    # the outer ring of the field keeps them)
     ok = ok[np.argsort(-length2[ok], kind="stable")]
     if np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
         return None
@@ -248,18 +244,12 @@ def _streak_model(sensor, image, x, y, order, **measure):
 def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
     """Return the reference streak of :func:`_streak_model` (index into length-sorted ones).
 
-    A whole bright streak's length is measured to within ``width_px``; a faint whole one falls
-    short by up to ``low``; pieces are shorter and blends of streaks that cross or run end to
-    end longer. The candidates are the streaks at least half as long as the longest of the
-    brightest that another confirms (shorter within ``low``, turned within the angle
-    ``width_px`` spans): a blend is seldom confirmed, and pieces bridged along one line can
-    make a blend of several streaks, longer than twice any of them. Of those, the one the most
-    of the brightest (``bright``, the ``N_RATE_STARS`` brightest measured) measure as long as (a
-    bright streak is whole; a blend, itself bright, that the others fall short of by 10-20 %
-    gathers none of them), then the one the most of the brightest confirm (shorter within
-    ``low``), then the most of all: the pieces of fainter ones, all broken alike where their
-    ridges cross the pixel rows (an undersampled PSF), can outnumber the whole ones and agree
-    with each other.
+    Candidates: the streaks at least half as long as the longest of the brightest (``bright``)
+    that another confirms (shorter within ``low``, turned within the angle ``width_px``
+    spans); a blend is seldom confirmed, and collinear pieces bridged end to end can blend
+    several streaks. Of those, the one the most of the brightest measure as long as (to
+    ``width_px``: a bright streak is whole), then the one the most of them confirm, then the
+    most of all (pieces of faint streaks broken alike can outnumber the whole ones).
     """
     direction = np.linalg.eigh(axes)[1][:, :, -1]
     length = np.sqrt(length2)

@@ -126,7 +126,7 @@ def _joined(sensor, ridges, along, across, length: float) -> np.ndarray:
     return joined | (bridged >= BRIDGED_CHANCE)
 
 
-def match_radius_px(sensor, frames, sigma_px, pull_px) -> np.ndarray:
+def match_radius_px(sensor, frames, *, sigma_px, pull_px) -> np.ndarray:
     """Return how far from its star each detection can be and be matched, px.
 
     The identification's verification pairs a frame's detections within four times the sigma
@@ -305,7 +305,7 @@ def match_chances(model, fov, *, matrices, rates_rad_s, detectable, frames, cent
     frames = np.asarray(frames)
     pull = pulled_px(model.sensor, frames, centres_px=centres_px, streaks_px=streaks_px,
                      electrons=electrons, others=others)  # fmt: skip
-    radius = match_radius_px(model.sensor, frames, sigma, pull)
+    radius = match_radius_px(model.sensor, frames, sigma_px=sigma, pull_px=pull)
     length = np.hypot(*np.asarray(streaks_px, dtype=float).reshape(-1, 2).T)
     chance = fragment_chance(model.sensor, electrons, length_px=length, radius_px=radius)
     return np.where(pull > radius, 0.0, chance)
