@@ -165,6 +165,6 @@ def test_windows_in_chunks_equal_all_at_once(monkeypatch):
     img, xs, ys = _frame(rng, 8, 20.0, 1.2)
     kw = {"half_px": 20, "threshold": 15.0, "level": 100.0}
     whole = streak_axes(img, xs, ys, **kw)
-    monkeypatch.setattr(streak_module, "_WINDOW_PIXELS", 3 * 41 * 41)  # three windows a chunk
+    monkeypatch.setattr(streak_module, "WINDOW_PIXELS", 3 * 41 * 41)  # three windows a chunk
     parts = streak_axes(img, xs, ys, **kw)
     np.testing.assert_array_equal(whole, parts)

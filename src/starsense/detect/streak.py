@@ -21,6 +21,7 @@ from starsense.detect.clip import MAD_TO_SIGMA
 
 __all__ = [
     "SYSTEMATIC",
+    "WINDOW_PIXELS",
     "columns",
     "kept_arange",
     "streak_axes",
@@ -296,8 +297,9 @@ def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
 
 #: Relative error of a streak rate from the lit pixels' shortened ends (see rate_from_streaks)
 SYSTEMATIC = 0.2
-#: the most window pixels :func:`streak_axes` holds at once (~32 MB of float64)
-_WINDOW_PIXELS = 1 << 22
+#: the most window pixels held at once (~32 MB of float64): a frame of 600 px streaks holds
+#: 2 M pixels per star window
+WINDOW_PIXELS = 1 << 22
 
 
 def streak_axes(
@@ -349,7 +351,7 @@ def streak_axes(
     a = np.asarray(image)  # each window is read as float, not the whole frame
     x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
     w = 2 * half_px + 1
-    step = max(1, _WINDOW_PIXELS // (w * w))
+    step = max(1, WINDOW_PIXELS // (w * w))
     if len(x) > step:  # chunks of windows: a frame of long streaks holds millions per star
         kw = dict(half_px=half_px, threshold=threshold, level=level)
         kw.update(threshold_sigma=threshold_sigma, bridge_px=bridge_px)

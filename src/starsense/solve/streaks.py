@@ -61,7 +61,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense.detect.centroid import cog_sigma_px
-from starsense.detect.streak import SYSTEMATIC, streak_axes, streak_centroids
+from starsense.detect.streak import SYSTEMATIC, WINDOW_PIXELS, streak_axes, streak_centroids
 from starsense.solve.streak_bias import frame_clipped_bias_px
 
 __all__ = [
@@ -146,10 +146,8 @@ def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.n
     return planes, r0, c0
 
 
-#: the most window pixels held at once: each star's window spans twice its streak, and a
-#: frame of 600 px streaks holds 2 M pixels per star; chunks of stars of this many pixels
-#: keep it to ~32 MB
-_CHUNK_PIXELS = 1 << 22
+#: the most window pixels held at once (each star's window spans twice its streak)
+_CHUNK_PIXELS = WINDOW_PIXELS
 
 
 def _capsule_centroids(image, x, y, seg, half: int, level, radius: float) -> tuple:

@@ -16,13 +16,14 @@ the stars the frames hold down to the faintest detected at that rate:
 
 * a streak's lit footprint: its ridge, ``N / ((l + sqrt(2 pi) s) sqrt(2 pi) s)`` electrons per
   pixel (``N`` the star's electrons, ``l`` its streak, ``s`` the PSF sigma; ``N / 2 pi s^2`` at
-  rest), times the gain, against the lit-pixel threshold less ``BRIDGE_SIGMAS`` of an empty
-  pixel's noise (along a streak a hundred pixels long the noise lights the odd pixel in a gap):
-  lit to ``w = s sqrt(2 ln(ridge / threshold))`` px either side of the streak's line, and as
-  far past its ends;
-* two footprints are one region where they overlap or touch diagonally (8-connectivity):
-  across the streaks ``|v| <= w_1 + w_2 + sqrt 2``, along them ``|u| <= l + w_1 + w_2 +
-  sqrt 2``; that region's centroid window is its box grown by the detector's margin, and a
+  rest), times the gain, against the lit-pixel threshold: lit to ``w = s sqrt(2 ln(ridge /
+  threshold))`` px either side of the streak's line (where two streaks overlap only near
+  their ends, at the ridge the PSF's edge leaves there);
+* two footprints are one region where they overlap or touch diagonally (8-connectivity: the
+  gap between the lines within ``w_1 + w_2 + sqrt 2``), or where the noise lights a chain of
+  pixels across the gap at one place at least along the streaks with a chance of
+  ``BRIDGED_CHANCE`` (each dark pixel lit with the chance of the gap's darkest point); that
+  region's centroid window is its box grown by the detector's margin, and a
   streak that does not touch but crosses the window adds the part inside;
 * the window's centre of gravity moves a star by ``|sum_k f_k d_k| / (N + sum_k f_k)`` (``f_k``
   the electrons of each star's light in the window, ``d_k`` its offset, :func:`pulled_px`):
