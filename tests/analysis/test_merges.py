@@ -9,10 +9,8 @@ import math
 import numpy as np
 
 from starsense.analysis.datasheet.merges import (
-    fragment_chance,
     match_radius_px,
     pulled_px,
-    ridge_counts,
 )
 from starsense.render.noise import apply_noise
 from starsense.render.smear import streak_stamp_expected
@@ -77,19 +75,6 @@ def test_a_streaks_pull_by_its_neighbour_against_the_detector():
         same_side.append((measured > 1.0) == (predicted > 1.0))
     assert np.mean(close) >= 0.75
     assert np.mean(same_side) >= 0.9
-
-
-def test_a_streak_lit_in_pieces_is_seldom_matched():
-    sensor = load_sensor("st16")
-    lit = sensor.detection.lit_pixel_counts
-    # the electrons that put a 40 px streak's ridge at 2 and at 0.5 of the lit threshold
-    per = ridge_counts(sensor, 1.0, 40.0)
-    whole, pieces = 2.0 * lit / per, 0.5 * lit / per
-    got = fragment_chance(sensor, [whole, pieces], length_px=40.0, radius_px=1.0)
-    # lit whole: matched; in pieces: a piece's centre anywhere along 40 px lands within
-    # 1 px of the middle 2 / 40 of the time
-    assert got[0] == 1.0
-    assert math.isclose(got[1], 2.0 / 40.0)
 
 
 def test_the_match_radius_is_the_verifications_or_a_stars_own():

@@ -13,6 +13,7 @@ centroids are taken as listed, brightest first.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -313,9 +314,10 @@ class CentroidPoints:
         The image's (rows, columns).
     what : str
         What the points are ("detections" or "centroids"), for messages.
-    sigma_px : ndarray (N,), optional
+    sigma_px : ndarray (N,) or a callable returning it, optional
         Each centroid's per-axis noise, px, where the camera is known: every detection is
-        then held against the identified sky at its own noise (:mod:`starsense.solve.rematch`).
+        then held against the identified sky at its own noise (:mod:`starsense.solve.rematch`,
+        which calls a callable only where a pair could be added).
     """
 
     x: np.ndarray
@@ -323,7 +325,7 @@ class CentroidPoints:
     flux: np.ndarray
     shape: tuple
     what: str
-    sigma_px: np.ndarray | None = None
+    sigma_px: np.ndarray | Callable[[], np.ndarray] | None = None
 
 
 def _size_card(header, key: str, path: Path) -> int:

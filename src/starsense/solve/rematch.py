@@ -26,13 +26,15 @@ by the robust fit that drops the odd outlier (:func:`starsense.attitude.robust.r
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+from collections.abc import Callable
 
 import numpy as np
 
 from starsense.detect.centroid import cog_sigma_px
 
-__all__ = ["MATCH_SIGMAS", "MAX_CHANCE", "detection_sigmas_px", "rematched"]
+__all__ = ["MATCH_SIGMAS", "MAX_CHANCE", "detection_sigmas_px", "rematched", "scaled"]
 
 #: the radius, in sigmas of a detection's direction (1 true pair in 3,000 outside it)
 MATCH_SIGMAS = 4.0
@@ -40,12 +42,22 @@ MATCH_SIGMAS = 4.0
 MAX_CHANCE = 1e-3
 
 
-def detection_sigmas_px(sensor, det, *, margin_px: int, shape) -> np.ndarray | None:
-    """Return every detection's centroid sigma per axis, px (None without a sensor)."""
+def detection_sigmas_px(sensor, det, *, margin_px: int, shape) -> Callable[[], np.ndarray] | None:
+    """Return what computes every detection's centroid sigma per axis, px, when called.
+
+    None without a sensor. Called only where :func:`rematched` needs it.
+    """
     if sensor is None:
         return None
     idx = np.arange(len(det))
-    return cog_sigma_px(det, idx, detector=sensor.detector, margin_px=margin_px, shape=shape)
+    return functools.partial(
+        cog_sigma_px, det, idx, detector=sensor.detector, margin_px=margin_px, shape=shape
+    )
+
+
+def scaled(sigma, factor: float) -> Callable[[], np.ndarray]:
+    """Return what gives ``sigma`` (an array, or a callable returning one) times ``factor``."""
+    return lambda: np.asarray(sigma() if callable(sigma) else sigma, dtype=float) * factor
 
 
 def rematched(ident, database, vectors, *, sigma_rad):
@@ -59,8 +71,9 @@ def rematched(ident, database, vectors, *, sigma_rad):
         The database it was identified against.
     vectors : ndarray, shape (N, 3)
         The detections' camera-frame unit vectors (those identified).
-    sigma_rad : ndarray, shape (N,)
-        Each detection's per-axis direction noise, rad.
+    sigma_rad : ndarray, shape (N,), or a callable returning it
+        Each detection's per-axis direction noise, rad; a callable is called only when a
+        free detection has a database star within the widest radius ``MAX_CHANCE`` allows.
 
     Returns
     -------
@@ -69,7 +82,6 @@ def rematched(ident, database, vectors, *, sigma_rad):
         order).
     """
     v = np.asarray(vectors, dtype=float)
-    sigma = np.asarray(sigma_rad, dtype=float)
     matched_d = np.asarray(ident.detection_index, dtype=np.int64)
     matched_c = np.asarray(ident.catalog_index, dtype=np.int64)
     if not ident.solved or ident.scale != 1.0 or len(v) == len(matched_d) or len(matched_d) < 3:
@@ -85,13 +97,19 @@ def rematched(ident, database, vectors, *, sigma_rad):
     cam = database.vectors[near] @ r.T
     solid_angle = 2.0 * math.pi * (1.0 - math.cos(reach + 1e-3))
     density = len(near) / solid_angle  # database stars per steradian
-    att = ident.residual_rms_rad / math.sqrt(len(matched_d))
-    radius = MATCH_SIGMAS * np.hypot(sigma, att if math.isfinite(att) else 0.0)
     free_d = np.ones(len(v), dtype=bool)
     free_d[matched_d] = False
-    free_c = ~np.isin(near, matched_c)
     # angles (small): chord between unit vectors, detections x field stars
     sep = np.sqrt(np.maximum(2.0 - 2.0 * (v @ cam.T), 0.0))
+    # a pair needs a radius within MAX_CHANCE, so a star that close to a free detection: where
+    # there is none, nothing is added and the detections' sigmas are not needed
+    widest = math.sqrt(MAX_CHANCE / (math.pi * density)) * (1.0 + 1e-9)
+    if not (sep[free_d] <= widest).any():
+        return ident
+    sigma = np.asarray(sigma_rad() if callable(sigma_rad) else sigma_rad, dtype=float)
+    att = ident.residual_rms_rad / math.sqrt(len(matched_d))
+    radius = MATCH_SIGMAS * np.hypot(sigma, att if math.isfinite(att) else 0.0)
+    free_c = ~np.isin(near, matched_c)
     within = sep <= radius[:, None]
     n_stars = within.sum(axis=1)
     n_dets = within.sum(axis=0)

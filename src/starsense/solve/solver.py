@@ -45,7 +45,7 @@ from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.radial import refine_identification
-from starsense.solve.rematch import detection_sigmas_px, rematched
+from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
 from starsense.solve.streaks import matched_measurements
@@ -371,7 +371,7 @@ class Solver:
                 flux=points.flux, shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
             )  # fmt: skip
         elif points.sigma_px is not None:  # every detection at its own noise
-            own = points.sigma_px * fov / n_cols
+            own = scaled(points.sigma_px, fov / n_cols)
             ident = rematched(ident, identifier.database, vectors, sigma_rad=own)
         matched, pixel_rad = np.asarray(ident.detection_index), fov / n_cols
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)

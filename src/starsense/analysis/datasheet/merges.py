@@ -29,9 +29,10 @@ the stars the frames hold down to the faintest detected at that rate:
   the electrons of each star's light in the window, ``d_k`` its offset, :func:`pulled_px`):
   past the match radius (:func:`match_radius_px`: four of the star's own centroid sigma, or
   the verification's four sigma of its frame's median residual), it is not matched;
-* a streak too faint for its ridge to reach the threshold is lit in pieces, and its detection
-  is a piece anywhere along it: matched in the fraction of frames where the piece's centre
-  lands within the match radius (:func:`fragment_chance`).
+* a streak whose ridge is near the threshold is lit in pieces where the noise lifts it, or not
+  at all: matched in the fraction of draws where its nearest detected piece lands within the
+  match radius (:mod:`~starsense.analysis.datasheet.pieces`), the pieces' offsets counted in
+  the frame's median residual.
 
 The prediction counts each star's information times its chance of being matched.
 """
@@ -48,12 +49,16 @@ from scipy.special import ndtr
 
 from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.noise import empty_pixel_sigma_counts
+from starsense.analysis.datasheet.pieces import (
+    footprint_half_width_px,
+    piece_offsets_px,
+    ridge_counts,
+)
 from starsense.identify.verify import Verifier
 from starsense.solve.rematch import MATCH_SIGMAS
 
 __all__ = [
     "footprint_half_width_px",
-    "fragment_chance",
     "match_chances",
     "match_radius_px",
     "pulled_px",
@@ -69,6 +74,9 @@ _RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
 #: a gap is bridged where the noise lights a chain of pixels across it at one place at least
 #: along the streaks with this chance
 BRIDGED_CHANCE = 0.5
+#: the seed of the pieces' draws (:func:`~starsense.analysis.datasheet.pieces.piece_offsets_px`):
+#: a datasheet predicts the same for the same sensor
+PIECES_SEED = 20140101
 
 
 def streaks_px_of(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
@@ -79,23 +87,6 @@ def streaks_px_of(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
     xs, ys = sensor.project(half.apply(v_cam))
     xe, ye = sensor.project(half.inv().apply(v_cam))
     return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
-
-
-def ridge_counts(sensor, electrons, length_px) -> np.ndarray:
-    """Return the expected counts above the bias along a streak's ridge (module docstring)."""
-    s = sensor.detector.psf_sigma_px
-    root = math.sqrt(2.0 * math.pi) * s
-    e = np.asarray(electrons, dtype=float) / ((np.asarray(length_px, dtype=float) + root) * root)
-    return e * sensor.detector.gain_counts_per_e
-
-
-def footprint_half_width_px(sensor, electrons, length_px) -> np.ndarray:
-    """Return how far either side of its line a streak's expected counts pass the threshold, px.
-
-    0 where its ridge does not reach the detection logic's lit-pixel threshold.
-    """
-    over = ridge_counts(sensor, electrons, length_px) / float(sensor.detection.lit_pixel_counts)
-    return sensor.detector.psf_sigma_px * np.sqrt(2.0 * np.log(np.maximum(over, 1.0)))
 
 
 def _joined(sensor, ridges, along, across, length: float) -> np.ndarray:
@@ -127,7 +118,7 @@ def _joined(sensor, ridges, along, across, length: float) -> np.ndarray:
     return joined | (bridged >= BRIDGED_CHANCE)
 
 
-def match_radius_px(sensor, frames, *, sigma_px, pull_px) -> np.ndarray:
+def match_radius_px(sensor, frames, *, sigma_px, pull_px, counted=None) -> np.ndarray:
     """Return how far from its star each detection can be and be matched, px.
 
     The identification's verification pairs a frame's detections within four times the sigma
@@ -146,19 +137,22 @@ def match_radius_px(sensor, frames, *, sigma_px, pull_px) -> np.ndarray:
     sigma_px : ndarray (N,)
         Its centroid's sigma per axis, px.
     pull_px : ndarray (N,)
-        Its detection's pull (:func:`pulled_px`), px.
+        Its detection's offset from the star besides its noise: the pull (:func:`pulled_px`)
+        and where a streak lit in pieces puts its detection, px.
+    counted : ndarray (N,) of bool, optional
+        The stars detected, whose residuals the verification sees (default: all).
     """
     frames, sigma = np.asarray(frames), np.asarray(sigma_px, dtype=float)
     residual = np.hypot(np.asarray(pull_px, dtype=float), _RAYLEIGH_MEDIAN * sigma)
+    counted = np.ones(len(sigma), bool) if counted is None else np.asarray(counted, bool)
     first = _VERIFY_RADIUS * max(sensor.detector.columns, sensor.detector.rows)  # the field
     out = np.zeros(len(sigma))
     for f in np.unique(frames):
         at = frames == f
+        seen = residual[at & counted] if (at & counted).any() else residual[at]
         r = first
         for _ in range(2):
-            r = min(
-                r, max(MATCH_SIGMAS * float(np.median(residual[at])) / _RAYLEIGH_MEDIAN, r / 20)
-            )
+            r = min(r, max(MATCH_SIGMAS * float(np.median(seen)) / _RAYLEIGH_MEDIAN, r / 20))
         out[at] = np.maximum(r, MATCH_SIGMAS * sigma[at])
     return out
 
@@ -256,29 +250,14 @@ def pulled_px(sensor, frames, *, centres_px, streaks_px, electrons, others,
     return out
 
 
-def fragment_chance(sensor, electrons, *, length_px, radius_px) -> np.ndarray:
-    """Return the chance that a streak's detection is centred close enough to be matched.
-
-    A streak whose ridge's expected counts reach the lit-pixel threshold is lit whole (a gap
-    needs every pixel across the ridge dark at once). One whose ridge falls short is lit in
-    pieces where the noise lifts it: its detection is a piece, anywhere along the streak, and
-    is matched only where its centre falls within the match radius ``r`` of the middle
-    (:func:`match_radius_px`), ``min(1, 2 r / l)``.
-    """
-    length = np.asarray(length_px, dtype=float)
-    whole = ridge_counts(sensor, electrons, length) >= sensor.detection.lit_pixel_counts
-    part = np.minimum(1.0, 2.0 * np.asarray(radius_px) / np.maximum(length, 1e-9))
-    return np.where(whole, 1.0, part)
-
-
 def match_chances(model, fov, *, matrices, rates_rad_s, detectable, frames, centres_px,
                   streaks_px, electrons, cov_px2):  # fmt: skip
     """Return each predicted star's chance of being matched under slew (module docstring).
 
     0 where other streaks pull its detection further than the match radius
-    (:func:`pulled_px`, :func:`match_radius_px`), the chance of a
-    piece's centre landing close enough where it is lit in pieces (:func:`fragment_chance`),
-    else 1.
+    (:func:`pulled_px`, :func:`match_radius_px`), else the chance that its nearest detection,
+    a piece where the streak is lit in pieces
+    (:func:`~starsense.analysis.datasheet.pieces.piece_offsets_px`), lands within it.
 
     Parameters
     ----------
@@ -306,7 +285,17 @@ def match_chances(model, fov, *, matrices, rates_rad_s, detectable, frames, cent
     frames = np.asarray(frames)
     pull = pulled_px(model.sensor, frames, centres_px=centres_px, streaks_px=streaks_px,
                      electrons=electrons, others=others)  # fmt: skip
-    radius = match_radius_px(model.sensor, frames, sigma_px=sigma, pull_px=pull)
-    length = np.hypot(*np.asarray(streaks_px, dtype=float).reshape(-1, 2).T)
-    chance = fragment_chance(model.sensor, electrons, length_px=length, radius_px=radius)
+    # where each one's nearest detection lands (0 lit whole, inf not detected), and its own
+    # sigma: the solver pairs it within the verification's radius or four of that sigma
+    draws, piece_sigma = piece_offsets_px(model.sensor, electrons, streaks_px,
+                                          rng=np.random.default_rng(PIECES_SEED))  # fmt: skip
+    detected = np.isfinite(draws)
+    counted = detected.mean(axis=1) >= 0.5
+    typical = np.nanmedian(np.where(detected, draws, np.nan)[counted], axis=1)
+    piece = np.zeros(len(draws))
+    piece[counted] = typical
+    radius = match_radius_px(model.sensor, frames, sigma_px=sigma,
+                             pull_px=np.hypot(pull, piece), counted=counted)  # fmt: skip
+    reach = np.maximum(radius[:, None], MATCH_SIGMAS * piece_sigma)
+    chance = np.mean(np.hypot(draws, pull[:, None]) <= reach, axis=1)
     return np.where(pull > radius, 0.0, chance)

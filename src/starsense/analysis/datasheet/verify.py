@@ -37,6 +37,13 @@ __all__ = [
 #: (roll: one error per frame), 22 % at 10 frames, already the half-width of the 0.8-1.25
 #: acceptance band (ln 1.25 = 0.22): with fewer, a right model cannot be told from a wrong one
 MIN_CHECKED_FRAMES = 10
+#: under slew the prediction takes the stars down to half the flux of the faintest the
+#: threshold model detects at the rate (``limit_mag_at_rate``), each with its chance of being
+#: detected and matched (:mod:`starsense.analysis.datasheet.pieces`): near that limit the noise
+#: lights pieces of a streak whose expected ridge falls short of the threshold, matched in
+#: 15-40 % of frames on rendered undersampled designs; at half the flux, where the ridge is at
+#: most half the threshold, in 1-4 %
+PIECES_REACH_MAG = 2.5 * math.log10(2.0)
 
 #: the fields of a Monte Carlo check measured on solved frames (None when none was measured)
 MEASURED_KEYS = (
@@ -142,8 +149,9 @@ def score_montecarlo(
     limit_mag_at_rate : float, optional
         For a run at a rate: the faintest magnitude detected at that rate (the datasheet's
         threshold at the rate); the prediction is that of the smeared stars
-        (:func:`starsense.analysis.datasheet.predict.nea_at_rate`) brighter than it. None
-        keeps every star of ``magnitudes``.
+        (:func:`starsense.analysis.datasheet.predict.nea_at_rate`) down to
+        ``PIECES_REACH_MAG`` fainter, each with its chance of being matched. None keeps every
+        star of ``magnitudes``.
     catalogue : ndarray (N,), optional
         Each star's database position less its rendered one, ICRS, rad (frames
         rendered from another catalogue than the solver's database:
@@ -184,7 +192,8 @@ def score_montecarlo(
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
     if res.rate_rad_s > 0:
         mags = np.asarray(magnitudes, dtype=float)
-        keep = mags <= (np.inf if limit_mag_at_rate is None else limit_mag_at_rate)
+        reach = np.inf if limit_mag_at_rate is None else limit_mag_at_rate + PIECES_REACH_MAG
+        keep = mags <= reach
         cross, roll = nea_at_rate(
             model,
             fov,
