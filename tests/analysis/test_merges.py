@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from starsense.analysis.datasheet.merges import (
+    edge_pull_px,
     match_radius_px,
     pulled_px,
 )
@@ -88,3 +89,17 @@ def test_the_match_radius_is_the_verifications_or_a_stars_own():
     four = MATCH_SIGMAS * np.hypot(pull, math.sqrt(2 * math.log(2)) * sigma)
     assert np.allclose(got[:3], np.maximum(MATCH_SIGMAS * 0.1, MATCH_SIGMAS * sigma[:3]))
     assert np.allclose(got[3:], np.median(four[3:]) / math.sqrt(2 * math.log(2)))
+
+
+def test_a_streak_cut_by_the_frames_edge_is_detected_by_the_part_left():
+    sensor = load_sensor("st16")
+    cols, rows = sensor.detector.columns, sensor.detector.rows
+    centres = np.array([[10.0, 100.0], [cols / 2, rows / 2], [-30.0, 100.0], [100.0, rows - 6.5]])
+    streaks = np.array([[40.0, 0.0], [40.0, 0.0], [40.0, 0.0], [0.0, 20.0]])
+    got = edge_pull_px(sensor, centres, streaks)
+    # geometry: the frame spans -0.5 .. columns - 0.5; a 40 px streak centred 10 px from the
+    # left edge keeps -0.5 .. 30, whose middle is 4.75 px from the star's; one whole on the
+    # frame is not moved; one wholly off it is not detected; one along the rows, centred 6 px
+    # inside the bottom edge, keeps 10 px below its middle and 6 above it: moved 2 px up
+    assert np.allclose(got[[0, 1, 3]], [4.75, 0.0, 2.0])
+    assert np.isinf(got[2])

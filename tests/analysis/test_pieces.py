@@ -63,7 +63,9 @@ def test_a_faint_streaks_nearest_detection_against_the_detector():
     for _ in range(24):
         sensor, electrons, streak = _case(rng)
         measured = _measured(sensor, electrons, streak, rng, 40)
-        drawn = piece_offsets_px(sensor, [electrons], streak[None], rng=rng, samples=256)[0][0]
+        drawn = piece_offsets_px(
+            sensor, [electrons], streak[None], rng=rng, samples=256
+        ).offsets_px[0]
         for r in RADII:
             diffs.append(np.mean(drawn <= r) - np.mean(measured <= r))
     diffs = np.array(diffs)
@@ -76,9 +78,9 @@ def test_a_bright_streak_is_lit_whole_and_a_dark_one_not_detected():
     per = float(ridge_counts(sensor, 1.0, float(np.hypot(*streak))))
     lit = sensor.detection.lit_pixel_counts
     electrons = [1.01 * WHOLE_RIDGE * lit / per, 0.05 * lit / per]
-    drawn, _ = piece_offsets_px(
+    drawn = piece_offsets_px(
         sensor, electrons, streak[None].repeat(2, 0), rng=np.random.default_rng(2)
-    )
+    ).offsets_px
     # past 4 times the threshold: one piece, centred (0 by construction); at 1/20 of it no pixel
     # reaches the threshold but by 19 thresholds of noise or more: nothing is detected
     assert np.all(drawn[0] == 0.0)

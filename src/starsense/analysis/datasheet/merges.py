@@ -29,6 +29,8 @@ the stars the frames hold down to the faintest detected at that rate:
   the electrons of each star's light in the window, ``d_k`` its offset, :func:`pulled_px`):
   past the match radius (:func:`match_radius_px`: four of the star's own centroid sigma, or
   the verification's four sigma of its frame's median residual), it is not matched;
+* a streak cut by the frame's edge is detected by the part left on it, whose middle is off the
+  star's (:func:`edge_pull_px`), added to the pull;
 * a streak whose ridge is near the threshold is lit in pieces where the noise lifts it, or not
   at all: matched in the fraction of draws where its nearest detected piece lands within the
   match radius (:mod:`~starsense.analysis.datasheet.pieces`), the pieces' offsets counted in
@@ -50,6 +52,7 @@ from scipy.special import ndtr
 from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.noise import empty_pixel_sigma_counts
 from starsense.analysis.datasheet.pieces import (
+    FLUX_BINS,
     footprint_half_width_px,
     piece_offsets_px,
     ridge_counts,
@@ -58,6 +61,7 @@ from starsense.identify.verify import Verifier
 from starsense.solve.rematch import MATCH_SIGMAS
 
 __all__ = [
+    "edge_pull_px",
     "footprint_half_width_px",
     "match_chances",
     "match_radius_px",
@@ -69,6 +73,8 @@ __all__ = [
 
 #: the verification's initial match radius, a fraction of the field's width (its default)
 _VERIFY_RADIUS = float(inspect.signature(Verifier).parameters["match_radius"].default)
+#: the verification pairs a frame's brightest this many detections (its default)
+_VERIFIED = int(inspect.signature(Verifier).parameters["max_detections"].default)
 #: the median of a 2-d residual of per-axis sigma 1 (Rayleigh): sqrt(2 ln 2)
 _RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
 #: a gap is bridged where the noise lights a chain of pixels across it at one place at least
@@ -180,6 +186,20 @@ def _inside_fraction(p0, p1, box) -> tuple[np.ndarray, np.ndarray]:
     return frac, mid
 
 
+def edge_pull_px(sensor, centres_px, streaks_px) -> np.ndarray:
+    """Return how far the frame's edge moves each streak's detection from its middle, px.
+
+    The detection holds the part of the streak on the frame: its middle is that part's
+    (inf where none of it is on the frame).
+    """
+    xy = np.asarray(centres_px, dtype=float).reshape(-1, 2)
+    half = 0.5 * np.asarray(streaks_px, dtype=float).reshape(-1, 2)
+    det = sensor.detector
+    box = (-0.5, det.columns - 0.5, -0.5, det.rows - 0.5)
+    frac, mid = _inside_fraction(xy - half, xy + half, box)
+    return np.where(frac > 0.0, np.hypot(*(mid - xy).T), np.inf)
+
+
 def pulled_px(sensor, frames, *, centres_px, streaks_px, electrons, others,
               margin_px: int = 2) -> np.ndarray:  # fmt: skip
     """Return how far the other stars' streaks pull each star's detection centroid, px.
@@ -285,17 +305,46 @@ def match_chances(model, fov, *, matrices, rates_rad_s, detectable, frames, cent
     frames = np.asarray(frames)
     pull = pulled_px(model.sensor, frames, centres_px=centres_px, streaks_px=streaks_px,
                      electrons=electrons, others=others)  # fmt: skip
-    # where each one's nearest detection lands (0 lit whole, inf not detected), and its own
-    # sigma: the solver pairs it within the verification's radius or four of that sigma
-    draws, piece_sigma = piece_offsets_px(model.sensor, electrons, streaks_px,
-                                          rng=np.random.default_rng(PIECES_SEED))  # fmt: skip
+    # a streak cut by the frame's edge is detected by the part left on it
+    pull = np.hypot(pull, edge_pull_px(model.sensor, centres_px, streaks_px))
+    # where each one's nearest detection lands (0 lit whole, inf not detected), its own sigma
+    # and its counts: the solver pairs it within the verification's radius if it is among the
+    # frame's brightest detections the verification takes, or within four of its own sigma
+    got = piece_offsets_px(model.sensor, electrons, streaks_px,
+                           rng=np.random.default_rng(PIECES_SEED))  # fmt: skip
+    draws = got.offsets_px
     detected = np.isfinite(draws)
-    counted = detected.mean(axis=1) >= 0.5
+    counted = (detected.mean(axis=1) >= 0.5) & np.isfinite(pull)
     typical = np.nanmedian(np.where(detected, draws, np.nan)[counted], axis=1)
     piece = np.zeros(len(draws))
     piece[counted] = typical
     radius = match_radius_px(model.sensor, frames, sigma_px=sigma,
                              pull_px=np.hypot(pull, piece), counted=counted)  # fmt: skip
-    reach = np.maximum(radius[:, None], MATCH_SIGMAS * piece_sigma)
-    chance = np.mean(np.hypot(draws, pull[:, None]) <= reach, axis=1)
+    off = np.hypot(draws, pull[:, None])
+    verified = (off <= radius[:, None]) & _among_brightest(frames, got)
+    chance = np.mean(verified | (off <= MATCH_SIGMAS * got.sigmas_px), axis=1)
     return np.where(pull > radius, 0.0, chance)
+
+
+def _among_brightest(frames, got) -> np.ndarray:
+    """Return whether each draw's detection is among its frame's ``_VERIFIED`` brightest.
+
+    The frame's detections are those of its predicted stars (whole streaks and pieces, counted
+    by :func:`~starsense.analysis.datasheet.pieces.piece_offsets_px` per bin of summed counts);
+    a detection is among the brightest where fewer than ``_VERIFIED`` are in brighter bins,
+    with half of those of its own bin.
+    """
+    frames = np.asarray(frames)
+    _, f = np.unique(frames, return_inverse=True)
+    per_frame = np.zeros((f.max() + 1 if len(f) else 0, got.per_bin.shape[1]))
+    np.add.at(per_frame, f, got.per_bin)
+    above = np.cumsum(per_frame[:, ::-1], axis=1)[:, ::-1]  # detections in bin b or brighter
+    bins = len(FLUX_BINS) - 1
+    b = np.clip(
+        np.searchsorted(FLUX_BINS, np.log10(np.maximum(got.counts, 1.0)), side="right") - 1,
+        0,
+        bins - 1,
+    )
+    brighter = np.where(b + 1 < bins, above[f[:, None], np.minimum(b + 1, bins - 1)], 0.0)
+    own = per_frame[f[:, None], b]
+    return brighter + 0.5 * own < _VERIFIED

@@ -34,13 +34,22 @@ detector's within 0.1 across ridges of 0.5-4 times the threshold.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import ndtr
 
 from starsense.analysis.datasheet.noise import empty_pixel_sigma_counts
+from starsense.solve.rematch import MATCH_SIGMAS
 
-__all__ = ["WHOLE_RIDGE", "footprint_half_width_px", "piece_offsets_px", "ridge_counts"]
+__all__ = [
+    "FLUX_BINS",
+    "WHOLE_RIDGE",
+    "Pieces",
+    "footprint_half_width_px",
+    "piece_offsets_px",
+    "ridge_counts",
+]
 
 #: a streak whose expected ridge is this many times the lit-pixel threshold is lit whole: its
 #: brightest pixel across holds at least 0.69 of the ridge at any phase (an undersampled PSF,
@@ -49,6 +58,8 @@ __all__ = ["WHOLE_RIDGE", "footprint_half_width_px", "piece_offsets_px", "ridge_
 WHOLE_RIDGE = 4.0
 #: draws per star
 SAMPLES = 64
+#: bins of log10 summed counts in which a frame's detections are counted (to rank them)
+FLUX_BINS = np.linspace(0.0, 10.0, 201)
 #: sub-samples per column of the light along the streak
 _SUB = 8
 
@@ -131,12 +142,49 @@ def _one(sensor, n_e: float, streak, rng, samples: int, margin_px: int) -> tuple
     offset, sigma = offset.reshape(samples, n + 1), sigma.reshape(samples, n + 1)
     nearest = np.argmin(offset, axis=1)
     rows = np.arange(samples)
-    return offset[rows, nearest], sigma[rows, nearest]
+    # the solver pairs a detection at its own sigma only where no other is within its own
+    # radius of the star (starsense.solve.rematch): two pieces of one streak refuse each other
+    alone = (offset <= MATCH_SIGMAS * sigma).sum(axis=1) <= 1
+    flux = total.reshape(samples, n + 1)
+    per = np.histogram(np.log10(total[ok]), bins=FLUX_BINS)[0] / samples
+    return (
+        offset[rows, nearest],
+        np.where(alone, sigma[rows, nearest], 0.0),
+        flux[rows, nearest],
+        per,
+    )
+
+
+@dataclass(frozen=True)
+class Pieces:
+    """Draws of each streak's nearest detection (:func:`piece_offsets_px`).
+
+    Attributes
+    ----------
+    offsets_px : ndarray (N, samples)
+        Its distance from the streak's middle, px; inf where no piece of the streak is a
+        detection. 0 for a streak lit whole (its expected ridge ``WHOLE_RIDGE`` times the
+        threshold or more) or a point.
+    sigmas_px : ndarray (N, samples)
+        Its centroid sigma per axis as the solver computes it (its pixels' count, box and summed
+        counts), px, where the solver can pair it at that sigma: 0 where another piece lies
+        within its own four sigma of the middle too (the pairing is ambiguous) and where the
+        streak is lit whole (its own sigma applies).
+    counts : ndarray (N, samples)
+        Its lit pixels' summed counts (the detector's integrated counts).
+    per_bin : ndarray (N, len(FLUX_BINS) - 1)
+        The streak's mean number of detections per bin of log10 summed counts.
+    """
+
+    offsets_px: np.ndarray
+    sigmas_px: np.ndarray
+    counts: np.ndarray
+    per_bin: np.ndarray
 
 
 def piece_offsets_px(sensor, electrons, streaks_px, *, rng, samples: int = SAMPLES,
-                     margin_px: int = 2) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """Draw where each streak's nearest detection is, and its own centroid sigma (module docstring).
+                     margin_px: int = 2) -> Pieces:  # fmt: skip
+    """Draw where each streak's nearest detection is, its sigma and counts (module docstring).
 
     Parameters
     ----------
@@ -151,22 +199,22 @@ def piece_offsets_px(sensor, electrons, streaks_px, *, rng, samples: int = SAMPL
         Draws per star.
     margin_px : int
         The detector's centroid window margin around a region's box, px.
-
-    Returns
-    -------
-    offsets : ndarray (N, samples)
-        The nearest detection's distance from the streak's middle, px; inf where no piece of
-        the streak is a detection. 0 for a streak lit whole (its expected ridge
-        ``WHOLE_RIDGE`` times the threshold or more) or a point.
-    sigmas : ndarray (N, samples)
-        That detection's centroid sigma per axis as the solver computes it (its pixels' count,
-        box and summed counts), px; 0 where the streak is lit whole (its own sigma applies).
     """
     n_e = np.asarray(electrons, dtype=float).reshape(-1)
     streak = np.asarray(streaks_px, dtype=float).reshape(-1, 2)
     length = np.hypot(streak[:, 0], streak[:, 1])
     offsets, sigmas = np.zeros((len(n_e), samples)), np.zeros((len(n_e), samples))
+    # lit whole: one detection holding (nearly) all the light
+    whole = np.maximum(n_e * sensor.detector.gain_counts_per_e, 1.0)
+    counts = np.repeat(whole[:, None], samples, axis=1)
+    per_bin = np.zeros((len(n_e), len(FLUX_BINS) - 1))
+    at = np.clip(
+        np.searchsorted(FLUX_BINS, np.log10(whole), side="right") - 1, 0, len(FLUX_BINS) - 2
+    )
+    per_bin[np.arange(len(n_e)), at] = 1.0
     ridge = ridge_counts(sensor, n_e, length) / float(sensor.detection.lit_pixel_counts)
     for k in np.flatnonzero((ridge < WHOLE_RIDGE) & (length > 0)):
-        offsets[k], sigmas[k] = _one(sensor, float(n_e[k]), streak[k], rng, samples, margin_px)
-    return offsets, sigmas
+        offsets[k], sigmas[k], counts[k], per_bin[k] = _one(
+            sensor, float(n_e[k]), streak[k], rng, samples, margin_px
+        )
+    return Pieces(offsets, sigmas, counts, per_bin)
