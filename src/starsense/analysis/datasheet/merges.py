@@ -34,7 +34,9 @@ the stars the frames hold down to the faintest detected at that rate:
 * a streak whose ridge is near the threshold is lit in pieces where the noise lifts it, or not
   at all: matched in the fraction of draws where its nearest detected piece lands within the
   match radius (:mod:`~starsense.analysis.datasheet.pieces`), the pieces' offsets counted in
-  the frame's median residual.
+  the frame's median residual, and among the frame's brightest detections the verification
+  takes (``max_detections``), or within four of the piece's own sigma where no other piece of
+  its streak is (the solver's rematch).
 
 The prediction counts each star's information times its chance of being matched.
 """

@@ -24,11 +24,15 @@ the detector sees it:
   columns of a streak whose slope is at most 1 touch); a piece is a detection when it passes
   the detection logic's pixel count and its lit pixels' summed counts;
 * the offset of the nearest detection's centre of gravity (the lit pixels' counts) from the
-  middle, along the streak.
+  middle, along the streak; its own centroid sigma as the solver computes it (its box and summed
+  counts), where no other piece lies within its own four sigma of the middle; its summed counts,
+  and the streak's detections per bin of summed counts (the verification takes a frame's
+  brightest detections only, and a frame of long faint streaks holds hundreds of pieces).
 
-On rendered frames of undersampled designs (PSF sigma 0.56-0.61 px, 11-21 px streaks) the
+On rendered frames of two undersampled designs (PSF sigma 0.56-0.61 px, 11-21 px streaks) the
 fraction of stars with a detection within 1.5, 3 and 6 px of their middle follows the
-detector's within 0.1 across ridges of 0.5-4 times the threshold.
+detector's within 0.1 across ridges of 0.5-4 times the threshold; on 24 rendered faint streaks
+(PSF 0.55-1.5 px, 10-40 px, ridges 0.6-2 times the threshold) within 0.15, 0.02 on average.
 """
 
 from __future__ import annotations
