@@ -282,3 +282,14 @@ def test_pieces_alike_among_the_brightest_do_not_set_the_rate(catalog, k):
     sensor = _zoo00()
     sky = completed_sky(catalog, Solver(sensor=sensor).catalog)
     _right_within_4_sigma(sensor, sky, 160, k)
+
+
+def test_a_streak_of_no_length_among_the_candidates_is_not_turned_from():
+    # three streaks along x, 40, 38 and 0 px (a point): the 0 px one turns from nothing and
+    # confirms nothing; the reference is the longest that another confirms (warnings are errors)
+    axes = np.zeros((3, 2, 2))
+    axes[:, 0, 0] = [40.0**2 / 12, 38.0**2 / 12, 0.0]
+    axes[:, 1, 1] = 0.1
+    length2 = np.array([40.0, 38.0, 0.0]) ** 2
+    got = streaks_module._confirmed(axes, length2, 0.8, 2.0, np.array([True, True, True]))
+    assert got == 0

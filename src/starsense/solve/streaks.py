@@ -252,7 +252,8 @@ def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
     direction = np.linalg.eigh(axes)[1][:, :, -1]
     length = np.sqrt(length2)
     across = np.abs(direction @ np.column_stack([-direction[:, 1], direction[:, 0]]).T)
-    turned = across > width_px / length[None, :]  # [j, i]: streak j turned from streak i
+    with np.errstate(divide="ignore"):  # a streak of no length: nothing is turned from it
+        turned = across > width_px / length[None, :]  # [j, i]: streak j turned from streak i
     alike = (np.abs(length[:, None] - length[None, :]) <= width_px) & ~turned
     within = (length2[:, None] >= low * length2[None, :]) & (length2[:, None] <= length2[None, :])
     within &= ~turned & ~np.eye(len(length), dtype=bool)  # [j, i]: j confirms i
