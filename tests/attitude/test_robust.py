@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from attitude_fields import ARCSEC, add_noise, star_field
 from scipy.spatial.transform import Rotation
 
-from starsense.attitude.robust import pair_outliers, robust_attitude
+from starsense.attitude.robust import median_misfit, pair_outliers, robust_attitude
 from starsense.geometry.attitude import small_rotation_angles
 
 
@@ -59,3 +60,24 @@ def test_too_few_stars_or_a_disagreeing_majority_drop_nothing():
     # half of the stars moved: the median cannot tell which half is right
     _, body, ref, sigma, _ = _field(2, 10, 5)
     assert not pair_outliers(body, ref, sigma).any()
+
+
+def test_median_misfit_is_the_rayleigh_median_for_right_measurements():
+    rng = np.random.default_rng(3)
+    ref = rng.normal(size=(4000, 3))
+    ref /= np.linalg.norm(ref, axis=1)[:, None]
+    rot = Rotation.from_rotvec([0.1, -0.2, 0.3])
+    sigma = 1e-5
+    body = rot.apply(ref) + rng.normal(scale=sigma, size=ref.shape)  # ~ per axis across
+    body /= np.linalg.norm(body, axis=1)[:, None]
+    # the noise's part across each direction: 2-d, per-axis sigma -> median sqrt(2 ln 2);
+    # 4000 stars put the sample median within ~2 %
+    got = median_misfit(body, ref, sigma, rot)
+    assert got == pytest.approx(np.sqrt(2 * np.log(2)), rel=0.05)
+    # the same stars turned 20 sigma about an axis: a misfit of ~20 x sin(angle to the axis)
+    off = Rotation.from_rotvec([0.0, 0.0, 20 * sigma]) * rot
+    assert median_misfit(body, ref, sigma, off) > 10.0
+    # only the kept stars count
+    keep = np.zeros(len(ref), bool)
+    keep[:10] = True
+    assert median_misfit(body, ref, sigma, rot, keep=keep) < 3.0

@@ -293,3 +293,21 @@ def test_a_streak_of_no_length_among_the_candidates_is_not_turned_from():
     length2 = np.array([40.0, 38.0, 0.0]) ** 2
     got = streaks_module._confirmed(axes, length2, 0.8, 2.0, np.array([True, True, True]))
     assert got == 0
+
+
+def test_an_attitude_that_does_not_fit_its_streaks_is_not_reported(catalog):
+    """Trial 272 of a 579-frame Monte Carlo of the 3.5 deg design with 506 px streaks at
+    1 deg/s: the rate fitted to the streaks carried a spurious roll (the predicted streaks
+    turned by up to 5 deg and 5-10 % short), the capsules fell short of the streaks and the
+    matched stars were centroided 10-380 px along them; the attitude fitted to them was
+    17 arcsec (58 sigma) across the boresight and 101 arcsec of roll off. Its stars lie a
+    median of tens of their sigma from it (right ones: 1.18): no attitude is reported."""
+    from starsense.analysis import montecarlo as mc
+
+    name, params = zoo.zoo_designs(40, 23)[29]
+    sensor = zoo.make_sensor(name, **params)
+    sky = completed_sky(catalog, Solver(sensor=sensor).catalog)
+    status, solved, wrong = mc._trials(
+        sensor, sky, 23, 579, [272], 1.0 * DEG, "reed", None, WRONG_RAD
+    )[0][:3]
+    assert (status, solved, wrong) == ("unverified", False, False)

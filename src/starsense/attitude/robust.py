@@ -6,12 +6,15 @@ import numpy as np
 
 from starsense.attitude.estimate import estimate_attitude
 
-__all__ = ["OUTLIER_SIGMA", "pair_outliers", "robust_attitude"]
+__all__ = ["MISFIT_SIGMAS", "OUTLIER_SIGMA", "median_misfit", "pair_outliers", "robust_attitude"]
 
 
 #: a matched star whose residual exceeds this many of its own 1-sigma (per axis, so ~ sqrt(2)
 #: sigma expected in angle) is dropped from the final attitude: a blend or a close double star
 OUTLIER_SIGMA = 7.0
+#: an attitude whose kept stars lie a median of more than this many of their own sigma from it
+#: does not fit its measurements (right ones: 1.18); the solver reports no attitude
+MISFIT_SIGMAS = 10.0
 
 
 def pair_outliers(body, reference, sigma_rad) -> np.ndarray:
@@ -94,3 +97,21 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
         keep[worst] = False
         att = estimate_attitude(body[keep], reference[keep], sigma[keep], method="svd")
     return att, keep
+
+
+def median_misfit(body, reference, sigma_rad, rotation, *, keep=None) -> float:
+    """Return the median of the stars' residuals to an attitude in units of their own sigma.
+
+    ``body`` (N, 3) camera-frame and ``reference`` (N, 3) unit vectors, ``sigma_rad`` (N,) or a
+    number, ``rotation`` reference -> camera, ``keep`` (N,) the stars to count (default all).
+    Right measurements give about 1.18 (the median of a 2-d residual of per-axis sigma 1);
+    measurements all off their stars by many of their sigmas give that many.
+    """
+    body = np.asarray(body, dtype=float)
+    keep = np.ones(len(body), bool) if keep is None else np.asarray(keep, bool)
+    if not keep.any():
+        return 0.0
+    seen = rotation.apply(np.asarray(reference, dtype=float)[keep])
+    angle = np.linalg.norm(np.cross(body[keep], seen), axis=1)
+    sigma = np.broadcast_to(np.asarray(sigma_rad, dtype=float), (len(body),))[keep]
+    return float(np.median(angle / sigma))

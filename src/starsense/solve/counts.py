@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["detection_counts", "identification_counts", "max_candidates"]
+from starsense.solve.solution import Solution
+
+__all__ = ["detection_counts", "identification_counts", "max_candidates", "misfit_solution"]
 
 
 def detection_counts(image, det) -> dict:
@@ -62,3 +64,19 @@ def max_candidates(shape) -> int:
     blend, and identification uses only the brightest tens.
     """
     return max(500, int(shape[0]) * int(shape[1]) // 1000)
+
+
+def misfit_solution(n_detections: int, ident, miss: float, time_ms: float, stages):
+    """Return the unsolved result of a frame identified whose attitude does not fit its stars.
+
+    A smeared frame's stars are centroided over their streaks as a body rate predicts them
+    (:mod:`starsense.solve.streaks`); a rate fitted wrong (a spurious roll turns and shortens
+    the predicted streaks across the field) leaves the capsules short of the streaks and the
+    centroids tens of pixels along them: an attitude fitted to those is not reported.
+    """
+    why = (
+        f"identified, but the matched stars lie {miss:.0f} times their sigma (median) from the "
+        "attitude fitted to their streaks: the streaks' model does not fit this frame"
+    )
+    return Solution("unverified", why, n_detections=n_detections, time_ms=time_ms,
+                    stage_ms=stages, counts=identification_counts(ident))  # fmt: skip

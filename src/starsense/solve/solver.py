@@ -2,15 +2,12 @@
 
 image -> background -> detection -> centroids -> unit vectors -> identification -> attitude
 
-The optics are known three ways, from best to least:
-
-* a sensor (preset or TOML): its pinhole + distortion model unprojects the centroids;
-* a horizontal field of view (``fov_rad``): a pinhole with the principal point at the centre;
-  when the frame does not solve at that field, it is taken as an estimate and the scale is
-  searched as below, which refines the field;
-* nothing: the centroids are unprojected with a nominal field and the FOV-free pattern hashing
-  (edge ratios are scale-invariant) finds the scale over 5-30, 25-70, then 2.8-6 deg (Gaia;
-  :func:`starsense.identify.fields.unknown_field_plan`).
+The optics are known three ways, from best to least: a sensor (preset or TOML), whose pinhole +
+distortion model unprojects the centroids; a horizontal field of view (``fov_rad``), a pinhole
+with the principal point at the centre, taken as an estimate when the frame does not solve at
+that field; nothing: the centroids are unprojected with a nominal field and the FOV-free
+pattern hashing (edge ratios are scale-invariant) finds the scale over 5-30, 25-70, then
+2.8-6 deg (Gaia; :func:`starsense.identify.fields.unknown_field_plan`).
 
 The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
 (:mod:`starsense.attitude`), which also gives its covariance (Fialho & Mortari eq. 21) for a
@@ -28,7 +25,7 @@ from typing import Literal
 
 import numpy as np
 
-from starsense.attitude.robust import robust_attitude
+from starsense.attitude.robust import MISFIT_SIGMAS, median_misfit, robust_attitude
 from starsense.catalog.apparent import apparent_places_of
 from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
@@ -38,7 +35,12 @@ from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import blend_radius_px, blended, streak_reference
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
-from starsense.solve.counts import detection_counts, identification_counts, max_candidates
+from starsense.solve.counts import (
+    detection_counts,
+    identification_counts,
+    max_candidates,
+    misfit_solution,
+)
 from starsense.solve.extraction import Extraction, quick_detector, robust_detector
 from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
@@ -191,16 +193,11 @@ class Solver:
         return self._quick
 
     def field_plan(self) -> list[FieldRange]:
-        """Return the field ranges searched, in order, when the field is not known.
-
-        :func:`starsense.identify.fields.unknown_field_plan` of the Solver's catalogue.
-        """
+        """Return the field ranges searched, in order, when the field is not known (its plan)."""
         return self._identifiers.plan()
 
     def identifier(self, fov_rad: float | None = None, field_range: FieldRange | None = None):
         """Return the identifier of a known field or of one range of the unknown-field search.
-
-        Built (or loaded from the disk cache) once per field and kept.
 
         Parameters
         ----------
@@ -376,7 +373,7 @@ class Solver:
         matched, pixel_rad = np.asarray(ident.detection_index), fov / n_cols
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
-        att, _ = robust_attitude(body, ref, sigma * pixel_rad)
+        att, keep = robust_attitude(body, ref, sigma * pixel_rad)
         if streaks is not None:  # neighbours' streaks through the capsules: their photocentres
             held = streak_reference(
                 self.sensor, identifier.database, ref, index=ident.catalog_index,
@@ -386,7 +383,10 @@ class Solver:
                 electrons=streaks.electrons, clipped=streaks.clipped,
             )  # fmt: skip
             if held is not ref:
-                att, _ = robust_attitude(body, held, sigma * pixel_rad)
+                att, keep = robust_attitude(body, held, sigma * pixel_rad)
+            miss = median_misfit(body, held, sigma * pixel_rad, att.rotation, keep=keep)
+            if miss > MISFIT_SIGMAS:  # the streaks' model does not fit: no attitude
+                return misfit_solution(len(points.x), ident, miss, _ms(t0), stages)
         stages["attitude_ms"] = _ms(t3)
         return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
 
