@@ -72,12 +72,12 @@ def test_median_misfit_is_the_rayleigh_median_for_right_measurements():
     body /= np.linalg.norm(body, axis=1)[:, None]
     # the noise's part across each direction: 2-d, per-axis sigma -> median sqrt(2 ln 2);
     # 4000 stars put the sample median within ~2 %
-    got = median_misfit(body, ref, sigma, rot)
+    got = median_misfit(body, ref, sigma, rotation=rot)
     assert got == pytest.approx(np.sqrt(2 * np.log(2)), rel=0.05)
     # the same stars turned 20 sigma about an axis: a misfit of ~20 x sin(angle to the axis)
     off = Rotation.from_rotvec([0.0, 0.0, 20 * sigma]) * rot
-    assert median_misfit(body, ref, sigma, off) > 10.0
+    assert median_misfit(body, ref, sigma, rotation=off) > 10.0
     # only the kept stars count
     keep = np.zeros(len(ref), bool)
     keep[:10] = True
-    assert median_misfit(body, ref, sigma, rot, keep=keep) < 3.0
+    assert median_misfit(body, ref, sigma, rotation=rot, keep=keep) < 3.0

@@ -99,7 +99,7 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
     return att, keep
 
 
-def median_misfit(body, reference, sigma_rad, rotation, *, keep=None) -> float:
+def median_misfit(body, reference, sigma_rad, *, rotation, keep=None) -> float:
     """Return the median of the stars' residuals to an attitude in units of their own sigma.
 
     ``body`` (N, 3) camera-frame and ``reference`` (N, 3) unit vectors, ``sigma_rad`` (N,) or a

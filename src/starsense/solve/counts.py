@@ -66,7 +66,7 @@ def max_candidates(shape) -> int:
     return max(500, int(shape[0]) * int(shape[1]) // 1000)
 
 
-def misfit_solution(n_detections: int, ident, miss: float, time_ms: float, stages):
+def misfit_solution(n_detections: int, ident, miss: float, *, time_ms: float, stages):
     """Return the unsolved result of a frame identified whose attitude does not fit its stars.
 
     A smeared frame's stars are centroided over their streaks as a body rate predicts them

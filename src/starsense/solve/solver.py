@@ -384,9 +384,9 @@ class Solver:
             )  # fmt: skip
             if held is not ref:
                 att, keep = robust_attitude(body, held, sigma * pixel_rad)
-            miss = median_misfit(body, held, sigma * pixel_rad, att.rotation, keep=keep)
+            miss = median_misfit(body, held, sigma * pixel_rad, rotation=att.rotation, keep=keep)
             if miss > MISFIT_SIGMAS:  # the streaks' model does not fit: no attitude
-                return misfit_solution(len(points.x), ident, miss, _ms(t0), stages)
+                return misfit_solution(len(points.x), ident, miss, time_ms=_ms(t0), stages=stages)
         stages["attitude_ms"] = _ms(t3)
         return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
 
