@@ -9,10 +9,9 @@ that field; nothing: the centroids are unprojected with a nominal field and the 
 pattern hashing (edge ratios are scale-invariant) finds the scale over 5-30, 25-70, then
 2.8-6 deg (Gaia; :func:`starsense.identify.fields.unknown_field_plan`).
 
-The final attitude is re-estimated from all matched stars with the SVD solution of Wahba's problem
-(:mod:`starsense.attitude`), which also gives its covariance (Fialho & Mortari eq. 21) for a
-centroid noise of ``centroid_sigma_px``; against the stars' apparent places when the frame's
-time is known (:mod:`starsense.catalog.apparent`), so that it is the true ICRS attitude.
+The attitude is fitted to all matched stars (Wahba's problem by SVD, :mod:`starsense.attitude`,
+with its covariance, Fialho & Mortari eq. 21), against their apparent places when the frame's
+time is known (:mod:`starsense.catalog.apparent`): the true ICRS attitude.
 """
 
 from __future__ import annotations
@@ -50,6 +49,7 @@ from starsense.solve.radial import refine_identification
 from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
+from starsense.solve.streak_pairs import on_streaks
 from starsense.solve.streaks import matched_measurements
 from starsense.units import DEG
 
@@ -148,9 +148,7 @@ class Solver:
             if self.sensor is not None
             else DetectionThresholds(lit_pixel_counts=1e-6, min_pixels=3, min_integrated_counts=0)
         )
-        known_fov = (
-            2.0 * self.sensor.half_fov_rad[0] if self.sensor is not None else self.settings.fov_rad
-        )
+        known_fov = 2 * self.sensor.half_fov_rad[0] if self.sensor else self.settings.fov_rad
         catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
         self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
         self._detector: StarDetector | None = None
@@ -374,7 +372,10 @@ class Solver:
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, keep = robust_attitude(body, ref, sigma * pixel_rad)
-        if streaks is not None:  # neighbours' streaks through the capsules: their photocentres
+        if streaks is not None:  # pairs off their streaks out; neighbours' streaks: photocentres
+            pairs = on_streaks((att, keep), (ident, body, ref, sigma, streaks, matched),
+                               sensor=self.sensor, pixel_rad=pixel_rad)  # fmt: skip
+            (att, keep), (ident, body, ref, sigma, streaks, matched) = pairs
             held = streak_reference(
                 self.sensor, identifier.database, ref, index=ident.catalog_index,
                 rotation=att.rotation, streaks=streaks.streaks_px, pixel_rad=pixel_rad,
