@@ -37,6 +37,10 @@ _ZERO = np.float64(0.0)
 _ARANGE = {int: np.arange(4096), float: np.arange(4096.0)}
 
 
+#: the most times a capsule is moved to its centre of gravity (streak_centroids)
+ITERATIONS = 6
+
+
 def columns(*arrays: np.ndarray) -> np.ndarray:
     """Return the 1-D arrays (N,) as the columns of one (N, K) array (``np.stack(axis=1)``).
 
@@ -90,9 +94,9 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, *, streak, radius: floa
 
     The CoG is taken over the pixels within ``radius`` of a segment of the predicted streak
     (start to end) centred on the current estimate, and the segment moved there, until it
-    stays (at most 6 times). A faint streak breaks into pieces above the threshold, and a piece's
-    own centroid is off the star's mid-exposure position by up to half the streak; this
-    window, which spans the whole streak, is not.
+    stays (at most ``ITERATIONS`` times). A faint streak breaks into pieces above the
+    threshold, and a piece's own centroid is off the star's mid-exposure position by up to
+    half the streak; this window, which spans the whole streak, is not.
 
     Parameters
     ----------
@@ -113,7 +117,7 @@ def streak_centroid(sub: np.ndarray, x: float, y: float, *, streak, radius: floa
         noise sigma_r adds sigma_r^2 spread / counts^2 to the centroid's covariance).
     """
     out = None
-    for _ in range(6):
+    for _ in range(ITERATIONS):
         got = _segment_mask(sub.shape, x, y, streak, radius)
         if got is None:
             return out
@@ -209,7 +213,7 @@ def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
 
     The capsule around the segment lies inside its bounding box, so the mask is taken over a
     crop of the plane holding that box (one crop size for all regions and iterations); every
-    region iterates until it stays (at most 6 times), as one would alone.
+    region iterates until it stays (at most ``ITERATIONS`` times), as one would alone.
 
     Parameters
     ----------
@@ -255,7 +259,7 @@ def streak_centroids(planes: np.ndarray, x, y, *, streaks, radius: float):
     sx3, sy3, l3 = sx[:, None, None], sy[:, None, None], length2[:, None, None]
     y_x = np.array([y, x])  # where each capsule is centred: rows, columns
     live = np.arange(n)
-    for _ in range(6):
+    for _ in range(ITERATIONS):
         if len(live) == n:  # every region still moves: no selection of the constants
             yx, sxl, syl, l2, rch = y_x.copy(), sx3, sy3, l3, reach
         else:

@@ -29,11 +29,16 @@ pixel is clipped where the frame's clip (:attr:`~starsense.sensor.detector.Detec
 saturated streak's ridge holds no more light than the ADC gives, so a neighbour's light across
 it counts for less and its unclipped tails for more. Left out, the two put a bright star 1-3 px
 off its light on 635 px streaks of an 8-bit camera, tens of times its noise.
+
+Where a neighbour's streak reaches a capsule's end, the capsule chases its light and its
+noise grows (:mod:`starsense.solve.window_gain`): the star's along-track sigma is grown by as
+much (:func:`streak_reference`).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -41,8 +46,10 @@ from scipy.spatial.transform import Rotation
 from starsense.detect.streak import SYSTEMATIC, streak_centroids
 from starsense.render.smear import streak_stamp_expected
 from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
+from starsense.solve.window_gain import noise_growth, window_gain
 
 __all__ = [
+    "Photocentres",
     "blend_radius_px",
     "blended",
     "frame_zero_point_e",
@@ -62,6 +69,16 @@ SAME_STAR_RAD = 1e-6
 #: slices across a capsule its light is integrated over (Gauss-Legendre nodes)
 _SLICES = 24
 _GAUSS = np.polynomial.legendre.leggauss(_SLICES)
+
+
+class Photocentres(NamedTuple):
+    """Where matched stars' capsules land (:func:`streak_photocentres`)."""
+
+    #: unit vectors (K, 3)
+    vectors: np.ndarray
+    #: each capsule's window gain at its centroid (K,), 0 alone
+    #: (:func:`~starsense.solve.window_gain.window_gain`)
+    gain: np.ndarray
 
 
 def blend_radius_px(psf_sigma_px: float) -> float:
@@ -164,11 +181,13 @@ def streak_photocentres(
 
     Returns
     -------
-    ndarray (K, 3)
-        Unit vectors; a star with no neighbour in its capsule keeps its own direction.
+    Photocentres
+        Unit vectors (K, 3), a star with no neighbour in its capsule keeping its own
+        direction, and each capsule's window gain (0 without ``starts_px``).
     """
     index = np.asarray(index, dtype=int)
     out = np.array(vectors[index], dtype=float)
+    gain = np.zeros(len(index))
     sigma = float(sensor.detector.psf_sigma_px)
     streaks = np.asarray(streaks_px, dtype=float).reshape(-1, 2)
     length = np.hypot(streaks[:, 0], streaks[:, 1])
@@ -209,7 +228,7 @@ def streak_photocentres(
         across = np.concatenate([[0.0], across_n[can]])
         flux = 10.0 ** (-0.4 * np.concatenate([[mags[i]], np.asarray(sky_mags)[near]]))
         if starts_px is not None:  # the centroider itself, from where it started
-            got = _pixel_shift(
+            got, gain[k] = _pixel_shift(
                 sensor, np.column_stack([np.append(x0[k], xn), np.append(y0[k], yn)]), flux,
                 streak=streaks[k] * float(length_px[k]) / length[k], start=starts_px[k],
                 length=length[k], radius=radius_px, zero_point_e=zero_point_e,
@@ -225,13 +244,13 @@ def streak_photocentres(
         dy = shift[0] * u[1] + shift[1] * u[0]
         cam_k = sensor.unproject(np.array([x0[k] + dx]), np.array([y0[k] + dy]))[0]
         out[k] = rotation.inv().apply(cam_k)
-    return out
+    return Photocentres(out, gain)
 
 
 def streak_reference(
     sensor, db, ref, *, index, rotation, streaks, pixel_rad, starts_px=None, sky=None,
     electrons=None, clipped=None,
-) -> np.ndarray:  # fmt: skip
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Return ``ref`` with each smeared star's blend replaced by its capsule's photocentre.
 
     ``ref`` (K, 3) holds the matched stars' reference directions with their close doubles'
@@ -241,12 +260,15 @@ def streak_reference(
     (K,) and ``clipped`` (K,) their capsules' sums and whether they clipped, which give the
     frame's zero point (:func:`frame_zero_point_e`; None: the rendering is not clipped).
     Every star is then moved to where its smeared light is centred (:func:`track_mean`).
+    Returns the references (``ref`` itself when nothing moved) and the factor (K,) each
+    star's along-track sigma grows by (:func:`~starsense.solve.window_gain.noise_growth` of
+    its capsule's window gain).
     """
     sigma = sensor.detector.psf_sigma_px
     blended = photocentres(
         db.vectors, db.mags, db.tree, index=index, radius_rad=blend_radius_px(sigma) * pixel_rad
     )
-    capsule = streak_photocentres(
+    capsule, gain = streak_photocentres(
         sensor,
         rotation,
         db.vectors,
@@ -267,10 +289,11 @@ def streak_reference(
     if moved.any():  # a capsule holds a neighbour the blend did not
         new = ref[moved] - blended[moved] + capsule[moved]
         out[moved] = new / np.linalg.norm(new, axis=1)[:, None]
+    grow = noise_growth(gain)
     mean = track_mean(sensor, out, rotation=rotation, streaks_px=streaks)
     if mean is out and not moved.any():  # nothing to refit
-        return ref
-    return mean
+        return ref, grow
+    return mean, grow
 
 
 #: the brightest unclipped streaks a frame's zero point is the median of (the faint ones carry
@@ -376,7 +399,8 @@ def _pixel_shift(
     pixel clipped at the detector's :attr:`~starsense.sensor.detector.Detector.clip_e`; then
     :func:`starsense.detect.streak.streak_centroids` is run from there on the star with its
     neighbours and on the star alone: the same pixels, the same start, the same stop rule.
-    Returns (dx, dy), px.
+    Returns (dx, dy), px, and the window's gain where it landed with the neighbours
+    (:func:`~starsense.solve.window_gain.window_gain`).
     """
     seg = np.asarray(streak, dtype=float)
     u = seg / math.hypot(*seg)
@@ -407,8 +431,9 @@ def _pixel_shift(
         streaks=np.stack([seg, seg]), radius=radius,
     )[:2]  # fmt: skip
     if not (np.isfinite(gx).all() and np.isfinite(gy).all()):
-        return np.zeros(2)
-    return np.array([gx[0] - gx[1], gy[0] - gy[1]])
+        return np.zeros(2), 0.0
+    gain = window_gain(planes[0], np.array([gx[0], gy[0]]), seg, radius=radius)
+    return np.array([gx[0] - gx[1], gy[0] - gy[1]]), gain
 
 
 def _capsule_centre(along, across, flux, length, segment, radius, sigma):

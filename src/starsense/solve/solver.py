@@ -24,7 +24,7 @@ from typing import Literal
 
 import numpy as np
 
-from starsense.attitude.robust import MISFIT_SIGMAS, median_misfit, robust_attitude
+from starsense.attitude.robust import MISFIT_SIGMAS, robust_attitude
 from starsense.catalog.apparent import apparent_places_of
 from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
@@ -32,7 +32,7 @@ from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
-from starsense.solve.blends import blend_radius_px, blended, streak_reference
+from starsense.solve.blends import blend_radius_px, blended
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import (
     detection_counts,
@@ -49,7 +49,7 @@ from starsense.solve.radial import refine_identification
 from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
-from starsense.solve.streak_pairs import on_streaks
+from starsense.solve.streak_pairs import smeared_fit
 from starsense.solve.streaks import matched_measurements
 from starsense.units import DEG
 
@@ -372,20 +372,12 @@ class Solver:
         ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, keep = robust_attitude(body, ref, sigma * pixel_rad)
-        if streaks is not None:  # pairs off their streaks out; neighbours' streaks: photocentres
-            pairs = on_streaks((att, keep), (ident, body, ref, sigma, streaks, matched),
-                               sensor=self.sensor, pixel_rad=pixel_rad)  # fmt: skip
-            (att, keep), (ident, body, ref, sigma, streaks, matched) = pairs
-            held = streak_reference(
-                self.sensor, identifier.database, ref, index=ident.catalog_index,
-                rotation=att.rotation, streaks=streaks.streaks_px, pixel_rad=pixel_rad,
-                starts_px=np.column_stack([points.x[matched], points.y[matched]]),
+        if streaks is not None:  # smeared: the pairs on their streaks, at their photocentres
+            att, ident, miss = smeared_fit(
+                (att, keep), (ident, body, ref, sigma, streaks, matched), sensor=self.sensor,
+                pixel_rad=pixel_rad, database=identifier.database, points=points,
                 sky=self._identifiers.sky(identifier.database.params.band),
-                electrons=streaks.electrons, clipped=streaks.clipped,
             )  # fmt: skip
-            if held is not ref:
-                att, keep = robust_attitude(body, held, sigma * pixel_rad)
-            miss = median_misfit(body, held, sigma * pixel_rad, rotation=att.rotation, keep=keep)
             if miss > MISFIT_SIGMAS:  # the streaks' model does not fit: no attitude
                 return misfit_solution(len(points.x), ident, miss, time_ms=_ms(t0), stages=stages)
         stages["attitude_ms"] = _ms(t3)

@@ -12,6 +12,11 @@ has its centre within its radius of the streak's line, whatever the pieces along
 :func:`on_streaks` drops, worst first, the pair whose centroid lies across its star's predicted
 streak by more than the capsule's radius plus ``MATCH_SIGMAS`` of its own across-track sigma,
 refitting after each, while more than three pairs remain.
+
+:func:`smeared_fit` then fits the attitude as a smeared frame needs it: those pairs dropped,
+each star's reference moved to where its capsule lands with its neighbours' streaks, and its
+along-track sigma grown where its capsule chases a neighbour's light
+(:func:`starsense.solve.blends.streak_reference`).
 """
 
 from __future__ import annotations
@@ -20,11 +25,12 @@ import dataclasses
 
 import numpy as np
 
-from starsense.attitude.robust import robust_attitude
+from starsense.attitude.robust import median_misfit, robust_attitude
+from starsense.solve.blends import streak_reference
 from starsense.solve.rematch import MATCH_SIGMAS
 from starsense.solve.streaks import CAPSULE_PAD_PX, CAPSULE_SIGMAS
 
-__all__ = ["across_excess", "on_streaks"]
+__all__ = ["across_excess", "on_streaks", "smeared_fit"]
 
 
 def across_excess(sensor, streaks, ref, *, rotation) -> np.ndarray:
@@ -81,6 +87,48 @@ def on_streaks(fit, pairs, *, sensor, pixel_rad: float):
         catalog_id=np.asarray(ident.catalog_id)[on],
     )
     return (att, keep), (ident, *(_rows(a, on) for a in (body, ref, sigma, streaks, matched)))
+
+
+def smeared_fit(fit, pairs, *, sensor, pixel_rad: float, database, sky, points):
+    """Return the attitude of a smeared frame, its identification and its median misfit.
+
+    ``fit`` and ``pairs`` are as :func:`on_streaks` takes them, ``database`` the identification
+    database, ``sky`` the stars that may lie in a capsule
+    (:func:`starsense.solve.blends.streak_photocentres`) and ``points`` the frame's detections
+    (where each capsule started). The pairs off their streaks are dropped
+    (:func:`on_streaks`); the references are moved to the capsules' photocentres, each sigma
+    grown along its streak by its capsule's gain, and the attitude refitted
+    (:func:`starsense.solve.blends.streak_reference`). Returns ``(attitude, identification,
+    misfit)``: the matched stars' median residual in their sigmas
+    (:func:`starsense.attitude.robust.median_misfit`).
+    """
+    (att, keep), (ident, body, ref, sigma, streaks, matched) = on_streaks(
+        fit, pairs, sensor=sensor, pixel_rad=pixel_rad
+    )
+    held, grow = streak_reference(
+        sensor, database, ref, index=ident.catalog_index, rotation=att.rotation,
+        streaks=streaks.streaks_px, pixel_rad=pixel_rad,
+        starts_px=np.column_stack([points.x[matched], points.y[matched]]), sky=sky,
+        electrons=streaks.electrons, clipped=streaks.clipped,
+    )  # fmt: skip
+    sigma_rad = np.asarray(sigma, dtype=float) * _along_grown(streaks, grow) * pixel_rad
+    if held is not ref or (grow > 1.0).any():
+        att, keep = robust_attitude(body, held, sigma_rad)
+    return att, ident, median_misfit(body, held, sigma_rad, rotation=att.rotation, keep=keep)
+
+
+def _along_grown(streaks, grow) -> np.ndarray:
+    """Return the factor on each mean-of-axes sigma for its along-track sigma grown ``grow``."""
+    seg = np.asarray(streaks.streaks_px, dtype=float)
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    u = seg / np.where(length > 0.0, length, 1.0)[:, None]
+    normal = np.column_stack([-u[:, 1], u[:, 0]])
+    cov = np.asarray(streaks.cov_px2, dtype=float)
+    along = np.einsum("ki,kij,kj->k", u, cov, u)
+    across = np.einsum("ki,kij,kj->k", normal, cov, normal)
+    total = along + across
+    safe = np.where(total > 0.0, total, 1.0)
+    return np.where(total > 0.0, np.sqrt((grow**2 * along + across) / safe), 1.0)
 
 
 def _rows(a, on):
