@@ -47,12 +47,21 @@ def window_gain(plane, centre, seg, *, radius: float) -> float:
     """
     seg = np.asarray(seg, dtype=float)
     u = seg / math.hypot(*seg)
-    rows, cols = np.indices(plane.shape, dtype=float)
+    centre = np.asarray(centre, dtype=float)
+    # the pixels either capsule can hold: its segment's ends one pixel either way, and radius
+    ends = centre + np.array([[-0.5], [0.5]]) * seg + np.array([[-1.0], [1.0]])[:, :, None] * u
+    lo = np.maximum(np.floor(ends.reshape(-1, 2).min(axis=0) - radius), 0).astype(int)
+    hi = np.minimum(np.ceil(ends.reshape(-1, 2).max(axis=0) + radius) + 1, plane.shape[::-1])
+    hi = hi.astype(int)
+    sub = np.asarray(plane, dtype=float)[lo[1] : hi[1], lo[0] : hi[0]]
+    rows, cols = np.indices(sub.shape, dtype=float)
+    rows += lo[1]
+    cols += lo[0]
     got = []
     for c in (centre + u, centre - u):
         t = np.clip(((cols - c[0]) * seg[0] + (rows - c[1]) * seg[1]) / (seg @ seg), -0.5, 0.5)
         inside = np.hypot(cols - c[0] - t * seg[0], rows - c[1] - t * seg[1]) <= radius
-        w = np.where(inside, plane, 0.0)
+        w = np.where(inside, sub, 0.0)
         total = w.sum()
         if total <= 0.0:
             return 0.0
