@@ -205,12 +205,14 @@ def _streak_model(sensor, image, x, y, order, **measure):
     # a faint streak's pieces join along its line (gaps where the noise took the ridge below
     # the threshold), within the capsule the stars are centroided over
     measure["bridge_px"] = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
-    # the brightest streaks first: where they measure short of half the shortest the frame is
-    # at rest, and the other windows are not read (it pays for N_RATE_STARS windows only)
-    bright = use[:N_RATE_STARS]
-    first = streak_axes(image, x[bright], y[bright], half_px=half, **measure)
+    # the brightest streaks are whole: a frame where theirs are short is not smeared, and the
+    # other windows are not read (a frame at rest pays for N_RATE_STARS windows only)
+    first = streak_axes(
+        image, x[use[:N_RATE_STARS]], y[use[:N_RATE_STARS]], half_px=half, **measure
+    )
     first2 = first[:, 0, 0] + first[:, 1, 1]
-    first2, screen = first2[np.isfinite(first2)], 0.5 * shortest
+    first2 = first2[np.isfinite(first2)]
+    screen = 0.5 * shortest  # a frame at rest measures ~0: it pays for these windows only
     if len(first2) == 0 or np.median(first2) < screen**2:
         return None
     rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
@@ -219,8 +221,9 @@ def _streak_model(sensor, image, x, y, order, **measure):
     ok = np.flatnonzero(np.isfinite(length2))
     if len(ok) < 3:
         return None
-    # the rate comes from the streaks within SYSTEMATIC of the reference one (_confirmed), the
-    # longest first (a rate about the boresight lengthens them with the distance from it)
+    # the rate comes from the streaks within SYSTEMATIC of the reference one (_confirmed),
+    # the longest first (a rate about the boresight lengthens them with the distance from it:
+    # the outer ring of the field keeps them)
     ok = ok[np.argsort(-length2[ok], kind="stable")]
     if np.median(length2[ok[:N_RATE_STARS]]) < screen**2:
         return None
