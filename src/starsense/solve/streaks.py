@@ -24,9 +24,11 @@ Once the frame is identified, :func:`streak_centroids_of`:
    where their ridges cross the pixel rows, can outnumber them), of those at least half as
    long as the longest; only streaks within that shortfall of it take part, and a streak the fitted
    rate does not predict is dropped and the rate refitted (with fewer than 3 of them, their
-   mean streak stands for every star's). A frame whose streaks, as the fitted rate draws
-   them (a faint streak's lit pixels fall short of it), are all shorter than 2 PSF sigmas
-   plus the centroid margin on each side keeps its centroids: its boxes hold each streak;
+   mean streak stands for every star's). A frame whose brightest matched stars' streaks
+   (median of the brightest ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the
+   detector's centroid margin on each side is left as it is: its box of lit pixels, widened
+   by that margin, holds each streak whole (frames at rest show up to ~3 px of elongation
+   from pixelisation and noise, and keep their centroids);
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
@@ -194,9 +196,7 @@ def _rate(sensor, x, y, axes) -> np.ndarray:
 def _streak_model(sensor, image, x, y, order, **measure):
     """Return the streaks of stars (x, y) -> (N, 2) px from the brightest ones, or None.
 
-    None when fewer than 3 streaks are measured or they are short (module docstring): the
-    measured ones (short of a faint streak) only screen out a frame at rest, the longest the
-    fitted rate draws decides, as the datasheet's prediction does on the true ones.
+    None when fewer than 3 streaks are measured or they are short (module docstring).
     """
     sigma = sensor.detector.psf_sigma_px
     use = order[: 3 * N_RATE_STARS]
@@ -212,8 +212,7 @@ def _streak_model(sensor, image, x, y, order, **measure):
     )
     first2 = first[:, 0, 0] + first[:, 1, 1]
     first2 = first2[np.isfinite(first2)]
-    screen = 0.5 * shortest  # a frame at rest measures ~0: it pays for these windows only
-    if len(first2) == 0 or np.median(first2) < screen**2:
+    if len(first2) == 0 or np.median(first2) < shortest**2:
         return None
     rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
     axes = np.concatenate([first, rest])
@@ -225,7 +224,7 @@ def _streak_model(sensor, image, x, y, order, **measure):
     # the longest first (a rate about the boresight lengthens them with the distance from it:
     # the outer ring of the field keeps them)
     ok = ok[np.argsort(-length2[ok], kind="stable")]
-    if np.median(length2[ok[:N_RATE_STARS]]) < screen**2:
+    if np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
         return None
     low = (1.0 - SYSTEMATIC) ** 2
     top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0, ok < N_RATE_STARS)
@@ -235,14 +234,9 @@ def _streak_model(sensor, image, x, y, order, **measure):
     if len(ok) < 3:  # one or two whole streaks: theirs, the same everywhere
         m = axes[ok].sum(axis=0)
         vec = np.linalg.eigh(m)[1][:, -1] * math.sqrt(float(np.trace(m)) / len(ok))
-        model = lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))  # noqa: E731
-    else:
-        rate = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
-        model = lambda xs, ys: _streaks(sensor, xs, ys, rate)  # noqa: E731
-    drawn = model(x, y)
-    if float(np.max(np.hypot(drawn[:, 0], drawn[:, 1]))) < shortest:
-        return None
-    return model
+        return lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))
+    rate = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
+    return lambda xs, ys: _streaks(sensor, xs, ys, rate)
 
 
 def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
