@@ -24,11 +24,10 @@ Once the frame is identified, :func:`streak_centroids_of`:
    where their ridges cross the pixel rows, can outnumber them), of those at least half as
    long as the longest; only streaks within that shortfall of it take part, and a streak the fitted
    rate does not predict is dropped and the rate refitted (with fewer than 3 of them, their
-   mean streak stands for every star's). A frame whose brightest matched stars' streaks
-   (median of the brightest ``N_RATE_STARS``) are shorter than 2 PSF sigmas plus the
-   detector's centroid margin on each side is left as it is: its box of lit pixels, widened
-   by that margin, holds each streak whole (frames at rest show up to ~3 px of elongation
-   from pixelisation and noise, and keep their centroids);
+   mean streak stands for every star's). A frame whose streaks, as the fitted rate draws
+   them (a faint streak's lit pixels fall short of it), are all shorter than 2 PSF sigmas
+   plus the centroid margin on each side keeps its centroids (with fewer than 3 streaks
+   agreeing on the rate, the brightest measured ones decide): its boxes hold each streak;
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
@@ -196,23 +195,22 @@ def _rate(sensor, x, y, axes) -> np.ndarray:
 def _streak_model(sensor, image, x, y, order, **measure):
     """Return the streaks of stars (x, y) -> (N, 2) px from the brightest ones, or None.
 
-    None when fewer than 3 streaks are measured or they are short (module docstring).
+    None when fewer than 3 streaks are measured or they are short (module docstring): the
+    longest the fitted rate draws decides, as the datasheet's prediction does on the true ones.
     """
     sigma = sensor.detector.psf_sigma_px
     use = order[: 3 * N_RATE_STARS]
     half = math.ceil(0.5 * float(np.max(measure.pop("extent_px")[use])) + 3.0 * sigma + 4.0)
     shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * measure.pop("margin_px")
-    # a faint streak's pieces join along its line (gaps where the noise took the ridge below
-    # the threshold), within the capsule the stars are centroided over
+    # a faint streak's pieces (gaps where the noise took its ridge below the threshold) join
     measure["bridge_px"] = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
-    # the brightest streaks are whole: a frame where theirs are short is not smeared, and the
-    # other windows are not read (a frame at rest pays for N_RATE_STARS windows only)
-    first = streak_axes(
-        image, x[use[:N_RATE_STARS]], y[use[:N_RATE_STARS]], half_px=half, **measure
-    )
+    # the brightest streaks first: where they measure short of half the shortest the frame is
+    # at rest, and the other windows are not read (it pays for N_RATE_STARS windows only)
+    bright = use[:N_RATE_STARS]
+    first = streak_axes(image, x[bright], y[bright], half_px=half, **measure)
     first2 = first[:, 0, 0] + first[:, 1, 1]
-    first2 = first2[np.isfinite(first2)]
-    if len(first2) == 0 or np.median(first2) < shortest**2:
+    first2, screen = first2[np.isfinite(first2)], 0.5 * shortest
+    if len(first2) == 0 or np.median(first2) < screen**2:
         return None
     rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
     axes = np.concatenate([first, rest])
@@ -220,23 +218,28 @@ def _streak_model(sensor, image, x, y, order, **measure):
     ok = np.flatnonzero(np.isfinite(length2))
     if len(ok) < 3:
         return None
-    # the rate comes from the streaks within SYSTEMATIC of the reference one (_confirmed),
-    # the longest first (a rate about the boresight lengthens them with the distance from it:
-    # the outer ring of the field keeps them)
+    # the rate: the streaks within SYSTEMATIC of the reference one (_confirmed), longest first
     ok = ok[np.argsort(-length2[ok], kind="stable")]
-    if np.median(length2[ok[:N_RATE_STARS]]) < shortest**2:
+    if np.median(length2[ok[:N_RATE_STARS]]) < screen**2:
         return None
     low = (1.0 - SYSTEMATIC) ** 2
     top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0, ok < N_RATE_STARS)
     typical2 = float(length2[ok[top]])
     ok = ok[top:][length2[ok[top:]] >= low * typical2]
     ok = ok[np.argsort(-length2[ok], kind="stable")][:N_RATE_STARS]
-    if len(ok) < 3:  # one or two whole streaks: theirs, the same everywhere
+    if len(ok) < 3:  # one or two whole streaks (or a blend): the brightest measured decide
+        if np.median(first2) < shortest**2:
+            return None
         m = axes[ok].sum(axis=0)
         vec = np.linalg.eigh(m)[1][:, -1] * math.sqrt(float(np.trace(m)) / len(ok))
-        return lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))
-    rate = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
-    return lambda xs, ys: _streaks(sensor, xs, ys, rate)
+        model = lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))  # noqa: E731
+    else:
+        rate = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
+        model = lambda xs, ys: _streaks(sensor, xs, ys, rate)  # noqa: E731
+    drawn = model(x, y)
+    if float(np.max(np.hypot(drawn[:, 0], drawn[:, 1]))) < shortest:
+        return None
+    return model
 
 
 def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:

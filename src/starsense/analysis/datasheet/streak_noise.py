@@ -87,9 +87,9 @@ class StreakErrors:
 def is_streaked(sensor, streak_px: float, margin_px: int = 2) -> bool:
     """Return whether the solver re-centroids a frame whose streaks are ``streak_px`` long.
 
-    The solver keeps the detector's centroids when its brightest streaks are shorter than
-    ``MIN_STREAK_SIGMAS`` PSF sigmas plus the centroid margin on each side
-    (:mod:`starsense.solve.streaks`).
+    The solver keeps the detector's centroids when the streaks its fitted rate draws are all
+    shorter than ``MIN_STREAK_SIGMAS`` PSF sigmas plus the centroid margin on each side
+    (:mod:`starsense.solve.streaks`); here the longest true streak of the frame decides.
     """
     return streak_px >= MIN_STREAK_SIGMAS * sensor.detector.psf_sigma_px + 2.0 * margin_px
 
