@@ -60,7 +60,7 @@ def pair_outliers(body, reference, sigma_rad) -> np.ndarray:
 _HALF_NORMAL_MEDIAN = 0.6744897501960817
 
 
-def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
+def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None):
     """Estimate the attitude, dropping the stars whose residual is an outlier.
 
     A blended or double star is identified right but centroided at the photocentre of the
@@ -78,13 +78,16 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5):
         Each star's 1-sigma direction noise, rad.
     max_drop : int
         Most stars dropped.
+    keep : ndarray (N,) of bool, optional
+        The stars to start from (a refit after a first one's outliers), in place of
+        :func:`pair_outliers`'.
 
     Returns
     -------
     AttitudeSolution, and the mask of the stars kept (N,)
     """
     sigma = np.broadcast_to(np.asarray(sigma_rad, dtype=float), (len(body),))
-    keep = ~pair_outliers(body, reference, sigma)
+    keep = ~pair_outliers(body, reference, sigma) if keep is None else np.array(keep, dtype=bool)
     att = estimate_attitude(body[keep], reference[keep], sigma[keep], method="svd")
     for _ in range(max_drop):
         if keep.sum() <= 3:

@@ -33,6 +33,7 @@ from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import blend_radius_px, blended
+from starsense.solve.box_blends import box_fit, window_fields
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import (
     detection_counts,
@@ -268,7 +269,10 @@ class Solver:
             return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
 
         own = detection_sigmas_px(self.sensor, det, margin_px=detector.margin_px, shape=a.shape)
-        points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections", own)
+        windows = window_fields(det, detector, a.shape)
+        points = CentroidPoints(
+            det.x, det.y, det.integrated_counts, a.shape, "detections", own, **windows
+        )
         sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time, not first, not first)
         return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
@@ -380,6 +384,10 @@ class Solver:
             )  # fmt: skip
             if miss > MISFIT_SIGMAS:  # the streaks' model does not fit: no attitude
                 return misfit_solution(len(points.x), ident, miss, time_ms=_ms(t0), stages=stages)
+        elif self.sensor is not None and points.windows is not None:  # neighbours in windows
+            att = box_fit((att, keep), (ident, body, ref, sigma, matched), sensor=self.sensor,
+                          pixel_rad=pixel_rad, database=identifier.database, points=points,
+                          sky=self._identifiers.sky(identifier.database.params.band))  # fmt: skip
         stages["attitude_ms"] = _ms(t3)
         return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
 

@@ -143,9 +143,9 @@ class StarModel:
 
         ``star_counts``: the V magnitudes of every star of the catalogue the frames hold (to
         its faintest), for the confusion of faint neighbours; None leaves it out.
-        ``unmodelled``: the V magnitudes of those the solver's catalogue lacks, whose streaks
-        blend unmodelled under slew (the solver models the others',
-        :func:`starsense.solve.blends.streak_reference`); None: all of ``star_counts``.
+        ``unmodelled``: the V magnitudes of those the solver's catalogue lacks, whose light in
+        a window at rest (:mod:`starsense.solve.box_blends`) or a capsule under slew
+        (:func:`starsense.solve.blends.streak_reference`) it does not model; None: all.
         ``modelled``: the V magnitudes of those it models, whose pulls it misses by
         ``flux_error`` of them (the flux ratio its catalogue gives,
         :func:`starsense.analysis.datasheet.catalogue.flux_ratio_error`).
@@ -163,13 +163,16 @@ class StarModel:
         conf = near = None
         if star_counts is not None:
             counts = np.asarray(star_counts, dtype=float)
-            # the stars below the detection limit: unresolved, they sit in the windows
-            conf = _confusion(sensor, sens, noise, counts[counts > faint_mag])
             blends = counts if unmodelled is None else np.asarray(unmodelled, dtype=float)
+            # faint stars in the windows: the solver models its catalogue's (box_blends)
+            conf = _confusion(sensor, sens, noise, blends[blends > faint_mag])
             flux, rho = _neighbour_classes(sensor, sens, blends)
             share = np.ones(len(flux))
             if modelled is not None and flux_error > 0:
-                f_m, rho_m = _neighbour_classes(sensor, sens, np.asarray(modelled, dtype=float))
+                held = np.asarray(modelled, dtype=float)
+                missed = _confusion(sensor, sens, noise, held[held > faint_mag])
+                conf = np.hypot(conf, flux_error * missed)
+                f_m, rho_m = _neighbour_classes(sensor, sens, held)
                 flux, rho = np.append(flux, f_m), np.append(rho, rho_m)
                 share = np.append(share, np.full(len(f_m), float(flux_error)))
             near = (flux, rho, share)
