@@ -129,7 +129,8 @@ def box_reference(sensor, ref, plain, *, rotation, mags, windows, sky, zero_poin
     """
     sigma = float(sensor.detector.psf_sigma_px)
     sky_vectors, sky_mags, sky_tree = sky
-    cam = rotation.apply(plain)
+    m = rotation.as_matrix()  # reference -> camera (the matrix: Rotation's calls cost more)
+    cam = plain @ m.T
     x0, y0 = sensor.project(cam)
     win = np.asarray(windows, dtype=float)
     # the window's farthest corner from the star, and the PSF's tail beyond it, px
@@ -151,7 +152,7 @@ def box_reference(sensor, ref, plain, *, rotation, mags, windows, sky, zero_poin
     near = np.concatenate([np.asarray(v, dtype=int) for v in lists])
     other = np.linalg.norm(sky_vectors[near] - plain[owner], axis=1) > SAME_STAR_RAD
     owner, near = owner[other], near[other]
-    xn, yn = sensor.project(rotation.apply(sky_vectors[near]))
+    xn, yn = sensor.project(sky_vectors[near] @ m.T)
     tail = _REACH_SIGMAS * sigma + 0.5  # a neighbour's PSF reaches the window
     can = (xn > win[owner, 2] - tail) & (xn < win[owner, 3] - 1.0 + tail)
     can &= (yn > win[owner, 0] - tail) & (yn < win[owner, 1] - 1.0 + tail)
@@ -182,7 +183,7 @@ def box_reference(sensor, ref, plain, *, rotation, mags, windows, sky, zero_poin
         return out, moved
     k, shift = stars[big], shift[big]
     there = sensor.unproject(x0[k] + shift[:, 0], y0[k] + shift[:, 1])
-    new = ref[k] + rotation.inv().apply(there - cam[k])
+    new = ref[k] + (there - cam[k]) @ m
     out[k] = new / np.linalg.norm(new, axis=1)[:, None]
     moved[k] = True
     return out, moved
