@@ -2,26 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 from photutils.centroids import centroid_com
+from zoo_trials import zoo_trial
 
-from starsense.analysis.inputs import at_epoch, completed_sky
-from starsense.catalog import load_catalog
 from starsense.geometry.attitude import small_rotation_angles
-from starsense.geometry.sampling import random_attitudes
 from starsense.render.psf import gaussian_stamp
-from starsense.render.scene import render_frame
-from starsense.solve import Solver
 from starsense.solve.box_blends import window_shifts_px
-
-_PATH = Path(__file__).resolve().parents[2] / "bench" / "zoo.py"
-_spec = importlib.util.spec_from_file_location("starsense_bench_zoo_box", _PATH)
-zoo = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(zoo)
 
 
 def _photutils_cog(sources, window, *, sigma, clip=None, power=1):
@@ -100,15 +88,7 @@ def test_a_bright_pair_lit_as_one_region_is_referenced_to_its_window():
     lands with the neighbour, the attitude lies within 3 of its sigma on every axis (a right
     solution's error is Gaussian in its sigma: 3 sigma on any of three axes is exceeded by
     chance in 0.8 % of frames)."""
-    name, params = zoo.zoo_designs(40, 23)[19]
-    sensor = zoo.make_sensor(name, **params)
-    catalog = load_catalog("hipparcos")
-    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
-    sky = at_epoch(completed_sky(catalog, solver.catalog), solver.catalog.epoch_yr)
-    rng = np.random.default_rng(np.random.SeedSequence(23).spawn(1834)[1607])
-    truth = random_attitudes(1, rng)[0]
-    rng.uniform(0, 2 * np.pi)  # the Monte Carlo's rate direction (at rest: no rate)
-    frame = render_frame(sensor, truth, sky, rng=rng, keep_expected=False, fast_noise=True)
+    _, solver, truth, frame = zoo_trial(19, seed=23, n_trials=1834, trial=1607)
     sol = solver(frame.image)
     assert sol.solved
     z = small_rotation_angles(truth, sol.rotation) / np.asarray(sol.sigma_rad)

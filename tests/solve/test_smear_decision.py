@@ -2,25 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-import math
-from pathlib import Path
-
 import numpy as np
+from zoo_trials import zoo_trial
 
-from starsense.analysis.inputs import at_epoch, completed_sky
-from starsense.catalog import load_catalog
 from starsense.geometry.attitude import small_rotation_angles
-from starsense.geometry.sampling import random_attitudes
-from starsense.render.scene import render_frame
-from starsense.solve import Solver
 from starsense.solve.streaks import MIN_STREAK_SIGMAS, streak_centroids_of
-from starsense.units import DEG
-
-_PATH = Path(__file__).resolve().parents[2] / "bench" / "zoo.py"
-_spec = importlib.util.spec_from_file_location("starsense_bench_zoo_smear", _PATH)
-zoo = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(zoo)
 
 
 def test_faint_streaks_measuring_short_are_still_recentroided():
@@ -32,17 +18,9 @@ def test_faint_streaks_measuring_short_are_still_recentroided():
     streaks its fitted rate draws, it is centroided over the streaks, and the attitude lies
     within 3 of its sigma on every axis (a right solution's error is Gaussian in its sigma:
     3 sigma on any of three axes is exceeded by chance in 0.8 % of frames)."""
-    name, params = zoo.zoo_designs(40, 23)[35]
-    sensor = zoo.make_sensor(name, **params)
-    catalog = load_catalog("hipparcos")
-    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
-    sky = at_epoch(completed_sky(catalog, solver.catalog), solver.catalog.epoch_yr)
-    rng = np.random.default_rng(np.random.SeedSequence(23).spawn(3667)[27])
-    truth = random_attitudes(1, rng)[0]
-    phi = rng.uniform(0, 2 * np.pi)
-    rate = DEG * np.array([math.cos(phi), math.sin(phi), 0.0])
-    frame = render_frame(sensor, truth, sky, rate_rad_s=rate, model="reed", rng=rng,
-                         keep_expected=False, fast_noise=True)  # fmt: skip
+    sensor, solver, truth, frame = zoo_trial(
+        35, seed=23, n_trials=3667, trial=27, rate_deg_s=1.0, model="reed"
+    )
     sol = solver(frame.image)
     assert sol.solved
     z = small_rotation_angles(truth, sol.rotation) / np.asarray(sol.sigma_rad)
@@ -75,17 +53,7 @@ def test_a_blend_measuring_long_does_not_stretch_every_capsule():
     across the boresight. A rate so weakly confirmed does not overrule the brightest stars'
     measured streaks: the frame keeps its boxes and lies within 3 sigma on every axis (the
     Gaussian bound of the test above)."""
-    name, params = zoo.zoo_designs(40, 99)[25]
-    sensor = zoo.make_sensor(name, **params)
-    catalog = load_catalog("hipparcos")
-    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
-    sky = at_epoch(completed_sky(catalog, solver.catalog), solver.catalog.epoch_yr)
-    rng = np.random.default_rng(np.random.SeedSequence(99).spawn(1320)[1020])
-    truth = random_attitudes(1, rng)[0]
-    phi = rng.uniform(0, 2 * np.pi)
-    rate = DEG * np.array([math.cos(phi), math.sin(phi), 0.0])
-    frame = render_frame(sensor, truth, sky, rate_rad_s=rate, rng=rng, keep_expected=False,
-                         fast_noise=True)  # fmt: skip
+    _, solver, truth, frame = zoo_trial(25, seed=99, n_trials=1320, trial=1020, rate_deg_s=1.0)
     sol = solver(frame.image)
     assert sol.solved
     z = small_rotation_angles(truth, sol.rotation) / np.asarray(sol.sigma_rad)

@@ -2,20 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
-import math
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from zoo_trials import zoo_sensor, zoo_trial
 
-from starsense.analysis.inputs import at_epoch, completed_sky
-from starsense.catalog import load_catalog
 from starsense.geometry.attitude import small_rotation_angles
-from starsense.geometry.sampling import random_attitudes
-from starsense.render.scene import render_frame
-from starsense.solve import Solver
 from starsense.solve.rematch import MATCH_SIGMAS
 from starsense.solve.streak_pairs import across_excess
 from starsense.solve.streaks import (
@@ -24,17 +16,11 @@ from starsense.solve.streaks import (
     StreakCentroids,
     streak_centroids_of,
 )
-from starsense.units import ARCSEC, DEG
-
-_PATH = Path(__file__).resolve().parents[2] / "bench" / "zoo.py"
-_spec = importlib.util.spec_from_file_location("starsense_bench_zoo_pairs", _PATH)
-zoo = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(zoo)
+from starsense.units import ARCSEC
 
 
 def _design(i: int):
-    name, params = zoo.zoo_designs(40, 23)[i]
-    return zoo.make_sensor(name, **params)
+    return zoo_sensor(i)
 
 
 def test_the_limit_across_is_the_capsule_radius_and_four_sigma():
@@ -73,16 +59,7 @@ def test_noise_beside_a_faint_streak_is_not_its_star():
     as wide as the streaks are long. Every pair the solution keeps now lies on its star's
     streak: its detection within the capsule's radius across the streak's line under the true
     attitude."""
-    sensor = _design(26)
-    catalog = load_catalog("hipparcos")
-    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
-    sky = at_epoch(completed_sky(catalog, solver.catalog), solver.catalog.epoch_yr)
-    rng = np.random.default_rng(np.random.SeedSequence(23).spawn(550)[56])
-    truth = random_attitudes(1, rng)[0]
-    phi = rng.uniform(0, 2 * np.pi)
-    rate = DEG * np.array([math.cos(phi), math.sin(phi), 0.0])
-    frame = render_frame(sensor, truth, sky, rate_rad_s=rate, rng=rng, keep_expected=False,
-                         fast_noise=True)  # fmt: skip
+    sensor, solver, truth, frame = zoo_trial(26, seed=23, n_trials=550, trial=56, rate_deg_s=1.0)
     sol = solver(frame.image)
     assert sol.solved
     err = small_rotation_angles(truth, sol.rotation)
