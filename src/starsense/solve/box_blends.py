@@ -141,7 +141,7 @@ def box_reference(sensor, ref, plain, *, rotation, mags, windows, sky, zero_poin
     scale = 1.0 if zero_point_e is None else float(zero_point_e)
     out = np.array(ref, dtype=float)
     moved = np.zeros(len(plain), dtype=bool)
-    # every star's neighbours at once (a frame at rest pays a few ms for this, not a loop)
+    # every star's neighbours in one query (not a loop over the stars)
     centre = sensor.unproject(x0, y0)
     side = sensor.unproject(x0 + reach, y0)
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", centre, side), -1.0, 1.0))
