@@ -76,7 +76,7 @@ def _extra_tables(sensor) -> list[str]:
             f"sensor {sensor.name!r} names a mission, which is not written to TOML; "
             "copy its [mission] table by hand"
         )
-    lines = []
+    lines = _psf_table(getattr(sensor, "psf", None))
     ex = getattr(sensor, "exclusion", None)
     if ex is not None:
         lines += ["", "[exclusion]"]
@@ -93,3 +93,16 @@ def _extra_tables(sensor) -> list[str]:
         if pairs:
             lines += ["", f"[{table}]"] + [f"{k} = {_value(v)}" for k, v in pairs]
     return lines
+
+
+def _psf_table(psf) -> list[str]:
+    """Return the [psf] table of a non-default PSF (an empirical one names its file only)."""
+    if psf is None or psf == type(psf)():
+        return []
+    if psf.kind == "empirical":
+        raise InputError(
+            "an empirical PSF is not written to TOML (its samples live in a file): copy its "
+            "[psf] table by hand"
+        )
+    keep = ("kind", "moffat_beta", "airy_obscuration", "fit_width", "radius_px")
+    return ["", "[psf]", *(f"{k} = {_value(getattr(psf, k))}" for k in keep)]

@@ -28,6 +28,7 @@ from starsense.sensor.detector import Detector
 from starsense.sensor.exclusion import exclusion_from_table
 from starsense.sensor.mission_plan import mission_from_table
 from starsense.sensor.optics import Optics
+from starsense.sensor.psf_spec import PSFSpec, psf_from_table
 from starsense.sensor.quoted import parse_budget, parse_quoted
 from starsense.sensor.sensor import DetectionThresholds, Sensor
 
@@ -40,7 +41,7 @@ _SECTIONS: dict[str, type] = {
 }
 _TOP_KEYS = {
     "name", "description", "exposure_s", "attitude_areas", "exclusion", "mission", "quoted",
-    "budget", *(_SECTIONS),
+    "budget", "psf", *(_SECTIONS),
 }  # fmt: skip
 _AREA_KEYS = {"layout", "image_circle_diameter_mm", "area"}
 _AREA_SHAPES = ("rectangle_mm", "polygon_mm")
@@ -207,6 +208,7 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
         mission = mission_from_table(data["mission"], source)
     quoted = parse_quoted(data["quoted"], source) if "quoted" in data else ()
     budget = parse_budget(data["budget"], source) if "budget" in data else ()
+    psf = psf_from_table(data["psf"], source) if "psf" in data else PSFSpec()
     try:
         return Sensor(
             name=data.get("name", Path(source).stem),
@@ -217,6 +219,7 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
             budget=budget,
             exclusion=exclusion,
             mission=mission,
+            psf=psf,
             **parts,
         )
     except InputError as exc:

@@ -28,6 +28,7 @@ from starsense.geometry.fov import RectangularFov
 from starsense.sensor._fields import check_field
 from starsense.sensor.detector import Detector
 from starsense.sensor.optics import Optics
+from starsense.sensor.psf_spec import PSFSpec
 
 __all__ = ["MAX_FIELD_DEG", "DetectionThresholds", "Sensor"]
 
@@ -133,6 +134,9 @@ class Sensor:
     mission : MissionPlan or None
         The mission the TOML's ``[mission]`` table names (:mod:`starsense.sensor.mission_plan`),
         for the report's mission section.
+    psf : PSFSpec
+        The point-spread function's shape (``[psf]``, :mod:`starsense.sensor.psf_spec`); its
+        width is ``detector.psf_sigma_px``. Default: a Gaussian.
 
     Examples
     --------
@@ -154,8 +158,11 @@ class Sensor:
     budget: tuple = ()
     exclusion: Any = None
     mission: Any = None
+    psf: PSFSpec = field(default_factory=PSFSpec)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.psf, PSFSpec):
+            raise InputError(f"psf must be a PSFSpec, got {type(self.psf).__name__}")
         for key in ("name", "description"):
             if not isinstance(getattr(self, key), str):
                 raise InputError(f"{key} must be text, got {getattr(self, key)!r}")

@@ -54,6 +54,7 @@ __all__ = [
     "blended",
     "frame_zero_point_e",
     "photocentres",
+    "streak_body_rate",
     "streak_photocentres",
     "streak_reference",
     "track_mean",
@@ -336,7 +337,7 @@ def frame_zero_point_e(electrons, clipped, mags) -> float | None:
     return float(np.max(ratio[ok]))
 
 
-def _body_rate(sensor, cam, streaks_px) -> np.ndarray:
+def streak_body_rate(sensor, cam, streaks_px) -> np.ndarray:
     """Return the body rate (rad/s, camera frame) whose streaks fit ``streaks_px`` (N, 2).
 
     The streaks the solver centroided over come from one rate (:mod:`starsense.solve.
@@ -364,14 +365,14 @@ def track_mean(sensor, ref, *, rotation, streaks_px) -> np.ndarray:
     px at the corners of 300-650 px streaks at 1 deg/s: many times a bright star's noise,
     which the capsule centroid measures to 0.001 px). The average over the exposure
     (Gauss-Legendre, exact for a polynomial of degree 7 in time) at the rate the streaks give
-    (:func:`_body_rate`), with the first fit's ``rotation`` (ICRS -> camera). Even in the rate:
-    the streaks' common sign does not matter. ``ref`` itself where no star moves by
+    (:func:`streak_body_rate`), with the first fit's ``rotation`` (ICRS -> camera). Even in the
+    rate: the streaks' common sign does not matter. ``ref`` itself where no star moves by
     :data:`_TRACK_FLOOR_PX` (below any centroid's noise).
     """
     ref = np.asarray(ref, dtype=float)
     cam = rotation.apply(ref)
     n = len(cam)
-    rate = _body_rate(sensor, cam, streaks_px)
+    rate = streak_body_rate(sensor, cam, streaks_px)
     nodes, weights = np.polynomial.legendre.leggauss(_TRACK_NODES)
     # s in (-1/2, 1/2) of the exposure, every node's turn of every star in one projection
     turned = [Rotation.from_rotvec(-rate * sensor.exposure_s * 0.5 * t).apply(cam) for t in nodes]

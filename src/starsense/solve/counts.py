@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.solve.solution import Solution
 
 __all__ = ["detection_counts", "identification_counts", "max_candidates", "misfit_solution"]
@@ -80,3 +83,62 @@ def misfit_solution(n_detections: int, ident, miss: float, *, time_ms: float, st
     )
     return Solution("unverified", why, n_detections=n_detections, time_ms=time_ms,
                     stage_ms=stages, counts=identification_counts(ident))  # fmt: skip
+
+
+def solved(points, ident, att, *, fov, apparent, time_ms, stages, radial, sensor) -> Solution:
+    """Return the Solution of a solved frame.
+
+    Parameters
+    ----------
+    points : CentroidPoints
+        The centroids solved.
+    ident : identification result
+        The matches.
+    att : AttitudeSolution
+        The attitude and its covariance.
+    fov : float
+        The field across the columns, rad.
+    apparent : dict
+        How the references were placed (apparent places).
+    time_ms : float
+        The solve's time so far, ms.
+    stages : dict
+        Times of the stages, ms.
+    radial : RadialFit or None
+        The fitted camera of an unknown one.
+    sensor : Sensor or None
+    """
+    n, shape = len(points.x), points.shape
+    ra, dec, roll = radec_roll_from_attitude(att.rotation)
+    if sensor is not None:
+        focal = sensor.focal_length_px
+    elif radial is not None:
+        focal = radial.focal_px
+    else:
+        focal = shape[1] / 2.0 / math.tan(fov / 2.0)
+    return Solution(
+        "solved",
+        f"{ident.n_matches} of {n} {points.what} matched ({ident.algorithm})",
+        ra_rad=float(ra),
+        dec_rad=float(dec),
+        roll_rad=float(roll),
+        fov_rad=float(fov),
+        n_detections=n,
+        n_matched=int(ident.n_matches),
+        rmse_rad=float(att.residual_rms_rad),
+        false_match_probability=float(ident.false_match_probability),
+        sigma_rad=tuple(float(s) for s in att.sigma_axes_rad),
+        time_ms=time_ms,
+        stage_ms=stages,
+        rotation=att.rotation,
+        matches=tuple(
+            (int(d), int(c)) for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
+        ),
+        centroids_px=np.column_stack([points.x, points.y]),
+        image_shape=tuple(shape),
+        focal_px=focal,
+        distortion=None if radial is None else radial.to_dict(),
+        apparent=apparent,
+        sensor=sensor,
+        counts=identification_counts(ident),
+    )

@@ -53,17 +53,22 @@ class SolverSettings:
         The observer's velocity relative to the geocentre, ICRS axes, m/s.
     fov_rad : float or None
         Horizontal field across the image width (pinhole), rad, when no sensor is given.
+    refine : {"model", "cog"}
+        The attitude's last step: "model" fits the forward model to the identified stars'
+        pixels (:mod:`starsense.solve.refine`; needs a sensor), "cog" keeps the attitude fitted
+        to the centroids.
     """
 
     catalog: Catalog | str = "hipparcos"
     algorithm: Algorithm = "hashing"
     threshold_sigma: float = 5.0
-    centroid_sigma_px: float | Literal["snr"] = 0.3
+    centroid_sigma_px: float | Literal["snr"] | None = None
     background: BackgroundMode = "auto"
     extraction: str = "auto"
     apparent: bool = True
     observer_velocity_m_s: np.ndarray | None = None
     fov_rad: float | None = None
+    refine: str | None = None
 
 
 def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
@@ -98,6 +103,13 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
     if sensor is None and fov_rad is None and s.algorithm == "triangle":
         raise InputError("the triangle algorithm needs a known field: give sensor or fov_rad")
     sigma = s.centroid_sigma_px
+    if sigma is None:  # each star's own noise where the sensor says it
+        sigma = "snr" if sensor is not None else 0.3
+    refine = s.refine if s.refine is not None else ("model" if sensor is not None else "cog")
+    if refine not in ("model", "cog"):
+        raise InputError(f"refine must be 'model' or 'cog', got {show(refine)}")
+    if refine == "model" and sensor is None:
+        raise InputError("refine='model' fits the sensor's forward model: give a sensor")
     number = isinstance(sigma, int | float) and not isinstance(sigma, bool)
     if sigma != "snr" and not (number and math.isfinite(sigma) and sigma > 0):
         raise InputError(f"centroid_sigma_px must be > 0 or 'snr', got {show(sigma)}")
@@ -109,4 +121,12 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
         raise InputError("extraction='quick' estimates the background: use background='auto'")
     if sensor is None and (s.background == "known" or sigma == "snr"):
         raise InputError("background='known' and centroid_sigma_px='snr' need a sensor")
-    return SolverSettings(**{**options, "fov_rad": fov_rad, "apparent": bool(s.apparent)})
+    return SolverSettings(
+        **{
+            **options,
+            "fov_rad": fov_rad,
+            "apparent": bool(s.apparent),
+            "centroid_sigma_px": sigma,
+            "refine": refine,
+        }
+    )

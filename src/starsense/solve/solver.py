@@ -17,7 +17,6 @@ time is known (:mod:`starsense.catalog.apparent`): the true ICRS attitude.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 from typing import Literal
@@ -28,7 +27,6 @@ from starsense.attitude.robust import MISFIT_SIGMAS, robust_attitude
 from starsense.catalog.apparent import apparent_places_of
 from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
-from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
@@ -40,6 +38,7 @@ from starsense.solve.counts import (
     identification_counts,
     max_candidates,
     misfit_solution,
+    solved,
 )
 from starsense.solve.extraction import Extraction, quick_detector, robust_detector
 from starsense.solve.frames import frame_time, load_image
@@ -47,6 +46,7 @@ from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.radial import refine_identification
+from starsense.solve.refine import refined_attitude
 from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
@@ -89,10 +89,11 @@ class Solver:
         Lost-in-space algorithm (triangle needs a known field).
     threshold_sigma : float
         Lit-pixel threshold above the background map, in noise sigmas.
-    centroid_sigma_px : float or "snr"
-        Centroid noise assumed for the attitude covariance, pixels; "snr" (needs a sensor) uses
-        each star's own noise (:func:`starsense.detect.centroid.cog_sigma_px`: photon noise
-        plus read noise over its centroid window).
+    centroid_sigma_px : float or "snr", optional
+        Centroid noise assumed for the centroid fit's weights and covariance, pixels; "snr"
+        (needs a sensor) uses each star's own noise (:func:`starsense.detect.centroid.
+        cog_sigma_px`: photon noise plus read noise over its centroid window). Default: "snr"
+        with a sensor, 0.3 px without.
     background : {"auto", "known"}
         "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
         subtracts the sensor's bias and applies its detection logic as is (simulated frames).
@@ -104,6 +105,12 @@ class Solver:
         Fit the attitude to the stars' apparent places when the frame's time is known (default).
     observer_velocity_m_s : array_like, shape (3,), optional
         The observer's velocity relative to the geocentre (orbit), ICRS axes, m/s.
+    refine : {"model", "cog"}, optional
+        The attitude's last step. "model" (the default with a sensor) fits the sensor's
+        forward model to the identified stars' pixels by maximum likelihood, neighbours and
+        rate included, and reports the inverse Fisher information as the solution's
+        covariance (:mod:`starsense.solve.refine`); "cog" (the default without one) keeps the
+        attitude fitted to the centroids.
 
     Attributes
     ----------
@@ -123,11 +130,12 @@ class Solver:
         catalog: Catalog | str = "hipparcos",
         algorithm: Algorithm = "hashing",
         threshold_sigma: float = 5.0,
-        centroid_sigma_px: float | Literal["snr"] = 0.3,
+        centroid_sigma_px: float | Literal["snr"] | None = None,
         background: BackgroundMode = "auto",
         extraction: Extraction = "auto",
         apparent: bool = True,
         observer_velocity_m_s=None,
+        refine: Literal["model", "cog"] | None = None,
     ) -> None:
         self.settings: SolverSettings = solver_settings(
             sensor,
@@ -140,6 +148,7 @@ class Solver:
             apparent=apparent,
             observer_velocity_m_s=observer_velocity_m_s,
             fov_rad=fov_rad,
+            refine=refine,
         )
         self.sensor = (
             sensor if (sensor is None or isinstance(sensor, Sensor)) else load_sensor(sensor)
@@ -273,7 +282,9 @@ class Solver:
         points = CentroidPoints(
             det.x, det.y, det.integrated_counts, a.shape, "detections", own, **windows
         )
-        sol = self._solve_points(points, t0, stages, sigma_px, None, obs_time, not first, not first)
+        sol = self._solve_points(
+            points, t0, stages, sigma_px, None, obs_time, not first, not first, image=a
+        )
         return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
     def solve_centroids(
@@ -318,13 +329,13 @@ class Solver:
             xy, image_size, brightness=brightness, fov_rad=fov_rad, sensor=self.sensor
         )
         sigma = self.settings.centroid_sigma_px
-        sigma = sigma if sigma != "snr" else 0.3
+        sigma = sigma if sigma != "snr" else 0.3  # no pixels: no signal to weigh them by
         points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
         fixed = lambda _m, _x, v: (v, sigma, None)  # noqa: E731
         return self._solve_points(points, t0, {}, fixed, fov_rad, obs_time)
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True,
-                      search=True):  # fmt: skip
+                      search=True, image=None):  # fmt: skip
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
 
         When they do not solve (and are not clutter), their mirror image is tried
@@ -373,7 +384,9 @@ class Solver:
             own = scaled(points.sigma_px, fov / n_cols)
             ident = rematched(ident, identifier.database, vectors, sigma_rad=own)
         matched, pixel_rad = np.asarray(ident.detection_index), fov / n_cols
-        ref, apparent = self._matched_reference(identifier.database, ident, obs_time, fov, points)
+        ref, apparent, places = self._matched_reference(
+            identifier.database, ident, obs_time, fov, points
+        )
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, keep = robust_attitude(body, ref, sigma * pixel_rad)
         if streaks is not None:  # smeared: the pairs on their streaks, at their photocentres
@@ -388,8 +401,16 @@ class Solver:
             att = box_fit((att, keep), (ident, body, ref, sigma, matched), sensor=self.sensor,
                           pixel_rad=pixel_rad, database=identifier.database, points=points,
                           sky=self._identifiers.sky(identifier.database.params.band))  # fmt: skip
+        notes = ()
+        if image is not None and self.settings.refine == "model":
+            att, notes = refined_attitude(
+                image, att, self.sensor, identifier.database, ident, places=places,
+                streaks=streaks, sky=self._identifiers.sky(identifier.database.params.band),
+            )  # fmt: skip
         stages["attitude_ms"] = _ms(t3)
-        return self._solution(points, ident, att, fov, apparent, t0, stages, radial)
+        sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),
+                     stages=stages, radial=radial, sensor=self.sensor)  # fmt: skip
+        return dataclasses.replace(sol, notes=(*sol.notes, *notes))
 
     def _unsolved(self, points, ident, t0, stages, sigma_px, fov_given, obs_time, parity):
         """Return the answer for centroids that did not solve: their mirror image, or why not."""
@@ -416,51 +437,17 @@ class Solver:
         return Solution(status, message, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
 
     def _matched_reference(self, db, ident, obs_time, fov, points):
-        """Return the matched stars' reference vectors (apparent places, blended photocentres)."""
+        """Return the matched stars' reference vectors (apparent places, blended photocentres).
+
+        Also their (catalogue, apparent) places, unblended: what the model fit draws.
+        """
         plain = db.vectors[np.asarray(ident.catalog_index)]
         ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
+        places = (plain, ref)
         if self.sensor is not None:  # blended close doubles: their photocentre, not one star
             radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / points.shape[1]
             ref = blended(ref, plain, db, index=ident.catalog_index, radius_rad=radius)
-        return ref, apparent
-
-    def _solution(self, points, ident, att, fov, apparent, t0, stages, radial=None) -> Solution:
-        """Return the solved frame's Solution."""
-        n, shape = len(points.x), points.shape
-        ra, dec, roll = radec_roll_from_attitude(att.rotation)
-        return Solution(
-            "solved",
-            f"{ident.n_matches} of {n} {points.what} matched ({ident.algorithm})",
-            ra_rad=float(ra),
-            dec_rad=float(dec),
-            roll_rad=float(roll),
-            fov_rad=float(fov),
-            n_detections=n,
-            n_matched=int(ident.n_matches),
-            rmse_rad=float(att.residual_rms_rad),
-            false_match_probability=float(ident.false_match_probability),
-            sigma_rad=tuple(float(s) for s in att.sigma_axes_rad),
-            time_ms=_ms(t0),
-            stage_ms=stages,
-            rotation=att.rotation,
-            matches=tuple(
-                (int(d), int(c))
-                for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
-            ),
-            centroids_px=np.column_stack([points.x, points.y]),
-            image_shape=tuple(shape),
-            focal_px=(
-                self.sensor.focal_length_px
-                if self.sensor is not None
-                else radial.focal_px
-                if radial is not None
-                else shape[1] / 2.0 / math.tan(fov / 2.0)
-            ),
-            distortion=None if radial is None else radial.to_dict(),
-            apparent=apparent,
-            sensor=self.sensor,
-            counts=identification_counts(ident),
-        )
+        return ref, apparent, places
 
     def prepare(self) -> None:
         """Build (or load from the cache) the database of the Solver's field now, once.
