@@ -161,6 +161,7 @@ def _trials(
     max_mag,
     wrong_rad: float,
     fast_noise: bool = True,
+    refine: str = "model",
     progress=None,
 ) -> list[tuple]:
     """Run trials ``indices`` of a run of ``n_trials``; one record per trial (see below).
@@ -170,7 +171,7 @@ def _trials(
     (3,) or None, predicted sigma (3,) or None, truth quaternion (4,), render ms, solve ms,
     matched stars, body rate (3,)).
     """
-    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr")
+    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr", refine=refine)
     catalog = at_epoch(catalog, solver.catalog.epoch_yr)  # the sky the database describes
     children = np.random.SeedSequence(seed).spawn(int(n_trials))
     out = []
@@ -267,6 +268,7 @@ def montecarlo(
     progress: Callable[[int, int], None] | None = None,
     client=None,
     fast_noise: bool = True,
+    refine: str = "model",
 ) -> MonteCarloResult:
     """Run the tracker ``n_trials`` times at random attitudes (see the module docstring).
 
@@ -302,6 +304,9 @@ def montecarlo(
         Read frames out with :func:`starsense.render.readout.fast_read_out` where it applies
         (default); False: :func:`starsense.render.noise.apply_noise` (other random draws, the
         same statistics).
+    refine : {"model", "cog"}
+        The solver's last step (:class:`starsense.solve.Solver`): the forward model's fit
+        (default) or the centroids' attitude.
 
     Returns
     -------
@@ -317,7 +322,10 @@ def montecarlo(
     # the frames show the catalogue's stars and the database's it lacks (the real sky holds both)
     cat = completed_sky(as_catalog(catalog), Solver(sensor=sens).catalog)
     seed = root_seed(rng)
-    args = (sens, cat, seed, float(rate_rad_s), model, max_mag, float(wrong_rad), bool(fast_noise))
+    if refine not in ("model", "cog"):
+        raise InputError(f"refine must be 'model' or 'cog', got {show(refine)}")
+    args = (sens, cat, seed, float(rate_rad_s), model, max_mag, float(wrong_rad), bool(fast_noise),
+            refine)  # fmt: skip
     if client is not None:
         records = _dask_trials(client, args, n_trials, progress)
     else:

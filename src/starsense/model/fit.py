@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.model.psf import PixelPSF, psf_of
+from starsense.model.psf import PixelPSF, pixel_psf, psf_of
 from starsense.model.tracks import node_positions, time_nodes
 from starsense.model.windows import Windows, evaluate, make_windows
 
@@ -36,8 +36,10 @@ __all__ = ["WINDOW_HALF_SIGMAS", "ModelFit", "fit_windows", "pixel_variance", "w
 
 #: a star's box reaches this many PSF sigmas (+1 px) beyond its track
 WINDOW_HALF_SIGMAS = 3.5
-#: Gauss-Newton stops when the last step moved no star by more than this, px
-STEP_TOL_PX = 1e-3
+#: Gauss-Newton stops when its last step was below this fraction of each parameter's sigma
+STEP_TOL_SIGMAS = 0.01
+#: the width's central difference, a fraction of the width
+WIDTH_STEP = 2e-3
 MAX_ITERATIONS = 12
 
 
@@ -87,6 +89,8 @@ class ModelFit:
         Pixels used.
     iterations : int
     converged : bool
+    psf_sigma_px : float
+        The PSF's width at the fit (the given one unless fitted), px.
     """
 
     rotation: Rotation
@@ -98,6 +102,7 @@ class ModelFit:
     n_pixels: int
     iterations: int
     converged: bool
+    psf_sigma_px: float = 0.0
 
     @property
     def sigma_axes_rad(self) -> np.ndarray:
@@ -144,9 +149,74 @@ def _normal_equations(lin, jac, weight, resid):
     return s, grad, a_inv_b, a_inv_u
 
 
+@dataclass
+class _Problem:
+    """What stays fixed while the fit iterates: the sources, windows, data and quadrature."""
+
+    sensor: object
+    vectors: np.ndarray
+    free: np.ndarray
+    fluxes: np.ndarray
+    windows: Windows
+    data: np.ndarray
+    use: np.ndarray
+    fractions: np.ndarray
+    weights: np.ndarray
+    fit_rate: bool
+    fit_width: bool
+    kept: np.ndarray
+
+
+def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width):
+    """Lay out the windows around the sources' tracks and read their pixels."""
+    te = sensor.exposure_s
+    allv = np.concatenate([v_free, v_fix])
+    free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
+    ends = node_positions(sensor, v_free, rotation, rate, te, fractions=np.array([-0.5, 0.5]),
+                          weights=np.array([0.5, 0.5]))  # fmt: skip
+    length = float(np.nanmax(np.hypot(np.diff(ends.x), np.diff(ends.y)))) if len(v_free) else 0.0
+    frac, wts = time_nodes(length if (fit_rate or np.any(rate)) else 0.0, psf.sigma_px)
+    nodes = node_positions(sensor, allv, rotation, rate, te, fractions=frac, weights=wts)
+    windows, kept = make_windows(
+        nodes.x, nodes.y, half_px=window_half_px(psf), shape=image.shape, free=free
+    )
+    data, use = _data(image, windows, sensor.detector)
+    fluxes = np.r_[np.zeros(len(v_free)), f_fix][kept]
+    return _Problem(sensor, allv[kept], free[kept], fluxes, windows, data, use, frac, wts,
+                    fit_rate, fit_width, kept)  # fmt: skip
+
+
+def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
+    """Return the linear design (G, M+1, N), the geometric Jacobian (G, P, N) and the model."""
+    sensor, w = pb.sensor, pb.windows
+    nodes = node_positions(sensor, pb.vectors, rotation, rate, sensor.exposure_s,
+                           fractions=pb.fractions, weights=pb.weights,
+                           fit_rate=pb.fit_rate)  # fmt: skip
+    fl = pb.fluxes
+    fl[pb.free] = lin_values[w.group[pb.free], w.slot[pb.free]]  # the Jacobian at these fluxes
+    ev = evaluate(w, psf, nodes, fl, free=pb.free)
+    g_n, m = w.n_groups, w.n_slots
+    lin = np.concatenate([ev.templates, np.ones((g_n, 1, *w.shape))], axis=1).reshape(
+        g_n, m + 1, -1
+    )
+    jac = ev.jacobian.reshape(g_n, nodes.dx.shape[-1], -1)
+    if pb.fit_width:  # d mu / d sigma by a central difference of the profile's width
+        h = WIDTH_STEP * psf.sigma_px
+        sides = []
+        for sign in (1.0, -1.0):
+            other = pixel_psf(psf.spec, psf.sigma_px + sign * h)
+            e = evaluate(w, other, nodes, fl, free=pb.free, gradient=False)
+            sides.append(e.fixed + np.einsum("gm,gmhw->ghw", lin_values[:, :m], e.templates))
+        dw = (sides[0] - sides[1]) / (2.0 * h)
+        jac = np.concatenate([jac, dw.reshape(g_n, 1, -1)], axis=1)
+    mu = ev.fixed.reshape(g_n, -1) + np.einsum("gm,gmn->gn", lin_values, lin)
+    return lin, jac, mu
+
+
 def fit_windows(
     image, sensor, rotation: Rotation, vectors, *, rate_rad_s=(0.0, 0.0, 0.0),
-    fit_rate: bool = False, fixed_vectors=None, fixed_electrons=None, psf: PixelPSF | None = None,
+    fit_rate: bool = False, fit_width: bool = False, fixed_vectors=None, fixed_electrons=None,
+    psf: PixelPSF | None = None,
 ) -> ModelFit:  # fmt: skip
     """Fit the attitude (and rate) to the pixels around the given stars (module docstring).
 
@@ -163,6 +233,8 @@ def fit_windows(
         Starting (or known) body rate, camera frame, rad/s.
     fit_rate : bool
         Fit the rate too (a smeared frame).
+    fit_width : bool
+        Fit the PSF's width too (its shape kept): the optics' width is uncertain.
     fixed_vectors, fixed_electrons : ndarray, optional
         Catalogue neighbours drawn at fixed fluxes (electrons), moving with the attitude.
     psf : PixelPSF, optional
@@ -177,70 +249,46 @@ def fit_windows(
     v_free = np.asarray(vectors, float).reshape(-1, 3)
     v_fix = np.zeros((0, 3)) if fixed_vectors is None else np.asarray(fixed_vectors, float)
     f_fix = np.zeros(0) if fixed_electrons is None else np.asarray(fixed_electrons, float)
-    allv = np.concatenate([v_free, v_fix])
-    free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
     rate = np.asarray(rate_rad_s, float).copy()
-    ends = node_positions(sensor, v_free, rotation, rate, te, fractions=np.array([-0.5, 0.5]),
-                          weights=np.array([0.5, 0.5]))  # fmt: skip
-    length = float(np.nanmax(np.hypot(*(np.diff(ends.x), np.diff(ends.y))))) if len(v_free) else 0
-    frac, wts = time_nodes(length if (fit_rate or np.any(rate)) else 0.0, psf.sigma_px)
-    nodes = node_positions(sensor, allv, rotation, rate, te, fractions=frac, weights=wts,
-                           fit_rate=fit_rate)  # fmt: skip
-    windows, kept = make_windows(
-        nodes.x, nodes.y, half_px=window_half_px(psf), shape=image.shape, free=free
-    )
-    allv, free = allv[kept], free[kept]
-    fluxes = np.r_[np.zeros(len(v_free)), f_fix][kept]
-    data, use = _data(image, windows, det)
-    n_par = 6 if fit_rate else 3
-    m = windows.n_slots
-    g_n = windows.n_groups
-    lin_values = np.zeros((g_n, m + 1))
-    weight = use / pixel_variance(det, np.median(data[use]) if use.any() else 0.0, te)
-    converged, it = False, 0
-    s = np.eye(n_par)
-    for it in range(1, MAX_ITERATIONS + 1):
-        nodes = node_positions(sensor, allv, rotation, rate, te, fractions=frac, weights=wts,
-                               fit_rate=fit_rate)  # fmt: skip
-        for s_i in np.flatnonzero(free):  # the Jacobian at the current fluxes
-            fluxes[s_i] = lin_values[windows.group[s_i], windows.slot[s_i]]
-        ev = evaluate(windows, psf, nodes, fluxes, free=free)
-        lin = np.concatenate([ev.templates, np.ones((g_n, 1, *windows.shape))], axis=1)
-        lin = lin.reshape(g_n, m + 1, -1)
-        jac = ev.jacobian.reshape(g_n, n_par, -1)
-        mu = ev.fixed.reshape(g_n, -1) + np.einsum("gm,gmn->gn", lin_values, lin)
-        if it > 1:
-            weight = use / pixel_variance(det, mu, te)
-        if it == 1:  # the fluxes first, at the starting geometry
-            _, _, _, a_inv_u = _normal_equations(lin, jac, weight, data - mu)
-            lin_values = lin_values + a_inv_u
-            continue
-        s, grad, a_inv_b, a_inv_u = _normal_equations(lin, jac, weight, data - mu)
+    pb = _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width)
+    n_geo = 6 if fit_rate else 3
+    lin_values = np.zeros((pb.windows.n_groups, pb.windows.n_slots + 1))
+    weight = pb.use / pixel_variance(det, np.median(pb.data[pb.use]) if pb.use.any() else 0, te)
+    lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
+    lin_values = lin_values + _normal_equations(lin, jac, weight, pb.data - mu)[3]  # fluxes
+    converged, it, s = False, 0, np.eye(jac.shape[1])
+    for it in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (the count is reported)
+        lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
+        weight = pb.use / pixel_variance(det, mu, te)
+        s, grad, a_inv_b, a_inv_u = _normal_equations(lin, jac, weight, pb.data - mu)
         step = np.linalg.solve(s, grad)
         lin_values = lin_values + a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step)
         rotation = Rotation.from_rotvec(step[:3]) * rotation
         if fit_rate:
-            rate = rate + step[3:]
-        moved = np.linalg.norm(step[:3]) * sensor.focal_length_px
-        if fit_rate:
-            moved += np.linalg.norm(step[3:]) * te * sensor.focal_length_px
-        if moved < STEP_TOL_PX:
+            rate = rate + step[3:n_geo]
+        if fit_width:
+            width = float(
+                np.clip(psf.sigma_px + step[n_geo], 0.25 * psf.sigma_px, 4.0 * psf.sigma_px)
+            )
+            psf = pixel_psf(psf.spec, width)
+        sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(s)), 0.0, None))
+        if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma):
             converged = True
             break
-    resid = data - mu
-    chi2 = float((weight * resid * resid).sum())
-    n_pix = int(use.sum())
+    resid = pb.data - mu
+    n_pix = int(pb.use.sum())
     out = np.full(len(v_free), np.nan)
-    idx = kept[free]
-    out[idx] = lin_values[windows.group[free], windows.slot[free]]
+    fr = pb.free
+    out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
     return ModelFit(
         rotation=rotation,
         rate_rad_s=rate,
         covariance=np.linalg.inv(s),
         fluxes_e=out,
-        chi2=chi2,
-        dof=n_pix - n_par - int((lin.any(axis=2)).sum()),
+        chi2=float((weight * resid * resid).sum()),
+        dof=n_pix - jac.shape[1] - int((lin.any(axis=2)).sum()),
         n_pixels=n_pix,
         iterations=it,
         converged=converged,
+        psf_sigma_px=psf.sigma_px,
     )

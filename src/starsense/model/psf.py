@@ -251,8 +251,11 @@ def _cached(spec: PSFSpec, sigma_q: float, samples_id: int) -> PixelPSF:
 def pixel_psf(spec: PSFSpec, sigma_px: float) -> PixelPSF:
     """Return the (cached) :class:`PixelPSF` of a shape at a width.
 
-    Widths are taken to 1e-3 relative (a field-varying width reuses tables).
+    Widths of tabulated profiles are taken to 1e-3 relative (a field-varying width reuses
+    tables); a Gaussian's is exact.
     """
+    if spec.is_gaussian:  # exact and free to build: no table to reuse
+        return PixelPSF(spec, float(sigma_px))
     q = float(f"{float(sigma_px):.4g}")
     return _cached(spec, q, id(spec.samples) if spec.samples is not None else 0)
 

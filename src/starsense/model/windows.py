@@ -189,7 +189,7 @@ class Evaluation:
     jacobian: np.ndarray | None
 
 
-def _stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient):
+def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient):
     """Return templates (S, h, w) of sources ``idx`` and their derivatives (S, P, h, w).
 
     Over pixel rows (S, h) and columns (S, w) of the detector.
@@ -250,7 +250,7 @@ def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, fluxes, *, f
         g = windows.group[idx]
         rows = (windows.row0[g] + box[idx, 0])[:, None] + np.arange(size[0])[None, :]
         cols = (windows.col0[g] + box[idx, 2])[:, None] + np.arange(size[1])[None, :]
-        t, d = _stamps(psf, nodes, idx, rows, cols, gradient)
+        t, d = source_stamps(psf, nodes, idx, rows, cols, gradient)
         for n, s in enumerate(idx):
             sl = (slice(box[s, 0], box[s, 1]), slice(box[s, 2], box[s, 3]))
             if free[s]:

@@ -14,10 +14,12 @@ background are free, and the catalogue stars whose light reaches a window are in
 3. the fit is repeated with them, from the first fit's attitude.
 
 The solution's covariance is the inverse Fisher information at the fit (the Cramer-Rao bound of
-the model), which the datasheet predicts. A fit that does not converge, whose pixels disagree
-with the model (reduced chi-square above :data:`MAX_REDUCED_CHI2`) or that moves the attitude
-further than :data:`MAX_MOVE_SIGMAS` of the centroid solution's own sigma keeps the centroid
-attitude and says why.
+the model), which the datasheet predicts. Where the pixels scatter more than the model allows
+(a reduced chi-square above :data:`SCALED_CHI2`: a real lens's PSF, a camera whose gain or read
+noise differ from the sensor's), the covariance is scaled by the reduced chi-square and the note
+says so. A fit that does not converge, or that moves the attitude further than
+:data:`MAX_MOVE_SIGMAS` of the two solutions' sigmas from the centroid attitude, keeps the
+centroid attitude and says why.
 """
 
 from __future__ import annotations
@@ -35,14 +37,15 @@ from starsense.solve.blends import streak_body_rate
 
 __all__ = [
     "MAX_MOVE_SIGMAS",
-    "MAX_REDUCED_CHI2",
+    "SCALED_CHI2",
     "Refinement",
     "refine_attitude",
     "refined_attitude",
 ]
 
-#: a model fit whose pixels' reduced chi-square exceeds this does not describe the frame
-MAX_REDUCED_CHI2 = 4.0
+#: a fit whose pixels' reduced chi-square exceeds this has its covariance scaled by it (the
+#: chi-square of a right model over N ~ 10^3 pixels lies within 1 +- 0.1)
+SCALED_CHI2 = 1.3
 #: a model fit further than this many centroid sigmas from the centroid attitude is refused
 MAX_MOVE_SIGMAS = 8.0
 #: two catalogue directions closer than this are one star, rad (0.2 arcsec)
@@ -115,7 +118,7 @@ def _zero_point(fluxes, mags) -> float | None:
 
 
 def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma_rad,
-                    rate_rad_s=None) -> Refinement:  # fmt: skip
+                    rate_rad_s=None, electrons=None, fit_width=None) -> Refinement:  # fmt: skip
     """Fit the attitude to the pixels of the identified stars (module docstring).
 
     Parameters
@@ -135,6 +138,12 @@ def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma
         The centroid solution's 1-sigma per axis, rad.
     rate_rad_s : ndarray (3,), optional
         The body rate of a smeared frame (its streaks'), fitted from there; None: at rest.
+    electrons : ndarray (K,), optional
+        The stars' detected light (for the zero point of the neighbours' fluxes); without it
+        a first fit of the identified stars alone measures them.
+    fit_width : bool, optional
+        Fit the PSF's width (default: the sensor's ``psf.fit_width``, and always for a
+        Gaussian, whose width costs nothing to fit).
 
     Returns
     -------
@@ -142,42 +151,64 @@ def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma
     """
     fit_rate = rate_rad_s is not None
     rate = np.zeros(3) if rate_rad_s is None else np.asarray(rate_rad_s, float)
+    if fit_width is None:
+        fit_width = sensor.psf.fit_width or sensor.psf.is_gaussian
+    mags = np.asarray(mags, float)
+    opts = {"fit_rate": fit_rate, "fit_width": fit_width}
     try:
-        first = fit_windows(image, sensor, rotation, ref, rate_rad_s=rate, fit_rate=fit_rate)
-        zp = _zero_point(first.fluxes_e, np.asarray(mags, float))
-        fit, n_nbr = first, 0
+        first = None
+        zp = None if electrons is None else _zero_point(np.asarray(electrons, float), mags)
+        if zp is None:
+            first = fit_windows(image, sensor, rotation, ref, rate_rad_s=rate, **opts)
+            zp = _zero_point(first.fluxes_e, mags)
+            rotation, rate = first.rotation, first.rate_rad_s
+        nv = np.zeros((0, 3))
         if zp is not None:
-            psf = psf_of(sensor)
-            noise_e = math.sqrt(pixel_variance(sensor.detector, 0.0, sensor.exposure_s)) * (
-                math.sqrt(4.0 * math.pi) * psf.sigma_px
-            )
-            streak = np.linalg.norm(rate) * sensor.exposure_s * sensor.focal_length_px
-            reach = window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
             nv, ne, nfree = _neighbours(
-                sensor, plain, ref, sky=sky, rotation=first.rotation, reach_px=reach,
-                zero_point=zp, noise_e=noise_e,
+                sensor, plain, ref, sky=sky, rotation=rotation, reach_px=_reach_px(sensor, rate),
+                zero_point=zp, noise_e=_psf_noise_e(sensor),
             )  # fmt: skip
-            if len(nv):
-                fit = fit_windows(
-                    image, sensor, first.rotation, np.concatenate([ref, nv[nfree]]),
-                    rate_rad_s=first.rate_rad_s, fit_rate=fit_rate,
-                    fixed_vectors=nv[~nfree], fixed_electrons=ne[~nfree],
-                )  # fmt: skip
-                n_nbr = len(nv)
+        if first is None or len(nv):
+            fit = fit_windows(
+                image, sensor, rotation, np.concatenate([ref, nv[nfree]]) if len(nv) else ref,
+                rate_rad_s=rate, fixed_vectors=nv[~nfree] if len(nv) else None,
+                fixed_electrons=ne[~nfree] if len(nv) else None, **opts,
+            )  # fmt: skip
+        else:
+            fit = first
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    return _judged(fit, rotation, cog_sigma_rad, n_nbr)
+    return _judged(fit, rotation, cog_sigma_rad, len(nv))
+
+
+def _psf_noise_e(sensor) -> float:
+    """Return a dark pixel's noise summed over a PSF's area (4 pi sigma^2), electrons."""
+    sigma = psf_of(sensor).sigma_px
+    return math.sqrt(pixel_variance(sensor.detector, 0.0, sensor.exposure_s)) * (
+        math.sqrt(4.0 * math.pi) * sigma
+    )
+
+
+def _reach_px(sensor, rate) -> float:
+    """How far from a star a neighbour's light may reach its window, px."""
+    psf = psf_of(sensor)
+    streak = float(np.linalg.norm(rate)) * sensor.exposure_s * sensor.focal_length_px
+    return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
 def _judged(fit: ModelFit, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
-    """Accept the fit, or say why the centroid attitude stays."""
+    """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not."""
     if not fit.converged:
         return Refinement(fit, False, "model fit did not converge", n_nbr)
-    if not math.isfinite(fit.reduced_chi2) or fit.reduced_chi2 > MAX_REDUCED_CHI2:
-        why = f"reduced chi-square {fit.reduced_chi2:.3g} > {MAX_REDUCED_CHI2:g}"
-        return Refinement(fit, False, f"model fit not used: the pixels disagree ({why})", n_nbr)
-    if not np.all(np.isfinite(fit.sigma_axes_rad)):
+    if not np.all(np.isfinite(fit.sigma_axes_rad)) or not math.isfinite(fit.reduced_chi2):
         return Refinement(fit, False, "model fit not used: singular information", n_nbr)
+    note = f"model fit ({fit.n_pixels} px, {n_nbr} neighbours)"
+    if fit.reduced_chi2 > SCALED_CHI2:  # the pixels scatter more than the model says
+        fit = dataclasses.replace(fit, covariance=fit.covariance * fit.reduced_chi2)
+        note += (
+            f"; sigmas scaled by the reduced chi-square {fit.reduced_chi2:.3g}: the pixels "
+            "scatter more than the sensor's PSF and noise model allow"
+        )
     from starsense.geometry.attitude import small_rotation_angles  # noqa: PLC0415
 
     move = np.abs(small_rotation_angles(fit.rotation, rotation))
@@ -188,10 +219,10 @@ def _judged(fit: ModelFit, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
             f"model fit not used: {float(np.max(move / scale)):.1f} sigma from the centroids'",
             n_nbr,
         )  # fmt: skip
-    return Refinement(fit, True, f"model fit ({fit.n_pixels} px, {n_nbr} neighbours)", n_nbr)
+    return Refinement(fit, True, note, n_nbr)
 
 
-def refined_attitude(image, att, sensor, db, ident, *, places, streaks, sky):
+def refined_attitude(image, att, sensor, db, ident, *, places, streaks, sky, points):
     """Return the solver's attitude refined on the pixels, and a note saying how.
 
     Parameters
@@ -211,6 +242,8 @@ def refined_attitude(image, att, sensor, db, ident, *, places, streaks, sky):
         The streaks of a smeared frame (their rate starts the fit's), None at rest.
     sky : (vectors, mags, tree)
         The catalogue's stars in the band of ``db``.
+    points : CentroidPoints
+        The detections (their lit sums set the neighbours' zero point).
 
     Returns
     -------
@@ -218,12 +251,16 @@ def refined_attitude(image, att, sensor, db, ident, *, places, streaks, sky):
     """
     plain, ref = places
     index = np.asarray(ident.catalog_index)
+    electrons = None
+    if points.windows is not None:  # the detections' lit sums, counts
+        flux = np.asarray(points.flux, dtype=float)[np.asarray(ident.detection_index)]
+        electrons = flux / sensor.detector.gain_counts_per_e
     rate = None
     if streaks is not None:  # smeared: the fit starts from the streaks' rate
         rate = streak_body_rate(sensor, att.rotation.apply(ref), streaks.streaks_px)
     done = refine_attitude(
         image, sensor, att.rotation, ref, plain, np.asarray(db.mags, dtype=float)[index],
-        sky=sky, cog_sigma_rad=att.sigma_axes_rad, rate_rad_s=rate,
+        sky=sky, cog_sigma_rad=att.sigma_axes_rad, rate_rad_s=rate, electrons=electrons,
     )  # fmt: skip
     if not done.used:
         return att, (done.note,)

@@ -406,6 +406,7 @@ class Solver:
             att, notes = refined_attitude(
                 image, att, self.sensor, identifier.database, ident, places=places,
                 streaks=streaks, sky=self._identifiers.sky(identifier.database.params.band),
+                points=points,
             )  # fmt: skip
         stages["attitude_ms"] = _ms(t3)
         sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),

@@ -22,6 +22,7 @@ from starsense.analysis.datasheet.field import (
     propagated_sigmas,
 )
 from starsense.analysis.datasheet.merges import match_chances, streaks_px_of
+from starsense.analysis.datasheet.model_noise import model_centroid_noise, zero_pixel_bias
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
 from starsense.analysis.datasheet.streak_noise import blend_cov_px2, is_streaked, streak_errors
 from starsense.analysis.datasheet.terms import (
@@ -116,6 +117,8 @@ class StarModel:
         sky-mean density (B,), px^-2, and the share of each one's pull the solver's model
         leaves (B,): 1 for those the solver's catalogue lacks, the catalogue's flux-ratio error
         for those it models; None without the counts.
+    refine : {"model", "cog"}
+        The solver's last step the prediction is of (:class:`starsense.solve.Solver`).
     """
 
     sensor: object
@@ -125,6 +128,7 @@ class StarModel:
     noise_corner: CentroidNoise | None = None
     confusion_px: np.ndarray | None = None
     neighbours: tuple | None = None
+    refine: str = "model"
 
     @classmethod
     def build(
@@ -138,6 +142,7 @@ class StarModel:
         unmodelled=None,
         modelled=None,
         flux_error: float = 0.0,
+        refine: str = "model",
     ) -> StarModel:
         """Tabulate the noise from ``bright_mag`` to ``faint_mag`` (V) for ``sensor``.
 
@@ -149,17 +154,21 @@ class StarModel:
         ``modelled``: the V magnitudes of those it models, whose pulls it misses by
         ``flux_error`` of them (the flux ratio its catalogue gives,
         :func:`starsense.analysis.datasheet.catalogue.flux_ratio_error`).
+        ``refine``: the solver's last step, "model" (the forward model's fit: its Cramer-Rao
+        bound, :mod:`starsense.analysis.datasheet.model_noise`) or "cog" (the windowed centre
+        of gravity of flight software, measured on single-star renders).
         """
         sens = Sensitivity.for_sensor(sensor, model)
         e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))
-        noise = centroid_noise(sensor, 0.5 * e_lo, 2.0 * e_hi)
+        table = model_centroid_noise if refine == "model" else centroid_noise
+        noise = table(sensor, 0.5 * e_lo, 2.0 * e_hi)
         probe = np.geomspace(max(e_lo, 1.0), max(e_hi, 2.0), 5)
-        bias = pixel_spatial_error(sensor, probe)
+        bias = zero_pixel_bias(probe) if refine == "model" else pixel_spatial_error(sensor, probe)
         corner = None
         sc = sensor.optics.psf_sigma_corner_px
         if sc > 0 and sc != sensor.detector.psf_sigma_px:
             wide = sensor.with_(detector=dataclasses.replace(sensor.detector, psf_sigma_px=sc))
-            corner = centroid_noise(wide, 0.5 * e_lo, 2.0 * e_hi)
+            corner = table(wide, 0.5 * e_lo, 2.0 * e_hi)
         conf = near = None
         if star_counts is not None:
             counts = np.asarray(star_counts, dtype=float)
@@ -176,7 +185,7 @@ class StarModel:
                 flux, rho = np.append(flux, f_m), np.append(rho, rho_m)
                 share = np.append(share, np.full(len(f_m), float(flux_error)))
             near = (flux, rho, share)
-        return cls(sensor, sens, noise, bias, corner, conf, near)
+        return cls(sensor, sens, noise, bias, corner, conf, near, refine)
 
     def _corner_weight(self, z_cam) -> np.ndarray:
         """Return (r / r_corner)^2 of stars at camera-frame z (r from the detector centre)."""

@@ -56,6 +56,7 @@ from starsense.analysis.inputs import (
 )
 from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.sensor_detection import sensor_detection
+from starsense.errors import InputError
 from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.scene import check_frame_size
@@ -94,6 +95,10 @@ class DatasheetSettings:
         Simulate every (magnitude, rate) cell of the slew run (the report plots its Fig. 9
         intensities); False stops each magnitude at the rate where it is lost. Both give the
         same numbers in the datasheet (limit, tolerance, ``m_t(w)``, availability).
+    refine : {"model", "cog"}
+        The solver predicted and checked: "model" (the default :class:`~starsense.solve.
+        Solver`, its forward-model fit: the NEA is the model's Cramer-Rao bound) or "cog" (an
+        attitude fitted to windowed centres of gravity, as flight software computes it).
     """
 
     n_trials: int = 100
@@ -104,6 +109,11 @@ class DatasheetSettings:
     model: str = "reed"
     n_rate_trials: int | None = None
     slew_full_grid: bool = True
+    refine: str = "model"
+
+    def __post_init__(self) -> None:
+        if self.refine not in ("model", "cog"):
+            raise InputError(f"refine must be 'model' or 'cog', got {self.refine!r}")
 
 
 def _arcsec_stats(cross: np.ndarray, roll: np.ndarray) -> AxisSpread:
@@ -218,7 +228,7 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     model = StarModel.build(
         sensor, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag,
         star_counts=every, unmodelled=every[~held], modelled=every[held],
-        flux_error=flux_ratio_error(cat, database, sens),
+        flux_error=flux_ratio_error(cat, database, sens), refine=st.refine,
     )  # fmt: skip
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
@@ -252,8 +262,9 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
             runs[key] = no_frames_check(rate)
             continue
         res = montecarlo(
-            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model, client=client
-        )
+            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model,
+            client=client, refine=st.refine,
+        )  # fmt: skip
         runs[key] = MonteCarloCheck(
             **score_montecarlo(
                 res,

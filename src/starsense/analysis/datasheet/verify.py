@@ -20,6 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import beta
 
+from starsense.analysis.datasheet.model_noise import model_nea_at_rate
 from starsense.analysis.datasheet.predict import error_kinds, nea_at, nea_at_rate
 from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
@@ -190,7 +191,14 @@ def score_montecarlo(
             out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
         return out
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
-    if res.rate_rad_s > 0:
+    if res.rate_rad_s > 0 and getattr(model, "refine", "cog") == "model":
+        mags = np.asarray(magnitudes, dtype=float)
+        keep = mags <= (np.inf if limit_mag_at_rate is None else limit_mag_at_rate)
+        cross, roll = model_nea_at_rate(
+            model, fov, mats, rates_rad_s=res.rates_rad_s,
+            vectors=np.asarray(vectors)[keep], magnitudes=mags[keep],
+        )  # fmt: skip
+    elif res.rate_rad_s > 0:
         mags = np.asarray(magnitudes, dtype=float)
         reach = np.inf if limit_mag_at_rate is None else limit_mag_at_rate + PIECES_REACH_MAG
         keep = mags <= reach

@@ -1,0 +1,100 @@
+"""The datasheet's noise when the solver fits the forward model: its Cramer-Rao bound.
+
+The default solver refines every attitude by maximum likelihood on the identified stars' pixels
+(:mod:`starsense.solve.refine`), which attains the model's Fisher information
+(:mod:`starsense.model.fisher`). Its noise-equivalent angle is therefore that information,
+summed over the stars of each attitude through the projection:
+
+- at rest, each star's position information is isotropic (averaged over its sub-pixel phase)
+  and depends on its electrons alone: :func:`model_centroid_noise` tabulates it as a
+  :class:`~starsense.analysis.datasheet.noise.CentroidNoise` whose noise, the solver's weights
+  and the bound are the same number (an efficient estimator weighs each star by its own
+  information) and whose sub-pixel bias is zero (the model holds the pixel response);
+- under a body rate, each star is a streak whose information is anisotropic (less along the
+  streak): :func:`model_nea_at_rate` sums ``J^T I J`` per attitude (the rate is a nuisance of
+  the fit, nearly uncorrelated with the attitude: a symmetric streak's mid-point does not move
+  with its length).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam
+from starsense.analysis.datasheet.merges import streaks_px_of
+from starsense.analysis.datasheet.noise import CentroidNoise
+from starsense.analysis.datasheet.terms import PixelSpatialError
+from starsense.model.fisher import attitude_information, position_information
+from starsense.model.fit import window_half_px
+from starsense.model.psf import psf_of
+
+__all__ = ["model_centroid_noise", "model_nea_at_rate", "zero_pixel_bias"]
+
+#: sub-pixel phases per axis of a star at rest (a streak averages its phases along itself: 2)
+N_PHASE_REST, N_PHASE_STREAK = 4, 2
+
+
+def model_centroid_noise(sensor, electrons_min: float, electrons_max: float, *,
+                         n_grid: int = 16) -> CentroidNoise:  # fmt: skip
+    """Tabulate the model fit's position noise against electrons (px, one axis).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    electrons_min, electrons_max : float
+        Range of the table, photo-electrons.
+    n_grid : int
+        Table points, log-spaced.
+
+    Returns
+    -------
+    CentroidNoise
+        ``sigma_px``, ``solver_sigma_px``, ``crb_px``, ``window_model_px``: the bound; biases 0.
+    """
+    lo = max(float(electrons_min), 1.0)
+    hi = max(float(electrons_max), 2.0 * lo)
+    grid = np.geomspace(lo, hi, int(n_grid))
+    info = position_information(sensor, grid, n_phase=N_PHASE_REST)
+    mean = 0.5 * (info[:, 0, 0] + info[:, 1, 1])
+    sigma = np.where(mean > 0, 1.0 / np.sqrt(np.where(mean > 0, mean, 1.0)), np.nan)
+    zero = np.zeros(len(grid))
+    side = np.full(len(grid), 2.0 * window_half_px(psf_of(sensor)) + 1.0)
+    return CentroidNoise(grid, sigma, sigma, zero, zero, side, sigma, zero, sigma)
+
+
+def zero_pixel_bias(electrons) -> PixelSpatialError:
+    """Return the model fit's sub-pixel bias: none (its model integrates the PSF over pixels)."""
+    e = np.asarray(electrons, dtype=float)
+    return PixelSpatialError(e, np.zeros(len(e)), np.zeros(len(e)), 0)
+
+
+def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes):
+    """Return the model fit's 1-sigma (cross, roll) of attitudes at body rates, rad.
+
+    Parameters
+    ----------
+    model : StarModel
+        Its sensor and sensitivity (magnitude -> electrons).
+    fov : RectangularFov
+    matrices : ndarray (M, 3, 3)
+        Attitudes, ICRS -> camera.
+    rates_rad_s : ndarray (M, 3)
+        Body rate of each attitude, camera frame, rad/s.
+    vectors, magnitudes : ndarray (N, 3), (N,)
+        The stars the fit uses (detected at the rate), ICRS, V.
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad; NaN where the stars do not fix the attitude.
+    """
+    sensor = model.sensor
+    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors))
+    rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[pairs.point]
+    electrons = model.sensitivity.electrons(np.asarray(magnitudes)[pairs.star])
+    _, streaks = streaks_px_of(sensor, pairs.v_cam, rates)
+    info = position_information(sensor, electrons, streaks, n_phase=N_PHASE_STREAK)
+    per_star = attitude_information(sensor, pairs.v_cam, info)
+    fisher = np.zeros((pairs.n_pointings, 3, 3))
+    np.add.at(fisher, pairs.point, per_star)
+    return axis_sigmas(fisher)
