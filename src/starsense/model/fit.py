@@ -37,10 +37,11 @@ __all__ = ["WINDOW_HALF_SIGMAS", "ModelFit", "fit_windows", "pixel_variance", "w
 #: a star's box reaches this many PSF sigmas (+1 px) beyond its track
 WINDOW_HALF_SIGMAS = 3.5
 #: Gauss-Newton stops when its last step was below this fraction of each parameter's sigma
-STEP_TOL_SIGMAS = 0.01
+#: (what is left, ~the square of the step in sigma for a quadratic convergence, is nothing)
+STEP_TOL_SIGMAS = 0.1
 #: the width's central difference, a fraction of the width
 WIDTH_STEP = 2e-3
-MAX_ITERATIONS = 12
+MAX_ITERATIONS = 10
 
 
 def window_half_px(psf: PixelPSF) -> float:
@@ -194,13 +195,14 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
                            fit_rate=pb.fit_rate)  # fmt: skip
     fl = pb.fluxes
     fl[pb.free] = lin_values[w.group[pb.free], w.slot[pb.free]]  # the Jacobian at these fluxes
-    ev = evaluate(w, psf, nodes, fl, free=pb.free)
+    exact = pb.fit_width and psf.spec.is_gaussian  # the width's derivative in closed form
+    ev = evaluate(w, psf, nodes, fl, free=pb.free, width=exact)
     g_n, m = w.n_groups, w.n_slots
     lin = np.concatenate([ev.templates, np.ones((g_n, 1, *w.shape))], axis=1).reshape(
         g_n, m + 1, -1
     )
-    jac = ev.jacobian.reshape(g_n, nodes.dx.shape[-1], -1)
-    if pb.fit_width:  # d mu / d sigma by a central difference of the profile's width
+    jac = ev.jacobian.reshape(g_n, ev.jacobian.shape[1], -1)
+    if pb.fit_width and not exact:  # d mu / d sigma by a central difference of the width
         h = WIDTH_STEP * psf.sigma_px
         sides = []
         for sign in (1.0, -1.0):
@@ -271,7 +273,10 @@ def fit_windows(
                 np.clip(psf.sigma_px + step[n_geo], 0.25 * psf.sigma_px, 4.0 * psf.sigma_px)
             )
             psf = pixel_psf(psf.spec, width)
-        sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(s)), 0.0, None))
+        resid = pb.data - mu  # the pixels' scatter about the model sets the scale of a step
+        dof = max(int(pb.use.sum()) - len(step) - lin.shape[1] * lin.shape[0], 1)
+        scatter = max(1.0, float((weight * resid * resid).sum()) / dof)
+        sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(s)), 0.0, None) * scatter)
         if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma):
             converged = True
             break

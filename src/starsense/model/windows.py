@@ -18,6 +18,8 @@ light at a given flux and moves with the attitude, but is not fitted.
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,6 +69,13 @@ class Windows:
     def n_groups(self) -> int:
         """G, the number of groups."""
         return len(self.row0)
+
+    @functools.cached_property
+    def size_classes(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The sources' box sizes (rows, columns) and, for each, the sources of that size."""
+        b = self.box
+        sizes = np.column_stack([b[:, 1] - b[:, 0], b[:, 3] - b[:, 2]])
+        return [(z, np.flatnonzero((sizes == z).all(axis=1))) for z in np.unique(sizes, axis=0)]
 
 
 def _boxes(x, y, half_px: float) -> np.ndarray:
@@ -189,16 +198,51 @@ class Evaluation:
     jacobian: np.ndarray | None
 
 
-def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient):
+def _gaussian_width_1d(d, sigma):
+    """Return d/dsigma of a 1-D Gaussian's pixel fractions at offsets ``d``.
+
+    ``-(a phi(a) - b phi(b)) / sigma`` with ``a, b = (d +- 1/2) / sigma``.
+    """
+    a, b = (d + 0.5) / sigma, (d - 0.5) / sigma
+    return -(a * np.exp(-0.5 * a * a) - b * np.exp(-0.5 * b * b)) * _INV_SQRT2PI / sigma
+
+
+_INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
+
+
+def _static_gaussian(sigma, nodes: NodePositions, idx, rows, cols, gradient, width):
+    """:func:`source_stamps` of Gaussian stars at rest (one time node)."""
+    px, dpx = gaussian_pixel_1d(cols - nodes.x[idx, :1], sigma)  # (S, w)
+    py, dpy = gaussian_pixel_1d(rows - nodes.y[idx, :1], sigma)  # (S, h)
+    t = py[:, :, None] * px[:, None, :]
+    if not gradient:
+        return t, None
+    ax, ay = nodes.dx[idx, 0], nodes.dy[idx, 0]  # (S, P)
+    gx = py[:, :, None] * dpx[:, None, :]  # d t / d(dx)
+    gy = dpy[:, :, None] * px[:, None, :]
+    d = -(ax[:, :, None, None] * gx[:, None] + ay[:, :, None, None] * gy[:, None])
+    if width:
+        dw = _gaussian_width_1d(rows - nodes.y[idx, :1], sigma)[:, :, None] * px[:, None, :]
+        dw += py[:, :, None] * _gaussian_width_1d(cols - nodes.x[idx, :1], sigma)[:, None, :]
+        d = np.concatenate([d, dw[:, None]], axis=1)
+    return t, d
+
+
+def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient, width=False):
     """Return templates (S, h, w) of sources ``idx`` and their derivatives (S, P, h, w).
 
-    Over pixel rows (S, h) and columns (S, w) of the detector.
+    Over pixel rows (S, h) and columns (S, w) of the detector. With ``width`` (a Gaussian), the
+    derivative with respect to the PSF's sigma is appended (P + 1 columns).
     """
     wk = nodes.weights
     xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
+    if psf.spec.is_gaussian and len(wk) == 1:  # at rest: outer products, no sums over time
+        return _static_gaussian(psf.sigma_px, nodes, idx, rows, cols, gradient, width)
     if psf.spec.is_gaussian:  # separable: sums over nodes are matrix products
-        px, dpx = gaussian_pixel_1d(cols[:, None, :] - xk[:, :, None], psf.sigma_px)
-        py, dpy = gaussian_pixel_1d(rows[:, None, :] - yk[:, :, None], psf.sigma_px)
+        sigma = psf.sigma_px
+        dxp, dyp = cols[:, None, :] - xk[:, :, None], rows[:, None, :] - yk[:, :, None]
+        px, dpx = gaussian_pixel_1d(dxp, sigma)
+        py, dpy = gaussian_pixel_1d(dyp, sigma)
         t = np.einsum("skr,k,skc->src", py, wk, px)
         if not gradient:
             return t, None
@@ -208,6 +252,10 @@ def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient
             np.einsum("skr,skp,skc->sprc", py, ax, dpx)
             + np.einsum("skr,skp,skc->sprc", dpy, ay, px)
         )
+        if width:
+            sx, sy = _gaussian_width_1d(dxp, sigma), _gaussian_width_1d(dyp, sigma)
+            dw = np.einsum("skr,k,skc->src", sy, wk, px) + np.einsum("skr,k,skc->src", py, wk, sx)
+            d = np.concatenate([d, dw[:, None]], axis=1)
         return t, d
     dxg = cols[:, None, None, :] - xk[:, :, None, None]  # (S, K, h, w)
     dyg = rows[:, None, :, None] - yk[:, :, None, None]
@@ -223,7 +271,7 @@ def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient
 
 
 def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, fluxes, *, free,
-             gradient: bool = True) -> Evaluation:  # fmt: skip
+             gradient: bool = True, width: bool = False) -> Evaluation:  # fmt: skip
     """Return the templates, the fixed light and the geometric Jacobian on the windows.
 
     Parameters
@@ -237,26 +285,38 @@ def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, fluxes, *, f
     free : ndarray of bool, shape (S,)
     gradient : bool
         Compute the Jacobian.
+    width : bool
+        Append the derivative with respect to a Gaussian PSF's sigma to the Jacobian.
     """
     g_n, (h, w), m = windows.n_groups, windows.shape, windows.n_slots
-    n_par = nodes.dx.shape[-1]
-    templates = np.zeros((g_n, m, h, w))
-    fixed = np.zeros((g_n, h, w))
-    jac = np.zeros((g_n, n_par, h, w)) if gradient else None
+    width = width and psf.spec.is_gaussian
+    n_par = nodes.dx.shape[-1] + int(width)
+    templates = np.zeros(g_n * m * h * w)
+    fixed = np.zeros(g_n * h * w)
+    jac = np.zeros(g_n * n_par * h * w) if gradient else None
     box = windows.box
-    sizes = np.column_stack([box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]])
-    for size in np.unique(sizes, axis=0):  # sources of one box size at a time, batched
-        idx = np.flatnonzero((sizes == size).all(axis=1))
+    fluxes = np.asarray(fluxes, dtype=float)
+    for size, idx in windows.size_classes:  # sources of one box size at a time, batched
         g = windows.group[idx]
         rows = (windows.row0[g] + box[idx, 0])[:, None] + np.arange(size[0])[None, :]
         cols = (windows.col0[g] + box[idx, 2])[:, None] + np.arange(size[1])[None, :]
-        t, d = source_stamps(psf, nodes, idx, rows, cols, gradient)
-        for n, s in enumerate(idx):
-            sl = (slice(box[s, 0], box[s, 1]), slice(box[s, 2], box[s, 3]))
-            if free[s]:
-                templates[(windows.group[s], windows.slot[s], *sl)] = t[n]
-            else:
-                fixed[(windows.group[s], *sl)] += fluxes[s] * t[n]
-            if gradient:
-                jac[(windows.group[s], slice(None), *sl)] += fluxes[s] * d[n]
-    return Evaluation(templates, fixed, jac)
+        t, d = source_stamps(psf, nodes, idx, rows, cols, gradient, width)
+        # each stamp's pixels as flat indices of its group's (H, W) grid
+        local = (box[idx, 0][:, None, None] + np.arange(size[0])[None, :, None]) * w + (
+            box[idx, 2][:, None, None] + np.arange(size[1])[None, None, :]
+        )
+        fr = free[idx]
+        slot_of = (g[fr] * m + windows.slot[idx][fr])[:, None, None] * (h * w)
+        templates[(slot_of + local[fr]).ravel()] = t[fr].ravel()
+        if (~fr).any():
+            at = (g[~fr][:, None, None] * (h * w) + local[~fr]).ravel()
+            fixed += np.bincount(at, (fluxes[idx][~fr, None, None] * t[~fr]).ravel(), fixed.size)
+        if gradient:
+            par = (g[:, None] * n_par + np.arange(n_par)[None, :])[:, :, None, None] * (h * w)
+            at = (par + local[:, None]).ravel()
+            jac += np.bincount(at, (fluxes[idx][:, None, None, None] * d).ravel(), jac.size)
+    return Evaluation(
+        templates.reshape(g_n, m, h, w),
+        fixed.reshape(g_n, h, w),
+        None if jac is None else jac.reshape(g_n, n_par, h, w),
+    )

@@ -40,6 +40,7 @@ from starsense.geometry.attitude import radec_roll_from_attitude
 from starsense.photometry.colour import ColourModel
 from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.frame import Frame, FrameTruth, StarTruth
+from starsense.render.model_stamps import model_expected_image
 from starsense.render.noise import apply_noise, quantise
 from starsense.render.readout import fast_read_out
 from starsense.render.smear import METHODS, pad_sigma_for, polyline_expected
@@ -426,7 +427,10 @@ def render_frame(
     sigmas = sensor.psf_sigma_at(mid[:, 0], mid[:, 1])  # the field-dependent PSF, per star
     sigmas = np.where(np.isfinite(sigmas), sigmas, _sigma(sensor))
     moved = _residual(sensor, tracks, gen)
-    expected, rendered = expected_image(sensor, moved, electrons, method=method, sigmas=sigmas)
+    if sensor.psf.is_gaussian:
+        expected, rendered = expected_image(sensor, moved, electrons, method=method, sigmas=sigmas)
+    else:  # the forward model's profile (Moffat, Airy, empirical)
+        expected, rendered = model_expected_image(sensor, moved, electrons, sigmas=sigmas)
     truth_stars = _star_truth(catalog, stars, tracks, rendered, model)
 
     # 4. detector

@@ -5,13 +5,15 @@ body rate, when the frame is smeared) is refined by maximum likelihood on the pi
 identified stars (:func:`starsense.model.fit.fit_windows`): each star's flux and each window's
 background are free, and the catalogue stars whose light reaches a window are in the model:
 
-1. a first fit of the identified stars alone gives their fluxes, hence the frame's zero point
-   (electrons of a magnitude-0 star: the median over the brightest);
+1. the detections' lit sums give the frame's zero point (electrons of a magnitude-0 star: the
+   median over the brightest), or, without them, a first fit of the identified stars alone;
 2. every catalogue star within reach of a window (its box, the PSF's extent and the streak) is
    predicted from its magnitude and that zero point; one too faint to matter (below a tenth of
    a pixel's noise over its PSF) is left out, one bright enough to be measured (25 times that
    noise) is fitted like the identified stars, the rest are drawn at their predicted flux;
-3. the fit is repeated with them, from the first fit's attitude.
+3. the fit is made with them; where its fluxes move the zero point by more than
+   :data:`ZERO_POINT_AGREES` (a lit sum misses a wide PSF's wings), the neighbours are
+   predicted again and the fit repeated from its attitude.
 
 The solution's covariance is the inverse Fisher information at the fit (the Cramer-Rao bound of
 the model), which the datasheet predicts. Where the pixels scatter more than the model allows
@@ -19,7 +21,8 @@ the model), which the datasheet predicts. Where the pixels scatter more than the
 noise differ from the sensor's), the covariance is scaled by the reduced chi-square and the note
 says so. A fit that does not converge, or that moves the attitude further than
 :data:`MAX_MOVE_SIGMAS` of the two solutions' sigmas from the centroid attitude, keeps the
-centroid attitude and says why.
+centroid attitude and says why (a move that shifts no star by :data:`MAX_MOVE_PX` is kept: the
+two estimators of an imperfectly known PSF's centre may disagree by that much).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from starsense.model.psf import psf_of
 from starsense.solve.blends import streak_body_rate
 
 __all__ = [
+    "MAX_MOVE_PX",
     "MAX_MOVE_SIGMAS",
     "SCALED_CHI2",
     "Refinement",
@@ -46,12 +50,20 @@ __all__ = [
 #: a fit whose pixels' reduced chi-square exceeds this has its covariance scaled by it (the
 #: chi-square of a right model over N ~ 10^3 pixels lies within 1 +- 0.1)
 SCALED_CHI2 = 1.3
-#: a model fit further than this many centroid sigmas from the centroid attitude is refused
+#: a model fit further than this many centroid sigmas from the centroid attitude is refused...
 MAX_MOVE_SIGMAS = 8.0
+#: ...when it also moves a star by more than this, px: a real lens's asymmetric PSF puts a
+#: centre of gravity a fraction of a pixel from a symmetric profile's centre, a wrong
+#: solution is pixels to degrees away
+MAX_MOVE_PX = 0.25
 #: two catalogue directions closer than this are one star, rad (0.2 arcsec)
 SAME_STAR_RAD = 1e-6
 #: stars whose fluxes set the zero point
 ZERO_POINT_STARS = 7
+#: the neighbours are fitted again when the fit's zero point differs by more than this
+#: (a lit sum misses a PSF's wings): a 5 % flux error of a neighbour at the noise's level is
+#: below a tenth of its pull
+ZERO_POINT_AGREES = 0.05
 #: a neighbour below this fraction of a pixel's noise (over its PSF's area) is left out
 NEGLIGIBLE_NOISE = 0.1
 #: a neighbour above this many times a pixel's noise (over its PSF's area) is fitted
@@ -156,29 +168,36 @@ def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma
     mags = np.asarray(mags, float)
     opts = {"fit_rate": fit_rate, "fit_width": fit_width}
     try:
-        first = None
         zp = None if electrons is None else _zero_point(np.asarray(electrons, float), mags)
-        if zp is None:
-            first = fit_windows(image, sensor, rotation, ref, rate_rad_s=rate, **opts)
+        fit, first = None, None
+        if zp is None:  # the identified stars alone first: their fluxes give the zero point
+            first = fit = fit_windows(image, sensor, rotation, ref, rate_rad_s=rate, **opts)
             zp = _zero_point(first.fluxes_e, mags)
-            rotation, rate = first.rotation, first.rate_rad_s
         nv = np.zeros((0, 3))
-        if zp is not None:
+        for _ in range(2):  # again if the fit's fluxes move the zero point (lit sums miss wings)
+            if zp is None:
+                break
+            start = rotation if fit is None else fit.rotation
             nv, ne, nfree = _neighbours(
-                sensor, plain, ref, sky=sky, rotation=rotation, reach_px=_reach_px(sensor, rate),
+                sensor, plain, ref, sky=sky, rotation=start, reach_px=_reach_px(sensor, rate),
                 zero_point=zp, noise_e=_psf_noise_e(sensor),
             )  # fmt: skip
-        if first is None or len(nv):
+            if fit is first and fit is not None and not len(nv):
+                break
             fit = fit_windows(
-                image, sensor, rotation, np.concatenate([ref, nv[nfree]]) if len(nv) else ref,
-                rate_rad_s=rate, fixed_vectors=nv[~nfree] if len(nv) else None,
-                fixed_electrons=ne[~nfree] if len(nv) else None, **opts,
+                image, sensor, start, np.concatenate([ref, nv[nfree]]),
+                rate_rad_s=rate if fit is None else fit.rate_rad_s,
+                fixed_vectors=nv[~nfree], fixed_electrons=ne[~nfree], **opts,
             )  # fmt: skip
-        else:
-            fit = first
+            new = _zero_point(fit.fluxes_e[: len(ref)], mags)
+            if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not np.any(~nfree):
+                break
+            zp = new
+        if fit is None:
+            fit = fit_windows(image, sensor, rotation, ref, rate_rad_s=rate, **opts)
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    return _judged(fit, rotation, cog_sigma_rad, len(nv))
+    return _judged(fit, sensor, rotation, cog_sigma_rad, len(nv))
 
 
 def _psf_noise_e(sensor) -> float:
@@ -196,7 +215,7 @@ def _reach_px(sensor, rate) -> float:
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
-def _judged(fit: ModelFit, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
+def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
     """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not."""
     if not fit.converged:
         return Refinement(fit, False, "model fit did not converge", n_nbr)
@@ -213,7 +232,10 @@ def _judged(fit: ModelFit, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
 
     move = np.abs(small_rotation_angles(fit.rotation, rotation))
     scale = np.hypot(np.asarray(cog_sigma_rad, float), fit.sigma_axes_rad)
-    if np.any(move > MAX_MOVE_SIGMAS * scale):
+    det = sensor.detector
+    edge = 0.5 * math.hypot(det.columns, det.rows)  # the farthest a star sits from the axis, px
+    moved_px = math.hypot(move[0], move[1]) * sensor.focal_length_px + move[2] * edge
+    if np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
         return Refinement(
             fit, False,
             f"model fit not used: {float(np.max(move / scale)):.1f} sigma from the centroids'",
