@@ -58,9 +58,13 @@ $(PEERS_STAMP):
 	$(PEERS)/bin/python -m pip install --quiet "cedar-solve==0.5.1" "numpy<2"
 	touch $@
 
-bench-zoo: $(STAMP)  ## the sensor zoo (40 seeded designs + the 768x512 CCD), at rest and 1 deg/s; bench/results/zoo.json
+bench-zoo: $(STAMP)  ## held-out zoos (3 seeds drawn now, 16 designs each) first, then the tuning zoo (seed 23); bench/results/zoo*.json
+	for k in 1 2 3; do $(BIN)/python bench/zoo.py --seed fresh --designs 16 --frames 100 --jobs 2 \
+		--out bench/results/zoo_heldout_$$k.json || exit 1; done
 	$(BIN)/python bench/zoo.py --designs 40 --frames 100 --jobs 2
-	$(BIN)/python bench/zoo_table.py bench/results/zoo.json
+	for f in bench/results/zoo_heldout_1.json bench/results/zoo_heldout_2.json \
+		bench/results/zoo_heldout_3.json bench/results/zoo.json; do \
+		$(BIN)/python bench/zoo_table.py $$f; done
 
 $(T3RS_STAMP):
 	$(PYTHON) -m venv $(T3RS)

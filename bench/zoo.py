@@ -30,6 +30,7 @@ import argparse
 import json
 import math
 import multiprocessing as mp
+import os
 import resource
 import sys
 import time
@@ -154,14 +155,16 @@ def _more_frames(right: int, frames: int, min_right: int) -> int:
 
 
 def _run_one(args) -> dict:
-    name, params, frames, rate_frames, seed, min_right = args
+    name, params, frames, rate_frames, seed, min_right, refine = args
     from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
     from starsense.catalog import load_catalog
 
     sensor = make_sensor(name, **params)
     t0 = time.perf_counter()
     cat = load_catalog("hipparcos")
-    settings = DatasheetSettings(n_trials=frames, n_rate_trials=rate_frames, seed=seed)
+    settings = DatasheetSettings(
+        n_trials=frames, n_rate_trials=rate_frames, seed=seed, refine=refine
+    )
     d = build_datasheet(sensor, cat, settings=settings).to_dict()
     # a design that seldom solves: more frames (the same seed: the first ones again, then
     # more), until its ratios rest on ~min_right right solutions
@@ -173,8 +176,9 @@ def _run_one(args) -> dict:
     }
     if any(more.values()):
         settings = DatasheetSettings(
-            n_trials=more["monte_carlo"], n_rate_trials=more["monte_carlo_at_rate"], seed=seed
-        )
+            n_trials=more["monte_carlo"], n_rate_trials=more["monte_carlo_at_rate"], seed=seed,
+            refine=refine,
+        )  # fmt: skip
         again = build_datasheet(sensor, cat, settings=settings).to_dict()
         d.update({k: again[k] for k, n in more.items() if n})
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
@@ -245,7 +249,18 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--designs", type=int, default=40)
     ap.add_argument("--frames", type=int, default=100)
     ap.add_argument("--rate-frames", type=int, default=None)
-    ap.add_argument("--seed", type=int, default=23)
+    ap.add_argument(
+        "--seed",
+        default="23",
+        help="the designs' seed: 23 is the tuning set; 'fresh' draws a held-out one now "
+        "(printed, never reused for a fix)",
+    )
+    ap.add_argument(
+        "--refine",
+        choices=("model", "cog"),
+        default="model",
+        help="the solver predicted and checked (the datasheet's --refine)",
+    )
     ap.add_argument("--only", default=None, help="run one design (a zoo name, or ccd768)")
     ap.add_argument("--out", default=str(RESULTS / "zoo.json"))
     ap.add_argument("--jobs", type=int, default=1, help="designs run at once (one process each)")
@@ -256,12 +271,25 @@ def main(argv: list[str]) -> int:
         help="a design with fewer right solutions runs more frames (up to 40x) to reach this",
     )
     args = ap.parse_args(argv)
+    if args.seed == "fresh":
+        args.seed = int.from_bytes(os.urandom(4), "little") % 1_000_000
+        print(f"held-out zoo: seed {args.seed} (drawn now)", flush=True)
+    else:
+        args.seed = int(args.seed)
     designs = [*zoo_designs(args.designs, args.seed), ("ccd768", CCD_768)]
     if args.only:
         designs = [d for d in designs if d[0] == args.only]
     rows = []
     jobs = [
-        (name, params, args.frames, args.rate_frames or args.frames, args.seed, args.min_right)
+        (
+            name,
+            params,
+            args.frames,
+            args.rate_frames or args.frames,
+            args.seed,
+            args.min_right,
+            args.refine,
+        )
         for name, params in designs
     ]
     # one process per design (maxtasksperchild=1): its own peak memory; --jobs designs at once
@@ -272,7 +300,13 @@ def main(argv: list[str]) -> int:
             _print_row(job[0], row)
             Path(args.out).parent.mkdir(parents=True, exist_ok=True)
             with atomic_write(args.out) as f:
-                record = {"date": time.strftime("%Y-%m-%d"), **summary(rows), "rows": rows}
+                record = {
+                    "date": time.strftime("%Y-%m-%d"),
+                    "seed": args.seed,
+                    "refine": args.refine,
+                    **summary(rows),
+                    "rows": rows,
+                }
                 json.dump(record, f, indent=1)
     print(json.dumps(summary(rows)), flush=True)
     return 0

@@ -328,6 +328,15 @@ def solve(
         ),
     ] = None,
     extraction: ExtractionOpt = "auto",
+    refine: Annotated[
+        str | None,
+        typer.Option(
+            "--refine",
+            help="The attitude's last step: model (default with --sensor: the sensor's forward "
+            "model fitted to the stars' pixels, sigmas from its Fisher information) or cog "
+            "(the attitude of the centroids).",
+        ),
+    ] = None,
     jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,
     as_json: JsonOpt = False,
 ) -> None:
@@ -351,7 +360,14 @@ def solve(
 
     when = None if time_utc is None else parse_time(time_utc, "--time")
     velocity, apparent = observer_velocity_km_s, not no_apparent
-    solver = _solver(sensor, fov_deg, catalog, algorithm, apparent, velocity, extraction=extraction)
+    if refine is not None and refine not in ("model", "cog"):
+        raise InputError(f"--refine must be model or cog, got {refine!r}")
+    if refine == "model" and sensor is None:
+        raise InputError("--refine model fits the sensor's forward model: give --sensor")
+    solver = _solver(
+        sensor, fov_deg, catalog, algorithm, apparent, velocity, extraction=extraction,
+        refine=refine,
+    )  # fmt: skip
     if centroids is not None:
         if images:
             raise InputError("give frames or --centroids, not both")

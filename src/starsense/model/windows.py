@@ -30,8 +30,9 @@ from starsense.model.tracks import NodePositions
 
 __all__ = ["MAX_WINDOW_PIXELS", "Evaluation", "Windows", "evaluate", "make_windows"]
 
-#: most pixels the groups of one frame may hold (padded), to bound memory
-MAX_WINDOW_PIXELS = 2_000_000
+#: most pixels the groups of one frame may hold (padded): the fit holds ~(slots + parameters)
+#: arrays of this size, ~100 MB at 400,000
+MAX_WINDOW_PIXELS = 400_000
 
 
 @dataclass(frozen=True)

@@ -93,7 +93,7 @@ def _aberration_rows(sensor, given: dict) -> tuple[list[BudgetRow], bool]:
 
 
 def error_budget(
-    sensor, nea: AxisSpread, *, errors: dict, pse_px: float | None, dsnu=None
+    sensor, nea: AxisSpread, *, errors: dict, pse_px: float | None, dsnu=None, refine="model"
 ) -> list[BudgetRow]:
     """Return the error budget rows: term, cross, roll (arcsec, 1 sigma), source; then the total.
 
@@ -111,6 +111,8 @@ def error_budget(
         Rms sub-pixel centroid bias over the stars used, px (the value propagated).
     dsnu : AxisPair or None
         The NEA's growth from the dark-signal non-uniformity (quadrature difference), arcsec.
+    refine : {"model", "cog"}
+        The solver the NEA is of: the forward model's fit, or the centroids' attitude.
 
     Returns
     -------
@@ -126,19 +128,30 @@ def error_budget(
         if sc > 0 and sc != det.psf_sigma_px
         else ""
     )
+    if refine == "model":
+        how = (
+            f"modelled (the forward model's Fisher information, {sensor.psf.describe()} PSF: "
+            f"the bound the solver's fit attains){optics}"
+        )
+        pixel = "none: the fit's model integrates the PSF over the pixels"
+    else:
+        how = f"modelled (centroid noise through the solver's weighted fit, eq. 21){optics}"
+        pixel = (
+            "measured in this run (noisy renders over pixel phases), propagated as an error "
+            "through the solver's weights"
+        )
     rows = [
         BudgetRow(
             "noise-equivalent angle (temporal, 1 sigma, sky median)",
             nea.cross.median,
             nea.roll.median,
-            f"modelled (centroid noise through the solver's weighted fit, eq. 21){optics}",
+            how,
         ),
         _sky_row(
             "pixel spatial error (centroid bias"
             + (f", rms {pse_px:.4f} px over the stars used)" if pse_px else ")"),
             errors["pixel"],
-            "measured in this run (noisy renders over pixel phases), propagated as an error "
-            "through the solver's weights",
+            pixel,
         ),
     ]
     if "confusion" in errors:

@@ -20,8 +20,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import beta
 
+from starsense.analysis.datasheet.cog_rate import nea_at_rate
 from starsense.analysis.datasheet.model_noise import model_nea_at_rate
-from starsense.analysis.datasheet.predict import error_kinds, nea_at, nea_at_rate
+from starsense.analysis.datasheet.predict import error_kinds, nea_at
 from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
@@ -150,7 +151,7 @@ def score_montecarlo(
     limit_mag_at_rate : float, optional
         For a run at a rate: the faintest magnitude detected at that rate (the datasheet's
         threshold at the rate); the prediction is that of the smeared stars
-        (:func:`starsense.analysis.datasheet.predict.nea_at_rate`) down to
+        (:func:`starsense.analysis.datasheet.cog_rate.nea_at_rate`) down to
         ``PIECES_REACH_MAG`` fainter, each with its chance of being matched. None keeps every
         star of ``magnitudes``.
     catalogue : ndarray (N,), optional
