@@ -27,10 +27,11 @@ def _scene(n=12, seed=2):
 
 def _mu(sensor, psf, v, rot, rate, fluxes, windows, kept, free, frac, wts, fit_rate):
     nodes = node_positions(
-        sensor, v[kept], rot, rate, sensor.exposure_s, fractions=frac, weights=wts,
+        sensor, v[kept], rot, rate_rad_s=rate, exposure_s=sensor.exposure_s, fractions=frac,
+        weights=wts,
         fit_rate=fit_rate,
     )  # fmt: skip
-    ev = evaluate(windows, psf, nodes, fluxes, free=free)
+    ev = evaluate(windows, psf, nodes, fluxes=fluxes, free=free)
     return ev
 
 
@@ -50,7 +51,9 @@ def test_jacobian_is_the_derivative_of_the_pixels(kind, rate_deg_s):
     fit_rate = rate_deg_s > 0
     frac, wts = time_nodes(30.0 if fit_rate else 0.0, psf.sigma_px)
     free = np.ones(len(v), bool)
-    nodes = node_positions(sensor, v, rot, rate, sensor.exposure_s, fractions=frac, weights=wts)
+    nodes = node_positions(
+        sensor, v, rot, rate_rad_s=rate, exposure_s=sensor.exposure_s, fractions=frac, weights=wts
+    )
     windows, kept = make_windows(nodes.x, nodes.y, half_px=5.0, shape=(1000, 1000), free=free)
     fluxes = np.linspace(1e3, 5e4, len(kept))
     args = (windows, kept, free[kept], frac, wts, fit_rate)
@@ -83,13 +86,15 @@ def test_fit_recovers_the_attitude_of_a_noiseless_frame():
     truth = Rotation.from_rotvec([2e-4, -1e-4, 5e-4])
     frac, wts = time_nodes(0.0, psf.sigma_px)
     free = np.ones(len(v), bool)
-    nodes = node_positions(sensor, v, truth, np.zeros(3), sensor.exposure_s, fractions=frac,
-                           weights=wts)  # fmt: skip
+    nodes = node_positions(
+        sensor, v, truth, rate_rad_s=np.zeros(3), exposure_s=sensor.exposure_s,
+        fractions=frac, weights=wts,
+    )  # fmt: skip
     det = sensor.detector
     windows, kept = make_windows(nodes.x, nodes.y, half_px=8.0, shape=(det.rows, det.columns),
                                  free=free)  # fmt: skip
     fluxes = np.geomspace(2e3, 2e4, len(kept))
-    ev = evaluate(windows, psf, nodes, fluxes, free=free[kept], gradient=False)
+    ev = evaluate(windows, psf, nodes, fluxes=fluxes, free=free[kept], gradient=False)
     image = np.full((det.rows, det.columns), 50.0)  # a background of 50 e-
     light = np.einsum("gmhw,gm->ghw", ev.templates, _slots(windows, fluxes))
     for g in range(windows.n_groups):
@@ -102,7 +107,7 @@ def test_fit_recovers_the_attitude_of_a_noiseless_frame():
         image[rr, cc] += light[g, rr.start - r0 : rr.stop - r0, cc.start - c0 : cc.stop - c0]
     counts = image * det.gain_counts_per_e + det.bias_counts
     start = Rotation.from_rotvec([0.0, 0.0, 3e-4]) * truth  # ~0.6 px off at the corners
-    fit = fit_windows(counts, sensor, start, v[kept])
+    fit = fit_windows(counts, sensor, start, vectors=v[kept])
     err = small_rotation_angles(fit.rotation, truth) * sensor.focal_length_px
     assert fit.converged
     assert np.abs(err).max() < 1e-4

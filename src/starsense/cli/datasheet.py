@@ -162,6 +162,16 @@ def _write_out(out: Path, sheet, payload: dict, stem: str) -> list[str]:
     return written
 
 
+RefineOpt = Annotated[
+    str,
+    typer.Option(
+        "--refine",
+        help="The solver predicted and checked: model (default: the forward model's fit, whose "
+        "NEA is its Cramer-Rao bound) or cog (centroids' attitude, as flight software's).",
+    ),
+]
+
+
 def datasheet(
     sensor: Annotated[
         str | None,
@@ -206,23 +216,13 @@ def datasheet(
             "dropped and false stars; no image): wrong solutions and the 95 % bound.",
         ),
     ] = False,
-    refine: Annotated[
-        str,
-        typer.Option(
-            "--refine",
-            help="The solver predicted and checked: model (default: the forward model's fit, "
-            "whose NEA is its Cramer-Rao bound) or cog (centroids' attitude, as flight "
-            "software centroids by centre of gravity).",
-        ),
-    ] = "model",
+    refine: RefineOpt = "model",
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
     if schema:
         typer.echo((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
         return
-    if refine not in ("model", "cog"):
-        raise InputError(f"--refine must be model or cog, got {refine!r}")
     option_int(trials, "--trials", 1)
     option_int(n_orientations, "--n-orientations", 1)
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)

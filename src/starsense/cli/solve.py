@@ -88,6 +88,16 @@ ExtractionOpt = Annotated[
 ]
 
 
+RefineOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--refine",
+        help="The attitude's last step: model (default with --sensor: the sensor's forward model "
+        "fitted to the stars' pixels, sigmas from its Fisher information) or cog (centroids').",
+    ),
+]
+
+
 def _solver(
     sensor, fov_deg, catalog, algorithm, apparent=True, observer_velocity_km_s=None, **options
 ):
@@ -97,6 +107,11 @@ def _solver(
         raise InputError(f"--fov-deg must be within [0.5, 120] deg, got {fov_deg}")
     if sensor is None and fov_deg is None and algorithm == "triangle":
         raise InputError("the triangle algorithm needs a known field: give --sensor or --fov-deg")
+    refine = options.get("refine")
+    if refine is not None and refine not in ("model", "cog"):
+        raise InputError(f"--refine must be model or cog, got {refine!r}")
+    if refine == "model" and sensor is None:
+        raise InputError("--refine model fits the sensor's forward model: give --sensor")
     v_obs = None
     if observer_velocity_km_s is not None:
         v_obs = 1e3 * np.asarray(
@@ -328,15 +343,7 @@ def solve(
         ),
     ] = None,
     extraction: ExtractionOpt = "auto",
-    refine: Annotated[
-        str | None,
-        typer.Option(
-            "--refine",
-            help="The attitude's last step: model (default with --sensor: the sensor's forward "
-            "model fitted to the stars' pixels, sigmas from its Fisher information) or cog "
-            "(the attitude of the centroids).",
-        ),
-    ] = None,
+    refine: RefineOpt = None,
     jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,
     as_json: JsonOpt = False,
 ) -> None:
@@ -359,15 +366,8 @@ def solve(
         raise InputError(f"--explain writes a PNG figure: give a .png file, got {explain}")
 
     when = None if time_utc is None else parse_time(time_utc, "--time")
-    velocity, apparent = observer_velocity_km_s, not no_apparent
-    if refine is not None and refine not in ("model", "cog"):
-        raise InputError(f"--refine must be model or cog, got {refine!r}")
-    if refine == "model" and sensor is None:
-        raise InputError("--refine model fits the sensor's forward model: give --sensor")
-    solver = _solver(
-        sensor, fov_deg, catalog, algorithm, apparent, velocity, extraction=extraction,
-        refine=refine,
-    )  # fmt: skip
+    solver = _solver(sensor, fov_deg, catalog, algorithm, not no_apparent,
+                     observer_velocity_km_s, extraction=extraction, refine=refine)  # fmt: skip
     if centroids is not None:
         if images:
             raise InputError("give frames or --centroids, not both")

@@ -173,11 +173,15 @@ def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, f
     te = sensor.exposure_s
     allv = np.concatenate([v_free, v_fix])
     free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
-    ends = node_positions(sensor, v_free, rotation, rate, te, fractions=np.array([-0.5, 0.5]),
-                          weights=np.array([0.5, 0.5]))  # fmt: skip
+    ends = node_positions(
+        sensor, v_free, rotation, rate_rad_s=rate, exposure_s=te,
+        fractions=np.array([-0.5, 0.5]), weights=np.array([0.5, 0.5]),
+    )  # fmt: skip
     length = float(np.nanmax(np.hypot(np.diff(ends.x), np.diff(ends.y)))) if len(v_free) else 0.0
     frac, wts = time_nodes(length if (fit_rate or np.any(rate)) else 0.0, psf.sigma_px)
-    nodes = node_positions(sensor, allv, rotation, rate, te, fractions=frac, weights=wts)
+    nodes = node_positions(
+        sensor, allv, rotation, rate_rad_s=rate, exposure_s=te, fractions=frac, weights=wts
+    )
     windows, kept = make_windows(
         nodes.x, nodes.y, half_px=window_half_px(psf), shape=image.shape, free=free
     )
@@ -190,13 +194,14 @@ def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, f
 def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
     """Return the linear design (G, M+1, N), the geometric Jacobian (G, P, N) and the model."""
     sensor, w = pb.sensor, pb.windows
-    nodes = node_positions(sensor, pb.vectors, rotation, rate, sensor.exposure_s,
+    nodes = node_positions(sensor, pb.vectors, rotation, rate_rad_s=rate,
+                           exposure_s=sensor.exposure_s,
                            fractions=pb.fractions, weights=pb.weights,
                            fit_rate=pb.fit_rate)  # fmt: skip
     fl = pb.fluxes
     fl[pb.free] = lin_values[w.group[pb.free], w.slot[pb.free]]  # the Jacobian at these fluxes
     exact = pb.fit_width and psf.spec.is_gaussian  # the width's derivative in closed form
-    ev = evaluate(w, psf, nodes, fl, free=pb.free, width=exact)
+    ev = evaluate(w, psf, nodes, fluxes=fl, free=pb.free, width=exact)
     g_n, m = w.n_groups, w.n_slots
     lin = np.concatenate([ev.templates, np.ones((g_n, 1, *w.shape))], axis=1).reshape(
         g_n, m + 1, -1
@@ -207,7 +212,7 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
         sides = []
         for sign in (1.0, -1.0):
             other = pixel_psf(psf.spec, psf.sigma_px + sign * h)
-            e = evaluate(w, other, nodes, fl, free=pb.free, gradient=False)
+            e = evaluate(w, other, nodes, fluxes=fl, free=pb.free, gradient=False)
             sides.append(e.fixed + np.einsum("gm,gmhw->ghw", lin_values[:, :m], e.templates))
         dw = (sides[0] - sides[1]) / (2.0 * h)
         jac = np.concatenate([jac, dw.reshape(g_n, 1, -1)], axis=1)
@@ -216,7 +221,7 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
 
 
 def fit_windows(
-    image, sensor, rotation: Rotation, vectors, *, rate_rad_s=(0.0, 0.0, 0.0),
+    image, sensor, rotation: Rotation, *, vectors, rate_rad_s=(0.0, 0.0, 0.0),
     fit_rate: bool = False, fit_width: bool = False, fixed_vectors=None, fixed_electrons=None,
     psf: PixelPSF | None = None,
 ) -> ModelFit:  # fmt: skip

@@ -229,7 +229,8 @@ def _static_gaussian(sigma, nodes: NodePositions, idx, rows, cols, gradient, wid
     return t, d
 
 
-def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient, width=False):
+def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, *, rows, cols, gradient=True,
+                  width=False):  # fmt: skip
     """Return templates (S, h, w) of sources ``idx`` and their derivatives (S, P, h, w).
 
     Over pixel rows (S, h) and columns (S, w) of the detector. With ``width`` (a Gaussian), the
@@ -271,7 +272,7 @@ def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, rows, cols, gradient
     return t, d
 
 
-def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, fluxes, *, free,
+def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes, free,
              gradient: bool = True, width: bool = False) -> Evaluation:  # fmt: skip
     """Return the templates, the fixed light and the geometric Jacobian on the windows.
 
@@ -301,7 +302,7 @@ def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, fluxes, *, f
         g = windows.group[idx]
         rows = (windows.row0[g] + box[idx, 0])[:, None] + np.arange(size[0])[None, :]
         cols = (windows.col0[g] + box[idx, 2])[:, None] + np.arange(size[1])[None, :]
-        t, d = source_stamps(psf, nodes, idx, rows, cols, gradient, width)
+        t, d = source_stamps(psf, nodes, idx, rows=rows, cols=cols, gradient=gradient, width=width)
         # each stamp's pixels as flat indices of its group's (H, W) grid
         local = (box[idx, 0][:, None, None] + np.arange(size[0])[None, :, None]) * w + (
             box[idx, 2][:, None, None] + np.arange(size[1])[None, None, :]

@@ -129,7 +129,7 @@ def _zero_point(fluxes, mags) -> float | None:
     return float(np.median(fluxes[top] / 10.0 ** (-0.4 * mags[top])))
 
 
-def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma_rad,
+def refine_attitude(image, sensor, rotation, *, ref, plain, mags, sky, cog_sigma_rad,
                     rate_rad_s=None, electrons=None, fit_width=None) -> Refinement:  # fmt: skip
     """Fit the attitude to the pixels of the identified stars (module docstring).
 
@@ -171,7 +171,7 @@ def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma
         zp = None if electrons is None else _zero_point(np.asarray(electrons, float), mags)
         fit, first = None, None
         if zp is None:  # the identified stars alone first: their fluxes give the zero point
-            first = fit = fit_windows(image, sensor, rotation, ref, rate_rad_s=rate, **opts)
+            first = fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
             zp = _zero_point(first.fluxes_e, mags)
         nv = np.zeros((0, 3))
         for _ in range(2):  # again if the fit's fluxes move the zero point (lit sums miss wings)
@@ -185,7 +185,7 @@ def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma
             if fit is first and fit is not None and not len(nv):
                 break
             fit = fit_windows(
-                image, sensor, start, np.concatenate([ref, nv[nfree]]),
+                image, sensor, start, vectors=np.concatenate([ref, nv[nfree]]),
                 rate_rad_s=rate if fit is None else fit.rate_rad_s,
                 fixed_vectors=nv[~nfree], fixed_electrons=ne[~nfree], **opts,
             )  # fmt: skip
@@ -194,7 +194,7 @@ def refine_attitude(image, sensor, rotation, ref, plain, mags, *, sky, cog_sigma
                 break
             zp = new
         if fit is None:
-            fit = fit_windows(image, sensor, rotation, ref, rate_rad_s=rate, **opts)
+            fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
     return _judged(fit, sensor, rotation, cog_sigma_rad, len(nv))
@@ -244,7 +244,7 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refin
     return Refinement(fit, True, note, n_nbr)
 
 
-def refined_attitude(image, att, sensor, db, ident, *, places, streaks, sky, points):
+def refined_attitude(image, att, sensor, *, db, ident, places, streaks, sky, points):
     """Return the solver's attitude refined on the pixels, and a note saying how.
 
     Parameters
@@ -281,7 +281,8 @@ def refined_attitude(image, att, sensor, db, ident, *, places, streaks, sky, poi
     if streaks is not None:  # smeared: the fit starts from the streaks' rate
         rate = streak_body_rate(sensor, att.rotation.apply(ref), streaks.streaks_px)
     done = refine_attitude(
-        image, sensor, att.rotation, ref, plain, np.asarray(db.mags, dtype=float)[index],
+        image, sensor, att.rotation, ref=ref, plain=plain,
+        mags=np.asarray(db.mags, dtype=float)[index],
         sky=sky, cog_sigma_rad=att.sigma_axes_rad, rate_rad_s=rate, electrons=electrons,
     )  # fmt: skip
     if not done.used:

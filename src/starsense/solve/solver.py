@@ -404,7 +404,7 @@ class Solver:
         notes = ()
         if image is not None and self.settings.refine == "model":
             att, notes = refined_attitude(
-                image, att, self.sensor, identifier.database, ident, places=places,
+                image, att, self.sensor, db=identifier.database, ident=ident, places=places,
                 streaks=streaks, sky=self._identifiers.sky(identifier.database.params.band),
                 points=points,
             )  # fmt: skip

@@ -92,6 +92,44 @@ def _aberration_rows(sensor, given: dict) -> tuple[list[BudgetRow], bool]:
     return rows, not corrected
 
 
+def _noise_rows(sensor, nea: AxisSpread, *, errors: dict, pse_px, refine: str) -> list[BudgetRow]:
+    """Return the budget's noise-equivalent angle and pixel spatial error rows."""
+    det = sensor.detector
+    sc = sensor.optics.psf_sigma_corner_px
+    optics = (
+        f"; its PSF widens from {det.psf_sigma_px:g} px at the centre to {sc:g} px in the "
+        "corners (optics, rendered)"
+        if sc > 0 and sc != det.psf_sigma_px
+        else ""
+    )
+    if refine == "model":
+        how = (
+            f"modelled (the forward model's Fisher information, {sensor.psf.describe()} PSF: "
+            f"the bound the solver's fit attains){optics}"
+        )
+        pixel = "none: the fit's model integrates the PSF over the pixels"
+    else:
+        how = f"modelled (centroid noise through the solver's weighted fit, eq. 21){optics}"
+        pixel = (
+            "measured in this run (noisy renders over pixel phases), propagated as an error "
+            "through the solver's weights"
+        )
+    return [
+        BudgetRow(
+            "noise-equivalent angle (temporal, 1 sigma, sky median)",
+            nea.cross.median,
+            nea.roll.median,
+            how,
+        ),
+        _sky_row(
+            "pixel spatial error (centroid bias"
+            + (f", rms {pse_px:.4f} px over the stars used)" if pse_px else ")"),
+            errors["pixel"],
+            pixel,
+        ),
+    ]
+
+
 def error_budget(
     sensor, nea: AxisSpread, *, errors: dict, pse_px: float | None, dsnu=None, refine="model"
 ) -> list[BudgetRow]:
@@ -121,39 +159,7 @@ def error_budget(
     """
     given = dict(sensor.budget)
     det = sensor.detector
-    sc = sensor.optics.psf_sigma_corner_px
-    optics = (
-        f"; its PSF widens from {det.psf_sigma_px:g} px at the centre to {sc:g} px in the "
-        "corners (optics, rendered)"
-        if sc > 0 and sc != det.psf_sigma_px
-        else ""
-    )
-    if refine == "model":
-        how = (
-            f"modelled (the forward model's Fisher information, {sensor.psf.describe()} PSF: "
-            f"the bound the solver's fit attains){optics}"
-        )
-        pixel = "none: the fit's model integrates the PSF over the pixels"
-    else:
-        how = f"modelled (centroid noise through the solver's weighted fit, eq. 21){optics}"
-        pixel = (
-            "measured in this run (noisy renders over pixel phases), propagated as an error "
-            "through the solver's weights"
-        )
-    rows = [
-        BudgetRow(
-            "noise-equivalent angle (temporal, 1 sigma, sky median)",
-            nea.cross.median,
-            nea.roll.median,
-            how,
-        ),
-        _sky_row(
-            "pixel spatial error (centroid bias"
-            + (f", rms {pse_px:.4f} px over the stars used)" if pse_px else ")"),
-            errors["pixel"],
-            pixel,
-        ),
-    ]
+    rows = _noise_rows(sensor, nea, errors=errors, pse_px=pse_px, refine=refine)
     if "confusion" in errors:
         rows.append(
             _sky_row(

@@ -67,6 +67,11 @@ __all__ = ["SCHEMA", "Datasheet", "DatasheetSettings", "build_datasheet", "datas
 #: the JSON schema's name and version; bumped on any incompatible change
 SCHEMA = "starsense.datasheet/1"
 _N_MIN_LIS, _N_MIN_TRACK = 3, 2
+#: the steps a datasheet reports its progress through
+_STEPS = (
+    "static limit", "slew tolerance", "availability", "noise", "monte carlo",
+    "monte carlo at rate",
+)  # fmt: skip
 
 
 def _arcsec_stats(cross: np.ndarray, roll: np.ndarray) -> AxisSpread:
@@ -264,18 +269,10 @@ def build_datasheet(
     st = settings or DatasheetSettings()
     check_frame_size(sensor)  # the verification renders whole frames: refuse before any work
     cat, colour_note = with_johnson_from_gaia(as_catalog(catalog))
-    steps = [
-        "static limit",
-        "slew tolerance",
-        "availability",
-        "noise",
-        "monte carlo",
-        "monte carlo at rate",
-    ]
 
     def tick(label: str) -> None:
         if progress is not None:
-            progress(f"datasheet: {label}", steps.index(label) + 1, len(steps))
+            progress(f"datasheet: {label}", _STEPS.index(label) + 1, len(_STEPS))
 
     limit_mag, slew, curve = _detection(sensor, st, tick)
     if limit_mag is None:
