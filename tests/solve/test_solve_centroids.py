@@ -21,6 +21,7 @@ from starsense.cli import main
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, small_rotation_angles
 from starsense.render.scene import render_frame
+from starsense.solve.centroids import check_centroid_input
 from starsense.solve.solver import Solver
 
 ARCSEC_PER_RAD = 180 / math.pi * 3600
@@ -30,10 +31,15 @@ EXACT_ARCSEC = 0.05
 
 
 @pytest.fixture(scope="module")
-def truth():
+def rendered():
     att = attitude_from_radec_roll(*np.radians([250.0, 30.0, 40.0]))
     frame = render_frame(camera8(), att, load_catalog("hipparcos"), noise=False, rng=0)
-    stars = frame.truth.stars
+    return att, frame.truth.stars
+
+
+@pytest.fixture(scope="module")
+def truth(rendered):
+    att, stars = rendered
     keep = stars.on_detector & (stars.mag < 8.5)
     order = np.argsort(-stars.electrons[keep])
     xy = np.column_stack([stars.x_mid[keep], stars.y_mid[keep]])[order]
@@ -98,6 +104,62 @@ def test_solve_centroids_checks_its_input():
         Solver(sensor=camera8()).solve_centroids([[1, 2], [2, 3], [4, 5]], (640, 480))
     with pytest.raises(InputError, match="image width must be an integer"):
         Solver().solve_centroids([[1, 2], [2, 3], [4, 5]], (640.5, 480))
+
+
+def test_edge_stars_up_to_two_pixels_outside_are_kept(rendered):
+    # The same sky seen by a narrower image: the frame cropped by 9 px on the left and on the
+    # right keeps its centre, so it is the pinhole of the same focal length, fov' from the
+    # cropped width. The star 7.76 px from the left edge then lies 1.24 px left of the cropped
+    # image's first pixel centre (0.74 px beyond its edge): an edge star, as an extractor
+    # reports one cut by the edge. Its exact position must be used, to rounding.
+    att, stars = rendered
+    crop = 9
+    width = COLUMNS - 2 * crop
+    focal_px = (COLUMNS / 2) / math.tan(FOV_RAD / 2)
+    fov = 2 * math.atan((width / 2) / focal_px)
+    xy = np.column_stack([stars.x_mid - crop, stars.y_mid])
+    lo, hi = -0.5 - 2.0, np.array([width, ROWS]) - 0.5 + 2.0
+    keep = (stars.mag < 8.5) & np.all((xy >= lo) & (xy <= hi), axis=1)
+    xy, flux = xy[keep], stars.electrons[keep]
+    edge = (xy[:, 0] < -0.5).sum()
+    assert edge == 1  # the test is about it: one star outside the cropped image
+    sol = Solver().solve_centroids(xy, (width, ROWS), fov_rad=fov, brightness=flux)
+    assert sol.solved, sol.message
+    assert _error_arcsec(att, sol) < EXACT_ARCSEC
+    assert int(np.argmin(xy[:, 0])) in {m[0] for m in sol.matches}  # the edge star is identified
+
+
+def test_centroids_more_than_two_pixels_outside_are_refused(rendered):
+    # the full set of the uncropped frame holds a star 2.89 px below the last row's centre
+    # (2.39 px beyond the edge): farther than an edge star, so the image size is in question
+    _, stars = rendered
+    keep = stars.mag < 8.5
+    xy = np.column_stack([stars.x_mid[keep], stars.y_mid[keep]])
+    assert xy[:, 1].max() - (ROWS - 0.5) > 2.0
+    with pytest.raises(InputError, match=r"outside the 1024 x 768 image by more than 2 px"):
+        Solver().solve_centroids(xy, (COLUMNS, ROWS), fov_rad=FOV_RAD)
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "ok"),
+    [
+        (-2.5, 10.0, True),  # 2 px beyond the left edge (-0.5): the limit, kept
+        (639.5 + 2.0, 10.0, True),  # 2 px beyond the right edge (639.5)
+        (10.0, 479.5 + 2.0, True),
+        (10.0, -2.5, True),
+        (-2.5 - 1e-6, 10.0, False),
+        (641.5 + 1e-6, 10.0, False),
+        (10.0, -2.51, False),
+        (10.0, 481.6, False),
+    ],
+)
+def test_edge_margin_is_two_pixels_beyond_the_image_edge(x, y, ok):
+    xy = np.array([[100.0, 100.0], [300.0, 200.0], [x, y]])
+    if ok:
+        assert check_centroid_input(xy, (640, 480))[0][2].tolist() == [x, y]
+    else:
+        with pytest.raises(InputError, match=r"1 centroid\(s\) lie outside the 640 x 480 image"):
+            check_centroid_input(xy, (640, 480))
 
 
 # -- files and the command line -----------------------------------------------------------------

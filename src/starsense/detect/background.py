@@ -48,6 +48,9 @@ from starsense.detect.mesh import (
 )
 from starsense.detect.quantised import (
     QUANTISED_BELOW_STEPS,
+    clip_floor,
+    clipped_box_stats,
+    clipped_sigma,
     quantisation_step,
     quantised_box_stats,
 )
@@ -171,15 +174,25 @@ _STEP_SAMPLES_EVERY = 7
 def _quantised_step(sampled: np.ndarray, keep: np.ndarray, counts=None) -> float | None:
     """Return the quantisation step when the frame's noise is below a few steps, else None.
 
-    ``sampled`` is every :data:`_STEP_SAMPLES_EVERY`-th sample of each box, ``keep`` which of
+    The noise is the MAD's, or where the samples are clipped at a floor (:func:`clip_floor`)
+    and the MAD reads below a few steps, the sigma of the Gaussian behind the clip: the
+    luminance of clipped colour channels lies on a lattice of a thousandth of a count, with a
+    MAD of 0 where half the pixels are 0, and a noise of counts. ``sampled`` is every
+    :data:`_STEP_SAMPLES_EVERY`-th sample of each box, ``keep`` which of
     them the clipping kept; ``counts`` the same samples of every box as integers, if any.
     """
     ints = None if counts is None else counts[:, :, ::_STEP_SAMPLES_EVERY]
     step = quantisation_step(sampled if ints is None else ints)
     if step is None:
         return None
-    mad = np.nanmedian(robust_sigma(sampled, keep))
-    return step if not mad >= QUANTISED_BELOW_STEPS * step else None
+    noise = np.nanmedian(robust_sigma(sampled, keep))
+    if not noise >= QUANTISED_BELOW_STEPS * step:
+        floor = clip_floor(sampled)
+        fitted = np.zeros(0) if floor is None else clipped_sigma(sampled, floor)
+        fitted = fitted[np.isfinite(fitted)]
+        if fitted.size:  # clipped: the MAD reads low, the Gaussian behind the clip does not
+            noise = np.median(fitted)
+    return step if not noise >= QUANTISED_BELOW_STEPS * step else None
 
 
 def _kept(cells: np.ndarray, low: np.ndarray, high: np.ndarray, ok, name: str) -> np.ndarray:
@@ -335,8 +348,12 @@ def estimate_background(
     else:
         keep = _kept(cells, low, high, ok, "bg_keep")
         step = _quantised_step(sampled, keep[:, :, ::_STEP_SAMPLES_EVERY])
+    floor = clip_floor(sampled) if step is None else None
     if step is not None:  # 8-bit-like data: box means and standard deviations (quantised.py)
         med, _, keep = quantised_box_stats(cells, med, step)
+        kept = keep.sum(-1)
+    elif floor is not None:  # clipped at a floor, not coarsely quantised: the same (quantised.py)
+        med, _, keep = clipped_box_stats(cells, med, floor)
         kept = keep.sum(-1)
     trusted = kept >= np.maximum(1, _MIN_VALID_FRACTION * n_samples.max())
     if not trusted.any():
@@ -348,10 +365,12 @@ def estimate_background(
 
     # noise: MAD of the clipped samples about the smooth map (not quantised like the raw MAD);
     # for coarsely quantised data their standard deviation, at least the quantisation noise
-    if step is None:
-        noise_mesh = _residual_noise(cells, level, mesh, low, high, keep)
-    else:
+    if step is not None:
         noise_mesh = np.maximum(_masked_std(cells - gather(level), keep), step / np.sqrt(12.0))
+    elif floor is not None:
+        noise_mesh = _masked_std(cells - gather(level), keep)
+    else:
+        noise_mesh = _residual_noise(cells, level, mesh, low, high, keep)
     noise_mesh[~trusted] = np.nan
     noise_mesh = median_filter_mesh(fill_from_nearest(noise_mesh), filter_px)
     noise_map, surface = None, None

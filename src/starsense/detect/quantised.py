@@ -24,6 +24,14 @@ a "star": ~20,000 detections per frame). Such frames are treated here.
    kept.
 4. **Floor.** A noiseless box (all samples equal) has no spread to fit; the noise is then the
    quantisation noise q / sqrt(12), never zero.
+
+Frames clipped at a floor but not coarsely quantised (the luminance of a colour camera's
+frame, whose three channels were each clipped at zero: many distinct values, a MAD of a
+fraction of a count where the noise is several) are recognised by their point mass at the
+floor (:func:`clip_floor`): a continuous noise never puts a percent of the samples on one
+value. Their boxes are fitted the same way on the sample quantiles above the floor
+(:func:`clipped_box_stats`): the q-quantile of a Gaussian clipped at the floor is
+mu + s Phi^-1(q) wherever it lies above the floor.
 """
 
 from __future__ import annotations
@@ -32,14 +40,26 @@ import numpy as np
 from scipy.special import ndtri
 
 __all__ = [
+    "CLIPPED_FRACTION",
     "QUANTISED_BELOW_STEPS",
+    "clip_floor",
+    "clipped_box_stats",
     "clipped_gaussian_sigma",
+    "clipped_sigma",
     "quantisation_step",
     "quantised_box_stats",
 ]
 
 #: a frame is treated as quantised when its MAD noise is below this many steps
 QUANTISED_BELOW_STEPS = 3.0
+#: a frame whose samples put at least this fraction on their least value is clipped there
+#: (a Gaussian's least of 10^5 samples lies ~4.4 sigma below its mean, where one value holds
+#: ~1e-5 of them even in steps of a third of the noise)
+CLIPPED_FRACTION = 0.01
+#: sample quantiles of the probit fit of clipped continuous data (above the floor's fraction)
+_QUANTILES = 16
+#: the highest quantile used (stars and hot pixels lie in the top ~0.1-1 % of a box)
+_TOP_QUANTILE = 0.95
 #: bin edges used each side of the median by the probit fit
 _EDGES_EACH_SIDE = 12
 #: fractions kept for the probit fit
@@ -185,3 +205,113 @@ def quantised_box_stats(cells, median, step):
     std = np.maximum(np.sqrt(var), floor)
     mean = np.where(k > 0, mean, np.nan)
     return mean, np.where(k > 0, std, np.nan), keep
+
+
+def clip_floor(values: np.ndarray) -> float | None:
+    """Return the value a frame's noise is clipped at (its least), or None if it is not.
+
+    Parameters
+    ----------
+    values : ndarray
+        Sampled pixel values, counts (NaN ignored).
+
+    Returns
+    -------
+    float or None
+        The least value when at least :data:`CLIPPED_FRACTION` of the samples equal it.
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return None
+    least = float(v.min())
+    return least if np.count_nonzero(v == least) >= CLIPPED_FRACTION * v.size else None
+
+
+def _clipped_probit(s: np.ndarray, n: np.ndarray, floor: float) -> np.ndarray:
+    """Sigma of the Gaussian behind each box's sorted samples ``s``, clipped at ``floor``.
+
+    The q-quantile of the samples is mu + sigma Phi^-1(q) for every q above the fraction at
+    the floor: a weighted least-squares line through :data:`_QUANTILES` quantiles between that
+    fraction (plus 2 %) and :data:`_TOP_QUANTILE`, weights phi(z)^2 / (q (1 - q)) (the inverse
+    variance of a sample quantile, in sigma units). NaN where fewer than a fifth of the samples
+    lie above the floor.
+    """
+    at_floor = (s <= floor).sum(-1) / np.maximum(n, 1)
+    lo = np.minimum(at_floor + 0.02, _TOP_QUANTILE)
+    t = np.linspace(0.0, 1.0, _QUANTILES)
+    q = lo[..., None] + (_TOP_QUANTILE - lo[..., None]) * t  # (..., Q)
+    rank = np.clip(np.floor(q * n[..., None]).astype(np.int64), 0, s.shape[-1] - 1)
+    x = np.take_along_axis(s, rank, axis=-1)
+    z = ndtri(q)
+    phi = np.exp(-0.5 * z**2)
+    w = phi**2 / (q * (1.0 - q))
+    sw = w.sum(-1)
+    zm = (w * z).sum(-1) / sw
+    xm = (w * x).sum(-1) / sw
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sigma = (w * (z - zm[..., None]) * (x - xm[..., None])).sum(-1) / (
+            w * (z - zm[..., None]) ** 2
+        ).sum(-1)
+    ok = (at_floor <= _TOP_QUANTILE - 0.15) & np.isfinite(sigma) & (sigma > 0)
+    return np.where(ok, sigma, np.nan)
+
+
+def clipped_sigma(cells: np.ndarray, floor: float) -> np.ndarray:
+    """Sigma of the Gaussian behind each box's samples clipped at ``floor``, counts.
+
+    Parameters
+    ----------
+    cells : ndarray, shape (..., samples)
+        Samples of every box, counts; NaN for missing samples.
+    floor : float
+        The clipping floor (:func:`clip_floor`), counts.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The probit line's sigma through the quantiles above the floor; NaN where fewer than a
+        fifth of a box's samples lie above it.
+    """
+    n = np.isfinite(cells).sum(axis=-1)
+    return _clipped_probit(np.sort(cells, axis=-1), n, floor)
+
+
+def clipped_box_stats(cells, median, floor: float):
+    """Mean and standard deviation of the background pixels of boxes clipped at ``floor``.
+
+    The clipped counterpart of :func:`quantised_box_stats` for data that are not coarsely
+    quantised: the underlying Gaussian's sigma from the quantiles above the floor
+    (:func:`_clipped_probit`), then the mean and standard deviation of the samples below
+    median + 5 sigma (what a matched filter sums: the clipped values, floor included). A box
+    too clipped to fit takes the median sigma of the boxes that fit.
+
+    Parameters
+    ----------
+    cells : ndarray, shape (..., samples)
+        Samples of every box, counts; NaN for missing samples.
+    median : ndarray, shape (...)
+        Median of every box, counts.
+    floor : float
+        The clipping floor (:func:`clip_floor`), counts.
+
+    Returns
+    -------
+    mean, std : ndarray, shape (...)
+        Mean and standard deviation of the samples kept, counts (NaN where none).
+    keep : ndarray of bool, shape (..., samples)
+        The samples used.
+    """
+    sigma = clipped_sigma(cells, floor)
+    fitted = np.isfinite(sigma)
+    if not fitted.any():
+        sigma = np.full(sigma.shape, float(np.nanmax(np.nanstd(cells, axis=-1))))
+    else:
+        sigma = np.where(fitted, sigma, np.median(sigma[fitted]))
+    with np.errstate(invalid="ignore"):
+        keep = cells <= (median + 5.0 * sigma)[..., None]
+    k = keep.sum(-1)
+    safe = np.where(keep, cells, 0.0).astype(np.float64)
+    mean = safe.sum(-1) / np.maximum(k, 1)
+    var = (np.where(keep, (cells - mean[..., None]) ** 2, 0.0)).sum(-1) / np.maximum(k - 1, 1)
+    return np.where(k > 0, mean, np.nan), np.where(k > 1, np.sqrt(var), np.nan), keep

@@ -28,7 +28,14 @@ from starsense.detect.background import (
     hot_pixel_mask,
 )
 from starsense.detect.centroid import METHODS, gauss_fit
-from starsense.detect.matched import NOISE_STEP, filtered_noise_ratio, gaussian_correlate
+from starsense.detect.matched import (
+    NOISE_STEP,
+    filtered_noise_ratio,
+    gaussian_correlate,
+    local_noise_ratio,
+    ratio_at,
+)
+from starsense.detect.pattern import remove_line_pattern
 from starsense.detect.quick import quick_background, quick_subtract
 from starsense.detect.regions import label_pixels, region_centroids
 from starsense.detect.subtract import floor_threshold, pixels_above, subtract_level
@@ -254,6 +261,9 @@ class StarDetector:
             hot = hot_pixel_mask(a, bg, subtracted=sub, candidates=candidates)
             sub[hot] = 0.0
             counts["hot_pixels"] = int(np.count_nonzero(hot))
+        if self.background == "auto" and self.matched_filter:
+            noise = bg.noise_map if bg.noise_map is not None else bg.noise
+            counts.update(remove_line_pattern(sub, noise))
         return bg, sub, counts, self._lit(sub, bg)
 
     def _lit(self, sub: np.ndarray, bg: Background):
@@ -284,9 +294,13 @@ class StarDetector:
         cut = np.float32(k * ratio)
         idx = pixels_above(filtered, cut * np.float32(bg.noise_floor()))
         noise = bg.noise_at(idx)  # evaluated once, pixel by pixel: the same values for a subset
-        if bg.varies:
-            passed = filtered.ravel()[idx] > cut * noise
-            idx, noise = idx[passed], noise[passed]
+        local = local_noise_ratio(filtered, grid, ratio=ratio)
+        patterned = bool((local > np.float32(ratio)).any())
+        if bg.varies or patterned:
+            here = np.float32(k) * ratio_at(local, idx, sub.shape[1]) if patterned else cut
+            passed = filtered.ravel()[idx] > here * noise
+            idx = idx[passed]
+            noise = noise[passed] if np.ndim(noise) else noise
         core_at = sub.ravel()[idx] > np.float32(k) * np.float32(noise)
         return idx, core_at, filtered, noise
 

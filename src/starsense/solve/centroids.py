@@ -35,6 +35,13 @@ __all__ = [
 
 FITS_SUFFIXES = {".fits", ".fit", ".fts", ".xyls", ".axy"}
 
+#: how far outside the image's edge a centroid may lie and still be a star, px: an extractor
+#: puts a star cut by the edge at the centre of gravity of its visible part, or where its fitted
+#: profile peaks, a fraction of a PSF width beyond the last pixel (x = -0.77 on a real set); two
+#: pixels hold a star whose core (FWHM up to ~4 px) still lights the edge column. Farther out, a
+#: centroid is not of this image: the image size is wrong.
+EDGE_MARGIN_PX = 2.0
+
 
 @dataclass(frozen=True)
 class CentroidList:
@@ -231,7 +238,7 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
     InputError
         Centroids not (N, 2) finite numbers, a bad image size or field, brightness not one
         finite value per centroid, an image size that is not the sensor's, a centroid
-        outside the image.
+        more than ``EDGE_MARGIN_PX`` (2 px) outside the image (closer: an edge star, kept).
     """
     pts = check_centroids(xy)
     shape = check_image_size(image_size)
@@ -245,16 +252,7 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
             raise InputError(
                 f"image_size {shape[1]} x {shape[0]} is not the sensor's {det.columns} x {det.rows}"
             )
-    rows, cols = shape
-    outside = (pts[:, 0] < -0.5) | (pts[:, 0] >= cols - 0.5)
-    outside |= (pts[:, 1] < -0.5) | (pts[:, 1] >= rows - 0.5)
-    if outside.any():
-        i = int(np.flatnonzero(outside)[0])
-        raise InputError(
-            f"{int(outside.sum())} centroid(s) lie outside the {cols} x {rows} image (x in "
-            f"[-0.5, {cols - 0.5}), y in [-0.5, {rows - 0.5})), the first: number {i + 1} at "
-            f"x = {pts[i, 0]:g}, y = {pts[i, 1]:g}; is the image size right?"
-        )
+    _check_inside(pts, shape)
     if brightness is None:
         flux = np.arange(len(pts), 0, -1, dtype=float)  # as listed: brightest first
     else:
@@ -265,6 +263,26 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
                 f"got shape {flux.shape}"
             )
     return pts, shape, flux, fov_rad
+
+
+def _check_inside(pts: np.ndarray, shape: tuple[int, int]) -> None:
+    """Refuse centroids more than ``EDGE_MARGIN_PX`` outside the image of ``shape`` (rows, cols).
+
+    The image spans x in [-0.5, cols - 0.5) and y in [-0.5, rows - 0.5); an edge star's centroid
+    may lie up to ``EDGE_MARGIN_PX`` beyond (see there).
+    """
+    rows, cols = shape
+    lo, m = -0.5 - EDGE_MARGIN_PX, EDGE_MARGIN_PX
+    outside = (pts[:, 0] < lo) | (pts[:, 0] > cols - 0.5 + m)
+    outside |= (pts[:, 1] < lo) | (pts[:, 1] > rows - 0.5 + m)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise InputError(
+            f"{int(outside.sum())} centroid(s) lie outside the {cols} x {rows} image by more "
+            f"than {m:g} px (x in [{lo:g}, {cols - 0.5 + m:g}], y in [{lo:g}, "
+            f"{rows - 0.5 + m:g}]), the first: number {i + 1} at x = {pts[i, 0]:g}, "
+            f"y = {pts[i, 1]:g}; is the image size right?"
+        )
 
 
 def check_frame_shape(shape, sensor) -> None:

@@ -294,8 +294,9 @@ class Solver:
 
         Pixel convention (that of :mod:`starsense.detect`): (0, 0) is the centre of the top-left
         pixel, x runs along the columns (to the right) and y along the rows (down); the image
-        spans x in [-0.5, width - 0.5). The optics are the Solver's (sensor or ``fov_rad``),
-        or ``fov_rad`` for this call, or unknown (the scale is then searched).
+        spans x in [-0.5, width - 0.5), and up to 2 px beyond is an edge star. The optics are
+        the Solver's (sensor or ``fov_rad``), or ``fov_rad`` for this call, or unknown (the
+        scale is then searched).
 
         Parameters
         ----------
@@ -322,7 +323,8 @@ class Solver:
         ------
         InputError
             Centroids not (N, 2) finite numbers, a bad image size or field, brightness not one
-            finite value per centroid, an image size that is not the sensor's.
+            finite value per centroid, an image size that is not the sensor's, a centroid
+            more than 2 px outside the image.
         """
         t0 = time.perf_counter()
         pts, shape, flux, fov_rad = check_centroid_input(
