@@ -47,11 +47,10 @@ from starsense.detect.mesh import (
     median_filter_mesh,
 )
 from starsense.detect.quantised import (
-    QUANTISED_BELOW_STEPS,
+    STEP_SAMPLES_EVERY,
     clip_floor,
     clipped_box_stats,
-    clipped_sigma,
-    quantisation_step,
+    frame_quantisation_step,
     quantised_box_stats,
 )
 from starsense.detect.subtract import floor_threshold
@@ -165,34 +164,6 @@ def constant_background(level_counts: float, noise_counts: float) -> Background:
 
 def _is_int(value: object) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
-
-
-#: the quantisation step is judged on every this-many-th sample of each box
-_STEP_SAMPLES_EVERY = 7
-
-
-def _quantised_step(sampled: np.ndarray, keep: np.ndarray, counts=None) -> float | None:
-    """Return the quantisation step when the frame's noise is below a few steps, else None.
-
-    The noise is the MAD's, or where the samples are clipped at a floor (:func:`clip_floor`)
-    and the MAD reads below a few steps, the sigma of the Gaussian behind the clip: the
-    luminance of clipped colour channels lies on a lattice of a thousandth of a count, with a
-    MAD of 0 where half the pixels are 0, and a noise of counts. ``sampled`` is every
-    :data:`_STEP_SAMPLES_EVERY`-th sample of each box, ``keep`` which of
-    them the clipping kept; ``counts`` the same samples of every box as integers, if any.
-    """
-    ints = None if counts is None else counts[:, :, ::_STEP_SAMPLES_EVERY]
-    step = quantisation_step(sampled if ints is None else ints)
-    if step is None:
-        return None
-    noise = np.nanmedian(robust_sigma(sampled, keep))
-    if not noise >= QUANTISED_BELOW_STEPS * step:
-        floor = clip_floor(sampled)
-        fitted = np.zeros(0) if floor is None else clipped_sigma(sampled, floor)
-        fitted = fitted[np.isfinite(fitted)]
-        if fitted.size:  # clipped: the MAD reads low, the Gaussian behind the clip does not
-            noise = np.median(fitted)
-    return step if not noise >= QUANTISED_BELOW_STEPS * step else None
 
 
 def _kept(cells: np.ndarray, low: np.ndarray, high: np.ndarray, ok, name: str) -> np.ndarray:
@@ -340,14 +311,16 @@ def estimate_background(
     wy, wx, gather = mesh.wy, mesh.wx, mesh.gather
     cells, counts, ok, n_samples = _mesh_samples(a, mesh, bad)
     med, low, high, kept = sigma_clip_boxes(cells, float(sigma_clip), counts=counts)
-    sampled = cells[:, :, ::_STEP_SAMPLES_EVERY]
+    sampled = cells[:, :, ::STEP_SAMPLES_EVERY]
     keep = None  # the kept samples: needed whole only without the fused noise kernel
     if _clipc is not None and ok is True and cells.dtype == np.float32:
         # the step from the integer samples if any (the same values, no float pass)
-        step = _quantised_step(sampled, _kept(sampled, low, high, ok, "bg_keep_step"), counts)
+        step = frame_quantisation_step(
+            sampled, _kept(sampled, low, high, ok, "bg_keep_step"), counts
+        )
     else:
         keep = _kept(cells, low, high, ok, "bg_keep")
-        step = _quantised_step(sampled, keep[:, :, ::_STEP_SAMPLES_EVERY])
+        step = frame_quantisation_step(sampled, keep[:, :, ::STEP_SAMPLES_EVERY])
     floor = clip_floor(sampled) if step is None else None
     if step is not None:  # 8-bit-like data: box means and standard deviations (quantised.py)
         med, _, keep = quantised_box_stats(cells, med, step)

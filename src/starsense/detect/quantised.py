@@ -39,13 +39,17 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import ndtri
 
+from starsense.detect.clip import robust_sigma
+
 __all__ = [
     "CLIPPED_FRACTION",
     "QUANTISED_BELOW_STEPS",
+    "STEP_SAMPLES_EVERY",
     "clip_floor",
     "clipped_box_stats",
     "clipped_gaussian_sigma",
     "clipped_sigma",
+    "frame_quantisation_step",
     "quantisation_step",
     "quantised_box_stats",
 ]
@@ -315,3 +319,31 @@ def clipped_box_stats(cells, median, floor: float):
     mean = safe.sum(-1) / np.maximum(k, 1)
     var = (np.where(keep, (cells - mean[..., None]) ** 2, 0.0)).sum(-1) / np.maximum(k - 1, 1)
     return np.where(k > 0, mean, np.nan), np.where(k > 1, np.sqrt(var), np.nan), keep
+
+
+#: the quantisation step is judged on every this-many-th sample of each box
+STEP_SAMPLES_EVERY = 7
+
+
+def frame_quantisation_step(sampled: np.ndarray, keep: np.ndarray, counts=None) -> float | None:
+    """Return the quantisation step when the frame's noise is below a few steps, else None.
+
+    The noise is the MAD's, or where the samples are clipped at a floor (:func:`clip_floor`)
+    and the MAD reads below a few steps, the sigma of the Gaussian behind the clip: the
+    luminance of clipped colour channels lies on a lattice of a thousandth of a count, with a
+    MAD of 0 where half the pixels are 0, and a noise of counts. ``sampled`` is every
+    :data:`STEP_SAMPLES_EVERY`-th sample of each box, ``keep`` which of
+    them the clipping kept; ``counts`` the same samples of every box as integers, if any.
+    """
+    ints = None if counts is None else counts[:, :, ::STEP_SAMPLES_EVERY]
+    step = quantisation_step(sampled if ints is None else ints)
+    if step is None:
+        return None
+    noise = np.nanmedian(robust_sigma(sampled, keep))
+    if not noise >= QUANTISED_BELOW_STEPS * step:
+        floor = clip_floor(sampled)
+        fitted = np.zeros(0) if floor is None else clipped_sigma(sampled, floor)
+        fitted = fitted[np.isfinite(fitted)]
+        if fitted.size:  # clipped: the MAD reads low, the Gaussian behind the clip does not
+            noise = np.median(fitted)
+    return step if not noise >= QUANTISED_BELOW_STEPS * step else None
