@@ -173,6 +173,9 @@ def _trials(
     """
     solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr", refine=refine)
     catalog = at_epoch(catalog, solver.catalog.epoch_yr)  # the sky the database describes
+    # the model fit draws the frames' own sky as the identified stars' neighbours
+    solver = Solver(sensor=sensor, background="known", centroid_sigma_px="snr", refine=refine,
+                    sky=catalog)  # fmt: skip
     children = np.random.SeedSequence(seed).spawn(int(n_trials))
     out = []
     for k in indices:

@@ -58,6 +58,9 @@ MAX_MOVE_SIGMAS = 8.0
 MAX_MOVE_PX = 0.25
 #: two catalogue directions closer than this are one star, rad (0.2 arcsec)
 SAME_STAR_RAD = 1e-6
+#: a catalogue star closer than this to an identified one is part of its image (another
+#: catalogue's copy of it, or a double the PSF does not split: the fitted flux holds both), px
+MERGED_PX = 0.3
 #: stars whose fluxes set the zero point
 ZERO_POINT_STARS = 7
 #: the neighbours are fitted again when the fit's zero point differs by more than this
@@ -102,9 +105,9 @@ def _neighbours(sensor, plain, ref, *, sky, rotation, reach_px: float, zero_poin
     if owner.size == 0:
         return np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool)
     near = np.concatenate([np.asarray(v, dtype=int) for v in lists])
-    # not a matched star itself (any of them)
+    # not a matched star itself (any of them): closer than MERGED_PX, its light is the star's
     d_min = np.min(np.linalg.norm(vectors[near][:, None, :] - plain[None, :, :], axis=2), axis=1)
-    keep = d_min > SAME_STAR_RAD
+    keep = d_min > max(SAME_STAR_RAD, MERGED_PX * pixel_rad)
     near, owner = near[keep], owner[keep]
     near, first = np.unique(near, return_index=True)
     owner = owner[first]

@@ -53,6 +53,8 @@ class SolverSettings:
         The observer's velocity relative to the geocentre, ICRS axes, m/s.
     fov_rad : float or None
         Horizontal field across the image width (pinhole), rad, when no sensor is given.
+    sky : Catalog or str or None
+        The catalogue whose stars the model fit draws as neighbours (None: the solver's own).
     refine : {"model", "cog"}
         The attitude's last step: "model" fits the forward model to the identified stars'
         pixels (:mod:`starsense.solve.refine`; needs a sensor), "cog" keeps the attitude fitted
@@ -69,6 +71,7 @@ class SolverSettings:
     observer_velocity_m_s: np.ndarray | None = None
     fov_rad: float | None = None
     refine: str | None = None
+    sky: Catalog | str | None = None
 
 
 def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
@@ -96,6 +99,8 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
         raise InputError("give sensor or fov_rad, not both")
     if fov_rad is not None:
         fov_rad = check_scalar(fov_rad, "fov_rad", *FOV_RANGE_RAD)
+    if s.sky is not None and not isinstance(s.sky, Catalog | str):
+        raise InputError(f"sky must be a Catalog, a spec string or None, got {show(s.sky)}")
     if not isinstance(s.catalog, Catalog | str):
         raise InputError(f"catalog must be a Catalog or a spec string, got {show(s.catalog)}")
     if s.algorithm not in ("hashing", "triangle"):

@@ -111,6 +111,10 @@ class Solver:
         rate included, and reports the inverse Fisher information as the solution's
         covariance (:mod:`starsense.solve.refine`); "cog" (the default without one) keeps the
         attitude fitted to the centroids.
+    sky : Catalog or str, optional
+        The catalogue whose stars the model fit draws as neighbours of the identified ones
+        (default: ``catalog``): give the deepest catalogue of the sky the frames show (frames
+        rendered from another catalogue, a real sky fainter than the database).
 
     Attributes
     ----------
@@ -136,6 +140,7 @@ class Solver:
         apparent: bool = True,
         observer_velocity_m_s=None,
         refine: Literal["model", "cog"] | None = None,
+        sky: Catalog | str | None = None,
     ) -> None:
         self.settings: SolverSettings = solver_settings(
             sensor,
@@ -149,6 +154,7 @@ class Solver:
             observer_velocity_m_s=observer_velocity_m_s,
             fov_rad=fov_rad,
             refine=refine,
+            sky=sky,
         )
         self.sensor = (
             sensor if (sensor is None or isinstance(sensor, Sensor)) else load_sensor(sensor)
@@ -161,6 +167,7 @@ class Solver:
         known_fov = 2 * self.sensor.half_fov_rad[0] if self.sensor else self.settings.fov_rad
         catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
         self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
+        self._sky = None if sky is None else FieldIdentifiers(sky, algorithm=algorithm)
         self._detector: StarDetector | None = None
         self._quick: StarDetector | bool | None = False  # not built yet
 
@@ -407,7 +414,9 @@ class Solver:
         if image is not None and self.settings.refine == "model":
             att, notes = refined_attitude(
                 image, att, self.sensor, db=identifier.database, ident=ident, places=places,
-                streaks=streaks, sky=self._identifiers.sky(identifier.database.params.band),
+                streaks=streaks, sky=(self._sky or self._identifiers).sky(
+                    identifier.database.params.band
+                ),
                 points=points,
             )  # fmt: skip
         stages["attitude_ms"] = _ms(t3)

@@ -183,10 +183,13 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     detectable = (vectors, mags)  # every detectable star (those the tracker fits: below)
     every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
     held, sens = held_by(cat, database), Sensitivity.for_sensor(sensor, st.model)
+    flux_error = flux_ratio_error(cat, database, sens)
+    if st.refine == "model":  # the fit draws the frames' own sky (montecarlo: Solver(sky=))
+        held, flux_error = np.ones(len(every), dtype=bool), 0.0
     model = StarModel.build(
         sensor, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag,
         star_counts=every, unmodelled=every[~held], modelled=every[held],
-        flux_error=flux_ratio_error(cat, database, sens), refine=st.refine,
+        flux_error=flux_error, refine=st.refine,
     )  # fmt: skip
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
