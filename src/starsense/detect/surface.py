@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense.detect.axis_weights import AxisWeights
+
 __all__ = ["NoiseSurface", "matmul_single_thread"]
 
 # Largest m * n * k of one matrix product: OpenBLAS runs a GEMM single-threaded up to 65536 x 4
@@ -51,8 +53,9 @@ class NoiseSurface:
     ----------
     rows_w : ndarray, shape (rows, mesh_columns), float64
         ``wy @ (mesh - centre)``: the mesh interpolated along the rows.
-    cols_w : ndarray, shape (columns, mesh_columns), float64
-        The column interpolation weights ``wx``.
+    cols_w : ndarray, shape (columns, mesh_columns), float64, or AxisWeights
+        The column interpolation weights ``wx`` (an :class:`AxisWeights` in local form for
+        a very long axis).
     centre : float
         The mesh's mean, counts rms.
     low, high : float
@@ -60,16 +63,22 @@ class NoiseSurface:
     """
 
     rows_w: np.ndarray
-    cols_w: np.ndarray
+    cols_w: np.ndarray | AxisWeights
     centre: float
     low: float
     high: float
 
     @classmethod
-    def from_mesh(cls, wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> NoiseSurface:
-        """Return the surface of ``mesh`` (ny, nx) for the weights ``wy`` (rows, ny), ``wx``."""
+    def from_mesh(cls, wy, mesh: np.ndarray, wx) -> NoiseSurface:
+        """Return the surface of ``mesh`` (ny, nx) for the weights ``wy`` (rows, ny), ``wx``.
+
+        The weights are ndarrays or :class:`AxisWeights`; dense ones are kept as matrices.
+        """
         centre = float(np.mean(mesh))
-        return cls(wy @ (mesh - centre), wx, centre, float(mesh.min()), float(mesh.max()))
+        rows_w = wy.apply(mesh - centre) if isinstance(wy, AxisWeights) else wy @ (mesh - centre)
+        if isinstance(wx, AxisWeights) and wx.dense:
+            wx = wx.matrix
+        return cls(rows_w, wx, centre, float(mesh.min()), float(mesh.max()))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -85,10 +94,15 @@ class NoiseSurface:
     def at(self, flat_idx: np.ndarray) -> np.ndarray:
         """Noise at the pixels of flat indices ``flat_idx``, counts rms (float32)."""
         r, c = np.divmod(np.asarray(flat_idx, dtype=np.intp), self.shape[1])
+        if isinstance(self.cols_w, AxisWeights):
+            return self._clamp(self.cols_w.pairs(self.rows_w.T, c, r))
         return self._clamp(np.einsum("ij,ij->i", self.rows_w[r], self.cols_w[c]))
 
     def grid(self, step: int) -> np.ndarray:
         """Noise at every ``step``-th pixel each way (``map[::step, ::step]``), float32."""
+        if isinstance(self.cols_w, AxisWeights):
+            cols = np.arange(0, self.shape[1], step)
+            return self._clamp(self.cols_w.apply(self.rows_w[::step].T, cols).T)
         left, right = self.rows_w[::step], np.ascontiguousarray(self.cols_w[::step].T)
         return self._clamp(
             matmul_single_thread(left, right, np.empty((left.shape[0], right.shape[1])))
