@@ -20,6 +20,7 @@ from starsense.errors import InputError
 
 __all__ = [
     "as_generator",
+    "check_count",
     "check_int",
     "check_rotation",
     "check_scalar",
@@ -135,6 +136,33 @@ def check_int(
     if maximum is not None and out > maximum:
         raise InputError(f"{name} must be <= {maximum}, got {out}")
     return out
+
+
+def check_count(value: object, name: str, cap: int, cost: str, minimum: int = 1) -> int:
+    """Return a count (an integer >= ``minimum``) no larger than ``cap``, checked before any work.
+
+    Parameters
+    ----------
+    value : object
+        The count given.
+    name : str
+        The parameter (or option) it was given to, for the message.
+    cap : int
+        The largest count allowed, derived from the memory or time one unit costs.
+    cost : str
+        What one unit costs, for the message ("~1.3 KB of memory each").
+    minimum : int
+        The smallest count allowed.
+
+    Raises
+    ------
+    InputError
+        One line naming ``name``, the value, the cap and why.
+    """
+    n = check_int(value, name, minimum)
+    if n > cap:
+        raise InputError(f"{name} = {n:,} is above its cap of {cap:,} ({cost}); ask for fewer")
+    return n
 
 
 def finite_array(value: ArrayLike, name: str) -> NDArray[np.float64]:

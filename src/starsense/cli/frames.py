@@ -8,6 +8,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._validate import check_count
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.analysis.montecarlo import run_montecarlo
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
@@ -184,7 +186,7 @@ def montecarlo(
     Prints the solve and wrong rates, the attitude error per axis against the predicted
     covariance, and the time per frame.
     """
-    option_int(trials, "--trials", 1)
+    check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
     if max_mag is not None:
         option_float(max_mag, "--max-mag")

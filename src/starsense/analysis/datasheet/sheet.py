@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -45,6 +44,7 @@ from starsense.analysis.datasheet.sections import (
     Spread,
     StarsInFov,
 )
+from starsense.analysis.datasheet.settings import DatasheetSettings
 from starsense.analysis.datasheet.skycache import limit_sigmas
 from starsense.analysis.datasheet.verify import no_frames_check, score_montecarlo
 from starsense.analysis.inputs import (
@@ -67,43 +67,6 @@ __all__ = ["SCHEMA", "Datasheet", "DatasheetSettings", "build_datasheet", "datas
 #: the JSON schema's name and version; bumped on any incompatible change
 SCHEMA = "starsense.datasheet/1"
 _N_MIN_LIS, _N_MIN_TRACK = 3, 2
-
-
-@dataclass(frozen=True, kw_only=True)
-class DatasheetSettings:
-    """How the datasheet is computed (all reported in its JSON ``settings``).
-
-    Attributes
-    ----------
-    n_trials : int
-        Monte Carlo frames at rest, and again at ``rate_rad_s`` (JSON ``trials``); 0 gives
-        the prediction alone (no frames rendered).
-    rate_rad_s : float
-        Cross-axis rate of the second Monte Carlo, rad/s.
-    seed : int
-        Root seed of every random step.
-    n_orientations : int
-        Quasi-uniform boresights of the sky statistics.
-    n_slew_trials : int
-        Renders per (magnitude, rate) of the slew-tolerance Monte Carlo (JSON ``slew_trials``).
-    model : str
-        Sensitivity model (magnitude -> photo-electrons).
-    n_rate_trials : int or None
-        Frames of the run at ``rate_rad_s`` (None: ``n_trials``).
-    slew_full_grid : bool
-        Simulate every (magnitude, rate) cell of the slew run (the report plots its Fig. 9
-        intensities); False stops each magnitude at the rate where it is lost. Both give the
-        same numbers in the datasheet (limit, tolerance, ``m_t(w)``, availability).
-    """
-
-    n_trials: int = 100
-    rate_rad_s: float = 1.0 * DEG
-    seed: int = 0
-    n_orientations: int = 2000
-    n_slew_trials: int = 20
-    model: str = "reed"
-    n_rate_trials: int | None = None
-    slew_full_grid: bool = True
 
 
 def _arcsec_stats(cross: np.ndarray, roll: np.ndarray) -> AxisSpread:

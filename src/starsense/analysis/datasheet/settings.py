@@ -1,0 +1,68 @@
+"""How a datasheet is computed: its counts, rate, seed and model, checked on construction."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from starsense._validate import check_count
+from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
+from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
+from starsense.units import DEG
+
+__all__ = ["DatasheetSettings"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class DatasheetSettings:
+    """How the datasheet is computed (all reported in its JSON ``settings``).
+
+    Attributes
+    ----------
+    n_trials : int
+        Monte Carlo frames at rest, and again at ``rate_rad_s`` (JSON ``trials``); 0 gives
+        the prediction alone (no frames rendered).
+    rate_rad_s : float
+        Cross-axis rate of the second Monte Carlo, rad/s.
+    seed : int
+        Root seed of every random step.
+    n_orientations : int
+        Quasi-uniform boresights of the sky statistics.
+    n_slew_trials : int
+        Renders per (magnitude, rate) of the slew-tolerance Monte Carlo (JSON ``slew_trials``).
+    model : str
+        Sensitivity model (magnitude -> photo-electrons).
+    n_rate_trials : int or None
+        Frames of the run at ``rate_rad_s`` (None: ``n_trials``).
+    slew_full_grid : bool
+        Simulate every (magnitude, rate) cell of the slew run (the report plots its Fig. 9
+        intensities); False stops each magnitude at the rate where it is lost. Both give the
+        same numbers in the datasheet (limit, tolerance, ``m_t(w)``, availability).
+    """
+
+    n_trials: int = 100
+    rate_rad_s: float = 1.0 * DEG
+    seed: int = 0
+    n_orientations: int = 2000
+    n_slew_trials: int = 20
+    model: str = "reed"
+    n_rate_trials: int | None = None
+    slew_full_grid: bool = True
+
+    def __post_init__(self) -> None:
+        """Check the counts against their caps before any work (one-line InputError)."""
+        counts = {
+            "n_trials": check_count(self.n_trials, "n_trials", MAX_FRAMES, FRAME_COST, 0),
+            "n_orientations": check_count(
+                self.n_orientations, "n_orientations", MAX_ORIENTATIONS, ORIENTATION_COST
+            ),
+            "n_slew_trials": check_count(
+                self.n_slew_trials, "n_slew_trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
+            ),
+        }
+        if self.n_rate_trials is not None:
+            counts["n_rate_trials"] = check_count(
+                self.n_rate_trials, "n_rate_trials", MAX_FRAMES, FRAME_COST, 0
+            )
+        for name, value in counts.items():
+            object.__setattr__(self, name, value)
