@@ -81,10 +81,11 @@ def render(
     ] = None,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
-    option_float(ra_deg, "--ra-deg")
+    option_float(ra_deg, "--ra-deg", -360.0, 360.0)
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
-    option_float(roll_deg, "--roll-deg")
-    rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
+    option_float(roll_deg, "--roll-deg", -360.0, 360.0)
+    # each component within one turn a second (render.tracks.MAX_RATE_RAD_S bounds the norm)
+    rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3, -360.0, 360.0))
     if max_mag is not None:
         option_float(max_mag, "--max-mag")
     sens = load_sensor(sensor)

@@ -106,6 +106,17 @@ def limit_star(
     as_json: JsonOpt = False,
 ) -> None:
     """One star's black body, photons and centroid bound (Table 1; eqs. 9, 12, 19)."""
+    given = [
+        names
+        for names, values in (
+            ("--mag-v/--b-v", (mag_v, b_v)),
+            ("--mag-h/--h-ks", (mag_h, h_ks)),
+            ("--mag/--colour-index/--colour", (mag, colour_index, colour)),
+        )
+        if any(v is not None for v in values)
+    ]
+    if len(given) > 1:  # one star: one magnitude system, never one silently ignored
+        raise InputError(f"{' and '.join(given)} both describe the star; give one of them")
     if mag_v is not None or b_v is not None:
         if mag_v is None or b_v is None:
             raise InputError("--mag-v and --b-v must be given together")

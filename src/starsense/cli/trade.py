@@ -208,6 +208,12 @@ def trade(
             client=client,
             progress=bar.callback,
         )
+    failed = [r for r in study.rows if r.error is not None]
+    if len(failed) == len(study.rows):  # nothing to compare: say so, write nothing, exit 2
+        raise InputError(
+            f"every design of the grid failed ({len(failed)} of {len(study.rows)}); "
+            f"design {failed[0].index} ({failed[0].name}): {failed[0].error}"
+        )
     written = _write_out(out, study) if out is not None else []
     if as_json:
         typer.echo(_jsonl(study), nl=False)
