@@ -26,6 +26,7 @@ __all__ = [
     "check_scalar",
     "finite_array",
     "finite_float",
+    "name_keys",
     "positive_float",
     "show",
     "vectors3",
@@ -44,6 +45,32 @@ def show(value: object) -> str:
         return repr(value)
     text = repr(value) if isinstance(value, str) else str(value)
     return text if len(text) <= _SHOW_MAX else text[: _SHOW_MAX - 3] + "..."
+
+
+#: keys a message names before it counts the rest
+_KEYS_SHOWN = 5
+#: longest key a message quotes as it is
+_KEY_MAX = 60
+
+
+def _key_text(key: object) -> str:
+    text = str(key)
+    if text.isprintable() and 0 < len(text) <= _KEY_MAX:
+        return text
+    quoted = repr(text)  # control characters, escape sequences, bytes as \x.. escapes
+    return quoted if len(quoted) <= _KEY_MAX else quoted[: _KEY_MAX - 3] + "..."
+
+
+def name_keys(keys) -> str:
+    """Return the first few of ``keys`` for a message, and how many more: never 40 KB.
+
+    A printable key is shown as it is, any other (control characters, a terminal's escape
+    sequences) escaped, and each cut at 60 characters: ``a, b, c, d, e and 4,995 more``.
+    """
+    keys = list(keys)
+    shown = ", ".join(_key_text(k) for k in keys[:_KEYS_SHOWN])
+    rest = len(keys) - _KEYS_SHOWN
+    return shown if rest <= 0 else f"{shown} and {rest:,} more ({len(keys):,} in all)"
 
 
 def finite_float(value: object, name: str) -> float:

@@ -88,16 +88,19 @@ def _check_positions(src: Path, fmt: str, ra: str, dec: str) -> None:
         if fmt == "parquet":
             for batch in pq.ParquetFile(src).iter_batches(columns=[ra, dec]):
                 offset += _check_batch(batch, src, fmt, (ra, dec), offset)
-            return
-        convert = pcsv.ConvertOptions(
-            include_columns=[ra, dec], column_types={ra: pa.float64(), dec: pa.float64()}
-        )
-        with pcsv.open_csv(src, convert_options=convert) as reader:
-            for batch in reader:
-                offset += _check_batch(batch, src, fmt, (ra, dec), offset)
+        else:
+            convert = pcsv.ConvertOptions(
+                include_columns=[ra, dec], column_types={ra: pa.float64(), dec: pa.float64()}
+            )
+            with pcsv.open_csv(src, convert_options=convert) as reader:
+                for batch in reader:
+                    offset += _check_batch(batch, src, fmt, (ra, dec), offset)
     except (pa.ArrowInvalid, OSError) as exc:
         detail = _failure_detail(src, fmt, ra, dec, " ".join(str(exc).split()))
         raise InputError(f"cannot import {src}: {detail}") from None
+    if offset == 0:  # hats-import would fail on it with a FileNotFoundError naming no file
+        header = " (a header only)" if fmt == "csv" else ""
+        raise InputError(f"cannot import {src}: the file has no rows{header}")
 
 
 @contextlib.contextmanager

@@ -17,12 +17,12 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 from starsense._io import read_text
+from starsense._io.toml import parse_toml
 from starsense.errors import InputError
 from starsense.sensor import Sensor
 from starsense.sensor.detector import Detector
@@ -95,10 +95,7 @@ def base_document(spec: str | Path) -> dict:
         source = f"preset {text_spec}"
     else:
         text, source = read_text(Path(text_spec)), text_spec
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{source}: invalid TOML: {exc}") from None
+    doc = parse_toml(text, source)
     doc.setdefault("name", Path(text_spec).stem)
     sensor_from_dict(doc, source=source)
     return doc
