@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -265,6 +266,11 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
     >>> sensor.detector.columns, sensor.exposure_s
     (2592, 0.1)
     """
+    if not isinstance(name_or_path, str | os.PathLike):
+        raise InputError(
+            "sensor must be a Sensor, a preset name or a sensor TOML path, got "
+            f"{type(name_or_path).__name__} {show(name_or_path)}"
+        )
     text = str(name_or_path)
     path = Path(text).expanduser()
     if not text.strip():
