@@ -20,8 +20,10 @@ from starsense.analysis.availability.pointings import (
     track_family_attitudes,
 )
 from starsense.analysis.datasheet import DatasheetSettings
+from starsense.analysis.guide_stars.fields import MAX_FIELD_TRIALS
 from starsense.analysis.guide_stars.table1 import MAX_TABLE1_TRIALS, simulate_table1
 from starsense.analysis.inputs import MAX_FRAMES
+from starsense.analysis.limits.photons import MAX_PHOTON_TRIALS
 from starsense.analysis.slew import MAX_SLEW_SAMPLES, MAX_TRIALS_PER_POINT
 from starsense.analysis.trade import (
     MAX_DESIGNS_IN_PROCESS,
@@ -61,6 +63,9 @@ CLI_CASES = [
     (["report", "--slew-trials", str(BIG), "--out", "{out}/r"],
      ["--slew-trials", f"{MAX_TRIALS_PER_POINT:,}"]),
     (["guide-stars", "simulate", "--trials", str(BIG)], ["--trials", f"{MAX_TABLE1_TRIALS:,}"]),
+    (["guide-stars", "field", "--trials", str(BIG)], ["--trials", f"{MAX_FIELD_TRIALS:,}"]),
+    (["limit", "photons", "--trials", str(BIG)], ["--trials", f"{MAX_PHOTON_TRIALS:,}"]),
+    (["trade", "--vary", "exposure_s=0.01,0.1", "--workers", "1000"], ["--workers", "64"]),
     (["trade", "--vary", "exposure_s=0.01:0.1:1000000000"],
      ["exposure_s", "1,000,000,000 values", f"{MAX_DESIGNS_ON_CLUSTER:,}"]),
     (["trade", "--vary", "exposure_s=0.01:0.1:1000", "--vary", "optics.aperture_m=0.01:0.02:20"],

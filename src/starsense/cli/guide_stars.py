@@ -24,6 +24,7 @@ from starsense.analysis.guide_stars import (
     select_guide_stars,
     simulate_table1,
 )
+from starsense.analysis.guide_stars.fields import FIELD_TRIAL_COST, MAX_FIELD_TRIALS
 from starsense.analysis.guide_stars.table1 import MAX_TABLE1_TRIALS, TABLE1_TRIAL_COST
 from starsense.catalog import load_catalog
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
@@ -336,7 +337,7 @@ def field_cmd(
     _check_choices(_configs(configurations), metric, sigma_kind)
     _choice(criterion, CRITERIA, "--criterion")
     check_int(n_stars, "--n-stars", 3)
-    check_int(trials, "--trials", 1)
+    check_count(trials, "--trials", MAX_FIELD_TRIALS, FIELD_TRIAL_COST)
     fovs = lin2024.PATTERN_FOVS_DEG if lens_fov_deg is None else (lens_fov_deg,)
     cat = load_catalog(catalog)
     results = []
