@@ -113,3 +113,15 @@ def test_long_thin_frame_in_bounded_memory():
     assert peak < 20e6, peak
     assert bg.level.shape == img.shape
     assert abs(float(np.median(bg.level)) - float(np.median(img))) < 10.0
+
+
+def test_noise_at_in_blocks_is_the_whole_gather(monkeypatch):
+    """NoiseSurface.at in blocks of pixels (a bright frame lights millions): the same numbers."""
+    from starsense.detect import surface
+
+    img = _glow((200, 300), 7)
+    lazy = estimate_background(img, full_noise_map=False)
+    idx = np.random.default_rng(8).integers(0, img.size, 5000)
+    whole = lazy.noise_at(idx)
+    monkeypatch.setattr(surface, "_AT_BLOCK_NUMBERS", 37)  # blocks of a few pixels
+    np.testing.assert_array_equal(lazy.noise_at(idx), whole)

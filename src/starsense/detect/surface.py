@@ -23,6 +23,8 @@ __all__ = ["NoiseSurface", "matmul_single_thread"]
 # (its GEMM_MULTITHREAD_THRESHOLD); a threaded GEMM on a busy machine waits for its second
 # thread (~15 ms median instead of ~1 ms for a 768 x 1024 frame), and its threads then spin.
 _GEMM_SINGLE_THREAD = 65536 * 4
+#: numbers gathered at once by NoiseSurface.at (8 MB of float64 per operand)
+_AT_BLOCK_NUMBERS = 1 << 20
 
 
 def matmul_single_thread(left: np.ndarray, right: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -93,10 +95,17 @@ class NoiseSurface:
 
     def at(self, flat_idx: np.ndarray) -> np.ndarray:
         """Noise at the pixels of flat indices ``flat_idx``, counts rms (float32)."""
-        r, c = np.divmod(np.asarray(flat_idx, dtype=np.intp), self.shape[1])
+        r, c = np.divmod(np.asarray(flat_idx, dtype=np.intp).ravel(), self.shape[1])
         if isinstance(self.cols_w, AxisWeights):
             return self._clamp(self.cols_w.pairs(self.rows_w.T, c, r))
-        return self._clamp(np.einsum("ij,ij->i", self.rows_w[r], self.cols_w[c]))
+        # in blocks: a gather of (pixels, mesh columns) for every pixel of a bright frame at
+        # once would take pixels x columns x 16 bytes (GBs); each pixel's sum is the same
+        out = np.empty(r.size)
+        block = max(1, _AT_BLOCK_NUMBERS // max(1, self.rows_w.shape[1]))
+        for i in range(0, r.size, block):
+            rr, cc = r[i : i + block], c[i : i + block]
+            out[i : i + block] = np.einsum("ij,ij->i", self.rows_w[rr], self.cols_w[cc])
+        return self._clamp(out)
 
     def grid(self, step: int) -> np.ndarray:
         """Noise at every ``step``-th pixel each way (``map[::step, ::step]``), float32."""
