@@ -19,6 +19,7 @@ from starsense.analysis.availability.pointings import (
     sky_attitudes,
     track_family_attitudes,
 )
+from starsense.analysis.centroid_trials import centroid_trials
 from starsense.analysis.datasheet import DatasheetSettings
 from starsense.analysis.guide_stars.fields import MAX_FIELD_TRIALS
 from starsense.analysis.guide_stars.table1 import MAX_TABLE1_TRIALS, simulate_table1
@@ -123,6 +124,7 @@ def test_count_above_its_cap_is_one_line_exit_2(argv, fragments, tmp_path, capsy
             ["n_orientations"],
         ),
         (lambda: simulate_table1(n_trials=BIG), ["n_trials", f"{MAX_TABLE1_TRIALS:,}"]),
+        (lambda: centroid_trials("st16", n_trials=BIG), ["n_trials", "1,000,000"]),
         (
             lambda: designs(
                 base_document("st16"),
