@@ -20,11 +20,13 @@ from starsense.errors import InputError
 
 __all__ = [
     "as_generator",
+    "check_count",
     "check_int",
     "check_rotation",
     "check_scalar",
     "finite_array",
     "finite_float",
+    "name_keys",
     "positive_float",
     "show",
     "vectors3",
@@ -43,6 +45,32 @@ def show(value: object) -> str:
         return repr(value)
     text = repr(value) if isinstance(value, str) else str(value)
     return text if len(text) <= _SHOW_MAX else text[: _SHOW_MAX - 3] + "..."
+
+
+#: keys a message names before it counts the rest
+_KEYS_SHOWN = 5
+#: longest key a message quotes as it is
+_KEY_MAX = 60
+
+
+def _key_text(key: object) -> str:
+    text = str(key)
+    if text.isprintable() and 0 < len(text) <= _KEY_MAX:
+        return text
+    quoted = repr(text)  # control characters, escape sequences, bytes as \x.. escapes
+    return quoted if len(quoted) <= _KEY_MAX else quoted[: _KEY_MAX - 3] + "..."
+
+
+def name_keys(keys) -> str:
+    """Return the first few of ``keys`` for a message, and how many more: never 40 KB.
+
+    A printable key is shown as it is, any other (control characters, a terminal's escape
+    sequences) escaped, and each cut at 60 characters: ``a, b, c, d, e and 4,995 more``.
+    """
+    keys = list(keys)
+    shown = ", ".join(_key_text(k) for k in keys[:_KEYS_SHOWN])
+    rest = len(keys) - _KEYS_SHOWN
+    return shown if rest <= 0 else f"{shown} and {rest:,} more ({len(keys):,} in all)"
 
 
 def finite_float(value: object, name: str) -> float:
@@ -135,6 +163,33 @@ def check_int(
     if maximum is not None and out > maximum:
         raise InputError(f"{name} must be <= {maximum}, got {out}")
     return out
+
+
+def check_count(value: object, name: str, cap: int, cost: str, minimum: int = 1) -> int:
+    """Return a count (an integer >= ``minimum``) no larger than ``cap``, checked before any work.
+
+    Parameters
+    ----------
+    value : object
+        The count given.
+    name : str
+        The parameter (or option) it was given to, for the message.
+    cap : int
+        The largest count allowed, derived from the memory or time one unit costs.
+    cost : str
+        What one unit costs, for the message ("~1.3 KB of memory each").
+    minimum : int
+        The smallest count allowed.
+
+    Raises
+    ------
+    InputError
+        One line naming ``name``, the value, the cap and why.
+    """
+    n = check_int(value, name, minimum)
+    if n > cap:
+        raise InputError(f"{name} = {n:,} is above its cap of {cap:,} ({cost}); ask for fewer")
+    return n
 
 
 def finite_array(value: ArrayLike, name: str) -> NDArray[np.float64]:

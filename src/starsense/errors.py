@@ -7,9 +7,33 @@ value, allowed range) so that the user can act on them.
 
 from __future__ import annotations
 
+#: longest message shown: what a message quotes from a file (a line of binary garbage, a
+#: library's error about it) is cut there, never megabytes on the user's terminal
+MAX_MESSAGE_CHARS = 2000
+
+
+def one_line(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
+    r"""Return ``text`` for a terminal: one line, control characters escaped, cut at ``limit``.
+
+    A file's bytes quoted in a message (escape sequences that clear the screen or recolour
+    it, a bell, a NUL, a newline) are shown as ``\x1b``, ``\x07``, ``\n``.
+    """
+    if text.isprintable() and len(text) <= limit:
+        return text
+    out = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    if len(out) > limit:
+        out = f"{out[:limit]} ... ({len(out) - limit:,} more characters)"
+    return out
+
 
 class StarsenseError(Exception):
-    """Base class for user-facing errors (bad input, bad configuration, impossible geometry)."""
+    """Base class for user-facing errors (bad input, bad configuration, impossible geometry).
+
+    Its message is one line whatever it quotes (:func:`one_line`).
+    """
+
+    def __str__(self) -> str:
+        return one_line(super().__str__())
 
 
 class InputError(StarsenseError, ValueError):

@@ -42,7 +42,7 @@ def test_reproducible():
 
 
 def test_bad_input():
-    with pytest.raises(InputError, match="n_trials must be an integer >= 1"):
+    with pytest.raises(InputError, match="n_trials must be >= 1, got 0"):
         run_montecarlo(load_sensor("st16"), n_trials=0)
     with pytest.raises(InputError, match="rate_rad_s must be >= 0"):
         run_montecarlo(load_sensor("st16"), n_trials=1, rate_rad_s=np.radians(-1))

@@ -70,7 +70,7 @@ def test_magnitude_threshold_inverts_the_tolerance_curve():
     [
         ({"rates_rad_s": np.radians([0, -1])}, r"rates_rad_s must be >= 0"),
         ({"rates_rad_s": np.radians([1, 0.5])}, "strictly increasing"),
-        ({"n_trials": 0}, "n_trials must be an integer >= 1"),
+        ({"n_trials": 0}, "n_trials must be >= 1, got 0"),
         ({"criterion": 1.5}, r"criterion must be in \(0, 1\]"),
         ({"magnitudes": []}, "magnitudes must be a non-empty"),
         ({"model": "sun"}, "slew analysis model must be reed, liebe or blackbody"),

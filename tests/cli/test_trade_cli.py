@@ -20,7 +20,7 @@ _CHEAP = ["--sensor", "st16", "--workers", "1"]
         (["--vary", "exposure_s=0.1:0.2:1"], ["exposure_s", "0.1:0.2:1", "N must be"]),
         (
             ["--vary", "exposure_s=0.01:1:101", "--vary", "optics.focal_length_m=0.01:0.05:101"],
-            ["10201 designs", "--dask"],
+            ["10,201 designs", "--dask"],
         ),
         ([], ["--vary"]),
         (["--vary", "exposure_s=0.1", "--keep", "colour"], ["--keep", "colour"]),
@@ -40,15 +40,23 @@ def test_bad_input_is_one_line_exit_2(argv, fragments, capsys, tmp_path, monkeyp
 
 
 def test_json_lines_csv_and_out(capsys, tmp_path):
-    argv = ["trade", *_CHEAP, "--vary", "exposure_s=0.1", "--vary", "detector.pixel_pitch_m=-1"]
+    argv = [
+        "trade",
+        *_CHEAP,
+        "--vary",
+        "exposure_s=0.1",
+        "--vary",
+        "detector.pixel_pitch_m=-1,6e-6",
+    ]
     assert main([*argv, "--json"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert len(lines) == 1  # one object per line, one line per design
+    assert len(lines) == 2  # one object per line, one line per design
     row = json.loads(lines[0])
     assert row["rows"] is None and "pixel_pitch_m" in row["error"]  # its own error, exit 0
+    assert json.loads(lines[1])["error"] is None
     assert main([*argv, "--csv", "--out", str(tmp_path / "t")]) == 0
     table = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
-    assert len(table) == 1 and table[0]["exposure_s"] == "0.1"
+    assert len(table) == 2 and table[0]["exposure_s"] == "0.1"
     names = sorted(p.name for p in (tmp_path / "t").iterdir())
     assert "trade.jsonl" in names and "trade.csv" in names
     assert any(n.startswith("trade_pareto_") and n.endswith(".png") for n in names)
@@ -64,3 +72,15 @@ def test_dask_and_worker_processes_give_identical_rows(capsys):
         out[where[0]] = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert len(out["--workers"]) == 4
     assert out["--workers"] == out["--dask"]  # a design is a pure function of its document
+
+
+def test_every_design_failing_is_an_error_and_writes_nothing(capsys, tmp_path):
+    """A grid of which no design could be evaluated is not a result: exit 2, one line, no file."""
+    argv = ["trade", *_CHEAP, "--vary", "detector.pixel_pitch_m=-1,-2", "--json"]
+    assert main([*argv, "--out", str(tmp_path / "t")]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "every design of the grid failed (2 of 2)" in lines[0]
+    assert "pixel_pitch_m" in lines[0]
+    assert not (tmp_path / "t").exists() or list((tmp_path / "t").iterdir()) == []

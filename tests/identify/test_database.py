@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import logging
 import math
+import os
 
 import numpy as np
 import pytest
@@ -11,6 +14,7 @@ from scipy.spatial.transform import Rotation
 from starsense._io import dir_mode, file_mode
 from starsense.errors import InputError
 from starsense.identify import build_database, edge_ratios, pattern_edges, thin_by_region
+from starsense.identify import cache as cache_module
 from starsense.identify import database as database_module
 from starsense.identify.cache import IN_MEMORY_MAX_BYTES, database_cache_file
 
@@ -136,3 +140,76 @@ def test_cache_ignores_corrupt_file(hipparcos, tmp_path):
 def test_bad_parameters(hipparcos, kwargs, match):
     with pytest.raises(InputError, match=match):
         build_database(hipparcos, cache=False, **kwargs)
+
+
+def _garble(path, offset_from_end: int = 4096) -> None:
+    """Overwrite 64 bytes inside a file's data in place (its size unchanged), as a disk error."""
+    size = path.stat().st_size
+    with open(path, "r+b") as f:
+        f.seek(max(128, size - offset_from_end))
+        chunk = bytearray(f.read(64))
+        f.seek(max(128, size - offset_from_end))
+        f.write(bytes(b ^ 0xFF for b in chunk))
+
+
+@pytest.mark.parametrize("name", ["patterns", "pattern_keys", "vectors", "ids", "pairs"])
+def test_cache_detects_a_garbled_file_rebuilds_and_says_so(
+    name, hipparcos, tmp_path, monkeypatch, caplog
+):
+    fov = math.radians(25)
+    db = build_database(hipparcos, fov, cache_dir=tmp_path)
+    path, _ = database_cache_file(hipparcos, db.params, tmp_path)
+    before = os.stat(path / f"{name}.npy")
+    _garble(path / f"{name}.npy")
+    # the times put back as they were: the change of the file's ctime and content still shows
+    os.utime(path / f"{name}.npy", ns=(before.st_atime_ns, before.st_mtime_ns))
+    builds = []
+    real_build = database_module._build
+    monkeypatch.setattr(
+        database_module, "_build", lambda *a, **k: builds.append(1) or real_build(*a, **k)
+    )
+    with caplog.at_level(logging.WARNING, logger="starsense.identify.cache"):
+        again = build_database(hipparcos, fov, cache_dir=tmp_path)
+    assert builds == [1]  # rebuilt, not used
+    said = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert any(f"{name}.npy does not match its checksum" in m and "rebuilding" in m for m in said)
+    for array in db._ARRAYS:
+        np.testing.assert_array_equal(getattr(again, array), getattr(db, array))
+    # the rebuilt copy replaced the garbled one and opens without a rebuild or a warning
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="starsense.identify.cache"):
+        third = build_database(hipparcos, fov, cache_dir=tmp_path)
+    assert builds == [1] and not caplog.records
+    np.testing.assert_array_equal(getattr(third, name), getattr(db, name))
+
+
+def test_cache_hashes_a_file_once_per_version_of_it(hipparcos, tmp_path, monkeypatch):
+    """An unchanged database is not hashed again on open (300 MB take ~0.5 s to hash)."""
+    fov = math.radians(25)
+    build_database(hipparcos, fov, cache_dir=tmp_path)
+    hashed = []
+    real = cache_module._file_checksum
+    monkeypatch.setattr(cache_module, "_file_checksum", lambda p: hashed.append(p.name) or real(p))
+    build_database(hipparcos, fov, cache_dir=tmp_path)
+    assert hashed == []  # verified when written
+    path = next(tmp_path.iterdir())
+    (path / "verified.json").unlink()  # e.g. a copy without it: every file hashed once, then not
+    build_database(hipparcos, fov, cache_dir=tmp_path)
+    assert sorted(hashed) == sorted(
+        f"{a}.npy" for a in database_module.IdentificationDatabase._ARRAYS
+    )
+    hashed.clear()
+    build_database(hipparcos, fov, cache_dir=tmp_path)
+    assert hashed == []
+
+
+def test_cache_of_an_older_format_is_rebuilt(hipparcos, tmp_path, monkeypatch):
+    fov = math.radians(25)
+    db = build_database(hipparcos, fov, cache_dir=tmp_path)
+    path, _ = database_cache_file(hipparcos, db.params, tmp_path)
+    meta = json.loads((path / "meta.json").read_text())
+    (path / "meta.json").write_text(json.dumps({**meta, "format": 2}))
+    assert database_module.IdentificationDatabase.load(path) is None
+    del meta["files"]  # the current format without its checksums: refused, not trusted
+    (path / "meta.json").write_text(json.dumps(meta))
+    assert database_module.IdentificationDatabase.load(path) is None

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starsense._validate import as_generator, check_int
+from starsense._validate import as_generator, check_count, check_int
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.datasheet.predict import StarModel, limiting_magnitude
 from starsense.analysis.datasheet.verify import wrong_rate_upper
@@ -61,6 +61,10 @@ __all__ = [
 
 #: trials per Dask task at most (a task pays one database load: ~0.2 s against ~30 s of work)
 MAX_CHUNK = 20_000
+#: most trials of one run: each simulates and identifies a centroid set, ~1 ms (``datasheet
+#: --centroids-only`` at 200 and 2,000 trials), so the cap bounds a run to ~20 minutes
+MAX_CENTROID_TRIALS = 1_000_000
+CENTROID_TRIAL_COST = "~1 ms per simulated centroid set"
 
 
 @dataclass(frozen=True)
@@ -450,7 +454,7 @@ def centroid_trials(
     -------
     CentroidTrialsResult
     """
-    n_trials = check_int(n_trials, "n_trials", 1)
+    n_trials = check_count(n_trials, "n_trials", MAX_CENTROID_TRIALS, CENTROID_TRIAL_COST)
     sens = as_sensor(sensor)
     cat = as_catalog(catalog)
     seed = root_seed(rng)

@@ -24,6 +24,8 @@ from starsense.units import ARCSEC
 
 __all__ = [
     "DEFAULT_CATALOG_SPEC",
+    "FRAME_COST",
+    "MAX_FRAMES",
     "SAME_STAR_RAD",
     "as_catalog",
     "as_sensor",
@@ -32,6 +34,12 @@ __all__ = [
     "held_by",
     "root_seed",
 ]
+
+#: most frames one Monte Carlo renders and solves (montecarlo, the datasheet's checks, the
+#: availability fidelity check): each takes ~0.01-0.1 s, so the cap bounds a run to hours, and
+#: its per-frame records (~100 bytes) to ~0.1 GB; more trials are more seeds, run apart
+MAX_FRAMES = 1_000_000
+FRAME_COST = "each renders and solves a frame, ~0.01-0.1 s"
 
 #: the catalogue an analysis uses when given none
 DEFAULT_CATALOG_SPEC = "hipparcos"

@@ -27,8 +27,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from starsense._validate import finite_float, show
-from starsense.analysis.inputs import as_catalog, as_sensor, at_epoch, completed_sky, root_seed
+from starsense._validate import check_count, finite_float, show
+from starsense.analysis.inputs import (
+    FRAME_COST,
+    MAX_FRAMES,
+    as_catalog,
+    as_sensor,
+    at_epoch,
+    completed_sky,
+    root_seed,
+)
 from starsense.errors import InputError
 from starsense.geometry.attitude import angular_separation, boresight, small_rotation_angles
 from starsense.geometry.sampling import random_attitudes
@@ -315,9 +323,7 @@ def montecarlo(
     -------
     MonteCarloResult
     """
-    if isinstance(n_trials, bool) or int(n_trials) != n_trials or n_trials < 1:
-        raise InputError(f"n_trials must be an integer >= 1, got {show(n_trials)}")
-    n_trials = int(n_trials)
+    n_trials = check_count(n_trials, "n_trials", MAX_FRAMES, FRAME_COST)
     rate_rad_s = finite_float(rate_rad_s, "rate_rad_s")
     if rate_rad_s < 0:
         raise InputError(f"rate_rad_s must be >= 0, got {show(rate_rad_s)}")

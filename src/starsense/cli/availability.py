@@ -19,6 +19,8 @@ from starsense._validate import finite_float
 from starsense.analysis.availability import (
     fidelity_check,
 )
+from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.catalog import load_catalog
 from starsense.cli.availability_options import (
     DEFAULT_DYNAMIC_RATES,
@@ -38,6 +40,7 @@ from starsense.cli.availability_options import (
     check_max_mag,
     check_n_min,
     check_rates_deg_s,
+    check_slew_trials,
     field_of_view_option,
     maps_dir,
     roll_option,
@@ -57,6 +60,7 @@ from starsense.cli.common import (
     progress_bar,
     step_grid,
 )
+from starsense.errors import InputError
 from starsense.geometry.sampling import great_circle_track
 from starsense.scale import static_availability
 from starsense.sensor import load_sensor
@@ -85,7 +89,13 @@ def _static_hats(
 ):
     """``availability static`` over a HATS catalogue on Dask (starsense.scale)."""
     check_max_mag(max_mag)
-    check_count(n_orientations, "number of orientations", "--n-orientations")
+    check_count(
+        n_orientations,
+        "number of orientations",
+        "--n-orientations",
+        MAX_ORIENTATIONS,
+        ORIENTATION_COST,
+    )
     roll = roll_option(roll_deg)
     sens = load_sensor(sensor)
     field = field_of_view_option(sens, fov, half_fov_deg)
@@ -116,6 +126,7 @@ def _curve_and_analysis(sensor, catalog, *, threshold, grid, max_mag, roll_deg, 
     ``threshold`` holds :func:`sensor_threshold`'s options, ``grid`` the field options of
     :func:`setup_analysis`; ``max_mag`` None is the sensor's own static threshold.
     """
+    check_slew_trials(threshold["n_trials"])
     curve, rest_mag = sensor_threshold(
         load_sensor(sensor), seed=seed, progress=progress, **threshold
     )
@@ -328,10 +339,19 @@ def track(
     """Along-track dynamic availability of great circles inclined -90 ... 90 deg (Table 2)."""
     rate = float(check_rates_deg_s([rate_deg_s], "--rate-deg-s")[0])
     check_n_min(n_min)
-    check_count(track_samples, "samples per track", "--track-samples")
+    check_count(
+        track_samples, "samples per track", "--track-samples", MAX_ORIENTATIONS, ORIENTATION_COST
+    )
     node = finite_float(node_deg, "--node-deg") * DEG
     # from a count (0.01 deg: 18,001 tracks ending at 90); finer than 0.001 deg is refused
     inclinations = DEG * step_grid(-90, 90, inclination_step_deg, "--inclination-step-deg", 1e-3)
+    if track_samples * inclinations.size > MAX_ORIENTATIONS:
+        raise InputError(
+            f"--track-samples = {track_samples:,} on {inclinations.size:,} tracks is "
+            f"{track_samples * inclinations.size:,} orientations, above the cap of "
+            f"{MAX_ORIENTATIONS:,} ({ORIENTATION_COST}); lower --track-samples or raise "
+            "--inclination-step-deg"
+        )
     check_max_mag(max_mag)
     with progress_bar() as progress:
         curve, sens, analysis = _curve_and_analysis(
@@ -403,7 +423,8 @@ def fidelity(
     """Rendered frames through the detector against the threshold model (real detector field)."""  # noqa: D401
     rate = float(check_rates_deg_s([rate_deg_s], "--rate-deg-s")[0])
     check_n_min(n_min)
-    check_count(frames, "number of frames", "--frames")
+    check_count(frames, "number of frames", "--frames", MAX_FRAMES, FRAME_COST)
+    check_slew_trials(trials)
     check_max_mag(max_mag)
     sens = load_sensor(sensor)
     cat = load_catalog(catalog)

@@ -19,13 +19,16 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._validate import check_count as _check_count
 from starsense._validate import finite_float
 from starsense.analysis.availability import (
     AvailabilityAnalysis,
     ThresholdCurve,
     field_of_view,
 )
+from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
 from starsense.analysis.sensor_detection import sensor_detection
+from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
     output_dir,
@@ -118,8 +121,8 @@ def check_n_min(n_min: int) -> int:
     return n_min
 
 
-def check_count(n: int, label: str, option: str) -> int:
-    """Return a count given to ``option``, checked: an integer >= 1.
+def check_count(n: int, label: str, option: str, cap: int | None = None, cost: str = "") -> int:
+    """Return a count given to ``option``, checked: an integer >= 1, and <= ``cap`` if given.
 
     Parameters
     ----------
@@ -129,6 +132,10 @@ def check_count(n: int, label: str, option: str) -> int:
         What is counted ("number of orientations"), for the message.
     option : str
         The option ("--n-orientations"), for the message.
+    cap : int, optional
+        The largest count allowed (derived from memory or time).
+    cost : str
+        What one unit costs, for the message.
 
     Raises
     ------
@@ -137,7 +144,14 @@ def check_count(n: int, label: str, option: str) -> int:
     """
     if n < 1:
         raise InputError(f"{label} ({option}) = {n} is out of range; must be an integer >= 1")
+    if cap is not None:
+        _check_count(n, f"{label} ({option})", cap, cost)
     return n
+
+
+def check_slew_trials(n: int, option: str = "--trials") -> int:
+    """Return the slew Monte Carlo's trials per (magnitude, rate), checked against their cap."""
+    return _check_count(n, option, MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
 
 
 def check_rates_deg_s(values: list[float], option: str) -> np.ndarray:
@@ -279,7 +293,13 @@ def setup_analysis(
         ``(Sensor, Catalog, AvailabilityAnalysis)``.
     """
     check_max_mag(max_mag)
-    check_count(n_orientations, "number of orientations", "--n-orientations")
+    check_count(
+        n_orientations,
+        "number of orientations",
+        "--n-orientations",
+        MAX_ORIENTATIONS,
+        ORIENTATION_COST,
+    )
     roll = roll_option(roll_deg)
     sens = load_sensor(sensor)
     field = field_of_view_option(sens, fov, half_fov_deg)

@@ -11,8 +11,11 @@ from typing import Annotated
 import typer
 
 from starsense._io import atomic_write, check_output, json_text
+from starsense._validate import check_count
+from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
 from starsense.analysis.centroid_trials import centroid_trials
 from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
     JsonOpt,
@@ -20,7 +23,6 @@ from starsense.cli.common import (
     SeedOpt,
     emit,
     option_float,
-    option_int,
     progress_bar,
 )
 from starsense.errors import InputError
@@ -223,8 +225,8 @@ def datasheet(
     if schema:
         typer.echo((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
         return
-    option_int(trials, "--trials", 1)
-    option_int(n_orientations, "--n-orientations", 1)
+    check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
+    check_count(n_orientations, "--n-orientations", MAX_ORIENTATIONS, ORIENTATION_COST)
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
     if seed < 0:
         raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")

@@ -8,6 +8,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._validate import check_count
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.analysis.montecarlo import run_montecarlo
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
@@ -79,10 +81,11 @@ def render(
     ] = None,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
-    option_float(ra_deg, "--ra-deg")
+    option_float(ra_deg, "--ra-deg", -360.0, 360.0)
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
-    option_float(roll_deg, "--roll-deg")
-    rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3))
+    option_float(roll_deg, "--roll-deg", -360.0, 360.0)
+    # each component within one turn a second (render.tracks.MAX_RATE_RAD_S bounds the norm)
+    rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3, -360.0, 360.0))
     if max_mag is not None:
         option_float(max_mag, "--max-mag")
     sens = load_sensor(sensor)
@@ -184,7 +187,7 @@ def montecarlo(
     Prints the solve and wrong rates, the attitude error per axis against the predicted
     covariance, and the time per frame.
     """
-    option_int(trials, "--trials", 1)
+    check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
     if max_mag is not None:
         option_float(max_mag, "--max-mag")

@@ -12,7 +12,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense._validate import check_int, check_scalar, positive_float
+from starsense._validate import check_count, check_int, check_scalar, positive_float
 from starsense.analysis.guide_stars import (
     CONFIGURATIONS,
     CRITERIA,
@@ -24,6 +24,8 @@ from starsense.analysis.guide_stars import (
     select_guide_stars,
     simulate_table1,
 )
+from starsense.analysis.guide_stars.fields import FIELD_TRIAL_COST, MAX_FIELD_TRIALS
+from starsense.analysis.guide_stars.table1 import MAX_TABLE1_TRIALS, TABLE1_TRIAL_COST
 from starsense.catalog import load_catalog
 from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
 from starsense.errors import InputError
@@ -90,7 +92,7 @@ def simulate(
     sig = _sigmas(sigmas, list(lin2024.TABLE1_SIGMAS_ARCSEC))
     configs = _configs(configurations)
     _check_choices(configs, metric, sigma_kind)
-    check_int(trials, "--trials", 1)
+    check_count(trials, "--trials", MAX_TABLE1_TRIALS, TABLE1_TRIAL_COST)
     check_scalar(fov_deg, "--fov-deg", 0, 90, lo_open=True, hi_open=True)
     positive_float(threshold, "--threshold-arcsec")
     with progress_bar() as update:
@@ -335,7 +337,7 @@ def field_cmd(
     _check_choices(_configs(configurations), metric, sigma_kind)
     _choice(criterion, CRITERIA, "--criterion")
     check_int(n_stars, "--n-stars", 3)
-    check_int(trials, "--trials", 1)
+    check_count(trials, "--trials", MAX_FIELD_TRIALS, FIELD_TRIAL_COST)
     fovs = lin2024.PATTERN_FOVS_DEG if lens_fov_deg is None else (lens_fov_deg,)
     cat = load_catalog(catalog)
     results = []

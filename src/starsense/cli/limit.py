@@ -13,10 +13,14 @@ import numpy as np
 import typer
 
 from starsense import plotting
-from starsense._validate import check_int, check_scalar, finite_float
+from starsense._validate import check_count, check_scalar, finite_float
 from starsense.analysis.limits.brightest import brightest_curve
 from starsense.analysis.limits.centroid import centroid_fisher
-from starsense.analysis.limits.photons import low_photon_degradation
+from starsense.analysis.limits.photons import (
+    MAX_PHOTON_TRIALS,
+    PHOTON_TRIAL_COST,
+    low_photon_degradation,
+)
 from starsense.analysis.limits.sky import fov_limit, sky_limit
 from starsense.catalog import load_catalog
 from starsense.catalog._columns import MAG_RANGE
@@ -106,6 +110,17 @@ def limit_star(
     as_json: JsonOpt = False,
 ) -> None:
     """One star's black body, photons and centroid bound (Table 1; eqs. 9, 12, 19)."""
+    given = [
+        names
+        for names, values in (
+            ("--mag-v/--b-v", (mag_v, b_v)),
+            ("--mag-h/--h-ks", (mag_h, h_ks)),
+            ("--mag/--colour-index/--colour", (mag, colour_index, colour)),
+        )
+        if any(v is not None for v in values)
+    ]
+    if len(given) > 1:  # one star: one magnitude system, never one silently ignored
+        raise InputError(f"{' and '.join(given)} both describe the star; give one of them")
     if mag_v is not None or b_v is not None:
         if mag_v is None or b_v is None:
             raise InputError("--mag-v and --b-v must be given together")
@@ -367,7 +382,7 @@ def limit_photons(
     as_json: JsonOpt = False,
 ) -> None:
     """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
-    check_int(trials, "--trials", 1)
+    check_count(trials, "--trials", MAX_PHOTON_TRIALS, PHOTON_TRIAL_COST)
     option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
     option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
     cat, stars = _load_stars(catalog, None, colour)

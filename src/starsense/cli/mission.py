@@ -16,6 +16,7 @@ import typer
 
 from starsense import plotting
 from starsense._io import check_output
+from starsense._validate import check_count
 from starsense.analysis.availability import catalog_stars
 from starsense.analysis.mission import (
     Head,
@@ -27,6 +28,7 @@ from starsense.analysis.mission import (
 )
 from starsense.analysis.mission.specs import parse_attitude, parse_head, parse_orbit
 from starsense.analysis.mission.timegrid import MAX_STEPS
+from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.catalog import load_catalog
 from starsense.cli.availability_options import (
     FovOpt,
@@ -139,6 +141,7 @@ def mission(
     """Availability along a mission: orbit, attitude profile, bright bodies, several heads."""
     check_n_min(n_min)
     check_max_mag(max_mag)
+    check_count(trials, "--trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
     hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
     n_steps = math.ceil(hours * 3600.0 / step - 1e-9)

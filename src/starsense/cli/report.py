@@ -7,11 +7,13 @@ from typing import Annotated
 
 import typer
 
+from starsense._validate import check_count
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
+from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.cli.common import (
     CatalogOpt,
     SensorOpt,
     option_float,
-    option_int,
     output_dir,
     seed_option,
 )
@@ -53,8 +55,8 @@ def report(
         option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
     if exposure_s is not None:
         option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
-    option_int(slew_trials, "--slew-trials", 1)
-    option_int(trials, "--trials", 1)
+    check_count(slew_trials, "--slew-trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
+    check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
     sens = load_sensor(sensor)
     # the limit of the sensor given (its aperture and exposure) unless told otherwise
     diameter_m = sens.optics.aperture_m if diameter_m is None else diameter_m

@@ -9,9 +9,13 @@ import numpy as np
 import typer
 
 from starsense import plotting
-from starsense._validate import finite_float
+from starsense._validate import check_count, finite_float
 from starsense.analysis.sensor_detection import sensor_grids
-from starsense.analysis.slew import simulate_slew
+from starsense.analysis.slew import (
+    MAX_TRIALS_PER_POINT,
+    SLEW_TRIAL_COST,
+    simulate_slew,
+)
 from starsense.analysis.slew_study import (
     DEFAULT_QE_MEANS,
     DEFAULT_SIGMAS_PX,
@@ -54,6 +58,7 @@ def _rates_rad_s(text: str | None) -> np.ndarray | None:
 
 def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
     finite_float(colour_index, "--b-v")
+    check_count(trials, "--trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
     sensor = load_sensor(sensor_name)
     mags = parse_floats(magnitudes, "--magnitudes")
     rate_values = _rates_rad_s(rates)
@@ -224,8 +229,7 @@ def slew_study(
     qes = parse_floats(qe, "--qe", lo=0.01, hi=1.0) or DEFAULT_QE_MEANS
     if not 0.005 <= mag_step <= 0.5:
         raise InputError(f"--mag-step must be within [0.005, 0.5] mag, got {mag_step:g}")
-    if trials < 1:
-        raise InputError(f"--trials must be >= 1, got {trials}")
+    check_count(trials, "--trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
     sens = load_sensor(sensor)
     with progress_bar(not as_json) as bar:
         study = study_slew(

@@ -24,7 +24,7 @@ from starsense.cli.common import (
     progress_bar,
 )
 from starsense.errors import InputError, StarsenseError
-from starsense.geometry.apparent import parse_time
+from starsense.geometry.apparent import C_M_S, parse_time
 from starsense.solve.bayer import check_bayer
 from starsense.solve.centroids import read_centroids
 from starsense.solve.extraction import solution_detector
@@ -117,6 +117,12 @@ def _solver(
         v_obs = 1e3 * np.asarray(
             parse_floats(observer_velocity_km_s, "--observer-velocity-km-s", 3)
         )
+        if np.linalg.norm(v_obs) >= C_M_S:
+            raise InputError(
+                f"--observer-velocity-km-s = {observer_velocity_km_s} is "
+                f"{np.linalg.norm(v_obs) / 1e3:,.0f} km/s, not below the speed of light "
+                f"({C_M_S / 1e3:,.0f} km/s)"
+            )
     return Solver(
         sensor,
         fov_rad=None if fov_deg is None else fov_deg * DEG,

@@ -17,13 +17,15 @@ from typing import Annotated
 import typer
 
 from starsense._io import atomic_write, json_text
+from starsense._validate import check_count
 from starsense.analysis.datasheet.compare import ROW_KEYS, format_value
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.analysis.trade import (
     KEEP,
     MAX_DESIGNS_IN_PROCESS,
+    MAX_DESIGNS_ON_CLUSTER,
     base_document,
     designs,
-    grid_size,
     parse_vary,
     prediction_settings,
     run_trade,
@@ -186,19 +188,14 @@ def trade(
     if as_json and as_csv:
         raise InputError("--json and --csv: choose one")
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
-    option_int(frames, "--frames", 0)
-    option_int(workers, "--workers", 1)
+    check_count(frames, "--frames", MAX_FRAMES, FRAME_COST, 0)
+    option_int(workers, "--workers", 1, 64)
     if verify not in ("all", "pareto"):
         raise InputError(f"--verify = {verify!r}: must be all or pareto")
     base = base_document(sensor)
     grid = [parse_vary(v) for v in vary]
-    n = grid_size(grid)
-    if n > MAX_DESIGNS_IN_PROCESS and dask is None:
-        raise InputError(
-            f"the grid has {n} designs, more than {MAX_DESIGNS_IN_PROCESS} without --dask; "
-            "run it on a cluster (--dask ADDRESS) or narrow it"
-        )
-    todo = designs(base, grid, keep=tuple(keep or ()))
+    cap = MAX_DESIGNS_IN_PROCESS if dask is None else MAX_DESIGNS_ON_CLUSTER
+    todo = designs(base, grid, keep=tuple(keep or ()), max_designs=cap)
     settings = prediction_settings(rate_rad_s=rate_deg_s * DEG, rng=seed, model=model)
     with progress_bar(not (as_json or as_csv)) as bar, _client(dask) as client:
         study = run_trade(
@@ -210,6 +207,12 @@ def trade(
             workers=workers,
             client=client,
             progress=bar.callback,
+        )
+    failed = [r for r in study.rows if r.error is not None]
+    if len(failed) == len(study.rows):  # nothing to compare: say so, write nothing, exit 2
+        raise InputError(
+            f"every design of the grid failed ({len(failed)} of {len(study.rows)}); "
+            f"design {failed[0].index} ({failed[0].name}): {failed[0].error}"
         )
     written = _write_out(out, study) if out is not None else []
     if as_json:

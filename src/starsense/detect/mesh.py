@@ -2,8 +2,10 @@
 
 The geometry of :func:`starsense.detect.background.estimate_background`'s mesh (which pixels
 each box samples, the box centres and the interpolation weights) depends only on the frame's
-shape and is computed once per shape (:func:`_mesh_plan`); the filtered mesh is interpolated
-back to every pixel by two small matrix products (:func:`interpolate_mesh`).
+shape and is computed once per shape (:func:`_mesh_plan`, :func:`_axis_weights`); the filtered
+mesh is interpolated back to every pixel by two small matrix products (:func:`interpolate_mesh`),
+or, along an axis too long for a dense weight matrix, by the spline's local form
+(:mod:`.axis_weights`), so memory grows with the pixels, not their square.
 """
 
 from __future__ import annotations
@@ -13,8 +15,17 @@ import functools
 import numpy as np
 from scipy import ndimage
 
+from starsense.detect.axis_weights import (
+    AxisWeights,
+    apply_weights,
+    interpolation_matrix,
+    weight_matrix,
+)
+from starsense.detect.axis_weights import natural_spline_weights as natural_spline_weights
 from starsense.detect.surface import matmul_single_thread
 from starsense.detect.workspace import scratch
+
+_interpolation_matrix = interpolation_matrix  # the dense form, under its former name
 
 
 def _mesh_axis(n: int, box_px: int, step: int):
@@ -108,72 +119,6 @@ def median_filter_mesh(mesh: np.ndarray, size: int) -> np.ndarray:
     return trend + filtered[pad_y : pad_y + mesh.shape[0], pad_x : pad_x + mesh.shape[1]]
 
 
-def _interpolation_matrix(centres: np.ndarray, n: int, kind: str) -> np.ndarray:
-    """W (n, m) with values at pixels 0..n-1 = W @ values at the m box centres (one axis).
-
-    Linear (or natural cubic) between the centres, linear extrapolation beyond them; both
-    reproduce a linear function exactly.
-    """
-    m = centres.size
-    if m == 1:
-        return np.ones((n, 1))
-    pix = np.arange(n, dtype=np.float64)
-    seg = np.clip(np.searchsorted(centres, pix, side="right") - 1, 0, m - 2)
-    t = (pix - centres[seg]) / (centres[seg + 1] - centres[seg])
-    w = np.zeros((n, m))
-    w[np.arange(n), seg] = 1.0 - t
-    w[np.arange(n), seg + 1] += t
-    if kind == "cubic" and m >= 3:
-        inside = (pix >= centres[0]) & (pix <= centres[-1])
-        w[inside] = natural_spline_weights(centres, pix[inside])
-    return w
-
-
-def natural_spline_weights(knots: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """W (n, m): the natural cubic spline through values v at ``knots``, at ``x``, is ``W @ v``.
-
-    The spline of ``scipy.interpolate.CubicSpline(knots, v, bc_type="natural")`` (zero second
-    derivative at both ends), written out in NumPy: its second derivatives at the knots solve
-    the (m - 2)-square tridiagonal system of continuity of the first derivative, here for every
-    unit vector v at once (scipy.interpolate costs ~0.1 s to import, more than a frame's solve).
-
-    Parameters
-    ----------
-    knots : ndarray, shape (m,)
-        Strictly ascending, m >= 3.
-    x : ndarray, shape (n,)
-        Where to evaluate, within ``[knots[0], knots[-1]]``.
-
-    Returns
-    -------
-    ndarray, shape (n, m)
-    """
-    m = knots.size
-    h = np.diff(knots)
-    a = np.zeros((m - 2, m - 2))
-    i = np.arange(m - 2)
-    a[i, i] = 2.0 * (h[:-1] + h[1:])
-    a[i[1:], i[:-1]] = h[1:-1]
-    a[i[:-1], i[1:]] = h[1:-1]
-    b = np.zeros((m - 2, m))  # 6 x the change of slope at each inner knot, per unit value
-    b[i, i] = 6.0 / h[:-1]
-    b[i, i + 1] = -6.0 / h[:-1] - 6.0 / h[1:]
-    b[i, i + 2] = 6.0 / h[1:]
-    second = np.zeros((m, m))  # second derivatives at the knots, zero at the ends (natural)
-    second[1:-1] = np.linalg.solve(a, b)
-    seg = np.clip(np.searchsorted(knots, x, side="right") - 1, 0, m - 2)
-    hs = h[seg]
-    t1 = x - knots[seg]  # from the segment's left knot
-    t0 = knots[seg + 1] - x  # to its right knot
-    rows = np.arange(x.size)
-    w = np.zeros((x.size, m))
-    w[rows, seg] = t0 / hs
-    w[rows, seg + 1] += t1 / hs
-    c0 = ((t0**3 / hs - hs * t0) / 6.0)[:, None]
-    c1 = ((t1**3 / hs - hs * t1) / 6.0)[:, None]
-    return w + c0 * second[seg] + c1 * second[seg + 1]
-
-
 def interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.ndarray:
     """Return ``wy @ mesh @ wx.T`` as float32 (rows, columns), in row blocks of small products.
 
@@ -186,11 +131,11 @@ def interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.nda
 
     Parameters
     ----------
-    wy : ndarray, shape (rows, mesh rows)
+    wy : AxisWeights or ndarray, shape (rows, mesh rows)
         Interpolation weights along the rows.
     mesh : ndarray, shape (mesh rows, mesh columns)
         Box values.
-    wx : ndarray, shape (columns, mesh columns)
+    wx : AxisWeights or ndarray, shape (columns, mesh columns)
         Interpolation weights along the columns.
 
     Returns
@@ -201,10 +146,29 @@ def interpolate_mesh(wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> np.nda
     # exactly its value, not one float32 rounding away from it (which would light every pixel
     # of a frame whose noise is zero), and the products round on the deviations only
     centre = float(np.mean(mesh))
-    left = (wy @ (mesh - centre)).astype(np.float32)  # (rows, mesh columns): small
-    right = np.ascontiguousarray(wx.T, dtype=np.float32)
-    out = np.empty((wy.shape[0], wx.shape[0]), dtype=np.float32)
+    mat_y, mat_x = weight_matrix(wy), weight_matrix(wx)
+    if mat_y is None or mat_x is None:
+        return _interpolate_local(wy, mesh - centre, wx, centre)
+    left = (mat_y @ (mesh - centre)).astype(np.float32)  # (rows, mesh columns): small
+    right = np.ascontiguousarray(mat_x.T, dtype=np.float32)
+    out = np.empty((mat_y.shape[0], mat_x.shape[0]), dtype=np.float32)
     matmul_single_thread(left, right, out)
+    out += np.float32(centre)
+    return out
+
+
+def _interpolate_local(wy, deviations: np.ndarray, wx, centre: float) -> np.ndarray:
+    """:func:`interpolate_mesh` when an axis's weights are in local form (a very long axis).
+
+    Along the rows first (rows x mesh columns, float64), then along each block of rows, with
+    temporaries of ~1 M numbers: memory and time grow with the pixels.
+    """
+    left = apply_weights(wy, deviations)
+    rows, cols = left.shape[0], wx.shape[0]
+    out = np.empty((rows, cols), dtype=np.float32)
+    block = max(1, 2**20 // max(cols, 1))
+    for r0 in range(0, rows, block):
+        out[r0 : r0 + block] = apply_weights(wx, left[r0 : r0 + block].T).T
     out += np.float32(centre)
     return out
 
@@ -215,17 +179,22 @@ def _is_regular(index: np.ndarray, step: int) -> bool:
 
 
 @functools.lru_cache(maxsize=16)
-def _mesh_plan(n: int, box_px: int, step: int, interpolation: str):
-    """One axis's mesh samples and interpolation matrix, computed once per frame geometry.
+def _mesh_plan(n: int, box_px: int, step: int):
+    """One axis's mesh samples, computed once per frame geometry.
 
-    Returns ``(index, valid, centres, weights)`` of :func:`_mesh_axis` and
-    :func:`_interpolation_matrix` (read-only arrays: a camera's frames all share them).
+    Returns ``(index, valid, centres)`` of :func:`_mesh_axis` (read-only arrays: a camera's
+    frames all share them).
     """
-    index, valid, centres = _mesh_axis(n, box_px, step)
-    weights = _interpolation_matrix(centres, n, interpolation)
-    for arr in (index, valid, centres, weights):
+    plan = _mesh_axis(n, box_px, step)
+    for arr in plan:
         arr.flags.writeable = False
-    return index, valid, centres, weights
+    return plan
+
+
+@functools.lru_cache(maxsize=16)
+def _axis_weights(n: int, box_px: int, step: int, interpolation: str) -> AxisWeights:
+    """One axis's interpolation weights (:class:`AxisWeights`), once per frame geometry."""
+    return AxisWeights(_mesh_plan(n, box_px, step)[2], n, interpolation)
 
 
 class MeshSampler:
@@ -243,11 +212,24 @@ class MeshSampler:
 
     def __init__(self, shape: tuple[int, int], *, box_px: int, every: int, interpolation: str):
         rows, cols = shape
-        self.ri, self.rvalid, self.rc, self.wy = _mesh_plan(rows, box_px, every, interpolation)
-        self.ci, self.cvalid, self.cc, self.wx = _mesh_plan(cols, box_px, every, interpolation)
+        self.ri, self.rvalid, self.rc = _mesh_plan(rows, box_px, every)
+        self.ci, self.cvalid, self.cc = _mesh_plan(cols, box_px, every)
         self.every = every
+        self._geometry = (rows, cols, box_px, every, interpolation)
         # equal boxes that tile the frame: the samples are a strided view, gathered by one copy
         self.regular = _is_regular(self.ri, every) and _is_regular(self.ci, every)
+
+    @property
+    def wy(self) -> AxisWeights:
+        """Interpolation weights along the rows (built on first use)."""
+        rows, _, box_px, every, kind = self._geometry
+        return _axis_weights(rows, box_px, every, kind)
+
+    @property
+    def wx(self) -> AxisWeights:
+        """Interpolation weights along the columns (built on first use)."""
+        _, cols, box_px, every, kind = self._geometry
+        return _axis_weights(cols, box_px, every, kind)
 
     @property
     def boxes(self) -> tuple[int, int]:

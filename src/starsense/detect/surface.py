@@ -15,12 +15,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense.detect.axis_weights import AxisWeights
+
 __all__ = ["NoiseSurface", "matmul_single_thread"]
 
 # Largest m * n * k of one matrix product: OpenBLAS runs a GEMM single-threaded up to 65536 x 4
 # (its GEMM_MULTITHREAD_THRESHOLD); a threaded GEMM on a busy machine waits for its second
 # thread (~15 ms median instead of ~1 ms for a 768 x 1024 frame), and its threads then spin.
 _GEMM_SINGLE_THREAD = 65536 * 4
+#: numbers gathered at once by NoiseSurface.at (8 MB of float64 per operand)
+_AT_BLOCK_NUMBERS = 1 << 20
 
 
 def matmul_single_thread(left: np.ndarray, right: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -51,8 +55,9 @@ class NoiseSurface:
     ----------
     rows_w : ndarray, shape (rows, mesh_columns), float64
         ``wy @ (mesh - centre)``: the mesh interpolated along the rows.
-    cols_w : ndarray, shape (columns, mesh_columns), float64
-        The column interpolation weights ``wx``.
+    cols_w : ndarray, shape (columns, mesh_columns), float64, or AxisWeights
+        The column interpolation weights ``wx`` (an :class:`AxisWeights` in local form for
+        a very long axis).
     centre : float
         The mesh's mean, counts rms.
     low, high : float
@@ -60,16 +65,22 @@ class NoiseSurface:
     """
 
     rows_w: np.ndarray
-    cols_w: np.ndarray
+    cols_w: np.ndarray | AxisWeights
     centre: float
     low: float
     high: float
 
     @classmethod
-    def from_mesh(cls, wy: np.ndarray, mesh: np.ndarray, wx: np.ndarray) -> NoiseSurface:
-        """Return the surface of ``mesh`` (ny, nx) for the weights ``wy`` (rows, ny), ``wx``."""
+    def from_mesh(cls, wy, mesh: np.ndarray, wx) -> NoiseSurface:
+        """Return the surface of ``mesh`` (ny, nx) for the weights ``wy`` (rows, ny), ``wx``.
+
+        The weights are ndarrays or :class:`AxisWeights`; dense ones are kept as matrices.
+        """
         centre = float(np.mean(mesh))
-        return cls(wy @ (mesh - centre), wx, centre, float(mesh.min()), float(mesh.max()))
+        rows_w = wy.apply(mesh - centre) if isinstance(wy, AxisWeights) else wy @ (mesh - centre)
+        if isinstance(wx, AxisWeights) and wx.dense:
+            wx = wx.matrix
+        return cls(rows_w, wx, centre, float(mesh.min()), float(mesh.max()))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -84,11 +95,23 @@ class NoiseSurface:
 
     def at(self, flat_idx: np.ndarray) -> np.ndarray:
         """Noise at the pixels of flat indices ``flat_idx``, counts rms (float32)."""
-        r, c = np.divmod(np.asarray(flat_idx, dtype=np.intp), self.shape[1])
-        return self._clamp(np.einsum("ij,ij->i", self.rows_w[r], self.cols_w[c]))
+        r, c = np.divmod(np.asarray(flat_idx, dtype=np.intp).ravel(), self.shape[1])
+        if isinstance(self.cols_w, AxisWeights):
+            return self._clamp(self.cols_w.pairs(self.rows_w.T, c, r))
+        # in blocks: a gather of (pixels, mesh columns) for every pixel of a bright frame at
+        # once would take pixels x columns x 16 bytes (GBs); each pixel's sum is the same
+        out = np.empty(r.size)
+        block = max(1, _AT_BLOCK_NUMBERS // max(1, self.rows_w.shape[1]))
+        for i in range(0, r.size, block):
+            rr, cc = r[i : i + block], c[i : i + block]
+            out[i : i + block] = np.einsum("ij,ij->i", self.rows_w[rr], self.cols_w[cc])
+        return self._clamp(out)
 
     def grid(self, step: int) -> np.ndarray:
         """Noise at every ``step``-th pixel each way (``map[::step, ::step]``), float32."""
+        if isinstance(self.cols_w, AxisWeights):
+            cols = np.arange(0, self.shape[1], step)
+            return self._clamp(self.cols_w.apply(self.rows_w[::step].T, cols).T)
         left, right = self.rows_w[::step], np.ascontiguousarray(self.cols_w[::step].T)
         return self._clamp(
             matmul_single_thread(left, right, np.empty((left.shape[0], right.shape[1])))

@@ -11,6 +11,14 @@ clone or a moved installation reuses its databases), and every build parameter. 
 written under a temporary name (:func:`starsense._io.temp_prefix`, swept when its process is
 gone) and renamed into place; a missing, unreadable or stale one reads as None, and the
 database is then rebuilt.
+
+``meta.json`` also holds each array file's size and SHA-256, checked when the database is
+opened: a file of another size, or whose content no longer hashes to its checksum (a disk
+error, a truncated copy, an edit), makes the database read as None, with a warning naming
+the file, and it is rebuilt. Hashing a 300 MB database takes ~0.5 s, more than a solve, so a
+file is hashed once per version of it on disk: ``verified.json`` records the size, times and
+inode each file had when its checksum last matched, and a file unchanged since is not hashed
+again (a file written or copied anew changes them).
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import os
 import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -53,9 +62,13 @@ class BuildParams(Protocol):
         ...
 
 
-DATABASE_FORMAT_VERSION = 2
+DATABASE_FORMAT_VERSION = 3
 """Version of the on-disk layout (2: a directory of ``.npy`` files, memory-mapped; the key
-without the catalogue's path); bump it when the layout or the build algorithm changes."""
+without the catalogue's path; 3: each file's size and SHA-256 in ``meta.json``); bump it when
+the layout or the build algorithm changes."""
+
+#: the file recording which array files were last found to match their checksums
+_VERIFIED = "verified.json"
 
 #: arrays up to this size are read into memory when a database is opened, bytes (16 MiB: the
 #: star tables of any database; the pattern tables above it stay memory-mapped)
@@ -129,11 +142,19 @@ def write_arrays(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.nd
     tmp = target.parent / f"{temp_prefix(target)}dir"
     try:
         tmp.mkdir(mode=dir_mode())
+        files = {}
         for name, arr in arrays.items():
             np.save(tmp / f"{name}.npy", np.ascontiguousarray(arr), allow_pickle=False)
-        (tmp / "meta.json").write_text(json.dumps({**meta, "format": DATABASE_FORMAT_VERSION}))
+            files[name] = _file_checksum(tmp / f"{name}.npy")
+        full = {**meta, "files": files, "format": DATABASE_FORMAT_VERSION}
+        (tmp / "meta.json").write_text(json.dumps(full))
         for entry in tmp.iterdir():
             entry.chmod(file_mode())
+        # the files were hashed as written: recorded as verified (after the chmod, which
+        # changes their ctime), so the first open does not hash them again
+        _write_verified(tmp, {name: _stamp(tmp / f"{name}.npy") for name in arrays})
+        if (tmp / _VERIFIED).exists():
+            (tmp / _VERIFIED).chmod(file_mode())
         if target.exists() and read_arrays(target, tuple(arrays), meta.get("key")) is None:
             shutil.rmtree(target) if target.is_dir() else target.unlink()
         try:
@@ -174,8 +195,13 @@ def read_arrays(
     try:
         meta = json.loads((path / "meta.json").read_text())
         if meta.get("format") != DATABASE_FORMAT_VERSION:
+            _log.info("rebuilding identification database %s: an older format", path)
             return None
         if key is not None and meta.get("key") != key:
+            return None
+        bad = _unverified(path, names, meta.get("files"))
+        if bad is not None:
+            _log.warning("identification database %s: %s; rebuilding it", path, bad)
             return None
         arrays = {}
         for a in names:
@@ -187,5 +213,61 @@ def read_arrays(
             arrays[a] = np.array(mapped) if small else np.asarray(mapped)
         return meta, arrays
     except (OSError, ValueError, KeyError, TypeError, EOFError) as exc:
-        _log.info("ignoring unreadable identification database %s: %s", path, exc)
+        _log.warning("identification database %s is unreadable (%s); rebuilding it", path, exc)
         return None
+
+
+def _file_checksum(path: Path) -> dict:
+    """Return a file's size and SHA-256 (hex)."""
+    with open(path, "rb") as fh:
+        digest = hashlib.file_digest(fh, "sha256").hexdigest()
+    return {"bytes": path.stat().st_size, "sha256": digest}
+
+
+def _stamp(path: Path) -> list[int]:
+    """Return what changes when a file is written, copied or replaced: size, times, inode."""
+    st = path.stat()
+    return [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
+
+
+def _write_verified(path: Path, stamps: dict) -> None:
+    """Record the files found to match their checksums (best effort: a read-only cache)."""
+    target = path / _VERIFIED
+    tmp = path / f"{temp_prefix(target)}json"
+    try:
+        tmp.write_text(json.dumps(stamps))
+        os.replace(tmp, target)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+
+
+def _unverified(path: Path, names: tuple[str, ...], files: Any) -> str | None:
+    """Return why the array files of ``path`` do not match ``files`` (meta.json), or None.
+
+    A file's size is checked every time; its SHA-256 when the file changed since it last
+    matched (``verified.json``).
+    """
+    if not isinstance(files, dict):
+        return "meta.json holds no checksums"
+    try:
+        verified = json.loads((path / _VERIFIED).read_text())
+    except (OSError, ValueError):
+        verified = {}
+    verified = verified if isinstance(verified, dict) else {}
+    changed = False
+    for name in names:
+        expected = files.get(name)
+        if not isinstance(expected, dict):
+            return f"meta.json holds no checksum of {name}.npy"
+        file = path / f"{name}.npy"
+        stamp = _stamp(file)
+        if stamp[0] != expected.get("bytes"):
+            return f"{name}.npy has {stamp[0]:,} bytes, not the {expected.get('bytes')} written"
+        if verified.get(name) == stamp:
+            continue
+        if _file_checksum(file)["sha256"] != expected.get("sha256"):
+            return f"{name}.npy does not match its checksum (garbled)"
+        verified[name], changed = stamp, True
+    if changed:
+        _write_verified(path, verified)
+    return None

@@ -46,6 +46,7 @@ from starsense.render.readout import fast_read_out
 from starsense.render.smear import METHODS, pad_sigma_for, polyline_expected
 from starsense.render.stamps import expected_image
 from starsense.render.tracks import Tracks, check_rate, star_tracks
+from starsense.sensor import Sensor, load_sensor
 
 __all__ = [
     "MAX_RENDER_PIXELS",
@@ -58,6 +59,17 @@ __all__ = [
 #: largest detector a frame is rendered for, pixels (8192 x 8192): a frame holds ~30 bytes a
 #: pixel while it is rendered (expected electrons, noise, counts), ~2 GB at this size
 MAX_RENDER_PIXELS = 1 << 26
+
+
+def as_render_sensor(sensor) -> Sensor:
+    """Return ``sensor`` as a Sensor: itself, or a preset name or TOML path loaded.
+
+    Raises
+    ------
+    InputError
+        Anything else, named with its type (not an AttributeError from deep inside).
+    """
+    return sensor if isinstance(sensor, Sensor) else load_sensor(sensor)
 
 
 def check_frame_size(sensor) -> None:
@@ -342,9 +354,9 @@ def render_frame(
 
     Parameters
     ----------
-    sensor : Sensor
+    sensor : Sensor, str or Path
         The star tracker (optics, detector, exposure), e.g. from
-        :func:`starsense.sensor.load_sensor`.
+        :func:`starsense.sensor.load_sensor`, or a preset name or sensor TOML file.
     rotation : scipy.spatial.transform.Rotation
         Mid-exposure attitude, ICRS -> camera (a single rotation; see
         :func:`starsense.geometry.attitude.attitude_from_radec_roll`).
@@ -399,6 +411,7 @@ def render_frame(
         Bad rate (not 3 finite numbers), exposure (not finite and > 0), model, method,
         attitude, or a catalogue without the needed band / colour.
     """
+    sensor = as_render_sensor(sensor)
     check_frame_size(sensor)
     catalog = load_catalog(DEFAULT_CATALOG if catalog is None else catalog)
     w = check_rate(rate_rad_s)

@@ -29,7 +29,12 @@ from scipy.spatial.transform import Rotation
 from starsense._validate import finite_array
 from starsense.errors import InputError
 
-__all__ = ["Tracks", "check_rate", "star_tracks"]
+__all__ = ["MAX_RATE_RAD_S", "Tracks", "check_rate", "star_tracks"]
+
+#: fastest body rate rendered, rad/s (one turn a second, 360 deg/s): a star tracker's rates are
+#: a few deg/s, and faster than this every star crosses the whole sky in one exposure; a
+#: larger rate is a typo (or 1e308, which overflows the tracks into a frame of no stars)
+MAX_RATE_RAD_S = 2.0 * np.pi
 
 
 @dataclass(frozen=True)
@@ -72,7 +77,8 @@ def check_rate(rate_rad_s) -> np.ndarray:
     Parameters
     ----------
     rate_rad_s : array_like, shape (3,)
-        Body rate (wx, wy, wz) in the camera frame, rad/s; finite.
+        Body rate (wx, wy, wz) in the camera frame, rad/s; finite, of magnitude at most
+        :data:`MAX_RATE_RAD_S`.
 
     Returns
     -------
@@ -82,6 +88,13 @@ def check_rate(rate_rad_s) -> np.ndarray:
     if w.shape != (3,):
         raise InputError(
             f"rate_rad_s must have 3 components (wx, wy, wz) in rad/s, got shape {w.shape}"
+        )
+    norm = float(np.sqrt(np.sum(np.square(w / max(1.0, float(np.max(np.abs(w))))))))
+    norm *= max(1.0, float(np.max(np.abs(w))))  # scaled first: 1e308 does not overflow
+    if norm > MAX_RATE_RAD_S:
+        raise InputError(
+            f"rate_rad_s = {w.tolist()} is {norm:.4g} rad/s, faster than {MAX_RATE_RAD_S:.4g} "
+            "rad/s (one turn a second), which no star track survives"
         )
     return w
 

@@ -16,8 +16,10 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from starsense._io import check_output, sweep_stale, temp_prefix
-from starsense._validate import check_int
+from starsense._validate import check_int, show
 from starsense.catalog._parse import locate_delimited_error
 from starsense.errors import InputError
 from starsense.scale._deps import quiet_third_party_warnings, require
@@ -53,23 +55,52 @@ def input_columns(path: Path, fmt: str) -> list[str]:
         raise CatalogUnavailableError(f"cannot read {path}: {exc}") from None
 
 
+def _check_batch(batch: Any, src: Path, fmt: str, columns: tuple[str, str], offset: int) -> int:
+    """Refuse a missing, NaN, infinite or out-of-range position in one batch; return its rows.
+
+    A NaN position imported as is lands in no HEALPix pixel a query reaches: the star would be
+    silently lost (or the import fail deep in a worker).
+    """
+    for col, limit in zip(columns, (360.0, 90.0), strict=True):
+        values = batch.column(col).to_numpy(zero_copy_only=False).astype(np.float64)
+        bad = ~np.isfinite(values) | (np.abs(values) > limit)
+        if bad.any():
+            i = int(np.argmax(bad))
+            where = f"line {offset + i + 2}" if fmt == "csv" else f"row {offset + i + 1}"
+            missing = batch.column(col)[i].as_py() is None  # CSV: empty, "nan", "NA", ...
+            shown = "a missing value (empty or NaN)" if missing else show(values[i])
+            raise InputError(
+                f"cannot import {src}: {where}, column {col}: {shown} is not a position "
+                f"(a finite number within +-{limit:g} deg); {int(bad.sum())} such in this "
+                "block; fix or drop those rows"
+            )
+    return batch.num_rows
+
+
 def _check_positions(src: Path, fmt: str, ra: str, dec: str) -> None:
-    """Read a CSV's position columns once (streamed): name a non-number before workers start."""
-    if fmt != "csv":
-        return
+    """Read the position columns once (streamed): name a bad or NaN position before any worker."""
     import pyarrow as pa
     import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
 
-    convert = pcsv.ConvertOptions(
-        include_columns=[ra, dec], column_types={ra: pa.float64(), dec: pa.float64()}
-    )
+    offset = 0
     try:
-        with pcsv.open_csv(src, convert_options=convert) as reader:
-            for _ in reader:
-                pass
+        if fmt == "parquet":
+            for batch in pq.ParquetFile(src).iter_batches(columns=[ra, dec]):
+                offset += _check_batch(batch, src, fmt, (ra, dec), offset)
+        else:
+            convert = pcsv.ConvertOptions(
+                include_columns=[ra, dec], column_types={ra: pa.float64(), dec: pa.float64()}
+            )
+            with pcsv.open_csv(src, convert_options=convert) as reader:
+                for batch in reader:
+                    offset += _check_batch(batch, src, fmt, (ra, dec), offset)
     except (pa.ArrowInvalid, OSError) as exc:
         detail = _failure_detail(src, fmt, ra, dec, " ".join(str(exc).split()))
         raise InputError(f"cannot import {src}: {detail}") from None
+    if offset == 0:  # hats-import would fail on it with a FileNotFoundError naming no file
+        header = " (a header only)" if fmt == "csv" else ""
+        raise InputError(f"cannot import {src}: the file has no rows{header}")
 
 
 @contextlib.contextmanager

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense._validate import show
 from starsense.errors import InputError
 from starsense.sensor._fields import check_field
 
@@ -93,6 +94,15 @@ class Detector:
 
     def _check_spectrum(self) -> None:
         """Check the passband and the optional QE curve."""
+        for name in ("passband_nm", "qe_curve_nm", "qe_curve"):
+            value = getattr(self, name)
+            if not isinstance(value, tuple | list):
+                example = "[400.0, 800.0]" if name == "passband_nm" else "[400.0, 500.0, ...]"
+                raise InputError(
+                    f"detector.{name} must be a list of numbers, e.g. {example}; got {show(value)}"
+                )
+        for i, nm in enumerate(self.qe_curve_nm):
+            check_field("detector", f"qe_curve_nm[{i}]", nm, 50, 30000)
         if len(self.passband_nm) != 2:
             raise InputError(f"detector.passband_nm must be [low, high], got {self.passband_nm!r}")
         lo, hi = self.passband_nm

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from starsense._validate import name_keys
 from starsense.errors import InputError
 from starsense.sensor._fields import check_field
 from starsense.units import DEG
@@ -94,7 +95,7 @@ def exclusion_from_table(table: Any, source: str) -> Exclusion:
     unknown = sorted(set(table) - set(EXCLUSION_KEYS))
     if unknown:
         raise InputError(
-            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(EXCLUSION_KEYS)}"
+            f"{where}: unknown key(s) {name_keys(unknown)}; known: {', '.join(EXCLUSION_KEYS)}"
         )
     try:
         for key in ("sun_deg", "moon_deg", "earth_limb_deg"):

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 
 from starsense._io import read_text
+from starsense._io.toml import parse_toml
+from starsense._validate import name_keys, show
 from starsense.errors import InputError
 from starsense.geometry.areas import AreaLayout, FocalArea
 from starsense.sensor._fields import check_field
@@ -65,7 +67,7 @@ def _area_vertices(entry: Any, at: str) -> list:
         raise InputError(f"{at} must be a table")
     extra = sorted(set(entry) - {"name", *_AREA_SHAPES})
     if extra:
-        raise InputError(f"{at}: unknown key(s) {', '.join(extra)}")
+        raise InputError(f"{at}: unknown key(s) {name_keys(extra)}")
     shapes = [k for k in _AREA_SHAPES if k in entry]
     if len(shapes) != 1:
         raise InputError(f"{at} needs exactly one of {', '.join(_AREA_SHAPES)}")
@@ -95,7 +97,7 @@ def _areas_from_table(table: Any, detector: Detector, optics: Optics, source: st
     unknown = sorted(set(table) - _AREA_KEYS)
     if unknown:
         raise InputError(
-            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(_AREA_KEYS))}"
+            f"{where}: unknown key(s) {name_keys(unknown)}; known: {', '.join(sorted(_AREA_KEYS))}"
         )
     f_mm = optics.focal_length_m * 1e3
     layout = table.get("layout")
@@ -141,7 +143,7 @@ def _build(cls: type, table: Any, section: str, source: str):
     unknown = sorted(set(table) - known)
     if unknown:
         raise InputError(
-            f"{source}: unknown key(s) {', '.join(unknown)} in [{section}]; "
+            f"{source}: unknown key(s) {name_keys(unknown)} in [{section}]; "
             f"known keys: {', '.join(sorted(known))}"
         )
     required = [
@@ -152,6 +154,12 @@ def _build(cls: type, table: Any, section: str, source: str):
     missing = [k for k in required if k not in table]
     if missing:
         raise InputError(f"{source}: missing key(s) {', '.join(missing)} in [{section}]")
+    for k in _TUPLE_FIELDS & set(table):
+        if not isinstance(table[k], list):
+            raise InputError(
+                f"{source}: [{section}] {k} must be a list of numbers, e.g. {k} = [400.0, 800.0]; "
+                f"got {show(table[k])}"
+            )
     kwargs = {k: tuple(v) if k in _TUPLE_FIELDS else v for k, v in table.items()}
     try:
         return cls(**kwargs)
@@ -188,7 +196,7 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
         raise InputError(
-            f"{source}: unknown top-level key(s) {', '.join(unknown)}; "
+            f"{source}: unknown top-level key(s) {name_keys(unknown)}; "
             f"known: {', '.join(sorted(_TOP_KEYS))}"
         )
     for key in ("optics", "detector", "exposure_s"):
@@ -261,6 +269,11 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
     >>> sensor.detector.columns, sensor.exposure_s
     (2592, 0.1)
     """
+    if not isinstance(name_or_path, str | os.PathLike):
+        raise InputError(
+            "sensor must be a Sensor, a preset name or a sensor TOML path, got "
+            f"{type(name_or_path).__name__} {show(name_or_path)}"
+        )
     text = str(name_or_path)
     path = Path(text).expanduser()
     if not text.strip():
@@ -276,8 +289,4 @@ def load_sensor(name_or_path: str | Path) -> Sensor:
         raise InputError(
             f"unknown sensor {text!r}: not a preset ({', '.join(preset_names())}) nor a TOML file"
         )
-    try:
-        data = tomllib.loads(raw)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{source}: not valid TOML: {exc}") from None
-    return sensor_from_dict(data, source)
+    return sensor_from_dict(parse_toml(raw, source, invalid="not valid TOML"), source)

@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from starsense._validate import name_keys
 from starsense.errors import InputError
 from starsense.sensor._fields import check_field
 
@@ -63,7 +64,7 @@ def mission_from_table(table: Any, source: str) -> MissionPlan:
     unknown = sorted(set(table) - set(MISSION_KEYS))
     if unknown:
         raise InputError(
-            f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(MISSION_KEYS)}"
+            f"{where}: unknown key(s) {name_keys(unknown)}; known: {', '.join(MISSION_KEYS)}"
         )
     if "orbit" not in table:
         raise InputError(f'{where} needs orbit (e.g. orbit = "sso:550:6")')

@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from starsense._validate import show
 from starsense.catalog.apparent import apparent_places
 from starsense.catalog.table import Catalog
 from starsense.errors import InputError
@@ -345,6 +346,18 @@ def _matched_stars(frames: Sequence, sensor: Sensor, catalog) -> list[FrameStars
     return out
 
 
+def _frame_list(frames) -> list:
+    """Return the frames given to :func:`calibrate` as a list (one frame alone is one item)."""
+    if isinstance(frames, str | Path | np.ndarray | Solution | FrameStars):
+        return [frames]
+    if not isinstance(frames, Iterable):
+        raise InputError(
+            "frames must be a list of solved frames (FrameStars, Solutions, images or image "
+            f"files); got {type(frames).__name__} {show(frames)}"
+        )
+    return list(frames)
+
+
 def calibrate(
     frames: Sequence,
     sensor,
@@ -385,7 +398,11 @@ def calibrate(
     InputError
         Unknown parameter names; no frames; a parameter the stars cannot constrain (named).
     """
+    fit = (fit,) if isinstance(fit, str) else fit
+    if not isinstance(fit, Iterable):
+        raise InputError(f"fit must name some of {', '.join(PARAMETERS)}, got {show(fit)}")
     fit = tuple(fit)
+    frames = _frame_list(frames)
     unknown = [p for p in fit if p not in PARAMETERS]
     if unknown or not fit:
         raise InputError(f"fit must name some of {', '.join(PARAMETERS)}, got {list(fit)!r}")

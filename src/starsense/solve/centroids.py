@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from starsense._validate import check_int, check_scalar
+from starsense._validate import check_int, check_scalar, show
 from starsense.errors import InputError
 from starsense.solve.settings import FOV_RANGE_RAD
 
@@ -105,14 +105,14 @@ def _columns(header: list[str], p: Path) -> tuple[int, int, int | None]:
     names = [h.strip().strip('"').lower() for h in header]
     for need in ("x", "y"):
         if need not in names:
-            raise InputError(f"{p}: line 1: header {header} has no {need!r} column")
+            raise InputError(f"{p}: line 1: header {show(header)} has no {need!r} column")
     flux = names.index("flux") if "flux" in names else None
     return names.index("x"), names.index("y"), flux
 
 
 def _read_csv(p: Path) -> CentroidList:
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8-sig")  # a spreadsheet's byte-order mark is not data
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{p}: not a readable text file ({exc})") from None
     rows = [
@@ -139,16 +139,20 @@ def _read_csv(p: Path) -> CentroidList:
     values = np.empty((len(rows), len(used)))
     for i, (number, fields) in enumerate(rows):
         if len(fields) <= max(used):
-            raise InputError(f"{p}: line {number}: expected {max(used) + 1} columns, got {fields}")
+            raise InputError(
+                f"{p}: line {number}: expected {max(used) + 1} columns, got {show(fields)}"
+            )
         for j, c in enumerate(used):
             try:
                 values[i, j] = float(fields[c])
             except ValueError:
                 raise InputError(
-                    f"{p}: line {number}, column {c + 1}: not a number: {fields[c]!r}"
+                    f"{p}: line {number}, column {c + 1}: not a number: {show(fields[c])}"
                 ) from None
             if not np.isfinite(values[i, j]):
-                raise InputError(f"{p}: line {number}, column {c + 1}: not finite: {fields[c]!r}")
+                raise InputError(
+                    f"{p}: line {number}, column {c + 1}: not finite: {show(fields[c])}"
+                )
     flux = values[:, 2] if cols[2] is not None else None
     return CentroidList(values[:, :2].copy(), flux)
 

@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING, Literal, TypeAlias
 
 import numpy as np
 
-from starsense._validate import check_scalar, show
+from starsense._validate import check_scalar, finite_array, show
 from starsense.catalog.table import Catalog
 from starsense.errors import InputError
+from starsense.geometry.apparent import C_M_S
 from starsense.units import DEG
 
 if TYPE_CHECKING:
@@ -126,6 +127,19 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
         raise InputError("extraction='quick' estimates the background: use background='auto'")
     if sensor is None and (s.background == "known" or sigma == "snr"):
         raise InputError("background='known' and centroid_sigma_px='snr' need a sensor")
+    velocity = s.observer_velocity_m_s
+    if velocity is not None:
+        velocity = finite_array(velocity, "observer_velocity_m_s")
+        if velocity.shape != (3,):
+            raise InputError(
+                f"observer_velocity_m_s must have 3 components, got shape {velocity.shape}"
+            )
+        speed = float(np.linalg.norm(velocity))
+        if speed >= C_M_S:
+            raise InputError(
+                f"observer_velocity_m_s = {velocity.tolist()} is {speed:.4g} m/s, not below the "
+                f"speed of light ({C_M_S:.9g} m/s); give the velocity in m/s (km/s on the CLI)"
+            )
     return SolverSettings(
         **{
             **options,
@@ -133,5 +147,6 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
             "apparent": bool(s.apparent),
             "centroid_sigma_px": sigma,
             "refine": refine,
+            "observer_velocity_m_s": velocity,
         }
     )

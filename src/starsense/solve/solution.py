@@ -12,11 +12,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal, TypeAlias
+from typing import Literal, TypeAlias, get_args
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from starsense.errors import InputError
 from starsense.solve.wcs import solution_wcs, write_solution_wcs
 from starsense.units import RAD_TO_ARCSEC
 
@@ -37,6 +38,7 @@ SolveStatus: TypeAlias = Literal[
     "unverified",
     "unreadable",
 ]
+_STATUSES = get_args(SolveStatus)
 
 
 class Deferred:
@@ -211,6 +213,13 @@ class Solution:
     distortion: dict | None = None
     notes: tuple[str, ...] = ()
     counts: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        """Refuse a status that is not one of :data:`SolveStatus` (a typo would read as failed)."""
+        if not isinstance(self.status, str) or self.status not in _STATUSES:
+            raise InputError(
+                f"status must be one of {', '.join(_STATUSES)}; got {self.status!r:.80}"
+            )
 
     @property
     def ra_deg(self) -> float | None:

@@ -15,10 +15,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from starsense._validate import check_int, finite_array, finite_float
+from starsense._validate import check_count, check_int, finite_array, finite_float
 from starsense.analysis.availability.checks import Fov, check_fov, check_mag, check_rates
 from starsense.analysis.availability.field import FieldStars, catalog_stars
 from starsense.analysis.availability.pointings import (
+    MAX_ORIENTATIONS,
+    ORIENTATION_COST,
     describe_fov,
     sky_attitudes,
     track_family_attitudes,
@@ -119,7 +121,9 @@ class AvailabilityAnalysis:
         self.vectors = v[keep]
         self.magnitudes = m[keep]
         self.fov = fov
-        self.n_orientations = check_int(n_orientations, "n_orientations", 1)
+        self.n_orientations = check_count(
+            n_orientations, "n_orientations", MAX_ORIENTATIONS, ORIENTATION_COST
+        )
         self.roll_rad = None if roll_rad is None else finite_float(roll_rad, "roll_rad")
         self.seed = root_seed(rng)  # recorded: the rolls are drawn from it
         self.catalog = catalog

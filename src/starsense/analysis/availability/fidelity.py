@@ -16,12 +16,12 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import check_int
+from starsense._validate import check_count, check_int
 from starsense.analysis.availability.checks import check_rates
 from starsense.analysis.availability.field import FieldStars, catalog_stars
 from starsense.analysis.availability.results import N_MIN_LOST_IN_SPACE, percent
 from starsense.analysis.availability.threshold import ThresholdCurve
-from starsense.analysis.inputs import root_seed
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES, root_seed
 from starsense.detect import StarDetector
 from starsense.render.scene import render_frame
 from starsense.units import DEG, to_edge
@@ -215,7 +215,7 @@ def fidelity_check(
     InputError
         On bad counts or rates.
     """
-    n_frames = check_int(n_trials, "n_trials", 1)
+    n_frames = check_count(n_trials, "n_trials", MAX_FRAMES, FRAME_COST)
     n_min = check_int(n_min, "n_min", 1)
     w = float(check_rates(rate_rad_s, "rate_rad_s")[0])
     vectors, mags = catalog_stars(catalog, max_mag, band=band)

@@ -12,7 +12,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from starsense._validate import as_generator, check_int, check_scalar, finite_array, finite_float
+from starsense._validate import (
+    as_generator,
+    check_count,
+    check_int,
+    check_scalar,
+    finite_array,
+    finite_float,
+)
 from starsense.analysis.availability.checks import Fov
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll
@@ -21,7 +28,21 @@ from starsense.geometry.projection import vectors_to_radec
 from starsense.geometry.sampling import fibonacci_sphere, track_attitudes
 from starsense.units import RAD_TO_DEG
 
-__all__ = ["describe_fov", "field_of_view", "sky_attitudes", "track_family_attitudes"]
+__all__ = [
+    "MAX_ORIENTATIONS",
+    "ORIENTATION_COST",
+    "describe_fov",
+    "field_of_view",
+    "sky_attitudes",
+    "track_family_attitudes",
+]
+
+#: most orientations (sky boresights, or samples over all tracks) of one availability run: the
+#: analysis holds ~1.3 KB per orientation (attitude, stars in its field, per-n_min magnitudes;
+#: measured by peak RSS of ``availability static`` at 10,000 and 400,000 orientations, and
+#: ~1.0 KB per track sample), so the cap keeps a run near 1.3 GB, within the 2 GB a run may take
+MAX_ORIENTATIONS = 1_000_000
+ORIENTATION_COST = "~1.3 KB of memory per orientation"
 
 
 def field_of_view(sensor: Any, kind: str = "circular", half_fov: float | None = None) -> Fov:
@@ -93,7 +114,7 @@ def sky_attitudes(
     attitudes : Rotation, batch of n
         ICRS -> camera.
     """
-    n = check_int(n, "n_orientations", 1)
+    n = check_count(n, "n_orientations", MAX_ORIENTATIONS, ORIENTATION_COST)
     boresights = fibonacci_sphere(n)
     ra, dec = vectors_to_radec(boresights)
     if roll_rad is None:
@@ -133,6 +154,11 @@ def track_family_attitudes(
     if np.any(np.abs(incl) > math.pi / 2):
         raise InputError(f"inclinations must lie in [-pi/2, pi/2] rad, got {incl.tolist()}")
     n = check_int(n_samples, "n_samples", 1)
+    if n * incl.size > MAX_ORIENTATIONS:
+        raise InputError(
+            f"n_samples = {n:,} on {incl.size:,} tracks is {n * incl.size:,} orientations, above "
+            f"the cap of {MAX_ORIENTATIONS:,} ({ORIENTATION_COST}); ask for fewer samples or tracks"
+        )
     node = finite_float(node_rad, "node_rad")
     mats = [track_attitudes(i, n, ascending_node_rad=node).as_matrix() for i in incl.tolist()]
     return Rotation.from_matrix(np.concatenate(mats, axis=0))

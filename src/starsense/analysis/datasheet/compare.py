@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from starsense._validate import show
 from starsense.analysis.datasheet.sections import Datasheet
 from starsense.analysis.datasheet.sheet import datasheet
 from starsense.analysis.inputs import as_catalog, as_sensor, root_seed
+from starsense.errors import InputError
+from starsense.sensor import Sensor
 from starsense.units import DEG
 
 __all__ = [
@@ -310,7 +314,14 @@ def compare(
     -------
     Comparison
     """
+    if isinstance(sensors, str | Path | Sensor) or not isinstance(sensors, Iterable):
+        raise InputError(
+            "sensors must be a list of sensors (Sensor objects, preset names or TOML paths), "
+            f"e.g. ['st16', 'esa_blackfly']; got {type(sensors).__name__} {show(sensors)}"
+        )
     sens = [as_sensor(s) for s in sensors]
+    if not sens:
+        raise InputError("sensors is empty: give at least one sensor to compare")
     cat, seed = as_catalog(catalog), root_seed(rng)  # one catalogue and one seed for all
     sheets = [
         datasheet(

@@ -1,9 +1,13 @@
-"""How a datasheet is computed: :class:`DatasheetSettings` (all reported in its JSON)."""
+"""How a datasheet is computed: its counts, rate, seed and model, checked on construction."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from starsense._validate import check_count
+from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
+from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
+from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.errors import InputError
 from starsense.units import DEG
 
@@ -52,5 +56,21 @@ class DatasheetSettings:
     refine: str = "model"
 
     def __post_init__(self) -> None:
+        """Check the counts against their caps before any work (one-line InputError)."""
         if self.refine not in ("model", "cog"):
             raise InputError(f"refine must be 'model' or 'cog', got {self.refine!r}")
+        counts = {
+            "n_trials": check_count(self.n_trials, "n_trials", MAX_FRAMES, FRAME_COST, 0),
+            "n_orientations": check_count(
+                self.n_orientations, "n_orientations", MAX_ORIENTATIONS, ORIENTATION_COST
+            ),
+            "n_slew_trials": check_count(
+                self.n_slew_trials, "n_slew_trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
+            ),
+        }
+        if self.n_rate_trials is not None:
+            counts["n_rate_trials"] = check_count(
+                self.n_rate_trials, "n_rate_trials", MAX_FRAMES, FRAME_COST, 0
+            )
+        for name, value in counts.items():
+            object.__setattr__(self, name, value)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from starsense._validate import check_int
+from starsense._validate import check_count
 from starsense.analysis.limits.centroid import check_aperture
 from starsense.attitude.covariance import (
     covariance,
@@ -19,7 +19,13 @@ from starsense.errors import SingularGeometryError
 from starsense.photometry.blackbody import total_photons
 from starsense.photometry.stars import BlackBodyStars
 
-__all__ = ["LowPhotonResult", "low_photon_degradation"]
+__all__ = ["MAX_PHOTON_TRIALS", "PHOTON_TRIAL_COST", "LowPhotonResult", "low_photon_degradation"]
+
+#: most Monte Carlo draws of the low-photon degradation: each takes ~15 ms over the bundled
+#: Hipparcos (``limit photons`` at 200 and 2,000 draws), so the cap bounds a run to ~25 minutes
+#: (memory is bounded by the chunks of draws, ~0.2 GB)
+MAX_PHOTON_TRIALS = 100_000
+PHOTON_TRIAL_COST = "~15 ms per draw over the bundled Hipparcos"
 
 #: stars expected to deliver more photons than this are drawn as deterministic
 DETERMINISTIC_PHOTONS = 1e4
@@ -100,7 +106,7 @@ def low_photon_degradation(
     LowPhotonResult
     """
     check_aperture(diameter_m, exposure_s)
-    check_int(n_trials, "n_trials", 1)
+    n_trials = check_count(n_trials, "n_trials", MAX_PHOTON_TRIALS, PHOTON_TRIAL_COST)
     rng = np.random.default_rng(rng)
     iota = total_photons(
         stars.dilution, stars.temperature_k, diameter_m=diameter_m, exposure_s=exposure_s

@@ -134,7 +134,10 @@ def parse_head(spec: str, where: str = "heads") -> tuple[str, str, Any]:
     ``SEQ:A[,B[,C]]`` in degrees (a scipy sequence of 1-3 axes); without it the head looks
     along the body +z axis. The name defaults to the spec itself.
     """
-    body, _, name = spec.partition("=")
+    body, eq, name = spec.partition("=")
+    name = name.strip()
+    if eq and not name:
+        raise InputError(f"{where} {spec}: no name after '='; give SENSOR[@MOUNT]=NAME or drop '='")
     sensor, at, mount = body.partition("@")
     if not sensor:
         raise InputError(f"{where} {spec}: name a sensor before '@'")

@@ -8,6 +8,7 @@ check on rendered frames). ``starsense trade`` and the design page are thin laye
 from starsense.analysis.trade.grid import (
     KEEP,
     MAX_DESIGNS_IN_PROCESS,
+    MAX_DESIGNS_ON_CLUSTER,
     Design,
     base_document,
     designs,
@@ -20,6 +21,7 @@ from starsense.analysis.trade.study import PARETO, TradeRow, TradeStudy, pareto_
 __all__ = [
     "KEEP",
     "MAX_DESIGNS_IN_PROCESS",
+    "MAX_DESIGNS_ON_CLUSTER",
     "PARETO",
     "Design",
     "TradeRow",

@@ -17,12 +17,12 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 from starsense._io import read_text
+from starsense._io.toml import parse_toml
 from starsense.errors import InputError
 from starsense.sensor import Sensor
 from starsense.sensor.detector import Detector
@@ -33,8 +33,10 @@ from starsense.sensor.sensor import DetectionThresholds
 __all__ = [
     "KEEP",
     "MAX_DESIGNS_IN_PROCESS",
+    "MAX_DESIGNS_ON_CLUSTER",
     "Design",
     "base_document",
+    "check_grid_size",
     "designs",
     "grid_size",
     "parse_vary",
@@ -44,6 +46,9 @@ __all__ = [
 KEEP = ("f_number", "fov")
 #: the largest grid run in one process; bigger grids need a Dask cluster
 MAX_DESIGNS_IN_PROCESS = 10_000
+#: the largest grid at all (on a cluster too): this process holds every design's TOML document
+#: and row (a few KB each), so 100,000 designs stay within ~0.5 GB here
+MAX_DESIGNS_ON_CLUSTER = 100_000
 _SECTIONS = {"optics": Optics, "detector": Detector, "detection": DetectionThresholds}
 _TOP = ("exposure_s",)
 
@@ -90,10 +95,7 @@ def base_document(spec: str | Path) -> dict:
         source = f"preset {text_spec}"
     else:
         text, source = read_text(Path(text_spec)), text_spec
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{source}: invalid TOML: {exc}") from None
+    doc = parse_toml(text, source)
     doc.setdefault("name", Path(text_spec).stem)
     sensor_from_dict(doc, source=source)
     return doc
@@ -149,10 +151,20 @@ def parse_vary(text: str) -> tuple[str, list[float]]:
             raise InputError(
                 f"--vary {key}: range {spec!r} has {parts[2]} steps; N must be an integer >= 2"
             )
+        if n > MAX_DESIGNS_ON_CLUSTER:  # sized before it is expanded
+            raise InputError(
+                f"--vary {key}: range {spec!r} has {int(n):,} values, more than a grid may hold "
+                f"({MAX_DESIGNS_ON_CLUSTER:,} designs); use fewer steps"
+            )
         if lo == hi:
             raise InputError(f"--vary {key}: range {spec!r} has zero width (START == STOP)")
         n = int(n)
         return key, [lo + (hi - lo) * k / (n - 1) for k in range(n)]
+    if spec.count(",") >= MAX_DESIGNS_ON_CLUSTER:
+        raise InputError(
+            f"--vary {key}: the list has more values than a grid may hold "
+            f"({MAX_DESIGNS_ON_CLUSTER:,} designs); give fewer"
+        )
     values = [_number(v.strip(), key) for v in spec.split(",") if v.strip()]
     if not values:
         raise InputError(f"--vary {key}: empty list")
@@ -185,7 +197,13 @@ def _couple(doc: dict, base: dict, varied: dict, keep: tuple[str, ...]) -> dict:
     return out
 
 
-def designs(base: dict, vary: list[tuple[str, list[float]]], *, keep=()) -> list[Design]:
+def designs(
+    base: dict,
+    vary: list[tuple[str, list[float]]],
+    *,
+    keep=(),
+    max_designs: int = MAX_DESIGNS_ON_CLUSTER,
+) -> list[Design]:
     """Return the designs of the grid spanned by ``vary`` around ``base``.
 
     Parameters
@@ -196,6 +214,9 @@ def designs(base: dict, vary: list[tuple[str, list[float]]], *, keep=()) -> list
         From :func:`parse_vary`; each key at most once.
     keep : sequence of str
         Coupled quantities kept at the base's value (:data:`KEEP`).
+    max_designs : int
+        The largest grid accepted, checked before any design is built (default
+        :data:`MAX_DESIGNS_ON_CLUSTER`; :data:`MAX_DESIGNS_IN_PROCESS` without a cluster).
 
     Returns
     -------
@@ -210,7 +231,7 @@ def designs(base: dict, vary: list[tuple[str, list[float]]], *, keep=()) -> list
     bad = [k for k in keep if k not in KEEP]
     if bad:
         raise InputError(f"--keep: unknown {bad[0]!r}; known: {', '.join(KEEP)}")
-    n = grid_size(vary)
+    n = check_grid_size(vary, max_designs)
     out = []
     name = str(base.get("name", "design"))
     for i, combo in enumerate(itertools.product(*(v for _, v in vary))):
@@ -227,3 +248,26 @@ def designs(base: dict, vary: list[tuple[str, list[float]]], *, keep=()) -> list
 def grid_size(vary: list[tuple[str, list[float]]]) -> int:
     """Return the number of designs of a grid (the product of the value counts)."""
     return math.prod(len(v) for _, v in vary)
+
+
+def check_grid_size(vary: list[tuple[str, list[float]]], max_designs: int) -> int:
+    """Return the grid's number of designs, refused when above ``max_designs`` (none built).
+
+    Raises
+    ------
+    InputError
+        Naming the grid's size, its cap and what to do.
+    """
+    n = grid_size(vary)
+    if n > max_designs:
+        shape = " x ".join(f"{len(v):,}" for _, v in vary)
+        hint = (
+            "run it on a cluster (--dask ADDRESS) or narrow it"
+            if max_designs < MAX_DESIGNS_ON_CLUSTER
+            else "narrow it (several runs)"
+        )
+        raise InputError(
+            f"the grid has {n:,} designs ({shape}), more than {max_designs:,}"
+            f"{' without --dask' if max_designs < MAX_DESIGNS_ON_CLUSTER else ''}; {hint}"
+        )
+    return n

@@ -21,7 +21,7 @@ from starsense.analysis.datasheet.compare import row_values
 from starsense.analysis.datasheet.sheet import DatasheetSettings, build_datasheet
 from starsense.analysis.datasheet.skycache import black_bodies
 from starsense.analysis.inputs import as_catalog
-from starsense.analysis.trade.grid import Design
+from starsense.analysis.trade.grid import MAX_DESIGNS_IN_PROCESS, MAX_DESIGNS_ON_CLUSTER, Design
 from starsense.analysis.trade.predict import prediction_settings
 from starsense.errors import InputError
 
@@ -318,6 +318,13 @@ def run_trade(
     """
     if verify not in ("all", "pareto"):
         raise InputError(f"--verify must be all or pareto, got {verify!r}")
+    designs = list(designs)
+    cap = MAX_DESIGNS_IN_PROCESS if client is None else MAX_DESIGNS_ON_CLUSTER
+    if len(designs) > cap:
+        raise InputError(
+            f"{len(designs):,} designs are more than {cap:,}"
+            f"{' without a Dask client' if client is None else ''}; narrow the grid"
+        )
     st = settings or prediction_settings()
     if client is None:  # loaded, and its stars fitted as black bodies, before the workers fork
         try:

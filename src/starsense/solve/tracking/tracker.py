@@ -19,6 +19,7 @@ from starsense.detect.windows import streak_px
 from starsense.errors import InputError, StarsenseError
 from starsense.solve.frames import load_image
 from starsense.solve.solution import Solution
+from starsense.solve.solver import Solver
 from starsense.solve.tracking.streak_rate import rate_from_streaks, streak_axes
 from starsense.solve.tracking.track import N_SIGMA_SEARCH, Prior, TrackSolution, track_frame
 from starsense.units import DEG
@@ -55,6 +56,11 @@ class Tracker:
         prior: Prior | None = None,
         max_rate_rad_s: float = 3.0 * DEG,
     ) -> None:
+        if not isinstance(solver, Solver):
+            raise InputError(
+                "Tracker needs a Solver with a sensor, e.g. Tracker(Solver('st16')); got "
+                f"{type(solver).__name__} {show(solver)}"
+            )
         if solver.sensor is None:
             raise InputError("tracking needs a sensor (known optics)")
         self.solver = solver
