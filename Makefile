@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint docs bench bench-peers bench-zoo clean
+.PHONY: demo test test-fast lint docs bench bench-peers bench-zoo bench-galsim clean
 
 $(STAMP): pyproject.toml setup.py $(wildcard src/starsense/*/_*.c)
 	$(PYTHON) -m venv $(VENV)
@@ -61,6 +61,9 @@ $(PEERS_STAMP):
 bench-zoo: $(STAMP)  ## the sensor zoo (40 seeded designs + the 768x512 CCD), at rest and 1 deg/s; bench/results/zoo.json
 	$(BIN)/python bench/zoo.py --designs 40 --frames 100 --jobs 2
 	$(BIN)/python bench/zoo_table.py bench/results/zoo.json
+
+bench-galsim: $(STAMP)  ## the solver and the datasheet on GalSim frames (4 PSFs, rest and 1 deg/s; held-out zoo seed printed); bench/results/galsim_check.json
+	$(BIN)/python bench/galsim_check.py --designs 6 --frames 40 --jobs 2
 
 $(T3RS_STAMP):
 	$(PYTHON) -m venv $(T3RS)
