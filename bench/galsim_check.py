@@ -6,7 +6,8 @@ at run time (held out: printed, never the tuning seed 23), for each PSF kind (Ga
 Moffat beta 2.5, a lens with 0.15 wave of defocus and a little astigmatism: all of the TOML's
 FWHM; ``tests/_support/galsim_frames.py``) at rest and at ``--rate-deg-s`` (about a random axis
 across the boresight), ``--frames`` random attitudes are drawn by GalSim and solved by the
-default ``Solver(sensor)``. Reported per design x PSF x rate:
+default ``Solver(sensor)`` (``--solver datasheet``: the datasheet Monte Carlo's, known bias
+and weights from each star's signal). Reported per design x PSF x rate:
 
 * solved, wrong: the zoo's (the datasheet Monte Carlo's) definition, a boresight more than
   60 arcsec from the truth;
@@ -63,8 +64,12 @@ IMX296 = {
 WRONG_RAD = 60.0 * ARCSEC
 
 
-def _prediction(sensor, sky, database, seed: int, rate_deg_s: float):
-    """The datasheet's prediction pieces: the fast sheet and what its frame check needs."""
+def _prediction(sensor, sky, database, seed: int, rates_deg_s):
+    """The datasheet's prediction pieces: the fast sheet and what its frame check needs.
+
+    Returns the sheet's dict and, per rate, (model, vectors, catalogue, detectable, magnitudes,
+    the faintest magnitude detected at the rate), or None where nothing is detected.
+    """
     from starsense.analysis.datasheet.sheet import DatasheetSettings, _sky_noise
     from starsense.analysis.trade import predict, prediction_settings
 
@@ -72,14 +77,17 @@ def _prediction(sensor, sky, database, seed: int, rate_deg_s: float):
     d = sheet.to_dict()
     limit = d.get("limiting_magnitude")
     if limit is None:
-        return d, None
+        return d, dict.fromkeys(rates_deg_s)
     av = d["availability"]
-    at_rate = float(np.interp(rate_deg_s, av["rates_deg_s"], av["threshold_mag_at_rate"]))
     st = DatasheetSettings(n_trials=0, seed=seed, n_orientations=50)
     model, (vectors, catalogue, detectable), mags, *_ = _sky_noise(
         sky, sensor, st, limit, sensor.fov(), database
     )
-    return d, (model, vectors, catalogue, detectable, mags, at_rate)
+    return d, {
+        r: (model, vectors, catalogue, detectable, mags,
+            float(np.interp(r, av["rates_deg_s"], av["threshold_mag_at_rate"])))
+        for r in rates_deg_s
+    }  # fmt: skip
 
 
 def _trial(sensor, solver, sky, psf, k, children, rate_rad_s):
@@ -134,7 +142,7 @@ def _combo(sensor, solver, sky, pred, psf, rate_deg_s, frames, seed):
     records = [_trial(sensor, solver, sky, psf, k, children, rate) for k in range(frames)]
     res = _result(sensor.name, records, frames, rate, "reed", seed)
     row = {"psf": psf, "rate_deg_s": rate_deg_s, "frames": frames, "frame_seed": seed}
-    sheet, pieces = pred
+    sheet, pieces = pred[0], pred[1][rate_deg_s]
     if pieces is not None:
         model, vectors, catalogue, detectable, mags, at_rate = pieces
         scored = score_montecarlo(
@@ -159,23 +167,27 @@ def _combo(sensor, solver, sky, pred, psf, rate_deg_s, frames, seed):
 
 
 def _run_design(job) -> list[dict]:
-    name, params, psfs, rates, frames, seed = job
+    name, params, psfs, rates, frames, seed, weighting = job
     from starsense.analysis.inputs import at_epoch, completed_sky
     from starsense.catalog import load_catalog
     from starsense.solve import Solver
 
     sensor = zoo.make_sensor(name, **params)
-    solver = Solver(sensor)  # the default: what a user gets
+    solver = (
+        Solver(sensor)  # the default: what a user gets
+        if weighting == "default"
+        else Solver(sensor, background="known", centroid_sigma_px="snr")  # the datasheet's
+    )
     database = solver.catalog
     sky = at_epoch(completed_sky(load_catalog("hipparcos"), database), database.epoch_yr)
     seeds = np.random.SeedSequence(seed).generate_state(len(rates) + 1)
     rows = []
+    pred = _prediction(sensor, sky, database, int(seeds[-1]), rates)
     for j, rate in enumerate(rates):
-        pred = _prediction(sensor, sky, database, int(seeds[-1]), rate)
         for psf in psfs:
             t0 = time.perf_counter()
             row = _combo(sensor, solver, sky, pred, psf, rate, frames, int(seeds[j]))
-            row = {"design": name, "params": params, **row,
+            row = {"design": name, "params": params, "solver": weighting, **row,
                    "seconds": time.perf_counter() - t0,
                    "limiting_magnitude": pred[0].get("limiting_magnitude")}  # fmt: skip
             rows.append(row)
@@ -209,6 +221,12 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--json", default=str(RESULTS / "galsim_check.json"))
     ap.add_argument("--jobs", type=int, default=1, help="designs at once (one process each)")
     ap.add_argument("--no-imx296", action="store_true", help="zoo designs only")
+    ap.add_argument(
+        "--solver",
+        choices=("default", "datasheet"),
+        default="default",
+        help="Solver(sensor), or the datasheet Monte Carlo's (known bias, snr weights)",
+    )
     args = ap.parse_args(argv)
     seed = args.seed if args.seed is not None else int.from_bytes(os.urandom(4), "little")
     zoo_seed = int(np.random.SeedSequence(seed).generate_state(1)[0])
@@ -219,7 +237,7 @@ def main(argv: list[str]) -> int:
     designs += zoo.zoo_designs(args.designs, zoo_seed)
     rates = [0.0, args.rate_deg_s] if args.rate_deg_s else [0.0]
     seeds = np.random.SeedSequence(seed).spawn(len(designs))
-    jobs = [(n, p, args.psf, rates, args.frames, int(s.generate_state(1)[0]))
+    jobs = [(n, p, args.psf, rates, args.frames, int(s.generate_state(1)[0]), args.solver)
             for (n, p), s in zip(designs, seeds, strict=True)]  # fmt: skip
     rows: list[dict] = []
     ctx = mp.get_context("spawn")
