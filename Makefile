@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint docs bench bench-peers bench-zoo clean
+.PHONY: demo test test-fast lint docs bench bench-peers bench-zoo bench-galsim clean
 
 $(STAMP): pyproject.toml setup.py $(wildcard src/starsense/*/_*.c)
 	$(PYTHON) -m venv $(VENV)
@@ -65,6 +65,9 @@ bench-zoo: $(STAMP)  ## held-out zoos (3 seeds drawn now, 16 designs each) first
 	for f in bench/results/zoo_heldout_1.json bench/results/zoo_heldout_2.json \
 		bench/results/zoo_heldout_3.json bench/results/zoo.json; do \
 		$(BIN)/python bench/zoo_table.py $$f; done
+
+bench-galsim: $(STAMP)  ## the solver and the datasheet on GalSim frames (4 PSFs, rest and 1 deg/s; held-out zoo seed printed); bench/results/galsim_check.json
+	$(BIN)/python bench/galsim_check.py --designs 6 --frames 40 --jobs 2
 
 $(T3RS_STAMP):
 	$(PYTHON) -m venv $(T3RS)
