@@ -23,6 +23,7 @@ noise-equivalent angle (:func:`fisher_information`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -223,7 +224,7 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
 def fit_windows(
     image, sensor, rotation: Rotation, *, vectors, rate_rad_s=(0.0, 0.0, 0.0),
     fit_rate: bool = False, fit_width: bool = False, fixed_vectors=None, fixed_electrons=None,
-    psf: PixelPSF | None = None,
+    psf: PixelPSF | None = None, fluxes_e=None, abort_chi2: float = math.inf,
 ) -> ModelFit:  # fmt: skip
     """Fit the attitude (and rate) to the pixels around the given stars (module docstring).
 
@@ -246,6 +247,12 @@ def fit_windows(
         Catalogue neighbours drawn at fixed fluxes (electrons), moving with the attitude.
     psf : PixelPSF, optional
         The PSF (default: the sensor's).
+    fluxes_e : ndarray, shape (S,), optional
+        Starting electrons of ``vectors`` (all > 0; e.g. the detections' sums): the fit then
+        starts with a Gauss-Newton step; without them it first solves for the fluxes alone.
+    abort_chi2 : float
+        Stop (not converged) when, a step past the start, the pixels' reduced chi-square
+        exceeds this: the model does not describe them, the rest of the fit is wasted.
 
     Returns
     -------
@@ -261,10 +268,16 @@ def fit_windows(
     n_geo = 6 if fit_rate else 3
     lin_values = np.zeros((pb.windows.n_groups, pb.windows.n_slots + 1))
     weight = pb.use / pixel_variance(det, np.median(pb.data[pb.use]) if pb.use.any() else 0, te)
-    lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
-    lin_values = lin_values + _normal_equations(lin, jac, weight, pb.data - mu)[3]  # fluxes
-    converged, it, s = False, 0, np.eye(jac.shape[1])
-    for it in range(1, MAX_ITERATIONS + 1):  # noqa: B007 (the count is reported)
+    start = None if fluxes_e is None else np.asarray(fluxes_e, dtype=float)
+    w = pb.windows
+    if start is not None and start.shape == (len(v_free),) and np.all(start > 0):
+        fr = pb.free  # the given fluxes start the fit: its first step has a Jacobian
+        lin_values[w.group[fr], w.slot[fr]] = start[pb.kept[fr]]  # free: the given vectors
+    else:  # the fluxes first, at the starting geometry
+        lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
+        lin_values = lin_values + _normal_equations(lin, jac, weight, pb.data - mu)[3]
+    converged, it, s = False, 0, np.eye(3)
+    for it in range(1, MAX_ITERATIONS + 1):
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
         weight = pb.use / pixel_variance(det, mu, te)
         s, grad, a_inv_b, a_inv_u = _normal_equations(lin, jac, weight, pb.data - mu)
@@ -284,6 +297,8 @@ def fit_windows(
         sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(s)), 0.0, None) * scatter)
         if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma):
             converged = True
+            break
+        if it >= 2 and scatter > abort_chi2:  # one step from the start: the model does not fit
             break
     resid = pb.data - mu
     n_pix = int(pb.use.sum())

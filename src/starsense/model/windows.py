@@ -154,10 +154,13 @@ def make_windows(
     kept = np.flatnonzero(group >= 0)
     boxes, group, free = boxes[kept], group[kept], free[kept]
     n_groups = int(group.max()) + 1 if len(group) else 0
-    g_r0 = np.array([boxes[group == g, 0].min() for g in range(n_groups)], dtype=np.int64)
-    g_r1 = np.array([boxes[group == g, 1].max() for g in range(n_groups)], dtype=np.int64)
-    g_c0 = np.array([boxes[group == g, 2].min() for g in range(n_groups)], dtype=np.int64)
-    g_c1 = np.array([boxes[group == g, 3].max() for g in range(n_groups)], dtype=np.int64)
+    big = np.iinfo(np.int64).max
+    g_r0, g_c0 = np.full(n_groups, big), np.full(n_groups, big)
+    g_r1, g_c1 = np.full(n_groups, -big), np.full(n_groups, -big)
+    np.minimum.at(g_r0, group, boxes[:, 0])
+    np.maximum.at(g_r1, group, boxes[:, 1])
+    np.minimum.at(g_c0, group, boxes[:, 2])
+    np.maximum.at(g_c1, group, boxes[:, 3])
     h = int((g_r1 - g_r0).max()) if n_groups else 0
     w = int((g_c1 - g_c0).max()) if n_groups else 0
     if n_groups * h * w > MAX_WINDOW_PIXELS:
@@ -172,9 +175,10 @@ def make_windows(
         :, None, :
     ]
     slot = np.full(len(kept), -1)
-    for g in range(n_groups):
-        members = np.flatnonzero((group == g) & free)
-        slot[members] = np.arange(len(members))
+    members = np.flatnonzero(free)
+    order = members[np.argsort(group[members], kind="stable")]  # by group, in source order
+    first = np.searchsorted(group[order], group[order], side="left")
+    slot[order] = np.arange(len(order)) - first
     local = boxes - np.column_stack([g_r0[group], g_r0[group], g_c0[group], g_c0[group]])
     windows = Windows(g_r0, g_c0, (h, w), inside & on_det, group, slot, int(slot.max()) + 1, local)
     return windows, kept

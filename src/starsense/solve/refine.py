@@ -17,11 +17,13 @@ background are free, and the catalogue stars whose light reaches a window are in
 
 The solution's covariance is the inverse Fisher information at the fit (the Cramer-Rao bound of
 the model), which the datasheet predicts. Where the pixels scatter more than the model allows
-(a reduced chi-square above :data:`SCALED_CHI2`: a real lens's PSF, a camera whose gain or read
-noise differ from the sensor's), the covariance is scaled by the reduced chi-square and the note
-says so. A fit that does not converge, or that moves the attitude further than
-:data:`MAX_MOVE_SIGMAS` of the two solutions' sigmas from the centroid attitude, keeps the
-centroid attitude and says why (a move that shifts no star by :data:`MAX_MOVE_PX` is kept: the
+(a reduced chi-square above :data:`SCALED_CHI2`: a lens's PSF a little off the TOML's, a camera
+whose gain or read noise differ from the sensor's), the covariance is scaled by the reduced
+chi-square and the note says so; above :data:`MAX_REDUCED_CHI2` the model does not describe the
+frame and the model-free centroids' attitude is kept (the fit stops a step past its start).
+A fit that does not converge, or that moves the attitude further than :data:`MAX_MOVE_SIGMAS`
+of the two solutions' sigmas from the centroid attitude, keeps the centroid attitude and says
+why (a move that shifts no star by :data:`MAX_MOVE_PX` is kept: the
 two estimators of an imperfectly known PSF's centre may disagree by that much).
 """
 
@@ -41,6 +43,7 @@ from starsense.solve.blends import streak_body_rate
 __all__ = [
     "MAX_MOVE_PX",
     "MAX_MOVE_SIGMAS",
+    "MAX_REDUCED_CHI2",
     "SCALED_CHI2",
     "Refinement",
     "refine_attitude",
@@ -50,6 +53,10 @@ __all__ = [
 #: a fit whose pixels' reduced chi-square exceeds this has its covariance scaled by it (the
 #: chi-square of a right model over N ~ 10^3 pixels lies within 1 +- 0.1)
 SCALED_CHI2 = 1.3
+#: a fit whose pixels' reduced chi-square exceeds this does not describe the frame (a lens's
+#: PSF the TOML does not give, a camera's noise it does not know): the model-free centroids'
+#: attitude is kept. Between the two, the covariance is scaled.
+MAX_REDUCED_CHI2 = 4.0
 #: a model fit further than this many centroid sigmas from the centroid attitude is refused...
 MAX_MOVE_SIGMAS = 8.0
 #: ...when it also moves a star by more than this, px: a real lens's asymmetric PSF puts a
@@ -169,7 +176,7 @@ def refine_attitude(image, sensor, rotation, *, ref, plain, mags, sky, cog_sigma
     if fit_width is None:
         fit_width = sensor.psf.fit_width or sensor.psf.is_gaussian
     mags = np.asarray(mags, float)
-    opts = {"fit_rate": fit_rate, "fit_width": fit_width}
+    opts = {"fit_rate": fit_rate, "fit_width": fit_width, "abort_chi2": 2.0 * MAX_REDUCED_CHI2}
     try:
         zp = None if electrons is None else _zero_point(np.asarray(electrons, float), mags)
         fit, first = None, None
@@ -187,10 +194,12 @@ def refine_attitude(image, sensor, rotation, *, ref, plain, mags, sky, cog_sigma
             )  # fmt: skip
             if fit is first and fit is not None and not len(nv):
                 break
+            own = zp * 10.0 ** (-0.4 * mags) if fit is None else fit.fluxes_e[: len(ref)]
             fit = fit_windows(
                 image, sensor, start, vectors=np.concatenate([ref, nv[nfree]]),
                 rate_rad_s=rate if fit is None else fit.rate_rad_s,
-                fixed_vectors=nv[~nfree], fixed_electrons=ne[~nfree], **opts,
+                fixed_vectors=nv[~nfree], fixed_electrons=ne[~nfree],
+                fluxes_e=np.concatenate([own, ne[nfree]]), **opts,
             )  # fmt: skip
             new = _zero_point(fit.fluxes_e[: len(ref)], mags)
             if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not np.any(~nfree):
@@ -220,6 +229,11 @@ def _reach_px(sensor, rate) -> float:
 
 def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
     """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not."""
+    if fit.reduced_chi2 > MAX_REDUCED_CHI2 or not math.isfinite(fit.reduced_chi2):
+        why = f"reduced chi-square {fit.reduced_chi2:.3g} > {MAX_REDUCED_CHI2:g}"
+        return Refinement(
+            fit, False, f"model fit not used: the pixels disagree with the model ({why})", n_nbr
+        )
     if not fit.converged:
         return Refinement(fit, False, "model fit did not converge", n_nbr)
     if not np.all(np.isfinite(fit.sigma_axes_rad)) or not math.isfinite(fit.reduced_chi2):

@@ -24,13 +24,11 @@ from typing import Literal
 import numpy as np
 
 from starsense.attitude.robust import MISFIT_SIGMAS, robust_attitude
-from starsense.catalog.apparent import apparent_places_of
 from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
-from starsense.solve.blends import blend_radius_px, blended
 from starsense.solve.box_blends import box_fit, window_fields
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import (
@@ -46,6 +44,7 @@ from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.radial import refine_identification
+from starsense.solve.references import matched_references
 from starsense.solve.refine import refined_attitude
 from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
@@ -230,18 +229,6 @@ class Solver:
 
     # -- the pipeline -----------------------------------------------------------------------
 
-    def _reference(self, ref, catalog_ids, obs_time) -> tuple[np.ndarray, dict]:
-        """Return the matched stars' reference vectors: apparent places when a time is known."""
-        if obs_time is None or not self.settings.apparent:
-            return ref, {"applied": False, "reason": "no frame time" if obs_time is None else "off"}
-        p = apparent_places_of(
-            self.catalog,
-            catalog_ids,
-            obs_time,
-            observer_velocity_m_s=self.settings.observer_velocity_m_s,
-        )
-        return p.vectors, p.to_dict()
-
     def __call__(self, image, obs_time=None) -> Solution:
         """Solve one frame: detect, identify and estimate the attitude with its covariance.
 
@@ -393,8 +380,8 @@ class Solver:
             own = scaled(points.sigma_px, fov / n_cols)
             ident = rematched(ident, identifier.database, vectors, sigma_rad=own)
         matched, pixel_rad = np.asarray(ident.detection_index), fov / n_cols
-        ref, apparent, places = self._matched_reference(
-            identifier.database, ident, obs_time, fov, points
+        ref, apparent, places = matched_references(
+            self, identifier.database, ident, obs_time=obs_time, pixel_rad=fov / points.shape[1]
         )
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, keep = robust_attitude(body, ref, sigma * pixel_rad)
@@ -406,19 +393,29 @@ class Solver:
             )  # fmt: skip
             if miss > MISFIT_SIGMAS:  # the streaks' model does not fit: no attitude
                 return misfit_solution(len(points.x), ident, miss, time_ms=_ms(t0), stages=stages)
-        elif self.sensor is not None and points.windows is not None:  # neighbours in windows
-            att = box_fit((att, keep), (ident, body, ref, sigma, matched), sensor=self.sensor,
-                          pixel_rad=pixel_rad, database=identifier.database, points=points,
-                          sky=self._identifiers.sky(identifier.database.params.band))  # fmt: skip
-        notes = ()
-        if image is not None and self.settings.refine == "model":
+        notes, db = (), identifier.database
+        fitted = image is not None and self.settings.refine == "model"
+        if fitted:  # the forward model's fit (its neighbours in the model): refine.py
             att, notes = refined_attitude(
-                image, att, self.sensor, db=identifier.database, ident=ident, places=places,
-                streaks=streaks, sky=(self._sky or self._identifiers).sky(
-                    identifier.database.params.band
-                ),
-                points=points,
+                image, att, self.sensor, db=db, ident=ident, places=places, streaks=streaks,
+                sky=(self._sky or self._identifiers).sky(db.params.band), points=points,
             )  # fmt: skip
+        fitted = fitted and att.method == "model"
+        if (
+            not fitted
+            and streaks is None
+            and self.sensor is not None
+            and points.windows is not None
+        ):
+            att = box_fit(
+                (att, keep),
+                (ident, body, ref, sigma, matched),
+                sensor=self.sensor,
+                pixel_rad=pixel_rad,
+                database=db,
+                points=points,
+                sky=self._identifiers.sky(db.params.band),
+            )  # neighbours in windows
         stages["attitude_ms"] = _ms(t3)
         sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),
                      stages=stages, radial=radial, sensor=self.sensor)  # fmt: skip
@@ -447,19 +444,6 @@ class Solver:
                 f"(then: {message})"
             )
         return Solution(status, message, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
-
-    def _matched_reference(self, db, ident, obs_time, fov, points):
-        """Return the matched stars' reference vectors (apparent places, blended photocentres).
-
-        Also their (catalogue, apparent) places, unblended: what the model fit draws.
-        """
-        plain = db.vectors[np.asarray(ident.catalog_index)]
-        ref, apparent = self._reference(plain, ident.catalog_id, obs_time)
-        places = (plain, ref)
-        if self.sensor is not None:  # blended close doubles: their photocentre, not one star
-            radius = blend_radius_px(self.sensor.detector.psf_sigma_px) * fov / points.shape[1]
-            ref = blended(ref, plain, db, index=ident.catalog_index, radius_rad=radius)
-        return ref, apparent, places
 
     def prepare(self) -> None:
         """Build (or load from the cache) the database of the Solver's field now, once.
