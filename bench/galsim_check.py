@@ -1,4 +1,4 @@
-"""The solver and the datasheet against frames GalSim draws (issue 48: an independent world).
+"""The solver and the datasheet against frames GalSim draws (an independent world).
 
 For an IMX296-class camera (1456 x 1088 px of 3.45 um behind 16 mm f/1.4, 100 ms, PSF sigma
 1.1 px) and ``--designs`` designs of the sensor zoo (``bench/zoo.py``) drawn from a seed chosen
@@ -48,7 +48,7 @@ from starsense._io import atomic_write  # noqa: E402
 from starsense.units import ARCSEC, DEG, RAD_TO_ARCSEC  # noqa: E402
 
 RESULTS = HERE / "results"
-#: the IMX296-class camera of issue 48 (zoo rules for its well, gain and detection logic)
+#: an IMX296-class camera (zoo rules for its well, gain and detection logic)
 IMX296 = {
     "focal_length_m": 0.016,
     "columns": 1456,

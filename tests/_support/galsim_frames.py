@@ -7,7 +7,7 @@ the pixel and, for a moving camera, along its track; the detector response (shot
 charge, read noise, gain, bias, full well, ADC) is written out here with NumPy. Nothing of
 ``starsense.render`` is used: starsense supplies the geometry (catalogue cone, the attitude and
 ``Sensor.project``) and the photometry (``Sensitivity``: magnitude -> electrons) only, so the
-pixels come from a renderer nobody here wrote (issue 48).
+pixels come from a renderer nobody here wrote.
 
 Conventions (those of :func:`starsense.render.scene.render_frame`): ``attitude`` is the
 ICRS -> camera rotation at **mid-exposure**; with the body rate ``w`` (camera frame, rad/s)

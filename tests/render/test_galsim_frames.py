@@ -2,7 +2,7 @@
 
 GalSim draws the pixels; these tests check that what it draws is the sky starsense describes
 (flux, positions) and, for the Gaussian PSF, that starsense's own renderer draws the same
-expected electrons (issue 48: the check of our renderer by one nobody here wrote).
+expected electrons (the check of our renderer by one nobody here wrote).
 """
 
 from __future__ import annotations

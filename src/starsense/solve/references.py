@@ -17,7 +17,7 @@ from starsense.solve.blends import blend_radius_px, blended
 __all__ = ["matched_references", "reference_places"]
 
 
-def reference_places(solver, vectors, catalog_ids, obs_time) -> tuple[np.ndarray, dict]:
+def reference_places(solver, vectors, catalog_ids, *, obs_time) -> tuple[np.ndarray, dict]:
     """Return the matched stars' reference vectors: apparent places when a time is known.
 
     Parameters
@@ -71,7 +71,7 @@ def matched_references(solver, db, ident, *, obs_time, pixel_rad: float):
         The (catalogue, apparent) places, unblended: what the model fit draws.
     """
     plain = db.vectors[np.asarray(ident.catalog_index)]
-    ref, apparent = reference_places(solver, plain, ident.catalog_id, obs_time)
+    ref, apparent = reference_places(solver, plain, ident.catalog_id, obs_time=obs_time)
     places = (plain, ref)
     if solver.sensor is not None:  # blended close doubles: their photocentre, not one star
         radius = blend_radius_px(solver.sensor.detector.psf_sigma_px) * pixel_rad

@@ -109,8 +109,8 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
     if sensor is None and fov_rad is None and s.algorithm == "triangle":
         raise InputError("the triangle algorithm needs a known field: give sensor or fov_rad")
     sigma = s.centroid_sigma_px
-    if sigma is None:  # each star's own noise where the sensor says it
-        sigma = "snr" if sensor is not None else 0.3
+    if sigma is None:  # 0.3 px: real frames' centroids carry more than their photons' noise
+        sigma = 0.3
     refine = s.refine if s.refine is not None else ("model" if sensor is not None else "cog")
     if refine not in ("model", "cog"):
         raise InputError(f"refine must be 'model' or 'cog', got {show(refine)}")

@@ -91,8 +91,10 @@ class Solver:
     centroid_sigma_px : float or "snr", optional
         Centroid noise assumed for the centroid fit's weights and covariance, pixels; "snr"
         (needs a sensor) uses each star's own noise (:func:`starsense.detect.centroid.
-        cog_sigma_px`: photon noise plus read noise over its centroid window). Default: "snr"
-        with a sensor, 0.3 px without.
+        cog_sigma_px`: photon noise plus read noise over its centroid window). Default 0.3 px
+        (a real frame's centroids carry systematic errors beyond their photons': the lens's
+        distortion left, its PSF): with a sensor the attitude's sigmas are then the model
+        fit's (``refine``), and the centroids' weights only start it.
     background : {"auto", "known"}
         "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
         subtracts the sensor's bias and applies its detection logic as is (simulated frames).
