@@ -35,6 +35,7 @@ from starsense.cli.availability_options import (
     TrialsOpt,
     as_options,
     check_count,
+    check_maps,
     check_max_mag,
     check_n_min,
     check_rates_deg_s,
@@ -161,6 +162,7 @@ def static(
     Dask (--dask), with the same kernels and results as in memory.
     """
     check_n_min(n_min)
+    check_maps(maps, ["static_stars_in_field.png", "static_sparse.png"])
     if check_dask_option(catalog, dask):
         res, sens = _static_hats(
             sensor,
@@ -253,6 +255,7 @@ def dynamic(
     rates = check_rates_deg_s(parse_floats(rates_deg_s, "--rates-deg-s"), "--rates-deg-s")
     check_n_min(n_min)
     check_max_mag(max_mag)
+    check_maps(maps, [f"dynamic_{w:g}degs.png" for w in rates / DEG])
     with progress_bar() as progress:
         curve, sens, analysis = _curve_and_analysis(
             sensor,
@@ -328,6 +331,7 @@ def track(
     """Along-track dynamic availability of great circles inclined -90 ... 90 deg (Table 2)."""
     rate = float(check_rates_deg_s([rate_deg_s], "--rate-deg-s")[0])
     check_n_min(n_min)
+    check_maps(maps, [f"track_{rate / DEG:g}degs.png"])
     check_count(track_samples, "samples per track", "--track-samples")
     node = finite_float(node_deg, "--node-deg") * DEG
     # from a count (0.01 deg: 18,001 tracks ending at 90); finer than 0.001 deg is refused

@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._io import check_output
 from starsense.analysis.montecarlo import run_montecarlo
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
@@ -79,6 +80,8 @@ def render(
     ] = None,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
+    if sequence is None:  # the truth beside the frame, before the work (a sequence: its paths)
+        check_output(out.with_name(out.name + ".json"), "--out")
     option_float(ra_deg, "--ra-deg")
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
     option_float(roll_deg, "--roll-deg")
