@@ -19,8 +19,8 @@ at most 1 MB). A malformed request is a 4xx with a one-line JSON ``{"error"}``: 
 that is not a JSON object (:mod:`starsense.web.payload`), 422 for a design or a field that is
 wrong, 429 when :data:`~starsense.web.jobs.MAX_RUNNING` verifications run already (each in its
 own process, :mod:`starsense.web.jobs`) or :data:`MAX_PENDING` predictions wait. Predictions
-run one at a time in daemon threads, so a server told to stop (SIGTERM) never waits for one;
-stopping ends the verifications' processes.
+run one at a time in daemon threads, so a server told to stop (SIGTERM) never waits for one,
+and the verifications are held while one runs; stopping ends the verifications' processes.
 """
 
 from __future__ import annotations
@@ -91,10 +91,14 @@ class _Computations:
     """The page's predictions: one at a time, each in a daemon thread, at most ``limit`` held.
 
     A daemon thread, not the event loop's thread pool: a server stopping (SIGTERM) exits
-    without waiting for a prediction in progress, whose answer nobody will read.
+    without waiting for a prediction in progress, whose answer nobody will read. ``quiet``
+    is held while one runs (the verifications wait).
     """
 
-    def __init__(self, limit: int = MAX_PENDING) -> None:
+    def __init__(
+        self, quiet: Callable[[], contextlib.AbstractContextManager], limit: int = MAX_PENDING
+    ) -> None:
+        self.quiet = quiet
         self.limit = limit
         self.pending = 0
         self._count = threading.Lock()
@@ -112,7 +116,7 @@ class _Computations:
 
         def work() -> None:
             try:
-                with self._one:
+                with self._one, self.quiet():
                     outcome = (True, fn(*args))
             except Exception as exc:
                 outcome = (False, exc)
@@ -146,10 +150,10 @@ class _Page:
         self.doc = base_document(base)
         self.cat = as_catalog(catalog)
         self.sky = sky
-        self.computations = _Computations()
         self.verifications = Verifications(
             catalog if isinstance(catalog, str) else None, max_running
         )
+        self.computations = _Computations(self.verifications.paused)
 
     @staticmethod
     def document_of(payload: dict) -> dict:
@@ -171,10 +175,17 @@ class _Page:
         seed = int_field(payload, "seed", default=0, lo=0, hi=MAX_SEED)
         return prediction_settings(rate_rad_s=rate * DEG, rng=seed, **self.sky)
 
-    async def prediction(self, request: Request):
+    async def prediction(self, request: Request, respond: Callable[[Any], Response]) -> Response:
+        """Predict the request's design; ``respond`` (the sheet -> the response) runs in the
+        computation's thread too: the figure and the JSON are work, not the event loop's."""  # noqa: D205, D209
         payload = await read_payload(request)
-        sensor, settings = self.sensor_of(payload), self.settings(payload)
-        return await self.computations.run(lambda: predict(sensor, self.cat, settings=settings))
+        try:
+            sensor, settings = self.sensor_of(payload), self.settings(payload)
+            return await self.computations.run(
+                lambda: respond(predict(sensor, self.cat, settings=settings))
+            )
+        except StarsenseError as exc:
+            return _bad(exc)
 
     async def index(self, request: Request) -> HTMLResponse:
         return HTMLResponse(page_html())
@@ -182,21 +193,8 @@ class _Page:
     async def base(self, request: Request) -> JSONResponse:
         return JSONResponse({"document": self.doc, "fields": FIELDS})
 
-    async def predict_route(self, request: Request) -> JSONResponse:
-        try:
-            sheet = await self.prediction(request)
-        except StarsenseError as exc:
-            return _bad(exc)
-        d = sheet.to_dict()
-        return JSONResponse(
-            {
-                "sensor": d["sensor"],
-                "rows": _headline(d),
-                "warnings": list(d.get("warnings", [])),
-                "figure_png": _figure_png(sheet),
-                "datasheet": d,
-            }
-        )
+    async def predict_route(self, request: Request) -> Response:
+        return await self.prediction(request, _page_response)
 
     async def toml(self, request: Request) -> Response:
         payload = await read_payload(request)
@@ -211,14 +209,7 @@ class _Page:
         return Response(text, media_type="application/toml", headers=head)
 
     async def datasheet(self, request: Request) -> Response:
-        try:
-            sheet = await self.prediction(request)
-        except StarsenseError as exc:
-            return _bad(exc)
-        head = {
-            "Content-Disposition": f'attachment; filename="{_safe(sheet.sensor)}_datasheet.json"'
-        }
-        return JSONResponse(sheet.to_dict(), headers=head)
+        return await self.prediction(request, _download_response)
 
     async def verify(self, request: Request) -> JSONResponse:
         payload = await read_payload(request)
@@ -245,6 +236,28 @@ class _Page:
             status["rows"] = _headline(result)
             status["finished"] = True
         return JSONResponse(status)
+
+
+def _page_response(sheet) -> JSONResponse:
+    """Return the page's answer: headline rows, warnings, the figure, the datasheet."""
+    d = sheet.to_dict()
+    return JSONResponse(
+        {
+            "sensor": d["sensor"],
+            "rows": _headline(d),
+            "warnings": list(d.get("warnings", [])),
+            "figure_png": _figure_png(sheet),
+            "datasheet": d,
+        }
+    )
+
+
+def _download_response(sheet) -> JSONResponse:
+    """Return the datasheet JSON as a download."""
+    name = f"{_safe(sheet.sensor)}_datasheet.json"
+    return JSONResponse(
+        sheet.to_dict(), headers={"Content-Disposition": f'attachment; filename="{name}"'}
+    )
 
 
 def _bad(exc: StarsenseError) -> JSONResponse:

@@ -7,9 +7,13 @@ lower scheduling priority, so
 
 * at most :data:`MAX_RUNNING` run at once; another request is refused (:class:`Busy`, the
   server's 429) rather than queued without end;
-* a prediction of the page is answered meanwhile (the children yield the processor);
+* a prediction of the page is answered meanwhile: the children are held (SIGSTOP) while it
+  runs (:meth:`Verifications.paused`) and go on after it (SIGCONT). A lower priority alone
+  was not enough: a niced child still takes the other core, the memory bandwidth and the
+  disk while it starts, and a prediction beside two took 3 to 4 times as long as alone;
 * :meth:`Verifications.close` (the server stopping, SIGTERM) ends every child at once, and a
-  child whose server died ends too (Linux: the parent-death signal).
+  child whose server died ends too (Linux: the parent-death signal, SIGKILL, which a held
+  child gets too).
 
 The child reads its task as one JSON line on its standard input and reports JSON lines on its
 standard output (:mod:`starsense.web.worker`), read by one thread per job.
@@ -22,6 +26,7 @@ import dataclasses
 import itertools
 import json
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -95,6 +100,7 @@ class Verifications:
         self._ids = itertools.count(1)
         self._lock = threading.Lock()
         self._closed = False
+        self._holds = 0  # predictions running: the children are stopped while > 0
 
     def running(self) -> int:
         """Return how many verifications run now."""
@@ -138,6 +144,8 @@ class Verifications:
                 )
             except OSError as exc:  # no process to be had (limits, memory)
                 raise Busy(f"cannot start a verification: {exc.strerror or exc}", 503) from None
+            if self._holds:
+                _signal(process, signal.SIGSTOP)
             job_id, job = str(next(self._ids)), _Job(process)
             job.watcher = threading.Thread(target=_watch, args=(job, task), daemon=True)
             self._jobs[job_id] = job
@@ -150,6 +158,23 @@ class Verifications:
         job = self._jobs.get(job_id)
         return None if job is None else job.status()
 
+    @contextlib.contextmanager
+    def paused(self):
+        """Hold the running verifications (SIGSTOP) while the block runs, then let them go on."""
+        with self._lock:
+            self._holds += 1
+            if self._holds == 1:
+                for job in self._jobs.values():
+                    _signal(job.process, signal.SIGSTOP)
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._holds -= 1
+                if self._holds == 0:
+                    for job in self._jobs.values():
+                        _signal(job.process, signal.SIGCONT)
+
     def close(self) -> None:
         """Refuse new verifications and end the running ones (their processes) now."""
         with self._lock:
@@ -157,8 +182,8 @@ class Verifications:
             jobs = [j for j in self._jobs.values() if not j.finished]
         for job in jobs:
             job.cancelled = True
-            with contextlib.suppress(OSError, ValueError):
-                job.process.terminate()
+            _signal(job.process, signal.SIGTERM)
+            _signal(job.process, signal.SIGCONT)  # a held child must run to take the SIGTERM
         for job in jobs:
             try:
                 job.process.wait(STOP_WAIT_S)
@@ -171,6 +196,13 @@ class Verifications:
         finished = [k for k, j in self._jobs.items() if j.finished]
         for key in finished[: max(0, len(finished) - KEEP_FINISHED)]:
             del self._jobs[key]
+
+
+def _signal(process: subprocess.Popen, signum: int) -> None:
+    """Send ``signum`` to a child still running (one that has ended, and been waited for, not)."""
+    if process.returncode is None:
+        with contextlib.suppress(OSError):
+            process.send_signal(signum)
 
 
 def _watch(job: _Job, task: str) -> None:

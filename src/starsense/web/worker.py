@@ -5,7 +5,7 @@ Run as ``python -m starsense.web.worker``: reads one JSON line ``{"document", "c
 frames at a lower scheduling priority, and writes JSON lines on standard output:
 ``["progress", label, done, total]`` as it goes, then ``["result", datasheet]`` or
 ``["error", one-line message]``. It ignores SIGINT (the server's Ctrl-C ends it through the
-server) and, on Linux, gets SIGTERM when the server dies.
+server) and, on Linux, is killed when the server dies.
 """
 
 from __future__ import annotations
@@ -28,10 +28,14 @@ NICENESS = 10
 
 
 def _die_with(parent: int) -> None:
-    """Ask Linux to send this process SIGTERM when the server dies; exit if it has already."""
+    """Ask Linux to kill this process when the server dies; exit if it has already.
+
+    SIGKILL, not SIGTERM: the server may have held this process (SIGSTOP), and a stopped
+    process takes no other signal; it writes nothing that could be left half done.
+    """
     pr_set_pdeathsig = 1
     with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGTERM, 0, 0, 0)
+        ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
     if os.getppid() != parent:
         raise SystemExit(1)
 
