@@ -29,6 +29,8 @@ pytest.importorskip("httpx2", reason="httpx2 (Starlette's test client) is not in
 from starlette.testclient import TestClient
 
 from starsense.analysis.trade import base_document
+from starsense.catalog import load_catalog
+from starsense.errors import InputError
 from starsense.web.app import create_app
 from starsense.web.guard import MAX_BODY_BYTES
 from starsense.web.jobs import MAX_FRAMES, MAX_RUNNING
@@ -396,3 +398,9 @@ def _try(fn, *args):
         return fn(*args)
     except OSError:  # the server went away mid-request: expected here
         return None
+
+
+def test_the_page_takes_a_catalogue_specification_not_a_loaded_one():
+    # its verifications load the catalogue in their own processes, from the specification
+    with pytest.raises(InputError, match=r"catalogue specification .* not a loaded catalogue"):
+        create_app("st16", load_catalog("hipparcos"), **_SKY)

@@ -147,12 +147,15 @@ class _Page:
     """The page's state (base design, catalogue, verifications) and its route handlers."""
 
     def __init__(self, base: str, catalog, sky: dict, max_running: int) -> None:
+        if catalog is not None and not isinstance(catalog, str):
+            raise InputError(
+                "the design page takes a catalogue specification (as --catalog), not a loaded "
+                f"catalogue ({type(catalog).__name__}): its verifications load it themselves"
+            )
         self.doc = base_document(base)
         self.cat = as_catalog(catalog)
         self.sky = sky
-        self.verifications = Verifications(
-            catalog if isinstance(catalog, str) else None, max_running
-        )
+        self.verifications = Verifications(catalog, max_running)
         self.computations = _Computations(self.verifications.paused)
 
     @staticmethod

@@ -17,10 +17,6 @@ import os
 import signal
 import sys
 
-from starsense.analysis.datasheet.sheet import DatasheetSettings, build_datasheet
-from starsense.analysis.inputs import as_catalog
-from starsense.sensor.load import sensor_from_dict
-
 __all__ = ["NICENESS", "main"]
 
 #: the niceness added to a verification's process: the page's predictions come first
@@ -54,6 +50,14 @@ def main() -> None:
         out.write(json.dumps(message) + "\n")
 
     try:
+        # imported here, at the lower priority: loading them is a good part of the work
+        from starsense.analysis.datasheet.sheet import (  # noqa: PLC0415
+            DatasheetSettings,
+            build_datasheet,
+        )
+        from starsense.analysis.inputs import as_catalog  # noqa: PLC0415
+        from starsense.sensor.load import sensor_from_dict  # noqa: PLC0415
+
         sensor = sensor_from_dict(task["document"], source="design")
         settings = DatasheetSettings(**task["settings"])
         catalog = as_catalog(task["catalog"])
