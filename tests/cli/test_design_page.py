@@ -25,7 +25,9 @@ _SKY = {"n_orientations": 150, "n_slew_trials": 4}  # small: the page and API on
 
 @pytest.fixture(scope="module")
 def client():
-    return TestClient(create_app("st16", **_SKY))
+    # the server answers only requests to the address it serves (starsense.web.guard)
+    with TestClient(create_app("st16", **_SKY), base_url="http://127.0.0.1:8765") as c:
+        yield c
 
 
 def test_page_numbers_are_the_predictions(client):
@@ -80,7 +82,7 @@ def test_design_page_in_a_real_browser(tmp_path):
     assert selenium
     port = _free_port()
     server = uvicorn.Server(
-        uvicorn.Config(create_app("st16", **_SKY), port=port, log_level="warning")
+        uvicorn.Config(create_app("st16", port=port, **_SKY), port=port, log_level="warning")
     )
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()

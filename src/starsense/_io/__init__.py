@@ -1,7 +1,8 @@
 """Input and output: the one way the package reads a user's file and writes an output.
 
-* :mod:`starsense._io.files` — reading with errors that name the path; atomic writing (output
-  checked first, temporaries swept, renames held against signals);
+* :mod:`starsense._io.reading` — reading with errors that name the path;
+* :mod:`starsense._io.files` — atomic writing (output checked first: never a device, a FIFO
+  or a socket; temporaries swept, renames held against signals);
 * :mod:`starsense._io.jsonout` — JSON that is always valid (``null`` for NaN and infinity);
 * :mod:`starsense._io.net` — a refused connection known at once, a timeout that says how long.
 """
@@ -11,23 +12,23 @@ from starsense._io.files import (
     atomic_paths,
     atomic_write,
     check_output,
+    check_outputs_in,
     deferred_signals,
     dir_mode,
     file_mode,
-    read_bytes,
-    read_text,
-    readable_file,
     sweep_stale,
     temp_prefix,
 )
 from starsense._io.jsonout import json_text, jsonable
 from starsense._io.net import probe_tcp
+from starsense._io.reading import read_bytes, read_text, readable_file
 
 __all__ = [
     "atomic_path",
     "atomic_paths",
     "atomic_write",
     "check_output",
+    "check_outputs_in",
     "deferred_signals",
     "dir_mode",
     "file_mode",

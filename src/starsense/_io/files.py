@@ -1,19 +1,16 @@
-"""File input and output: the one way the package reads a user's file and writes an output.
+"""File output: the one way the package writes an output (reading: :mod:`.reading`).
 
-Reading (:func:`readable_file`, :func:`read_bytes`, :func:`read_text`): a missing file, an empty
-path, a directory, a file the user may not read or text that is not UTF-8 raise
-:class:`~starsense.errors.InputError` naming the path, never an ``OSError`` or
-``UnicodeDecodeError``.
-
-Writing (:func:`atomic_path`, :func:`atomic_write`): the output's directory is checked first
-(:func:`check_output`: it exists, is a directory, may be written; the target is not a
-directory), then the file is written to a temporary name in that directory, flushed to disk,
-given the permissions any file the user creates would get (``0666`` less the umask, not
-``mkstemp``'s ``0600``) and renamed into place. An error, an interrupt or SIGTERM leaves neither
-a partial file nor the temporary one behind; a write failure is reported as
-:class:`~starsense.errors.OutputError` naming the user's path. Temporaries carry the writing
-process's id (:func:`temp_prefix`), so those of a run killed outright (SIGKILL, power loss) are
-removed by the next write into the same place (:func:`sweep_stale`).
+Writing (:func:`atomic_path`, :func:`atomic_write`): the output's place is checked first
+(:func:`check_output`: its directory exists, is a directory and may be written; the target is
+a new path or a regular file, never a directory, a device, a FIFO, a socket or a symbolic link
+to one of them, which the rename would replace), then the file is written to a temporary name
+in that directory, flushed to disk, given the permissions any file the user creates would get
+(``0666`` less the umask, not ``mkstemp``'s ``0600``) and renamed into place. An error, an
+interrupt or SIGTERM leaves neither a partial file nor the temporary one behind; a write
+failure is reported as :class:`~starsense.errors.OutputError` naming the user's path.
+Temporaries carry the writing process's id (:func:`temp_prefix`), so those of a run killed
+outright (SIGKILL, power loss) are removed by the next write into the same place
+(:func:`sweep_stale`).
 """
 
 from __future__ import annotations
@@ -24,25 +21,24 @@ import os
 import re
 import shutil
 import signal
+import stat
 import tempfile
 import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from starsense.errors import InputError, OutputError
+from starsense.errors import OutputError
 
 __all__ = [
     "atomic_path",
     "atomic_paths",
     "atomic_write",
     "check_output",
+    "check_outputs_in",
     "deferred_signals",
     "dir_mode",
     "file_mode",
-    "read_bytes",
-    "read_text",
-    "readable_file",
     "sweep_stale",
     "temp_prefix",
 ]
@@ -68,94 +64,6 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-# -- reading ------------------------------------------------------------------------------------
-
-
-def readable_file(path: str | os.PathLike[str], what: str = "file") -> Path:
-    """Return ``path`` as a :class:`~pathlib.Path` after checking it names a readable file.
-
-    Parameters
-    ----------
-    path : path-like
-        What the user gave (``~`` is expanded).
-    what : str
-        What the file is, for the message ("sensor file", "image").
-
-    Returns
-    -------
-    pathlib.Path
-
-    Raises
-    ------
-    InputError
-        An empty path, no such file, a directory, not a regular file, or not readable; the
-        message names ``what`` and the path.
-    """
-    text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
-    if not isinstance(text, str) or not text.strip():
-        raise InputError(f"{what} path is empty (got {path!r})")
-    p = Path(text).expanduser()
-    try:
-        p.stat()
-    except FileNotFoundError:
-        raise InputError(f"{what} not found: {p}") from None
-    except OSError as exc:  # permission on a parent, name too long, a loop of links
-        raise InputError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
-    if p.is_dir():
-        raise InputError(f"{what} {p} is a directory, not a file")
-    if not p.is_file():
-        raise InputError(f"{what} {p} is not a regular file")
-    if not os.access(p, os.R_OK):
-        raise InputError(f"cannot read {what} {p}: permission denied")
-    return p
-
-
-def read_bytes(path: str | os.PathLike[str], what: str = "file") -> bytes:
-    """Return the bytes of a file, with OS errors as :class:`InputError` naming the path.
-
-    Parameters
-    ----------
-    path : path-like
-        The file.
-    what : str
-        What the file is, for the message.
-
-    Returns
-    -------
-    bytes
-    """
-    p = readable_file(path, what)
-    try:
-        return p.read_bytes()
-    except OSError as exc:
-        raise InputError(f"cannot read {what} {p}: {exc.strerror or exc}") from None
-
-
-def read_text(path: str | os.PathLike[str], what: str = "file") -> str:
-    """Return a UTF-8 text file's content; OS and decoding errors raise :class:`InputError`.
-
-    Parameters
-    ----------
-    path : path-like
-        The file.
-    what : str
-        What the file is, for the message.
-
-    Returns
-    -------
-    str
-    """
-    raw = read_bytes(path, what)
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        raise InputError(
-            f"{what} {Path(path).expanduser()} is not UTF-8 text: byte 0x{raw[exc.start]:02x} "
-            f"at line {line}"
-        ) from None
 
 
 # -- writing ------------------------------------------------------------------------------------
@@ -190,8 +98,10 @@ def check_output(
     Raises
     ------
     OutputError
-        An empty path, a parent that is missing, not a directory or not writable, or a target
-        that is a directory when a file is wanted (a file when a directory is wanted).
+        An empty path, a parent that is missing, not a directory or not writable, a target
+        that is a directory when a file is wanted (a file when a directory is wanted), or one
+        that is neither a regular file nor a directory: a device, a FIFO, a socket, or a
+        symbolic link to one of them (writing would replace it with a regular file).
     """
     text = os.fspath(target) if isinstance(target, str | os.PathLike) else None
     if not isinstance(text, str) or not text.strip():
@@ -208,11 +118,78 @@ def check_output(
         raise OutputError(f"{shown}: {parent} is not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"{shown}: directory {parent} is not writable")
+    special = _special_kind(p)
+    if special is not None:
+        wanted = "a directory" if directory else "a regular file"
+        raise OutputError(f"{shown}: it is {special}, not {wanted}")
     if not directory and p.is_dir():
         raise OutputError(f"{shown}: it is a directory")
     if directory and p.exists() and not p.is_dir():
         raise OutputError(f"{shown}: it exists and is not a directory")
     return p
+
+
+def check_outputs_in(
+    folder: str | os.PathLike[str], names: Sequence[str], what: str = "output"
+) -> list[Path]:
+    """Check, before any work, the files a command will write into ``folder``.
+
+    ``folder`` itself is checked by ``check_output(folder, what, directory=True)`` (it may not
+    exist yet); each name in it must be a new path or a regular file (:func:`check_output`).
+
+    Parameters
+    ----------
+    folder : path-like
+        The output folder (``--out``, ``--maps``).
+    names : sequence of str
+        The files the command writes there.
+    what : str
+        The option, for the message.
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``folder / name`` for each name.
+
+    Raises
+    ------
+    OutputError
+        As :func:`check_output`, naming the file in the folder.
+    """
+    base = check_output(folder, what, directory=True)
+    return [check_output(base / name, what, make_parents=True) for name in names]
+
+
+#: what a path is, when it is neither a regular file nor a directory
+_KINDS = (
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def _special_kind(path: Path) -> str | None:
+    """Say what ``path`` is if it exists and is neither a regular file nor a directory.
+
+    A symbolic link is judged by what it points to ("a symbolic link to a FIFO"); a dangling
+    link, a regular file, a directory or no file at all give None.
+    """
+    try:
+        st = os.lstat(path)
+    except OSError:  # nothing there (or the parent check already spoke)
+        return None
+    link = stat.S_ISLNK(st.st_mode)
+    if link:
+        try:
+            st = os.stat(path)
+        except OSError:  # a dangling link (or a loop): the rename replaces the link itself
+            return None
+    mode = st.st_mode
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    kind = next((name for test, name in _KINDS if test(mode)), "a special file")
+    return f"a symbolic link to {kind}" if link else kind
 
 
 def temp_prefix(target: str | os.PathLike[str]) -> str:
@@ -357,6 +334,8 @@ def atomic_paths(
                     current = target
                     os.chmod(tmp, file_mode())
                     _fsync(tmp)
+                for target in paths:  # one made meanwhile (a FIFO) is refused, not replaced
+                    check_output(target)
                 for target, tmp in zip(paths, tmps, strict=True):
                     current = target
                     os.replace(tmp, target)

@@ -1,8 +1,12 @@
 """Command line: parse, load, call the API, print or write results. No physics here.
 
 User errors (:class:`~starsense.errors.StarsenseError`) are printed as one line on stderr with exit
-status 2; no traceback. SIGTERM is handled like Ctrl-C: the command unwinds (temporary files are
-removed, an earlier output stays as it was) and the process exits with status 143 (128 + 15).
+status 2; no traceback. Ctrl-C (SIGINT) and SIGTERM unwind the command (temporary files are
+removed, an earlier output stays as it was) and the process exits with one line and status 130
+or 143 (128 + the signal's number), from the start of :func:`main` on: the command's imports,
+which take seconds, included. Importing this module takes no more than the standard library
+(typer is loaded inside :func:`main`), so the moment before the handlers are in place is the
+interpreter's own start-up.
 
 Start-up: the command modules import the stages they call at their top, so the app imports
 only the module of the command it runs (:data:`COMMANDS`, :func:`app_for`); the listings
@@ -18,12 +22,12 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import typer
-
-from starsense.cli.listing import group_listing, listing_app
 from starsense.errors import StarsenseError
+
+if TYPE_CHECKING:
+    import typer
 
 #: the commands, in the order of ``starsense --help``: name -> (module, attribute), where the
 #: attribute is a command function or a :class:`typer.Typer` group. A module is imported only when
@@ -59,8 +63,13 @@ def _group() -> None:
     pass  # the app is a group with its commands under it (the callback has no options)
 
 
+def _typer():
+    """Return the typer module, loaded on first use (after main's signal handlers are set)."""
+    return importlib.import_module("typer")
+
+
 def _empty_app() -> typer.Typer:
-    app = typer.Typer(
+    app = _typer().Typer(
         name="starsense",
         help=HELP,
         no_args_is_help=True,
@@ -109,7 +118,7 @@ def build_app(command: str | None = None, subcommand: str | None = None) -> type
     selected = command in COMMANDS
     for name in [command] if selected else list(COMMANDS):
         target = _load(COMMANDS[name])
-        if isinstance(target, typer.Typer):
+        if isinstance(target, _typer().Typer):
             _add_subcommands(target, name, subcommand if selected else None)
             app.add_typer(target, name=name)
         else:
@@ -134,6 +143,8 @@ def app_for(args: list[str]) -> typer.Typer:
     -------
     typer.Typer
     """
+    listing = importlib.import_module("starsense.cli.listing")
+    group_listing, listing_app = listing.group_listing, listing.listing_app
     command = args[0] if args else None
     if command not in COMMANDS:
         listed = listing_app(_empty_app(), COMMANDS, SUBCOMMANDS)
@@ -160,26 +171,47 @@ class Terminated(BaseException):
     """SIGTERM arrived: unwind like KeyboardInterrupt (a BaseException, so no handler eats it)."""
 
 
+class Interrupted(BaseException):
+    """Ctrl-C (SIGINT) arrived: unwind, and exit 130 with one line.
+
+    Not :class:`KeyboardInterrupt`, which typer turns into "Aborted!" and status 1, and which
+    Python prints as a traceback where nothing catches it.
+    """
+
+
 #: exit status after SIGTERM (the shell's 128 + signal number)
 EXIT_TERMINATED = 128 + signal.SIGTERM
+#: exit status after Ctrl-C (SIGINT)
+EXIT_INTERRUPTED = 128 + signal.SIGINT
+
+_UNWIND = {signal.SIGINT: Interrupted, signal.SIGTERM: Terminated}
 
 
-def _on_sigterm(signum: int, frame: object) -> None:
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # a second TERM must not cut the cleanup short
-    raise Terminated
+def _on_signal(signum: int, frame: object) -> None:
+    for s in _UNWIND:  # a second signal must not cut the cleanup short
+        signal.signal(s, signal.SIG_IGN)
+    raise _UNWIND[signum]
 
 
 @contextlib.contextmanager
-def _sigterm_unwinds() -> Iterator[None]:
-    """Turn SIGTERM into :class:`Terminated` while the command runs (main thread only)."""
+def _signals_unwind() -> Iterator[None]:
+    """Turn SIGINT and SIGTERM into :class:`Interrupted` and :class:`Terminated` while the
+    command runs (main thread only)."""  # noqa: D205, D209
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.signal(signal.SIGTERM, _on_sigterm)
+    old = {s: signal.signal(s, _on_signal) for s in _UNWIND}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, old)
+        for s, handler in old.items():
+            signal.signal(s, handler)
+
+
+def _say(line: str) -> None:
+    """Print one line on stderr (typer may not be loaded: a signal during the imports)."""
+    with contextlib.suppress(OSError, ValueError):  # a closed or broken stderr
+        print(line, file=sys.stderr, flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -187,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
 
     User errors (:class:`~starsense.errors.StarsenseError`, a missing file) become one line on
     stderr and status 2. Usage errors (unknown option, bad type) are reported by typer itself,
-    also with status 2.
+    also with status 2. Ctrl-C and SIGTERM, from here on (the command's imports included),
+    unwind the command and give one line and status 130 or 143.
 
     Parameters
     ----------
@@ -198,24 +231,27 @@ def main(argv: list[str] | None = None) -> int:
     -------
     int
         0 on success, 1 for a negative answer (a frame that does not solve), 2 for bad input,
-        143 after SIGTERM.
+        130 after Ctrl-C, 143 after SIGTERM.
     """
     args = sys.argv[1:] if argv is None else list(argv)
     try:
-        with _sigterm_unwinds():
+        with _signals_unwind():
             app = app_for(args)
             app(args=args, prog_name="starsense")  # standalone mode: ends with SystemExit
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except StarsenseError as exc:
-        typer.echo(f"error: {exc}", err=True)
+        _say(f"error: {exc}")
         return 2
     except FileNotFoundError as exc:
-        typer.echo(f"error: file not found: {exc.filename}", err=True)
+        _say(f"error: file not found: {exc.filename}")
         return 2
     except Terminated:
-        typer.echo("error: terminated (SIGTERM); nothing written", err=True)
+        _say("error: terminated (SIGTERM); nothing written")
         return EXIT_TERMINATED
+    except Interrupted:
+        _say("error: interrupted (Ctrl-C); nothing written")
+        return EXIT_INTERRUPTED
     return 0
 
 

@@ -37,6 +37,7 @@ from starsense.cli.availability_options import (
     TrialsOpt,
     as_options,
     check_count,
+    check_maps,
     check_max_mag,
     check_n_min,
     check_rates_deg_s,
@@ -172,6 +173,7 @@ def static(
     Dask (--dask), with the same kernels and results as in memory.
     """
     check_n_min(n_min)
+    check_maps(maps, ["static_stars_in_field.png", "static_sparse.png"])
     if check_dask_option(catalog, dask):
         res, sens = _static_hats(
             sensor,
@@ -264,6 +266,7 @@ def dynamic(
     rates = check_rates_deg_s(parse_floats(rates_deg_s, "--rates-deg-s"), "--rates-deg-s")
     check_n_min(n_min)
     check_max_mag(max_mag)
+    check_maps(maps, [f"dynamic_{w:g}degs.png" for w in rates / DEG])
     with progress_bar() as progress:
         curve, sens, analysis = _curve_and_analysis(
             sensor,
@@ -339,6 +342,7 @@ def track(
     """Along-track dynamic availability of great circles inclined -90 ... 90 deg (Table 2)."""
     rate = float(check_rates_deg_s([rate_deg_s], "--rate-deg-s")[0])
     check_n_min(n_min)
+    check_maps(maps, [f"track_{rate / DEG:g}degs.png"])
     check_count(
         track_samples, "samples per track", "--track-samples", MAX_ORIENTATIONS, ORIENTATION_COST
     )

@@ -19,6 +19,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._io import check_outputs_in
 from starsense._validate import check_count as _check_count
 from starsense._validate import finite_float
 from starsense.analysis.availability import (
@@ -417,6 +418,12 @@ def threshold_curve_option(
         tolerance_json=tolerance_json,
         progress=progress,
     )[0]
+
+
+def check_maps(maps: Path | None, names: list[str]) -> None:
+    """Check the files ``--maps`` will get (new or regular files) before the work starts."""
+    if maps is not None:
+        check_outputs_in(maps, names, "--maps")
 
 
 def maps_dir(maps: Path) -> Path:

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from starsense._io import atomic_write
+from starsense._io import atomic_write, check_output
 from starsense.catalog import load_catalog
 from starsense.cli.common import CatalogOpt, JsonOpt, SensorOpt, emit
 from starsense.errors import InputError
@@ -58,6 +58,7 @@ def calibrate(
         raise InputError(f"--out must be a .toml file, got {str(out)!r}")
     if not out.parent.is_dir():
         raise InputError(f"--out: directory {str(out.parent)!r} not found")
+    check_output(out, "--out")  # a new or regular file, before the frames are solved
     when = None if time is None else parse_time(time, "--time")
     solver = FrameSolver(load_sensor(sensor), catalog=load_catalog(catalog))
     cat = solver.catalog

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from starsense._io import atomic_write, check_output, json_text
+from starsense._io import atomic_write, check_output, check_outputs_in, json_text
 from starsense._validate import check_count
 from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
 from starsense.analysis.centroid_trials import centroid_trials
@@ -152,15 +152,19 @@ def safe_stem(name: str, taken: set[str] | None = None) -> str:
     return out
 
 
+#: the files ``--out`` gets per sensor: ``{stem}_datasheet.json`` and its NEA sky map
+_OUT_FILES = ("datasheet.json", "nea_sky.png")
+
+
 def _write_out(out: Path, sheet, payload: dict, stem: str) -> list[str]:
     """Write ``{stem}_datasheet.json`` and the NEA sky map into ``out``; return the paths."""
     out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{stem}_datasheet.json"
+    path = out / f"{stem}_{_OUT_FILES[0]}"
     with atomic_write(path) as fh:
         fh.write(json_text(payload, indent=1))
     written = [str(path)]
     if sheet.boresights is not None:
-        written.append(str(save_png(nea_sky_figure(sheet), out / f"{stem}_nea_sky.png")))
+        written.append(str(save_png(nea_sky_figure(sheet), out / f"{stem}_{_OUT_FILES[1]}")))
     return written
 
 
@@ -235,6 +239,10 @@ def datasheet(
     # --sensor with --compare is one more sensor of the comparison, first (never dropped)
     names = [n for n in (sensor, *(compare or ())) if n is not None] or ["st16"]
     sensors = [load_sensor(n) for n in names]
+    if out is not None and not centroids_only:  # the files in it, named by the sensors
+        taken: set[str] = set()
+        stems = [safe_stem(s.name, taken) for s in sensors]
+        check_outputs_in(out, [f"{t}_{end}" for t in stems for end in _OUT_FILES], "--out")
     cat = load_catalog(catalog)
     if centroids_only:
         _centroids_only(sensors, cat, trials=trials, model=model, seed=seed, dask=dask, js=as_json)

@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from starsense._io import check_output
 from starsense._validate import check_count
 from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.analysis.montecarlo import run_montecarlo
@@ -81,6 +82,8 @@ def render(
     ] = None,
 ) -> None:
     """Render a frame (with its truth as JSON beside it) for an attitude and body rate."""
+    if sequence is None:  # the truth beside the frame, before the work (a sequence: its paths)
+        check_output(out.with_name(out.name + ".json"), "--out")
     option_float(ra_deg, "--ra-deg", -360.0, 360.0)
     option_float(dec_deg, "--dec-deg", -90.0, 90.0)
     option_float(roll_deg, "--roll-deg", -360.0, 360.0)

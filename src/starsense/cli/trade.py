@@ -16,7 +16,7 @@ from typing import Annotated
 
 import typer
 
-from starsense._io import atomic_write, json_text
+from starsense._io import atomic_write, check_outputs_in, json_text
 from starsense._validate import check_count
 from starsense.analysis.datasheet.compare import ROW_KEYS, format_value
 from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
@@ -41,7 +41,7 @@ from starsense.cli.common import (
 )
 from starsense.errors import InputError
 from starsense.plotting.figure import save_png
-from starsense.plotting.trade import trade_figures
+from starsense.plotting.trade import FIGURE_STEMS, trade_figures
 from starsense.scale.cluster import dask_client
 from starsense.units import DEG
 
@@ -126,10 +126,16 @@ def _client(address: str | None):
     return dask_client(address)
 
 
+#: the tables ``--out`` gets (the figures follow, ``trade_{stem}.png``)
+_TABLES = ("trade.jsonl", "trade.csv")
+#: every file ``--out`` gets, checked before the work
+_OUT_FILES = (*_TABLES, *(f"trade_{stem}.png" for stem in FIGURE_STEMS))
+
+
 def _write_out(out: Path, study) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, text in (("trade.jsonl", _jsonl(study)), ("trade.csv", _csv_text(study))):
+    for name, text in zip(_TABLES, (_jsonl(study), _csv_text(study)), strict=True):
         with atomic_write(out / name) as fh:
             fh.write(text)
         paths.append(out / name)
@@ -192,6 +198,8 @@ def trade(
     option_int(workers, "--workers", 1, 64)
     if verify not in ("all", "pareto"):
         raise InputError(f"--verify = {verify!r}: must be all or pareto")
+    if out is not None:  # the files in the folder: new or regular files, before the work
+        check_outputs_in(out, _OUT_FILES, "--out")
     base = base_document(sensor)
     grid = [parse_vary(v) for v in vary]
     cap = MAX_DESIGNS_IN_PROCESS if dask is None else MAX_DESIGNS_ON_CLUSTER

@@ -12,7 +12,10 @@ from matplotlib.figure import Figure
 from starsense.analysis.trade.study import PARETO, TradeStudy
 from starsense.plotting.figure import figure_and_axes
 
-__all__ = ["front_figure", "row_figure", "trade_figures"]
+__all__ = ["FIGURE_STEMS", "front_figure", "row_figure", "trade_figures"]
+
+#: the file stems of :func:`trade_figures`, in order: each Pareto front, then two rows
+FIGURE_STEMS = (*(f"pareto_{name}" for name in PARETO), "nea_cross", "fastest_99")
 
 _LABELS = {
     "nea_cross": "NEA cross-boresight, sky median (arcsec)",

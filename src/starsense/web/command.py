@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import importlib
 import threading
 import webbrowser
@@ -12,7 +13,13 @@ import typer
 from starsense.cli.common import option_int
 from starsense.errors import InputError
 
-__all__ = ["design"]
+__all__ = ["HOST", "STOP_GRACE_S", "design"]
+
+#: the address the page listens on: this machine only
+HOST = "127.0.0.1"
+#: how long a stopping server (SIGTERM, Ctrl-C) lets requests in progress finish, s; then they
+#: are cancelled (a prediction in progress is not waited for, see starsense.web.app)
+STOP_GRACE_S = 0.5
 
 
 def design(
@@ -24,12 +31,21 @@ def design(
     catalog: Annotated[
         str, typer.Option("--catalog", help="Catalogue (default: bundled Hipparcos).")
     ] = "hipparcos",
+    n_orientations: Annotated[
+        int,
+        typer.Option("--n-orientations", help="Boresights of the predictions' sky statistics."),
+    ] = 2000,
+    slew_trials: Annotated[
+        int, typer.Option("--slew-trials", help="Renders per point of the slew tolerance.")
+    ] = 20,
     open_browser: Annotated[
         bool, typer.Option("--open/--no-open", help="Open the page in the browser.")
     ] = True,
 ) -> None:
     """Edit a sensor in the browser and see its datasheet's predictions update live."""
     option_int(port, "--port", 1, 65535)
+    option_int(n_orientations, "--n-orientations", 1, 100_000)
+    option_int(slew_trials, "--slew-trials", 1, 1000)
     try:
         uvicorn = importlib.import_module("uvicorn")
         create_app = importlib.import_module("starsense.web.app").create_app
@@ -38,9 +54,26 @@ def design(
             f"the design page needs the web extra ({exc.name} is missing): "
             "pip install 'starsense[web]'"
         ) from None
-    app = create_app(sensor, catalog)
-    url = f"http://127.0.0.1:{port}/"
+    app = create_app(
+        sensor,
+        catalog,
+        host=HOST,
+        port=port,
+        n_orientations=n_orientations,
+        n_slew_trials=slew_trials,
+    )
+    url = f"http://{HOST}:{port}/"
     typer.echo(f"starsense design: {url} (Ctrl-C to stop)")
     if open_browser:
-        threading.Timer(1.0, webbrowser.open, args=(url,)).start()
-    uvicorn.run(app, host="127.0.0.1", port=port, log_level="warning")
+        opener = threading.Timer(1.0, webbrowser.open, args=(url,))
+        opener.daemon = True  # a server stopped at once does not wait for it
+        opener.start()
+    config = uvicorn.Config(
+        app, host=HOST, port=port, log_level="warning", timeout_graceful_shutdown=STOP_GRACE_S
+    )
+    try:
+        uvicorn.Server(config).run()  # SIGTERM: raised again once it has stopped
+    finally:
+        # the process ends now: spare its exit a garbage collection of the whole heap (over a
+        # second with the catalogue and the prediction's modules loaded)
+        gc.freeze()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+from starsense.web.jobs import MAX_FRAMES
+
 __all__ = ["FIELDS", "page_html"]
 
 #: section ("" = top level) -> (TOML key, label, input step)
@@ -205,7 +207,8 @@ def page_html() -> str:
 <button id="json" onclick="download('/api/datasheet', 'datasheet.json')">download datasheet
 JSON</button></p>
 <p><button id="verify-btn" onclick="verify()">verify on rendered frames</button>
-<input id="f-frames" type="number" value="20" step="1" style="width:5em"> frames per rate
+<input id="f-frames" type="number" value="20" min="1" max="{MAX_FRAMES}" step="1"
+ style="width:5em"> frames per rate (at most {MAX_FRAMES})
 <span id="verify"></span></p>
 <img id="figure" alt="slew tolerance" hidden>
 <h2 style="font-size:1.05em">pinned designs</h2><table id="pinned"></table></div></div>

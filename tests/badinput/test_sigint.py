@@ -1,0 +1,103 @@
+"""Ctrl-C (SIGINT) ends a command with one line and status 130: no traceback, nothing left.
+
+Start-up is where Ctrl-C used to print a KeyboardInterrupt traceback: the command's modules
+take seconds to import, before typer (which says "Aborted!", status 1) runs. In-process tests
+send SIGINT to the test process itself at chosen points (while the command's module loads,
+while the report works); a slow test interrupts the real commands from outside at a few
+moments of their start-up.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import starsense.report.build as build
+from starsense.cli import main
+from starsense.cli.app import EXIT_INTERRUPTED
+
+LINE = "error: interrupted (Ctrl-C); nothing written"
+#: the module (``starsense.cli.app`` as an attribute is the app, by the package's __getattr__)
+cli_app = importlib.import_module("starsense.cli.app")
+
+#: the commands of the issue, each writing into the folder {out}
+COMMANDS = {
+    "datasheet": ["datasheet", "--trials", "2", "--out", "{out}"],
+    "trade": ["trade", "--vary", "exposure_s=0.1,0.2", "--out", "{out}"],
+    "report": ["report", "--out", "{out}"],
+}
+
+
+def _interrupt(*args, **kwargs):
+    os.kill(os.getpid(), signal.SIGINT)
+    raise AssertionError("SIGINT did not interrupt")  # pragma: no cover
+
+
+def _argv(name: str, out: Path) -> list[str]:
+    return [a.format(out=out) for a in COMMANDS[name]]
+
+
+@pytest.mark.parametrize("name", COMMANDS)
+def test_ctrl_c_while_the_command_loads(name, tmp_path, monkeypatch, capsys):
+    # the command's module is being imported (what takes seconds at start-up)
+    monkeypatch.setattr(cli_app, "_load", _interrupt)
+    code = main(_argv(name, tmp_path / "out"))
+    err = capsys.readouterr().err
+    assert code == EXIT_INTERRUPTED == 130
+    assert err.strip() == LINE  # one line, no traceback
+    assert list(tmp_path.iterdir()) == []
+    # the handlers are given back: the test process's Ctrl-C is Python's again
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_ctrl_c_while_the_report_loads_its_stars(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "report.json").write_text(json.dumps({"generator": "starsense.report"}))
+    (out / "index.html").write_text("old report")
+    monkeypatch.setattr(build, "_load_stars", _interrupt)
+    code = main(["report", "--out", str(out)])
+    assert code == 130 and capsys.readouterr().err.strip() == LINE
+    assert (out / "index.html").read_text() == "old report"  # the earlier report stands
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]  # no temporary left
+
+
+def test_a_second_ctrl_c_does_not_cut_the_cleanup_short(tmp_path, monkeypatch, capsys):
+    # Ctrl-C pressed again while the command unwinds is ignored until main returns
+    def twice(*args, **kwargs):
+        try:
+            _interrupt()
+        finally:
+            os.kill(os.getpid(), signal.SIGINT)  # during the unwinding: ignored
+
+    monkeypatch.setattr(cli_app, "_load", twice)
+    assert main(_argv("trade", tmp_path / "out")) == 130
+    assert capsys.readouterr().err.strip() == LINE
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", COMMANDS)
+def test_ctrl_c_during_the_real_start_up(name, tmp_path):
+    # the real command, Ctrl-C at a few moments of its start-up: exit 130, one line, nothing
+    # written (the --out folder not made), no traceback
+    cmd = [sys.executable, "-c", "from starsense.cli import console_main; console_main()"]
+    for delay in (0.3, 0.8, 1.5):
+        out = tmp_path / f"out{delay}"
+        proc = subprocess.Popen(
+            [*cmd, *_argv(name, out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+        text = err.decode()
+        assert proc.returncode == 130, (delay, proc.returncode, text)
+        assert "Traceback" not in text and text.strip().splitlines()[-1] == LINE, text
+        assert list(tmp_path.iterdir()) == [], (delay, list(tmp_path.iterdir()))
