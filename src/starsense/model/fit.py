@@ -93,6 +93,10 @@ class ModelFit:
     converged : bool
     psf_sigma_px : float
         The PSF's width at the fit (the given one unless fitted), px.
+    robust_covariance : ndarray, shape (P, P)
+        The sandwich ``S^-1 M S^-1``, ``M`` the sum over the groups of the outer products of
+        their scores (nuisances eliminated): what the pixels' own scatter says, whatever the
+        model's noise (its expectation is ``covariance`` when the model is right).
     """
 
     rotation: Rotation
@@ -105,6 +109,7 @@ class ModelFit:
     iterations: int
     converged: bool
     psf_sigma_px: float = 0.0
+    robust_covariance: np.ndarray | None = None
 
     @property
     def sigma_axes_rad(self) -> np.ndarray:
@@ -147,8 +152,8 @@ def _normal_equations(lin, jac, weight, resid):
     a_inv_b = np.linalg.solve(a, b)
     a_inv_u = np.linalg.solve(a, u[..., None])[..., 0]
     s = (c - np.einsum("gmp,gmq->gpq", b, a_inv_b)).sum(axis=0)
-    grad = (v - np.einsum("gmp,gm->gp", b, a_inv_u)).sum(axis=0)
-    return s, grad, a_inv_b, a_inv_u
+    scores = v - np.einsum("gmp,gm->gp", b, a_inv_u)  # each group's, nuisances eliminated
+    return s, scores, a_inv_b, a_inv_u
 
 
 @dataclass
@@ -276,12 +281,12 @@ def fit_windows(
     else:  # the fluxes first, at the starting geometry
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
         lin_values = lin_values + _normal_equations(lin, jac, weight, pb.data - mu)[3]
-    converged, it, s = False, 0, np.eye(3)
+    converged, it, s, scores = False, 0, np.eye(3), np.zeros((1, 3))
     for it in range(1, MAX_ITERATIONS + 1):
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
         weight = pb.use / pixel_variance(det, mu, te)
-        s, grad, a_inv_b, a_inv_u = _normal_equations(lin, jac, weight, pb.data - mu)
-        step = np.linalg.solve(s, grad)
+        s, scores, a_inv_b, a_inv_u = _normal_equations(lin, jac, weight, pb.data - mu)
+        step = np.linalg.solve(s, scores.sum(axis=0))
         lin_values = lin_values + a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step)
         rotation = Rotation.from_rotvec(step[:3]) * rotation
         if fit_rate:
@@ -305,10 +310,12 @@ def fit_windows(
     out = np.full(len(v_free), np.nan)
     fr = pb.free
     out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
+    cov = np.linalg.inv(s)
     return ModelFit(
         rotation=rotation,
         rate_rad_s=rate,
-        covariance=np.linalg.inv(s),
+        covariance=cov,
+        robust_covariance=cov @ (scores.T @ scores) @ cov,
         fluxes_e=out,
         chi2=float((weight * resid * resid).sum()),
         dof=n_pix - jac.shape[1] - int((lin.any(axis=2)).sum()),

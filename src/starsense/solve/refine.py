@@ -18,8 +18,10 @@ background are free, and the catalogue stars whose light reaches a window are in
 The solution's covariance is the inverse Fisher information at the fit (the Cramer-Rao bound of
 the model), which the datasheet predicts. Where the pixels scatter more than the model allows
 (a reduced chi-square above :data:`SCALED_CHI2`: a lens's PSF a little off the TOML's, a camera
-whose gain or read noise differ from the sensor's), the covariance is scaled by the reduced
-chi-square and the note says so; above :data:`MAX_REDUCED_CHI2` the model does not describe the
+whose gain or read noise differ from the sensor's), each axis's variance is raised to what the
+pixels' own scatter gives (the sandwich of the groups' scores: a profile error symmetric about
+the stars, which does not move them, does not raise it) and the note says so; above
+:data:`MAX_REDUCED_CHI2` the model does not describe the
 frame and the model-free centroids' attitude is kept (the fit stops a step past its start).
 A fit that does not converge, or that moves the attitude further than :data:`MAX_MOVE_SIGMAS`
 of the two solutions' sigmas from the centroid attitude, keeps the centroid attitude and says
@@ -227,6 +229,15 @@ def _reach_px(sensor, rate) -> float:
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
+def _robust(fit: ModelFit) -> np.ndarray:
+    """Return the sandwich covariance, each axis at least the Fisher bound's."""
+    cov, rob = fit.covariance, fit.robust_covariance
+    if rob is None or not np.all(np.isfinite(rob)):
+        return cov * fit.reduced_chi2
+    scale = np.sqrt(np.maximum(np.diag(rob) / np.diag(cov), 1.0))
+    return cov * np.outer(scale, scale)
+
+
 def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
     """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not."""
     if fit.reduced_chi2 > MAX_REDUCED_CHI2 or not math.isfinite(fit.reduced_chi2):
@@ -240,10 +251,10 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refin
         return Refinement(fit, False, "model fit not used: singular information", n_nbr)
     note = f"model fit ({fit.n_pixels} px, {n_nbr} neighbours)"
     if fit.reduced_chi2 > SCALED_CHI2:  # the pixels scatter more than the model says
-        fit = dataclasses.replace(fit, covariance=fit.covariance * fit.reduced_chi2)
+        fit = dataclasses.replace(fit, covariance=_robust(fit))
         note += (
-            f"; sigmas scaled by the reduced chi-square {fit.reduced_chi2:.3g}: the pixels "
-            "scatter more than the sensor's PSF and noise model allow"
+            f"; sigmas from the pixels' own scatter (reduced chi-square {fit.reduced_chi2:.3g}: "
+            "they scatter more than the sensor's PSF and noise model allow)"
         )
     from starsense.geometry.attitude import small_rotation_angles  # noqa: PLC0415
 
