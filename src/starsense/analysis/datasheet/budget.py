@@ -165,7 +165,9 @@ def error_budget(
             _sky_row(
                 "confusion (fainter catalogue stars inside the centroid window)",
                 errors["confusion"],
-                "modelled (the catalogue's star counts), rendered in the frames",
+                "none left: the fit draws the frames' catalogue stars in its windows"
+                if refine == "model"
+                else "modelled (the catalogue's star counts), rendered in the frames",
             )
         )
     if "catalogue" in errors:
