@@ -1,19 +1,25 @@
 """The expected pixels of groups of stars, and their Jacobian.
 
-Each modelled star is given a box around its track (its nodes' extent padded by ``half_px``);
-stars whose boxes overlap share a *group*, whose pixel grid is the union of their boxes (padded
-to one shape for all groups, so that the fit works on arrays). In a group's pixel ``j``::
+Each modelled star is given a box around its track (its nodes' extent padded by ``half_px``).
+Free stars (their fluxes fitted) whose boxes overlap share a *group* when the union of their
+boxes stays compact (a blend at rest: its stars' fluxes are fitted together); stars whose
+overlapping boxes would make a large group (long crossing streaks) keep groups of their own.
+Every pixel belongs to one group at most: the group of the free star whose track is nearest
+(so that no pixel counts twice), within the group's box. Each group's grid is padded to one
+shape for all groups, so that the fit works on arrays. In a group's pixel ``j``::
 
     mu_j = b_g + sum_s F_s T_s(j),   T_s(j) = sum_k w_k P(x_j - x_sk, y_j - y_sk)
 
-``P`` the pixel-integrated PSF (:mod:`starsense.model.psf`), ``(x_sk, y_sk)`` the star's
-position at time node ``k`` (:mod:`starsense.model.tracks`), ``F_s`` its electrons, ``b_g`` the
-group's background per pixel. The derivatives: ``d mu / d F_s = T_s``, ``d mu / d b_g = 1`` and
+summed over every source whose box reaches the group's: ``P`` the pixel-integrated PSF
+(:mod:`starsense.model.psf`), ``(x_sk, y_sk)`` the star's position at time node ``k``
+(:mod:`starsense.model.tracks`), ``F_s`` its electrons, ``b_g`` the group's background per
+pixel. The derivatives: ``d mu / d F_s = T_s``, ``d mu / d b_g = 1`` and
 ``d mu / d p = sum_s F_s sum_k w_k (-dP/ddx dx_sk/dp - dP/ddy dy_sk/dp)`` for the geometric
 parameters ``p`` (attitude, rate).
 
-Stars with a *free* flux are fitted; a *fixed* star (a faint catalogue neighbour) adds its
-light at a given flux and moves with the attitude, but is not fitted.
+A group fits the fluxes of its own free stars; another group's star whose light reaches it, and
+a *fixed* star (a faint catalogue neighbour), add their light at a given flux (the other
+group's current fit) and move with the attitude.
 """
 
 from __future__ import annotations
@@ -31,8 +37,8 @@ from starsense.model.tracks import NodePositions
 __all__ = ["MAX_WINDOW_PIXELS", "Evaluation", "Windows", "evaluate", "make_windows"]
 
 #: most pixels the groups of one frame may hold (padded): the fit holds ~(slots + parameters)
-#: arrays of this size, ~100 MB at 400,000
-MAX_WINDOW_PIXELS = 400_000
+#: arrays of this size, ~8 MB each at 1,000,000
+MAX_WINDOW_PIXELS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -46,15 +52,19 @@ class Windows:
     shape : (int, int)
         The grids' (padded) rows and columns.
     on : ndarray of bool, shape (G, H, W)
-        Pixels of the group that lie on the detector (padding and off-detector pixels are not).
+        The group's pixels: on the detector, in its box, nearer its own free stars' tracks
+        than any other group's (padding and other pixels are not).
     group : ndarray of int, shape (S,)
-        Each source's group.
+        Each free source's own group (-1 for a fixed one).
     slot : ndarray of int, shape (S,)
         Each free source's place among its group's fitted fluxes (-1 for a fixed one).
     n_slots : int
         Most free sources in a group.
-    box : ndarray of int, shape (S, 4)
-        Each source's box in its group's grid: row0, row1, col0, col1.
+    pair_source, pair_group, pair_slot : ndarray of int, shape (Q,)
+        Every source drawn in every group its box reaches: the source, the group, and its slot
+        there (-1 where its flux is given, not fitted there).
+    pair_box : ndarray of int, shape (Q, 4)
+        The part of the source's box inside the group's grid: row0, row1, col0, col1 (local).
     """
 
     row0: np.ndarray
@@ -64,7 +74,10 @@ class Windows:
     group: np.ndarray
     slot: np.ndarray
     n_slots: int
-    box: np.ndarray
+    pair_source: np.ndarray
+    pair_group: np.ndarray
+    pair_slot: np.ndarray
+    pair_box: np.ndarray
 
     @property
     def n_groups(self) -> int:
@@ -73,8 +86,8 @@ class Windows:
 
     @functools.cached_property
     def size_classes(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The sources' box sizes (rows, columns) and, for each, the sources of that size."""
-        b = self.box
+        """The pairs' box sizes (rows, columns) and, for each, the pairs of that size."""
+        b = self.pair_box
         sizes = np.column_stack([b[:, 1] - b[:, 0], b[:, 3] - b[:, 2]])
         return [(z, np.flatnonzero((sizes == z).all(axis=1))) for z in np.unique(sizes, axis=0)]
 
@@ -88,13 +101,15 @@ def _boxes(x, y, half_px: float) -> np.ndarray:
     return np.column_stack([r0, r1, c0, c1])
 
 
-def _merge(boxes: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Group index of each box: free boxes that overlap (transitively) share one.
+def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
+    """Return each free box's group (-1 for fixed ones).
 
-    A fixed source joins the group of the first free box it overlaps (-1: none).
+    Overlapping free boxes share a group while the union of the group's boxes stays within
+    ``max_side`` px a side.
     """
     n = len(boxes)
     parent = np.arange(n)
+    ext = boxes.copy()  # each root's union box
 
     def root(i):
         while parent[i] != i:
@@ -102,27 +117,49 @@ def _merge(boxes: np.ndarray, free: np.ndarray) -> np.ndarray:
             i = parent[i]
         return i
 
-    def overlap(a, b):
-        return a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]
-
     idx = np.flatnonzero(free)
     order = idx[np.argsort(boxes[idx, 2])]  # sweep along the columns
     for i_pos, i in enumerate(order):
         for j in order[i_pos + 1 :]:
             if boxes[j, 2] >= boxes[i, 3]:
                 break
-            if overlap(boxes[i], boxes[j]):
-                parent[root(j)] = root(i)
+            a, b = boxes[i], boxes[j]
+            if not (a[0] < b[1] and b[0] < a[1]):
+                continue
+            ri, rj = root(i), root(j)
+            if ri == rj:
+                continue
+            u = np.r_[min(ext[ri, 0], ext[rj, 0]), max(ext[ri, 1], ext[rj, 1]),
+                      min(ext[ri, 2], ext[rj, 2]), max(ext[ri, 3], ext[rj, 3])]  # fmt: skip
+            if u[1] - u[0] <= max_side and u[3] - u[2] <= max_side:
+                parent[rj] = ri
+                ext[ri] = u
     group = np.full(n, -1)
     roots = {r: g for g, r in enumerate(sorted({root(i) for i in idx}))}
     for i in idx:
         group[i] = roots[root(i)]
-    for i in np.flatnonzero(~free):
-        for j in idx:
-            if overlap(boxes[i], boxes[j]):
-                group[i] = group[j]
-                break
     return group
+
+
+def _nearest_mask(windows_shape, g_r0, g_c0, group, x, y, hit, on):
+    """Keep in each group the pixels nearer its own free tracks than another group's.
+
+    ``hit`` (S, G): which groups each source's box reaches (only there it competes).
+    """
+    g_n, (h, w) = len(g_r0), windows_shape
+    best = np.full((g_n, h, w), np.inf)
+    own = np.full((g_n, h, w), np.inf)
+    for s in np.flatnonzero(group >= 0):  # each free track's distance over the grids it reaches
+        gs = np.flatnonzero(hit[s])
+        rows = g_r0[gs, None] + np.arange(h)
+        cols = g_c0[gs, None] + np.arange(w)
+        dy2 = (rows[:, :, None] - y[s][None, None, :]) ** 2  # (g, h, K)
+        dx2 = (cols[:, :, None] - x[s][None, None, :]) ** 2  # (g, w, K)
+        d2 = np.min(dy2[:, :, None, :] + dx2[:, None, :, :], axis=-1)
+        best[gs] = np.minimum(best[gs], d2)
+        mine = gs == group[s]
+        own[group[s]] = np.minimum(own[group[s]], d2[mine][0])
+    return on & (own <= best)
 
 
 def make_windows(
@@ -150,37 +187,53 @@ def make_windows(
     """
     free = np.asarray(free, bool)
     boxes = _boxes(x, y, half_px)
-    group = _merge(boxes, free)
-    kept = np.flatnonzero(group >= 0)
-    boxes, group, free = boxes[kept], group[kept], free[kept]
-    n_groups = int(group.max()) + 1 if len(group) else 0
+    side = 2 * (2 * math.ceil(half_px) + 1)  # a compact blend: two stars' boxes a side
+    group = _merge(boxes, free, side)
+    n_groups = int(group.max()) + 1 if np.any(free) else 0
     big = np.iinfo(np.int64).max
-    g_r0, g_c0 = np.full(n_groups, big), np.full(n_groups, big)
-    g_r1, g_c1 = np.full(n_groups, -big), np.full(n_groups, -big)
-    np.minimum.at(g_r0, group, boxes[:, 0])
-    np.maximum.at(g_r1, group, boxes[:, 1])
-    np.minimum.at(g_c0, group, boxes[:, 2])
-    np.maximum.at(g_c1, group, boxes[:, 3])
-    h = int((g_r1 - g_r0).max()) if n_groups else 0
-    w = int((g_c1 - g_c0).max()) if n_groups else 0
+    gb = np.column_stack([np.full(n_groups, big), np.full(n_groups, -big)] * 2)
+    fr = np.flatnonzero(free)
+    np.minimum.at(gb[:, 0], group[fr], boxes[fr, 0])
+    np.maximum.at(gb[:, 1], group[fr], boxes[fr, 1])
+    np.minimum.at(gb[:, 2], group[fr], boxes[fr, 2])
+    np.maximum.at(gb[:, 3], group[fr], boxes[fr, 3])
+    # every source drawn in every group its box reaches
+    hit = (
+        (boxes[:, None, 0] < gb[None, :, 1]) & (gb[None, :, 0] < boxes[:, None, 1])
+        & (boxes[:, None, 2] < gb[None, :, 3]) & (gb[None, :, 2] < boxes[:, None, 3])
+    )  # fmt: skip
+    kept = np.flatnonzero(hit.any(axis=1) | free)
+    boxes, group, free, hit = boxes[kept], group[kept], free[kept], hit[kept]
+    x, y = np.asarray(x)[kept], np.asarray(y)[kept]
+    h = int((gb[:, 1] - gb[:, 0]).max()) if n_groups else 0
+    w = int((gb[:, 3] - gb[:, 2]).max()) if n_groups else 0
     if n_groups * h * w > MAX_WINDOW_PIXELS:
         raise InputError(
             f"the stars' windows span {n_groups} x {h} x {w} pixels, more than the "
             f"{MAX_WINDOW_PIXELS:,} a fit may hold"
         )
-    rows = g_r0[:, None] + np.arange(h)[None, :]
-    cols = g_c0[:, None] + np.arange(w)[None, :]
-    inside = (rows < g_r1[:, None])[:, :, None] & (cols < g_c1[:, None])[:, None, :]
-    on_det = ((rows >= 0) & (rows < shape[0]))[:, :, None] & ((cols >= 0) & (cols < shape[1]))[
-        :, None, :
-    ]
     slot = np.full(len(kept), -1)
     members = np.flatnonzero(free)
     order = members[np.argsort(group[members], kind="stable")]  # by group, in source order
     first = np.searchsorted(group[order], group[order], side="left")
     slot[order] = np.arange(len(order)) - first
-    local = boxes - np.column_stack([g_r0[group], g_r0[group], g_c0[group], g_c0[group]])
-    windows = Windows(g_r0, g_c0, (h, w), inside & on_det, group, slot, int(slot.max()) + 1, local)
+    p_src, p_grp = np.nonzero(hit)
+    p_slot = np.where(group[p_src] == p_grp, slot[p_src], -1)
+    lo = np.column_stack([gb[p_grp, 0], gb[p_grp, 0], gb[p_grp, 2], gb[p_grp, 2]])
+    p_box = np.column_stack([
+        np.maximum(boxes[p_src, 0], gb[p_grp, 0]), np.minimum(boxes[p_src, 1], gb[p_grp, 1]),
+        np.maximum(boxes[p_src, 2], gb[p_grp, 2]), np.minimum(boxes[p_src, 3], gb[p_grp, 3]),
+    ]) - lo  # fmt: skip
+    g_r0, g_c0 = gb[:, 0], gb[:, 2]
+    rows = g_r0[:, None] + np.arange(h)[None, :]
+    cols = g_c0[:, None] + np.arange(w)[None, :]
+    inside = (rows < gb[:, 1, None])[:, :, None] & (cols < gb[:, 3, None])[:, None, :]
+    on_det = ((rows >= 0) & (rows < shape[0]))[:, :, None] & ((cols >= 0) & (cols < shape[1]))[
+        :, None, :
+    ]
+    on = _nearest_mask((h, w), g_r0, g_c0, group, x, y, hit, inside & on_det)
+    n_slots = int(slot.max()) + 1 if len(slot) else 0
+    windows = Windows(g_r0, g_c0, (h, w), on, group, slot, n_slots, p_src, p_grp, p_slot, p_box)
     return windows, kept
 
 
@@ -289,6 +342,7 @@ def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes, f
     fluxes : ndarray, shape (S,)
         Electrons of each source (those of free sources weight the Jacobian).
     free : ndarray of bool, shape (S,)
+        (Unused: the windows say which group fits which source.)
     gradient : bool
         Compute the Jacobian.
     width : bool
@@ -300,27 +354,29 @@ def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes, f
     templates = np.zeros(g_n * m * h * w)
     fixed = np.zeros(g_n * h * w)
     jac = np.zeros(g_n * n_par * h * w) if gradient else None
-    box = windows.box
     fluxes = np.asarray(fluxes, dtype=float)
-    for size, idx in windows.size_classes:  # sources of one box size at a time, batched
-        g = windows.group[idx]
-        rows = (windows.row0[g] + box[idx, 0])[:, None] + np.arange(size[0])[None, :]
-        cols = (windows.col0[g] + box[idx, 2])[:, None] + np.arange(size[1])[None, :]
-        t, d = source_stamps(psf, nodes, idx, rows=rows, cols=cols, gradient=gradient, width=width)
+    for size, q in windows.size_classes:  # pairs of one box size at a time, batched
+        g, src, box = windows.pair_group[q], windows.pair_source[q], windows.pair_box[q]
+        rows = (windows.row0[g] + box[:, 0])[:, None] + np.arange(size[0])[None, :]
+        cols = (windows.col0[g] + box[:, 2])[:, None] + np.arange(size[1])[None, :]
+        t, d = source_stamps(psf, nodes, src, rows=rows, cols=cols, gradient=gradient,
+                             width=width)  # fmt: skip
         # each stamp's pixels as flat indices of its group's (H, W) grid
-        local = (box[idx, 0][:, None, None] + np.arange(size[0])[None, :, None]) * w + (
-            box[idx, 2][:, None, None] + np.arange(size[1])[None, None, :]
+        local = (box[:, 0][:, None, None] + np.arange(size[0])[None, :, None]) * w + (
+            box[:, 2][:, None, None] + np.arange(size[1])[None, None, :]
         )
-        fr = free[idx]
-        slot_of = (g[fr] * m + windows.slot[idx][fr])[:, None, None] * (h * w)
-        templates[(slot_of + local[fr]).ravel()] = t[fr].ravel()
-        if (~fr).any():
-            at = (g[~fr][:, None, None] * (h * w) + local[~fr]).ravel()
-            fixed += np.bincount(at, (fluxes[idx][~fr, None, None] * t[~fr]).ravel(), fixed.size)
+        fit_here = windows.pair_slot[q] >= 0
+        slot_of = (g[fit_here] * m + windows.pair_slot[q][fit_here])[:, None, None] * (h * w)
+        templates[(slot_of + local[fit_here]).ravel()] = t[fit_here].ravel()
+        given = ~fit_here
+        if given.any():
+            at = (g[given][:, None, None] * (h * w) + local[given]).ravel()
+            light = fluxes[src][given, None, None] * t[given]
+            fixed += np.bincount(at, light.ravel(), fixed.size)
         if gradient:
             par = (g[:, None] * n_par + np.arange(n_par)[None, :])[:, :, None, None] * (h * w)
             at = (par + local[:, None]).ravel()
-            jac += np.bincount(at, (fluxes[idx][:, None, None, None] * d).ravel(), jac.size)
+            jac += np.bincount(at, (fluxes[src][:, None, None, None] * d).ravel(), jac.size)
     return Evaluation(
         templates.reshape(g_n, m, h, w),
         fixed.reshape(g_n, h, w),

@@ -40,7 +40,6 @@ import numpy as np
 from starsense.errors import InputError
 from starsense.model.fit import ModelFit, fit_windows, pixel_variance, window_half_px
 from starsense.model.psf import psf_of
-from starsense.solve.blends import streak_body_rate
 
 __all__ = [
     "MAX_MOVE_PX",
@@ -272,7 +271,7 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refin
     return Refinement(fit, True, note, n_nbr)
 
 
-def refined_attitude(image, att, sensor, *, db, ident, places, streaks, sky, points):
+def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, points):
     """Return the solver's attitude refined on the pixels, and a note saying how.
 
     Parameters
@@ -288,8 +287,8 @@ def refined_attitude(image, att, sensor, *, db, ident, places, streaks, sky, poi
         The matches (``catalog_index`` into ``db``).
     places : (ndarray, ndarray)
         The matched stars' catalogue and apparent places (K, 3).
-    streaks : StreakCentroids or None
-        The streaks of a smeared frame (their rate starts the fit's), None at rest.
+    rate_rad_s : ndarray (3,) or None
+        The body rate of a smeared frame (its streaks'), which starts the fit's; None at rest.
     sky : (vectors, mags, tree)
         The catalogue's stars in the band of ``db``.
     points : CentroidPoints
@@ -305,9 +304,7 @@ def refined_attitude(image, att, sensor, *, db, ident, places, streaks, sky, poi
     if points.windows is not None:  # the detections' lit sums, counts
         flux = np.asarray(points.flux, dtype=float)[np.asarray(ident.detection_index)]
         electrons = flux / sensor.detector.gain_counts_per_e
-    rate = None
-    if streaks is not None:  # smeared: the fit starts from the streaks' rate
-        rate = streak_body_rate(sensor, att.rotation.apply(ref), streaks.streaks_px)
+    rate = rate_rad_s
     done = refine_attitude(
         image, sensor, att.rotation, ref=ref, plain=plain,
         mags=np.asarray(db.mags, dtype=float)[index],

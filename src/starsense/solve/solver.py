@@ -29,6 +29,7 @@ from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
+from starsense.solve.blends import streak_body_rate
 from starsense.solve.box_blends import box_fit, window_fields
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import (
@@ -387,7 +388,9 @@ class Solver:
         )
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, keep = robust_attitude(body, ref, sigma * pixel_rad)
+        rate = None  # smeared: the body rate the streaks give (starts the model fit's)
         if streaks is not None:  # smeared: the pairs on their streaks, at their photocentres
+            rate = streak_body_rate(self.sensor, body, streaks.streaks_px)
             att, ident, miss = smeared_fit(
                 (att, keep), (ident, body, ref, sigma, streaks, matched), sensor=self.sensor,
                 pixel_rad=pixel_rad, database=identifier.database, points=points,
@@ -398,8 +401,11 @@ class Solver:
         notes, db = (), identifier.database
         fitted = image is not None and self.settings.refine == "model"
         if fitted:  # the forward model's fit (its neighbours in the model): refine.py
+            if streaks is not None:  # the streaks' fit may have changed the matches
+                places = matched_references(self, db, ident, obs_time=obs_time,
+                                            pixel_rad=pixel_rad)[2]  # fmt: skip
             att, notes = refined_attitude(
-                image, att, self.sensor, db=db, ident=ident, places=places, streaks=streaks,
+                image, att, self.sensor, db=db, ident=ident, places=places, rate_rad_s=rate,
                 sky=(self._sky or self._identifiers).sky(db.params.band), points=points,
             )  # fmt: skip
         fitted = fitted and att.method == "model"
