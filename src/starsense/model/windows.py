@@ -39,6 +39,9 @@ __all__ = ["MAX_WINDOW_PIXELS", "Evaluation", "Windows", "evaluate", "make_windo
 #: most pixels the groups of one frame may hold (padded): the fit holds ~(slots + parameters)
 #: arrays of this size, ~8 MB each at 1,000,000
 MAX_WINDOW_PIXELS = 1_000_000
+#: most PSF evaluations (pixels x time nodes over every source in every group it reaches) of
+#: one evaluation of the model: ~0.5 s of NumPy a step
+MAX_WORK = 2e7
 
 
 @dataclass(frozen=True)
@@ -211,6 +214,13 @@ def make_windows(
         raise InputError(
             f"the stars' windows span {n_groups} x {h} x {w} pixels, more than the "
             f"{MAX_WINDOW_PIXELS:,} a fit may hold"
+        )
+    area = (boxes[:, 1] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 2])
+    work = np.asarray(x).shape[1] * float((hit * area[:, None]).sum())
+    if work > MAX_WORK:
+        raise InputError(
+            f"the stars' tracks and their neighbours' cover {work:.3g} pixel-nodes, more than "
+            f"the {MAX_WORK:.3g} a fit may evaluate (long streaks crossing a crowded field)"
         )
     slot = np.full(len(kept), -1)
     members = np.flatnonzero(free)

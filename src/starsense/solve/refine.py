@@ -9,8 +9,8 @@ background are free, and the catalogue stars whose light reaches a window are in
    median over the brightest), or, without them, a first fit of the identified stars alone;
 2. every catalogue star within reach of a window (its box, the PSF's extent and the streak) is
    predicted from its magnitude and that zero point; one too faint to matter (below a tenth of
-   a pixel's noise over its PSF) is left out, one bright enough to be measured (25 times that
-   noise) is fitted like the identified stars, the rest are drawn at their predicted flux;
+   a pixel's noise over its PSF) is left out, the rest are drawn at their predicted flux (and
+   move with the attitude);
 3. the fit is made with them; where its fluxes move the zero point by more than
    :data:`ZERO_POINT_AGREES` (a lit sum misses a wide PSF's wings), the neighbours are
    predicted again and the fit repeated from its attitude.
@@ -77,8 +77,6 @@ ZERO_POINT_STARS = 7
 ZERO_POINT_AGREES = 0.05
 #: a neighbour below this fraction of a pixel's noise (over its PSF's area) is left out
 NEGLIGIBLE_NOISE = 0.1
-#: a neighbour above this many times a pixel's noise (over its PSF's area) is fitted
-MEASURED_NOISE = 25.0
 
 
 @dataclass(frozen=True)
@@ -127,7 +125,7 @@ def _neighbours(sensor, plain, ref, *, sky, rotation, reach_px: float, zero_poin
     v /= np.linalg.norm(v, axis=1)[:, None]
     cam_z = v @ rotation.as_matrix()[2]
     front = cam_z > 0
-    return v[front], electrons[front], (electrons >= MEASURED_NOISE * noise_e)[front]
+    return v[front], electrons[front]
 
 
 def _zero_point(fluxes, mags) -> float | None:
@@ -189,7 +187,7 @@ def refine_attitude(image, sensor, rotation, *, ref, plain, mags, sky, cog_sigma
             if zp is None:
                 break
             start = rotation if fit is None else fit.rotation
-            nv, ne, nfree = _neighbours(
+            nv, ne = _neighbours(
                 sensor, plain, ref, sky=sky, rotation=start, reach_px=_reach_px(sensor, rate),
                 zero_point=zp, noise_e=_psf_noise_e(sensor),
             )  # fmt: skip
@@ -197,13 +195,12 @@ def refine_attitude(image, sensor, rotation, *, ref, plain, mags, sky, cog_sigma
                 break
             own = zp * 10.0 ** (-0.4 * mags) if fit is None else fit.fluxes_e[: len(ref)]
             fit = fit_windows(
-                image, sensor, start, vectors=np.concatenate([ref, nv[nfree]]),
+                image, sensor, start, vectors=ref,
                 rate_rad_s=rate if fit is None else fit.rate_rad_s,
-                fixed_vectors=nv[~nfree], fixed_electrons=ne[~nfree],
-                fluxes_e=np.concatenate([own, ne[nfree]]), **opts,
+                fixed_vectors=nv, fixed_electrons=ne, fluxes_e=own, **opts,
             )  # fmt: skip
             new = _zero_point(fit.fluxes_e[: len(ref)], mags)
-            if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not np.any(~nfree):
+            if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
                 break
             zp = new
         if fit is None:
