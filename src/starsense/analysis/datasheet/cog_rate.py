@@ -47,7 +47,8 @@ def nea_at_rate(
     assumed covariance) as at rest (:func:`starsense.analysis.datasheet.field.
     propagated_covariance`, the anisotropic form of :func:`nea_at`'s propagation), with the
     PRNU, calibration residual of :func:`error_kinds` and catalogue error added per star. The
-    solver's robust fit drops (:func:`_outliers`) are left out.
+    solver's robust fit drops (:func:`~starsense.analysis.datasheet.predict.dropped_stars`) are left
+    out.
 
     Parameters
     ----------
