@@ -31,7 +31,7 @@ def _mu(sensor, psf, v, rot, rate, fluxes, windows, kept, free, frac, wts, fit_r
         weights=wts,
         fit_rate=fit_rate,
     )  # fmt: skip
-    ev = evaluate(windows, psf, nodes, fluxes=fluxes, free=free)
+    ev = evaluate(windows, psf, nodes, fluxes=fluxes)
     return ev
 
 
@@ -94,7 +94,7 @@ def test_fit_recovers_the_attitude_of_a_noiseless_frame():
     windows, kept = make_windows(nodes.x, nodes.y, half_px=8.0, shape=(det.rows, det.columns),
                                  free=free)  # fmt: skip
     fluxes = np.geomspace(2e3, 2e4, len(kept))
-    ev = evaluate(windows, psf, nodes, fluxes=fluxes, free=free[kept], gradient=False)
+    ev = evaluate(windows, psf, nodes, fluxes=fluxes, gradient=False)
     image = np.full((det.rows, det.columns), 50.0)  # a background of 50 e-
     light = np.einsum("gmhw,gm->ghw", ev.templates, _slots(windows, fluxes))
     for g in range(windows.n_groups):

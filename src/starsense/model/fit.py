@@ -207,7 +207,7 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
     fl = pb.fluxes
     fl[pb.free] = lin_values[w.group[pb.free], w.slot[pb.free]]  # the Jacobian at these fluxes
     exact = pb.fit_width and psf.spec.is_gaussian  # the width's derivative in closed form
-    ev = evaluate(w, psf, nodes, fluxes=fl, free=pb.free, width=exact)
+    ev = evaluate(w, psf, nodes, fluxes=fl, width=exact)
     g_n, m = w.n_groups, w.n_slots
     lin = np.concatenate([ev.templates, np.ones((g_n, 1, *w.shape))], axis=1).reshape(
         g_n, m + 1, -1
@@ -218,7 +218,7 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
         sides = []
         for sign in (1.0, -1.0):
             other = pixel_psf(psf.spec, psf.sigma_px + sign * h)
-            e = evaluate(w, other, nodes, fluxes=fl, free=pb.free, gradient=False)
+            e = evaluate(w, other, nodes, fluxes=fl, gradient=False)
             sides.append(e.fixed + np.einsum("gm,gmhw->ghw", lin_values[:, :m], e.templates))
         dw = (sides[0] - sides[1]) / (2.0 * h)
         jac = np.concatenate([jac, dw.reshape(g_n, 1, -1)], axis=1)

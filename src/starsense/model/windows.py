@@ -339,7 +339,7 @@ def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, *, rows, cols, gradi
     return t, d
 
 
-def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes, free,
+def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes,
              gradient: bool = True, width: bool = False) -> Evaluation:  # fmt: skip
     """Return the templates, the fixed light and the geometric Jacobian on the windows.
 
@@ -351,8 +351,6 @@ def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes, f
         Node positions of the sources, in the windows' order.
     fluxes : ndarray, shape (S,)
         Electrons of each source (those of free sources weight the Jacobian).
-    free : ndarray of bool, shape (S,)
-        (Unused: the windows say which group fits which source.)
     gradient : bool
         Compute the Jacobian.
     width : bool
