@@ -40,9 +40,12 @@ def _one(psf: PixelPSF, sensor, electrons: float, streak, phase, background_e: f
     nx, ny = x0 + frac * lx, y0 + frac * ly
     k = len(frac)
     nodes = NodePositions(
-        nx[None, :], ny[None, :], wts,
-        np.broadcast_to(np.eye(2)[0], (1, k, 2)), np.broadcast_to(np.eye(2)[1], (1, k, 2)),
-    )  # fmt: skip
+        nx[None, :],
+        ny[None, :],
+        wts,
+        np.broadcast_to(np.eye(2)[0], (1, k, 2)),
+        np.broadcast_to(np.eye(2)[1], (1, k, 2)),
+    )
     half = window_half_px(psf)
     r0 = math.floor(min(ny.min(), ny.max()) - half + 0.5)
     r1 = math.floor(max(ny.min(), ny.max()) + half + 0.5) + 1
@@ -63,9 +66,14 @@ def _one(psf: PixelPSF, sensor, electrons: float, streak, phase, background_e: f
 
 
 def position_information(
-    sensor, electrons, streaks_px=None, *, n_phase: int = 3, background_e: float = 0.0,
+    sensor,
+    electrons,
+    streaks_px=None,
+    *,
+    n_phase: int = 3,
+    background_e: float = 0.0,
     psf: PixelPSF | None = None,
-) -> np.ndarray:  # fmt: skip
+) -> np.ndarray:
     """Return the information of each star's mid-exposure position, px^-2 (module docstring).
 
     Parameters

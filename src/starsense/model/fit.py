@@ -180,9 +180,14 @@ def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, f
     allv = np.concatenate([v_free, v_fix])
     free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
     ends = node_positions(
-        sensor, v_free, rotation, rate_rad_s=rate, exposure_s=te,
-        fractions=np.array([-0.5, 0.5]), weights=np.array([0.5, 0.5]),
-    )  # fmt: skip
+        sensor,
+        v_free,
+        rotation,
+        rate_rad_s=rate,
+        exposure_s=te,
+        fractions=np.array([-0.5, 0.5]),
+        weights=np.array([0.5, 0.5]),
+    )
     length = float(np.nanmax(np.hypot(np.diff(ends.x), np.diff(ends.y)))) if len(v_free) else 0.0
     frac, wts = time_nodes(length if (fit_rate or np.any(rate)) else 0.0, psf.sigma_px)
     nodes = node_positions(
@@ -193,17 +198,35 @@ def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, f
     )
     data, use = _data(image, windows, sensor.detector)
     fluxes = np.r_[np.zeros(len(v_free)), f_fix][kept]
-    return _Problem(sensor, allv[kept], free[kept], fluxes, windows, data, use, frac, wts,
-                    fit_rate, fit_width, kept)  # fmt: skip
+    return _Problem(
+        sensor,
+        allv[kept],
+        free[kept],
+        fluxes,
+        windows,
+        data,
+        use,
+        frac,
+        wts,
+        fit_rate,
+        fit_width,
+        kept,
+    )
 
 
 def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
     """Return the linear design (G, M+1, N), the geometric Jacobian (G, P, N) and the model."""
     sensor, w = pb.sensor, pb.windows
-    nodes = node_positions(sensor, pb.vectors, rotation, rate_rad_s=rate,
-                           exposure_s=sensor.exposure_s,
-                           fractions=pb.fractions, weights=pb.weights,
-                           fit_rate=pb.fit_rate)  # fmt: skip
+    nodes = node_positions(
+        sensor,
+        pb.vectors,
+        rotation,
+        rate_rad_s=rate,
+        exposure_s=sensor.exposure_s,
+        fractions=pb.fractions,
+        weights=pb.weights,
+        fit_rate=pb.fit_rate,
+    )
     fl = pb.fluxes
     fl[pb.free] = lin_values[w.group[pb.free], w.slot[pb.free]]  # the Jacobian at these fluxes
     exact = pb.fit_width and psf.spec.is_gaussian  # the width's derivative in closed form
@@ -227,10 +250,20 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
 
 
 def fit_windows(
-    image, sensor, rotation: Rotation, *, vectors, rate_rad_s=(0.0, 0.0, 0.0),
-    fit_rate: bool = False, fit_width: bool = False, fixed_vectors=None, fixed_electrons=None,
-    psf: PixelPSF | None = None, fluxes_e=None, abort_chi2: float = math.inf,
-) -> ModelFit:  # fmt: skip
+    image,
+    sensor,
+    rotation: Rotation,
+    *,
+    vectors,
+    rate_rad_s=(0.0, 0.0, 0.0),
+    fit_rate: bool = False,
+    fit_width: bool = False,
+    fixed_vectors=None,
+    fixed_electrons=None,
+    psf: PixelPSF | None = None,
+    fluxes_e=None,
+    abort_chi2: float = math.inf,
+) -> ModelFit:
     """Fit the attitude (and rate) to the pixels around the given stars (module docstring).
 
     Parameters

@@ -101,9 +101,16 @@ def _camera_rotations(rotation: Rotation, rate, tau, theta_steps, rate_steps) ->
 
 
 def node_positions(
-    sensor, vectors, rotation: Rotation, *, rate_rad_s, exposure_s: float, fractions, weights,
+    sensor,
+    vectors,
+    rotation: Rotation,
+    *,
+    rate_rad_s,
+    exposure_s: float,
+    fractions,
+    weights,
     fit_rate: bool = False,
-) -> NodePositions:  # fmt: skip
+) -> NodePositions:
     """Project sources at the exposure's nodes, with derivatives (module docstring).
 
     Parameters

@@ -132,8 +132,12 @@ def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
             ri, rj = root(i), root(j)
             if ri == rj:
                 continue
-            u = np.r_[min(ext[ri, 0], ext[rj, 0]), max(ext[ri, 1], ext[rj, 1]),
-                      min(ext[ri, 2], ext[rj, 2]), max(ext[ri, 3], ext[rj, 3])]  # fmt: skip
+            u = np.r_[
+                min(ext[ri, 0], ext[rj, 0]),
+                max(ext[ri, 1], ext[rj, 1]),
+                min(ext[ri, 2], ext[rj, 2]),
+                max(ext[ri, 3], ext[rj, 3]),
+            ]
             if u[1] - u[0] <= max_side and u[3] - u[2] <= max_side:
                 parent[rj] = ri
                 ext[ri] = u
@@ -202,9 +206,11 @@ def make_windows(
     np.maximum.at(gb[:, 3], group[fr], boxes[fr, 3])
     # every source drawn in every group its box reaches
     hit = (
-        (boxes[:, None, 0] < gb[None, :, 1]) & (gb[None, :, 0] < boxes[:, None, 1])
-        & (boxes[:, None, 2] < gb[None, :, 3]) & (gb[None, :, 2] < boxes[:, None, 3])
-    )  # fmt: skip
+        (boxes[:, None, 0] < gb[None, :, 1])
+        & (gb[None, :, 0] < boxes[:, None, 1])
+        & (boxes[:, None, 2] < gb[None, :, 3])
+        & (gb[None, :, 2] < boxes[:, None, 3])
+    )
     kept = np.flatnonzero(hit.any(axis=1) | free)
     boxes, group, free, hit = boxes[kept], group[kept], free[kept], hit[kept]
     x, y = np.asarray(x)[kept], np.asarray(y)[kept]
@@ -230,10 +236,17 @@ def make_windows(
     p_src, p_grp = np.nonzero(hit)
     p_slot = np.where(group[p_src] == p_grp, slot[p_src], -1)
     lo = np.column_stack([gb[p_grp, 0], gb[p_grp, 0], gb[p_grp, 2], gb[p_grp, 2]])
-    p_box = np.column_stack([
-        np.maximum(boxes[p_src, 0], gb[p_grp, 0]), np.minimum(boxes[p_src, 1], gb[p_grp, 1]),
-        np.maximum(boxes[p_src, 2], gb[p_grp, 2]), np.minimum(boxes[p_src, 3], gb[p_grp, 3]),
-    ]) - lo  # fmt: skip
+    p_box = (
+        np.column_stack(
+            [
+                np.maximum(boxes[p_src, 0], gb[p_grp, 0]),
+                np.minimum(boxes[p_src, 1], gb[p_grp, 1]),
+                np.maximum(boxes[p_src, 2], gb[p_grp, 2]),
+                np.minimum(boxes[p_src, 3], gb[p_grp, 3]),
+            ]
+        )
+        - lo
+    )
     g_r0, g_c0 = gb[:, 0], gb[:, 2]
     rows = g_r0[:, None] + np.arange(h)[None, :]
     cols = g_c0[:, None] + np.arange(w)[None, :]
@@ -296,8 +309,9 @@ def _static_gaussian(sigma, nodes: NodePositions, idx, rows, cols, gradient, wid
     return t, d
 
 
-def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, *, rows, cols, gradient=True,
-                  width=False):  # fmt: skip
+def source_stamps(
+    psf: PixelPSF, nodes: NodePositions, idx, *, rows, cols, gradient=True, width=False
+):
     """Return templates (S, h, w) of sources ``idx`` and their derivatives (S, P, h, w).
 
     Over pixel rows (S, h) and columns (S, w) of the detector. With ``width`` (a Gaussian), the
@@ -339,8 +353,15 @@ def source_stamps(psf: PixelPSF, nodes: NodePositions, idx, *, rows, cols, gradi
     return t, d
 
 
-def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes,
-             gradient: bool = True, width: bool = False) -> Evaluation:  # fmt: skip
+def evaluate(
+    windows: Windows,
+    psf: PixelPSF,
+    nodes: NodePositions,
+    *,
+    fluxes,
+    gradient: bool = True,
+    width: bool = False,
+) -> Evaluation:
     """Return the templates, the fixed light and the geometric Jacobian on the windows.
 
     Parameters
@@ -367,8 +388,7 @@ def evaluate(windows: Windows, psf: PixelPSF, nodes: NodePositions, *, fluxes,
         g, src, box = windows.pair_group[q], windows.pair_source[q], windows.pair_box[q]
         rows = (windows.row0[g] + box[:, 0])[:, None] + np.arange(size[0])[None, :]
         cols = (windows.col0[g] + box[:, 2])[:, None] + np.arange(size[1])[None, :]
-        t, d = source_stamps(psf, nodes, src, rows=rows, cols=cols, gradient=gradient,
-                             width=width)  # fmt: skip
+        t, d = source_stamps(psf, nodes, src, rows=rows, cols=cols, gradient=gradient, width=width)
         # each stamp's pixels as flat indices of its group's (H, W) grid
         local = (box[:, 0][:, None, None] + np.arange(size[0])[None, :, None]) * w + (
             box[:, 2][:, None, None] + np.arange(size[1])[None, None, :]

@@ -84,12 +84,14 @@ def model_expected_image(sensor, tracks, electrons: np.ndarray, *, sigmas: np.nd
         psf = pixel_psf(sensor.psf, float(sigmas[i]))
         verts = np.asarray(tracks.vertices[i], dtype=float)
         xs, ys, ws = _track_nodes(verts, psf.sigma_px)
-        full = Box.around(x_min=xs.min(), x_max=xs.max(), y_min=ys.min(), y_max=ys.max(),
-                          pad_px=psf.radius_px)  # fmt: skip
+        full = Box.around(
+            x_min=xs.min(), x_max=xs.max(), y_min=ys.min(), y_max=ys.max(), pad_px=psf.radius_px
+        )
         box = full.clip(det.rows, det.columns)
         x, y = verts[:, 0], verts[:, 1]
-        inside[i] = bool(np.all((x >= -0.5) & (x < det.columns - 0.5) & (y >= -0.5)
-                                & (y < det.rows - 0.5)))  # fmt: skip
+        inside[i] = bool(
+            np.all((x >= -0.5) & (x < det.columns - 0.5) & (y >= -0.5) & (y < det.rows - 0.5))
+        )
         if box is None:
             continue
         stamp = float(electrons[i]) * _stamp(psf, xs, ys, ws, box)

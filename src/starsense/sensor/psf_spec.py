@@ -148,8 +148,14 @@ def _read_array(path: Path) -> np.ndarray:
 
 
 _KEYS = {
-    "kind", "moffat_beta", "airy_obscuration", "file", "oversampling", "fit_width", "radius_px",
-}  # fmt: skip
+    "kind",
+    "moffat_beta",
+    "airy_obscuration",
+    "file",
+    "oversampling",
+    "fit_width",
+    "radius_px",
+}
 
 
 def psf_from_table(table, source: str) -> PSFSpec:

@@ -101,8 +101,9 @@ class Refinement:
     n_neighbours: int = 0
 
 
-def _neighbours(sensor, plain, ref, *, sky, rotation, reach_px: float, zero_point: float,
-                noise_e: float):  # fmt: skip
+def _neighbours(
+    sensor, plain, ref, *, sky, rotation, reach_px: float, zero_point: float, noise_e: float
+):
     """Return catalogue neighbours of the matched stars: (vectors, electrons, fitted?)."""
     vectors, mags, tree = sky
     pixel_rad = 1.0 / sensor.focal_length_px
@@ -138,8 +139,20 @@ def _zero_point(fluxes, mags) -> float | None:
     return float(np.median(fluxes[top] / 10.0 ** (-0.4 * mags[top])))
 
 
-def refine_attitude(image, sensor, rotation, *, ref, plain, mags, sky, cog_sigma_rad,
-                    rate_rad_s=None, electrons=None, fit_width=None) -> Refinement:  # fmt: skip
+def refine_attitude(
+    image,
+    sensor,
+    rotation,
+    *,
+    ref,
+    plain,
+    mags,
+    sky,
+    cog_sigma_rad,
+    rate_rad_s=None,
+    electrons=None,
+    fit_width=None,
+) -> Refinement:
     """Fit the attitude to the pixels of the identified stars (module docstring).
 
     Parameters
@@ -188,17 +201,29 @@ def refine_attitude(image, sensor, rotation, *, ref, plain, mags, sky, cog_sigma
                 break
             start = rotation if fit is None else fit.rotation
             nv, ne = _neighbours(
-                sensor, plain, ref, sky=sky, rotation=start, reach_px=_reach_px(sensor, rate),
-                zero_point=zp, noise_e=_psf_noise_e(sensor),
-            )  # fmt: skip
+                sensor,
+                plain,
+                ref,
+                sky=sky,
+                rotation=start,
+                reach_px=_reach_px(sensor, rate),
+                zero_point=zp,
+                noise_e=_psf_noise_e(sensor),
+            )
             if fit is first and fit is not None and not len(nv):
                 break
             own = zp * 10.0 ** (-0.4 * mags) if fit is None else fit.fluxes_e[: len(ref)]
             fit = fit_windows(
-                image, sensor, start, vectors=ref,
+                image,
+                sensor,
+                start,
+                vectors=ref,
                 rate_rad_s=rate if fit is None else fit.rate_rad_s,
-                fixed_vectors=nv, fixed_electrons=ne, fluxes_e=own, **opts,
-            )  # fmt: skip
+                fixed_vectors=nv,
+                fixed_electrons=ne,
+                fluxes_e=own,
+                **opts,
+            )
             new = _zero_point(fit.fluxes_e[: len(ref)], mags)
             if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
                 break
@@ -261,10 +286,11 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refin
     moved_px = math.hypot(move[0], move[1]) * sensor.focal_length_px + move[2] * edge
     if np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
         return Refinement(
-            fit, False,
+            fit,
+            False,
             f"model fit not used: {float(np.max(move / scale)):.1f} sigma from the centroids'",
             n_nbr,
-        )  # fmt: skip
+        )
     return Refinement(fit, True, note, n_nbr)
 
 
@@ -303,10 +329,17 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
         electrons = flux / sensor.detector.gain_counts_per_e
     rate = rate_rad_s
     done = refine_attitude(
-        image, sensor, att.rotation, ref=ref, plain=plain,
+        image,
+        sensor,
+        att.rotation,
+        ref=ref,
+        plain=plain,
         mags=np.asarray(db.mags, dtype=float)[index],
-        sky=sky, cog_sigma_rad=att.sigma_axes_rad, rate_rad_s=rate, electrons=electrons,
-    )  # fmt: skip
+        sky=sky,
+        cog_sigma_rad=att.sigma_axes_rad,
+        rate_rad_s=rate,
+        electrons=electrons,
+    )
     if not done.used:
         return att, (done.note,)
     fit = done.fit

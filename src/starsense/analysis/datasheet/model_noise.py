@@ -34,8 +34,9 @@ __all__ = ["model_centroid_noise", "model_nea_at_rate", "zero_pixel_bias"]
 N_PHASE_REST, N_PHASE_STREAK = 4, 2
 
 
-def model_centroid_noise(sensor, electrons_min: float, electrons_max: float, *,
-                         n_grid: int = 16) -> CentroidNoise:  # fmt: skip
+def model_centroid_noise(
+    sensor, electrons_min: float, electrons_max: float, *, n_grid: int = 16
+) -> CentroidNoise:
     """Tabulate the model fit's position noise against electrons (px, one axis).
 
     Parameters
