@@ -67,8 +67,8 @@ WRONG_RAD = 60.0 * ARCSEC
 def _prediction(sensor, sky, database, seed: int, rates_deg_s):
     """The datasheet's prediction pieces: the fast sheet and what its frame check needs.
 
-    Returns the sheet's dict and, per rate, (model, vectors, catalogue, detectable, magnitudes,
-    the faintest magnitude detected at the rate), or None where nothing is detected.
+    Returns the sheet's dict and, per rate, (model, vectors, catalogue, magnitudes, the faintest
+    magnitude detected at the rate), or None where nothing is detected.
     """
     from starsense.analysis.datasheet.sheet import DatasheetSettings, _sky_noise
     from starsense.analysis.trade import predict, prediction_settings
@@ -80,11 +80,11 @@ def _prediction(sensor, sky, database, seed: int, rates_deg_s):
         return d, dict.fromkeys(rates_deg_s)
     av = d["availability"]
     st = DatasheetSettings(n_trials=0, seed=seed, n_orientations=50)
-    model, (vectors, catalogue, detectable), mags, *_ = _sky_noise(
+    model, (vectors, catalogue), mags, *_ = _sky_noise(
         sky, sensor, st, limit, sensor.fov(), database
     )
     return d, {
-        r: (model, vectors, catalogue, detectable, mags,
+        r: (model, vectors, catalogue, mags,
             float(np.interp(r, av["rates_deg_s"], av["threshold_mag_at_rate"])))
         for r in rates_deg_s
     }  # fmt: skip
@@ -144,10 +144,10 @@ def _combo(sensor, solver, sky, pred, psf, rate_deg_s, frames, seed):
     row = {"psf": psf, "rate_deg_s": rate_deg_s, "frames": frames, "frame_seed": seed}
     sheet, pieces = pred[0], pred[1][rate_deg_s]
     if pieces is not None:
-        model, vectors, catalogue, detectable, mags, at_rate = pieces
+        model, vectors, catalogue, mags, at_rate = pieces
         scored = score_montecarlo(
             res, model, fov=sensor.fov(), vectors=vectors, magnitudes=mags,
-            limit_mag_at_rate=at_rate, catalogue=catalogue, detectable=detectable,
+            limit_mag_at_rate=at_rate, catalogue=catalogue,
         )  # fmt: skip
     else:
         scored = score_montecarlo(res, None, fov=None, vectors=None, magnitudes=None,

@@ -2,11 +2,20 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from starsense.attitude.estimate import estimate_attitude
 
-__all__ = ["MISFIT_SIGMAS", "OUTLIER_SIGMA", "median_misfit", "pair_outliers", "robust_attitude"]
+__all__ = [
+    "MISFIT_SIGMAS",
+    "OUTLIER_SIGMA",
+    "median_misfit",
+    "pair_outliers",
+    "residual_scaled",
+    "robust_attitude",
+]
 
 
 #: a matched star whose residual exceeds this many of its own 1-sigma (per axis, so ~ sqrt(2)
@@ -118,3 +127,21 @@ def median_misfit(body, reference, sigma_rad, *, rotation, keep=None) -> float:
     angle = np.linalg.norm(np.cross(body[keep], seen), axis=1)
     sigma = np.broadcast_to(np.asarray(sigma_rad, dtype=float), (len(body),))[keep]
     return float(np.median(angle / sigma))
+
+
+def residual_scaled(att):
+    """Return ``att`` with its covariance raised by its residuals' chi-square when above 1.
+
+    The covariance of a Wahba fit assumes the stars' sigmas; where the residuals scatter more
+    (``2 loss / (2 N - 3)`` above 1: a centroid pulled by light its sigma does not hold, a
+    lens's distortion left), the variance is scaled by that ratio (the Birge ratio), so the
+    reported sigma stays what the stars show. Never lowered: with few stars the ratio
+    scatters (by ``sqrt(2 / dof)``) and a sigma below the stars' own would be a guess.
+    """
+    dof = att.chi2_dof
+    if dof <= 0 or not np.isfinite(att.loss):
+        return att
+    ratio = 2.0 * float(att.loss) / dof
+    if ratio <= 1.0:
+        return att
+    return dataclasses.replace(att, covariance_rad2=np.asarray(att.covariance_rad2) * ratio)

@@ -13,7 +13,6 @@ centroids are taken as listed, brightest first.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -331,23 +330,12 @@ class CentroidPoints:
     x, y : ndarray (N,)
         Centroids, px (x along the columns, y down the rows).
     flux : ndarray (N,)
-        Brightness, any unit (only the order matters).
+        Brightness: the lit sums, counts, of "detections"; any unit for "centroids" (only the
+        order matters).
     shape : tuple of int
         The image's (rows, columns).
     what : str
         What the points are ("detections" or "centroids"), for messages.
-    sigma_px : ndarray (N,) or a callable returning it, optional
-        Each centroid's per-axis noise, px, where the camera is known: every detection is
-        then held against the identified sky at its own noise (:mod:`starsense.solve.rematch`,
-        which calls a callable only where a pair could be added).
-    windows : ndarray (N, 4) of int, optional
-        The detector's centroid windows (row0, row1, col0, col1, half-open): a star at rest
-        is then referenced to where its window's centre of gravity lands with its catalogue
-        neighbours (:mod:`starsense.solve.box_blends`). ``flux`` is then the lit sum, counts.
-    window_power : int
-        The detector's centroid weights in those windows: 1 the counts, 2 their squares.
-    saturated : ndarray (N,) of bool, optional
-        Which detections reached the saturation level.
     """
 
     x: np.ndarray
@@ -355,10 +343,6 @@ class CentroidPoints:
     flux: np.ndarray
     shape: tuple
     what: str
-    sigma_px: np.ndarray | Callable[[], np.ndarray] | None = None
-    windows: np.ndarray | None = None
-    window_power: int = 1
-    saturated: np.ndarray | None = None
 
 
 def _size_card(header, key: str, path: Path) -> int:

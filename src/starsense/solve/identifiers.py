@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -26,7 +27,30 @@ from starsense.identify.verify import apply_scale
 #: equidistant (f-theta) lens's k1 = -1/3, the barrel of short wide-angle lenses
 DISTORTION_GUESSES = (-1.0 / 9.0, -2.0 / 9.0)
 
-__all__ = ["FieldIdentifiers"]
+__all__ = ["FieldIdentifiers", "SkyStars"]
+
+
+class SkyStars(NamedTuple):
+    """Every star of a catalogue with a magnitude in one band (the model fit's sky).
+
+    Attributes
+    ----------
+    vectors : ndarray (N, 3)
+        Catalogue places, ICRS.
+    mags : ndarray (N,)
+        Magnitudes in the band.
+    tree : scipy.spatial.cKDTree
+        Over ``vectors``.
+    rows : ndarray (N,) of int
+        Their rows in ``catalog`` (for their apparent places).
+    catalog : Catalog
+    """
+
+    vectors: np.ndarray
+    mags: np.ndarray
+    tree: cKDTree
+    rows: np.ndarray
+    catalog: Catalog
 
 
 class FieldIdentifiers:
@@ -57,25 +81,18 @@ class FieldIdentifiers:
             self._catalog = load_catalog(self.spec)
         return self._catalog
 
-    def sky(self, band: str) -> tuple:
+    def sky(self, band: str) -> SkyStars:
         """Return every star of the catalogue with a magnitude in ``band``, built once per band.
 
-        The stars whose streaks may run through a matched star's capsule
-        (:func:`starsense.solve.blends.streak_reference`): the whole catalogue, not the
-        identification database, which keeps a few stars per field.
-
-        Returns
-        -------
-        vectors : ndarray (N, 3)
-        mags : ndarray (N,)
-        tree : scipy.spatial.cKDTree
-            Over ``vectors``.
+        The stars the forward model's fit draws beside the identified ones (their neighbours,
+        the stars in view): the whole catalogue, not the identification database, which keeps
+        a few stars per field.
         """
         if band not in self._skies:
             mags = np.asarray(self.catalog.mags[band], dtype=float)
             keep = np.flatnonzero(np.isfinite(mags))
             vectors = np.asarray(self.catalog.vectors)[keep]
-            self._skies[band] = (vectors, mags[keep], cKDTree(vectors))
+            self._skies[band] = SkyStars(vectors, mags[keep], cKDTree(vectors), keep, self.catalog)
         return self._skies[band]
 
     def plan(self) -> list[FieldRange]:

@@ -2,19 +2,17 @@
 
 The catalogue places of the matched stars, moved to their apparent places when the frame's time
 is known (:mod:`starsense.catalog.apparent`: proper motion, parallax, aberration, the observer's
-velocity), and, for the centroids' attitude, to a close double's photocentre where the PSF does
-not split it (:func:`starsense.solve.blends.blended`). The forward model's fit draws each star
-and its neighbours itself: it takes the unblended places.
+velocity). A close double the PSF does not split is drawn by the forward model's fit, star and
+neighbour (:mod:`starsense.solve.refine`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from starsense.catalog.apparent import apparent_places_of
-from starsense.solve.blends import blend_radius_px, blended
+from starsense.catalog.apparent import apparent_places, apparent_places_of
 
-__all__ = ["matched_references", "reference_places"]
+__all__ = ["matched_references", "reference_places", "sky_places"]
 
 
 def reference_places(solver, vectors, catalog_ids, *, obs_time) -> tuple[np.ndarray, dict]:
@@ -48,8 +46,8 @@ def reference_places(solver, vectors, catalog_ids, *, obs_time) -> tuple[np.ndar
     return p.vectors, p.to_dict()
 
 
-def matched_references(solver, db, ident, *, obs_time, pixel_rad: float):
-    """Return the matched stars' references (apparent, blended), how, and their plain places.
+def matched_references(solver, db, ident, *, obs_time):
+    """Return the matched stars' references (apparent places), how, and their places.
 
     Parameters
     ----------
@@ -58,22 +56,48 @@ def matched_references(solver, db, ident, *, obs_time, pixel_rad: float):
         Its ``vectors`` hold the matched stars (``ident.catalog_index``).
     ident : identification result
     obs_time : str, astropy.time.Time or None
-    pixel_rad : float
-        The angle of a pixel, rad.
 
     Returns
     -------
     ref : ndarray (K, 3)
-        For the centroids' attitude: apparent places, close doubles at their photocentres.
+        Apparent places (catalogue places when no time is known).
     apparent : dict
         How the apparent places were made.
     places : (ndarray, ndarray)
-        The (catalogue, apparent) places, unblended: what the model fit draws.
+        The (catalogue, apparent) places.
     """
     plain = db.vectors[np.asarray(ident.catalog_index)]
     ref, apparent = reference_places(solver, plain, ident.catalog_id, obs_time=obs_time)
-    places = (plain, ref)
-    if solver.sensor is not None:  # blended close doubles: their photocentre, not one star
-        radius = blend_radius_px(solver.sensor.detector.psf_sigma_px) * pixel_rad
-        ref = blended(ref, plain, db, index=ident.catalog_index, radius_rad=radius)
-    return ref, apparent, places
+    return ref, apparent, (plain, ref)
+
+
+def sky_places(solver, sky, *, obs_time):
+    """Return the function placing stars of ``sky`` (rows of it) where the frame sees them.
+
+    Parameters
+    ----------
+    solver : Solver
+        Its settings (``apparent``, ``observer_velocity_m_s``).
+    sky : SkyStars
+        The catalogue's stars the model fit may draw.
+    obs_time : str, astropy.time.Time or None
+        When the frame was taken.
+
+    Returns
+    -------
+    callable
+        ``place(rows) -> ndarray (len(rows), 3)``: apparent places when a time is known (each
+        star's own proper motion, parallax and aberration), else the catalogue places.
+    """
+    if obs_time is None or not solver.settings.apparent:
+        return lambda rows: sky.vectors[np.asarray(rows, dtype=int)]
+    velocity = solver.settings.observer_velocity_m_s
+
+    def place(rows):
+        rows = np.asarray(rows, dtype=int)
+        if rows.size == 0:
+            return np.zeros((0, 3))
+        got = apparent_places(sky.catalog, sky.rows[rows], obs_time, observer_velocity_m_s=velocity)
+        return got.vectors
+
+    return place

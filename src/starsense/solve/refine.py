@@ -40,6 +40,7 @@ import numpy as np
 from starsense.errors import InputError
 from starsense.model.fit import ModelFit, fit_windows, pixel_variance, window_half_px
 from starsense.model.psf import psf_of
+from starsense.solve.in_view import DETECTABLE_SNR, room_for, stars_in_view
 
 __all__ = [
     "MAX_MOVE_PX",
@@ -102,28 +103,24 @@ class Refinement:
 
 
 def _neighbours(
-    sensor, plain, ref, *, sky, rotation, reach_px: float, zero_point: float, noise_e: float
+    sensor, plain, *, sky, place, rotation, reach_px: float, zero_point: float, noise_e: float
 ):
-    """Return catalogue neighbours of the matched stars: (vectors, electrons, fitted?)."""
-    vectors, mags, tree = sky
+    """Return catalogue neighbours of the fitted stars: (apparent places, electrons)."""
+    vectors, mags, tree = sky.vectors, sky.mags, sky.tree
     pixel_rad = 1.0 / sensor.focal_length_px
     lists = tree.query_ball_point(plain, 2.0 * math.sin(0.5 * reach_px * pixel_rad))
     owner = np.repeat(np.arange(len(plain)), [len(v) for v in lists])
     if owner.size == 0:
-        return np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool)
+        return np.zeros((0, 3)), np.zeros(0)
     near = np.concatenate([np.asarray(v, dtype=int) for v in lists])
     # not a matched star itself (any of them): closer than MERGED_PX, its light is the star's
     d_min = np.min(np.linalg.norm(vectors[near][:, None, :] - plain[None, :, :], axis=2), axis=1)
     keep = d_min > max(SAME_STAR_RAD, MERGED_PX * pixel_rad)
-    near, owner = near[keep], owner[keep]
-    near, first = np.unique(near, return_index=True)
-    owner = owner[first]
+    near = np.unique(near[keep])
     electrons = zero_point * 10.0 ** (-0.4 * mags[near])
     keep = electrons >= NEGLIGIBLE_NOISE * noise_e
-    near, owner, electrons = near[keep], owner[keep], electrons[keep]
-    # the matched star's apparent-place shift applies to its neighbours (same direction)
-    v = vectors[near] + (ref[owner] - plain[owner])
-    v /= np.linalg.norm(v, axis=1)[:, None]
+    near, electrons = near[keep], electrons[keep]
+    v = place(near)
     cam_z = v @ rotation.as_matrix()[2]
     front = cam_z > 0
     return v[front], electrons[front]
@@ -152,6 +149,7 @@ def refine_attitude(
     rate_rad_s=None,
     electrons=None,
     fit_width=None,
+    place=None,
 ) -> Refinement:
     """Fit the attitude to the pixels of the identified stars (module docstring).
 
@@ -166,7 +164,7 @@ def refine_attitude(
         The identified stars' reference directions (apparent places) and catalogue places.
     mags : ndarray (K,)
         Their catalogue magnitudes (in the band of ``sky``).
-    sky : (vectors, mags, tree)
+    sky : SkyStars
         Every catalogue star that may light a window.
     cog_sigma_rad : ndarray (3,)
         The centroid solution's 1-sigma per axis, rad.
@@ -188,6 +186,8 @@ def refine_attitude(
     if fit_width is None:
         fit_width = sensor.psf.fit_width or sensor.psf.is_gaussian
     mags = np.asarray(mags, float)
+    if place is None:
+        place = lambda rows: sky.vectors[np.asarray(rows, dtype=int)]  # noqa: E731
     opts = {"fit_rate": fit_rate, "fit_width": fit_width, "abort_chi2": 2.0 * MAX_REDUCED_CHI2}
     try:
         zp = None if electrons is None else _zero_point(np.asarray(electrons, float), mags)
@@ -203,8 +203,8 @@ def refine_attitude(
             nv, ne = _neighbours(
                 sensor,
                 plain,
-                ref,
                 sky=sky,
+                place=place,
                 rotation=start,
                 reach_px=_reach_px(sensor, rate),
                 zero_point=zp,
@@ -294,7 +294,7 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refin
     return Refinement(fit, True, note, n_nbr)
 
 
-def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, points):
+def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, place, points):
     """Return the solver's attitude refined on the pixels, and a note saying how.
 
     Parameters
@@ -312,8 +312,11 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
         The matched stars' catalogue and apparent places (K, 3).
     rate_rad_s : ndarray (3,) or None
         The body rate of a smeared frame (its streaks'), which starts the fit's; None at rest.
-    sky : (vectors, mags, tree)
+    sky : SkyStars
         The catalogue's stars in the band of ``db``.
+    place : callable
+        ``place(rows of sky) -> (M, 3)``: their apparent places
+        (:func:`starsense.solve.references.sky_places`).
     points : CentroidPoints
         The detections (their lit sums set the neighbours' zero point).
 
@@ -323,22 +326,37 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
     """
     plain, ref = places
     index = np.asarray(ident.catalog_index)
+    mags = np.asarray(db.mags, dtype=float)[index]
     electrons = None
-    if points.windows is not None:  # the detections' lit sums, counts
+    if points.what == "detections":  # the detections' lit sums, counts
         flux = np.asarray(points.flux, dtype=float)[np.asarray(ident.detection_index)]
         electrons = flux / sensor.detector.gain_counts_per_e
-    rate = rate_rad_s
+        zp = _zero_point(electrons, mags)
+        if zp is not None:  # every star the detector found joins the fit (in_view.py)
+            streak = 0.0 if rate_rad_s is None else float(np.linalg.norm(rate_rad_s))
+            plain_x, ref_x, mags_x = stars_in_view(
+                sensor, att.rotation, detections=np.column_stack([points.x, points.y]),
+                matched=ident.detection_index, plain=plain, sky=sky, place=place,
+                min_electrons_e=DETECTABLE_SNR * _psf_noise_e(sensor), zero_point_e=zp,
+                streak_px=streak * sensor.exposure_s * sensor.focal_length_px,
+                max_stars=room_for(sensor, len(ref), half_px=window_half_px(psf_of(sensor)),
+                                   rate_rad_s=rate_rad_s),
+            )  # fmt: skip
+            plain, ref = np.vstack([plain, plain_x]), np.vstack([ref, ref_x])
+            mags = np.concatenate([mags, mags_x])
+            electrons = np.concatenate([electrons, np.full(len(mags_x), np.nan)])
     done = refine_attitude(
         image,
         sensor,
         att.rotation,
         ref=ref,
         plain=plain,
-        mags=np.asarray(db.mags, dtype=float)[index],
+        mags=mags,
         sky=sky,
         cog_sigma_rad=att.sigma_axes_rad,
-        rate_rad_s=rate,
+        rate_rad_s=rate_rad_s,
         electrons=electrons,
+        place=place,
     )
     if not done.used:
         return att, (done.note,)

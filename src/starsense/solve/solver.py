@@ -23,14 +23,17 @@ from typing import Literal
 
 import numpy as np
 
-from starsense.attitude.robust import MISFIT_SIGMAS, robust_attitude
+from starsense.attitude.robust import (
+    MISFIT_SIGMAS,
+    median_misfit,
+    residual_scaled,
+    robust_attitude,
+)
 from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.bayer import bayer_hint
-from starsense.solve.blends import streak_body_rate
-from starsense.solve.box_blends import box_fit, window_fields
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import (
     detection_counts,
@@ -45,13 +48,11 @@ from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.radial import refine_identification
-from starsense.solve.references import matched_references
+from starsense.solve.references import matched_references, sky_places
 from starsense.solve.refine import refined_attitude
-from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
-from starsense.solve.streak_pairs import smeared_fit
-from starsense.solve.streaks import matched_measurements
+from starsense.solve.streaks import matched_measurements, streak_body_rate
 from starsense.units import DEG
 
 __all__ = [
@@ -274,11 +275,7 @@ class Solver:
         def sigma_px(matched, x, vectors):  # streaks re-centroided: starsense.solve.streaks
             return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
 
-        own = detection_sigmas_px(self.sensor, det, margin_px=detector.margin_px, shape=a.shape)
-        windows = window_fields(det, detector, a.shape)
-        points = CentroidPoints(
-            det.x, det.y, det.integrated_counts, a.shape, "detections", own, **windows
-        )
+        points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
         sol = self._solve_points(
             points, t0, stages, sigma_px, None, obs_time, not first, not first, image=a
         )
@@ -379,51 +376,27 @@ class Solver:
                 ident, identifier.database, np.column_stack([points.x, points.y]),
                 flux=points.flux, shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
             )  # fmt: skip
-        elif points.sigma_px is not None:  # every detection at its own noise
-            own = scaled(points.sigma_px, fov / n_cols)
-            ident = rematched(ident, identifier.database, vectors, sigma_rad=own)
         matched, pixel_rad = np.asarray(ident.detection_index), fov / n_cols
         ref, apparent, places = matched_references(
-            self, identifier.database, ident, obs_time=obs_time, pixel_rad=fov / points.shape[1]
+            self, identifier.database, ident, obs_time=obs_time
         )
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
         att, keep = robust_attitude(body, ref, sigma * pixel_rad)
         rate = None  # smeared: the body rate the streaks give (starts the model fit's)
-        if streaks is not None:  # smeared: the pairs on their streaks, at their photocentres
+        if streaks is not None:  # smeared: centroids over the streaks, which must fit them
             rate = streak_body_rate(self.sensor, body, streaks.streaks_px)
-            att, ident, miss = smeared_fit(
-                (att, keep), (ident, body, ref, sigma, streaks, matched), sensor=self.sensor,
-                pixel_rad=pixel_rad, database=identifier.database, points=points,
-                sky=self._identifiers.sky(identifier.database.params.band),
-            )  # fmt: skip
+            miss = median_misfit(body, ref, sigma * pixel_rad, rotation=att.rotation, keep=keep)
             if miss > MISFIT_SIGMAS:  # the streaks' model does not fit: no attitude
                 return misfit_solution(len(points.x), ident, miss, time_ms=_ms(t0), stages=stages)
         notes, db = (), identifier.database
-        fitted = image is not None and self.settings.refine == "model"
-        if fitted:  # the forward model's fit (its neighbours in the model): refine.py
-            if streaks is not None:  # the streaks' fit may have changed the matches
-                places = matched_references(self, db, ident, obs_time=obs_time,
-                                            pixel_rad=pixel_rad)[2]  # fmt: skip
+        if image is not None and self.settings.refine == "model":  # the forward model's fit
+            sky = (self._sky or self._identifiers).sky(db.params.band)
             att, notes = refined_attitude(
                 image, att, self.sensor, db=db, ident=ident, places=places, rate_rad_s=rate,
-                sky=(self._sky or self._identifiers).sky(db.params.band), points=points,
+                sky=sky, place=sky_places(self, sky, obs_time=obs_time), points=points,
             )  # fmt: skip
-        fitted = fitted and att.method == "model"
-        if (
-            not fitted
-            and streaks is None
-            and self.sensor is not None
-            and points.windows is not None
-        ):
-            att = box_fit(
-                (att, keep),
-                (ident, body, ref, sigma, matched),
-                sensor=self.sensor,
-                pixel_rad=pixel_rad,
-                database=db,
-                points=points,
-                sky=self._identifiers.sky(db.params.band),
-            )  # neighbours in windows
+        if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
+            att = residual_scaled(att)
         stages["attitude_ms"] = _ms(t3)
         sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),
                      stages=stages, radial=radial, sensor=self.sensor)  # fmt: skip

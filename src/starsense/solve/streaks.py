@@ -39,15 +39,15 @@ Once the frame is identified, :func:`streak_centroids_of`:
 
        C = (sigma_psf^2 / N) I + (sigma_r^2 / N^2) S + l l^T / (12 N)
 
-   (``sigma_r`` the read noise and the ADC's quantisation, 1/12 count^2), plus, for a star
-   whose capsule holds a clipped pixel, the error of a clipped streak over its sub-pixel phase
-   (:mod:`starsense.solve.streak_bias`); and to a star whose streak runs off the frame, or
-   whose window found no light, the covariance of a point anywhere along its streak,
-   ``l l^T / 12`` (uniform over it): its centroid is pulled inwards by the cut, and the fit
-   all but ignores it.
+   (``sigma_r`` the read noise and the ADC's quantisation, 1/12 count^2), and to a star whose
+   streak runs off the frame, or whose window found no light, the covariance of a point
+   anywhere along its streak, ``l l^T / 12`` (uniform over it): its centroid is pulled inwards
+   by the cut, and the fit all but ignores it.
 
-The streaks are returned with the centroids: the solver references each star to the light its
-capsule holds, neighbours' streaks included (:func:`starsense.solve.blends.streak_reference`).
+The streaks are returned with the centroids: their body rate (:func:`streak_body_rate`) starts
+the forward model's fit, which draws each streak with its neighbours' and fits the rate with
+the attitude (:mod:`starsense.solve.refine`); the capsule centroids give the attitude it starts
+from, and the attitude itself where no sensor model is fitted.
 """
 
 from __future__ import annotations
@@ -61,7 +61,6 @@ from scipy.spatial.transform import Rotation
 
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import SYSTEMATIC, WINDOW_PIXELS, streak_axes, streak_centroids
-from starsense.solve.streak_bias import frame_clipped_bias_px
 
 __all__ = [
     "CAPSULE_PAD_PX",
@@ -70,6 +69,7 @@ __all__ = [
     "N_RATE_STARS",
     "StreakCentroids",
     "matched_measurements",
+    "streak_body_rate",
     "streak_centroids_of",
     "streak_cov_px2",
 ]
@@ -98,8 +98,6 @@ class StreakCentroids:
         Each star's streak, start to end (or end to start), px.
     electrons : ndarray, shape (N,), optional
         Each capsule's sum above the level, electrons (0 where none was found).
-    clipped : ndarray of bool, shape (N,), optional
-        Whether a pixel of the capsule reached the ADC's top (or the full well).
     """
 
     x: np.ndarray
@@ -107,7 +105,6 @@ class StreakCentroids:
     cov_px2: np.ndarray
     streaks_px: np.ndarray
     electrons: np.ndarray | None = None
-    clipped: np.ndarray | None = None
 
     @property
     def sigma_px(self) -> np.ndarray:
@@ -363,7 +360,7 @@ def streak_centroids_of(
     rows, cols = image.shape
     seg = streaks * (1.0 + SYSTEMATIC)
     half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
-    gx, gy, total, boxes, spread, r0, c0 = _capsule_centroids(image, x, y, seg, half, level, radius)
+    gx, gy, total, _, spread, r0, c0 = _capsule_centroids(image, x, y, seg, half, level, radius)
     found = np.isfinite(gx) & (total > 0)
     out_x = np.where(found, gx + c0, x)
     out_y = np.where(found, gy + r0, y)
@@ -381,26 +378,7 @@ def streak_centroids_of(
         sigma_px=sigma,
         read_noise_e=math.hypot(det.read_noise_e, 1.0 / (math.sqrt(12.0) * g)),  # + quantising
     )
-    top_e = det.clip_e  # where a pixel clips
-    clipped = found & _clipped(image, boxes, r0, c0, det.bias_counts + top_e * g - 0.5)
-    if clipped.any():  # a clipped ridge: the error over the pixel phase (solve.streak_bias)
-        bias = frame_clipped_bias_px(
-            streaks[clipped], electrons[clipped], sigma_px=sigma, saturation_e=top_e,
-            radius_px=radius,
-        )  # fmt: skip
-        cov[clipped] += (bias**2)[:, None, None] * np.eye(2)
-    return StreakCentroids(out_x, out_y, cov, np.asarray(streaks), electrons, clipped)
-
-
-def _clipped(image, boxes, r0, c0, level) -> np.ndarray:
-    """Return whether each capsule's box (rows, columns in its window) reaches ``level``."""
-    out = np.zeros(len(boxes), dtype=bool)
-    rows, cols = image.shape
-    for i, (a, b, c, d) in enumerate(boxes):
-        a, b = max(a + r0[i], 0), min(b + r0[i], rows)
-        c, d = max(c + c0[i], 0), min(d + c0[i], cols)
-        out[i] = b > a and d > c and bool(np.max(image[a:b, c:d]) >= level)
-    return out
+    return StreakCentroids(out_x, out_y, cov, np.asarray(streaks), electrons)
 
 
 def streak_cov_px2(electrons, spread_px2, streaks_px, *, whole, sigma_px: float, read_noise_e):
@@ -498,3 +476,21 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
     own = got.sigma_px
     sigma = own if fixed == "snr" else np.maximum(own, fixed)
     return sensor.unproject(got.x, got.y), sigma, got
+
+
+def streak_body_rate(sensor, cam, streaks_px) -> np.ndarray:
+    """Return the body rate (rad/s, camera frame) whose streaks fit ``streaks_px`` (N, 2).
+
+    The streaks the solver centroided over come from one rate, their signs consistent; to first
+    order they are linear in it (``l_i = A_i w``, ``A_i`` the projection's), the least-squares
+    ``w`` their rate, up to the sign every streak shares (the forward model of a streak is even
+    in it). ``cam`` (N, 3): the stars, camera frame.
+    """
+    n = len(cam)
+    eps = 1e-6  # a turn of 1 microradian over the exposure
+    turns = np.concatenate([[0.5 * eps * e, -0.5 * eps * e] for e in np.eye(3)])  # (6, 3)
+    x, y = sensor.project(np.concatenate([Rotation.from_rotvec(t).apply(cam) for t in turns]))
+    x, y = x.reshape(6, n), y.reshape(6, n)
+    cols = [np.column_stack([x[2 * k + 1] - x[2 * k], y[2 * k + 1] - y[2 * k]]) for k in range(3)]
+    a = np.column_stack([c.ravel() for c in cols]) / (eps / sensor.exposure_s)
+    return np.linalg.lstsq(a, np.ravel(streaks_px), rcond=None)[0]

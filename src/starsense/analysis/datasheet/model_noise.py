@@ -19,16 +19,16 @@ summed over the stars of each attitude through the projection:
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam
-from starsense.analysis.datasheet.merges import streaks_px_of
 from starsense.analysis.datasheet.noise import CentroidNoise
 from starsense.analysis.datasheet.terms import PixelSpatialError
 from starsense.model.fisher import attitude_information, position_information
 from starsense.model.fit import window_half_px
 from starsense.model.psf import psf_of
 
-__all__ = ["model_centroid_noise", "model_nea_at_rate", "zero_pixel_bias"]
+__all__ = ["model_centroid_noise", "model_nea_at_rate", "streaks_px_of", "zero_pixel_bias"]
 
 #: sub-pixel phases per axis of a star at rest (a streak averages its phases along itself: 2)
 N_PHASE_REST, N_PHASE_STREAK = 4, 2
@@ -67,6 +67,16 @@ def zero_pixel_bias(electrons) -> PixelSpatialError:
     """Return the model fit's sub-pixel bias: none (its model integrates the PSF over pixels)."""
     e = np.asarray(electrons, dtype=float)
     return PixelSpatialError(e, np.zeros(len(e)), np.zeros(len(e)), 0)
+
+
+def streaks_px_of(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
+    """Mid-exposure pixel positions (P, 2) and streaks, start to end (P, 2), of stars v_cam."""
+    v_cam = np.array(v_cam, dtype=float)  # a writable copy (Rotation.apply needs one)
+    half = Rotation.from_rotvec(np.asarray(rates_rad_s) * 0.5 * sensor.exposure_s)
+    x, y = sensor.project(v_cam)
+    xs, ys = sensor.project(half.apply(v_cam))
+    xe, ye = sensor.project(half.inv().apply(v_cam))
+    return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
 
 
 def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes):

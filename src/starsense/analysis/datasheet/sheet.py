@@ -180,7 +180,6 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     ``database``: the solver's catalogue (whose stars' streak blends the solver models).
     """
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
-    detectable = (vectors, mags)  # every detectable star (those the tracker fits: below)
     every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
     held, sens = held_by(cat, database), Sensitivity.for_sensor(sensor, st.model)
     flux_error = flux_ratio_error(cat, database, sens)
@@ -194,8 +193,11 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     counts = field_stars_cam(fov, mats, vectors).counts()  # every detectable star
-    # the NEA of the stars the tracker fits (its database's), not of every detectable one
-    used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
+    # the NEA of the stars the solver fits: the model fit takes every star the detector finds
+    # (solve.in_view), the centroid attitude its identification database's
+    used = slice(None)
+    if st.refine != "model":
+        used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
     vectors, mags = vectors[used], mags[used]
     catalogue = catalogue_term_rad(cat, sensor, max_mag=limit_mag)  # frames vs the database
     catalogue = None if catalogue is None else catalogue[used]
@@ -204,7 +206,7 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
         model, fov, mats, vectors=vectors, magnitudes=mags, kinds=kinds, catalogue=catalogue
     )
     lim = _limit(cat, sensor, fov, mats)
-    return model, (vectors, catalogue, detectable), mags, boresights, mats, sig, counts, lim
+    return model, (vectors, catalogue), mags, boresights, mats, sig, counts, lim
 
 
 def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
@@ -212,7 +214,7 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
 
     ``sky``: model, field, tracked stars, their magnitudes, the faintest detected at the rate.
     """
-    model, fov, (vectors, catalogue, detectable), mags, limit = sky
+    model, fov, (vectors, catalogue), mags, limit = sky
     runs = {}
     rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
     for key, rate, n in (
@@ -235,7 +237,6 @@ def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, Mo
                 magnitudes=mags,
                 limit_mag_at_rate=limit,
                 catalogue=catalogue,
-                detectable=detectable,
             )
         )
         tick(key.replace("_", " "))

@@ -20,7 +20,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import beta
 
-from starsense.analysis.datasheet.cog_rate import nea_at_rate
 from starsense.analysis.datasheet.model_noise import model_nea_at_rate
 from starsense.analysis.datasheet.predict import error_kinds, nea_at
 from starsense.analysis.datasheet.sections import MonteCarloCheck
@@ -39,14 +38,6 @@ __all__ = [
 #: (roll: one error per frame), 22 % at 10 frames, already the half-width of the 0.8-1.25
 #: acceptance band (ln 1.25 = 0.22): with fewer, a right model cannot be told from a wrong one
 MIN_CHECKED_FRAMES = 10
-#: under slew the prediction takes the stars down to half the flux of the faintest the
-#: threshold model detects at the rate (``limit_mag_at_rate``), each with its chance of being
-#: detected and matched (:mod:`starsense.analysis.datasheet.pieces`): near that limit the noise
-#: lights pieces of a streak whose expected ridge falls short of the threshold, matched in
-#: 15-40 % of frames on rendered undersampled designs; at half the flux, where the ridge is at
-#: most half the threshold, in 1-4 %
-PIECES_REACH_MAG = 2.5 * math.log10(2.0)
-
 #: the fields of a Monte Carlo check measured on solved frames (None when none was measured)
 MEASURED_KEYS = (
     "cross_rms_arcsec",
@@ -132,7 +123,6 @@ def score_montecarlo(
     predict: bool = True,
     limit_mag_at_rate=None,
     catalogue=None,
-    detectable=None,
 ) -> dict[str, Any]:
     """Return the JSON-ready summary of a Monte Carlo run against the datasheet's prediction.
 
@@ -150,18 +140,14 @@ def score_montecarlo(
         Compare with the prediction (False: only the measurement is reported).
     limit_mag_at_rate : float, optional
         For a run at a rate: the faintest magnitude detected at that rate (the datasheet's
-        threshold at the rate); the prediction is that of the smeared stars
-        (:func:`starsense.analysis.datasheet.cog_rate.nea_at_rate`) down to
-        ``PIECES_REACH_MAG`` fainter, each with its chance of being matched. None keeps every
-        star of ``magnitudes``.
+        threshold at the rate); the prediction is the model fit's information of the smeared
+        stars down to it (:func:`starsense.analysis.datasheet.model_noise.model_nea_at_rate`).
+        None keeps every star of ``magnitudes``. A centre-of-gravity solver is predicted at
+        rest only (its windowed noise): at a rate its run is measured, not compared.
     catalogue : ndarray (N,), optional
         Each star's database position less its rendered one, ICRS, rad (frames
         rendered from another catalogue than the solver's database:
         :func:`starsense.analysis.datasheet.catalogue.rendered_against_database_rad`).
-    detectable : (ndarray (K, 3), ndarray (K,)), optional
-        For a run at a rate: every star the frames hold that is detectable at rest (ICRS, V);
-        those brighter than ``limit_mag_at_rate`` are the streaks a predicted star can run
-        into (:func:`starsense.analysis.datasheet.merges.lost_in_frames`). None: none.
 
     Returns
     -------
@@ -172,6 +158,8 @@ def score_montecarlo(
         fewer than ``MIN_CHECKED_FRAMES`` right solutions only the measured rms is reported.
     """
     right = len(res.errors_rad)
+    if res.rate_rad_s > 0 and getattr(model, "refine", "cog") != "model":
+        predict = False  # the centre-of-gravity solver is predicted at rest only
     out = {
         "frames": res.n_trials,
         "solved": res.n_solved - res.n_wrong,
@@ -192,27 +180,13 @@ def score_montecarlo(
             out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
         return out
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
-    if res.rate_rad_s > 0 and getattr(model, "refine", "cog") == "model":
+    if res.rate_rad_s > 0:
         mags = np.asarray(magnitudes, dtype=float)
         keep = mags <= (np.inf if limit_mag_at_rate is None else limit_mag_at_rate)
         cross, roll = model_nea_at_rate(
             model, fov, mats, rates_rad_s=res.rates_rad_s,
             vectors=np.asarray(vectors)[keep], magnitudes=mags[keep],
         )  # fmt: skip
-    elif res.rate_rad_s > 0:
-        mags = np.asarray(magnitudes, dtype=float)
-        reach = np.inf if limit_mag_at_rate is None else limit_mag_at_rate + PIECES_REACH_MAG
-        keep = mags <= reach
-        cross, roll = nea_at_rate(
-            model,
-            fov,
-            mats,
-            rates_rad_s=res.rates_rad_s,
-            vectors=np.asarray(vectors)[keep],
-            magnitudes=mags[keep],
-            catalogue=None if catalogue is None else np.asarray(catalogue)[keep],
-            detectable=_brighter(detectable, limit_mag_at_rate),
-        )
     else:
         kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
         kinds += ("catalogue",) if catalogue is not None else ()
@@ -232,15 +206,6 @@ def score_montecarlo(
         **_ratios(res.errors_rad, cross, roll),
         "stars_matched_median": float(np.median(res.n_matched)),
     }
-
-
-def _brighter(stars, limit):
-    """Return the (vectors, magnitudes) of ``stars`` at most ``limit`` (all with None)."""
-    if stars is None:
-        return None
-    v, m = (np.asarray(a, dtype=float) for a in stars)
-    keep = m <= (np.inf if limit is None else limit)
-    return v[keep], m[keep]
 
 
 def _ratios(e: np.ndarray, cross: np.ndarray, roll: np.ndarray) -> dict[str, Any]:

@@ -1,0 +1,94 @@
+"""The model fit's stars: every star the detector found, each at its own apparent place; and the
+centroids' attitude as sure as its residuals allow."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from starsense.attitude.robust import residual_scaled, robust_attitude
+from starsense.catalog import load_catalog
+from starsense.geometry.attitude import attitude_from_radec_roll, small_rotation_angles
+from starsense.geometry.sampling import random_attitudes
+from starsense.render.scene import render_frame
+from starsense.sensor import load_sensor
+from starsense.solve import Solver
+from starsense.solve import refine as refine_module
+from starsense.solve.in_view import IN_VIEW_PIXELS, room_for
+
+
+@pytest.fixture(scope="module")
+def st16_frame():
+    sensor = load_sensor("st16")
+    att = attitude_from_radec_roll(1.2, 0.4, 0.3)  # a field of the Milky Way's edge
+    return sensor, render_frame(sensor, att, load_catalog("hipparcos"), rng=11)
+
+
+def test_the_stars_added_to_the_fit_are_rendered_stars(st16_frame, monkeypatch):
+    """Each star the fit adds is a star the frame holds, near where the renderer put it."""
+    sensor, frame = st16_frame
+    seen = {}
+
+    def spy(*args, **kwargs):
+        got = original(*args, **kwargs)
+        seen["added"] = got
+        return got
+
+    original = refine_module.stars_in_view
+    monkeypatch.setattr(refine_module, "stars_in_view", spy)
+    sol = Solver(sensor, background="known")(frame.image)
+    assert sol.solved and sol.notes[0].startswith("model fit")
+    _, ref, mags = seen["added"]
+    assert len(mags) > 0  # the identification pairs only its brightest detections
+    truth = frame.truth.stars
+    x, y = sensor.project(frame.truth.attitude.apply(ref))
+    # each added star within 0.05 px of a rendered star's mid-exposure place (the catalogue
+    # places the renderer drew: the same stars, no frame time, so no apparent-place shift)
+    d = np.hypot(x[:, None] - truth.x_mid[None, :], y[:, None] - truth.y_mid[None, :])
+    assert np.all(d.min(axis=1) < 0.05), d.min(axis=1)
+    matched = {c for _, c in sol.matches}
+    nearest = truth.ids[np.argmin(d, axis=1)]
+    assert not matched & set(nearest.tolist())  # never an identified star twice
+
+
+def test_the_fit_is_bounded_on_long_streaks():
+    """At rest a star's window is a few PSF widths; a streak's grows with its length, and the
+    stars added shrink to keep the windows within the budget."""
+    sensor = load_sensor("st16")
+    half = 4.0
+    at_rest = room_for(sensor, 0, half_px=half)
+    assert at_rest == int(IN_VIEW_PIXELS / (2 * half + 1) ** 2)
+    rate = np.array([0.0, np.radians(3.0), 0.0])  # 3 deg/s across the columns
+    streak = sensor.focal_length_px * sensor.exposure_s * rate[1]
+    fast = room_for(sensor, 10, half_px=half, rate_rad_s=rate)
+    assert fast == int(IN_VIEW_PIXELS / ((2 * half + 1 + streak) * (2 * half + 1))) - 10
+    assert fast < at_rest
+
+
+@pytest.mark.parametrize("inflation", [1.0, 3.0])
+def test_residual_scaled_sigma_matches_the_scatter_of_the_attitude(inflation):
+    """Stars whose real noise is ``inflation`` times their stated sigma: the scaled covariance
+    is the attitude's real scatter (a Monte Carlo of 400 fits), never below the stated one."""
+    rng = np.random.default_rng(7)
+    truth = random_attitudes(1, rng)[0]
+    stated = 1e-5  # rad, per axis
+    n, trials = 12, 400
+    cam = rng.normal(size=(n, 3)) * [0.1, 0.1, 0.0] + [0.0, 0.0, 1.0]
+    cam /= np.linalg.norm(cam, axis=1)[:, None]
+    ref = truth.inv().apply(cam)
+    errors, sigmas, raw = [], [], []
+    for _ in range(trials):
+        noisy = cam + rng.normal(scale=inflation * stated, size=cam.shape)
+        noisy /= np.linalg.norm(noisy, axis=1)[:, None]
+        att, _ = robust_attitude(noisy, ref, np.full(n, stated), max_drop=0)
+        scaled = residual_scaled(att)
+        errors.append(small_rotation_angles(truth, scaled.rotation))
+        sigmas.append(scaled.sigma_axes_rad)
+        raw.append(att.sigma_axes_rad)
+    e, s, r = np.array(errors), np.array(sigmas), np.array(raw)
+    assert np.all(s >= r * (1 - 1e-12))  # never below the stars' own sigmas
+    ratio = np.sqrt(np.mean(e**2, axis=0) / np.mean(s**2, axis=0))
+    # 400 fits know an rms to ~3.5 % (1 / sqrt(2 x 400)); the Birge ratio of 21 degrees of
+    # freedom scatters by ~30 % per fit, and max(1, .) lifts the right model's sigma by ~10 %:
+    # the rms over fits lies within 0.8-1.25 of the truth either way
+    assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
