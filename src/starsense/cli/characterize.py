@@ -1,4 +1,4 @@
-"""`starsense characterize`: measure a camera from its own night-sky frames; write its sensor TOML."""
+"""`starsense characterize`: measure a camera from its own night-sky frames; write its TOML."""
 
 from __future__ import annotations
 

@@ -216,6 +216,8 @@ def camera_sensor(ch: Characterisation, name: str = "camera"):
     if "qe_mean" in values and 0 < values["qe_mean"].value <= 1:
         d["qe_mean"] = values["qe_mean"].value
     exposure = ch.exposures_s[0] if ch.exposures_s and len(set(ch.exposures_s)) == 1 else None
+    o = {k: float(v) for k, v in o.items()}  # plain floats: the TOML writer's repr
+    d = {k: float(v) for k, v in d.items()}
     return cal.with_(
         name=name,
         optics=dataclasses.replace(optics, **o),
