@@ -1,4 +1,4 @@
-"""`characterize` on the ESA frames (real camera, ../shared/data/images/esa) and its command line.
+"""`characterize` on the ESA frames (a real camera; the shared image folder) and its command line.
 
 A real camera has no true values to compare with; what must hold is that two disjoint sets of
 its frames (same camera, same night, each set with frames at both altitudes, 40 and 60 deg, so

@@ -1,4 +1,4 @@
-"""`characterize` on a rendered design whose true values are known (issue 51's acceptance).
+"""`characterize` on a rendered design whose true values are known.
 
 The design (640 x 480, 16 deg, PSF sigma 1.3 px, gain 2.5 counts/e, read noise 5 e, QE 0.6,
 a little distortion and a principal-point offset) is rendered at three exposures (0.25, 0.5,

@@ -34,7 +34,7 @@ ZONES = 3
 MIN_ZONE_STARS = 4
 
 
-def fit_frame(image, sensor, rotation, vectors, *, start_e=None) -> ModelFit:
+def fit_frame(image, sensor, rotation, *, vectors, start_e=None) -> ModelFit:
     """Fit the model with a free PSF width to one frame's stars (module docstring)."""
     return fit_windows(
         image,
@@ -122,7 +122,7 @@ def psf_across_field(frames, sensors, rotations) -> FieldPSF:
             if sel.sum() < MIN_ZONE_STARS:
                 continue
             try:
-                fit = fit_frame(fr.image, sensor, rot, fr.stars.vectors[sel])
+                fit = fit_frame(fr.image, sensor, rot, vectors=fr.stars.vectors[sel])
             except (InputError, np.linalg.LinAlgError):
                 continue
             s = width_sigma(fit)

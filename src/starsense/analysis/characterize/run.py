@@ -205,7 +205,7 @@ def characterize(
     results, mags, fluxes, star_exp = [], [], [], []
     for k, (fr, ws, rot, nz) in enumerate(zip(solved, sensors, cal.rotations, noises, strict=True)):
         try:
-            fit = fit_frame(fr.image, ws, rot, fr.stars.vectors)
+            fit = fit_frame(fr.image, ws, rot, vectors=fr.stars.vectors)
             width, err, chi2 = fit.psf_sigma_px, width_sigma(fit), fit.reduced_chi2
             if not fit.converged:
                 width, err = math.nan, math.nan
