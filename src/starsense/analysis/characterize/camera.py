@@ -59,11 +59,18 @@ def _optics(ch: Characterisation, out: dict, frames: tuple) -> None:
     ):
         if s[name] > 0:
             out[name] = Measured(v[name], s[name], unit, frames, how)
-    rms = cal.rms_px_after
-    out["distortion_residual_px"] = Measured(
-        rms, rms / math.sqrt(2.0 * max(cal.n_stars, 1)), "px", frames,
-        "rms per axis of the stars about the calibrated camera",
-    )  # fmt: skip
+    floor, sigma, rms = ch.lens_residual
+    if math.isfinite(floor):
+        out["distortion_residual_px"] = Measured(
+            floor, sigma, "px", frames,
+            f"floor of the stars' residuals against magnitude (their rms {rms:.3g} px per axis "
+            "includes their centroid noise, which falls with their light)",
+        )  # fmt: skip
+    else:
+        out["distortion_residual_px"] = Measured(
+            cal.rms_px_after, math.nan, "px", frames,
+            "rms per axis about the calibrated camera (too few stars to part noise from lens)",
+        )  # fmt: skip
 
 
 def _psf(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> None:

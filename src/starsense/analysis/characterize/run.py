@@ -29,6 +29,7 @@ from starsense.analysis.characterize.noise import (
 )
 from starsense.analysis.characterize.photometry import ZeroPoint, zero_point
 from starsense.analysis.characterize.psf import FieldPSF, fit_frame, psf_across_field, width_sigma
+from starsense.analysis.characterize.residual import lens_residual_px, star_residuals_px2
 from starsense.analysis.characterize.values import weighted_mean
 from starsense.analysis.characterize.working import working_sensor
 from starsense.errors import InputError
@@ -99,6 +100,9 @@ class Characterisation:
     skipped : dict
         Frames that did not solve: name -> status.
     exposures_s : tuple of float or None
+    lens_residual : (float, float, float)
+        What the calibrated lens leaves, its 1-sigma and the stars' rms, px per axis
+        (:func:`~.residual.lens_residual_px`).
     """
 
     base: Sensor
@@ -115,6 +119,7 @@ class Characterisation:
     gain_used: float
     skipped: dict = field(default_factory=dict)
     exposures_s: tuple | None = None
+    lens_residual: tuple = (math.nan, math.nan, math.nan)
 
     @property
     def names(self) -> list[str]:
@@ -253,4 +258,5 @@ def characterize(
         gain_used=float(gain),
         skipped=skipped,
         exposures_s=exposures,
+        lens_residual=lens_residual_px(*star_residuals_px2(solved, cal)),
     )
