@@ -44,7 +44,9 @@ def test_disjoint_frames_give_the_same_camera(esa_frames):
 def test_cli_json_gives_value_uncertainty_unit(esa_frames, tmp_path, capsys):
     out = tmp_path / "esa.toml"
     frames = [str(p) for p in esa_frames[:2]]
-    code = main(["characterize", *frames, "--sensor", "esa_blackfly", "--out", str(out), "--json"])
+    plot = tmp_path / "esa.png"
+    argv = ["characterize", *frames, "--sensor", "esa_blackfly", "--out", str(out)]
+    code = main([*argv, "--plot", str(plot), "--json"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     payload = json.loads(captured.out)
@@ -53,6 +55,7 @@ def test_cli_json_gives_value_uncertainty_unit(esa_frames, tmp_path, capsys):
     assert payload["values"]["psf_sigma_px"]["unit"] == "px"
     assert "throughput" in payload["not_told"]  # no --exposure-s: said so
     assert out.is_file()
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def _one_line_exit_2(capsys, argv) -> str:

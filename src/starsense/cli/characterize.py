@@ -87,6 +87,10 @@ def characterize_command(
         str | None,
         typer.Option("--time", help="UTC time of the frames (ISO 8601); else from each header."),
     ] = None,
+    plot: Annotated[
+        Path | None,
+        typer.Option("--plot", help="PNG: PSF across the field, zero point, photon transfer."),
+    ] = None,
     as_json: JsonOpt = False,
 ) -> None:
     """Measure a camera from its frames: optics, PSF, zero point, noise, gain, hot pixels.
@@ -107,6 +111,8 @@ def characterize_command(
     if not out.parent.is_dir():
         raise InputError(f"--out: directory {str(out.parent)!r} not found")
     check_output(out, "--out")  # before the frames are solved
+    if plot is not None:
+        check_output(plot, "--plot", make_parents=True)
     exposures = parse_floats(exposure_s, "--exposure-s", lo=0.0)
     if exposures is not None and any(e <= 0 for e in exposures):
         raise InputError(f"--exposure-s must be > 0 s, got {exposure_s!r}")
@@ -128,8 +134,17 @@ def characterize_command(
         obs_time=when,
     )
     text = camera_toml(ch, out.stem)
+    fig = None
+    if plot is not None:  # drawn before anything is written: a failure leaves neither file
+        from starsense.plotting.characterize import characterize_figure  # noqa: PLC0415
+
+        fig = characterize_figure(ch)
     with atomic_write(out) as fh:
         fh.write(text)
+    if fig is not None:
+        from starsense.plotting.figure import save_png  # noqa: PLC0415
+
+        save_png(fig, plot)
     values, not_told = measured_values(ch)
     payload = {
         "values": {k: m.to_dict() for k, m in values.items()},
@@ -149,6 +164,7 @@ def characterize_command(
         "skipped": ch.skipped,
         "base": ch.base.name if ch.base_given else None,
         "out": str(out),
+        "plot": None if plot is None else str(plot),
     }
     emit(payload, as_json, _report(ch, values, not_told, out))
 
