@@ -9,11 +9,11 @@ import typer
 
 from starsense.analysis.datasheet.against import against as against_frames
 from starsense.catalog import load_catalog
-from starsense.cli.common import emit
+from starsense.cli.common import emit, parse_floats
 from starsense.errors import InputError
 from starsense.sensor import load_sensor
 
-__all__ = ["AgainstOpt", "MoreFramesOpt", "against_lines", "run_against"]
+__all__ = ["AgainstExposureOpt", "AgainstOpt", "MoreFramesOpt", "against_lines", "run_against"]
 
 AgainstOpt = Annotated[
     list[Path] | None,
@@ -21,6 +21,14 @@ AgainstOpt = Annotated[
         "--against",
         help="Real frames of --sensor: measured against predicted, frame by frame (stars "
         "detected and matched, limiting magnitude, normalised residuals).",
+    ),
+]
+AgainstExposureOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--exposure-s",
+        help="With --against: the frames' exposure, s (one, or comma-separated one a frame); "
+        "default the sensor's.",
     ),
 ]
 MoreFramesOpt = Annotated[
@@ -63,7 +71,9 @@ def against_lines(sensor_name: str, section: dict) -> list[str]:
     return lines
 
 
-def run_against(sensor: str | None, against, more, *, catalog: str, seed: int, js: bool) -> bool:
+def run_against(
+    sensor: str | None, against, more, exposure_s=None, *, catalog: str, seed: int, js: bool
+) -> bool:
     """Run ``--against`` if asked: solve the frames, render their twins, print the comparison.
 
     Returns
@@ -72,6 +82,8 @@ def run_against(sensor: str | None, against, more, *, catalog: str, seed: int, j
         Whether it ran (False: no ``--against``, the datasheet runs).
     """
     if not against and not more:
+        if exposure_s is not None:
+            raise InputError("--exposure-s goes with --against (the frames' exposure)")
         return False
     if not against:
         raise InputError(f"unexpected argument {str(more[0])!r}: frames go after --against")
@@ -81,9 +93,20 @@ def run_against(sensor: str | None, against, more, *, catalog: str, seed: int, j
     for p in frames:
         if not p.is_file():
             raise InputError(f"--against: frame not found: {str(p)!r}")
+    exposures = parse_floats(exposure_s, "--exposure-s", lo=0.0)
+    if exposures is not None and (
+        len(exposures) not in (1, len(frames)) or any(e <= 0 for e in exposures)
+    ):
+        raise InputError(
+            f"--exposure-s {exposure_s}: give one exposure > 0 s, or one a frame ({len(frames)})"
+        )
     sens = load_sensor(sensor)
     result = against_frames(
-        sens, [str(p) for p in frames], catalog=load_catalog(catalog), seed=seed
+        sens,
+        [str(p) for p in frames],
+        catalog=load_catalog(catalog),
+        exposures_s=exposures,
+        seed=seed,
     )
     section = result.to_dict()
     emit({"sensor": sens.name, "against": section}, js, against_lines(sens.name, section))

@@ -17,7 +17,7 @@ from starsense.analysis.centroid_trials import centroid_trials
 from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
 from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.catalog import load_catalog
-from starsense.cli.against import AgainstOpt, MoreFramesOpt, run_against
+from starsense.cli.against import AgainstExposureOpt, AgainstOpt, MoreFramesOpt, run_against
 from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
@@ -229,6 +229,7 @@ def datasheet(
     centroids_only: CentroidsOnlyOpt = False,
     refine: RefineOpt = "model",
     against: AgainstOpt = None,
+    exposure_s: AgainstExposureOpt = None,
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
@@ -240,7 +241,8 @@ def datasheet(
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
     if seed < 0:
         raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
-    if run_against(sensor, against, more_frames, catalog=catalog, seed=seed, js=as_json):
+    frames = (against, more_frames, exposure_s)
+    if run_against(sensor, *frames, catalog=catalog, seed=seed, js=as_json):
         return
     if out is not None:  # the place, before any work: a folder (created) we may write in
         check_output(out, "--out", directory=True)

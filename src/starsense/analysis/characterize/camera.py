@@ -18,6 +18,7 @@ import numpy as np
 
 from starsense.analysis.characterize.run import Characterisation
 from starsense.analysis.characterize.values import Measured
+from starsense.analysis.characterize.working import working_sensor
 from starsense.sensor.dump import sensor_to_toml
 
 __all__ = ["WRITTEN_TO", "camera_sensor", "camera_toml", "measured_values"]
@@ -116,21 +117,24 @@ def _photometry(ch: Characterisation, out: dict, frames: tuple, not_told: dict) 
     if not z.per_second:
         not_told["throughput"] = "QE x transmission x gain needs the exposure (--exposure-s)"
         return
-    if not ch.base_given:
-        not_told["throughput"] = "QE x transmission x gain needs the aperture (--sensor)"
-        return
     thr, thr_s = z.throughput(ch.base.optics.aperture_m)
+    place = "" if ch.base_given else " (the placeholder aperture: no --sensor)"
     out["throughput_counts_per_photon"] = Measured(
-        thr, thr_s, "counts/photon", frames, "zero point / (Reed phi0 x aperture area)"
+        thr, thr_s, "counts/photon", frames, "zero point / (Reed phi0 x aperture area)" + place
     )
+    t = ch.base.optics.transmission
     if ch.transfer.told:
         g, gs = ch.transfer.gain_counts_per_e, ch.transfer.gain_sigma
-        t = ch.base.optics.transmission
         qe = thr / (g * t)
         qs = qe * math.hypot(thr_s / thr, gs / g)
-        out["qe_mean"] = Measured(qe, qs, "", frames, "throughput / (gain x transmission)")
+        out["qe_mean"] = Measured(qe, qs, "", frames, "throughput / (gain x transmission)" + place)
     else:
-        not_told["qe_mean"] = "QE needs the gain (QE x transmission x gain is measured)"
+        g = ch.gain_used
+        out["qe_mean"] = Measured(
+            thr / (g * t), thr_s / (g * t), "", frames,
+            f"throughput / (the base gain {g:g} x transmission){place}: a star's counts are "
+            "right, its electrons are not told (the gain is not)",
+        )  # fmt: skip
 
 
 def _noise(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> None:
@@ -159,10 +163,14 @@ def _noise(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> No
         )
         return
     not_told["gain_counts_per_e"] = tr.reason
+    reads = [
+        working_sensor(ch.base, n, gain_counts_per_e=g).detector.read_noise_e for n in ch.noises
+    ]
     out["read_noise_e"] = Measured(
-        float(np.median(nz)) / g, math.nan, "e", frames,
-        f"the background's per-pixel noise at the base gain {g:g} counts/e (sky shot noise "
-        "included: the gain is not known, so read and shot noise cannot be told apart)",
+        float(np.median(reads)), math.nan, "e", frames,
+        f"the background's per-pixel noise less the sky's shot noise at the base gain {g:g} "
+        "counts/e (the gain is not known, so read and shot noise are not told apart: a frame "
+        "rendered with both has the measured noise)",
     )  # fmt: skip
 
 

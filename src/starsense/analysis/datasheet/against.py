@@ -156,14 +156,14 @@ def _sigma2_model(mags, r2):
     return sigma2
 
 
-def _twin(sensor, sol, image, catalog, rng):
+def _twin(sensor, sol, image, catalog, rng, exposure_s=None):
     """Render the frame as the sensor predicts it, on the frame's own sky (module docstring)."""
     det = sensor.detector
     bg = estimate_background(np.asarray(image, dtype=np.float32), full_noise_map=False)
     sky_e = np.maximum(np.asarray(bg.level, dtype=np.float64) - det.bias_counts, 0.0)
     sky_e = np.broadcast_to(sky_e / det.gain_counts_per_e, image.shape)
-    frame = render_frame(sensor, sol.rotation, catalog, noise=False, rng=rng)
-    return apply_noise(frame.expected_e + sky_e, sensor, rng=rng)
+    frame = render_frame(sensor, sol.rotation, catalog, noise=False, rng=rng, exposure_s=exposure_s)
+    return apply_noise(frame.expected_e + sky_e, sensor, rng=rng, exposure_s=exposure_s)
 
 
 def _quantity(measured: float, predicted: float) -> dict:
@@ -175,7 +175,15 @@ def _quantity(measured: float, predicted: float) -> dict:
     }
 
 
-def against(sensor, frames, *, catalog="hipparcos", draws: int = DRAWS, seed: int = 0) -> Against:
+def against(
+    sensor,
+    frames,
+    *,
+    catalog="hipparcos",
+    exposures_s=None,
+    draws: int = DRAWS,
+    seed: int = 0,
+) -> Against:
     """Hold the sensor's prediction against real frames (module docstring).
 
     Parameters
@@ -186,6 +194,9 @@ def against(sensor, frames, *, catalog="hipparcos", draws: int = DRAWS, seed: in
         Real frames of it (not those it was characterised on, for an honest check).
     catalog : Catalog or str
         The catalogue to identify and render with.
+    exposures_s : float or sequence of float, optional
+        The frames' exposure (one for all, or one a frame), s: the twins' stars and dark
+        charge scale with it (default: the sensor's).
     draws : int
         Noise draws of each frame's twin.
     seed : int
@@ -203,6 +214,15 @@ def against(sensor, frames, *, catalog="hipparcos", draws: int = DRAWS, seed: in
     frames = list(frames)
     if not frames:
         raise InputError("--against needs at least one frame")
+    exps = [None] * len(frames)
+    if exposures_s is not None:
+        exps = [float(e) for e in np.atleast_1d(np.asarray(exposures_s, dtype=float))]
+        exps = exps * len(frames) if len(exps) == 1 else exps
+        if len(exps) != len(frames) or not all(math.isfinite(e) and e > 0 for e in exps):
+            raise InputError(
+                f"exposures_s: need one exposure > 0 s, or one a frame ({len(frames)}); got "
+                f"{exposures_s!r}"
+            )
     solver = Solver(sensor, catalog=catalog)
     cat = solver.catalog
     gen = np.random.default_rng(seed)
@@ -227,7 +247,7 @@ def against(sensor, frames, *, catalog="hipparcos", draws: int = DRAWS, seed: in
                 store[key].append(val)
         counts = []
         for _ in range(draws):
-            ts = solver(_twin(sensor, sol, image, cat, gen))
+            ts = solver(_twin(sensor, sol, image, cat, gen, exps[k]))
             counts.append((ts.n_detections, ts.n_matched if ts.solved else 0))
             if ts.solved:
                 for key, val in zip(twin, _statistics(ts, sensor, cat), strict=True):
