@@ -37,6 +37,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "render": ("starsense.cli.frames", "render"),
     "solve": ("starsense.cli.solve", "solve"),
     "calibrate": ("starsense.cli.calibrate", "calibrate"),
+    "characterize": ("starsense.cli.characterize", "characterize_command"),
     "montecarlo": ("starsense.cli.frames", "montecarlo"),
     "datasheet": ("starsense.cli.datasheet", "datasheet"),
     "trade": ("starsense.cli.trade", "trade"),

@@ -17,6 +17,7 @@ from starsense.analysis.centroid_trials import centroid_trials
 from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
 from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.catalog import load_catalog
+from starsense.cli.against import AgainstExposureOpt, AgainstOpt, MoreFramesOpt, run_against
 from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
@@ -178,7 +179,18 @@ RefineOpt = Annotated[
 ]
 
 
+CentroidsOnlyOpt = Annotated[
+    bool,
+    typer.Option(
+        "--centroids-only",
+        help="Only lost in space on --trials simulated centroid sets (predicted noise, "
+        "dropped and false stars; no image): wrong solutions and the 95 % bound.",
+    ),
+]
+
+
 def datasheet(
+    more_frames: MoreFramesOpt = None,
     sensor: Annotated[
         str | None,
         typer.Option(
@@ -214,15 +226,10 @@ def datasheet(
     schema: Annotated[
         bool, typer.Option("--schema", help="Print the JSON schema of the datasheet and exit.")
     ] = False,
-    centroids_only: Annotated[
-        bool,
-        typer.Option(
-            "--centroids-only",
-            help="Only lost in space on --trials simulated centroid sets (predicted noise, "
-            "dropped and false stars; no image): wrong solutions and the 95 % bound.",
-        ),
-    ] = False,
+    centroids_only: CentroidsOnlyOpt = False,
     refine: RefineOpt = "model",
+    against: AgainstOpt = None,
+    exposure_s: AgainstExposureOpt = None,
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
@@ -234,6 +241,9 @@ def datasheet(
     option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
     if seed < 0:
         raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
+    frames = (against, more_frames, exposure_s)
+    if run_against(sensor, *frames, catalog=catalog, seed=seed, js=as_json):
+        return
     if out is not None:  # the place, before any work: a folder (created) we may write in
         check_output(out, "--out", directory=True)
     # --sensor with --compare is one more sensor of the comparison, first (never dropped)

@@ -4,7 +4,9 @@ The TOML has the top-level keys ``name``, ``description`` and ``exposure_s`` and
 ``[optics]``, ``[detector]`` and ``[detection]`` (the fields of :class:`Optics`,
 :class:`Detector` and :class:`DetectionThresholds`), optionally ``[attitude_areas]`` and
 ``[exclusion]`` (bright-body exclusion, :mod:`starsense.sensor.exclusion`) and ``[mission]``
-(a mission for the report, :mod:`starsense.sensor.mission_plan`). Copy a
+(a mission for the report, :mod:`starsense.sensor.mission_plan`), and ``[provenance]``
+(where measured values came from, as ``starsense characterize`` writes it: read as information
+only, never as a value of the sensor). Copy a
 preset and edit it to describe your own sensor. A bad value raises
 :class:`~starsense.errors.InputError` naming the file, the field, the value and the allowed range.
 """
@@ -43,7 +45,7 @@ _SECTIONS: dict[str, type] = {
 }
 _TOP_KEYS = {
     "name", "description", "exposure_s", "attitude_areas", "exclusion", "mission", "quoted",
-    "budget", "psf", *(_SECTIONS),
+    "budget", "psf", "provenance", *(_SECTIONS),
 }  # fmt: skip
 _AREA_KEYS = {"layout", "image_circle_diameter_mm", "area"}
 _AREA_SHAPES = ("rectangle_mm", "polygon_mm")
@@ -217,6 +219,8 @@ def sensor_from_dict(data: dict, source: str = "<dict>") -> Sensor:
     quoted = parse_quoted(data["quoted"], source) if "quoted" in data else ()
     budget = parse_budget(data["budget"], source) if "budget" in data else ()
     psf = psf_from_table(data["psf"], source) if "psf" in data else PSFSpec()
+    if "provenance" in data and not isinstance(data["provenance"], dict):
+        raise InputError(f"{source}: [provenance] must be a table, got {show(data['provenance'])}")
     try:
         return Sensor(
             name=data.get("name", Path(source).stem),
