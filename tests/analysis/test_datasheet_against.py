@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from starsense.analysis.characterize import camera_toml, characterize
-from starsense.analysis.datasheet.against import against
+from starsense.analysis.characterize.against import against
 from starsense.cli import main
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll

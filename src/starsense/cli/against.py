@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from starsense.analysis.datasheet.against import against as against_frames
+from starsense.analysis.characterize.against import against as against_frames
 from starsense.catalog import load_catalog
 from starsense.cli.common import emit, parse_floats
 from starsense.errors import InputError
