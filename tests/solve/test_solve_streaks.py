@@ -22,6 +22,7 @@ from starsense.geometry.attitude import angular_separation, boresight, small_rot
 from starsense.geometry.sampling import random_attitudes
 from starsense.render.scene import render_frame
 from starsense.solve import Solver
+from starsense.solve import streak_model as streak_model_module
 from starsense.solve import streaks as streaks_module
 from starsense.solve.streaks import matched_measurements, streak_centroids_of
 from starsense.units import ARCSEC, DEG
@@ -291,7 +292,7 @@ def test_a_streak_of_no_length_among_the_candidates_is_not_turned_from():
     axes[:, 0, 0] = [40.0**2 / 12, 38.0**2 / 12, 0.0]
     axes[:, 1, 1] = 0.1
     length2 = np.array([40.0, 38.0, 0.0]) ** 2
-    got = streaks_module._confirmed(axes, length2, 0.8, 2.0, np.array([True, True, True]))
+    got = streak_model_module._confirmed(axes, length2, 0.8, 2.0, np.array([True, True, True]))
     assert got == 0
 
 

@@ -150,6 +150,7 @@ def refine_attitude(
     electrons=None,
     fit_width=None,
     place=None,
+    more=None,
 ) -> Refinement:
     """Fit the attitude to the pixels of the identified stars (module docstring).
 
@@ -195,6 +196,10 @@ def refine_attitude(
         if zp is None:  # the identified stars alone first: their fluxes give the zero point
             first = fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
             zp = _zero_point(first.fluxes_e, mags)
+        if more is not None and zp is not None:  # the other stars in view, at that zero point
+            px, rx, mx = more(zp, rotation if fit is None else fit.rotation)
+            plain, ref, mags = np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx)
+        n_fitted = 0 if fit is None else len(fit.fluxes_e)  # the first fit: no neighbours
         nv = np.zeros((0, 3))
         for _ in range(2):  # again if the fit's fluxes move the zero point (lit sums miss wings)
             if zp is None:
@@ -210,9 +215,12 @@ def refine_attitude(
                 zero_point=zp,
                 noise_e=_psf_noise_e(sensor),
             )
-            if fit is first and fit is not None and not len(nv):
+            if fit is first and fit is not None and not len(nv) and n_fitted == len(ref):
                 break
-            own = zp * 10.0 ** (-0.4 * mags) if fit is None else fit.fluxes_e[: len(ref)]
+            own = zp * 10.0 ** (-0.4 * mags)  # fitted fluxes where a fit has them
+            if fit is not None:
+                got = fit.fluxes_e[:n_fitted]
+                own[:n_fitted] = np.where(np.isfinite(got) & (got > 0), got, own[:n_fitted])
             fit = fit_windows(
                 image,
                 sensor,
@@ -224,6 +232,7 @@ def refine_attitude(
                 fluxes_e=own,
                 **opts,
             )
+            n_fitted = len(ref)
             new = _zero_point(fit.fluxes_e[: len(ref)], mags)
             if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
                 break
@@ -232,7 +241,7 @@ def refine_attitude(
             fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    return _judged(fit, sensor, rotation, cog_sigma_rad, len(nv))
+    return _judged(fit, sensor, rotation, cog_sigma_rad, (len(ref), len(nv)))
 
 
 def _psf_noise_e(sensor) -> float:
@@ -259,8 +268,12 @@ def _robust(fit: ModelFit) -> np.ndarray:
     return cov * np.outer(scale, scale)
 
 
-def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refinement:
-    """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not."""
+def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, counts) -> Refinement:
+    """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not.
+
+    ``counts``: the stars fitted and the neighbours drawn.
+    """
+    n_stars, n_nbr = counts
     if fit.reduced_chi2 > MAX_REDUCED_CHI2 or not math.isfinite(fit.reduced_chi2):
         why = f"reduced chi-square {fit.reduced_chi2:.3g} > {MAX_REDUCED_CHI2:g}"
         return Refinement(
@@ -270,7 +283,7 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, n_nbr: int) -> Refin
         return Refinement(fit, False, "model fit did not converge", n_nbr)
     if not np.all(np.isfinite(fit.sigma_axes_rad)) or not math.isfinite(fit.reduced_chi2):
         return Refinement(fit, False, "model fit not used: singular information", n_nbr)
-    note = f"model fit ({fit.n_pixels} px, {n_nbr} neighbours)"
+    note = f"model fit ({fit.n_pixels} px, {n_stars} stars, {n_nbr} neighbours)"
     if fit.reduced_chi2 > SCALED_CHI2:  # the pixels scatter more than the model says
         fit = dataclasses.replace(fit, covariance=_robust(fit))
         note += (
@@ -327,24 +340,31 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
     plain, ref = places
     index = np.asarray(ident.catalog_index)
     mags = np.asarray(db.mags, dtype=float)[index]
-    electrons = None
-    if points.what == "detections":  # the detections' lit sums, counts
+    electrons = None  # at rest the detections' lit sums (counts) give the zero point; a smeared
+    if points.what == "detections" and rate_rad_s is None:  # frame's pieces do not: a first fit
         flux = np.asarray(points.flux, dtype=float)[np.asarray(ident.detection_index)]
         electrons = flux / sensor.detector.gain_counts_per_e
-        zp = _zero_point(electrons, mags)
-        if zp is not None:  # every star the detector found joins the fit (in_view.py)
-            streak = 0.0 if rate_rad_s is None else float(np.linalg.norm(rate_rad_s))
-            plain_x, ref_x, mags_x = stars_in_view(
-                sensor, att.rotation, detections=np.column_stack([points.x, points.y]),
-                matched=ident.detection_index, plain=plain, sky=sky, place=place,
-                min_electrons_e=DETECTABLE_SNR * _psf_noise_e(sensor), zero_point_e=zp,
+    more = None
+    if points.what == "detections":  # every star the detector found joins the fit (in_view.py)
+        streak = 0.0 if rate_rad_s is None else float(np.linalg.norm(rate_rad_s))
+        half = window_half_px(psf_of(sensor))
+        room = room_for(sensor, len(ref), half_px=half, rate_rad_s=rate_rad_s)
+
+        def more(zero_point_e, rotation):
+            return stars_in_view(
+                sensor,
+                rotation,
+                detections=np.column_stack([points.x, points.y]),
+                matched=ident.detection_index,
+                plain=plain,
+                sky=sky,
+                place=place,
+                min_electrons_e=DETECTABLE_SNR * _psf_noise_e(sensor),
+                zero_point_e=zero_point_e,
                 streak_px=streak * sensor.exposure_s * sensor.focal_length_px,
-                max_stars=room_for(sensor, len(ref), half_px=window_half_px(psf_of(sensor)),
-                                   rate_rad_s=rate_rad_s),
-            )  # fmt: skip
-            plain, ref = np.vstack([plain, plain_x]), np.vstack([ref, ref_x])
-            mags = np.concatenate([mags, mags_x])
-            electrons = np.concatenate([electrons, np.full(len(mags_x), np.nan)])
+                max_stars=room,
+            )
+
     done = refine_attitude(
         image,
         sensor,
@@ -357,6 +377,7 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
         rate_rad_s=rate_rad_s,
         electrons=electrons,
         place=place,
+        more=more,
     )
     if not done.used:
         return att, (done.note,)

@@ -47,12 +47,13 @@ from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
-from starsense.solve.radial import refine_identification
 from starsense.solve.references import matched_references, sky_places
 from starsense.solve.refine import refined_attitude
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
-from starsense.solve.streaks import matched_measurements, streak_body_rate
+from starsense.solve.streak_model import streak_body_rate
+from starsense.solve.streaks import matched_measurements
+from starsense.solve.unknown_optics import refine_identification
 from starsense.units import DEG
 
 __all__ = [

@@ -11,23 +11,9 @@ centroids can be off by more than a pixel: a wrong solution.
 
 Once the frame is identified, :func:`streak_centroids_of`:
 
-1. measures the streaks of the brightest matched stars (the second moments of their lit pixels,
-   :func:`starsense.detect.streak.streak_axes`, the collinear pieces of a faint streak broken
-   by the noise bridged into it, ``bridge_px``) and fits the body rate, up to its
-   sign, to the longest whole ones (the model of :mod:`~starsense.solve.tracking.streak_rate`,
-   linear in the rate to first order in the angle turned during the exposure, solved for
-   every choice of the streaks' unknown signs): a piece of a streak is shorter than the
-   streak and a blend of two streaks longer (at most twice) or turned, so the reference is
-   the streak the most others confirm (as long within the lit pixels' shortfall,
-   ``SYSTEMATIC``, and as turned within the PSF's width), counting the brightest
-   ``N_RATE_STARS`` first (a bright streak is whole; the pieces of faint ones, broken alike
-   where their ridges cross the pixel rows, can outnumber them), of those at least half as
-   long as the longest; only streaks within that shortfall of it take part, and a streak the fitted
-   rate does not predict is dropped and the rate refitted (with fewer than 3 of them, their
-   mean streak stands for every star's). A frame whose streaks, as the fitted rate draws
-   them (a faint streak's lit pixels fall short of it), are all shorter than 2 PSF sigmas
-   plus the centroid margin on each side keeps its centroids (with fewer than 3 streaks
-   agreeing on the rate, the brightest measured ones decide): its boxes hold each streak;
+1. measures the body rate from the brightest matched stars' streaks
+   (:func:`starsense.solve.streak_model.streak_model`); a frame whose streaks are short keeps
+   its centroids: its boxes hold each streak;
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
@@ -44,7 +30,8 @@ Once the frame is identified, :func:`streak_centroids_of`:
    anywhere along its streak, ``l l^T / 12`` (uniform over it): its centroid is pulled inwards
    by the cut, and the fit all but ignores it.
 
-The streaks are returned with the centroids: their body rate (:func:`streak_body_rate`) starts
+The streaks are returned with the centroids: their body rate
+(:func:`starsense.solve.streak_model.streak_body_rate`) starts
 the forward model's fit, which draws each streak with its neighbours' and fits the rate with
 the attitude (:mod:`starsense.solve.refine`); the capsule centroids give the attitude it starts
 from, and the attitude itself where no sensor model is fitted.
@@ -52,36 +39,29 @@ from, and the attitude itself where no sensor model is fitted.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from starsense.detect.centroid import cog_sigma_px
-from starsense.detect.streak import SYSTEMATIC, WINDOW_PIXELS, streak_axes, streak_centroids
+from starsense.detect.streak import SYSTEMATIC, WINDOW_PIXELS, streak_centroids
+from starsense.solve.streak_model import (
+    CAPSULE_PAD_PX,
+    CAPSULE_SIGMAS,
+    MIN_STREAK_SIGMAS,
+    streak_model,
+)
 
 __all__ = [
     "CAPSULE_PAD_PX",
     "CAPSULE_SIGMAS",
     "MIN_STREAK_SIGMAS",
-    "N_RATE_STARS",
     "StreakCentroids",
     "matched_measurements",
-    "streak_body_rate",
     "streak_centroids_of",
     "streak_cov_px2",
 ]
-
-#: a frame whose measured streaks are shorter than this many PSF sigmas (plus the centroid
-#: window's margins) is not re-centroided
-MIN_STREAK_SIGMAS = 2.0
-#: the capsule each streak is centroided over: within CAPSULE_SIGMAS PSF sigmas plus
-#: CAPSULE_PAD_PX px of the streak (the tracking windows' capsule)
-CAPSULE_SIGMAS, CAPSULE_PAD_PX = 2.5, 1.0
-#: the brightest matched stars whose streaks give the rate (a faint streak breaks into pieces)
-N_RATE_STARS = 5
 
 
 @dataclass(frozen=True)
@@ -110,15 +90,6 @@ class StreakCentroids:
     def sigma_px(self) -> np.ndarray:
         """Mean-of-axes 1-sigma of each centroid, px (shape (N,))."""
         return np.sqrt(0.5 * (self.cov_px2[:, 0, 0] + self.cov_px2[:, 1, 1]))
-
-
-def _streaks(sensor, x, y, rate_rad_s) -> np.ndarray:
-    """Streak (start to end) of the stars at (x, y) at a body rate, px, shape (N, 2)."""
-    b = sensor.unproject(x, y)
-    half = Rotation.from_rotvec(np.asarray(rate_rad_s) * sensor.exposure_s / 2.0)
-    xs, ys = sensor.project(half.apply(b))
-    xe, ye = sensor.project(half.inv().apply(b))
-    return np.column_stack([xe - xs, ye - ys])
 
 
 def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -159,135 +130,6 @@ def _capsule_centroids(image, x, y, seg, half: int, level, radius: float) -> tup
         got = streak_centroids(planes, x[at] - c0, y[at] - r0, streaks=seg[at], radius=radius)
         parts.append((*got, r0, c0))
     return tuple(np.concatenate(z) for z in zip(*parts, strict=True))
-
-
-def _measured(axes) -> np.ndarray:
-    """Return the streaks ``l`` (N, 2), px, sign unknown, whose ``l l^T`` are ``axes``."""
-    length = np.sqrt(np.maximum(axes[:, 0, 0] + axes[:, 1, 1], 0.0))
-    return np.linalg.eigh(axes)[1][:, :, -1] * length[:, None]
-
-
-def _rate(sensor, x, y, axes) -> np.ndarray:
-    """Return the body rate (up to sign) whose streaks fit ``l l^T`` of stars (x, y), rad/s.
-
-    To first order in the angle turned during the exposure the streak is linear in the rate,
-    ``l_i = A_i w`` (``A_i`` from the projection); each measured streak is ``+-l_i``, the sign
-    unknown: the least-squares ``w`` is found for every choice of the signs (the first fixed)
-    and the best kept.
-    """
-    eps = 1e-6 / sensor.exposure_s  # a turn of 1 microradian over the exposure
-    a = np.stack([_streaks(sensor, x, y, eps * e) / eps for e in np.eye(3)], axis=2)
-    meas = _measured(axes)
-    a2 = a.reshape(-1, 3)
-    best, rate = math.inf, np.zeros(3)
-    for signs in itertools.product((1.0, -1.0), repeat=len(x) - 1):
-        rhs = (meas * np.array([1.0, *signs])[:, None]).ravel()
-        w = np.linalg.lstsq(a2, rhs, rcond=None)[0]
-        cost = float(np.sum((a2 @ w - rhs) ** 2))
-        if cost < best:
-            best, rate = cost, w
-    return rate
-
-
-def _streak_model(sensor, image, x, y, order, **measure):
-    """Return the streaks of stars (x, y) -> (N, 2) px from the brightest ones, or None.
-
-    None when fewer than 3 streaks are measured or they are short (module docstring): the
-    longest the fitted rate draws decides, as the datasheet's prediction does on the true ones.
-    """
-    sigma = sensor.detector.psf_sigma_px
-    use = order[: 3 * N_RATE_STARS]
-    half = math.ceil(0.5 * float(np.max(measure.pop("extent_px")[use])) + 3.0 * sigma + 4.0)
-    shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * measure.pop("margin_px")
-    # a faint streak's pieces (gaps where the noise took its ridge below the threshold) join
-    measure["bridge_px"] = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
-    # the brightest streaks first: where they measure short of half the shortest the frame is
-    # at rest, and the other windows are not read (it pays for N_RATE_STARS windows only)
-    bright = use[:N_RATE_STARS]
-    first = streak_axes(image, x[bright], y[bright], half_px=half, **measure)
-    first2 = first[:, 0, 0] + first[:, 1, 1]
-    first2, screen = first2[np.isfinite(first2)], 0.5 * shortest
-    if len(first2) == 0 or np.median(first2) < screen**2:
-        return None
-    rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
-    axes = np.concatenate([first, rest])
-    length2 = axes[:, 0, 0] + axes[:, 1, 1]  # |l|^2
-    ok = np.flatnonzero(np.isfinite(length2))
-    if len(ok) < 3:
-        return None
-    # the rate: the streaks within SYSTEMATIC of the reference one (_confirmed), longest first
-    ok = ok[np.argsort(-length2[ok], kind="stable")]
-    if np.median(length2[ok[:N_RATE_STARS]]) < screen**2:
-        return None
-    low = (1.0 - SYSTEMATIC) ** 2
-    top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0, ok < N_RATE_STARS)
-    typical2 = float(length2[ok[top]])
-    ok = ok[top:][length2[ok[top:]] >= low * typical2]
-    ok = ok[np.argsort(-length2[ok], kind="stable")][:N_RATE_STARS]
-    if len(ok) < 3:  # one or two whole streaks (or a blend): the brightest measured decide
-        if np.median(first2) < shortest**2:
-            return None
-        m = axes[ok].sum(axis=0)
-        vec = np.linalg.eigh(m)[1][:, -1] * math.sqrt(float(np.trace(m)) / len(ok))
-        model = lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))  # noqa: E731
-    else:
-        rate = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
-        model = lambda xs, ys: _streaks(sensor, xs, ys, rate)  # noqa: E731
-    drawn = model(x, y)
-    if float(np.max(np.hypot(drawn[:, 0], drawn[:, 1]))) < shortest:
-        return None
-    return model
-
-
-def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:
-    """Return the reference streak of :func:`_streak_model` (index into length-sorted ones).
-
-    Candidates: the streaks at least half as long as the longest of the brightest (``bright``)
-    that another confirms (shorter within ``low``, turned within the angle ``width_px``
-    spans); a blend is seldom confirmed, and collinear pieces bridged end to end can blend
-    several streaks. Of those, the one the most of the brightest measure as long as (to
-    ``width_px``: a bright streak is whole), then the one the most of them confirm, then the
-    most of all (pieces of faint streaks broken alike can outnumber the whole ones).
-    """
-    direction = np.linalg.eigh(axes)[1][:, :, -1]
-    length = np.sqrt(length2)
-    across = np.abs(direction @ np.column_stack([-direction[:, 1], direction[:, 0]]).T)
-    with np.errstate(divide="ignore"):  # a streak of no length: nothing is turned from it
-        turned = across > width_px / length[None, :]  # [j, i]: streak j turned from streak i
-    alike = (np.abs(length[:, None] - length[None, :]) <= width_px) & ~turned
-    within = (length2[:, None] >= low * length2[None, :]) & (length2[:, None] <= length2[None, :])
-    within &= ~turned & ~np.eye(len(length), dtype=bool)  # [j, i]: j confirms i
-    held = np.asarray(bright, dtype=bool) & within.any(axis=0)
-    longest = float(length[held].max()) if held.any() else float(length[0])
-    n = len(length2) + 1
-    support = np.full(len(length2), -1, dtype=np.int64)
-    for i in np.flatnonzero(length >= 0.5 * longest):
-        near = (length2 >= low * length2[i]) & (length2 <= length2[i]) & ~turned[:, i]
-        support[i] = n * n * np.count_nonzero(alike[:, i] & bright)
-        support[i] += n * np.count_nonzero(near & bright) + np.count_nonzero(near)
-    return int(np.argmax(support))
-
-
-def _consensus_rate(sensor, x, y, axes, typical_px: float) -> np.ndarray:
-    """Return the rate of :func:`_rate`, refitted without the streaks it does not predict.
-
-    A streak farther from the fitted one (either sign) than the lit pixels' shortfall
-    (``SYSTEMATIC`` of the typical streak) plus 2 PSF sigmas is a blend whose direction the
-    length window did not catch: the worst is dropped and the rate refitted, while 3 remain.
-    """
-    keep = np.arange(len(x))
-    tol = SYSTEMATIC * typical_px + 2.0 * sensor.detector.psf_sigma_px
-    while True:
-        rate = _rate(sensor, x[keep], y[keep], axes[keep])
-        if len(keep) <= 3:
-            return rate
-        model = _streaks(sensor, x[keep], y[keep], rate)
-        meas = _measured(axes[keep])
-        miss = np.minimum(np.hypot(*(meas - model).T), np.hypot(*(meas + model).T))
-        worst = int(np.argmax(miss))
-        if miss[worst] <= tol:
-            return rate
-        keep = np.delete(keep, worst)
 
 
 def streak_centroids_of(
@@ -339,12 +181,11 @@ def streak_centroids_of(
     if len(x) < 3:
         return None
     order = np.argsort(-counts, kind="stable")
-    model = _streak_model(
+    model = streak_model(
         sensor,
         image,
-        x,
-        y,
-        order,
+        (x, y),
+        order=order,
         extent_px=np.asarray(extent_px, dtype=float),
         level=level,
         threshold=threshold,
@@ -476,21 +317,3 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
     own = got.sigma_px
     sigma = own if fixed == "snr" else np.maximum(own, fixed)
     return sensor.unproject(got.x, got.y), sigma, got
-
-
-def streak_body_rate(sensor, cam, streaks_px) -> np.ndarray:
-    """Return the body rate (rad/s, camera frame) whose streaks fit ``streaks_px`` (N, 2).
-
-    The streaks the solver centroided over come from one rate, their signs consistent; to first
-    order they are linear in it (``l_i = A_i w``, ``A_i`` the projection's), the least-squares
-    ``w`` their rate, up to the sign every streak shares (the forward model of a streak is even
-    in it). ``cam`` (N, 3): the stars, camera frame.
-    """
-    n = len(cam)
-    eps = 1e-6  # a turn of 1 microradian over the exposure
-    turns = np.concatenate([[0.5 * eps * e, -0.5 * eps * e] for e in np.eye(3)])  # (6, 3)
-    x, y = sensor.project(np.concatenate([Rotation.from_rotvec(t).apply(cam) for t in turns]))
-    x, y = x.reshape(6, n), y.reshape(6, n)
-    cols = [np.column_stack([x[2 * k + 1] - x[2 * k], y[2 * k + 1] - y[2 * k]]) for k in range(3)]
-    a = np.column_stack([c.ravel() for c in cols]) / (eps / sensor.exposure_s)
-    return np.linalg.lstsq(a, np.ravel(streaks_px), rcond=None)[0]

@@ -37,7 +37,6 @@ from starsense.analysis.datasheet.sections import (
     Datasheet,
     Electrons,
     FastestRates,
-    MonteCarloCheck,
     RatesKept,
     RollOverCross,
     SheetSettings,
@@ -46,7 +45,7 @@ from starsense.analysis.datasheet.sections import (
 )
 from starsense.analysis.datasheet.settings import DatasheetSettings
 from starsense.analysis.datasheet.skycache import limit_sigmas
-from starsense.analysis.datasheet.verify import no_frames_check, score_montecarlo
+from starsense.analysis.datasheet.verify import run_checks
 from starsense.analysis.inputs import (
     as_catalog,
     as_sensor,
@@ -54,7 +53,6 @@ from starsense.analysis.inputs import (
     held_by,
     root_seed,
 )
-from starsense.analysis.montecarlo import montecarlo
 from starsense.analysis.sensor_detection import sensor_detection
 from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.photometry.sensitivity import Sensitivity
@@ -209,40 +207,6 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     return model, (vectors, catalogue), mags, boresights, mats, sig, counts, lim
 
 
-def _runs(sensor, cat, st: DatasheetSettings, sky, client, tick) -> dict[str, MonteCarloCheck]:
-    """Return the Monte Carlo checks at rest and at the settings' rate, scored.
-
-    ``sky``: model, field, tracked stars, their magnitudes, the faintest detected at the rate.
-    """
-    model, fov, (vectors, catalogue), mags, limit = sky
-    runs = {}
-    rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
-    for key, rate, n in (
-        ("monte_carlo", 0.0, st.n_trials),
-        ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
-    ):
-        if n == 0:  # the prediction alone (starsense trade, the design page)
-            runs[key] = no_frames_check(rate)
-            continue
-        res = montecarlo(
-            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model,
-            client=client, refine=st.refine,
-        )  # fmt: skip
-        runs[key] = MonteCarloCheck(
-            **score_montecarlo(
-                res,
-                model,
-                fov=fov,
-                vectors=vectors,
-                magnitudes=mags,
-                limit_mag_at_rate=limit,
-                catalogue=catalogue,
-            )
-        )
-        tick(key.replace("_", " "))
-    return runs
-
-
 def build_datasheet(
     sensor,
     catalog=None,
@@ -306,7 +270,8 @@ def build_datasheet(
         for k in ("cross", "roll")
     }
     at_rate = np.interp(st.rate_rad_s * RAD_TO_DEG, avail.rates_deg_s, avail.threshold_mag_at_rate)
-    runs = _runs(sensor, sky_cat, st, (model, fov, stars_used, mags, float(at_rate)), client, tick)
+    sky = (model, fov, stars_used, mags, float(at_rate))
+    runs = run_checks(sensor, sky_cat, st, sky=sky, client=client, tick=tick)
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}

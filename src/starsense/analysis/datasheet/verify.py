@@ -23,6 +23,7 @@ from scipy.stats import beta
 from starsense.analysis.datasheet.model_noise import model_nea_at_rate
 from starsense.analysis.datasheet.predict import error_kinds, nea_at
 from starsense.analysis.datasheet.sections import MonteCarloCheck
+from starsense.analysis.montecarlo import montecarlo
 from starsense.units import RAD_TO_ARCSEC, RAD_TO_DEG
 
 __all__ = [
@@ -30,6 +31,7 @@ __all__ = [
     "MIN_CHECKED_FRAMES",
     "no_frames_check",
     "ratio_interval",
+    "run_checks",
     "score_montecarlo",
     "wrong_rate_upper",
 ]
@@ -263,3 +265,41 @@ def no_frames_check(rate_rad_s: float) -> MonteCarloCheck:
         statuses={},
         **dict.fromkeys(MEASURED_KEYS),
     )
+
+
+def run_checks(sensor, cat, st, *, sky, client, tick) -> dict[str, MonteCarloCheck]:
+    """Return the Monte Carlo checks at rest and at the settings' rate, scored.
+
+    ``sensor`` and ``cat`` are rendered and solved (:func:`starsense.analysis.montecarlo.
+    montecarlo`) as ``st`` (DatasheetSettings) says; ``sky``: the star model, the field, the
+    (vectors, catalogue offsets) and magnitudes of the stars the solver fits, the faintest
+    magnitude detected at the rate; ``client`` a Dask client or None; ``tick(name)`` is called
+    after each run.
+    """
+    model, fov, (vectors, catalogue), mags, limit = sky
+    runs = {}
+    rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
+    for key, rate, n in (
+        ("monte_carlo", 0.0, st.n_trials),
+        ("monte_carlo_at_rate", st.rate_rad_s, rate_trials),
+    ):
+        if n == 0:  # the prediction alone (starsense trade, the design page)
+            runs[key] = no_frames_check(rate)
+            continue
+        res = montecarlo(
+            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model,
+            client=client, refine=st.refine,
+        )  # fmt: skip
+        runs[key] = MonteCarloCheck(
+            **score_montecarlo(
+                res,
+                model,
+                fov=fov,
+                vectors=vectors,
+                magnitudes=mags,
+                limit_mag_at_rate=limit,
+                catalogue=catalogue,
+            )
+        )
+        tick(key.replace("_", " "))
+    return runs
