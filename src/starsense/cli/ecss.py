@@ -49,6 +49,9 @@ def ecss(
     n_orientations: Annotated[
         int, typer.Option("--n-orientations", help="Boresights of the sky statistics.")
     ] = 2000,
+    n_slew_trials: Annotated[
+        int, typer.Option("--n-slew-trials", help="Renders per (magnitude, rate) of the slew run.")
+    ] = 20,
     model: ModelOpt = "reed",
     refine: Annotated[
         str, typer.Option("--refine", help="The solver: model (default, the fit) or cog.")
@@ -77,6 +80,7 @@ def ecss(
         rate_rad_s=rate_deg_s * DEG,
         seed=seed,
         n_orientations=n_orientations,
+        n_slew_trials=n_slew_trials,
         model=model,
         refine=refine,
     )

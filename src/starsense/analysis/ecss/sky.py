@@ -27,7 +27,10 @@ from starsense.errors import InputError
 from starsense.solve.solver import Solver
 from starsense.units import RAD_TO_DEG
 
-__all__ = ["SkyStars", "sky_stars"]
+__all__ = ["MAX_RATE_ATTITUDES", "SkyStars", "sky_stars", "threshold_at"]
+
+#: the most attitudes the noise at a rate is computed over (its sky median to a few per cent)
+MAX_RATE_ATTITUDES = 200
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,11 @@ class SkyStars:
     seed: int
     catalog: object
 
+    @property
+    def rate_stride(self) -> int:
+        """Return the stride through the attitudes of the noise at a rate (at most 200 kept)."""
+        return max(1, math.ceil(len(self.matrices) / MAX_RATE_ATTITUDES))
+
     def propagated(self, kind: str) -> np.ndarray:
         """Return the X, Y, Z error (M, 3), rad, of a per-star error kind of the star model."""
         mags = self.magnitudes[self.pairs.star]
@@ -75,14 +83,23 @@ class SkyStars:
 
         Each attitude turns about a cross-boresight axis at a random angle (the datasheet's
         Monte Carlo, :func:`starsense.analysis.montecarlo.montecarlo`), drawn from the seed;
-        the stars are those detected at the rate (V <= ``limit_mag``).
+        the stars are those detected at the rate (V <= ``limit_mag``). A smeared star's
+        information is computed star by star (about a millisecond each), so the attitudes are
+        thinned to at most :data:`MAX_RATE_ATTITUDES`, every :attr:`rate_stride`-th of the
+        lattice (which spirals from pole to pole: a stride keeps it spread over the sky).
+
+        Returns
+        -------
+        ndarray (K, 3)
+            rad, over the ``K`` attitudes kept.
         """
-        m = len(self.matrices)
+        mats = self.matrices[:: self.rate_stride]
+        m = len(mats)
         phi = np.random.default_rng([self.seed, 52]).uniform(0.0, 2.0 * math.pi, m)
         rates = rate_rad_s * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(m)])
         keep = self.magnitudes <= limit_mag
         fisher = model_fisher_at_rate(
-            self.model, self.fov, self.matrices, rates_rad_s=rates,
+            self.model, self.fov, mats, rates_rad_s=rates,
             vectors=self.vectors[keep], magnitudes=self.magnitudes[keep],
         )  # fmt: skip
         return fisher_axes(fisher)

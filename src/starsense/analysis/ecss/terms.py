@@ -167,9 +167,11 @@ def _temporal(sky: SkyStars, rates_rad_s, dynamic) -> Term:
             values.append(sky.temporal_at_rate(rate, threshold_at(dynamic, rate)))
         else:
             values.append(None)
+    kept = len(sky.matrices[:: sky.rate_stride])
     how = (
-        "modelled: the forward model's Fisher information (the bound its fit attains), at "
-        "each rate of the smeared stars detected at that rate"
+        "modelled: the forward model's Fisher information (the bound its fit attains); at a "
+        f"rate, of the smeared stars detected at that rate, over {kept} of the "
+        f"{len(sky.matrices)} attitudes"
         if sky.model.refine == "model"
         else "modelled at rest (windowed centre-of-gravity noise); under slew not predicted "
         "(the datasheet's Monte Carlo measures it)"
