@@ -115,7 +115,7 @@ def test_keys_are_stable_snake_case_with_units(st16):
 
 @pytest.fixture(scope="module")
 def flawed():
-    """A sensor with PRNU 1 %, a 0.1 px distortion residual and a 5 arcsec bias (issue 52)."""
+    """A sensor with PRNU 1 %, a 0.1 px distortion residual and a 5 arcsec bias."""
     base = load_sensor("st16")
     sensor = base.with_(
         detector=dataclasses.replace(base.detector, prnu_fraction=0.01),

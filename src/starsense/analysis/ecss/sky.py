@@ -31,6 +31,10 @@ __all__ = ["MAX_RATE_ATTITUDES", "SkyStars", "sky_stars", "threshold_at"]
 
 #: the most attitudes the noise at a rate is computed over (its sky median to a few per cent)
 MAX_RATE_ATTITUDES = 200
+#: the child stream of the root seed the rate directions are drawn from
+_RATE_STREAM = 0xEC55
+#: the golden ratio's fractional part: the most even sequence of directions on a circle
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 @dataclass(frozen=True)
@@ -81,8 +85,9 @@ class SkyStars:
     def temporal_at_rate(self, rate_rad_s: float, limit_mag: float) -> np.ndarray:
         """Return the model fit's X, Y, Z noise (M, 3), rad, at a cross-boresight body rate.
 
-        Each attitude turns about a cross-boresight axis at a random angle (the datasheet's
-        Monte Carlo, :func:`starsense.analysis.montecarlo.montecarlo`), drawn from the seed;
+        Each attitude turns about a cross-boresight axis at its own angle, spread evenly over
+        the circle (the datasheet's Monte Carlo draws it at random,
+        :func:`starsense.analysis.montecarlo.montecarlo`), from the seed;
         the stars are those detected at the rate (V <= ``limit_mag``). A smeared star's
         information is computed star by star (about a millisecond each), so the attitudes are
         thinned to at most :data:`MAX_RATE_ATTITUDES`, every :attr:`rate_stride`-th of the
@@ -95,7 +100,10 @@ class SkyStars:
         """
         mats = self.matrices[:: self.rate_stride]
         m = len(mats)
-        phi = np.random.default_rng([self.seed, 52]).uniform(0.0, 2.0 * math.pi, m)
+        # the directions stratified over the circle (a golden-ratio sequence from a random
+        # start): a median over a few hundred attitudes is not left to where the draws fall
+        start = np.random.default_rng([self.seed, _RATE_STREAM]).uniform()
+        phi = 2.0 * math.pi * np.mod(start + np.arange(m) * _GOLDEN, 1.0)
         rates = rate_rad_s * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(m)])
         keep = self.magnitudes <= limit_mag
         fisher = model_fisher_at_rate(
