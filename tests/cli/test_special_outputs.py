@@ -56,6 +56,8 @@ CASES = [
     (["trade", "--vary", "exposure_s=0.1,0.2", "--out", "{d}"], "trade.csv"),
     (["trade", "--vary", "exposure_s=0.1,0.2", "--out", "{d}"], "trade_pareto_nea_vs_rate.png"),
     (["catalog", "import", "{csv}", "{t}"], "hats"),
+    (["ecss", "--out", "{t}"], "statement.csv"),
+    (["ecss", "--out", "{t}"], "statement.json"),
 ]
 # fmt: on
 

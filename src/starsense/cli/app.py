@@ -40,6 +40,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "characterize": ("starsense.cli.characterize", "characterize_command"),
     "montecarlo": ("starsense.cli.frames", "montecarlo"),
     "datasheet": ("starsense.cli.datasheet", "datasheet"),
+    "ecss": ("starsense.cli.ecss", "ecss"),
     "trade": ("starsense.cli.trade", "trade"),
     "design": ("starsense.web.command", "design"),
     "track": ("starsense.cli.track", "track"),

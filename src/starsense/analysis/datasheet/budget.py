@@ -130,6 +130,29 @@ def _noise_rows(sensor, nea: AxisSpread, *, errors: dict, pse_px, refine: str) -
     ]
 
 
+#: a confusion below this (arcsec) is no number but the round-off of a catalogue without the
+#: stars fainter than the limit (Hipparcos is complete to V 7.3): 1 micro-arcsecond, six
+#: orders below the arcsecond scale of a star tracker's errors
+_CONFUSION_FLOOR_ARCSEC = 1e-6
+
+
+def _confusion_row(pair, refine: str) -> BudgetRow:
+    """Return the confusion row; "not modelled" (None) where the catalogue lacks faint stars."""
+    term = "confusion (fainter catalogue stars inside the centroid window)"
+    if refine == "model":
+        return _sky_row(
+            term, pair, "none left: the fit draws the frames' catalogue stars in its windows"
+        )
+    row = _sky_row(term, pair, "modelled (the catalogue's star counts), rendered in the frames")
+    if max(row.cross_arcsec or 0.0, row.roll_arcsec or 0.0) < (_CONFUSION_FLOOR_ARCSEC):
+        why = (
+            "not modelled: the catalogue holds (almost) no stars fainter than the limiting "
+            "magnitude to pull the centroids (a deeper catalogue, --catalog gaia, models them)"
+        )
+        return BudgetRow(term, None, None, why)
+    return row
+
+
 def error_budget(
     sensor, nea: AxisSpread, *, errors: dict, pse_px: float | None, dsnu=None, refine="model"
 ) -> list[BudgetRow]:
@@ -161,15 +184,7 @@ def error_budget(
     det = sensor.detector
     rows = _noise_rows(sensor, nea, errors=errors, pse_px=pse_px, refine=refine)
     if "confusion" in errors:
-        rows.append(
-            _sky_row(
-                "confusion (fainter catalogue stars inside the centroid window)",
-                errors["confusion"],
-                "none left: the fit draws the frames' catalogue stars in its windows"
-                if refine == "model"
-                else "modelled (the catalogue's star counts), rendered in the frames",
-            )
-        )
+        rows.append(_confusion_row(errors["confusion"], refine))
     if "catalogue" in errors:
         rows.append(
             _sky_row(

@@ -28,7 +28,13 @@ from starsense.model.fisher import attitude_information, position_information
 from starsense.model.fit import window_half_px
 from starsense.model.psf import psf_of
 
-__all__ = ["model_centroid_noise", "model_nea_at_rate", "streaks_px_of", "zero_pixel_bias"]
+__all__ = [
+    "model_centroid_noise",
+    "model_fisher_at_rate",
+    "model_nea_at_rate",
+    "streaks_px_of",
+    "zero_pixel_bias",
+]
 
 #: sub-pixel phases per axis of a star at rest (a streak averages its phases along itself: 2)
 N_PHASE_REST, N_PHASE_STREAK = 4, 2
@@ -82,6 +88,23 @@ def streaks_px_of(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
 def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes):
     """Return the model fit's 1-sigma (cross, roll) of attitudes at body rates, rad.
 
+    The axis sigmas of :func:`model_fisher_at_rate` (same parameters).
+
+    Returns
+    -------
+    cross, roll : ndarray (M,)
+        rad; NaN where the stars do not fix the attitude.
+    """
+    return axis_sigmas(
+        model_fisher_at_rate(
+            model, fov, matrices, rates_rad_s=rates_rad_s, vectors=vectors, magnitudes=magnitudes
+        )
+    )
+
+
+def model_fisher_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes):
+    """Return the model fit's attitude Fisher information at body rates, camera frame, rad^-2.
+
     Parameters
     ----------
     model : StarModel
@@ -96,8 +119,9 @@ def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes)
 
     Returns
     -------
-    cross, roll : ndarray (M,)
-        rad; NaN where the stars do not fix the attitude.
+    ndarray (M, 3, 3)
+        Per attitude, the sum over its stars of ``J^T I J`` (each streak's position
+        information through the projection).
     """
     sensor = model.sensor
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors))
@@ -108,4 +132,4 @@ def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes)
     per_star = attitude_information(sensor, pairs.v_cam, info)
     fisher = np.zeros((pairs.n_pointings, 3, 3))
     np.add.at(fisher, pairs.point, per_star)
-    return axis_sigmas(fisher)
+    return fisher

@@ -133,7 +133,13 @@ class CentroidNoise:
         return self._interp(self.sigma_px, electrons)
 
     def bias(self, electrons) -> np.ndarray:
-        """Return the pixel spatial error (px rms) of stars of ``electrons`` on noisy frames."""
+        """Return the pixel spatial error (px rms) of stars of ``electrons`` on noisy frames.
+
+        A table without any bias (the forward model's fit, whose model integrates the PSF over
+        the pixels) gives exactly 0, not the 1e-6 px floor of the log interpolation.
+        """
+        if not np.any(self.noisy_bias_px > 0):
+            return np.zeros(np.shape(electrons))
         return self._interp(np.maximum(self.noisy_bias_px, 1e-6), electrons)
 
     def solver_sigma(self, electrons) -> np.ndarray:

@@ -1,0 +1,166 @@
+"""The stars of the datasheet's sky, per attitude, and their per-axis temporal noise.
+
+The statement is computed on the datasheet's own sky statistics: the same catalogue (completed
+with the solver's database, :func:`starsense.analysis.inputs.completed_sky`), the same
+quasi-uniform attitudes (:func:`starsense.analysis.availability.pointings.sky_attitudes`, its
+seed), the same stars (those detected at rest; for the centre-of-gravity solver those its
+database holds) and the same star model
+(:class:`starsense.analysis.datasheet.predict.StarModel`). Per attitude its X and Y are
+then the datasheet's cross split in two (``X^2 + Y^2 = 2 cross^2``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from starsense.analysis.availability.field import catalog_stars
+from starsense.analysis.availability.pointings import sky_attitudes
+from starsense.analysis.datasheet.field import FieldStarsCam, field_stars_cam, tracked_stars
+from starsense.analysis.datasheet.model_noise import model_fisher_at_rate
+from starsense.analysis.datasheet.predict import StarModel
+from starsense.analysis.ecss.axes import fisher_axes, propagated_axes
+from starsense.analysis.inputs import completed_sky
+from starsense.errors import InputError
+from starsense.solve.solver import Solver
+from starsense.units import RAD_TO_DEG
+
+__all__ = ["MAX_RATE_ATTITUDES", "SkyStars", "sky_stars", "threshold_at"]
+
+#: the most attitudes the noise at a rate is computed over (its sky median to a few per cent)
+MAX_RATE_ATTITUDES = 200
+#: the child stream of the root seed the rate directions are drawn from
+_RATE_STREAM = 0xEC55
+#: the golden ratio's fractional part: the most even sequence of directions on a circle
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+@dataclass(frozen=True)
+class SkyStars:
+    """The datasheet's attitudes and the stars the solver fits in each.
+
+    Attributes
+    ----------
+    model : StarModel
+        Magnitude -> per-star sigmas (the datasheet's).
+    fov : RectangularFov
+        The sensor's field.
+    matrices : ndarray (M, 3, 3)
+        Attitudes, ICRS -> camera.
+    vectors, magnitudes : ndarray (N, 3), (N,)
+        The stars used (detected at rest), ICRS, V.
+    pairs : FieldStarsCam
+        Those in the field of each attitude.
+    weights : ndarray (P,)
+        The solver's weight of each pair, rad^-2.
+    seed : int
+        The datasheet's root seed (the rate directions are drawn from it).
+    catalog : Catalog
+        The catalogue given (before the database's stars are added).
+    """
+
+    model: StarModel
+    fov: object
+    matrices: np.ndarray
+    vectors: np.ndarray
+    magnitudes: np.ndarray
+    pairs: FieldStarsCam
+    weights: np.ndarray
+    seed: int
+    catalog: object
+
+    @property
+    def rate_stride(self) -> int:
+        """Return the stride through the attitudes of the noise at a rate (at most 200 kept)."""
+        return max(1, math.ceil(len(self.matrices) / MAX_RATE_ATTITUDES))
+
+    def propagated(self, kind: str) -> np.ndarray:
+        """Return the X, Y, Z error (M, 3), rad, of a per-star error kind of the star model."""
+        mags = self.magnitudes[self.pairs.star]
+        sigma = self.model.star_sigmas_rad(mags, self.pairs.v_cam[:, 2], kind)
+        return propagated_axes(self.pairs, self.weights, np.where(np.isfinite(sigma), sigma, 0.0))
+
+    def temporal_at_rate(self, rate_rad_s: float, limit_mag: float) -> np.ndarray:
+        """Return the model fit's X, Y, Z noise (M, 3), rad, at a cross-boresight body rate.
+
+        Each attitude turns about a cross-boresight axis at its own angle, spread evenly over
+        the circle (the datasheet's Monte Carlo draws it at random,
+        :func:`starsense.analysis.montecarlo.montecarlo`), from the seed;
+        the stars are those detected at the rate (V <= ``limit_mag``). A smeared star's
+        information is computed star by star (about a millisecond each), so the attitudes are
+        thinned to at most :data:`MAX_RATE_ATTITUDES`, every :attr:`rate_stride`-th of the
+        lattice (which spirals from pole to pole: a stride keeps it spread over the sky).
+
+        Returns
+        -------
+        ndarray (K, 3)
+            rad, over the ``K`` attitudes kept.
+        """
+        mats = self.matrices[:: self.rate_stride]
+        m = len(mats)
+        # the directions stratified over the circle (a golden-ratio sequence from a random
+        # start): a median over a few hundred attitudes is not left to where the draws fall
+        start = np.random.default_rng([self.seed, _RATE_STREAM]).uniform()
+        phi = 2.0 * math.pi * np.mod(start + np.arange(m) * _GOLDEN, 1.0)
+        rates = rate_rad_s * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(m)])
+        keep = self.magnitudes <= limit_mag
+        fisher = model_fisher_at_rate(
+            self.model, self.fov, mats, rates_rad_s=rates,
+            vectors=self.vectors[keep], magnitudes=self.magnitudes[keep],
+        )  # fmt: skip
+        return fisher_axes(fisher)
+
+
+def sky_stars(sensor, catalog, settings, limit_mag: float) -> SkyStars:
+    """Return the datasheet's sky of ``sensor`` (module docstring).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    catalog : Catalog
+        The datasheet's catalogue (V magnitudes).
+    settings : DatasheetSettings
+        Its attitudes (``n_orientations``, ``seed``), model and solver (``refine``).
+    limit_mag : float
+        The datasheet's limiting magnitude at rest, V.
+
+    Returns
+    -------
+    SkyStars
+    """
+    cat = completed_sky(catalog, Solver(sensor=sensor).catalog)
+    vectors, mags = catalog_stars(cat, limit_mag, band="V")
+    if settings.refine != "model":
+        used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
+        vectors, mags = vectors[used], mags[used]
+    model = StarModel.build(
+        sensor, model=settings.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag,
+        refine=settings.refine,
+    )  # fmt: skip
+    _, att = sky_attitudes(settings.n_orientations, None, settings.seed)
+    mats = att.as_matrix()
+    fov = sensor.fov()
+    pairs = field_stars_cam(fov, mats, vectors)
+    sigma_w = model.star_sigmas_rad(mags[pairs.star], pairs.v_cam[:, 2], "weight")
+    return SkyStars(
+        model, fov, mats, vectors, mags, pairs, 1.0 / sigma_w**2, settings.seed, catalog
+    )
+
+
+def threshold_at(dynamic, rate_rad_s: float) -> float:
+    """Return the faintest magnitude detected at ``rate_rad_s`` (the datasheet's slew curve).
+
+    Raises
+    ------
+    InputError
+        Past the top rate of the curve (the slew tolerance run).
+    """
+    rates = np.asarray(dynamic.rates_rad_s, dtype=float)
+    if rate_rad_s > rates[-1] * (1.0 + 1e-9):
+        raise InputError(
+            f"rate {rate_rad_s * RAD_TO_DEG:g} deg/s is past the slew tolerance run's top rate "
+            f"{rates[-1] * RAD_TO_DEG:.3g} deg/s; give rates up to it"
+        )
+    return float(np.interp(rate_rad_s, rates, np.asarray(dynamic.threshold_mag, dtype=float)))

@@ -1,0 +1,232 @@
+"""The ECSS-E-ST-60-20C performance statement of a sensor: per axis, at a confidence, per rate.
+
+:func:`ecss_statement` takes the sensor's datasheet (its limiting magnitude, its slew curve,
+its sky of attitudes and stars: :func:`starsense.analysis.datasheet.build_datasheet`) and
+gives every error term (:mod:`starsense.analysis.ecss.terms`) per axis X, Y (cross-boresight,
+apart) and Z (about the boresight) at each rate, at the confidence asked: a Gaussian term is
+``k`` times its sky-median 1-sigma (``k`` of :func:`~starsense.analysis.ecss.confidence.
+gaussian_factor`), and the sky ensemble's bound (:func:`~starsense.analysis.ecss.confidence.
+mixture_bound`) is given beside it. At each rate every term says whether it acts as a bias or
+as noise (:func:`~starsense.analysis.ecss.classes.acting`); the totals are the root sum
+squares of the terms counted, of the biases, of the noises, and of both.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
+from starsense.analysis.ecss.classes import CLASSES, acting
+from starsense.analysis.ecss.confidence import gaussian_factor, mixture_bound
+from starsense.analysis.ecss.sky import sky_stars
+from starsense.analysis.ecss.terms import error_terms
+from starsense.analysis.inputs import as_catalog
+from starsense.errors import InputError
+from starsense.photometry.colour import with_johnson_from_gaia
+from starsense.units import DEG, RAD_TO_ARCSEC
+
+__all__ = ["AXES", "SCHEMA", "Statement", "ecss_statement"]
+
+#: the JSON's schema name and version
+SCHEMA = "starsense.ecss/1"
+#: the axes, camera frame: X, Y across the boresight (columns, rows), Z about it
+AXES = ("x", "y", "z")
+
+
+def _arcsec(x) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x) * RAD_TO_ARCSEC
+
+
+@dataclass(frozen=True)
+class Statement:
+    """The statement (module docstring); :meth:`to_dict` is its JSON.
+
+    Attributes
+    ----------
+    sensor : str
+    confidence : float
+        Probability each value is not exceeded (two-sided, per axis).
+    gaussian_factor : float
+        ``k`` of the confidence for a Gaussian error.
+    rates_deg_s : tuple of float
+    terms : tuple of dict
+        Per term: ``key``, ``ecss_class``, ``distribution``, ``source``, ``gaussian``,
+        ``counted`` and ``at_rate``: per rate ``rate_deg_s``, ``acts_as``, ``time_class``,
+        ``period_s``, and per axis ``{axis}_arcsec`` (at the confidence), ``{axis}_1sigma_arcsec``
+        (sky median) and ``{axis}_sky_ensemble_arcsec`` (None where not known).
+    totals : tuple of dict
+        Per rate: ``rate_deg_s`` and ``{total,total_bias,total_noise}_{axis}_arcsec``, with
+        ``not_known``: the keys of the counted terms left out because they are not known.
+    notes : tuple of str
+    """
+
+    sensor: str
+    confidence: float
+    gaussian_factor: float
+    rates_deg_s: tuple
+    terms: tuple
+    totals: tuple
+    notes: tuple
+
+    def values(self) -> list[dict]:
+        """Return, per rate, the flat ``{term}_{axis}_arcsec`` values (None: not known)."""
+        out = []
+        for i, rate in enumerate(self.rates_deg_s):
+            row = {"rate_deg_s": rate}
+            for t in self.terms:
+                row |= {f"{t['key']}_{a}_arcsec": t["at_rate"][i][f"{a}_arcsec"] for a in AXES}
+            row |= {k: v for k, v in self.totals[i].items() if k.endswith("_arcsec")}
+            out.append(row)
+        return out
+
+    def to_dict(self) -> dict:
+        """Return the statement as JSON-ready data (``starsense ecss --json``)."""
+        return {
+            "schema": SCHEMA,
+            "sensor": self.sensor,
+            "confidence": self.confidence,
+            "gaussian_factor": self.gaussian_factor,
+            "rates_deg_s": list(self.rates_deg_s),
+            "axes": {"x": "across the boresight, along the columns", "y": "across the "
+                     "boresight, along the rows", "z": "about the boresight (roll)"},
+            "terms": list(self.terms),
+            "totals": list(self.totals),
+            "values": self.values(),
+            "notes": list(self.notes),
+        }  # fmt: skip
+
+
+def _at_rate(term, i: int, rate_rad_s: float, k: float, p: float, geometry) -> dict:
+    act = acting(term.ecss_class, rate_rad_s, field_rad=geometry[0], pixel_rad=geometry[1])
+    out = {
+        "rate_deg_s": rate_rad_s / DEG,
+        "acts_as": act.acts_as,
+        "time_class": act.time_class,
+        "period_s": act.period_s,
+    }
+    v = term.values_rad[i]
+    scale = k if term.gaussian else 1.0
+    for j, a in enumerate(AXES):
+        if v is None:
+            one = ens = None
+        elif np.ndim(v) == 2:
+            col = v[:, j]
+            one = float(np.nanmedian(col)) if np.isfinite(col).any() else None
+            ens = mixture_bound(col, p) if term.gaussian else one
+        else:
+            one = float(v[j])
+            ens = scale * one
+        out[f"{a}_arcsec"] = _arcsec(None if one is None else scale * one)
+        out[f"{a}_1sigma_arcsec"] = _arcsec(one)
+        out[f"{a}_sky_ensemble_arcsec"] = _arcsec(ens)
+    return out
+
+
+def _totals(terms: list[dict], counted: dict, i: int, rate_deg_s: float) -> dict:
+    """Root sum squares per axis of the counted terms: all, biases, noises."""
+    out: dict = {"rate_deg_s": rate_deg_s}
+    missing = []
+    for t in terms:
+        if counted[t["key"]] and t["at_rate"][i]["x_arcsec"] is None:
+            missing.append(t["key"])
+    for a in AXES:
+        parts = {"bias": 0.0, "noise": 0.0}
+        for t in terms:
+            row = t["at_rate"][i]
+            if counted[t["key"]] and row[f"{a}_arcsec"] is not None:
+                parts[row["acts_as"]] += row[f"{a}_arcsec"] ** 2
+        out[f"total_bias_{a}_arcsec"] = math.sqrt(parts["bias"])
+        out[f"total_noise_{a}_arcsec"] = math.sqrt(parts["noise"])
+        out[f"total_{a}_arcsec"] = math.sqrt(parts["bias"] + parts["noise"])
+    out["not_known"] = missing
+    return out
+
+
+def check_rates(rates_deg_s) -> tuple[float, ...]:
+    """Return the rates (deg/s) as sorted unique floats; InputError on a bad one."""
+    out = []
+    for r in rates_deg_s:
+        try:
+            x = float(r)
+        except (TypeError, ValueError):
+            raise InputError(f"rate {r!r} is not a number (deg/s)") from None
+        if not math.isfinite(x) or x < 0.0 or x > 30.0:
+            raise InputError(f"rate {r!r} deg/s is out of range; must be in [0, 30]")
+        out.append(x)
+    if not out:
+        raise InputError("no rate given; give at least one (deg/s), e.g. 0,1")
+    return tuple(sorted(set(out)))
+
+
+def ecss_statement(
+    sensor,
+    catalog=None,
+    *,
+    confidence: float = 0.6826894921370859,
+    rates_deg_s=None,
+    settings: DatasheetSettings | None = None,
+    sheet=None,
+) -> Statement:
+    """Return the ECSS performance statement of ``sensor`` (module docstring).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    catalog : Catalog, optional
+        Default: the bundled Hipparcos.
+    confidence : float
+        Probability in (0, 1) (:func:`~starsense.analysis.ecss.confidence.parse_confidence`).
+    rates_deg_s : sequence of float, optional
+        Body rates, deg/s (default: 0 and the datasheet's check rate).
+    settings : DatasheetSettings, optional
+        How the datasheet is computed (default: its defaults with no Monte Carlo frames).
+    sheet : Datasheet, optional
+        The datasheet of ``sensor`` built with ``settings`` (built here when not given).
+
+    Returns
+    -------
+    Statement
+    """
+    if not 0.0 < float(confidence) < 1.0:
+        raise InputError(f"confidence = {confidence!r} must lie strictly between 0 and 1")
+    st = settings or DatasheetSettings(n_trials=0)
+    rates = check_rates((0.0, st.rate_rad_s / DEG) if rates_deg_s is None else rates_deg_s)
+    cat, _ = with_johnson_from_gaia(as_catalog(catalog))
+    sheet = sheet if sheet is not None else build_datasheet(sensor, cat, settings=st)
+    if sheet.limiting_magnitude is None:
+        raise InputError(f"{sensor.name} detects no star at rest: it has no statement")
+    sky = sky_stars(sensor, cat, st, sheet.limiting_magnitude)
+    rates_rad = [r * DEG for r in rates]
+    terms = error_terms(
+        sensor, sky, st, limit_mag=sheet.limiting_magnitude, rates_rad_s=rates_rad,
+        dynamic=sheet.dynamic,
+    )  # fmt: skip
+    k, p = gaussian_factor(confidence), float(confidence)
+    geometry = (2.0 * min(sensor.half_fov_rad), sky.model.pixel_rad)
+    rows = [
+        {
+            "key": t.key,
+            "ecss_class": t.ecss_class,
+            "ecss_name": CLASSES[t.ecss_class],
+            "distribution": t.distribution,
+            "source": t.source,
+            "gaussian": t.gaussian,
+            "counted": t.counted,
+            "at_rate": [_at_rate(t, i, r, k, p, geometry) for i, r in enumerate(rates_rad)],
+        }
+        for t in terms
+    ]
+    counted = {t.key: t.counted for t in terms}
+    totals = tuple(_totals(rows, counted, i, r) for i, r in enumerate(rates))
+    notes = (
+        f"values at {100 * p:.4g} % (two-sided, per axis): k = {k:.4g} times the sky-median "
+        "1-sigma for Gaussian terms; the sky ensemble bound (a random attitude) beside it",
+        "spatial errors act as biases at rest (inertial pointing) and as noise under slew "
+        "(ECSS-E-ST-60-20C): their amplitude is the one at rest, their period the crossing "
+        "time of the field (FOV) or of a pixel (PSE)",
+        "totals: root sum square of the counted terms at the confidence, per axis",
+    )
+    return Statement(sensor.name, p, k, rates, tuple(rows), totals, notes)
