@@ -113,7 +113,7 @@ class SkyStars:
         return fisher_axes(fisher)
 
 
-def sky_stars(sensor, catalog, settings, limit_mag: float) -> SkyStars:
+def sky_stars(sensor, catalog, settings, *, limit_mag: float) -> SkyStars:
     """Return the datasheet's sky of ``sensor`` (module docstring).
 
     Parameters

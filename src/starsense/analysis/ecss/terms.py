@@ -148,7 +148,7 @@ def _pixel_terms(sensor, sky: SkyStars, settings, limit_mag, n_rates) -> list[Te
                 det, read_noise_e=float(np.hypot(det.read_noise_e, det.dsnu_e))
             )
         )
-        grown = sky_stars(noisier, sky.catalog, settings, limit_mag).propagated("nea")
+        grown = sky_stars(noisier, sky.catalog, settings, limit_mag=limit_mag).propagated("nea")
         dsnu = np.sqrt(np.maximum(grown**2 - sky.propagated("nea") ** 2, 0.0))
     dsnu_term = Term(
         "pixel_spatial_dsnu", "pixel_spatial", _same(dsnu, n_rates), True, True, _PER_STAR,
