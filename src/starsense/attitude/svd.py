@@ -5,7 +5,9 @@
 ``C = U diag(1, 1, det U det V) V^T``), which is the ICRS -> camera attitude.
 
 :class:`SvdEstimator` solves one problem with per-star weights; :func:`batch_svd_attitude` solves
-many equal-weight problems at once (the Monte Carlo form).
+many equal-weight problems at once (the Monte Carlo form); :func:`wahba_matrix` is the bare
+matrix and residuals that identification and tracking fit (the compiled kernel of
+:mod:`starsense.identify.track_kernels` computes the same).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from scipy.spatial.transform import Rotation
 from starsense.attitude.covariance import fisher_covariance
 from starsense.attitude.solution import Estimator
 
-__all__ = ["SvdEstimator", "batch_svd_attitude"]
+__all__ = ["SvdEstimator", "batch_svd_attitude", "wahba_matrix"]
 
 
 @dataclass(frozen=True)
@@ -68,3 +70,52 @@ def batch_svd_attitude(body: ArrayLike, reference: ArrayLike) -> Rotation:
     d = np.sign(np.linalg.det(u) * np.linalg.det(vt))
     u[:, :, 2] *= d[:, None]
     return Rotation.from_matrix(u @ vt)
+
+
+def _det3(m: np.ndarray) -> float:
+    """Return the determinant of a 3 x 3 matrix (cofactors: here +-1, an orthogonal matrix)."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
+def wahba_matrix(body, ref, weights=None, *, two_exact: bool = False):
+    """Attitude matrix of paired vectors (``body ~ C ref``), residual angles and chords^2.
+
+    Weighted SVD (Kabsch / Markley 1988: ``B = sum_i w_i b_i r_i^T = U S V^T``,
+    ``C = U diag(1, 1, det U V^T) V^T``, weights normalised to sum 1), or for two pairs with
+    ``two_exact`` the rotation that aligns the first pair exactly and the second as closely as
+    it can (``Rotation.align_vectors`` with an infinite primary weight).
+
+    Parameters
+    ----------
+    body, ref : ndarray, shape (N, 3)
+        Camera-frame and ICRS unit vectors, N >= 2.
+    weights : ndarray, shape (N,), optional
+        Positive weights (any scale; default equal).
+    two_exact : bool
+        Align the first of two pairs exactly.
+
+    Returns
+    -------
+    c : ndarray, shape (3, 3)
+    residuals : ndarray, shape (N,)
+        Angle between each body vector and its rotated reference (from the chord), rad.
+    chord2 : ndarray, shape (N,)
+        Squared chords.
+    """
+    if two_exact and len(body) == 2:
+        rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
+        c = rot.as_matrix()
+    else:
+        w = np.ones(len(body)) if weights is None else np.asarray(weights, dtype=float)
+        w = w / w.sum()
+        u, _, vh = np.linalg.svd((w[:, None] * body).T @ ref)
+        c = u @ vh
+        if _det3(c) < 0:  # an improper rotation (det -1): flip the last axis
+            u[:, -1] = -u[:, -1]
+            c = u @ vh
+    d = body - ref @ c.T
+    chord2 = np.einsum("ij,ij->i", d, d)
+    # the angle from the chord, 2 asin(|b - C r| / 2): as accurate as atan2(|b x Cr|, b . Cr)
+    resid = 2.0 * np.arcsin(np.minimum(np.sqrt(chord2) / 2.0, 1.0))
+    return c, resid, chord2

@@ -24,7 +24,6 @@ does not have.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 try:  # the compiled kernel (setup.py builds it where a C compiler exists)
     import starsense.identify._trackc as _trackc
@@ -35,7 +34,6 @@ __all__ = [
     "COMPILED",
     "fisher_inverse_compiled",
     "fit_compiled",
-    "fit_numpy",
     "match_compiled",
     "pair_compiled",
     "pair_numpy",
@@ -215,56 +213,11 @@ def fisher_inverse_compiled(body: np.ndarray, sigma: np.ndarray, *, rcond: float
     return out if ok else False
 
 
-def _det3(m: np.ndarray) -> float:
-    """Return the determinant of a 3 x 3 matrix (cofactors: here +-1, an orthogonal matrix)."""
-    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-
-
-def fit_numpy(body: np.ndarray, ref: np.ndarray, weights: np.ndarray, *, two_exact: bool):
-    """Attitude matrix of paired vectors (``body ~ C ref``), residual angles and chords^2.
-
-    Weighted SVD (Kabsch / Markley 1988: ``B = sum_i w_i b_i r_i^T = U S V^T``,
-    ``C = U diag(1, 1, det U V^T) V^T``, weights normalised to sum 1), or for two pairs with
-    ``two_exact`` the rotation that aligns the first pair exactly and the second as closely as
-    it can (``Rotation.align_vectors`` with an infinite primary weight).
-
-    Parameters
-    ----------
-    body, ref : ndarray, shape (N, 3)
-        Camera-frame and ICRS unit vectors, N >= 2.
-    weights : ndarray, shape (N,)
-        Positive weights (any scale).
-    two_exact : bool
-        Align the first of two pairs exactly.
-
-    Returns
-    -------
-    c : ndarray, shape (3, 3)
-    residuals : ndarray, shape (N,)
-        Angle between each body vector and its rotated reference (from the chord), rad.
-    chord2 : ndarray, shape (N,)
-        Squared chords.
-    """
-    if two_exact and len(body) == 2:
-        rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
-        c = rot.as_matrix()
-    else:
-        w = weights / weights.sum()
-        u, _, vh = np.linalg.svd((w[:, None] * body).T @ ref)
-        c = u @ vh
-        if _det3(c) < 0:  # an improper rotation (det -1): flip the last axis
-            u[:, -1] = -u[:, -1]
-            c = u @ vh
-    d = body - ref @ c.T
-    chord2 = np.einsum("ij,ij->i", d, d)
-    # the angle from the chord, 2 asin(|b - C r| / 2): as accurate as atan2(|b x Cr|, b . Cr)
-    resid = 2.0 * np.arcsin(np.minimum(np.sqrt(chord2) / 2.0, 1.0))
-    return c, resid, chord2
-
-
 def fit_compiled(body: np.ndarray, ref: np.ndarray, weights: np.ndarray, *, two_exact: bool):
-    """:func:`fit_numpy` in the compiled kernel (to rounding); None where not built."""
+    """:func:`starsense.attitude.svd.wahba_matrix` in the compiled kernel (to rounding).
+
+    None where the kernel is not built.
+    """
     if _trackc is None:
         return None
     n = len(body)

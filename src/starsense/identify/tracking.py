@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from starsense._validate import check_scalar
+from starsense.attitude.svd import wahba_matrix
 from starsense.detect.clip import MAD_TO_SIGMA
 from starsense.identify.database import IdentificationDatabase
 from starsense.identify.result import validate_vectors
@@ -45,7 +46,7 @@ from starsense.identify.track_kernels import (
     pair_compiled,
     pair_numpy,
 )
-from starsense.identify.verify import estimate_matrix, false_match_probability
+from starsense.identify.verify import false_match_probability
 
 __all__ = ["TRACKING_STATUSES", "TrackingIdentifier", "TrackingMatch", "TrackingStatus"]
 
@@ -64,11 +65,11 @@ _MAD_SCALE = (MAD_TO_SIGMA, math.sqrt(2 * math.log(2)))
 def _fit(body: np.ndarray, ref: np.ndarray):
     """Attitude matrix and residual angles of the pairs: equal weights, two pairs by TRIAD.
 
-    :func:`~starsense.identify.verify.estimate_matrix`, or the same fit in the compiled kernel
+    :func:`~starsense.attitude.svd.wahba_matrix`, or the same fit in the compiled kernel
     (:func:`~starsense.identify.track_kernels.fit_compiled`, equal to rounding).
     """
     got = fit_compiled(body, ref, np.ones(len(body)), two_exact=True)
-    return estimate_matrix(body, ref) if got is None else got[:2]
+    return wahba_matrix(body, ref, two_exact=True)[:2] if got is None else got[:2]
 
 
 def _chord(angle_rad: float) -> float:

@@ -38,13 +38,13 @@ from scipy.spatial.transform import Rotation
 from scipy.special import bdtrc
 
 from starsense._validate import check_int, check_scalar
+from starsense.attitude.svd import wahba_matrix
 from starsense.geometry.projection import tangent_to_vectors, vectors_to_tangent
 from starsense.identify.database import IdentificationDatabase
 
 __all__ = [
     "Verifier",
     "apply_scale",
-    "estimate_matrix",
     "exact_rotation",
     "false_match_probability",
 ]
@@ -71,7 +71,7 @@ def exact_rotation(matrix: NDArray[np.float64]) -> Rotation:
     Parameters
     ----------
     matrix : ndarray, shape (3, 3)
-        Rotation matrix (from :func:`estimate_matrix` or the compiled kernel).
+        Rotation matrix (from :func:`starsense.attitude.svd.wahba_matrix` or the compiled kernel).
 
     Returns
     -------
@@ -102,39 +102,6 @@ def apply_scale(vectors_cam: NDArray[np.float64], scale: float) -> NDArray[np.fl
     if scale == 1.0:
         return vectors_cam
     return tangent_to_vectors(vectors_to_tangent(vectors_cam) * scale)
-
-
-def estimate_matrix(
-    body: NDArray[np.float64], ref: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the attitude matrix ``R`` (``body ~ R @ ref``) and the residual angles (rad).
-
-    The SVD solution of Wahba's problem with equal weights (Kabsch) from paired unit vectors.
-
-    Parameters
-    ----------
-    body, ref : ndarray, shape (N, 3)
-        Paired camera-frame and catalogue unit vectors, N >= 2.
-
-    Returns
-    -------
-    rotation_matrix : ndarray, shape (3, 3)
-        The attitude matrix.
-    residuals : ndarray, shape (N,)
-        Angle between each body vector and its rotated reference, rad.
-    """
-    if len(body) == 2:  # align_vectors needs a weight on the primary for two pairs
-        rot, _ = Rotation.align_vectors(body, ref, weights=[np.inf, 1.0])
-        r = rot.as_matrix()
-    else:
-        u, _, vt = np.linalg.svd(body.T @ ref)
-        r = u @ vt
-        (a, b, c), (d, e, f), (g, h, i) = r.tolist()  # its determinant (+-1), in scalars
-        if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0:  # reflection
-            u[:, 2] = -u[:, 2]
-            r = u @ vt
-    chord = np.sqrt(np.add.reduce((ref @ r.T - body) ** 2, axis=1))  # np.sum, no wrapper
-    return r, 2.0 * np.arcsin(np.minimum(chord / 2.0, 1.0))
 
 
 def false_match_probability(
@@ -277,19 +244,19 @@ class Verifier:
         ref = self.database.vectors[cat]
         if not fit_scale:
             body = vs[det] if vs is not None else tangent_to_vectors(tangent[det] * scale)
-            r, resid = estimate_matrix(body, ref)
+            r, resid, _ = wahba_matrix(body, ref, two_exact=True)
             return r, scale, resid
         t_det = tangent[det]
         denom = float(np.sum(t_det * t_det))
         for _ in range(4):
-            r, resid = estimate_matrix(tangent_to_vectors(t_det * scale), ref)
+            r, resid, _ = wahba_matrix(tangent_to_vectors(t_det * scale), ref, two_exact=True)
             c = ref @ r.T
             # inline, not vectors_to_tangent: a wrong hypothesis may not raise on z <= 0
             t_cat = c[:, :2] / c[:, 2:3]
             if denom <= 0:
                 break
             scale = float(np.sum(t_det * t_cat)) / denom
-        r, resid = estimate_matrix(tangent_to_vectors(t_det * scale), ref)
+        r, resid, _ = wahba_matrix(tangent_to_vectors(t_det * scale), ref, two_exact=True)
         return r, scale, resid
 
     def __call__(

@@ -233,6 +233,8 @@ def refine_attitude(
                 **opts,
             )
             n_fitted = len(ref)
+            if not fit.reduced_chi2 <= MAX_REDUCED_CHI2:  # not this frame's model: no refit
+                break
             new = _zero_point(fit.fluxes_e[: len(ref)], mags)
             if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
                 break

@@ -30,12 +30,12 @@ from scipy.spatial.transform import Rotation
 
 from starsense.attitude.covariance import SINGULAR_RCOND, fisher_covariance
 from starsense.attitude.solution import AttitudeSolution
+from starsense.attitude.svd import wahba_matrix
 from starsense.detect.centroid import cog_sigma_px
 from starsense.detect.streak import columns
 from starsense.identify.track_kernels import (
     fisher_inverse_compiled,
     fit_compiled,
-    fit_numpy,
     sandwich_compiled,
     sandwich_numpy,
 )
@@ -188,11 +188,11 @@ def _svd_fit(body, ref, sigma):
     The estimator of :class:`~starsense.attitude.svd.SvdEstimator` with weights ``sigma^-2``
     and the residual angles of :func:`~starsense.attitude.solution.wahba_residuals` (from the
     chord), on matrices: no Rotation per fit (:func:`~starsense.identify.track_kernels.
-    fit_numpy`, compiled where built).
+    attitude.svd.wahba_matrix`, compiled where built).
     """
     w = sigma**-2.0
     got = fit_compiled(body, ref, w, two_exact=False)
-    return fit_numpy(body, ref, w, two_exact=False) if got is None else got
+    return wahba_matrix(body, ref, w) if got is None else got
 
 
 def _fisher_covariance(body, sigma):
