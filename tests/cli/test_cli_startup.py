@@ -76,6 +76,7 @@ def test_a_command_imports_its_module_only():
     loaded = {m for m in _loaded("solve", "--help") if m.startswith("starsense.cli.")}
     assert loaded == {
         "starsense.cli.app",
+        "starsense.cli.attitude_json",
         "starsense.cli.common",
         "starsense.cli.helptext",
         "starsense.cli.listing",

@@ -14,6 +14,7 @@ import numpy as np
 import typer
 
 from starsense import plotting
+from starsense.cli.attitude_json import with_attitude
 from starsense.cli.common import (
     CatalogOpt,
     JsonOpt,
@@ -165,7 +166,7 @@ def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None, 
         raise InputError(str(exc) if str(image) in str(exc) else f"{image}: {exc}") from None
     if explain is not None:
         _explain(solver, image, sol, explain, bayer)
-    payload = {"image": str(image), **sol.to_dict()}
+    payload = with_attitude({"image": str(image), **sol.to_dict()}, sol)
     if explain is not None:
         payload["explain"] = str(explain)
     if when is not None and sol.apparent and sol.apparent.get("applied"):
@@ -224,7 +225,7 @@ def _batch_row(solver, image: Path, when=None, bayer: str | None = None) -> dict
             "message": str(exc),
             "time_ms": (time.perf_counter() - t0) * 1e3,
         }
-    return {"image": str(image), **sol.to_dict()}
+    return with_attitude({"image": str(image), **sol.to_dict()}, sol)
 
 
 def _csv_line(row: dict) -> str:
@@ -268,7 +269,7 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
         )
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
-    payload = {"centroids": str(path), **sol.to_dict()}
+    payload = with_attitude({"centroids": str(path), **sol.to_dict()}, sol)
     if opts.get("when") is not None and sol.apparent and sol.apparent.get("applied"):
         payload["apparent_places"]["time_source"] = "--time"
     if sol.solved:
@@ -364,6 +365,10 @@ def solve(
     out flipped) and the flipped frame's attitude. Exit status 0 when every frame solved, 1
     when one does not solve (mirrored included), 2 for bad input (including a single frame
     with no stars, a folder with no images).
+
+    The JSON gives the attitude as quaternion_xyzw (ICRS -> camera, scalar last as in scipy's
+    Rotation.from_quat, w >= 0) and rotation_matrix (v_camera = M v_icrs), and sigma_arcsec by
+    camera axis (x, y, roll).
     """
     images = list(images or [])
     option_int(jobs, "--jobs", 1, 64)
