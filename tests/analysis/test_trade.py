@@ -108,6 +108,19 @@ def test_prediction_equals_the_datasheets_prediction():
             assert rows_fast[key] == rows_full[key], key
 
 
+def test_predict_takes_rng_like_the_datasheet():
+    """``ss.predict(sensor, rng=...)`` as ``ss.datasheet``: the keywords are the settings."""
+    import starsense as ss
+
+    cat = as_catalog(None)
+    by_keywords = ss.predict("st16", cat, rng=5, **_FAST)
+    by_settings = predict("st16", cat, settings=prediction_settings(rng=5, **_FAST))
+    assert by_keywords.settings.seed == 5
+    assert by_keywords.to_dict() == by_settings.to_dict()
+    with pytest.raises(InputError, match="give settings or rng, not both"):
+        predict("st16", cat, rng=1, settings=prediction_settings(**_FAST))
+
+
 def test_a_bad_design_gets_its_own_error_and_the_trade_goes_on():
     base = base_document("st16")
     todo = designs(base, [parse_vary("detector.pixel_pitch_m=-1,2.2e-6")])
