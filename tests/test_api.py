@@ -100,3 +100,11 @@ def test_every_random_entry_takes_rng(name):
     assert "rng" in inspect.signature(getattr(ss, name)).parameters
     for entry in ("static", "dynamic", "mission"):
         assert "rng" in inspect.signature(getattr(ss.availability, entry)).parameters
+
+
+def test_version_is_the_packages():
+    """``starsense.__version__`` is the version pyproject.toml builds (one release, one number)."""
+    import tomllib
+
+    project = tomllib.loads((README.parent / "pyproject.toml").read_text())["project"]
+    assert ss.__version__ == project["version"]
