@@ -8,6 +8,7 @@ attitude.
 from __future__ import annotations
 
 import json
+from importlib import resources
 
 import numpy as np
 import pytest
@@ -23,6 +24,14 @@ from starsense.units import ARCSEC, DEG
 
 
 @pytest.fixture(scope="module")
+def validator():
+    jsonschema = pytest.importorskip("jsonschema", reason="jsonschema is in the dev extra")
+    schema = json.loads((resources.files("starsense") / "data" / "solve.schema.json").read_text())
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema)
+
+
+@pytest.fixture(scope="module")
 def frame(tmp_path_factory):
     from PIL import Image
 
@@ -32,11 +41,12 @@ def frame(tmp_path_factory):
     return folder / "f.png", att
 
 
-def test_quaternion_matrix_and_labelled_sigmas(frame, capsys):
+def test_quaternion_matrix_and_labelled_sigmas(frame, validator, capsys):
     path, truth = frame
     assert main(["solve", str(path), "--fov-deg", "6", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["status"] == "solved"
+    validator.validate(d)  # the documented schema (solve --schema)
     q = np.array(d["quaternion_xyzw"])
     assert q.shape == (4,) and q[3] >= 0.0
     assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-12)  # a unit quaternion
@@ -61,7 +71,7 @@ def test_quaternion_matrix_and_labelled_sigmas(frame, capsys):
     assert s["roll"] > s["x"]  # about the boresight a narrow field sees less: a larger sigma
 
 
-def test_batch_lines_carry_the_same_fields(frame, tmp_path, capsys):
+def test_batch_lines_carry_the_same_fields(frame, validator, tmp_path, capsys):
     path, _ = frame
     d = tmp_path / "two"
     d.mkdir()
@@ -75,6 +85,23 @@ def test_batch_lines_carry_the_same_fields(frame, tmp_path, capsys):
     assert len(rows["a.png"]["quaternion_xyzw"]) == 4
     assert set(rows["a.png"]["sigma_arcsec"]) == {"x", "y", "roll"}
     assert rows["b.png"]["status"] == "unreadable"
+    for row in rows.values():
+        validator.validate(row)
+
+
+def test_schema_is_printed_and_refuses_what_it_does_not_describe(validator, capsys):
+    assert main(["solve", "--schema"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["title"] == "starsense solve"
+    good = {"image": "f.png", "status": "no_match", "message": "", "time_ms": 1.0}
+    validator.validate(good)
+    for bad in (
+        {**good, "sigma_arcsec": [1.0, 1.0, 3.0]},  # the labelled form only
+        {**good, "quaternion_xyzw": [0.0, 0.0, 1.0]},  # four numbers
+        {**good, "status": "fine"},
+        {**good, "new_key": 1},  # a key the schema does not document
+    ):
+        assert not validator.is_valid(bad), bad
 
 
 def test_no_attitude_gives_nulls():

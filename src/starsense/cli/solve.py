@@ -7,6 +7,7 @@ import io
 import json
 import time
 from concurrent.futures import ThreadPoolExecutor
+from importlib import resources
 from pathlib import Path
 from typing import Annotated
 
@@ -353,6 +354,9 @@ def solve(
     refine: RefineOpt = None,
     jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,
     as_json: JsonOpt = False,
+    schema: Annotated[
+        bool, typer.Option("--schema", help="Print the JSON schema of a solution and exit.")
+    ] = False,
 ) -> None:
     """Solve frames lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
 
@@ -368,8 +372,11 @@ def solve(
 
     The JSON gives the attitude as quaternion_xyzw (ICRS -> camera, scalar last as in scipy's
     Rotation.from_quat, w >= 0) and rotation_matrix (v_camera = M v_icrs), and sigma_arcsec by
-    camera axis (x, y, roll).
+    camera axis (x, y, roll). --schema prints the JSON schema of a solution.
     """
+    if schema:
+        typer.echo((resources.files("starsense") / "data" / "solve.schema.json").read_text())
+        return
     images = list(images or [])
     option_int(jobs, "--jobs", 1, 64)
     bayer = check_bayer(bayer)
