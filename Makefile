@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint docs bench bench-peers bench-zoo bench-galsim clean
+.PHONY: demo test test-fast lint docs dist check-dist bench bench-peers bench-zoo bench-galsim clean
 
 $(STAMP): pyproject.toml setup.py $(wildcard src/starsense/*/_*.c)
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,20 @@ docs: $(STAMP)  ## the manual, warnings as errors: docs/_build/html/index.html
 	rm -rf docs/_build docs/generated
 	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
 	@echo "Open docs/_build/html/index.html"
+
+VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' pyproject.toml)
+CHECK   := build/check-dist
+
+dist: $(STAMP)  ## the release: the sdist and the wheel in dist/
+	$(BIN)/python -m build --outdir dist .
+
+# the wheel in a fresh venv with no compiler reachable (CC, CXX, LDSHARED fail), then a datasheet
+check-dist: dist
+	rm -rf $(CHECK)
+	$(PYTHON) -m venv $(CHECK)
+	CC=/bin/false CXX=/bin/false LDSHARED=/bin/false \
+		$(CHECK)/bin/python -m pip install --quiet dist/starsense-$(VERSION)-*.whl
+	cd $(CHECK) && bin/starsense datasheet --sensor st16 --trials 5
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench

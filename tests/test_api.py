@@ -88,3 +88,23 @@ def test_readme_python_example_runs():
     )
     assert result.attempted >= 8, "the README's Python example is missing"
     assert result.failed == 0
+
+
+#: the front door's entries that draw random numbers (frames, trials, sky samples)
+STOCHASTIC = ("render_frame", "datasheet", "compare", "predict", "montecarlo", "slew_tolerance")
+
+
+@pytest.mark.parametrize("name", STOCHASTIC)
+def test_every_random_entry_takes_rng(name):
+    """Randomness is an ``rng`` everywhere (an int seed or a Generator): one keyword to learn."""
+    assert "rng" in inspect.signature(getattr(ss, name)).parameters
+    for entry in ("static", "dynamic", "mission"):
+        assert "rng" in inspect.signature(getattr(ss.availability, entry)).parameters
+
+
+def test_version_is_the_packages():
+    """``starsense.__version__`` is the version pyproject.toml builds (one release, one number)."""
+    import tomllib
+
+    project = tomllib.loads((README.parent / "pyproject.toml").read_text())["project"]
+    assert ss.__version__ == project["version"]

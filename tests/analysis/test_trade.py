@@ -108,6 +108,19 @@ def test_prediction_equals_the_datasheets_prediction():
             assert rows_fast[key] == rows_full[key], key
 
 
+def test_predict_takes_rng_like_the_datasheet():
+    """``ss.predict(sensor, rng=...)`` as ``ss.datasheet``: the keywords are the settings."""
+    import starsense as ss
+
+    cat = as_catalog(None)
+    by_keywords = ss.predict("st16", cat, rng=5, **_FAST)
+    by_settings = predict("st16", cat, settings=prediction_settings(rng=5, **_FAST))
+    assert by_keywords.settings.seed == 5
+    assert by_keywords.to_dict() == by_settings.to_dict()
+    with pytest.raises(InputError, match="give settings or rng, not both"):
+        predict("st16", cat, rng=1, settings=prediction_settings(**_FAST))
+
+
 def test_a_bad_design_gets_its_own_error_and_the_trade_goes_on():
     base = base_document("st16")
     todo = designs(base, [parse_vary("detector.pixel_pitch_m=-1,2.2e-6")])
@@ -116,6 +129,33 @@ def test_a_bad_design_gets_its_own_error_and_the_trade_goes_on():
     assert bad.rows is None and "detector.pixel_pitch_m = -1.0" in bad.error
     assert good.error is None and good.rows["nea_cross"]["value"] > 0
     assert good.pareto == {"nea_vs_rate": True, "roll_vs_aperture": True}  # alone: optimal
+
+
+def test_output_keys_name_every_row_with_its_unit():
+    from starsense.analysis.trade.keys import OUTPUT_KEYS
+
+    assert list(OUTPUT_KEYS) == list(ROW_KEYS)  # every row, in order: a new row needs a name
+    assert len(set(OUTPUT_KEYS.values())) == len(OUTPUT_KEYS)
+    units = ("_deg", "_arcsec", "_deg_s", "_ms", "_fraction", "_count", "_ratio", "_v")
+    for name in OUTPUT_KEYS.values():
+        assert any(u in name for u in units) or name.startswith("measured_over_predicted"), name
+
+
+def test_trade_carries_the_catalogue_completeness_warning():
+    """A design that sees past Hipparcos's completeness (V 7.3) says so, as its datasheet does."""
+    base = base_document("st16")
+    todo = designs(base, [parse_vary("optics.aperture_m=0.012,0.03")])
+    study = run_trade(todo, settings=prediction_settings(**_FAST), workers=1)
+    small, large = study.rows
+    assert (
+        large.rows["limiting_magnitude"]["value"] > 7.3 > small.rows["limiting_magnitude"]["value"]
+    )
+    said = [w for w in large.warnings if "completeness" in w]
+    assert len(said) == 1 and "hip2" in said[0]
+    assert not any("completeness" in w for w in small.warnings)
+    line = large.to_dict()
+    assert line["warnings"] == list(large.warnings)
+    assert line["rows"]["nea_cross_arcsec"] == large.rows["nea_cross"]  # the same, named
 
 
 def test_capped_value_is_flagged_and_written_as_a_bound():

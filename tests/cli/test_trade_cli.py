@@ -53,10 +53,14 @@ def test_json_lines_csv_and_out(capsys, tmp_path):
     assert len(lines) == 2  # one object per line, one line per design
     row = json.loads(lines[0])
     assert row["rows"] is None and "pixel_pitch_m" in row["error"]  # its own error, exit 0
-    assert json.loads(lines[1])["error"] is None
+    good = json.loads(lines[1])
+    assert good["error"] is None
+    assert good["rows"]["nea_cross_arcsec"]["value"] > 0  # keys carry their unit
+    assert "fastest_rate_99pct_deg_s" in good["rows"] and isinstance(good["warnings"], list)
     assert main([*argv, "--csv", "--out", str(tmp_path / "t")]) == 0
     table = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert len(table) == 2 and table[0]["exposure_s"] == "0.1"
+    assert {"nea_cross_arcsec", "nea_cross_arcsec_capped", "warnings"} <= set(table[1])
     names = sorted(p.name for p in (tmp_path / "t").iterdir())
     assert "trade.jsonl" in names and "trade.csv" in names
     assert any(n.startswith("trade_pareto_") and n.endswith(".png") for n in names)

@@ -183,3 +183,24 @@ def test_a_gaia_catalogue_gets_v_and_b_v():
     np.testing.assert_allclose(out.colours["B-V"], bv)
     assert "Riello et al. 2021" in note and "1 of 3 stars have no BP-RP" in note
     assert with_johnson_from_gaia(out) == (out, None)  # V already there: as is
+
+
+#: presets that reproduce a paper keep what the paper assumed (a bias of 0: the dark response
+#: subtracted, Dzamba & Enright 2014 sec. 1.3; Lin et al. 2024); every other preset is a camera
+PAPER_PRESETS = {"st16", "lin2024"}
+
+
+def test_camera_presets_have_a_bias_the_noise_is_not_clipped_at():
+    """A real camera's preset sets its bias at >= 3 sigma of an empty pixel's noise, so its
+    datasheet opens with no warning about its own ADC clipping the background."""
+    from starsense.analysis.datasheet.checks import BIAS_SIGMAS
+    from starsense.sensor.load import preset_names
+
+    cameras = [n for n in preset_names() if n not in PAPER_PRESETS]
+    assert cameras, "no camera preset to check"
+    for name in cameras:
+        sensor = load_sensor(name)
+        sigma = empty_pixel_sigma_counts(sensor)
+        assert sensor.detector.bias_counts >= BIAS_SIGMAS * sigma, name
+        said = sanity_warnings(sensor, catalog_name="", limit_mag=None, runs={})
+        assert not any(w.startswith("bias ") for w in said), name

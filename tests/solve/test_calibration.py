@@ -214,3 +214,28 @@ def test_calibrate_takes_frame_files_as_the_command_does():
     via = calibrate(stars, solver.sensor, fit=("focal_length",))
     # the same stars through the same fit: the same numbers, bit for bit
     assert direct.values == via.values and direct.n_stars == via.n_stars
+
+
+@pytest.mark.parametrize("residual_px", [0.0, 0.4])
+def test_calibrate_cli_writes_the_lens_residual_it_measured(residual_px, tmp_path, capsys):
+    """The TOML's distortion_residual_px is the residual the lens leaves, not 0 by default.
+
+    Frames rendered through a lens with k1 = -0.2 whose stars are further displaced by
+    ``residual_px`` rms per axis (what optics.distortion_residual_px means to the renderer);
+    the calibration fits k1 and the focal length and must write that displacement back.
+    """
+    true = _distorted(load_sensor("st16"), distortion_k1=-0.2, distortion_residual_px=residual_px)
+    cat = load_catalog("hipparcos")
+    paths = [
+        write_frame(tmp_path / f"f{k}.tiff", render_frame(true, att, cat, rng=k))
+        for k, att in enumerate(random_attitudes(4, np.random.default_rng(7)))
+    ]
+    out = tmp_path / "cal.toml"
+    args = ["calibrate", *map(str, paths), "--sensor", "st16", "--out", str(out), "--json"]
+    assert main([*args, "--fit", "focal_length,k1"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    got, sigma = res["distortion_residual_px"], res["distortion_residual_sigma_px"]
+    assert load_sensor(out).optics.distortion_residual_px == got  # written as reported
+    assert sigma is not None and sigma > 0
+    assert abs(got - residual_px) < 3 * sigma  # the floor's own 1-sigma
+    assert "distortion_residual_px:" in out.read_text()  # the header says how it was measured

@@ -250,6 +250,15 @@ def test_cli_track_sequence_with_corrupt_and_missing_frames(tmp_path, capsys):
     assert lines[3]["dec_deg"] == pytest.approx(truth["dec_deg"], abs=10 / 3600)
     # the rate from frames 2 and 3 (0.5 s apart): 0.2, 0.1, 0 deg/s within 0.01 deg/s
     np.testing.assert_allclose(lines[3]["rate_deg_s"], [0.2, 0.1, 0.0], atol=0.01)
+    # the attitude as a quaternion (ICRS -> camera, scalar last): the truth's, to the 10" of
+    # the boresight above plus the roll about it (st16: tens of arcsec); 120" holds both
+    rendered = attitude_from_radec_roll(
+        *(math.radians(truth[k]) for k in ("ra_deg", "dec_deg", "roll_deg"))
+    )
+    q = Rotation.from_quat(lines[3]["quaternion_xyzw"])
+    assert math.degrees((q.inv() * rendered).magnitude()) * 3600 < 120
+    assert set(lines[3]["sigma_arcsec"]) == {"x", "y", "roll"}
+    assert lines[1]["quaternion_xyzw"] is None  # unreadable: no attitude
 
 
 @pytest.mark.parametrize(

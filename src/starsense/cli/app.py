@@ -239,6 +239,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with _signals_unwind():
             app = app_for(args)
+            importlib.import_module("starsense.cli.helptext").reflow_app(app)
             app(args=args, prog_name="starsense")  # standalone mode: ends with SystemExit
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)

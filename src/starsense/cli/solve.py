@@ -7,6 +7,7 @@ import io
 import json
 import time
 from concurrent.futures import ThreadPoolExecutor
+from importlib import resources
 from pathlib import Path
 from typing import Annotated
 
@@ -14,6 +15,7 @@ import numpy as np
 import typer
 
 from starsense import plotting
+from starsense.cli.attitude_json import with_attitude
 from starsense.cli.common import (
     CatalogOpt,
     JsonOpt,
@@ -165,7 +167,7 @@ def _solve_one(solver, image: Path, wcs: Path | None, as_json: bool, when=None, 
         raise InputError(str(exc) if str(image) in str(exc) else f"{image}: {exc}") from None
     if explain is not None:
         _explain(solver, image, sol, explain, bayer)
-    payload = {"image": str(image), **sol.to_dict()}
+    payload = with_attitude({"image": str(image), **sol.to_dict()}, sol)
     if explain is not None:
         payload["explain"] = str(explain)
     if when is not None and sol.apparent and sol.apparent.get("applied"):
@@ -224,7 +226,7 @@ def _batch_row(solver, image: Path, when=None, bayer: str | None = None) -> dict
             "message": str(exc),
             "time_ms": (time.perf_counter() - t0) * 1e3,
         }
-    return {"image": str(image), **sol.to_dict()}
+    return with_attitude({"image": str(image), **sol.to_dict()}, sol)
 
 
 def _csv_line(row: dict) -> str:
@@ -268,7 +270,7 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
         )
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
-    payload = {"centroids": str(path), **sol.to_dict()}
+    payload = with_attitude({"centroids": str(path), **sol.to_dict()}, sol)
     if opts.get("when") is not None and sol.apparent and sol.apparent.get("applied"):
         payload["apparent_places"]["time_source"] = "--time"
     if sol.solved:
@@ -352,6 +354,9 @@ def solve(
     refine: RefineOpt = None,
     jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,
     as_json: JsonOpt = False,
+    schema: Annotated[
+        bool, typer.Option("--schema", help="Print the JSON schema of a solution and exit.")
+    ] = False,
 ) -> None:
     """Solve frames lost-in-space: RA, Dec, roll, FOV, matches, residuals, false-match odds.
 
@@ -364,7 +369,14 @@ def solve(
     out flipped) and the flipped frame's attitude. Exit status 0 when every frame solved, 1
     when one does not solve (mirrored included), 2 for bad input (including a single frame
     with no stars, a folder with no images).
+
+    The JSON gives the attitude as quaternion_xyzw (ICRS -> camera, scalar last as in scipy's
+    Rotation.from_quat, w >= 0) and rotation_matrix (v_camera = M v_icrs), and sigma_arcsec by
+    camera axis (x, y, roll). --schema prints the JSON schema of a solution.
     """
+    if schema:
+        typer.echo((resources.files("starsense") / "data" / "solve.schema.json").read_text())
+        return
     images = list(images or [])
     option_int(jobs, "--jobs", 1, 64)
     bayer = check_bayer(bayer)

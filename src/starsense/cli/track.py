@@ -9,6 +9,7 @@ import numpy as np
 import typer
 
 from starsense._io import json_text
+from starsense.cli.attitude_json import with_attitude
 from starsense.cli.common import CatalogOpt, JsonOpt, option_float, parse_floats
 from starsense.errors import InputError
 from starsense.solve.solver import Solver
@@ -56,7 +57,9 @@ def track(
     """Track a sequence: each frame from the last attitude, lost-in-space when that fails.
 
     One line per frame (with --json one JSON object per line): status, mode (tracking or
-    lost_in_space), RA, Dec, roll, body rate from consecutive frames, stars used, time. A
+    lost_in_space), RA, Dec, roll (and in JSON quaternion_xyzw: ICRS -> camera, scalar last;
+    rotation_matrix; sigma_arcsec by axis x, y, roll), body rate from consecutive frames, stars
+    used, time. A
     missing or unreadable frame gets status "unreadable" and the rest go on. Exit status 0
     when some frame has an attitude, 1 when none has, 2 for bad input.
     """
@@ -77,6 +80,7 @@ def track(
     for path in frames:
         r = tracker.track_file(path)
         any_attitude |= r.has_attitude
-        typer.echo(json_text(r.to_dict(), indent=None) if as_json else _line(r))
+        line = json_text(with_attitude(r.to_dict(), r.solution), indent=None)
+        typer.echo(line if as_json else _line(r))
     if not any_attitude:
         raise typer.Exit(1)

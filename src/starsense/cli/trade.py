@@ -30,6 +30,7 @@ from starsense.analysis.trade import (
     prediction_settings,
     run_trade,
 )
+from starsense.analysis.trade.keys import OUTPUT_KEYS
 from starsense.cli.common import (
     JsonOpt,
     ModelOpt,
@@ -65,10 +66,11 @@ def _csv_text(study) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     fronts = sorted({k for r in study.rows for k in (r.pareto or {})})
+    named = [OUTPUT_KEYS[k] for k in ROW_KEYS]
     writer.writerow(
-        ["index", "design", *study.keys, *ROW_KEYS, *(f"{k}_capped" for k in ROW_KEYS)]
+        ["index", "design", *study.keys, *named, *(f"{k}_capped" for k in named)]
         + [f"pareto_{f}" for f in fronts]
-        + ["verified", "error"]
+        + ["verified", "error", "warnings"]
     )
     for r in study.rows:
         vals = [r.values.get(k) for k in study.keys]
@@ -86,6 +88,7 @@ def _csv_text(study) -> str:
                 *marks,
                 r.verified,
                 r.error or "",
+                "; ".join(r.warnings),
             ]
         )
     return buf.getvalue()
@@ -112,11 +115,28 @@ def _lines(study) -> list[str]:
             format_value(r.rows[k]["value"], f, capped=r.rows[k]["capped"]) for k, _, f in _TEXT
         ]
         fronts = ",".join(k for k, on in (r.pareto or {}).items() if on) or "-"
-        out.append(left + "".join(f"{c:>10s}" for c in cells) + f"  {fronts}")
+        mark = "  !" if r.warnings else ""
+        out.append(left + "".join(f"{c:>10s}" for c in cells) + f"  {fronts}{mark}")
     out.append(
         "pareto: nea_vs_rate = NEA cross vs fastest rate keeping 99 %; roll_vs_aperture = "
         'NEA roll vs aperture; ">= v": the end of the rate grid'
     )
+    return out + _warning_lines(study)
+
+
+#: the warnings printed under the text table (all of them are in --json and --csv)
+_MAX_WARNING_LINES = 20
+
+
+def _warning_lines(study) -> list[str]:
+    """Say each design's datasheet warnings (``!`` in the table), as the datasheet does."""
+    said = [(r.index, w) for r in study.rows for w in r.warnings]
+    if not said:
+        return []
+    out = ["! warnings (the datasheet's, per design):"]
+    out += [f"  #{i}: {w}" for i, w in said[:_MAX_WARNING_LINES]]
+    if len(said) > _MAX_WARNING_LINES:
+        out.append(f"  ... and {len(said) - _MAX_WARNING_LINES} more (all in --json and --csv)")
     return out
 
 

@@ -22,6 +22,7 @@ from starsense.analysis.datasheet.sheet import DatasheetSettings, build_datashee
 from starsense.analysis.datasheet.skycache import black_bodies
 from starsense.analysis.inputs import as_catalog
 from starsense.analysis.trade.grid import MAX_DESIGNS_IN_PROCESS, MAX_DESIGNS_ON_CLUSTER, Design
+from starsense.analysis.trade.keys import named_rows
 from starsense.analysis.trade.predict import prediction_settings
 from starsense.errors import InputError
 
@@ -59,6 +60,10 @@ class TradeRow:
         Front name (:data:`PARETO`) -> on it.
     verified : bool
         Checked on rendered frames (the rows then hold the measured numbers).
+    warnings : tuple of str
+        The design's datasheet warnings, as ``starsense datasheet`` gives them: a limiting
+        magnitude past the catalogue's completeness (its stars, availability and NEA then count
+        too few stars), a detection threshold or a bias the noise makes suspicious, ...
     """
 
     index: int
@@ -69,6 +74,7 @@ class TradeRow:
     aperture_m: float | None = None
     pareto: dict | None = None
     verified: bool = False
+    warnings: tuple[str, ...] = ()
 
     def value(self, key: str) -> float | None:
         """Return a trade row's value (or ``aperture_m``), None where missing."""
@@ -79,15 +85,20 @@ class TradeRow:
         return self.rows[key]["value"]
 
     def to_dict(self) -> dict:
-        """Return the JSON form (one line of ``starsense trade --json``)."""
+        """Return the JSON form (one line of ``starsense trade --json``).
+
+        The rows are keyed by their names with units (:data:`~starsense.analysis.trade.keys.
+        OUTPUT_KEYS`: ``nea_cross_arcsec``, ``fastest_rate_99pct_deg_s``, ...).
+        """
         return {
             "index": self.index,
             "design": self.name,
             "values": dict(self.values),
-            "rows": self.rows,
+            "rows": named_rows(self.rows),
             "error": self.error,
             "pareto": dict(self.pareto or {}),
             "verified": self.verified,
+            "warnings": list(self.warnings),
         }
 
 
@@ -156,6 +167,7 @@ def evaluate_design(
         row_values(sheet.to_dict()),
         aperture_m=sensor.optics.aperture_m,
         verified=n_frames > 0,
+        warnings=tuple(sheet.warnings),
     )
 
 
