@@ -101,7 +101,7 @@ def characterize_command(
     fluxes give the photometric zero point against the catalogue's V magnitudes, the
     background gives the sky level and per-pixel noise and, over several exposures, the gain
     by the photon transfer; pixels that stand out alone in every frame are hot. The sensor is
-    written to --out with a [provenance] table (each value's uncertainty, unit, frames and
+    written to --out with a `provenance` table (each value's uncertainty, unit, frames and
     method; the fields kept from --sensor; what the frames could not tell, and why). --json
     gives every value as {"value", "uncertainty", "unit"}. Exit status 2 on bad input or when
     no frame solves.
