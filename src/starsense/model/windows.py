@@ -156,8 +156,11 @@ def _nearest_mask(windows_shape, g_r0, g_c0, group, x, y, hit, on):
     g_n, (h, w) = len(g_r0), windows_shape
     best = np.full((g_n, h, w), np.inf)
     own = np.full((g_n, h, w), np.inf)
-    for s in np.flatnonzero(group >= 0):  # each free track's distance over the grids it reaches
-        gs = np.flatnonzero(hit[s])
+    free = group >= 0
+    shared = hit[free].sum(axis=0) > 1  # a group no other free track reaches keeps its pixels
+    best[~shared] = own[~shared] = 0.0
+    for s in np.flatnonzero(free & (hit & shared[None, :]).any(axis=1)):
+        gs = np.flatnonzero(hit[s] & shared)  # each free track's distance over the grids it shares
         rows = g_r0[gs, None] + np.arange(h)
         cols = g_c0[gs, None] + np.arange(w)
         dy2 = (rows[:, :, None] - y[s][None, None, :]) ** 2  # (g, h, K)
@@ -165,7 +168,8 @@ def _nearest_mask(windows_shape, g_r0, g_c0, group, x, y, hit, on):
         d2 = np.min(dy2[:, :, None, :] + dx2[:, None, :, :], axis=-1)
         best[gs] = np.minimum(best[gs], d2)
         mine = gs == group[s]
-        own[group[s]] = np.minimum(own[group[s]], d2[mine][0])
+        if mine.any():
+            own[group[s]] = np.minimum(own[group[s]], d2[mine][0])
     return on & (own <= best)
 
 
