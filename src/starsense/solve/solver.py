@@ -28,6 +28,7 @@ from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
+from starsense.solve.attitude_fit import kernel_fit
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import streak_body_rate
 from starsense.solve.box_blends import box_fit, window_fields
@@ -387,7 +388,7 @@ class Solver:
             self, identifier.database, ident, obs_time=obs_time, pixel_rad=fov / points.shape[1]
         )
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
-        att, keep = robust_attitude(body, ref, sigma * pixel_rad)
+        att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit)
         rate = None  # smeared: the body rate the streaks give (starts the model fit's)
         if streaks is not None:  # smeared: the pairs on their streaks, at their photocentres
             rate = streak_body_rate(self.sensor, body, streaks.streaks_px)
@@ -427,7 +428,7 @@ class Solver:
         stages["attitude_ms"] = _ms(t3)
         sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),
                      stages=stages, radial=radial, sensor=self.sensor)  # fmt: skip
-        return dataclasses.replace(sol, notes=(*sol.notes, *notes))
+        return dataclasses.replace(sol, notes=(*sol.notes, *notes)) if notes else sol
 
     def _unsolved(self, points, ident, t0, stages, sigma_px, fov_given, obs_time, parity):
         """Return the answer for centroids that did not solve: their mirror image, or why not."""
