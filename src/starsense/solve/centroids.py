@@ -211,6 +211,8 @@ def check_image_size(image_size) -> tuple[int, int]:
         width, height = image_size
     except (TypeError, ValueError):
         raise InputError(f"image_size must be (width, height), got {image_size!r}") from None
+    if type(width) is int and type(height) is int and width >= 1 and height >= 1:
+        return height, width  # plain ints, checked: what check_int returns for them
     return check_int(height, "image height", 1), check_int(width, "image width", 1)
 
 

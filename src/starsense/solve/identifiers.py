@@ -28,6 +28,9 @@ DISTORTION_GUESSES = (-1.0 / 9.0, -2.0 / 9.0)
 
 __all__ = ["FieldIdentifiers"]
 
+#: what an identification that the spent budget leaves no pattern to look up returns
+_SPENT = Identification("timeout", "hashing")
+
 
 class FieldIdentifiers:
     """Configure, then ask: ``FieldIdentifiers(catalog, algorithm=...)(fov_rad)``.
@@ -40,15 +43,46 @@ class FieldIdentifiers:
         bundled Gaia when installed; a Catalog object is used for every range.
     algorithm : {"hashing", "triangle"}
         Identification algorithm.
+    max_patterns : int, optional
+        The work budget of one solve (hashing): the 4-star patterns looked up by all the
+        identifications between two calls of :meth:`start`, after which they stop with status
+        "timeout" (deterministic: counted in patterns, not time). None: no bound.
     """
 
-    def __init__(self, catalog: Catalog | str, *, algorithm: str) -> None:
+    def __init__(
+        self, catalog: Catalog | str, *, algorithm: str, max_patterns: int | None = None
+    ) -> None:
         self.spec = catalog
         self.algorithm = algorithm
+        self.max_patterns = max_patterns
         self._catalog: Catalog | None = catalog if isinstance(catalog, Catalog) else None
         self._plan: list[FieldRange] | None = None
         self._built: dict = {}
         self._skies: dict = {}
+        self._spent = 0  # patterns looked up since start()
+
+    def start(self) -> None:
+        """Begin a solve: its identifications share a fresh budget of ``max_patterns``."""
+        self._spent = 0
+
+    def _ranked(self, identifier, vectors, flux, *args, **kwargs) -> Identification:
+        """:func:`identify_ranked` within what is left of the solve's budget (hashing)."""
+        if self.max_patterns is None or self.algorithm != "hashing":
+            ident = identify_ranked(identifier, vectors, flux, *args, **kwargs)
+            self._spent += ident.n_patterns_tried
+            return ident
+        left = self.max_patterns - self._spent
+        ident = _SPENT  # spent by the attempts before: this one looks up nothing
+        if left > 0:
+            ident = identify_ranked(identifier, vectors, flux, *args, max_patterns=left, **kwargs)
+            self._spent += ident.n_patterns_tried
+        if ident.status == "timeout" and self._spent >= self.max_patterns:
+            why = (
+                f"no match within the work budget of one solve, {self.max_patterns} patterns "
+                "(max_patterns), summed over its identification attempts"
+            )
+            ident = dataclasses.replace(ident, message=why)
+        return ident
 
     @property
     def catalog(self) -> Catalog:
@@ -139,7 +173,9 @@ class FieldIdentifiers:
                 u, w = undistort(*(t * (math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))).T,
                                  (k1, 0.0, 0.0, 0.0))  # fmt: skip
                 v = tangent_to_vectors(np.column_stack([u, w]))
-                ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+                ident = self._ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+                if ident.status == "timeout":  # the solve's budget is spent
+                    return identifier, ident, 0.0
                 if ident.solved:
                     # the tangent found is scale x the one assumed: k1 / scale^2 at the true focus
                     return identifier, ident, k1 / ident.scale**2
@@ -167,10 +203,10 @@ class FieldIdentifiers:
             identifier = self(None, field_range)
             nominal = field_range.nominal_fov_rad  # re-unproject at the range's own field
             v = apply_scale(vectors, math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))
-            ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+            ident = self._ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
             tried += ident.n_patterns_tried
             best = min(best, ident.best_false_match_probability)
-            if ident.solved:
+            if ident.solved or ident.status == "timeout":
                 break
         return identifier, dataclasses.replace(
             ident, n_patterns_tried=tried, best_false_match_probability=best
@@ -202,9 +238,10 @@ class FieldIdentifiers:
         searched = fov_known_rad is None
         if not searched:
             identifier = self(fov_known_rad)
-            ident = identify_ranked(identifier, vectors, flux, fov_known_rad)
+            ident = self._ranked(identifier, vectors, flux, fov_known_rad)
             searched = (
                 not ident.solved
+                and ident.status != "timeout"
                 and estimate
                 and self.algorithm == "hashing"
                 and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
@@ -214,5 +251,8 @@ class FieldIdentifiers:
         identifier, ident = self.search(vectors, flux, fov_assumed_rad)
         if ident.solved or not estimate or len(vectors) < 4 or self.algorithm != "hashing":
             return identifier, ident, None, 0.0
+        if ident.status == "timeout":  # the budget is spent: no distortion guess
+            return identifier, ident, None, 0.0
         found = self.search_distorted(vectors, flux, fov_assumed_rad)
-        return (*found[:2], None, found[2]) if found[1].solved else (identifier, ident, None, 0.0)
+        kept = found[1].solved or found[1].status == "timeout"  # else: the pinhole search's
+        return (*found[:2], None, found[2]) if kept else (identifier, ident, None, 0.0)

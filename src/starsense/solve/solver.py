@@ -49,7 +49,13 @@ from starsense.solve.radial import refine_identification
 from starsense.solve.references import matched_references
 from starsense.solve.refine import refined_attitude
 from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
-from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
+from starsense.solve.settings import (
+    MAX_PATTERNS,
+    Algorithm,
+    BackgroundMode,
+    SolverSettings,
+    solver_settings,
+)
 from starsense.solve.solution import Solution
 from starsense.solve.streak_pairs import smeared_fit
 from starsense.solve.streaks import matched_measurements
@@ -118,6 +124,12 @@ class Solver:
         The catalogue whose stars the model fit draws as neighbours of the identified ones
         (default: ``catalog``): give the deepest catalogue of the sky the frames show (frames
         rendered from another catalogue, a real sky fainter than the database).
+    max_patterns : int or None
+        The work budget of one solve: the 4-star patterns (hashing) looked up by all its
+        identification attempts (given field, scale search, distortion guesses, mirror image);
+        a frame that has not identified by then stops with status "timeout", the same on every
+        machine (as tetra3's ``max_patterns_checked``). Default
+        :data:`~starsense.solve.settings.MAX_PATTERNS`; None: no bound.
 
     Attributes
     ----------
@@ -144,6 +156,7 @@ class Solver:
         observer_velocity_m_s=None,
         refine: Literal["model", "cog"] | None = None,
         sky: Catalog | str | None = None,
+        max_patterns: int | None = MAX_PATTERNS,
     ) -> None:
         self.settings: SolverSettings = solver_settings(
             sensor,
@@ -158,6 +171,7 @@ class Solver:
             fov_rad=fov_rad,
             refine=refine,
             sky=sky,
+            max_patterns=max_patterns,
         )
         self.sensor = (
             sensor if (sensor is None or isinstance(sensor, Sensor)) else load_sensor(sensor)
@@ -169,7 +183,9 @@ class Solver:
         )
         known_fov = 2 * self.sensor.half_fov_rad[0] if self.sensor else self.settings.fov_rad
         catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
-        self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
+        self._identifiers = FieldIdentifiers(
+            catalog, algorithm=algorithm, max_patterns=self.settings.max_patterns
+        )
         self._sky = None if sky is None else FieldIdentifiers(sky, algorithm=algorithm)
         self._detector: StarDetector | None = None
         self._quick: StarDetector | bool | None = False  # not built yet
@@ -250,6 +266,7 @@ class Solver:
             Solved, or the reason why not (no exception for a frame that does not solve).
         """
         t0 = time.perf_counter()
+        self._identifiers.start()  # the frame's identifications share one work budget
         a = np.asarray(image)
         check_frame_shape(a.shape, self.sensor)
         stages: dict[str, float] = {}
@@ -325,6 +342,7 @@ class Solver:
             more than 2 px outside the image.
         """
         t0 = time.perf_counter()
+        self._identifiers.start()  # the set's identifications share one work budget
         pts, shape, flux, fov_rad = check_centroid_input(
             xy, image_size, brightness=brightness, fov_rad=fov_rad, sensor=self.sensor
         )
