@@ -60,10 +60,34 @@ class FieldIdentifiers:
         self._built: dict = {}
         self._skies: dict = {}
         self._spent = 0  # patterns looked up since start()
+        self._first: tuple | None = None  # a failed first attempt handed over (keep_first)
 
     def start(self) -> None:
         """Begin a solve: its identifications share a fresh budget of ``max_patterns``."""
         self._spent = 0
+        self._first = None
+
+    def keep_first(self, identifier, vectors, flux, fov_rad: float) -> Identification:
+        """Identify at a known field; an answer that did not solve is kept for :meth:`identify`.
+
+        The first attempt of a solve made ahead of it (:mod:`starsense.solve.centroid_path`):
+        when :meth:`identify` is then asked the same (this identifier, the same vectors,
+        brightness and field) it takes this answer instead of identifying again.
+        """
+        ident = self._ranked(identifier, vectors, flux, fov_rad)
+        if not ident.solved:
+            key = (identifier, np.asarray(vectors).tobytes(), np.asarray(flux).tobytes(), fov_rad)
+            self._first = (key, ident)
+        return ident
+
+    def _handed_over(self, identifier, vectors, flux, fov_rad: float) -> Identification | None:
+        """Return the answer :meth:`keep_first` kept for exactly this attempt (once), or None."""
+        first, self._first = self._first, None
+        if first is None:
+            return None
+        key = (identifier, np.asarray(vectors).tobytes(), np.asarray(flux).tobytes(), fov_rad)
+        same = first[0][0] is key[0] and first[0][1:] == key[1:]
+        return first[1] if same else None
 
     def _ranked(self, identifier, vectors, flux, *args, **kwargs) -> Identification:
         """:func:`identify_ranked` within what is left of the solve's budget (hashing)."""
@@ -238,7 +262,9 @@ class FieldIdentifiers:
         searched = fov_known_rad is None
         if not searched:
             identifier = self(fov_known_rad)
-            ident = self._ranked(identifier, vectors, flux, fov_known_rad)
+            ident = self._handed_over(identifier, vectors, flux, fov_known_rad)
+            if ident is None:
+                ident = self._ranked(identifier, vectors, flux, fov_known_rad)
             searched = (
                 not ident.solved
                 and ident.status != "timeout"

@@ -32,6 +32,7 @@ from starsense.solve.attitude_fit import kernel_fit
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import streak_body_rate
 from starsense.solve.box_blends import box_fit, window_fields
+from starsense.solve.centroid_path import solve_known_field
 from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
 from starsense.solve.counts import (
     detection_counts,
@@ -349,6 +350,10 @@ class Solver:
         sigma = self.settings.centroid_sigma_px
         sigma = sigma if sigma != "snr" else 0.3  # no pixels: no signal to weigh them by
         points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
+        # a set that identifies at its known field: in one pass (the same answer)
+        sol = solve_known_field(self, points, sigma, fov_rad, obs_time, t0)
+        if sol is not None:
+            return sol
         fixed = lambda _m, _x, v: (v, sigma, None)  # noqa: E731
         return self._solve_points(points, t0, {}, fixed, fov_rad, obs_time)
 
