@@ -114,11 +114,17 @@ def test_what_the_one_pass_leaves_to_the_whole_way(sets):
     xy = sets["standard"].xy[: sets["standard"].offsets[1]]
     points = CentroidPoints(xy[:, 0], xy[:, 1], np.arange(len(xy), 0, -1.0), SIZE, "centroids")
     t0 = time.perf_counter()
+
+    def one_pass(solver, pts, fov=None):
+        ids = solver._identifiers
+        kw = {"identifiers": ids, "sigma_px": 0.3, "fov_given": fov, "obs_time": None, "t0": t0}
+        return solve_known_field(solver, pts, **kw)
+
     # no known field; a field of 20 deg or more without a sensor (its radial fit); 3 centroids
-    assert solve_known_field(Solver(), points, 0.3, None, None, t0) is None
-    assert solve_known_field(Solver(), points, 0.3, math.radians(25.0), None, t0) is None
+    assert one_pass(Solver(), points) is None
+    assert one_pass(Solver(), points, math.radians(25.0)) is None
     three = CentroidPoints(xy[:3, 0], xy[:3, 1], np.ones(3), SIZE, "centroids")
-    assert solve_known_field(Solver(fov_rad=FOV15), three, 0.3, None, None, t0) is None
+    assert one_pass(Solver(fov_rad=FOV15), three) is None
 
 
 def test_a_set_that_does_not_identify_at_its_field_is_identified_there_once(sets):

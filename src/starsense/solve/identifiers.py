@@ -67,7 +67,7 @@ class FieldIdentifiers:
         self._spent = 0
         self._first = None
 
-    def keep_first(self, identifier, vectors, flux, fov_rad: float) -> Identification:
+    def keep_first(self, identifier, vectors, flux, *, fov_rad: float) -> Identification:
         """Identify at a known field; an answer that did not solve is kept for :meth:`identify`.
 
         The first attempt of a solve made ahead of it (:mod:`starsense.solve.centroid_path`):

@@ -32,8 +32,8 @@ from starsense.solve.attitude_fit import kernel_fit
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.blends import streak_body_rate
 from starsense.solve.box_blends import box_fit, window_fields
-from starsense.solve.centroid_path import solve_known_field
-from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
+from starsense.solve.centroid_path import solve_centroid_list
+from starsense.solve.centroids import CentroidPoints, check_frame_shape
 from starsense.solve.counts import (
     detection_counts,
     identification_counts,
@@ -50,13 +50,7 @@ from starsense.solve.radial import refine_identification
 from starsense.solve.references import matched_references
 from starsense.solve.refine import refined_attitude
 from starsense.solve.rematch import detection_sigmas_px, rematched, scaled
-from starsense.solve.settings import (
-    MAX_PATTERNS,
-    Algorithm,
-    BackgroundMode,
-    SolverSettings,
-    solver_settings,
-)
+from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
 from starsense.solve.streak_pairs import smeared_fit
 from starsense.solve.streaks import matched_measurements
@@ -126,11 +120,8 @@ class Solver:
         (default: ``catalog``): give the deepest catalogue of the sky the frames show (frames
         rendered from another catalogue, a real sky fainter than the database).
     max_patterns : int or None
-        The work budget of one solve: the 4-star patterns (hashing) looked up by all its
-        identification attempts (given field, scale search, distortion guesses, mirror image);
-        a frame that has not identified by then stops with status "timeout", the same on every
-        machine (as tetra3's ``max_patterns_checked``). Default
-        :data:`~starsense.solve.settings.MAX_PATTERNS`; None: no bound.
+        Work budget of one solve, 4-star patterns over all its identification attempts, then
+        status "timeout" (:data:`~starsense.solve.settings.MAX_PATTERNS`; None: no bound).
 
     Attributes
     ----------
@@ -157,7 +148,7 @@ class Solver:
         observer_velocity_m_s=None,
         refine: Literal["model", "cog"] | None = None,
         sky: Catalog | str | None = None,
-        max_patterns: int | None = MAX_PATTERNS,
+        max_patterns: int | None = SolverSettings.max_patterns,  # settings.MAX_PATTERNS
     ) -> None:
         self.settings: SolverSettings = solver_settings(
             sensor,
@@ -184,9 +175,8 @@ class Solver:
         )
         known_fov = 2 * self.sensor.half_fov_rad[0] if self.sensor else self.settings.fov_rad
         catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
-        self._identifiers = FieldIdentifiers(
-            catalog, algorithm=algorithm, max_patterns=self.settings.max_patterns
-        )
+        budget = self.settings.max_patterns
+        self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm, max_patterns=budget)
         self._sky = None if sky is None else FieldIdentifiers(sky, algorithm=algorithm)
         self._detector: StarDetector | None = None
         self._quick: StarDetector | bool | None = False  # not built yet
@@ -342,20 +332,10 @@ class Solver:
             finite value per centroid, an image size that is not the sensor's, a centroid
             more than 2 px outside the image.
         """
-        t0 = time.perf_counter()
-        self._identifiers.start()  # the set's identifications share one work budget
-        pts, shape, flux, fov_rad = check_centroid_input(
-            xy, image_size, brightness=brightness, fov_rad=fov_rad, sensor=self.sensor
-        )
-        sigma = self.settings.centroid_sigma_px
-        sigma = sigma if sigma != "snr" else 0.3  # no pixels: no signal to weigh them by
-        points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
-        # a set that identifies at its known field: in one pass (the same answer)
-        sol = solve_known_field(self, points, sigma, fov_rad, obs_time, t0)
-        if sol is not None:
-            return sol
-        fixed = lambda _m, _x, v: (v, sigma, None)  # noqa: E731
-        return self._solve_points(points, t0, {}, fixed, fov_rad, obs_time)
+        return solve_centroid_list(
+            self, xy, image_size, fov_rad=fov_rad, brightness=brightness, obs_time=obs_time,
+            identifiers=self._identifiers, whole_way=self._solve_points,
+        )  # fmt: skip
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True,
                       search=True, image=None):  # fmt: skip
