@@ -8,8 +8,16 @@ in-process here; a peer that is missing is said so and skipped. Inputs:
 
 (a) synthetic centroid sets: 2,001 Fibonacci boresights (random roll), 15 deg across a
     1280 x 960 pinhole detector, the 20 brightest bundled-Hipparcos stars (V <= 9) in the frame,
-    0.3 px Gaussian centroid noise, 2 false stars at random positions and ranks. Both solvers
-    are told the field (15 deg). Wrong: boresight more than 1 arcmin from the truth.
+    0.3 px Gaussian centroid noise, 2 false stars at random positions and ranks (the standard
+    set), or 1 px, 6 false stars and 30 % of the stars missing (the hard set); each at the
+    project's seed and at a fresh seed drawn at run time (printed; ``--fresh-seed`` repeats
+    one). Every solver is told the field (15 deg) and called through its public API:
+    starsense's ``Solver(fov_rad=...).solve_centroids(xy, (width, height))``, tetra3rs's
+    ``solve_from_centroids``, cedar-solve's ``solve_from_centroids``; starsense's inner
+    identifier (``HashIdentifier(database)(pinhole_vectors(...))``, which no user calls) is a
+    second, labelled line. Centroids that noise put more than 2 px outside the image (which
+    ``solve_centroids`` refuses as not of this image) are left out for every solver. Wrong:
+    boresight more than 1 arcmin from the truth.
 (b) the eight ESA frames: (b1) both solvers on starsense's centroids (the detection of
     ``Solver(sensor="esa_blackfly")``), field 11.42 deg given; (b2) each with its own extraction
     from the image (starsense's full pipeline vs cedar's ``solve_from_image``). Wrong: boresight
@@ -20,6 +28,9 @@ in-process here; a peer that is missing is said so and skipped. Inputs:
 
 Time per solve is the wall time of one call (centroids in, attitude out; or image in, attitude
 out for b2), one thread, databases loaded beforehand; ESA times are the best of 3 per frame.
+The centroid sets report the median, 99th percentile and worst call; the machine's load
+average is printed and recorded before and after (a shared machine's other work shows in the
+tail).
 Results: ``bench/results/peers.json`` (atomic write) and tables on stdout, the last one the
 side-by-side table of every solver on every input (Markdown).
 """
@@ -76,21 +87,38 @@ ARCSEC = math.radians(1.0 / 3600.0)
 # inputs
 
 
-#: the synthetic centroid sets: key -> (label, centroid_sets keyword arguments)
+#: the project's seed of the synthetic centroid sets
+PROJECT_SEED = 20240605
+_STANDARD = {"noise_px": 0.3, "n_false": 2}
+_HARD = {"noise_px": 1.0, "n_false": 6, "drop_fraction": 0.3}
+
+
+def synth_sets(fresh_seed: int) -> dict:
+    """The synthetic centroid sets: key -> (label, seed, centroid_sets keyword arguments)."""
+    standard = "synthetic 15 deg, 20 stars + 2 false, 0.3 px"
+    hard = "synthetic 15 deg, 14 of 20 stars + 6 false, 1 px"
+    return {
+        "synthetic": (standard, PROJECT_SEED, _STANDARD),
+        "synthetic_hard": (hard, PROJECT_SEED, _HARD),
+        "synthetic_fresh": (f"{standard}, fresh seed", fresh_seed, _STANDARD),
+        "synthetic_hard_fresh": (f"{hard}, fresh seed", fresh_seed, _HARD),
+    }
+
+
+#: the project's synthetic sets: key -> (label, keyword arguments) (bench/lis_speed.py's too)
 SYNTH_SETS = {
-    "synthetic": ("synthetic 15 deg, 20 stars + 2 false, 0.3 px", {"noise_px": 0.3, "n_false": 2}),
-    "synthetic_hard": (
-        "synthetic 15 deg, 14 of 20 stars + 6 false, 1 px",
-        {"noise_px": 1.0, "n_false": 6, "drop_fraction": 0.3},
-    ),
+    key: (label, kw)
+    for key, (label, _seed, kw) in synth_sets(0).items()
+    if key in ("synthetic", "synthetic_hard")
 }
 
 
-def synthetic_inputs(n: int, seed: int = 20240605, **kwargs):
+def synthetic_inputs(n: int, seed: int = PROJECT_SEED, **kwargs):
     """Centroid sets (x, y) in pixels, pixel-centre convention, brightest first; truth boresights.
 
     :func:`starsense.identify.centroid_sets.centroid_sets` on the bundled Hipparcos (V <= 9),
-    15 deg across a 1280 x 960 pinhole detector, Fibonacci boresights, random roll.
+    15 deg across a 1280 x 960 pinhole detector, Fibonacci boresights, random roll. A centroid
+    that noise put more than 2 px outside the image is left out (every solver gets the same).
     """
 
     sets = centroid_sets(
@@ -101,7 +129,11 @@ def synthetic_inputs(n: int, seed: int = 20240605, **kwargs):
         seed=seed,
         **kwargs,
     )
-    return sets.xy, sets.offsets, sets.boresights
+    rows, cols = SYNTH_SIZE
+    xy, offsets = sets.xy, np.asarray(sets.offsets)
+    inside = np.all((xy >= -2.5) & (xy <= np.array([cols + 1.5, rows + 1.5])), axis=1)
+    kept = np.concatenate([[0], np.cumsum(inside)])[offsets]  # new offsets
+    return xy[inside], kept, sets.boresights
 
 
 def esa_inputs():
@@ -151,28 +183,38 @@ def starsense_side(synth_sets, esa):
         return {"solved": True, "ra_deg": ra, "dec_deg": dec, "roll_deg": roll, "ms": ms}
 
     synth = {}
+    public = Solver(fov_rad=fov)  # the README's call: Solver(fov_rad=...).solve_centroids(...)
+    public.prepare()  # its database loaded, once
+    size = (SYNTH_SIZE[1], SYNTH_SIZE[0])  # width, height
     for key, (xy, offsets, _bores) in synth_sets.items():
-        synth[key] = []
+        synth[key], synth[f"{key}_inner"] = [], []
         for i in range(len(offsets) - 1):
             pts = xy[offsets[i] : offsets[i + 1]]
+            sol, ms = _best_of(lambda pts=pts: public.solve_centroids(pts, size), 1)
+            synth[key].append({**_solution_record(sol, ms), "patterns": _patterns(sol)})
 
             def solve(pts=pts):
                 return identify(
                     pinhole_vectors(pts[:, 0], pts[:, 1], shape=SYNTH_SIZE, fov_rad=fov), fov
                 )
 
-            synth[key].append(record(*_best_of(solve, 1)))
+            synth[f"{key}_inner"].append(record(*_best_of(solve, 1)))
 
     esa_fov = 2.0 * sensor.half_fov_rad[0]
     identify_esa = HashIdentifier(build_database(cat, esa_fov))
-    same = []
+    same, same_inner = [], []
+    esa_public = Solver(sensor=sensor)  # solve_centroids with the sensor's optics
+    esa_public.prepare()
+    esa_size = (sensor.detector.columns, sensor.detector.rows)
     for i in range(len(names)):
         pts = exy[eoff[i] : eoff[i + 1]]
+        sol, ms = _best_of(lambda pts=pts: esa_public.solve_centroids(pts, esa_size), 3)
+        same.append(_solution_record(sol, ms))
 
         def solve(pts=pts):
             return identify_esa(sensor.unproject(pts[:, 0], pts[:, 1]), esa_fov)
 
-        same.append(record(*_best_of(solve, 3)))
+        same_inner.append(record(*_best_of(solve, 3)))
     own, robust = [], []
     # the default (quick extraction first, the robust one when it does not solve), and the
     # robust extraction alone
@@ -186,9 +228,15 @@ def starsense_side(synth_sets, esa):
         "database_load_s": db_s,
         **synth,
         "esa_same_centroids": same,
+        "esa_same_centroids_inner": same_inner,
         "esa_own_extraction": own,
         "esa_robust_extraction": robust,
     }
+
+
+def _patterns(sol) -> int | None:
+    """The patterns a solve's last identification looked up (None: it did not get there)."""
+    return sol.counts.get("patterns_tried")
 
 
 def _solution_record(sol, ms) -> dict:
@@ -359,17 +407,22 @@ def load_sets(names) -> dict:
     return sets
 
 
-def centroid_scores(ours, peers, synth, esa_truth) -> tuple[dict, list]:
-    """Score every solver on the centroid sets and the ESA frames; print one line each."""
+def centroid_scores(ours, peers, synth, esa_truth, labels) -> tuple[dict, list]:
+    """Score every solver on the centroid sets and the ESA frames; print one line each.
+
+    ``labels``: synthetic set key -> label. starsense's inner identifier on each synthetic set
+    is scored too, on a line of its own (``starsense_inner``), after the public call's.
+    """
     sets = [
-        *((key, label, synth[key][2], ARCMIN) for key, (label, _kw) in SYNTH_SETS.items()),
+        *((key, label, synth[key][2], ARCMIN) for key, label in labels.items()),
         ("esa_same_centroids", "ESA frames, starsense's centroids", esa_truth, 15 * ARCSEC),
         ("esa_own_extraction", "ESA frames, each its own extraction", esa_truth, 15 * ARCSEC),
     ]
     results, rows = {}, []
     header = f"{'input':50s} {'solver':14s} {'solved':>8s} {'wrong':>6s} {'mean ms':>9s} "
-    print(header + f"{'median ms':>10s} {'err as':>7s}")
+    print(header + f"{'median ms':>10s} {'p99 ms':>8s} {'worst ms':>9s} {'err as':>7s}")
     for key, label, truth, limit in sets:
+        base = label
         entry = {"starsense": peer_table.score(ours[key], truth, limit)}
         for who, theirs in peers.items():
             entry[who] = peer_table.score(theirs[key], truth, limit)
@@ -386,7 +439,17 @@ def centroid_scores(ours, peers, synth, esa_truth) -> tuple[dict, list]:
             label = f"{label}, tetra3rs match_max_error 0.003"
             peer_table.print_scores(label, {"tetra3rs": entry["tetra3rs_loose"]})
             rows.append((label, {"tetra3rs": entry["tetra3rs_loose"]}, False))
+        if f"{key}_inner" in ours:  # the identifier inside the public call, labelled
+            inner = peer_table.score(ours[f"{key}_inner"], truth, limit)
+            entry["starsense_inner"] = inner
+            name = f"{base}: starsense's inner identifier, not a public call"
+            peer_table.print_scores(name, {"starsense": inner})
+            rows.append((name, {"starsense": inner}, False))
     return results, rows
+
+
+def _load(avg) -> str:
+    return ", ".join(f"{v:.2f}" for v in avg)
 
 
 def main(argv=None) -> int:
@@ -403,11 +466,24 @@ def main(argv=None) -> int:
         "--sets", nargs="*", default=list(FRAME_SETS), help="frame sets of the shared data"
     )
     parser.add_argument("--no-astrometry", action="store_true", help="skip solve-field")
+    parser.add_argument(
+        "--fresh-seed", type=int, help="the fresh seed of the centroid sets (default: drawn now)"
+    )
     args = parser.parse_args(argv)
     frame_paths, frame_images = frames_dir(args.frames) if args.frames else ([], [])
+    fresh = args.fresh_seed
+    if fresh is None:
+        fresh = int(np.random.SeedSequence().generate_state(1)[0])
+    chosen = synth_sets(fresh)
+    labels = {key: label for key, (label, _seed, _kw) in chosen.items()}
+    load_before = os.getloadavg()
 
-    print(f"generating inputs: {args.n} synthetic centroid sets, 8 ESA frames ...", flush=True)
-    synth = {key: synthetic_inputs(args.n, **kw) for key, (_label, kw) in SYNTH_SETS.items()}
+    print(
+        f"generating inputs: {args.n} synthetic centroid sets (seeds {PROJECT_SEED} and fresh "
+        f"{fresh}), 8 ESA frames ...; load average {_load(load_before)}",
+        flush=True,
+    )
+    synth = {key: synthetic_inputs(args.n, seed, **kw) for key, (_l, seed, kw) in chosen.items()}
     esa = esa_inputs()
     names, _images, _exy, _eoff, reference, sensor = esa
     esa_truth = [_vec(reference[n]["ra_deg"], reference[n]["dec_deg"]) for n in names]
@@ -449,7 +525,9 @@ def main(argv=None) -> int:
     if astro is None:
         missing["astrometry.net"] = astro_why
 
-    results, rows = centroid_scores(ours, peers, synth, esa_truth)
+    load_after = os.getloadavg()
+    print(f"load average (1, 5, 15 min): before {_load(load_before)}, after {_load(load_after)}")
+    results, rows = centroid_scores(ours, peers, synth, esa_truth, labels)
     set_results, set_rows = frame_sets.set_scores(sets, ours, peers, astro)
     whole = whole_frames(ours, peers, astro, astro_why, reference, names, frame_paths)
     side_by_side = peer_table.table(rows + set_rows, missing)
@@ -463,6 +541,8 @@ def main(argv=None) -> int:
         "whole_frames": whole,
         "table_markdown": side_by_side,
         "starsense": {"database_load_s": ours["database_load_s"], "machine": machine()},
+        "seeds": {"project": PROJECT_SEED, "fresh": fresh},
+        "load_average": {"before": list(load_before), "after": list(load_after)},
         **{
             who: {k: r.get(k) for k in ("version", "database", "database_load_s", "machine")}
             for who, r in peers.items()
@@ -478,7 +558,7 @@ def main(argv=None) -> int:
                     ]
                     for who, recs in (("starsense", ours), *peers.items())
                 }
-                for key in SYNTH_SETS
+                for key in chosen
             },
             "esa_names": names,
             **{

@@ -47,7 +47,7 @@ def score(records, truth_vectors, limit_rad) -> dict:
 
 
 def print_scores(label: str, entry: dict) -> None:
-    """One line per solver of one input (solved, wrong, mean and median ms, median error)."""
+    """One line per solver of one input (solved, wrong, mean, median, p99 and worst ms, error)."""
     for who in SOLVERS:
         if who not in entry:
             continue
@@ -55,7 +55,8 @@ def print_scores(label: str, entry: dict) -> None:
         err = "-" if r["median_error_arcsec"] is None else f"{r['median_error_arcsec']:.1f}"
         print(
             f"{label:50s} {LABELS.get(who, who):14s} {r['solved']:>4d}/{r['n']:<4d}"
-            f"{r['wrong']:>5d} {r['mean_ms']:9.2f} {r['median_ms']:10.3f} {err:>7s}"
+            f"{r['wrong']:>5d} {r['mean_ms']:9.2f} {r['median_ms']:10.3f} {r['p99_ms']:8.3f}"
+            f" {r['max_ms']:9.2f} {err:>7s}"
         )
 
 
@@ -66,6 +67,8 @@ def _cell(r: dict | None, mean: bool = False) -> str:
     ms = r["mean_ms"] if mean else r["median_ms"]
     time = "-" if ms is None else f"{ms:.3g} ms"
     text = f"{r['solved']}/{n}, {r['wrong']} wrong, {'mean' if mean else 'median'} {time}"
+    if not mean and r.get("p99_ms") is not None:  # the tail: what a flight loop budgets
+        text += f", p99 {r['p99_ms']:.3g} ms, worst {r['max_ms']:.3g} ms"
     if r.get("claimed_without_reference"):
         text += f" (+{r['claimed_without_reference']} claimed without reference)"
     return text

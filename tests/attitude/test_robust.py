@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from attitude_fields import ARCSEC, add_noise, star_field
 from scipy.spatial.transform import Rotation
 
+from starsense.attitude.estimate import estimate_attitude
 from starsense.attitude.robust import median_misfit, pair_outliers, robust_attitude
 from starsense.geometry.attitude import small_rotation_angles
+from starsense.solve.attitude_fit import kernel_fit
 
 
 def _field(seed: int, n: int, n_bad: int, *, bad_arcsec: float = 600.0):
@@ -81,3 +85,76 @@ def test_median_misfit_is_the_rayleigh_median_for_right_measurements():
     keep = np.zeros(len(ref), bool)
     keep[:10] = True
     assert median_misfit(body, ref, sigma, rotation=rot, keep=keep) < 3.0
+
+
+def _pair_outliers_reference(body, ref, sigma):
+    """pair_outliers as first written: np.cross, and np.nanmedian with the diagonal NaN."""
+    n = len(body)
+    if n < 5:
+        return np.zeros(n, dtype=bool)
+
+    def angles(v):
+        cross = np.linalg.norm(np.cross(v[:, None, :], v[None, :, :]), axis=2)
+        return np.arctan2(cross, v @ v.T)
+
+    z = np.abs(angles(body) - angles(ref)) / np.sqrt(sigma[:, None] ** 2 + sigma[None, :] ** 2)
+    np.fill_diagonal(z, np.nan)
+    bad = np.nanmedian(z, axis=1) > 7.0 * 0.6744897501960817
+    return bad if 2 * bad.sum() < n else np.zeros(n, dtype=bool)
+
+
+def _robust_reference(body, ref, sigma, max_drop=5):
+    """robust_attitude's documented algorithm, step by step: pair outliers, then the drops (at
+    the kept stars' own scatter where it exceeds their sigmas, from 8 stars)."""
+    keep = ~_pair_outliers_reference(body, ref, sigma)
+    att = estimate_attitude(body[keep], ref[keep], sigma[keep], method="svd")
+    for _ in range(max_drop):
+        if keep.sum() <= 3:
+            break
+        z = np.full(len(body), -np.inf)
+        z[keep] = att.residuals_rad / sigma[keep]
+        if keep.sum() >= 8:  # the kept stars' own scatter where it exceeds their sigmas
+            z[keep] /= max(1.0, float(np.median(z[keep])) / math.sqrt(2.0 * math.log(2.0)))
+        if z.max() <= 7.0:
+            break
+        keep[int(np.argmax(z))] = False
+        att = estimate_attitude(body[keep], ref[keep], sigma[keep], method="svd")
+    return att, keep
+
+
+@pytest.mark.parametrize("n_bad", [0, 1, 3, 6])
+def test_pair_outliers_and_the_fit_are_those_of_the_reference_algorithm(n_bad):
+    # the fast forms (no np.cross, a partition for the medians, the pair test skipped when
+    # a fit to all leaves every residual below its bound) against the algorithm as written;
+    # fields from 4 to 30 stars, clean and with gross outliers, some just moved 5-60 arcsec
+    # (near the thresholds); the attitudes of one set of stars agree to rounding, amplified by
+    # the problem's conditioning: weights spread 1e5-fold (0.1-30 arcsec) leave the kernel's
+    # Jacobi eigenvector ~1e-11 rad from LAPACK's SVD, ~1e-6 of the attitude's own sigma;
+    # 1e-5 sigma bounds it
+    for seed in range(60):
+        n = 4 + seed % 27
+        bad_arcsec = (600.0, 60.0, 20.0, 5.0)[seed % 4]
+        _, body, ref, sigma, _ = _field(seed, n, min(n_bad, n // 2), bad_arcsec=bad_arcsec)
+        want = _pair_outliers_reference(body, ref, sigma)
+        assert np.array_equal(pair_outliers(body, ref, sigma), want), seed
+        att_ref, keep_ref = _robust_reference(body, ref, sigma)
+        for fit in (None, kernel_fit):
+            att, keep = robust_attitude(body, ref, sigma, fit=fit)
+            assert np.array_equal(keep, keep_ref), (seed, fit)
+            err = small_rotation_angles(att_ref.rotation, att.rotation)
+            own = np.sqrt(np.diag(att_ref.covariance_rad2))
+            assert np.all(np.abs(err) < 1e-5 * own), (seed, fit, err / own)
+
+
+def test_pair_outliers_with_zero_sigmas_takes_the_median_of_what_is_defined():
+    # two stars of zero sigma that agree exactly with each other give 0/0 = NaN: the medians
+    # are then NaN-aware; the moved star is still found
+    _, body, _, sigma, bad = _field(5, 12, 1)
+    ref = body.copy()  # the same angles, computed from the same numbers: differences exactly 0
+    body[bad] = _field(6, 12, 0)[1][0]  # a star elsewhere in the field
+    calm = [i for i in range(12) if i not in bad][:2]
+    sigma[calm] = 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        got = pair_outliers(body, ref, sigma)
+        assert np.array_equal(got, _pair_outliers_reference(body, ref, sigma))
+    assert set(np.flatnonzero(got)) == set(bad)

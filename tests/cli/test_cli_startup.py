@@ -110,3 +110,47 @@ def test_solving_a_frame_imports_nothing_it_does_not_use(shared_dir):
         "pydantic",
     }
     assert not loaded & unused, sorted(loaded & unused)
+
+
+def test_the_listing_is_read_once_and_again_when_its_module_changes(tmp_path, monkeypatch):
+    # a command group in a module of its own: read from its source, kept in the cache file,
+    # read from there while the file is unchanged, and from the source again once it changes
+    from starsense.cli import listing
+
+    monkeypatch.setenv("STARSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    listing._cache.cache_clear()
+    monkeypatch.setattr(listing, "_unsaved", [])
+    source = tmp_path / "listed_group.py"
+    source.write_text(
+        'import typer\ngroup = typer.Typer(help="Things.")\n\n\n'
+        '@group.command()\ndef one():\n    """The first."""\n'
+    )
+    first = group_listing("listed_group", "group")
+    assert first.commands == (("one", "The first."),)
+    listing.save_cache()
+    assert (tmp_path / "cache" / "cli" / "cli-listing.json").is_file()
+    listing._cache.cache_clear()  # a new process: the entries come from the file
+    monkeypatch.setattr(listing, "_tree", lambda module: pytest.fail("parsed again"))
+    assert group_listing("listed_group", "group") == first
+    monkeypatch.undo()  # the source changes (another size): it is read again
+    monkeypatch.setenv("STARSENSE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    listing._tree.cache_clear()
+    source.write_text(source.read_text().replace("The first.", "The first one."))
+    assert group_listing("listed_group", "group").commands == (("one", "The first one."),)
+
+
+def test_an_unwritable_cache_only_costs_time(tmp_path, monkeypatch):
+    from starsense.cli import listing
+
+    blocked = tmp_path / "file"
+    blocked.write_text("")  # the cache directory would be under a file: cannot be made
+    monkeypatch.setenv("STARSENSE_CACHE_DIR", str(blocked))
+    listing._cache.cache_clear()
+    monkeypatch.setattr(listing, "_unsaved", [True])
+    listing.save_cache()  # says nothing, raises nothing
+    full = runner.invoke(build_app(), ["--help"], prog_name="starsense")
+    listed = runner.invoke(app_for(["--help"]), ["--help"], prog_name="starsense")
+    assert listed.output == full.output
+    listing._cache.cache_clear()

@@ -16,6 +16,7 @@ from starsense.geometry.attitude import (
     east_north,
     radec_roll_from_attitude,
     radec_roll_from_matrix,
+    radec_roll_of_matrix,
     radec_to_vectors,
     small_rotation_angles,
     vectors_to_radec,
@@ -86,6 +87,26 @@ def test_radec_roll_from_matrix_equals_the_rotation_form(q, ra, offset, south, r
     for rot in (Rotation.from_quat(q), attitude_from_radec_roll(ra, dec, roll)):
         ref = tuple(float(a) for a in radec_roll_from_attitude(rot))
         assert radec_roll_from_matrix(rot.as_matrix()) == ref
+
+
+@given(
+    q=quaternion,
+    ra=angle_ra,
+    offset=pole_offset,
+    south=st.booleans(),
+    roll=st.sampled_from([0.0, HALF_PI, np.pi, 1.3]),
+)
+def test_radec_roll_of_matrix_equals_the_numpy_form_to_rounding(q, ra, offset, south, roll):
+    # the same formulas on Python floats: the C library's sin, cos and atan2 may differ from
+    # NumPy's in the last bit, which a few operations carry to a few ulp of 2 pi (1e-15 rad
+    # bounds 4 ulp); angles compared on the circle (0 and 2 pi are one angle)
+    dec = (HALF_PI - offset) * (-1.0 if south else 1.0)
+    for rot in (Rotation.from_quat(q), attitude_from_radec_roll(ra, dec, roll)):
+        m = rot.as_matrix()
+        for got, ref in zip(radec_roll_of_matrix(m), radec_roll_from_matrix(m), strict=True):
+            assert isinstance(got, float)
+            gap = abs(got - ref) % (2 * np.pi)
+            assert min(gap, 2 * np.pi - gap) <= 1e-15
 
 
 @settings(deadline=None)

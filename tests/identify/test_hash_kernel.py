@@ -302,3 +302,39 @@ def test_timeout_in_the_kernel(db15, hipparcos):
 
 def test_the_numpy_form_is_the_fallback(db15):
     assert not HashIdentifier(db15, compiled=False).compiled
+
+
+@needs_kernel
+@settings(
+    max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(seed=st.integers(0, 2**31), n=st.integers(6, 30), budget=st.integers(0, 120))
+def test_a_pattern_budget_stops_both_forms_at_the_same_pattern(pair, seed, n, budget):
+    # random directions never identify: with a budget below the frame's patterns both forms
+    # stop after exactly that many, having verified the same hypotheses (no wall clock in it)
+    rng = np.random.default_rng(seed)
+    v = _frame_vectors(rng, n, 0.09, duplicate=False)
+    compiled, reference = pair
+    unbounded = compiled(v, SYNTH_FOV_RAD)
+    a = compiled(v, SYNTH_FOV_RAD, max_patterns=budget)
+    b = reference(v, SYNTH_FOV_RAD, max_patterns=budget)
+    _assert_same(a, b)
+    if budget < unbounded.n_patterns_tried:
+        assert (a.status, a.n_patterns_tried) == ("timeout", budget)
+        assert f"{budget} patterns (the budget)" in a.message
+    else:  # the budget is not reached: the unbounded answer
+        _assert_same(a, unbounded)
+
+
+@needs_kernel
+def test_a_budget_the_solve_fits_in_changes_nothing(db15, hipparcos):
+    sets = centroid_sets(hipparcos, 3, fov_rad=SYNTH_FOV_RAD, image_size=SIZE)
+    xy = sets[1]
+    v = pinhole_vectors(xy[:, 0], xy[:, 1], shape=SIZE, fov_rad=SYNTH_FOV_RAD)
+    ident = HashIdentifier(db15)
+    free = ident(v, SYNTH_FOV_RAD)
+    assert free.solved
+    _assert_same(ident(v, SYNTH_FOV_RAD, max_patterns=free.n_patterns_tried), free)
+    if free.n_patterns_tried > 1:  # one pattern fewer than it needed: it stops there
+        short = ident(v, SYNTH_FOV_RAD, max_patterns=free.n_patterns_tried - 1)
+        assert (short.status, short.n_patterns_tried) == ("timeout", free.n_patterns_tried - 1)

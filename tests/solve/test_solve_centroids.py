@@ -227,3 +227,46 @@ def test_cli_centroid_bad_input(tmp_path, capsys):
     assert code == 2 and "--image-size WIDTHxHEIGHT is needed" in err
     code, out, err = _cli(["solve", "--centroids", str(two), "--image-size", "640by480"], capsys)
     assert code == 2 and "--image-size must be WIDTHxHEIGHT" in err
+
+
+def _random_points(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.uniform([0.0, 0.0], [COLUMNS - 1.0, ROWS - 1.0], size=(20, 2))
+
+
+def test_a_set_that_identifies_nowhere_stops_at_the_solves_budget():
+    # random points: every attempt of the solve (the field given as an estimate, the scale
+    # search, the distortion guesses, the mirror) fails; the budget, summed over them, stops
+    # the solve at the same pattern every time (deterministic, whatever the machine's load)
+    for budget in (50, 700, 2000):
+        solver = Solver(fov_rad=FOV_RAD, max_patterns=budget)
+        first = solver.solve_centroids(_random_points(1), (COLUMNS, ROWS))
+        assert first.status == "timeout", first.message
+        assert f"work budget of one solve, {budget} patterns" in first.message
+        again = solver.solve_centroids(_random_points(1), (COLUMNS, ROWS))
+        assert (again.status, again.message, again.counts) == (
+            first.status,
+            first.message,
+            first.counts,
+        )
+    # without a bound the same points go through every attempt and end as no match
+    free = Solver(fov_rad=FOV_RAD, max_patterns=None).solve_centroids(
+        _random_points(1), (COLUMNS, ROWS)
+    )
+    assert free.status == "no_match"
+
+
+def test_the_default_budget_leaves_solvable_sets_as_they_were(truth):
+    _att, xy, flux = truth
+    bounded = Solver(fov_rad=FOV_RAD).solve_centroids(xy, (COLUMNS, ROWS), brightness=flux)
+    free = Solver(fov_rad=FOV_RAD, max_patterns=None).solve_centroids(
+        xy, (COLUMNS, ROWS), brightness=flux
+    )
+    assert bounded.solved and bounded.matches == free.matches
+    assert bounded.ra_rad == free.ra_rad and bounded.roll_rad == free.roll_rad
+
+
+@pytest.mark.parametrize("bad", [0, -5, 2.5, "many", True])
+def test_a_budget_that_is_not_a_positive_count_is_refused(bad):
+    with pytest.raises(InputError, match="max_patterns"):
+        Solver(fov_rad=FOV_RAD, max_patterns=bad)

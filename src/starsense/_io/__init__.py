@@ -20,7 +20,6 @@ from starsense._io.files import (
     temp_prefix,
 )
 from starsense._io.jsonout import json_text, jsonable
-from starsense._io.net import probe_tcp
 from starsense._io.reading import read_bytes, read_text, readable_file
 
 __all__ = [
@@ -41,3 +40,13 @@ __all__ = [
     "sweep_stale",
     "temp_prefix",
 ]
+
+
+def __getattr__(name: str):
+    """Return ``probe_tcp``, imported on first use (its socket module is not a solve's)."""
+    if name == "probe_tcp":
+        from starsense._io.net import probe_tcp  # noqa: PLC0415
+
+        globals()[name] = probe_tcp
+        return probe_tcp
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from starsense.attitude.estimate import estimate_attitude
 __all__ = [
     "MISFIT_SIGMAS",
     "OUTLIER_SIGMA",
+    "SCALE_STARS",
     "median_misfit",
     "pair_outliers",
     "residual_scaled",
@@ -53,23 +55,40 @@ def pair_outliers(body, reference, sigma_rad) -> np.ndarray:
     n = len(body)
     if n < 5:
         return np.zeros(n, dtype=bool)
-
-    def angles(v):
-        cross = np.linalg.norm(np.cross(v[:, None, :], v[None, :, :]), axis=2)
-        return np.arctan2(cross, v @ v.T)
-
     var = sigma_rad[:, None] ** 2 + sigma_rad[None, :] ** 2
-    z = np.abs(angles(body) - angles(reference)) / np.sqrt(var)
-    np.fill_diagonal(z, np.nan)
-    bad = np.nanmedian(z, axis=1) > OUTLIER_SIGMA * _HALF_NORMAL_MEDIAN
+    z = np.abs(_pair_angles(body) - _pair_angles(reference)) / np.sqrt(var)
+    # each row without its diagonal (a star against itself), (n, n - 1): the flat matrix less
+    # its first element, cut into rows of n + 1 that each end on the next diagonal element
+    off = z.reshape(-1)[1:].reshape(n - 1, n + 1)[:, :-1].reshape(n, n - 1)
+    if np.isnan(off).any():  # a sigma of zero: the medians of the values there are
+        np.fill_diagonal(z, np.nan)
+        median = np.nanmedian(z, axis=1)
+    else:  # np.median's value (the mean of the middle two of an even count), without its cost
+        lo, hi = (n - 2) // 2, (n - 1) // 2
+        part = np.partition(off, (lo, hi), axis=1)
+        median = 0.5 * (part[:, lo] + part[:, hi])
+    bad = median > OUTLIER_SIGMA * _HALF_NORMAL_MEDIAN
     return bad if 2 * bad.sum() < n else np.zeros(n, dtype=bool)
+
+
+def _pair_angles(v: np.ndarray) -> np.ndarray:
+    """Return the angles between every two of the unit vectors ``v`` (N, 3), rad, (N, N).
+
+    ``atan2(|v_i x v_j|, v_i . v_j)`` (accurate for small angles), the cross products' terms
+    as ``np.cross`` forms them, without its broadcasting machinery.
+    """
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    cx = y[:, None] * z[None, :] - z[:, None] * y[None, :]
+    cy = z[:, None] * x[None, :] - x[:, None] * z[None, :]
+    cz = x[:, None] * y[None, :] - y[:, None] * x[None, :]
+    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), v @ v.T)
 
 
 #: the median of |x| for a unit normal x
 _HALF_NORMAL_MEDIAN = 0.6744897501960817
 
 
-def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None):
+def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None, fit=None):
     """Estimate the attitude, dropping the stars whose residual is an outlier.
 
     A blended or double star is identified right but centroided at the photocentre of the
@@ -77,7 +96,11 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None)
     whose angles to the others disagree with the catalogue's are dropped first
     (:func:`pair_outliers`: several gross outliers, one of which a fit would follow); then,
     while the worst residual exceeds ``OUTLIER_SIGMA`` sigma and more than three stars remain,
-    that star is dropped and the attitude re-estimated (SVD, Wahba weights 1 / sigma^2).
+    that star is dropped and the attitude re-estimated (SVD, Wahba weights 1 / sigma^2). The
+    sigmas of that test (once the pair outliers are out, with at least ``SCALE_STARS`` kept)
+    are the stars' own where the kept residuals scatter more than the sigmas given (their
+    median above a 2-d Gaussian's, sqrt(2 ln 2)): centroids noisier than assumed are not
+    outliers, only those far from the others are.
 
     Parameters
     ----------
@@ -90,25 +113,66 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None)
     keep : ndarray (N,) of bool, optional
         The stars to start from (a refit after a first one's outliers), in place of
         :func:`pair_outliers`'.
+    fit : callable, optional
+        ``fit(body, reference, sigma) -> AttitudeSolution``, the weighted SVD fit of vectors
+        already checked (unit, finite, sigma > 0), raising SingularGeometryError as
+        :func:`~starsense.attitude.estimate_attitude` does: a faster form of the same
+        estimator (the solver's compiled one, equal to rounding). Default:
+        ``estimate_attitude(..., method="svd")``, which checks its input.
 
     Returns
     -------
     AttitudeSolution, and the mask of the stars kept (N,)
     """
-    sigma = np.broadcast_to(np.asarray(sigma_rad, dtype=float), (len(body),))
-    keep = ~pair_outliers(body, reference, sigma) if keep is None else np.array(keep, dtype=bool)
-    att = estimate_attitude(body[keep], reference[keep], sigma[keep], method="svd")
+    fit = _svd if fit is None else fit
+    n = len(body)
+    sigma = np.asarray(sigma_rad, dtype=float)
+    sigma = np.full(n, float(sigma)) if sigma.ndim == 0 else np.broadcast_to(sigma, (n,))
+    if keep is None:
+        att = fit(body, reference, sigma)
+        keep = np.ones(n, dtype=bool)
+        if float((att.residuals_rad / sigma).max()) <= _NO_PAIR_OUTLIER:
+            return att, keep  # no pair outlier (_NO_PAIR_OUTLIER), none to drop: the usual case
+        if n >= 5:
+            keep = ~pair_outliers(body, reference, sigma)
+            if not keep.all():
+                att = fit(body[keep], reference[keep], sigma[keep])
+    else:
+        keep = np.array(keep, dtype=bool)
+        att = fit(body[keep], reference[keep], sigma[keep])
+    n_kept = int(np.count_nonzero(keep))
     for _ in range(max_drop):
-        if keep.sum() <= 3:
+        if n_kept <= 3:
             break
-        z = np.full(len(body), -np.inf)
-        z[keep] = att.residuals_rad / sigma[keep]
+        z = att.residuals_rad / sigma[keep]
+        if n_kept >= SCALE_STARS:  # sigmas the stars' own scatter (a median among enough)
+            z = z / max(1.0, float(np.median(z)) / _RAYLEIGH_MEDIAN)
         worst = int(np.argmax(z))
         if z[worst] <= OUTLIER_SIGMA:
             break
-        keep[worst] = False
-        att = estimate_attitude(body[keep], reference[keep], sigma[keep], method="svd")
+        keep[np.flatnonzero(keep)[worst]] = False  # the first of the worst, as over all N
+        n_kept -= 1
+        att = fit(body[keep], reference[keep], sigma[keep])
     return att, keep
+
+
+#: The largest residual, in its own sigmas, of a fit to all the matched stars that leaves every
+#: pair below :func:`pair_outliers`' threshold: by the triangle inequality on the sphere, stars
+#: i and j whose residuals to an attitude are r_i and r_j disagree with the catalogue's angle
+#: between them by at most r_i + r_j <= max_k(r_k / sigma_k) (sigma_i + sigma_j), at most
+#: sqrt(2) max_k(r_k / sigma_k) times their pair's sigma. Below it pair_outliers would find
+#: no outlier and the N^2 angles are not computed. A relative 1e-9 below the bound, far beyond
+#: rounding; it is below OUTLIER_SIGMA, so such a fit has no residual to drop either.
+#: the stars kept from which their residuals' median sets the outliers' scale: with fewer, a
+#: moved star or two pull the fit and the median with it (a scale grown by them hides them)
+SCALE_STARS = 8
+#: the median of a 2-d residual whose axes have unit sigma (Rayleigh): sqrt(2 ln 2)
+_RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
+_NO_PAIR_OUTLIER = OUTLIER_SIGMA * _HALF_NORMAL_MEDIAN / math.sqrt(2.0) * (1.0 - 1e-9)
+
+
+def _svd(body, reference, sigma):
+    return estimate_attitude(body, reference, sigma, method="svd")
 
 
 def median_misfit(body, reference, sigma_rad, *, rotation, keep=None) -> float:

@@ -35,7 +35,10 @@ class AttitudeSolution:
     Attributes
     ----------
     rotation : Rotation
-        The attitude ``A``, ICRS -> camera (``v_cam = A.apply(v_icrs)``).
+        The attitude ``A``, ICRS -> camera (``v_cam = A.apply(v_icrs)``). It may be given as
+        its matrix, shape (3, 3), orthonormal to rounding (a fit's): the Rotation is then built
+        when first read (scipy's constructor is paid only by a caller that reads it);
+        :attr:`matrix` reads the matrix either way.
     covariance_rad2 : ndarray, shape (3, 3)
         Covariance of the camera-frame error rotation vector (the quantity returned by
         :func:`starsense.geometry.attitude.small_rotation_angles`), rad^2. For the optimal
@@ -73,6 +76,12 @@ class AttitudeSolution:
     elapsed_s: float = 0.0
 
     @property
+    def matrix(self) -> NDArray[np.float64]:
+        """The attitude matrix (3, 3), ICRS -> camera: the one given, or the Rotation's."""
+        given = self.__dict__["_matrix"]
+        return self.rotation.as_matrix() if given is None else given
+
+    @property
     def sigma_axes_rad(self) -> NDArray[np.float64]:
         """sqrt(diag(covariance)), rad, shape (3,): cross-boresight x, y and roll about z."""
         return np.sqrt(np.diag(self.covariance_rad2))
@@ -81,6 +90,42 @@ class AttitudeSolution:
     def chi2_dof(self) -> int:
         """Degrees of freedom of ``2 * loss``: two per star, less the three attitude angles."""
         return 2 * self.n_stars - 3
+
+
+# A rotation matrix given by a fit is orthonormal to rounding: scipy's re-orthogonalisation is
+# skipped where scipy allows it (>= 1.15).
+try:
+    Rotation.from_matrix(np.eye(3), assume_valid=True)
+    _VALID_MATRIX: dict = {"assume_valid": True}
+except TypeError:  # pragma: no cover - scipy < 1.15
+    _VALID_MATRIX = {}
+
+
+class _RotationField:
+    """AttitudeSolution's ``rotation``: a Rotation, or its matrix made one when first read.
+
+    A matrix given is kept as given (``_matrix``): :attr:`AttitudeSolution.matrix` returns
+    it whether or not the Rotation has been built.
+    """
+
+    def __get__(self, obj: object, objtype: type | None = None) -> Rotation:
+        if obj is None:
+            return self  # type: ignore[return-value]
+        stored = obj.__dict__
+        value = stored["_rotation"]
+        if value is None:
+            value = stored["_rotation"] = Rotation.from_matrix(stored["_matrix"], **_VALID_MATRIX)
+        return value
+
+    def __set__(self, obj: object, value: object) -> None:
+        if isinstance(value, np.ndarray):
+            obj.__dict__.update(_matrix=value, _rotation=None)
+        else:
+            obj.__dict__.update(_matrix=None, _rotation=value)
+
+
+# installed after the dataclass is made: its __init__ stores the field through it
+AttitudeSolution.rotation = _RotationField()  # type: ignore[assignment]
 
 
 def cross3(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -8,18 +8,28 @@ app built here has those names and helps on empty stand-ins; it only lists, and 
 same text as for the real commands. Whatever it cannot read plainly (a help that is not a
 literal, a command registered some other way) returns None, and the caller imports the real
 modules (:func:`starsense.cli.app.build_app`).
+
+Parsing the modules (~5,000 lines) is most of a listing's own time, so what it reads is kept in
+a small JSON file in the cache directory (``$STARSENSE_CACHE_DIR/cli`` or the user cache
+directory), each entry with the size and modification time of the module it was read from: an
+edited module is read again, and a cache that cannot be read or written is only slower.
 """
 
 from __future__ import annotations
 
 import ast
+import contextlib
 import functools
 import importlib.util
+import json
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import typer
+
+from starsense.errors import StarsenseError
 
 __all__ = ["GroupListing", "command_help", "group_listing", "listing_app"]
 
@@ -61,6 +71,71 @@ def _function(tree: ast.Module, name: str) -> ast.FunctionDef | None:
     return None
 
 
+#: the layout of the cache file (bump when what is stored changes)
+_CACHE_FORMAT = 1
+_CACHE_NAME = "cli-listing.json"
+
+
+def _cache_file() -> Path:
+    env = os.environ.get("STARSENSE_CACHE_DIR")
+    if env:
+        return Path(env).expanduser() / "cli" / _CACHE_NAME
+    import platformdirs  # noqa: PLC0415 - only where no cache directory is set
+
+    return Path(platformdirs.user_cache_dir("starsense")) / "cli" / _CACHE_NAME
+
+
+@functools.cache
+def _cache() -> dict:
+    """Return the cache file's entries (empty: missing, unreadable, another format)."""
+    try:
+        data = json.loads(_cache_file().read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    ok = isinstance(data, dict) and data.get("format") == _CACHE_FORMAT
+    return dict(data.get("entries", {})) if ok and isinstance(data.get("entries"), dict) else {}
+
+
+_unsaved: list[bool] = []  # an entry was added since the file was read
+
+
+def _stamp(module: str) -> list | None:
+    """Return the module's file, size and modification time (None: not a source file)."""
+    spec = importlib.util.find_spec(module)
+    if spec is None or spec.origin is None or not spec.origin.endswith(".py"):
+        return None
+    st = os.stat(spec.origin)
+    return [spec.origin, st.st_size, st.st_mtime_ns]
+
+
+def _remembered(kind: str, module: str, attribute: str, read: Callable[[], object]) -> object:
+    """Return ``read()`` of a module, from the cache while the module's file is unchanged."""
+    stamp = _stamp(module)
+    key = f"{kind}:{module}:{attribute}"
+    entry = _cache().get(key)
+    if stamp is not None and isinstance(entry, dict) and entry.get("stamp") == stamp:
+        return entry.get("value")
+    value = read()
+    if stamp is not None:
+        _cache()[key] = {"stamp": stamp, "value": value}
+        _unsaved.append(True)
+    return value
+
+
+def save_cache() -> None:
+    """Write the entries read since the cache file was read (nothing said if it cannot be)."""
+    if not _unsaved:
+        return
+    from starsense._io.files import atomic_write  # noqa: PLC0415 - only when there is news
+
+    path = _cache_file()
+    with contextlib.suppress(OSError, StarsenseError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_write(path) as fh:
+            json.dump({"format": _CACHE_FORMAT, "entries": _cache()}, fh)
+        _unsaved.clear()
+
+
 def command_help(module: str, attribute: str) -> str | None:
     """Return the docstring of the command function ``module.attribute``, read from its source.
 
@@ -76,6 +151,10 @@ def command_help(module: str, attribute: str) -> str | None:
     str or None
         The docstring as Python stores it (``__doc__``); None when there is no such function.
     """
+    return _remembered("help", module, attribute, lambda: _read_help(module, attribute))
+
+
+def _read_help(module: str, attribute: str) -> str | None:
     tree = _tree(module)
     node = None if tree is None else _function(tree, attribute)
     return None if node is None else ast.get_docstring(node, clean=False)
@@ -126,6 +205,15 @@ def group_listing(module: str, attribute: str) -> GroupListing | None:
     GroupListing or None
         None when the source does not declare it plainly: then only importing tells.
     """
+    got = _remembered("group", module, attribute, lambda: _read_group(module, attribute))
+    if got is None:
+        return None
+    options, commands, callback, callback_doc = got
+    return GroupListing(options, tuple(tuple(c) for c in commands), callback, callback_doc)
+
+
+def _read_group(module: str, attribute: str) -> list | None:
+    """:func:`group_listing` read from the source, as JSON values (None: not plainly)."""
     tree = _tree(module)
     options = None if tree is None else _typer_options(tree, attribute)
     if options is None:
@@ -156,7 +244,7 @@ def group_listing(module: str, attribute: str) -> GroupListing | None:
         return None  # registered some other way, or a sub-group: only importing tells
     if len(callbacks) > 1:
         return None
-    return GroupListing(options, tuple(commands), bool(callbacks), next(iter(callbacks), None))
+    return [options, commands, bool(callbacks), next(iter(callbacks), None)]
 
 
 def _stand_in(doc: str | None) -> Callable[[], None]:
@@ -207,4 +295,5 @@ def listing_app(
         if doc is None:
             return None
         app.command(name)(_stand_in(doc))
+    save_cache()
     return app

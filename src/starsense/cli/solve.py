@@ -285,6 +285,35 @@ def _solve_centroid_file(solver, path: Path, image_size: str | None, as_json: bo
     raise typer.Exit(1)
 
 
+CentroidsOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--centroids",
+        help="Solve a centroid list instead of a frame: CSV (x, y[, flux]; (0, 0) is the "
+        "centre of the top-left pixel, x along columns) or astrometry.net xylist FITS "
+        "(X, Y[, FLUX], 1-based FITS pixels, converted). Brightest first unless a flux "
+        "column is given.",
+    ),
+]
+BayerOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--bayer",
+        help="The frames are raw Bayer mosaics of this pattern (RGGB, BGGR, GRBG, GBRG): "
+        "solved on their luminance, binned 2 x 2.",
+    ),
+]
+ExplainOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--explain",
+        help="Draw the frame with its detections, pattern stars, matched catalogue stars "
+        "(residual arrows) and the reason for a failure to this PNG; one frame only.",
+        callback=output_file,
+    ),
+]
+
+
 def solve(
     images: Annotated[
         list[Path] | None,
@@ -319,37 +348,13 @@ def solve(
         str | None,
         typer.Option("--observer-velocity-km-s", help="Observer's geocentric velocity X,Y,Z."),
     ] = None,
-    centroids: Annotated[
-        Path | None,
-        typer.Option(
-            "--centroids",
-            help="Solve a centroid list instead of a frame: CSV (x, y[, flux]; (0, 0) is the "
-            "centre of the top-left pixel, x along columns) or astrometry.net xylist FITS "
-            "(X, Y[, FLUX], 1-based FITS pixels, converted). Brightest first unless a flux "
-            "column is given.",
-        ),
-    ] = None,
+    centroids: CentroidsOpt = None,
     image_size: Annotated[
         str | None,
         typer.Option("--image-size", help="WIDTHxHEIGHT of the centroids' image, pixels."),
     ] = None,
-    bayer: Annotated[
-        str | None,
-        typer.Option(
-            "--bayer",
-            help="The frames are raw Bayer mosaics of this pattern (RGGB, BGGR, GRBG, GBRG): "
-            "solved on their luminance, binned 2 x 2.",
-        ),
-    ] = None,
-    explain: Annotated[
-        Path | None,
-        typer.Option(
-            "--explain",
-            help="Draw the frame with its detections, pattern stars, matched catalogue stars "
-            "(residual arrows) and the reason for a failure to this PNG; one frame only.",
-            callback=output_file,
-        ),
-    ] = None,
+    bayer: BayerOpt = None,
+    explain: ExplainOpt = None,
     extraction: ExtractionOpt = "auto",
     refine: RefineOpt = None,
     jobs: Annotated[int, typer.Option("--jobs", help="Frames solved at once (threads).")] = 1,

@@ -54,6 +54,8 @@ Attitude errors
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -64,6 +66,7 @@ from starsense._validate import vectors3 as _as_vectors
 from starsense.errors import InputError
 from starsense.geometry.projection import (
     POLE_COS_DEC,
+    TWO_PI,
     radec_to_vectors,
     scalar_or_array,
     vectors_to_radec,
@@ -77,6 +80,7 @@ __all__ = [
     "east_north",
     "radec_roll_from_attitude",
     "radec_roll_from_matrix",
+    "radec_roll_of_matrix",
     "radec_to_vectors",
     "small_rotation_angles",
     "vectors_to_radec",
@@ -268,6 +272,46 @@ def radec_roll_from_matrix(matrix: ArrayLike) -> tuple[float, float, float]:
     y_east = np.einsum("...i,...i->...", y, east)
     roll = wrap_two_pi(np.arctan2(y_east - x_north, -y_north - x_east))
     return float(ra), float(dec), float(roll)
+
+
+def radec_roll_of_matrix(matrix: np.ndarray) -> tuple[float, float, float]:
+    """(RA, Dec, roll) of one attitude matrix in Python floats: a solve's per-call form.
+
+    The formulas of :func:`radec_roll_from_matrix` term by term on Python floats, ~10x faster
+    (no NumPy scalar per step). Equal to it to rounding: the ``math`` module's sin, cos and
+    atan2 (the C library's) may differ from NumPy's in the last bit where NumPy has its own.
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (3, 3)
+        Attitude matrix (ICRS -> camera), rows the camera axes in ICRS, finite, orthonormal.
+
+    Returns
+    -------
+    ra_rad, dec_rad, roll_rad : float
+        As :func:`radec_roll_from_attitude`.
+    """
+    (x0, x1, x2), (y0, y1, y2), (z0, z1, z2) = matrix.tolist()
+    rho = math.hypot(z0, z1)
+    if rho == 0.0 and z2 == 0.0:
+        raise InputError("vectors contains a zero vector, which has no direction")
+    ra = 0.0 if rho <= POLE_COS_DEC * abs(z2) else _wrap(math.atan2(z1, z0))
+    dec = math.atan2(z2, rho)
+    sin_ra, cos_ra = math.sin(ra), math.cos(ra)
+    sin_dec, cos_dec = math.sin(dec), math.cos(dec)
+    # east = (-sin ra, cos ra, 0), north = (-sin dec cos ra, -sin dec sin ra, cos dec)
+    n0, n1 = -sin_dec * cos_ra, -sin_dec * sin_ra
+    x_north = x0 * n0 + x1 * n1 + x2 * cos_dec
+    y_north = y0 * n0 + y1 * n1 + y2 * cos_dec
+    x_east = x0 * -sin_ra + x1 * cos_ra
+    y_east = y0 * -sin_ra + y1 * cos_ra
+    return ra, dec, _wrap(math.atan2(y_east - x_north, -y_north - x_east))
+
+
+def _wrap(angle: float) -> float:
+    """:func:`~starsense.geometry.projection.wrap_two_pi` of one Python float."""
+    wrapped = angle % TWO_PI
+    return 0.0 if wrapped >= TWO_PI else wrapped
 
 
 def angular_separation(u: ArrayLike, v: ArrayLike) -> NDArray[np.float64] | np.float64:

@@ -925,18 +925,21 @@ static int try_candidates(const Tables *t, Scratch *s, Frame *frame, Fit *how,
     return 0;
 }
 
-/* identify(tables, vectors, n_pattern, fov, accept, budget_s[, scale_min, scale_max]) ->
+/* identify(tables, vectors, n_pattern, fov, accept, budget_s[, scale_min, scale_max,
+ *          max_patterns]) ->
  *   (status, tried, verified, best, R bytes (9 float64) or None, det bytes, cat bytes, rms,
  *    p_false, scale)
- * status: 0 no match, 1 solved, 2 timeout. fov <= 0: the field is unknown, the scale of the
- * tangent plane is fitted within [scale_min, scale_max] (HashIdentifier with fov_rad=None). */
+ * status: 0 no match, 1 solved, 2 timeout (budget_s spent, or max_patterns looked up: the next
+ * pattern is not; max_patterns < 0: no bound). fov <= 0: the field is unknown, the scale of
+ * the tangent plane is fitted within [scale_min, scale_max] (HashIdentifier, fov_rad=None). */
 static PyObject *py_identify(PyObject *self, PyObject *args)
 {
     PyObject *cap, *vobj, *accept;
     int n_pattern;
     double fov, budget, scale_min = 0.0, scale_max = INFINITY;
-    if (!PyArg_ParseTuple(args, "OOidOd|dd", &cap, &vobj, &n_pattern, &fov, &accept, &budget,
-                          &scale_min, &scale_max))
+    long max_patterns = -1;
+    if (!PyArg_ParseTuple(args, "OOidOd|ddl", &cap, &vobj, &n_pattern, &fov, &accept, &budget,
+                          &scale_min, &scale_max, &max_patterns))
         return NULL;
     int known = fov > 0.0;
     Tables *t = get_tables(cap);
@@ -984,7 +987,8 @@ static PyObject *py_identify(PyObject *self, PyObject *args)
                     double r[NR], largest;
                     if (!describe(v, idx, det, r, &largest))
                         continue;
-                    if (budget < INFINITY && now_s() - t0 > budget) {
+                    if ((budget < INFINITY && now_s() - t0 > budget) ||
+                        (max_patterns >= 0 && tried >= max_patterns)) {
                         status = 2;
                         break;
                     }

@@ -61,6 +61,7 @@ from starsense.identify.patterns import (
     star_pairs,
     thin_by_region,
 )
+from starsense.identify.progress import BuildProgress
 from starsense.units import DEG, RAD_TO_DEG
 
 __all__ = [
@@ -388,24 +389,22 @@ def build_database(
     if db is not None:
         return db
     expected_s = estimated_build_s(params, len(catalog))
-    if expected_s >= NOTICE_BUILD_S:  # stderr without logging set up (logging.lastResort)
-        _log.warning(
-            "building the %s deg identification database, about %.0f s, once (cached in %s)",
-            fov_text(params),
-            expected_s,
-            path.parent,
-        )
-    db = _build(catalog, params)
-    try:
-        db.save(path, key)
-    except OSError as exc:
-        _log.info("identification database not cached at %s: %s", path, exc)
+    about = f"about {expected_s:.0f} s, " if expected_s >= NOTICE_BUILD_S else ""
+    what = f"the {fov_text(params)} deg identification database ({about}once; cached in "
+    with BuildProgress(f"{what}{path.parent})") as progress:  # on stderr after a second
+        db = _build(catalog, params, step=progress.step)
+        progress.step("writing it")
+        try:
+            db.save(path, key)
+        except OSError as exc:
+            _log.info("identification database not cached at %s: %s", path, exc)
     return db
 
 
-def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
-    """Build the database of ``catalog`` (no cache)."""
+def _build(catalog: Catalog, params: DatabaseParams, step=lambda _text: None):
+    """Build the database of ``catalog`` (no cache); ``step(text)`` names each step."""
     t0 = time.perf_counter()
+    step("choosing the stars")
     mags_all = np.asarray(catalog.mags[params.band], dtype=np.float64)
     usable = np.isfinite(mags_all)
     if params.mag_limit is not None:
@@ -441,6 +440,7 @@ def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
     is_pattern = np.logical_or.reduce(pattern_masks)[kept]
 
     # Patterns: per lattice field at each size, 4-combinations of its brightest pattern stars.
+    step("the 4-star patterns")
     patterns = lattice_patterns(
         vectors,
         [new_index[np.flatnonzero(mask)] for mask in pattern_masks],
@@ -449,6 +449,7 @@ def _build(catalog: Catalog, params: DatabaseParams) -> IdentificationDatabase:
         field_oversampling=params.field_oversampling,
         patterns_per_field=params.patterns_per_field,
     )
+    step(f"hashing {len(patterns):,} patterns")
     patterns, ratios, largest, keys = hash_patterns(vectors, patterns, params.n_bins)
 
     # Pairs of pattern stars within the field diagonal (rectangular fields up to 4:3 -> 1.25).

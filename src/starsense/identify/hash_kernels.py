@@ -373,6 +373,7 @@ class HashKernel:
         accept: Callable[..., tuple[float, bool]],
         budget_s: float = math.inf,
         scale_range: tuple[float, float] = (0.0, math.inf),
+        max_patterns: int | None = None,
     ) -> tuple:
         """Search and verify the patterns of one frame.
 
@@ -390,13 +391,15 @@ class HashKernel:
             Give up (status 2) after this many seconds.
         scale_range : (float, float)
             With an unknown field: the accepted range of the fitted scale.
+        max_patterns : int, optional
+            Give up (status 2) once this many patterns have been looked up (None: no bound).
 
         Returns
         -------
         tuple
             ``(status, patterns tried, hypotheses verified, least P_false seen, rotation matrix
             (3, 3) or None, detection_index, catalog_index, rms_rad, p_false, scale)``; status
-            0: no match, 1: solved, 2: out of time.
+            0: no match, 1: solved, 2: out of time or of patterns.
         """
         status, tried, verified, best, r, d, c, rms, p_false, scale = _hashc.identify(
             self._tables,
@@ -406,6 +409,7 @@ class HashKernel:
             accept,
             budget_s,
             *scale_range,
+            -1 if max_patterns is None else int(max_patterns),
         )
         if status != 1:
             return status, tried, verified, best, None, None, None, rms, p_false, scale

@@ -211,6 +211,7 @@ class HashIdentifier:
         fov_rad: float | None = None,
         *,
         assumed_fov_rad: float | None = None,
+        max_patterns: int | None = None,
     ) -> Identification:
         """Identify the stars of one frame.
 
@@ -227,6 +228,11 @@ class HashIdentifier:
         assumed_fov_rad : float, optional
             With ``fov_rad=None``: the field width at which `vectors_cam` were computed, so that
             the result can report the field found (``fov_rad``).
+        max_patterns : int, optional
+            A work budget: give up (status ``"timeout"``) once this many detection patterns
+            have been looked up, in the breadth-first order (brightest first), so that the
+            answer does not depend on the machine (as tetra3's ``max_patterns_checked``).
+            None: every pattern of the brightest ``n_pattern_detections``.
 
         Returns
         -------
@@ -258,14 +264,18 @@ class HashIdentifier:
             return result("too_few_stars", f"{n} detections; the 4-star hashing needs at least 4")
 
         n_pat = min(n, self.n_pattern_detections)
+        if max_patterns is not None:
+            max_patterns = check_int(max_patterns, "max_patterns", 0)
         if self._kernel is not None:
-            search = self._search_compiled(v, n_pat, fov_rad, t0)
+            search = self._search_compiled(v, n_pat, fov_rad, t0, max_patterns)
         else:
-            search = self._search_numpy(v, n_pat, fov_rad, t0)
+            search = self._search_numpy(v, n_pat, fov_rad, t0, max_patterns)
         if search.status == "timeout":
+            spent = max_patterns is not None and search.tried >= max_patterns
+            within = f"{max_patterns} patterns (the budget)" if spent else f"{self.timeout_s} s"
             return result(
                 "timeout",
-                f"no match within {self.timeout_s} s ({search.tried} patterns tried)",
+                f"no match within {within} ({search.tried} patterns tried)",
                 n_patterns_tried=search.tried,
                 n_candidates=search.verified,
                 best_false_match_probability=search.best,
@@ -311,7 +321,12 @@ class HashIdentifier:
         )
 
     def _search_compiled(
-        self, v: NDArray[np.float64], n_pat: int, fov_rad: float | None, t0: float
+        self,
+        v: NDArray[np.float64],
+        n_pat: int,
+        fov_rad: float | None,
+        t0: float,
+        max_patterns: int | None = None,
     ) -> _Search:
         """Search and verify in the compiled kernel."""
         budget = math.inf
@@ -324,6 +339,7 @@ class HashIdentifier:
             accept=self.verifier.accept,
             budget_s=budget,
             scale_range=(0.0, math.inf) if fov_rad is not None else self._scale_range(v),
+            max_patterns=max_patterns,
         )
         if status != 1:
             return _Search("timeout" if status == 2 else "no_match", tried, verified, best)
@@ -332,7 +348,12 @@ class HashIdentifier:
         return _Search("solved", tried, verified, best, found)
 
     def _search_numpy(
-        self, v: NDArray[np.float64], n_pat: int, fov_rad: float | None, t0: float
+        self,
+        v: NDArray[np.float64],
+        n_pat: int,
+        fov_rad: float | None,
+        t0: float,
+        max_patterns: int | None = None,
     ) -> _Search:
         """Search and verify pattern by pattern in NumPy (the reference form)."""
         db = self.database
@@ -347,6 +368,8 @@ class HashIdentifier:
         keep = self.max_candidates_per_pattern
         for det, ratios, largest in descriptors_numpy(v, combos):
             if self.timeout_s is not None and time.perf_counter() - t0 > self.timeout_s:
+                return _Search("timeout", tried, verified, best[0])
+            if max_patterns is not None and tried >= max_patterns:
                 return _Search("timeout", tried, verified, best[0])
             tried += 1
             cand = self._lookup(ratios)

@@ -238,4 +238,7 @@ def identify_ranked(identifier, vectors_cam, brightness, *args, **kwargs) -> Ide
     result = identifier(v[order], *args, **kwargs)
     if len(result.detection_index) == 0:
         return result
-    return dataclasses.replace(result, detection_index=order[result.detection_index])
+    # dataclasses.replace without its __init__ (the fields are the same but one)
+    out = object.__new__(Identification)
+    out.__dict__.update(result.__dict__, detection_index=order[result.detection_index])
+    return out

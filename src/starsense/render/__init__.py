@@ -14,18 +14,63 @@ Modules, in the order light passes through them:
 Equation numbers are those of Dzamba & Enright 2014, Sensors 14, 3939.
 """
 
-from starsense.render.frame import Frame, FrameTruth, StarTruth
-from starsense.render.io import write_frame, write_frames
-from starsense.render.noise import apply_noise, as_generator, quantise
-from starsense.render.psf import Box, gaussian_stamp
-from starsense.render.scene import check_on_detector, render_frame, render_star_stamp
-from starsense.render.smear import (
-    gauss_legendre_order,
-    polyline_expected,
-    smear_intensity,
-    streak_stamp_expected,
-)
-from starsense.render.tracks import Tracks, star_tracks
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+#: the package's names -> the module that defines each. Loaded on first use: a module that
+#: needs one kernel (the solver's blends: render.smear) does not import the renderer, its
+#: noise and its writers (a tenth of ``starsense solve``'s start-up)
+_EXPORTS = {
+    "Frame": "frame",
+    "FrameTruth": "frame",
+    "StarTruth": "frame",
+    "write_frame": "io",
+    "write_frames": "io",
+    "apply_noise": "noise",
+    "as_generator": "noise",
+    "quantise": "noise",
+    "Box": "psf",
+    "gaussian_stamp": "psf",
+    "check_on_detector": "scene",
+    "render_frame": "scene",
+    "render_star_stamp": "scene",
+    "gauss_legendre_order": "smear",
+    "polyline_expected": "smear",
+    "smear_intensity": "smear",
+    "streak_stamp_expected": "smear",
+    "Tracks": "tracks",
+    "star_tracks": "tracks",
+}
+
+if TYPE_CHECKING:
+    from starsense.render.frame import Frame, FrameTruth, StarTruth
+    from starsense.render.io import write_frame, write_frames
+    from starsense.render.noise import apply_noise, as_generator, quantise
+    from starsense.render.psf import Box, gaussian_stamp
+    from starsense.render.scene import check_on_detector, render_frame, render_star_stamp
+    from starsense.render.smear import (
+        gauss_legendre_order,
+        polyline_expected,
+        smear_intensity,
+        streak_stamp_expected,
+    )
+    from starsense.render.tracks import Tracks, star_tracks
+
+
+def __getattr__(name: str) -> Any:
+    """Return a name of the package, imported from its module on first use."""
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(f"starsense.render.{_EXPORTS[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})
+
 
 __all__ = [
     "Box",

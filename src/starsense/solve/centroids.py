@@ -197,9 +197,10 @@ def check_centroids(xy) -> np.ndarray:
         return np.zeros((0, 2))
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise InputError(f"centroids must have shape (N, 2) (x, y), got {pts.shape}")
-    bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-    if bad.size:
-        raise InputError(f"centroid {bad[0]} is not finite: {pts[bad[0]].tolist()}")
+    if not np.isfinite(pts).all():
+        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+        if bad.size:
+            raise InputError(f"centroid {bad[0]} is not finite: {pts[bad[0]].tolist()}")
     return pts
 
 
@@ -209,6 +210,8 @@ def check_image_size(image_size) -> tuple[int, int]:
         width, height = image_size
     except (TypeError, ValueError):
         raise InputError(f"image_size must be (width, height), got {image_size!r}") from None
+    if type(width) is int and type(height) is int and width >= 1 and height >= 1:
+        return height, width  # plain ints, checked: what check_int returns for them
     return check_int(height, "image height", 1), check_int(width, "image width", 1)
 
 
@@ -276,6 +279,11 @@ def _check_inside(pts: np.ndarray, shape: tuple[int, int]) -> None:
     """
     rows, cols = shape
     lo, m = -0.5 - EDGE_MARGIN_PX, EDGE_MARGIN_PX
+    if not len(pts):
+        return
+    (x_min, y_min), (x_max, y_max) = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
+    if x_min >= lo and y_min >= lo and x_max <= cols - 0.5 + m and y_max <= rows - 0.5 + m:
+        return
     outside = (pts[:, 0] < lo) | (pts[:, 0] > cols - 0.5 + m)
     outside |= (pts[:, 1] < lo) | (pts[:, 1] > rows - 0.5 + m)
     if outside.any():

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
-from starsense.geometry.attitude import radec_roll_from_attitude
-from starsense.solve.solution import Solution
+from starsense.geometry.attitude import radec_roll_of_matrix
+from starsense.solve.solution import Deferred, Solution
 
 __all__ = ["detection_counts", "identification_counts", "max_candidates", "misfit_solution"]
 
@@ -109,7 +110,7 @@ def solved(points, ident, att, *, fov, apparent, time_ms, stages, radial, sensor
     sensor : Sensor or None
     """
     n, shape = len(points.x), points.shape
-    ra, dec, roll = radec_roll_from_attitude(att.rotation)
+    ra, dec, roll = radec_roll_of_matrix(att.matrix)
     if sensor is not None:
         focal = sensor.focal_length_px
     elif radial is not None:
@@ -119,20 +120,25 @@ def solved(points, ident, att, *, fov, apparent, time_ms, stages, radial, sensor
     return Solution(
         "solved",
         f"{ident.n_matches} of {n} {points.what} matched ({ident.algorithm})",
-        ra_rad=float(ra),
-        dec_rad=float(dec),
-        roll_rad=float(roll),
+        ra_rad=ra,
+        dec_rad=dec,
+        roll_rad=roll,
         fov_rad=float(fov),
         n_detections=n,
         n_matched=int(ident.n_matches),
         rmse_rad=float(att.residual_rms_rad),
         false_match_probability=float(ident.false_match_probability),
-        sigma_rad=tuple(float(s) for s in att.sigma_axes_rad),
+        sigma_rad=tuple(np.sqrt(att.covariance_rad2.diagonal()).tolist()),
         time_ms=time_ms,
         stage_ms=stages,
-        rotation=att.rotation,
+        # a fit's matrix is made a Rotation when the solution's is first read
+        rotation=Deferred(functools.partial(getattr, att, "rotation")),
         matches=tuple(
-            (int(d), int(c)) for d, c in zip(ident.detection_index, ident.catalog_id, strict=True)
+            zip(
+                np.asarray(ident.detection_index).tolist(),
+                np.asarray(ident.catalog_id).tolist(),
+                strict=True,
+            )
         ),
         centroids_px=np.column_stack([points.x, points.y]),
         image_shape=tuple(shape),

@@ -53,6 +53,10 @@ class SkyStars(NamedTuple):
     catalog: Catalog
 
 
+#: what an identification that the spent budget leaves no pattern to look up returns
+_SPENT = Identification("timeout", "hashing")
+
+
 class FieldIdentifiers:
     """Configure, then ask: ``FieldIdentifiers(catalog, algorithm=...)(fov_rad)``.
 
@@ -64,15 +68,70 @@ class FieldIdentifiers:
         bundled Gaia when installed; a Catalog object is used for every range.
     algorithm : {"hashing", "triangle"}
         Identification algorithm.
+    max_patterns : int, optional
+        The work budget of one solve (hashing): the 4-star patterns looked up by all the
+        identifications between two calls of :meth:`start`, after which they stop with status
+        "timeout" (deterministic: counted in patterns, not time). None: no bound.
     """
 
-    def __init__(self, catalog: Catalog | str, *, algorithm: str) -> None:
+    def __init__(
+        self, catalog: Catalog | str, *, algorithm: str, max_patterns: int | None = None
+    ) -> None:
         self.spec = catalog
         self.algorithm = algorithm
+        self.max_patterns = max_patterns
         self._catalog: Catalog | None = catalog if isinstance(catalog, Catalog) else None
         self._plan: list[FieldRange] | None = None
         self._built: dict = {}
         self._skies: dict = {}
+        self._spent = 0  # patterns looked up since start()
+        self._first: tuple | None = None  # a failed first attempt handed over (keep_first)
+
+    def start(self) -> None:
+        """Begin a solve: its identifications share a fresh budget of ``max_patterns``."""
+        self._spent = 0
+        self._first = None
+
+    def keep_first(self, identifier, vectors, flux, *, fov_rad: float) -> Identification:
+        """Identify at a known field; an answer that did not solve is kept for :meth:`identify`.
+
+        The first attempt of a solve made ahead of it (:mod:`starsense.solve.centroid_path`):
+        when :meth:`identify` is then asked the same (this identifier, the same vectors,
+        brightness and field) it takes this answer instead of identifying again.
+        """
+        ident = self._ranked(identifier, vectors, flux, fov_rad)
+        if not ident.solved:
+            key = (identifier, np.asarray(vectors).tobytes(), np.asarray(flux).tobytes(), fov_rad)
+            self._first = (key, ident)
+        return ident
+
+    def _handed_over(self, identifier, vectors, flux, fov_rad: float) -> Identification | None:
+        """Return the answer :meth:`keep_first` kept for exactly this attempt (once), or None."""
+        first, self._first = self._first, None
+        if first is None:
+            return None
+        key = (identifier, np.asarray(vectors).tobytes(), np.asarray(flux).tobytes(), fov_rad)
+        same = first[0][0] is key[0] and first[0][1:] == key[1:]
+        return first[1] if same else None
+
+    def _ranked(self, identifier, vectors, flux, *args, **kwargs) -> Identification:
+        """:func:`identify_ranked` within what is left of the solve's budget (hashing)."""
+        if self.max_patterns is None or self.algorithm != "hashing":
+            ident = identify_ranked(identifier, vectors, flux, *args, **kwargs)
+            self._spent += ident.n_patterns_tried
+            return ident
+        left = self.max_patterns - self._spent
+        ident = _SPENT  # spent by the attempts before: this one looks up nothing
+        if left > 0:
+            ident = identify_ranked(identifier, vectors, flux, *args, max_patterns=left, **kwargs)
+            self._spent += ident.n_patterns_tried
+        if ident.status == "timeout" and self._spent >= self.max_patterns:
+            why = (
+                f"no match within the work budget of one solve, {self.max_patterns} patterns "
+                "(max_patterns), summed over its identification attempts"
+            )
+            ident = dataclasses.replace(ident, message=why)
+        return ident
 
     @property
     def catalog(self) -> Catalog:
@@ -156,7 +215,9 @@ class FieldIdentifiers:
                 u, w = undistort(*(t * (math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))).T,
                                  (k1, 0.0, 0.0, 0.0))  # fmt: skip
                 v = tangent_to_vectors(np.column_stack([u, w]))
-                ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+                ident = self._ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+                if ident.status == "timeout":  # the solve's budget is spent
+                    return identifier, ident, 0.0
                 if ident.solved:
                     # the tangent found is scale x the one assumed: k1 / scale^2 at the true focus
                     return identifier, ident, k1 / ident.scale**2
@@ -184,10 +245,10 @@ class FieldIdentifiers:
             identifier = self(None, field_range)
             nominal = field_range.nominal_fov_rad  # re-unproject at the range's own field
             v = apply_scale(vectors, math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))
-            ident = identify_ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+            ident = self._ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
             tried += ident.n_patterns_tried
             best = min(best, ident.best_false_match_probability)
-            if ident.solved:
+            if ident.solved or ident.status == "timeout":
                 break
         return identifier, dataclasses.replace(
             ident, n_patterns_tried=tried, best_false_match_probability=best
@@ -219,9 +280,12 @@ class FieldIdentifiers:
         searched = fov_known_rad is None
         if not searched:
             identifier = self(fov_known_rad)
-            ident = identify_ranked(identifier, vectors, flux, fov_known_rad)
+            ident = self._handed_over(identifier, vectors, flux, fov_known_rad)
+            if ident is None:
+                ident = self._ranked(identifier, vectors, flux, fov_known_rad)
             searched = (
                 not ident.solved
+                and ident.status != "timeout"
                 and estimate
                 and self.algorithm == "hashing"
                 and len(vectors) >= 4  # the 4-star patterns need 4; no scale to search with fewer
@@ -231,5 +295,8 @@ class FieldIdentifiers:
         identifier, ident = self.search(vectors, flux, fov_assumed_rad)
         if ident.solved or not estimate or len(vectors) < 4 or self.algorithm != "hashing":
             return identifier, ident, None, 0.0
+        if ident.status == "timeout":  # the budget is spent: no distortion guess
+            return identifier, ident, None, 0.0
         found = self.search_distorted(vectors, flux, fov_assumed_rad)
-        return (*found[:2], None, found[2]) if found[1].solved else (identifier, ident, None, 0.0)
+        kept = found[1].solved or found[1].status == "timeout"  # else: the pinhole search's
+        return (*found[:2], None, found[2]) if kept else (identifier, ident, None, 0.0)

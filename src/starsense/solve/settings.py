@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Literal, TypeAlias
 
 import numpy as np
 
-from starsense._validate import check_scalar, finite_array, show
+from starsense._validate import check_int, check_scalar, finite_array, show
 from starsense.catalog.table import Catalog
 from starsense.errors import InputError
 from starsense.geometry.apparent import C_M_S
@@ -17,10 +17,27 @@ from starsense.units import DEG
 if TYPE_CHECKING:
     from starsense.sensor import Sensor
 
-__all__ = ["FOV_RANGE_RAD", "Algorithm", "BackgroundMode", "SolverSettings", "solver_settings"]
+__all__ = [
+    "FOV_RANGE_RAD",
+    "MAX_PATTERNS",
+    "Algorithm",
+    "BackgroundMode",
+    "SolverSettings",
+    "solver_settings",
+]
 
 #: the Solver's accepted range of a given horizontal field, rad (0.5-120 deg)
 FOV_RANGE_RAD = (0.5 * DEG, 120.0 * DEG)
+
+#: The default work budget of one solve, 4-star patterns looked up over all its identification
+#: attempts (the given field; with a field that is an estimate, the scale search over 3 ranges
+#: and 2 x 2 distortion guesses; then the mirror image): a set that does not identify stops
+#: there, the same on every machine. A mirrored frame whose field is given as an estimate
+#: spends up to 8 x 495 = 3,960 patterns before its mirror's first attempt, which this leaves
+#: room for; on the shared frame sets solved with nothing known no solve spent more than 1,486,
+#: and no centroid set of bench/peers more than 321. A set that identifies nowhere looks up
+#: this many, not the ~7,000-8,000 of every attempt run to its end.
+MAX_PATTERNS = 5000
 
 #: Lost-in-space identification algorithms.
 Algorithm: TypeAlias = Literal["hashing", "triangle"]
@@ -60,6 +77,9 @@ class SolverSettings:
         The attitude's last step: "model" fits the forward model to the identified stars'
         pixels (:mod:`starsense.solve.refine`; needs a sensor), "cog" keeps the attitude fitted
         to the centroids.
+    max_patterns : int or None
+        The work budget of one solve: 4-star patterns looked up (hashing), summed over its
+        identification attempts, after which it stops with status "timeout"; None: no bound.
     """
 
     catalog: Catalog | str = "hipparcos"
@@ -73,6 +93,7 @@ class SolverSettings:
     fov_rad: float | None = None
     refine: str | None = None
     sky: Catalog | str | None = None
+    max_patterns: int | None = MAX_PATTERNS
 
 
 def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
@@ -127,6 +148,9 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
         raise InputError("extraction='quick' estimates the background: use background='auto'")
     if sensor is None and (s.background == "known" or sigma == "snr"):
         raise InputError("background='known' and centroid_sigma_px='snr' need a sensor")
+    max_patterns = s.max_patterns
+    if max_patterns is not None:
+        max_patterns = check_int(max_patterns, "max_patterns", 1)
     velocity = s.observer_velocity_m_s
     if velocity is not None:
         velocity = finite_array(velocity, "observer_velocity_m_s")
@@ -148,5 +172,6 @@ def solver_settings(sensor: Sensor | None, **options) -> SolverSettings:
             "centroid_sigma_px": sigma,
             "refine": refine,
             "observer_velocity_m_s": velocity,
+            "max_patterns": max_patterns,
         }
     )

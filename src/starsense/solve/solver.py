@@ -33,8 +33,10 @@ from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
+from starsense.solve.attitude_fit import kernel_fit
 from starsense.solve.bayer import bayer_hint
-from starsense.solve.centroids import CentroidPoints, check_centroid_input, check_frame_shape
+from starsense.solve.centroid_path import solve_centroid_list
+from starsense.solve.centroids import CentroidPoints, check_frame_shape
 from starsense.solve.counts import (
     detection_counts,
     identification_counts,
@@ -119,6 +121,9 @@ class Solver:
         The catalogue whose stars the model fit draws as neighbours of the identified ones
         (default: ``catalog``): give the deepest catalogue of the sky the frames show (frames
         rendered from another catalogue, a real sky fainter than the database).
+    max_patterns : int or None
+        Work budget of one solve, 4-star patterns over all its identification attempts, then
+        status "timeout" (:data:`~starsense.solve.settings.MAX_PATTERNS`; None: no bound).
 
     Attributes
     ----------
@@ -145,6 +150,7 @@ class Solver:
         observer_velocity_m_s=None,
         refine: Literal["model", "cog"] | None = None,
         sky: Catalog | str | None = None,
+        max_patterns: int | None = SolverSettings.max_patterns,  # settings.MAX_PATTERNS
     ) -> None:
         self.settings: SolverSettings = solver_settings(
             sensor,
@@ -159,6 +165,7 @@ class Solver:
             fov_rad=fov_rad,
             refine=refine,
             sky=sky,
+            max_patterns=max_patterns,
         )
         self.sensor = (
             sensor if (sensor is None or isinstance(sensor, Sensor)) else load_sensor(sensor)
@@ -170,7 +177,8 @@ class Solver:
         )
         known_fov = 2 * self.sensor.half_fov_rad[0] if self.sensor else self.settings.fov_rad
         catalog = known_field_catalog(catalog, known_fov)  # Gaia for a narrow known field
-        self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm)
+        budget = self.settings.max_patterns
+        self._identifiers = FieldIdentifiers(catalog, algorithm=algorithm, max_patterns=budget)
         self._sky = None if sky is None else FieldIdentifiers(sky, algorithm=algorithm)
         self._detector: StarDetector | None = None
         self._quick: StarDetector | bool | None = False  # not built yet
@@ -251,6 +259,7 @@ class Solver:
             Solved, or the reason why not (no exception for a frame that does not solve).
         """
         t0 = time.perf_counter()
+        self._identifiers.start()  # the frame's identifications share one work budget
         a = np.asarray(image)
         check_frame_shape(a.shape, self.sensor)
         stages: dict[str, float] = {}
@@ -321,15 +330,10 @@ class Solver:
             finite value per centroid, an image size that is not the sensor's, a centroid
             more than 2 px outside the image.
         """
-        t0 = time.perf_counter()
-        pts, shape, flux, fov_rad = check_centroid_input(
-            xy, image_size, brightness=brightness, fov_rad=fov_rad, sensor=self.sensor
-        )
-        sigma = self.settings.centroid_sigma_px
-        sigma = sigma if sigma != "snr" else 0.3  # no pixels: no signal to weigh them by
-        points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
-        fixed = lambda _m, _x, v: (v, sigma, None)  # noqa: E731
-        return self._solve_points(points, t0, {}, fixed, fov_rad, obs_time)
+        return solve_centroid_list(
+            self, xy, image_size, fov_rad=fov_rad, brightness=brightness, obs_time=obs_time,
+            identifiers=self._identifiers, whole_way=self._solve_points,
+        )  # fmt: skip
 
     def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True,
                       search=True, image=None):  # fmt: skip
@@ -382,7 +386,7 @@ class Solver:
             self, identifier.database, ident, obs_time=obs_time
         )
         body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
-        att, keep = robust_attitude(body, ref, sigma * pixel_rad)
+        att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit)
         rate = None  # smeared: the body rate the streaks give (starts the model fit's)
         if streaks is not None:  # smeared: centroids over the streaks, which must fit them
             rate = streak_body_rate(self.sensor, body, streaks.streaks_px)
@@ -401,7 +405,7 @@ class Solver:
         stages["attitude_ms"] = _ms(t3)
         sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),
                      stages=stages, radial=radial, sensor=self.sensor)  # fmt: skip
-        return dataclasses.replace(sol, notes=(*sol.notes, *notes))
+        return dataclasses.replace(sol, notes=(*sol.notes, *notes)) if notes else sol
 
     def _unsolved(self, points, ident, t0, stages, sigma_px, fov_given, obs_time, parity):
         """Return the answer for centroids that did not solve: their mirror image, or why not."""
