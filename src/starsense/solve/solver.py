@@ -23,17 +23,11 @@ from typing import Literal
 
 import numpy as np
 
-from starsense.attitude.robust import (
-    MISFIT_SIGMAS,
-    median_misfit,
-    residual_scaled,
-    robust_attitude,
-)
 from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
-from starsense.solve.attitude_fit import kernel_fit
+from starsense.solve.attitude_step import frame_attitude
 from starsense.solve.bayer import bayer_hint
 from starsense.solve.centroid_path import solve_centroid_list
 from starsense.solve.centroids import CentroidPoints, check_frame_shape
@@ -49,11 +43,8 @@ from starsense.solve.frames import frame_time, load_image
 from starsense.solve.identifiers import FieldIdentifiers
 from starsense.solve.parity import solve_mirrored
 from starsense.solve.pinhole import pinhole_vectors
-from starsense.solve.references import matched_references, sky_places
-from starsense.solve.refine import refined_attitude
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
-from starsense.solve.streak_model import streak_body_rate
 from starsense.solve.streaks import matched_measurements
 from starsense.solve.unknown_optics import refine_identification
 from starsense.units import DEG
@@ -219,6 +210,10 @@ class Solver:
             self._quick = quick_detector(self.sensor, self.logic, self.settings)
         return self._quick
 
+    def sky_stars(self, band: str):
+        """Return the stars the model fit draws in ``band`` (``sky``'s, else the database's)."""
+        return (self._sky or self._identifiers).sky(band)
+
     def field_plan(self) -> list[FieldRange]:
         """Return the field ranges searched, in order, when the field is not known (its plan)."""
         return self._identifiers.plan()
@@ -381,27 +376,12 @@ class Solver:
                 ident, identifier.database, np.column_stack([points.x, points.y]),
                 flux=points.flux, shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
             )  # fmt: skip
-        matched, pixel_rad = np.asarray(ident.detection_index), fov / n_cols
-        ref, apparent, places = matched_references(
-            self, identifier.database, ident, obs_time=obs_time
-        )
-        body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
-        att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit)
-        rate = None  # smeared: the body rate the streaks give (starts the model fit's)
-        if streaks is not None:  # smeared: centroids over the streaks, which must fit them
-            rate = streak_body_rate(self.sensor, body, streaks.streaks_px)
-            miss = median_misfit(body, ref, sigma * pixel_rad, rotation=att.rotation, keep=keep)
-            if miss > MISFIT_SIGMAS:  # the streaks' model does not fit: no attitude
-                return misfit_solution(len(points.x), ident, miss, time_ms=_ms(t0), stages=stages)
-        notes, db = (), identifier.database
-        if image is not None and self.settings.refine == "model":  # the forward model's fit
-            sky = (self._sky or self._identifiers).sky(db.params.band)
-            att, notes = refined_attitude(
-                image, att, self.sensor, db=db, ident=ident, places=places, rate_rad_s=rate,
-                sky=sky, place=sky_places(self, sky, obs_time=obs_time), points=points,
-            )  # fmt: skip
-        if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
-            att = residual_scaled(att)
+        got = frame_attitude(self, points, ident, db=identifier.database, vectors=vectors,
+                             sigma_px=sigma_px, pixel_rad=fov / n_cols, obs_time=obs_time,
+                             image=image)  # fmt: skip
+        if isinstance(got, float):  # the streaks' model does not fit: no attitude
+            return misfit_solution(len(points.x), ident, got, time_ms=_ms(t0), stages=stages)
+        att, apparent, notes = got
         stages["attitude_ms"] = _ms(t3)
         sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),
                      stages=stages, radial=radial, sensor=self.sensor)  # fmt: skip

@@ -1,0 +1,78 @@
+"""A solved frame's attitude: from its matched centroids, then from its pixels (the model).
+
+Once a frame is identified, :func:`frame_attitude` fits the attitude to the matched centroids
+(the robust fit of :mod:`starsense.attitude.robust`; a smeared frame's centroids over its
+streaks, :mod:`starsense.solve.streaks`, whose body rate starts the model's), then, with a
+sensor and a frame, fits the sensor's forward model to the stars' pixels
+(:mod:`starsense.solve.refine`). The centroids' attitude, where it stands, reports its
+covariance raised by its residuals' chi-square (:func:`starsense.attitude.robust.
+residual_scaled`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from starsense.attitude.robust import (
+    MISFIT_SIGMAS,
+    median_misfit,
+    residual_scaled,
+    robust_attitude,
+)
+from starsense.solve.attitude_fit import kernel_fit
+from starsense.solve.references import matched_references, sky_places
+from starsense.solve.refine import refined_attitude
+from starsense.solve.streak_model import streak_body_rate
+
+__all__ = ["frame_attitude"]
+
+
+def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, obs_time, image):
+    """Return (attitude, apparent places' record, notes), or the misfit of a smeared frame.
+
+    Parameters
+    ----------
+    solver : Solver
+    points : CentroidPoints
+        The frame's centroids.
+    ident : identification result
+        Its matches (``detection_index`` into ``points``, ``catalog_index`` into ``db``).
+    db : identification database
+    vectors : ndarray (N, 3)
+        The centroids' camera-frame unit vectors.
+    sigma_px : callable
+        ``sigma_px(matched, x, vectors) -> (vectors, sigma px, streaks or None)``: the matched
+        centroids as the attitude takes them (a smeared frame's over its streaks).
+    pixel_rad : float
+        The angle of a pixel, rad.
+    obs_time : str, astropy.time.Time or None
+    image : ndarray or None
+        The frame (None: centroids only, no model fit).
+
+    Returns
+    -------
+    (AttitudeSolution, dict, tuple of str), or float
+        The attitude, how the references were placed and what the fit noted; or, for a smeared
+        frame whose stars lie more than ``MISFIT_SIGMAS`` of their sigmas (median) from the
+        attitude fitted to their streaks, that median.
+    """
+    matched = np.asarray(ident.detection_index)
+    ref, apparent, places = matched_references(solver, db, ident, obs_time=obs_time)
+    body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
+    att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit)
+    rate = None  # smeared: the body rate the streaks give (starts the model fit's)
+    if streaks is not None:  # smeared: centroids over the streaks, which must fit them
+        rate = streak_body_rate(solver.sensor, body, streaks.streaks_px)
+        miss = median_misfit(body, ref, sigma * pixel_rad, rotation=att.rotation, keep=keep)
+        if miss > MISFIT_SIGMAS:
+            return float(miss)
+    notes = ()
+    if image is not None and solver.settings.refine == "model":  # the forward model's fit
+        sky = solver.sky_stars(db.params.band)
+        att, notes = refined_attitude(
+            image, att, solver.sensor, db=db, ident=ident, places=places, rate_rad_s=rate,
+            sky=sky, place=sky_places(solver, sky, obs_time=obs_time), points=points,
+        )  # fmt: skip
+    if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
+        att = residual_scaled(att)
+    return att, apparent, notes
