@@ -70,9 +70,17 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
     if image is not None and solver.settings.refine == "model":  # the forward model's fit
         sky = solver.sky_stars(db.params.band)
         att, notes = refined_attitude(
-            image, att, solver.sensor, db=db, ident=ident, places=places, rate_rad_s=rate,
-            sky=sky, place=sky_places(solver, sky, obs_time=obs_time), points=points,
-        )  # fmt: skip
+            image,
+            att,
+            solver.sensor,
+            db=db,
+            ident=ident,
+            places=places,
+            rate_rad_s=rate,
+            sky=sky,
+            place=sky_places(solver, sky, obs_time=obs_time),
+            points=points,
+        )
     if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
         att = residual_scaled(att)
     return att, apparent, notes

@@ -59,9 +59,14 @@ def solve_centroid_list(solver, xy, image_size, *, identifiers, whole_way, **opt
     sigma = sigma if sigma != "snr" else 0.3  # no pixels: no signal to weigh them by
     points = CentroidPoints(pts[:, 0], pts[:, 1], flux, shape, "centroids")
     sol = solve_known_field(
-        solver, points, identifiers=identifiers, sigma_px=sigma, fov_given=fov_rad,
-        obs_time=obs_time, t0=t0,
-    )  # fmt: skip
+        solver,
+        points,
+        identifiers=identifiers,
+        sigma_px=sigma,
+        fov_given=fov_rad,
+        obs_time=obs_time,
+        t0=t0,
+    )
     if sol is not None:
         return sol
     return whole_way(points, t0, {}, lambda _m, _x, v: (v, sigma, None), fov_rad, obs_time)
@@ -125,9 +130,16 @@ def solve_known_field(solver, points, *, identifiers, sigma_px: float, fov_given
     att = residual_scaled(att)  # as sure as its residuals allow (the general path's rule)
     stages["attitude_ms"] = _ms(t3)
     sol: Solution = solved(
-        points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0), stages=stages,
-        radial=None, sensor=sensor,
-    )  # fmt: skip
+        points,
+        ident,
+        att,
+        fov=fov,
+        apparent=apparent,
+        time_ms=_ms(t0),
+        stages=stages,
+        radial=None,
+        sensor=sensor,
+    )
     return sol
 
 

@@ -10,7 +10,13 @@ import numpy as np
 from starsense.geometry.attitude import radec_roll_of_matrix
 from starsense.solve.solution import Deferred, Solution
 
-__all__ = ["detection_counts", "identification_counts", "max_candidates", "misfit_solution"]
+__all__ = [
+    "detection_counts",
+    "identification_counts",
+    "max_candidates",
+    "misfit_solution",
+    "too_many_message",
+]
 
 
 def detection_counts(image, det) -> dict:
@@ -68,6 +74,14 @@ def max_candidates(shape) -> int:
     blend, and identification uses only the brightest tens.
     """
     return max(500, int(shape[0]) * int(shape[1]) // 1000)
+
+
+def too_many_message(n: int, shape, *, limit: int, then: str) -> str:
+    """Say why ``n`` detections of a frame of ``shape`` (rows, columns) are not stars."""
+    return (
+        f"{n} candidates, more than a frame of {shape[1]} x {shape[0]} pixels can hold as stars "
+        f"({limit}): noise or clutter passed the detection (then: {then})"
+    )
 
 
 def misfit_solution(n_detections: int, ident, miss: float, *, time_ms: float, stages):

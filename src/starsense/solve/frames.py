@@ -18,6 +18,7 @@ the file holds, 1-bit frames, and NaN or infinite pixels.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import math
 import os
@@ -30,7 +31,7 @@ import numpy as np
 from starsense._io import readable_file
 from starsense.errors import InputError
 from starsense.geometry.apparent import parse_time
-from starsense.solve.bayer import bin_bayer, check_bayer
+from starsense.solve.bayer import bayer_hint, bin_bayer, check_bayer
 
 LUMA_WEIGHTS = np.array([0.299, 0.587, 0.114])
 FITS_SUFFIXES = {".fits", ".fit", ".fts"}
@@ -396,3 +397,21 @@ def _load_fits(p: Path, limit: int) -> np.ndarray:
         except Exception as exc:  # astropy's view of a damaged file
             raise InputError(f"{p}: not a readable FITS file ({_one_line(exc)})") from None
     raise InputError(f"{p}: FITS file holds no image data")
+
+
+def solve_frame_file(solver, path, obs_time=None, *, bayer=None):
+    """Load a frame and solve it with ``solver`` (:meth:`starsense.solve.solver.Solver.solve_file`).
+
+    The frame's time is ``obs_time`` if given, else its FITS DATE-OBS or EXIF
+    DateTimeOriginal / DateTime (:func:`frame_time`), else unknown. A frame that looks like a raw
+    Bayer mosaic (none given) gets a note saying so.
+    """
+    image = load_image(path, bayer=bayer)  # first: its checks come before any other read
+    source = "obs_time"
+    if obs_time is None:
+        obs_time, source = frame_time(path)
+    sol = solver(image, obs_time)
+    if sol.apparent is not None and sol.apparent.get("applied"):
+        sol = dataclasses.replace(sol, apparent={**sol.apparent, "time_source": source})
+    hint = bayer_hint(image) if bayer is None else None
+    return sol if hint is None else dataclasses.replace(sol, notes=(*sol.notes, hint))

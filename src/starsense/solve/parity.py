@@ -18,7 +18,10 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["MIRRORED", "mirror_x", "solve_mirrored"]
+from starsense.solve.counts import max_candidates, too_many_message
+from starsense.solve.solution import Solution
+
+__all__ = ["MIRRORED", "mirror_x", "solve_mirrored", "unsolved"]
 
 #: status of a frame whose mirror image solves
 MIRRORED = "mirrored"
@@ -77,3 +80,41 @@ def solve_mirrored(x, y, flux, *, shape, solve_points):
         "sign; the attitude given is that of the flipped frame"
     )
     return dataclasses.replace(sol, status=MIRRORED, message=message)
+
+
+def unsolved(points, ident, *, mirrored, stages, time_ms: float):
+    """Return the answer for centroids that did not solve: their mirror image, or why not.
+
+    Parameters
+    ----------
+    points : CentroidPoints
+        The centroids.
+    ident : identification result
+        Why they did not identify (``status``, ``message``).
+    mirrored : callable or None
+        ``mirrored(x, y, flux) -> Solution``: the mirror image solved (None: not tried).
+    stages : dict
+        The solve's stage times, ms.
+    time_ms : float
+        The solve's time so far, ms.
+
+    Returns
+    -------
+    Solution
+        The mirror image's when it solves; else unsolved, "too_many_candidates" when the frame
+        holds more detections than it can as stars (:func:`starsense.solve.counts.
+        max_candidates`).
+    """
+    n, shape = len(points.x), points.shape
+    status, message = ident.status, ident.message
+    limit = max_candidates(shape)
+    if mirrored is not None and n <= limit:  # a mirrored frame fails identification: flip
+        got = solve_mirrored(points.x, points.y, points.flux, shape=shape, solve_points=mirrored)
+        if got is not None:
+            return got
+    if n > limit:
+        status, message = (
+            "too_many_candidates",
+            too_many_message(n, shape, limit=limit, then=message),
+        )
+    return Solution(status, message, n_detections=n, time_ms=time_ms, stage_ms=stages)

@@ -28,7 +28,6 @@ from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
 from starsense.solve.attitude_step import frame_attitude
-from starsense.solve.bayer import bayer_hint
 from starsense.solve.centroid_path import solve_centroid_list
 from starsense.solve.centroids import CentroidPoints, check_frame_shape
 from starsense.solve.counts import (
@@ -39,9 +38,9 @@ from starsense.solve.counts import (
     solved,
 )
 from starsense.solve.extraction import Extraction, quick_detector, robust_detector
-from starsense.solve.frames import frame_time, load_image
+from starsense.solve.frames import solve_frame_file
 from starsense.solve.identifiers import FieldIdentifiers
-from starsense.solve.parity import solve_mirrored
+from starsense.solve.parity import unsolved
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.solution import Solution
@@ -282,7 +281,15 @@ class Solver:
 
         points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
         sol = self._solve_points(
-            points, t0, stages, sigma_px, None, obs_time, not first, not first, image=a
+            points,
+            t0,
+            stages,
+            sigma_px,
+            None,
+            obs_time,
+            parity=not first,
+            search=not first,
+            image=a,
         )
         return dataclasses.replace(sol, counts={**counts, **sol.counts})
 
@@ -326,12 +333,18 @@ class Solver:
             more than 2 px outside the image.
         """
         return solve_centroid_list(
-            self, xy, image_size, fov_rad=fov_rad, brightness=brightness, obs_time=obs_time,
-            identifiers=self._identifiers, whole_way=self._solve_points,
-        )  # fmt: skip
+            self,
+            xy,
+            image_size,
+            fov_rad=fov_rad,
+            brightness=brightness,
+            obs_time=obs_time,
+            identifiers=self._identifiers,
+            whole_way=self._solve_points,
+        )
 
-    def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, parity=True,
-                      search=True, image=None):  # fmt: skip
+    def _solve_points(self, points, t0, stages, sigma_px, fov_given, obs_time=None, *,
+                      parity=True, search=True, image=None):  # fmt: skip
         """Identify centroids (x, y) of an image of ``shape`` and fit the attitude.
 
         When they do not solve (and are not clutter), their mirror image is tried
@@ -340,16 +353,9 @@ class Solver:
         """
         n = len(points.x)
         if n < 3:
-            said = (
-                f"{n} centroid(s) given" if points.what == "centroids" else f"{n} star(s) detected"
-            )
-            return Solution(
-                "too_few_stars",
-                f"{said}; 3 are needed",
-                n_detections=n,
-                time_ms=_ms(t0),
-                stage_ms=stages,
-            )
+            said = f"{n} centroid(s) given" if points.what == "centroids" else f"{n} star(s)"
+            why = f"{said}{' detected' * (points.what != 'centroids')}; 3 are needed"
+            return Solution("too_few_stars", why, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
         vectors, fov_known, fov_assumed = self._unproject(
             points.x, points.y, points.shape, fov_given
         )
@@ -366,50 +372,57 @@ class Solver:
         )
         stages["identify_ms"] = _ms(t2)
         if not ident.solved:
-            sol = self._unsolved(points, ident, t0, stages, sigma_px, fov_given, obs_time, parity)
+            again = (t0, stages, sigma_px, fov_given, obs_time)
+
+            def flipped(mx, my, f):  # the mirror image, solved the same way (not flipped again)
+                return self._solve_points(
+                    CentroidPoints(mx, my, f, points.shape, points.what), *again, parity=False
+                )
+
+            sol = unsolved(points, ident, mirrored=flipped if parity else None, stages=stages,
+                           time_ms=_ms(t0))  # fmt: skip
             return dataclasses.replace(sol, counts={**identification_counts(ident), **sol.counts})
         t3, n_cols = time.perf_counter(), points.shape[1]  # the attitude from all matches
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
         radial = None
         if self.sensor is None:  # an unknown camera: fit its focal length and radial distortion
             ident, radial, vectors, fov = refine_identification(
-                ident, identifier.database, np.column_stack([points.x, points.y]),
-                flux=points.flux, shape=points.shape, fov_rad=fov, k1=k1, catalog=self.catalog,
-            )  # fmt: skip
-        got = frame_attitude(self, points, ident, db=identifier.database, vectors=vectors,
-                             sigma_px=sigma_px, pixel_rad=fov / n_cols, obs_time=obs_time,
-                             image=image)  # fmt: skip
+                ident,
+                identifier.database,
+                np.column_stack([points.x, points.y]),
+                flux=points.flux,
+                shape=points.shape,
+                fov_rad=fov,
+                k1=k1,
+                catalog=self.catalog,
+            )
+        got = frame_attitude(
+            self,
+            points,
+            ident,
+            db=identifier.database,
+            vectors=vectors,
+            sigma_px=sigma_px,
+            pixel_rad=fov / n_cols,
+            obs_time=obs_time,
+            image=image,
+        )
         if isinstance(got, float):  # the streaks' model does not fit: no attitude
             return misfit_solution(len(points.x), ident, got, time_ms=_ms(t0), stages=stages)
         att, apparent, notes = got
         stages["attitude_ms"] = _ms(t3)
-        sol = solved(points, ident, att, fov=fov, apparent=apparent, time_ms=_ms(t0),
-                     stages=stages, radial=radial, sensor=self.sensor)  # fmt: skip
+        sol = solved(
+            points,
+            ident,
+            att,
+            fov=fov,
+            apparent=apparent,
+            time_ms=_ms(t0),
+            stages=stages,
+            radial=radial,
+            sensor=self.sensor,
+        )
         return dataclasses.replace(sol, notes=(*sol.notes, *notes)) if notes else sol
-
-    def _unsolved(self, points, ident, t0, stages, sigma_px, fov_given, obs_time, parity):
-        """Return the answer for centroids that did not solve: their mirror image, or why not."""
-        n, shape = len(points.x), points.shape
-        status, message = ident.status, ident.message
-        limit = max_candidates(shape)
-        if parity and n <= limit:  # a mirrored frame fails identification: flip, retry
-            mirrored = solve_mirrored(
-                points.x, points.y, points.flux, shape=shape,
-                solve_points=lambda mx, my, f: self._solve_points(
-                    CentroidPoints(mx, my, f, shape, points.what), t0, stages, sigma_px,
-                    fov_given, obs_time, parity=False,
-                ),
-            )  # fmt: skip
-            if mirrored is not None:
-                return mirrored
-        if n > limit:
-            status = "too_many_candidates"
-            message = (
-                f"{n} candidates, more than a frame of {shape[1]} x {shape[0]} "
-                f"pixels can hold as stars ({limit}): noise or clutter passed the detection "
-                f"(then: {message})"
-            )
-        return Solution(status, message, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
 
     def prepare(self) -> None:
         """Build (or load from the cache) the database of the Solver's field now, once.
@@ -428,21 +441,8 @@ class Solver:
             self.identifier(self.settings.fov_rad)
 
     def solve_file(self, path: str | Path, obs_time=None, *, bayer: str | None = None) -> Solution:
-        """Load a frame (:func:`starsense.solve.frames.load_image`, ``bayer`` its mosaic) and solve.
-
-        The frame's time is ``obs_time`` if given, else its FITS DATE-OBS or EXIF
-        DateTimeOriginal / DateTime (:func:`starsense.solve.frames.frame_time`), else unknown.
-        A frame that looks like a raw Bayer mosaic (none given) gets a note saying so.
-        """
-        image = load_image(path, bayer=bayer)  # first: its checks come before any other read
-        source = "obs_time"
-        if obs_time is None:
-            obs_time, source = frame_time(path)
-        sol = self(image, obs_time)
-        if sol.apparent is not None and sol.apparent.get("applied"):
-            sol = dataclasses.replace(sol, apparent={**sol.apparent, "time_source": source})
-        hint = bayer_hint(image) if bayer is None else None
-        return sol if hint is None else dataclasses.replace(sol, notes=(*sol.notes, hint))
+        """Load a frame and solve it (:func:`starsense.solve.frames.solve_frame_file`)."""
+        return solve_frame_file(self, path, obs_time, bayer=bayer)
 
 
 def _ms(t0: float) -> float:

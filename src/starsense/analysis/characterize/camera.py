@@ -63,23 +63,32 @@ def _optics(ch: Characterisation, out: dict, frames: tuple) -> None:
     floor, sigma, rms = ch.lens_residual
     if math.isfinite(floor):
         out["distortion_residual_px"] = Measured(
-            floor, sigma, "px", frames,
+            floor,
+            sigma,
+            "px",
+            frames,
             f"floor of the stars' residuals against magnitude (their rms {rms:.3g} px per axis "
             "includes their centroid noise, which falls with their light)",
-        )  # fmt: skip
+        )
     else:
         out["distortion_residual_px"] = Measured(
-            cal.rms_px_after, math.nan, "px", frames,
+            cal.rms_px_after,
+            math.nan,
+            "px",
+            frames,
             "rms per axis about the calibrated camera (too few stars to part noise from lens)",
-        )  # fmt: skip
+        )
 
 
 def _psf(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> None:
     if math.isfinite(ch.psf_sigma_px):
         out["psf_sigma_px"] = Measured(
-            ch.psf_sigma_px, ch.psf_sigma_err_px, "px", frames,
+            ch.psf_sigma_px,
+            ch.psf_sigma_err_px,
+            "px",
+            frames,
             "forward-model fit with a free width over each frame's matched stars",
-        )  # fmt: skip
+        )
     else:
         not_told["psf_sigma_px"] = "the model fit did not converge on any frame"
     fp = ch.field_psf
@@ -103,13 +112,19 @@ def _photometry(ch: Characterisation, out: dict, frames: tuple, not_told: dict) 
         return
     unit = "counts/s" if z.per_second else "counts"
     out["zero_point"] = Measured(
-        z.counts, z.counts_sigma, unit, frames,
+        z.counts,
+        z.counts_sigma,
+        unit,
+        frames,
         f"V = 0 star, slope -0.4 fixed, {z.n_stars} stars ({z.n_clipped} clipped)",
-    )  # fmt: skip
+    )
     out["zero_point_scatter_mag"] = Measured(
-        z.scatter_mag, z.scatter_mag / math.sqrt(2.0 * max(z.n_stars - 1, 1)), "mag", frames,
+        z.scatter_mag,
+        z.scatter_mag / math.sqrt(2.0 * max(z.n_stars - 1, 1)),
+        "mag",
+        frames,
         "rms of the stars about the zero point",
-    )  # fmt: skip
+    )
     if math.isfinite(z.slope):
         out["zero_point_slope"] = Measured(
             z.slope, z.slope_sigma, "", frames, "free slope of log10 flux vs V (linear: -0.4)"
@@ -131,10 +146,13 @@ def _photometry(ch: Characterisation, out: dict, frames: tuple, not_told: dict) 
     else:
         g = ch.gain_used
         out["qe_mean"] = Measured(
-            thr / (g * t), thr_s / (g * t), "", frames,
+            thr / (g * t),
+            thr_s / (g * t),
+            "",
+            frames,
             f"throughput / (the base gain {g:g} x transmission){place}: a star's counts are "
             "right, its electrons are not told (the gain is not)",
-        )  # fmt: skip
+        )
 
 
 def _noise(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> None:
@@ -145,16 +163,22 @@ def _noise(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> No
         float(np.median(lv)), spread, "counts", frames, "median over frames (+- their spread)"
     )
     out["noise_counts"] = Measured(
-        float(np.median(nz)), float(np.std(nz, ddof=1)) if nz.size > 1 else math.nan,
-        "counts", frames, "per-pixel background noise, median over frames (+- their spread)",
-    )  # fmt: skip
+        float(np.median(nz)),
+        float(np.std(nz, ddof=1)) if nz.size > 1 else math.nan,
+        "counts",
+        frames,
+        "per-pixel background noise, median over frames (+- their spread)",
+    )
     tr = ch.transfer
     g = ch.gain_used
     if tr.told:
         out["gain_counts_per_e"] = Measured(
-            tr.gain_counts_per_e, tr.gain_sigma, "counts/e", frames,
+            tr.gain_counts_per_e,
+            tr.gain_sigma,
+            "counts/e",
+            frames,
             f"photon transfer, {tr.n_boxes} boxes of {tr.n_frames} frames",
-        )  # fmt: skip
+        )
         floor = max(tr.floor_counts2, 0.0)
         rn = math.sqrt(floor) / g
         rs = (tr.floor_sigma / (2.0 * math.sqrt(floor)) / g) if floor > 0 else math.nan
@@ -167,11 +191,14 @@ def _noise(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> No
         working_sensor(ch.base, n, gain_counts_per_e=g).detector.read_noise_e for n in ch.noises
     ]
     out["read_noise_e"] = Measured(
-        float(np.median(reads)), math.nan, "e", frames,
+        float(np.median(reads)),
+        math.nan,
+        "e",
+        frames,
         f"the background's per-pixel noise less the sky's shot noise at the base gain {g:g} "
         "counts/e (the gain is not known, so read and shot noise are not told apart: a frame "
         "rendered with both has the measured noise)",
-    )  # fmt: skip
+    )
 
 
 def _hot(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> None:
@@ -183,9 +210,12 @@ def _hot(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> None
     ):
         count = frac * n_pix
         out[name] = Measured(
-            frac, math.sqrt(max(count, 1.0)) / n_pix, "", frames,
+            frac,
+            math.sqrt(max(count, 1.0)) / n_pix,
+            "",
+            frames,
             "isolated excess in every frame" + (f" ({h.note})" if h.note else ""),
-        )  # fmt: skip
+        )
     if h.excess_counts.size and ch.exposures_s is not None:
         t = float(np.median(ch.exposures_s))
         rate = float(np.median(h.excess_counts)) / ch.gain_used / t

@@ -67,9 +67,13 @@ SCHEMA = "starsense.datasheet/1"
 _N_MIN_LIS, _N_MIN_TRACK = 3, 2
 #: the steps a datasheet reports its progress through
 _STEPS = (
-    "static limit", "slew tolerance", "availability", "noise", "monte carlo",
+    "static limit",
+    "slew tolerance",
+    "availability",
+    "noise",
+    "monte carlo",
     "monte carlo at rate",
-)  # fmt: skip
+)
 
 
 def _arcsec_stats(cross: np.ndarray, roll: np.ndarray) -> AxisSpread:
@@ -184,10 +188,16 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     if st.refine == "model":  # the fit draws the frames' own sky (montecarlo: Solver(sky=))
         held, flux_error = np.ones(len(every), dtype=bool), 0.0
     model = StarModel.build(
-        sensor, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag,
-        star_counts=every, unmodelled=every[~held], modelled=every[held],
-        flux_error=flux_error, refine=st.refine,
-    )  # fmt: skip
+        sensor,
+        model=st.model,
+        bright_mag=float(np.min(mags)),
+        faint_mag=limit_mag,
+        star_counts=every,
+        unmodelled=every[~held],
+        modelled=every[held],
+        flux_error=flux_error,
+        refine=st.refine,
+    )
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     counts = field_stars_cam(fov, mats, vectors).counts()  # every detectable star

@@ -186,9 +186,13 @@ def score_montecarlo(
         mags = np.asarray(magnitudes, dtype=float)
         keep = mags <= (np.inf if limit_mag_at_rate is None else limit_mag_at_rate)
         cross, roll = model_nea_at_rate(
-            model, fov, mats, rates_rad_s=res.rates_rad_s,
-            vectors=np.asarray(vectors)[keep], magnitudes=mags[keep],
-        )  # fmt: skip
+            model,
+            fov,
+            mats,
+            rates_rad_s=res.rates_rad_s,
+            vectors=np.asarray(vectors)[keep],
+            magnitudes=mags[keep],
+        )
     else:
         kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
         kinds += ("catalogue",) if catalogue is not None else ()
@@ -287,9 +291,15 @@ def run_checks(sensor, cat, st, *, sky, client, tick) -> dict[str, MonteCarloChe
             runs[key] = no_frames_check(rate)
             continue
         res = montecarlo(
-            sensor, cat, n_trials=n, rate_rad_s=rate, rng=st.seed, model=st.model,
-            client=client, refine=st.refine,
-        )  # fmt: skip
+            sensor,
+            cat,
+            n_trials=n,
+            rate_rad_s=rate,
+            rng=st.seed,
+            model=st.model,
+            client=client,
+            refine=st.refine,
+        )
         runs[key] = MonteCarloCheck(
             **score_montecarlo(
                 res,

@@ -107,9 +107,13 @@ class SkyStars:
         rates = rate_rad_s * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(m)])
         keep = self.magnitudes <= limit_mag
         fisher = model_fisher_at_rate(
-            self.model, self.fov, mats, rates_rad_s=rates,
-            vectors=self.vectors[keep], magnitudes=self.magnitudes[keep],
-        )  # fmt: skip
+            self.model,
+            self.fov,
+            mats,
+            rates_rad_s=rates,
+            vectors=self.vectors[keep],
+            magnitudes=self.magnitudes[keep],
+        )
         return fisher_axes(fisher)
 
 
@@ -136,9 +140,12 @@ def sky_stars(sensor, catalog, settings, *, limit_mag: float) -> SkyStars:
         used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
         vectors, mags = vectors[used], mags[used]
     model = StarModel.build(
-        sensor, model=settings.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag,
+        sensor,
+        model=settings.model,
+        bright_mag=float(np.min(mags)),
+        faint_mag=limit_mag,
         refine=settings.refine,
-    )  # fmt: skip
+    )
     _, att = sky_attitudes(settings.n_orientations, None, settings.seed)
     mats = att.as_matrix()
     fov = sensor.fov()

@@ -90,13 +90,16 @@ class Statement:
             "confidence": self.confidence,
             "gaussian_factor": self.gaussian_factor,
             "rates_deg_s": list(self.rates_deg_s),
-            "axes": {"x": "across the boresight, along the columns", "y": "across the "
-                     "boresight, along the rows", "z": "about the boresight (roll)"},
+            "axes": {
+                "x": "across the boresight, along the columns",
+                "y": "across the boresight, along the rows",
+                "z": "about the boresight (roll)",
+            },
             "terms": list(self.terms),
             "totals": list(self.totals),
             "values": self.values(),
             "notes": list(self.notes),
-        }  # fmt: skip
+        }
 
 
 def _at_rate(term, i: int, rate_rad_s: float, k: float, p: float, geometry) -> dict:
@@ -201,9 +204,13 @@ def ecss_statement(
     sky = sky_stars(sensor, cat, st, limit_mag=sheet.limiting_magnitude)
     rates_rad = [r * DEG for r in rates]
     terms = error_terms(
-        sensor, sky, st, limit_mag=sheet.limiting_magnitude, rates_rad_s=rates_rad,
+        sensor,
+        sky,
+        st,
+        limit_mag=sheet.limiting_magnitude,
+        rates_rad_s=rates_rad,
         dynamic=sheet.dynamic,
-    )  # fmt: skip
+    )
     k, p = gaussian_factor(confidence), float(confidence)
     geometry = (2.0 * min(sensor.half_fov_rad), sky.model.pixel_rad)
     rows = [

@@ -78,17 +78,25 @@ def _given(sensor, key: str, n_rates: int) -> Term:
     c, r = given.get(f"{name}_cross_arcsec"), given.get(f"{name}_roll_arcsec")
     if c is None and r is None:
         return Term(
-            key, key, _same(None, n_rates), True, True, "not known",
+            key,
+            key,
+            _same(None, n_rates),
+            True,
+            True,
+            "not known",
             f"not given: put {name}_cross_arcsec and {name}_roll_arcsec in the sensor "
             "TOML's [budget]",
-        )  # fmt: skip
+        )
     value = np.array([c or 0.0, c or 0.0, r or 0.0]) * ARCSEC
     return Term(
-        key, key, _same(value, n_rates), True, True,
+        key,
+        key,
+        _same(value, n_rates),
+        True,
+        True,
         "as given, taken as the 1-sigma of a zero-mean Gaussian per axis",
-        f"given (sensor TOML [budget] {name}_cross_arcsec for X and Y, {name}_roll_arcsec "
-        "for Z)",
-    )  # fmt: skip
+        f"given (sensor TOML [budget] {name}_cross_arcsec for X and Y, {name}_roll_arcsec for Z)",
+    )
 
 
 def _fov_spatial(sensor, sky: SkyStars, n_rates: int) -> Term:
@@ -122,25 +130,38 @@ def _pixel_terms(sensor, sky: SkyStars, settings, limit_mag, n_rates) -> list[Te
     det = sensor.detector
     if sky.model.refine == "model":
         interp = Term(
-            "pixel_spatial_interpolation", "pixel_spatial", _same(np.zeros(3), n_rates), True,
-            True, "none", "modelled: none, the fit's model integrates the PSF over the pixels",
-        )  # fmt: skip
+            "pixel_spatial_interpolation",
+            "pixel_spatial",
+            _same(np.zeros(3), n_rates),
+            True,
+            True,
+            "none",
+            "modelled: none, the fit's model integrates the PSF over the pixels",
+        )
     else:
         interp = Term(
-            "pixel_spatial_interpolation", "pixel_spatial",
-            _same(sky.propagated("pixel"), n_rates), True, True,
+            "pixel_spatial_interpolation",
+            "pixel_spatial",
+            _same(sky.propagated("pixel"), n_rates),
+            True,
+            True,
             "periodic in each star's sub-pixel phase (bounded, not Gaussian): its rms is "
             "quoted as a 1-sigma",
             "measured on noisy single-star renders over sub-pixel phases (the datasheet's "
             "pixel spatial error), through the solver's weights",
-        )  # fmt: skip
+        )
     prnu = Term(
-        "pixel_spatial_prnu", "pixel_spatial",
+        "pixel_spatial_prnu",
+        "pixel_spatial",
         _same(sky.propagated("prnu") if det.prnu_fraction > 0 else np.zeros(3), n_rates),
-        True, True, _PER_STAR,
+        True,
+        True,
+        _PER_STAR,
         f"modelled: PRNU {100 * det.prnu_fraction:g} % x the PSF's lever arm, through the "
-        "solver's weights" if det.prnu_fraction > 0 else "modelled: no PRNU in the sensor TOML",
-    )  # fmt: skip
+        "solver's weights"
+        if det.prnu_fraction > 0
+        else "modelled: no PRNU in the sensor TOML",
+    )
     dsnu = np.zeros(3)
     if det.dsnu_e > 0:  # the NEA with the DSNU added to the read noise, less the NEA
         noisier = sensor.with_(
@@ -151,10 +172,16 @@ def _pixel_terms(sensor, sky: SkyStars, settings, limit_mag, n_rates) -> list[Te
         grown = sky_stars(noisier, sky.catalog, settings, limit_mag=limit_mag).propagated("nea")
         dsnu = np.sqrt(np.maximum(grown**2 - sky.propagated("nea") ** 2, 0.0))
     dsnu_term = Term(
-        "pixel_spatial_dsnu", "pixel_spatial", _same(dsnu, n_rates), True, True, _PER_STAR,
-        f"modelled: DSNU {det.dsnu_e:g} e- rms as a second read noise (the NEA's quadrature "
-        "growth)" if det.dsnu_e > 0 else "modelled: no DSNU in the sensor TOML",
-    )  # fmt: skip
+        "pixel_spatial_dsnu",
+        "pixel_spatial",
+        _same(dsnu, n_rates),
+        True,
+        True,
+        _PER_STAR,
+        f"modelled: DSNU {det.dsnu_e:g} e- rms as a second read noise (the NEA's quadrature growth)"
+        if det.dsnu_e > 0
+        else "modelled: no DSNU in the sensor TOML",
+    )
     return [interp, prnu, dsnu_term]
 
 
