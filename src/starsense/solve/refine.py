@@ -233,8 +233,6 @@ def refine_attitude(
                 **opts,
             )
             n_fitted = len(ref)
-            if not fit.reduced_chi2 <= MAX_REDUCED_CHI2:  # not this frame's model: no refit
-                break
             new = _zero_point(fit.fluxes_e[: len(ref)], mags)
             if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
                 break
@@ -367,20 +365,9 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
                 max_stars=room,
             )
 
-    done = refine_attitude(
-        image,
-        sensor,
-        att.rotation,
-        ref=ref,
-        plain=plain,
-        mags=mags,
-        sky=sky,
-        cog_sigma_rad=att.sigma_axes_rad,
-        rate_rad_s=rate_rad_s,
-        electrons=electrons,
-        place=place,
-        more=more,
-    )
+    opts = {"ref": ref, "plain": plain, "mags": mags, "sky": sky, "place": place}
+    opts |= {"cog_sigma_rad": att.sigma_axes_rad, "rate_rad_s": rate_rad_s, "electrons": electrons}
+    done = refine_attitude(image, sensor, att.rotation, more=more, **opts)
     if not done.used:
         return att, (done.note,)
     fit = done.fit

@@ -187,6 +187,8 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
     flux_error = flux_ratio_error(cat, database, sens)
     if st.refine == "model":  # the fit draws the frames' own sky (montecarlo: Solver(sky=))
         held, flux_error = np.ones(len(every), dtype=bool), 0.0
+    else:  # the centroids' attitude models no neighbour: every one pulls unmodelled
+        held, flux_error = np.zeros(len(every), dtype=bool), 0.0
     model = StarModel.build(
         sensor,
         model=st.model,
