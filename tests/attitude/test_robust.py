@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from attitude_fields import ARCSEC, add_noise, star_field
@@ -104,8 +102,7 @@ def _pair_outliers_reference(body, ref, sigma):
 
 
 def _robust_reference(body, ref, sigma, max_drop=5):
-    """robust_attitude's documented algorithm, step by step: pair outliers, then the drops (at
-    the kept stars' own scatter where it exceeds their sigmas, from 8 stars)."""
+    """robust_attitude's documented algorithm, step by step: pair outliers, then the drops."""
     keep = ~_pair_outliers_reference(body, ref, sigma)
     att = estimate_attitude(body[keep], ref[keep], sigma[keep], method="svd")
     for _ in range(max_drop):
@@ -113,8 +110,6 @@ def _robust_reference(body, ref, sigma, max_drop=5):
             break
         z = np.full(len(body), -np.inf)
         z[keep] = att.residuals_rad / sigma[keep]
-        if keep.sum() >= 8:  # the kept stars' own scatter where it exceeds their sigmas
-            z[keep] /= max(1.0, float(np.median(z[keep])) / math.sqrt(2.0 * math.log(2.0)))
         if z.max() <= 7.0:
             break
         keep[int(np.argmax(z))] = False

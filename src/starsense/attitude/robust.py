@@ -12,7 +12,6 @@ from starsense.attitude.estimate import estimate_attitude
 __all__ = [
     "MISFIT_SIGMAS",
     "OUTLIER_SIGMA",
-    "SCALE_STARS",
     "median_misfit",
     "pair_outliers",
     "residual_scaled",
@@ -96,11 +95,7 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None,
     whose angles to the others disagree with the catalogue's are dropped first
     (:func:`pair_outliers`: several gross outliers, one of which a fit would follow); then,
     while the worst residual exceeds ``OUTLIER_SIGMA`` sigma and more than three stars remain,
-    that star is dropped and the attitude re-estimated (SVD, Wahba weights 1 / sigma^2). The
-    sigmas of that test (once the pair outliers are out, with at least ``SCALE_STARS`` kept)
-    are the stars' own where the kept residuals scatter more than the sigmas given (their
-    median above a 2-d Gaussian's, sqrt(2 ln 2)): centroids noisier than assumed are not
-    outliers, only those far from the others are.
+    that star is dropped and the attitude re-estimated (SVD, Wahba weights 1 / sigma^2).
 
     Parameters
     ----------
@@ -145,8 +140,6 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None,
         if n_kept <= 3:
             break
         z = att.residuals_rad / sigma[keep]
-        if n_kept >= SCALE_STARS:  # sigmas the stars' own scatter (a median among enough)
-            z = z / max(1.0, float(np.median(z)) / _RAYLEIGH_MEDIAN)
         worst = int(np.argmax(z))
         if z[worst] <= OUTLIER_SIGMA:
             break
@@ -163,11 +156,6 @@ def robust_attitude(body, reference, sigma_rad, *, max_drop: int = 5, keep=None,
 #: sqrt(2) max_k(r_k / sigma_k) times their pair's sigma. Below it pair_outliers would find
 #: no outlier and the N^2 angles are not computed. A relative 1e-9 below the bound, far beyond
 #: rounding; it is below OUTLIER_SIGMA, so such a fit has no residual to drop either.
-#: the stars kept from which their residuals' median sets the outliers' scale: with fewer, a
-#: moved star or two pull the fit and the median with it (a scale grown by them hides them)
-SCALE_STARS = 8
-#: the median of a 2-d residual whose axes have unit sigma (Rayleigh): sqrt(2 ln 2)
-_RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
 _NO_PAIR_OUTLIER = OUTLIER_SIGMA * _HALF_NORMAL_MEDIAN / math.sqrt(2.0) * (1.0 - 1e-9)
 
 
