@@ -136,9 +136,8 @@ def sky_stars(sensor, catalog, settings, *, limit_mag: float) -> SkyStars:
     """
     cat = completed_sky(catalog, Solver(sensor=sensor).catalog)
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
-    if settings.refine != "model":
-        used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
-        vectors, mags = vectors[used], mags[used]
+    used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])  # as the datasheet
+    vectors, mags = vectors[used], mags[used]
     model = StarModel.build(
         sensor,
         model=settings.model,
