@@ -36,6 +36,7 @@ __all__ = [
     "fisher_per_pointing",
     "propagated_covariance",
     "propagated_sigmas",
+    "sandwich_terms",
     "tracked_stars",
 ]
 
@@ -182,11 +183,18 @@ def propagated_sigmas(
     cross, roll : ndarray (M,)
         rad (rms of x and y; about z); NaN where F is singular.
     """
+    return _sandwich(*sandwich_terms(pairs, weights, error_rad))
+
+
+def sandwich_terms(pairs: FieldStarsCam, weights, error_rad) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``F = sum w (I - r r^T)`` and ``G = sum w^2 e^2 (I - r r^T)`` per attitude (M, 3, 3).
+
+    The two sums of :func:`propagated_sigmas`' sandwich ``F^-1 G F^-1`` (``weights`` (P,) rad^-2
+    and ``error_rad`` (P,) rad per pair; a non-finite one counts as 0).
+    """
     w = np.where(np.isfinite(weights), weights, 0.0)
     e2 = np.where(np.isfinite(error_rad), np.asarray(error_rad, dtype=float) ** 2, 0.0)
-    f = fisher_per_pointing(pairs, w)
-    g = fisher_per_pointing(pairs, w * w * e2)
-    return _sandwich(f, g)
+    return fisher_per_pointing(pairs, w), fisher_per_pointing(pairs, w * w * e2)
 
 
 def _sandwich(f: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from starsense.analysis.datasheet.field import FieldStarsCam, fisher_per_pointing
+from starsense.analysis.datasheet.field import FieldStarsCam, sandwich_terms
 from starsense.attitude.covariance import SINGULAR_RCOND
 
 __all__ = ["covariance_axes", "fisher_axes", "propagated_axes"]
@@ -69,10 +69,7 @@ def propagated_axes(pairs: FieldStarsCam, weights, error_rad) -> np.ndarray:
     ndarray (M, 3)
         rad; NaN where F is singular.
     """
-    w = np.where(np.isfinite(weights), weights, 0.0)
-    e2 = np.where(np.isfinite(error_rad), np.asarray(error_rad, dtype=float) ** 2, 0.0)
-    f = fisher_per_pointing(pairs, w)
-    g = fisher_per_pointing(pairs, w * w * e2)
+    f, g = sandwich_terms(pairs, weights, error_rad)
     out = np.full((len(f), 3), np.nan)
     ok = _regular(f)
     if ok.any():
