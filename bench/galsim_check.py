@@ -64,11 +64,11 @@ IMX296 = {
 WRONG_RAD = 60.0 * ARCSEC
 
 
-def _prediction(sensor, sky, database, seed: int, rates_deg_s):
+def _prediction(sensor, sky, database, seed: int):
     """The datasheet's prediction pieces: the fast sheet and what its frame check needs.
 
-    Returns the sheet's dict and, per rate, (model, vectors, catalogue, magnitudes, the faintest
-    magnitude detected at the rate), or None where nothing is detected.
+    Returns the sheet's dict and (the star model, the stars the solver may fit), or None where
+    nothing is detected.
     """
     from starsense.analysis.datasheet.sheet import DatasheetSettings, _sky_noise
     from starsense.analysis.trade import predict, prediction_settings
@@ -77,17 +77,10 @@ def _prediction(sensor, sky, database, seed: int, rates_deg_s):
     d = sheet.to_dict()
     limit = d.get("limiting_magnitude")
     if limit is None:
-        return d, dict.fromkeys(rates_deg_s)
-    av = d["availability"]
+        return d, None
     st = DatasheetSettings(n_trials=0, seed=seed, n_orientations=50)
-    model, (vectors, catalogue), mags, *_ = _sky_noise(
-        sky, sensor, st, limit, sensor.fov(), database
-    )
-    return d, {
-        r: (model, vectors, catalogue, mags,
-            float(np.interp(r, av["rates_deg_s"], av["threshold_mag_at_rate"])))
-        for r in rates_deg_s
-    }  # fmt: skip
+    model, stars, *_ = _sky_noise(sky, sensor, st, (limit, sheet.slew), sensor.fov(), database)
+    return d, (model, stars)
 
 
 def _trial(sensor, solver, sky, psf, k, children, rate_rad_s):
@@ -142,16 +135,11 @@ def _combo(sensor, solver, sky, pred, psf, rate_deg_s, frames, seed):
     records = [_trial(sensor, solver, sky, psf, k, children, rate) for k in range(frames)]
     res = _result(sensor.name, records, frames, rate, "reed", seed)
     row = {"psf": psf, "rate_deg_s": rate_deg_s, "frames": frames, "frame_seed": seed}
-    sheet, pieces = pred[0], pred[1][rate_deg_s]
+    sheet, pieces = pred
     if pieces is not None:
-        model, vectors, catalogue, mags, at_rate = pieces
-        scored = score_montecarlo(
-            res, model, fov=sensor.fov(), vectors=vectors, magnitudes=mags,
-            limit_mag_at_rate=at_rate, catalogue=catalogue,
-        )  # fmt: skip
+        scored = score_montecarlo(res, pieces[0], fov=sensor.fov(), stars=pieces[1])
     else:
-        scored = score_montecarlo(res, None, fov=None, vectors=None, magnitudes=None,
-                                  predict=False)  # fmt: skip
+        scored = score_montecarlo(res, None, fov=None, stars=None, predict=False)
     keep = ("solved", "wrong", "cross_rms_arcsec", "roll_rms_arcsec", "cross_predicted_arcsec",
             "roll_predicted_arcsec", "cross_ratio", "roll_ratio", "cross_ratio_ci95",
             "roll_ratio_ci95", "median_ms", "stars_matched_median")  # fmt: skip
@@ -212,7 +200,7 @@ def _run_design(job) -> list[dict]:
     sky = at_epoch(completed_sky(load_catalog("hipparcos"), database), database.epoch_yr)
     seeds = np.random.SeedSequence(seed).generate_state(len(rates) + 1)
     rows = []
-    pred = _prediction(sensor, sky, database, int(seeds[-1]), rates)
+    pred = _prediction(sensor, sky, database, int(seeds[-1]))
     for j, rate in enumerate(rates):
         for psf in psfs:
             t0 = time.perf_counter()
@@ -240,7 +228,7 @@ def _run_told(job) -> list[dict]:
         solver = Solver(sensor)
         database = solver.catalog
         sky = at_epoch(completed_sky(load_catalog("hipparcos"), database), database.epoch_yr)
-        pred = _prediction(sensor, sky, database, int(seeds[-1]), rates)
+        pred = _prediction(sensor, sky, database, int(seeds[-1]))
         for j, rate in enumerate(rates):
             t0 = time.perf_counter()
             row = _combo(drawn, solver, sky, pred, psf, rate, frames, int(seeds[j]))

@@ -16,10 +16,10 @@ from starsense.analysis.datasheet.field import (
     field_stars_cam,
     fisher_per_pointing,
     propagated_sigmas,
-    tracked_stars,
 )
 from starsense.analysis.datasheet.noise import centroid_noise
 from starsense.analysis.datasheet.sections import MonteCarloCheck
+from starsense.analysis.datasheet.stars import detection_chance, tracked_stars
 from starsense.analysis.datasheet.terms import confusion_px, pixel_spatial_error
 from starsense.analysis.datasheet.verify import (
     MEASURED_KEYS,
@@ -174,7 +174,7 @@ def test_too_few_solved_frames_are_not_checked():
         solve_ms=np.ones(3),
         statuses={"solved": 3, "too_few_stars": 37},
     )
-    out = score_montecarlo(res, None, fov=None, vectors=None, magnitudes=None)
+    out = score_montecarlo(res, None, fov=None, stars=None)
     assert out["cross_ratio"] is None and out["roll_ratio"] is None
     assert out["cross_rms_arcsec"] == pytest.approx(1e-5 * RAD_TO_ARCSEC)
     check = MonteCarloCheck(
@@ -212,7 +212,7 @@ def test_too_few_solved_frames_at_a_rate_are_said():
             solve_ms=np.ones(solved),
             statuses={"solved": solved, "too_few_stars": 40 - solved},
         )
-        out = score_montecarlo(res, None, fov=None, vectors=None, magnitudes=None)
+        out = score_montecarlo(res, None, fov=None, stars=None)
         assert out["roll_predicted_arcsec"] is None and out["roll_ratio"] is None
         check = MonteCarloCheck(
             **{k: v for k, v in out.items() if k in MonteCarloCheck.__dataclass_fields__}
@@ -262,3 +262,48 @@ def test_tracked_stars_are_the_brightest_per_field():
     assert len(near) > 300
     assert keep[near].sum() < 0.5 * len(near)
     assert mags[near][keep[near]].min() == mags[near].min()
+
+
+def test_presence_is_the_mean_information_of_the_frames_that_hold_the_stars():
+    # a star in a frame's fit by chance p: the prediction sums p w (and p w^2 e^2). Against
+    # frames drawn with each star kept at random (its Bernoulli(p)), fitted by the same
+    # weighted least squares: with ~100 stars a frame the information of a draw is within a
+    # few per cent of its mean, so the rms of the drawn sigmas meets the prediction to ~3 %
+    rng = np.random.default_rng(11)
+    sens = load_sensor("st16")
+    stars = rng.normal(size=(60_000, 3))
+    stars /= np.linalg.norm(stars, axis=1)[:, None]
+    pairs = field_stars_cam(sens.fov(), random_attitudes(3, rng).as_matrix(), stars)
+    assert np.all(pairs.counts() > 80)
+    sigma = rng.uniform(1.0, 5.0, len(pairs.point)) * 1e-5
+    w, p = 1.0 / sigma**2, rng.uniform(0.2, 1.0, len(pairs.point))
+    predicted = np.array(propagated_sigmas(pairs, w, sigma, presence=p))
+    drawn = []
+    for _ in range(400):
+        kept = w * (rng.uniform(size=len(p)) < p)
+        drawn.append(propagated_sigmas(pairs, kept, sigma))
+    rms = np.sqrt(np.mean(np.array(drawn) ** 2, axis=0))
+    np.testing.assert_allclose(rms, predicted, rtol=0.03)
+    # every star at half its chance: half the information, sigma x sqrt 2 (exact)
+    half = np.array(propagated_sigmas(pairs, w, sigma, presence=0.5 * np.ones(len(p))))
+    whole = np.array(propagated_sigmas(pairs, w, sigma))
+    np.testing.assert_allclose(half, math.sqrt(2.0) * whole, rtol=1e-12)
+
+
+def test_detection_chance_reads_the_slew_run():
+    # the slew run's detected fractions, linear between its cells; its brightest row for
+    # brighter stars; 0 past its faintest magnitude, in the cells it did not simulate (NaN:
+    # lost at a slower rate) and past its top rate
+    slew = SimpleNamespace(
+        magnitudes=np.array([2.0, 4.0, 6.0]),
+        rates_rad_s=np.array([0.0, 0.01, 0.02]),
+        detected_fraction=np.array([[1.0, 1.0, 0.9], [1.0, 0.6, np.nan], [0.5, np.nan, np.nan]]),
+    )
+    mags = np.array([0.0, 2.0, 3.0, 5.0, 6.0, 6.5])
+    np.testing.assert_allclose(detection_chance(slew, mags), [1.0, 1.0, 1.0, 0.75, 0.5, 0.0])
+    np.testing.assert_allclose(detection_chance(slew, mags, 0.01), [1, 1, 0.8, 0.3, 0.0, 0.0])
+    np.testing.assert_allclose(
+        detection_chance(slew, mags, 0.005), [1.0, 1.0, 0.9, 0.525, 0.25, 0.0]
+    )
+    np.testing.assert_allclose(detection_chance(slew, mags, -0.02), [0.9, 0.9, 0.45, 0, 0, 0])
+    assert not detection_chance(slew, mags, 0.03).any()

@@ -77,7 +77,9 @@ def test_x_y_split_is_the_datasheets_cross(st16):
     sensor, cat, sheet, statement = st16
     # per attitude the datasheet's cross is the rms of X and Y: X^2 + Y^2 = 2 cross^2 (same
     # attitudes, stars and weights: equal to round-off), Z its roll
-    axes = sky_stars(sensor, cat, LIGHT, limit_mag=sheet.limiting_magnitude).propagated("nea")
+    axes = sky_stars(
+        sensor, cat, LIGHT, limit_mag=sheet.limiting_magnitude, slew=sheet.slew
+    ).propagated("nea")
     ok = np.isfinite(sheet.nea_cross_rad)
     assert ok.sum() > 250
     np.testing.assert_allclose(

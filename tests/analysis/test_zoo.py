@@ -67,13 +67,6 @@ def test_small_zoo_has_no_wrong_solution():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    raises=AssertionError,
-    reason="known gap: the prediction counts the stars the solver is sure to fit (its "
-    "database's) while the model fit also fits every other star the detector finds, many in a "
-    "crowded field (zoo02, 764 stars in view: 0.74 / 0.80 of its prediction); each star's "
-    "information weighted by its detection probability is the open fix",
-)
 def test_small_zoo_nea_prediction_holds_at_rest():
     """8 designs, 40 frames at rest: measured / predicted NEA in 0.8-1.25 on both axes.
 

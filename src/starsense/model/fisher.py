@@ -53,7 +53,7 @@ def _one(psf: PixelPSF, sensor, electrons: float, streak, phase, background_e: f
     c1 = math.floor(max(nx.min(), nx.max()) + half + 0.5) + 1
     rows = np.arange(r0, r1)[None, :]
     cols = np.arange(c0, c1)[None, :]
-    t, d = source_stamps(psf, nodes, np.array([0]), rows=rows, cols=cols)
+    t, d = source_stamps(psf, nodes, np.array([0]), rows=rows, cols=cols, half_px=half)
     t, g = t[0].ravel(), electrons * d[0].reshape(2, -1)
     mu = electrons * t + background_e
     clip_e = det.clip_e

@@ -34,7 +34,16 @@ from starsense.errors import InputError
 from starsense.model.psf import PixelPSF, gaussian_pixel_1d
 from starsense.model.tracks import NodePositions
 
-__all__ = ["MAX_WINDOW_PIXELS", "Evaluation", "Windows", "evaluate", "make_windows"]
+__all__ = [
+    "MAX_WINDOW_PIXELS",
+    "Evaluation",
+    "Windows",
+    "by_nodes",
+    "evaluate",
+    "make_windows",
+    "source_stamps",
+    "stamp_side",
+]
 
 #: most pixels the groups of one frame may hold (padded): the fit holds ~(slots + parameters)
 #: arrays of this size, ~8 MB each at 1,000,000
@@ -68,6 +77,12 @@ class Windows:
         there (-1 where its flux is given, not fitted there).
     pair_box : ndarray of int, shape (Q, 4)
         The part of the source's box inside the group's grid: row0, row1, col0, col1 (local).
+    half_px : float
+        The reach of a star's light from each point of its track, px (its box's padding).
+    node_origin : ndarray of int, shape (S, K, 2)
+        The first row and column of each time node's stamp (:func:`source_stamps`), laid
+        where the windows were made (as the boxes are: the model stays smooth in its
+        parameters while the fit moves the nodes).
     """
 
     row0: np.ndarray
@@ -81,6 +96,8 @@ class Windows:
     pair_group: np.ndarray
     pair_slot: np.ndarray
     pair_box: np.ndarray
+    half_px: float
+    node_origin: np.ndarray
 
     @property
     def n_groups(self) -> int:
@@ -226,7 +243,10 @@ def make_windows(
             f"{MAX_WINDOW_PIXELS:,} a fit may hold"
         )
     area = (boxes[:, 1] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 2])
-    work = np.asarray(x).shape[1] * float((hit * area[:, None]).sum())
+    n_nodes = np.asarray(x).shape[1]
+    if by_nodes(int(area.max(initial=0)), n_nodes, half_px):  # long tracks: node by node
+        area = np.minimum(area, stamp_side(half_px) ** 2 + area // n_nodes)
+    work = n_nodes * float((hit * area[:, None]).sum())
     if work > MAX_WORK:
         raise InputError(
             f"the stars' tracks and their neighbours' cover {work:.3g} pixel-nodes, more than "
@@ -260,7 +280,11 @@ def make_windows(
     ]
     on = _nearest_mask((h, w), g_r0, g_c0, group, x, y, hit, inside & on_det)
     n_slots = int(slot.max()) + 1 if len(slot) else 0
-    windows = Windows(g_r0, g_c0, (h, w), on, group, slot, n_slots, p_src, p_grp, p_slot, p_box)
+    origin = np.stack([np.floor(y - half_px + 0.5), np.floor(x - half_px + 0.5)], axis=-1)
+    windows = Windows(
+        g_r0, g_c0, (h, w), on, group, slot, n_slots, p_src, p_grp, p_slot, p_box, half_px,
+        origin.astype(np.int64),
+    )  # fmt: skip
     return windows, kept
 
 
@@ -313,16 +337,48 @@ def _static_gaussian(sigma, nodes: NodePositions, idx, rows, cols, gradient, wid
     return t, d
 
 
+def stamp_side(half_px: float) -> int:
+    """Return the side of a time node's stamp: every pixel centre within ``half_px`` of it."""
+    return math.floor(2.0 * half_px) + 2
+
+
+def by_nodes(area_px: int, n_nodes: int, half_px: float) -> bool:
+    """Return whether a track's light is drawn node by node (:func:`source_stamps`).
+
+    A long streak's box is mostly pixels far from any one node: drawing each node's stamp
+    costs ``K n^2`` against ``K`` times the box, so the stamps are drawn where the box holds
+    more than four of them.
+    """
+    return n_nodes > 1 and 4 * stamp_side(half_px) ** 2 < area_px
+
+
 def source_stamps(
-    psf: PixelPSF, nodes: NodePositions, idx, *, rows, cols, gradient=True, width=False
+    psf: PixelPSF,
+    nodes: NodePositions,
+    idx,
+    *,
+    rows,
+    cols,
+    half_px,
+    origin=None,
+    gradient=True,
+    width=False,
 ):
     """Return templates (S, h, w) of sources ``idx`` and their derivatives (S, P, h, w).
 
     Over pixel rows (S, h) and columns (S, w) of the detector. With ``width`` (a Gaussian), the
-    derivative with respect to the PSF's sigma is appended (P + 1 columns).
+    derivative with respect to the PSF's sigma is appended (P + 1 columns). Each time node
+    lights the pixels of a stamp of :func:`stamp_side` pixels a side around it (the reach
+    ``half_px`` of a star's box at rest), whose first row and column are ``origin`` (S, K, 2)
+    (default: where the nodes are now): a streak whose box holds many such stamps is drawn
+    node by node (:func:`by_nodes`).
     """
     wk = nodes.weights
     xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
+    if by_nodes(rows.shape[1] * cols.shape[1], len(wk), half_px):
+        if origin is None:
+            origin = np.stack([np.floor(yk - half_px + 0.5), np.floor(xk - half_px + 0.5)], -1)
+        return _node_stamps(psf, nodes, idx, (rows, cols, origin), half_px, gradient, width)
     if psf.spec.is_gaussian and len(wk) == 1:  # at rest: outer products, no sums over time
         return _static_gaussian(psf.sigma_px, nodes, idx, rows, cols, gradient, width)
     if psf.spec.is_gaussian:  # separable: sums over nodes are matrix products
@@ -353,6 +409,48 @@ def source_stamps(
     d = -(
         np.einsum("skrc,skp->sprc", gx, wk[None, :, None] * nodes.dx[idx])
         + np.einsum("skrc,skp->sprc", gy, wk[None, :, None] * nodes.dy[idx])
+    )
+    return t, d
+
+
+def _node_stamps(psf: PixelPSF, nodes: NodePositions, idx, grid, half_px, gradient, width):
+    """:func:`source_stamps` drawn node by node: each node's stamp added into its source's box.
+
+    ``grid``: the boxes' rows (S, h) and columns (S, w), and the stamps' origins (S, K, 2).
+    """
+    rows, cols, origin = grid
+    wk = nodes.weights
+    xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
+    n_src, (h, w), n = len(xk), (rows.shape[1], cols.shape[1]), stamp_side(half_px)
+    origin = np.asarray(origin).astype(np.int64)
+    r = origin[:, :, 0, None] + np.arange(n)  # (S, K, n)
+    c = origin[:, :, 1, None] + np.arange(n)
+    dy, dx = r - yk[:, :, None], c - xk[:, :, None]
+    if psf.spec.is_gaussian:
+        px, dpx = gaussian_pixel_1d(dx, psf.sigma_px)
+        py, dpy = gaussian_pixel_1d(dy, psf.sigma_px)
+        v = py[..., :, None] * px[..., None, :]  # (S, K, n, n)
+        gx, gy = py[..., :, None] * dpx[..., None, :], dpy[..., :, None] * px[..., None, :]
+    else:
+        v, gx, gy = psf.evaluate(dx[..., None, :], dy[..., :, None])
+    lr, lc = r - rows[:, :1, None], c - cols[:, :1, None]  # in the source's box
+    inside = ((lr >= 0) & (lr < h))[..., :, None] & ((lc >= 0) & (lc < w))[..., None, :]
+    at = ((np.arange(n_src)[:, None, None] * h + lr)[..., :, None] * w + lc[..., None, :])[inside]
+    t = np.bincount(at, (wk[None, :, None, None] * v)[inside], n_src * h * w)
+    t = t.reshape(n_src, h, w)
+    if not gradient:
+        return t, None
+    ax = wk[None, :, None] * nodes.dx[idx]  # (S, K, P)
+    ay = wk[None, :, None] * nodes.dy[idx]
+    parts = [
+        -(gx * ax[:, :, p, None, None] + gy * ay[:, :, p, None, None]) for p in range(ax.shape[-1])
+    ]
+    if width and psf.spec.is_gaussian:
+        sx, sy = _gaussian_width_1d(dx, psf.sigma_px), _gaussian_width_1d(dy, psf.sigma_px)
+        dw = sy[..., :, None] * px[..., None, :] + py[..., :, None] * sx[..., None, :]
+        parts.append(wk[None, :, None, None] * dw)
+    d = np.stack(
+        [np.bincount(at, q[inside], n_src * h * w).reshape(n_src, h, w) for q in parts], axis=1
     )
     return t, d
 
@@ -392,7 +490,17 @@ def evaluate(
         g, src, box = windows.pair_group[q], windows.pair_source[q], windows.pair_box[q]
         rows = (windows.row0[g] + box[:, 0])[:, None] + np.arange(size[0])[None, :]
         cols = (windows.col0[g] + box[:, 2])[:, None] + np.arange(size[1])[None, :]
-        t, d = source_stamps(psf, nodes, src, rows=rows, cols=cols, gradient=gradient, width=width)
+        t, d = source_stamps(
+            psf,
+            nodes,
+            src,
+            rows=rows,
+            cols=cols,
+            half_px=windows.half_px,
+            origin=windows.node_origin[src],
+            gradient=gradient,
+            width=width,
+        )
         # each stamp's pixels as flat indices of its group's (H, W) grid
         local = (box[:, 0][:, None, None] + np.arange(size[0])[None, :, None]) * w + (
             box[:, 2][:, None, None] + np.arange(size[1])[None, None, :]

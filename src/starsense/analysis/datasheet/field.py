@@ -8,14 +8,11 @@ Mortari 2019, eq. 21, :func:`starsense.attitude.covariance.fisher_components`). 
 in the camera frame, gives the 1-sigma cross-boresight (rms of the x and y axes) and roll
 (about z) of that attitude.
 
-The stars are those the tracker fits its attitude to (:func:`tracked_stars`): the matches of
-its identification, which can only be the stars of its database (the brightest few tens per
-field-sized region of the sky), not every star it detects.
+The stars are those the solver fits its attitude to, each counted by its chance of being in a
+frame's fit (:mod:`starsense.analysis.datasheet.stars`).
 """
 
 from __future__ import annotations
-
-import inspect
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,8 +23,6 @@ from starsense.attitude.covariance import (
     fisher_components,
     fisher_from_components,
 )
-from starsense.identify.database import build_database
-from starsense.identify.patterns import thin_by_region
 
 __all__ = [
     "FieldStarsCam",
@@ -37,44 +32,7 @@ __all__ = [
     "propagated_covariance",
     "propagated_sigmas",
     "sandwich_terms",
-    "tracked_stars",
 ]
-
-#: the database's thinning, as the solver builds it (its defaults: one copy, in build_database)
-_DB_DEFAULTS = inspect.signature(build_database).parameters
-
-
-def tracked_stars(vectors, magnitudes, fov_rad: float) -> NDArray[np.bool_]:
-    """Return which stars the tracker can match, and so fits its attitude to.
-
-    The solver's identification database of a known field keeps, in every field-sized region
-    of the sky, its brightest ``verification_stars_per_fov`` stars
-    (:func:`starsense.identify.database.build_database`, thinned by
-    :func:`starsense.identify.patterns.thin_by_region`); the final attitude is fitted to the
-    matched stars alone. In a crowded field (hundreds of detectable stars) that is the
-    brightest few tens: the prediction over every detectable star would be several times too
-    optimistic.
-
-    Parameters
-    ----------
-    vectors : ndarray (N, 3)
-        ICRS unit vectors of the detectable stars.
-    magnitudes : ndarray (N,)
-        Their magnitudes (brightness order).
-    fov_rad : float
-        The field the solver's database is built for (full width of the widest axis), rad.
-
-    Returns
-    -------
-    ndarray of bool (N,)
-    """
-    return thin_by_region(
-        np.asarray(vectors, dtype=float),
-        np.asarray(magnitudes, dtype=float),
-        radius_rad=0.5 * float(fov_rad),
-        n_per_region=int(_DB_DEFAULTS["verification_stars_per_fov"].default),
-        oversampling=float(_DB_DEFAULTS["lattice_oversampling"].default),
-    )
 
 
 class FieldStarsCam:
@@ -158,7 +116,11 @@ def axis_sigmas(fishers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def propagated_sigmas(
-    pairs: FieldStarsCam, weights: NDArray[np.float64], error_rad: NDArray[np.float64]
+    pairs: FieldStarsCam,
+    weights: NDArray[np.float64],
+    error_rad: NDArray[np.float64],
+    *,
+    presence: NDArray[np.float64] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return the attitude error a per-star error makes through the weighted estimate, rad.
 
@@ -177,24 +139,31 @@ def propagated_sigmas(
         The estimator's weight of each pair, rad^-2.
     error_rad : ndarray (P,)
         Each pair's error, 1 sigma per axis, rad.
+    presence : ndarray (P,), optional
+        The chance each pair's star is in the fit (detected): both sums are their expectations
+        over the frames, ``sum p w`` and ``sum p w^2 e^2``. Default: every star, always.
 
     Returns
     -------
     cross, roll : ndarray (M,)
         rad (rms of x and y; about z); NaN where F is singular.
     """
-    return _sandwich(*sandwich_terms(pairs, weights, error_rad))
+    return _sandwich(*sandwich_terms(pairs, weights, error_rad, presence=presence))
 
 
-def sandwich_terms(pairs: FieldStarsCam, weights, error_rad) -> tuple[np.ndarray, np.ndarray]:
-    """Return ``F = sum w (I - r r^T)`` and ``G = sum w^2 e^2 (I - r r^T)`` per attitude (M, 3, 3).
+def sandwich_terms(
+    pairs: FieldStarsCam, weights, error_rad, *, presence=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``F = sum p w (I - r r^T)`` and ``G = sum p w^2 e^2 (I - r r^T)`` per attitude.
 
-    The two sums of :func:`propagated_sigmas`' sandwich ``F^-1 G F^-1`` (``weights`` (P,) rad^-2
-    and ``error_rad`` (P,) rad per pair; a non-finite one counts as 0).
+    The two sums (M, 3, 3) of :func:`propagated_sigmas`' sandwich ``F^-1 G F^-1``
+    (``weights`` (P,) rad^-2 and ``error_rad`` (P,) rad per pair, a non-finite one counting as
+    0; ``presence`` (P,) the chance each star is in the fit, default 1).
     """
     w = np.where(np.isfinite(weights), weights, 0.0)
     e2 = np.where(np.isfinite(error_rad), np.asarray(error_rad, dtype=float) ** 2, 0.0)
-    return fisher_per_pointing(pairs, w), fisher_per_pointing(pairs, w * w * e2)
+    p = 1.0 if presence is None else np.asarray(presence, dtype=float)
+    return fisher_per_pointing(pairs, p * w), fisher_per_pointing(pairs, p * w * w * e2)
 
 
 def _sandwich(f: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -85,7 +85,7 @@ def streaks_px_of(sensor, v_cam, rates_rad_s) -> tuple[np.ndarray, np.ndarray]:
     return np.column_stack([x, y]), np.column_stack([xe - xs, ye - ys])
 
 
-def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes):
+def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes, presence=None):
     """Return the model fit's 1-sigma (cross, roll) of attitudes at body rates, rad.
 
     The axis sigmas of :func:`model_fisher_at_rate` (same parameters).
@@ -97,12 +97,18 @@ def model_nea_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes)
     """
     return axis_sigmas(
         model_fisher_at_rate(
-            model, fov, matrices, rates_rad_s=rates_rad_s, vectors=vectors, magnitudes=magnitudes
+            model,
+            fov,
+            matrices,
+            rates_rad_s=rates_rad_s,
+            vectors=vectors,
+            magnitudes=magnitudes,
+            presence=presence,
         )
     )
 
 
-def model_fisher_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes):
+def model_fisher_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitudes, presence=None):
     """Return the model fit's attitude Fisher information at body rates, camera frame, rad^-2.
 
     Parameters
@@ -115,7 +121,10 @@ def model_fisher_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitud
     rates_rad_s : ndarray (M, 3)
         Body rate of each attitude, camera frame, rad/s.
     vectors, magnitudes : ndarray (N, 3), (N,)
-        The stars the fit uses (detected at the rate), ICRS, V.
+        The stars the fit may use, ICRS, V.
+    presence : ndarray (N,), optional
+        The chance each is in the fit (detected at the rate): its information counts by it
+        (the expected sum). Default: always.
 
     Returns
     -------
@@ -125,11 +134,13 @@ def model_fisher_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitud
     """
     sensor = model.sensor
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors))
-    rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[pairs.point]
-    electrons = model.sensitivity.electrons(np.asarray(magnitudes)[pairs.star])
-    _, streaks = streaks_px_of(sensor, pairs.v_cam, rates)
+    chance = np.ones(len(pairs.star)) if presence is None else np.asarray(presence)[pairs.star]
+    point, v_cam, star = pairs.point[chance > 0], pairs.v_cam[chance > 0], pairs.star[chance > 0]
+    rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[point]
+    electrons = model.sensitivity.electrons(np.asarray(magnitudes)[star])
+    _, streaks = streaks_px_of(sensor, v_cam, rates)
     info = position_information(sensor, electrons, streaks, n_phase=N_PHASE_STREAK)
-    per_star = attitude_information(sensor, pairs.v_cam, info)
+    per_star = attitude_information(sensor, v_cam, info) * chance[chance > 0][:, None, None]
     fisher = np.zeros((pairs.n_pointings, 3, 3))
-    np.add.at(fisher, pairs.point, per_star)
+    np.add.at(fisher, point, per_star)
     return fisher

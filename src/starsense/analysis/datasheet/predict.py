@@ -261,6 +261,7 @@ def nea_at(
     kinds=("nea",),
     tree=None,
     catalogue=None,
+    presence=None,
 ):
     """Return {kind: (cross, roll)} per attitude, rad, from the stars in the field.
 
@@ -280,6 +281,9 @@ def nea_at(
     catalogue : ndarray (N, 3), optional
         Each star's database position less its rendered one, ICRS, rad
         (:mod:`starsense.analysis.datasheet.catalogue`): the kind ``"catalogue"``.
+    presence : ndarray (N,), optional
+        The chance each star is in the fit (:func:`starsense.analysis.datasheet.field.
+        fitted_stars`): its information and its errors count by it. Default: always.
 
     Returns
     -------
@@ -287,19 +291,22 @@ def nea_at(
     """
     pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors), tree=tree)
     mags, z = np.asarray(magnitudes)[pairs.star], pairs.v_cam[:, 2]
+    p = None if presence is None else np.asarray(presence, dtype=float)[pairs.star]
+    chance = 1.0 if p is None else p
     # the solver's own weights (its assumed noise), which are not the stars' true noise: a
     # saturated star's centroid is worse than its photons say, and the fit trusts it anyway
     weights = 1.0 / model.star_sigmas_rad(mags, z, "weight") ** 2
     out = {}
     for kind in kinds:
         if kind == "catalogue":  # per star, not per magnitude: each star's own offset
-            out[kind] = _catalogue_errors(pairs, matrices, weights, catalogue)
+            out[kind] = _catalogue_errors(pairs, matrices, weights, catalogue, presence=p)
             continue
         sigma = model.star_sigmas_rad(mags, z, kind)
         if kind == "crb":
-            out[kind] = axis_sigmas(fisher_per_pointing(pairs, 1.0 / sigma**2))
+            out[kind] = axis_sigmas(fisher_per_pointing(pairs, chance / sigma**2))
         else:
-            out[kind] = propagated_sigmas(pairs, weights, np.where(np.isfinite(sigma), sigma, 0))
+            error = np.where(np.isfinite(sigma), sigma, 0)
+            out[kind] = propagated_sigmas(pairs, weights, error, presence=p)
     return out, pairs.counts()
 
 
@@ -360,7 +367,9 @@ def camera_offsets(pairs, matrices, offsets) -> np.ndarray:
     return off - np.sum(off * r, axis=1)[:, None] * r  # normal to the star
 
 
-def _catalogue_errors(pairs, matrices, weights, offsets) -> tuple[np.ndarray, np.ndarray]:
+def _catalogue_errors(
+    pairs, matrices, weights, offsets, *, presence=None
+) -> tuple[np.ndarray, np.ndarray]:
     """Return the attitude error (cross, roll) per pointing (M,), rad, from the stars' offsets.
 
     The offset of a star's database position is the same bias in every frame that holds it,
@@ -369,10 +378,11 @@ def _catalogue_errors(pairs, matrices, weights, offsets) -> tuple[np.ndarray, np
     modelled, per pointing. The solver's weighted fit of the offsets alone, after its robust
     fit drops the stars they pull past ``OUTLIER_SIGMA`` (:func:`_outliers`): ``dtheta =
     -F^-1 sum_i w_i [r_i]x b_i``, ``F = sum_i w_i (I - r_i r_i^T)``; cross the rms of its x and
-    y, roll its z.
+    y, roll its z. A star in the fit by chance ``presence`` counts by it (the expected sums).
     """
     off = camera_offsets(pairs, matrices, offsets)
     w = np.where(dropped_stars(pairs, weights, off), 0.0, weights)
+    w = w if presence is None else w * presence
     r = np.asarray(pairs.v_cam, dtype=float)
     f = np.zeros((pairs.n_pointings, 3, 3))
     rhs = np.zeros((pairs.n_pointings, 3))

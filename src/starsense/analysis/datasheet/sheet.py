@@ -19,9 +19,8 @@ from starsense.analysis.availability.analysis import AvailabilityAnalysis
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
-from starsense.analysis.datasheet.catalogue import catalogue_term_rad, flux_ratio_error
 from starsense.analysis.datasheet.checks import sanity_warnings, solving_warnings
-from starsense.analysis.datasheet.field import field_stars_cam, tracked_stars
+from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
     StarModel,
@@ -45,17 +44,16 @@ from starsense.analysis.datasheet.sections import (
 )
 from starsense.analysis.datasheet.settings import DatasheetSettings
 from starsense.analysis.datasheet.skycache import limit_sigmas
+from starsense.analysis.datasheet.stars import fitted_stars
 from starsense.analysis.datasheet.verify import run_checks
 from starsense.analysis.inputs import (
     as_catalog,
     as_sensor,
     completed_sky,
-    held_by,
     root_seed,
 )
 from starsense.analysis.sensor_detection import sensor_detection
 from starsense.photometry.colour import with_johnson_from_gaia
-from starsense.photometry.sensitivity import Sensitivity
 from starsense.render.scene import check_frame_size
 from starsense.solve.solver import Solver
 from starsense.units import DEG, RAD_TO_ARCSEC, RAD_TO_DEG
@@ -176,19 +174,19 @@ def _settings(settings: DatasheetSettings, catalog_name: str, cut: float | None)
     )
 
 
-def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, database):
-    """Return the sky statistics: star model, stars, boresights, per-attitude sigmas, bound.
+def _sky_noise(cat, sensor, st: DatasheetSettings, detection, fov, database):
+    """Return the sky statistics: star model, fitted stars, boresights, per-attitude sigmas, bound.
 
-    ``database``: the solver's catalogue (whose stars' streak blends the solver models).
+    ``detection``: the limiting magnitude at rest and the slew tolerance run; ``database``:
+    the solver's catalogue.
     """
+    limit_mag, slew = detection
     vectors, mags = catalog_stars(cat, limit_mag, band="V")
     every = np.asarray(cat.mags["V"], dtype=float)  # the frames hold all of them
-    held, sens = held_by(cat, database), Sensitivity.for_sensor(sensor, st.model)
-    flux_error = flux_ratio_error(cat, database, sens)
     if st.refine == "model":  # the fit draws the frames' own sky (montecarlo: Solver(sky=))
-        held, flux_error = np.ones(len(every), dtype=bool), 0.0
+        held = np.ones(len(every), dtype=bool)
     else:  # the centroids' attitude models no neighbour: every one pulls unmodelled
-        held, flux_error = np.zeros(len(every), dtype=bool), 0.0
+        held = np.zeros(len(every), dtype=bool)
     model = StarModel.build(
         sensor,
         model=st.model,
@@ -197,26 +195,20 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, limit_mag: float, fov, databa
         star_counts=every,
         unmodelled=every[~held],
         modelled=every[held],
-        flux_error=flux_error,
         refine=st.refine,
     )
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     counts = field_stars_cam(fov, mats, vectors).counts()  # every detectable star
-    # the NEA of the stars the solver is sure to fit: its identification database's (the
-    # brightest per field-sized region). The model fit adds the other stars the detector finds
-    # (solve.in_view), but a star near the limit is found in some frames only: counted whole,
-    # every star to the limit made the prediction 23 % too good on a crowded 16-bit CCD
-    used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])
-    vectors, mags = vectors[used], mags[used]
-    catalogue = catalogue_term_rad(cat, sensor, max_mag=limit_mag)  # frames vs the database
-    catalogue = None if catalogue is None else catalogue[used]
+    # the stars in the fit, each by its chance of detection (the slew run's at rest)
+    fitted = fitted_stars(cat, sensor, slew=slew, limit_mag=limit_mag, refine=st.refine)
+    v, m, p, catalogue = fitted.at(0.0)
     kinds = error_kinds(sensor) + (() if catalogue is None else ("catalogue",))
     sig, _ = nea_at(
-        model, fov, mats, vectors=vectors, magnitudes=mags, kinds=kinds, catalogue=catalogue
+        model, fov, mats, vectors=v, magnitudes=m, kinds=kinds, catalogue=catalogue, presence=p
     )
     lim = _limit(cat, sensor, fov, mats)
-    return model, (vectors, catalogue), mags, boresights, mats, sig, counts, lim
+    return model, fitted, boresights, mats, sig, counts, lim
 
 
 def build_datasheet(
@@ -267,10 +259,10 @@ def build_datasheet(
     # frames see one sky, the one the solver models)
     database = Solver(sensor=sensor).catalog
     sky_cat = completed_sky(cat, database)
-    model, stars_used, mags, boresights, mats, sig, counts, lim = _sky_noise(
-        sky_cat, sensor, st, limit_mag, fov, database
+    model, fitted, boresights, mats, sig, counts, lim = _sky_noise(
+        sky_cat, sensor, st, (limit_mag, slew), fov, database
     )
-    vectors = stars_used[0]
+    vectors, mags, presence, _ = fitted.at(0.0)
     tick("noise")
     nea = _arcsec_stats(*sig["nea"])
     stars = StarsInFov(float(np.median(counts)), float(np.percentile(counts, 5)))
@@ -281,9 +273,7 @@ def build_datasheet(
         else None
         for k in ("cross", "roll")
     }
-    at_rate = np.interp(st.rate_rad_s * RAD_TO_DEG, avail.rates_deg_s, avail.threshold_mag_at_rate)
-    sky = (model, fov, stars_used, mags, float(at_rate))
-    runs = run_checks(sensor, sky_cat, st, sky=sky, client=client, tick=tick)
+    runs = run_checks(sensor, sky_cat, st, sky=(model, fov, fitted), client=client, tick=tick)
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
@@ -306,7 +296,7 @@ def build_datasheet(
                 nea,
                 errors=errors,
                 pse_px=pse,
-                dsnu=_dsnu_growth(sensor, st, limit_mag, fov, (vectors, mags, mats), nea),
+                dsnu=_dsnu_growth(sensor, st, fov, (vectors, mags, presence, mats), nea),
                 refine=st.refine,
             )
         ),
@@ -334,7 +324,7 @@ def build_datasheet(
     )
 
 
-def _dsnu_growth(sensor, st, limit_mag, fov, sky, nea: AxisSpread) -> AxisPair | None:
+def _dsnu_growth(sensor, st, fov, sky, nea: AxisSpread) -> AxisPair | None:
     """Return how much the DSNU grows the NEA (quadrature difference of sky medians), arcsec.
 
     The dark-signal non-uniformity left after the dark frame acts, for one frame, as a second
@@ -343,14 +333,15 @@ def _dsnu_growth(sensor, st, limit_mag, fov, sky, nea: AxisSpread) -> AxisPair |
     det = sensor.detector
     if det.dsnu_e <= 0 or nea.cross.median is None:
         return None
-    vectors, mags, mats = sky
+    vectors, mags, presence, mats = sky
     noisier = sensor.with_(
         detector=dataclasses.replace(det, read_noise_e=math.hypot(det.read_noise_e, det.dsnu_e))
     )
+    limit_mag = float(np.max(mags))
     model = StarModel.build(
         noisier, model=st.model, bright_mag=float(np.min(mags)), faint_mag=limit_mag
     )
-    sig, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=mags)
+    sig, _ = nea_at(model, fov, mats, vectors=vectors, magnitudes=mags, presence=presence)
     grown = _arcsec_stats(*sig["nea"])
     return AxisPair(
         *(

@@ -115,17 +115,7 @@ def _pct(values: np.ndarray, q: float) -> float | None:
     return float(np.percentile(values, q)) if len(values) else None
 
 
-def score_montecarlo(
-    res,
-    model,
-    *,
-    fov,
-    vectors,
-    magnitudes,
-    predict: bool = True,
-    limit_mag_at_rate=None,
-    catalogue=None,
-) -> dict[str, Any]:
+def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[str, Any]:
     """Return the JSON-ready summary of a Monte Carlo run against the datasheet's prediction.
 
     Parameters
@@ -136,20 +126,15 @@ def score_montecarlo(
         The datasheet's star model.
     fov : RectangularFov
         The sensor's field.
-    vectors, magnitudes : ndarray
-        The stars the prediction uses (those the tracker fits, detectable at rest).
+    stars : FittedStars
+        The stars the solver may fit, each counted by its chance of detection at the run's
+        rate (:class:`starsense.analysis.datasheet.stars.FittedStars`); at a rate the
+        prediction is the model fit's information of the smeared stars
+        (:func:`starsense.analysis.datasheet.model_noise.model_nea_at_rate`). A centre-of-gravity
+        solver is predicted at rest only (its windowed noise): at a rate its run is measured,
+        not compared.
     predict : bool
         Compare with the prediction (False: only the measurement is reported).
-    limit_mag_at_rate : float, optional
-        For a run at a rate: the faintest magnitude detected at that rate (the datasheet's
-        threshold at the rate); the prediction is the model fit's information of the smeared
-        stars down to it (:func:`starsense.analysis.datasheet.model_noise.model_nea_at_rate`).
-        None keeps every star of ``magnitudes``. A centre-of-gravity solver is predicted at
-        rest only (its windowed noise): at a rate its run is measured, not compared.
-    catalogue : ndarray (N,), optional
-        Each star's database position less its rendered one, ICRS, rad (frames
-        rendered from another catalogue than the solver's database:
-        :func:`starsense.analysis.datasheet.catalogue.rendered_against_database_rad`).
 
     Returns
     -------
@@ -182,16 +167,16 @@ def score_montecarlo(
             out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
         return out
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
+    vectors, magnitudes, presence, catalogue = stars.at(res.rate_rad_s)
     if res.rate_rad_s > 0:
-        mags = np.asarray(magnitudes, dtype=float)
-        keep = mags <= (np.inf if limit_mag_at_rate is None else limit_mag_at_rate)
         cross, roll = model_nea_at_rate(
             model,
             fov,
             mats,
             rates_rad_s=res.rates_rad_s,
-            vectors=np.asarray(vectors)[keep],
-            magnitudes=mags[keep],
+            vectors=vectors,
+            magnitudes=magnitudes,
+            presence=presence,
         )
     else:
         kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
@@ -204,6 +189,7 @@ def score_montecarlo(
             magnitudes=magnitudes,
             kinds=kinds,
             catalogue=catalogue,
+            presence=presence,
         )
         cross = np.sqrt(sum(pred[k][0] ** 2 for k in kinds))
         roll = np.sqrt(sum(pred[k][1] ** 2 for k in kinds))
@@ -275,12 +261,11 @@ def run_checks(sensor, cat, st, *, sky, client, tick) -> dict[str, MonteCarloChe
     """Return the Monte Carlo checks at rest and at the settings' rate, scored.
 
     ``sensor`` and ``cat`` are rendered and solved (:func:`starsense.analysis.montecarlo.
-    montecarlo`) as ``st`` (DatasheetSettings) says; ``sky``: the star model, the field, the
-    (vectors, catalogue offsets) and magnitudes of the stars the solver fits, the faintest
-    magnitude detected at the rate; ``client`` a Dask client or None; ``tick(name)`` is called
-    after each run.
+    montecarlo`) as ``st`` (DatasheetSettings) says; ``sky``: the star model, the field and
+    the stars the solver may fit (:class:`~starsense.analysis.datasheet.stars.FittedStars`);
+    ``client`` a Dask client or None; ``tick(name)`` is called after each run.
     """
-    model, fov, (vectors, catalogue), mags, limit = sky
+    model, fov, stars = sky
     runs = {}
     rate_trials = st.n_trials if st.n_rate_trials is None else st.n_rate_trials
     for key, rate, n in (
@@ -300,16 +285,6 @@ def run_checks(sensor, cat, st, *, sky, client, tick) -> dict[str, MonteCarloChe
             client=client,
             refine=st.refine,
         )
-        runs[key] = MonteCarloCheck(
-            **score_montecarlo(
-                res,
-                model,
-                fov=fov,
-                vectors=vectors,
-                magnitudes=mags,
-                limit_mag_at_rate=limit,
-                catalogue=catalogue,
-            )
-        )
+        runs[key] = MonteCarloCheck(**score_montecarlo(res, model, fov=fov, stars=stars))
         tick(key.replace("_", " "))
     return runs

@@ -3,8 +3,8 @@
 The statement is computed on the datasheet's own sky statistics: the same catalogue (completed
 with the solver's database, :func:`starsense.analysis.inputs.completed_sky`), the same
 quasi-uniform attitudes (:func:`starsense.analysis.availability.pointings.sky_attitudes`, its
-seed), the same stars (those detected at rest; for the centre-of-gravity solver those its
-database holds) and the same star model
+seed), the same stars (each counted by its chance of detection,
+:mod:`starsense.analysis.datasheet.stars`) and the same star model
 (:class:`starsense.analysis.datasheet.predict.StarModel`). Per attitude its X and Y are
 then the datasheet's cross split in two (``X^2 + Y^2 = 2 cross^2``).
 """
@@ -16,18 +16,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
-from starsense.analysis.datasheet.field import FieldStarsCam, field_stars_cam, tracked_stars
+from starsense.analysis.datasheet.field import FieldStarsCam, field_stars_cam
 from starsense.analysis.datasheet.model_noise import model_fisher_at_rate
 from starsense.analysis.datasheet.predict import StarModel
+from starsense.analysis.datasheet.stars import FittedStars, fitted_stars
 from starsense.analysis.ecss.axes import fisher_axes, propagated_axes
 from starsense.analysis.inputs import completed_sky
 from starsense.errors import InputError
 from starsense.solve.solver import Solver
 from starsense.units import RAD_TO_DEG
 
-__all__ = ["MAX_RATE_ATTITUDES", "SkyStars", "sky_stars", "threshold_at"]
+__all__ = ["MAX_RATE_ATTITUDES", "SkyStars", "sky_stars"]
 
 #: the most attitudes the noise at a rate is computed over (its sky median to a few per cent)
 MAX_RATE_ATTITUDES = 200
@@ -49,8 +49,10 @@ class SkyStars:
         The sensor's field.
     matrices : ndarray (M, 3, 3)
         Attitudes, ICRS -> camera.
-    vectors, magnitudes : ndarray (N, 3), (N,)
-        The stars used (detected at rest), ICRS, V.
+    stars : FittedStars
+        The stars the solver may fit, with their chances of detection.
+    vectors, magnitudes, presence : ndarray (N, 3), (N,), (N,)
+        Those it may fit at rest (ICRS, V) and the chance each is in the fit.
     pairs : FieldStarsCam
         Those in the field of each attitude.
     weights : ndarray (P,)
@@ -64,8 +66,10 @@ class SkyStars:
     model: StarModel
     fov: object
     matrices: np.ndarray
+    stars: FittedStars
     vectors: np.ndarray
     magnitudes: np.ndarray
+    presence: np.ndarray
     pairs: FieldStarsCam
     weights: np.ndarray
     seed: int
@@ -80,15 +84,18 @@ class SkyStars:
         """Return the X, Y, Z error (M, 3), rad, of a per-star error kind of the star model."""
         mags = self.magnitudes[self.pairs.star]
         sigma = self.model.star_sigmas_rad(mags, self.pairs.v_cam[:, 2], kind)
-        return propagated_axes(self.pairs, self.weights, np.where(np.isfinite(sigma), sigma, 0.0))
+        error = np.where(np.isfinite(sigma), sigma, 0.0)
+        return propagated_axes(
+            self.pairs, self.weights, error, presence=self.presence[self.pairs.star]
+        )
 
-    def temporal_at_rate(self, rate_rad_s: float, limit_mag: float) -> np.ndarray:
+    def temporal_at_rate(self, rate_rad_s: float) -> np.ndarray:
         """Return the model fit's X, Y, Z noise (M, 3), rad, at a cross-boresight body rate.
 
         Each attitude turns about a cross-boresight axis at its own angle, spread evenly over
         the circle (the datasheet's Monte Carlo draws it at random,
         :func:`starsense.analysis.montecarlo.montecarlo`), from the seed;
-        the stars are those detected at the rate (V <= ``limit_mag``). A smeared star's
+        each star counts by its chance of detection at the rate. A smeared star's
         information is computed star by star (about a millisecond each), so the attitudes are
         thinned to at most :data:`MAX_RATE_ATTITUDES`, every :attr:`rate_stride`-th of the
         lattice (which spirals from pole to pole: a stride keeps it spread over the sky).
@@ -97,7 +104,18 @@ class SkyStars:
         -------
         ndarray (K, 3)
             rad, over the ``K`` attitudes kept.
+
+        Raises
+        ------
+        InputError
+            Past the slew tolerance run's top rate (no chance of detection known there).
         """
+        top = float(np.max(self.stars.slew.rates_rad_s))
+        if rate_rad_s > top * (1.0 + 1e-9):
+            raise InputError(
+                f"rate {rate_rad_s * RAD_TO_DEG:g} deg/s is past the slew tolerance run's top "
+                f"rate {top * RAD_TO_DEG:.3g} deg/s; give rates up to it"
+            )
         mats = self.matrices[:: self.rate_stride]
         m = len(mats)
         # the directions stratified over the circle (a golden-ratio sequence from a random
@@ -105,19 +123,20 @@ class SkyStars:
         start = np.random.default_rng([self.seed, _RATE_STREAM]).uniform()
         phi = 2.0 * math.pi * np.mod(start + np.arange(m) * _GOLDEN, 1.0)
         rates = rate_rad_s * np.column_stack([np.cos(phi), np.sin(phi), np.zeros(m)])
-        keep = self.magnitudes <= limit_mag
+        vectors, mags, presence, _ = self.stars.at(rate_rad_s)
         fisher = model_fisher_at_rate(
             self.model,
             self.fov,
             mats,
             rates_rad_s=rates,
-            vectors=self.vectors[keep],
-            magnitudes=self.magnitudes[keep],
+            vectors=vectors,
+            magnitudes=mags,
+            presence=presence,
         )
         return fisher_axes(fisher)
 
 
-def sky_stars(sensor, catalog, settings, *, limit_mag: float) -> SkyStars:
+def sky_stars(sensor, catalog, settings, *, limit_mag: float, slew) -> SkyStars:
     """Return the datasheet's sky of ``sensor`` (module docstring).
 
     Parameters
@@ -129,15 +148,16 @@ def sky_stars(sensor, catalog, settings, *, limit_mag: float) -> SkyStars:
         Its attitudes (``n_orientations``, ``seed``), model and solver (``refine``).
     limit_mag : float
         The datasheet's limiting magnitude at rest, V.
+    slew : SlewResult
+        The datasheet's slew tolerance run (each star's chance of detection).
 
     Returns
     -------
     SkyStars
     """
     cat = completed_sky(catalog, Solver(sensor=sensor).catalog)
-    vectors, mags = catalog_stars(cat, limit_mag, band="V")
-    used = tracked_stars(vectors, mags, 2.0 * sensor.half_fov_rad[0])  # as the datasheet
-    vectors, mags = vectors[used], mags[used]
+    stars = fitted_stars(cat, sensor, slew=slew, limit_mag=limit_mag, refine=settings.refine)
+    vectors, mags, presence, _ = stars.at(0.0)  # as the datasheet
     model = StarModel.build(
         sensor,
         model=settings.model,
@@ -150,23 +170,7 @@ def sky_stars(sensor, catalog, settings, *, limit_mag: float) -> SkyStars:
     fov = sensor.fov()
     pairs = field_stars_cam(fov, mats, vectors)
     sigma_w = model.star_sigmas_rad(mags[pairs.star], pairs.v_cam[:, 2], "weight")
+    weights = 1.0 / sigma_w**2
     return SkyStars(
-        model, fov, mats, vectors, mags, pairs, 1.0 / sigma_w**2, settings.seed, catalog
+        model, fov, mats, stars, vectors, mags, presence, pairs, weights, settings.seed, catalog
     )
-
-
-def threshold_at(dynamic, rate_rad_s: float) -> float:
-    """Return the faintest magnitude detected at ``rate_rad_s`` (the datasheet's slew curve).
-
-    Raises
-    ------
-    InputError
-        Past the top rate of the curve (the slew tolerance run).
-    """
-    rates = np.asarray(dynamic.rates_rad_s, dtype=float)
-    if rate_rad_s > rates[-1] * (1.0 + 1e-9):
-        raise InputError(
-            f"rate {rate_rad_s * RAD_TO_DEG:g} deg/s is past the slew tolerance run's top rate "
-            f"{rates[-1] * RAD_TO_DEG:.3g} deg/s; give rates up to it"
-        )
-    return float(np.interp(rate_rad_s, rates, np.asarray(dynamic.threshold_mag, dtype=float)))

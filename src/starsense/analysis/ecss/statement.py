@@ -201,7 +201,7 @@ def ecss_statement(
     sheet = sheet if sheet is not None else build_datasheet(sensor, cat, settings=st)
     if sheet.limiting_magnitude is None:
         raise InputError(f"{sensor.name} detects no star at rest: it has no statement")
-    sky = sky_stars(sensor, cat, st, limit_mag=sheet.limiting_magnitude)
+    sky = sky_stars(sensor, cat, st, limit_mag=sheet.limiting_magnitude, slew=sheet.slew)
     rates_rad = [r * DEG for r in rates]
     terms = error_terms(
         sensor,
@@ -209,7 +209,6 @@ def ecss_statement(
         st,
         limit_mag=sheet.limiting_magnitude,
         rates_rad_s=rates_rad,
-        dynamic=sheet.dynamic,
     )
     k, p = gaussian_factor(confidence), float(confidence)
     geometry = (2.0 * min(sensor.half_fov_rad), sky.model.pixel_rad)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from starsense.analysis.datasheet.terms import EARTH_ORBITAL_SPEED_M_S, aberration_error
-from starsense.analysis.ecss.sky import SkyStars, sky_stars, threshold_at
+from starsense.analysis.ecss.sky import SkyStars, sky_stars
 from starsense.units import ARCSEC
 
 __all__ = ["Term", "error_terms"]
@@ -169,7 +169,9 @@ def _pixel_terms(sensor, sky: SkyStars, settings, limit_mag, n_rates) -> list[Te
                 det, read_noise_e=float(np.hypot(det.read_noise_e, det.dsnu_e))
             )
         )
-        grown = sky_stars(noisier, sky.catalog, settings, limit_mag=limit_mag).propagated("nea")
+        grown = sky_stars(
+            noisier, sky.catalog, settings, limit_mag=limit_mag, slew=sky.stars.slew
+        ).propagated("nea")
         dsnu = np.sqrt(np.maximum(grown**2 - sky.propagated("nea") ** 2, 0.0))
     dsnu_term = Term(
         "pixel_spatial_dsnu",
@@ -185,13 +187,13 @@ def _pixel_terms(sensor, sky: SkyStars, settings, limit_mag, n_rates) -> list[Te
     return [interp, prnu, dsnu_term]
 
 
-def _temporal(sky: SkyStars, rates_rad_s, dynamic) -> Term:
+def _temporal(sky: SkyStars, rates_rad_s) -> Term:
     values = []
     for rate in rates_rad_s:
         if rate <= 0.0:
             values.append(sky.propagated("nea"))
         elif sky.model.refine == "model":
-            values.append(sky.temporal_at_rate(rate, threshold_at(dynamic, rate)))
+            values.append(sky.temporal_at_rate(rate))
         else:
             values.append(None)
     kept = len(sky.matrices[:: sky.rate_stride])
@@ -231,7 +233,7 @@ def _aberration(sensor, n_rates: int) -> list[Term]:
     return out
 
 
-def error_terms(sensor, sky: SkyStars, settings, *, limit_mag, rates_rad_s, dynamic) -> list[Term]:
+def error_terms(sensor, sky: SkyStars, settings, *, limit_mag, rates_rad_s) -> list[Term]:
     """Return the statement's terms of ``sensor`` at ``rates_rad_s`` (module docstring).
 
     Parameters
@@ -244,8 +246,6 @@ def error_terms(sensor, sky: SkyStars, settings, *, limit_mag, rates_rad_s, dyna
         The limiting magnitude at rest, V.
     rates_rad_s : sequence of float
         Body rates, rad/s.
-    dynamic : DynamicAvailability
-        The datasheet's availability against rate (its threshold magnitude at each rate).
 
     Returns
     -------
@@ -257,6 +257,6 @@ def error_terms(sensor, sky: SkyStars, settings, *, limit_mag, rates_rad_s, dyna
         _given(sensor, "thermo_elastic", n),
         _fov_spatial(sensor, sky, n),
         *_pixel_terms(sensor, sky, settings, limit_mag, n),
-        _temporal(sky, rates_rad_s, dynamic),
+        _temporal(sky, rates_rad_s),
         *_aberration(sensor, n),
     ]
