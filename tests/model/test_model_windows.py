@@ -11,8 +11,9 @@ from scipy.spatial.transform import Rotation
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.model.fit import fit_windows
 from starsense.model.psf import pixel_psf
+from starsense.model.stamps import by_nodes, source_stamps, stamp_side
 from starsense.model.tracks import NodePositions, node_positions, time_nodes
-from starsense.model.windows import by_nodes, evaluate, make_windows, source_stamps, stamp_side
+from starsense.model.windows import evaluate, make_windows
 from starsense.sensor import load_sensor
 from starsense.sensor.psf_spec import PSFSpec
 

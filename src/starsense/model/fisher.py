@@ -25,8 +25,8 @@ import numpy as np
 
 from starsense.model.fit import pixel_variance, window_half_px
 from starsense.model.psf import PixelPSF, psf_of
+from starsense.model.stamps import source_stamps
 from starsense.model.tracks import NodePositions, time_nodes
-from starsense.model.windows import source_stamps
 
 __all__ = ["attitude_information", "position_information", "position_sigma_px"]
 

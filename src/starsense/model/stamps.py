@@ -1,0 +1,183 @@
+"""One source's light on the pixels of its box, and its derivatives: the model's stamps.
+
+A star's template is the pixel-integrated PSF (:mod:`starsense.model.psf`) summed over its
+time nodes (:mod:`starsense.model.tracks`) with their quadrature weights, on the rows and
+columns of its box; its derivatives with respect to the geometric parameters follow the
+nodes' (``-dP/ddx dx_k/dp - dP/ddy dy_k/dp``). Each node lights the pixels within the reach
+``half_px`` of it, the padding of a star's box at rest. A Gaussian is separable (outer
+products of 1-D pixel fractions); a long streak, whose box is mostly pixels far from any one
+node, is drawn node by node: each node's small stamp added into the box
+(:func:`by_nodes`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from starsense.model.psf import PixelPSF, gaussian_pixel_1d
+from starsense.model.tracks import NodePositions
+
+__all__ = ["STAMP_CHUNK", "by_nodes", "source_stamps", "stamp_side"]
+
+#: most stamp pixels (sources x time nodes x stamp area) drawn at once: ~10 arrays of 16 MB
+STAMP_CHUNK = 2_000_000
+
+
+def _gaussian_width_1d(d, sigma):
+    """Return d/dsigma of a 1-D Gaussian's pixel fractions at offsets ``d``.
+
+    ``-(a phi(a) - b phi(b)) / sigma`` with ``a, b = (d +- 1/2) / sigma``.
+    """
+    a, b = (d + 0.5) / sigma, (d - 0.5) / sigma
+    return -(a * np.exp(-0.5 * a * a) - b * np.exp(-0.5 * b * b)) * _INV_SQRT2PI / sigma
+
+
+_INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
+
+
+def _static_gaussian(sigma, nodes: NodePositions, idx, rows, cols, gradient, width):
+    """:func:`source_stamps` of Gaussian stars at rest (one time node)."""
+    px, dpx = gaussian_pixel_1d(cols - nodes.x[idx, :1], sigma)  # (S, w)
+    py, dpy = gaussian_pixel_1d(rows - nodes.y[idx, :1], sigma)  # (S, h)
+    t = py[:, :, None] * px[:, None, :]
+    if not gradient:
+        return t, None
+    ax, ay = nodes.dx[idx, 0], nodes.dy[idx, 0]  # (S, P)
+    gx = py[:, :, None] * dpx[:, None, :]  # d t / d(dx)
+    gy = dpy[:, :, None] * px[:, None, :]
+    d = -(ax[:, :, None, None] * gx[:, None] + ay[:, :, None, None] * gy[:, None])
+    if width:
+        dw = _gaussian_width_1d(rows - nodes.y[idx, :1], sigma)[:, :, None] * px[:, None, :]
+        dw += py[:, :, None] * _gaussian_width_1d(cols - nodes.x[idx, :1], sigma)[:, None, :]
+        d = np.concatenate([d, dw[:, None]], axis=1)
+    return t, d
+
+
+def stamp_side(half_px: float) -> int:
+    """Return the side of a time node's stamp: every pixel centre within ``half_px`` of it."""
+    return math.floor(2.0 * half_px) + 2
+
+
+def by_nodes(area_px: int, n_nodes: int, half_px: float) -> bool:
+    """Return whether a track's light is drawn node by node (:func:`source_stamps`).
+
+    A long streak's box is mostly pixels far from any one node: drawing each node's stamp
+    costs ``K n^2`` against ``K`` times the box, so the stamps are drawn where the box holds
+    more than four of them.
+    """
+    return n_nodes > 1 and 4 * stamp_side(half_px) ** 2 < area_px
+
+
+def source_stamps(
+    psf: PixelPSF,
+    nodes: NodePositions,
+    idx,
+    *,
+    rows,
+    cols,
+    half_px,
+    origin=None,
+    gradient=True,
+    width=False,
+):
+    """Return templates (S, h, w) of sources ``idx`` and their derivatives (S, P, h, w).
+
+    Over pixel rows (S, h) and columns (S, w) of the detector. With ``width`` (a Gaussian), the
+    derivative with respect to the PSF's sigma is appended (P + 1 columns). Each time node
+    lights the pixels of a stamp of :func:`stamp_side` pixels a side around it (the reach
+    ``half_px`` of a star's box at rest), whose first row and column are ``origin`` (S, K, 2)
+    (default: where the nodes are now): a streak whose box holds many such stamps is drawn
+    node by node (:func:`by_nodes`).
+    """
+    wk = nodes.weights
+    xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
+    if by_nodes(rows.shape[1] * cols.shape[1], len(wk), half_px):
+        if origin is None:
+            origin = np.stack([np.floor(yk - half_px + 0.5), np.floor(xk - half_px + 0.5)], -1)
+        # in chunks of sources whose stamps hold at most STAMP_CHUNK pixels (bounded memory)
+        step = max(1, STAMP_CHUNK // (len(wk) * stamp_side(half_px) ** 2))
+        parts = [
+            _node_stamps(
+                psf, nodes, idx[a : a + step], (rows[a : a + step], cols[a : a + step],
+                origin[a : a + step]), half_px, gradient, width,
+            )
+            for a in range(0, len(idx), step)
+        ]  # fmt: skip
+        t = np.concatenate([p[0] for p in parts])
+        return t, (np.concatenate([p[1] for p in parts]) if gradient else None)
+    if psf.spec.is_gaussian and len(wk) == 1:  # at rest: outer products, no sums over time
+        return _static_gaussian(psf.sigma_px, nodes, idx, rows, cols, gradient, width)
+    if psf.spec.is_gaussian:  # separable: sums over nodes are matrix products
+        sigma = psf.sigma_px
+        dxp, dyp = cols[:, None, :] - xk[:, :, None], rows[:, None, :] - yk[:, :, None]
+        px, dpx = gaussian_pixel_1d(dxp, sigma)
+        py, dpy = gaussian_pixel_1d(dyp, sigma)
+        t = np.einsum("skr,k,skc->src", py, wk, px)
+        if not gradient:
+            return t, None
+        ax = wk[None, :, None] * nodes.dx[idx]  # (S, K, P)
+        ay = wk[None, :, None] * nodes.dy[idx]
+        d = -(
+            np.einsum("skr,skp,skc->sprc", py, ax, dpx)
+            + np.einsum("skr,skp,skc->sprc", dpy, ay, px)
+        )
+        if width:
+            sx, sy = _gaussian_width_1d(dxp, sigma), _gaussian_width_1d(dyp, sigma)
+            dw = np.einsum("skr,k,skc->src", sy, wk, px) + np.einsum("skr,k,skc->src", py, wk, sx)
+            d = np.concatenate([d, dw[:, None]], axis=1)
+        return t, d
+    dxg = cols[:, None, None, :] - xk[:, :, None, None]  # (S, K, h, w)
+    dyg = rows[:, None, :, None] - yk[:, :, None, None]
+    if not gradient:
+        return np.einsum("k,skrc->src", wk, psf.evaluate(dxg, dyg, gradient=False)), None
+    v, gx, gy = psf.evaluate(dxg, dyg)
+    t = np.einsum("k,skrc->src", wk, v)
+    d = -(
+        np.einsum("skrc,skp->sprc", gx, wk[None, :, None] * nodes.dx[idx])
+        + np.einsum("skrc,skp->sprc", gy, wk[None, :, None] * nodes.dy[idx])
+    )
+    return t, d
+
+
+def _node_stamps(psf: PixelPSF, nodes: NodePositions, idx, grid, half_px, gradient, width):
+    """:func:`source_stamps` drawn node by node: each node's stamp added into its source's box.
+
+    ``grid``: the boxes' rows (S, h) and columns (S, w), and the stamps' origins (S, K, 2).
+    """
+    rows, cols, origin = grid
+    wk = nodes.weights
+    xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
+    n_src, (h, w), n = len(xk), (rows.shape[1], cols.shape[1]), stamp_side(half_px)
+    origin = np.asarray(origin).astype(np.int64)
+    r = origin[:, :, 0, None] + np.arange(n)  # (S, K, n)
+    c = origin[:, :, 1, None] + np.arange(n)
+    dy, dx = r - yk[:, :, None], c - xk[:, :, None]
+    if psf.spec.is_gaussian:
+        px, dpx = gaussian_pixel_1d(dx, psf.sigma_px)
+        py, dpy = gaussian_pixel_1d(dy, psf.sigma_px)
+        v = py[..., :, None] * px[..., None, :]  # (S, K, n, n)
+        gx, gy = py[..., :, None] * dpx[..., None, :], dpy[..., :, None] * px[..., None, :]
+    else:
+        v, gx, gy = psf.evaluate(dx[..., None, :], dy[..., :, None])
+    lr, lc = r - rows[:, :1, None], c - cols[:, :1, None]  # in the source's box
+    inside = ((lr >= 0) & (lr < h))[..., :, None] & ((lc >= 0) & (lc < w))[..., None, :]
+    at = ((np.arange(n_src)[:, None, None] * h + lr)[..., :, None] * w + lc[..., None, :])[inside]
+    t = np.bincount(at, (wk[None, :, None, None] * v)[inside], n_src * h * w)
+    t = t.reshape(n_src, h, w)
+    if not gradient:
+        return t, None
+    ax = wk[None, :, None] * nodes.dx[idx]  # (S, K, P)
+    ay = wk[None, :, None] * nodes.dy[idx]
+    parts = [
+        -(gx * ax[:, :, p, None, None] + gy * ay[:, :, p, None, None]) for p in range(ax.shape[-1])
+    ]
+    if width and psf.spec.is_gaussian:
+        sx, sy = _gaussian_width_1d(dx, psf.sigma_px), _gaussian_width_1d(dy, psf.sigma_px)
+        dw = sy[..., :, None] * px[..., None, :] + py[..., :, None] * sx[..., None, :]
+        parts.append(wk[None, :, None, None] * dw)
+    d = np.stack(
+        [np.bincount(at, q[inside], n_src * h * w).reshape(n_src, h, w) for q in parts], axis=1
+    )
+    return t, d
