@@ -243,3 +243,23 @@ def test_blends_among_a_list_do_not_hide_in_its_scatter(n, n_blends, most):
         assert keep[n_blends:].all()
         missed += bool(keep[:n_blends].any())
     assert missed <= most
+
+
+def test_residual_scaled_keeps_a_fits_matrix_unbuilt():
+    # the Birge-scaled copy of a fit given as a matrix: the same matrix, not yet a Rotation
+    # (building it is ~50 us a centroid solve need not pay), and the Rotation when read
+    from starsense.attitude.robust import residual_scaled
+
+    rng = np.random.default_rng(9)
+    b_true = star_field(rng, 12, 15.0)
+    sigma = np.full(12, 10.0 * ARCSEC)
+    body = add_noise(rng, b_true, 3.0 * sigma)  # residuals 3 times their sigma: ratio ~9
+    att = kernel_fit(body, b_true, sigma)
+    if att.__dict__["_matrix"] is None:
+        pytest.skip("no compiled kernel: the fit is a Rotation already")
+    got = residual_scaled(att)
+    assert got.__dict__["_rotation"] is None and got.matrix is att.matrix
+    ratio = 2.0 * att.loss / att.chi2_dof
+    assert ratio > 1.0
+    np.testing.assert_allclose(got.covariance_rad2, att.covariance_rad2 * ratio, rtol=1e-15)
+    np.testing.assert_array_equal(got.rotation.as_matrix(), att.rotation.as_matrix())

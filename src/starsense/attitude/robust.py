@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -278,4 +277,4 @@ def residual_scaled(att):
     ratio = 2.0 * float(att.loss) / dof
     if ratio <= 1.0:
         return att
-    return dataclasses.replace(att, covariance_rad2=np.asarray(att.covariance_rad2) * ratio)
+    return att.replaced(covariance_rad2=np.asarray(att.covariance_rad2) * ratio)
