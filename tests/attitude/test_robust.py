@@ -8,7 +8,13 @@ from attitude_fields import ARCSEC, add_noise, star_field
 from scipy.spatial.transform import Rotation
 
 from starsense.attitude.estimate import estimate_attitude
-from starsense.attitude.robust import median_misfit, pair_outliers, robust_attitude
+from starsense.attitude.robust import (
+    SCATTER_STARS,
+    median_misfit,
+    pair_outliers,
+    pair_scatter,
+    robust_attitude,
+)
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.solve.attitude_fit import kernel_fit
 
@@ -153,3 +159,107 @@ def test_pair_outliers_with_zero_sigmas_takes_the_median_of_what_is_defined():
         got = pair_outliers(body, ref, sigma)
         assert np.array_equal(got, _pair_outliers_reference(body, ref, sigma))
     assert set(np.flatnonzero(got)) == set(bad)
+
+
+def _list(rng, n, noise_rad, *, n_blends=0, blend_sigmas=30.0):
+    """A matched centroid list: n stars of `noise_rad` per axis, the first `n_blends` of them
+    moved exactly `blend_sigmas` noise sigmas in a random direction; (body, reference)."""
+    attitude = Rotation.random(random_state=rng)
+    b_true = star_field(rng, n, 15.0)
+    body = add_noise(rng, b_true, np.full(n, noise_rad))
+    step = rng.normal(size=(n_blends, 3))  # random directions in the stars' tangent planes
+    step -= np.sum(step * body[:n_blends], axis=1)[:, None] * body[:n_blends]
+    step /= np.linalg.norm(step, axis=1)[:, None]
+    angle = blend_sigmas * noise_rad
+    body[:n_blends] = np.cos(angle) * body[:n_blends] + np.sin(angle) * step
+    return body, attitude.inv().apply(b_true)
+
+
+def test_pair_scatter_is_the_medians_of_the_pair_angle_errors():
+    # against the definition written out: np.median over each star's other stars, then over
+    # the stars, of |measured - catalogue angle|, over 0.674 sqrt(2); and, over 400 lists of
+    # 14 stars, the noise itself: its mean within 4 % (one list's estimate scatters by ~20 %,
+    # the mean of 400 by ~1 %; a median of medians of correlated pairs is not exactly the
+    # half-normal's median: a few % of bias are allowed)
+    rng = np.random.default_rng(5)
+    noise = 40.0 * ARCSEC
+    got = []
+    for k in range(400):
+        body, ref = _list(rng, 14, noise)
+        got.append(pair_scatter(body, ref) / noise)
+        if k < 20:
+            d = np.abs(
+                np.arccos(np.clip(body @ body.T, -1, 1)) - np.arccos(np.clip(ref @ ref.T, -1, 1))
+            )
+            np.fill_diagonal(d, np.nan)
+            want = np.median(np.nanmedian(d, axis=1)) / (0.6744897501960817 * np.sqrt(2.0))
+            # arccos of a dot product near 1 loses ~1e-8 rad (sqrt of rounding) per angle
+            assert got[-1] * noise == pytest.approx(want, abs=1e-7 * noise / ARCSEC * ARCSEC)
+    assert abs(np.mean(got) - 1.0) < 0.04
+
+
+def test_a_lists_floor_sigma_rises_to_its_scatter_and_keeps_its_right_stars():
+    # 1 px centroids (40 arcsec) given a floor of 0.3 px (12 arcsec): at the floor the drops
+    # take right stars (about 1 in 9 lies beyond 7 floor sigmas); at the stars' own scatter
+    # none of 14 right stars is dropped in 200 lists (7 sigma of the estimate: P ~ 1e-10)
+    rng = np.random.default_rng(6)
+    noise, floor = 40.0 * ARCSEC, 12.0 * ARCSEC
+    dropped_at_floor = 0
+    for _ in range(200):
+        body, ref = _list(rng, 14, noise)
+        att, keep = robust_attitude(body, ref, floor, fit=kernel_fit, scatter=True)
+        assert keep.all()
+        # the fit of every star, its covariance at the sigma the stars show (>= the floor)
+        want = kernel_fit(body, ref, np.full(14, max(floor, pair_scatter(body, ref))))
+        assert np.array_equal(att.rotation.as_matrix(), want.rotation.as_matrix())
+        dropped_at_floor += int((~robust_attitude(body, ref, floor, fit=kernel_fit)[1]).sum())
+    assert dropped_at_floor > 100  # the defect this guards: ~14/9 per list at the floor
+
+
+def test_a_floor_above_the_scatter_and_few_stars_change_nothing():
+    rng = np.random.default_rng(7)
+    for n, noise in ((14, 2.0 * ARCSEC), (14, 12.0 * ARCSEC), (SCATTER_STARS - 1, 40.0 * ARCSEC)):
+        for _ in range(30):
+            body, ref = _list(rng, n, noise)
+            a, ka = robust_attitude(body, ref, 12.0 * ARCSEC, fit=kernel_fit, scatter=True)
+            b, kb = robust_attitude(body, ref, 12.0 * ARCSEC, fit=kernel_fit)
+            assert np.array_equal(ka, kb)
+            assert np.array_equal(a.covariance_rad2, b.covariance_rad2)
+
+
+@pytest.mark.parametrize("n, n_blends, most", [(16, 2, 0), (16, 3, 0), (SCATTER_STARS, 2, 9)])
+def test_blends_among_a_list_do_not_hide_in_its_scatter(n, n_blends, most):
+    # right stars at the floor's noise, some centroided 30 sigma off (blends): each right
+    # star's median pair ignores them, the scale stays near the floor (2 of 16: mean 1.23,
+    # largest 2.07 times it over 400 draws) and the drops take every blend and no right star;
+    # a quarter of 8 stars weighs in the medians: 1.1 % of such lists keep a blend (11 of
+    # 1,000 draws; the floor alone, none), at most 9 of these 300 (3 %; Poisson P ~ 0.2 %)
+    rng = np.random.default_rng(8)
+    sigma = 12.0 * ARCSEC
+    missed = 0
+    for _ in range(300):
+        body, ref = _list(rng, n, sigma, n_blends=n_blends)
+        _att, keep = robust_attitude(body, ref, sigma, fit=kernel_fit, scatter=True)
+        assert keep[n_blends:].all()
+        missed += bool(keep[:n_blends].any())
+    assert missed <= most
+
+
+def test_residual_scaled_keeps_a_fits_matrix_unbuilt():
+    # the Birge-scaled copy of a fit given as a matrix: the same matrix, not yet a Rotation
+    # (building it is ~50 us a centroid solve need not pay), and the Rotation when read
+    from starsense.attitude.robust import residual_scaled
+
+    rng = np.random.default_rng(9)
+    b_true = star_field(rng, 12, 15.0)
+    sigma = np.full(12, 10.0 * ARCSEC)
+    body = add_noise(rng, b_true, 3.0 * sigma)  # residuals 3 times their sigma: ratio ~9
+    att = kernel_fit(body, b_true, sigma)
+    if att.__dict__["_matrix"] is None:
+        pytest.skip("no compiled kernel: the fit is a Rotation already")
+    got = residual_scaled(att)
+    assert got.__dict__["_rotation"] is None and got.matrix is att.matrix
+    ratio = 2.0 * att.loss / att.chi2_dof
+    assert ratio > 1.0
+    np.testing.assert_allclose(got.covariance_rad2, att.covariance_rad2 * ratio, rtol=1e-15)
+    np.testing.assert_array_equal(got.rotation.as_matrix(), att.rotation.as_matrix())

@@ -14,7 +14,7 @@ the sigmas are right, so the loss is a consistency check as well as an objective
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -85,6 +85,17 @@ class AttitudeSolution:
     def sigma_axes_rad(self) -> NDArray[np.float64]:
         """sqrt(diag(covariance)), rad, shape (3,): cross-boresight x, y and roll about z."""
         return np.sqrt(np.diag(self.covariance_rad2))
+
+    def replaced(self, **changes) -> AttitudeSolution:
+        """Return ``dataclasses.replace(self, **changes)``, a fit's matrix kept unbuilt.
+
+        ``dataclasses.replace`` reads every field, which would make the Rotation of a matrix
+        given (~50 us, that a centroid solve need not pay); the rotation is passed on as
+        stored, a Rotation or the matrix.
+        """
+        stored = self.__dict__
+        rotation = stored["_rotation"] if stored["_rotation"] is not None else stored["_matrix"]
+        return replace(self, **{"rotation": rotation, **changes})
 
     @property
     def chi2_dof(self) -> int:

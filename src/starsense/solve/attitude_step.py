@@ -59,7 +59,8 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
     matched = np.asarray(ident.detection_index)
     ref, apparent, places = matched_references(solver, db, ident, obs_time=obs_time)
     body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
-    att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit)
+    listed = points.what == "centroids"  # a list: its sigma stated, not measured (no pixels)
+    att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit, scatter=listed)
     rate = None  # smeared: the body rate the streaks give (starts the model fit's)
     if streaks is not None:  # smeared: centroids over the streaks, which must fit them
         rate = streak_body_rate(solver.sensor, body, streaks.streaks_px)

@@ -126,7 +126,10 @@ def solve_known_field(solver, points, *, identifiers, sigma_px: float, fov_given
     ref, apparent, _places = matched_references(
         solver, identifier.database, ident, obs_time=obs_time
     )
-    att, _keep = robust_attitude(vectors[matched], ref, sigma_px * pixel_rad, fit=kernel_fit)
+    # a list: its sigma stated, not measured (raised to the stars' scatter where it drops one)
+    att, _keep = robust_attitude(
+        vectors[matched], ref, sigma_px * pixel_rad, fit=kernel_fit, scatter=True
+    )
     att = residual_scaled(att)  # as sure as its residuals allow (the general path's rule)
     stages["attitude_ms"] = _ms(t3)
     sol: Solution = solved(
