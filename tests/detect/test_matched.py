@@ -163,3 +163,15 @@ def test_box_mean_at_peaks_is_the_box_at_each_regions_last_largest_pixel(seed, t
         np.testing.assert_allclose(
             box[k], sub[np.ix_(rr, cc)].mean(dtype=np.float64), rtol=1e-12, atol=1e-12
         )
+
+
+def test_local_noise_ratio_of_a_frame_narrower_than_a_box():
+    # a 92 x 123 frame (a wide imager's) samples to fewer grid rows than a box holds: one box
+    # across that axis, not a reshape error; white noise reads the frame's own ratio
+    from starsense.detect.matched import local_noise_ratio
+
+    rng = np.random.default_rng(3)
+    filtered = rng.standard_normal((92, 123)).astype(np.float32)
+    out = local_noise_ratio(filtered, 1.0, ratio=1.0)
+    assert out.shape[0] == 1 and out.shape[1] >= 1
+    assert np.all(out == 1.0)  # white noise of ratio 1: no box above LOCAL_EXCESS x 1

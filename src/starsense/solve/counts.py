@@ -161,4 +161,6 @@ def solved(points, ident, att, *, fov, apparent, time_ms, stages, radial, sensor
         apparent=apparent,
         sensor=sensor,
         counts=identification_counts(ident),
+        # a near miss accepted on the frame's fainter stars says so (starsense.solve.near_miss)
+        notes=tuple(f"near miss{n}" for n in [ident.message.partition("; near miss")[2]] if n),
     )

@@ -99,7 +99,10 @@ def solution_detector(solver, solution) -> StarDetector:
     Returns
     -------
     StarDetector
-        The quick detector, unless it was not tried or the robust one followed it.
+        The quick detector, unless it was not tried or the robust one followed it; the
+        spike-keeping one when the robust one held spikes aside and did not solve.
     """
+    if "robust_ms" in solution.stage_ms:  # solved with its spikes (starsense.solve.sharp)
+        return solver.spike_detector
     quick = solver.quick_detector
     return solver.detector if quick is None or "quick_ms" in solution.stage_ms else quick

@@ -21,11 +21,15 @@ from starsense.geometry.projection import tangent_to_vectors, vectors_to_tangent
 from starsense.identify import Identification, identify_ranked
 from starsense.identify.fields import FieldRange, identifier_for, unknown_field_plan
 from starsense.identify.verify import apply_scale
+from starsense.solve.near_miss import is_near_miss, near_miss
 
 #: radial distortions (k1, tangent-plane units of each range's nominal focal length) tried for a
 #: frame of unknown optics that does not solve as a pinhole: a third and two thirds of the
 #: equidistant (f-theta) lens's k1 = -1/3, the barrel of short wide-angle lenses
 DISTORTION_GUESSES = (-1.0 / 9.0, -2.0 / 9.0)
+#: near misses of a failed search checked against the frame, best first (each costs a search
+#: of its attempt again and a read of the frame; a Bonferroni factor each)
+NEAR_MISSES_CHECKED = 2
 
 __all__ = ["FieldIdentifiers", "SkyStars"]
 
@@ -86,11 +90,16 @@ class FieldIdentifiers:
         self._skies: dict = {}
         self._spent = 0  # patterns looked up since start()
         self._first: tuple | None = None  # a failed first attempt handed over (keep_first)
+        self._evidence = None  # the frame a near miss is checked against (identify's)
+        self._near: list = []  # the near misses of the current identify, and their k1 guess
+        self._k1 = 0.0  # the distortion guess of the attempt under way
+        self._near_tests = [0]  # near-miss tests made in the solve (starsense.solve.near_miss)
 
     def start(self) -> None:
         """Begin a solve: its identifications share a fresh budget of ``max_patterns``."""
         self._spent = 0
         self._first = None
+        self._near_tests = [0]
 
     def keep_first(self, identifier, vectors, flux, *, fov_rad: float) -> Identification:
         """Identify at a known field; an answer that did not solve is kept for :meth:`identify`.
@@ -115,7 +124,18 @@ class FieldIdentifiers:
         return first[1] if same else None
 
     def _ranked(self, identifier, vectors, flux, *args, **kwargs) -> Identification:
-        """:func:`identify_ranked` within what is left of the solve's budget (hashing)."""
+        """:func:`identify_ranked` within what is left of the solve's budget (hashing).
+
+        A near miss is kept, to be checked against the frame's fainter stars when a frame was
+        given to :meth:`identify` and nothing solves (:meth:`_near_misses`).
+        """
+        ident = self._budgeted(identifier, vectors, flux, *args, **kwargs)
+        if not ident.solved and self._evidence is not None and is_near_miss(ident):
+            call = (identifier, vectors, flux, ident, args, kwargs)
+            self._near.append((ident.best_false_match_probability, len(self._near), call, self._k1))
+        return ident
+
+    def _budgeted(self, identifier, vectors, flux, *args, **kwargs) -> Identification:
         if self.max_patterns is None or self.algorithm != "hashing":
             ident = identify_ranked(identifier, vectors, flux, *args, **kwargs)
             self._spent += ident.n_patterns_tried
@@ -215,7 +235,9 @@ class FieldIdentifiers:
                 u, w = undistort(*(t * (math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))).T,
                                  (k1, 0.0, 0.0, 0.0))  # fmt: skip
                 v = tangent_to_vectors(np.column_stack([u, w]))
+                self._k1 = k1
                 ident = self._ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
+                self._k1 = 0.0
                 if ident.status == "timeout":  # the solve's budget is spent
                     return identifier, ident, 0.0
                 if ident.solved:
@@ -255,7 +277,7 @@ class FieldIdentifiers:
         )
 
     def identify(
-        self, vectors, flux, *, fov_known_rad, fov_assumed_rad, estimate: bool
+        self, vectors, flux, *, fov_known_rad, fov_assumed_rad, estimate: bool, evidence=None
     ) -> tuple[object, Identification, float | None, float]:
         """Return (identifier, identification, known field or None, radial k1 assumed).
 
@@ -276,7 +298,34 @@ class FieldIdentifiers:
         estimate : bool
             The known field is an estimate (no sensor): when it does not solve, the scale is
             searched around it (hashing, 4 vectors or more), which refines the field.
+        evidence : FrameEvidence, optional
+            The frame behind the vectors: a near miss is checked against its fainter stars
+            (:mod:`starsense.solve.near_miss`).
         """
+        self._evidence, self._near, self._k1 = evidence, [], 0.0
+        try:
+            out = self._identify(vectors, flux, fov_known_rad, fov_assumed_rad, estimate)
+            if out[1].solved or out[1].status == "timeout" or not self._near:
+                return out
+            return self._near_misses() or out
+        finally:
+            self._evidence, self._near = None, []
+
+    def _near_misses(self):
+        """Check the best near misses of a search that solved nothing against the frame.
+
+        Checked only once every attempt (every field range, every distortion guess) failed,
+        best first, the first :data:`NEAR_MISSES_CHECKED`: a frame that solves the ordinary way
+        keeps that way's answer (a distortion guess's camera fit, say).
+        """
+        for _, _, call, k1 in sorted(self._near, key=lambda c: c[:2])[:NEAR_MISSES_CHECKED]:
+            got = near_miss(*call, self._evidence, tests=self._near_tests)
+            if got.solved:
+                identifier, args = call[0], call[4]
+                return identifier, got, args[0] if args else None, k1 / got.scale**2
+        return None
+
+    def _identify(self, vectors, flux, fov_known_rad, fov_assumed_rad, estimate):
         searched = fov_known_rad is None
         if not searched:
             identifier = self(fov_known_rad)

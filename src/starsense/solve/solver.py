@@ -40,9 +40,11 @@ from starsense.solve.counts import (
 from starsense.solve.extraction import Extraction, quick_detector, robust_detector
 from starsense.solve.frames import solve_frame_file
 from starsense.solve.identifiers import FieldIdentifiers
+from starsense.solve.near_miss import FrameEvidence
 from starsense.solve.parity import unsolved
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
+from starsense.solve.sharp import retry_with_spikes, spike_detector
 from starsense.solve.solution import Solution
 from starsense.solve.streaks import matched_measurements
 from starsense.solve.unknown_optics import refine_identification
@@ -203,6 +205,11 @@ class Solver:
         return self._detector
 
     @property
+    def spike_detector(self) -> StarDetector:
+        """The robust detector keeping one- and two-pixel spikes (:mod:`starsense.solve.sharp`)."""
+        return spike_detector(self.detector)
+
+    @property
     def quick_detector(self) -> StarDetector | None:
         """The quick detector tried first, or None (:mod:`starsense.solve.extraction`)."""
         if self._quick is False:
@@ -264,7 +271,8 @@ class Solver:
             if sol.solved or alone:
                 return sol
             stages = {"quick_ms": _ms(t0)}
-        return self._solve_frame(a, self.detector, t0, stages, obs_time)
+        sol = self._solve_frame(a, self.detector, t0, stages, obs_time)
+        return retry_with_spikes(self, a, sol, t0, stages, obs_time)  # held-aside spikes
 
     def _solve_frame(self, a, detector, t0, stages, obs_time, first=False) -> Solution:
         """Detect and solve frame ``a`` (a ``first`` attempt: at the known field only)."""
@@ -369,6 +377,7 @@ class Solver:
             fov_known_rad=fov_known,
             fov_assumed_rad=fov_assumed,
             estimate=self.sensor is None and search,
+            evidence=FrameEvidence.of(image, points, self.sky_stars),
         )
         stages["identify_ms"] = _ms(t2)
         if not ident.solved:
