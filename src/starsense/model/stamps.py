@@ -4,10 +4,10 @@ A star's template is the pixel-integrated PSF (:mod:`starsense.model.psf`) summe
 time nodes (:mod:`starsense.model.tracks`) with their quadrature weights, on the rows and
 columns of its box; its derivatives with respect to the geometric parameters follow the
 nodes' (``-dP/ddx dx_k/dp - dP/ddy dy_k/dp``). Each node lights the pixels within the reach
-``half_px`` of it, the padding of a star's box at rest. A Gaussian is separable (outer
-products of 1-D pixel fractions); a long streak, whose box is mostly pixels far from any one
-node, is drawn node by node: each node's small stamp added into the box
-(:func:`by_nodes`).
+``half_px`` of it, the padding of a star's box at rest (a streak's box is mostly pixels far
+from any one node). A Gaussian is separable: each node's stamp is the outer product of its
+pixel fractions along the rows and the columns of its reach, summed over the nodes as matrix
+products; another profile's stamps are added into the box node by node.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import numpy as np
 from starsense.model.psf import PixelPSF, gaussian_pixel_1d
 from starsense.model.tracks import NodePositions
 
-__all__ = ["STAMP_CHUNK", "by_nodes", "source_stamps", "stamp_side"]
+__all__ = ["STAMP_CHUNK", "source_stamps", "stamp_side"]
 
 #: most stamp pixels (sources x time nodes x stamp area) drawn at once: ~10 arrays of 16 MB
 STAMP_CHUNK = 2_000_000
@@ -60,16 +60,6 @@ def stamp_side(half_px: float) -> int:
     return math.floor(2.0 * half_px) + 2
 
 
-def by_nodes(area_px: int, n_nodes: int, half_px: float) -> bool:
-    """Return whether a track's light is drawn node by node (:func:`source_stamps`).
-
-    A long streak's box is mostly pixels far from any one node: drawing each node's stamp
-    costs ``K n^2`` against ``K`` times the box, so the stamps are drawn where the box holds
-    more than four of them.
-    """
-    return n_nodes > 1 and 4 * stamp_side(half_px) ** 2 < area_px
-
-
 def source_stamps(
     psf: PixelPSF,
     nodes: NodePositions,
@@ -88,14 +78,18 @@ def source_stamps(
     derivative with respect to the PSF's sigma is appended (P + 1 columns). Each time node
     lights the pixels of a stamp of :func:`stamp_side` pixels a side around it (the reach
     ``half_px`` of a star's box at rest), whose first row and column are ``origin`` (S, K, 2)
-    (default: where the nodes are now): a streak whose box holds many such stamps is drawn
-    node by node (:func:`by_nodes`).
+    (default: where the nodes are now).
     """
     wk = nodes.weights
     xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
-    if by_nodes(rows.shape[1] * cols.shape[1], len(wk), half_px):
-        if origin is None:
-            origin = np.stack([np.floor(yk - half_px + 0.5), np.floor(xk - half_px + 0.5)], -1)
+    if psf.spec.is_gaussian and len(wk) == 1:  # at rest: outer products, no sums over time
+        return _static_gaussian(psf.sigma_px, nodes, idx, rows, cols, gradient, width)
+    if origin is None:
+        origin = np.stack([np.floor(yk - half_px + 0.5), np.floor(xk - half_px + 0.5)], -1)
+    if psf.spec.is_gaussian:  # separable: each node's reach a band of rows times one of columns
+        return _separable_track(psf.sigma_px, nodes, idx, (rows, cols, origin), half_px, gradient,
+                                width)  # fmt: skip
+    if len(wk) > 1:  # a track: node by node
         # in chunks of sources whose stamps hold at most STAMP_CHUNK pixels (bounded memory)
         step = max(1, STAMP_CHUNK // (len(wk) * stamp_side(half_px) ** 2))
         parts = [
@@ -107,27 +101,6 @@ def source_stamps(
         ]  # fmt: skip
         t = np.concatenate([p[0] for p in parts])
         return t, (np.concatenate([p[1] for p in parts]) if gradient else None)
-    if psf.spec.is_gaussian and len(wk) == 1:  # at rest: outer products, no sums over time
-        return _static_gaussian(psf.sigma_px, nodes, idx, rows, cols, gradient, width)
-    if psf.spec.is_gaussian:  # separable: sums over nodes are matrix products
-        sigma = psf.sigma_px
-        dxp, dyp = cols[:, None, :] - xk[:, :, None], rows[:, None, :] - yk[:, :, None]
-        px, dpx = gaussian_pixel_1d(dxp, sigma)
-        py, dpy = gaussian_pixel_1d(dyp, sigma)
-        t = np.einsum("skr,k,skc->src", py, wk, px)
-        if not gradient:
-            return t, None
-        ax = wk[None, :, None] * nodes.dx[idx]  # (S, K, P)
-        ay = wk[None, :, None] * nodes.dy[idx]
-        d = -(
-            np.einsum("skr,skp,skc->sprc", py, ax, dpx)
-            + np.einsum("skr,skp,skc->sprc", dpy, ay, px)
-        )
-        if width:
-            sx, sy = _gaussian_width_1d(dxp, sigma), _gaussian_width_1d(dyp, sigma)
-            dw = np.einsum("skr,k,skc->src", sy, wk, px) + np.einsum("skr,k,skc->src", py, wk, sx)
-            d = np.concatenate([d, dw[:, None]], axis=1)
-        return t, d
     dxg = cols[:, None, None, :] - xk[:, :, None, None]  # (S, K, h, w)
     dyg = rows[:, None, :, None] - yk[:, :, None, None]
     if not gradient:
@@ -139,6 +112,38 @@ def source_stamps(
         + np.einsum("skrc,skp->sprc", gy, wk[None, :, None] * nodes.dy[idx])
     )
     return t, d
+
+
+def _separable_track(sigma, nodes: NodePositions, idx, grid, half_px, gradient, width):
+    """:func:`source_stamps` of a Gaussian's track, summed over its nodes as matrix products.
+
+    Per node, its pixel fractions along the rows and along the columns of its reach (zero
+    outside): their outer product is the node's stamp.
+    """
+    rows, cols, origin = grid
+    wk, n = nodes.weights, stamp_side(half_px)
+    xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
+    dyp, dxp = rows[:, None, :] - yk[:, :, None], cols[:, None, :] - xk[:, :, None]
+    oy, ox = origin[..., 0, None], origin[..., 1, None]  # (S, K, 1)
+    my = (rows[:, None, :] >= oy) & (rows[:, None, :] < oy + n)  # (S, K, h)
+    mx = (cols[:, None, :] >= ox) & (cols[:, None, :] < ox + n)  # (S, K, w)
+    py, dpy = (a * my for a in gaussian_pixel_1d(dyp, sigma))
+    px, dpx = (a * mx for a in gaussian_pixel_1d(dxp, sigma))
+    pyt = np.swapaxes(py, 1, 2)  # (S, h, K)
+    t = np.matmul(pyt * wk, px)
+    if not gradient:
+        return t, None
+    ax = wk[None, :, None] * nodes.dx[idx]  # (S, K, P)
+    ay = wk[None, :, None] * nodes.dy[idx]
+    dpyt = np.swapaxes(dpy, 1, 2)
+    d = [
+        -(np.matmul(pyt * ax[:, None, :, p], dpx) + np.matmul(dpyt * ay[:, None, :, p], px))
+        for p in range(ax.shape[-1])
+    ]
+    if width:
+        sx, sy = _gaussian_width_1d(dxp, sigma) * mx, _gaussian_width_1d(dyp, sigma) * my
+        d.append(np.matmul(np.swapaxes(sy, 1, 2) * wk, px) + np.matmul(pyt * wk, sx))
+    return t, np.stack(d, axis=1)
 
 
 def _node_stamps(psf: PixelPSF, nodes: NodePositions, idx, grid, half_px, gradient, width):

@@ -32,7 +32,7 @@ import numpy as np
 
 from starsense.errors import InputError
 from starsense.model.psf import PixelPSF
-from starsense.model.stamps import by_nodes, source_stamps, stamp_side
+from starsense.model.stamps import source_stamps, stamp_side
 from starsense.model.tracks import NodePositions
 
 __all__ = ["MAX_WINDOW_PIXELS", "Evaluation", "Windows", "evaluate", "make_windows"]
@@ -236,7 +236,7 @@ def make_windows(
         )
     area = (boxes[:, 1] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 2])
     n_nodes = np.asarray(x).shape[1]
-    if by_nodes(int(area.max(initial=0)), n_nodes, half_px):  # long tracks: node by node
+    if n_nodes > 1:  # tracks: each node's stamp, then the box it is added into
         area = np.minimum(area, stamp_side(half_px) ** 2 + area // n_nodes)
     work = n_nodes * float((hit * area[:, None]).sum())
     if work > MAX_WORK:
@@ -328,8 +328,10 @@ def evaluate(
     n_par = nodes.dx.shape[-1] + int(width)
     templates = np.zeros(g_n * m * h * w)
     fixed = np.zeros(g_n * h * w)
-    jac = np.zeros(g_n * n_par * h * w) if gradient else None
     fluxes = np.asarray(fluxes, dtype=float)
+    # the fixed light and the Jacobian summed once over every class (a sum per class over the
+    # whole grids cost the classes times the grids: hundreds of box sizes under long streaks)
+    fixed_at, fixed_light, jac_at, jac_values = [], [], [], []
     for size, q in windows.size_classes:  # pairs of one box size at a time, batched
         g, src, box = windows.pair_group[q], windows.pair_source[q], windows.pair_box[q]
         rows = (windows.row0[g] + box[:, 0])[:, None] + np.arange(size[0])[None, :]
@@ -354,13 +356,20 @@ def evaluate(
         templates[(slot_of + local[fit_here]).ravel()] = t[fit_here].ravel()
         given = ~fit_here
         if given.any():
-            at = (g[given][:, None, None] * (h * w) + local[given]).ravel()
-            light = fluxes[src][given, None, None] * t[given]
-            fixed += np.bincount(at, light.ravel(), fixed.size)
+            fixed_at.append((g[given][:, None, None] * (h * w) + local[given]).ravel())
+            fixed_light.append((fluxes[src][given, None, None] * t[given]).ravel())
         if gradient:
             par = (g[:, None] * n_par + np.arange(n_par)[None, :])[:, :, None, None] * (h * w)
-            at = (par + local[:, None]).ravel()
-            jac += np.bincount(at, (fluxes[src][:, None, None, None] * d).ravel(), jac.size)
+            jac_at.append((par + local[:, None]).ravel())
+            jac_values.append((fluxes[src][:, None, None, None] * d).ravel())
+    if fixed_at:
+        fixed = np.bincount(np.concatenate(fixed_at), np.concatenate(fixed_light), fixed.size)
+    jac = None
+    if gradient:
+        size = g_n * n_par * h * w
+        jac = np.zeros(size)
+        if jac_at:
+            jac = np.bincount(np.concatenate(jac_at), np.concatenate(jac_values), size)
     return Evaluation(
         templates.reshape(g_n, m, h, w),
         fixed.reshape(g_n, h, w),
