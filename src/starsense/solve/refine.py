@@ -213,7 +213,7 @@ def refine_attitude(
                 rotation=start,
                 reach_px=_reach_px(sensor, rate),
                 zero_point=zp,
-                noise_e=_psf_noise_e(sensor),
+                noise_e=_psf_noise_e(sensor, rate),
             )
             if fit is first and fit is not None and not len(nv) and n_fitted == len(ref):
                 break
@@ -244,18 +244,28 @@ def refine_attitude(
     return _judged(fit, sensor, rotation, cog_sigma_rad, (len(ref), len(nv)))
 
 
-def _psf_noise_e(sensor) -> float:
-    """Return a dark pixel's noise summed over a PSF's area (4 pi sigma^2), electrons."""
+def _psf_noise_e(sensor, rate=None) -> float:
+    """Return a dark pixel's noise summed over a star's footprint, electrons.
+
+    The noise-equivalent area of a Gaussian PSF, ``4 pi sigma^2``; smeared over a streak of
+    ``L`` px it grows by ``2 sqrt(pi) sigma L`` (the light spread along the track: a faint star
+    under slew puts less in each pixel than at rest).
+    """
     sigma = psf_of(sensor).sigma_px
-    return math.sqrt(pixel_variance(sensor.detector, 0.0, sensor.exposure_s)) * (
-        math.sqrt(4.0 * math.pi) * sigma
-    )
+    streak = 0.0 if rate is None else _streak_px(sensor, rate)
+    area = 4.0 * math.pi * sigma**2 + 2.0 * math.sqrt(math.pi) * sigma * streak
+    return math.sqrt(pixel_variance(sensor.detector, 0.0, sensor.exposure_s) * area)
+
+
+def _streak_px(sensor, rate) -> float:
+    """Return the length of a star's streak near the boresight at body rate ``rate``, px."""
+    return float(np.linalg.norm(rate)) * sensor.exposure_s * sensor.focal_length_px
 
 
 def _reach_px(sensor, rate) -> float:
     """How far from a star a neighbour's light may reach its window, px."""
     psf = psf_of(sensor)
-    streak = float(np.linalg.norm(rate)) * sensor.exposure_s * sensor.focal_length_px
+    streak = 0.0 if rate is None else _streak_px(sensor, rate)
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
@@ -359,7 +369,7 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
                 plain=plain,
                 sky=sky,
                 place=place,
-                min_electrons_e=DETECTABLE_SNR * _psf_noise_e(sensor),
+                min_electrons_e=DETECTABLE_SNR * _psf_noise_e(sensor, rate_rad_s),
                 zero_point_e=zero_point_e,
                 streak_px=streak * sensor.exposure_s * sensor.focal_length_px,
                 max_stars=room,
