@@ -69,12 +69,18 @@ def test_wrong_attitudes_read_as_chance(catalog, solver):
         rows, cols = image.shape
         pinhole = ((cols - 1) / 2, (rows - 1) / 2, cols / 2 / math.tan(frame.fov_rad / 2))
         if frame.evident:
-            true_p.append(evidence.read(frame.attitude.as_matrix(), pinhole, 1.5, stars, 9.5)[0])
+            true_p.append(
+                evidence.read(
+                    frame.attitude.as_matrix(), pinhole, reach=1.5, stars=stars, mag_limit=9.5
+                )[0]
+            )
         for _ in range(10):
             axis = rng.standard_normal(3)
             angle = math.radians(rng.uniform(0.3, 20.0))
             turn = Rotation.from_rotvec(angle * axis / np.linalg.norm(axis))
-            p2, _ = evidence.read((turn * frame.attitude).as_matrix(), pinhole, 1.5, stars, 9.5)
+            p2, _ = evidence.read(
+                (turn * frame.attitude).as_matrix(), pinhole, reach=1.5, stars=stars, mag_limit=9.5
+            )
             wrong_p.append(p2)
     wrong_p = np.array(wrong_p)
     # 120 wrong attitudes: a p-value puts ~1.2 below 0.01 (at most 5 allowed: binomial tail

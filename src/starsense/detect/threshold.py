@@ -232,7 +232,8 @@ class StarDetector:
         kwargs.setdefault("psf_sigma_px", det.psf_sigma_px)
         return cls(sensor.detection, centroid, **kwargs)
 
-    def _background(self, a: np.ndarray) -> Background:
+    def frame_background(self, a: np.ndarray) -> Background:
+        """Return the background and noise this detector assumes in frame ``a``."""
         if isinstance(self.background, Background):
             return self.background
         if self.background == "auto":
@@ -252,7 +253,7 @@ class StarDetector:
                 return bg, scratch("quick_sub", a.shape), {"hot_pixels": 0}, none
             sub, idx, noise = quick_subtract(a, qb, k=k, floor=self.logic.lit_pixel_counts)
             return bg, sub, {"hot_pixels": 0}, (idx, None, None, noise)
-        bg = self._background(a)
+        bg = self.frame_background(a)
         remove_hot = self.background == "auto" and self.remove_hot_pixels
         above = floor_threshold(bg, HOT_PIXEL_SIGMA) if remove_hot else None
         sub, candidates = subtract_level(a, bg.level, scratch("sub", a.shape), above=above)

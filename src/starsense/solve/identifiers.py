@@ -319,9 +319,18 @@ class FieldIdentifiers:
         keeps that way's answer (a distortion guess's camera fit, say).
         """
         for _, _, call, k1 in sorted(self._near, key=lambda c: c[:2])[:NEAR_MISSES_CHECKED]:
-            got = near_miss(*call, self._evidence, tests=self._near_tests)
+            identifier, vectors, flux, ident, args, kwargs = call
+            got = near_miss(
+                identifier,
+                vectors,
+                flux,
+                ident=ident,
+                args=args,
+                kwargs=kwargs,
+                evidence=self._evidence,
+                tests=self._near_tests,
+            )
             if got.solved:
-                identifier, args = call[0], call[4]
                 return identifier, got, args[0] if args else None, k1 / got.scale**2
         return None
 

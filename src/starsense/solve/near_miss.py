@@ -146,7 +146,7 @@ class FrameEvidence:
         faintest = float(np.min(self.flux[self.flux > 0]))
         return zp - 2.5 * math.log10(faintest / 6.0)
 
-    def predicted(self, rotation, pinhole, reach: float, stars, mag_limit: float) -> np.ndarray:
+    def predicted(self, rotation, pinhole, *, reach: float, stars, mag_limit: float) -> np.ndarray:
         """Return the predicted places (M, 2) of the catalogue's stars to ``mag_limit`` (step 2).
 
         Parameters
@@ -221,13 +221,13 @@ class FrameEvidence:
         spread = np.maximum((q84 - q16) / 2.0, 1e-6)
         return (peak - q50) / spread
 
-    def read(self, rotation, pinhole, reach: float, stars, mag_limit: float):
+    def read(self, rotation, pinhole, *, reach: float, stars, mag_limit: float):
         """Return ``(p2, what was read)`` for an attitude and pinhole (steps 2-4).
 
         Parameters as :meth:`predicted`; ``p2`` is the hypergeometric tail of the hits among
         the predicted places against the controls (1 when nothing could be read).
         """
-        xy = self.predicted(rotation, pinhole, reach, stars, mag_limit)
+        xy = self.predicted(rotation, pinhole, reach=reach, stars=stars, mag_limit=mag_limit)
         rows, cols = self.image.shape
         rng = np.random.default_rng(49)
         ctrl = rng.uniform((0.0, 0.0), (cols - 1.0, rows - 1.0), (4 * N_CONTROLS, 2))
@@ -254,7 +254,9 @@ class FrameEvidence:
             stars = None
         if mag_limit is None or stars is None:
             return 1.0, {"predicted": 0, "controls": 0, "hits": 0, "control_hits": 0}
-        return self.read(ident.rotation.as_matrix(), pinhole, reach, stars, mag_limit)
+        return self.read(
+            ident.rotation.as_matrix(), pinhole, reach=reach, stars=stars, mag_limit=mag_limit
+        )
 
 
 def is_near_miss(ident: Identification) -> bool:
@@ -262,7 +264,7 @@ def is_near_miss(ident: Identification) -> bool:
     return ident.status == "no_match" and ident.best_false_match_probability <= NEAR_MISS_CEILING
 
 
-def near_miss(identifier, vectors, flux, ident, args, kwargs, evidence, *, tests: list[int]):
+def near_miss(identifier, vectors, flux, *, ident, args, kwargs, evidence, tests: list[int]):
     """Return the failed ``ident``, or its best hypothesis accepted on more evidence.
 
     Parameters

@@ -190,11 +190,13 @@ def refine_attitude(
     if place is None:
         place = lambda rows: sky.vectors[np.asarray(rows, dtype=int)]  # noqa: E731
     opts = {"fit_rate": fit_rate, "fit_width": fit_width, "abort_chi2": 2.0 * MAX_REDUCED_CHI2}
+    done = None  # the last fit made, and its stars and neighbours
     try:
         zp = None if electrons is None else _zero_point(np.asarray(electrons, float), mags)
         fit, first = None, None
         if zp is None:  # the identified stars alone first: their fluxes give the zero point
             first = fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
+            done = (fit, (len(ref), 0))
             zp = _zero_point(first.fluxes_e, mags)
         if more is not None and zp is not None:  # the other stars in view, at that zero point
             px, rx, mx = more(zp, rotation if fit is None else fit.rotation)
@@ -233,15 +235,22 @@ def refine_attitude(
                 **opts,
             )
             n_fitted = len(ref)
+            done = (fit, (len(ref), len(nv)))
             new = _zero_point(fit.fluxes_e[: len(ref)], mags)
             if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
                 break
             zp = new
         if fit is None:
             fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
+            done = (fit, (len(ref), 0))
     except (InputError, np.linalg.LinAlgError) as exc:
-        return Refinement(None, False, f"model fit not used: {exc}")
-    return _judged(fit, sensor, rotation, cog_sigma_rad, (len(ref), len(nv)))
+        if done is None:
+            return Refinement(None, False, f"model fit not used: {exc}")
+        # the fit that adds the neighbours and the other stars in view would pass the work a fit
+        # may do (long streaks across a crowded field): the last one made stands, if it fits
+        also = f"; no larger fit: {exc}"
+        return _judged(done[0], sensor, rotation, cog_sigma_rad, done[1], also=also)
+    return _judged(fit, sensor, rotation, cog_sigma_rad, done[1])
 
 
 def _psf_noise_e(sensor, rate=None) -> float:
@@ -278,10 +287,11 @@ def _robust(fit: ModelFit) -> np.ndarray:
     return cov * np.outer(scale, scale)
 
 
-def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, counts) -> Refinement:
+def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, counts, also="") -> Refinement:
     """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not.
 
-    ``counts``: the stars fitted and the neighbours drawn.
+    ``counts``: the stars fitted and the neighbours drawn; ``also``: appended to the note of
+    an accepted fit (why no larger fit was made).
     """
     n_stars, n_nbr = counts
     if fit.reduced_chi2 > MAX_REDUCED_CHI2 or not math.isfinite(fit.reduced_chi2):
@@ -293,7 +303,7 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, counts) -> Refinemen
         return Refinement(fit, False, "model fit did not converge", n_nbr)
     if not np.all(np.isfinite(fit.sigma_axes_rad)) or not math.isfinite(fit.reduced_chi2):
         return Refinement(fit, False, "model fit not used: singular information", n_nbr)
-    note = f"model fit ({fit.n_pixels} px, {n_stars} stars, {n_nbr} neighbours)"
+    note = f"model fit ({fit.n_pixels} px, {n_stars} stars, {n_nbr} neighbours){also}"
     if fit.reduced_chi2 > SCALED_CHI2:  # the pixels scatter more than the model says
         fit = dataclasses.replace(fit, covariance=_robust(fit))
         note += (

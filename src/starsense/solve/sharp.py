@@ -41,7 +41,7 @@ def spike_detector(detector):
     return kept
 
 
-def retry_with_spikes(solver, a, sol, t0: float, stages: dict, obs_time):
+def retry_with_spikes(solver, a, sol, *, t0: float, stages: dict, obs_time, solve):
     """Return ``sol``, or the frame solved with its held-aside spikes kept as candidates.
 
     Parameters
@@ -56,6 +56,9 @@ def retry_with_spikes(solver, a, sol, t0: float, stages: dict, obs_time):
     stages : dict
         Stage times so far.
     obs_time : str or Time or None
+    solve : callable
+        ``solve(a, detector, t0, stages, obs_time)``: the solver's solve of a frame with the
+        detector given.
 
     Returns
     -------
@@ -67,7 +70,7 @@ def retry_with_spikes(solver, a, sol, t0: float, stages: dict, obs_time):
     if sol.solved or sol.counts.get("hot_pixels", 0) < MIN_HELD:
         return sol
     stages = {**stages, "robust_ms": (time.perf_counter() - t0) * 1e3}
-    again = solver._solve_frame(a, solver.spike_detector, t0, stages, obs_time)
+    again = solve(a, solver.spike_detector, t0, stages, obs_time)
     if not again.solved:
         return sol
     counts, notes = classify_spikes(solver, a, again)
@@ -95,7 +98,7 @@ def classify_spikes(solver, a, sol) -> tuple[dict, tuple[str, ...]]:
     notes : tuple of str
         The hot pixels' places and why.
     """
-    held = hot_pixel_mask(a, solver.detector._background(a))
+    held = hot_pixel_mask(a, solver.detector.frame_background(a))
     xy = np.asarray(sol.centroids_px, dtype=float)
     rows, cols = held.shape
     r = np.clip(np.rint(xy[:, 1]).astype(int), 0, rows - 1)

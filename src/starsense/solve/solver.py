@@ -272,7 +272,9 @@ class Solver:
                 return sol
             stages = {"quick_ms": _ms(t0)}
         sol = self._solve_frame(a, self.detector, t0, stages, obs_time)
-        return retry_with_spikes(self, a, sol, t0, stages, obs_time)  # held-aside spikes
+        return retry_with_spikes(  # held-aside spikes
+            self, a, sol, t0=t0, stages=stages, obs_time=obs_time, solve=self._solve_frame
+        )
 
     def _solve_frame(self, a, detector, t0, stages, obs_time, first=False) -> Solution:
         """Detect and solve frame ``a`` (a ``first`` attempt: at the known field only)."""
