@@ -32,6 +32,7 @@ two estimators of an imperfectly known PSF's centre may disagree by that much).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -190,67 +191,89 @@ def refine_attitude(
     if place is None:
         place = lambda rows: sky.vectors[np.asarray(rows, dtype=int)]  # noqa: E731
     opts = {"fit_rate": fit_rate, "fit_width": fit_width, "abort_chi2": 2.0 * MAX_REDUCED_CHI2}
-    done = None  # the last fit made, and its stars and neighbours
     try:
         zp = None if electrons is None else _zero_point(np.asarray(electrons, float), mags)
-        fit, first = None, None
+        first = None
         if zp is None:  # the identified stars alone first: their fluxes give the zero point
-            first = fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
-            done = (fit, (len(ref), 0))
+            first = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
             zp = _zero_point(first.fluxes_e, mags)
-        if more is not None and zp is not None:  # the other stars in view, at that zero point
-            px, rx, mx = more(zp, rotation if fit is None else fit.rotation)
-            plain, ref, mags = np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx)
-        n_fitted = 0 if fit is None else len(fit.fluxes_e)  # the first fit: no neighbours
-        nv = np.zeros((0, 3))
-        for _ in range(2):  # again if the fit's fluxes move the zero point (lit sums miss wings)
-            if zp is None:
-                break
-            start = rotation if fit is None else fit.rotation
-            nv, ne = _neighbours(
-                sensor,
-                plain,
-                sky=sky,
-                place=place,
-                rotation=start,
-                reach_px=_reach_px(sensor, rate),
-                zero_point=zp,
-                noise_e=_psf_noise_e(sensor, rate),
-            )
-            if fit is first and fit is not None and not len(nv) and n_fitted == len(ref):
-                break
-            own = zp * 10.0 ** (-0.4 * mags)  # fitted fluxes where a fit has them
-            if fit is not None:
-                got = fit.fluxes_e[:n_fitted]
-                own[:n_fitted] = np.where(np.isfinite(got) & (got > 0), got, own[:n_fitted])
-            fit = fit_windows(
-                image,
-                sensor,
-                start,
-                vectors=ref,
-                rate_rad_s=rate if fit is None else fit.rate_rad_s,
-                fixed_vectors=nv,
-                fixed_electrons=ne,
-                fluxes_e=own,
-                **opts,
-            )
-            n_fitted = len(ref)
-            done = (fit, (len(ref), len(nv)))
-            new = _zero_point(fit.fluxes_e[: len(ref)], mags)
-            if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
-                break
-            zp = new
-        if fit is None:
-            fit = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
-            done = (fit, (len(ref), 0))
+        if zp is None:  # no flux to draw the neighbours at: the identified stars alone
+            if first is None:
+                first = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
+            return _judged(first, sensor, rotation, cog_sigma_rad, (len(ref), 0))
+        stars = (plain, ref, mags)
+        if more is not None:  # the other stars in view, at that zero point
+            px, rx, mx = more(zp, rotation if first is None else first.rotation)
+            stars = (np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx))
+        neighboured = functools.partial(
+            _with_neighbours, image, sensor, rotation, sky=sky, place=place, rate=rate, opts=opts
+        )
+        also = ""
+        try:
+            fit, counts = neighboured(stars=stars, first=first, zero_point=zp)
+        except InputError as exc:  # past the work a fit may do (long streaks, crowded field)
+            if len(stars[0]) == len(plain):
+                raise
+            # the identified stars with their neighbours (unmodelled, a crowded field's
+            # neighbours bias the fit): the stars in view add information, not accuracy
+            fit, counts = neighboured(stars=(plain, ref, mags), first=first, zero_point=zp)
+            also = f"; the other stars in view left out: {exc}"
     except (InputError, np.linalg.LinAlgError) as exc:
-        if done is None:
-            return Refinement(None, False, f"model fit not used: {exc}")
-        # the fit that adds the neighbours and the other stars in view would pass the work a fit
-        # may do (long streaks across a crowded field): the last one made stands, if it fits
-        also = f"; no larger fit: {exc}"
-        return _judged(done[0], sensor, rotation, cog_sigma_rad, done[1], also=also)
-    return _judged(fit, sensor, rotation, cog_sigma_rad, done[1])
+        return Refinement(None, False, f"model fit not used: {exc}")
+    return _judged(fit, sensor, rotation, cog_sigma_rad, counts, also=also)
+
+
+def _with_neighbours(image, sensor, rotation, *, stars, first, zero_point, sky, place, rate, opts):
+    """Fit ``stars`` (plain, reference, mags) with the catalogue neighbours reaching them.
+
+    At the zero point ``zero_point`` (electrons of a magnitude-0 star), again if the fit's
+    fluxes move it (a lit sum misses a PSF's wings). ``first``: a fit of the identified stars
+    alone (its attitude, rate and fluxes the start), or None.
+
+    Returns
+    -------
+    ModelFit, (int, int)
+        The fit, and the stars fitted and the neighbours drawn.
+    """
+    plain, ref, mags = stars
+    fit, zp = first, zero_point
+    n_fitted = 0 if fit is None else len(fit.fluxes_e)  # the first fit: no neighbours
+    nv = np.zeros((0, 3))
+    for _ in range(2):
+        start = rotation if fit is None else fit.rotation
+        nv, ne = _neighbours(
+            sensor,
+            plain,
+            sky=sky,
+            place=place,
+            rotation=start,
+            reach_px=_reach_px(sensor, rate),
+            zero_point=zp,
+            noise_e=_psf_noise_e(sensor, rate),
+        )
+        if fit is first and fit is not None and not len(nv) and n_fitted == len(ref):
+            break
+        own = zp * 10.0 ** (-0.4 * mags)  # fitted fluxes where a fit has them
+        if fit is not None:
+            got = fit.fluxes_e[:n_fitted]
+            own[:n_fitted] = np.where(np.isfinite(got) & (got > 0), got, own[:n_fitted])
+        fit = fit_windows(
+            image,
+            sensor,
+            start,
+            vectors=ref,
+            rate_rad_s=rate if fit is None else fit.rate_rad_s,
+            fixed_vectors=nv,
+            fixed_electrons=ne,
+            fluxes_e=own,
+            **opts,
+        )
+        n_fitted = len(ref)
+        new = _zero_point(fit.fluxes_e[: len(ref)], mags)
+        if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
+            break
+        zp = new
+    return fit, (len(ref), len(nv))
 
 
 def _psf_noise_e(sensor, rate=None) -> float:
