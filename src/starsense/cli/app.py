@@ -189,9 +189,14 @@ EXIT_INTERRUPTED = 128 + signal.SIGINT
 _UNWIND = {signal.SIGINT: Interrupted, signal.SIGTERM: Terminated}
 
 
+#: the signal that ended the command, if one did (reset by :func:`main`)
+_received: list[int] = []
+
+
 def _on_signal(signum: int, frame: object) -> None:
     for s in _UNWIND:  # a second signal must not cut the cleanup short
         signal.signal(s, signal.SIG_IGN)
+    _received.append(signum)
     raise _UNWIND[signum]
 
 
@@ -236,6 +241,7 @@ def main(argv: list[str] | None = None) -> int:
         130 after Ctrl-C, 143 after SIGTERM.
     """
     args = sys.argv[1:] if argv is None else list(argv)
+    _received.clear()
     try:
         with _signals_unwind():
             app = app_for(args)
@@ -250,12 +256,26 @@ def main(argv: list[str] | None = None) -> int:
         _say(f"error: file not found: {exc.filename}")
         return 2
     except Terminated:
+        return _interrupted(signal.SIGTERM)
+    except Interrupted:
+        return _interrupted(signal.SIGINT)
+    except Exception:
+        # a library that caught the unwind and raised its own error instead (pandas' compiled
+        # modules, interrupted while they import, say "partially initialized module"): the
+        # signal ended the command, not the error
+        if _received:
+            return _interrupted(_received[0])
+        raise
+    return 0
+
+
+def _interrupted(signum: int) -> int:
+    """Say why the command ended after ``signum``; return its exit status."""
+    if signum == signal.SIGTERM:
         _say("error: terminated (SIGTERM); nothing written")
         return EXIT_TERMINATED
-    except Interrupted:
-        _say("error: interrupted (Ctrl-C); nothing written")
-        return EXIT_INTERRUPTED
-    return 0
+    _say("error: interrupted (Ctrl-C); nothing written")
+    return EXIT_INTERRUPTED
 
 
 def console_main() -> None:  # pragma: no cover - thin wrapper for the console script

@@ -243,8 +243,11 @@ def local_noise_ratio(filtered: np.ndarray, noise, *, ratio: float) -> np.ndarra
     n_s = np.broadcast_to(np.asarray(noise, dtype=np.float32), f_s.shape)
     z = f_s / np.maximum(n_s, np.float32(1e-12))
     b = max(1, LOCAL_BOX_PX // step)
-    ny, nx = max(1, z.shape[0] // b), max(1, z.shape[1] // b)
-    cells = z[: ny * b, : nx * b].reshape(ny, b, nx, b).transpose(0, 2, 1, 3).reshape(ny, nx, -1)
+    # a frame narrower than a box along an axis is one box that wide (a strip of a frame)
+    by, bx = min(b, z.shape[0]), min(b, z.shape[1])
+    ny, nx = z.shape[0] // by, z.shape[1] // bx
+    cells = z[: ny * by, : nx * bx].reshape(ny, by, nx, bx).transpose(0, 2, 1, 3)
+    cells = cells.reshape(ny, nx, -1)
     med = np.median(cells, axis=-1, keepdims=True)
     mad = MAD_TO_SIGMA * np.median(np.abs(cells - med), axis=-1)
     mad = median_filter(mad, size=3, mode="nearest")
