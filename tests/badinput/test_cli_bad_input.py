@@ -272,6 +272,28 @@ def test_colour_clamp_is_said(capsys):
     assert json.loads(captured.out)["colour_clamped"] is True
 
 
+@pytest.mark.parametrize(
+    ("argv", "kelvin"),
+    [
+        # a colour of 1e308 overflowed the lookup's scaling (a RuntimeWarning on the terminal,
+        # an error under this suite's warnings-as-errors) before it was clamped
+        (["limit", "star", "--mag-v", "5", "--b-v", "-1e308"], "30,000 K"),
+        (["limit", "star", "--mag-v", "5", "--b-v", "1e308"], "2,000 K"),
+        # slew clamped the same colours without a word
+        (["slew", "tolerance", "--trials", "2", "--magnitudes", "3", "--rates-deg-s", "0",
+          "--b-v", "1e308"], "2,000 K"),
+        (["slew", "intensity", "--trials", "2", "--magnitudes", "3", "--rates-deg-s", "0",
+          "--b-v", "-5"], "30,000 K"),
+    ],
+)  # fmt: skip
+def test_an_extreme_colour_is_clamped_in_words(argv, kelvin, capsys):
+    code = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 0
+    assert len(err) == 1 and err[0].startswith("warning: --b-v"), err
+    assert f"clamped to {kelvin}" in err[0]
+
+
 def test_case_count():
     # the note quotes the size of this table; keep it honest
     assert len(CASES) >= 90

@@ -24,7 +24,7 @@ import threading
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
-from starsense.errors import StarsenseError
+from starsense.errors import StarsenseError, one_line
 
 if TYPE_CHECKING:
     import typer
@@ -242,6 +242,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     args = sys.argv[1:] if argv is None else list(argv)
     _received.clear()
+    _written(forget=True)
     try:
         with _signals_unwind():
             app = app_for(args)
@@ -253,7 +254,16 @@ def main(argv: list[str] | None = None) -> int:
         _say(f"error: {exc}")
         return 2
     except FileNotFoundError as exc:
-        _say(f"error: file not found: {exc.filename}")
+        _say(f"error: file not found: {one_line(str(exc.filename), 300)}")
+        return 2
+    except OSError as exc:
+        # the system refused a path the user gave (a name too long, a permission) where no
+        # reader said so in its own words: that path and the system's reason, on one line
+        if _received:
+            return _interrupted(_received[0])
+        if exc.filename is None:
+            raise
+        _say(f"error: {one_line(str(exc.filename), 300)}: {exc.strerror or exc}")
         return 2
     except Terminated:
         return _interrupted(signal.SIGTERM)
@@ -270,12 +280,23 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _interrupted(signum: int) -> int:
-    """Say why the command ended after ``signum``; return its exit status."""
+    """Say why the command ended after ``signum`` and what it wrote; return its exit status."""
+    done = _written()
+    said = "nothing written"
+    if done:  # renamed into place, complete, before the signal (or held until complete)
+        more = f" and {len(done) - 1} more" if len(done) > 1 else ""
+        said = f"written before it, complete: {done[0]}{more}"
     if signum == signal.SIGTERM:
-        _say("error: terminated (SIGTERM); nothing written")
+        _say(f"error: terminated (SIGTERM); {said}")
         return EXIT_TERMINATED
-    _say("error: interrupted (Ctrl-C); nothing written")
+    _say(f"error: interrupted (Ctrl-C); {said}")
     return EXIT_INTERRUPTED
+
+
+def _written(*, forget: bool = False) -> list:
+    """Return the outputs put in place so far (none if the writing module was never loaded)."""
+    files = sys.modules.get("starsense._io.files")
+    return [] if files is None else files.written(forget=forget)
 
 
 def console_main() -> None:  # pragma: no cover - thin wrapper for the console script

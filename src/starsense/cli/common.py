@@ -362,3 +362,22 @@ def progress_bar(enabled: bool = True, *, unit: str | None = None) -> Iterator[P
     # on stderr, as documented (rich's default console is stdout, where --json output goes)
     with Progress(*columns, transient=True, console=Console(stderr=True)) as bar:
         yield ProgressBar(bar)
+
+
+def colour_clamp_note(system: str, ci: float, option: str, t: float | None = None) -> str | None:
+    """Say what was clamped when a colour lies outside the paper's clamp (sec. 2.5), else None.
+
+    ``t`` is the temperature the colour was given, K (default: the model's, for ``ci``).
+    """
+    from starsense.photometry import ColourModel  # noqa: PLC0415 - the commands that colour
+
+    model = ColourModel(system)
+    lo, hi = model.colour_limits
+    if lo <= ci <= hi:
+        return None
+    t = float(model.temperature_k(ci)) if t is None else t
+    return (
+        f"{option} {ci:g} is outside [{lo:.4f}, {hi:.4f}], the {system} of black bodies at "
+        f"{model.t_max_k:,.0f} K and {model.t_min_k:,.0f} K; the temperature is clamped to "
+        f"{t:,.0f} K (Fialho & Mortari 2019, sec. 2.5)"
+    )

@@ -34,6 +34,7 @@ from starsense.cli.common import (
     JsonOpt,
     ScaleCatalogOpt,
     SeedOpt,
+    colour_clamp_note,
     emit,
     option_float,
     output_file,
@@ -139,7 +140,7 @@ def limit_star(
     option_float(m, names[0], *MAG_RANGE)
     option_float(ci, names[1])
     t, c = fit_star(m, ci, system)
-    clamped = _colour_clamp_note(system, ci, names[1], t)
+    clamped = colour_clamp_note(system, ci, names[1], t)
     f = float(centroid_fisher(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     photons = float(total_photons(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     sigma = 1.0 / np.sqrt(f)
@@ -165,19 +166,6 @@ def limit_star(
             f"photons collected (D = {diameter_m} m, t = {exposure_s} s): {photons:.4g}",
             f"centroid bound sigma_min: {_rad(sigma)}",
         ],
-    )
-
-
-def _colour_clamp_note(system: str, ci: float, option: str, t: float) -> str | None:
-    """Say what was clamped when a colour lies outside the paper's clamp (sec. 2.5), else None."""
-    model = ColourModel(system)
-    lo, hi = model.colour_limits
-    if lo <= ci <= hi:
-        return None
-    return (
-        f"{option} {ci:g} is outside [{lo:.4f}, {hi:.4f}], the {system} of black bodies at "
-        f"{model.t_max_k:,.0f} K and {model.t_min_k:,.0f} K; the temperature is clamped to "
-        f"{t:,.0f} K (Fialho & Mortari 2019, sec. 2.5)"
     )
 
 
