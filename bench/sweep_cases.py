@@ -186,6 +186,8 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
             return None
         p = rng.choice(options)
         pool = {"int": BAD_INT, "float": BAD_FLOAT, "string": BAD_STRING}[p.kind]
+        if p.name == "--seed":  # any integer >= 0 seeds NumPy, however long
+            pool = [v for v in pool if not v.isdigit()]
         value = rng.choice(pool)
         argv = _set(base, p.name, value, None)
         return Case(index, kind, command, argv, "refuse", note=f"{p.name}={value[:40]!r}")
@@ -204,12 +206,16 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
             ext = suffix.get(command, ".png") if p.name == "--out" else ".png"
             if p.name == "--wcs":
                 ext = ".wcs"
-            target = target.replace("/x.png", "/x" + ext) if special == "missing-parent" else (
-                target + ext
+            target = (
+                target.replace("/x.png", "/x" + ext)
+                if special == "missing-parent"
+                else (target + ext)
             )
         argv = _set(base, p.name, target, where.get(p.name))
         make = {} if special == "missing-parent" else {target[4:]: special}
-        return Case(index, kind, command, argv, "refuse", make=make, note=f"{p.name}:{special}")
+        # a folder (and a figure's) missing folders are made: refused or written, cleanly
+        expect = "any" if special == "missing-parent" else "refuse"
+        return Case(index, kind, command, argv, expect, make=make, note=f"{p.name}:{special}")
     if kind == "input":
         ins = [p for p in params if p.kind == "path" and p.name in INPUT_NAMES]
         sensor = [p for p in params if p.name == "--sensor"]
@@ -226,7 +232,8 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
         }.get(p.name, ".png")  # fmt: skip
         target = "{d}/in" + ext
         argv = _set(base, p.name, target, where.get(p.name))
-        expect = "any" if bad == "changed" else "refuse"
+        # a changed file may still be valid; track reports each unreadable frame and goes on
+        expect = "any" if bad == "changed" or command == "track" else "refuse"
         return Case(index, kind, command, argv, expect, make={target[4:]: "in:" + bad},
                     note=f"{p.name}:{bad}")  # fmt: skip
     if kind == "usage":
@@ -240,7 +247,7 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
                 i = argv.index(p.name)
                 del argv[i : i + 2]
             return Case(index, kind, command, argv, "refuse", note=f"without {p.name}")
-        flag = rng.choice(["--bogus", "--", "-x", "--out=", "--help-me"])
+        flag = rng.choice(["--bogus", "-x", "--help-me", "--jsonn", "--=1"])
         return Case(index, kind, command, [*base, flag], "refuse", note=f"with {flag}")
     if kind == "signal":
         sig = rng.choice(["SIGINT", "SIGTERM"])

@@ -178,6 +178,26 @@ CASES = [
      ["http://127.0.0.1:{closed}/x", "connection refused"]),
     (["limit", "sky", "--catalog", "hats:{bad}", "--dask", "tcp://127.0.0.1:{closed}"],
      ["tcp://127.0.0.1:{closed}", "connection refused"]),
+    # -- an aperture or exposure beyond a sensor's ranges (1e308 overflowed: a traceback, or
+    # RuntimeWarnings and a Fisher matrix of infinities)
+    (["limit", "star", "--mag-v", "5", "--b-v", "0", "--exposure-s", "1e308"],
+     ["--exposure-s", "1e+308", "100000.0"]),
+    (["limit", "curve", "--diameter-m", "1e308"], ["--diameter-m", "1e+308", "10.0"]),
+    (["limit", "sky", "--max-mag", "3", "--exposure-s", "1e308"], ["--exposure-s", "1e+308"]),
+    (["limit", "photons", "--diameter-m", "11"], ["--diameter-m", "11", "10.0"]),
+    (["report", "--out", "{out}/r", "--exposure-s", "1e308"], ["--exposure-s", "1e+308"]),
+    # an empty list of configurations ran them all
+    (["guide-stars", "simulate", "--configurations", ""], ["--configurations", "''", "no config"]),
+    (["guide-stars", "field", "--configurations", ","], ["--configurations", "','"]),
+    # found by the sweep (bench/bad_input_sweep.py): NaN kept no star, without a word; 10**23
+    # overflowed the field's counts and 1e308 the figure's axis (tracebacks)
+    (["guide-stars", "field", "--max-mag", "nan"], ["--max-mag", "nan"]),
+    (["availability", "static", "--n-min", "99999999999999999999999"],
+     ["--n-min", "99999999999999999999999", "1,000,000"]),
+    (["limit", "curve", "--extrapolate-to", "1e308"], ["--extrapolate-to", "1e+308"]),
+    # a name the system refuses (longer than a file name may be): the name and why, one line
+    (["render", "--out", "{out}/f.png", "--sensor", "x" * 300],
+     ["xxxxxxxxxx", "File name too long"]),
 ]
 # fmt: on
 

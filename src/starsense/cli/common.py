@@ -381,3 +381,15 @@ def colour_clamp_note(system: str, ci: float, option: str, t: float | None = Non
         f"{model.t_max_k:,.0f} K and {model.t_min_k:,.0f} K; the temperature is clamped to "
         f"{t:,.0f} K (Fialho & Mortari 2019, sec. 2.5)"
     )
+
+
+#: the largest aperture and exposure an option takes: a sensor TOML's ranges (optics.aperture_m,
+#: exposure_s); 1e308 overflowed the photon count, then the Fisher matrix (a traceback)
+APERTURE_MAX_M = 10.0
+EXPOSURE_MAX_S = 1e5
+
+
+def check_aperture_options(diameter_m: float, exposure_s: float) -> None:
+    """Check ``--diameter-m`` and ``--exposure-s``: finite, > 0 and within a sensor's ranges."""
+    option_float(diameter_m, "--diameter-m", 0.0, APERTURE_MAX_M, lo_open=True)
+    option_float(exposure_s, "--exposure-s", 0.0, EXPOSURE_MAX_S, lo_open=True)

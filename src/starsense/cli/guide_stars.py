@@ -7,6 +7,7 @@ radians, call :mod:`starsense.analysis.guide_stars`, print. User errors are
 
 from __future__ import annotations
 
+import math
 from typing import Annotated
 
 import numpy as np
@@ -152,8 +153,20 @@ CriterionOpt = Annotated[
         "brightest.",
     ),
 ]
+
+
+def _max_mag(value: float | None) -> float | None:
+    """Check ``--max-mag``: NaN (every comparison false: no star kept) or -inf refused."""
+    if value is not None and (math.isnan(value) or value == -math.inf):
+        raise InputError(f"magnitude limit (--max-mag) must be a number, got {value!r}")
+    return value
+
+
 MaxMagOpt = Annotated[
-    float | None, typer.Option("--max-mag", help="Faintest catalogue star used (default: all).")
+    float | None,
+    typer.Option(
+        "--max-mag", help="Faintest catalogue star used (default: all).", callback=_max_mag
+    ),
 ]
 
 
@@ -166,7 +179,15 @@ def _center(text: str) -> tuple[float, float]:
 
 def _configs(text: str | None) -> list[str] | None:
     """Return the configuration names of ``--configurations`` (None: all)."""
-    return None if text is None else [c.strip() for c in text.split(",") if c.strip()]
+    if text is None:
+        return None
+    names = [c.strip() for c in text.split(",") if c.strip()]
+    if not names:  # '' or ',' ran every configuration, as if the option were not given
+        raise InputError(
+            f"--configurations {text!r} names no configuration; give one or more of "
+            f"{', '.join(CONFIGURATIONS)}, or leave the option out for all"
+        )
+    return names
 
 
 def _sigmas(text: str | None, default: list[float] | None = None) -> list[float]:

@@ -34,6 +34,7 @@ from starsense.cli.common import (
     JsonOpt,
     ScaleCatalogOpt,
     SeedOpt,
+    check_aperture_options,
     colour_clamp_note,
     emit,
     option_float,
@@ -111,6 +112,7 @@ def limit_star(
     as_json: JsonOpt = False,
 ) -> None:
     """One star's black body, photons and centroid bound (Table 1; eqs. 9, 12, 19)."""
+    check_aperture_options(diameter_m, exposure_s)
     given = [
         names
         for names, values in (
@@ -193,6 +195,7 @@ def limit_sky(
     With --catalog hats:PATH_OR_URL the catalogue is processed partition by partition on Dask
     (--dask), with the same kernels and results as in memory.
     """
+    check_aperture_options(diameter_m, exposure_s)
     if (fov_deg is None) != (not target_deg):
         raise InputError("--fov-deg and --target-deg go together (one or more targets)")
     if fov_deg is not None:
@@ -317,7 +320,9 @@ def limit_curve(
     With --catalog hats:PATH_OR_URL the curve is built partition by partition on Dask (--dask)
     from magnitude histograms, without sorting the catalogue.
     """
-    check_scalar(extrapolate_to, "--extrapolate-to", 2)
+    check_aperture_options(diameter_m, exposure_s)
+    # the paper's 3e11 is the Galaxy's stars; 1e308 overflowed the figure's axis (a traceback)
+    check_scalar(extrapolate_to, "--extrapolate-to", 2, 1e13)
     if check_dask_option(catalog, dask):
         with hats_session(catalog, dask, not as_json) as (cat, client, progress):
             curve = hats_curve(
@@ -371,8 +376,7 @@ def limit_photons(
 ) -> None:
     """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
     check_count(trials, "--trials", MAX_PHOTON_TRIALS, PHOTON_TRIAL_COST)
-    option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
-    option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
+    check_aperture_options(diameter_m, exposure_s)
     cat, stars = _load_stars(catalog, None, colour)
     res = low_photon_degradation(
         stars, diameter_m=diameter_m, exposure_s=exposure_s, n_trials=trials, rng=seed
