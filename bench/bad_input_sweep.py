@@ -26,6 +26,7 @@ folder, process group and ``TMPDIR``, with its output to files and its address s
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
 import json
 import os
@@ -38,6 +39,7 @@ import socket
 import stat
 import sys
 import tempfile
+import threading
 import time
 import traceback
 import warnings
@@ -261,6 +263,12 @@ def _child(argv: list[str], case_dir: Path, tmp: Path, cap: int) -> None:  # pra
     except BaseException:
         traceback.print_exc()
     finally:
+        # the end of a plain interpreter: threads joined, then the exit functions (the Dask
+        # cluster's and multiprocessing's: skipped, they left its resource tracker running)
+        with contextlib.suppress(BaseException):
+            threading._shutdown()
+        with contextlib.suppress(BaseException):
+            atexit._run_exitfuncs()
         with contextlib.suppress(Exception):
             sys.stdout.flush()
             sys.stderr.flush()
@@ -396,14 +404,36 @@ class Run:
             "seconds": round(elapsed, 2),
             "peak_rss_mb": round(rss / 1e6, 1),
             "stderr_tail": "\n".join(lines[-6:])[-1500:],
-            "left": sorted((after - self.before) | set(tmp_left))[:8],
+            "left": sorted(after - self.before)[:8],
+            "tmpdir_left": tmp_left[:8],
             "replaced": replaced,
             "orphans": orphans,
         }
 
 
-def _orphans(pgid: int) -> list[int]:
-    """Processes still in the case's process group (killed here once counted)."""
+def _orphans(pgid: int, wait_s: float = 3.0) -> list[str]:
+    """Processes of the case's process group alive ``wait_s`` after it (killed once counted).
+
+    A moment is allowed: multiprocessing's resource tracker ends when the last process holding
+    its pipe has (it cleans up after them), as it does after any command.
+    """
+    deadline = time.monotonic() + wait_s
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(pgid, 0)
+        except OSError:
+            return []
+        if not _group(pgid):
+            return []
+        time.sleep(0.05)
+    found = _group(pgid)
+    with contextlib.suppress(OSError):
+        os.killpg(pgid, signal.SIGKILL)
+    return found
+
+
+def _group(pgid: int) -> list[str]:
+    """The live processes of process group ``pgid``, with their command lines."""
     found = []
     for name in os.listdir("/proc"):
         if name.isdigit():
@@ -413,9 +443,9 @@ def _orphans(pgid: int) -> list[int]:
             except OSError:
                 continue
             if int(fields[2]) == pgid and fields[0] != "Z":
-                found.append(int(name))
-    with contextlib.suppress(OSError):
-        os.killpg(pgid, signal.SIGKILL)
+                with contextlib.suppress(OSError), open(f"/proc/{name}/cmdline", "rb") as fh:
+                    name += " " + fh.read()[:120].replace(b"\0", b" ").decode(errors="replace")
+                found.append(name)
     return found
 
 

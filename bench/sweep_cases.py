@@ -70,17 +70,24 @@ BASE: dict[str, list[str]] = {
     "catalog import": ["catalog", "import", "{csv}", "{d}/hats", "--dask", "local:1"],
 }  # fmt: skip
 
-#: values no option of the type accepts
+#: values no option of the type accepts (no NUL byte: a command line cannot hold one)
 BAD_FLOAT = ["nan", "NaN", "inf", "-inf", "1e308", "-1e308", "1e400", "abc", "", " ", "1,2",
              "0x1p3", "--", "1e30000000"]  # fmt: skip
 BAD_INT = ["-1", "abc", "", "1.5", "nan", "99999999999999999999999", "1e3",
            "-99999999999999999999", " "]  # fmt: skip
-BAD_STRING = ["", " ", "nan", "abc", "-1", "1e308", "x" * 5000, "\x00", "a\x00b", "💥",
+BAD_STRING = ["", " ", "nan", "abc", "1e308", "x" * 5000, "\x01", "a\x1bb", "💥",
               "1,,2", ",", "nan,0,0", "1e308,0,0", "=", "st16=", "local:0", "../nosuch",
               "hip2:{d}/nosuch", "gaia:", "tcp://127.0.0.1:1", "2019-13-45T99:00:00"]  # fmt: skip
 #: string options whose domain includes any word (names: a column name is checked against the
 #: file when it is read, and is then refused; kept in the sweep)
 FREE_STRINGS: set[str] = set()
+
+#: values an option takes by design: ``--max-mag inf`` is "every star" (a limit beyond the
+#: catalogue; availability_options.check_max_mag), so are the floats that parse to infinity
+ACCEPTS = {"--max-mag": {"inf", "1e308", "1e400", "1e30000000"}}
+#: the integer options that count work (trials, frames, orientations ...): 10**12 must be refused;
+#: thresholds (``--pixel-threshold``, ``--n-min``) are not allocations and may be any size
+COUNTS = ("trials", "frames", "orientations", "samples", "sequence", "workers", "jobs", "n-stars")
 
 #: output options (a file, or a folder for these)
 OUTPUT_DIRS = {"--maps"}
@@ -188,6 +195,7 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
         pool = {"int": BAD_INT, "float": BAD_FLOAT, "string": BAD_STRING}[p.kind]
         if p.name == "--seed":  # any integer >= 0 seeds NumPy, however long
             pool = [v for v in pool if not v.isdigit()]
+        pool = [v for v in pool if v not in ACCEPTS.get(p.name, ())]
         value = rng.choice(pool)
         argv = _set(base, p.name, value, None)
         return Case(index, kind, command, argv, "refuse", note=f"{p.name}={value[:40]!r}")
@@ -255,8 +263,7 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
         return Case(index, kind, command, list(base), "signal", signal=sig, delay_s=delay,
                     note=f"{sig} at {delay:.2f} s")  # fmt: skip
     if kind == "huge":
-        counts = [p for p in params if p.kind == "int" and not p.positional]
-        counts = [p for p in counts if p.name not in ("--seed", "--port")]
+        counts = [p for p in params if p.kind == "int" and any(w in p.name for w in COUNTS)]
         frames = [p for p in params if p.name in ("images", "frames", "more_frames")]
         if frames and (not counts or rng.random() < 0.5):
             p = rng.choice(frames)

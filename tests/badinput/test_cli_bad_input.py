@@ -195,6 +195,12 @@ CASES = [
     (["availability", "static", "--n-min", "99999999999999999999999"],
      ["--n-min", "99999999999999999999999", "1,000,000"]),
     (["limit", "curve", "--extrapolate-to", "1e308"], ["--extrapolate-to", "1e+308"]),
+    (["track", "{bad}/onebit.png", "{bad}/onebit.png", "--sensor", "st16", "--interval-s",
+      "1e308"], ["--interval-s", "1e+308", "86400"]),
+    (["slew", "intensity", "--magnitudes", "1e308"], ["--magnitudes", "1e+308", "40.0"]),
+    (["guide-stars", "field", "--sigmas-arcsec", "1e308"], ["--sigmas-arcsec", "3600"]),
+    (["characterize", "{bad}/onebit.png", "--out", "{out}/c.toml", "--exposure-s", "1e308"],
+     ["--exposure-s", "1e308", "100000"]),
     # a name the system refuses (longer than a file name may be): the name and why, one line
     (["render", "--out", "{out}/f.png", "--sensor", "x" * 300],
      ["xxxxxxxxxx", "File name too long"]),

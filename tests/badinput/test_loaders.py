@@ -156,3 +156,15 @@ def test_a_fifo_given_as_an_input_file_is_refused_not_waited_on(argv, tmp_path, 
     assert code == 2 and len(err.splitlines()) == 1, err
     assert str(fifo) in err and "not a regular file" in err
     assert stat.S_ISFIFO(os.lstat(fifo).st_mode) and sorted(tmp_path.iterdir()) == [fifo]
+
+
+def test_a_path_with_a_nul_byte_is_named_not_a_value_error():
+    # from Python (a command line cannot hold a NUL): the system's "embedded null byte"
+    # ValueError escaped the readers and writers' checks
+    from starsense._io import check_output, readable_file
+    from starsense.errors import OutputError
+
+    with pytest.raises(InputError, match=r"sensor file path a\\x00b holds a NUL byte"):
+        readable_file("a\x00b", "sensor file")
+    with pytest.raises(OutputError, match=r"--out path a\\x00b.png holds a NUL byte"):
+        check_output("a\x00b.png", "--out")

@@ -28,7 +28,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from starsense.errors import OutputError
+from starsense.errors import OutputError, one_line
 
 __all__ = [
     "atomic_path",
@@ -129,6 +129,8 @@ def check_output(
     text = os.fspath(target) if isinstance(target, str | os.PathLike) else None
     if not isinstance(text, str) or not text.strip():
         raise OutputError(f"{what} path is empty (got {target!r})")
+    if "\0" in text:  # no file is named so (the system refuses the name: a ValueError)
+        raise OutputError(f"{what} path {one_line(text, 200)} holds a NUL byte")
     p = Path(text).expanduser()
     parent = p.absolute().parent
     shown = f"cannot write {what} {p}"

@@ -190,11 +190,17 @@ def _configs(text: str | None) -> list[str] | None:
     return names
 
 
+#: the largest per-axis error the guide-star commands take, arcsec (a degree)
+MAX_SIGMA_ARCSEC = 3600.0
+
+
 def _sigmas(text: str | None, default: list[float] | None = None) -> list[float]:
     """Return the values of ``--sigmas-arcsec``, arcsec, each checked > 0."""
     sig = parse_floats(text, "--sigmas-arcsec") or default
     for s in sig:
         positive_float(s, "--sigmas-arcsec")
+        # a degree at most: 1e308 overflowed the solves' norms (RuntimeWarnings, a silent 0 %)
+        check_scalar(s, "--sigmas-arcsec", 0.0, MAX_SIGMA_ARCSEC)
     return sig
 
 

@@ -64,7 +64,8 @@ def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, co
         typer.echo(f"warning: {clamped}", err=True)
     check_count(trials, "--trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
     sensor = load_sensor(sensor_name)
-    mags = parse_floats(magnitudes, "--magnitudes")
+    # the Sun (-26.7) to far beyond any tracker's limit: 1e308 ran and said nothing was seen
+    mags = parse_floats(magnitudes, "--magnitudes", lo=-30.0, hi=40.0)
     rate_values = _rates_rad_s(rates)
     if mags is None or rate_values is None:  # the sensor's own grids, as its datasheet uses
         own_mags, own_rates = sensor_grids(

@@ -104,7 +104,7 @@ def check_scheduler(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -
 
 #: how long a signal waits for the cluster's start to finish, s (workers killed by the same
 #: signal, sent to the whole process group, can leave the start waiting for them for minutes)
-START_GRACE_S = 3.0
+START_GRACE_S = 10.0
 
 
 @contextlib.contextmanager
