@@ -344,7 +344,10 @@ class Run:
         case = self.case
         err = (self.dir.parent / f"{self.dir.name}.stderr").read_text(errors="replace")
         out = (self.dir.parent / f"{self.dir.name}.stdout").read_text(errors="replace")
-        lines = err.strip().splitlines()
+        # progress ("starsense: building the identification database ...") and warnings in
+        # words may come before the one line that ends a run
+        said = err.strip().splitlines()
+        lines = [x for x in said if not x.startswith(("starsense: ", "warning: "))]
         orphans = _orphans(self.pid)
         after = _snapshot(self.dir)
         tmp_left = sorted(os.listdir(self.tmp))
@@ -378,7 +381,7 @@ class Run:
             else:  # nothing written, or what was (complete, no temporaries) named
                 form = "signal" if after == self.before else "signal, written before it"
         elif self.server_stopped or (case.expect == "refuse" and code in (0, 1)):
-            warned = lines and all(x.startswith("warning: ") for x in lines)
+            warned = not lines and any(x.startswith("warning: ") for x in said)
             if warned and not self.server_stopped:
                 form = "warned"  # the "refused or warned in words"
             else:
@@ -403,7 +406,7 @@ class Run:
             "exit": code,
             "seconds": round(elapsed, 2),
             "peak_rss_mb": round(rss / 1e6, 1),
-            "stderr_tail": "\n".join(lines[-6:])[-1500:],
+            "stderr_tail": "\n".join(said[-6:])[-1500:],
             "left": sorted(after - self.before)[:8],
             "tmpdir_left": tmp_left[:8],
             "replaced": replaced,
