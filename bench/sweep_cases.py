@@ -46,7 +46,7 @@ BASE: dict[str, list[str]] = {
     "design": ["design", "--no-open", "--port", "{port}", "--n-orientations", "50"],
     "track": ["track", "{frame}", "{frame}", "--sensor", "st16", "--interval-s", "1"],
     "report": ["report", "--out", "{d}/r", "--trials", "2", "--slew-trials", "2"],
-    "limit star": ["limit", "star", "--mag-v", "5"],
+    "limit star": ["limit", "star", "--mag-v", "5", "--b-v", "0.5"],
     "limit sky": ["limit", "sky", "--max-mag", "4"],
     "limit curve": ["limit", "curve", "--plot", "{d}/c.png"],
     "limit photons": ["limit", "photons", "--trials", "10"],
@@ -65,7 +65,8 @@ BASE: dict[str, list[str]] = {
     "availability mission": ["availability", "mission", "--heads", "st16", "--tle", "{tle}",
                              "--duration-h", "0.2", "--trials", "4", "--plot", "{d}/m.png"],
     "guide-stars simulate": ["guide-stars", "simulate", "--trials", "20"],
-    "guide-stars select": ["guide-stars", "select", "--sensor", "lin2024"],
+    "guide-stars select": ["guide-stars", "select", "--sensor", "lin2024", "--center-deg",
+                           "84,-1"],
     "guide-stars field": ["guide-stars", "field", "--trials", "20"],
     "catalog import": ["catalog", "import", "{csv}", "{d}/hats", "--dask", "local:1"],
 }  # fmt: skip
@@ -240,8 +241,10 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
         }.get(p.name, ".png")  # fmt: skip
         target = "{d}/in" + ext
         argv = _set(base, p.name, target, where.get(p.name))
-        # a changed file may still be valid; track reports each unreadable frame and goes on
-        expect = "any" if bad == "changed" or command == "track" else "refuse"
+        # a changed file may still be valid, so may a text file cut at a line's end (fewer rows);
+        # track reports each unreadable frame and goes on
+        text_cut = bad == "cut" and ext != ".png"
+        expect = "any" if bad == "changed" or text_cut or command == "track" else "refuse"
         return Case(index, kind, command, argv, expect, make={target[4:]: "in:" + bad},
                     note=f"{p.name}:{bad}")  # fmt: skip
     if kind == "usage":
@@ -250,7 +253,10 @@ def _draw(rng, index: int, kind: str, command: str, params: list[Param]) -> Case
             p = rng.choice(required)
             argv = list(base)
             if p.positional and p.name in where:
-                del argv[where[p.name]]
+                # the last positional takes every word left (track's frames): drop them all
+                last = p is positional[-1]
+                end = slots[-1] + 1 if last else where[p.name] + 1
+                del argv[where[p.name] : end]
             elif p.name in argv:
                 i = argv.index(p.name)
                 del argv[i : i + 2]

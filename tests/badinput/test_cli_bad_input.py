@@ -201,6 +201,11 @@ CASES = [
     (["guide-stars", "field", "--sigmas-arcsec", "1e308"], ["--sigmas-arcsec", "3600"]),
     (["characterize", "{bad}/onebit.png", "--out", "{out}/c.toml", "--exposure-s", "1e308"],
      ["--exposure-s", "1e308", "100000"]),
+    # a magnitude limit brighter than the Sun kept no star, without a word
+    (["render", "--out", "{out}/f.png", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
+    (["guide-stars", "field", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
+    (["availability", "static", "--max-mag", "-40"], ["--max-mag", "-40", "-30"]),
+    (["limit", "sky", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
     # a name the system refuses (longer than a file name may be): the name and why, one line
     (["render", "--out", "{out}/f.png", "--sensor", "x" * 300],
      ["xxxxxxxxxx", "File name too long"]),

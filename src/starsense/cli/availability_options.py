@@ -32,6 +32,7 @@ from starsense.analysis.sensor_detection import sensor_detection
 from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
+    BRIGHTEST_MAG,
     output_dir,
     output_file,
 )
@@ -196,6 +197,11 @@ def check_max_mag(max_mag: float | None) -> float | None:
     """
     if max_mag is not None and (math.isnan(max_mag) or max_mag == -math.inf):
         raise InputError(f"magnitude limit (--max-mag) must be finite, got {max_mag!r}")
+    if max_mag is not None and max_mag < BRIGHTEST_MAG:  # +inf stays: every star
+        raise InputError(
+            f"magnitude limit (--max-mag) = {max_mag:g} is brighter than any star "
+            f"(must be >= {BRIGHTEST_MAG:g})"
+        )
     return max_mag
 
 

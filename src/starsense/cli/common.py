@@ -383,6 +383,10 @@ def colour_clamp_note(system: str, ci: float, option: str, t: float | None = Non
     )
 
 
+#: the brightest magnitude a ``--max-mag`` may be: the Sun is -26.7; a limit below it keeps no
+#: star at all (-1e308 rendered an empty frame, or chose no guide star, without a word)
+BRIGHTEST_MAG = -30.0
+
 #: the largest aperture and exposure an option takes: a sensor TOML's ranges (optics.aperture_m,
 #: exposure_s); 1e308 overflowed the photon count, then the Fisher matrix (a traceback)
 APERTURE_MAX_M = 10.0

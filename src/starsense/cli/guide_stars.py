@@ -28,7 +28,15 @@ from starsense.analysis.guide_stars import (
 from starsense.analysis.guide_stars.fields import FIELD_TRIAL_COST, MAX_FIELD_TRIALS
 from starsense.analysis.guide_stars.table1 import MAX_TABLE1_TRIALS, TABLE1_TRIAL_COST
 from starsense.catalog import load_catalog
-from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
+from starsense.cli.common import (
+    BRIGHTEST_MAG,
+    CatalogOpt,
+    JsonOpt,
+    SeedOpt,
+    emit,
+    parse_floats,
+    progress_bar,
+)
 from starsense.errors import InputError
 from starsense.references import lin2024
 from starsense.sensor import load_sensor
@@ -159,6 +167,11 @@ def _max_mag(value: float | None) -> float | None:
     """Check ``--max-mag``: NaN (every comparison false: no star kept) or -inf refused."""
     if value is not None and (math.isnan(value) or value == -math.inf):
         raise InputError(f"magnitude limit (--max-mag) must be a number, got {value!r}")
+    if value is not None and value < BRIGHTEST_MAG:
+        raise InputError(
+            f"magnitude limit (--max-mag) = {value:g} is brighter than any star "
+            f"(must be >= {BRIGHTEST_MAG:g})"
+        )
     return value
 
 

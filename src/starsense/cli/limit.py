@@ -26,6 +26,7 @@ from starsense.catalog import load_catalog
 from starsense.catalog._columns import MAG_RANGE
 from starsense.cli.catalog import check_dask_option, hats_session
 from starsense.cli.common import (
+    BRIGHTEST_MAG,
     CatalogOpt,
     ColourOpt,
     DaskOpt,
@@ -77,6 +78,7 @@ def _target_vectors(radec: list[tuple[float, float]]) -> np.ndarray:
 def _check_max_mag(max_mag: float | None) -> None:
     if max_mag is not None:
         finite_float(max_mag, "--max-mag")
+        option_float(max_mag, "--max-mag", BRIGHTEST_MAG)
 
 
 def _load_stars(catalog: str, max_mag: float | None, colour: str | None):
