@@ -189,6 +189,8 @@ CASES = [
     # an empty list of configurations ran them all
     (["guide-stars", "simulate", "--configurations", ""], ["--configurations", "''", "no config"]),
     (["guide-stars", "field", "--configurations", ","], ["--configurations", "','"]),
+    (["guide-stars", "select", "--sensor", "lin2024", "--center-deg", "84,-1", "--areas", ""],
+     ["--areas", "''", "no area"]),
     # found by the sweep (bench/bad_input_sweep.py): NaN kept no star, without a word; 10**23
     # overflowed the field's counts and 1e308 the figure's axis (tracebacks)
     (["guide-stars", "field", "--max-mag", "nan"], ["--max-mag", "nan"]),

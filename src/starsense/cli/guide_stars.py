@@ -283,6 +283,11 @@ def select(
             wanted = tuple(int(a) for a in areas.split(",") if a.strip())
         except ValueError:
             raise InputError(f"--areas expects comma-separated integers, got {areas!r}") from None
+        if not wanted:  # '' or ',' used no area: "no stars", exit 1, as if the sky were empty
+            raise InputError(
+                f"--areas {areas!r} names no area; give one or more area numbers, or leave "
+                "the option out for all"
+            )
     cat = load_catalog(catalog)
     rows, xy, mag, band = field_stars(
         cat, (ra * DEG, dec * DEG), layout=layout, roll_rad=roll_deg * DEG, max_mag=max_mag
