@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
 import signal
 import sys
 import threading
@@ -208,11 +209,37 @@ def _signals_unwind() -> Iterator[None]:
         yield
         return
     old = {s: signal.signal(s, _on_signal) for s in _UNWIND}
+    hook = sys.unraisablehook
+    sys.unraisablehook = _unwind_again(hook)
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         for s, handler in old.items():
             signal.signal(s, handler)
+
+
+def _unwind_again(hook):
+    """Return an unraisable-exception hook that raises a swallowed unwind again.
+
+    Python reports an exception raised where it cannot propagate (an at-fork hook, a ``__del__``)
+    and goes on: the unwind of a signal that landed there (logging's lock release after a process
+    pool's fork) was lost, and the command ran to its end. The signal is sent again a moment
+    later, from another thread (raised here, it would be handled, and swallowed, here again),
+    to unwind where the main thread has gone on; anything else goes to the previous hook.
+    """
+
+    def unraisable(info) -> None:
+        for signum, kind in _UNWIND.items():
+            if isinstance(info.exc_value, kind):
+                signal.signal(signum, _on_signal)
+                again = threading.Timer(0.05, os.kill, args=(os.getpid(), signum))
+                again.daemon = True
+                again.start()
+                return
+        hook(info)
+
+    return unraisable
 
 
 def _say(line: str) -> None:
@@ -249,6 +276,8 @@ def main(argv: list[str] | None = None) -> int:
             importlib.import_module("starsense.cli.helptext").reflow_app(app)
             app(args=args, prog_name="starsense")  # standalone mode: ends with SystemExit
     except SystemExit as exc:
+        if _received:  # a signal came, and something swallowed its unwind: it still ended it
+            return _interrupted(_received[0])
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except StarsenseError as exc:
         _say(f"error: {exc}")
