@@ -208,6 +208,10 @@ CASES = [
     (["guide-stars", "field", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
     (["availability", "static", "--max-mag", "-40"], ["--max-mag", "-40", "-30"]),
     (["limit", "sky", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
+    (["availability", "dynamic", "--rates-deg-s", "1e308,0,0"],
+     ["--rates-deg-s", "1e+308", "360"]),
+    (["catalog", "import", "{bad}/nosuch.csv", "{out}/h", "--pixel-threshold",
+      "99999999999999999999999"], ["--pixel-threshold", "99999999999999999999999"]),
     # a name the system refuses (longer than a file name may be): the name and why, one line
     (["render", "--out", "{out}/f.png", "--sensor", "x" * 300],
      ["xxxxxxxxxx", "File name too long"]),

@@ -184,7 +184,17 @@ def check_rates_deg_s(values: list[float], option: str) -> np.ndarray:
         raise InputError(
             f"slew rate ({option}) = {bad:g} deg/s is negative; rates are magnitudes |w| >= 0"
         )
+    if np.any(rates > MAX_RATE_DEG_S):  # 1e308 deg/s ran, every star smeared out, exit 0
+        bad = float(rates[rates > MAX_RATE_DEG_S][0])
+        raise InputError(
+            f"slew rate ({option}) = {bad:g} deg/s is above {MAX_RATE_DEG_S:g} deg/s "
+            "(one turn a second, the renderer's cap)"
+        )
     return rates * DEG
+
+
+#: the fastest slew rate an option takes, deg/s: one turn a second, as `render --rate-deg-s`
+MAX_RATE_DEG_S = 360.0
 
 
 def check_max_mag(max_mag: float | None) -> float | None:
