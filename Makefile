@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint docs dist check-dist bench bench-peers bench-zoo bench-galsim clean
+.PHONY: demo test test-fast lint docs dist check-dist bench bench-peers bench-zoo bench-galsim bench-sweep clean
 
 $(STAMP): pyproject.toml setup.py $(wildcard src/starsense/*/_*.c)
 	$(PYTHON) -m venv $(VENV)
@@ -79,6 +79,10 @@ bench-zoo: $(STAMP)  ## held-out zoos (3 seeds drawn now, 16 designs each) first
 	for f in bench/results/zoo_heldout_1.json bench/results/zoo_heldout_2.json \
 		bench/results/zoo_heldout_3.json bench/results/zoo.json; do \
 		$(BIN)/python bench/zoo_table.py $$f; done
+
+bench-sweep: $(STAMP)  ## bad inputs and faults over every command: 1,000 cases of a seed drawn now (printed); the record's seed again to bench/results/bad_input_sweep.json
+	$(BIN)/python bench/bad_input_sweep.py --cases 1000
+	$(BIN)/python bench/bad_input_sweep.py --seed 159959856 --cases 1000 --out bench/results/bad_input_sweep.json
 
 bench-galsim: $(STAMP)  ## the solver and the datasheet on GalSim frames (4 PSFs, rest and 1 deg/s; held-out zoo seed printed); bench/results/galsim_check.json
 	$(BIN)/python bench/galsim_check.py --designs 6 --frames 40 --jobs 2

@@ -152,3 +152,23 @@ def test_api_count_above_its_cap_is_an_input_error(call, fragments):
     for fragment in fragments:
         assert fragment in message, (fragment, message)
     assert time.perf_counter() - start < 20.0
+
+
+@pytest.mark.parametrize(
+    "shape", [(1, 100_000), (100_000, 1), (3, 60_000), (1, 1), (2, 2), (40, 4_000), (100, 31)]
+)
+def test_a_strip_of_a_frame_is_one_line_in_bounded_memory(shape, tmp_path, capsys):
+    # a frame thinner than the detector's noise boxes (a 1 x 100,000 PNG took 6.1 GB once,
+    # then a reshape error): one line, quickly, under the 4 GB guard of conftest.py
+    import numpy as np
+    from PIL import Image
+
+    path = tmp_path / f"strip_{shape[0]}x{shape[1]}.png"
+    noise = np.random.default_rng(50).integers(0, 200, shape).astype(np.uint8)
+    Image.fromarray(noise).save(path)
+    t0 = time.perf_counter()
+    code = main(["solve", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert path.name in err and "no star" in err, err  # noise only: nothing to solve
+    assert time.perf_counter() - t0 < 30.0

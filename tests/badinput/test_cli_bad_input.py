@@ -178,6 +178,43 @@ CASES = [
      ["http://127.0.0.1:{closed}/x", "connection refused"]),
     (["limit", "sky", "--catalog", "hats:{bad}", "--dask", "tcp://127.0.0.1:{closed}"],
      ["tcp://127.0.0.1:{closed}", "connection refused"]),
+    # -- an aperture or exposure beyond a sensor's ranges (1e308 overflowed: a traceback, or
+    # RuntimeWarnings and a Fisher matrix of infinities)
+    (["limit", "star", "--mag-v", "5", "--b-v", "0", "--exposure-s", "1e308"],
+     ["--exposure-s", "1e+308", "100000.0"]),
+    (["limit", "curve", "--diameter-m", "1e308"], ["--diameter-m", "1e+308", "10.0"]),
+    (["limit", "sky", "--max-mag", "3", "--exposure-s", "1e308"], ["--exposure-s", "1e+308"]),
+    (["limit", "photons", "--diameter-m", "11"], ["--diameter-m", "11", "10.0"]),
+    (["report", "--out", "{out}/r", "--exposure-s", "1e308"], ["--exposure-s", "1e+308"]),
+    # an empty list of configurations ran them all
+    (["guide-stars", "simulate", "--configurations", ""], ["--configurations", "''", "no config"]),
+    (["guide-stars", "field", "--configurations", ","], ["--configurations", "','"]),
+    (["guide-stars", "select", "--sensor", "lin2024", "--center-deg", "84,-1", "--areas", ""],
+     ["--areas", "''", "no area"]),
+    # found by the sweep (bench/bad_input_sweep.py): NaN kept no star, without a word; 10**23
+    # overflowed the field's counts and 1e308 the figure's axis (tracebacks)
+    (["guide-stars", "field", "--max-mag", "nan"], ["--max-mag", "nan"]),
+    (["availability", "static", "--n-min", "99999999999999999999999"],
+     ["--n-min", "99999999999999999999999", "1,000,000"]),
+    (["limit", "curve", "--extrapolate-to", "1e308"], ["--extrapolate-to", "1e+308"]),
+    (["track", "{bad}/onebit.png", "{bad}/onebit.png", "--sensor", "st16", "--interval-s",
+      "1e308"], ["--interval-s", "1e+308", "86400"]),
+    (["slew", "intensity", "--magnitudes", "1e308"], ["--magnitudes", "1e+308", "40.0"]),
+    (["guide-stars", "field", "--sigmas-arcsec", "1e308"], ["--sigmas-arcsec", "3600"]),
+    (["characterize", "{bad}/onebit.png", "--out", "{out}/c.toml", "--exposure-s", "1e308"],
+     ["--exposure-s", "1e308", "100000"]),
+    # a magnitude limit brighter than the Sun kept no star, without a word
+    (["render", "--out", "{out}/f.png", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
+    (["guide-stars", "field", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
+    (["availability", "static", "--max-mag", "-40"], ["--max-mag", "-40", "-30"]),
+    (["limit", "sky", "--max-mag", "-1e308"], ["--max-mag", "-30"]),
+    (["availability", "dynamic", "--rates-deg-s", "1e308,0,0"],
+     ["--rates-deg-s", "1e+308", "360"]),
+    (["catalog", "import", "{bad}/nosuch.csv", "{out}/h", "--pixel-threshold",
+      "99999999999999999999999"], ["--pixel-threshold", "99999999999999999999999"]),
+    # a name the system refuses (longer than a file name may be): the name and why, one line
+    (["render", "--out", "{out}/f.png", "--sensor", "x" * 300],
+     ["xxxxxxxxxx", "File name too long"]),
 ]
 # fmt: on
 
@@ -270,6 +307,28 @@ def test_colour_clamp_is_said(capsys):
     assert "clamped to 2,000 K" in captured.err
 
     assert json.loads(captured.out)["colour_clamped"] is True
+
+
+@pytest.mark.parametrize(
+    ("argv", "kelvin"),
+    [
+        # a colour of 1e308 overflowed the lookup's scaling (a RuntimeWarning on the terminal,
+        # an error under this suite's warnings-as-errors) before it was clamped
+        (["limit", "star", "--mag-v", "5", "--b-v", "-1e308"], "30,000 K"),
+        (["limit", "star", "--mag-v", "5", "--b-v", "1e308"], "2,000 K"),
+        # slew clamped the same colours without a word
+        (["slew", "tolerance", "--trials", "2", "--magnitudes", "3", "--rates-deg-s", "0",
+          "--b-v", "1e308"], "2,000 K"),
+        (["slew", "intensity", "--trials", "2", "--magnitudes", "3", "--rates-deg-s", "0",
+          "--b-v", "-5"], "30,000 K"),
+    ],
+)  # fmt: skip
+def test_an_extreme_colour_is_clamped_in_words(argv, kelvin, capsys):
+    code = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 0
+    assert len(err) == 1 and err[0].startswith("warning: --b-v"), err
+    assert f"clamped to {kelvin}" in err[0]
 
 
 def test_case_count():

@@ -4,6 +4,9 @@ header-only catalogue and binary garbage, each one short line (or, for the BOM, 
 
 from __future__ import annotations
 
+import os
+import stat
+
 import pytest
 from bad_files import SENSOR_TOML
 
@@ -132,3 +135,36 @@ def test_one_line_escapes_and_cuts():
     cut = one_line("x" * 5000, limit=100)
     assert cut == "x" * 100 + " ... (4,900 more characters)"
     assert str(InputError("bad \x07 value")) == "bad \\x07 value"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["availability", "dynamic", "--tolerance-json", "{fifo}"],
+        ["availability", "fidelity", "--tolerance-json", "{fifo}"],
+        ["report", "--out", "{out}", "--sensors", "{fifo}"],
+    ],
+    ids=lambda a: " ".join(a[:2]),
+)
+def test_a_fifo_given_as_an_input_file_is_refused_not_waited_on(argv, tmp_path, capsys):
+    # reading a FIFO nobody writes waits for ever (the sweep's timeouts): refused at once
+    fifo = tmp_path / "in.json"
+    os.mkfifo(fifo)
+    args = [a.format(fifo=fifo, out=tmp_path / "r") for a in argv]
+    code = main(args)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert str(fifo) in err and "not a regular file" in err
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode) and sorted(tmp_path.iterdir()) == [fifo]
+
+
+def test_a_path_with_a_nul_byte_is_named_not_a_value_error():
+    # from Python (a command line cannot hold a NUL): the system's "embedded null byte"
+    # ValueError escaped the readers and writers' checks
+    from starsense._io import check_output, readable_file
+    from starsense.errors import OutputError
+
+    with pytest.raises(InputError, match=r"sensor file path a\\x00b holds a NUL byte"):
+        readable_file("a\x00b", "sensor file")
+    with pytest.raises(OutputError, match=r"--out path a\\x00b.png holds a NUL byte"):
+        check_output("a\x00b.png", "--out")

@@ -101,3 +101,38 @@ def test_ctrl_c_during_the_real_start_up(name, tmp_path):
         assert proc.returncode == 130, (delay, proc.returncode, text)
         assert "Traceback" not in text and text.strip().splitlines()[-1] == LINE, text
         assert list(tmp_path.iterdir()) == [], (delay, list(tmp_path.iterdir()))
+
+
+#: armed by the test below: the at-fork hook (registered once for the process) sends SIGINT
+_ARMED: list[bool] = []
+
+
+def _signal_in_the_fork_hook() -> None:
+    if _ARMED:
+        _ARMED.clear()
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.5)  # the handler runs here, inside the hook: Python swallows its unwind
+
+
+os.register_at_fork(after_in_parent=_signal_in_the_fork_hook)
+
+
+def test_ctrl_c_landing_in_an_at_fork_hook_still_ends_the_command(tmp_path, monkeypatch, capsys):
+    # the sweep (bench/bad_input_sweep.py) sent a Ctrl-C to `trade` while its process pool
+    # forked: the unwind was raised in logging's after-fork lock release, reported as
+    # "Exception ignored" (a traceback) and lost; the trade ran to its end, exit 0
+    real = cli_app._load
+
+    def fork_then_load(where):
+        _ARMED.append(True)
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child leaves at once
+            os._exit(0)
+        os.waitpid(pid, 0)
+        return real(where)
+
+    monkeypatch.setattr(cli_app, "_load", fork_then_load)
+    code = main(_argv("trade", tmp_path / "out"))
+    assert code == 130
+    assert capsys.readouterr().err.strip() == LINE  # one line: no "Exception ignored" traceback
+    assert list(tmp_path.iterdir()) == []

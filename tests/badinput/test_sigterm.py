@@ -84,6 +84,10 @@ def test_render_terminated_during_the_commit_finishes_it(old_frame, monkeypatch,
     monkeypatch.setattr(files, "_fsync", fsync_then_term)
     code = main(["render", "--out", str(old_frame), "--max-mag", "3"])
     assert code == 143 and sent
+    # the one line says so: the signal came, and the files written before it are complete
+    err = capsys.readouterr().err.strip()
+    said = f"error: terminated (SIGTERM); written before it, complete: {old_frame} and 1 more"
+    assert err == said
     from PIL import Image
 
     det = load_sensor("st16").detector

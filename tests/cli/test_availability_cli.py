@@ -154,7 +154,7 @@ def test_track_json_keys(tolerance_json, tmp_path):
         (["dynamic", "--rates-deg-s", "1,-1"], r"= -1 deg/s is negative"),
         (["track", "--rate-deg-s", "-1"], r"--rate-deg-s\) = -1 deg/s is negative"),
         (["track", "--track-samples", "0"], r"--track-samples\) = 0"),
-        (["dynamic", "--tolerance-json", "/nonexistent/tol.json"], r"file not found"),
+        (["dynamic", "--tolerance-json", "/nonexistent/tol.json"], r"--tolerance-json not found"),
     ],
 )
 def test_bad_input_raises_input_error(argv, message):

@@ -72,8 +72,8 @@ def test_limit_star_table1_vega_hks_json(capsys):
     ("argv", "message"),
     [
         (["--mag-v", "1", "--b-v", "nan"], "--b-v must be finite, got nan"),
-        (["--mag-v", "1", "--b-v", "0.5", "--diameter-m", "0"], "diameter_m must be"),
-        (["--mag-v", "1", "--b-v", "0.5", "--exposure-s", "-1"], "exposure_s must be"),
+        (["--mag-v", "1", "--b-v", "0.5", "--diameter-m", "0"], "--diameter-m = 0.0 is out"),
+        (["--mag-v", "1", "--b-v", "0.5", "--exposure-s", "-1"], "--exposure-s = -1.0 is out"),
         (["--mag-v", "1"], "--mag-v and --b-v must be given together"),
         (["--mag", "1", "--colour-index", "0.2", "--colour", "X-Y"], "unknown colour system"),
     ],
@@ -119,7 +119,7 @@ def test_console_script_exit_code_and_single_line():
         check=False,
     )
     assert proc.returncode == 2
-    assert proc.stderr.strip().startswith("error: diameter_m must be")
+    assert proc.stderr.strip().startswith("error: --diameter-m = -3.0 is out of range")
     assert len(proc.stderr.strip().splitlines()) == 1
 
 
@@ -144,7 +144,7 @@ def test_python_dash_m_starsense_is_the_command_line():
         check=False,
     )
     assert proc.returncode == 2
-    assert proc.stderr.strip().startswith("error: diameter_m must be")
+    assert proc.stderr.strip().startswith("error: --diameter-m = -3.0 is out of range")
 
 
 def test_fialho2019_sec33_g_interval_bundled_catalogue(capsys):

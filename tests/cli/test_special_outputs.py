@@ -38,6 +38,8 @@ CASES = [
     (["solve", "--wcs", "{t}", "{d}/frame.png"], "frame.wcs"),
     (["solve", "--explain", "{t}", "{d}/frame.png"], "explain.png"),
     (["calibrate", "--out", "{t}", "{d}/frame.png"], "cal.toml"),
+    (["characterize", "--out", "{t}", "{d}/frame.png"], "char.toml"),
+    (["characterize", "--out", "{d}/char.toml", "--plot", "{t}", "{d}/frame.png"], "char.png"),
     (["slew", "tolerance", "--plot", "{t}"], "tol.png"),
     (["slew", "intensity", "--plot", "{t}"], "int.png"),
     (["slew", "study", "--plot", "{t}"], "study.png"),

@@ -16,8 +16,10 @@ from starsense._io.files import (
     deferred_signals,
     dir_mode,
     file_mode,
+    note_written,
     sweep_stale,
     temp_prefix,
+    written,
 )
 from starsense._io.jsonout import json_text, jsonable
 from starsense._io.reading import read_bytes, read_text, readable_file
@@ -33,12 +35,14 @@ __all__ = [
     "file_mode",
     "json_text",
     "jsonable",
+    "note_written",
     "probe_tcp",
     "read_bytes",
     "read_text",
     "readable_file",
     "sweep_stale",
     "temp_prefix",
+    "written",
 ]
 
 

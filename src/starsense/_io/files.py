@@ -28,7 +28,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from starsense.errors import OutputError
+from starsense.errors import OutputError, one_line
 
 __all__ = [
     "atomic_path",
@@ -41,6 +41,7 @@ __all__ = [
     "file_mode",
     "sweep_stale",
     "temp_prefix",
+    "written",
 ]
 
 #: marks a temporary name as ours: ``.{target}.starsense-{pid}-...``
@@ -48,6 +49,28 @@ _TMP_TAG = "starsense-"
 _TMP_PID = re.compile(r"^(\d+)-")
 #: errors of the disk, not of the program: reported against the user's path
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES, errno.EPERM}
+
+
+#: files and folders this process renamed into place, in order (:func:`written`)
+_WRITTEN: list[Path] = []
+
+
+def written(*, forget: bool = False) -> list[Path]:
+    """Return the outputs this process has put in place (renamed complete), oldest first.
+
+    The command line says after an interrupt whether anything was written before it (a signal
+    held back during a commit is raised once the files are complete). ``forget`` clears the
+    list (a new command starts).
+    """
+    out = list(_WRITTEN)
+    if forget:
+        _WRITTEN.clear()
+    return out
+
+
+def note_written(path: str | os.PathLike[str]) -> None:
+    """Record an output put in place by a rename outside :func:`atomic_paths` (a folder)."""
+    _WRITTEN.append(Path(path))
 
 
 def file_mode() -> int:
@@ -106,6 +129,8 @@ def check_output(
     text = os.fspath(target) if isinstance(target, str | os.PathLike) else None
     if not isinstance(text, str) or not text.strip():
         raise OutputError(f"{what} path is empty (got {target!r})")
+    if "\0" in text:  # no file is named so (the system refuses the name: a ValueError)
+        raise OutputError(f"{what} path {one_line(text, 200)} holds a NUL byte")
     p = Path(text).expanduser()
     parent = p.absolute().parent
     shown = f"cannot write {what} {p}"
@@ -287,7 +312,10 @@ def deferred_signals() -> Iterator[None]:
 
 @contextlib.contextmanager
 def atomic_paths(
-    targets: Sequence[str | os.PathLike[str]], suffixes: Sequence[str] | None = None
+    targets: Sequence[str | os.PathLike[str]],
+    suffixes: Sequence[str] | None = None,
+    *,
+    output: bool = True,
 ) -> Iterator[list[Path]]:
     """Yield temporary paths beside ``targets``; rename them all into place on success.
 
@@ -300,6 +328,8 @@ def atomic_paths(
         The files to create or replace, renamed in this order.
     suffixes : sequence of str, optional
         Ending of each temporary name (default ``.tmp``).
+    output : bool
+        The files are the command's output (listed by :func:`written`), not a cache of its own.
 
     Yields
     ------
@@ -339,6 +369,8 @@ def atomic_paths(
                 for target, tmp in zip(paths, tmps, strict=True):
                     current = target
                     os.replace(tmp, target)
+                    if output:
+                        _WRITTEN.append(target)
         except OSError as exc:
             ours = exc.filename in (*tmps, *map(str, paths))
             if ours or (exc.filename is None and exc.errno in _DISK_ERRNOS):
@@ -351,7 +383,9 @@ def atomic_paths(
 
 
 @contextlib.contextmanager
-def atomic_path(target: str | os.PathLike[str], suffix: str = ".tmp") -> Iterator[Path]:
+def atomic_path(
+    target: str | os.PathLike[str], suffix: str = ".tmp", *, output: bool = True
+) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it to ``target`` on success.
 
     For writers that take a file name (``fig.savefig``, ``fits.writeto``, Pillow). The
@@ -364,6 +398,8 @@ def atomic_path(target: str | os.PathLike[str], suffix: str = ".tmp") -> Iterato
         The file to create or replace.
     suffix : str
         Ending of the temporary name.
+    output : bool
+        The file is the command's output (listed by :func:`written`), not a cache of its own.
 
     Yields
     ------
@@ -376,13 +412,18 @@ def atomic_path(target: str | os.PathLike[str], suffix: str = ".tmp") -> Iterato
         The directory is missing or read-only, ``target`` is a directory, or the disk refused
         the write (full, read-only): the message names ``target``.
     """
-    with atomic_paths([target], [suffix]) as (tmp,):
+    with atomic_paths([target], [suffix], output=output) as (tmp,):
         yield tmp
 
 
 @contextlib.contextmanager
 def atomic_write(
-    target: str | os.PathLike[str], mode: str = "w", *, suffix: str = ".tmp", **kwargs: Any
+    target: str | os.PathLike[str],
+    mode: str = "w",
+    *,
+    suffix: str = ".tmp",
+    output: bool = True,
+    **kwargs: Any,
 ) -> Iterator[IO[Any]]:
     """Open a temporary file beside ``target`` for writing; rename it into place on success.
 
@@ -394,6 +435,8 @@ def atomic_write(
         Text or binary.
     suffix : str
         Ending of the temporary name.
+    output : bool
+        The file is the command's output (listed by :func:`written`), not a cache of its own.
     **kwargs
         Passed to :func:`open` (``encoding``, ``newline``); text mode defaults to UTF-8.
 
@@ -405,6 +448,6 @@ def atomic_write(
         raise ValueError(f"atomic_write mode must be 'w' or 'wb', got {mode!r}")
     if mode == "w":
         kwargs.setdefault("encoding", "utf-8")
-    with atomic_path(target, suffix=suffix) as tmp, open(tmp, mode, **kwargs) as fh:
+    with atomic_path(target, suffix=suffix, output=output) as tmp, open(tmp, mode, **kwargs) as fh:
         yield fh
         fh.flush()

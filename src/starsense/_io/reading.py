@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from starsense.errors import InputError
+from starsense.errors import InputError, one_line
 
 __all__ = ["read_bytes", "read_text", "readable_file"]
 
@@ -38,6 +38,8 @@ def readable_file(path: str | os.PathLike[str], what: str = "file") -> Path:
     text = os.fspath(path) if isinstance(path, str | os.PathLike) else None
     if not isinstance(text, str) or not text.strip():
         raise InputError(f"{what} path is empty (got {path!r})")
+    if "\0" in text:  # no file is named so (the system refuses the name: a ValueError)
+        raise InputError(f"{what} path {one_line(text, 200)} holds a NUL byte")
     p = Path(text).expanduser()
     try:
         p.stat()

@@ -185,7 +185,7 @@ def _write(target: Path, key: str, catalog: Catalog, *, stale_prefix: str) -> No
     """Write ``catalog`` to ``target`` atomically, then remove stale entries of its source."""
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_write(target, "wb") as f:
+        with atomic_write(target, "wb", output=False) as f:
             np.savez(f, **_to_arrays(catalog, key))
         for old in target.parent.glob(f"{stale_prefix}-*.npz"):
             if old != target:

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
 import signal
 import sys
 import threading
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
-from starsense.errors import StarsenseError
+from starsense.errors import StarsenseError, one_line
 
 if TYPE_CHECKING:
     import typer
@@ -189,9 +190,14 @@ EXIT_INTERRUPTED = 128 + signal.SIGINT
 _UNWIND = {signal.SIGINT: Interrupted, signal.SIGTERM: Terminated}
 
 
+#: the signal that ended the command, if one did (reset by :func:`main`)
+_received: list[int] = []
+
+
 def _on_signal(signum: int, frame: object) -> None:
     for s in _UNWIND:  # a second signal must not cut the cleanup short
         signal.signal(s, signal.SIG_IGN)
+    _received.append(signum)
     raise _UNWIND[signum]
 
 
@@ -203,11 +209,37 @@ def _signals_unwind() -> Iterator[None]:
         yield
         return
     old = {s: signal.signal(s, _on_signal) for s in _UNWIND}
+    hook = sys.unraisablehook
+    sys.unraisablehook = _unwind_again(hook)
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         for s, handler in old.items():
             signal.signal(s, handler)
+
+
+def _unwind_again(hook):
+    """Return an unraisable-exception hook that raises a swallowed unwind again.
+
+    Python reports an exception raised where it cannot propagate (an at-fork hook, a ``__del__``)
+    and goes on: the unwind of a signal that landed there (logging's lock release after a process
+    pool's fork) was lost, and the command ran to its end. The signal is sent again a moment
+    later, from another thread (raised here, it would be handled, and swallowed, here again),
+    to unwind where the main thread has gone on; anything else goes to the previous hook.
+    """
+
+    def unraisable(info) -> None:
+        for signum, kind in _UNWIND.items():
+            if isinstance(info.exc_value, kind):
+                signal.signal(signum, _on_signal)
+                again = threading.Timer(0.05, os.kill, args=(os.getpid(), signum))
+                again.daemon = True
+                again.start()
+                return
+        hook(info)
+
+    return unraisable
 
 
 def _say(line: str) -> None:
@@ -236,26 +268,64 @@ def main(argv: list[str] | None = None) -> int:
         130 after Ctrl-C, 143 after SIGTERM.
     """
     args = sys.argv[1:] if argv is None else list(argv)
+    _received.clear()
+    _written(forget=True)
     try:
         with _signals_unwind():
             app = app_for(args)
             importlib.import_module("starsense.cli.helptext").reflow_app(app)
             app(args=args, prog_name="starsense")  # standalone mode: ends with SystemExit
     except SystemExit as exc:
+        if _received:  # a signal came, and something swallowed its unwind: it still ended it
+            return _interrupted(_received[0])
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except StarsenseError as exc:
         _say(f"error: {exc}")
         return 2
     except FileNotFoundError as exc:
-        _say(f"error: file not found: {exc.filename}")
+        _say(f"error: file not found: {one_line(str(exc.filename), 300)}")
+        return 2
+    except OSError as exc:
+        # the system refused a path the user gave (a name too long, a permission) where no
+        # reader said so in its own words: that path and the system's reason, on one line
+        if _received:
+            return _interrupted(_received[0])
+        if exc.filename is None:
+            raise
+        _say(f"error: {one_line(str(exc.filename), 300)}: {exc.strerror or exc}")
         return 2
     except Terminated:
-        _say("error: terminated (SIGTERM); nothing written")
-        return EXIT_TERMINATED
+        return _interrupted(signal.SIGTERM)
     except Interrupted:
-        _say("error: interrupted (Ctrl-C); nothing written")
-        return EXIT_INTERRUPTED
+        return _interrupted(signal.SIGINT)
+    except Exception:
+        # a library that caught the unwind and raised its own error instead (pandas' compiled
+        # modules, interrupted while they import, say "partially initialized module"): the
+        # signal ended the command, not the error
+        if _received:
+            return _interrupted(_received[0])
+        raise
     return 0
+
+
+def _interrupted(signum: int) -> int:
+    """Say why the command ended after ``signum`` and what it wrote; return its exit status."""
+    done = _written()
+    said = "nothing written"
+    if done:  # renamed into place, complete, before the signal (or held until complete)
+        more = f" and {len(done) - 1} more" if len(done) > 1 else ""
+        said = f"written before it, complete: {done[0]}{more}"
+    if signum == signal.SIGTERM:
+        _say(f"error: terminated (SIGTERM); {said}")
+        return EXIT_TERMINATED
+    _say(f"error: interrupted (Ctrl-C); {said}")
+    return EXIT_INTERRUPTED
+
+
+def _written(*, forget: bool = False) -> list:
+    """Return the outputs put in place so far (none if the writing module was never loaded)."""
+    files = sys.modules.get("starsense._io.files")
+    return [] if files is None else files.written(forget=forget)
 
 
 def console_main() -> None:  # pragma: no cover - thin wrapper for the console script

@@ -19,7 +19,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from starsense._io import check_outputs_in
+from starsense._io import check_outputs_in, read_text
 from starsense._validate import check_count as _check_count
 from starsense._validate import finite_float
 from starsense.analysis.availability import (
@@ -32,6 +32,7 @@ from starsense.analysis.sensor_detection import sensor_detection
 from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
+    BRIGHTEST_MAG,
     output_dir,
     output_file,
 )
@@ -106,6 +107,11 @@ DEFAULT_DYNAMIC_RATES = "0,0.25,0.5,0.75,1,1.25,1.5,1.75,2,2.25,2.5,2.75,3,3.5,4
 # -- the options, checked at the edge (messages name the option) -------------------------------
 
 
+#: the most stars a pointing may be asked to hold: far beyond any field of a star tracker (a few
+#: thousand stars), well within the integers the field's counts are kept in
+MAX_N_MIN = 1_000_000
+
+
 def check_n_min(n_min: int) -> int:
     """Return ``--n-min`` (stars needed), checked: an integer >= 1.
 
@@ -114,9 +120,9 @@ def check_n_min(n_min: int) -> int:
     InputError
         Naming ``--n-min`` and its value.
     """
-    if n_min < 1:
+    if not 1 <= n_min <= MAX_N_MIN:  # 10**23 overflowed the field's star counts (a traceback)
         raise InputError(
-            f"N_min (--n-min) = {n_min} is out of range; must be an integer >= 1 "
+            f"N_min (--n-min) = {n_min} is out of range; must be an integer in 1-{MAX_N_MIN:,} "
             "(2 tracking, 3 lost-in-space, 4 conservative)"
         )
     return n_min
@@ -178,7 +184,17 @@ def check_rates_deg_s(values: list[float], option: str) -> np.ndarray:
         raise InputError(
             f"slew rate ({option}) = {bad:g} deg/s is negative; rates are magnitudes |w| >= 0"
         )
+    if np.any(rates > MAX_RATE_DEG_S):  # 1e308 deg/s ran, every star smeared out, exit 0
+        bad = float(rates[rates > MAX_RATE_DEG_S][0])
+        raise InputError(
+            f"slew rate ({option}) = {bad:g} deg/s is above {MAX_RATE_DEG_S:g} deg/s "
+            "(one turn a second, the renderer's cap)"
+        )
     return rates * DEG
+
+
+#: the fastest slew rate an option takes, deg/s: one turn a second, as `render --rate-deg-s`
+MAX_RATE_DEG_S = 360.0
 
 
 def check_max_mag(max_mag: float | None) -> float | None:
@@ -191,6 +207,11 @@ def check_max_mag(max_mag: float | None) -> float | None:
     """
     if max_mag is not None and (math.isnan(max_mag) or max_mag == -math.inf):
         raise InputError(f"magnitude limit (--max-mag) must be finite, got {max_mag!r}")
+    if max_mag is not None and max_mag < BRIGHTEST_MAG:  # +inf stays: every star
+        raise InputError(
+            f"magnitude limit (--max-mag) = {max_mag:g} is brighter than any star "
+            f"(must be >= {BRIGHTEST_MAG:g})"
+        )
     return max_mag
 
 
@@ -363,11 +384,11 @@ def sensor_threshold(
         A bad option, or a sensor that detects no star even at rest.
     """
     if tolerance_json is not None:
+        # a missing file, a folder, a FIFO (reading one waited for a writer for ever), not UTF-8
+        text = read_text(tolerance_json, "--tolerance-json")
         try:
-            data = json.loads(Path(tolerance_json).read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(f"--tolerance-json: file not found: {tolerance_json}") from None
-        except (OSError, ValueError) as exc:
+            data = json.loads(text.removeprefix("\ufeff"))
+        except ValueError as exc:
             raise InputError(f"--tolerance-json {tolerance_json}: not valid JSON ({exc})") from None
         if not isinstance(data, dict):
             raise InputError(f"--tolerance-json {tolerance_json}: expected a JSON object")

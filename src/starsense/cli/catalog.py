@@ -78,7 +78,8 @@ def catalog_import(
     (j_m, h_m, k_m) or band names (V, B-V, G, J ...) are recognised by the deep-catalogue
     commands.
     """
-    option_int(pixel_threshold, "--pixel-threshold", 1)
+    # a partition is read whole by one worker: 10**23 rows went on to hats-import unchecked
+    option_int(pixel_threshold, "--pixel-threshold", 1, 1_000_000_000)
 
     check_scheduler(dask)  # a bad --dask, a bad input or output: before any worker starts
     try:

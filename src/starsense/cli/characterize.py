@@ -11,7 +11,7 @@ import typer
 from starsense._io import atomic_write, check_output
 from starsense.analysis.characterize import camera_toml, characterize, measured_values
 from starsense.catalog import load_catalog
-from starsense.cli.common import CatalogOpt, JsonOpt, emit, parse_floats
+from starsense.cli.common import EXPOSURE_MAX_S, CatalogOpt, JsonOpt, emit, parse_floats
 from starsense.errors import InputError
 from starsense.geometry.apparent import parse_time
 from starsense.sensor import load_sensor
@@ -114,8 +114,11 @@ def characterize_command(
     if plot is not None:
         check_output(plot, "--plot", make_parents=True)
     exposures = parse_floats(exposure_s, "--exposure-s", lo=0.0)
-    if exposures is not None and any(e <= 0 for e in exposures):
-        raise InputError(f"--exposure-s must be > 0 s, got {exposure_s!r}")
+    if exposures is not None and any(not 0 < e <= EXPOSURE_MAX_S for e in exposures):
+        raise InputError(
+            f"--exposure-s must be in (0, {EXPOSURE_MAX_S:g}] s (a sensor's range), "
+            f"got {exposure_s!r}"
+        )
     if exposures is not None and len(exposures) not in (1, len(frames)):
         raise InputError(
             f"--exposure-s: {len(exposures)} values for {len(frames)} frames; give one, or one "

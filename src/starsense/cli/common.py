@@ -362,3 +362,38 @@ def progress_bar(enabled: bool = True, *, unit: str | None = None) -> Iterator[P
     # on stderr, as documented (rich's default console is stdout, where --json output goes)
     with Progress(*columns, transient=True, console=Console(stderr=True)) as bar:
         yield ProgressBar(bar)
+
+
+def colour_clamp_note(system: str, ci: float, option: str, t: float | None = None) -> str | None:
+    """Say what was clamped when a colour lies outside the paper's clamp (sec. 2.5), else None.
+
+    ``t`` is the temperature the colour was given, K (default: the model's, for ``ci``).
+    """
+    from starsense.photometry import ColourModel  # noqa: PLC0415 - the commands that colour
+
+    model = ColourModel(system)
+    lo, hi = model.colour_limits
+    if lo <= ci <= hi:
+        return None
+    t = float(model.temperature_k(ci)) if t is None else t
+    return (
+        f"{option} {ci:g} is outside [{lo:.4f}, {hi:.4f}], the {system} of black bodies at "
+        f"{model.t_max_k:,.0f} K and {model.t_min_k:,.0f} K; the temperature is clamped to "
+        f"{t:,.0f} K (Fialho & Mortari 2019, sec. 2.5)"
+    )
+
+
+#: the brightest magnitude a ``--max-mag`` may be: the Sun is -26.7; a limit below it keeps no
+#: star at all (-1e308 rendered an empty frame, or chose no guide star, without a word)
+BRIGHTEST_MAG = -30.0
+
+#: the largest aperture and exposure an option takes: a sensor TOML's ranges (optics.aperture_m,
+#: exposure_s); 1e308 overflowed the photon count, then the Fisher matrix (a traceback)
+APERTURE_MAX_M = 10.0
+EXPOSURE_MAX_S = 1e5
+
+
+def check_aperture_options(diameter_m: float, exposure_s: float) -> None:
+    """Check ``--diameter-m`` and ``--exposure-s``: finite, > 0 and within a sensor's ranges."""
+    option_float(diameter_m, "--diameter-m", 0.0, APERTURE_MAX_M, lo_open=True)
+    option_float(exposure_s, "--exposure-s", 0.0, EXPOSURE_MAX_S, lo_open=True)

@@ -14,6 +14,7 @@ from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.analysis.montecarlo import run_montecarlo
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
+    BRIGHTEST_MAG,
     CatalogOpt,
     JsonOpt,
     ModelOpt,
@@ -90,7 +91,7 @@ def render(
     # each component within one turn a second (render.tracks.MAX_RATE_RAD_S bounds the norm)
     rate = np.radians(parse_floats(rate_deg_s, "--rate-deg-s", 3, -360.0, 360.0))
     if max_mag is not None:
-        option_float(max_mag, "--max-mag")
+        option_float(max_mag, "--max-mag", BRIGHTEST_MAG)
     sens = load_sensor(sensor)
     obs_time = None if time is None else parse_time(time, "--time")
     if obs_time is not None and areas:
@@ -193,7 +194,7 @@ def montecarlo(
     check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
     option_float(rate_deg_s, "--rate-deg-s", 0.0)
     if max_mag is not None:
-        option_float(max_mag, "--max-mag")
+        option_float(max_mag, "--max-mag", BRIGHTEST_MAG)
     cat = load_catalog("hipparcos")
     with progress_bar(not as_json) as bar:
         res = run_montecarlo(

@@ -7,6 +7,7 @@ radians, call :mod:`starsense.analysis.guide_stars`, print. User errors are
 
 from __future__ import annotations
 
+import math
 from typing import Annotated
 
 import numpy as np
@@ -27,7 +28,15 @@ from starsense.analysis.guide_stars import (
 from starsense.analysis.guide_stars.fields import FIELD_TRIAL_COST, MAX_FIELD_TRIALS
 from starsense.analysis.guide_stars.table1 import MAX_TABLE1_TRIALS, TABLE1_TRIAL_COST
 from starsense.catalog import load_catalog
-from starsense.cli.common import CatalogOpt, JsonOpt, SeedOpt, emit, parse_floats, progress_bar
+from starsense.cli.common import (
+    BRIGHTEST_MAG,
+    CatalogOpt,
+    JsonOpt,
+    SeedOpt,
+    emit,
+    parse_floats,
+    progress_bar,
+)
 from starsense.errors import InputError
 from starsense.references import lin2024
 from starsense.sensor import load_sensor
@@ -152,8 +161,25 @@ CriterionOpt = Annotated[
         "brightest.",
     ),
 ]
+
+
+def _max_mag(value: float | None) -> float | None:
+    """Check ``--max-mag``: NaN (every comparison false: no star kept) or -inf refused."""
+    if value is not None and (math.isnan(value) or value == -math.inf):
+        raise InputError(f"magnitude limit (--max-mag) must be a number, got {value!r}")
+    if value is not None and value < BRIGHTEST_MAG:
+        raise InputError(
+            f"magnitude limit (--max-mag) = {value:g} is brighter than any star "
+            f"(must be >= {BRIGHTEST_MAG:g})"
+        )
+    return value
+
+
 MaxMagOpt = Annotated[
-    float | None, typer.Option("--max-mag", help="Faintest catalogue star used (default: all).")
+    float | None,
+    typer.Option(
+        "--max-mag", help="Faintest catalogue star used (default: all).", callback=_max_mag
+    ),
 ]
 
 
@@ -166,7 +192,19 @@ def _center(text: str) -> tuple[float, float]:
 
 def _configs(text: str | None) -> list[str] | None:
     """Return the configuration names of ``--configurations`` (None: all)."""
-    return None if text is None else [c.strip() for c in text.split(",") if c.strip()]
+    if text is None:
+        return None
+    names = [c.strip() for c in text.split(",") if c.strip()]
+    if not names:  # '' or ',' ran every configuration, as if the option were not given
+        raise InputError(
+            f"--configurations {text!r} names no configuration; give one or more of "
+            f"{', '.join(CONFIGURATIONS)}, or leave the option out for all"
+        )
+    return names
+
+
+#: the largest per-axis error the guide-star commands take, arcsec (a degree)
+MAX_SIGMA_ARCSEC = 3600.0
 
 
 def _sigmas(text: str | None, default: list[float] | None = None) -> list[float]:
@@ -174,6 +212,8 @@ def _sigmas(text: str | None, default: list[float] | None = None) -> list[float]
     sig = parse_floats(text, "--sigmas-arcsec") or default
     for s in sig:
         positive_float(s, "--sigmas-arcsec")
+        # a degree at most: 1e308 overflowed the solves' norms (RuntimeWarnings, a silent 0 %)
+        check_scalar(s, "--sigmas-arcsec", 0.0, MAX_SIGMA_ARCSEC)
     return sig
 
 
@@ -243,6 +283,11 @@ def select(
             wanted = tuple(int(a) for a in areas.split(",") if a.strip())
         except ValueError:
             raise InputError(f"--areas expects comma-separated integers, got {areas!r}") from None
+        if not wanted:  # '' or ',' used no area: "no stars", exit 1, as if the sky were empty
+            raise InputError(
+                f"--areas {areas!r} names no area; give one or more area numbers, or leave "
+                "the option out for all"
+            )
     cat = load_catalog(catalog)
     rows, xy, mag, band = field_stars(
         cat, (ra * DEG, dec * DEG), layout=layout, roll_rad=roll_deg * DEG, max_mag=max_mag

@@ -26,6 +26,7 @@ from starsense.catalog import load_catalog
 from starsense.catalog._columns import MAG_RANGE
 from starsense.cli.catalog import check_dask_option, hats_session
 from starsense.cli.common import (
+    BRIGHTEST_MAG,
     CatalogOpt,
     ColourOpt,
     DaskOpt,
@@ -34,6 +35,8 @@ from starsense.cli.common import (
     JsonOpt,
     ScaleCatalogOpt,
     SeedOpt,
+    check_aperture_options,
+    colour_clamp_note,
     emit,
     option_float,
     output_file,
@@ -75,6 +78,7 @@ def _target_vectors(radec: list[tuple[float, float]]) -> np.ndarray:
 def _check_max_mag(max_mag: float | None) -> None:
     if max_mag is not None:
         finite_float(max_mag, "--max-mag")
+        option_float(max_mag, "--max-mag", BRIGHTEST_MAG)
 
 
 def _load_stars(catalog: str, max_mag: float | None, colour: str | None):
@@ -110,6 +114,7 @@ def limit_star(
     as_json: JsonOpt = False,
 ) -> None:
     """One star's black body, photons and centroid bound (Table 1; eqs. 9, 12, 19)."""
+    check_aperture_options(diameter_m, exposure_s)
     given = [
         names
         for names, values in (
@@ -139,7 +144,7 @@ def limit_star(
     option_float(m, names[0], *MAG_RANGE)
     option_float(ci, names[1])
     t, c = fit_star(m, ci, system)
-    clamped = _colour_clamp_note(system, ci, names[1], t)
+    clamped = colour_clamp_note(system, ci, names[1], t)
     f = float(centroid_fisher(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     photons = float(total_photons(c, t, diameter_m=diameter_m, exposure_s=exposure_s))
     sigma = 1.0 / np.sqrt(f)
@@ -168,19 +173,6 @@ def limit_star(
     )
 
 
-def _colour_clamp_note(system: str, ci: float, option: str, t: float) -> str | None:
-    """Say what was clamped when a colour lies outside the paper's clamp (sec. 2.5), else None."""
-    model = ColourModel(system)
-    lo, hi = model.colour_limits
-    if lo <= ci <= hi:
-        return None
-    return (
-        f"{option} {ci:g} is outside [{lo:.4f}, {hi:.4f}], the {system} of black bodies at "
-        f"{model.t_max_k:,.0f} K and {model.t_min_k:,.0f} K; the temperature is clamped to "
-        f"{t:,.0f} K (Fialho & Mortari 2019, sec. 2.5)"
-    )
-
-
 @limit_app.command("sky")
 def limit_sky(
     diameter_m: DiameterOpt = 1.0,
@@ -205,6 +197,7 @@ def limit_sky(
     With --catalog hats:PATH_OR_URL the catalogue is processed partition by partition on Dask
     (--dask), with the same kernels and results as in memory.
     """
+    check_aperture_options(diameter_m, exposure_s)
     if (fov_deg is None) != (not target_deg):
         raise InputError("--fov-deg and --target-deg go together (one or more targets)")
     if fov_deg is not None:
@@ -329,7 +322,9 @@ def limit_curve(
     With --catalog hats:PATH_OR_URL the curve is built partition by partition on Dask (--dask)
     from magnitude histograms, without sorting the catalogue.
     """
-    check_scalar(extrapolate_to, "--extrapolate-to", 2)
+    check_aperture_options(diameter_m, exposure_s)
+    # the paper's 3e11 is the Galaxy's stars; 1e308 overflowed the figure's axis (a traceback)
+    check_scalar(extrapolate_to, "--extrapolate-to", 2, 1e13)
     if check_dask_option(catalog, dask):
         with hats_session(catalog, dask, not as_json) as (cat, client, progress):
             curve = hats_curve(
@@ -383,8 +378,7 @@ def limit_photons(
 ) -> None:
     """Low-photon degradation of the limit for small sensors and short exposures (sec. 3.3.2)."""
     check_count(trials, "--trials", MAX_PHOTON_TRIALS, PHOTON_TRIAL_COST)
-    option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
-    option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
+    check_aperture_options(diameter_m, exposure_s)
     cat, stars = _load_stars(catalog, None, colour)
     res = low_photon_degradation(
         stars, diameter_m=diameter_m, exposure_s=exposure_s, n_trials=trials, rng=seed

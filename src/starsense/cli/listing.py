@@ -131,7 +131,7 @@ def save_cache() -> None:
     path = _cache_file()
     with contextlib.suppress(OSError, StarsenseError):
         path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_write(path) as fh:
+        with atomic_write(path, output=False) as fh:
             json.dump({"format": _CACHE_FORMAT, "entries": _cache()}, fh)
         _unsaved.clear()
 

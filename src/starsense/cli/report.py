@@ -11,6 +11,8 @@ from starsense._validate import check_count
 from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.cli.common import (
+    APERTURE_MAX_M,
+    EXPOSURE_MAX_S,
     CatalogOpt,
     SensorOpt,
     option_float,
@@ -52,9 +54,9 @@ def report(
 ) -> None:
     """Write the performance report (HTML + PNG figures) to --out: the sensor's datasheet first."""
     if diameter_m is not None:
-        option_float(diameter_m, "--diameter-m", 0.0, lo_open=True)
+        option_float(diameter_m, "--diameter-m", 0.0, APERTURE_MAX_M, lo_open=True)
     if exposure_s is not None:
-        option_float(exposure_s, "--exposure-s", 0.0, lo_open=True)
+        option_float(exposure_s, "--exposure-s", 0.0, EXPOSURE_MAX_S, lo_open=True)
     check_count(slew_trials, "--slew-trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
     check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
     sens = load_sensor(sensor)

@@ -27,6 +27,7 @@ from starsense.cli.common import (
     ModelOpt,
     SeedOpt,
     SensorOpt,
+    colour_clamp_note,
     emit,
     output_file,
     parse_floats,
@@ -58,9 +59,13 @@ def _rates_rad_s(text: str | None) -> np.ndarray | None:
 
 def _run_slew(sensor_name, model, magnitudes, rates, trials, criterion, seed, colour_index=0.0):
     finite_float(colour_index, "--b-v")
+    clamped = colour_clamp_note("B-V", colour_index, "--b-v")
+    if clamped is not None:  # said in words, as `limit star` says it
+        typer.echo(f"warning: {clamped}", err=True)
     check_count(trials, "--trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
     sensor = load_sensor(sensor_name)
-    mags = parse_floats(magnitudes, "--magnitudes")
+    # the Sun (-26.7) to far beyond any tracker's limit: 1e308 ran and said nothing was seen
+    mags = parse_floats(magnitudes, "--magnitudes", lo=-30.0, hi=40.0)
     rate_values = _rates_rad_s(rates)
     if mags is None or rate_values is None:  # the sensor's own grids, as its datasheet uses
         own_mags, own_rates = sensor_grids(

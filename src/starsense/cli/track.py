@@ -64,7 +64,8 @@ def track(
     when some frame has an attitude, 1 when none has, 2 for bad input.
     """
     if interval_s is not None:
-        option_float(interval_s, "--interval-s", MIN_INTERVAL_S)
+        # up to a day: 1e308 made the rate estimate's rotation fail deep in SciPy (a traceback)
+        option_float(interval_s, "--interval-s", MIN_INTERVAL_S, 86_400.0)
     option_float(prior_sigma_deg, "--prior-sigma-deg", 0.0, 10.0, lo_open=True)
     prior = None
     if prior_radec_roll_deg is not None:

@@ -50,7 +50,9 @@ def _uniform_interp(x, x0: float, x1: float, table: np.ndarray) -> np.ndarray:
     O(1) per point, which matters over millions of stars.
     """
     n = table.size - 1
-    u = (np.asarray(x, dtype=float) - x0) * (n / (x1 - x0))
+    # clamped first: a colour of 1e308 would overflow the scaling (NaN stays NaN)
+    x = np.clip(np.asarray(x, dtype=float), min(x0, x1), max(x0, x1))
+    u = (x - x0) * (n / (x1 - x0))
     u = np.clip(u, 0.0, n)  # NaN stays NaN
     i = np.minimum(np.nan_to_num(u, nan=0.0).astype(np.intp), n - 1)
     f = u - i

@@ -22,6 +22,7 @@ from starsense._io import (
     deferred_signals,
     dir_mode,
     json_text,
+    note_written,
     sweep_stale,
     temp_prefix,
 )
@@ -247,6 +248,7 @@ def _swap_into_place(work: Path, out_dir: Path) -> None:
     """Rename ``work`` to ``out_dir``, replacing an earlier report with two renames."""
     if not out_dir.exists():
         work.rename(out_dir)
+        note_written(out_dir)
         return
     old = Path(tempfile.mkdtemp(prefix=f"{temp_prefix(out_dir)}old-", dir=out_dir.parent))
     old.rmdir()
@@ -256,6 +258,7 @@ def _swap_into_place(work: Path, out_dir: Path) -> None:
     except BaseException:
         old.rename(out_dir)  # put the earlier report back
         raise
+    note_written(out_dir)
     shutil.rmtree(old, ignore_errors=True)
 
 

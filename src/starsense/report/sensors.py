@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from starsense._io import read_text
 from starsense.errors import InputError
 from starsense.units import ARCSEC
 
@@ -99,12 +100,8 @@ def load_sensor_table(path) -> list[SensorSpec]:
         with the file, line and column in the message.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(f"{path}: sensors table not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read sensors table ({exc})") from None
+    # a missing file, a folder, a FIFO (reading one waited for a writer for ever), not UTF-8
+    text = read_text(path, "sensors table").removeprefix("\ufeff")
 
     reader = csv.reader(text.splitlines())
     header: list[str] | None = None

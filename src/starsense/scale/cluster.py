@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import multiprocessing.util as mp_util  # the spawn start method starts a child here
 import os
 import shutil
 import signal
@@ -101,21 +102,86 @@ def check_scheduler(address: str | None, timeout_s: float = CONNECT_TIMEOUT_S) -
     return kind, value
 
 
-@contextlib.contextmanager
-def _children_ignore_sigint() -> Iterator[None]:
-    """Start processes with SIGINT ignored (it stays ignored across exec, and Python keeps it so).
+#: how long a signal waits for the cluster's start to finish, s (workers killed by the same
+#: signal, sent to the whole process group, can leave the start waiting for them for minutes)
+START_GRACE_S = 10.0
 
-    A terminal's Ctrl-C goes to the whole process group: without this each local worker would
-    print its own KeyboardInterrupt traceback while the command shuts the cluster down.
+
+@contextlib.contextmanager
+def _starting_workers() -> Iterator[list[int]]:
+    """Start processes that never see SIGINT; hold this process's SIGINT and SIGTERM back.
+
+    A terminal's Ctrl-C goes to the whole process group: each local worker would print its own
+    KeyboardInterrupt traceback while the command shuts the cluster down. The workers are
+    spawned (by the cluster's threads) with SIGINT blocked in the spawning thread, and a
+    blocked signal stays blocked across ``exec``: they never receive it. (Ignoring SIGINT
+    process-wide instead lost a Ctrl-C that came while the cluster started: the command ran
+    to its end.) This process notes a SIGINT or SIGTERM arriving meanwhile and raises it again
+    when the block ends, once the cluster exists and can be closed (a SIGTERM that cut the
+    start short left worker processes behind, and their scratch files), or after
+    :data:`START_GRACE_S` if the start has not ended by then: the processes spawned so far
+    are then killed (their ids are yielded) and no more are started.
     """
+    spawned: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield spawned
         return
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    spawn = mp_util.spawnv_passfds
+    pending: list[int] = []
+    stopped: list[bool] = []
+
+    def spawn_without_sigint(*args, **kwargs):
+        if stopped:
+            raise OSError("the command was interrupted: no more workers are started")
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            pid = spawn(*args, **kwargs)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        spawned.append(pid)
+        return pid
+
+    def note(signum, frame):
+        if not pending:
+            signal.setitimer(signal.ITIMER_REAL, START_GRACE_S)
+        pending.append(signum)
+
+    def give_up(signum, frame):  # the start outlived the grace: the signal is raised now
+        restore()
+        stopped.append(True)
+        _kill(spawned)
+        first = pending[0]
+        pending.clear()
+        signal.raise_signal(first)
+
+    held = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.signal(s, note) for s in held}
+    old[signal.SIGALRM] = signal.signal(signal.SIGALRM, give_up)
+    mp_util.spawnv_passfds = spawn_without_sigint
+
+    def restore():
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        mp_util.spawnv_passfds = spawn
+        for s, handler in old.items():
+            signal.signal(s, handler)
+
     try:
-        yield
+        yield spawned
     finally:
-        signal.signal(signal.SIGINT, old)
+        if mp_util.spawnv_passfds is spawn_without_sigint:
+            restore()
+        for s in dict.fromkeys(pending):
+            signal.raise_signal(s)
+
+
+def _kill(pids: list[int]) -> None:
+    """Kill the worker processes ``pids`` (an abandoned start) and reap them."""
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            os.waitpid(pid, 0)
 
 
 def _local_cluster(distributed, n: int, processes: bool, scratch: str):
@@ -174,20 +240,23 @@ def dask_client(
         # (every server, the scheduler too, keeps one: dask's temporary-directory points there)
         scratch = tempfile.mkdtemp(prefix="starsense-dask-")
         (dask,) = require("dask")
+        cluster = None
         try:
-            with _children_ignore_sigint(), dask.config.set({"temporary-directory": scratch}):
+            # a signal during the start is raised as the block ends, with the cluster bound
+            with _starting_workers(), dask.config.set({"temporary-directory": scratch}):
                 cluster = _local_cluster(distributed, n, processes, scratch)
+            client = distributed.Client(cluster)
+            client.run(quiet_third_party_warnings)
             try:
-                client = distributed.Client(cluster)
-                client.run(quiet_third_party_warnings)
-                try:
-                    yield client
-                finally:
-                    client.close()
+                yield client
             finally:
-                cluster.close()
+                client.close()
         finally:
-            shutil.rmtree(scratch, ignore_errors=True)
+            try:
+                if cluster is not None:
+                    cluster.close()
+            finally:
+                shutil.rmtree(scratch, ignore_errors=True)
         return
     t0 = time.monotonic()
     try:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from starsense._io import check_output, sweep_stale, temp_prefix
+from starsense._io import check_output, note_written, sweep_stale, temp_prefix
 from starsense._validate import check_int, show
 from starsense.catalog._parse import locate_delimited_error
 from starsense.errors import InputError
@@ -250,6 +250,7 @@ def import_catalog(
                 pipeline_with_client(args, c)
         shutil.rmtree(work / "intermediate", ignore_errors=True)
         (work / dst.name).rename(dst)
+        note_written(dst)
     except (ValueError, KeyError) as exc:
         raise InputError(f"hats-import could not import {src}: {exc}") from None
     except RuntimeError:  # "Some mapping stages failed. See above Exceptions."

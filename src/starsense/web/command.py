@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import importlib
+import signal
 import threading
 import webbrowser
 from typing import Annotated
@@ -72,8 +74,41 @@ def design(
         app, host=HOST, port=port, log_level="warning", timeout_graceful_shutdown=STOP_GRACE_S
     )
     try:
-        uvicorn.Server(config).run()  # SIGTERM: raised again once it has stopped
+        _serve(uvicorn, config)  # SIGTERM: raised again once it has stopped
     finally:
         # the process ends now: spare its exit a garbage collection of the whole heap (over a
         # second with the catalogue and the prediction's modules loaded)
         gc.freeze()
+
+
+def _serve(uvicorn, config) -> None:
+    """Run the server until a signal; raise that signal again once it has stopped.
+
+    A SIGINT or SIGTERM is held from here until the server listens for its own: one arriving
+    while the event loop was being made unwound it half made (an "Exception ignored" traceback
+    from the loop, a coroutine never awaited). Held, it stops the server as soon as it starts.
+    """
+    held: list[int] = []
+
+    class Server(uvicorn.Server):
+        @contextlib.contextmanager
+        def capture_signals(self):
+            with super().capture_signals():
+                for signum in held:  # came while the loop was made: stop at once
+                    self.handle_exit(signum, None)
+                held.clear()
+                yield
+
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        old = {s: signal.signal(s, lambda n, f: held.append(n)) for s in _HELD}
+    try:
+        Server(config).run()
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for s in dict.fromkeys(held):  # the server's own, raised again when it stopped
+            signal.raise_signal(s)
+
+
+_HELD = (signal.SIGINT, signal.SIGTERM)

@@ -109,9 +109,12 @@ def frame_noise(image) -> FrameNoise:
     keep &= ~boxes(_sources(resid, float(np.median(mad))))
     n = keep.sum(axis=1)
     mean = np.where(n > 0, (r * keep).sum(axis=1) / np.maximum(n, 1), 0.0)
-    masked = np.where(keep, r, np.nan)
+    # the boxes that kept a pixel (a box all star or all clipped has none: NaN, not a warning)
+    has = n > 0
+    masked = np.where(keep[has], r[has], np.nan)
     centre = np.nanmedian(masked, axis=1)
-    var = (1.4826 * np.nanmedian(np.abs(masked - centre[:, None]), axis=1)) ** 2
+    var = np.full(r.shape[0], np.nan)
+    var[has] = (1.4826 * np.nanmedian(np.abs(masked - centre[:, None]), axis=1)) ** 2
     ok = (n >= MIN_KEPT * r.shape[1]) & (mad > 0)
     noise = float(np.sqrt(np.median(var[ok]))) if ok.any() else float(bg.noise)
     level_med = float(np.median(lv))

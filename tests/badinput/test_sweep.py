@@ -1,0 +1,52 @@
+"""The bad-input and fault sweep (bench/bad_input_sweep.py) in its fast form: every case clean.
+
+The sweep draws its cases from a seed over every command of the app (bad values, special files
+where outputs go, bad input files, usage errors, SIGINT / SIGTERM at a random moment, huge counts
+and frames) and runs each in its own forked process, folder, process group and ``TMPDIR``. A
+case is clean when it is refused in one line with exit 2 (or typer's usage message), ends
+130 / 143 after a signal, prints no traceback, accepts nothing it must refuse, leaves no file
+or process behind, replaces no FIFO, device, link or socket, and peaks under 2 GB resident.
+The default run sweeps a fixed seed's 120 cases (about a minute); the slow run 1,000 cases of a
+seed drawn at run time and printed, as the issue's acceptance asks.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import random
+from pathlib import Path
+
+import pytest
+
+_PATH = Path(__file__).resolve().parents[2] / "bench" / "bad_input_sweep.py"
+_spec = importlib.util.spec_from_file_location("starsense_bench_sweep", _PATH)
+sweep_module = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(sweep_module)
+
+#: the fast form's seed (fixed: a CI run is reproducible) and size
+FAST_SEED = 50
+FAST_CASES = 120
+
+
+def _assert_clean(record: dict) -> None:
+    shown = json.dumps(record["failures"][:10], indent=1)
+    assert record["clean"] == record["cases"], f"seed {record['seed']}: {shown}"
+    assert record["peak_rss_mb_max"] < sweep_module.MAX_RSS_BYTES / 1e6
+
+
+def test_sweep_fast_form(tmp_path):
+    record = sweep_module.sweep(FAST_SEED, FAST_CASES, jobs=2, work=tmp_path, echo=print)
+    assert record["cases"] == FAST_CASES
+    _assert_clean(record)
+    # the fixed seed reaches each kind of case
+    assert set(record["kinds"]) == {"value", "output", "input", "usage", "signal", "huge"}
+
+
+@pytest.mark.slow
+def test_sweep_of_a_thousand_cases_from_a_fresh_seed(tmp_path):
+    seed = random.SystemRandom().randrange(10**9)
+    print(f"sweep seed {seed}")  # held out: reported, so a failure can be run again
+    record = sweep_module.sweep(seed, 1000, jobs=2, work=tmp_path, echo=print)
+    _assert_clean(record)
+    assert set(record["commands_swept"]) == set(record["commands"])
