@@ -238,6 +238,22 @@ def _check_lens(lens_fov_deg: float | None) -> None:
 
 
 @guide_stars_app.command()
+def _areas(areas: str | None) -> tuple[int, ...] | None:
+    """Return the area numbers ``--areas`` names (None: all)."""
+    if areas is None:
+        return None
+    try:
+        wanted = tuple(int(a) for a in areas.split(",") if a.strip())
+    except ValueError:
+        raise InputError(f"--areas expects comma-separated integers, got {areas!r}") from None
+    if not wanted:  # '' or ',' used no area: "no stars", exit 1, as if the sky were empty
+        raise InputError(
+            f"--areas {areas!r} names no area; give one or more area numbers, or leave "
+            "the option out for all"
+        )
+    return wanted
+
+
 def select(
     center: CenterOpt = None,
     lens_fov_deg: LensOpt = None,
@@ -277,17 +293,7 @@ def select(
         layout = sens.attitude_areas
     else:
         layout = lin_layout(lens_fov_deg * DEG)
-    wanted = None
-    if areas is not None:
-        try:
-            wanted = tuple(int(a) for a in areas.split(",") if a.strip())
-        except ValueError:
-            raise InputError(f"--areas expects comma-separated integers, got {areas!r}") from None
-        if not wanted:  # '' or ',' used no area: "no stars", exit 1, as if the sky were empty
-            raise InputError(
-                f"--areas {areas!r} names no area; give one or more area numbers, or leave "
-                "the option out for all"
-            )
+    wanted = _areas(areas)
     cat = load_catalog(catalog)
     rows, xy, mag, band = field_stars(
         cat, (ra * DEG, dec * DEG), layout=layout, roll_rad=roll_deg * DEG, max_mag=max_mag
