@@ -40,12 +40,12 @@ import math
 
 import numpy as np
 from scipy.ndimage import uniform_filter
-from scipy.stats import hypergeom
 
 from starsense.identify import Identification, identify_ranked
 
 __all__ = [
     "HIT_SIGMA",
+    "MAX_CHANCE_FRACTION",
     "MAX_PREDICTED",
     "NEAR_MISS_CEILING",
     "N_CONTROLS",
@@ -58,6 +58,11 @@ __all__ = [
 #: the least false-match probability of a failed search that is worth more evidence (above it no
 #: plausible faint evidence brings the combination under 1e-9: it would need p2 < 5e-8)
 NEAR_MISS_CEILING = 1e-3
+#: the most control places that may read as a star for the reading to confirm a hypothesis: past
+#: it the frame's light is nearly everywhere (streaks, clutter), and the predicted places being
+#: lit says that the stars are about there, not that the attitude is right (a smeared frame's
+#: near miss 160 arcsec off was "confirmed" with 37 % of the controls lit)
+MAX_CHANCE_FRACTION = 0.1
 #: control places drawn over the frame (the hypergeometric's resolution: with 20 chance peaks
 #: among 2,000 controls, 6 hits of 30 predicted places give p2 ~ 2e-7)
 N_CONTROLS = 2000
@@ -239,6 +244,9 @@ class FrameEvidence:
         chance = int(np.count_nonzero(self.statistic(ctrl, reach) >= HIT_SIGMA))
         p2 = 1.0
         if hits:
+            # only for a near miss: importing scipy.stats costs every solve ~0.1 s
+            from scipy.stats import hypergeom  # noqa: PLC0415
+
             p2 = float(hypergeom.sf(hits - 1, len(xy) + len(ctrl), hits + chance, len(xy)))
         info.update(hits=hits, control_hits=chance)
         return p2, info
@@ -304,6 +312,8 @@ def near_miss(identifier, vectors, flux, *, ident, args, kwargs, evidence, tests
     if not again.solved:
         return ident
     p2, info = evidence(again, identifier.database)
+    if info["control_hits"] > MAX_CHANCE_FRACTION * max(info["controls"], 1):
+        return ident  # light nearly everywhere: being near it says nothing of the attitude
     tests[0] += 1
     p2 = min(p2 * tests[0], 1.0)
     combined = fisher_combined(again.false_match_probability, p2)
