@@ -212,6 +212,13 @@ CASES = [
      ["--rates-deg-s", "1e+308", "360"]),
     (["catalog", "import", "{bad}/nosuch.csv", "{out}/h", "--pixel-threshold",
       "99999999999999999999999"], ["--pixel-threshold", "99999999999999999999999"]),
+    # a fresh seed of the sweep: 1e308 rolls and spans ran silently or overflowed (a traceback)
+    (["availability", "static", "--roll-deg", "1e308"], ["--roll-deg", "1e+308", "360"]),
+    (["availability", "track", "--roll-deg", "-1e308"], ["--roll-deg", "-1e+308", "360"]),
+    (["guide-stars", "simulate", "--threshold-arcsec", "1e308"],
+     ["--threshold-arcsec", "1e+308", "648000"]),
+    (["availability", "mission", "--heads", "st16", "--tle", "{bad}/day0.tle", "--duration-h",
+      "1e308"], ["--duration-h", "1e+308"]),
     # a name the system refuses (longer than a file name may be): the name and why, one line
     (["render", "--out", "{out}/f.png", "--sensor", "x" * 300],
      ["xxxxxxxxxx", "File name too long"]),

@@ -186,3 +186,15 @@ def test_import_without_position_columns_leaves_nothing(scale, tmp_path, capsys)
     )
     assert code == 2 and "position column(s) ra, dec missing" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cat.csv"]
+
+
+def test_a_csv_whose_header_is_not_text_is_one_line(tmp_path):
+    # a PNG named .csv: pyarrow read its header as UTF-8 and raised UnicodeDecodeError (a
+    # traceback out of `catalog import --dask`, found by a fresh seed of the bad-input sweep)
+    pytest.importorskip("pyarrow")
+    from starsense.scale.importer import input_columns
+
+    path = tmp_path / "in.csv"
+    path.write_bytes(b"\x89ra,dec\n1.0,2.0\n")  # a header name that is not UTF-8
+    with pytest.raises(CatalogUnavailableError, match=r"in\.csv.*not UTF-8"):
+        input_columns(path, "csv")

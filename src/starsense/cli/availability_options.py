@@ -33,6 +33,7 @@ from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.catalog import load_catalog
 from starsense.cli.common import (
     BRIGHTEST_MAG,
+    option_float,
     output_dir,
     output_file,
 )
@@ -260,9 +261,9 @@ def roll_option(roll_deg: float | None) -> float | None:
     Raises
     ------
     InputError
-        Naming ``--roll-deg`` when the value is not finite.
+        Naming ``--roll-deg`` when the value is not finite or outside -360 ... 360.
     """
-    return None if roll_deg is None else finite_float(roll_deg, "--roll-deg") * DEG
+    return None if roll_deg is None else option_float(roll_deg, "--roll-deg", -360.0, 360.0) * DEG
 
 
 #: parameter names of the library -> the options that set them, for messages that depend on the

@@ -34,6 +34,7 @@ from starsense.cli.common import (
     JsonOpt,
     SeedOpt,
     emit,
+    option_float,
     parse_floats,
     progress_bar,
 )
@@ -103,7 +104,7 @@ def simulate(
     _check_choices(configs, metric, sigma_kind)
     check_count(trials, "--trials", MAX_TABLE1_TRIALS, TABLE1_TRIAL_COST)
     check_scalar(fov_deg, "--fov-deg", 0, 90, lo_open=True, hi_open=True)
-    positive_float(threshold, "--threshold-arcsec")
+    option_float(threshold, "--threshold-arcsec", 0.0, 648_000.0, lo_open=True)  # half a turn
     with progress_bar() as update:
         tab = simulate_table1(
             [s * ARCSEC for s in sig],

@@ -142,7 +142,8 @@ def mission(
     check_n_min(n_min)
     check_max_mag(max_mag)
     check_count(trials, "--trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
-    hours = option_float(duration_h, "--duration-h", 0.0, None, lo_open=True)
+    # a century at most: a span past it is a typo (its step count is refused below anyway)
+    hours = option_float(duration_h, "--duration-h", 0.0, 876_600.0, lo_open=True)
     step = option_float(step_s, "--step-s", 0.0, None, lo_open=True)
     n_steps = math.ceil(hours * 3600.0 / step - 1e-9)
     if not 2 <= n_steps <= MAX_STEPS:  # said in the options' units, not TimeGrid's seconds

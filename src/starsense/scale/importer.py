@@ -53,6 +53,8 @@ def input_columns(path: Path, fmt: str) -> list[str]:
             return list(reader.schema.names)
     except (pa.ArrowException, OSError) as exc:
         raise CatalogUnavailableError(f"cannot read {path}: {exc}") from None
+    except UnicodeDecodeError:  # a header that is not text (a binary file named .csv)
+        raise CatalogUnavailableError(f"cannot read {path}: its header is not UTF-8 text") from None
 
 
 def _check_batch(batch: Any, src: Path, fmt: str, columns: tuple[str, str], offset: int) -> int:
