@@ -238,7 +238,6 @@ def _check_lens(lens_fov_deg: float | None) -> None:
         check_scalar(lens_fov_deg, "--lens-fov-deg", 0, 60, lo_open=True, hi_open=True)
 
 
-@guide_stars_app.command()
 def _areas(areas: str | None) -> tuple[int, ...] | None:
     """Return the area numbers ``--areas`` names (None: all)."""
     if areas is None:
@@ -255,6 +254,7 @@ def _areas(areas: str | None) -> tuple[int, ...] | None:
     return wanted
 
 
+@guide_stars_app.command()
 def select(
     center: CenterOpt = None,
     lens_fov_deg: LensOpt = None,
