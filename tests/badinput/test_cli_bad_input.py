@@ -212,6 +212,8 @@ CASES = [
      ["--rates-deg-s", "1e+308", "360"]),
     (["catalog", "import", "{bad}/nosuch.csv", "{out}/h", "--pixel-threshold",
       "99999999999999999999999"], ["--pixel-threshold", "99999999999999999999999"]),
+    (["guide-stars", "select", "--sensor", "lin2024", "--center-deg", "84,-1", "--areas",
+      "1,,2"], ["--areas", "'1,,2'", "empty item"]),
     # a fresh seed of the sweep: 1e308 rolls and spans ran silently or overflowed (a traceback)
     (["availability", "static", "--roll-deg", "1e308"], ["--roll-deg", "1e+308", "360"]),
     (["availability", "track", "--roll-deg", "-1e308"], ["--roll-deg", "-1e+308", "360"]),

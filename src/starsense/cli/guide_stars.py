@@ -251,6 +251,8 @@ def _areas(areas: str | None) -> tuple[int, ...] | None:
             f"--areas {areas!r} names no area; give one or more area numbers, or leave "
             "the option out for all"
         )
+    if any(not a.strip() for a in areas.split(",")):  # '1,,2': a number left out?
+        raise InputError(f"--areas {areas!r} has an empty item; give numbers between the commas")
     return wanted
 
 
