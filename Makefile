@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= report
 
-.PHONY: demo test test-fast lint docs dist check-dist bench bench-peers bench-zoo bench-galsim bench-sweep clean
+.PHONY: demo test test-slow lint docs dist check-dist bench bench-peers bench-zoo bench-galsim bench-sweep clean
 
 $(STAMP): pyproject.toml setup.py $(wildcard src/starsense/*/_*.c)
 	$(PYTHON) -m venv $(VENV)
@@ -17,14 +17,14 @@ demo: $(STAMP)  ## the main job: the performance report for the default sensor
 	$(BIN)/starsense report --out $(OUT)
 	@echo "Open $(OUT)/index.html"
 
-test: $(STAMP)  ## lint, format, the stage contract, then the whole suite (what CI runs)
+test: $(STAMP)  ## lint, format, the stage contract, then the tests but the slow ones, in two processes
 	$(BIN)/ruff check src tests bench
 	$(BIN)/ruff format --check src tests bench
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -m "not slow" -n 2
 
-test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+test-slow: $(STAMP)  ## the slow tests (long runs, real frames, timing under load), one process: CI runs them
+	$(BIN)/python -m pytest -q -m slow
 
 docs: $(STAMP)  ## the manual, warnings as errors: docs/_build/html/index.html
 	rm -rf docs/_build docs/generated

@@ -81,6 +81,7 @@ def test_unknown_name_is_an_attribute_error():
 
 
 @pytest.mark.skipif(not README.is_file(), reason="README.md not found beside the tests")
+@pytest.mark.slow
 def test_readme_python_example_runs():
     """The README's Python example is a doctest: it runs as written, with its printed output."""
     result = doctest.testfile(

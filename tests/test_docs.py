@@ -28,6 +28,7 @@ pytestmark = pytest.mark.skipif(not DOCS.is_dir(), reason="no manual (docs/) bes
 
 
 @pytest.mark.parametrize("page", GUIDES, ids=[str(p.relative_to(DOCS)) for p in GUIDES])
+@pytest.mark.slow
 def test_guide_runs_as_written(page):
     """Every Python example of the manual runs, and prints what the page says it prints."""
     result = doctest.testfile(

@@ -30,6 +30,7 @@ def esa_frames(shared_dir):
     return files
 
 
+@pytest.mark.slow
 def test_disjoint_frames_give_the_same_camera(esa_frames):
     a, _ = measured_values(characterize([str(p) for p in esa_frames[0::2]], "esa_blackfly"))
     b, _ = measured_values(characterize([str(p) for p in esa_frames[1::2]], "esa_blackfly"))

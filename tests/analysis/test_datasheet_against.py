@@ -87,6 +87,7 @@ def esa_frames(shared_dir):
     return files
 
 
+@pytest.mark.slow
 def test_esa_characterised_on_four_predicts_the_other_four(esa_frames, tmp_path, capsys):
     # both sets hold frames at 40 and 60 deg altitude: extinction and seeing alike
     fit, held = esa_frames[0::2], esa_frames[1::2]

@@ -105,6 +105,7 @@ def test_catalogue_term_of_a_rotated_catalogue_is_the_rotation():
     np.testing.assert_allclose(roll, np.abs(w_cam[:, 2]), rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_the_frames_sky_holds_every_database_star_once():
     # the sky a simulated frame shows: the rendering catalogue (Hipparcos) and every star of
     # the solver's database (the narrow field's Gaia) it lacks. Invariants: each database star

@@ -132,6 +132,7 @@ def test_fisher_segment_sums_equal_scattered_sums():
     assert np.all(a[7] == 0.0)
 
 
+@pytest.mark.slow
 def test_trade_in_two_workers_gives_the_rows_of_one():
     base = base_document("st16")
     grid = [

@@ -152,6 +152,7 @@ def test_mission_inertial_availability_equals_the_datasheets(sheet, imx, capsys)
     assert head["lost_in_space_fraction"] == 1.0
 
 
+@pytest.mark.slow
 def test_report_availability_equals_the_datasheets(imx, tmp_path, monkeypatch):
     import starsense.report.availability as report_av
     import starsense.report.availability_track as report_track

@@ -41,12 +41,13 @@ def _assert_clean(record: dict) -> None:
 def _sweep(seed: int, cases: int, tmp_path: Path) -> dict:
     """The sweep as `make bench-sweep` runs it: its cases forked from a fresh interpreter that
     has imported every command (forked from this test run instead, each case would carry the
-    run's threads and its resident pages, and its memory would be judged with them)."""  # noqa: D205, D209
+    run's threads and its resident pages, and its memory would be judged with them)."""
     out = tmp_path / "record.json"
     cmd = [sys.executable, str(_PATH), "--seed", str(seed), "--cases", str(cases), "--jobs", "2"]
     done = subprocess.run([*cmd, "--out", str(out)], capture_output=True, text=True, check=False)
     print(done.stdout[-4000:], done.stderr[-4000:])
-    assert out.is_file(), f"the sweep wrote no record (exit {done.returncode}): {done.stderr[-2000:]}"
+    said = done.stderr[-2000:]
+    assert out.is_file(), f"the sweep wrote no record (exit {done.returncode}): {said}"
     return json.loads(out.read_text())
 
 

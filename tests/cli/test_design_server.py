@@ -339,6 +339,7 @@ def server():
         proc.communicate()
 
 
+@pytest.mark.slow
 def test_a_real_server_under_50_verifications_then_sigterm(server, doc):
     proc, port = server
     status, _ = _request(port, "POST", "/api/predict", {"document": doc})  # warm: first loads

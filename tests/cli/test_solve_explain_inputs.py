@@ -48,6 +48,7 @@ def _one_line_error(capsys, *parts):
     return err
 
 
+@pytest.mark.slow
 def test_explain_draws_a_solved_frame_and_the_json_has_the_counts(frame, tmp_path, capsys):
     folder, _, att = frame
     out = tmp_path / "why.png"

@@ -39,6 +39,7 @@ def test_bad_input_is_one_line_exit_2(argv, fragments, capsys, tmp_path, monkeyp
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_json_lines_csv_and_out(capsys, tmp_path):
     argv = [
         "trade",

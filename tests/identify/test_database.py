@@ -111,6 +111,7 @@ def test_cache_round_trip(hipparcos, tmp_path, monkeypatch):
         build_database(hipparcos, fov, cache_dir=tmp_path, pattern_stars_per_fov=9)
 
 
+@pytest.mark.slow
 def test_cache_ignores_corrupt_file(hipparcos, tmp_path):
     fov = math.radians(25)
     db = build_database(hipparcos, fov, cache=False)

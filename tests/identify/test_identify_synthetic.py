@@ -29,6 +29,7 @@ def _wrong_matches(catalog, db, true_ids, result) -> bool:
 
 
 @pytest.mark.parametrize("name", list(ALGORITHMS))
+@pytest.mark.slow
 def test_synthetic_solve_rate(name, db15, hipparcos, synth_sensor):
     """15 deg field, 20 brightest stars, 0.3 px noise, 2 false stars, 100 random attitudes:
     at least 99 % solved and none wrong. Wrong = boresight error > 1 arcmin, roll error

@@ -73,6 +73,7 @@ def test_expected_pairs_counts_uniform_stars():
     assert n == pytest.approx(expected, rel=0.05)
 
 
+@pytest.mark.slow
 def test_blocks_give_the_same_database(hipparcos, monkeypatch):
     # Built in blocks of 1,000 patterns (instead of 1 M), the database is identical.
     fov = 20 * DEG

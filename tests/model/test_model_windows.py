@@ -40,6 +40,7 @@ def _mu(sensor, psf, v, rot, rate, fluxes, windows, kept, free, frac, wts, fit_r
 
 @pytest.mark.parametrize("kind", ["gaussian", "moffat"])
 @pytest.mark.parametrize("rate_deg_s", [0.0, 1.0, 4.0])
+@pytest.mark.slow
 def test_jacobian_is_the_derivative_of_the_pixels(kind, rate_deg_s):
     """d mu / d (theta, w) against central differences of the whole model (attitude, rate).
 

@@ -45,6 +45,7 @@ def ctx(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_availability_section_builds(ctx, monkeypatch):
     monkeypatch.setattr(report_av, "_slew_curve", lambda ctx, model: PAPER_IMPLIED)
     monkeypatch.setattr(report_track, "FIDELITY_RATES_DEG_S", ())  # rendered frames: own test
@@ -82,6 +83,7 @@ def test_no_sensor(ctx):
     assert "No sensor" in report_av.availability_section(ctx).html
 
 
+@pytest.mark.slow
 def test_report_from_bsc5_path_runs_the_fidelity_part(bsc5_path, tmp_path, monkeypatch):
     """The loaded catalogue travels in ReportContext, whatever the --catalog spec.
 

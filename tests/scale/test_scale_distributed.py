@@ -360,6 +360,7 @@ def test_cli_availability_static_hats(data, client, capsys):
     assert payload["stars_in_field"]["mean"] == pytest.approx(float(ref.counts.mean()), rel=REL)
 
 
+@pytest.mark.slow
 def test_cli_catalog_import_is_atomic(client, capsys, tmp_path):
     small = _stars_table(500, seed=11)
     small.to_csv(tmp_path / "mine.csv", index=False, float_format="%.17g")

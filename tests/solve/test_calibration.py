@@ -134,6 +134,7 @@ def lens_frames(tmp_path_factory):
     return folder, paths
 
 
+@pytest.mark.slow
 def test_calibrate_cli_writes_a_sensor_solve_uses(lens_frames, capsys):
     folder, paths = lens_frames
     out = folder / "cal.toml"

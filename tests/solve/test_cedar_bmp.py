@@ -36,6 +36,7 @@ def _separation_arcsec(sol, ref) -> float:
     return math.degrees(math.acos(min(1.0, c))) * 3600.0
 
 
+@pytest.mark.slow
 def test_bmp_ladder_solves_down_to_10_ms(cedar):
     folder, ref = cedar
     solver = Solver(fov_rad=math.radians(ref["camera"]["horizontal_fov_deg"]))

@@ -130,6 +130,7 @@ def test_what_the_one_pass_leaves_to_the_whole_way(sets):
     assert one_pass(Solver(fov_rad=FOV15), three) is None
 
 
+@pytest.mark.slow
 def test_a_set_that_does_not_identify_at_its_field_is_identified_there_once(sets):
     # random points: the one pass fails at the known field and hands its answer over; the
     # whole way then spends no pattern on that attempt again (the budget counts each once)

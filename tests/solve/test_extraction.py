@@ -78,6 +78,7 @@ def test_bad_extraction_options_are_refused_by_name(options, message):
         Solver(sensor="esa_blackfly", **options)
 
 
+@pytest.mark.slow
 def test_a_first_quick_attempt_tries_only_the_field_given(esa):
     # the field given 1.3x too wide: the quick attempt fails at that field without searching
     # the scale (the robust attempt that follows searches it, once), and the frame solves with

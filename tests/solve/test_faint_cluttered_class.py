@@ -13,6 +13,7 @@ every frame with the evidence of the class (``evident``: 10 stars at a matched-f
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from camera_class import class_frame, luminance
 
 from starsense.catalog import load_catalog
@@ -29,6 +30,7 @@ def _wrong(frame, sol) -> bool:
     return bool(max(err[:2]) > 2 * pixel_arcsec or err[2] > 540)
 
 
+@pytest.mark.slow
 def test_faint_cluttered_frames_solve_with_the_field_unknown():
     catalog = load_catalog("hipparcos")
     solver = Solver()

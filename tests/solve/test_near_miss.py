@@ -54,6 +54,7 @@ def test_fisher_combination_is_the_product_tail_of_two_uniforms():
     assert fisher_combined(0.0, 0.5) == 0.0
 
 
+@pytest.mark.slow
 def test_wrong_attitudes_read_as_chance(catalog, solver):
     # Under a wrong attitude the predicted places are unrelated to the frame: p2 is a p-value
     # (at most alpha of them below alpha). At the truth the faint stars are there.
@@ -90,6 +91,7 @@ def test_wrong_attitudes_read_as_chance(catalog, solver):
     assert len(true_p) >= 4 and max(true_p) < 1e-6, true_p
 
 
+@pytest.mark.slow
 def test_near_misses_of_the_class_solve_right(catalog, solver):
     # The same detections as a centroid list (no frame: no fainter evidence) fall short of the
     # threshold; with the frame most solve, at the truth. No frame solves wrong. (Measured on

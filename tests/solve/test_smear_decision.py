@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from zoo_trials import zoo_trial
 
 from starsense.geometry.attitude import small_rotation_angles
@@ -45,6 +46,7 @@ def test_faint_streaks_measuring_short_are_still_recentroided():
     assert np.max(np.hypot(*got.streaks_px.T)) >= shortest
 
 
+@pytest.mark.slow
 def test_a_blend_measuring_long_does_not_stretch_every_capsule():
     """Trial 1020 of 1320 of a 3.5 deg design (800 px, PSF sigma 1.04 px, 6.9 px streaks at
     1 deg/s; drawn with the zoo's seed 99): two stars 9 px apart light one region that measures

@@ -101,6 +101,7 @@ def _zoo00():
         ("ccd768", 54, 200, "auto"),
     ],
 )
+@pytest.mark.slow
 def test_slewing_frame_that_was_wrong_solves_right(catalog, design, k, n_trials, background):
     sensor = _zoo00() if design == "zoo00" else zoo.make_sensor("ccd768", **zoo.CCD_768)
     truth, frame = _trial(sensor, catalog, k, n_trials)
@@ -185,6 +186,7 @@ def test_frame_at_rest_keeps_its_centroids(catalog):
 
 
 @pytest.mark.parametrize("k", [81, 93])
+@pytest.mark.slow
 def test_blended_streaks_do_not_set_the_rate(catalog, k):
     """A crowded slewing frame: the rate comes from whole streaks, not from blends.
 
@@ -257,6 +259,7 @@ def test_a_neighbours_streak_through_the_capsule_is_in_the_reference(catalog):
     _right_within_4_sigma(zoo.make_sensor(name, **params), catalog, 100, 47)
 
 
+@pytest.mark.slow
 def test_streaks_longer_than_half_the_frame_set_the_rate(catalog):
     """Trial 96 of a 160-frame Monte Carlo of a 3.5 deg design (2768 x 2080 px) at 1 deg/s:
     its streaks are 506 px, and a window twice as long around every streak left the frame,
@@ -296,6 +299,7 @@ def test_a_streak_of_no_length_among_the_candidates_is_not_turned_from():
     assert got == 0
 
 
+@pytest.mark.slow
 def test_an_attitude_that_does_not_fit_its_streaks_is_not_reported(catalog):
     """Trial 272 of a 579-frame Monte Carlo of the 3.5 deg design with 506 px streaks at
     1 deg/s: the rate fitted to the streaks carried a spurious roll (the predicted streaks

@@ -125,6 +125,7 @@ def test_solve_bad_options(tmp_path, capsys, argv, message):
 
 
 @pytest.mark.parametrize("rough_fov_deg", [10.0, 12.5])
+@pytest.mark.slow
 def test_rough_fov_is_refined(esa, rough_fov_deg):
     # optics known only to ~10 %: the scale search around the estimate finds the field
     folder, reference = esa
@@ -253,6 +254,7 @@ def test_solution_stores_radians_and_shows_degrees():
     assert empty["ra_deg"] is None and empty["sigma_arcsec"] is None
 
 
+@pytest.mark.slow
 def test_solver_takes_a_catalog_object(esa, monkeypatch):
     # a catalogue filtered in Python (V <= 6.5: 8,918 Hipparcos stars) is carried, not
     # reloaded: every range of the unknown-field search uses it, and the ESA frames solve

@@ -41,6 +41,7 @@ def _write(image, path, tinted):
         Image.fromarray(image).convert("RGBA").save(path)
 
 
+@pytest.mark.slow
 def test_zero_clipped_8bit_frames_solve_and_none_is_wrong(tmp_path):
     catalog = load_catalog("hipparcos")
     solver = Solver(fov_rad=FOV_RAD)

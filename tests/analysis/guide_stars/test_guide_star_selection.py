@@ -85,6 +85,7 @@ def test_lin2024_four_area_saturation_matches_paper():
     assert tab.probability_mc["four"][0] == pytest.approx(0.9987, abs=0.0015)
 
 
+@pytest.mark.slow
 def test_lin2024_four_area_column_with_3sigma_reading():
     # The required agreement: the four-area column within 10 points of the paper's at every
     # sigma. Reading the paper's sigma as a 3-sigma bound does this (the per-axis reading
