@@ -9,6 +9,7 @@ import io
 import json
 import math
 import os
+from importlib import resources
 
 import pytest
 
@@ -77,6 +78,10 @@ def test_rows_have_exactly_the_named_keys(light):
     keys = [(r["class"], r["axis"], r["rate_deg_s"]) for r in s["rows"]]
     assert len(keys) == len(set(keys))
     assert light[0]["statement"]["files"]
+    schema = json.loads(
+        (resources.files("starsense") / "data" / "datasheet.schema.json").read_text()
+    )
+    pytest.importorskip("jsonschema").validate(light[0], schema)
 
 
 @pytest.mark.slow

@@ -80,9 +80,7 @@ class StatementRequest:
     budget_csv: Path | None
 
 
-def statement_request(
-    statement: bool, options: tuple, *, single: bool, frames: bool
-) -> StatementRequest | None:
+def statement_request(statement: bool, options: tuple, *, single: bool) -> StatementRequest | None:
     """Check the statement's options before any work; None without ``--statement``.
 
     Parameters
@@ -92,9 +90,8 @@ def statement_request(
     options : tuple
         ``(--confidence, --rates, --budget-csv)`` as given (None: not given).
     single : bool
-        One sensor, rendered frames (no ``--compare``, ``--centroids-only``, ``--against``).
-    frames : bool
-        The run renders Monte Carlo frames (``--trials`` >= 1).
+        One sensor, rendered frames (no ``--compare``, ``--centroids-only``, ``--against``;
+        ``--trials`` is >= 1).
 
     Returns
     -------
@@ -111,8 +108,6 @@ def statement_request(
             "--statement states one sensor on rendered frames: not with --compare, "
             "--centroids-only or --against"
         )
-    if not frames:
-        raise InputError("--statement is checked on the Monte Carlo: give --trials >= 1")
     p = parse_confidence("1sigma" if confidence is None else confidence)
     rate_list = None
     if rates is not None:
