@@ -26,6 +26,14 @@ from starsense.cli.common import (
     option_float,
     progress_bar,
 )
+from starsense.cli.datasheet_statement import (
+    BudgetCsvOpt,
+    ConfidenceOpt,
+    StatementOpt,
+    StatementRatesOpt,
+    statement_request,
+    statement_section,
+)
 from starsense.errors import InputError
 from starsense.plotting.datasheet import nea_sky_figure
 from starsense.plotting.figure import save_png
@@ -230,6 +238,10 @@ def datasheet(
     refine: RefineOpt = "model",
     against: AgainstOpt = None,
     exposure_s: AgainstExposureOpt = None,
+    statement: StatementOpt = False,
+    confidence: ConfidenceOpt = None,
+    rates: StatementRatesOpt = None,
+    budget_csv: BudgetCsvOpt = None,
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
@@ -242,6 +254,8 @@ def datasheet(
     if seed < 0:
         raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
     frames = (against, more_frames, exposure_s)
+    single = not compare and not centroids_only and not against and not more_frames
+    request = statement_request(statement, (confidence, rates, budget_csv), single=single)
     if run_against(sensor, *frames, catalog=catalog, seed=seed, js=as_json):
         return
     if out is not None:  # the place, before any work: a folder (created) we may write in
@@ -265,13 +279,9 @@ def datasheet(
         model=model,
         refine=refine,
     )
-    sheets = []
-    with progress_bar(not as_json) as bar, _client(dask) as client:
-        for sens in sensors:
-            sheets.append(
-                build_datasheet(sens, cat, settings=settings, client=client, progress=bar.callback)
-            )
-    payloads = [s.to_dict() for s in sheets]
+    sheets, payloads, extra = _sheets(
+        sensors, cat, settings, request=request, dask=dask, js=as_json
+    )
     figures = []
     if out is not None:
         taken: set[str] = set()
@@ -283,11 +293,29 @@ def datasheet(
         lines = _compare_lines(comparison)
     else:
         payload = payloads[0]
-        lines = datasheet_lines(payload)
+        lines = datasheet_lines(payload) + extra
     if figures:
         payload = {**payload, "files": figures}
         lines += [f"wrote {f}" for f in figures]
     emit(payload, as_json, lines)
+
+
+def _sheets(sensors, cat, settings, *, request, dask, js) -> tuple[list, list[dict], list[str]]:
+    """Build each sensor's datasheet, and the first's statement if asked (``--statement``)."""
+    sheets, section, lines = [], None, []
+    with progress_bar(not js) as bar, _client(dask) as client:
+        for sens in sensors:
+            sheets.append(
+                build_datasheet(sens, cat, settings=settings, client=client, progress=bar.callback)
+            )
+        if request is not None and sheets[0].limiting_magnitude is not None:
+            section, lines = statement_section(
+                sensors[0], cat, settings, sheet=sheets[0], request=request, client=client
+            )
+    payloads = [s.to_dict() for s in sheets]
+    if request is not None:  # None: the sensor detects no star (its warnings say why)
+        payloads[0]["statement"] = section
+    return sheets, payloads, lines
 
 
 def _centroids_only(sensors, cat, *, trials, model, seed, dask, js) -> None:

@@ -257,7 +257,7 @@ class SheetSettings(_Section):
 #: the keys of a datasheet without any detected star, in their JSON order
 _NO_STAR_KEYS = ("schema", "sensor", "limiting_magnitude", "warnings", "settings")
 #: the fields that are not in the JSON (arrays for the figures)
-_ARRAYS = {"boresights", "nea_cross_rad", "dynamic"}
+_ARRAYS = {"boresights", "nea_cross_rad", "dynamic", "frame_errors_rad"}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -307,6 +307,9 @@ class Datasheet:
         Cross-boresight NEA at each boresight, rad (not in the JSON).
     dynamic : DynamicAvailability or None
         Availability on a fine grid of rates (not in the JSON).
+    frame_errors_rad : dict or None
+        Per Monte Carlo rate (deg/s): the camera-frame X, Y, Z error (N, 3) of each right
+        solution, rad (not in the JSON).
     """
 
     schema: str
@@ -334,6 +337,7 @@ class Datasheet:
     boresights: np.ndarray | None = field(default=None, repr=False, compare=False)
     nea_cross_rad: np.ndarray | None = field(default=None, repr=False, compare=False)
     dynamic: DynamicAvailability | None = field(default=None, repr=False, compare=False)
+    frame_errors_rad: dict | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict:
         """Return the JSON form (units in the field names; None where a number does not exist).

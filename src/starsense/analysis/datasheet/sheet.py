@@ -273,7 +273,10 @@ def build_datasheet(
         else None
         for k in ("cross", "roll")
     }
-    runs = run_checks(sensor, sky_cat, st, sky=(model, fov, fitted), client=client, tick=tick)
+    frames: dict = {}
+    runs = run_checks(
+        sensor, sky_cat, st, sky=(model, fov, fitted), client=client, tick=tick, keep=frames
+    )
     bias = model.pixel_bias.rms(model.sensitivity.electrons(mags))
     pse = float(np.sqrt(np.nanmean(bias**2))) if np.isfinite(bias).any() else None
     errors = {k: v for k, v in sig.items() if k not in ("nea", "crb")}
@@ -321,6 +324,7 @@ def build_datasheet(
         boresights=boresights,
         nea_cross_rad=sig["nea"][0],
         dynamic=fine,
+        frame_errors_rad=frames,
     )
 
 

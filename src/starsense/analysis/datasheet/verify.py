@@ -257,13 +257,15 @@ def no_frames_check(rate_rad_s: float) -> MonteCarloCheck:
     )
 
 
-def run_checks(sensor, cat, st, *, sky, client, tick) -> dict[str, MonteCarloCheck]:
+def run_checks(sensor, cat, st, *, sky, client, tick, keep=None) -> dict[str, MonteCarloCheck]:
     """Return the Monte Carlo checks at rest and at the settings' rate, scored.
 
     ``sensor`` and ``cat`` are rendered and solved (:func:`starsense.analysis.montecarlo.
     montecarlo`) as ``st`` (DatasheetSettings) says; ``sky``: the star model, the field and
     the stars the solver may fit (:class:`~starsense.analysis.datasheet.stars.FittedStars`);
-    ``client`` a Dask client or None; ``tick(name)`` is called after each run.
+    ``client`` a Dask client or None; ``tick(name)`` is called after each run. ``keep``, a
+    dict, receives each run's per-frame errors: rate (deg/s) -> the camera-frame X, Y, Z error
+    (N, 3) of its right solutions, rad (:attr:`MonteCarloResult.errors_rad`).
     """
     model, fov, stars = sky
     runs = {}
@@ -286,5 +288,7 @@ def run_checks(sensor, cat, st, *, sky, client, tick) -> dict[str, MonteCarloChe
             refine=st.refine,
         )
         runs[key] = MonteCarloCheck(**score_montecarlo(res, model, fov=fov, stars=stars))
+        if keep is not None:
+            keep[res.rate_deg_s] = res.errors_rad
         tick(key.replace("_", " "))
     return runs

@@ -15,9 +15,22 @@ import io
 
 from starsense.analysis.ecss.statement import AXES, Statement
 
-__all__ = ["csv_columns", "statement_csv", "statement_lines"]
+__all__ = ["ROW_KEYS", "csv_columns", "statement_csv", "statement_lines", "statement_rows"]
 
 _TOTALS = ("total_bias", "total_noise", "total")
+#: the keys of a row of :func:`statement_rows` (``starsense datasheet --statement --json``)
+ROW_KEYS = (
+    "class",
+    "axis",
+    "rate_deg_s",
+    "value_arcsec",
+    "confidence",
+    "distribution",
+    "time_class",
+    "source",
+)
+#: a total's time class: what it sums
+_TOTAL_TIME = {"total_bias": "bias", "total_noise": "noise", "total": "bias_and_noise"}
 
 
 def _rate_label(rate_deg_s: float) -> str:
@@ -59,6 +72,57 @@ def statement_csv(statement: Statement) -> str:
             row += [what, ""] + [_cell(tot[f"{name}_{a}_arcsec"]) for a in AXES]
         w.writerow(row)
     return buf.getvalue()
+
+
+def statement_rows(statement: Statement) -> list[dict]:
+    """Return the statement as flat rows: one per term (or total), axis and rate.
+
+    Each row has exactly :data:`ROW_KEYS`: ``class`` the term's key (its ECSS class, or the
+    class and the source within it: ``pixel_spatial_prnu``) or a total (``total_bias``,
+    ``total_noise``, ``total``), ``axis`` X, Y or Z, ``rate_deg_s``, ``value_arcsec`` (at the
+    confidence; None where not known, the source says why), ``confidence`` (probability),
+    ``distribution``, ``time_class`` (``bias``, ``low_frequency``, ``high_frequency``,
+    ``temporal_noise``; a total's ``bias``, ``noise`` or ``bias_and_noise``) and ``source``.
+
+    Parameters
+    ----------
+    statement : Statement
+
+    Returns
+    -------
+    list of dict
+    """
+    s, rows = statement, []
+    for i, rate in enumerate(s.rates_deg_s):
+        for t in s.terms:
+            at = t["at_rate"][i]
+            source = t["source"]  # a term left out of the totals says so (aberration)
+            for a in AXES:
+                values = (at[f"{a}_arcsec"], at["time_class"], t["distribution"], source)
+                rows.append(_row(t["key"], a, rate, s.confidence, values))
+        tot = s.totals[i]
+        left = ", ".join(tot["not_known"]) or "none"
+        for name in _TOTALS:
+            source = (
+                f"computed: root sum square of the counted terms acting as {_TOTAL_TIME[name]} "
+                f"at this rate (not known, left out: {left})"
+            )
+            dist = "root sum square of the counted terms"
+            for a in AXES:
+                values = (tot[f"{name}_{a}_arcsec"], _TOTAL_TIME[name], dist, source)
+                rows.append(_row(name, a, rate, s.confidence, values))
+    return rows
+
+
+def _row(name: str, axis: str, rate: float, confidence: float, values: tuple) -> dict:
+    value, time_class, distribution, source = values
+    return dict(
+        zip(
+            ROW_KEYS,
+            (name, axis.upper(), rate, value, confidence, distribution, time_class, source),
+            strict=True,
+        )
+    )
 
 
 def _f(x) -> str:

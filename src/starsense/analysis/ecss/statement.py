@@ -14,7 +14,7 @@ squares of the terms counted, of the biases, of the noises, and of both.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -61,6 +61,11 @@ class Statement:
         Per rate: ``rate_deg_s`` and ``{total,total_bias,total_noise}_{axis}_arcsec``, with
         ``not_known``: the keys of the counted terms left out because they are not known.
     notes : tuple of str
+    sources : tuple of Term
+        The terms' values per attitude (:mod:`starsense.analysis.ecss.terms`), rad, behind
+        :meth:`at_confidence` (not in the JSON).
+    geometry : tuple of float
+        The field's narrower width and one pixel, rad (the crossing periods).
     """
 
     sensor: str
@@ -70,6 +75,24 @@ class Statement:
     terms: tuple
     totals: tuple
     notes: tuple
+    sources: tuple = field(default=(), repr=False, compare=False)
+    geometry: tuple = field(default=(), repr=False, compare=False)
+
+    def at_confidence(self, confidence: float) -> Statement:
+        """Return the same statement at another confidence (the same terms, rates and sky).
+
+        Parameters
+        ----------
+        confidence : float
+            Probability in (0, 1).
+
+        Returns
+        -------
+        Statement
+        """
+        if not self.sources:
+            raise ValueError("this statement keeps no terms to restate (built by hand)")
+        return _assemble(self.sensor, self.sources, self.rates_deg_s, confidence, self.geometry)
 
     def values(self) -> list[dict]:
         """Return, per rate, the flat ``{term}_{axis}_arcsec`` values (None: not known)."""
@@ -210,8 +233,16 @@ def ecss_statement(
         limit_mag=sheet.limiting_magnitude,
         rates_rad_s=rates_rad,
     )
-    k, p = gaussian_factor(confidence), float(confidence)
     geometry = (2.0 * min(sensor.half_fov_rad), sky.model.pixel_rad)
+    return _assemble(sensor.name, tuple(terms), rates, confidence, geometry)
+
+
+def _assemble(name: str, terms: tuple, rates: tuple, confidence: float, geometry) -> Statement:
+    """Return the statement of ``terms`` at ``rates`` (deg/s) and ``confidence``."""
+    if not 0.0 < float(confidence) < 1.0:
+        raise InputError(f"confidence = {confidence!r} must lie strictly between 0 and 1")
+    k, p = gaussian_factor(confidence), float(confidence)
+    rates_rad = [r * DEG for r in rates]
     rows = [
         {
             "key": t.key,
@@ -235,4 +266,4 @@ def ecss_statement(
         "time of the field (FOV) or of a pixel (PSE)",
         "totals: root sum square of the counted terms at the confidence, per axis",
     )
-    return Statement(sensor.name, p, k, rates, tuple(rows), totals, notes)
+    return Statement(name, p, k, rates, tuple(rows), totals, notes, terms, tuple(geometry))

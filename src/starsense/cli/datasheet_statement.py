@@ -1,0 +1,212 @@
+"""``starsense datasheet --statement``: the ECSS statement in the datasheet, checked on its frames.
+
+The statement is :func:`starsense.analysis.ecss.ecss_statement` on the datasheet's own sky
+(the sheet just built: its limiting magnitude, slew run and attitudes); its coverage is
+:mod:`starsense.analysis.ecss.coverage` on the datasheet's Monte Carlo frames, with the rates
+the datasheet did not run rendered here (``--trials`` frames each).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from starsense._io import atomic_write, check_output
+from starsense.analysis.ecss import ecss_statement, parse_confidence
+from starsense.analysis.ecss.coverage import coverage_rows, frame_errors_arcsec, frame_errors_at
+from starsense.analysis.ecss.export import statement_csv, statement_lines, statement_rows
+from starsense.analysis.ecss.statement import check_rates
+from starsense.cli.common import parse_floats
+from starsense.errors import InputError
+
+__all__ = [
+    "DEFAULT_STATEMENT_RATES_DEG_S",
+    "BudgetCsvOpt",
+    "ConfidenceOpt",
+    "StatementOpt",
+    "StatementRatesOpt",
+    "StatementRequest",
+    "statement_request",
+    "statement_section",
+]
+
+#: the statement's rates when --rates is not given (and the fastest keeping 99 %), deg/s
+DEFAULT_STATEMENT_RATES_DEG_S = (0.0, 0.5, 1.0, 2.0)
+
+StatementOpt = Annotated[
+    bool,
+    typer.Option(
+        "--statement",
+        help="Add the ECSS-E-ST-60-20C performance statement (error classes per axis X, Y, Z "
+        "and rate, at --confidence) and its coverage: the fraction of the Monte Carlo frames "
+        "inside its 1-sigma and 3-sigma totals per axis and rate. Rates the datasheet's Monte "
+        "Carlo did not run are rendered too, --trials frames each.",
+    ),
+]
+ConfidenceOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--confidence",
+        help="With --statement: probability each value is not exceeded, per axis: 0.95, 95, "
+        "95%, 1sigma, 2sigma or 3sigma [default: 1sigma].",
+    ),
+]
+StatementRatesOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--rates",
+        help="With --statement: body rates, deg/s, comma-separated [default: 0,0.5,1,2 and "
+        "the fastest rate keeping 99 % lost in space].",
+    ),
+]
+BudgetCsvOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--budget-csv",
+        help="With --statement: write the statement as a pointing budget's CSV table to FILE.",
+    ),
+]
+
+
+@dataclass(frozen=True)
+class StatementRequest:
+    """What ``--statement`` asked: the confidence, the rates (None: the default) and the CSV."""
+
+    confidence: float
+    rates_deg_s: tuple | None
+    budget_csv: Path | None
+
+
+def statement_request(statement: bool, options: tuple, *, single: bool) -> StatementRequest | None:
+    """Check the statement's options before any work; None without ``--statement``.
+
+    Parameters
+    ----------
+    statement : bool
+        ``--statement`` given.
+    options : tuple
+        ``(--confidence, --rates, --budget-csv)`` as given (None: not given).
+    single : bool
+        One sensor, rendered frames (no ``--compare``, ``--centroids-only``, ``--against``;
+        ``--trials`` is >= 1).
+
+    Returns
+    -------
+    StatementRequest or None
+    """
+    confidence, rates, budget_csv = options
+    if not statement:
+        for name, value in zip(("--confidence", "--rates", "--budget-csv"), options, strict=True):
+            if value is not None:
+                raise InputError(f"{name} needs --statement (it sets the statement's {name[2:]})")
+        return None
+    if not single:
+        raise InputError(
+            "--statement states one sensor on rendered frames: not with --compare, "
+            "--centroids-only or --against"
+        )
+    p = parse_confidence("1sigma" if confidence is None else confidence)
+    rate_list = None
+    if rates is not None:
+        rate_list = check_rates(parse_floats(rates, "--rates", lo=0.0, hi=30.0))
+    if budget_csv is not None:
+        check_output(budget_csv, "--budget-csv")
+    return StatementRequest(p, rate_list, budget_csv)
+
+
+def _default_rates(sheet) -> tuple[tuple[float, ...], str | None]:
+    """Return the default rates and the fastest keeping 99 % lost in space (or a note)."""
+    keep99 = sheet.availability.fastest_rate_deg_s.lost_in_space.p99
+    if keep99 is None:
+        return DEFAULT_STATEMENT_RATES_DEG_S, "no rate keeps 99 % lost in space: not stated"
+    return check_rates((*DEFAULT_STATEMENT_RATES_DEG_S, keep99)), None
+
+
+def _coverage_lines(rows: list[dict]) -> list[str]:
+    lines = []
+    for i in range(0, len(rows), 3):
+        group = rows[i : i + 3]
+        r = group[0]
+        head = (
+            f"  coverage of the 1-sigma / 3-sigma bound at {r['rate_deg_s']:g} deg/s "
+            f"({r['frames']} right solutions of {r['frames_rendered']} frames, {r['frames_from']})"
+        )
+        if r["reason"]:
+            lines.append(f"{head}: not known ({r['reason']})")
+            continue
+        cells = ", ".join(
+            f"{g['axis']} {100 * g['inside_1sigma']:.0f} % / {100 * g['inside_3sigma']:.0f} %"
+            for g in group
+        )
+        lines.append(f"{head}: {cells}")
+    return lines
+
+
+def statement_section(
+    sensor, catalog, settings, *, sheet, request: StatementRequest, client=None
+) -> tuple[dict, list[str]]:
+    """Return the datasheet's ``statement`` (JSON) and its text lines; write ``--budget-csv``.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    catalog : Catalog
+        The datasheet's.
+    settings : DatasheetSettings
+        The datasheet's.
+    sheet : Datasheet
+        The datasheet built with them (its sky, slew run and Monte Carlo frames).
+    request : StatementRequest
+    client : dask.distributed.Client, optional
+        Renders the rates the datasheet did not run.
+
+    Returns
+    -------
+    dict
+        ``rows`` (:func:`starsense.analysis.ecss.export.statement_rows`), ``coverage``
+        (:func:`starsense.analysis.ecss.coverage.coverage_rows`), ``frame_errors`` (per rate,
+        each right solution's X, Y, Z error, arcsec), ``confidence``, ``rates_deg_s``, notes.
+    list of str
+    """
+    notes = []
+    rates = request.rates_deg_s
+    if rates is None:
+        rates, note = _default_rates(sheet)
+        notes += [note] if note else []
+    statement = ecss_statement(
+        sensor,
+        catalog,
+        confidence=request.confidence,
+        rates_deg_s=rates,
+        settings=settings,
+        sheet=sheet,
+    )
+    frames = frame_errors_at(
+        sensor,
+        catalog,
+        settings,
+        rates_deg_s=statement.rates_deg_s,
+        have=sheet.frame_errors_rad,
+        client=client,
+    )
+    coverage = coverage_rows(statement, frames)
+    section = {
+        "confidence": statement.confidence,
+        "gaussian_factor": statement.gaussian_factor,
+        "rates_deg_s": list(statement.rates_deg_s),
+        "rows": statement_rows(statement),
+        "coverage": coverage,
+        "frame_errors": frame_errors_arcsec(frames),
+        "notes": [*statement.notes, *notes],
+    }
+    lines = statement_lines(statement) + [f"  note: {n}" for n in notes]
+    lines += _coverage_lines(coverage)
+    if request.budget_csv is not None:
+        with atomic_write(request.budget_csv) as fh:
+            fh.write(statement_csv(statement))
+        section["files"] = [str(request.budget_csv)]
+        lines.append(f"wrote {request.budget_csv}")
+    return section, lines
