@@ -46,14 +46,11 @@ def _isolated_cache(tmp_path_factory):
         os.environ["STARSENSE_CACHE_DIR"] = old
 
 
-def _left_behind() -> list[str]:
-    """What the test process still runs at its end: threads that hold its exit, child processes."""
+def _children() -> dict[int, str]:
+    """This process's live child processes (zombies left out): pid -> name."""
     import os
-    import threading
 
-    out = [f"thread {t.name!r}" for t in threading.enumerate() if not t.daemon and t.is_alive()]
-    out = [o for o in out if o != "thread 'MainThread'"]
-    me = str(os.getpid())
+    me, out = str(os.getpid()), {}
     for name in os.listdir("/proc") if os.path.isdir("/proc") else []:
         if name.isdigit():
             try:
@@ -63,21 +60,58 @@ def _left_behind() -> list[str]:
                 continue
             fields = tail.split()
             if fields[1] == me and fields[0] != "Z":
-                out.append(f"process {name} ({head.split(' (', 1)[1]})")
+                out[int(name)] = head.split(" (", 1)[1]
     return out
 
 
-def pytest_unconfigure(config):
-    """Say what is left running at the end of the run, and never hang there.
+def pytest_configure(config):
+    """Adopt the processes the tests' children leave behind (Linux: a child subreaper), so that
+    the end of the run can find and end them."""
+    import contextlib
+    import ctypes
 
-    A run that printed its summary and then waited on a thread or a process it had left behind
-    had held CI to its time limit; now it names them, and after two minutes the stacks of every
-    thread are written and the run ends (status 1) instead of waiting.
+    pr_set_child_subreaper = 36
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(pr_set_child_subreaper, 1, 0, 0, 0)
+
+
+@pytest.fixture(autouse=True)
+def _no_process_left(request):
+    """Name a test that leaves a process running (its own or an orphan of its children's)."""
+    import sys
+    import time
+
+    before = set(_children())
+    yield
+    left = {p: n for p, n in _children().items() if p not in before}
+    if left:  # a moment for processes that are ending
+        time.sleep(0.5)
+        left = {p: n for p, n in _children().items() if p not in before}
+    if left:
+        print(f"\n{request.node.nodeid} leaves running: {left}", file=sys.__stderr__)
+
+
+def pytest_unconfigure(config):
+    """End what the tests left running, and never hang at the end of the run.
+
+    The interpreter's exit joins every child of Python's multiprocessing, and one that never
+    ends (a fork that inherited a test's held signals) had held CI to its time limit after the
+    summary was printed. Each process left is named, then killed; after two minutes more the
+    stacks of every thread are written and the run ends (status 1) instead of waiting.
     """
     import faulthandler
+    import os
+    import signal
     import sys
 
-    left = _left_behind()
+    left = _children()
     if left:
-        print(f"\nthe test run leaves running: {', '.join(left)}", file=sys.stderr)
+        said = ", ".join(f"process {p} ({n})" for p, n in left.items())
+        print(f"\nthe test run leaves running: {said}; killed", file=sys.__stderr__)
+    for pid in left:
+        try:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+        except OSError:
+            pass
     faulthandler.dump_traceback_later(120, exit=True, file=sys.__stderr__)
