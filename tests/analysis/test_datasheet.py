@@ -29,8 +29,11 @@ from starsense.analysis.datasheet.terms import (
 from starsense.analysis.datasheet.verify import wrong_rate_upper
 from starsense.attitude.covariance import fisher_matrix
 from starsense.catalog import load_catalog
+from starsense.detect.threshold import StarDetector
 from starsense.errors import InputError
 from starsense.geometry.sampling import random_attitudes
+from starsense.render.noise import quantise
+from starsense.render.psf import gaussian_stamp
 from starsense.sensor import load_sensor, sensor_from_dict
 from starsense.units import ARCSEC, DEG
 
@@ -138,6 +141,48 @@ def test_pixel_spatial_error_small_for_a_wide_psf():
     # a well-sampled Gaussian (1.5 px) centroids almost without bias: < 0.05 px (Liebe 2002)
     pse = pixel_spatial_error(load_sensor("st16"), [5e3, 5e4], n_side=4)
     assert np.all(pse.max_px < 0.05)
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        # a bias of 168 counts (the ST-16's) under a 12-bit ADC: the signal clips at
+        # (4095 - 168) / 0.05 = 78,540 e-, not at 4095 / 0.05 = 81,900 e-
+        {"full_well_e": 1e5, "bias_counts": 168.0},
+        # no bias, a well of 60,000 e- below the ADC's 81,900 e-: the well clips first
+        {"full_well_e": 6e4, "bias_counts": 0.0},
+    ],
+)
+def test_pixel_spatial_error_clips_as_the_renderer_does(changes):
+    # the centroider's sub-pixel error is measured on noiseless stars; past saturation it is the
+    # flat top's, so those stars must be clipped as the renderer clips them. The independent
+    # measurement: each phase's star read out by the renderer (quantise: the well clips the
+    # charge, the ADC the counts with the bias in them), alone on a frame, through the same
+    # detector. The two differ only by quantise's rounding: +-0.5 count (0.29 rms) a pixel
+    # moves a CoG of 2e4-5e4 counts over a ~9 x 9 px window by ~2e-4 px; ask 5e-4 px. Clipped
+    # at the wrong level (the ADC's top over the bias, or no well) the rms is off by 1.3e-3 px
+    # (ADC, 1e6 e-) and 8e-3 px (well, 4e5 e-).
+    s = load_sensor("st16")
+    det = dataclasses.replace(
+        s.detector, psf_sigma_px=0.8, gain_counts_per_e=0.05, read_noise_e=5.0, **changes
+    )
+    sens = dataclasses.replace(s, detector=det)
+    detector = StarDetector.for_sensor(sens)
+    offsets = (np.arange(4) + 0.5) / 4
+    half = 12  # 15 PSF sigmas
+    box = (0, 2 * half + 1, 0, 2 * half + 1)
+    for n_e in (4e5, 1e6):  # peak pixels 2-3 times past the clip at the worst phase
+        err = []
+        for dx in offsets:
+            for dy in offsets:
+                x, y = half + dx - 0.5, half + dy - 0.5
+                stamp, _, _ = gaussian_stamp(x, y, sigma_px=0.8, electrons=n_e, box=box)
+                found = detector(quantise(stamp, sens).astype(float))
+                i = int(np.argmax(found.integrated_counts))
+                err += [found.x[i] - x, found.y[i] - y]
+        ref = math.sqrt(np.mean(np.square(err)))
+        got = pixel_spatial_error(sens, [n_e], n_side=4).rms_px[0]
+        assert got == pytest.approx(ref, abs=5e-4), n_e
 
 
 def test_interpolations():

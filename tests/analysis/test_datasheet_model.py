@@ -126,10 +126,12 @@ def test_saturated_star_bias_is_in_the_table():
     # of the phase that noiseless renders show (the independent measurement); the table must
     # carry it at the electrons where it happens (points are added at the onset), within
     # 20 % (200 phases, 4 renders each; the bias moves steeply with the electrons there)
-    # a deep well read through a coarse gain: the ADC clips at 82,000 e- a pixel
+    # a deep well read through a coarse gain: the ADC clips at (4095 - 168) / 0.05 = 78,540 e- a
+    # pixel (its top less the ST-16's bias)
     sens = _st16(psf_sigma_px=0.8, read_noise_e=5.0, gain_counts_per_e=0.05, full_well_e=1e5)
     det = sens.detector
-    sat = min(det.full_well_e, det.saturation_counts / det.gain_counts_per_e)
+    sat = min(det.full_well_e, (det.saturation_counts - det.bias_counts) / det.gain_counts_per_e)
+    assert sat == pytest.approx(78_540.0)
     onset = sat / math.erf(0.5 / (math.sqrt(2) * 0.8)) ** 2
     table = centroid_noise(sens, 0.3 * onset, 10 * onset, n_grid=4, n_stamps=800, rng=2)
     past = table.electrons > 1.4 * onset

@@ -25,6 +25,10 @@ def test_streak_centroids_equal_the_one_region_loop(st16):
     # boxes exactly. Stamps of different streak directions and lengths, noisy, with starting
     # points off the streak so that the iteration moves; plus an empty plane (no centroid)
     # and a start far off the plane (its capsule misses the plane: no centroid).
+    # The starts are within 3 px of the star's mid-exposure point, the stamp's centre (to half
+    # a pixel): the planes' background is the bias-subtracted read noise, of mean zero, so a
+    # start whose window misses the star finds no counts (with a bias of 0 the noise clipped at
+    # zero had a positive mean and gave such a window a centroid of noise).
     rng = np.random.default_rng(7)
     radius = 2.5 * st16.detector.psf_sigma_px + 1.0
     planes, starts, streaks = [], [], []
@@ -34,9 +38,10 @@ def test_streak_centroids_equal_the_one_region_loop(st16):
         img = render_star_stamp(
             st16, 3000.0, streak_px=streak, offset_px=rng.uniform(-0.5, 0.5, 2), rng=k, pad_sigma=8
         )
+        centre = (np.array(img.shape[::-1], float) - 1) / 2  # (x, y), px
         img = img[:41, :41].astype(float) - st16.detector.bias_counts
         planes.append(np.pad(img, ((0, 41 - img.shape[0]), (0, 41 - img.shape[1]))))
-        starts.append(np.array([20.0, 20.0]) + rng.uniform(-3, 3, 2))
+        starts.append(centre + rng.uniform(-3, 3, 2))
         streaks.append(streak)
     planes.append(np.zeros((41, 41)))
     starts.append(np.array([20.0, 20.0]))

@@ -228,10 +228,12 @@ def test_without_the_kernel_the_numpy_form_answers(monkeypatch):
     x = np.array([0.0, 1.0, 5.0])
     assert wk.apart_compiled(x, x, np.arange(3)) is None
     np.testing.assert_array_equal(wk.apart_numpy(x, x, np.arange(3)), [0, 2])
-    img = np.zeros((40, 40), np.uint16)
-    img[18:22, 18:22] = 500
+    # a flat frame at the ST-16's bias (its known background) with a 4 x 4 spot 500 counts over it
+    camera = load_sensor("st16").detector
+    img = np.full((40, 40), camera.bias_counts, np.uint16)
+    img[18:22, 18:22] += 500
     logic = DetectionLogic(lit_pixel_counts=50.0, min_pixels=4, min_integrated_counts=100.0)
-    wd = WindowDetector(StarDetector(logic), load_sensor("st16").detector, True, 5.0)
+    wd = WindowDetector(StarDetector(logic), camera, True, 5.0)
     det = wd(img, np.array([[19.5, 19.5]]), half_px=8).detections
     assert len(det.x) == 1 and det.n_pixels[0] == 16
     assert det.x[0] == 19.5 and det.y[0] == 19.5  # a symmetric spot: its centre, exactly

@@ -27,7 +27,9 @@ def test_saturates_at_4095_for_12_bits(st16) -> None:
 
 @pytest.mark.parametrize(("bits", "dtype"), [(8, np.uint16), (16, np.uint16), (20, np.uint32)])
 def test_dtype_and_saturation_follow_the_bit_depth(st16, bits, dtype) -> None:
-    sensor = with_detector(st16, bit_depth=bits, full_well_e=1e9)
+    # bias 0: an 8-bit ADC over the ST-16's 168-count bias leaves 87 counts, below its 120-count
+    # lit threshold, and such a sensor is refused (test_sensor_sanity); the dtype is the point here
+    sensor = with_detector(st16, bit_depth=bits, full_well_e=1e9, bias_counts=0.0)
     counts = apply_noise(np.full((8, 8), 1e8), sensor, rng=1)
     assert counts.dtype == dtype
     assert counts.max() == 2**bits - 1
@@ -35,34 +37,42 @@ def test_dtype_and_saturation_follow_the_bit_depth(st16, bits, dtype) -> None:
 
 
 def test_full_well_clips_before_the_gain(st16) -> None:
-    # 16-bit ADC with gain 1: 50,000 e- in a well of 8,000 e- reads 8,000 counts (noiseless).
+    # 16-bit ADC with gain 1: 50,000 e- in a well of 8,000 e- reads 8,000 counts over the bias
+    # (noiseless): the well clips the charge, the bias is added after it.
     sensor = with_detector(st16, bit_depth=16, gain_counts_per_e=1.0, full_well_e=8000.0)
-    assert quantise(np.array([50_000.0, 100.0]), sensor).tolist() == [8000, 100]
+    bias = sensor.detector.bias_counts
+    counts = quantise(np.array([50_000.0, 100.0]), sensor) - bias
+    assert counts.tolist() == [8000, 100]
 
 
 def test_quantisation_rounds_to_nearest(st16) -> None:
-    # 6.5 counts/e-: 1 e- -> 6.5 -> 6 (round half to even), 1.1 e- -> 7.15 -> 7, 0.2 -> 1.3 -> 1
-    assert quantise(np.array([1.0, 1.1, 0.2, 0.0]), st16).tolist() == [6, 7, 1, 0]
+    # 6.5 counts/e-: 1 e- -> 6.5 -> 6 (round half to even), 1.1 e- -> 7.15 -> 7, 0.2 -> 1.3 -> 1;
+    # bias 0, so the half count is rounded on its own (an odd bias would round it up)
+    sensor = with_detector(st16, bias_counts=0.0)
+    assert quantise(np.array([1.0, 1.1, 0.2, 0.0]), sensor).tolist() == [6, 7, 1, 0]
 
 
 def test_shot_and_read_noise_statistics(st16) -> None:
-    # Flat field of lam = 50 e- on 400,000 pixels: counts = round(6.5 (Poisson(50) + N(0, 3.5^2))).
+    # Flat field of lam = 50 e- on 400,000 pixels: counts less the bias (168, an integer: 7.4
+    # sigma, never clipped) = round(6.5 (Poisson(50) + N(0, 3.5^2))).
     # Mean 6.5 x 50 = 325 (rounding is unbiased); variance 6.5^2 (50 + 3.5^2) + 1/12 = 2630.
     # Standard errors: mean 0.08 counts, variance 2630 x sqrt(2 / n) ~ 5.9 (Gaussian-like).
     # Ask 5 standard errors.
     n = 400_000
-    counts = apply_noise(np.full(n, 50.0), st16, rng=11).astype(float)
+    counts = apply_noise(np.full(n, 50.0), st16, rng=11).astype(float) - st16.detector.bias_counts
     assert counts.mean() == pytest.approx(325.0, abs=5 * 0.081)
     var = 6.5**2 * (50 + 3.5**2) + 1 / 12
     assert counts.var() == pytest.approx(var, abs=5 * var * np.sqrt(2 / n))
 
 
 def test_background_is_read_noise_only_without_dark_current(st16) -> None:
-    # st16: no dark current, no bias. Zero-signal pixels read round(6.5 N(0, 3.5^2)) clipped at
+    # st16 (no dark current) with its bias set to 0, so the ADC clips the noise: zero-signal
+    # pixels read round(6.5 N(0, 3.5^2)) clipped at
     # 0: P(count = 0) = P(6.5 x N < 0.5) = Phi(0.5 / 22.75) = 0.5088; mean of the clipped
     # positive part 22.75 / sqrt(2 pi) = 9.076. With 1e6 pixels: tolerances of 5 standard errors
     # (0.0025 and 0.07 counts).
-    counts = apply_noise(np.zeros((1000, 1000), np.float32), st16, rng=5).astype(float)
+    sensor = with_detector(st16, bias_counts=0.0)
+    counts = apply_noise(np.zeros((1000, 1000), np.float32), sensor, rng=5).astype(float)
     assert (counts == 0).mean() == pytest.approx(0.5088, abs=0.0025)
     assert counts.mean() == pytest.approx(9.076, abs=0.07)
 

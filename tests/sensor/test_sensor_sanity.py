@@ -71,7 +71,8 @@ def test_st16_logic_on_a_low_gain_detector_is_said(tmp_path, capsys):
     # the ST-16's 120-count lit threshold on a 0.5 counts/e- detector: 120 / (0.5 x 3.5 e-) =
     # 69 sigma of the read noise (68 with quantisation); with a tiny aperture it sees
     # nothing, so the run is short
-    path = _toml(tmp_path, "lowgain", detector__gain_counts_per_e=0.5, optics__aperture_m=1e-5)
+    changes = {"detector__gain_counts_per_e": 0.5, "optics__aperture_m": 1e-5}
+    path = _toml(tmp_path, "lowgain", detector__bias_counts=0.0, **changes)
     sigma = empty_pixel_sigma_counts(load_sensor(str(path)))
     assert sigma == pytest.approx(np.hypot(0.5 * 3.5, 1 / np.sqrt(12)))
     argv = ["datasheet", "--sensor", str(path), "--trials", "2", "--n-orientations", "100"]
@@ -79,7 +80,7 @@ def test_st16_logic_on_a_low_gain_detector_is_said(tmp_path, capsys):
     d = json.loads(capsys.readouterr().out)
     said = [w for w in d["warnings"] if "sigma of an empty pixel" in w]
     assert len(said) == 1 and "68 sigma" in said[0]
-    # its bias at 0 counts is said too, in the JSON and the text
+    # a bias of 0 counts is said too, in the JSON and the text
     bias = "bias 0 counts is 0.0 sigma of the read noise (1.77 counts): the ADC clips"
     assert sum(w.startswith(bias) for w in d["warnings"]) == 1
     assert main(argv) == 0
@@ -104,11 +105,12 @@ def test_sanity_warnings_in_words(tmp_path):
 
 
 def test_a_bias_below_three_sigma_is_said_in_words(tmp_path):
-    # the ST-16's bias is 0: its read noise, 22.75 counts (22.75 with the ADC's 1/12 count^2),
-    # is clipped at zero. The rectified Gaussian's closed form (mean s phi(0) = 0.3989 s, rms
-    # s sqrt(1/2 - 1/(2 pi)) = 0.5838 s, 50 % at 0) with the rounding's half count (the pixels
-    # below +0.5 read 0: 50.9 %) gives 9.08 counts above the bias and 13.3 rms
-    (w,) = sanity_warnings(load_sensor("st16"), catalog_name="hip2", limit_mag=5.7, runs={})
+    # the ST-16 with a bias of 0: its read noise, 22.75 counts (22.75 with the ADC's 1/12
+    # count^2), is clipped at zero. The rectified Gaussian's closed form (mean s phi(0) =
+    # 0.3989 s, rms s sqrt(1/2 - 1/(2 pi)) = 0.5838 s, 50 % at 0) with the rounding's half count
+    # (the pixels below +0.5 read 0: 50.9 %) gives 9.08 counts above the bias and 13.3 rms
+    zero = load_sensor(str(_toml(tmp_path, "b0", detector__bias_counts=0.0)))
+    (w,) = sanity_warnings(zero, catalog_name="hip2", limit_mag=5.7, runs={})
     assert w.startswith("bias 0 counts is 0.0 sigma of the read noise (22.8 counts): the ADC")
     assert "9.08 counts above the bias with 13.3 counts rms, 51% of them 0" in w
     # at 2.9 sigma (66 counts) still said, at 3.0 sigma (69 counts) not
@@ -185,9 +187,9 @@ def test_a_gaia_catalogue_gets_v_and_b_v():
     assert with_johnson_from_gaia(out) == (out, None)  # V already there: as is
 
 
-#: presets that reproduce a paper keep what the paper assumed (a bias of 0: the dark response
-#: subtracted, Dzamba & Enright 2014 sec. 1.3; Lin et al. 2024); every other preset is a camera
-PAPER_PRESETS = {"st16", "lin2024"}
+#: presets that reproduce a paper and no camera keep what the paper assumed (Lin et al. 2024:
+#: a bias of 0); every other preset is a camera (the ST-16 at its detector's black level)
+PAPER_PRESETS = {"lin2024"}
 
 
 def test_camera_presets_have_a_bias_the_noise_is_not_clipped_at():

@@ -339,8 +339,9 @@ def test_streak_centroid_noise_model(st16, electrons, rate_deg_s):
         image = render_star_stamp(st16, electrons, rng=int(rng.integers(1 << 30)), **kw)
         clean = render_star_stamp(st16, electrons, noise=False, **kw)
         c = ((image.shape[1] - 1) / 2, (image.shape[0] - 1) / 2)
-        got = streak_centroid(image.astype(float), *c, streak=streak, radius=radius)
-        ref = streak_centroid(clean.astype(float), *c, streak=streak, radius=radius)
+        bias = st16.detector.bias_counts  # streak_centroid takes background-subtracted counts
+        got = streak_centroid(image.astype(float) - bias, *c, streak=streak, radius=radius)
+        ref = streak_centroid(clean.astype(float) - bias, *c, streak=streak, radius=radius)
         err.append(np.subtract(got[:2], ref[:2]))
         n_e = got[2] / st16.detector.gain_counts_per_e
         cov = st16.detector.psf_sigma_px**2 / n_e * np.eye(2)
@@ -361,9 +362,10 @@ def test_rate_from_one_frame_of_streaks(solver, st16, hipparcos):
         frame = render_frame(st16, att, hipparcos, rate_rad_s=w, rng=seed, max_mag=6.5)
         det = solver.detector(frame.image)
         n = min(len(det), 5)
-        axes = streak_axes(
-            frame.image, det.x[:n], det.y[:n], half_px=28, threshold=st16.detection.lit_pixel_counts
-        )
+        # the lit threshold counts above the known background, the bias
+        lit, level = st16.detection.lit_pixel_counts, st16.detector.bias_counts
+        xy = (det.x[:n], det.y[:n])
+        axes = streak_axes(frame.image, *xy, half_px=28, threshold=lit, level=level)
         got, cov = rate_from_streaks(st16, det.x[:n], det.y[:n], axes_px2=axes)
         got = got if got @ w > 0 else -got  # the sign is not in one frame
         z = (got - w) / np.sqrt(np.diag(cov))

@@ -116,8 +116,11 @@ def pixel_spatial_error(sensor, electrons, n_side: int = 8) -> PixelSpatialError
             stamp, _, _ = gaussian_stamp(
                 x, y, sigma_px=det.psf_sigma_px, electrons=n_e, box=(0, size, 0, size)
             )
-            counts = np.minimum(stamp * det.gain_counts_per_e, det.saturation_counts)
-            strip[:, k * pitch : k * pitch + size] = counts + det.bias_counts
+            # as the renderer reads a pixel: the well clips the charge, the ADC the counts with
+            # the bias in them (a pixel's signal tops out at the ADC's top less the bias)
+            signal = np.minimum(stamp, det.full_well_e) * det.gain_counts_per_e
+            counts = np.minimum(signal + det.bias_counts, det.saturation_counts)
+            strip[:, k * pitch : k * pitch + size] = counts
         found = detector(strip)
         which = (found.x // pitch).astype(int)
         first = np.unique(which, return_index=True)[1]  # brightest of each stamp
