@@ -142,6 +142,13 @@ def _coverage_lines(rows: list[dict]) -> list[str]:
             for g in group
         )
         lines.append(f"{head}: {cells}")
+        if all(g["inside_1sigma_sky_ensemble"] is not None for g in group):
+            cells = ", ".join(
+                f"{g['axis']} {100 * g['inside_1sigma_sky_ensemble']:.0f} % / "
+                f"{100 * g['inside_3sigma_sky_ensemble']:.0f} %"
+                for g in group
+            )
+            lines.append(f"    of the sky ensemble's (a random attitude's) bounds: {cells}")
     return lines
 
 

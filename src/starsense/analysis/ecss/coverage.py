@@ -129,7 +129,10 @@ def coverage_rows(statement: Statement, frames: dict) -> list[dict]:
         ``rate_deg_s``, ``axis`` (X, Y, Z), ``frames`` (right solutions counted),
         ``frames_rendered``,
         ``bound_1sigma_arcsec``, ``bound_3sigma_arcsec``, ``inside_1sigma``, ``inside_3sigma``
-        (fractions in [0, 1]), ``frames_from`` and ``reason`` (why a fraction is None).
+        (fractions in [0, 1]), the same against the sky ensemble's totals (the bound at a random
+        attitude, what frames at random attitudes test: ``bound_1sigma_sky_ensemble_arcsec``,
+        ``inside_1sigma_sky_ensemble``, ...), ``frames_from`` and ``reason`` (why a fraction
+        is None).
     """
     one, three = statement.at_confidence(ONE_SIGMA), statement.at_confidence(THREE_SIGMA)
     rows = []
@@ -138,6 +141,8 @@ def coverage_rows(statement: Statement, frames: dict) -> list[dict]:
         for j, a in enumerate(AXES):
             b1 = one.totals[i][f"total_{a}_arcsec"]
             b3 = three.totals[i][f"total_{a}_arcsec"]
+            e1 = one.totals[i].get(f"total_sky_ensemble_{a}_arcsec")
+            e3 = three.totals[i].get(f"total_sky_ensemble_{a}_arcsec")
             col = errors[:, j] * RAD_TO_ARCSEC if len(errors) else np.zeros(0)
             reason = None
             if not len(errors):
@@ -154,6 +159,10 @@ def coverage_rows(statement: Statement, frames: dict) -> list[dict]:
                     "bound_3sigma_arcsec": b3,
                     "inside_1sigma": None if reason else inside_fraction(col, b1),
                     "inside_3sigma": None if reason else inside_fraction(col, b3),
+                    "bound_1sigma_sky_ensemble_arcsec": e1,
+                    "bound_3sigma_sky_ensemble_arcsec": e3,
+                    "inside_1sigma_sky_ensemble": None if reason else inside_fraction(col, e1),
+                    "inside_3sigma_sky_ensemble": None if reason else inside_fraction(col, e3),
                     "frames_from": origin,
                     "reason": reason,
                 }

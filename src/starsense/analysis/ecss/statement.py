@@ -59,7 +59,9 @@ class Statement:
         (sky median) and ``{axis}_sky_ensemble_arcsec`` (None where not known).
     totals : tuple of dict
         Per rate: ``rate_deg_s`` and ``{total,total_bias,total_noise}_{axis}_arcsec``, with
-        ``not_known``: the keys of the counted terms left out because they are not known.
+        ``not_known``: the keys of the counted terms left out because they are not known, and
+        ``total_sky_ensemble_{axis}_arcsec``: the bound an error at a random attitude of the
+        sky stays within at the confidence (None where not known).
     notes : tuple of str
     sources : tuple of Term
         The terms' values per attitude (:mod:`starsense.analysis.ecss.terms`), rad, behind
@@ -101,7 +103,11 @@ class Statement:
             row = {"rate_deg_s": rate}
             for t in self.terms:
                 row |= {f"{t['key']}_{a}_arcsec": t["at_rate"][i][f"{a}_arcsec"] for a in AXES}
-            row |= {k: v for k, v in self.totals[i].items() if k.endswith("_arcsec")}
+            row |= {  # the sums of the rows (the ensemble total is not one: see totals)
+                k: v
+                for k, v in self.totals[i].items()
+                if k.endswith("_arcsec") and not k.startswith("total_sky_ensemble")
+            }
             out.append(row)
         return out
 
@@ -168,6 +174,41 @@ def _totals(terms: list[dict], counted: dict, i: int, rate_deg_s: float) -> dict
         out[f"total_noise_{a}_arcsec"] = math.sqrt(parts["noise"])
         out[f"total_{a}_arcsec"] = math.sqrt(parts["bias"] + parts["noise"])
     out["not_known"] = missing
+    return out
+
+
+def _ensemble_totals(terms: tuple, i: int, p: float) -> dict:
+    """The total that an error at a random attitude of the sky stays within, with ``p``.
+
+    Per attitude, the counted Gaussian terms' 1-sigmas add in quadrature (a term with one value
+    adds it at every attitude); the bound of that mixture at ``p``
+    (:func:`~starsense.analysis.ecss.confidence.mixture_bound`) then adds in quadrature to the
+    counted worst-case terms. Terms known per attitude over different skies (lengths that do not
+    match) give None.
+    """
+    out = {}
+    for j, a in enumerate(AXES):
+        var, bounds, size = 0.0, 0.0, None
+        for t in terms:
+            v = t.values_rad[i]
+            if not t.counted or v is None:
+                continue
+            if not t.gaussian:
+                one = np.nanmedian(v[:, j]) if np.ndim(v) == 2 else v[j]
+                bounds += float(one) ** 2 if math.isfinite(one) else 0.0
+                continue
+            col = np.asarray(v[:, j] if np.ndim(v) == 2 else v[j], dtype=float)
+            if col.ndim and size is not None and col.size != size:
+                size = -1
+                break
+            size = col.size if col.ndim else size
+            var = var + col**2
+        q = None
+        if size != -1:
+            q = mixture_bound(np.sqrt(np.atleast_1d(var)), p)
+        out[f"total_sky_ensemble_{a}_arcsec"] = (
+            None if q is None else math.sqrt(q**2 + bounds) * RAD_TO_ARCSEC
+        )
     return out
 
 
@@ -257,13 +298,17 @@ def _assemble(name: str, terms: tuple, rates: tuple, confidence: float, geometry
         for t in terms
     ]
     counted = {t.key: t.counted for t in terms}
-    totals = tuple(_totals(rows, counted, i, r) for i, r in enumerate(rates))
+    totals = tuple(
+        _totals(rows, counted, i, r) | _ensemble_totals(terms, i, p) for i, r in enumerate(rates)
+    )
     notes = (
         f"values at {100 * p:.4g} % (two-sided, per axis): k = {k:.4g} times the sky-median "
         "1-sigma for Gaussian terms; the sky ensemble bound (a random attitude) beside it",
         "spatial errors act as biases at rest (inertial pointing) and as noise under slew "
         "(ECSS-E-ST-60-20C): their amplitude is the one at rest, their period the crossing "
         "time of the field (FOV) or of a pixel (PSE)",
-        "totals: root sum square of the counted terms at the confidence, per axis",
+        "totals: root sum square of the counted terms at the confidence, per axis; the sky "
+        "ensemble total: the bound at a random attitude (each attitude's Gaussian terms in "
+        "quadrature, the mixture's bound at the confidence, the worst-case terms in quadrature)",
     )
     return Statement(name, p, k, rates, tuple(rows), totals, notes, terms, tuple(geometry))
