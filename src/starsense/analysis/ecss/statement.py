@@ -178,7 +178,7 @@ def _totals(terms: list[dict], counted: dict, i: int, rate_deg_s: float) -> dict
 
 
 def _ensemble_totals(terms: tuple, i: int, p: float) -> dict:
-    """The total that an error at a random attitude of the sky stays within, with ``p``.
+    """Return the total that an error at a random attitude of the sky stays within, with ``p``.
 
     Per attitude, the counted Gaussian terms' 1-sigmas add in quadrature (a term with one value
     adds it at every attitude); the bound of that mixture at ``p``
