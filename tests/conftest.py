@@ -47,7 +47,7 @@ def _isolated_cache(tmp_path_factory):
 
 
 def _children() -> dict[int, str]:
-    """This process's live child processes (zombies left out): pid -> name."""
+    """This process's live child processes (zombies left out): pid -> command line."""
     import os
 
     me, out = str(os.getpid()), {}
@@ -60,7 +60,12 @@ def _children() -> dict[int, str]:
                 continue
             fields = tail.split()
             if fields[1] == me and fields[0] != "Z":
-                out[int(name)] = head.split(" (", 1)[1]
+                try:
+                    with open(f"/proc/{name}/cmdline", "rb") as fh:
+                        what = fh.read().replace(b"\0", b" ").decode(errors="replace")[:160]
+                except OSError:
+                    what = head.split(" (", 1)[1]
+                out[int(name)] = what.strip()
     return out
 
 
