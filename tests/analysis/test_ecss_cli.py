@@ -6,10 +6,10 @@ import contextlib
 import csv
 import io
 import json
-import math
 import os
 
 import pytest
+from budget_csv import assert_totals_are_the_rows_sums
 
 from starsense.cli import main
 
@@ -67,20 +67,7 @@ def test_csv_round_trips_to_the_json(written):
 def test_csv_totals_recomputed_from_its_rows(written):
     # a small reference summation: root sum square of the counted rows, by bias / noise
     _, text, _ = written
-    rows = list(csv.DictReader(io.StringIO(text)))
-    terms = [r for r in rows if not r["term"].startswith("total")]
-    totals = {r["term"]: r for r in rows if r["term"].startswith("total")}
-    for lab in ("0", "1"):
-        for a in "xyz":
-            col = f"{a}_arcsec_at_{lab}_deg_s"
-            sums = {"bias": 0.0, "noise": 0.0}
-            for r in terms:
-                if r["counted"] == "true" and r[col] != "":
-                    sums[r[f"acts_as_at_{lab}_deg_s"]] += float(r[col]) ** 2
-            for name, s in (("total_bias", sums["bias"]), ("total_noise", sums["noise"])):
-                assert float(totals[name][col]) == pytest.approx(math.sqrt(s), rel=1e-12)
-            whole = math.sqrt(sums["bias"] + sums["noise"])
-            assert float(totals["total"][col]) == pytest.approx(whole, rel=1e-12)
+    assert_totals_are_the_rows_sums(text, ("0", "1"))
 
 
 @pytest.mark.parametrize(
