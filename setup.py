@@ -14,6 +14,8 @@ it and uses the NumPy form.
 - ``starsense.identify._hashc``: the search and verification of lost-in-space identification by
   hashing;
 - ``starsense.identify._trackc``: tracking's pairing, attitude fit and covariance;
+- ``starsense.model._modelc``: the forward model's expected pixels and Jacobian of Gaussian
+  stars at rest, and the per-group sums of its normal equations;
 - ``starsense.render._renderc``: the renderer's stamp sums and fast read-out noise.
 """
 
@@ -37,6 +39,7 @@ setup(
         kernel("detect._quickc", extra=("-O3",)),
         kernel("identify._hashc"),
         kernel("identify._trackc"),
+        kernel("model._modelc", extra=("-O3",)),
         kernel("render._renderc"),
     ]
 )

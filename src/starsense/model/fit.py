@@ -24,6 +24,7 @@ noise-equivalent angle (:func:`fisher_information`).
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,11 @@ from scipy.spatial.transform import Rotation
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of
 from starsense.model.tracks import node_positions, time_nodes
 from starsense.model.windows import Windows, evaluate, make_windows
+
+try:  # the normal equations' sums, compiled (setup.py)
+    import starsense.model._modelc as _modelc
+except ImportError:  # pragma: no cover - built without a C compiler: the NumPy form
+    _modelc = None
 
 __all__ = ["WINDOW_HALF_SIGMAS", "ModelFit", "fit_windows", "pixel_variance", "window_half_px"]
 
@@ -142,18 +148,62 @@ def _data(image, windows: Windows, detector) -> tuple[np.ndarray, np.ndarray]:
 
 def _normal_equations(lin, jac, weight, resid):
     """Schur-complement system of the geometric parameters (module docstring)."""
-    a = np.einsum("gmn,gn,gkn->gmk", lin, weight, lin)
+    if _modelc is not None:
+        a, b, c, u, v = _sums(lin, jac, weight, resid)
+    else:
+        a = np.einsum("gmn,gn,gkn->gmk", lin, weight, lin)
+        b = np.einsum("gmn,gn,gpn->gmp", lin, weight, jac)
+        c = np.einsum("gpn,gn,gqn->gpq", jac, weight, jac)
+        u = np.einsum("gmn,gn->gm", lin, weight * resid)
+        v = np.einsum("gpn,gn->gp", jac, weight * resid)
     empty = np.einsum("gmm->gm", a) <= 0.0  # padded slots and starved groups
     a[empty[:, :, None] & np.eye(a.shape[1], dtype=bool)[None]] = 1.0
-    b = np.einsum("gmn,gn,gpn->gmp", lin, weight, jac)
-    c = np.einsum("gpn,gn,gqn->gpq", jac, weight, jac)
-    u = np.einsum("gmn,gn->gm", lin, weight * resid)
-    v = np.einsum("gpn,gn->gp", jac, weight * resid)
     a_inv_b = np.linalg.solve(a, b)
     a_inv_u = np.linalg.solve(a, u[..., None])[..., 0]
     s = (c - np.einsum("gmp,gmq->gpq", b, a_inv_b)).sum(axis=0)
     scores = v - np.einsum("gmp,gm->gp", b, a_inv_u)  # each group's, nuisances eliminated
     return s, scores, a_inv_b, a_inv_u
+
+
+def _sums(lin, jac, weight, resid):
+    """Return ``A, B, C, u, v`` of :func:`_normal_equations` by the compiled kernel."""
+    (g, m, n), p = lin.shape, jac.shape[1]
+    out = (np.empty((g, m, m)), np.empty((g, m, p)), np.empty((g, p, p)), np.empty((g, m)),
+           np.empty((g, p)))  # fmt: skip
+    args = (np.ascontiguousarray(x, dtype=float) for x in (lin, jac, weight, resid))
+    _modelc.normal_equations(*args, g, m, p, n, *out)
+    return out
+
+
+#: a thread's scratch for the model's arrays, reused by its next fit: freshly mapped pages cost
+#: more to fault in than the kernel takes to fill them (~1 ms a fit of 20,000 pixels)
+_SCRATCH = threading.local()
+#: most bytes kept in a thread's scratch (a larger fit allocates its own arrays)
+SCRATCH_BYTES = 16 << 20
+
+
+def _scratch(n: int) -> np.ndarray:
+    """Return ``n`` float64 zeros, taken from the thread's scratch when they fit there.
+
+    The scratch is the caller's until :func:`_give_back` (a fit inside a fit takes new arrays).
+    """
+    buf, _SCRATCH.buf = getattr(_SCRATCH, "buf", None), None
+    if buf is None or buf.size < n:
+        buf = np.empty(n)
+    out = buf[:n]
+    out.fill(0.0)
+    return out
+
+
+def _give_back(arrays) -> None:
+    """Keep the arrays' memory as the thread's scratch (:func:`_scratch`), if not too large."""
+    if arrays is None:
+        return
+    base = arrays[0]
+    while base.base is not None:
+        base = base.base
+    if isinstance(base, np.ndarray) and base.ndim == 1 and base.nbytes <= SCRATCH_BYTES:
+        _SCRATCH.buf = base
 
 
 @dataclass
@@ -172,6 +222,23 @@ class _Problem:
     fit_rate: bool
     fit_width: bool
     kept: np.ndarray
+    buffers: tuple | None = None
+
+    def out(self, n_par: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return the model's arrays, laid out once for the fit (:func:`evaluate`'s ``out``).
+
+        The linear design (its last row ones), the fixed light, the Jacobian of ``n_par``
+        parameters.
+        """
+        w = self.windows
+        if self.buffers is None or self.buffers[2].shape[1] != n_par:
+            g, m, (h, wd) = w.n_groups, w.n_slots, w.shape
+            flat = _scratch(g * h * wd * (m + 2 + n_par))
+            a, b = g * (m + 1) * h * wd, g * (m + 2) * h * wd
+            lin = flat[:a].reshape(g, m + 1, h, wd)
+            lin[:, -1] = 1.0  # the background's
+            self.buffers = (lin, flat[a:b].reshape(g, h, wd), flat[b:].reshape(g, n_par, h, wd))
+        return self.buffers
 
 
 def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width):
@@ -230,11 +297,10 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
     fl = pb.fluxes
     fl[pb.free] = lin_values[w.group[pb.free], w.slot[pb.free]]  # the Jacobian at these fluxes
     exact = pb.fit_width and psf.spec.is_gaussian  # the width's derivative in closed form
-    ev = evaluate(w, psf, nodes, fluxes=fl, width=exact)
+    out = pb.out(nodes.dx.shape[-1] + int(exact))
+    ev = evaluate(w, psf, nodes, fluxes=fl, width=exact, out=out)
     g_n, m = w.n_groups, w.n_slots
-    lin = np.concatenate([ev.templates, np.ones((g_n, 1, *w.shape))], axis=1).reshape(
-        g_n, m + 1, -1
-    )
+    lin = out[0].reshape(g_n, m + 1, -1)
     jac = ev.jacobian.reshape(g_n, ev.jacobian.shape[1], -1)
     if pb.fit_width and not exact:  # d mu / d sigma by a central difference of the width
         h = WIDTH_STEP * psf.sigma_px
@@ -344,6 +410,8 @@ def fit_windows(
     fr = pb.free
     out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
     cov = np.linalg.inv(s)
+    n_par = jac.shape[1] + int((lin.any(axis=2)).sum())
+    _give_back(pb.buffers)  # lin and jac are not read after this
     return ModelFit(
         rotation=rotation,
         rate_rad_s=rate,
@@ -351,7 +419,7 @@ def fit_windows(
         robust_covariance=cov @ (scores.T @ scores) @ cov,
         fluxes_e=out,
         chi2=float((weight * resid * resid).sum()),
-        dof=n_pix - jac.shape[1] - int((lin.any(axis=2)).sum()),
+        dof=n_pix - n_par,
         n_pixels=n_pix,
         iterations=it,
         converged=converged,

@@ -35,6 +35,11 @@ from starsense.model.psf import PixelPSF
 from starsense.model.stamps import source_stamps, stamp_side
 from starsense.model.tracks import NodePositions
 
+try:  # the compiled form of evaluate() for Gaussian stars at rest (setup.py)
+    import starsense.model._modelc as _modelc
+except ImportError:  # pragma: no cover - built without a C compiler: the NumPy form
+    _modelc = None
+
 __all__ = ["MAX_WINDOW_PIXELS", "Evaluation", "Windows", "evaluate", "make_windows"]
 
 #: most pixels the groups of one frame may hold (padded): the fit holds ~(slots + parameters)
@@ -307,6 +312,7 @@ def evaluate(
     fluxes,
     gradient: bool = True,
     width: bool = False,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> Evaluation:
     """Return the templates, the fixed light and the geometric Jacobian on the windows.
 
@@ -322,6 +328,11 @@ def evaluate(
         Compute the Jacobian.
     width : bool
         Append the derivative with respect to a Gaussian PSF's sigma to the Jacobian.
+    out : (ndarray, ndarray, ndarray), optional
+        Arrays to write into, reused over the steps of a fit (no new pages each step): the
+        templates' (G, M + 1, H, W), of which the first M slots are written, the fixed light's
+        (G, H, W) and the Jacobian's (G, P, H, W). The Evaluation's arrays are then views of
+        them.
     """
     g_n, (h, w), m = windows.n_groups, windows.shape, windows.n_slots
     width = width and psf.spec.is_gaussian
@@ -329,6 +340,15 @@ def evaluate(
     templates = np.zeros(g_n * m * h * w)
     fixed = np.zeros(g_n * h * w)
     fluxes = np.asarray(fluxes, dtype=float)
+    if _modelc is not None and psf.spec.is_gaussian and len(nodes.weights) == 1:
+        return _compiled(windows, psf, nodes, fluxes, (gradient, width), out)
+    if out is not None:  # the NumPy form's arrays copied into the given ones
+        ev = evaluate(windows, psf, nodes, fluxes=fluxes, gradient=gradient, width=width)
+        out[0][:, :m] = ev.templates
+        out[1][...] = ev.fixed
+        if gradient:
+            out[2][...] = ev.jacobian
+        return Evaluation(out[0][:, :m], out[1], out[2] if gradient else None)
     # the fixed light and the Jacobian summed once over every class (a sum per class over the
     # whole grids cost the classes times the grids: hundreds of box sizes under long streaks)
     fixed_at, fixed_light, jac_at, jac_values = [], [], [], []
@@ -375,3 +395,36 @@ def evaluate(
         fixed.reshape(g_n, h, w),
         None if jac is None else jac.reshape(g_n, n_par, h, w),
     )
+
+
+def _compiled(windows: Windows, psf: PixelPSF, nodes: NodePositions, fluxes, flags, out):
+    """:func:`evaluate` of Gaussian stars at rest by the compiled kernel (the same sums).
+
+    ``flags``: (gradient, width); ``out``: as :func:`evaluate`'s (zeroed here where summed).
+    """
+    gradient, width = flags
+    g_n, (h, w), m = windows.n_groups, windows.shape, windows.n_slots
+    n_geo = nodes.dx.shape[-1]
+    n_par = n_geo + int(width)
+    if out is None:
+        lin, fixed = np.zeros((g_n, m + 1, h, w)), np.zeros((g_n, h, w))
+        jac = np.zeros((g_n, n_par, h, w)) if gradient else np.zeros(0)
+    else:  # a template is set over its box (the same pixels every step), the sums zeroed
+        lin, fixed, jac = out
+        fixed.fill(0.0)
+        if gradient:
+            jac.fill(0.0)
+
+    def c(a, kind):
+        return np.ascontiguousarray(a, dtype=kind)
+
+    _modelc.static_gaussian(
+        c(windows.pair_group, np.int64), c(windows.pair_source, np.int64),
+        c(windows.pair_slot, np.int64), c(windows.pair_box, np.int64),
+        c(windows.row0, np.int64), c(windows.col0, np.int64),
+        c(nodes.x[:, 0], float), c(nodes.y[:, 0], float),
+        c(nodes.dx[:, 0, :], float), c(nodes.dy[:, 0, :], float), c(fluxes, float),
+        len(windows.pair_source), g_n, h, w, m, n_geo, float(psf.sigma_px),
+        bool(gradient), bool(width), lin, fixed, jac,
+    )  # fmt: skip
+    return Evaluation(lin[:, :m], fixed, jac if gradient else None)
