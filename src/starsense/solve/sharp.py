@@ -19,11 +19,12 @@ That retry takes the spikes for what they may be, the stars of an undersampled P
 - **Ranked by their evidence of being stars**: a star's light is the PSF integrated over the
   pixels, so its 8 neighbours hold some of it (at least 12 % of the peak pixel's for a
   Gaussian PSF of sigma >= 0.26 px, centred on a pixel, the least they can; 22 % at 0.3 px;
-  a median of 56 % at 0.25 px for a star placed at random in its pixel). A detection whose neighbours hold less than
-  :data:`MIN_NEIGHBOUR_SHARE` of its peak, significantly (3 sigma of the neighbours' noise),
-  is sharper than such optics make: a defect's one pixel. It is not removed but ranked after
-  every detection that shows a PSF, so the identification's patterns are built from those
-  first (bright hot pixels, ranked by brightness, fill the brightest places otherwise).
+  a median of 56 % at 0.25 px for a star placed at random in its pixel). A detection whose
+  neighbours hold less than :data:`MIN_NEIGHBOUR_SHARE` of its peak, significantly (3 sigma
+  of the neighbours' noise), is sharper than such optics make: a defect's one pixel. It is
+  not removed but ranked after every detection that shows a PSF, so the identification's
+  patterns are built from those first (bright hot pixels, ranked by brightness, fill the
+  brightest places otherwise).
 
 A spike is finally told apart by what a star never does: it is **absent from the catalogue** at
 the solved attitude (no catalogue star, to a magnitude beyond the faintest matched, within
