@@ -175,8 +175,9 @@ def region_centroids(sub, a, *, idx, lab, keep, core, margin: int, power: int = 
     Returns
     -------
     x, y : ndarray (N,)
-        Centroids, pixels (pixel-centre convention). A window whose counts do not sum above 0
-        falls back to the CoG of the region's lit pixels inside its box; NaN if that fails too.
+        Centroids, pixels (pixel-centre convention). A window whose counts do not sum above 0,
+        or whose CoG lies outside the window, falls back to the CoG of the region's lit pixels
+        inside its box; NaN if that fails too.
     peaks : ndarray (N,)
         Largest raw count of the region's lit pixels inside its box.
     boxes : ndarray of int, shape (N, 4)
@@ -205,9 +206,13 @@ def region_centroids(sub, a, *, idx, lab, keep, core, margin: int, power: int = 
     wr0, wr1 = np.maximum(r0 - margin, 0), np.minimum(r1 + margin, n_rows)
     wc0, wc1 = np.maximum(c0 - margin, 0), np.minimum(c1 + margin, n_cols)
     x, y = _window_cogs(sub, (wr0, wr1, wc0, wc1), power)
-    ok = np.isfinite(x)
+    # a window CoG outside its window is no centroid: a faint window summing to barely above 0
+    # (noise of both signs) divides by almost nothing
+    with np.errstate(invalid="ignore"):
+        ok = (x >= wc0 - 0.5) & (x < wc1 - 0.5) & (y >= wr0 - 0.5) & (y < wr1 - 0.5)
     if not ok.all():
-        # a faint region whose window sums to <= 0 (noise): the CoG of its lit pixels in its box
+        # a faint region whose window sums to <= 0 (noise), or whose CoG left its window: the
+        # CoG of its lit pixels in its box
         fx, fy = _cog(pos[inside], r[inside], c[inside], sub.ravel()[idx[inside]].astype(float), n)
         x, y = np.where(ok, x, fx), np.where(ok, y, fy)
     boxes = np.stack([r0, r1, c0, c1], axis=1).astype(int)

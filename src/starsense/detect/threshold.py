@@ -26,6 +26,7 @@ from starsense.detect.background import (
     constant_background,
     estimate_background,
     hot_pixel_mask,
+    mesh_box_px,
 )
 from starsense.detect.centroid import METHODS, gauss_fit
 from starsense.detect.matched import (
@@ -238,7 +239,8 @@ class StarDetector:
             return self.background
         if self.background == "auto":
             # the matched filter's thresholds evaluate the noise where needed (Background.noise_at)
-            return estimate_background(a, full_noise_map=not self.matched_filter)
+            box = mesh_box_px(a.shape)
+            return estimate_background(a, box_px=box, full_noise_map=not self.matched_filter)
         level = 0.0 if self.background is None else float(self.background)
         return constant_background(level, self.noise_counts)
 

@@ -344,6 +344,9 @@ class CentroidPoints:
         The image's (rows, columns).
     what : str
         What the points are ("detections" or "centroids"), for messages.
+    rank : ndarray (N,), optional
+        The order the identification takes them in, largest first, when it is not ``flux``'s
+        (detections ranked by their evidence of being stars: :mod:`starsense.solve.sharp`).
     """
 
     x: np.ndarray
@@ -351,6 +354,12 @@ class CentroidPoints:
     flux: np.ndarray
     shape: tuple
     what: str
+    rank: np.ndarray | None = None
+
+    @property
+    def ranking(self) -> np.ndarray:
+        """The identification's order key: ``rank`` when given, else ``flux``."""
+        return self.flux if self.rank is None else self.rank
 
 
 def _size_card(header, key: str, path: Path) -> int:

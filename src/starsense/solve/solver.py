@@ -207,7 +207,7 @@ class Solver:
     @property
     def spike_detector(self) -> StarDetector:
         """The robust detector keeping one- and two-pixel spikes (:mod:`starsense.solve.sharp`)."""
-        return spike_detector(self.detector)
+        return spike_detector(self.detector, psf_known=self.sensor is not None)
 
     @property
     def quick_detector(self) -> StarDetector | None:
@@ -273,8 +273,9 @@ class Solver:
             stages = {"quick_ms": _ms(t0)}
         sol = self._solve_frame(a, self.detector, t0, stages, obs_time)
         return retry_with_spikes(  # held-aside spikes
-            self, a, sol, t0=t0, stages=stages, obs_time=obs_time, solve=self._solve_frame
-        )
+            self, a, sol, t0=t0, stages=stages, obs_time=obs_time, solve=self._solve_frame,
+            restart=self._identifiers.start,
+        )  # fmt: skip
 
     def _solve_frame(self, a, detector, t0, stages, obs_time, first=False) -> Solution:
         """Detect and solve frame ``a`` (a ``first`` attempt: at the known field only)."""
@@ -289,7 +290,9 @@ class Solver:
         def sigma_px(matched, x, vectors):  # streaks re-centroided: starsense.solve.streaks
             return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
 
-        points = CentroidPoints(det.x, det.y, det.integrated_counts, a.shape, "detections")
+        points = CentroidPoints(
+            det.x, det.y, det.integrated_counts, a.shape, "detections", det.extra.get("rank")
+        )
         sol = self._solve_points(
             points,
             t0,
@@ -375,7 +378,7 @@ class Solver:
         t2 = time.perf_counter()
         identifier, ident, fov_known, k1 = self._identifiers.identify(
             vectors,
-            points.flux,
+            points.ranking,
             fov_known_rad=fov_known,
             fov_assumed_rad=fov_assumed,
             estimate=self.sensor is None and search,
@@ -386,9 +389,8 @@ class Solver:
             again = (t0, stages, sigma_px, fov_given, obs_time)
 
             def flipped(mx, my, f):  # the mirror image, solved the same way (not flipped again)
-                return self._solve_points(
-                    CentroidPoints(mx, my, f, points.shape, points.what), *again, parity=False
-                )
+                mirror = CentroidPoints(mx, my, f, points.shape, points.what, points.rank)
+                return self._solve_points(mirror, *again, parity=False)
 
             sol = unsolved(points, ident, mirrored=flipped if parity else None, stages=stages,
                            time_ms=_ms(t0))  # fmt: skip
@@ -401,7 +403,7 @@ class Solver:
                 ident,
                 identifier.database,
                 np.column_stack([points.x, points.y]),
-                flux=points.flux,
+                flux=points.ranking,
                 shape=points.shape,
                 fov_rad=fov,
                 k1=k1,
