@@ -1,4 +1,4 @@
-"""Work buffers (starsense.detect.workspace): reused per name and shape, per thread, bounded."""
+"""Work buffers (starsense._workspace): reused per name and shape, per thread, bounded."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import threading
 
 import numpy as np
 
-from starsense.detect import StarDetector, workspace
-from starsense.detect.workspace import MAX_KEPT_BUFFERS, MAX_KEPT_PIXELS, scratch
+from starsense import _workspace as workspace
+from starsense._workspace import MAX_KEPT_BUFFERS, MAX_KEPT_PIXELS, scratch
+from starsense.detect import StarDetector
 
 
 def test_same_name_and_shape_is_the_same_buffer():

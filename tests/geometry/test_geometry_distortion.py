@@ -25,6 +25,22 @@ def test_undistort_inverts_distort():
     assert np.max(np.hypot(xi - x, yi - y)) < 1e-14  # Newton converges to rounding
 
 
+def test_undistort_beyond_a_barrels_fold_is_nan():
+    # r_d = r (1 + k1 r^2) with k1 = -2/9 rises to its fold at r = 1 / sqrt(3 |k1|) = 1.2247,
+    # r_d = 0.8165, then falls: a distorted radius below that has one preimage inside the fold
+    # (returned), one above it has none there; the preimages on the fold's far side (negative
+    # r, the point flipped through the centre: distort(-2.5087) = 1.0) are not the lens's
+    k1 = -2.0 / 9.0
+    fold_r = 1.0 / np.sqrt(3.0 * abs(k1))
+    fold_rd = fold_r * (1.0 + k1 * fold_r**2)
+    rd = np.array([0.3, 0.8, 0.999 * fold_rd, 1.01 * fold_rd, 1.0, 1.2, 2.0, 5.0])
+    x, y = undistort(rd, np.zeros_like(rd), (k1, 0.0, 0.0, 0.0))
+    inside = rd < fold_rd
+    assert np.all(np.isnan(x[~inside]) & np.isnan(y[~inside]))
+    assert np.all((x[inside] > 0) & (x[inside] < fold_r))
+    np.testing.assert_allclose(x[inside] * (1.0 + k1 * x[inside] ** 2), rd[inside], rtol=1e-12)
+
+
 def test_jacobian_matches_central_differences():
     rng = np.random.default_rng(1)
     x, y = rng.uniform(-0.2, 0.2, size=(2, 50))

@@ -9,10 +9,13 @@ error; the margin covers libm's erf against SciPy's, both within a few ulp).
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+import starsense._workspace as workspace
 import starsense.model.fit as fit_module
 import starsense.model.windows as windows_module
 from starsense.model.fit import fit_windows
@@ -110,8 +113,8 @@ def test_compiled_normal_equations_are_the_einsums(monkeypatch, seed):
         _close(a, b)
 
 
-def test_fits_in_turn_reuse_the_scratch_without_carrying_anything(monkeypatch):
-    """Two fits in one thread (the second on the first's scratch) are the fits made apart."""
+def test_fits_in_turn_reuse_the_buffer_without_carrying_anything(monkeypatch):
+    """Two fits in one thread (the second on the first's buffer) are the fits made apart."""
     sensor, psf, nodes, windows, fluxes = _scene(7, n=12)
     det = sensor.detector
     ev = evaluate(windows, psf, nodes, fluxes=fluxes, gradient=False)
@@ -130,9 +133,9 @@ def test_fits_in_turn_reuse_the_scratch_without_carrying_anything(monkeypatch):
     start = Rotation.from_rotvec([0.0, 0.0, 2e-4])
     kw = {"vectors": v[free], "psf": psf, "fit_width": True}
     first = fit_windows(image, sensor, start, **kw)
-    again = fit_windows(image, sensor, start, **kw)  # on the first's scratch
+    again = fit_windows(image, sensor, start, **kw)  # on the first's work buffer
     with monkeypatch.context() as mp:
-        mp.setattr(fit_module, "_SCRATCH", type(fit_module._SCRATCH)())  # an empty scratch
+        mp.setattr(workspace, "_LOCAL", threading.local())  # no work buffer yet
         apart = fit_windows(image, sensor, start, **kw)
     for fit in (first, again):
         np.testing.assert_array_equal(fit.rotation.as_quat(), apart.rotation.as_quat())

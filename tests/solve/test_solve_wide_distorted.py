@@ -144,6 +144,20 @@ def test_noise_never_solves_through_a_guessed_distortion(catalog):
         assert not ident.solved, ident.message
 
 
+def test_a_guess_that_does_not_invert_over_the_points_is_skipped(catalog):
+    # a point three image widths off-axis (a centroid far outside its frame): beyond the fold of
+    # the guessed barrels (k1 = -1/9 and -2/9 of the nominal focal length, whose undistortion
+    # ends at 0.82-1.15 of it) undistort gives NaN; such a guess is no lens of these points and
+    # is skipped, never an error
+    identifiers = FieldIdentifiers(catalog, algorithm="hashing")
+    rng = np.random.default_rng(11)
+    xy = rng.uniform([0, 0], [1567, 1175], size=(30, 2))
+    xy[-1] = (3.5 * 1567, 600.0)
+    v = pinhole_vectors(xy[:, 0], xy[:, 1], shape=(1175, 1567), fov_rad=math.radians(15))
+    _, ident, k1 = identifiers.search_distorted(v, rng.uniform(1, 2, 30), math.radians(15))
+    assert (ident is None or not ident.solved) and k1 == 0.0
+
+
 def test_solution_and_json_report_the_lens(catalog, tmp_path, capsys):
     from PIL import Image
 

@@ -45,7 +45,7 @@ def _centred_share(sigma: float) -> float:
 @pytest.mark.parametrize("sigma", [0.3, 0.4, 0.5])
 def test_neighbour_share_is_that_of_the_pixel_integrated_gaussian(sigma):
     image = 100.0 + _star((21, 21), 10.0, 10.0, sigma, 5000.0)
-    share, noise = neighbour_share(image, constant_background(100.0, 1.0), [10.0], [10.0])
+    share, noise = neighbour_share(image, constant_background(100.0, 1.0), x=[10.0], y=[10.0])
     # noiseless frame: the share is exact up to the light two pixels away (< 0.2 % a pixel
     # at sigma 0.5, subtracted as the local level) and float rounding
     assert share[0] == pytest.approx(_centred_share(sigma), rel=0.01)

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from starsense._validate import check_scalar, finite_float, positive_float
+from starsense._workspace import scratch
 from starsense.detect.clip import MAD_TO_SIGMA as MAD_TO_SIGMA  # re-exported
 from starsense.detect.clip import robust_sigma, sigma_clip_boxes
 from starsense.detect.mesh import (
@@ -55,7 +56,6 @@ from starsense.detect.quantised import (
 )
 from starsense.detect.subtract import floor_threshold
 from starsense.detect.surface import NoiseSurface
-from starsense.detect.workspace import scratch
 from starsense.errors import InputError
 
 try:
@@ -233,27 +233,6 @@ def _mesh_samples(a: np.ndarray, mesh: MeshSampler, bad: np.ndarray | None):
     if not ok.all():
         cells[~ok] = np.nan
     return cells, counts, ok, ok.sum(axis=-1)
-
-
-#: the detector's mesh box, px (:func:`mesh_box_px`), and the least one on a small frame
-DETECT_BOX_PX = 64
-MIN_DETECT_BOX_PX = 16
-#: boxes across a small frame's shorter side, at least (a gradient needs a few to be followed)
-MIN_BOXES_ACROSS = 4
-
-
-def mesh_box_px(shape) -> int:
-    """Return the detector's background mesh box for a frame of ``shape`` (rows, columns), px.
-
-    :data:`DETECT_BOX_PX` (much larger than a star, smaller than a glow's scale on a frame of
-    hundreds of pixels), but on a frame whose shorter side holds fewer than
-    :data:`MIN_BOXES_ACROSS` such boxes a quarter of that side, at least
-    :data:`MIN_DETECT_BOX_PX`: a 106 x 142 frame (a wide imager summed on board to 0.3 deg a
-    pixel) would otherwise be cut into 2 x 2 boxes, a flat level under a stray-light gradient
-    that rises by 50 noise sigmas across it.
-    """
-    short = min(int(shape[0]), int(shape[1]))
-    return int(max(MIN_DETECT_BOX_PX, min(DETECT_BOX_PX, short // MIN_BOXES_ACROSS)))
 
 
 def estimate_background(

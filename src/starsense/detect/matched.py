@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import median_filter
 
+from starsense._workspace import scratch
 from starsense.detect.clip import MAD_TO_SIGMA
-from starsense.detect.workspace import scratch
 
 try:
     import starsense.detect._framec as _framec

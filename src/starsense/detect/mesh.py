@@ -15,6 +15,7 @@ import functools
 import numpy as np
 from scipy import ndimage
 
+from starsense._workspace import scratch
 from starsense.detect.axis_weights import (
     AxisWeights,
     apply_weights,
@@ -23,9 +24,34 @@ from starsense.detect.axis_weights import (
 )
 from starsense.detect.axis_weights import natural_spline_weights as natural_spline_weights
 from starsense.detect.surface import matmul_single_thread
-from starsense.detect.workspace import scratch
 
 _interpolation_matrix = interpolation_matrix  # the dense form, under its former name
+
+
+#: the detector's mesh box, px (:func:`mesh_box_px`), and the least one on a small frame
+DETECT_BOX_PX = 64
+MIN_DETECT_BOX_PX = 16
+#: boxes across a small frame's shorter side, at least (a gradient needs a few to be followed)
+MIN_BOXES_ACROSS = 4
+
+
+def mesh_box_px(shape) -> int:
+    """Return the detector's background mesh box for a frame of ``shape`` (rows, columns), px.
+
+    :data:`DETECT_BOX_PX` (much larger than a star, smaller than a glow's scale on a frame of
+    hundreds of pixels), but on a frame whose shorter side holds fewer than
+    :data:`MIN_BOXES_ACROSS` such boxes a quarter of that side, at least
+    :data:`MIN_DETECT_BOX_PX`: a 106 x 142 frame (a wide imager summed on board to 0.3 deg a
+    pixel) would otherwise be cut into 2 x 2 boxes, a flat level under a stray-light gradient
+    that rises by 50 noise sigmas across it. A frame too thin for that many boxes of the least
+    size (a strip) keeps :data:`DETECT_BOX_PX`: its boxes then hold the frame's whole width,
+    and smaller ones would hold too few pixels for a clipped noise estimate (16 on a strip one
+    pixel high, whose noise passes as stars where a box's estimate falls low).
+    """
+    short = min(int(shape[0]), int(shape[1]))
+    if short < MIN_BOXES_ACROSS * MIN_DETECT_BOX_PX:
+        return DETECT_BOX_PX
+    return int(min(DETECT_BOX_PX, short // MIN_BOXES_ACROSS))
 
 
 def _mesh_axis(n: int, box_px: int, step: int):

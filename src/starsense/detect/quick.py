@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from starsense._workspace import scratch
 from starsense.detect.mesh import MeshSampler, fill_from_nearest, median_filter_mesh
 from starsense.detect.quantised import QUANTISED_BELOW_STEPS
-from starsense.detect.workspace import scratch
 
 try:
     import starsense.detect._quickc as _quickc

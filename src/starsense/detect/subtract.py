@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from starsense.detect.workspace import scratch
+from starsense._workspace import scratch
 
 try:
     import starsense.detect._framec as _framec

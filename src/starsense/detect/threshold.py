@@ -20,13 +20,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from starsense._validate import check_int, finite_float, positive_float, show
+from starsense._workspace import scratch
 from starsense.detect.background import (
     HOT_PIXEL_SIGMA,
     Background,
     constant_background,
     estimate_background,
     hot_pixel_mask,
-    mesh_box_px,
 )
 from starsense.detect.centroid import METHODS, gauss_fit
 from starsense.detect.matched import (
@@ -36,11 +36,11 @@ from starsense.detect.matched import (
     local_noise_ratio,
     ratio_at,
 )
+from starsense.detect.mesh import mesh_box_px
 from starsense.detect.pattern import remove_line_pattern
 from starsense.detect.quick import quick_background, quick_subtract
 from starsense.detect.regions import label_pixels, region_centroids
 from starsense.detect.subtract import floor_threshold, pixels_above, subtract_level
-from starsense.detect.workspace import scratch
 from starsense.errors import InputError
 from starsense.sensor import DetectionThresholds
 

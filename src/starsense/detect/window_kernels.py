@@ -18,8 +18,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from starsense._workspace import scratch
 from starsense.detect.streak import columns, kept_arange, streak_centroids, windows_view
-from starsense.detect.workspace import scratch
 
 try:  # the compiled kernel (setup.py builds it where a C compiler exists)
     import starsense.detect._windowc as _windowc

@@ -95,8 +95,8 @@ def undistort(
     Returns
     -------
     x, y : ndarray, shape (N,)
-        NaN where the model cannot be inverted (a fold of the distortion, far outside a
-        physical field).
+        NaN where the model cannot be inverted on its unfolded part (beyond a fold of the
+        distortion, far outside a physical field: a preimage there is on the fold's other side).
     """
     k1, k2, p1, p2 = coefficients
     xd = np.asarray(xd, dtype=float)
@@ -117,7 +117,14 @@ def undistort(
         if step < 1e-15:
             break
     fx, fy = distort(x, y, coefficients)
-    bad = ~(np.hypot(fx - xd, fy - yd) < 1e-9)
+    j = distortion_jacobian(x, y, coefficients)
+    det = j[..., 0, 0] * j[..., 1, 1] - j[..., 0, 1] * j[..., 1, 0]
+    trace = j[..., 0, 0] + j[..., 1, 1]
+    # a preimage past a fold is not the lens's (distort maps it there, the lens never does):
+    # where a barrel turns back the radial derivative is negative (det < 0), and further out,
+    # the point flipped through the centre, both it and the radial factor are (det > 0, trace
+    # < 0); on the lens's own part both are positive (det > 0 and trace > 0)
+    bad = ~((np.hypot(fx - xd, fy - yd) < 1e-9) & (det > 0) & (trace > 0))
     if np.any(bad):
         x, y = np.where(bad, np.nan, x), np.where(bad, np.nan, y)
     return x, y

@@ -24,12 +24,12 @@ noise-equivalent angle (:func:`fisher_information`).
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from starsense._workspace import scratch
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of
 from starsense.model.tracks import node_positions, time_nodes
 from starsense.model.windows import Windows, evaluate, make_windows
@@ -175,35 +175,23 @@ def _sums(lin, jac, weight, resid):
     return out
 
 
-#: a thread's scratch for the model's arrays, reused by its next fit: freshly mapped pages cost
-#: more to fault in than the kernel takes to fill them (~1 ms a fit of 20,000 pixels)
-_SCRATCH = threading.local()
-#: most bytes kept in a thread's scratch (a larger fit allocates its own arrays)
-SCRATCH_BYTES = 16 << 20
+#: most float64 values of a fit's arrays kept in the thread's work buffer between fits (16 MB);
+#: a larger fit allocates its own
+MAX_KEPT_VALUES = 1 << 21
 
 
-def _scratch(n: int) -> np.ndarray:
-    """Return ``n`` float64 zeros, taken from the thread's scratch when they fit there.
+def _zeros(n: int) -> np.ndarray:
+    """Return ``n`` float64 zeros, in this thread's work buffer for the model when they fit.
 
-    The scratch is the caller's until :func:`_give_back` (a fit inside a fit takes new arrays).
+    Reused by the next fit: freshly mapped pages cost more to fault in than the kernel takes
+    to fill them (~1 ms a fit of 20,000 pixels). The buffer's length is a power of two, so
+    that fits of other sizes share it; one fit at a time holds it (no fit runs inside another).
     """
-    buf, _SCRATCH.buf = getattr(_SCRATCH, "buf", None), None
-    if buf is None or buf.size < n:
-        buf = np.empty(n)
-    out = buf[:n]
+    if n > MAX_KEPT_VALUES:
+        return np.zeros(n)
+    out = scratch("model.fit", (1 << max(int(n) - 1, 0).bit_length(),), np.float64)[:n]
     out.fill(0.0)
     return out
-
-
-def _give_back(arrays) -> None:
-    """Keep the arrays' memory as the thread's scratch (:func:`_scratch`), if not too large."""
-    if arrays is None:
-        return
-    base = arrays[0]
-    while base.base is not None:
-        base = base.base
-    if isinstance(base, np.ndarray) and base.ndim == 1 and base.nbytes <= SCRATCH_BYTES:
-        _SCRATCH.buf = base
 
 
 @dataclass
@@ -233,7 +221,7 @@ class _Problem:
         w = self.windows
         if self.buffers is None or self.buffers[2].shape[1] != n_par:
             g, m, (h, wd) = w.n_groups, w.n_slots, w.shape
-            flat = _scratch(g * h * wd * (m + 2 + n_par))
+            flat = _zeros(g * h * wd * (m + 2 + n_par))
             a, b = g * (m + 1) * h * wd, g * (m + 2) * h * wd
             lin = flat[:a].reshape(g, m + 1, h, wd)
             lin[:, -1] = 1.0  # the background's
@@ -411,7 +399,6 @@ def fit_windows(
     out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
     cov = np.linalg.inv(s)
     n_par = jac.shape[1] + int((lin.any(axis=2)).sum())
-    _give_back(pb.buffers)  # lin and jac are not read after this
     return ModelFit(
         rotation=rotation,
         rate_rad_s=rate,

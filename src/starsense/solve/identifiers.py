@@ -222,9 +222,10 @@ class FieldIdentifiers:
 
         Returns
         -------
-        identifier, Identification, float
+        identifier, Identification or None, float
             The last identifier, its answer and the k1 that solved, in tangent-plane units of
-            the focal length found (0 when none solved).
+            the focal length found (0 when none solved); no answer (None) when no guess
+            inverts over the points.
         """
         t = vectors_to_tangent(vectors)
         identifier, ident = None, None
@@ -234,6 +235,8 @@ class FieldIdentifiers:
                 nominal = field_range.nominal_fov_rad
                 u, w = undistort(*(t * (math.tan(nominal / 2) / math.tan(fov_assumed_rad / 2))).T,
                                  (k1, 0.0, 0.0, 0.0))  # fmt: skip
+                if not (np.isfinite(u).all() and np.isfinite(w).all()):
+                    continue  # a lens's distortion inverts over its own image: not this guess
                 v = tangent_to_vectors(np.column_stack([u, w]))
                 self._k1 = k1
                 ident = self._ranked(identifier, v, flux, None, assumed_fov_rad=nominal)
@@ -356,5 +359,6 @@ class FieldIdentifiers:
         if ident.status == "timeout":  # the budget is spent: no distortion guess
             return identifier, ident, None, 0.0
         found = self.search_distorted(vectors, flux, fov_assumed_rad)
-        kept = found[1].solved or found[1].status == "timeout"  # else: the pinhole search's
+        # else the pinhole search's (also where no guess inverts over the points: None)
+        kept = found[1] is not None and (found[1].solved or found[1].status == "timeout")
         return (*found[:2], None, found[2]) if kept else (identifier, ident, None, 0.0)

@@ -94,7 +94,7 @@ class SpikeDetector(StarDetector):
         if not len(det):
             return det
         a = np.asarray(image)
-        share, noise = neighbour_share(a, self.frame_background(a), det.x, det.y)
+        share, noise = neighbour_share(a, self.frame_background(a), x=det.x, y=det.y)
         sharp = share + SHARE_SIGMA * noise < MIN_NEIGHBOUR_SHARE
         rank = np.asarray(det.integrated_counts, dtype=float).copy()
         rank[sharp] -= float(rank.max()) + 1.0  # after every detection showing a PSF
@@ -150,7 +150,7 @@ def retry_with_spikes(solver, a, sol, *, t0: float, stages: dict, obs_time, solv
     )
 
 
-def neighbour_share(a, background, x, y) -> tuple[np.ndarray, np.ndarray]:
+def neighbour_share(a, background, *, x, y) -> tuple[np.ndarray, np.ndarray]:
     """Return the share of its peak pixel's light in each place's 8 neighbours, and its noise.
 
     Both over the local level: the median of the 16 pixels two away from the peak (a star of

@@ -1,4 +1,4 @@
-"""Work buffers kept from one frame to the next: no whole-frame allocation per frame.
+"""Work buffers kept from one call to the next: no allocation per frame or per fit.
 
 A frame's detection passes through several whole-frame float32 arrays (the subtracted frame,
 the filter's passes, the thresholds, the labels). Allocated afresh for every frame, each is
@@ -7,7 +7,9 @@ new memory that the operating system maps page by page on first touch: ~2,300 pa
 buffers once; :func:`scratch` does the same per thread, one buffer per name and shape, reused
 from frame to frame. Only internal temporaries use it: nothing returned to a caller
 is a scratch buffer. Frames above :data:`MAX_KEPT_PIXELS` are not kept (their buffers are
-allocated per frame, as before), so that a few huge frames do not pin hundreds of MB.
+allocated per frame, as before), so that a few huge frames do not pin hundreds of MB. The
+forward model's fit (:mod:`starsense.model.fit`) lays its arrays out in one such buffer, of a
+power-of-two length so that fits of other sizes reuse it.
 """
 
 from __future__ import annotations
