@@ -84,8 +84,8 @@ def solve(path: Path, fov_deg: float | None = None, cpulimit_s: int = 60) -> dic
         ms = (time.perf_counter() - t0) * 1e3
         wcs = Path(tmp) / (Path(path).stem + ".wcs")
         if run.returncode or not wcs.exists():
-            tail = (run.stderr.strip() or run.stdout.strip() or "no output").splitlines()[-1]
-            return {"solved": False, "status": f"did not solve: {tail}", "ms": ms}
+            status = f"did not solve within --cpulimit {cpulimit_s} s (exit {run.returncode})"
+            return {"solved": False, "status": status, "ms": ms}
         header = fits.getheader(wcs)
     width_px = float(header.get("IMAGEW", 0.0))
     scale = abs(float(header["CD1_1"] * header["CD2_2"] - header["CD1_2"] * header["CD2_1"]))
