@@ -86,7 +86,7 @@ def test_scores_and_time_ratios(modules, tmp_path):
     assert row["ratio_median_all"] == pytest.approx(2000.0 / 3.0)  # medians 2000 ms / 3 ms
     assert row["n_both_correct"] == 0 and row["ratio_median_both_correct"] is None
     text = per_set.table({"wrapped": row}, "0.93", True, 60)
-    assert "| wrapped/ | 2 (1) | 60\" | 1/1 (+1 w/o ref.) | 0 | 3 | 1/1 | 1 | 2 | 667 |" in text
+    assert '| wrapped/ | 2 (1) | 60" | 1/1 (+1 w/o ref.) | 0 | 3 | 1/1 | 1 | 2 | 667 |' in text
     assert "--cpulimit 60 s" in text
 
 
