@@ -2,8 +2,10 @@
 
 Used by ``bench/peers/compare.py`` when ``solve-field`` is on PATH (Debian packages
 ``astrometry.net`` and ``astrometry-data-tycho2-10-19``); nothing in starsense depends on it.
-Each frame is solved in a temporary directory with ``--crpix-center`` so that the WCS reference
-pixel is the image centre and CRVAL is the boresight (the convention of reference.json), and
+Each frame is solved in a temporary directory; the boresight is the WCS (SIP terms included)
+evaluated at the image centre, pixel ((W-1)/2, (H-1)/2) (the convention of reference.json), not
+CRVAL: ``--crpix-center`` does not keep CRPIX at the centre (on the granasat frames near the
+pole the written CRPIX lay hundreds of pixels off it and CRVAL 7-13 deg from the centre), and
 ``--cpulimit`` bounds a frame that does not solve. astrometry-engine honours that limit only
 when it checks its indexes in parallel (dstndstn/astrometry.net issue 6: "--cpulimit ignored
 for not(inparallel)", and Debian's /etc/astrometry.cfg does not set ``inparallel``): each run
@@ -23,6 +25,7 @@ import signal
 import subprocess
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 #: the backend configuration solve-field reads by default (Debian's package)
@@ -76,6 +79,7 @@ def solve(path: Path, fov_deg: float | None = None, cpulimit_s: int = 60) -> dic
         ``{"solved", "ra_deg", "dec_deg", "fov_deg", "ms", "status", "cpulimit_s"}``.
     """
     from astropy.io import fits
+    from astropy.wcs import WCS, FITSFixedWarning
 
     args = [
         "solve-field",
@@ -128,12 +132,18 @@ def solve(path: Path, fov_deg: float | None = None, cpulimit_s: int = 60) -> dic
             return {"solved": False, "status": status, "ms": ms, "cpulimit_s": cpulimit_s}
         header = fits.getheader(wcs)
     width_px = float(header.get("IMAGEW", 0.0))
+    height_px = float(header.get("IMAGEH", 0.0))
+    centre = ((width_px - 1.0) / 2.0, (height_px - 1.0) / 2.0)
+    with warnings.catch_warnings():  # a .wcs file has a header and no image: said, harmless
+        warnings.simplefilter("ignore", FITSFixedWarning)
+        world = WCS(header).all_pix2world([centre], 0)[0]
+    ra_deg, dec_deg = (float(v) for v in world)
     scale = abs(float(header["CD1_1"] * header["CD2_2"] - header["CD1_2"] * header["CD2_1"]))
     return {
         "solved": True,
         "status": "solved",
-        "ra_deg": float(header["CRVAL1"]),
-        "dec_deg": float(header["CRVAL2"]),
+        "ra_deg": ra_deg,
+        "dec_deg": dec_deg,
         "fov_deg": width_px * scale**0.5 if width_px else None,
         "ms": ms,
         "cpulimit_s": cpulimit_s,
