@@ -22,9 +22,12 @@ in-process here; a peer that is missing is said so and skipped. Inputs:
     ``Solver(sensor="esa_blackfly")``), field 11.42 deg given; (b2) each with its own extraction
     from the image (starsense's full pipeline vs cedar's ``solve_from_image``). Wrong: boresight
     more than 15 arcsec from reference.json.
-(c) the real frame sets with a reference.json (``frame_sets.py``): ``granasat/`` and
-    ``cedar-bmp/`` of the shared data; starsense knows nothing, the peers get the camera's
-    nominal field as an estimate; wrong: image centre beyond the set's tolerance.
+(c) the real frame sets with a reference.json (``frame_sets.py``): every folder of the shared
+    images (``--sets`` names some); starsense knows nothing, the peers get the camera's nominal
+    field as an estimate where the set states one (nothing otherwise); wrong: image centre
+    beyond the set's tolerance. ``per_set.py``'s table follows: per set, starsense beside
+    astrometry.net (solved, wrong, median time, the time ratio; solve-field bounded by
+    ``--astrometry-cpulimit``).
 
 Time per solve is the wall time of one call (centroids in, attitude out; or image in, attitude
 out for b2), one thread, databases loaded beforehand; ESA times are the best of 3 per frame.
@@ -59,6 +62,7 @@ sys.path.insert(0, str(HERE.parent))
 import agreement as ag  # noqa: E402
 import frame_sets  # noqa: E402
 import peer_table  # noqa: E402
+import per_set  # noqa: E402
 import run_astrometry  # noqa: E402
 from run import RESULTS, machine  # noqa: E402
 
@@ -76,7 +80,6 @@ from starsense.solve.solver import Solver  # noqa: E402
 
 IMAGES = ROOT.parent / "shared" / "data" / "images"
 ESA_DIR = IMAGES / "esa"
-FRAME_SETS = ("granasat", "cedar-bmp")
 SYNTH_SIZE = (960, 1280)  # rows, columns
 SYNTH_FOV_DEG = 15.0
 ARCMIN = math.radians(1.0 / 60.0)
@@ -265,13 +268,23 @@ def starsense_frames(images) -> list[dict]:
     return out
 
 
-def astrometry_side(paths, fov_deg) -> tuple[list[dict] | None, str]:
-    """solve-field on each frame (run_astrometry.py), or (None, why it is unavailable)."""
+def astrometry(args, names, sensor, sets, frame_paths) -> tuple[dict | None, str]:
+    """solve-field on the ESA frames, ``--frames`` and every set, or (None, why unavailable).
 
-    ok, what = run_astrometry.available()
-    if not ok:
-        return None, what
-    return [run_astrometry.solve(p, fov_deg) for p in paths], what
+    The ESA frames are solved once: from their set's records when ``esa`` is among the sets.
+    """
+    cpulimit = args.astrometry_cpulimit
+    by_set, why = per_set.astrometry_sets(sets, cpulimit)
+    if by_set is None:
+        return None, why
+    if "esa" in sets:
+        solved = dict(zip(sets["esa"]["names"], by_set["esa"], strict=True))
+        esa = [solved[n] for n in names]
+    else:
+        esa_fov_deg = math.degrees(2.0 * sensor.half_fov_rad[0])
+        esa = [run_astrometry.solve(ESA_DIR / n, esa_fov_deg, cpulimit) for n in names]
+    frames = [run_astrometry.solve(p, None, cpulimit) for p in frame_paths]
+    return {"esa_own_extraction": esa, "frames": frames, "sets": by_set}, why
 
 
 # ---------------------------------------------------------------------------------------------
@@ -371,7 +384,7 @@ def write_inputs(npz: Path, synth, esa, frame_paths, frame_images, sets) -> None
     names, images, exy, eoff, _reference, sensor = esa
     set_arrays = {}
     for key, fs in sets.items():
-        set_arrays[f"set_{key}_fov_deg"] = fs["fov_deg"]
+        set_arrays[f"set_{key}_fov_deg"] = np.nan if fs["fov_deg"] is None else fs["fov_deg"]
         set_arrays[f"set_{key}_frames"] = np.array(fs["names"])
         for i, im in enumerate(fs["peer_images"]):
             set_arrays[f"set_{key}_image_{i}"] = im
@@ -393,18 +406,6 @@ def write_inputs(npz: Path, synth, esa, frame_paths, frame_images, sets) -> None
         set_names=np.array(list(sets)),
         **set_arrays,
     )
-
-
-def load_sets(names) -> dict:
-    """The real frame sets found under the shared data (absent ones said and skipped)."""
-    sets = {}
-    for name in names:
-        folder = IMAGES / name
-        if (folder / "reference.json").is_file():
-            sets[name] = frame_sets.load_set(folder)
-        else:
-            print(f"frame set {name}: {folder}/reference.json not found, skipped")
-    return sets
 
 
 def centroid_scores(ours, peers, synth, esa_truth, labels) -> tuple[dict, list]:
@@ -462,10 +463,14 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--frames", type=Path, help="also solve every image of this folder with each solver"
     )
-    parser.add_argument(
-        "--sets", nargs="*", default=list(FRAME_SETS), help="frame sets of the shared data"
-    )
+    parser.add_argument("--sets", nargs="*", help="frame sets of the shared data (default: all)")
     parser.add_argument("--no-astrometry", action="store_true", help="skip solve-field")
+    parser.add_argument(
+        "--astrometry-cpulimit",
+        type=int,
+        default=per_set.CPULIMIT_S,
+        help=f"solve-field's CPU limit per frame, s (default {per_set.CPULIMIT_S})",
+    )
     parser.add_argument(
         "--fresh-seed", type=int, help="the fresh seed of the centroid sets (default: drawn now)"
     )
@@ -487,7 +492,7 @@ def main(argv=None) -> int:
     esa = esa_inputs()
     names, _images, _exy, _eoff, reference, sensor = esa
     esa_truth = [_vec(reference[n]["ra_deg"], reference[n]["dec_deg"]) for n in names]
-    sets = load_sets(args.sets)
+    sets = per_set.load_sets(args.sets)
 
     peers, missing = {}, {}
     with tempfile.TemporaryDirectory(prefix="starsense-peers-") as tmp:
@@ -511,17 +516,7 @@ def main(argv=None) -> int:
     astro, astro_why = None, "skipped (--no-astrometry)"
     if not args.no_astrometry:
         print("astrometry.net solve-field ...", flush=True)
-        esa_fov_deg = math.degrees(2.0 * sensor.half_fov_rad[0])
-        astro, astro_why = astrometry_side([ESA_DIR / n for n in names], esa_fov_deg)
-        if astro is not None:
-            astro = {
-                "esa_own_extraction": astro,
-                "frames": astrometry_side(frame_paths, None)[0],
-                "sets": {
-                    key: astrometry_side([fs["folder"] / n for n in fs["names"]], fs["fov_deg"])[0]
-                    for key, fs in sets.items()
-                },
-            }
+        astro, astro_why = astrometry(args, names, sensor, sets, frame_paths)
     if astro is None:
         missing["astrometry.net"] = astro_why
 
@@ -532,6 +527,10 @@ def main(argv=None) -> int:
     whole = whole_frames(ours, peers, astro, astro_why, reference, names, frame_paths)
     side_by_side = peer_table.table(rows + set_rows, missing)
     print("\nside by side (one thread each, same run):\n" + side_by_side)
+    astro_sets = None if astro is None else astro["sets"]
+    sets_rows = per_set.per_set(sets, ours["sets"], astro_sets)
+    sets_table = per_set.table(sets_rows, astro_why, astro is not None, args.astrometry_cpulimit)
+    print("\nper set, starsense beside astrometry.net:\n" + sets_table)
 
     record = {
         "name": "peers",
@@ -540,6 +539,9 @@ def main(argv=None) -> int:
         "frame_sets": set_results,
         "whole_frames": whole,
         "table_markdown": side_by_side,
+        "per_set": sets_rows,
+        "per_set_table_markdown": sets_table,
+        "astrometry_cpulimit_s": args.astrometry_cpulimit,
         "starsense": {"database_load_s": ours["database_load_s"], "machine": machine()},
         "seeds": {"project": PROJECT_SEED, "fresh": fresh},
         "load_average": {"before": list(load_before), "after": list(load_after)},

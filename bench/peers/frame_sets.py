@@ -1,13 +1,16 @@
 """Real frame sets of the peer comparison: every frame of a folder with a reference.json.
 
-A set is a folder of frames from one camera with ``reference.json`` (``frames`` -> name ->
-{"reference": {"ra_deg", "dec_deg", ...} or null}, ``tolerance_arcsec``, ``camera`` with
-``horizontal_fov_deg``). Each solver is scored against the references by the separation of its
-boresight (the image centre) from the reference's: a solution further than the set's tolerance
-is wrong; a solution claimed on a frame with no reference (no independent solver solved it) is
-counted apart, as "claimed". starsense reads each frame with its own reader (a format it cannot
-read is a failure, status ``unreadable``); the peers get the pixels as Pillow reads them, in
-grey (8-bit frames stay 8-bit, 16-bit stay 16-bit).
+A set is a folder of frames from one camera with ``reference.json``: ``frames`` maps each frame's
+name to its reference, either ``{"reference": {"ra_deg", "dec_deg", ...} or null}`` or the
+reference itself (``{"ra_deg", "dec_deg", ...}``); ``tolerance_arcsec`` (absent: 15 arcsec,
+:data:`DEFAULT_TOLERANCE_ARCSEC`); ``camera`` (optional) with ``horizontal_fov_deg``, or
+``plate_scale_arcsec_per_px`` and ``width_px``, for the camera's nominal field (absent: the
+field is unknown to every solver). Each solver is scored against the references by the
+separation of its boresight (the image centre) from the reference's: a solution further than
+the set's tolerance is wrong; a solution claimed on a frame with no reference (no independent
+solver solved it) is counted apart, as "claimed". starsense reads each frame with its own reader
+(a format it cannot read is a failure, status ``unreadable``); the peers get the pixels as
+Pillow reads them, in grey (8-bit frames stay 8-bit, 16-bit stay 16-bit).
 """
 
 from __future__ import annotations
@@ -23,6 +26,10 @@ from starsense.solve.frames import load_image
 from starsense.solve.solver import Solver
 
 ARCSEC_PER_RAD = 180.0 * 3600.0 / np.pi
+#: the wrong limit of a set whose reference.json states no tolerance: the 15 arcsec that
+#: compare.py applies to the ESA frames (their reference.json: "agreement within 10-15 arcsec on
+#: boresight is the useful bar")
+DEFAULT_TOLERANCE_ARCSEC = 15.0
 LABELS = {"cedar": "cedar-solve"}
 
 
@@ -34,6 +41,33 @@ def _grey_pixels(path: Path) -> np.ndarray:
         if im.mode in ("I;16", "I;16B", "I;16L", "I"):
             return np.asarray(im).astype(np.uint16)
         return np.asarray(im.convert("L"))
+
+
+def discover(images: Path) -> list[str]:
+    """The names of the sets under `images`: every sub-folder with a reference.json, sorted."""
+    if not images.is_dir():
+        return []
+    return sorted(p.name for p in images.iterdir() if (p / "reference.json").is_file())
+
+
+def _reference(entry) -> dict | None:
+    """A frame's reference from either layout of reference.json (None: no reference)."""
+    if not isinstance(entry, dict):
+        return None
+    if "reference" in entry:
+        return entry["reference"]
+    return entry if "ra_deg" in entry and "dec_deg" in entry else None
+
+
+def nominal_fov_deg(camera: dict | None) -> float | None:
+    """The camera's horizontal field, deg, as reference.json gives it (None: unknown)."""
+    camera = camera or {}
+    if camera.get("horizontal_fov_deg") is not None:
+        return float(camera["horizontal_fov_deg"])
+    scale, width = camera.get("plate_scale_arcsec_per_px"), camera.get("width_px")
+    if scale is not None and width is not None:
+        return float(scale) * float(width) / 3600.0
+    return None
 
 
 def load_set(folder: Path) -> dict:
@@ -48,13 +82,15 @@ def load_set(folder: Path) -> dict:
         except (InputError, OSError, ValueError) as exc:
             own.append(None)
             own_error.append(str(exc).splitlines()[0])
+    tolerance = meta.get("tolerance_arcsec")
     return {
         "name": folder.name,
         "folder": folder,
         "names": names,
-        "references": [meta["frames"][n].get("reference") for n in names],
-        "tolerance_arcsec": float(meta["tolerance_arcsec"]),
-        "fov_deg": float(meta["camera"]["horizontal_fov_deg"]),
+        "references": [_reference(meta["frames"][n]) for n in names],
+        "tolerance_arcsec": float(tolerance if tolerance is not None else DEFAULT_TOLERANCE_ARCSEC),
+        "tolerance_stated": tolerance is not None,
+        "fov_deg": nominal_fov_deg(meta.get("camera")),
         "peer_images": [_grey_pixels(folder / n) for n in names],
         "own_images": own,
         "own_errors": own_error,

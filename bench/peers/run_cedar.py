@@ -111,6 +111,7 @@ def main(inputs: str, out: str) -> int:
     sets = {}  # compare.py's real frame sets: the camera's nominal field as the estimate
     for key in (str(k) for k in data["set_names"]) if "set_names" in data else ():
         set_fov = float(data[f"set_{key}_fov_deg"])
+        set_fov = None if set_fov != set_fov else set_fov  # NaN: the set states no field
         sets[key] = []
         for i in range(len(data[f"set_{key}_frames"])):
             image = Image.fromarray(data[f"set_{key}_image_{i}"])

@@ -156,6 +156,7 @@ def main(inputs: str, out: str, cache: str) -> int:
     sets = {}
     for key in (str(k) for k in data["set_names"]):
         set_fov = float(data[f"set_{key}_fov_deg"])
+        set_fov = None if set_fov != set_fov else set_fov  # NaN: the set states no field
         sets[key] = [
             solve_image(db, data[f"set_{key}_image_{i}"], set_fov)
             for i in range(len(data[f"set_{key}_frames"]))
