@@ -103,6 +103,10 @@ class ModelFit:
         The sandwich ``S^-1 M S^-1``, ``M`` the sum over the groups of the outer products of
         their scores (nuisances eliminated): what the pixels' own scatter says, whatever the
         model's noise (its expectation is ``covariance`` when the model is right).
+    robust_noise : ndarray, shape (P,)
+        The relative noise of ``robust_covariance``'s diagonal where the model is right (its
+        variances, sums of the groups' scores squared, scatter by this fraction: about
+        ``sqrt(2 / G)`` for G groups of equal weight, more where a few bright stars dominate).
     """
 
     rotation: Rotation
@@ -116,6 +120,7 @@ class ModelFit:
     converged: bool
     psf_sigma_px: float = 0.0
     robust_covariance: np.ndarray | None = None
+    robust_noise: np.ndarray | None = None
 
     @property
     def sigma_axes_rad(self) -> np.ndarray:
@@ -160,9 +165,9 @@ def _normal_equations(lin, jac, weight, resid):
     a[empty[:, :, None] & np.eye(a.shape[1], dtype=bool)[None]] = 1.0
     a_inv_b = np.linalg.solve(a, b)
     a_inv_u = np.linalg.solve(a, u[..., None])[..., 0]
-    s = (c - np.einsum("gmp,gmq->gpq", b, a_inv_b)).sum(axis=0)
+    per_group = c - np.einsum("gmp,gmq->gpq", b, a_inv_b)  # each group's information
     scores = v - np.einsum("gmp,gm->gp", b, a_inv_u)  # each group's, nuisances eliminated
-    return s, scores, a_inv_b, a_inv_u
+    return per_group.sum(axis=0), scores, a_inv_b, a_inv_u, per_group
 
 
 def _sums(lin, jac, weight, resid):
@@ -369,10 +374,11 @@ def fit_windows(
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
         lin_values = lin_values + _normal_equations(lin, jac, weight, pb.data - mu)[3]
     converged, it, s, scores = False, 0, np.eye(3), np.zeros((1, 3))
+    s_groups = np.eye(3)[None]
     for it in range(1, MAX_ITERATIONS + 1):
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
         weight = pb.use / pixel_variance(det, mu, te)
-        s, scores, a_inv_b, a_inv_u = _normal_equations(lin, jac, weight, pb.data - mu)
+        s, scores, a_inv_b, a_inv_u, s_groups = _normal_equations(lin, jac, weight, pb.data - mu)
         step = np.linalg.solve(s, scores.sum(axis=0))
         lin_values = lin_values + a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step)
         rotation = Rotation.from_rotvec(step[:3]) * rotation
@@ -398,6 +404,10 @@ def fit_windows(
     fr = pb.free
     out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
     cov = np.linalg.inv(s)
+    # the sandwich's variance per axis sums each group's share, v_g = (cov S_g cov)_kk, of a
+    # score drawn from the model: its relative noise is sqrt(2 sum v_g^2) / sum v_g
+    v = np.einsum("kp,gpq,qk->gk", cov, s_groups, cov)
+    robust_noise = np.sqrt(2.0 * (v * v).sum(axis=0)) / np.abs(v.sum(axis=0))
     n_par = jac.shape[1] + int((lin.any(axis=2)).sum())
     return ModelFit(
         rotation=rotation,
@@ -411,4 +421,5 @@ def fit_windows(
         iterations=it,
         converged=converged,
         psf_sigma_px=psf.sigma_px,
+        robust_noise=robust_noise,
     )

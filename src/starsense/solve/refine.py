@@ -23,10 +23,17 @@ pixels' own scatter gives (the sandwich of the groups' scores: a profile error s
 the stars, which does not move them, does not raise it) and the note says so; above
 :data:`MAX_REDUCED_CHI2` the model does not describe the
 frame and the model-free centroids' attitude is kept (the fit stops a step past its start).
-A fit that does not converge, or that moves the attitude further than :data:`MAX_MOVE_SIGMAS`
-of the two solutions' sigmas from the centroid attitude, keeps the centroid attitude and says
-why (a move that shifts no star by :data:`MAX_MOVE_PX` is kept: the
-two estimators of an imperfectly known PSF's centre may disagree by that much).
+Where the frame's chi-square shows nothing but some windows pull the attitude more than the
+model's noise allows (a streak's end or an overlap drawn wrong: the groups' scores scatter
+beyond the Fisher bound by :data:`LOCAL_MISFIT_SIGMAS` of their own noise), the sandwich gives
+the sigmas too.
+A fit that does not converge keeps the centroid attitude and says why. At rest, so does a fit
+that moves the attitude further than :data:`MAX_MOVE_SIGMAS` of the two solutions' sigmas from
+the centroid attitude (a move that shifts no star by :data:`MAX_MOVE_PX` is kept: the two
+estimators of an imperfectly known PSF's centre may disagree by that much). A smeared frame's
+streak centroids are no such reference: their attitude's sigma leaves out where along its
+streak each centroid lies, and a 1 s frame at 1 deg/s (48 px streaks) had its centroid attitude
+5-15 of those sigmas off while the fit refused for moving from it was within its own sigma.
 """
 
 from __future__ import annotations
@@ -44,6 +51,7 @@ from starsense.model.psf import psf_of
 from starsense.solve.in_view import DETECTABLE_SNR, room_for, stars_in_view
 
 __all__ = [
+    "LOCAL_MISFIT_SIGMAS",
     "MAX_MOVE_PX",
     "MAX_MOVE_SIGMAS",
     "MAX_REDUCED_CHI2",
@@ -301,6 +309,28 @@ def _reach_px(sensor, rate) -> float:
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
+#: a sandwich variance above the Fisher bound's by this many of its own relative noise
+#: (:attr:`~starsense.model.fit.ModelFit.robust_noise`) is a misfit
+LOCAL_MISFIT_SIGMAS = 3.0
+
+
+def _local_misfit(fit: ModelFit) -> bool:
+    """Whether the groups' scores scatter more than the model's noise allows, on an axis.
+
+    The sandwich (:attr:`~starsense.model.fit.ModelFit.robust_covariance`) estimates each
+    axis's variance from the groups' scores: about the Fisher bound's when the model describes
+    every window, above it when some windows pull the attitude (a streak's clipped end, an
+    overlap the model draws wrong) even where the frame's reduced chi-square, summed over
+    every pixel, shows nothing. Above the bound by :data:`LOCAL_MISFIT_SIGMAS` of the
+    estimate's own noise (:attr:`~starsense.model.fit.ModelFit.robust_noise`) is a misfit.
+    """
+    rob, cov, noise = fit.robust_covariance, fit.covariance, fit.robust_noise
+    if rob is None or noise is None or not np.all(np.isfinite(rob)):
+        return False
+    ratio = np.diag(rob)[:3] / np.diag(cov)[:3]
+    return bool(np.any(ratio > 1.0 + LOCAL_MISFIT_SIGMAS * np.asarray(noise)[:3]))
+
+
 def _robust(fit: ModelFit) -> np.ndarray:
     """Return the sandwich covariance, each axis at least the Fisher bound's."""
     cov, rob = fit.covariance, fit.robust_covariance
@@ -327,11 +357,18 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, counts, also="") -> 
     if not np.all(np.isfinite(fit.sigma_axes_rad)) or not math.isfinite(fit.reduced_chi2):
         return Refinement(fit, False, "model fit not used: singular information", n_nbr)
     note = f"model fit ({fit.n_pixels} px, {n_stars} stars, {n_nbr} neighbours){also}"
+    local = _local_misfit(fit)
     if fit.reduced_chi2 > SCALED_CHI2:  # the pixels scatter more than the model says
         fit = dataclasses.replace(fit, covariance=_robust(fit))
         note += (
             f"; sigmas from the pixels' own scatter (reduced chi-square {fit.reduced_chi2:.3g}: "
             "they scatter more than the sensor's PSF and noise model allow)"
+        )
+    elif local:
+        fit = dataclasses.replace(fit, covariance=_robust(fit))
+        note += (
+            "; sigmas from the stars' own scatter (some windows' pixels pull the attitude more "
+            "than the model's noise allows)"
         )
     from starsense.geometry.attitude import small_rotation_angles  # noqa: PLC0415
 
@@ -340,7 +377,10 @@ def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, counts, also="") -> 
     det = sensor.detector
     edge = 0.5 * math.hypot(det.columns, det.rows)  # the farthest a star sits from the axis, px
     moved_px = math.hypot(move[0], move[1]) * sensor.focal_length_px + move[2] * edge
-    if np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
+    # a smeared frame's centroids (its streaks') are no reference for the fit: their attitude's
+    # sigma leaves out where along its streak each centroid lies
+    smeared = fit.covariance.shape[0] > 3
+    if not smeared and np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
         return Refinement(
             fit,
             False,

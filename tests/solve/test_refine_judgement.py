@@ -1,0 +1,82 @@
+"""How the solver judges its model fit: a local misfit from the groups' scores, the move rule."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from starsense.model.fit import ModelFit
+from starsense.sensor import load_sensor
+from starsense.solve.refine import LOCAL_MISFIT_SIGMAS, _judged, _local_misfit
+
+
+def _fit(cov, rob, noise, rotation=None):
+    p = cov.shape[0]
+    return ModelFit(
+        rotation=rotation or Rotation.identity(),
+        rate_rad_s=np.zeros(3),
+        covariance=cov,
+        fluxes_e=np.ones(3),
+        chi2=1000.0,
+        dof=1000,
+        n_pixels=1000 + p,
+        iterations=3,
+        converged=True,
+        robust_covariance=rob,
+        robust_noise=noise,
+    )
+
+
+def _sandwich(rng, groups, inflate=1.0):
+    """Fisher, sandwich and its noise of ``groups`` windows whose scores are drawn from the
+    model's own information (the last window's scaled by ``inflate``: one the model draws
+    wrong); the windows' information of unequal weight, as bright and faint stars'."""
+    infos = []
+    for _ in range(groups):
+        a = rng.normal(size=(3, 3)) * rng.uniform(0.3, 3.0)
+        infos.append(a @ a.T + 0.1 * np.eye(3))
+    s = sum(infos)
+    scores = np.array([rng.multivariate_normal(np.zeros(3), f) for f in infos])
+    scores[-1] *= inflate
+    cov = np.linalg.inv(s)
+    v = np.array([np.diag(cov @ f @ cov) for f in infos])  # as ModelFit.robust_noise
+    noise = np.sqrt(2.0 * (v * v).sum(axis=0)) / v.sum(axis=0)
+    return cov, cov @ (scores.T @ scores) @ cov, noise
+
+
+def test_a_right_model_seldom_reads_as_a_local_misfit():
+    # scores drawn from the model's own information: each axis's sandwich variance is a sum of
+    # weighted chi-squares of one degree of freedom, above 3 of its own standard deviations
+    # with probability ~0.5-1 % (its right tail is heavier than a normal's 0.13 %), 1.5-3 % on
+    # one of three axes: below 4 % over 1,000 draws (binomial sd 0.5 %)
+    rng = np.random.default_rng(5)
+    alarms = sum(_local_misfit(_fit(*_sandwich(rng, 40))) for _ in range(1000))
+    assert alarms / 1000 < 0.04
+
+
+def test_one_window_pulling_the_attitude_reads_as_a_local_misfit():
+    # one of 40 windows whose score scatters 10 times what the model says (a streak's end drawn
+    # wrong): its share of the variance, ~100 times a window's, lifts the sandwich to a few
+    # times the bound, past 3 of its noise (~0.3-0.5 of the bound at 40 unequal windows) in
+    # most draws: 69 % of 200 here, its own weight drawn as the others' (a faint window's pull
+    # stays under the noise); any window at 20 times, 91 %. Both well above the 2.6 % of the
+    # right model (binomial sd 3 %)
+    rng = np.random.default_rng(6)
+    seen = sum(_local_misfit(_fit(*_sandwich(rng, 40, inflate=10.0))) for _ in range(200))
+    assert seen / 200 > 0.5
+    assert LOCAL_MISFIT_SIGMAS == 3.0  # the docstring's and these bounds' threshold
+
+
+def test_a_fit_far_from_the_centroids_is_kept_on_a_smeared_frame_only():
+    sensor = load_sensor("st16")
+    cog_sigma = np.full(3, 1e-5)
+    moved = Rotation.from_rotvec([3e-4, 0.0, 0.0])  # 30 centroid sigmas, ~5 px on the sky
+    for p, kept in ((3, False), (6, True)):
+        cov = np.eye(p) * 1e-12
+        fit = _fit(cov, cov.copy(), np.full(p, 0.2), rotation=moved)
+        judged = _judged(fit, sensor, Rotation.identity(), cog_sigma, (10, 0))
+        assert judged.used is kept, judged.note
+        assert kept or "sigma from the centroids'" in judged.note
+    assert math.isfinite(sensor.focal_length_px)
