@@ -1,6 +1,6 @@
 """The per-set peer comparison (bench/peers/frame_sets.py, per_set.py) on sets made here.
 
-Both layouts of reference.json that ../shared/data/images uses (a frame's reference wrapped in
+Both layouts of reference.json that the shared real frame sets use (a frame's reference wrapped in
 ``{"reference": ...}`` or given directly), a set without a tolerance or a camera, the scoring
 against the tolerance and the time ratios, computed by hand beside the code.
 """
