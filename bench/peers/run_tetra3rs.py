@@ -101,7 +101,13 @@ def solve_centroids(db, xy, shape, fov_deg, repeat=1, **options) -> dict:
 
 
 def solve_image(db, image, fov_deg, repeat=1, fov_max_error_deg=None) -> dict:
-    """Best of `repeat` wall times of extraction + solve on one image (its own extraction)."""
+    """Best of `repeat` wall times of extraction + solve on one image (its own extraction).
+
+    tetra3rs needs a field estimate: a frame of a set that states none is not run (said so).
+    """
+    if fov_deg is None:
+        why = "not run: tetra3rs needs a field estimate and the set states none"
+        return {"solved": False, "status": why, "ms": float("nan"), "matches": 0}
     best = None
     for _ in range(repeat):
         t0 = time.perf_counter()
