@@ -152,3 +152,52 @@ def test_fit_recovers_the_attitude_of_a_noiseless_frame():
     assert fit.converged
     assert np.abs(err).max() < 1e-4
     np.testing.assert_allclose(fit.fluxes_e, fluxes, rtol=1e-6)
+
+
+def test_the_chi_square_is_that_of_the_fit_where_it_stops():
+    """A fit started from given fluxes reports the chi-square and information where it ends.
+
+    The pixels are the model's with Gaussian noise of the model's variance, so at the fit the
+    reduced chi-square is 1 within 5 of its sigma, sqrt(2 / dof); started from the right
+    fluxes or from fluxes 40 % low (a lit sum missing a PSF's wings), the fit ends at the same
+    optimum, and both report its chi-square (to 1e-3: a fit stops within a fraction of a sigma
+    of it). A chi-square taken before the last step would carry the fluxes' misfit.
+    """
+    sensor, v = _scene(n=15, seed=5)
+    det = sensor.detector
+    psf = pixel_psf(sensor.psf, det.psf_sigma_px)
+    truth = Rotation.from_rotvec([1e-4, 2e-4, -3e-4])
+    frac, wts = time_nodes(0.0, psf.sigma_px)
+    nodes = node_positions(
+        sensor, v, truth, rate_rad_s=np.zeros(3), exposure_s=sensor.exposure_s,
+        fractions=frac, weights=wts,
+    )  # fmt: skip
+    windows, kept = make_windows(nodes.x, nodes.y, half_px=8.0, shape=(det.rows, det.columns),
+                                 free=np.ones(len(v), bool))  # fmt: skip
+    fluxes = np.geomspace(3e3, 3e4, len(kept))
+    ev = evaluate(windows, psf, nodes, fluxes=fluxes, gradient=False)
+    image = np.full((det.rows, det.columns), 80.0)  # 80 e- of background: no pixel near zero
+    light = np.einsum("gmhw,gm->ghw", ev.templates, _slots(windows, fluxes))
+    for g in range(windows.n_groups):
+        r0, c0 = windows.row0[g], windows.col0[g]
+        h, w = windows.shape
+        rr = slice(max(r0, 0), min(r0 + h, det.rows))
+        cc = slice(max(c0, 0), min(c0 + w, det.columns))
+        image[rr, cc] += light[g, rr.start - r0 : rr.stop - r0, cc.start - c0 : cc.stop - c0]
+    rng = np.random.default_rng(9)
+    noisy = image + rng.standard_normal(image.shape) * np.sqrt(
+        image + det.read_noise_e**2 + 1.0 / (12.0 * det.gain_counts_per_e**2)
+    )
+    counts = noisy * det.gain_counts_per_e + det.bias_counts  # float counts: no rounding
+    right = fit_windows(counts, sensor, truth, vectors=v[kept], fluxes_e=fluxes)
+    low = fit_windows(counts, sensor, truth, vectors=v[kept], fluxes_e=0.6 * fluxes)
+    assert right.converged and low.converged
+    assert abs(right.reduced_chi2 - 1.0) < 5.0 * math.sqrt(2.0 / right.dof)
+    assert low.reduced_chi2 == pytest.approx(right.reduced_chi2, rel=1e-3)
+    # the information at the fit's pixels: as a fit that first solved for the fluxes and the
+    # backgrounds has it (its weights carry the 80 e- background; a Fisher weighted as at the
+    # start, backgrounds at zero, would be ~5 times too large)
+    first = fit_windows(counts, sensor, truth, vectors=v[kept])
+    scale = np.sqrt(np.outer(np.diag(first.covariance), np.diag(first.covariance)))
+    for fit in (right, low):  # each entry within 1 % of its axes' sigmas' product
+        np.testing.assert_allclose(fit.covariance / scale, first.covariance / scale, atol=1e-2)

@@ -7,6 +7,11 @@ import pytest
 from zoo_trials import zoo_trial
 
 from starsense.geometry.attitude import small_rotation_angles
+from starsense.geometry.sampling import random_attitudes
+from starsense.render.scene import render_frame
+from starsense.sensor import load_sensor
+from starsense.sensor.psf_spec import PSFSpec
+from starsense.solve import Solver
 from starsense.solve.streaks import MIN_STREAK_SIGMAS, streak_centroids_of
 
 
@@ -60,3 +65,56 @@ def test_a_blend_measuring_long_does_not_stretch_every_capsule():
     assert sol.solved
     z = small_rotation_angles(truth, sol.rotation) / np.asarray(sol.sigma_rad)
     assert np.all(np.abs(z) < 3.0), np.round(z, 2)
+
+
+def _elongated(sensor, sigma_major, sigma_minor, turn_rad, oversampling=8):
+    """The sensor with an empirical PSF: an elliptical Gaussian (an astigmatic lens's image)."""
+    half = 12 * oversampling
+    g = (np.arange(2 * half + 1) - half) / oversampling
+    x, y = np.meshgrid(g, g)
+    c, s = np.cos(turn_rad), np.sin(turn_rad)
+    u, w = c * x + s * y, -s * x + c * y
+    samples = np.exp(-0.5 * (u / sigma_major) ** 2 - 0.5 * (w / sigma_minor) ** 2)
+    spec = PSFSpec(kind="empirical", samples=samples / samples.sum(), oversampling=oversampling,
+                   source="elliptical Gaussian")  # fmt: skip
+    return sensor.with_(psf=spec)
+
+
+def _streaks_of(sensor, solver, frame):
+    """What the solver's smear decision makes of the frame's matched detections."""
+    sol = solver(frame.image)
+    assert sol.solved
+    det = np.array(sol.matches)[:, 0]
+    found = solver.detector(frame.image)
+    box = found.bbox[det]
+    return streak_centroids_of(
+        sensor,
+        frame.image,
+        np.column_stack([found.x[det], found.y[det]]),
+        counts=found.integrated_counts[det],
+        extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
+        level=float(sensor.detector.bias_counts),
+        threshold=sensor.detection.lit_pixel_counts,
+    )
+
+
+@pytest.mark.slow
+def test_a_psf_elongated_at_rest_is_not_read_as_a_streak():
+    """The ST-16 with a PSF of 3.0 x 0.8 px sigmas (turned 0.5 rad), given in its [psf] table.
+
+    At rest its stars' lit pixels measure as streaks of ~7 px, past the shortest the solver
+    re-centroids (2 PSF sigmas plus the margins): read as smeared, a frame's rate was fitted
+    and its fit did not converge (sigmas 5 to 7 times the rest fit's). The PSF's own
+    elongation, drawn by the forward model at each star's light and measured as the frame's
+    stars are, is taken out: at rest no frame is smeared; at 1 deg/s (streaks of ~20 px) every
+    frame still is.
+    """
+    sensor = _elongated(load_sensor("st16"), 3.0, 0.8, 0.5)
+    solver = Solver(sensor)
+    rng = np.random.default_rng(5)
+    for truth in random_attitudes(2, rng):
+        rest = render_frame(sensor, truth, solver.catalog, rng=rng)
+        assert _streaks_of(sensor, solver, rest) is None
+        rate = np.radians([0.8, -0.6, 0.0])  # 1 deg/s across the boresight
+        moving = render_frame(sensor, truth, solver.catalog, rate_rad_s=rate, rng=rng)
+        assert _streaks_of(sensor, solver, moving) is not None

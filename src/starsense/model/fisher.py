@@ -11,9 +11,11 @@ background unknown (the fit's nuisance parameters)::
 
 (px^-2), averaged over the star's sub-pixel phase (the information of many stars at random
 phases adds up to the mean's). Pixels the ADC or the full well clip carry none (censored, as the
-fit treats them). This is the per-star term of the attitude's Cramer-Rao bound that the solver's
-model fit attains; summed over the stars of a frame through the projection's Jacobian
-(:func:`attitude_information`) it is the noise-equivalent angle. Fialho & Mortari (2019, eq. 19)
+fit treats them); pixels near the ADC's floor, the share a censored one keeps
+(:func:`~starsense.model.pixels.censored_information`). This is the per-star term of the
+attitude's Cramer-Rao bound that the solver's model fit attains; summed over the stars of a
+frame through the projection's Jacobian (:func:`attitude_information`) it is the
+noise-equivalent angle. Fialho & Mortari (2019, eq. 19)
 is its limit for an ideal sensor: a Gaussian PSF, no background, no read noise, no pixels.
 """
 
@@ -23,7 +25,8 @@ import math
 
 import numpy as np
 
-from starsense.model.fit import pixel_variance, window_half_px
+from starsense.model.fit import window_half_px
+from starsense.model.pixels import censored_information, floor_e, pixel_variance
 from starsense.model.psf import PixelPSF, psf_of
 from starsense.model.stamps import source_stamps
 from starsense.model.tracks import NodePositions, time_nodes
@@ -56,8 +59,11 @@ def _one(psf: PixelPSF, sensor, electrons: float, streak, phase, background_e: f
     t, d = source_stamps(psf, nodes, np.array([0]), rows=rows, cols=cols, half_px=half)
     t, g = t[0].ravel(), electrons * d[0].reshape(2, -1)
     mu = electrons * t + background_e
-    clip_e = det.clip_e
-    w = np.where(mu < clip_e, 1.0 / pixel_variance(det, mu, te), 0.0)
+    v = pixel_variance(det, mu, te)
+    w = np.where(mu < det.clip_e, 1.0 / v, 0.0)
+    floor = floor_e(det, te)
+    if floor is not None:  # a background near the ADC's floor: censored pixels tell less
+        w = w * censored_information((floor - mu) / np.sqrt(v))
     h = np.vstack([t, np.ones_like(t)])
     a = (h * w) @ h.T
     b = (h * w) @ g.T

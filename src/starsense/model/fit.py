@@ -7,9 +7,10 @@ likelihood is maximised by Gauss-Newton over the geometric parameters ``p`` (the
 error rotation ``theta``, and the body rate when the frame is smeared), with each star's flux and
 each group's background as linear nuisance parameters eliminated at every step (variable
 projection: the Schur complement of the normal equations). Weights follow the model
-(iteratively reweighted). A pixel at the ADC's top or the full well is censored (it says only
-that the light reached the clip): it is left out of the sums, as is a pixel read at zero where
-the bias sits within three read-noise sigmas of zero (a clipped background).
+(iteratively reweighted). A pixel at the ADC's top or the full well is left out of the sums (it
+says only that the light reached the clip); a pixel read at the ADC's floor (a background
+clipped at zero) is censored: its likelihood is that of any value below the floor
+(:mod:`starsense.model.pixels`).
 
 At the solution the Fisher information of ``p``, nuisance parameters marginalised, is
 
@@ -30,6 +31,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense._workspace import scratch
+from starsense.model.pixels import pixel_terms, pixel_variance
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of
 from starsense.model.tracks import node_positions, time_nodes
 from starsense.model.windows import Windows, evaluate, make_windows
@@ -39,13 +41,16 @@ try:  # the normal equations' sums, compiled (setup.py)
 except ImportError:  # pragma: no cover - built without a C compiler: the NumPy form
     _modelc = None
 
-__all__ = ["WINDOW_HALF_SIGMAS", "ModelFit", "fit_windows", "pixel_variance", "window_half_px"]
+__all__ = ["WINDOW_HALF_SIGMAS", "ModelFit", "fit_windows", "window_half_px"]
 
 #: a star's box reaches this many PSF sigmas (+1 px) beyond its track
 WINDOW_HALF_SIGMAS = 3.5
 #: Gauss-Newton stops when its last step was below this fraction of each parameter's sigma
 #: (what is left, ~the square of the step in sigma for a quadratic convergence, is nothing)
 STEP_TOL_SIGMAS = 0.1
+#: ... and no flux or background moved by more than this fraction of itself (the information
+#: is the square of the fluxes: 1 % of a flux is 1 % of its star's sigma)
+LIN_RTOL = 0.01
 #: the width's central difference, a fraction of the width
 WIDTH_STEP = 2e-3
 MAX_ITERATIONS = 10
@@ -54,24 +59,6 @@ MAX_ITERATIONS = 10
 def window_half_px(psf: PixelPSF) -> float:
     """Half-size of a star's box beyond its track, px."""
     return WINDOW_HALF_SIGMAS * psf.sigma_px + 1.0
-
-
-def pixel_variance(detector, mu_e, exposure_s: float) -> np.ndarray:
-    """Variance of a pixel's reading, electrons^2, about the expected signal ``mu_e``.
-
-    Shot noise on the signal and the dark charge, read noise, DSNU, PRNU (``(prnu mu)^2``) and
-    the ADC's quantisation (``1 / (12 g^2)``, g counts per electron).
-    """
-    mu = np.maximum(np.asarray(mu_e, dtype=float), 0.0)
-    dark = detector.dark_current_e_s * exposure_s
-    return (
-        mu
-        + dark
-        + detector.read_noise_e**2
-        + detector.dsnu_e**2
-        + (detector.prnu_fraction * mu) ** 2
-        + 1.0 / (12.0 * detector.gain_counts_per_e**2)
-    )
 
 
 @dataclass(frozen=True)
@@ -144,9 +131,6 @@ def _data(image, windows: Windows, detector) -> tuple[np.ndarray, np.ndarray]:
     counts = np.asarray(image)[r, c].astype(float)
     e = (counts - detector.bias_counts) / detector.gain_counts_per_e
     use = on & (counts < detector.saturation_counts - 0.5) & (e < 0.999 * detector.full_well_e)
-    read_counts = detector.read_noise_e * detector.gain_counts_per_e
-    if detector.bias_counts < 3.0 * read_counts:  # a background clipped at zero: censored
-        use &= counts > 0.5
     g = windows.n_groups
     return e.reshape(g, -1), use.reshape(g, -1)
 
@@ -168,6 +152,20 @@ def _normal_equations(lin, jac, weight, resid):
     per_group = c - np.einsum("gmp,gmq->gpq", b, a_inv_b)  # each group's information
     scores = v - np.einsum("gmp,gm->gp", b, a_inv_u)  # each group's, nuisances eliminated
     return per_group.sum(axis=0), scores, a_inv_b, a_inv_u, per_group
+
+
+def _settled(dlin, values, lin, weight) -> bool:
+    """Return whether a step moved each flux and background by at most LIN_RTOL of it.
+
+    Or by a tenth of its sigma, the geometry held. A star's Jacobian is its flux times its
+    template's gradient: the information a fit reports holds only where its fluxes stopped.
+    """
+    a_diag = np.einsum("gmn,gmn,gn->gm", lin, lin, weight)
+    with np.errstate(divide="ignore"):
+        sigma = np.where(a_diag > 0, 1.0 / np.sqrt(a_diag), np.inf)
+    return bool(
+        np.all(np.abs(dlin) <= np.maximum(LIN_RTOL * np.abs(values), STEP_TOL_SIGMAS * sigma))
+    )
 
 
 def _sums(lin, jac, weight, resid):
@@ -377,10 +375,11 @@ def fit_windows(
     s_groups = np.eye(3)[None]
     for it in range(1, MAX_ITERATIONS + 1):
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
-        weight = pb.use / pixel_variance(det, mu, te)
-        s, scores, a_inv_b, a_inv_u, s_groups = _normal_equations(lin, jac, weight, pb.data - mu)
+        weight, resid, chi2 = pixel_terms(det, mu, pb.data, use=pb.use, exposure_s=te)
+        s, scores, a_inv_b, a_inv_u, s_groups = _normal_equations(lin, jac, weight, resid)
         step = np.linalg.solve(s, scores.sum(axis=0))
-        lin_values = lin_values + a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step)
+        dlin = a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step)
+        lin_values = lin_values + dlin
         rotation = Rotation.from_rotvec(step[:3]) * rotation
         if fit_rate:
             rate = rate + step[3:n_geo]
@@ -389,16 +388,24 @@ def fit_windows(
                 np.clip(psf.sigma_px + step[n_geo], 0.25 * psf.sigma_px, 4.0 * psf.sigma_px)
             )
             psf = pixel_psf(psf.spec, width)
-        resid = pb.data - mu  # the pixels' scatter about the model sets the scale of a step
+        # the pixels' scatter about the model sets the scale of a step
         dof = max(int(pb.use.sum()) - len(step) - lin.shape[1] * lin.shape[0], 1)
-        scatter = max(1.0, float((weight * resid * resid).sum()) / dof)
+        scatter = max(1.0, float(chi2.sum()) / dof)
         sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(s)), 0.0, None) * scatter)
-        if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma):
+        if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma) and _settled(
+            dlin, lin_values, lin, weight
+        ):
             converged = True
             break
         if it >= 2 and scatter > abort_chi2:  # one step from the start: the model does not fit
             break
-    resid = pb.data - mu
+    # the information, scores and chi-square of the state the last step reached, not of the
+    # one it started from (a fit started from given fluxes, its backgrounds at zero, may stop
+    # after one step): the model is linear in the fluxes and backgrounds and the geometric step
+    # is small, so the pixels move by the linear change; their variance follows them
+    mu = mu + np.einsum("gm,gmn->gn", dlin, lin) + np.einsum("gpn,p->gn", jac, step)
+    weight, resid, chi2 = pixel_terms(det, mu, pb.data, use=pb.use, exposure_s=te)
+    s, scores, _, _, s_groups = _normal_equations(lin, jac, weight, resid)
     n_pix = int(pb.use.sum())
     out = np.full(len(v_free), np.nan)
     fr = pb.free
@@ -415,7 +422,7 @@ def fit_windows(
         covariance=cov,
         robust_covariance=cov @ (scores.T @ scores) @ cov,
         fluxes_e=out,
-        chi2=float((weight * resid * resid).sum()),
+        chi2=float(chi2.sum()),
         dof=n_pix - n_par,
         n_pixels=n_pix,
         iterations=it,

@@ -118,7 +118,8 @@ class PixelPSF:
         grads = (np.zeros(dx.shape), np.zeros(dx.shape)) if gradient else ()
         if inside.any():
             ys, xs = dy[inside], dx[inside]
-            value[inside] = self._spline.ev(ys, xs)
+            # no pixel holds less than no light (the table's round-off leaves -1e-16 in wings)
+            value[inside] = np.maximum(self._spline.ev(ys, xs), 0.0)
             if gradient:
                 grads[0][inside] = self._spline.ev(ys, xs, dy=1)
                 grads[1][inside] = self._spline.ev(ys, xs, dx=1)

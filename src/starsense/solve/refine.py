@@ -46,7 +46,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from starsense.errors import InputError
-from starsense.model.fit import ModelFit, fit_windows, pixel_variance, window_half_px
+from starsense.model.fit import ModelFit, fit_windows, window_half_px
+from starsense.model.pixels import pixel_variance
 from starsense.model.psf import psf_of
 from starsense.solve.in_view import DETECTABLE_SNR, room_for, stars_in_view
 

@@ -27,12 +27,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense.detect.streak import SYSTEMATIC, streak_axes
+from starsense.model.psf import psf_of
 
 __all__ = [
     "CAPSULE_PAD_PX",
     "CAPSULE_SIGMAS",
     "MIN_STREAK_SIGMAS",
     "N_RATE_STARS",
+    "less_psf",
     "streak_body_rate",
     "streak_model",
     "streaks_at",
@@ -85,11 +87,13 @@ def _rate(sensor, x, y, axes) -> np.ndarray:
     return rate
 
 
-def streak_model(sensor, image, xy, *, order, **measure):
+def streak_model(sensor, image, xy, *, order, counts=None, **measure):
     """Return the streaks of stars ``xy = (x, y)`` -> (N, 2) px from the brightest ones, or None.
 
     None when fewer than 3 streaks are measured or they are short (module docstring): the
     longest the fitted rate draws decides, as the datasheet's prediction does on the true ones.
+    ``counts``: the stars' lit sums; with them, a sensor whose PSF is not a Gaussian has the
+    elongation its own PSF shows at rest taken out of each measured streak (:func:`less_psf`).
     """
     x, y = xy
     sigma = sensor.detector.psf_sigma_px
@@ -102,11 +106,15 @@ def streak_model(sensor, image, xy, *, order, **measure):
     # at rest, and the other windows are not read (it pays for N_RATE_STARS windows only)
     bright = use[:N_RATE_STARS]
     first = streak_axes(image, x[bright], y[bright], half_px=half, **measure)
+    if counts is not None and not sensor.psf.is_gaussian:  # an elongated PSF is no streak
+        first = less_psf(first, _psf_axes(sensor, (x, y), counts, bright, half, measure))
     first2 = first[:, 0, 0] + first[:, 1, 1]
     first2, screen = first2[np.isfinite(first2)], 0.5 * shortest
     if len(first2) == 0 or np.median(first2) < screen**2:
         return None
     rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
+    if counts is not None and not sensor.psf.is_gaussian:
+        rest = less_psf(rest, _psf_axes(sensor, (x, y), counts, use[N_RATE_STARS:], half, measure))
     axes = np.concatenate([first, rest])
     length2 = axes[:, 0, 0] + axes[:, 1, 1]  # |l|^2
     ok = np.flatnonzero(np.isfinite(length2))
@@ -134,6 +142,53 @@ def streak_model(sensor, image, xy, *, order, **measure):
     if float(np.max(np.hypot(drawn[:, 0], drawn[:, 1]))) < shortest:
         return None
     return model
+
+
+def less_psf(axes, rest) -> np.ndarray:
+    """Return the streaks ``l l^T`` (N, 2, 2) of ``axes`` less the elongation ``rest`` at rest.
+
+    An astigmatic or coma-shaped PSF is elongated at rest, and :func:`~starsense.detect.streak.
+    streak_axes` reads the anisotropy of a star's second moments: that of the PSF adds to the
+    streak's. Both enter the moments' trace-free part linearly, so the streak is the
+    anisotropy (larger less smaller eigenvalue, along the larger's axis) of the difference; a
+    star whose elongation its PSF explains measures a streak of zero length.
+    """
+    d = np.where(np.isfinite(rest), axes - rest, axes)
+    bad = ~np.isfinite(d).all(axis=(1, 2))
+    lam, vec = np.linalg.eigh(np.where(bad[:, None, None], 0.0, d))
+    e = vec[:, :, 1]
+    out = (lam[:, 1] - lam[:, 0])[:, None, None] * (e[:, :, None] * e[:, None, :])
+    out[bad] = np.nan
+    return out
+
+
+def _psf_axes(sensor, xy, counts, which, half: int, measure: dict) -> np.ndarray:
+    """Return what :func:`streak_axes` reads on stars ``which`` at rest, noise-free (K, 2, 2).
+
+    Each star is the sensor's pixel-integrated PSF (:func:`starsense.model.psf.psf_of`) at its
+    sub-pixel phase, scaled so that its lit pixels (above the measure's threshold) sum to its
+    lit sum ``counts``, and measured with the same threshold and bridge.
+    """
+    psf = psf_of(sensor)
+    x, y = (np.asarray(v, float)[which] for v in xy)
+    lit_sum = np.asarray(counts, float)[which]
+    thr = float(measure.get("threshold", 0.0))
+    ar = np.arange(-half, half + 1, dtype=float)
+    fx, fy = x - np.round(x), y - np.round(y)
+    dx, dy = ar[None, None, :] - fx[:, None, None], ar[None, :, None] - fy[:, None, None]
+    tmpl = psf.evaluate(dx, dy, gradient=False)  # (K, rows, columns)
+    scale = lit_sum.copy()  # counts per unit of light: the lit fraction, found in two passes
+    for _ in range(2):
+        lit = tmpl * scale[:, None, None] > thr
+        frac = np.where(lit, tmpl, 0.0).sum(axis=(1, 2))
+        scale = np.where(frac > 0, lit_sum / np.where(frac > 0, frac, 1.0), lit_sum)
+    w = 2 * half + 1
+    strip = np.zeros((w, w * len(x)))  # the stars side by side, each in its own window
+    for i in range(len(x)):
+        strip[:, i * w : (i + 1) * w] = tmpl[i] * scale[i]
+    kw = {k: v for k, v in measure.items() if k in ("threshold", "bridge_px")}
+    return streak_axes(strip, half + fx + w * np.arange(len(x)), half + fy, half_px=half,
+                       level=0.0, **kw)  # fmt: skip
 
 
 def _confirmed(axes, length2, low: float, width_px: float, bright) -> int:

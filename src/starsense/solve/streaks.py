@@ -186,6 +186,7 @@ def streak_centroids_of(
         image,
         (x, y),
         order=order,
+        counts=counts,
         extent_px=np.asarray(extent_px, dtype=float),
         level=level,
         threshold=threshold,

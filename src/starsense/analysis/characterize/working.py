@@ -1,6 +1,6 @@
 """The sensor a frame's pixels are fitted with: its calibrated optics and its measured noise.
 
-The forward model's likelihood (:func:`starsense.model.fit.pixel_variance`) weighs each pixel
+The forward model's likelihood (:func:`starsense.model.pixels.pixel_variance`) weighs each pixel
 by the variance the sensor's detector gives it. A real frame's background noise is what the
 frame says (:mod:`.noise`), whatever the base sensor assumed; so the detector's read noise is
 set, for the fit only, to the one that makes a background pixel's variance the measured one:
