@@ -48,9 +48,11 @@ WINDOW_HALF_SIGMAS = 3.5
 #: Gauss-Newton stops when its last step was below this fraction of each parameter's sigma
 #: (what is left, ~the square of the step in sigma for a quadratic convergence, is nothing)
 STEP_TOL_SIGMAS = 0.1
-#: ... and no flux or background moved by more than this fraction of itself (the information
-#: is the square of the fluxes: 1 % of a flux is 1 % of its star's sigma)
-LIN_RTOL = 0.01
+#: ... and the information changed by less than this fraction since the step before: it is
+#: the fluxes' squares over the pixels' variances, whose fluxes and backgrounds a fit started
+#: from given ones (or near the ADC's floor, where the likelihood is not a least-squares one)
+#: may still be moving
+INFO_RTOL = 0.02
 #: the width's central difference, a fraction of the width
 WIDTH_STEP = 2e-3
 MAX_ITERATIONS = 10
@@ -152,20 +154,6 @@ def _normal_equations(lin, jac, weight, resid):
     per_group = c - np.einsum("gmp,gmq->gpq", b, a_inv_b)  # each group's information
     scores = v - np.einsum("gmp,gm->gp", b, a_inv_u)  # each group's, nuisances eliminated
     return per_group.sum(axis=0), scores, a_inv_b, a_inv_u, per_group
-
-
-def _settled(dlin, values, lin, weight) -> bool:
-    """Return whether a step moved each flux and background by at most LIN_RTOL of it.
-
-    Or by a tenth of its sigma, the geometry held. A star's Jacobian is its flux times its
-    template's gradient: the information a fit reports holds only where its fluxes stopped.
-    """
-    a_diag = np.einsum("gmn,gmn,gn->gm", lin, lin, weight)
-    with np.errstate(divide="ignore"):
-        sigma = np.where(a_diag > 0, 1.0 / np.sqrt(a_diag), np.inf)
-    return bool(
-        np.all(np.abs(dlin) <= np.maximum(LIN_RTOL * np.abs(values), STEP_TOL_SIGMAS * sigma))
-    )
 
 
 def _sums(lin, jac, weight, resid):
@@ -371,7 +359,7 @@ def fit_windows(
     else:  # the fluxes first, at the starting geometry
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
         lin_values = lin_values + _normal_equations(lin, jac, weight, pb.data - mu)[3]
-    converged, it, s, scores = False, 0, np.eye(3), np.zeros((1, 3))
+    converged, it, s, scores, prev_info = False, 0, np.eye(3), np.zeros((1, 3)), None
     s_groups = np.eye(3)[None]
     for it in range(1, MAX_ITERATIONS + 1):
         lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
@@ -392,9 +380,10 @@ def fit_windows(
         dof = max(int(pb.use.sum()) - len(step) - lin.shape[1] * lin.shape[0], 1)
         scatter = max(1.0, float(chi2.sum()) / dof)
         sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(s)), 0.0, None) * scatter)
-        if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma) and _settled(
-            dlin, lin_values, lin, weight
-        ):
+        info = np.diag(s)
+        settled = prev_info is not None and np.all(np.abs(info - prev_info) <= INFO_RTOL * info)
+        prev_info = info
+        if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma) and settled:
             converged = True
             break
         if it >= 2 and scatter > abort_chi2:  # one step from the start: the model does not fit
