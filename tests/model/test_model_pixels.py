@@ -66,10 +66,10 @@ def test_a_fit_through_the_floor_is_honest_and_its_chi_square_is_one():
     """Frames drawn by the model and read through the ADC's floor at zero, 60 noise draws.
 
     The stars are faint (300-3,000 e-) on no sky: half of each window reads 0. Each fit's
-    reduced chi-square is 1 within 5 of its sigma, sqrt(2 / dof); the attitude errors over the
-    reported sigmas, pooled over 60 frames x 3 axes (every fit converged), have an rms of 1 within 0.15 (3 sd of an
-    rms of 180 normal draws, 1 / sqrt(360) ~ 0.053). A fit that leaves the zeros out reads a
-    chi-square of ~0.5; one that reads them as values, a biased background.
+    reduced chi-square is 1 within 5 of its sigma, sqrt(2 / dof), and every fit converges; the
+    attitude errors over the reported sigmas, pooled over 60 frames x 3 axes, have an rms of 1
+    within 0.15 (3 sd of an rms of 180 normal draws, 1 / sqrt(360) ~ 0.053). A fit that leaves
+    the zeros out reads a chi-square of ~0.5; one that reads them as values, a biased background.
     """
     sensor, v = _zero_bias_scene(3)
     det = sensor.detector

@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from starsense.model.fit import ModelFit
 from starsense.sensor import load_sensor
-from starsense.solve.refine import LOCAL_MISFIT_SIGMAS, _judged, _local_misfit
+from starsense.solve.fit_judgement import LOCAL_MISFIT_SIGMAS, judged, local_misfit
 
 
 def _fit(cov, rob, noise, rotation=None):
@@ -46,17 +46,17 @@ def _sandwich(rng, groups, inflate=1.0):
     return cov, cov @ (scores.T @ scores) @ cov, noise
 
 
-def test_a_right_model_seldom_reads_as_a_local_misfit():
+def test_a_right_model_seldom_reads_as_alocal_misfit():
     # scores drawn from the model's own information: each axis's sandwich variance is a sum of
     # weighted chi-squares of one degree of freedom, above 3 of its own standard deviations
     # with probability ~0.5-1 % (its right tail is heavier than a normal's 0.13 %), 1.5-3 % on
     # one of three axes: below 4 % over 1,000 draws (binomial sd 0.5 %)
     rng = np.random.default_rng(5)
-    alarms = sum(_local_misfit(_fit(*_sandwich(rng, 40))) for _ in range(1000))
+    alarms = sum(local_misfit(_fit(*_sandwich(rng, 40))) for _ in range(1000))
     assert alarms / 1000 < 0.04
 
 
-def test_one_window_pulling_the_attitude_reads_as_a_local_misfit():
+def test_one_window_pulling_the_attitude_reads_as_alocal_misfit():
     # one of 40 windows whose score scatters 10 times what the model says (a streak's end drawn
     # wrong): its share of the variance, ~100 times a window's, lifts the sandwich to a few
     # times the bound, past 3 of its noise (~0.3-0.5 of the bound at 40 unequal windows) in
@@ -64,7 +64,7 @@ def test_one_window_pulling_the_attitude_reads_as_a_local_misfit():
     # stays under the noise); any window at 20 times, 91 %. Both well above the 2.6 % of the
     # right model (binomial sd 3 %)
     rng = np.random.default_rng(6)
-    seen = sum(_local_misfit(_fit(*_sandwich(rng, 40, inflate=10.0))) for _ in range(200))
+    seen = sum(local_misfit(_fit(*_sandwich(rng, 40, inflate=10.0))) for _ in range(200))
     assert seen / 200 > 0.5
     assert LOCAL_MISFIT_SIGMAS == 3.0  # the docstring's and these bounds' threshold
 
@@ -76,7 +76,7 @@ def test_a_fit_far_from_the_centroids_is_kept_on_a_smeared_frame_only():
     for p, kept in ((3, False), (6, True)):
         cov = np.eye(p) * 1e-12
         fit = _fit(cov, cov.copy(), np.full(p, 0.2), rotation=moved)
-        judged = _judged(fit, sensor, Rotation.identity(), cog_sigma, (10, 0))
-        assert judged.used is kept, judged.note
-        assert kept or "sigma from the centroids'" in judged.note
+        verdict = judged(fit, sensor, Rotation.identity(), cog_sigma_rad=cog_sigma, counts=(10, 0))
+        assert verdict.used is kept, verdict.note
+        assert kept or "sigma from the centroids'" in verdict.note
     assert math.isfinite(sensor.focal_length_px)

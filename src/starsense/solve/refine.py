@@ -15,25 +15,8 @@ background are free, and the catalogue stars whose light reaches a window are in
    :data:`ZERO_POINT_AGREES` (a lit sum misses a wide PSF's wings), the neighbours are
    predicted again and the fit repeated from its attitude.
 
-The solution's covariance is the inverse Fisher information at the fit (the Cramer-Rao bound of
-the model), which the datasheet predicts. Where the pixels scatter more than the model allows
-(a reduced chi-square above :data:`SCALED_CHI2`: a lens's PSF a little off the TOML's, a camera
-whose gain or read noise differ from the sensor's), each axis's variance is raised to what the
-pixels' own scatter gives (the sandwich of the groups' scores: a profile error symmetric about
-the stars, which does not move them, does not raise it) and the note says so; above
-:data:`MAX_REDUCED_CHI2` the model does not describe the
-frame and the model-free centroids' attitude is kept (the fit stops a step past its start).
-Where the frame's chi-square shows nothing but some windows pull the attitude more than the
-model's noise allows (a streak's end or an overlap drawn wrong: the groups' scores scatter
-beyond the Fisher bound by :data:`LOCAL_MISFIT_SIGMAS` of their own noise), the sandwich gives
-the sigmas too.
-A fit that does not converge keeps the centroid attitude and says why. At rest, so does a fit
-that moves the attitude further than :data:`MAX_MOVE_SIGMAS` of the two solutions' sigmas from
-the centroid attitude (a move that shifts no star by :data:`MAX_MOVE_PX` is kept: the two
-estimators of an imperfectly known PSF's centre may disagree by that much). A smeared frame's
-streak centroids are no such reference: their attitude's sigma leaves out where along its
-streak each centroid lies, and a 1 s frame at 1 deg/s (48 px streaks) had its centroid attitude
-5-15 of those sigmas off while the fit refused for moving from it was within its own sigma.
+Whether the fit's attitude replaces the centroids' one, and with what covariance, is
+:mod:`starsense.solve.fit_judgement`'s to say.
 """
 
 from __future__ import annotations
@@ -41,40 +24,21 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from starsense.errors import InputError
-from starsense.model.fit import ModelFit, fit_windows, window_half_px
+from starsense.model.fit import fit_windows, window_half_px
 from starsense.model.pixels import pixel_variance
 from starsense.model.psf import psf_of
+from starsense.solve.fit_judgement import MAX_REDUCED_CHI2, Refinement, judged
 from starsense.solve.in_view import DETECTABLE_SNR, room_for, stars_in_view
 
 __all__ = [
-    "LOCAL_MISFIT_SIGMAS",
-    "MAX_MOVE_PX",
-    "MAX_MOVE_SIGMAS",
-    "MAX_REDUCED_CHI2",
-    "SCALED_CHI2",
-    "Refinement",
     "refine_attitude",
     "refined_attitude",
 ]
 
-#: a fit whose pixels' reduced chi-square exceeds this has its covariance scaled by it (the
-#: chi-square of a right model over N ~ 10^3 pixels lies within 1 +- 0.1)
-SCALED_CHI2 = 1.3
-#: a fit whose pixels' reduced chi-square exceeds this does not describe the frame (a lens's
-#: PSF the TOML does not give, a camera's noise it does not know): the model-free centroids'
-#: attitude is kept. Between the two, the covariance is scaled.
-MAX_REDUCED_CHI2 = 4.0
-#: a model fit further than this many centroid sigmas from the centroid attitude is refused...
-MAX_MOVE_SIGMAS = 8.0
-#: ...when it also moves a star by more than this, px: a real lens's asymmetric PSF puts a
-#: centre of gravity a fraction of a pixel from a symmetric profile's centre, a wrong
-#: solution is pixels to degrees away
-MAX_MOVE_PX = 0.25
 #: two catalogue directions closer than this are one star, rad (0.2 arcsec)
 SAME_STAR_RAD = 1e-6
 #: a catalogue star closer than this to an identified one is part of its image (another
@@ -88,28 +52,6 @@ ZERO_POINT_STARS = 7
 ZERO_POINT_AGREES = 0.05
 #: a neighbour below this fraction of a pixel's noise (over its PSF's area) is left out
 NEGLIGIBLE_NOISE = 0.1
-
-
-@dataclass(frozen=True)
-class Refinement:
-    """What the model fit made of a frame.
-
-    Attributes
-    ----------
-    fit : ModelFit or None
-        The fit (None when it was not used).
-    used : bool
-        Whether the fit's attitude replaced the centroid one.
-    note : str
-        Why not, or what was modelled.
-    n_neighbours : int
-        Catalogue neighbours in the model.
-    """
-
-    fit: ModelFit | None
-    used: bool
-    note: str
-    n_neighbours: int = 0
 
 
 def _neighbours(
@@ -209,7 +151,9 @@ def refine_attitude(
         if zp is None:  # no flux to draw the neighbours at: the identified stars alone
             if first is None:
                 first = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
-            return _judged(first, sensor, rotation, cog_sigma_rad, (len(ref), 0))
+            return judged(
+                first, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=(len(ref), 0)
+            )
         stars = (plain, ref, mags)
         if more is not None:  # the other stars in view, at that zero point
             px, rx, mx = more(zp, rotation if first is None else first.rotation)
@@ -229,7 +173,7 @@ def refine_attitude(
             also = f"; the other stars in view left out: {exc}"
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    return _judged(fit, sensor, rotation, cog_sigma_rad, counts, also=also)
+    return judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also)
 
 
 def _with_neighbours(image, sensor, rotation, *, stars, first, zero_point, sky, place, rate, opts):
@@ -308,87 +252,6 @@ def _reach_px(sensor, rate) -> float:
     psf = psf_of(sensor)
     streak = 0.0 if rate is None else _streak_px(sensor, rate)
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
-
-
-#: a sandwich variance above the Fisher bound's by this many of its own relative noise
-#: (:attr:`~starsense.model.fit.ModelFit.robust_noise`) is a misfit
-LOCAL_MISFIT_SIGMAS = 3.0
-
-
-def _local_misfit(fit: ModelFit) -> bool:
-    """Whether the groups' scores scatter more than the model's noise allows, on an axis.
-
-    The sandwich (:attr:`~starsense.model.fit.ModelFit.robust_covariance`) estimates each
-    axis's variance from the groups' scores: about the Fisher bound's when the model describes
-    every window, above it when some windows pull the attitude (a streak's clipped end, an
-    overlap the model draws wrong) even where the frame's reduced chi-square, summed over
-    every pixel, shows nothing. Above the bound by :data:`LOCAL_MISFIT_SIGMAS` of the
-    estimate's own noise (:attr:`~starsense.model.fit.ModelFit.robust_noise`) is a misfit.
-    """
-    rob, cov, noise = fit.robust_covariance, fit.covariance, fit.robust_noise
-    if rob is None or noise is None or not np.all(np.isfinite(rob)):
-        return False
-    ratio = np.diag(rob)[:3] / np.diag(cov)[:3]
-    return bool(np.any(ratio > 1.0 + LOCAL_MISFIT_SIGMAS * np.asarray(noise)[:3]))
-
-
-def _robust(fit: ModelFit) -> np.ndarray:
-    """Return the sandwich covariance, each axis at least the Fisher bound's."""
-    cov, rob = fit.covariance, fit.robust_covariance
-    if rob is None or not np.all(np.isfinite(rob)):
-        return cov * fit.reduced_chi2
-    scale = np.sqrt(np.maximum(np.diag(rob) / np.diag(cov), 1.0))
-    return cov * np.outer(scale, scale)
-
-
-def _judged(fit: ModelFit, sensor, rotation, cog_sigma_rad, counts, also="") -> Refinement:
-    """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not.
-
-    ``counts``: the stars fitted and the neighbours drawn; ``also``: appended to the note of
-    an accepted fit (why no larger fit was made).
-    """
-    n_stars, n_nbr = counts
-    if fit.reduced_chi2 > MAX_REDUCED_CHI2 or not math.isfinite(fit.reduced_chi2):
-        why = f"reduced chi-square {fit.reduced_chi2:.3g} > {MAX_REDUCED_CHI2:g}"
-        return Refinement(
-            fit, False, f"model fit not used: the pixels disagree with the model ({why})", n_nbr
-        )
-    if not fit.converged:
-        return Refinement(fit, False, "model fit did not converge", n_nbr)
-    if not np.all(np.isfinite(fit.sigma_axes_rad)) or not math.isfinite(fit.reduced_chi2):
-        return Refinement(fit, False, "model fit not used: singular information", n_nbr)
-    note = f"model fit ({fit.n_pixels} px, {n_stars} stars, {n_nbr} neighbours){also}"
-    local = _local_misfit(fit)
-    if fit.reduced_chi2 > SCALED_CHI2:  # the pixels scatter more than the model says
-        fit = dataclasses.replace(fit, covariance=_robust(fit))
-        note += (
-            f"; sigmas from the pixels' own scatter (reduced chi-square {fit.reduced_chi2:.3g}: "
-            "they scatter more than the sensor's PSF and noise model allow)"
-        )
-    elif local:
-        fit = dataclasses.replace(fit, covariance=_robust(fit))
-        note += (
-            "; sigmas from the stars' own scatter (some windows' pixels pull the attitude more "
-            "than the model's noise allows)"
-        )
-    from starsense.geometry.attitude import small_rotation_angles  # noqa: PLC0415
-
-    move = np.abs(small_rotation_angles(fit.rotation, rotation))
-    scale = np.hypot(np.asarray(cog_sigma_rad, float), fit.sigma_axes_rad)
-    det = sensor.detector
-    edge = 0.5 * math.hypot(det.columns, det.rows)  # the farthest a star sits from the axis, px
-    moved_px = math.hypot(move[0], move[1]) * sensor.focal_length_px + move[2] * edge
-    # a smeared frame's centroids (its streaks') are no reference for the fit: their attitude's
-    # sigma leaves out where along its streak each centroid lies
-    smeared = fit.covariance.shape[0] > 3
-    if not smeared and np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
-        return Refinement(
-            fit,
-            False,
-            f"model fit not used: {float(np.max(move / scale)):.1f} sigma from the centroids'",
-            n_nbr,
-        )
-    return Refinement(fit, True, note, n_nbr)
 
 
 def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, place, points):
