@@ -263,3 +263,35 @@ def test_residual_scaled_keeps_a_fits_matrix_unbuilt():
     assert ratio > 1.0
     np.testing.assert_allclose(got.covariance_rad2, att.covariance_rad2 * ratio, rtol=1e-15)
     np.testing.assert_array_equal(got.rotation.as_matrix(), att.rotation.as_matrix())
+
+
+def test_residuals_well_below_their_sigmas_lower_the_covariance_to_their_95_bound():
+    """Bright stars given a sigma 20 times their scatter: the covariance follows the scatter.
+
+    40 stars (dof 77) whose centroids scatter 1/20 of the sigma they were given: over 200
+    fields the lowered sigma lies at or above each field's true one (the chi-square's 95 %
+    upper bound is conservative: below it in at most ~5 % of fields, binomial 3 sd ~ 4.6 %,
+    so at most 20 of 200) and within 1.3 times it (the bound over the estimate at dof 77 is
+    77 / 57.8 = 1.33 in variance, 1.15 in sigma; the chi-square of a field scatters by
+    sqrt(2 / 77) = 16 % about it). With 8 stars (dof 13, fewer than MIN_DOF_LOWERED) nothing
+    is lowered: the ratio of so few is no measurement.
+    """
+    from starsense.attitude.robust import MIN_DOF_LOWERED, residual_scaled
+
+    rng = np.random.default_rng(4)
+    below, ratios = 0, []
+    for _ in range(200):
+        b_true = star_field(rng, 40, 15.0)
+        given = np.full(40, 20.0 * ARCSEC)
+        att = kernel_fit(add_noise(rng, b_true, given / 20.0), b_true, given)
+        truth = att.covariance_rad2 / 400.0  # the covariance of the stars' actual scatter
+        got = residual_scaled(att)
+        ratio = float(np.sqrt(np.trace(got.covariance_rad2) / np.trace(truth)))
+        below += ratio < 1.0
+        ratios.append(ratio)
+    assert below <= 20
+    assert float(np.median(ratios)) < 1.3
+    few = star_field(rng, 8, 15.0)
+    att = kernel_fit(add_noise(rng, few, np.full(8, ARCSEC)), few, np.full(8, 20.0 * ARCSEC))
+    assert att.chi2_dof < MIN_DOF_LOWERED
+    np.testing.assert_array_equal(residual_scaled(att).covariance_rad2, att.covariance_rad2)

@@ -68,7 +68,9 @@ def test_the_fit_is_bounded_on_long_streaks():
 @pytest.mark.parametrize("inflation", [1.0, 3.0])
 def test_residual_scaled_sigma_matches_the_scatter_of_the_attitude(inflation):
     """Stars whose real noise is ``inflation`` times their stated sigma: the scaled covariance
-    is the attitude's real scatter (a Monte Carlo of 400 fits), never below the stated one."""
+    is the attitude's real scatter (a Monte Carlo of 400 fits). Below the stated one only where
+    the residuals' chi-square falls under its 5 % quantile: in ~5 % of right fits (at most 8 %
+    of 400, 3 binomial sd above), never when the stars scatter three times their sigma."""
     rng = np.random.default_rng(7)
     truth = random_attitudes(1, rng)[0]
     stated = 1e-5  # rad, per axis
@@ -86,7 +88,8 @@ def test_residual_scaled_sigma_matches_the_scatter_of_the_attitude(inflation):
         sigmas.append(scaled.sigma_axes_rad)
         raw.append(att.sigma_axes_rad)
     e, s, r = np.array(errors), np.array(sigmas), np.array(raw)
-    assert np.all(s >= r * (1 - 1e-12))  # never below the stars' own sigmas
+    lowered = np.any(s < r * (1 - 1e-12), axis=1)
+    assert np.mean(lowered) <= (0.08 if inflation == 1.0 else 0.0)
     ratio = np.sqrt(np.mean(e**2, axis=0) / np.mean(s**2, axis=0))
     # 400 fits know an rms to ~3.5 % (1 / sqrt(2 x 400)); the Birge ratio of 21 degrees of
     # freedom scatters by ~30 % per fit, and max(1, .) lifts the right model's sigma by ~10 %:

@@ -5,10 +5,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.special import gammaincinv
 
 from starsense.attitude.estimate import estimate_attitude
 
 __all__ = [
+    "MIN_DOF_LOWERED",
     "MISFIT_SIGMAS",
     "OUTLIER_SIGMA",
     "SCATTER_STARS",
@@ -27,6 +29,9 @@ OUTLIER_SIGMA = 7.0
 #: an attitude whose kept stars lie a median of more than this many of their own sigma from it
 #: does not fit its measurements (right ones: 1.18); the solver reports no attitude
 MISFIT_SIGMAS = 10.0
+#: the fewest degrees of freedom (2 N - 3 for N stars) whose residuals may lower a covariance
+#: (:func:`residual_scaled`): 20, eleven or more stars
+MIN_DOF_LOWERED = 20
 #: the stars from which :func:`robust_attitude` (``scatter=True``) measures their own scatter:
 #: with fewer, a star or two centroided off their light weigh in each right star's median (one
 #: 30-sigma blend among 5 stars hid in the scatter it raised in 3 % of draws, 2 among 6 in
@@ -263,18 +268,24 @@ def median_misfit(body, reference, sigma_rad, *, rotation, keep=None) -> float:
 
 
 def residual_scaled(att):
-    """Return ``att`` with its covariance raised by its residuals' chi-square when above 1.
+    """Return ``att`` with its covariance scaled to what its residuals show.
 
     The covariance of a Wahba fit assumes the stars' sigmas; where the residuals scatter more
     (``2 loss / (2 N - 3)`` above 1: a centroid pulled by light its sigma does not hold, a
     lens's distortion left), the variance is scaled by that ratio (the Birge ratio), so the
-    reported sigma stays what the stars show. Never lowered: with few stars the ratio
-    scatters (by ``sqrt(2 / dof)``) and a sigma below the stars' own would be a guess.
+    reported sigma stays what the stars show. Where they scatter less (bright stars given a
+    sigma meant for faint ones), it is lowered only as far as the chi-square's 95 % upper bound
+    (``chi2 / chi2_0.05(dof)``), and only with :data:`MIN_DOF_LOWERED` degrees of freedom:
+    with few stars the ratio scatters and a sigma below the stars' own would be a guess.
     """
     dof = att.chi2_dof
     if dof <= 0 or not np.isfinite(att.loss):
         return att
-    ratio = 2.0 * float(att.loss) / dof
-    if ratio <= 1.0:
+    chi2 = 2.0 * float(att.loss)
+    if chi2 > dof:
+        scale = chi2 / dof
+    elif dof >= MIN_DOF_LOWERED:
+        scale = min(1.0, chi2 / (2.0 * float(gammaincinv(0.5 * dof, 0.05))))
+    else:
         return att
-    return att.replaced(covariance_rad2=np.asarray(att.covariance_rad2) * ratio)
+    return att.replaced(covariance_rad2=np.asarray(att.covariance_rad2) * scale)

@@ -5,7 +5,7 @@ Once a frame is identified, :func:`frame_attitude` fits the attitude to the matc
 streaks, :mod:`starsense.solve.streaks`, whose body rate starts the model's), then, with a
 sensor and a frame, fits the sensor's forward model to the stars' pixels
 (:mod:`starsense.solve.refine`). The centroids' attitude, where it stands, reports its
-covariance raised by its residuals' chi-square (:func:`starsense.attitude.robust.
+covariance scaled to what its residuals show (:func:`starsense.attitude.robust.
 residual_scaled`).
 """
 

@@ -127,9 +127,10 @@ def _clipped_bias(sensor, sigma: float) -> str:
         f"bias {det.bias_counts:g} counts is {det.bias_counts / sigma:.1f} sigma of the read "
         f"noise ({sigma:.3g} counts): the ADC clips the noise below zero; an empty pixel reads "
         f"{mean - det.bias_counts - g * dark_e:.3g} counts above the bias with "
-        f"{math.sqrt(var):.3g} counts rms, {zero:.0%} of them 0. The frames and the NEA's "
-        "centroid model see that clipped background; the solver's centroid weights assume the "
-        "unclipped noise (they overstate a faint star's sigma). A camera's bias "
+        f"{math.sqrt(var):.3g} counts rms, {zero:.0%} of them 0. The frames, the model fit "
+        "(a pixel read 0 is censored) and its bound see that clipped background, which tells "
+        "less of a faint star than an unclipped one; the centroids' weights (--refine cog) "
+        "assume the unclipped noise. A camera's bias "
         f"usually sits at >= {BIAS_SIGMAS:g} sigma ({BIAS_SIGMAS * sigma:.3g} counts), where "
         "the noise is Gaussian"
     )
