@@ -388,13 +388,13 @@ def fit_windows(
             break
         if it >= 2 and scatter > abort_chi2:  # one step from the start: the model does not fit
             break
-    # the information, scores and chi-square of the state the last step reached, not of the
-    # one it started from (a fit started from given fluxes, its backgrounds at zero, may stop
-    # after one step): the model is linear in the fluxes and backgrounds and the geometric step
-    # is small, so the pixels move by the linear change; their variance follows them
-    mu = mu + np.einsum("gm,gmn->gn", dlin, lin) + np.einsum("gpn,p->gn", jac, step)
-    weight, resid, chi2 = pixel_terms(det, mu, pb.data, use=pb.use, exposure_s=te)
-    s, scores, _, _, s_groups = _normal_equations(lin, jac, weight, resid)
+    if converged:  # the information, scores and chi-square of where the last step reached
+        # (not of where it started: the model is linear in the fluxes and backgrounds and the
+        # geometric step is small, so the pixels move by the linear change; their variance
+        # follows them). A fit that did not converge is not used: its last state stands.
+        mu = mu + np.einsum("gm,gmn->gn", dlin, lin) + np.einsum("gpn,p->gn", jac, step)
+        weight, resid, chi2 = pixel_terms(det, mu, pb.data, use=pb.use, exposure_s=te)
+        s, scores, _, _, s_groups = _normal_equations(lin, jac, weight, resid)
     n_pix = int(pb.use.sum())
     out = np.full(len(v_free), np.nan)
     fr = pb.free

@@ -29,8 +29,10 @@ from scipy.special import log_ndtr, ndtr
 
 __all__ = ["censored_information", "floor_e", "pixel_terms", "pixel_variance"]
 
-#: a floor more than this many sigmas of a dark pixel below zero is never reached
-FLOOR_REACH_SIGMAS = 8.0
+#: a pixel whose expected value lies more than this many of its sigmas above the floor reads
+#: as an uncensored one: it reads 0 with probability below 3e-7, and keeps all but ~1e-6 of
+#: its information
+FLOOR_REACH_SIGMAS = 5.0
 LOG_SQRT_2PI = 0.5 * np.log(2.0 * np.pi)
 
 
@@ -99,12 +101,19 @@ def pixel_terms(detector, mu, data, *, use, exposure_s: float):
     if floor is None:  # the plain normal likelihood
         weight = use / v
         return weight, resid, weight * resid * resid
+    weight = use / v
+    chi2 = weight * resid * resid
     sigma = np.sqrt(v)
     a = (floor - mu) / sigma
-    cdf, pdf, mills = _mills(a)
-    kappa = np.clip(1.0 - cdf + a * pdf + pdf * mills, 1e-12, 1.0)
-    at_floor = data < floor
-    weight = use * kappa / v
-    score = np.where(at_floor, -mills / sigma, resid / v)
-    chi2 = use * np.where(at_floor, 1.0 - a * mills, resid * resid / v)
-    return weight, score * v / kappa, chi2
+    near = np.flatnonzero((a > -FLOOR_REACH_SIGMAS) & use)  # the rest read as uncensored
+    if near.size:
+        a, s_, v_, r_ = a.flat[near], sigma.flat[near], v.flat[near], resid.flat[near]
+        cdf, pdf, mills = _mills(a)
+        kappa = np.clip(1.0 - cdf + a * pdf + pdf * mills, 1e-12, 1.0)
+        at_floor = data.flat[near] < floor
+        score = np.where(at_floor, -mills / s_, r_ / v_)
+        weight.flat[near] = kappa / v_
+        resid = resid.copy()
+        resid.flat[near] = score * v_ / kappa
+        chi2.flat[near] = np.where(at_floor, 1.0 - a * mills, r_ * r_ / v_)
+    return weight, resid, chi2
