@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from model_scene import model_image
 from scipy import integrate
 from scipy.spatial.transform import Rotation
 from scipy.stats import norm
@@ -14,9 +15,6 @@ from scipy.stats import norm
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.model.fit import fit_windows
 from starsense.model.pixels import censored_information, floor_e, pixel_terms
-from starsense.model.psf import pixel_psf
-from starsense.model.tracks import node_positions, time_nodes
-from starsense.model.windows import evaluate, make_windows
 from starsense.sensor import load_sensor
 
 
@@ -73,27 +71,8 @@ def test_a_fit_through_the_floor_is_honest_and_its_chi_square_is_one():
     """
     sensor, v = _zero_bias_scene(3)
     det = sensor.detector
-    psf = pixel_psf(sensor.psf, det.psf_sigma_px)
     truth = Rotation.from_rotvec([1e-4, -2e-4, 3e-4])
-    frac, wts = time_nodes(0.0, psf.sigma_px)
-    nodes = node_positions(
-        sensor, v, truth, rate_rad_s=np.zeros(3), exposure_s=sensor.exposure_s,
-        fractions=frac, weights=wts,
-    )  # fmt: skip
-    windows, kept = make_windows(nodes.x, nodes.y, half_px=8.0, shape=(det.rows, det.columns),
-                                 free=np.ones(len(v), bool))  # fmt: skip
-    fluxes = np.geomspace(300.0, 3000.0, len(kept))
-    ev = evaluate(windows, psf, nodes, fluxes=fluxes, gradient=False)
-    expected = np.zeros((det.rows, det.columns))
-    slots = np.zeros((windows.n_groups, windows.n_slots))
-    slots[windows.group, windows.slot] = fluxes
-    light = np.einsum("gmhw,gm->ghw", ev.templates, slots)
-    for g in range(windows.n_groups):
-        r0, c0 = windows.row0[g], windows.col0[g]
-        h, w = windows.shape
-        rr = slice(max(r0, 0), min(r0 + h, det.rows))
-        cc = slice(max(c0, 0), min(c0 + w, det.columns))
-        expected[rr, cc] += light[g, rr.start - r0 : rr.stop - r0, cc.start - c0 : cc.stop - c0]
+    expected, kept, fluxes = model_image(sensor, v, truth, (300.0, 3000.0))
     rng = np.random.default_rng(11)
     z = []
     sd = np.sqrt(expected + det.read_noise_e**2)

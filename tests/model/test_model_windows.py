@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from model_scene import model_image
 from scipy.spatial.transform import Rotation
 
 from starsense.geometry.attitude import small_rotation_angles
@@ -122,29 +123,9 @@ def _slots(windows, fluxes):
 def test_fit_recovers_the_attitude_of_a_noiseless_frame():
     """A frame drawn by the model itself at a known attitude is fitted back to it (1e-4 px)."""
     sensor, v = _scene(n=15, seed=4)
-    psf = pixel_psf(sensor.psf, sensor.detector.psf_sigma_px)
     truth = Rotation.from_rotvec([2e-4, -1e-4, 5e-4])
-    frac, wts = time_nodes(0.0, psf.sigma_px)
-    free = np.ones(len(v), bool)
-    nodes = node_positions(
-        sensor, v, truth, rate_rad_s=np.zeros(3), exposure_s=sensor.exposure_s,
-        fractions=frac, weights=wts,
-    )  # fmt: skip
     det = sensor.detector
-    windows, kept = make_windows(nodes.x, nodes.y, half_px=8.0, shape=(det.rows, det.columns),
-                                 free=free)  # fmt: skip
-    fluxes = np.geomspace(2e3, 2e4, len(kept))
-    ev = evaluate(windows, psf, nodes, fluxes=fluxes, gradient=False)
-    image = np.full((det.rows, det.columns), 50.0)  # a background of 50 e-
-    light = np.einsum("gmhw,gm->ghw", ev.templates, _slots(windows, fluxes))
-    for g in range(windows.n_groups):
-        r0, c0 = windows.row0[g], windows.col0[g]
-        h, w = windows.shape
-        rr, cc = (
-            slice(max(r0, 0), min(r0 + h, det.rows)),
-            slice(max(c0, 0), min(c0 + w, det.columns)),
-        )
-        image[rr, cc] += light[g, rr.start - r0 : rr.stop - r0, cc.start - c0 : cc.stop - c0]
+    image, kept, fluxes = model_image(sensor, v, truth, (2e3, 2e4), background_e=50.0)
     counts = image * det.gain_counts_per_e + det.bias_counts
     start = Rotation.from_rotvec([0.0, 0.0, 3e-4]) * truth  # ~0.6 px off at the corners
     fit = fit_windows(counts, sensor, start, vectors=v[kept])
@@ -165,25 +146,9 @@ def test_the_chi_square_is_that_of_the_fit_where_it_stops():
     """
     sensor, v = _scene(n=15, seed=5)
     det = sensor.detector
-    psf = pixel_psf(sensor.psf, det.psf_sigma_px)
     truth = Rotation.from_rotvec([1e-4, 2e-4, -3e-4])
-    frac, wts = time_nodes(0.0, psf.sigma_px)
-    nodes = node_positions(
-        sensor, v, truth, rate_rad_s=np.zeros(3), exposure_s=sensor.exposure_s,
-        fractions=frac, weights=wts,
-    )  # fmt: skip
-    windows, kept = make_windows(nodes.x, nodes.y, half_px=8.0, shape=(det.rows, det.columns),
-                                 free=np.ones(len(v), bool))  # fmt: skip
-    fluxes = np.geomspace(3e3, 3e4, len(kept))
-    ev = evaluate(windows, psf, nodes, fluxes=fluxes, gradient=False)
-    image = np.full((det.rows, det.columns), 80.0)  # 80 e- of background: no pixel near zero
-    light = np.einsum("gmhw,gm->ghw", ev.templates, _slots(windows, fluxes))
-    for g in range(windows.n_groups):
-        r0, c0 = windows.row0[g], windows.col0[g]
-        h, w = windows.shape
-        rr = slice(max(r0, 0), min(r0 + h, det.rows))
-        cc = slice(max(c0, 0), min(c0 + w, det.columns))
-        image[rr, cc] += light[g, rr.start - r0 : rr.stop - r0, cc.start - c0 : cc.stop - c0]
+    # 80 e- of background: no pixel near zero
+    image, kept, fluxes = model_image(sensor, v, truth, (3e3, 3e4), background_e=80.0)
     rng = np.random.default_rng(9)
     noisy = image + rng.standard_normal(image.shape) * np.sqrt(
         image + det.read_noise_e**2 + 1.0 / (12.0 * det.gain_counts_per_e**2)

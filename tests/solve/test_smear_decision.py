@@ -34,18 +34,7 @@ def test_faint_streaks_measuring_short_are_still_recentroided():
 
     # the decision itself: the matched detections are centroided over their streaks, whose
     # drawn length is past the shortest re-centroided
-    det = np.array(sol.matches)[:, 0]
-    found = solver.detector(frame.image)
-    box = found.bbox[det]
-    got = streak_centroids_of(
-        sensor,
-        frame.image,
-        np.column_stack([found.x[det], found.y[det]]),
-        counts=found.integrated_counts[det],
-        extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
-        level=float(sensor.detector.bias_counts),
-        threshold=sensor.detection.lit_pixel_counts,
-    )
+    got = _streaks_of(sensor, solver, frame.image, sol)
     assert got is not None
     shortest = MIN_STREAK_SIGMAS * float(sensor.detector.psf_sigma_px) + 4.0
     assert np.max(np.hypot(*got.streaks_px.T)) >= shortest
@@ -80,16 +69,16 @@ def _elongated(sensor, sigma_major, sigma_minor, turn_rad, oversampling=8):
     return sensor.with_(psf=spec)
 
 
-def _streaks_of(sensor, solver, frame):
+def _streaks_of(sensor, solver, image, sol=None):
     """What the solver's smear decision makes of the frame's matched detections."""
-    sol = solver(frame.image)
+    sol = sol or solver(image)
     assert sol.solved
     det = np.array(sol.matches)[:, 0]
-    found = solver.detector(frame.image)
+    found = solver.detector(image)
     box = found.bbox[det]
     return streak_centroids_of(
         sensor,
-        frame.image,
+        image,
         np.column_stack([found.x[det], found.y[det]]),
         counts=found.integrated_counts[det],
         extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
@@ -114,7 +103,7 @@ def test_a_psf_elongated_at_rest_is_not_read_as_a_streak():
     rng = np.random.default_rng(5)
     for truth in random_attitudes(2, rng):
         rest = render_frame(sensor, truth, solver.catalog, rng=rng)
-        assert _streaks_of(sensor, solver, rest) is None
+        assert _streaks_of(sensor, solver, rest.image) is None
         rate = np.radians([0.8, -0.6, 0.0])  # 1 deg/s across the boresight
         moving = render_frame(sensor, truth, solver.catalog, rate_rad_s=rate, rng=rng)
-        assert _streaks_of(sensor, solver, moving) is not None
+        assert _streaks_of(sensor, solver, moving.image) is not None
