@@ -87,8 +87,8 @@ def gaia_binary(n: int = 3) -> bytes:
             ("ra", "<f8"),
             ("dec", "<f8"),
             ("g", "<f4"),
-            ("pmra", "<f4"),
-            ("pmdec", "<f4"),
+            ("bp", "<f4"),
+            ("rp", "<f4"),
         ],
     )
     rec["source_id"] = np.arange(1, n + 1)

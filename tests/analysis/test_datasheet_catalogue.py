@@ -149,6 +149,49 @@ def test_the_stars_the_solver_models_are_those_its_catalogue_holds():
     assert 0.5 < held[: len(hip)].mean() < 1.0
 
 
+def test_a_catalogue_without_motions_or_colours_takes_the_databases():
+    # a catalogue of positions at J2016.0 only (the bundled Gaia file) beside a database at
+    # J1991.25 with proper motions of 0.05-2"/yr: the same stars (the database moved to 2016
+    # and stripped of its motions), 1-50" apart at the database's epoch. Each takes its
+    # counterpart's motion, so the frames' sky holds every star once (none added) and, moved
+    # back, lies where the database puts it: propagation is reversible (Catalog.propagate),
+    # to well under a milliarcsecond. Without the motions every star was drawn twice
+    rng = np.random.default_rng(8)
+    n = 300
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    database = Catalog.from_columns(
+        name="db", source="test", epoch_yr=1991.25, ids=np.arange(n),
+        ra_deg=np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0,
+        dec_deg=np.degrees(np.arcsin(v[:, 2])),
+        mags={"V": rng.uniform(3, 8, n)}, colours={"B-V": rng.uniform(0, 1.5, n)},
+        pm_ra_mas_yr=rng.uniform(50, 2000, n) * rng.choice([-1, 1], n),
+        pm_dec_mas_yr=rng.uniform(50, 2000, n) * rng.choice([-1, 1], n),
+    )  # fmt: skip
+    import dataclasses
+
+    later = database.propagate(2016.0)
+    still = dataclasses.replace(later, name="still", pm_ra_rad_yr=None, pm_dec_rad_yr=None)
+    sky = completed_sky(still, database)
+    assert len(sky) == n
+    back = at_epoch(sky, database.epoch_yr)
+    assert np.max(np.linalg.norm(back.vectors - database.vectors, axis=1)) < 0.01 * MAS
+    # a star of G without BP - RP has a V from an assumed colour; the frames' sky draws it at
+    # the database's measured V and B - V (one star, one brightness, in the frames and in the
+    # solver's model of its neighbours); a star whose colour is measured keeps its own
+    g = np.asarray(database.mags["V"]) - 0.2
+    bp_rp = np.where(np.arange(n) % 2 == 0, np.nan, 1.0)
+    gaia_like = dataclasses.replace(still, mags={"G": g}, colours={"BP-RP": bp_rp})
+    from starsense.photometry.colour import with_johnson_from_gaia
+
+    johnson, _ = with_johnson_from_gaia(gaia_like)
+    sky = completed_sky(johnson, database)
+    guessed = np.isnan(bp_rp)
+    np.testing.assert_array_equal(sky.mags["V"][guessed], database.mags["V"][guessed])
+    np.testing.assert_array_equal(sky.colours["B-V"][guessed], database.colours["B-V"][guessed])
+    np.testing.assert_array_equal(sky.mags["V"][~guessed], johnson.mags["V"][~guessed])
+
+
 def _synthetic(rng, n: int, band: str, mags, name: str) -> object:
     """A catalogue of ``n`` stars spread over the sky, magnitudes ``mags`` in ``band``."""
     v = rng.normal(size=(n, 3))

