@@ -11,6 +11,9 @@ residual_scaled`).
 
 from __future__ import annotations
 
+import dataclasses
+import time
+
 import numpy as np
 
 from starsense.attitude.robust import (
@@ -20,11 +23,45 @@ from starsense.attitude.robust import (
     robust_attitude,
 )
 from starsense.solve.attitude_fit import kernel_fit
+from starsense.solve.counts import misfit_solution, ms, solved
 from starsense.solve.references import matched_references, sky_places
 from starsense.solve.refine import refined_attitude
 from starsense.solve.streak_model import streak_body_rate
+from starsense.solve.unknown_optics import refine_identification
 
-__all__ = ["frame_attitude"]
+__all__ = ["frame_attitude", "solution_of"]
+
+
+def solution_of(solver, points, ident, *, database, vectors, fov, k1, sigma_px, obs_time, image,
+                timing):  # fmt: skip
+    """Return the Solution of an identified frame (or list of centroids): its attitude.
+
+    An unknown camera (no sensor) first has its focal length and radial distortion fitted to
+    the matches (:func:`starsense.solve.unknown_optics.refine_identification`; ``k1``: the
+    identification's guess); then :func:`frame_attitude`. ``fov``: the field the matches
+    were made at, rad; ``timing``: (the call's start, its stages' times, ms).
+    """
+    t0, stages = timing
+    t3 = time.perf_counter()
+    radial = None
+    if solver.sensor is None:  # an unknown camera: fit its focal length and radial distortion
+        ident, radial, vectors, fov = refine_identification(
+            ident, database, np.column_stack([points.x, points.y]), flux=points.ranking,
+            shape=points.shape, fov_rad=fov, k1=k1, catalog=solver.catalog,
+        )  # fmt: skip
+    got = frame_attitude(
+        solver, points, ident, db=database, vectors=vectors, sigma_px=sigma_px,
+        pixel_rad=fov / points.shape[1], obs_time=obs_time, image=image,
+    )  # fmt: skip
+    if isinstance(got, float):  # the streaks' model does not fit: no attitude
+        return misfit_solution(len(points.x), ident, got, time_ms=ms(t0), stages=stages)
+    att, apparent, notes = got
+    stages["attitude_ms"] = ms(t3)
+    sol = solved(
+        points, ident, att, fov=fov, apparent=apparent, time_ms=ms(t0), stages=stages,
+        radial=radial, sensor=solver.sensor,
+    )  # fmt: skip
+    return dataclasses.replace(sol, notes=(*sol.notes, *notes)) if notes else sol
 
 
 def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, obs_time, image):

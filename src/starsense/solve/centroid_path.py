@@ -21,7 +21,7 @@ import numpy as np
 from starsense.attitude.robust import residual_scaled, robust_attitude
 from starsense.solve.attitude_fit import kernel_fit
 from starsense.solve.centroids import CentroidPoints, check_centroid_input
-from starsense.solve.counts import solved
+from starsense.solve.counts import ms, solved
 from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.radial import MIN_FIELD_RAD
 from starsense.solve.references import matched_references
@@ -115,10 +115,10 @@ def solve_known_field(solver, points, *, identifiers, sigma_px: float, fov_given
     stages: dict[str, float] = {}
     t1 = time.perf_counter()
     identifier = solver.identifier(fov)  # database build or cache load, timed on its own
-    stages["database_ms"] = _ms(t1)
+    stages["database_ms"] = ms(t1)
     t2 = time.perf_counter()
     ident = identifiers.keep_first(identifier, vectors, points.flux, fov_rad=fov)
-    stages["identify_ms"] = _ms(t2)
+    stages["identify_ms"] = ms(t2)
     if not ident.solved:
         return None
     t3, pixel_rad = time.perf_counter(), fov / points.shape[1]
@@ -131,20 +131,16 @@ def solve_known_field(solver, points, *, identifiers, sigma_px: float, fov_given
         vectors[matched], ref, sigma_px * pixel_rad, fit=kernel_fit, scatter=True
     )
     att = residual_scaled(att)  # as sure as its residuals allow (the general path's rule)
-    stages["attitude_ms"] = _ms(t3)
+    stages["attitude_ms"] = ms(t3)
     sol: Solution = solved(
         points,
         ident,
         att,
         fov=fov,
         apparent=apparent,
-        time_ms=_ms(t0),
+        time_ms=ms(t0),
         stages=stages,
         radial=None,
         sensor=sensor,
     )
     return sol
-
-
-def _ms(t0: float) -> float:
-    return (time.perf_counter() - t0) * 1e3

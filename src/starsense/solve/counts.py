@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import math
+import time
 
 import numpy as np
 
@@ -15,8 +16,14 @@ __all__ = [
     "identification_counts",
     "max_candidates",
     "misfit_solution",
+    "ms",
     "too_many_message",
 ]
+
+
+def ms(t0: float) -> float:
+    """Return the milliseconds since ``t0`` (a :func:`time.perf_counter` reading)."""
+    return (time.perf_counter() - t0) * 1e3
 
 
 def detection_counts(image, det) -> dict:

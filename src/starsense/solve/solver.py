@@ -27,15 +27,14 @@ from starsense.catalog.table import Catalog
 from starsense.detect import StarDetector
 from starsense.identify.fields import FieldRange, known_field_catalog
 from starsense.sensor import DetectionThresholds, Sensor, load_sensor
-from starsense.solve.attitude_step import frame_attitude
+from starsense.solve.attitude_step import solution_of
 from starsense.solve.centroid_path import solve_centroid_list
 from starsense.solve.centroids import CentroidPoints, check_frame_shape
 from starsense.solve.counts import (
     detection_counts,
     identification_counts,
     max_candidates,
-    misfit_solution,
-    solved,
+    ms,
 )
 from starsense.solve.extraction import Extraction, quick_detector, robust_detector
 from starsense.solve.frames import solve_frame_file
@@ -47,7 +46,6 @@ from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, 
 from starsense.solve.sharp import retry_with_spikes, spike_detector
 from starsense.solve.solution import Solution
 from starsense.solve.streaks import matched_measurements
-from starsense.solve.unknown_optics import refine_identification
 from starsense.units import DEG
 
 __all__ = [
@@ -270,7 +268,7 @@ class Solver:
             sol = self._solve_frame(a, quick, t0, stages, obs_time, first=not alone)
             if sol.solved or alone:
                 return sol
-            stages = {"quick_ms": _ms(t0)}
+            stages = {"quick_ms": ms(t0)}
         sol = self._solve_frame(a, self.detector, t0, stages, obs_time)
         return retry_with_spikes(  # held-aside spikes
             self, a, sol, t0=t0, stages=stages, obs_time=obs_time, solve=self._solve_frame,
@@ -281,11 +279,11 @@ class Solver:
         """Detect and solve frame ``a`` (a ``first`` attempt: at the known field only)."""
         t1 = time.perf_counter()
         det = detector(a)
-        stages["detect_ms"] = _ms(t1)
+        stages["detect_ms"] = ms(t1)
         counts = detection_counts(a, det)
         if len(det) == 0:
             why = "no star passed the detection logic"
-            return Solution("no_stars", why, time_ms=_ms(t0), stage_ms=stages, counts=counts)
+            return Solution("no_stars", why, time_ms=ms(t0), stage_ms=stages, counts=counts)
 
         def sigma_px(matched, x, vectors):  # streaks re-centroided: starsense.solve.streaks
             return matched_measurements(self, a, det, matched=matched, x=x, vectors=vectors)
@@ -368,13 +366,13 @@ class Solver:
         if n < 3:
             said = f"{n} centroid(s) given" if points.what == "centroids" else f"{n} star(s)"
             why = f"{said}{' detected' * (points.what != 'centroids')}; 3 are needed"
-            return Solution("too_few_stars", why, n_detections=n, time_ms=_ms(t0), stage_ms=stages)
+            return Solution("too_few_stars", why, n_detections=n, time_ms=ms(t0), stage_ms=stages)
         vectors, fov_known, fov_assumed = self._unproject(
             points.x, points.y, points.shape, fov_given
         )
         t1 = time.perf_counter()
         self.identifier(fov_known)  # database build or cache load, timed on its own
-        stages["database_ms"] = _ms(t1)
+        stages["database_ms"] = ms(t1)
         t2 = time.perf_counter()
         identifier, ident, fov_known, k1 = self._identifiers.identify(
             vectors,
@@ -384,7 +382,7 @@ class Solver:
             estimate=self.sensor is None and search,
             evidence=FrameEvidence.of(image, points, self.sky_stars),
         )
-        stages["identify_ms"] = _ms(t2)
+        stages["identify_ms"] = ms(t2)
         if not ident.solved:
             again = (t0, stages, sigma_px, fov_given, obs_time)
 
@@ -393,49 +391,13 @@ class Solver:
                 return self._solve_points(mirror, *again, parity=False)
 
             sol = unsolved(points, ident, mirrored=flipped if parity else None, stages=stages,
-                           time_ms=_ms(t0))  # fmt: skip
+                           time_ms=ms(t0))  # fmt: skip
             return dataclasses.replace(sol, counts={**identification_counts(ident), **sol.counts})
-        t3, n_cols = time.perf_counter(), points.shape[1]  # the attitude from all matches
         fov = ident.fov_rad if fov_known is None and ident.fov_rad else (fov_known or fov_assumed)
-        radial = None
-        if self.sensor is None:  # an unknown camera: fit its focal length and radial distortion
-            ident, radial, vectors, fov = refine_identification(
-                ident,
-                identifier.database,
-                np.column_stack([points.x, points.y]),
-                flux=points.ranking,
-                shape=points.shape,
-                fov_rad=fov,
-                k1=k1,
-                catalog=self.catalog,
-            )
-        got = frame_attitude(
-            self,
-            points,
-            ident,
-            db=identifier.database,
-            vectors=vectors,
-            sigma_px=sigma_px,
-            pixel_rad=fov / n_cols,
-            obs_time=obs_time,
-            image=image,
-        )
-        if isinstance(got, float):  # the streaks' model does not fit: no attitude
-            return misfit_solution(len(points.x), ident, got, time_ms=_ms(t0), stages=stages)
-        att, apparent, notes = got
-        stages["attitude_ms"] = _ms(t3)
-        sol = solved(
-            points,
-            ident,
-            att,
-            fov=fov,
-            apparent=apparent,
-            time_ms=_ms(t0),
-            stages=stages,
-            radial=radial,
-            sensor=self.sensor,
-        )
-        return dataclasses.replace(sol, notes=(*sol.notes, *notes)) if notes else sol
+        return solution_of(
+            self, points, ident, database=identifier.database, vectors=vectors, fov=fov, k1=k1,
+            sigma_px=sigma_px, obs_time=obs_time, image=image, timing=(t0, stages),
+        )  # fmt: skip
 
     def prepare(self) -> None:
         """Build (or load from the cache) the database of the Solver's field now, once.
@@ -456,7 +418,3 @@ class Solver:
     def solve_file(self, path: str | Path, obs_time=None, *, bayer: str | None = None) -> Solution:
         """Load a frame and solve it (:func:`starsense.solve.frames.solve_frame_file`)."""
         return solve_frame_file(self, path, obs_time, bayer=bayer)
-
-
-def _ms(t0: float) -> float:
-    return (time.perf_counter() - t0) * 1e3
