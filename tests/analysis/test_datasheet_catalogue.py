@@ -54,6 +54,16 @@ def test_stated_errors_give_the_median_distance_to_gaia():
     assert np.median(far) > 2.0 * np.median(stated)  # 100 years against 24.75
 
 
+def test_a_gaia_file_without_motions_states_no_error_away_from_its_epoch():
+    # the bundled Gaia file holds positions at J2016.0 and no proper motions: there its
+    # stated errors (0.02 mas, Lindegren et al. 2021); 4 years on each star is off by its own
+    # motion (Gaia's median for G < 10 is ~10 mas/yr), which no stated error describes
+    gaia = _gaia()
+    assert gaia.pm_ra_rad_yr is None
+    assert np.all(position_sigma_rad(gaia, gaia.epoch_yr) < 0.05 * MAS)
+    assert np.isnan(position_sigma_rad(gaia, gaia.epoch_yr + 4.0)).all()
+
+
 def test_no_term_when_the_frames_are_the_database():
     hip = load_catalog("hipparcos")
     assert rendered_against_database_rad(hip, hip, max_mag=7.0) is None

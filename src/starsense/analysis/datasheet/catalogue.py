@@ -57,7 +57,8 @@ def position_sigma_rad(catalog, epoch_yr: float) -> np.ndarray | None:
     ``sqrt((e_ra^2 + e_dec^2 + dt^2 (e_pm_ra^2 + e_pm_dec^2)) / 2)`` with ``dt`` the years
     from the catalogue's epoch. A star whose errors are not stated takes the catalogue's median
     (not stating an error does not make a position exact). Gaia DR3 (``gaia_dr3``, whose
-    bundled file states none) takes :data:`GAIA_DR3_SIGMA_RAD` for every star.
+    bundled file states none) takes :data:`GAIA_DR3_SIGMA_RAD` for every star; without proper
+    motions (the bundled file), NaN away from its epoch (each star is off by its own motion).
 
     Parameters
     ----------
@@ -84,6 +85,8 @@ def position_sigma_rad(catalog, epoch_yr: float) -> np.ndarray | None:
         return np.sqrt(0.5 * (e_ra**2 + e_dec**2 + dt * dt * (e_pmra**2 + e_pmdec**2)))
     if catalog.name == "gaia_dr3":
         pos, pm = GAIA_DR3_SIGMA_RAD
+        if catalog.pm_ra_rad_yr is None and dt != 0.0:  # positions without motions (the
+            return np.full(n, np.nan)  # bundled file): off by each star's own motion
         return np.full(n, float(np.hypot(pos, dt * pm)))
     return None
 
