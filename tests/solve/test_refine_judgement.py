@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.model.fit import ModelFit
+from starsense.model.fit import PULL_SIGMAS, ModelFit, misfit_pulls
 from starsense.sensor import load_sensor
 from starsense.solve.fit_judgement import LOCAL_MISFIT_SIGMAS, judged, local_misfit
 
@@ -80,3 +81,37 @@ def test_a_fit_far_from_the_centroids_is_kept_on_a_smeared_frame_only():
         assert verdict.used is kept, verdict.note
         assert kept or "sigma from the centroids'" in verdict.note
     assert math.isfinite(sensor.focal_length_px)
+
+
+def test_a_misfit_that_moves_the_stars_is_told_from_one_that_scatters_about_them():
+    # pixels scattering 5 times their variance as noise would (reduced chi-square 5): each
+    # window's score scatters sqrt(5) times the model's, the sandwich reads 5 times the Fisher
+    # bound and the fit stands, with the sandwich's sigmas; past PULL_SIGMAS of its noise as
+    # seldom as the local misfit's right model (< 4 % of 500 draws, as there). Scores that
+    # scatter 6 times the model's at that chi-square (each star's position off by 6 of its
+    # sigmas: a PSF or optics the sensor does not describe) read 36 times the bound: pulled,
+    # in every draw, and the centroids' attitude is kept
+    rng = np.random.default_rng(7)
+    sensor = load_sensor("st16")
+
+    def fit_at(scale):
+        cov, rob, noise = _sandwich(rng, 40)
+        return dataclasses.replace(_fit(cov, rob * scale**2, noise), chi2=5.0 * 1000.0)
+
+    assert _fit(np.eye(3), np.eye(3), np.ones(3)).reduced_chi2 == 1.0  # chi2 over dof
+    calm = [fit_at(math.sqrt(5.0)) for _ in range(500)]
+    assert sum(misfit_pulls(f) for f in calm) / 500 < 0.04
+    pulled = [fit_at(6.0) for _ in range(100)]
+    assert all(misfit_pulls(f) for f in pulled)
+    assert PULL_SIGMAS == 3.0  # the threshold these bounds are for
+    cog_sigma = np.full(3, 1.0)  # no move rule here: both fits sit on the centroids' attitude
+    kept = next(f for f in calm if not misfit_pulls(f))
+    verdict = judged(kept, sensor, Rotation.identity(), cog_sigma_rad=cog_sigma, counts=(40, 0))
+    assert verdict.used and "own scatter" in verdict.note, verdict.note
+    np.testing.assert_allclose(
+        verdict.fit.sigma_axes_rad, np.sqrt(np.diag(kept.robust_covariance)), rtol=1e-12
+    )
+    verdict = judged(
+        pulled[0], sensor, Rotation.identity(), cog_sigma_rad=cog_sigma, counts=(40, 0)
+    )
+    assert not verdict.used and "moves the stars" in verdict.note

@@ -41,7 +41,14 @@ try:  # the normal equations' sums, compiled (setup.py)
 except ImportError:  # pragma: no cover - built without a C compiler: the NumPy form
     _modelc = None
 
-__all__ = ["WINDOW_HALF_SIGMAS", "ModelFit", "fit_windows", "window_half_px"]
+__all__ = [
+    "PULL_SIGMAS",
+    "WINDOW_HALF_SIGMAS",
+    "ModelFit",
+    "fit_windows",
+    "misfit_pulls",
+    "window_half_px",
+]
 
 #: a star's box reaches this many PSF sigmas (+1 px) beyond its track
 WINDOW_HALF_SIGMAS = 3.5
@@ -56,6 +63,10 @@ INFO_RTOL = 0.02
 #: the width's central difference, a fraction of the width
 WIDTH_STEP = 2e-3
 MAX_ITERATIONS = 10
+#: the attitude's sandwich variance beyond the pixels' own excess scatter (the reduced
+#: chi-square times the Fisher bound's) by this many of the sandwich's relative noise: the
+#: model's misfit is not noise about the stars but pulls them (:func:`misfit_pulls`)
+PULL_SIGMAS = 3.0
 
 
 def window_half_px(psf: PixelPSF) -> float:
@@ -294,6 +305,43 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
     return lin, jac, mu
 
 
+def _sandwich(s, scores, s_groups):
+    """Return the Fisher covariance, the sandwich's, and the sandwich's relative noise per axis.
+
+    The sandwich's variance per axis sums each group's share, ``v_g = (cov S_g cov)_kk``, of a
+    score drawn from the model: its relative noise is ``sqrt(2 sum v_g^2) / sum v_g``.
+    """
+    cov = np.linalg.inv(s)
+    v = np.einsum("kp,gpq,qk->gk", cov, s_groups, cov)
+    noise = np.sqrt(2.0 * (v * v).sum(axis=0)) / np.abs(v.sum(axis=0))
+    return cov, cov @ (scores.T @ scores) @ cov, noise
+
+
+def _pulls(cov, robust, noise, reduced_chi2: float) -> bool:
+    """:func:`misfit_pulls` of a covariance, its sandwich and the sandwich's relative noise."""
+    if robust is None or noise is None or not np.all(np.isfinite(robust)):
+        return True
+    ratio = np.diag(robust)[:3] / np.diag(cov)[:3]
+    return bool(np.any(ratio > reduced_chi2 * (1.0 + PULL_SIGMAS * np.asarray(noise)[:3])))
+
+
+def misfit_pulls(fit: ModelFit) -> bool:
+    """Whether a fit's misfit pulls the attitude rather than scattering about the stars.
+
+    Pixels that scatter about the model by a reduced chi-square ``c`` as noise would (a
+    camera's noise above the sensor's) raise the attitude's variance, estimated from the
+    groups' scores (the sandwich), ``c`` times the Fisher bound's; a profile error symmetric
+    about each star (an Airy or a Moffat drawn as a Gaussian of its width) raises it less,
+    since it does not move the stars. A misfit the stars' positions follow (a PSF asymmetric
+    across the field: coma, a tilted detector) raises it far more: real frames of a camera
+    whose PSF the sensor does not describe read 6-66 times the Fisher sigma at a reduced
+    chi-square of 14-42, where bright GalSim Airy stars read 1-3.7 at 4-10. Above ``c`` by
+    :data:`PULL_SIGMAS` of the sandwich's own relative noise on an attitude axis, the model
+    does not place the stars.
+    """
+    return _pulls(fit.covariance, fit.robust_covariance, fit.robust_noise, fit.reduced_chi2)
+
+
 def fit_windows(
     image,
     sensor,
@@ -335,7 +383,8 @@ def fit_windows(
         starts with a Gauss-Newton step; without them it first solves for the fluxes alone.
     abort_chi2 : float
         Stop (not converged) when, a step past the start, the pixels' reduced chi-square
-        exceeds this: the model does not describe them, the rest of the fit is wasted.
+        exceeds this and their misfit pulls the attitude (:func:`misfit_pulls`): the model
+        does not place the stars, the rest of the fit is wasted.
 
     Returns
     -------
@@ -386,8 +435,8 @@ def fit_windows(
         if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma) and settled:
             converged = True
             break
-        if it >= 2 and scatter > abort_chi2:  # one step from the start: the model does not fit
-            break
+        if it >= 2 and scatter > abort_chi2 and _pulls(*_sandwich(s, scores, s_groups), scatter):
+            break  # one step from the start: the model does not place the stars
     if converged:  # the information, scores and chi-square of where the last step reached
         # (not of where it started: the model is linear in the fluxes and backgrounds and the
         # geometric step is small, so the pixels move by the linear change; their variance
@@ -399,17 +448,13 @@ def fit_windows(
     out = np.full(len(v_free), np.nan)
     fr = pb.free
     out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
-    cov = np.linalg.inv(s)
-    # the sandwich's variance per axis sums each group's share, v_g = (cov S_g cov)_kk, of a
-    # score drawn from the model: its relative noise is sqrt(2 sum v_g^2) / sum v_g
-    v = np.einsum("kp,gpq,qk->gk", cov, s_groups, cov)
-    robust_noise = np.sqrt(2.0 * (v * v).sum(axis=0)) / np.abs(v.sum(axis=0))
+    cov, robust, robust_noise = _sandwich(s, scores, s_groups)
     n_par = jac.shape[1] + int((lin.any(axis=2)).sum())
     return ModelFit(
         rotation=rotation,
         rate_rad_s=rate,
         covariance=cov,
-        robust_covariance=cov @ (scores.T @ scores) @ cov,
+        robust_covariance=robust,
         fluxes_e=out,
         chi2=float(chi2.sum()),
         dof=n_pix - n_par,

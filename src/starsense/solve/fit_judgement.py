@@ -5,9 +5,14 @@ the model), which the datasheet predicts. Where the pixels scatter more than the
 (a reduced chi-square above :data:`SCALED_CHI2`: a lens's PSF a little off the TOML's, a camera
 whose gain or read noise differ from the sensor's), each axis's variance is raised to what the
 pixels' own scatter gives (the sandwich of the groups' scores: a profile error symmetric about
-the stars, which does not move them, does not raise it) and the note says so; above
-:data:`MAX_REDUCED_CHI2` the model does not describe the
-frame and the model-free centroids' attitude is kept (the fit stops a step past its start).
+the stars, which does not move them, does not raise it) and the note says so. Above
+:data:`MAX_REDUCED_CHI2`, a fit whose misfit also pulls the attitude
+(:func:`starsense.model.fit.misfit_pulls`: the stars' scores scatter beyond what the pixels'
+excess explains, as where the sensor's PSF or optics do not describe a real camera's) does
+not place the stars, and the model-free centroids' attitude is kept (the fit stops a step
+past its start); a fit whose misfit is a profile error about the stars (a lens's Airy or
+Moffat PSF drawn as a Gaussian of its width, which bright stars show as a reduced chi-square
+of 4-10) stands, with the sandwich's sigmas.
 Where the frame's chi-square shows nothing but some windows pull the attitude more than the
 model's noise allows (a streak's end or an overlap drawn wrong: the groups' scores scatter
 beyond the Fisher bound by :data:`LOCAL_MISFIT_SIGMAS` of their own noise), the sandwich gives
@@ -30,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from starsense.geometry.attitude import small_rotation_angles
-from starsense.model.fit import ModelFit
+from starsense.model.fit import ModelFit, misfit_pulls
 
 __all__ = [
     "LOCAL_MISFIT_SIGMAS",
@@ -47,9 +52,10 @@ __all__ = [
 #: a fit whose pixels' reduced chi-square exceeds this has its covariance scaled by it (the
 #: chi-square of a right model over N ~ 10^3 pixels lies within 1 +- 0.1)
 SCALED_CHI2 = 1.3
-#: a fit whose pixels' reduced chi-square exceeds this does not describe the frame (a lens's
-#: PSF the TOML does not give, a camera's noise it does not know): the model-free centroids'
-#: attitude is kept. Between the two, the covariance is scaled.
+#: a fit whose pixels' reduced chi-square exceeds this, and whose misfit pulls the attitude
+#: (:func:`starsense.model.fit.misfit_pulls`), does not describe the frame (a camera's PSF
+#: and optics the sensor does not give): the model-free centroids' attitude is kept. Above
+#: :data:`SCALED_CHI2` otherwise, the covariance is the sandwich's.
 MAX_REDUCED_CHI2 = 4.0
 #: a model fit further than this many centroid sigmas from the centroid attitude is refused...
 MAX_MOVE_SIGMAS = 8.0
@@ -119,8 +125,12 @@ def judged(fit: ModelFit, sensor, rotation, *, cog_sigma_rad, counts, also="") -
     an accepted fit (why no larger fit was made).
     """
     n_stars, n_nbr = counts
-    if fit.reduced_chi2 > MAX_REDUCED_CHI2 or not math.isfinite(fit.reduced_chi2):
-        why = f"reduced chi-square {fit.reduced_chi2:.3g} > {MAX_REDUCED_CHI2:g}"
+    bad = fit.reduced_chi2 > MAX_REDUCED_CHI2 and misfit_pulls(fit)
+    if not math.isfinite(fit.reduced_chi2) or bad:
+        why = (
+            f"reduced chi-square {fit.reduced_chi2:.3g} > {MAX_REDUCED_CHI2:g}, and the misfit "
+            "moves the stars"
+        )
         return Refinement(
             fit, False, f"model fit not used: the pixels disagree with the model ({why})", n_nbr
         )
