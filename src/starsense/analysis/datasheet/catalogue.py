@@ -210,16 +210,19 @@ def merged_pull_rad(rendered, database, sensor, *, max_mag: float, band: str = "
     pixel_rad = 1.0 / sensor.focal_length_px
     sigma_rad = float(np.hypot(sensor.detector.psf_sigma_px, math.sqrt(1.0 / 12.0))) * pixel_rad
     kept_v, kept_m = sky[keep], mags[keep]
-    near = cKDTree(sky).query_ball_point(kept_v, r=2.0 * np.sin(0.5 * MERGED_PX * pixel_rad))
-    for k, js in enumerate(near):
-        if len(js) < 2 or not held[k]:  # alone, or a star the solver does not hold
-            continue
-        d = sky[js] - kept_v[k]
-        others = np.einsum("ij,ij->i", d, d) > 0.0  # not the star itself
-        d, f = d[others], 10.0 ** (-0.4 * (mags[js][others] - kept_m[k]))
-        fw = f * np.exp(-np.einsum("ij,ij->i", d, d) / (4.0 * sigma_rad * sigma_rad))
-        fw = np.where(np.isfinite(fw), fw, 0.0)
-        out[k] = (fw[:, None] * d).sum(axis=0) / (1.0 + fw.sum())
+    reach = 2.0 * np.sin(0.5 * MERGED_PX * pixel_rad)
+    pairs = cKDTree(kept_v).sparse_distance_matrix(cKDTree(sky), reach, output_type="ndarray")
+    i, j = pairs["i"], pairs["j"]
+    mine = (pairs["v"] > 0.0) & held[i]  # not the star itself; a star the solver holds
+    i, j = i[mine], j[mine]
+    d = sky[j] - kept_v[i]
+    fw = 10.0 ** (-0.4 * (mags[j] - kept_m[i]))
+    fw = fw * np.exp(-np.einsum("ij,ij->i", d, d) / (4.0 * sigma_rad * sigma_rad))
+    fw = np.where(np.isfinite(fw), fw, 0.0)
+    np.add.at(out, i, fw[:, None] * d)
+    total = np.zeros(len(out))
+    np.add.at(total, i, fw)
+    out /= (1.0 + total)[:, None]
     return out
 
 
