@@ -33,6 +33,7 @@ __all__ = [
     "completed_sky",
     "held_by",
     "root_seed",
+    "same_star_index",
 ]
 
 #: most frames one Monte Carlo renders and solves (montecarlo, the datasheet's checks, the
@@ -132,11 +133,20 @@ def held_by(catalog: Catalog, database: Catalog) -> np.ndarray:
     return _has_same_star(at_epoch(catalog, database.epoch_yr).vectors, database.vectors)
 
 
+def same_star_index(vectors: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Return, for each of ``vectors``, the index of the same star among ``others`` (or -1).
+
+    The nearest of ``others`` within :data:`SAME_STAR_RAD` (unit vectors at one epoch): that
+    star in another catalogue.
+    """
+    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
+    dist, idx = cKDTree(others).query(vectors, distance_upper_bound=chord)
+    return np.where(np.isfinite(dist), idx, -1)
+
+
 def _has_same_star(vectors: np.ndarray, others: np.ndarray) -> np.ndarray:
     """Return whether each of ``vectors`` has one of ``others`` within :data:`SAME_STAR_RAD`."""
-    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
-    dist, _ = cKDTree(others).query(vectors, distance_upper_bound=chord)
-    return np.isfinite(dist)
+    return same_star_index(vectors, others) >= 0
 
 
 def _with_database_motion(catalog: Catalog, database: Catalog) -> Catalog:
@@ -156,11 +166,10 @@ def _with_database_motion(catalog: Catalog, database: Catalog) -> Catalog:
     if database.pm_ra_rad_yr is None or n == 0:
         return catalog
     db = database.propagate(catalog.epoch_yr)
-    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
-    dist, idx = cKDTree(db.vectors).query(catalog.vectors, distance_upper_bound=chord)
+    idx = same_star_index(catalog.vectors, db.vectors)
     pm_a = np.full(n, np.nan) if pm_a is None else np.array(pm_a, float)
     pm_d = np.full(n, np.nan) if pm_d is None else np.array(pm_d, float)
-    take = np.isfinite(dist) & ~(np.isfinite(pm_a) & np.isfinite(pm_d))
+    take = (idx >= 0) & ~(np.isfinite(pm_a) & np.isfinite(pm_d))
     pm_a[take] = db.pm_ra_rad_yr[idx[take]]
     pm_d[take] = db.pm_dec_rad_yr[idx[take]]
     return replace(catalog, pm_ra_rad_yr=pm_a, pm_dec_rad_yr=pm_d)
@@ -181,9 +190,8 @@ def _measured_photometry(catalog: Catalog, database: Catalog, sky: np.ndarray) -
     guessed = ~np.isfinite(catalog.colours.get("BP-RP", np.full(len(catalog.ids), np.nan)))
     if not guessed.any():
         return catalog
-    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
-    dist, idx = cKDTree(database.vectors).query(sky[guessed], distance_upper_bound=chord)
-    rows, src = np.flatnonzero(guessed)[np.isfinite(dist)], idx[np.isfinite(dist)]
+    idx = same_star_index(sky[guessed], database.vectors)
+    rows, src = np.flatnonzero(guessed)[idx >= 0], idx[idx >= 0]
     v_db = np.asarray(database.mags["V"], float)[src]
     bv_db = np.asarray(database.colours["B-V"], float)[src]
     ok = np.isfinite(v_db) & np.isfinite(bv_db)

@@ -47,6 +47,7 @@ __all__ = [
     "ModelFit",
     "fit_windows",
     "misfit_pulls",
+    "sandwich_exceeds",
     "window_half_px",
 ]
 
@@ -317,12 +318,22 @@ def _sandwich(s, scores, s_groups):
     return cov, cov @ (scores.T @ scores) @ cov, noise
 
 
+def sandwich_exceeds(cov, robust, noise, *, scale: float, sigmas: float) -> bool | None:
+    """Whether an attitude axis's sandwich variance is beyond ``scale`` times the Fisher's.
+
+    Beyond by more than ``sigmas`` of the sandwich's relative noise ``noise``; None without a
+    sandwich.
+    """
+    if robust is None or noise is None or not np.all(np.isfinite(robust)):
+        return None
+    ratio = np.diag(robust)[:3] / np.diag(cov)[:3]
+    return bool(np.any(ratio > scale * (1.0 + sigmas * np.asarray(noise)[:3])))
+
+
 def _pulls(cov, robust, noise, reduced_chi2: float) -> bool:
     """:func:`misfit_pulls` of a covariance, its sandwich and the sandwich's relative noise."""
-    if robust is None or noise is None or not np.all(np.isfinite(robust)):
-        return True
-    ratio = np.diag(robust)[:3] / np.diag(cov)[:3]
-    return bool(np.any(ratio > reduced_chi2 * (1.0 + PULL_SIGMAS * np.asarray(noise)[:3])))
+    beyond = sandwich_exceeds(cov, robust, noise, scale=reduced_chi2, sigmas=PULL_SIGMAS)
+    return True if beyond is None else beyond
 
 
 def misfit_pulls(fit: ModelFit) -> bool:

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from starsense.geometry.attitude import small_rotation_angles
-from starsense.model.fit import ModelFit, misfit_pulls
+from starsense.model.fit import ModelFit, misfit_pulls, sandwich_exceeds
 
 __all__ = [
     "LOCAL_MISFIT_SIGMAS",
@@ -102,11 +102,14 @@ def local_misfit(fit: ModelFit) -> bool:
     every pixel, shows nothing. Above the bound by :data:`LOCAL_MISFIT_SIGMAS` of the
     estimate's own noise (:attr:`~starsense.model.fit.ModelFit.robust_noise`) is a misfit.
     """
-    rob, cov, noise = fit.robust_covariance, fit.covariance, fit.robust_noise
-    if rob is None or noise is None or not np.all(np.isfinite(rob)):
-        return False
-    ratio = np.diag(rob)[:3] / np.diag(cov)[:3]
-    return bool(np.any(ratio > 1.0 + LOCAL_MISFIT_SIGMAS * np.asarray(noise)[:3]))
+    beyond = sandwich_exceeds(
+        fit.covariance,
+        fit.robust_covariance,
+        fit.robust_noise,
+        scale=1.0,
+        sigmas=LOCAL_MISFIT_SIGMAS,
+    )
+    return bool(beyond)
 
 
 def robust_covariance(fit: ModelFit) -> np.ndarray:

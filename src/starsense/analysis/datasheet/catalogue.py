@@ -26,7 +26,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch, held_by
+from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch, held_by, same_star_index
 from starsense.identify.fields import plan_band
 from starsense.solve.refine import MERGED_PX
 from starsense.solve.solver import Solver
@@ -130,9 +130,8 @@ def rendered_against_database_rad(rendered, database, *, max_mag: float, band: s
         return None
     keep = np.asarray(rendered.mags[band], dtype=float) <= max_mag
     sky = at_epoch(rendered.subset(keep), database.epoch_yr)
-    chord = 2.0 * np.sin(0.5 * MATCH_RAD)
-    dist, idx = cKDTree(database.vectors).query(sky.vectors, distance_upper_bound=chord)
-    found = np.isfinite(dist)
+    idx = same_star_index(sky.vectors, database.vectors)  # within MATCH_RAD
+    found = idx >= 0
     out = np.zeros((len(sky.ids), 3))
     out[found] = database.vectors[idx[found]] - sky.vectors[found]
     return out
@@ -258,9 +257,8 @@ def flux_ratio_error(rendered, database, sensitivity, *, colour: str = "B-V") ->
     if "V" not in rendered.mags or len(rendered.ids) == 0 or len(database.ids) == 0:
         return 0.0
     sky = at_epoch(rendered, database.epoch_yr)
-    chord = 2.0 * np.sin(0.5 * SAME_STAR_RAD)
-    dist, idx = cKDTree(database.vectors).query(sky.vectors, distance_upper_bound=chord)
-    found = np.flatnonzero(np.isfinite(dist))
+    idx = same_star_index(sky.vectors, database.vectors)
+    found = np.flatnonzero(idx >= 0)
     v = np.asarray(rendered.mags["V"], dtype=float)[found]
     ci = None
     if sensitivity.model == "blackbody" and colour in rendered.colours:
