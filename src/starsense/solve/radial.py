@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.geometry.distortion import distort, undistort
+from starsense.geometry.distortion import undistort
 from starsense.geometry.projection import tangent_to_vectors
 from starsense.identify.verify import false_match_probability
 from starsense.solve.pairing import (
@@ -50,6 +50,7 @@ from starsense.solve.pairing import (
     residual_field,
     residual_sigma,
 )
+from starsense.solve.radial_lsq import RadialModel
 
 __all__ = ["MIN_FIELD_RAD", "RadialFit", "fit_radial", "radial_vectors"]
 
@@ -155,38 +156,6 @@ def radial_vectors(x, y, *, shape, focal_px: float, k1: float, k2: float = 0.0) 
     return tangent_to_vectors(np.column_stack([u, w]))
 
 
-class _Model:
-    """Residuals of detections against projected catalogue stars for one set of pairs."""
-
-    def __init__(self, xy, centre, rotation, n_terms, fixed=(0.0, 0.0)):
-        self.xy, self.centre, self.r0, self.n_terms = xy, centre, rotation, n_terms
-        self.fixed = fixed  # the radial terms held, where not fitted
-
-    def project(self, theta, v):
-        rot = Rotation.from_rotvec(theta[:3]) * self.r0
-        c = rot.apply(v)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x, y = c[:, 0] / c[:, 2], c[:, 1] / c[:, 2]
-        k = (*theta[4 : 4 + self.n_terms], *self.fixed[self.n_terms :])
-        xd, yd = distort(x, y, (k[0], k[1], 0.0, 0.0))
-        out = np.column_stack([xd, yd]) * theta[3] + self.centre
-        out[c[:, 2] <= 0] = np.nan
-        return out
-
-    def fit(self, theta0, det, v, scale_px=None):
-        """Least squares; robust (soft L1 beyond ``scale_px``) while pairs may be wrong."""
-        from scipy.optimize import least_squares
-
-        def residuals(theta):
-            return (self.xy[det] - self.project(theta, v)).ravel()
-
-        if scale_px is None:
-            return least_squares(residuals, theta0, x_scale="jac", method="lm")
-        return least_squares(
-            residuals, theta0, x_scale="jac", loss="soft_l1", f_scale=scale_px, method="trf"
-        )
-
-
 def _terms(n_matched: int, corner_tan: float, max_terms: int) -> int:
     """How many radial terms ``n_matched`` stars of a field reaching ``corner_tan`` support."""
     n = min(max_terms, max(0, (n_matched - 4) // STARS_PER_TERM))
@@ -267,7 +236,7 @@ def fit_radial(
         return None
     res, sigmas = fit.prune(det, star)
     theta, n_terms = fit.theta, fit.n_terms
-    pin = _Model(xy, fit.centre, rotation, 0).fit(theta[:4], det, fit.sky[star])
+    pin = RadialModel(xy, fit.centre, rotation, 0).fit(theta[:4], det, fit.sky[star])
     k1, k2 = (*theta[4 : 4 + n_terms], 0.0, 0.0)[:2]
     return RadialFit(
         rotation=Rotation.from_rotvec(theta[:3]) * rotation,
@@ -312,7 +281,7 @@ class _Fit:
         return None if np.any(star < 0) else star
 
     def model(self):
-        return _Model(self.xy, self.centre, self.rotation, self.n_terms, (self.theta[4], 0.0))
+        return RadialModel(self.xy, self.centre, self.rotation, self.n_terms, (self.theta[4], 0.0))
 
     def refit(self, det, star, scale_px=None):
         model = self.model()
