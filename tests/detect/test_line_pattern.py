@@ -86,3 +86,25 @@ def test_banding_removed_keeps_faint_stars():
     found = np.hypot(det.x[:, None] - at[:, 0], det.y[:, None] - at[:, 1]).min(axis=0) < 1.0
     assert found.sum() >= 5
     assert len(det) <= len(at) + 2
+
+
+@pytest.mark.parametrize("mapped", [False, True])
+@pytest.mark.parametrize("axis", [1, 0])
+def test_compiled_line_offsets_are_the_numpy_form(monkeypatch, mapped, axis):
+    import starsense.detect.pattern as pattern
+
+    if pattern._linesc is None:
+        pytest.skip("the compiled kernel was not built (no C compiler)")
+    rng = np.random.default_rng(7 + axis + 2 * mapped)
+    sub = (rng.standard_normal((97, 131)) * 3.0).astype(np.float32)
+    sub[10:14, 20:24] += 400.0  # a star, above the cut
+    sub[40, :] += 30.0  # a whole row above the cut: no pixel of it kept, offset 0
+    noise = rng.uniform(0.5, 2.0, sub.shape).astype(np.float32) if mapped else 1.7
+    compiled = pattern.line_offsets(sub, noise, axis)
+    monkeypatch.setattr(pattern, "_linesc", None)
+    reference = pattern.line_offsets(sub, noise, axis)
+    # the same pixels kept (float32 comparisons alike); the sums in another order: float64
+    # rounding, ~1e-16 of a sum of ~100 values of a few counts
+    np.testing.assert_allclose(compiled, reference, rtol=1e-12, atol=1e-12)
+    if axis == 1 and not mapped:
+        assert compiled[40] == 0.0

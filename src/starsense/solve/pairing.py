@@ -148,15 +148,21 @@ def ambiguous_pairs(catalog, project, at, *, field, ids, where) -> np.ndarray:
         return np.zeros(len(ids), dtype=bool)
     band = "V" if "V" in catalog.bands else catalog.bands[0]
     mags = np.asarray(catalog.mags[band], dtype=float)[idx]
-    pred = project(catalog.vectors[idx])
+    limit = np.nan_to_num(mags[mine]) + 1.0  # a star fainter than this cannot confuse a pair
+    bright = np.flatnonzero(mags <= limit.max())
+    pred = project(catalog.vectors[idx[bright]])
     if field is not None:
         pred = pred + field(pred)
-    finite = np.flatnonzero(np.isfinite(pred).all(axis=1))
-    tree = cKDTree(pred[finite])
+    finite = bright[np.isfinite(pred).all(axis=1)]
+    pred = pred[np.isfinite(pred).all(axis=1)]
     out = np.zeros(len(ids), dtype=bool)
-    for i, (p, k) in enumerate(zip(at, mine.tolist(), strict=True)):
-        others = [j for j in finite[tree.query_ball_point(p, 2.0 * radius)] if j != k]
-        out[i] = bool(others) and bool(np.any(mags[others] <= np.nan_to_num(mags[k]) + 1.0))
+    if len(finite) == 0:
+        return out
+    near = cKDTree(pred).query_ball_point(np.asarray(at, dtype=float), 2.0 * radius)
+    for i, js in enumerate(near):
+        others = finite[js]
+        others = others[others != mine[i]]
+        out[i] = bool(np.any(mags[others] <= limit[i]))
     return out
 
 
