@@ -1,8 +1,8 @@
-"""The Solver's extraction: the quick one first on a known field, the robust one after it.
+"""The Solver's extraction: the quick one first, the robust one after it.
 
-On the ESA frames (a known camera, 22-118 stars each) the quick extraction solves every frame
-on its own, as accurately as the robust one; frames it cannot solve (noise clipped at zero,
-8-bit) go on to the robust extraction, which the zero-clipped 8-bit test exercises.
+On the ESA frames (22-118 stars each) the quick extraction solves every frame on its own, the
+camera known or not, as accurately as the robust one; frames it cannot solve (noise clipped at
+zero, 8-bit) go on to the robust extraction, which the zero-clipped 8-bit test exercises.
 """
 
 from __future__ import annotations
@@ -27,9 +27,11 @@ def esa(shared_dir):
     return folder, json.loads((folder / "reference.json").read_text())["frames"]
 
 
-def test_quick_extraction_solves_the_esa_frames_like_the_robust_one(esa):
+@pytest.mark.parametrize("known", [True, False], ids=["sensor", "nothing-known"])
+def test_quick_extraction_solves_the_esa_frames_like_the_robust_one(esa, known):
     folder, reference = esa
-    auto, robust = Solver(sensor="esa_blackfly"), Solver(sensor="esa_blackfly", extraction="robust")
+    options = {"sensor": "esa_blackfly"} if known else {}
+    auto, robust = Solver(**options), Solver(**options, extraction="robust")
     for name in reference:
         a, b = auto.solve_file(folder / name), robust.solve_file(folder / name)
         assert a.solved and b.solved, name
@@ -45,8 +47,7 @@ def test_which_solvers_try_the_quick_extraction_first():
     sensor = load_sensor("esa_blackfly")
     assert Solver(sensor=sensor).quick_detector is not None
     assert Solver(fov_rad=math.radians(10)).quick_detector is not None
-    # an unknown field: a failed quick attempt would cost the whole scale search
-    assert Solver().quick_detector is None
+    assert Solver().quick_detector is not None  # an unknown field: a pinhole scale search
     assert Solver(extraction="quick").quick_detector is not None
     assert Solver(sensor=sensor, extraction="robust").quick_detector is None
     # simulated frames with a known bias use the sensor's own detection logic
@@ -64,6 +65,31 @@ def test_a_frame_the_quick_extraction_cannot_solve_goes_to_the_robust_one():
     assert "quick_ms" in sol.stage_ms and sol.stage_ms["quick_ms"] <= sol.time_ms
     only_quick = Solver(sensor=sensor, extraction="quick")(image.astype(np.uint8))
     assert only_quick.status == "no_stars" and "quick_ms" not in only_quick.stage_ms
+
+
+def test_an_unknown_fields_robust_attempt_has_a_budget_of_its_own(shared_dir, monkeypatch):
+    # a comet frame that does not solve: its quick attempt searches the scale (patterns spent)
+    # and fails; the robust attempt's identifications then start from a fresh work budget,
+    # not from what the quick one left
+    from starsense.solve.identifiers import FieldIdentifiers
+
+    frame = shared_dir / "data" / "images" / "cedar-bmp" / "big_comet_with_stars.jpg"
+    if not frame.is_file():
+        pytest.skip(f"{frame} not found")
+    spent_at_entry = []
+    identify = FieldIdentifiers.identify
+
+    def spy(self, *args, **kwargs):
+        spent_at_entry.append(self._spent)
+        out = identify(self, *args, **kwargs)
+        spent_at_entry.append(("after", self._spent))
+        return out
+
+    monkeypatch.setattr(FieldIdentifiers, "identify", spy)
+    sol = Solver().solve_file(frame)
+    assert not sol.solved and "quick_ms" in sol.stage_ms
+    assert spent_at_entry[0] == 0 and spent_at_entry[1][1] > 0  # the quick attempt spent some
+    assert spent_at_entry[2] == 0  # the robust attempt's first identification: a fresh budget
 
 
 @pytest.mark.parametrize(

@@ -84,8 +84,8 @@ ExtractionOpt = Annotated[
     str,
     typer.Option(
         "--extraction",
-        help="auto (default: a quick extraction first when the field is known, the robust one "
-        "if that does not solve), quick or robust.",
+        help="auto (default: a quick extraction first, the robust one if that does not "
+        "solve), quick or robust.",
     ),
 ]
 

@@ -1,13 +1,16 @@
 """The Solver's star extraction: the robust detector, and the quick one tried first.
 
-A frame is solved first from a quick extraction (:mod:`starsense.detect.quick`: a coarse
-background, a plain threshold, about two passes over the frame) when the optics are known (a
-sensor or a field of view): most frames of a known camera have enough bright stars for it, and
-a failed identification at a known field costs about a millisecond. When those stars do not
-solve (too few, a background the coarse mesh misjudges, clutter), the frame is solved again
-from the robust extraction (background map by clipped medians and MADs, hot pixels removed,
-the PSF's matched filter, shape tests), whose result is returned. With an unknown field the
-robust extraction runs alone: a failed attempt there costs the whole scale search.
+A real frame is solved first from a quick extraction (:mod:`starsense.detect.quick`: a coarse
+background, a plain threshold, about two passes over the frame): most frames have enough bright
+stars for it. When those stars do not solve (too few, a background the coarse mesh misjudges,
+clutter), the frame is solved again from the robust extraction (background map by clipped
+medians and MADs, hot pixels removed, the PSF's matched filter, shape tests), whose result is
+returned. A failed quick attempt costs about a millisecond at a known field; with an unknown
+field it costs a pinhole scale search (no distortion guess, no mirror image), and the robust
+attempt then has a work budget of its own (``max_patterns`` of
+:class:`~starsense.solve.identifiers.FieldIdentifiers`), so that a quick attempt on clutter
+does not spend the budget the robust one needs. A frame whose noise is clipped at a floor is
+declined by the quick extraction before any identification (:mod:`starsense.detect.quick`).
 
 Which extraction a solution came from is in its ``stage_ms``: ``quick_ms`` (the time of a
 quick attempt that did not solve) appears only when the robust extraction followed it.
@@ -19,8 +22,7 @@ from typing import Literal
 
 from starsense.detect import StarDetector
 
-#: which extraction a Solver runs: "auto" (quick first when the field is known, then robust),
-#: "quick" or "robust" alone
+#: which extraction a Solver runs: "auto" (quick first, then robust), "quick" or "robust" alone
 Extraction = Literal["auto", "quick", "robust"]
 EXTRACTIONS = ("auto", "quick", "robust")
 #: PSF sigma of the matched filter when no sensor is given, px (a focused star tracker:
@@ -54,8 +56,7 @@ def robust_detector(sensor, logic, settings) -> StarDetector:
 def quick_detector(sensor, logic, settings) -> StarDetector | None:
     """Return the quick detector tried before the robust one, or None when it is not tried.
 
-    Tried with ``extraction="quick"``, or "auto" on real frames (``background="auto"``) of
-    a known field (a sensor or ``fov_rad``).
+    Tried with ``extraction="quick"`` or "auto" on real frames (``background="auto"``).
 
     Parameters
     ----------
@@ -68,8 +69,6 @@ def quick_detector(sensor, logic, settings) -> StarDetector | None:
     StarDetector or None
     """
     if settings.extraction == "robust" or settings.background == "known":
-        return None
-    if settings.extraction == "auto" and sensor is None and settings.fov_rad is None:
         return None
     return _detector(sensor, logic, settings, background="quick")
 

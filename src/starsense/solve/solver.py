@@ -94,8 +94,8 @@ class Solver:
         "auto" estimates a background map and noise (real frames); "known" (needs a sensor)
         subtracts the sensor's bias and applies its detection logic as is (simulated frames).
     extraction : {"auto", "quick", "robust"}
-        With ``background="auto"``: "auto" solves a frame of a known field first from a quick
-        extraction, then, if that does not solve, from the robust one; "quick" or "robust"
+        With ``background="auto"``: "auto" solves a frame first from a quick extraction, then,
+        if that does not solve, from the robust one; "quick" or "robust"
         alone (:mod:`starsense.solve.extraction`).
     apparent : bool
         Fit the attitude to the stars' apparent places when the frame's time is known (default).
@@ -269,6 +269,8 @@ class Solver:
             if sol.solved or alone:
                 return sol
             stages = {"quick_ms": ms(t0)}
+            if self.sensor is None and self.settings.fov_rad is None:
+                self._identifiers.start()  # the quick attempt's scale search had its own budget
         sol = self._solve_frame(a, self.detector, t0, stages, obs_time)
         return retry_with_spikes(  # held-aside spikes
             self, a, sol, t0=t0, stages=stages, obs_time=obs_time, solve=self._solve_frame,
