@@ -47,17 +47,10 @@ def nearest_pairs(pred: np.ndarray, xy: np.ndarray, radius_px: float):
     dist, near = cKDTree(pred[ok]).query(xy, distance_upper_bound=radius_px)
     hit = np.flatnonzero(np.isfinite(dist))
     order = hit[np.argsort(dist[hit], kind="stable")]
-    used: set[int] = set()
-    det, star = [], []
-    for d in order.tolist():
-        s = int(ok[near[d]])
-        if s in used:
-            continue
-        used.add(s)
-        det.append(d)
-        star.append(s)
-    idx = np.argsort(det)
-    return np.asarray(det, np.int64)[idx], np.asarray(star, np.int64)[idx]
+    # nearest first, each star to the first detection that reaches it (a later one goes unpaired)
+    _, first = np.unique(near[order], return_index=True)
+    det = np.sort(order[first]).astype(np.int64)
+    return det, ok[near[det]].astype(np.int64)
 
 
 #: (p, q) of the monomials x^p y^q of the residual field: a cubic in the image coordinates
