@@ -6,8 +6,11 @@ says it should look: the catalogue rendered at the frame's solved attitude
 on the frame's own sky (its background map, :func:`starsense.detect.background.
 estimate_background`: a ground frame's glow is not the sensor's, and is taken from the frame),
 read out with the sensor's gain and noise (:func:`starsense.render.noise.apply_noise`), in
-:data:`DRAWS` noise draws. These twins are solved by the same solver, and the frame and its twins
-give the same four statistics, measured on the frame and predicted by the twins:
+:data:`DRAWS` noise draws. These twins are solved by the same solver, with the robust extraction
+alone for both (:mod:`starsense.solve.extraction`: a quick extraction that solves a twin from its
+brightest stars, while the frame itself went on to the deeper robust one, would compare a
+stopping rule, not the camera), and the frame and its twins give the same four statistics,
+measured on the frame and predicted by the twins:
 
 * stars detected and matched per frame;
 * the limiting magnitude: the V magnitude at which half the catalogue stars in the field are
@@ -16,6 +19,10 @@ give the same four statistics, measured on the frame and predicted by the twins:
   over the sigma the twins predict for a star of its magnitude (a fit of the twins' squared
   residuals, ``s^2 = a + b F^-1 + c F^-2`` with ``F = 10^(-0.4 m)``: a floor, photon noise,
   background noise); 1 when the sensor's noise, PSF and distortion residual are the frame's.
+
+A catalogue without V (Gaia's G and BP - RP) takes V from them
+(:func:`~starsense.photometry.colour.with_johnson_from_gaia`), for the twins' stars and the
+completeness curve.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import numpy as np
 
 from starsense.detect.background import estimate_background
 from starsense.errors import InputError
+from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.render.noise import apply_noise
 from starsense.render.scene import render_frame
 from starsense.solve import Solver
@@ -223,8 +231,8 @@ def against(
                 f"exposures_s: need one exposure > 0 s, or one a frame ({len(frames)}); got "
                 f"{exposures_s!r}"
             )
-    solver = Solver(sensor, catalog=catalog)
-    cat = solver.catalog
+    solver = Solver(sensor, catalog=catalog, extraction="robust")
+    cat, _ = with_johnson_from_gaia(solver.catalog)  # the twins' stars and the limit need V
     gen = np.random.default_rng(seed)
     per, skipped = [], {}
     real = {"mags": [], "got": [], "m": [], "r2": []}
