@@ -1,0 +1,120 @@
+"""The ECSS statement held against its own Monte Carlo: st16, esa_blackfly and held-out zoo designs.
+
+    python bench/ecss_coverage.py [--designs 6] [--seed fresh|N] [--trials 200] [--rates 0,1,2]
+
+For each sensor, ``starsense datasheet --sensor S --statement --rates R --trials T --json`` (one
+process per sensor, as a user runs it) and, per axis X, Y, Z and rate, the fraction of the right
+solutions within the statement's 1-sigma and 3-sigma totals (the ``coverage`` rows: sky-median
+and ensemble bounds). The zoo designs are drawn from a seed printed at the start (``fresh``: drawn
+now, never used for a fix). Writes ``bench/results/ecss_coverage.json`` and prints a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import zoo  # noqa: E402
+from run import RESULTS, machine  # noqa: E402
+
+from starsense._io import atomic_write  # noqa: E402
+from starsense.sensor.dump import sensor_to_toml  # noqa: E402
+
+
+def _run(sensor: str, trials: int, rates: str) -> dict:
+    argv = [
+        str(Path(sys.executable).parent / "starsense"), "datasheet", "--sensor", sensor,
+        "--statement", "--rates", rates, "--trials", str(trials), "--json",
+    ]  # fmt: skip
+    t0 = time.perf_counter()
+    proc = subprocess.run(argv, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        return {"error": proc.stderr.strip().splitlines()[-1:] or [f"exit {proc.returncode}"]}
+    out = json.loads(proc.stdout)
+    sheet = out[0] if isinstance(out, list) else out
+    return {"coverage": sheet["statement"]["coverage"], "wall_s": wall}
+
+
+def _fmt(v, spec: str) -> str:
+    return "-" if v is None else format(v, spec)
+
+
+def _line(name: str, rec: dict) -> list[str]:
+    """Table rows of one sensor: per rate, the fractions inside (sky-median; ensemble)."""
+    if "error" in rec:
+        return [f"| {name} | - | - | - | - | {rec['error'][0][:60]} |"]
+    by_rate: dict = {}
+    for row in rec["coverage"]:
+        by_rate.setdefault(row["rate_deg_s"], {})[row["axis"]] = row
+    out = []
+    for rate, axes in by_rate.items():
+        cells = []
+        for key, spec in (
+            ("inside_1sigma", ".2f"),
+            ("inside_3sigma", ".3f"),
+            ("inside_1sigma_sky_ensemble", ".2f"),
+            ("inside_3sigma_sky_ensemble", ".3f"),
+        ):
+            cells.append(" / ".join(_fmt(axes[a].get(key), spec) for a in ("X", "Y", "Z")))
+        frames = f"{axes['X']['frames']} of {axes['X']['frames_rendered']}"
+        out.append(f"| {name} | {rate:g} | {frames} | " + " | ".join(cells) + " |")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--designs", type=int, default=6)
+    ap.add_argument("--seed", default="fresh")
+    ap.add_argument("--trials", type=int, default=200)
+    ap.add_argument("--rates", default="0,1,2")
+    ap.add_argument("--out", type=Path, default=RESULTS / "ecss_coverage.json")
+    args = ap.parse_args(argv)
+    fresh = args.seed == "fresh"
+    seed = int.from_bytes(os.urandom(4), "little") % 1_000_000 if fresh else int(args.seed)
+    print(f"held-out zoo designs: seed {seed} ({args.seed})", flush=True)
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        sensors = [("st16", "st16"), ("esa_blackfly", "esa_blackfly")]
+        for name, params in zoo.zoo_designs(args.designs, seed):
+            path = Path(tmp) / f"{name}.toml"
+            path.write_text(sensor_to_toml(zoo.make_sensor(name, **params)))
+            sensors.append((name, str(path)))
+        for name, spec in sensors:
+            print(f"{name} ...", flush=True)
+            results[name] = _run(spec, args.trials, args.rates)
+    lines = [
+        "| sensor | deg/s | right solutions | within 1 sigma, median (X / Y / Z) | "
+        "within 3 sigma, median | within 1 sigma, ensemble | within 3 sigma, ensemble |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, rec in results.items():
+        lines += _line(name, rec)
+    table = "\n".join(lines)
+    print(table)
+    record = {
+        "name": "ecss_coverage",
+        "seed": seed,
+        "trials": args.trials,
+        "rates": args.rates,
+        "results": results,
+        "table_markdown": table,
+        "machine": machine(),
+        "date": time.strftime("%Y-%m-%d"),
+    }
+    with atomic_write(args.out) as f:
+        json.dump(record, f, indent=2)
+    print(f"written {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
