@@ -29,7 +29,7 @@ def _problem(seed: int):
     v /= np.linalg.norm(v, axis=1)[:, None]
     sky = r0.inv().apply(v)
     truth = np.array([1e-3, -2e-3, 5e-4, focal, rng.uniform(-0.3, 0.1), rng.uniform(-0.05, 0.05)])
-    xy = RadialModel(np.zeros((n, 2)), CENTRE, r0, 2).project(truth, sky)
+    xy = RadialModel(np.zeros((n, 2)), CENTRE, r0, n_terms=2).project(truth, sky)
     xy = xy + rng.normal(0.0, 0.3, xy.shape)
     xy[:3] += rng.normal(0.0, 20.0, (3, 2))
     return xy, sky, r0, truth
@@ -40,7 +40,7 @@ def test_fit_reaches_scipys_minimum(seed):
     xy, sky, r0, truth = _problem(seed)
     n_terms = seed % 3
     robust = seed % 2 == 1
-    model = RadialModel(xy, CENTRE, r0, n_terms, (truth[4], 0.0))
+    model = RadialModel(xy, CENTRE, r0, n_terms=n_terms, fixed=(truth[4], 0.0))
     start = np.array([0.0, 0.0, 0.0, truth[3] * 1.02, 0.0, 0.0])[: 4 + n_terms]
     det = np.arange(len(xy))
     scale = 2.0 if robust else None
@@ -72,14 +72,14 @@ def test_fit_reaches_scipys_minimum(seed):
 @pytest.mark.parametrize("n_terms", [0, 1, 2])
 def test_jacobian_matches_finite_differences(n_terms):
     xy, sky, r0, truth = _problem(100 + n_terms)
-    model = RadialModel(xy, CENTRE, r0, n_terms, (truth[4], 0.0))
+    model = RadialModel(xy, CENTRE, r0, n_terms=n_terms, fixed=(truth[4], 0.0))
     theta = truth[: 4 + n_terms]
     fit = model.fit(theta, np.arange(len(xy)), sky)
     # the returned Jacobian is about the fitted attitude: rotation columns are derivatives for a
     # rotation applied on the left of it, which at the fit equals d/d(rotvec) only at rotvec 0;
     # so compare on a model whose reference attitude is the fitted one
     r_fit = Rotation.from_rotvec(fit.x[:3]) * r0
-    at_fit = RadialModel(xy, CENTRE, r_fit, n_terms, (truth[4], 0.0))
+    at_fit = RadialModel(xy, CENTRE, r_fit, n_terms=n_terms, fixed=(truth[4], 0.0))
     x0 = np.concatenate([[0.0, 0.0, 0.0], fit.x[3:]])
 
     def residuals(theta):
@@ -101,7 +101,7 @@ def test_star_behind_the_camera_is_not_a_minimum():
     xy, sky, r0, truth = _problem(7)
     sky = sky.copy()
     sky[0] = -sky[0]  # behind the camera: no finite place, the cost is infinite
-    model = RadialModel(xy, CENTRE, r0, 1, (truth[4], 0.0))
+    model = RadialModel(xy, CENTRE, r0, n_terms=1, fixed=(truth[4], 0.0))
     fit = model.fit(truth[:5], np.arange(len(xy)), sky)
     assert np.isnan(fit.fun[:2]).all()
     # nothing to minimise: the start is returned (to the rounding of a rotation round trip)

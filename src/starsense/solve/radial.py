@@ -236,7 +236,7 @@ def fit_radial(
         return None
     res, sigmas = fit.prune(det, star)
     theta, n_terms = fit.theta, fit.n_terms
-    pin = RadialModel(xy, fit.centre, rotation, 0).fit(theta[:4], det, fit.sky[star])
+    pin = RadialModel(xy, fit.centre, rotation, n_terms=0).fit(theta[:4], det, fit.sky[star])
     k1, k2 = (*theta[4 : 4 + n_terms], 0.0, 0.0)[:2]
     return RadialFit(
         rotation=Rotation.from_rotvec(theta[:3]) * rotation,
@@ -281,7 +281,9 @@ class _Fit:
         return None if np.any(star < 0) else star
 
     def model(self):
-        return RadialModel(self.xy, self.centre, self.rotation, self.n_terms, (self.theta[4], 0.0))
+        return RadialModel(
+            self.xy, self.centre, self.rotation, n_terms=self.n_terms, fixed=(self.theta[4], 0.0)
+        )
 
     def refit(self, det, star, scale_px=None):
         model = self.model()

@@ -75,7 +75,7 @@ class RadialModel:
         The radial terms held where not fitted.
     """
 
-    def __init__(self, xy, centre, rotation, n_terms, fixed=(0.0, 0.0)):
+    def __init__(self, xy, centre, rotation, *, n_terms: int, fixed=(0.0, 0.0)):
         self.xy, self.centre, self.r0, self.n_terms = xy, centre, rotation, n_terms
         self.fixed = fixed
 
@@ -118,7 +118,7 @@ class RadialModel:
             power = power * r2
         return out, jac
 
-    def fit(self, theta0, det, v, scale_px=None) -> LensFitResult:
+    def fit(self, theta0, det, v, *, scale_px=None) -> LensFitResult:
         """Least squares; robust (soft L1 beyond ``scale_px``) while pairs may be wrong."""
         xy = self.xy[det].ravel()
         v = np.asarray(v, dtype=float)
