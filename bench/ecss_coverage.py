@@ -77,6 +77,10 @@ def main(argv=None) -> int:
     ap.add_argument("--trials", type=int, default=200)
     ap.add_argument("--rates", default="0,1,2")
     ap.add_argument("--out", type=Path, default=RESULTS / "ecss_coverage.json")
+    ap.add_argument("--no-presets", action="store_true", help="the zoo designs only")
+    ap.add_argument(
+        "--max-mpixel", type=float, default=None, help="skip designs with more pixels (said)"
+    )
     args = ap.parse_args(argv)
     fresh = args.seed == "fresh"
     seed = int.from_bytes(os.urandom(4), "little") % 1_000_000 if fresh else int(args.seed)
@@ -106,8 +110,13 @@ def main(argv=None) -> int:
         return table
 
     with tempfile.TemporaryDirectory() as tmp:
-        sensors = [("st16", "st16"), ("esa_blackfly", "esa_blackfly")]
+        sensors = [] if args.no_presets else [("st16", "st16"), ("esa_blackfly", "esa_blackfly")]
         for name, params in zoo.zoo_designs(args.designs, seed):
+            mpixel = params["columns"] * params["rows"] / 1e6
+            if args.max_mpixel is not None and mpixel > args.max_mpixel:
+                print(f"{name}: {mpixel:.1f} Mpixel, over --max-mpixel: skipped", flush=True)
+                results[name] = {"error": [f"skipped: {mpixel:.1f} Mpixel > --max-mpixel"]}
+                continue
             path = Path(tmp) / f"{name}.toml"
             path.write_text(sensor_to_toml(zoo.make_sensor(name, **params)))
             sensors.append((name, str(path)))
