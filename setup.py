@@ -9,9 +9,9 @@ it and uses the NumPy form.
 - ``starsense.detect._windowc``: tracking's window detection;
 - ``starsense.detect._quickc``: quick extraction's coarse background and its one pass that
   subtracts it and finds the lit pixels;
-- ``starsense.detect._linesc``: the row and column pattern's line sums;
 - ``starsense.detect._framec``: whole-frame detection's background subtraction and threshold
-  search, PSF correlation, filtered-noise median and labelling;
+  search, the row and column pattern's line sums, PSF correlation, filtered-noise median and
+  labelling;
 - ``starsense.identify._hashc``: the search and verification of lost-in-space identification by
   hashing;
 - ``starsense.identify._trackc``: tracking's pairing, attitude fit and covariance;
@@ -38,7 +38,6 @@ setup(
         kernel("detect._windowc"),
         kernel("detect._framec", extra=("-O3",)),
         kernel("detect._quickc", extra=("-O3",)),
-        kernel("detect._linesc", extra=("-O3",)),
         kernel("identify._hashc"),
         kernel("identify._trackc"),
         kernel("model._modelc", extra=("-O3",)),

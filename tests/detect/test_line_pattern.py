@@ -93,7 +93,7 @@ def test_banding_removed_keeps_faint_stars():
 def test_compiled_line_offsets_are_the_numpy_form(monkeypatch, mapped, axis):
     import starsense.detect.pattern as pattern
 
-    if pattern._linesc is None:
+    if pattern._framec is None:
         pytest.skip("the compiled kernel was not built (no C compiler)")
     rng = np.random.default_rng(7 + axis + 2 * mapped)
     sub = (rng.standard_normal((97, 131)) * 3.0).astype(np.float32)
@@ -101,7 +101,7 @@ def test_compiled_line_offsets_are_the_numpy_form(monkeypatch, mapped, axis):
     sub[40, :] += 30.0  # a whole row above the cut: no pixel of it kept, offset 0
     noise = rng.uniform(0.5, 2.0, sub.shape).astype(np.float32) if mapped else 1.7
     compiled = pattern.line_offsets(sub, noise, axis)
-    monkeypatch.setattr(pattern, "_linesc", None)
+    monkeypatch.setattr(pattern, "_framec", None)
     reference = pattern.line_offsets(sub, noise, axis)
     # the same pixels kept (float32 comparisons alike); the sums in another order: float64
     # rounding, ~1e-16 of a sum of ~100 values of a few counts

@@ -23,7 +23,11 @@
  *               (above the threshold at the frame's lowest noise, with their own noise), those
  *               above the threshold at their noise whose 8 neighbours stay below the allowed
  *               level, or which with their brightest 4-neighbour form a pair whose 10
- *               surrounding pixels do (the same float32 comparisons).
+ *               surrounding pixels do (the same float32 comparisons);
+ *   line_sums   pattern.py's line_offsets: for each row (or column) of a float32 frame, the
+ *               float64 sum and the count of its pixels below factor x noise (a map or one
+ *               value; NumPy's float32 comparisons), in one pass; the sums run in order along
+ *               each line, so they differ from NumPy's pairwise sums by float64 rounding.
  *
  * Built by setup.py as an optional extension: without a C compiler the package runs the NumPy
  * forms. No NumPy headers: arrays arrive through the buffer protocol.
@@ -589,6 +593,72 @@ done:
     return result;
 }
 
+/* ---------------------------------------------------------------------------------------- */
+/* line_sums(sub, rows, cols, noise, map, factor, axis, total, count) */
+
+static void line_sums_kernel(const float *sub, Py_ssize_t rows, Py_ssize_t cols, const float *noise,
+                 int map, float factor, int axis, double *total, int64_t *count)
+{
+    Py_ssize_t lines = axis == 1 ? rows : cols;
+    memset(total, 0, lines * sizeof(double));
+    memset(count, 0, lines * sizeof(int64_t));
+    float cut = factor * noise[0];
+    for (Py_ssize_t r = 0; r < rows; r++) {
+        const float *row = sub + r * cols;
+        const float *nrow = map ? noise + r * cols : NULL;
+        if (axis == 1) {
+            double t = 0.0;
+            int64_t n = 0;
+            for (Py_ssize_t c = 0; c < cols; c++) {
+                float v = row[c];
+                if (v < (map ? factor * nrow[c] : cut)) {
+                    t += (double)v;
+                    n++;
+                }
+            }
+            total[r] = t;
+            count[r] = n;
+        } else {
+            for (Py_ssize_t c = 0; c < cols; c++) {
+                float v = row[c];
+                if (v < (map ? factor * nrow[c] : cut)) {
+                    total[c] += (double)v;
+                    count[c]++;
+                }
+            }
+        }
+    }
+}
+
+static PyObject *line_sums(PyObject *self, PyObject *args)
+{
+    Py_buffer sb, nb, tb, cb;
+    Py_ssize_t rows, cols;
+    int map, axis;
+    float factor;
+    if (!PyArg_ParseTuple(args, "y*nny*ifiw*w*", &sb, &rows, &cols, &nb, &map, &factor, &axis,
+                          &tb, &cb))
+        return NULL;
+    PyObject *result = NULL;
+    Py_ssize_t pixels = rows * cols, lines = axis == 1 ? rows : cols;
+    if (rows < 0 || cols < 0 || (axis != 0 && axis != 1) || sb.len < pixels * 4
+        || nb.len < (map ? pixels : 1) * 4 || tb.len < lines * 8 || cb.len < lines * 8) {
+        PyErr_SetString(PyExc_ValueError, "line_sums: bad shape, axis or buffer size");
+        goto done;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    line_sums_kernel((const float *)sb.buf, rows, cols, (const float *)nb.buf, map, factor, axis,
+         (double *)tb.buf, (int64_t *)cb.buf);
+    Py_END_ALLOW_THREADS
+    result = Py_NewRef(Py_None);
+done:
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&nb);
+    PyBuffer_Release(&tb);
+    PyBuffer_Release(&cb);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"correlate", correlate, METH_VARARGS, "Separable symmetric correlation (matched.py)."},
     {"median", median, METH_VARARGS, "np.median of a float32 vector."},
@@ -596,6 +666,7 @@ static PyMethodDef methods[] = {
     {"hot", hot, METH_VARARGS, "Hot pixels and pairs among candidates (background.py)."},
     {"subtract", subtract, METH_VARARGS, "Frame minus level map, and the pixels above (float32)."},
     {"above", above, METH_VARARGS, "Flat indices of a float32 vector's values above a threshold."},
+    {"line_sums", line_sums, METH_VARARGS, "Sums and counts of each line's pixels below a cut."},
     {NULL, NULL, 0, NULL},
 };
 

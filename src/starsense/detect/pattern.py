@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 try:
-    import starsense.detect._linesc as _linesc
+    import starsense.detect._framec as _framec
 except ImportError:  # built without a C compiler: the NumPy form below
-    _linesc = None
+    _framec = None
 
 __all__ = ["CUT_SIGMAS", "PATTERN_SIGNIFICANCE", "line_offsets", "remove_line_pattern"]
 
@@ -48,14 +48,14 @@ def line_offsets(sub: np.ndarray, noise: np.ndarray | float, axis: int) -> np.nd
     ndarray of float64, shape (rows,) or (columns,)
     """
     noise32 = np.asarray(noise, dtype=np.float32)
-    if _linesc is not None and sub.dtype == np.float32 and sub.flags.c_contiguous:
-        # the compiled form (_linesc.c): one pass, the same float32 comparisons, the sums in
+    if _framec is not None and sub.dtype == np.float32 and sub.flags.c_contiguous:
+        # the compiled form (_framec.c): one pass, the same float32 comparisons, the sums in
         # order along each line
         lines = sub.shape[0] if axis == 1 else sub.shape[1]
         total, n = np.empty(lines), np.empty(lines, dtype=np.int64)
         mapped = noise32.ndim == 2
         noise32 = np.ascontiguousarray(noise32 if mapped else noise32.reshape(1))
-        _linesc.line_sums(sub, *sub.shape, noise32, int(mapped), CUT_SIGMAS, axis, total, n)
+        _framec.line_sums(sub, *sub.shape, noise32, int(mapped), CUT_SIGMAS, axis, total, n)
     else:
         below = sub < np.float32(CUT_SIGMAS) * noise32
         n = below.sum(axis=axis)
