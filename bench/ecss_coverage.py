@@ -1,12 +1,16 @@
 """The ECSS statement held against its own Monte Carlo: st16, esa_blackfly and held-out zoo designs.
 
     python bench/ecss_coverage.py [--designs 6] [--seed fresh|N] [--trials 200] [--rates 0,1,2]
+                                  [--solving 0.9] [--max-mpixel 4] [--no-presets]
 
 For each sensor, ``starsense datasheet --sensor S --statement --rates R --trials T --json`` (one
 process per sensor, as a user runs it) and, per axis X, Y, Z and rate, the fraction of the right
 solutions within the statement's 1-sigma and 3-sigma totals (the ``coverage`` rows: sky-median
 and ensemble bounds). The zoo designs are drawn from a seed printed at the start (``fresh``: drawn
-now, never used for a fix). Writes ``bench/results/ecss_coverage.json`` and prints a table.
+now, never used for a fix); with ``--solving A`` the designs kept are the first whose datasheet
+predicts lost in space on at least A of the sky at rest (a design one would fly: the choice
+sees the prediction only, never the frames). Writes ``bench/results/ecss_coverage.json`` and
+prints a table.
 """
 
 from __future__ import annotations
@@ -70,6 +74,45 @@ def _line(name: str, rec: dict) -> list[str]:
     return out
 
 
+def _availability(toml: Path) -> float:
+    """Return the datasheet's predicted lost-in-space availability at rest (one frame rendered)."""
+    argv = [
+        str(Path(sys.executable).parent / "starsense"), "datasheet", "--sensor", str(toml),
+        "--trials", "1", "--json",
+    ]  # fmt: skip
+    proc = subprocess.run(argv, capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        return 0.0
+    out = json.loads(proc.stdout)
+    sheet = out[0] if isinstance(out, list) else out
+    return float((sheet.get("availability") or {}).get("lost_in_space") or 0.0)
+
+
+def _designs(args, seed: int, tmp: Path, results: dict) -> list[tuple[str, str]]:
+    """Return the zoo designs to run: the first ``--designs`` (or, with ``--solving``, the first
+    ``--designs`` predicted to solve), each written as a sensor TOML under ``tmp``."""
+    out = []
+    drawn = zoo.zoo_designs(args.designs if args.solving is None else 40 * args.designs, seed)
+    for name, params in drawn:
+        if len(out) == args.designs:
+            break
+        mpixel = params["columns"] * params["rows"] / 1e6
+        if args.max_mpixel is not None and mpixel > args.max_mpixel:
+            print(f"{name}: {mpixel:.1f} Mpixel, over --max-mpixel: skipped", flush=True)
+            results[name] = {"error": [f"skipped: {mpixel:.1f} Mpixel > --max-mpixel"]}
+            continue
+        path = tmp / f"{name}.toml"
+        path.write_text(sensor_to_toml(zoo.make_sensor(name, **params)))
+        if args.solving is not None:
+            avail = _availability(path)
+            if avail < args.solving:
+                print(f"{name}: predicted availability {avail:.2f}: not run", flush=True)
+                results[name] = {"error": [f"not run: predicted availability {avail:.2f}"]}
+                continue
+        out.append((name, str(path)))
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--designs", type=int, default=6)
@@ -80,6 +123,14 @@ def main(argv=None) -> int:
     ap.add_argument("--no-presets", action="store_true", help="the zoo designs only")
     ap.add_argument(
         "--max-mpixel", type=float, default=None, help="skip designs with more pixels (said)"
+    )
+    ap.add_argument(
+        "--solving",
+        type=float,
+        default=None,
+        metavar="A",
+        help="draw designs until --designs of them are predicted (the datasheet's lost-in-space "
+        "availability at rest, no frame seen) to solve on at least this fraction of the sky",
     )
     args = ap.parse_args(argv)
     fresh = args.seed == "fresh"
@@ -111,15 +162,7 @@ def main(argv=None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         sensors = [] if args.no_presets else [("st16", "st16"), ("esa_blackfly", "esa_blackfly")]
-        for name, params in zoo.zoo_designs(args.designs, seed):
-            mpixel = params["columns"] * params["rows"] / 1e6
-            if args.max_mpixel is not None and mpixel > args.max_mpixel:
-                print(f"{name}: {mpixel:.1f} Mpixel, over --max-mpixel: skipped", flush=True)
-                results[name] = {"error": [f"skipped: {mpixel:.1f} Mpixel > --max-mpixel"]}
-                continue
-            path = Path(tmp) / f"{name}.toml"
-            path.write_text(sensor_to_toml(zoo.make_sensor(name, **params)))
-            sensors.append((name, str(path)))
+        sensors += _designs(args, seed, Path(tmp), results)
         for name, spec in sensors:
             print(f"{name} ...", flush=True)
             results[name] = _run(spec, args.trials, args.rates)

@@ -39,9 +39,15 @@ from starsense.identify.result import Identification, result_builder, validate_v
 from starsense.identify.verify import Verifier
 from starsense.units import RAD_TO_DEG
 
-__all__ = ["HashIdentifier"]
+__all__ = ["MIN_SOLVING_STARS", "PATTERN_STARS", "HashIdentifier"]
 
 _NO_CANDIDATES = np.zeros(0, dtype=np.int64)
+#: the stars of a pattern: a hypothesis pairs this many detections with catalogue stars, and
+#: only matches beyond them are evidence (:func:`starsense.identify.verify.
+#: false_match_probability` is 1 without one), so lost in space needs at least one more
+PATTERN_STARS = 4
+#: the fewest detections an identification can be accepted from (the availability's N_min)
+MIN_SOLVING_STARS = PATTERN_STARS + 1
 
 
 class _Search(NamedTuple):
@@ -260,8 +266,11 @@ class HashIdentifier:
 
         result = result_builder(self.algorithm, n, t0)
 
-        if n < 4:
-            return result("too_few_stars", f"{n} detections; the 4-star hashing needs at least 4")
+        if n < PATTERN_STARS:
+            return result(
+                "too_few_stars",
+                f"{n} detections; the {PATTERN_STARS}-star hashing needs at least {PATTERN_STARS}",
+            )
 
         n_pat = min(n, self.n_pattern_detections)
         if max_patterns is not None:

@@ -27,6 +27,7 @@ from starsense.analysis.datasheet import DatasheetSettings
 from starsense.analysis.datasheet.predict import DEFAULT_RATES_RAD_S
 from starsense.analysis.slew import simulate_slew
 from starsense.geometry.fov import CircularFov
+from starsense.identify.hashing import MIN_SOLVING_STARS
 from starsense.plotting.availability import (
     dynamic_figure,
     sky_map_figure,
@@ -338,8 +339,8 @@ def _own_part(ctx: ReportContext, parts: _Parts) -> str:
             rng=ctx.seed,
             catalog=ctx.catalog_name,
         )
-    dyn = analysis.dynamic(det.curve, SHEET_RATES_RAD_S, N_MIN_LOST_IN_SPACE)
-    lis, trk = dyn.by_n_min[N_MIN_LOST_IN_SPACE], dyn.by_n_min[N_MIN_TRACKING]
+    dyn = analysis.dynamic(det.curve, SHEET_RATES_RAD_S, MIN_SOLVING_STARS)
+    lis, trk = dyn.by_n_min[MIN_SOLVING_STARS], dyn.by_n_min[N_MIN_TRACKING]
     parts.data["sensor"] = {
         "rates_deg_s": dyn.rates_deg_s.tolist(),
         "lost_in_space": [float(x) for x in lis],
@@ -354,7 +355,8 @@ def _own_part(ctx: ReportContext, parts: _Parts) -> str:
         (
             f"{esc(sensor.name)} static availability (its field, V &le; "
             f"{dyn.threshold_mag[0]:.2f})",
-            f"{100 * lis[0]:.2f} % lost in space (N<sub>min</sub> = 3), {100 * trk[0]:.2f} % "
+            f"{100 * lis[0]:.2f} % lost in space (N<sub>min</sub> = {MIN_SOLVING_STARS}), "
+            f"{100 * trk[0]:.2f} % "
             "tracking (N<sub>min</sub> = 2)",
         ),
         (
@@ -366,13 +368,19 @@ def _own_part(ctx: ReportContext, parts: _Parts) -> str:
         [f"{w:g}", f"{m:.2f}", percent(a), percent(t)]
         for w, m, a, t in zip(dyn.rates_deg_s, dyn.threshold_mag, lis, trk, strict=True)
     ]
-    head = ["rate (deg/s)", "m<sub>t</sub>", "lost in space N&ge;3 (%)", "tracking N&ge;2 (%)"]
+    head = [
+        "rate (deg/s)",
+        "m<sub>t</sub>",
+        f"lost in space N&ge;{MIN_SOLVING_STARS} (%)",
+        "tracking N&ge;2 (%)",
+    ]
     return f"""
 <h3>{esc(sensor.name)}: its own field and threshold</h3>
 <p>The sensor's rectangular field ({esc(describe_fov(analysis.fov))}), a random roll per
 boresight, {analysis.n_orientations:,} boresights, the catalogue's stars to its limiting
 magnitude V = {det.limit_mag:.2f} (detected in half the renders at rest) and its Reed
-tolerable-slew curve: the numbers of its datasheet.</p>
+tolerable-slew curve: the numbers of its datasheet (lost in space needs the solver's
+4-star pattern and one more star, where the paper counts 3).</p>
 {table(head, rows, classes=["num"] * 4)}
 <h3>The paper's conditions</h3>
 """

@@ -53,6 +53,7 @@ from starsense.analysis.inputs import (
     root_seed,
 )
 from starsense.analysis.sensor_detection import sensor_detection
+from starsense.identify.hashing import MIN_SOLVING_STARS
 from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.render.scene import check_frame_size
 from starsense.solve.solver import Solver
@@ -62,7 +63,9 @@ __all__ = ["SCHEMA", "Datasheet", "DatasheetSettings", "build_datasheet", "datas
 
 #: the JSON schema's name and version; bumped on any incompatible change
 SCHEMA = "starsense.datasheet/1"
-_N_MIN_LIS, _N_MIN_TRACK = 3, 2
+#: the stars lost in space needs: the identifier's pattern and one more detection that
+#: matches (the pattern's own stars are no evidence of a match), and tracking's two
+_N_MIN_LIS, _N_MIN_TRACK = MIN_SOLVING_STARS, 2
 #: the steps a datasheet reports its progress through
 _STEPS = (
     "static limit",

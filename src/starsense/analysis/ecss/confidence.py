@@ -18,7 +18,14 @@ from scipy.special import ndtr, ndtri
 
 from starsense.errors import InputError
 
-__all__ = ["ONE_SIGMA", "THREE_SIGMA", "gaussian_factor", "mixture_bound", "parse_confidence"]
+__all__ = [
+    "ONE_SIGMA",
+    "THREE_SIGMA",
+    "gaussian_factor",
+    "mixture_bound",
+    "parse_confidence",
+    "weighted_median",
+]
 
 #: the probability of |x| <= 1 sigma for a Gaussian: 0.682689...
 ONE_SIGMA = float(math.erf(1.0 / math.sqrt(2.0)))
@@ -85,11 +92,12 @@ def gaussian_factor(confidence: float) -> float:
     return float(ndtri(0.5 * (1.0 + float(confidence))))
 
 
-def mixture_bound(sigmas, confidence: float) -> float | None:
+def mixture_bound(sigmas, confidence: float, weights=None) -> float | None:
     """Return the bound that an error drawn at a random attitude stays within, with ``confidence``.
 
-    The error is Gaussian with the 1-sigma of its attitude, and the attitude uniform over the
-    ones given: ``P(|e| <= q) = mean_m (2 Phi(q / s_m) - 1)``; ``q`` solved for ``confidence``
+    The error is Gaussian with the 1-sigma of its attitude, and the attitude drawn among the
+    ones given with their ``weights`` (uniform by default):
+    ``P(|e| <= q) = sum_m w_m (2 Phi(q / s_m) - 1) / sum_m w_m``; ``q`` solved for ``confidence``
     (the ensemble interpretation). For equal sigmas it is :func:`gaussian_factor` times the
     sigma.
 
@@ -100,24 +108,30 @@ def mixture_bound(sigmas, confidence: float) -> float | None:
         attitude without this error).
     confidence : float
         Probability, in (0, 1).
+    weights : array_like (M,), optional
+        Each attitude's weight, >= 0 (e.g. its chance of giving a solution).
 
     Returns
     -------
     float or None
-        In the unit of ``sigmas``; None when no attitude has a finite sigma.
+        In the unit of ``sigmas``; None when no attitude has a finite sigma (and a weight).
     """
-    s = np.asarray(sigmas, dtype=float)
-    s = s[np.isfinite(s)]
+    s = np.asarray(sigmas, dtype=float).ravel()
+    w = np.ones_like(s) if weights is None else np.asarray(weights, dtype=float).ravel()
+    keep = np.isfinite(s) & (w > 0)
+    s, w = s[keep], w[keep]
     if s.size == 0:
         return None
     top = float(np.max(s))
     if top <= 0.0:
         return 0.0
-    live = s[s > 0]
-    zero_share = 1.0 - live.size / s.size
+    live = s > 0
+    total = float(np.sum(w))
+    zero_share = float(np.sum(w[~live])) / total
+    s_live, w_live = s[live], w[live] / total
 
     def inside(q: float) -> float:
-        return zero_share + float(np.sum(2.0 * ndtr(q / live) - 1.0)) / s.size - confidence
+        return zero_share + float(np.sum(w_live * (2.0 * ndtr(q / s_live) - 1.0))) - confidence
 
     from scipy.optimize import brentq  # loaded on use (the package's start-up rule)
 
@@ -125,3 +139,33 @@ def mixture_bound(sigmas, confidence: float) -> float | None:
         return 0.0
     hi = gaussian_factor(confidence) * top * 1.01 + 1e-300
     return float(brentq(inside, 0.0, hi, xtol=1e-12 * top, rtol=1e-10))
+
+
+def weighted_median(values, weights=None) -> float | None:
+    """Return the median of ``values`` drawn with ``weights`` (NaN and weight 0 left out).
+
+    The smallest value whose cumulative weight reaches half the total (with unit weights, the
+    lower median; :func:`numpy.median` averages the two middle values of an even count).
+
+    Parameters
+    ----------
+    values : array_like (M,)
+    weights : array_like (M,), optional
+        >= 0; uniform by default.
+
+    Returns
+    -------
+    float or None
+        None when no value is finite with a weight.
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=float).ravel()
+    keep = np.isfinite(v) & (w > 0)
+    v, w = v[keep], w[keep]
+    if v.size == 0:
+        return None
+    if weights is None:
+        return float(np.median(v))
+    order = np.argsort(v, kind="stable")
+    cum = np.cumsum(w[order])
+    return float(v[order][np.searchsorted(cum, 0.5 * cum[-1])])

@@ -24,10 +24,11 @@ from starsense.analysis.datasheet.stars import FittedStars, fitted_stars
 from starsense.analysis.ecss.axes import fisher_axes, propagated_axes
 from starsense.analysis.inputs import completed_sky
 from starsense.errors import InputError
+from starsense.identify.hashing import MIN_SOLVING_STARS
 from starsense.solve.solver import Solver
 from starsense.units import RAD_TO_DEG
 
-__all__ = ["MAX_RATE_ATTITUDES", "SkyStars", "sky_stars"]
+__all__ = ["MAX_RATE_ATTITUDES", "SkyStars", "chance_at_least", "sky_stars"]
 
 #: the most attitudes the noise at a rate is computed over (its sky median to a few per cent)
 MAX_RATE_ATTITUDES = 200
@@ -89,6 +90,21 @@ class SkyStars:
             self.pairs, self.weights, error, presence=self.presence[self.pairs.star]
         )
 
+    def solving(self, rate_rad_s: float) -> np.ndarray:
+        """Return each attitude's chance of a solution at ``rate_rad_s`` (M,).
+
+        The chance that at least :data:`~starsense.identify.hashing.MIN_SOLVING_STARS` of the
+        field's stars are detected, each with its own chance at the rate (a Poisson-binomial
+        tail: :func:`chance_at_least`); the datasheet's availability counts the same stars
+        against the same number. The statement describes the attitudes a sensor outputs: its
+        values over the sky are weighted by this chance.
+        """
+        rest = self.stars.presence(0.0)
+        at_rate = self.stars.presence(rate_rad_s)[rest > 0.0]  # aligned with self.vectors
+        return chance_at_least(
+            self.pairs.point, at_rate[self.pairs.star], self.pairs.n_pointings, MIN_SOLVING_STARS
+        )
+
     def temporal_at_rate(self, rate_rad_s: float) -> np.ndarray:
         """Return the model fit's X, Y, Z noise (M, 3), rad, at a cross-boresight body rate.
 
@@ -134,6 +150,44 @@ class SkyStars:
             presence=presence,
         )
         return fisher_axes(fisher)
+
+
+def chance_at_least(group, chance, n_groups: int, k: int) -> np.ndarray:
+    """Return, per group, the chance that at least ``k`` of its independent events happen.
+
+    Parameters
+    ----------
+    group : ndarray (P,) of int
+        The group of each event, in [0, n_groups).
+    chance : ndarray (P,)
+        Each event's probability.
+    n_groups : int
+    k : int
+        >= 1.
+
+    Returns
+    -------
+    ndarray (n_groups,)
+        ``P(N >= k)``, ``N`` the number of a group's events that happen (Poisson-binomial).
+    """
+    group = np.asarray(group, dtype=np.intp)
+    chance = np.clip(np.asarray(chance, dtype=float), 0.0, 1.0)
+    order = np.argsort(group, kind="stable")
+    g, q = group[order], chance[order]
+    starts = np.searchsorted(g, np.arange(n_groups))
+    rank = np.arange(len(g)) - starts[g]  # the event's place within its group
+    dist = np.zeros((n_groups, k + 1))  # P(N = 0..k-1), and P(N >= k) in the last column
+    dist[:, 0] = 1.0
+    for r in range(int(rank.max(initial=-1)) + 1):
+        sel = rank == r
+        rows, p = g[sel], q[sel][:, None]
+        d = dist[rows]
+        moved = d * p
+        d = d * (1.0 - p)
+        d[:, 1:] += moved[:, :-1]
+        d[:, -1] += moved[:, -1]  # at least k stays at least k
+        dist[rows] = d
+    return dist[:, -1]
 
 
 def sky_stars(sensor, catalog, settings, *, limit_mag: float, slew) -> SkyStars:

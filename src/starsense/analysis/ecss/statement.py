@@ -20,7 +20,7 @@ import numpy as np
 
 from starsense.analysis.datasheet import DatasheetSettings, build_datasheet
 from starsense.analysis.ecss.classes import CLASSES, acting
-from starsense.analysis.ecss.confidence import gaussian_factor, mixture_bound
+from starsense.analysis.ecss.confidence import gaussian_factor, mixture_bound, weighted_median
 from starsense.analysis.ecss.sky import sky_stars
 from starsense.analysis.ecss.terms import error_terms
 from starsense.analysis.inputs import as_catalog
@@ -68,6 +68,10 @@ class Statement:
         :meth:`at_confidence` (not in the JSON).
     geometry : tuple of float
         The field's narrower width and one pixel, rad (the crossing periods).
+    solving : tuple of dict
+        Per rate, each attitude's chance of a solution (the weights of the sky medians and
+        ensembles), keyed by the number of attitudes it weighs: all of the sky's, and those of
+        the terms computed on every :attr:`~starsense.analysis.ecss.sky.SkyStars.rate_stride`-th.
     """
 
     sensor: str
@@ -79,6 +83,7 @@ class Statement:
     notes: tuple
     sources: tuple = field(default=(), repr=False, compare=False)
     geometry: tuple = field(default=(), repr=False, compare=False)
+    solving: tuple = field(default=(), repr=False, compare=False)
 
     def at_confidence(self, confidence: float) -> Statement:
         """Return the same statement at another confidence (the same terms, rates and sky).
@@ -94,7 +99,9 @@ class Statement:
         """
         if not self.sources:
             raise ValueError("this statement keeps no terms to restate (built by hand)")
-        return _assemble(self.sensor, self.sources, self.rates_deg_s, confidence, self.geometry)
+        return _assemble(
+            self.sensor, self.sources, self.rates_deg_s, confidence, self.geometry, self.solving
+        )
 
     def values(self) -> list[dict]:
         """Return, per rate, the flat ``{term}_{axis}_arcsec`` values (None: not known)."""
@@ -131,7 +138,17 @@ class Statement:
         }
 
 
-def _at_rate(term, i: int, rate_rad_s: float, k: float, p: float, geometry) -> dict:
+def _weights(solving: tuple, i: int, n: int):
+    """Return the solving chances of rate ``i`` over ``n`` attitudes (None: unweighted).
+
+    Where no attitude can solve at that rate, the values are those of every attitude (what the
+    sensor would do if it solved; its availability says that it does not).
+    """
+    w = solving[i].get(n) if solving else None
+    return w if w is not None and float(np.sum(w)) > 0.0 else None
+
+
+def _at_rate(term, i: int, rate_rad_s: float, k: float, p: float, geometry, solving) -> dict:
     act = acting(term.ecss_class, rate_rad_s, field_rad=geometry[0], pixel_rad=geometry[1])
     out = {
         "rate_deg_s": rate_rad_s / DEG,
@@ -146,8 +163,9 @@ def _at_rate(term, i: int, rate_rad_s: float, k: float, p: float, geometry) -> d
             one = ens = None
         elif np.ndim(v) == 2:
             col = v[:, j]
-            one = float(np.nanmedian(col)) if np.isfinite(col).any() else None
-            ens = mixture_bound(col, p) if term.gaussian else one
+            w = _weights(solving, i, len(col))
+            one = weighted_median(col, w)
+            ens = mixture_bound(col, p, w) if term.gaussian else one
         else:
             one = float(v[j])
             ens = scale * one
@@ -177,7 +195,7 @@ def _totals(terms: list[dict], counted: dict, i: int, rate_deg_s: float) -> dict
     return out
 
 
-def _ensemble_totals(terms: tuple, i: int, p: float) -> dict:
+def _ensemble_totals(terms: tuple, i: int, p: float, solving: tuple) -> dict:
     """Return the total that an error at a random attitude of the sky stays within, with ``p``.
 
     Per attitude, the counted Gaussian terms' 1-sigmas add in quadrature (a term with one value
@@ -194,7 +212,10 @@ def _ensemble_totals(terms: tuple, i: int, p: float) -> dict:
             if not t.counted or v is None:
                 continue
             if not t.gaussian:
-                one = np.nanmedian(v[:, j]) if np.ndim(v) == 2 else v[j]
+                one = v[j]
+                if np.ndim(v) == 2:
+                    one = weighted_median(v[:, j], _weights(solving, i, len(v)))
+                    one = math.nan if one is None else one
                 bounds += float(one) ** 2 if math.isfinite(one) else 0.0
                 continue
             col = np.asarray(v[:, j] if np.ndim(v) == 2 else v[j], dtype=float)
@@ -205,7 +226,8 @@ def _ensemble_totals(terms: tuple, i: int, p: float) -> dict:
             var = var + col**2
         q = None
         if size != -1:
-            q = mixture_bound(np.sqrt(np.atleast_1d(var)), p)
+            sig = np.sqrt(np.atleast_1d(var))
+            q = mixture_bound(sig, p, _weights(solving, i, len(sig)) if np.ndim(var) else None)
         out[f"total_sky_ensemble_{a}_arcsec"] = (
             None if q is None else math.sqrt(q**2 + bounds) * RAD_TO_ARCSEC
         )
@@ -275,10 +297,16 @@ def ecss_statement(
         rates_rad_s=rates_rad,
     )
     geometry = (2.0 * min(sensor.half_fov_rad), sky.model.pixel_rad)
-    return _assemble(sensor.name, tuple(terms), rates, confidence, geometry)
+    solving = []
+    for r in rates_rad:
+        w = sky.solving(r)
+        solving.append({len(w): w, len(w[:: sky.rate_stride]): w[:: sky.rate_stride]})
+    return _assemble(sensor.name, tuple(terms), rates, confidence, geometry, tuple(solving))
 
 
-def _assemble(name: str, terms: tuple, rates: tuple, confidence: float, geometry) -> Statement:
+def _assemble(
+    name: str, terms: tuple, rates: tuple, confidence: float, geometry, solving: tuple = ()
+) -> Statement:
     """Return the statement of ``terms`` at ``rates`` (deg/s) and ``confidence``."""
     if not 0.0 < float(confidence) < 1.0:
         raise InputError(f"confidence = {confidence!r} must lie strictly between 0 and 1")
@@ -293,13 +321,16 @@ def _assemble(name: str, terms: tuple, rates: tuple, confidence: float, geometry
             "source": t.source,
             "gaussian": t.gaussian,
             "counted": t.counted,
-            "at_rate": [_at_rate(t, i, r, k, p, geometry) for i, r in enumerate(rates_rad)],
+            "at_rate": [
+                _at_rate(t, i, r, k, p, geometry, solving) for i, r in enumerate(rates_rad)
+            ],
         }
         for t in terms
     ]
     counted = {t.key: t.counted for t in terms}
     totals = tuple(
-        _totals(rows, counted, i, r) | _ensemble_totals(terms, i, p) for i, r in enumerate(rates)
+        _totals(rows, counted, i, r) | _ensemble_totals(terms, i, p, solving)
+        for i, r in enumerate(rates)
     )
     notes = (
         f"values at {100 * p:.4g} % (two-sided, per axis): k = {k:.4g} times the sky-median "
@@ -310,5 +341,8 @@ def _assemble(name: str, terms: tuple, rates: tuple, confidence: float, geometry
         "totals: root sum square of the counted terms at the confidence, per axis; the sky "
         "ensemble total: the bound at a random attitude (each attitude's Gaussian terms in "
         "quadrature, the mixture's bound at the confidence, the worst-case terms in quadrature)",
+        "the sky medians and ensembles are over the attitudes that give a solution: each "
+        "attitude weighs its chance of detecting the stars lost in space needs at that rate "
+        "(the availability's count); the availability is stated apart",
     )
-    return Statement(name, p, k, rates, tuple(rows), totals, notes, terms, tuple(geometry))
+    return Statement(name, p, k, rates, tuple(rows), totals, notes, terms, tuple(geometry), solving)

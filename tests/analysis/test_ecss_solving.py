@@ -1,0 +1,75 @@
+"""The statement over the attitudes that solve: chances of a solution, weighted sky statistics."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from starsense.analysis.ecss.confidence import mixture_bound, weighted_median
+from starsense.analysis.ecss.sky import chance_at_least
+from starsense.identify.hashing import MIN_SOLVING_STARS, PATTERN_STARS
+
+
+def _enumerated(chances, k: int) -> float:
+    """P(at least k of the independent events happen), by summing over every outcome."""
+    total = 0.0
+    for outcome in itertools.product((0, 1), repeat=len(chances)):
+        if sum(outcome) >= k:
+            total += np.prod([c if o else 1 - c for c, o in zip(chances, outcome, strict=True)])
+    return float(total)
+
+
+def test_chance_at_least_equals_the_enumeration_of_every_outcome():
+    rng = np.random.default_rng(7)
+    groups = rng.integers(0, 5, size=40)
+    chances = rng.uniform(0.0, 1.0, size=40)
+    got = chance_at_least(groups, chances, 6, MIN_SOLVING_STARS)
+    for g in range(6):
+        want = _enumerated(chances[groups == g], MIN_SOLVING_STARS)
+        # the same sums in another order: equal to rounding
+        assert got[g] == pytest.approx(want, abs=1e-12)
+    assert got[5] == 0.0  # a group without events never has five
+
+
+def test_chance_at_least_of_certain_events_counts_them():
+    groups = np.repeat(np.arange(8), np.arange(8))  # group g holds g certain events
+    got = chance_at_least(groups, np.ones(len(groups)), 8, MIN_SOLVING_STARS)
+    assert got.tolist() == [float(g >= MIN_SOLVING_STARS) for g in range(8)]
+
+
+def test_lost_in_space_needs_one_star_beyond_the_pattern():
+    # with no match beyond the pattern's own stars nothing is evidence: the floor is one more
+    from starsense.identify.verify import false_match_probability
+
+    p = false_match_probability(
+        PATTERN_STARS, PATTERN_STARS, n_hypothesis=PATTERN_STARS, p_single=1e-6
+    )
+    assert p == 1.0
+    assert MIN_SOLVING_STARS == PATTERN_STARS + 1
+
+
+def test_weights_are_repetitions():
+    # an attitude of integer weight n counts as n attitudes: the same bound and median
+    rng = np.random.default_rng(3)
+    sigmas = rng.uniform(0.5, 4.0, size=9)
+    n = rng.integers(0, 4, size=9)
+    repeated = np.repeat(sigmas, n)
+    for conf in (0.6826894921370859, 0.95, 0.9973):
+        # both solved to the same tolerance by brentq: 1e-9 relative
+        assert mixture_bound(sigmas, conf, n) == pytest.approx(
+            mixture_bound(repeated, conf), rel=1e-9
+        )
+    odd = np.append(repeated, 10.0) if len(repeated) % 2 == 0 else repeated
+    w = np.append(n, 1) if len(repeated) % 2 == 0 else n
+    vals = np.append(sigmas, 10.0) if len(repeated) % 2 == 0 else sigmas
+    assert weighted_median(vals, w) == float(np.median(odd))  # one middle value: exact
+
+
+def test_unit_weights_change_nothing_and_zero_weights_leave_out():
+    s = np.array([1.0, 2.0, np.nan, 5.0])
+    assert mixture_bound(s, 0.9) == mixture_bound(s, 0.9, np.ones(4))
+    assert mixture_bound(s, 0.9, [0, 0, 1, 1]) == pytest.approx(mixture_bound([5.0], 0.9), rel=1e-9)
+    assert weighted_median(s) == float(np.nanmedian(s))
+    assert weighted_median(s, [0, 0, 0, 0]) is None
