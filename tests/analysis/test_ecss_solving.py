@@ -25,7 +25,7 @@ def test_chance_at_least_equals_the_enumeration_of_every_outcome():
     rng = np.random.default_rng(7)
     groups = rng.integers(0, 5, size=40)
     chances = rng.uniform(0.0, 1.0, size=40)
-    got = chance_at_least(groups, chances, 6, MIN_SOLVING_STARS)
+    got = chance_at_least(groups, chances, 6, k=MIN_SOLVING_STARS)
     for g in range(6):
         want = _enumerated(chances[groups == g], MIN_SOLVING_STARS)
         # the same sums in another order: equal to rounding
@@ -35,7 +35,7 @@ def test_chance_at_least_equals_the_enumeration_of_every_outcome():
 
 def test_chance_at_least_of_certain_events_counts_them():
     groups = np.repeat(np.arange(8), np.arange(8))  # group g holds g certain events
-    got = chance_at_least(groups, np.ones(len(groups)), 8, MIN_SOLVING_STARS)
+    got = chance_at_least(groups, np.ones(len(groups)), 8, k=MIN_SOLVING_STARS)
     assert got.tolist() == [float(g >= MIN_SOLVING_STARS) for g in range(8)]
 
 

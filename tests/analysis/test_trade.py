@@ -212,3 +212,24 @@ def test_verify_pareto_checks_only_the_front_on_frames():
         # the predicted rows do not move when frames are added; the measured ones appear
         assert after.rows["nea_cross"] == before.rows["nea_cross"]
         assert (after.rows["lis_solved_rest"]["value"] is not None) == on_front
+
+
+@pytest.mark.slow  # two designs' predictions and statements: ~1 min
+def test_trade_statement_totals_are_the_designs_statements():
+    from starsense.analysis.ecss import ecss_statement
+
+    base = base_document("st16")
+    todo = designs(base, [parse_vary("optics.focal_length_m=0.012,0.02")])
+    st = prediction_settings(rng=4, n_orientations=150)
+    study = run_trade(todo, settings=st, statement=True)
+    for design, row in zip(todo, study.rows, strict=True):
+        stated = ecss_statement(design.sensor(), rates_deg_s=(0.0, 1.0), settings=st)
+        for i, where in enumerate(("rest", "rate")):
+            for a in ("x", "y", "z"):
+                want = stated.totals[i][f"total_{a}_arcsec"]
+                # the same design, catalogue and seed: the same number
+                assert row.rows[f"ecss_total_{a}_{where}"]["value"] == pytest.approx(
+                    want, rel=1e-12
+                )
+    plain = run_trade(todo[:1], settings=st)
+    assert plain.rows[0].rows["ecss_total_x_rest"]["value"] is None  # not asked: not stated

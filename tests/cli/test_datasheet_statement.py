@@ -33,7 +33,18 @@ def _run(*argv) -> tuple[int, str, str]:
         (["--confidence", "95"], "--confidence needs --statement"),
         (["--rates", "0,1"], "--rates needs --statement"),
         (["--budget-csv", "{d}/b.csv"], "--budget-csv needs --statement"),
-        (["--statement", "--compare", "esa_blackfly"], "--compare"),
+        (["--summary-pdf", "{d}/s.pdf"], "--summary-pdf needs --statement"),
+        (["--mass-kg", "0.3"], "--mass-kg needs --statement"),
+        (["--statement", "--mass-kg", "-1"], "--mass-kg = -1.0 must be a positive number"),
+        (["--statement", "--power-w", "nan"], "--power-w"),
+        (
+            ["--statement", "--compare", "esa_blackfly", "--summary-pdf", "{d}/s.pdf"],
+            "--summary-pdf writes one sensor's table",
+        ),
+        (
+            ["--statement", "--compare", "esa_blackfly", "--budget-csv", "{d}/b.csv"],
+            "--budget-csv writes one sensor's table",
+        ),
         (["--statement", "--centroids-only"], "--centroids-only"),
         (["--statement", "--confidence", "150"], "--confidence"),
         (["--statement", "--rates", "0,x"], "--rates"),
@@ -60,10 +71,25 @@ def test_budget_csv_refuses_a_fifo(tmp_path):
 @pytest.fixture(scope="module")
 def light(tmp_path_factory):
     path = tmp_path_factory.mktemp("statement") / "budget.csv"
+    pdf = path.with_name("summary.pdf")
     args = [*LIGHT, "--statement", "--rates", "0,0.5,1", "--budget-csv", str(path)]
+    args += ["--summary-pdf", str(pdf), "--mass-kg", "0.3"]
     rc, out, err = _run("datasheet", *args, "--json")
     assert rc == 0, err
-    return json.loads(out), path.read_text()
+    return json.loads(out), path.read_text(), pdf
+
+
+@pytest.mark.slow
+def test_summary_page_states_the_totals_and_what_was_given(light):
+    s = light[0]["statement"]
+    lines = {line["key"]: line for line in s["summary"]["lines"]}
+    totals = {
+        (r["axis"], r["rate_deg_s"]): r["value_arcsec"] for r in s["rows"] if r["class"] == "total"
+    }
+    for rate, key in ((0.0, "accuracy_rest_arcsec"), (0.5, "accuracy_0.5_deg_s_arcsec")):
+        assert lines[key]["values"] == [totals[(a, rate)] for a in "XYZ"]
+    assert lines["mass_kg"]["values"] == [0.3] and lines["power_w"]["value"] == "not given"
+    assert light[2].read_bytes()[:5] == b"%PDF-" and str(light[2]) in s["files"]
 
 
 @pytest.mark.slow  # a datasheet and a statement: ~30 s
@@ -160,3 +186,29 @@ def test_st16_sky_ensemble_coverage_at_0_and_1_deg_s(acceptance):
     three = {k: c["inside_3sigma_sky_ensemble"] for k, c in acceptance.items()}
     assert all(0.60 <= v <= 0.76 for v in one.values()), one
     assert all(v >= 0.99 for v in three.values()), three
+
+
+@pytest.mark.slow  # two datasheets and two statements: ~1 min
+def test_compare_carries_each_sensors_statement_totals():
+    argv = ["--trials", "3", "--n-orientations", "120", "--seed", "3", "--rates", "0,1"]
+    rc, out, err = _run(
+        "datasheet", "--sensor", "st16", "--compare", "esa_blackfly", "--statement", *argv, "--json"
+    )
+    assert rc == 0, err
+    d = json.loads(out)
+    rows = {r["key"]: r["values"] for r in d["rows"]}
+    for k, sheet in enumerate(d["sensors"]):
+        totals = {
+            (r["axis"], r["rate_deg_s"]): r["value_arcsec"]
+            for r in sheet["statement"]["rows"]
+            if r["class"] == "total"
+        }
+        for axis in ("x", "y", "z"):
+            # the comparison's row is the sensor's own statement total, at rest and at the rate
+            assert rows[f"ecss_total_{axis}_rest"][k] == totals[(axis.upper(), 0.0)]
+            assert rows[f"ecss_total_{axis}_rate"][k] == totals[(axis.upper(), 1.0)]
+            assert rows[f"ecss_total_{axis}_rate"][k] > 0
+    rc, text, _ = _run(
+        "datasheet", "--sensor", "st16", "--compare", "esa_blackfly", "--statement", *argv
+    )
+    assert rc == 0 and "ECSS total X at rest, arcsec" in text

@@ -15,6 +15,7 @@ from starsense._validate import check_count
 from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
 from starsense.analysis.centroid_trials import centroid_trials
 from starsense.analysis.datasheet import Comparison, DatasheetSettings, build_datasheet
+from starsense.analysis.datasheet.compare import comparison_rows
 from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.catalog import load_catalog
 from starsense.cli.against import AgainstExposureOpt, AgainstOpt, MoreFramesOpt, run_against
@@ -29,8 +30,11 @@ from starsense.cli.common import (
 from starsense.cli.datasheet_statement import (
     BudgetCsvOpt,
     ConfidenceOpt,
+    MassOpt,
+    PowerOpt,
     StatementOpt,
     StatementRatesOpt,
+    SummaryPdfOpt,
     statement_request,
     statement_section,
 )
@@ -127,6 +131,8 @@ def _compare_lines(comparison) -> list[str]:
     width = max(12, *(len(name) for name in comparison.sensors))
     out = [f"{'':34s}" + "".join(f"{name:>{width + 2}s}" for name in comparison.sensors)]
     for row in comparison.rows:
+        if row.key.startswith("ecss_") and all(v is None for v in row.values):
+            continue  # no --statement: nothing stated to compare
         cells = row.cells()
         out.append(f"{row.label:34s}" + "".join(f"{c:>{width + 2}s}" for c in cells))
     return out
@@ -242,26 +248,30 @@ def datasheet(
     confidence: ConfidenceOpt = None,
     rates: StatementRatesOpt = None,
     budget_csv: BudgetCsvOpt = None,
+    summary_pdf: SummaryPdfOpt = None,
+    mass_kg: MassOpt = None,
+    power_w: PowerOpt = None,
 ) -> None:
     """Predict what the sensor does (accuracy, lost in space, slew, availability, limit) and
     verify it on rendered frames in the same run."""  # noqa: D205, D209
     if schema:
         typer.echo((resources.files("starsense") / "data" / "datasheet.schema.json").read_text())
         return
-    check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
-    check_count(n_orientations, "--n-orientations", MAX_ORIENTATIONS, ORIENTATION_COST)
-    option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
-    if seed < 0:
-        raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
+    _check_numbers(trials, n_orientations, rate_deg_s, seed=seed)
     frames = (against, more_frames, exposure_s)
-    single = not compare and not centroids_only and not against and not more_frames
-    request = statement_request(statement, (confidence, rates, budget_csv), single=single)
+    # --sensor with --compare is one more sensor of the comparison, first (never dropped)
+    names = [n for n in (sensor, *(compare or ())) if n is not None] or ["st16"]
+    rendered = not centroids_only and not against and not more_frames
+    request = statement_request(
+        statement,
+        (confidence, rates, budget_csv, summary_pdf, mass_kg, power_w),
+        single=rendered,
+        several=len(names) > 1,
+    )
     if run_against(sensor, *frames, catalog=catalog, seed=seed, js=as_json):
         return
     if out is not None:  # the place, before any work: a folder (created) we may write in
         check_output(out, "--out", directory=True)
-    # --sensor with --compare is one more sensor of the comparison, first (never dropped)
-    names = [n for n in (sensor, *(compare or ())) if n is not None] or ["st16"]
     sensors = [load_sensor(n) for n in names]
     if out is not None and not centroids_only:  # the files in it, named by the sensors
         taken: set[str] = set()
@@ -282,13 +292,27 @@ def datasheet(
     sheets, payloads, extra = _sheets(
         sensors, cat, settings, request=request, dask=dask, js=as_json
     )
+    _emit_sheets(sheets, payloads, extra, out=out, js=as_json)
+
+
+def _check_numbers(trials: int, n_orientations: int, rate_deg_s: float, *, seed: int) -> None:
+    """Refuse a count, rate or seed out of range (before any work)."""
+    check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
+    check_count(n_orientations, "--n-orientations", MAX_ORIENTATIONS, ORIENTATION_COST)
+    option_float(rate_deg_s, "--rate-deg-s", 0.0, 30.0)
+    if seed < 0:
+        raise InputError(f"--seed = {seed} is out of range; must be an integer >= 0")
+
+
+def _emit_sheets(sheets, payloads, extra, *, out, js) -> None:
+    """Write ``--out``'s files, then print one datasheet (and ``extra`` lines) or the comparison."""
     figures = []
     if out is not None:
         taken: set[str] = set()
         for s, p in zip(sheets, payloads, strict=True):
             figures += _write_out(Path(out), s, p, safe_stem(p["sensor"], taken))
-    if len(names) > 1:
-        comparison = Comparison.from_sheets(sheets)
+    if len(sheets) > 1:
+        comparison = Comparison(tuple(sheets), comparison_rows(payloads))
         payload = {"sensors": payloads, "rows": [r.to_dict() for r in comparison.rows]}
         lines = _compare_lines(comparison)
     else:
@@ -297,24 +321,29 @@ def datasheet(
     if figures:
         payload = {**payload, "files": figures}
         lines += [f"wrote {f}" for f in figures]
-    emit(payload, as_json, lines)
+    emit(payload, js, lines)
 
 
 def _sheets(sensors, cat, settings, *, request, dask, js) -> tuple[list, list[dict], list[str]]:
-    """Build each sensor's datasheet, and the first's statement if asked (``--statement``)."""
-    sheets, section, lines = [], None, []
+    """Build each sensor's datasheet, and its statement if asked (``--statement``)."""
+    sheets, sections, lines = [], [], []
     with progress_bar(not js) as bar, _client(dask) as client:
         for sens in sensors:
-            sheets.append(
-                build_datasheet(sens, cat, settings=settings, client=client, progress=bar.callback)
+            sheet = build_datasheet(
+                sens, cat, settings=settings, client=client, progress=bar.callback
             )
-        if request is not None and sheets[0].limiting_magnitude is not None:
-            section, lines = statement_section(
-                sensors[0], cat, settings, sheet=sheets[0], request=request, client=client
-            )
+            sheets.append(sheet)
+            section = None  # None: the sensor detects no star (its warnings say why)
+            if request is not None and sheet.limiting_magnitude is not None:
+                section, told = statement_section(
+                    sens, cat, settings, sheet=sheet, request=request, client=client
+                )
+                lines = told if len(sheets) == 1 else lines  # text: the first sensor's
+            sections.append(section)
     payloads = [s.to_dict() for s in sheets]
-    if request is not None:  # None: the sensor detects no star (its warnings say why)
-        payloads[0]["statement"] = section
+    if request is not None:
+        for payload, section in zip(payloads, sections, strict=True):
+            payload["statement"] = section
     return sheets, payloads, lines
 
 

@@ -8,7 +8,9 @@ the datasheet did not run rendered here (``--trials`` frames each).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from importlib.metadata import version
 from pathlib import Path
 from typing import Annotated
 
@@ -19,18 +21,25 @@ from starsense.analysis.ecss import ecss_statement, parse_confidence
 from starsense.analysis.ecss.coverage import coverage_rows, frame_errors_arcsec, frame_errors_at
 from starsense.analysis.ecss.export import statement_csv, statement_lines, statement_rows
 from starsense.analysis.ecss.statement import check_rates
+from starsense.analysis.ecss.summary import vendor_summary
 from starsense.cli.common import parse_floats
 from starsense.errors import InputError
+from starsense.plotting.figure import save_pdf
+from starsense.plotting.summary import summary_page
 
 __all__ = [
     "DEFAULT_STATEMENT_RATES_DEG_S",
     "BudgetCsvOpt",
     "ConfidenceOpt",
+    "MassOpt",
+    "PowerOpt",
     "StatementOpt",
     "StatementRatesOpt",
     "StatementRequest",
+    "SummaryPdfOpt",
     "statement_request",
     "statement_section",
+    "summary_lines",
 ]
 
 #: the statement's rates when --rates is not given (and the fastest keeping 99 %), deg/s
@@ -70,17 +79,40 @@ BudgetCsvOpt = Annotated[
     ),
 ]
 
+SummaryPdfOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--summary-pdf",
+        help="With --statement: write the vendor-style one-page summary (accuracy per axis at "
+        "--confidence, tracking rate, lost in space, update rate, coverage, exclusion, mass, "
+        "power) as a PDF page to FILE.",
+    ),
+]
+MassOpt = Annotated[
+    float | None,
+    typer.Option("--mass-kg", help="With --statement: the unit's mass, kg, for the summary."),
+]
+PowerOpt = Annotated[
+    float | None,
+    typer.Option("--power-w", help="With --statement: the unit's power, W, for the summary."),
+]
+
 
 @dataclass(frozen=True)
 class StatementRequest:
-    """What ``--statement`` asked: the confidence, the rates (None: the default) and the CSV."""
+    """What ``--statement`` asked: confidence, rates (None: default), CSV, summary, mass, power."""
 
     confidence: float
     rates_deg_s: tuple | None
     budget_csv: Path | None
+    summary_pdf: Path | None = None
+    mass_kg: float | None = None
+    power_w: float | None = None
 
 
-def statement_request(statement: bool, options: tuple, *, single: bool) -> StatementRequest | None:
+def statement_request(
+    statement: bool, options: tuple, *, single: bool, several: bool = False
+) -> StatementRequest | None:
     """Check the statement's options before any work; None without ``--statement``.
 
     Parameters
@@ -88,33 +120,47 @@ def statement_request(statement: bool, options: tuple, *, single: bool) -> State
     statement : bool
         ``--statement`` given.
     options : tuple
-        ``(--confidence, --rates, --budget-csv)`` as given (None: not given).
+        ``(--confidence, --rates, --budget-csv, --summary-pdf, --mass-kg, --power-w)`` as
+        given (None: not given).
     single : bool
-        One sensor, rendered frames (no ``--compare``, ``--centroids-only``, ``--against``;
-        ``--trials`` is >= 1).
+        Rendered frames (no ``--centroids-only``, ``--against``).
+    several : bool
+        Several sensors (``--compare``): each gets its statement; ``--budget-csv`` (one
+        sensor's table) is refused.
 
     Returns
     -------
     StatementRequest or None
     """
-    confidence, rates, budget_csv = options
+    confidence, rates, budget_csv, summary_pdf, mass_kg, power_w = options
+    names = ("--confidence", "--rates", "--budget-csv", "--summary-pdf", "--mass-kg", "--power-w")
     if not statement:
-        for name, value in zip(("--confidence", "--rates", "--budget-csv"), options, strict=True):
+        for name, value in zip(names, options, strict=True):
             if value is not None:
                 raise InputError(f"{name} needs --statement (it sets the statement's {name[2:]})")
         return None
     if not single:
         raise InputError(
-            "--statement states one sensor on rendered frames: not with --compare, "
-            "--centroids-only or --against"
+            "--statement states sensors on rendered frames: not with --centroids-only or --against"
         )
+    for name, value in (("--budget-csv", budget_csv), ("--summary-pdf", summary_pdf)):
+        if several and value is not None:
+            raise InputError(
+                f"{name} writes one sensor's table: give one sensor, or --json (every "
+                "sensor's statement) with --compare"
+            )
+    for name, value in (("--mass-kg", mass_kg), ("--power-w", power_w)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(f"{name} = {value} must be a positive number")
     p = parse_confidence("1sigma" if confidence is None else confidence)
     rate_list = None
     if rates is not None:
         rate_list = check_rates(parse_floats(rates, "--rates", lo=0.0, hi=30.0))
     if budget_csv is not None:
         check_output(budget_csv, "--budget-csv")
-    return StatementRequest(p, rate_list, budget_csv)
+    if summary_pdf is not None:
+        check_output(summary_pdf, "--summary-pdf")
+    return StatementRequest(p, rate_list, budget_csv, summary_pdf, mass_kg, power_w)
 
 
 def _default_rates(sheet) -> tuple[tuple[float, ...], str | None]:
@@ -211,9 +257,33 @@ def statement_section(
     }
     lines = statement_lines(statement) + [f"  note: {n}" for n in notes]
     lines += _coverage_lines(coverage)
+    section["summary"] = vendor_summary(
+        sheet.to_dict(),
+        section["rows"],
+        confidence=statement.confidence,
+        sensor=sensor,
+        mass_kg=request.mass_kg,
+        power_w=request.power_w,
+    )
+    lines += summary_lines(section["summary"])
+    files = []
     if request.budget_csv is not None:
         with atomic_write(request.budget_csv) as fh:
             fh.write(statement_csv(statement))
-        section["files"] = [str(request.budget_csv)]
-        lines.append(f"wrote {request.budget_csv}")
+        files.append(str(request.budget_csv))
+    if request.summary_pdf is not None:
+        note = f"starsense {version('starsense')}, seed {settings.seed}"
+        page = summary_page(section["summary"], note=note)
+        files.append(str(save_pdf(page, request.summary_pdf)))
+    if files:
+        section["files"] = files
+        lines += [f"wrote {f}" for f in files]
     return section, lines
+
+
+def summary_lines(summary: dict) -> list[str]:
+    """Return the summary (:func:`~starsense.analysis.ecss.summary.vendor_summary`) as text."""
+    out = [f"summary ({summary['sensor']}):"]
+    for line in summary["lines"]:
+        out.append(f"  {line['item']}: {line['value']} {line['unit']}".rstrip())
+    return out

@@ -51,6 +51,12 @@ def report(
     trials: Annotated[
         int, typer.Option("--trials", help="Datasheet check: rendered frames per rate.")
     ] = 40,
+    mass_kg: Annotated[
+        float | None, typer.Option("--mass-kg", help="The unit's mass, kg, for the summary.")
+    ] = None,
+    power_w: Annotated[
+        float | None, typer.Option("--power-w", help="The unit's power, W, for the summary.")
+    ] = None,
 ) -> None:
     """Write the performance report (HTML + PNG figures) to --out: the sensor's datasheet first."""
     if diameter_m is not None:
@@ -59,6 +65,9 @@ def report(
         option_float(exposure_s, "--exposure-s", 0.0, EXPOSURE_MAX_S, lo_open=True)
     check_count(slew_trials, "--slew-trials", MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST)
     check_count(trials, "--trials", MAX_FRAMES, FRAME_COST)
+    for name, value in (("--mass-kg", mass_kg), ("--power-w", power_w)):
+        if value is not None:
+            option_float(value, name, 0.0, 1e6, lo_open=True)
     sens = load_sensor(sensor)
     # the limit of the sensor given (its aperture and exposure) unless told otherwise
     diameter_m = sens.optics.aperture_m if diameter_m is None else diameter_m
@@ -79,5 +88,7 @@ def report(
             sensor=sens,
             slew_trials=slew_trials,
             datasheet_trials=trials,
+            mass_kg=mass_kg,
+            power_w=power_w,
         )
     typer.echo(f"report written: {index}")

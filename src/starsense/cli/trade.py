@@ -98,12 +98,23 @@ def _jsonl(study) -> str:
     return "".join(json_text(r.to_dict(), indent=None) + "\n" for r in study.rows)
 
 
+#: with --statement, the ECSS totals (X and Z, at rest and at the rate) after them
+_TEXT_ECSS = (
+    ("ecss_total_x_rest", 'X@0"', ".3f"),
+    ("ecss_total_z_rest", 'Z@0"', ".2f"),
+    ("ecss_total_x_rate", 'X@w"', ".3f"),
+    ("ecss_total_z_rate", 'Z@w"', ".2f"),
+)
+
+
 def _lines(study) -> list[str]:
     heads = [k.split(".")[-1][:14] for k in study.keys]
+    stated = any(r.rows and r.rows["ecss_total_x_rest"]["value"] is not None for r in study.rows)
+    columns = _TEXT + (_TEXT_ECSS if stated else ())
     out = [
         "  #  "
         + "".join(f"{h:>15s}" for h in heads)
-        + "".join(f"{h:>10s}" for _, h, _ in _TEXT)
+        + "".join(f"{h:>10s}" for _, h, _ in columns)
         + "  pareto"
     ]
     for r in study.rows:
@@ -112,7 +123,7 @@ def _lines(study) -> list[str]:
             out.append(f"{left}  error: {r.error}")
             continue
         cells = [
-            format_value(r.rows[k]["value"], f, capped=r.rows[k]["capped"]) for k, _, f in _TEXT
+            format_value(r.rows[k]["value"], f, capped=r.rows[k]["capped"]) for k, _, f in columns
         ]
         fronts = ",".join(k for k, on in (r.pareto or {}).items() if on) or "-"
         mark = "  !" if r.warnings else ""
@@ -120,6 +131,11 @@ def _lines(study) -> list[str]:
     out.append(
         "pareto: nea_vs_rate = NEA cross vs fastest rate keeping 99 %; roll_vs_aperture = "
         'NEA roll vs aperture; ">= v": the end of the rate grid'
+        + (
+            "; X@0, Z@0, X@w, Z@w: the ECSS statement's 1-sigma totals at rest and at the rate"
+            if stated
+            else ""
+        )
     )
     return out + _warning_lines(study)
 
@@ -199,6 +215,14 @@ def trade(
     ] = None,
     model: ModelOpt = "reed",
     seed: SeedOpt = 0,
+    statement: Annotated[
+        bool,
+        typer.Option(
+            "--statement",
+            help="Add each design's ECSS statement totals per axis (X, Y, Z; 1 sigma) at rest "
+            "and at --rate-deg-s, as datasheet --statement states them (a few seconds a design).",
+        ),
+    ] = False,
     as_json: JsonOpt = False,
     as_csv: Annotated[bool, typer.Option("--csv", help="Print the rows as CSV.")] = False,
     out: Annotated[
@@ -235,6 +259,7 @@ def trade(
             workers=workers,
             client=client,
             progress=bar.callback,
+            statement=statement,
         )
     failed = [r for r in study.rows if r.error is not None]
     if len(failed) == len(study.rows):  # nothing to compare: say so, write nothing, exit 2

@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 
 from starsense._io import atomic_path
 
-__all__ = ["figure_and_axes", "new_figure", "save_png"]
+__all__ = ["figure_and_axes", "new_figure", "save_pdf", "save_png"]
 
 
 def new_figure(width_in: float = 8.0, height_in: float = 5.5) -> Figure:
@@ -44,4 +44,12 @@ def save_png(fig: Figure, path, dpi: int = 110) -> Path:
     path = Path(path)
     with atomic_path(path, ".png") as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")
+    return path
+
+
+def save_pdf(fig: Figure, path) -> Path:
+    """Write ``fig`` to the PDF file ``path`` atomically and return the path."""
+    path = Path(path)
+    with atomic_path(path, ".pdf") as tmp:
+        fig.savefig(tmp, format="pdf")
     return path

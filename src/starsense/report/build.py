@@ -88,6 +88,8 @@ def build_report(
     sensor=None,
     slew_trials: int = 20,
     datasheet_trials: int = 40,
+    mass_kg: float | None = None,
+    power_w: float | None = None,
 ) -> Path:
     """Write the performance report to ``out_dir`` (index.html, PNG figures, report.json).
 
@@ -120,6 +122,8 @@ def build_report(
         Monte Carlo trials per (magnitude, rate) in the slew section.
     datasheet_trials : int
         Rendered frames per rate in the datasheet's Monte Carlo check.
+    mass_kg, power_w : float or None
+        The unit's mass (kg) and power (W) for the performance summary (None: not given).
 
     Returns
     -------
@@ -160,6 +164,8 @@ def build_report(
             sensor=sensor,
             slew_trials=slew_trials,
             datasheet_trials=datasheet_trials,
+            mass_kg=mass_kg,
+            power_w=power_w,
             catalog=catalog,
         )
         sections = [builder(ctx) for builder in SECTION_BUILDERS]

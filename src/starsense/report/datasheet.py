@@ -8,6 +8,7 @@ from starsense.analysis.sensor_detection import SensorDetection
 from starsense.plotting.datasheet import nea_sky_figure
 from starsense.report.page import esc, figure_html, fmt, table
 from starsense.report.section import ReportContext, Section
+from starsense.report.summary import summary_part
 
 __all__ = ["datasheet_section"]
 
@@ -141,6 +142,7 @@ def datasheet_section(ctx: ReportContext) -> Section:
         html = "".join(f"<p>{esc(w)}</p>" for w in d["warnings"])
         return Section("datasheet", f"Datasheet: {sensor.name}", html, data={"datasheet": d})
     figures = [ctx.save_figure(nea_sky_figure(sheet), "datasheet_nea_sky.png")]
+    summary_html, summary_data = summary_part(ctx, sheet, settings)
     mc = d["monte_carlo"]
     budget = table(
         ["term", "cross-boresight (arcsec)", "about the boresight (arcsec)", "source"],
@@ -185,6 +187,7 @@ number was obtained; the papers' reproductions close the report as its validatio
             "NEA sky map",
         )
     }
+{summary_html}
 """
     nea = d["nea_arcsec"]
     summary = (
@@ -196,6 +199,5 @@ number was obtained; the papers' reproductions close the report as its validatio
             f"lost in space {mc['solved']}/{mc['frames']} solved, {mc['wrong']} wrong",
         ),
     )
-    return Section(
-        "datasheet", f"Datasheet: {sensor.name}", html, tuple(figures), summary, {"datasheet": d}
-    )
+    data = {"datasheet": d, "summary": summary_data}
+    return Section("datasheet", f"Datasheet: {sensor.name}", html, tuple(figures), summary, data)

@@ -82,6 +82,8 @@ class ReportContext:
     detection_cache : SensorDetection or None
         The sensor's detection (limit, slew run on its own grid, m_t(w)) once computed: see
         :meth:`detection`.
+    mass_kg, power_w : float or None
+        The unit's mass and power for the performance summary (given by the user, or None).
     """
 
     work_dir: Path
@@ -100,6 +102,8 @@ class ReportContext:
     slew_results: dict = field(default_factory=dict)
     catalog: Catalog | None = None
     detection_cache: SensorDetection | None = None
+    mass_kg: float | None = None
+    power_w: float | None = None
 
     @property
     def primary(self) -> BlackBodyStars:

@@ -56,6 +56,27 @@ def _budget_total(d: dict, axis: str) -> float | None:
     return None
 
 
+def _ecss_total(d: dict, axis: str, rate_deg_s: float | None) -> float | None:
+    """Return the ECSS statement's total on ``axis`` at a rate, arcsec (None: the sheet's rate)."""
+    rate = d["settings"]["rate_deg_s"] if rate_deg_s is None else rate_deg_s
+    for row in (d.get("statement") or {}).get("rows") or ():
+        if row["class"] == "total" and row["axis"] == axis and abs(row["rate_deg_s"] - rate) < 1e-9:
+            return row["value_arcsec"]
+    return None
+
+
+#: the statement's totals: inertial pointing (at rest) and slewing (at the datasheet's rate)
+_ECSS_ROWS = tuple(
+    (
+        f"ecss_total_{a.lower()}_{where}",
+        f"ECSS total {a} {'at rest' if rate == 0.0 else 'at rate'}, arcsec",
+        lambda d, a=a, rate=rate: _ecss_total(d, a, rate),
+        ".3f",
+    )
+    for where, rate in (("rest", 0.0), ("rate", None))
+    for a in ("X", "Y", "Z")
+)
+
 #: key, label, the value of one datasheet's JSON form (or (value, capped)), its text format
 _ROWS: tuple[tuple[str, str, Callable[[dict], object], str], ...] = (
     ("fov_width_deg", "field width, deg", lambda d: d["fov_deg"][0], ".2f"),
@@ -109,6 +130,7 @@ _ROWS: tuple[tuple[str, str, Callable[[dict], object], str], ...] = (
         ".3f",
     ),
     ("budget_total_roll", "budget total roll, arcsec", lambda d: _budget_total(d, "roll"), ".3f"),
+    *_ECSS_ROWS,
 )
 
 
@@ -213,7 +235,8 @@ def comparison_rows(payloads: Sequence[dict]) -> tuple[ComparisonRow, ...]:
         The trade rows (:data:`ROW_KEYS`): field, pixel scale, limiting magnitude, stars, NEA
         predicted and measured and NEA / limit per axis, lost in space at rest and at the rate
         (solved, wrong, median time), the fastest rates keeping 50/90/99 %, availability at
-        rest and at the rate, the budget's total.
+        rest and at the rate, the budget's total, and the ECSS statement's totals per axis at
+        rest and at the rate where the payload holds a ``statement`` (its confidence).
     """
     per = [row_values(d) for d in payloads]
     return tuple(

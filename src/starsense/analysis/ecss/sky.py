@@ -102,7 +102,7 @@ class SkyStars:
         rest = self.stars.presence(0.0)
         at_rate = self.stars.presence(rate_rad_s)[rest > 0.0]  # aligned with self.vectors
         return chance_at_least(
-            self.pairs.point, at_rate[self.pairs.star], self.pairs.n_pointings, MIN_SOLVING_STARS
+            self.pairs.point, at_rate[self.pairs.star], self.pairs.n_pointings, k=MIN_SOLVING_STARS
         )
 
     def temporal_at_rate(self, rate_rad_s: float) -> np.ndarray:
@@ -152,7 +152,7 @@ class SkyStars:
         return fisher_axes(fisher)
 
 
-def chance_at_least(group, chance, n_groups: int, k: int) -> np.ndarray:
+def chance_at_least(group, chance, n_groups: int, *, k: int) -> np.ndarray:
     """Return, per group, the chance that at least ``k`` of its independent events happen.
 
     Parameters

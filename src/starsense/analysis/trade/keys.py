@@ -45,6 +45,11 @@ OUTPUT_KEYS: dict[str, str] = {
     "availability_lis_rate": "availability_lis_fraction_at_rate",
     "budget_total_cross": "budget_total_cross_arcsec",
     "budget_total_roll": "budget_total_roll_arcsec",
+    **{
+        f"ecss_total_{a}_{where}": f"ecss_total_{a}_arcsec_{suffix}"
+        for where, suffix in (("rest", "rest"), ("rate", "at_rate"))
+        for a in ("x", "y", "z")
+    },
 }
 
 

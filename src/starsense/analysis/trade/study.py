@@ -20,11 +20,14 @@ import numpy as np
 from starsense.analysis.datasheet.compare import row_values
 from starsense.analysis.datasheet.sheet import DatasheetSettings, build_datasheet
 from starsense.analysis.datasheet.skycache import black_bodies
+from starsense.analysis.ecss import ecss_statement
+from starsense.analysis.ecss.export import statement_rows
 from starsense.analysis.inputs import as_catalog
 from starsense.analysis.trade.grid import MAX_DESIGNS_IN_PROCESS, MAX_DESIGNS_ON_CLUSTER, Design
 from starsense.analysis.trade.keys import named_rows
 from starsense.analysis.trade.predict import prediction_settings
 from starsense.errors import InputError
+from starsense.units import DEG
 
 __all__ = ["PARETO", "TradeRow", "TradeStudy", "pareto_mask", "run_trade"]
 
@@ -129,7 +132,12 @@ def _catalog(spec):
 
 
 def evaluate_design(
-    design: Design, catalog=None, *, settings: DatasheetSettings, n_frames: int = 0
+    design: Design,
+    catalog=None,
+    *,
+    settings: DatasheetSettings,
+    n_frames: int = 0,
+    statement: bool = False,
 ) -> TradeRow:
     """Return the trade row of one design (its error, when its TOML is out of range).
 
@@ -143,6 +151,9 @@ def evaluate_design(
         The prediction's settings.
     n_frames : int
         Rendered frames to verify it on (0: the prediction alone).
+    statement : bool
+        Add the ECSS statement's totals per axis at rest and at the settings' rate (1 sigma;
+        :func:`~starsense.analysis.ecss.ecss_statement` on the design's datasheet).
 
     Returns
     -------
@@ -160,11 +171,16 @@ def evaluate_design(
         sheet = build_datasheet(sensor, cat, settings=st)
     except InputError as exc:
         return TradeRow(design.index, sensor.name, design.values, None, str(exc))
+    payload = sheet.to_dict()
+    if statement and sheet.limiting_magnitude is not None:
+        rates = (0.0, st.rate_rad_s / DEG)
+        stated = ecss_statement(sensor, cat, rates_deg_s=rates, settings=st, sheet=sheet)
+        payload["statement"] = {"rows": statement_rows(stated)}
     return TradeRow(
         design.index,
         sensor.name,
         design.values,
-        row_values(sheet.to_dict()),
+        row_values(payload),
         aperture_m=sensor.optics.aperture_m,
         verified=n_frames > 0,
         warnings=tuple(sheet.warnings),
@@ -286,11 +302,18 @@ def _field_chunks(designs, workers: int) -> list[list[int]]:
 class _Evaluate:
     """Picklable ``design -> TradeRow`` (for worker processes and Dask)."""
 
-    def __init__(self, catalog, settings, n_frames: int) -> None:
+    def __init__(self, catalog, settings, n_frames: int, statement: bool = False) -> None:
         self.catalog, self.settings, self.n_frames = catalog, settings, n_frames
+        self.statement = statement
 
     def __call__(self, design: Design) -> TradeRow:
-        return evaluate_design(design, self.catalog, settings=self.settings, n_frames=self.n_frames)
+        return evaluate_design(
+            design,
+            self.catalog,
+            settings=self.settings,
+            n_frames=self.n_frames,
+            statement=self.statement,
+        )
 
 
 def run_trade(
@@ -303,6 +326,7 @@ def run_trade(
     workers: int = 1,
     client=None,
     progress: Callable[[str, int, int], None] | None = None,
+    statement: bool = False,
 ) -> TradeStudy:
     """Predict every design, mark the Pareto sets, and verify on frames if asked.
 
@@ -323,6 +347,9 @@ def run_trade(
     client : dask.distributed.Client, optional
         Evaluate the designs on this cluster (the same rows).
     progress : callable(label, done, total), optional
+    statement : bool
+        Add each design's ECSS statement totals per axis, at rest and at the settings' rate
+        (1 sigma; the design's own sky, as ``datasheet --statement``; a few seconds a design).
 
     Returns
     -------
@@ -344,7 +371,11 @@ def run_trade(
         except InputError:  # no colours: each design's row says so
             pass
     rows = _map(
-        _Evaluate(catalog, st, 0), list(designs), workers=workers, client=client, progress=progress
+        _Evaluate(catalog, st, 0, statement),
+        list(designs),
+        workers=workers,
+        client=client,
+        progress=progress,
     )
     rows = _mark_pareto(rows)
     if n_frames > 0:
@@ -355,7 +386,7 @@ def run_trade(
         ]
         by_index = {d.index: d for d in designs}
         checked = _map(
-            _Evaluate(catalog, st, n_frames),
+            _Evaluate(catalog, st, n_frames, statement),
             [by_index[i] for i in chosen],
             workers=workers,
             client=client,
