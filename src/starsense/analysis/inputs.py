@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 from starsense._validate import as_generator
 from starsense.catalog import Catalog, load_catalog
-from starsense.catalog.table import concat
+from starsense.catalog.combine import concat
 from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.sensor import Sensor, load_sensor
 from starsense.units import ARCSEC

@@ -27,9 +27,10 @@ from types import MappingProxyType
 from starsense.catalog._parse import existing_file
 from starsense.catalog.bsc5 import load_bsc5
 from starsense.catalog.cache import cached_load, default_cache_dir
+from starsense.catalog.combine import concat
 from starsense.catalog.gaia import bundled_gaia_path, load_gaia
 from starsense.catalog.hipparcos import load_hip2, load_hip_main, v_from_hp
-from starsense.catalog.table import KNOWN_BANDS, KNOWN_COLOURS, Catalog, concat
+from starsense.catalog.table import KNOWN_BANDS, KNOWN_COLOURS, Catalog
 from starsense.catalog.twomass import load_twomass
 from starsense.catalog.tycho2 import load_tycho2
 from starsense.errors import InputError

@@ -4,7 +4,7 @@ The byte layout is the VizieR I/259 ReadMe ("Byte-by-byte Description of file: t
 C. Fabricius 2000): 206-byte records, 32 fields separated by ``|`` (the TYC identifier
 ``TYC1 TYC2 TYC3`` counting as one field, and HIP + CCDM as another). The distributed file is
 split in 20 parts ``tyc2.dat.00`` ... ``tyc2.dat.19`` (gzipped); concatenate them or load
-each and :func:`~starsense.catalog.table.concat` the results.
+each and :func:`~starsense.catalog.combine.concat` the results.
 """
 
 from __future__ import annotations
