@@ -36,7 +36,8 @@ from starsense.analysis.availability import (  # noqa: E402
     field_of_view,
     sky_attitudes,
 )
-from starsense.analysis.centroid_trials import centroid_model, centroid_trials  # noqa: E402
+from starsense.analysis.centroid_sim import centroid_model  # noqa: E402
+from starsense.analysis.centroid_trials import centroid_trials  # noqa: E402
 from starsense.analysis.guide_stars import lin_layout, select_guide_stars, simulate_table1  # noqa: E402
 from starsense.analysis.limits import sky_limit  # noqa: E402
 from starsense.analysis.mission import (  # noqa: E402

@@ -9,14 +9,13 @@ import pytest
 from scipy.stats import binomtest
 
 from starsense.analysis.availability.field import catalog_stars
-from starsense.analysis.centroid_trials import (
+from starsense.analysis.centroid_sim import (
     CentroidModel,
-    CentroidTrialsResult,
     centroid_model,
-    centroid_trials,
     simulate_centroids,
     star_field,
 )
+from starsense.analysis.centroid_trials import CentroidTrialsResult, centroid_trials
 from starsense.catalog import load_catalog
 from starsense.cli.app import main
 from starsense.geometry.attitude import angular_separation, boresight
