@@ -22,6 +22,7 @@ from starsense.detect import (
     background,
     estimate_background,
     hot_pixel_mask,
+    hot_pixels,
     matched,
     regions,
 )
@@ -42,7 +43,7 @@ def test_the_kernel_is_built_where_a_compiler_exists():
 @contextlib.contextmanager
 def numpy_forms():
     """Run the NumPy forms: every module that uses the kernel sees none, until the end."""
-    modules = (matched, regions, background)
+    modules = (matched, regions, hot_pixels)
     saved = [m._framec for m in modules]
     try:
         for m in modules:

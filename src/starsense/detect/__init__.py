@@ -5,12 +5,8 @@ arrays (rows, columns); pixel centres are at integer coordinates, pixel (row r, 
 x in [c - 0.5, c + 0.5) and y in [r - 0.5, r + 0.5); centroids are (x, y) = (column, row).
 """
 
-from starsense.detect.background import (
-    Background,
-    constant_background,
-    estimate_background,
-    hot_pixel_mask,
-)
+from starsense.detect.background import Background, constant_background, estimate_background
+from starsense.detect.hot_pixels import hot_pixel_mask
 from starsense.detect.stack import detect_stack
 from starsense.detect.threshold import DetectionLogic, Detections, StarDetector, detect_stars
 

@@ -8,7 +8,7 @@ sum to at least ``min_integrated_counts`` (its *integrated intensity*).
 For real frames the threshold can follow the noise: with ``threshold_sigma`` set, a pixel is lit
 when it exceeds ``max(lit_pixel_counts, threshold_sigma x noise)`` above the background map (with
 ``background="auto"`` the noise is a map, so the threshold follows the sky glow's shot noise
-across the frame), and hot pixels (:func:`~starsense.detect.background.hot_pixel_mask`) are
+across the frame), and hot pixels (:func:`~starsense.detect.hot_pixels.hot_pixel_mask`) are
 replaced by the background before labelling.
 """
 
@@ -21,14 +21,9 @@ import numpy as np
 
 from starsense._validate import check_int, finite_float, positive_float, show
 from starsense._workspace import scratch
-from starsense.detect.background import (
-    HOT_PIXEL_SIGMA,
-    Background,
-    constant_background,
-    estimate_background,
-    hot_pixel_mask,
-)
+from starsense.detect.background import Background, constant_background, estimate_background
 from starsense.detect.centroid import METHODS, gauss_fit
+from starsense.detect.hot_pixels import HOT_PIXEL_SIGMA, hot_pixel_mask
 from starsense.detect.matched import (
     NOISE_STEP,
     filtered_noise_ratio,

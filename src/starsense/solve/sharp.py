@@ -3,7 +3,7 @@
 A single frame cannot tell a star whose PSF fits in one pixel (a wide imager summed on board to
 0.3 deg a pixel, PSF sigma 0.3-0.5 px: the brightest neighbour holds 5-25 % of the peak) from
 a hot pixel by its shape alone. The robust extraction holds such spikes aside
-(:func:`starsense.detect.background.hot_pixel_mask`): a frame of a sharp camera with hundreds
+(:func:`starsense.detect.hot_pixels.hot_pixel_mask`): a frame of a sharp camera with hundreds
 of hot pixels (a CMOS sensor at high gain) solves on its stars. When the frame does not solve
 that way and spikes were held aside, they are not hot pixels by default: the frame is detected
 again with them kept as candidates and solved.

@@ -1,7 +1,7 @@
 """Hot and warm pixels: isolated pixels that stand out of the background in every frame.
 
 A star lights its neighbours, a defective pixel does not
-(:func:`starsense.detect.background.hot_pixel_mask`). A pixel is *hot* when it is such an
+(:func:`starsense.detect.hot_pixels.hot_pixel_mask`). A pixel is *hot* when it is such an
 isolated excess of at least :data:`HOT_SIGMA` noise sigmas in every frame, *warm* when it is one
 of at least :data:`WARM_SIGMA` in every frame and not hot. With several frames a noise spike
 or a particle hit, which falls on other pixels in each, is ruled out by the "every frame"
@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from starsense.detect.background import estimate_background, hot_pixel_mask
+from starsense.detect.background import estimate_background
+from starsense.detect.hot_pixels import hot_pixel_mask
 
 __all__ = ["HOT_SIGMA", "WARM_SIGMA", "HotPixels", "hot_pixels"]
 
