@@ -6,9 +6,10 @@ x in [c - 0.5, c + 0.5) and y in [r - 0.5, r + 0.5); centroids are (x, y) = (col
 """
 
 from starsense.detect.background import Background, constant_background, estimate_background
+from starsense.detect.detections import Detections
 from starsense.detect.hot_pixels import hot_pixel_mask
 from starsense.detect.stack import detect_stack
-from starsense.detect.threshold import DetectionLogic, Detections, StarDetector, detect_stars
+from starsense.detect.threshold import DetectionLogic, StarDetector, detect_stars
 
 __all__ = [
     "Background",

@@ -30,6 +30,7 @@ except ImportError:  # built without a C compiler: the NumPy forms below
 __all__ = [
     "LOCAL_BOX_PX",
     "NOISE_STEP",
+    "box_mean_at_peaks",
     "filtered_noise_ratio",
     "gaussian_correlate",
     "local_noise_ratio",
@@ -278,3 +279,31 @@ def _median_in_place(z: np.ndarray) -> np.float32:
     if n % 2:
         return z[k]
     return np.mean(np.array([z[k], z[k + 1 :].min()], dtype=z.dtype))
+
+
+def box_mean_at_peaks(sub, filtered, idx, lab, half: int):
+    """Return, per region, its label, its filtered peak and the box mean of ``sub`` there.
+
+    The peak is the region's lit pixel where ``filtered`` is largest; the box is
+    (2 half + 1)^2 pixels around it, edge pixels repeated beyond the frame (as
+    ``ndimage.uniform_filter(mode="nearest")``), evaluated at the peaks only.
+    """
+    values = filtered.ravel()[idx]
+    # each region's largest value, at its last pixel holding it (the last of a sort by region,
+    # then by value, stable): two passes instead of the sort, which NaN needs
+    top = np.full(int(lab.max()) + 1, -np.inf, values.dtype)
+    np.maximum.at(top, lab, values)
+    if np.isnan(top).any():
+        order = np.lexsort((values, lab))
+        last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
+    else:
+        at_top = np.flatnonzero(values == top[lab])
+        last = np.full(top.size, -1, np.intp)
+        np.maximum.at(last, lab[at_top], at_top)
+        last = last[last >= 0]
+    rows, cols = sub.shape
+    r, c = np.divmod(idx[last], cols)
+    off = np.arange(-half, half + 1)
+    rr = np.clip(r[:, None, None] + off[None, :, None], 0, rows - 1)
+    cc = np.clip(c[:, None, None] + off[None, None, :], 0, cols - 1)
+    return lab[last], values[last], sub[rr, cc].mean(axis=(1, 2), dtype=np.float64)

@@ -15,7 +15,7 @@ replaced by the background before labelling.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -23,9 +23,11 @@ from starsense._validate import check_int, finite_float, positive_float, show
 from starsense._workspace import scratch
 from starsense.detect.background import Background, constant_background, estimate_background
 from starsense.detect.centroid import METHODS, gauss_fit
+from starsense.detect.detections import Detections
 from starsense.detect.hot_pixels import HOT_PIXEL_SIGMA, hot_pixel_mask
 from starsense.detect.matched import (
     NOISE_STEP,
+    box_mean_at_peaks,
     filtered_noise_ratio,
     gaussian_correlate,
     local_noise_ratio,
@@ -45,71 +47,6 @@ MIN_PEAK_STEPS = 1.5
 MIN_SHARPNESS = 1.6
 #: the detection logic is the sensor's configuration
 DetectionLogic = DetectionThresholds
-
-
-@dataclass(frozen=True)
-class Detections:
-    """Detected stars, brightest first (columnar).
-
-    Attributes
-    ----------
-    x, y : array (N,)
-        Centroids, pixels (x = column, y = row; pixel centres at integers).
-    integrated_counts : array (N,)
-        Background-subtracted counts summed over the star's lit pixels.
-    n_pixels : array (N,) int
-        Lit pixels.
-    peak_counts : array (N,)
-        Largest raw count in the star.
-    saturated : array (N,) bool
-        Some pixel at the saturation level.
-    bbox : array (N, 4) int
-        row0, row1, col0, col1 (half-open) of the lit pixels.
-    fit_ok : array (N,) bool
-        The centroid method succeeded (always True for cog/iwcog).
-    n_candidates : int
-        Contiguous lit regions before the size and intensity cuts.
-    noise_counts : float
-        Background noise used for the thresholds.
-    time_ms : float
-    counts : dict
-        What each cut did: ``pixels_above_threshold``, ``hot_pixels`` (removed before
-        labelling), ``candidates`` (lit regions), ``rejected_size`` (too few or too many
-        pixels), ``rejected_faint`` (integrated counts, significance or peak too low),
-        ``rejected_shape`` (not point-like: plateaus, streaks), ``saturated`` (detections
-        with a pixel at saturation, kept), ``detections``.
-    """
-
-    x: np.ndarray
-    y: np.ndarray
-    integrated_counts: np.ndarray
-    n_pixels: np.ndarray
-    peak_counts: np.ndarray
-    saturated: np.ndarray
-    bbox: np.ndarray
-    fit_ok: np.ndarray
-    n_candidates: int = 0
-    noise_counts: float = 0.0
-    time_ms: float = 0.0
-    method: str = "cog"
-    extra: dict = field(default_factory=dict)
-    counts: dict = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.x)
-
-    def to_dict(self) -> dict:
-        """Return the detections as a JSON-able dictionary (no bounding boxes or fit flags)."""
-        return {
-            "x": self.x.tolist(),
-            "y": self.y.tolist(),
-            "integrated_counts": self.integrated_counts.tolist(),
-            "n_pixels": self.n_pixels.tolist(),
-            "peak_counts": self.peak_counts.tolist(),
-            "saturated": self.saturated.tolist(),
-            "n_candidates": self.n_candidates,
-            "time_ms": self.time_ms,
-        }
 
 
 def _check_image(image) -> np.ndarray:
@@ -315,7 +252,7 @@ class StarDetector:
         half = int(np.ceil(3.0 * self.psf_sigma_px))
         peak_f, peak_b, top = (np.full(n + 1, -np.inf) for _ in range(3))
         if idx.size:
-            where, peak_f_at, box_at = _box_mean_at_peaks(sub, filtered, idx, lab, half)
+            where, peak_f_at, box_at = box_mean_at_peaks(sub, filtered, idx, lab, half)
             peak_f[where], peak_b[where] = peak_f_at, box_at
         np.maximum.at(top, lab, a.ravel()[idx])
         with np.errstate(invalid="ignore"):
@@ -432,34 +369,6 @@ class StarDetector:
             counts={**counts, "saturated": int(sat.sum())},
         )
         return _timed(det, t0)
-
-
-def _box_mean_at_peaks(sub, filtered, idx, lab, half: int):
-    """Return, per region, its label, its filtered peak and the box mean of ``sub`` there.
-
-    The peak is the region's lit pixel where ``filtered`` is largest; the box is
-    (2 half + 1)^2 pixels around it, edge pixels repeated beyond the frame (as
-    ``ndimage.uniform_filter(mode="nearest")``), evaluated at the peaks only.
-    """
-    values = filtered.ravel()[idx]
-    # each region's largest value, at its last pixel holding it (the last of a sort by region,
-    # then by value, stable): two passes instead of the sort, which NaN needs
-    top = np.full(int(lab.max()) + 1, -np.inf, values.dtype)
-    np.maximum.at(top, lab, values)
-    if np.isnan(top).any():
-        order = np.lexsort((values, lab))
-        last = order[np.r_[np.flatnonzero(np.diff(lab[order])), len(order) - 1]]
-    else:
-        at_top = np.flatnonzero(values == top[lab])
-        last = np.full(top.size, -1, np.intp)
-        np.maximum.at(last, lab[at_top], at_top)
-        last = last[last >= 0]
-    rows, cols = sub.shape
-    r, c = np.divmod(idx[last], cols)
-    off = np.arange(-half, half + 1)
-    rr = np.clip(r[:, None, None] + off[None, :, None], 0, rows - 1)
-    cc = np.clip(c[:, None, None] + off[None, None, :], 0, cols - 1)
-    return lab[last], values[last], sub[rr, cc].mean(axis=(1, 2), dtype=np.float64)
 
 
 def _timed(det: Detections, t0: float) -> Detections:

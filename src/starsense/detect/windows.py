@@ -26,8 +26,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from starsense.detect.clip import MAD_TO_SIGMA
+from starsense.detect.detections import Detections
 from starsense.detect.streak import columns, windows_view
-from starsense.detect.threshold import Detections, StarDetector
+from starsense.detect.threshold import StarDetector
 from starsense.detect.window_kernels import (
     apart_compiled,
     apart_numpy,
