@@ -9,7 +9,7 @@ from scipy import ndimage
 from starsense.detect.streak import streak_centroid, streak_centroids
 from starsense.detect.window_kernels import label_windows
 from starsense.detect.windows import union_area
-from starsense.render.scene import render_star_stamp
+from starsense.render.star_stamp import render_star_stamp
 from starsense.sensor import load_sensor
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from starsense.errors import InputError
 from starsense.render.noise import apply_noise, as_generator, quantise
-from starsense.render.scene import render_star_stamp
+from starsense.render.star_stamp import render_star_stamp
 
 
 def with_detector(sensor, **changes):

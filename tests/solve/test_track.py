@@ -21,8 +21,9 @@ from starsense.detect.streak import streak_centroid
 from starsense.errors import InputError
 from starsense.geometry.attitude import attitude_from_radec_roll, small_rotation_angles
 from starsense.identify.tracking import TrackingIdentifier
-from starsense.render.scene import render_frame, render_star_stamp
+from starsense.render.scene import render_frame
 from starsense.render.sequence import render_sequence
+from starsense.render.star_stamp import render_star_stamp
 from starsense.sensor import load_sensor
 from starsense.solve.frames import load_image
 from starsense.solve.solver import Solver

@@ -7,7 +7,8 @@ Modules, in the order light passes through them:
 * :mod:`~starsense.render.tracks` -- star tracks from the exact rotation of the camera (eq. 10),
   arcs by sub-stepping;
 * :mod:`~starsense.render.noise` -- shot and read noise, gain, bias, quantisation (sec. 3.1);
-* :mod:`~starsense.render.scene` -- :func:`render_frame`, :func:`render_star_stamp`;
+* :mod:`~starsense.render.scene` -- :func:`render_frame`; :mod:`~starsense.render.star_stamp`
+  -- :func:`render_star_stamp`;
 * :mod:`~starsense.render.frame` -- :class:`Frame` and its truth;
 * :mod:`~starsense.render.io` -- :func:`write_frame` (TIFF / PNG / FITS + JSON truth).
 
@@ -35,7 +36,7 @@ _EXPORTS = {
     "gaussian_stamp": "psf",
     "check_on_detector": "scene",
     "render_frame": "scene",
-    "render_star_stamp": "scene",
+    "render_star_stamp": "star_stamp",
     "gauss_legendre_order": "smear",
     "polyline_expected": "smear",
     "smear_intensity": "smear",
@@ -49,13 +50,14 @@ if TYPE_CHECKING:
     from starsense.render.io import write_frame, write_frames
     from starsense.render.noise import apply_noise, as_generator, quantise
     from starsense.render.psf import Box, gaussian_stamp
-    from starsense.render.scene import check_on_detector, render_frame, render_star_stamp
+    from starsense.render.scene import check_on_detector, render_frame
     from starsense.render.smear import (
         gauss_legendre_order,
         polyline_expected,
         smear_intensity,
         streak_stamp_expected,
     )
+    from starsense.render.star_stamp import render_star_stamp
     from starsense.render.tracks import Tracks, star_tracks
 
 
