@@ -39,6 +39,7 @@ from starsense.cli.datasheet_statement import (
     statement_section,
 )
 from starsense.errors import InputError
+from starsense.identify.hashing import MIN_SOLVING_STARS
 from starsense.plotting.datasheet import nea_sky_figure
 from starsense.plotting.figure import save_png
 from starsense.scale import dask_client
@@ -97,7 +98,7 @@ def datasheet_lines(d: dict) -> list[str]:
             f" / {_ratio(run, 'roll')} (95 % over the frames)"
         )
     lines += [
-        "  availability (lost in space N>=3 / tracking N>=2): "
+        f"  availability (lost in space N>={MIN_SOLVING_STARS} / tracking N>=2): "
         + ", ".join(
             f"{r:g} deg/s {_pct(a)} / {_pct(t)}"
             for r, a, t in zip(

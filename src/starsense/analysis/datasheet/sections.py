@@ -199,7 +199,7 @@ class FastestRates(_Section):
 
 @dataclass(frozen=True)
 class RatesKept(_Section):
-    """:class:`FastestRates` for lost in space (N >= 3) and tracking (N >= 2)."""
+    """:class:`FastestRates` for lost in space (N >= 5: the solver's) and tracking (N >= 2)."""
 
     lost_in_space: FastestRates
     tracking: FastestRates
