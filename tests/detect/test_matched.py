@@ -152,7 +152,7 @@ def test_box_mean_at_peaks_is_the_box_at_each_regions_last_largest_pixel(seed, t
     if idx.size == 0:
         idx = np.array([0])
     lab = rng.integers(1, 6, idx.size).astype(np.int32)
-    where, peak, box = box_mean_at_peaks(sub, filtered, idx, lab, half)
+    where, peak, box = box_mean_at_peaks(sub, filtered, idx=idx, lab=lab, half=half)
     regions = np.unique(lab)
     np.testing.assert_array_equal(where, regions)
     for k, region in enumerate(regions):

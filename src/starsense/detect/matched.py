@@ -281,7 +281,7 @@ def _median_in_place(z: np.ndarray) -> np.float32:
     return np.mean(np.array([z[k], z[k + 1 :].min()], dtype=z.dtype))
 
 
-def box_mean_at_peaks(sub, filtered, idx, lab, half: int):
+def box_mean_at_peaks(sub, filtered, *, idx, lab, half: int):
     """Return, per region, its label, its filtered peak and the box mean of ``sub`` there.
 
     The peak is the region's lit pixel where ``filtered`` is largest; the box is

@@ -252,7 +252,7 @@ class StarDetector:
         half = int(np.ceil(3.0 * self.psf_sigma_px))
         peak_f, peak_b, top = (np.full(n + 1, -np.inf) for _ in range(3))
         if idx.size:
-            where, peak_f_at, box_at = box_mean_at_peaks(sub, filtered, idx, lab, half)
+            where, peak_f_at, box_at = box_mean_at_peaks(sub, filtered, idx=idx, lab=lab, half=half)
             peak_f[where], peak_b[where] = peak_f_at, box_at
         np.maximum.at(top, lab, a.ravel()[idx])
         with np.errstate(invalid="ignore"):
