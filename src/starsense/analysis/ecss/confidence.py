@@ -92,6 +92,14 @@ def gaussian_factor(confidence: float) -> float:
     return float(ndtri(0.5 * (1.0 + float(confidence))))
 
 
+def _weighted(values, weights) -> tuple[np.ndarray, np.ndarray]:
+    """Return the finite values with a positive weight, and those weights (1 when None)."""
+    v = np.asarray(values, dtype=float).ravel()
+    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=float).ravel()
+    keep = np.isfinite(v) & (w > 0)
+    return v[keep], w[keep]
+
+
 def mixture_bound(sigmas, confidence: float, weights=None) -> float | None:
     """Return the bound that an error drawn at a random attitude stays within, with ``confidence``.
 
@@ -116,10 +124,7 @@ def mixture_bound(sigmas, confidence: float, weights=None) -> float | None:
     float or None
         In the unit of ``sigmas``; None when no attitude has a finite sigma (and a weight).
     """
-    s = np.asarray(sigmas, dtype=float).ravel()
-    w = np.ones_like(s) if weights is None else np.asarray(weights, dtype=float).ravel()
-    keep = np.isfinite(s) & (w > 0)
-    s, w = s[keep], w[keep]
+    s, w = _weighted(sigmas, weights)
     if s.size == 0:
         return None
     top = float(np.max(s))
@@ -158,10 +163,7 @@ def weighted_median(values, weights=None) -> float | None:
     float or None
         None when no value is finite with a weight.
     """
-    v = np.asarray(values, dtype=float).ravel()
-    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=float).ravel()
-    keep = np.isfinite(v) & (w > 0)
-    v, w = v[keep], w[keep]
+    v, w = _weighted(values, weights)
     if v.size == 0:
         return None
     if weights is None:
