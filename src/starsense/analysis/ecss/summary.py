@@ -45,6 +45,13 @@ def _accuracy_lines(rows: list[dict], confidence: float) -> list[dict]:
     return out
 
 
+def _number(item: str, key: str, value, spec: str, unit: str, source: str) -> dict:
+    """Return a line of one number (``spec`` its text format; None or NaN print "n/a")."""
+    text = _fmt(value, spec)
+    return {"item": item, "value": text, "unit": unit, "source": source, "key": key,
+            "values": [value]}  # fmt: skip
+
+
 def _given(value, unit: str, item: str, key: str) -> dict:
     text = "not given" if value is None else format(float(value), ".4g")
     return {
@@ -119,14 +126,14 @@ def vendor_summary(
             "values": list(sheet["fov_deg"]),
         },
         *_accuracy_lines(statement_rows, confidence),
-        {
-            "item": "maximum tracking rate (tracking kept on 99 % of the sky)",
-            "value": _fmt(fastest, ".3g"),
-            "unit": "deg/s",
-            "source": "predicted: availability under slew (the datasheet's)",
-            "key": "max_tracking_rate_deg_s",
-            "values": [fastest],
-        },
+        _number(
+            "maximum tracking rate (tracking kept on 99 % of the sky)",
+            "max_tracking_rate_deg_s",
+            fastest,
+            ".3g",
+            "deg/s",
+            "predicted: availability under slew (the datasheet's)",
+        ),
         {
             "item": "lost in space success at rest",
             "value": f"{_fmt(success, '.3f')} (predicted {_fmt(av.get('lost_in_space'), '.3f')})",
@@ -135,30 +142,30 @@ def vendor_summary(
             "key": "lost_in_space_success_fraction",
             "values": [success, av.get("lost_in_space")],
         },
-        {
-            "item": "lost in space time, median",
-            "value": _fmt(mc.get("median_ms"), ".3g"),
-            "unit": "ms",
-            "source": "measured on this machine, one thread, the rendered frames",
-            "key": "lost_in_space_time_ms",
-            "values": [mc.get("median_ms")],
-        },
-        {
-            "item": "update rate (one attitude a frame)",
-            "value": _fmt(1.0 / sensor.exposure_s, ".3g"),
-            "unit": "Hz",
-            "source": "the sensor file's exposure (readout and processing not modelled)",
-            "key": "update_rate_hz",
-            "values": [1.0 / sensor.exposure_s],
-        },
-        {
-            "item": "sky coverage (lost in space at rest)",
-            "value": _fmt(av.get("lost_in_space"), ".3f"),
-            "unit": "fraction of the sky",
-            "source": "predicted: boresights with the stars lost in space needs",
-            "key": "sky_coverage_fraction",
-            "values": [av.get("lost_in_space")],
-        },
+        _number(
+            "lost in space time, median",
+            "lost_in_space_time_ms",
+            mc.get("median_ms"),
+            ".3g",
+            "ms",
+            "measured on this machine, one thread, the rendered frames",
+        ),
+        _number(
+            "update rate (one attitude a frame)",
+            "update_rate_hz",
+            1.0 / sensor.exposure_s,
+            ".3g",
+            "Hz",
+            "the sensor file's exposure (readout and processing not modelled)",
+        ),
+        _number(
+            "sky coverage (lost in space at rest)",
+            "sky_coverage_fraction",
+            av.get("lost_in_space"),
+            ".3f",
+            "fraction of the sky",
+            "predicted: boresights with the stars lost in space needs",
+        ),
         _exclusion_line(getattr(sensor, "exclusion", None)),
         _given(mass_kg, "kg", "mass", "mass_kg"),
         _given(power_w, "W", "power", "power_w"),
