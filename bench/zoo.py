@@ -27,6 +27,7 @@ bench/zoo.py [--designs N] [--frames N] [--only NAME]``; results in ``bench/resu
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import math
 import multiprocessing as mp
@@ -40,9 +41,11 @@ import numpy as np
 
 from starsense._io import atomic_write
 from starsense.analysis.datasheet.checks import empty_pixel_sigma_counts
+from starsense.detect.threshold import StarDetector
 from starsense.sensor import DetectionThresholds, Sensor
 from starsense.sensor.detector import Detector
 from starsense.sensor.optics import Optics
+from starsense.solve.streak_model import MIN_STREAK_SIGMAS
 
 RESULTS = Path(__file__).resolve().parent / "results"
 #: full-well capacity per square micrometre of pixel, e- (typical of CMOS and CCD pixels)
@@ -262,6 +265,13 @@ def main(argv: list[str]) -> int:
         help="the solver predicted and checked (the datasheet's --refine)",
     )
     ap.add_argument("--only", default=None, help="run one design (a zoo name, or ccd768)")
+    ap.add_argument(
+        "--short-streaks",
+        action="store_true",
+        help="only the designs whose streaks at 1 deg/s are too short to re-centroid over "
+        "(at least 2 PSF sigmas, shorter than 2 sigmas plus the centroid margins)",
+    )
+    ap.add_argument("--max-mpixel", type=float, default=None, help="only designs this small")
     ap.add_argument("--out", default=str(RESULTS / "zoo.json"))
     ap.add_argument("--jobs", type=int, default=1, help="designs run at once (one process each)")
     ap.add_argument(
@@ -279,6 +289,11 @@ def main(argv: list[str]) -> int:
     designs = [*zoo_designs(args.designs, args.seed), ("ccd768", CCD_768)]
     if args.only:
         designs = [d for d in designs if d[0] == args.only]
+    if args.short_streaks:
+        designs = [d for d in designs if d[0] != "ccd768" and short_streaks(d[1])]
+    if args.max_mpixel is not None:
+        designs = [d for d in designs if d[1]["columns"] * d[1]["rows"] <= args.max_mpixel * 1e6]
+    print("designs:", " ".join(d[0] for d in designs), flush=True)
     rows = []
     jobs = [
         (
@@ -310,6 +325,18 @@ def main(argv: list[str]) -> int:
                 json.dump(record, f, indent=1)
     print(json.dumps(summary(rows)), flush=True)
     return 0
+
+
+def short_streaks(params: dict, rate_deg_s: float = 1.0) -> bool:
+    """Whether a design's streaks at the rate are short: the solver keeps its detections'
+    centroids (shorter than ``MIN_STREAK_SIGMAS`` PSF sigmas plus the centroid window's
+    margins on each side) but they are at least ``MIN_STREAK_SIGMAS`` sigmas long, near the
+    boresight."""
+    sensor = make_sensor("probe", **params)
+    sigma = float(params["psf_sigma_px"])
+    length = math.radians(rate_deg_s) * sensor.exposure_s * sensor.focal_length_px
+    margin = inspect.signature(StarDetector).parameters["margin_px"].default
+    return MIN_STREAK_SIGMAS * sigma <= length < MIN_STREAK_SIGMAS * sigma + 2.0 * margin
 
 
 def summary(rows: list[dict]) -> dict:

@@ -27,6 +27,7 @@ from starsense.solve.counts import misfit_solution, ms, solved
 from starsense.solve.references import matched_references, sky_places
 from starsense.solve.refine import refined_attitude
 from starsense.solve.streak_model import streak_body_rate
+from starsense.solve.streaks import ShortStreaks
 from starsense.solve.unknown_optics import refine_identification
 
 __all__ = ["frame_attitude", "solution_of"]
@@ -98,7 +99,9 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
     body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
     listed = points.what == "centroids"  # a list: its sigma stated, not measured (no pixels)
     att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit, scatter=listed)
-    rate = None  # smeared: the body rate the streaks give (starts the model fit's)
+    rate = hint = None  # smeared: the body rate the streaks give (starts the model fit's)
+    if isinstance(streaks, ShortStreaks):  # too short to re-centroid: the rate they suggest
+        hint, streaks = streaks.rate_rad_s, None
     if streaks is not None:  # smeared: centroids over the streaks, which must fit them
         rate = streak_body_rate(solver.sensor, body, streaks.streaks_px)
         miss = median_misfit(body, ref, sigma * pixel_rad, rotation=att.rotation, keep=keep)
@@ -115,6 +118,7 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
             ident=ident,
             places=places,
             rate_rad_s=rate,
+            rate_hint_rad_s=hint,
             sky=sky,
             place=sky_places(solver, sky, obs_time=obs_time),
             points=points,

@@ -33,6 +33,7 @@ from starsense.model.pixels import pixel_variance
 from starsense.model.psf import psf_of
 from starsense.solve.fit_judgement import MAX_REDUCED_CHI2, Refinement, judged
 from starsense.solve.in_view import DETECTABLE_SNR, room_for, stars_in_view
+from starsense.solve.streak_model import MIN_STREAK_SIGMAS
 
 __all__ = [
     "refine_attitude",
@@ -52,6 +53,13 @@ ZERO_POINT_STARS = 7
 ZERO_POINT_AGREES = 0.05
 #: a neighbour below this fraction of a pixel's noise (over its PSF's area) is left out
 NEGLIGIBLE_NOISE = 0.1
+#: a fit at rest whose chi-square exceeds the pixels' count by this many of its standard
+#: deviations (``sqrt(2 dof)``) is rejected: a frame whose streaks are short is fitted again with
+#: the body rate free
+REJECTED_SIGMAS = 3.0
+#: the chi-square drop that keeps the rate: the likelihood-ratio test of 3 more parameters at a
+#: false alarm of 1e-3 (``scipy.stats.chi2.isf(1e-3, 3)``)
+RATE_EVIDENCE_CHI2 = 16.27
 
 
 def _neighbours(
@@ -103,6 +111,7 @@ def refine_attitude(
     fit_width=None,
     place=None,
     more=None,
+    rate_hint_rad_s=None,
 ) -> Refinement:
     """Fit the attitude to the pixels of the identified stars (module docstring).
 
@@ -129,6 +138,9 @@ def refine_attitude(
     fit_width : bool, optional
         Fit the PSF's width (default: the sensor's ``psf.fit_width``, and always for a
         Gaussian, whose width costs nothing to fit).
+    rate_hint_rad_s : ndarray (3,), optional
+        At rest (``rate_rad_s`` None): the rate a frame's short streaks suggest. Where the
+        pixels reject the model at rest, the rate is fitted from there (:func:`_smeared_fit`).
 
     Returns
     -------
@@ -159,9 +171,10 @@ def refine_attitude(
             px, rx, mx = more(zp, rotation if first is None else first.rotation)
             stars = (np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx))
         neighboured = functools.partial(
-            _with_neighbours, image, sensor, rotation, sky=sky, place=place, rate=rate, opts=opts
-        )
-        also = ""
+            _with_neighbours, image=image, sensor=sensor, rotation=rotation, sky=sky, place=place,
+            rate=rate, opts=opts,
+        )  # fmt: skip
+        also, used = "", stars
         try:
             fit, counts = neighboured(stars=stars, first=first, zero_point=zp)
         except InputError as exc:  # past the work a fit may do (long streaks, crowded field)
@@ -169,11 +182,60 @@ def refine_attitude(
                 raise
             # the identified stars with their neighbours (unmodelled, a crowded field's
             # neighbours bias the fit): the stars in view add information, not accuracy
-            fit, counts = neighboured(stars=(plain, ref, mags), first=first, zero_point=zp)
+            used = (plain, ref, mags)
+            fit, counts = neighboured(stars=used, first=first, zero_point=zp)
             also = f"; the other stars in view left out: {exc}"
+        if rate_hint_rad_s is not None and not fit_rate:  # at rest, unless the pixels say not
+            moving = _smeared_fit(fit, neighboured.keywords, stars=used, hint=rate_hint_rad_s,
+                                  zero_point=zp)  # fmt: skip
+            if moving is not None:
+                fit, counts = moving
+                also += "; the stars' short streaks fitted with the body rate"
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    return judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also)
+    # the detections' centroids (not re-centroided over streaks) are a reference for the fit
+    return judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also,
+                  reference=not fit_rate)  # fmt: skip
+
+
+def _smeared_fit(fit, keywords, *, stars, hint, zero_point):
+    """Return the fit of ``stars`` with the body rate free (and its counts), or None.
+
+    A frame whose streaks are too short to re-centroid is fitted at rest first. Where the
+    pixels reject that model (its chi-square above the pixels' count by
+    :data:`REJECTED_SIGMAS` of its own spread) the fit is made again with the rate free,
+    started at ``hint`` (the rate the measured streaks suggest: the likelihood is even in the
+    rate, flat at rest, so a fit started there stays) where it draws a streak of at least
+    ``MIN_STREAK_SIGMAS`` PSF sigmas (shorter, the smear lengthens the image by under 15 %:
+    a width fitted between the axes costs under 1 % of the stars' position information), and
+    kept where its chi-square's excess
+    over the pixels' count falls by more than :data:`RATE_EVIDENCE_CHI2` (the likelihood-ratio
+    test of the 3 rate parameters at a false alarm of 1e-3; the windows grow with the streaks,
+    so the excess, whose expectation is 0 under the right model on any window, is compared).
+    """
+    excess = fit.chi2 - fit.dof
+    if not math.isfinite(excess) or excess <= REJECTED_SIGMAS * math.sqrt(2.0 * fit.dof):
+        return None
+    image, sensor = keywords["image"], keywords["sensor"]
+    cam = fit.rotation.apply(stars[1])  # the stars in the camera frame
+    drawn = np.linalg.norm(np.cross(np.asarray(hint, float), cam), axis=1)
+    drawn_px = float(np.max(drawn, initial=0.0)) * sensor.exposure_s * sensor.focal_length_px
+    if drawn_px < MIN_STREAK_SIGMAS * psf_of(sensor).sigma_px:
+        return None  # too short to matter: an image 15 % longer, < 1 % of the information lost
+    opts = dict(keywords["opts"], fit_rate=True)
+    try:
+        moving = _with_neighbours(
+            image, sensor, fit.rotation, stars=stars, first=None, zero_point=zero_point,
+            sky=keywords["sky"], place=keywords["place"], rate=np.asarray(hint, float), opts=opts,
+        )  # fmt: skip
+    except (InputError, np.linalg.LinAlgError):
+        return None
+    # the windows grow with the streaks: the two fits' chi-squares are compared by their
+    # excess over the pixels' count (each the count's where its model is right)
+    drop = excess - (moving[0].chi2 - moving[0].dof)
+    if not moving[0].converged or not drop > RATE_EVIDENCE_CHI2:
+        return None
+    return moving
 
 
 def _with_neighbours(image, sensor, rotation, *, stars, first, zero_point, sky, place, rate, opts):
@@ -254,7 +316,8 @@ def _reach_px(sensor, rate) -> float:
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
-def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, place, points):
+def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, place, points,
+                     rate_hint_rad_s=None):  # fmt: skip
     """Return the solver's attitude refined on the pixels, and a note saying how.
 
     Parameters
@@ -272,6 +335,8 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
         The matched stars' catalogue and apparent places (K, 3).
     rate_rad_s : ndarray (3,) or None
         The body rate of a smeared frame (its streaks'), which starts the fit's; None at rest.
+    rate_hint_rad_s : ndarray (3,), optional
+        At rest: the rate short streaks suggest (:func:`refine_attitude`).
     sky : SkyStars
         The catalogue's stars in the band of ``db``.
     place : callable
@@ -314,6 +379,7 @@ def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, 
 
     opts = {"ref": ref, "plain": plain, "mags": mags, "sky": sky, "place": place}
     opts |= {"cog_sigma_rad": att.sigma_axes_rad, "rate_rad_s": rate_rad_s, "electrons": electrons}
+    opts["rate_hint_rad_s"] = rate_hint_rad_s
     done = refine_attitude(image, sensor, att.rotation, more=more, **opts)
     if not done.used:
         return att, (done.note,)

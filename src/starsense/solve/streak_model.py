@@ -20,6 +20,7 @@ is taken as at rest.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 
@@ -77,21 +78,23 @@ def _rate(sensor, x, y, axes) -> np.ndarray:
     a = np.stack([streaks_at(sensor, x, y, rate_rad_s=eps * e) / eps for e in np.eye(3)], axis=2)
     meas = _measured(axes)
     a2 = a.reshape(-1, 3)
-    best, rate = math.inf, np.zeros(3)
-    for signs in itertools.product((1.0, -1.0), repeat=len(x) - 1):
-        rhs = (meas * np.array([1.0, *signs])[:, None]).ravel()
-        w = np.linalg.lstsq(a2, rhs, rcond=None)[0]
-        cost = float(np.sum((a2 @ w - rhs) ** 2))
-        if cost < best:
-            best, rate = cost, w
-    return rate
+    signs = np.array([(1.0, *c) for c in itertools.product((1.0, -1.0), repeat=len(x) - 1)])
+    rhs = (signs[:, :, None] * meas[None, :, :]).reshape(len(signs), -1)  # (choices, 2N)
+    w = rhs @ np.linalg.pinv(a2).T  # every choice's least squares at once
+    cost = np.sum((w @ a2.T - rhs) ** 2, axis=1)
+    return w[int(np.argmin(cost))]
 
 
 def streak_model(sensor, image, xy, *, order, counts=None, **measure):
-    """Return the streaks of stars ``xy = (x, y)`` -> (N, 2) px from the brightest ones, or None.
+    """Return the streaks of stars ``xy = (x, y)`` -> (N, 2) px, and the rate they suggest.
 
-    None when fewer than 3 streaks are measured or they are short (module docstring): the
-    longest the fitted rate draws decides, as the datasheet's prediction does on the true ones.
+    Returns ``(model, rate)``: ``model`` the streaks from the brightest ones, or None when
+    fewer than 3 streaks are measured or they are short (module docstring: the longest the
+    fitted rate draws decides, as the datasheet's prediction does on the true ones); ``rate``
+    (3,), camera frame, rad/s, up to its sign: the rate the model draws, or, where the streaks
+    are too short to re-centroid, the rate the brightest ones' measured streaks suggest (where
+    at least 3 were measured; else None), which starts the forward model's fit of the rate
+    when the frame at rest does not fit (:mod:`starsense.solve.refine`).
     ``counts``: the stars' lit sums; with them, a sensor whose PSF is not a Gaussian has the
     elongation its own PSF shows at rest taken out of each measured streak (:func:`less_psf`).
     """
@@ -109,9 +112,13 @@ def streak_model(sensor, image, xy, *, order, counts=None, **measure):
     if counts is not None and not sensor.psf.is_gaussian:  # an elongated PSF is no streak
         first = less_psf(first, _psf_axes(sensor, (x, y), counts, bright, half, measure))
     first2 = first[:, 0, 0] + first[:, 1, 1]
-    first2, screen = first2[np.isfinite(first2)], 0.5 * shortest
+    measured = np.isfinite(first2)
+    hint = None  # the rate the brightest streaks suggest, however short
+    if np.count_nonzero(measured) >= 3:
+        hint = _rate(sensor, x[bright][measured], y[bright][measured], first[measured])
+    first2, screen = first2[measured], 0.5 * shortest
     if len(first2) == 0 or np.median(first2) < screen**2:
-        return None
+        return None, hint
     rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
     if counts is not None and not sensor.psf.is_gaussian:
         rest = less_psf(rest, _psf_axes(sensor, (x, y), counts, use[N_RATE_STARS:], half, measure))
@@ -119,11 +126,11 @@ def streak_model(sensor, image, xy, *, order, counts=None, **measure):
     length2 = axes[:, 0, 0] + axes[:, 1, 1]  # |l|^2
     ok = np.flatnonzero(np.isfinite(length2))
     if len(ok) < 3:
-        return None
+        return None, hint
     # the rate: the streaks within SYSTEMATIC of the reference one (_confirmed), longest first
     ok = ok[np.argsort(-length2[ok], kind="stable")]
     if np.median(length2[ok[:N_RATE_STARS]]) < screen**2:
-        return None
+        return None, hint
     low = (1.0 - SYSTEMATIC) ** 2
     top = _confirmed(axes[ok], length2[ok], low, 2.0 * sigma + 1.0, ok < N_RATE_STARS)
     typical2 = float(length2[ok[top]])
@@ -131,17 +138,22 @@ def streak_model(sensor, image, xy, *, order, counts=None, **measure):
     ok = ok[np.argsort(-length2[ok], kind="stable")][:N_RATE_STARS]
     if len(ok) < 3:  # one or two whole streaks (or a blend): the brightest measured decide
         if np.median(first2) < shortest**2:
-            return None
+            return None, hint
         m = axes[ok].sum(axis=0)
         vec = np.linalg.eigh(m)[1][:, -1] * math.sqrt(float(np.trace(m)) / len(ok))
         model = lambda xs, _ys: np.broadcast_to(vec, (len(xs), 2))  # noqa: E731
     else:
-        rate = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
-        model = lambda xs, ys: streaks_at(sensor, xs, ys, rate_rad_s=rate)  # noqa: E731
+        hint = _consensus_rate(sensor, x[use[ok]], y[use[ok]], axes[ok], math.sqrt(typical2))
+        model = functools.partial(_streaks_of, sensor, hint)
     drawn = model(x, y)
     if float(np.max(np.hypot(drawn[:, 0], drawn[:, 1]))) < shortest:
-        return None
-    return model
+        return None, hint
+    return model, hint
+
+
+def _streaks_of(sensor, rate, xs, ys) -> np.ndarray:
+    """Return the streaks of stars (xs, ys) at body rate ``rate``, px (N, 2)."""
+    return streaks_at(sensor, xs, ys, rate_rad_s=rate)
 
 
 def less_psf(axes, rest) -> np.ndarray:

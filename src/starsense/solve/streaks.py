@@ -13,7 +13,9 @@ Once the frame is identified, :func:`streak_centroids_of`:
 
 1. measures the body rate from the brightest matched stars' streaks
    (:func:`starsense.solve.streak_model.streak_model`); a frame whose streaks are short keeps
-   its centroids: its boxes hold each streak;
+   its centroids (its boxes hold each streak), and the rate its streaks suggest
+   (:class:`ShortStreaks`) is kept for the forward model's fit, should the frame not fit at
+   rest;
 2. predicts each matched star's streak from that rate, lengthened by the fit's systematic
    shortfall (the lit pixels' tapered ends, ``SYSTEMATIC``): the window must span the whole
    streak, or a window shorter than the streak would stay wherever it started;
@@ -57,6 +59,7 @@ __all__ = [
     "CAPSULE_PAD_PX",
     "CAPSULE_SIGMAS",
     "MIN_STREAK_SIGMAS",
+    "ShortStreaks",
     "StreakCentroids",
     "matched_measurements",
     "streak_centroids_of",
@@ -90,6 +93,20 @@ class StreakCentroids:
     def sigma_px(self) -> np.ndarray:
         """Mean-of-axes 1-sigma of each centroid, px (shape (N,))."""
         return np.sqrt(0.5 * (self.cov_px2[:, 0, 0] + self.cov_px2[:, 1, 1]))
+
+
+@dataclass(frozen=True)
+class ShortStreaks:
+    """A frame whose streaks are too short to re-centroid (its detections' centroids stand).
+
+    Attributes
+    ----------
+    rate_rad_s : ndarray, shape (3,)
+        The body rate the brightest matched stars' measured streaks suggest, camera frame,
+        rad/s, up to its sign (noise where the frame is at rest).
+    """
+
+    rate_rad_s: np.ndarray
 
 
 def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -170,10 +187,11 @@ def streak_centroids_of(
 
     Returns
     -------
-    StreakCentroids or None
-        None when the frame is not smeared (streaks shorter than ``MIN_STREAK_SIGMAS`` PSF
-        sigmas) or its rate cannot be measured (fewer than 3 measured streaks): the
-        detections' centroids stand.
+    StreakCentroids, ShortStreaks or None
+        ShortStreaks when the streaks are shorter than re-centroiding needs
+        (``MIN_STREAK_SIGMAS`` PSF sigmas): the detections' centroids stand, and the rate the
+        brightest streaks suggest may start the forward model's; None when the rate cannot be
+        measured (fewer than 3 measured streaks).
     """
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     x, y = xy[:, 0].copy(), xy[:, 1].copy()
@@ -181,7 +199,7 @@ def streak_centroids_of(
     if len(x) < 3:
         return None
     order = np.argsort(-counts, kind="stable")
-    model = streak_model(
+    model, rate = streak_model(
         sensor,
         image,
         (x, y),
@@ -194,7 +212,7 @@ def streak_centroids_of(
         margin_px=margin_px,
     )
     if model is None:
-        return None
+        return None if rate is None else ShortStreaks(np.asarray(rate, dtype=float))
     det = sensor.detector
     sigma = det.psf_sigma_px
     radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX  # the tracking windows' capsule
@@ -284,9 +302,9 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         Camera-frame unit vectors.
     sigma_px : ndarray, shape (N,), or float
         Per-axis 1-sigma of each centroid, px.
-    streaks : StreakCentroids or None
-        The streak centroids (their streaks, px, capsule sums and clipping), None where the
-        detections' centroids stand.
+    streaks : StreakCentroids, ShortStreaks or None
+        The streak centroids (their streaks, px, capsule sums and clipping); where the
+        detections' centroids stand, the rate short streaks suggest, or None.
     """
     sensor, fixed = solver.sensor, solver.settings.centroid_sigma_px
     sigma = fixed
@@ -313,8 +331,8 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         threshold_sigma=None if known else solver.settings.threshold_sigma,
         margin_px=solver.detector.margin_px,
     )
-    if got is None:
-        return vectors, sigma, None
+    if got is None or isinstance(got, ShortStreaks):
+        return vectors, sigma, got
     own = got.sigma_px
     sigma = own if fixed == "snr" else np.maximum(own, fixed)
     return sensor.unproject(got.x, got.y), sigma, got
