@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 from starsense._workspace import scratch
 from starsense.model.pixels import pixel_terms, pixel_variance
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of
-from starsense.model.tracks import node_positions, time_nodes
+from starsense.model.tracks import node_positions, track_nodes
 from starsense.model.windows import Windows, evaluate, make_windows
 
 try:  # the normal equations' sums, compiled (setup.py)
@@ -232,25 +232,21 @@ class _Problem:
         return self.buffers
 
 
-def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width):
-    """Lay out the windows around the sources' tracks and read their pixels."""
-    te = sensor.exposure_s
+def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width,
+           window_rate=None):  # fmt: skip
+    """Lay out the windows around the sources' tracks and read their pixels.
+
+    The tracks at ``window_rate`` where given (else at the rate's).
+    """
     allv = np.concatenate([v_free, v_fix])
     free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
-    ends = node_positions(
-        sensor,
-        v_free,
-        rotation,
-        rate_rad_s=rate,
-        exposure_s=te,
-        fractions=np.array([-0.5, 0.5]),
-        weights=np.array([0.5, 0.5]),
+    moving = fit_rate or bool(np.any(rate))
+    frac, wts, nodes = track_nodes(
+        sensor, (v_free, allv), rotation, rate_rad_s=rate, sigma_px=psf.sigma_px, moving=moving
     )
-    length = float(np.nanmax(np.hypot(np.diff(ends.x), np.diff(ends.y)))) if len(v_free) else 0.0
-    frac, wts = time_nodes(length if (fit_rate or np.any(rate)) else 0.0, psf.sigma_px)
-    nodes = node_positions(
-        sensor, allv, rotation, rate_rad_s=rate, exposure_s=te, fractions=frac, weights=wts
-    )
+    if window_rate is not None:  # the windows laid around the tracks of another rate
+        nodes = track_nodes(sensor, (v_free, allv), rotation, rate_rad_s=window_rate,
+                            sigma_px=psf.sigma_px, moving=True)[2]  # fmt: skip
     windows, kept = make_windows(
         nodes.x, nodes.y, half_px=window_half_px(psf), shape=image.shape, free=free
     )
@@ -367,6 +363,7 @@ def fit_windows(
     psf: PixelPSF | None = None,
     fluxes_e=None,
     abort_chi2: float = math.inf,
+    window_rate_rad_s=None,
 ) -> ModelFit:
     """Fit the attitude (and rate) to the pixels around the given stars (module docstring).
 
@@ -396,6 +393,9 @@ def fit_windows(
         Stop (not converged) when, a step past the start, the pixels' reduced chi-square
         exceeds this and their misfit pulls the attitude (:func:`misfit_pulls`): the model
         does not place the stars, the rest of the fit is wasted.
+    window_rate_rad_s : array_like, shape (3,), optional
+        Lay the windows around the tracks of this rate (default: the starting rate's): two
+        fits on one set of pixels (a likelihood ratio of two models).
 
     Returns
     -------
@@ -407,7 +407,9 @@ def fit_windows(
     v_fix = np.zeros((0, 3)) if fixed_vectors is None else np.asarray(fixed_vectors, float)
     f_fix = np.zeros(0) if fixed_electrons is None else np.asarray(fixed_electrons, float)
     rate = np.asarray(rate_rad_s, float).copy()
-    pb = _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width)
+    window_rate = None if window_rate_rad_s is None else np.asarray(window_rate_rad_s, float)
+    pb = _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width,
+                window_rate)  # fmt: skip
     n_geo = 6 if fit_rate else 3
     lin_values = np.zeros((pb.windows.n_groups, pb.windows.n_slots + 1))
     weight = pb.use / pixel_variance(det, np.median(pb.data[pb.use]) if pb.use.any() else 0, te)

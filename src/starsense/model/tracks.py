@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["NodePositions", "node_positions", "rotvec_matrices", "time_nodes"]
+__all__ = ["NodePositions", "node_positions", "rotvec_matrices", "time_nodes", "track_nodes"]
 
 #: finite-difference step of the attitude, rad
 EPS_RAD = 1e-6
@@ -157,3 +157,45 @@ def node_positions(
     return NodePositions(
         px[0], py[0], np.asarray(weights, float), np.moveaxis(dx, 0, -1), np.moveaxis(dy, 0, -1)
     )
+
+
+def track_nodes(sensor, vectors, rotation, *, rate_rad_s, sigma_px: float, moving: bool):
+    """Return the exposure's quadrature (fractions, weights) and the sources' nodes on it.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    vectors : (ndarray (S, 3), ndarray (N, 3))
+        The free sources (whose longest track at the rate sets the quadrature), and every
+        source (whose nodes are returned), ICRS.
+    rotation : Rotation
+        Mid-exposure attitude, ICRS to camera.
+    rate_rad_s : ndarray (3,)
+        Body rate, camera frame, rad/s.
+    sigma_px : float
+        The PSF's width, px (:func:`time_nodes`).
+    moving : bool
+        Resolve the tracks (else one node at mid-exposure).
+
+    Returns
+    -------
+    fractions, weights : ndarray (K,)
+    nodes : the sources' positions at the nodes (:func:`node_positions`)
+    """
+    v_free, allv = vectors
+    te = sensor.exposure_s
+    ends = node_positions(
+        sensor,
+        v_free,
+        rotation,
+        rate_rad_s=rate_rad_s,
+        exposure_s=te,
+        fractions=np.array([-0.5, 0.5]),
+        weights=np.array([0.5, 0.5]),
+    )
+    length = float(np.nanmax(np.hypot(np.diff(ends.x), np.diff(ends.y)))) if len(v_free) else 0.0
+    frac, wts = time_nodes(length if moving else 0.0, sigma_px)
+    nodes = node_positions(
+        sensor, allv, rotation, rate_rad_s=rate_rad_s, exposure_s=te, fractions=frac, weights=wts
+    )
+    return frac, wts, nodes

@@ -207,43 +207,62 @@ def _smeared_fit(fit, keywords, *, stars, hint, zero_point):
     started at ``hint`` (the rate the measured streaks suggest: the likelihood is even in the
     rate, flat at rest, so a fit started there stays) where it draws a streak of at least
     ``MIN_STREAK_SIGMAS`` PSF sigmas (shorter, the smear lengthens the image by under 15 %:
-    a width fitted between the axes costs under 1 % of the stars' position information), and
-    kept where its chi-square's excess
-    over the pixels' count falls by more than :data:`RATE_EVIDENCE_CHI2` (the likelihood-ratio
-    test of the 3 rate parameters at a false alarm of 1e-3; the windows grow with the streaks,
-    so the excess, whose expectation is 0 under the right model on any window, is compared).
+    a width fitted between the axes costs under 1 % of the stars' position information). It
+    is kept where the likelihood ratio says so: the model at rest, fitted again on the same
+    pixels (the streaks' windows) with the same neighbours, has a chi-square higher by more
+    than :data:`RATE_EVIDENCE_CHI2` (3 rate parameters at a false alarm of 1e-3), and the
+    rate fitted draws streaks as long as the hint had to (a tiny rate that takes up a
+    model's small misfit of many bright stars is no smear).
     """
     excess = fit.chi2 - fit.dof
     if not math.isfinite(excess) or excess <= REJECTED_SIGMAS * math.sqrt(2.0 * fit.dof):
         return None
     image, sensor = keywords["image"], keywords["sensor"]
-    cam = fit.rotation.apply(stars[1])  # the stars in the camera frame
-    drawn = np.linalg.norm(np.cross(np.asarray(hint, float), cam), axis=1)
-    drawn_px = float(np.max(drawn, initial=0.0)) * sensor.exposure_s * sensor.focal_length_px
-    if drawn_px < MIN_STREAK_SIGMAS * psf_of(sensor).sigma_px:
+    shortest = MIN_STREAK_SIGMAS * psf_of(sensor).sigma_px
+    if _longest_px(sensor, fit.rotation, stars[1], hint) < shortest:
         return None  # too short to matter: an image 15 % longer, < 1 % of the information lost
     opts = dict(keywords["opts"], fit_rate=True)
+    last = {}
     try:
         moving = _with_neighbours(
             image, sensor, fit.rotation, stars=stars, first=None, zero_point=zero_point,
             sky=keywords["sky"], place=keywords["place"], rate=np.asarray(hint, float), opts=opts,
+            last=last,
+        )  # fmt: skip
+        if not moving[0].converged:
+            return None
+        # the model at rest on the same pixels, with the same neighbours: the ratio's other side
+        rest = fit_windows(
+            image, sensor, last["start"], vectors=stars[1], rate_rad_s=np.zeros(3),
+            fixed_vectors=last["neighbours"], fixed_electrons=last["electrons"],
+            fluxes_e=last["fluxes"], window_rate_rad_s=last["rate"],
+            **dict(keywords["opts"], fit_rate=False),
         )  # fmt: skip
     except (InputError, np.linalg.LinAlgError):
         return None
-    # the windows grow with the streaks: the two fits' chi-squares are compared by their
-    # excess over the pixels' count (each the count's where its model is right)
-    drop = excess - (moving[0].chi2 - moving[0].dof)
-    if not moving[0].converged or not drop > RATE_EVIDENCE_CHI2:
+    if rest.n_pixels != moving[0].n_pixels or not rest.chi2 - moving[0].chi2 > RATE_EVIDENCE_CHI2:
         return None
+    if _longest_px(sensor, moving[0].rotation, stars[1], moving[0].rate_rad_s) < shortest:
+        return None  # the rate fitted draws streaks too short to matter: the frame is at rest
     return moving
 
 
-def _with_neighbours(image, sensor, rotation, *, stars, first, zero_point, sky, place, rate, opts):
+def _longest_px(sensor, rotation, vectors, rate) -> float:
+    """Return the longest streak body rate ``rate`` draws of stars ``vectors`` (ICRS), px."""
+    cam = rotation.apply(vectors)  # the stars in the camera frame
+    turn = np.linalg.norm(np.cross(np.asarray(rate, float), cam), axis=1)
+    return float(np.max(turn, initial=0.0)) * sensor.exposure_s * sensor.focal_length_px
+
+
+def _with_neighbours(image, sensor, rotation, *, stars, first, zero_point, sky, place, rate, opts,
+                     last=None):  # fmt: skip
     """Fit ``stars`` (plain, reference, mags) with the catalogue neighbours reaching them.
 
     At the zero point ``zero_point`` (electrons of a magnitude-0 star), again if the fit's
     fluxes move it (a lit sum misses a PSF's wings). ``first``: a fit of the identified stars
-    alone (its attitude, rate and fluxes the start), or None.
+    alone (its attitude, rate and fluxes the start), or None. ``last``, a dict, receives how
+    the last fit started: ``start`` (attitude), ``rate``, ``neighbours`` and ``electrons``
+    (the neighbours drawn) and ``fluxes`` (the stars' starting electrons).
 
     Returns
     -------
@@ -272,12 +291,15 @@ def _with_neighbours(image, sensor, rotation, *, stars, first, zero_point, sky, 
         if fit is not None:
             got = fit.fluxes_e[:n_fitted]
             own[:n_fitted] = np.where(np.isfinite(got) & (got > 0), got, own[:n_fitted])
+        start_rate = rate if fit is None else fit.rate_rad_s
+        if last is not None:
+            last.update(start=start, rate=start_rate, neighbours=nv, electrons=ne, fluxes=own)
         fit = fit_windows(
             image,
             sensor,
             start,
             vectors=ref,
-            rate_rad_s=rate if fit is None else fit.rate_rad_s,
+            rate_rad_s=start_rate,
             fixed_vectors=nv,
             fixed_electrons=ne,
             fluxes_e=own,
