@@ -166,3 +166,42 @@ def test_the_chi_square_is_that_of_the_fit_where_it_stops():
     scale = np.sqrt(np.outer(np.diag(first.covariance), np.diag(first.covariance)))
     for fit in (right, low):  # each entry within 1 % of its axes' sigmas' product
         np.testing.assert_allclose(fit.covariance / scale, first.covariance / scale, atol=1e-2)
+
+
+def test_a_rate_far_from_the_frames_is_refused_before_its_nodes_are_laid():
+    """A fit started (or its windows laid) at a rate whose tracks run across the frame
+    needs a node every PSF sigma or so of each, and windows as large: the fit refuses it with
+    its work budget's error (nodes, or the windows' pixels) before allocating them, and stays
+    small."""
+    import resource
+
+    from starsense.errors import InputError
+
+    sensor, v = _scene(n=15, seed=4)
+    truth = Rotation.from_rotvec([2e-4, -1e-4, 5e-4])
+    det = sensor.detector
+    image, kept, _ = model_image(sensor, v, truth, (2e3, 2e4), background_e=50.0)
+    counts = image * det.gain_counts_per_e + det.bias_counts
+    wild = np.radians([0.0, 0.0, 5000.0])  # 1,000 deg in a 0.2 s exposure: tracks circle
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    for opts in ({"rate_rad_s": wild, "fit_rate": True}, {"window_rate_rad_s": wild}):
+        with pytest.raises(InputError, match="more than the"):
+            fit_windows(counts, sensor, truth, vectors=v[kept], **opts)
+    # ru_maxrss is in kB: the refusal allocates nothing near the nodes' gigabytes
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 500_000
+
+
+def test_track_nodes_refuses_more_nodes_than_allowed():
+    """The tracks' quadrature counts its nodes before laying them: over the budget, an
+    InputError; within it, the nodes of every source (time_nodes' count each)."""
+    from starsense.errors import InputError
+    from starsense.model.tracks import track_nodes
+
+    sensor, v = _scene(n=15, seed=4)
+    rate = np.radians([0.5, 0.3, 0.0])  # streaks of tens of pixels in 0.2 s
+    frac, _, nodes = track_nodes(sensor, (v, v), Rotation.identity(), rate_rad_s=rate,
+                                 sigma_px=0.8, moving=True)  # fmt: skip
+    assert nodes.x.shape == (15, len(frac)) and len(frac) > 4
+    with pytest.raises(InputError, match="nodes, more than"):
+        track_nodes(sensor, (v, v), Rotation.identity(), rate_rad_s=rate, sigma_px=0.8,
+                    moving=True, max_nodes=15 * len(frac) - 1)  # fmt: skip

@@ -34,7 +34,7 @@ from starsense._workspace import scratch
 from starsense.model.pixels import pixel_terms, pixel_variance
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of
 from starsense.model.tracks import node_positions, track_nodes
-from starsense.model.windows import Windows, evaluate, make_windows
+from starsense.model.windows import MAX_WORK, Windows, evaluate, make_windows
 
 try:  # the normal equations' sums, compiled (setup.py)
     import starsense.model._modelc as _modelc
@@ -240,13 +240,15 @@ def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, f
     """
     allv = np.concatenate([v_free, v_fix])
     free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
+    lay = {"sigma_px": psf.sigma_px, "max_nodes": MAX_WORK}  # nodes bounded by the fit's work
     moving = fit_rate or bool(np.any(rate))
     frac, wts, nodes = track_nodes(
-        sensor, (v_free, allv), rotation, rate_rad_s=rate, sigma_px=psf.sigma_px, moving=moving
+        sensor, (v_free, allv), rotation, rate_rad_s=rate, moving=moving, **lay
     )
     if window_rate is not None:  # the windows laid around the tracks of another rate
-        nodes = track_nodes(sensor, (v_free, allv), rotation, rate_rad_s=window_rate,
-                            sigma_px=psf.sigma_px, moving=True)[2]  # fmt: skip
+        nodes = track_nodes(
+            sensor, (v_free, allv), rotation, rate_rad_s=window_rate, moving=True, **lay
+        )[2]
     windows, kept = make_windows(
         nodes.x, nodes.y, half_px=window_half_px(psf), shape=image.shape, free=free
     )

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from starsense.errors import InputError
+
 __all__ = ["NodePositions", "node_positions", "rotvec_matrices", "time_nodes", "track_nodes"]
 
 #: finite-difference step of the attitude, rad
@@ -159,7 +161,8 @@ def node_positions(
     )
 
 
-def track_nodes(sensor, vectors, rotation, *, rate_rad_s, sigma_px: float, moving: bool):
+def track_nodes(sensor, vectors, rotation, *, rate_rad_s, sigma_px: float, moving: bool,
+                max_nodes: float = math.inf):  # fmt: skip
     """Return the exposure's quadrature (fractions, weights) and the sources' nodes on it.
 
     Parameters
@@ -176,6 +179,9 @@ def track_nodes(sensor, vectors, rotation, *, rate_rad_s, sigma_px: float, movin
         The PSF's width, px (:func:`time_nodes`).
     moving : bool
         Resolve the tracks (else one node at mid-exposure).
+    max_nodes : float
+        Refuse (InputError) more nodes over the sources than this, before laying them out:
+        a track thousands of pixels long (a rate far from the frame's) needs as many nodes.
 
     Returns
     -------
@@ -195,6 +201,11 @@ def track_nodes(sensor, vectors, rotation, *, rate_rad_s, sigma_px: float, movin
     )
     length = float(np.nanmax(np.hypot(np.diff(ends.x), np.diff(ends.y)))) if len(v_free) else 0.0
     frac, wts = time_nodes(length if moving else 0.0, sigma_px)
+    if len(frac) * len(allv) > max_nodes:
+        raise InputError(
+            f"the stars' tracks ({length:.3g} px) need {len(frac) * len(allv):.3g} nodes, more "
+            f"than the {max_nodes:.3g} a fit may evaluate"
+        )
     nodes = node_positions(
         sensor, allv, rotation, rate_rad_s=rate_rad_s, exposure_s=te, fractions=frac, weights=wts
     )

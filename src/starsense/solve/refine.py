@@ -26,6 +26,7 @@ import functools
 import math
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from starsense.errors import InputError
 from starsense.model.fit import fit_windows, window_half_px
@@ -72,11 +73,13 @@ def _neighbours(
     owner = np.repeat(np.arange(len(plain)), [len(v) for v in lists])
     if owner.size == 0:
         return np.zeros((0, 3)), np.zeros(0)
-    near = np.concatenate([np.asarray(v, dtype=int) for v in lists])
+    near = np.unique(np.concatenate([np.asarray(v, dtype=int) for v in lists]))
     # not a matched star itself (any of them): closer than MERGED_PX, its light is the star's
-    d_min = np.min(np.linalg.norm(vectors[near][:, None, :] - plain[None, :, :], axis=2), axis=1)
+    # (the nearest by a tree: the stars of a deep wide field times their neighbours do not fit
+    # in memory as a table of distances)
+    d_min = cKDTree(plain).query(vectors[near], k=1)[0]
     keep = d_min > max(SAME_STAR_RAD, MERGED_PX * pixel_rad)
-    near = np.unique(near[keep])
+    near = near[keep]
     electrons = zero_point * 10.0 ** (-0.4 * mags[near])
     keep = electrons >= NEGLIGIBLE_NOISE * noise_e
     near, electrons = near[keep], electrons[keep]
