@@ -121,13 +121,11 @@ def robust_covariance(fit: ModelFit) -> np.ndarray:
     return cov * np.outer(scale, scale)
 
 
-def judged(fit: ModelFit, sensor, rotation, *, cog_sigma_rad, counts, also="", reference=None):
+def judged(fit: ModelFit, sensor, rotation, *, cog_sigma_rad, counts, also="") -> Refinement:
     """Accept the fit (its covariance scaled by a reduced chi-square above 1), or say why not.
 
     ``counts``: the stars fitted and the neighbours drawn; ``also``: appended to the note of
-    an accepted fit (why no larger fit was made); ``reference``: whether ``rotation`` (the
-    centroids' attitude) bounds the fit's move (default: unless the fit has a body rate, whose
-    frame's centroids are its streaks').
+    an accepted fit (why no larger fit was made).
     """
     n_stars, n_nbr = counts
     bad = fit.reduced_chi2 > MAX_REDUCED_CHI2 and misfit_pulls(fit)
@@ -164,8 +162,8 @@ def judged(fit: ModelFit, sensor, rotation, *, cog_sigma_rad, counts, also="", r
     moved_px = math.hypot(move[0], move[1]) * sensor.focal_length_px + move[2] * edge
     # a smeared frame's centroids (its streaks') are no reference for the fit: their attitude's
     # sigma leaves out where along its streak each centroid lies
-    held = fit.covariance.shape[0] <= 3 if reference is None else reference
-    if held and np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
+    smeared = fit.covariance.shape[0] > 3
+    if not smeared and np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
         return Refinement(
             fit,
             False,

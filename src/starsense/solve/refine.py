@@ -196,9 +196,7 @@ def refine_attitude(
                 also += "; the stars' short streaks fitted with the body rate"
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    # the detections' centroids (not re-centroided over streaks) are a reference for the fit
-    return judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also,
-                  reference=not fit_rate)  # fmt: skip
+    return judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also)
 
 
 def _smeared_fit(fit, keywords, *, stars, hint, zero_point):
