@@ -93,9 +93,8 @@ def streak_model(sensor, image, xy, *, order, counts=None, **measure):
     fitted rate draws decides, as the datasheet's prediction does on the true ones); ``rate``
     (3,), camera frame, rad/s, up to its sign: the rate the model draws, or, where the streaks
     are too short to re-centroid, the rate the brightest ones' measured streaks suggest (where
-    at least 3 were measured and they measure at least half the shortest re-centroided: a
-    frame the brightest streaks call at rest suggests none), which starts the forward model's
-    fit of the rate when the frame at rest does not fit (:mod:`starsense.solve.refine`).
+    at least 3 were measured; else None), which starts the forward model's fit of the rate
+    when the frame at rest does not fit (:mod:`starsense.solve.refine`).
     ``counts``: the stars' lit sums; with them, a sensor whose PSF is not a Gaussian has the
     elongation its own PSF shows at rest taken out of each measured streak (:func:`less_psf`).
     """
@@ -119,7 +118,7 @@ def streak_model(sensor, image, xy, *, order, counts=None, **measure):
         hint = _rate(sensor, x[bright][measured], y[bright][measured], first[measured])
     first2, screen = first2[measured], 0.5 * shortest
     if len(first2) == 0 or np.median(first2) < screen**2:
-        return None, None  # at rest by the brightest streaks: no rate to suggest
+        return None, hint
     rest = streak_axes(image, x[use[N_RATE_STARS:]], y[use[N_RATE_STARS:]], half_px=half, **measure)
     if counts is not None and not sensor.psf.is_gaussian:
         rest = less_psf(rest, _psf_axes(sensor, (x, y), counts, use[N_RATE_STARS:], half, measure))
