@@ -199,9 +199,17 @@ def test_track_nodes_refuses_more_nodes_than_allowed():
 
     sensor, v = _scene(n=15, seed=4)
     rate = np.radians([0.5, 0.3, 0.0])  # streaks of tens of pixels in 0.2 s
-    frac, _, nodes = track_nodes(sensor, (v, v), Rotation.identity(), rate_rad_s=rate,
-                                 sigma_px=0.8, moving=True)  # fmt: skip
+    frac, _, nodes = track_nodes(
+        sensor, (v, v), Rotation.identity(), rate_rad_s=rate, sigma_px=0.8, moving=True
+    )
     assert nodes.x.shape == (15, len(frac)) and len(frac) > 4
     with pytest.raises(InputError, match="nodes, more than"):
-        track_nodes(sensor, (v, v), Rotation.identity(), rate_rad_s=rate, sigma_px=0.8,
-                    moving=True, max_nodes=15 * len(frac) - 1)  # fmt: skip
+        track_nodes(
+            sensor,
+            (v, v),
+            Rotation.identity(),
+            rate_rad_s=rate,
+            sigma_px=0.8,
+            moving=True,
+            max_nodes=15 * len(frac) - 1,
+        )

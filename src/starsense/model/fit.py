@@ -232,8 +232,9 @@ class _Problem:
         return self.buffers
 
 
-def _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width,
-           window_rate=None):  # fmt: skip
+def _setup(
+    image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width, window_rate=None
+):
     """Lay out the windows around the sources' tracks and read their pixels.
 
     The tracks at ``window_rate`` where given (else at the rate's).
@@ -410,8 +411,9 @@ def fit_windows(
     f_fix = np.zeros(0) if fixed_electrons is None else np.asarray(fixed_electrons, float)
     rate = np.asarray(rate_rad_s, float).copy()
     window_rate = None if window_rate_rad_s is None else np.asarray(window_rate_rad_s, float)
-    pb = _setup(image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width,
-                window_rate)  # fmt: skip
+    pb = _setup(
+        image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width, window_rate
+    )
     n_geo = 6 if fit_rate else 3
     lin_values = np.zeros((pb.windows.n_groups, pb.windows.n_slots + 1))
     weight = pb.use / pixel_variance(det, np.median(pb.data[pb.use]) if pb.use.any() else 0, te)

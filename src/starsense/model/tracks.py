@@ -161,8 +161,16 @@ def node_positions(
     )
 
 
-def track_nodes(sensor, vectors, rotation, *, rate_rad_s, sigma_px: float, moving: bool,
-                max_nodes: float = math.inf):  # fmt: skip
+def track_nodes(
+    sensor,
+    vectors,
+    rotation,
+    *,
+    rate_rad_s,
+    sigma_px: float,
+    moving: bool,
+    max_nodes: float = math.inf,
+):
     """Return the exposure's quadrature (fractions, weights) and the sources' nodes on it.
 
     Parameters

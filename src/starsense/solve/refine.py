@@ -174,9 +174,15 @@ def refine_attitude(
             px, rx, mx = more(zp, rotation if first is None else first.rotation)
             stars = (np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx))
         neighboured = functools.partial(
-            _with_neighbours, image=image, sensor=sensor, rotation=rotation, sky=sky, place=place,
-            rate=rate, opts=opts,
-        )  # fmt: skip
+            _with_neighbours,
+            image=image,
+            sensor=sensor,
+            rotation=rotation,
+            sky=sky,
+            place=place,
+            rate=rate,
+            opts=opts,
+        )
         also, used = "", stars
         try:
             fit, counts = neighboured(stars=stars, first=first, zero_point=zp)
@@ -189,8 +195,9 @@ def refine_attitude(
             fit, counts = neighboured(stars=used, first=first, zero_point=zp)
             also = f"; the other stars in view left out: {exc}"
         if rate_hint_rad_s is not None and not fit_rate:  # at rest, unless the pixels say not
-            moving = _smeared_fit(fit, neighboured.keywords, stars=used, hint=rate_hint_rad_s,
-                                  zero_point=zp)  # fmt: skip
+            moving = _smeared_fit(
+                fit, neighboured.keywords, stars=used, hint=rate_hint_rad_s, zero_point=zp
+            )
             if moving is not None:
                 fit, counts = moving
                 also += "; the stars' short streaks fitted with the body rate"
@@ -226,19 +233,33 @@ def _smeared_fit(fit, keywords, *, stars, hint, zero_point):
     last = {}
     try:
         moving = _with_neighbours(
-            image, sensor, fit.rotation, stars=stars, first=None, zero_point=zero_point,
-            sky=keywords["sky"], place=keywords["place"], rate=np.asarray(hint, float), opts=opts,
+            image,
+            sensor,
+            fit.rotation,
+            stars=stars,
+            first=None,
+            zero_point=zero_point,
+            sky=keywords["sky"],
+            place=keywords["place"],
+            rate=np.asarray(hint, float),
+            opts=opts,
             last=last,
-        )  # fmt: skip
+        )
         if not moving[0].converged:
             return None
         # the model at rest on the same pixels, with the same neighbours: the ratio's other side
         rest = fit_windows(
-            image, sensor, last["start"], vectors=stars[1], rate_rad_s=np.zeros(3),
-            fixed_vectors=last["neighbours"], fixed_electrons=last["electrons"],
-            fluxes_e=last["fluxes"], window_rate_rad_s=last["rate"],
+            image,
+            sensor,
+            last["start"],
+            vectors=stars[1],
+            rate_rad_s=np.zeros(3),
+            fixed_vectors=last["neighbours"],
+            fixed_electrons=last["electrons"],
+            fluxes_e=last["fluxes"],
+            window_rate_rad_s=last["rate"],
             **dict(keywords["opts"], fit_rate=False),
-        )  # fmt: skip
+        )
     except (InputError, np.linalg.LinAlgError):
         return None
     if rest.n_pixels != moving[0].n_pixels or not rest.chi2 - moving[0].chi2 > RATE_EVIDENCE_CHI2:
@@ -255,8 +276,9 @@ def _longest_px(sensor, rotation, vectors, rate) -> float:
     return float(np.max(turn, initial=0.0)) * sensor.exposure_s * sensor.focal_length_px
 
 
-def _with_neighbours(image, sensor, rotation, *, stars, first, zero_point, sky, place, rate, opts,
-                     last=None):  # fmt: skip
+def _with_neighbours(
+    image, sensor, rotation, *, stars, first, zero_point, sky, place, rate, opts, last=None
+):
     """Fit ``stars`` (plain, reference, mags) with the catalogue neighbours reaching them.
 
     At the zero point ``zero_point`` (electrons of a magnitude-0 star), again if the fit's
@@ -339,8 +361,9 @@ def _reach_px(sensor, rate) -> float:
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
-def refined_attitude(image, att, sensor, *, db, ident, places, rate_rad_s, sky, place, points,
-                     rate_hint_rad_s=None):  # fmt: skip
+def refined_attitude(
+    image, att, sensor, *, db, ident, places, rate_rad_s, sky, place, points, rate_hint_rad_s=None
+):
     """Return the solver's attitude refined on the pixels, and a note saying how.
 
     Parameters
