@@ -8,7 +8,8 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense.model.fit import PULL_SIGMAS, ModelFit, misfit_pulls
+from starsense.model.fit import ModelFit
+from starsense.model.misfit import PULL_SIGMAS, misfit_pulls
 from starsense.sensor import load_sensor
 from starsense.solve.fit_judgement import LOCAL_MISFIT_SIGMAS, judged, local_misfit
 

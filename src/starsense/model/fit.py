@@ -31,6 +31,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from starsense._workspace import scratch
+from starsense.model.misfit import covariance_pulls, sandwich
 from starsense.model.pixels import pixel_terms, pixel_variance
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of
 from starsense.model.tracks import node_positions, track_nodes
@@ -42,12 +43,9 @@ except ImportError:  # pragma: no cover - built without a C compiler: the NumPy 
     _modelc = None
 
 __all__ = [
-    "PULL_SIGMAS",
     "WINDOW_HALF_SIGMAS",
     "ModelFit",
     "fit_windows",
-    "misfit_pulls",
-    "sandwich_exceeds",
     "window_half_px",
 ]
 
@@ -64,10 +62,6 @@ INFO_RTOL = 0.02
 #: the width's central difference, a fraction of the width
 WIDTH_STEP = 2e-3
 MAX_ITERATIONS = 10
-#: the attitude's sandwich variance beyond the pixels' own excess scatter (the reduced
-#: chi-square times the Fisher bound's) by this many of the sandwich's relative noise: the
-#: model's misfit is not noise about the stars but pulls them (:func:`misfit_pulls`)
-PULL_SIGMAS = 3.0
 
 
 def window_half_px(psf: PixelPSF) -> float:
@@ -305,53 +299,6 @@ def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
     return lin, jac, mu
 
 
-def _sandwich(s, scores, s_groups):
-    """Return the Fisher covariance, the sandwich's, and the sandwich's relative noise per axis.
-
-    The sandwich's variance per axis sums each group's share, ``v_g = (cov S_g cov)_kk``, of a
-    score drawn from the model: its relative noise is ``sqrt(2 sum v_g^2) / sum v_g``.
-    """
-    cov = np.linalg.inv(s)
-    v = np.einsum("kp,gpq,qk->gk", cov, s_groups, cov)
-    noise = np.sqrt(2.0 * (v * v).sum(axis=0)) / np.abs(v.sum(axis=0))
-    return cov, cov @ (scores.T @ scores) @ cov, noise
-
-
-def sandwich_exceeds(cov, robust, noise, *, scale: float, sigmas: float) -> bool | None:
-    """Whether an attitude axis's sandwich variance is beyond ``scale`` times the Fisher's.
-
-    Beyond by more than ``sigmas`` of the sandwich's relative noise ``noise``; None without a
-    sandwich.
-    """
-    if robust is None or noise is None or not np.all(np.isfinite(robust)):
-        return None
-    ratio = np.diag(robust)[:3] / np.diag(cov)[:3]
-    return bool(np.any(ratio > scale * (1.0 + sigmas * np.asarray(noise)[:3])))
-
-
-def _pulls(cov, robust, noise, reduced_chi2: float) -> bool:
-    """:func:`misfit_pulls` of a covariance, its sandwich and the sandwich's relative noise."""
-    beyond = sandwich_exceeds(cov, robust, noise, scale=reduced_chi2, sigmas=PULL_SIGMAS)
-    return True if beyond is None else beyond
-
-
-def misfit_pulls(fit: ModelFit) -> bool:
-    """Whether a fit's misfit pulls the attitude rather than scattering about the stars.
-
-    Pixels that scatter about the model by a reduced chi-square ``c`` as noise would (a
-    camera's noise above the sensor's) raise the attitude's variance, estimated from the
-    groups' scores (the sandwich), ``c`` times the Fisher bound's; a profile error symmetric
-    about each star (an Airy or a Moffat drawn as a Gaussian of its width) raises it less,
-    since it does not move the stars. A misfit the stars' positions follow (a PSF asymmetric
-    across the field: coma, a tilted detector) raises it far more: real frames of a camera
-    whose PSF the sensor does not describe read 6-66 times the Fisher sigma at a reduced
-    chi-square of 14-42, where bright GalSim Airy stars read 1-3.7 at 4-10. Above ``c`` by
-    :data:`PULL_SIGMAS` of the sandwich's own relative noise on an attitude axis, the model
-    does not place the stars.
-    """
-    return _pulls(fit.covariance, fit.robust_covariance, fit.robust_noise, fit.reduced_chi2)
-
-
 def fit_windows(
     image,
     sensor,
@@ -394,8 +341,9 @@ def fit_windows(
         starts with a Gauss-Newton step; without them it first solves for the fluxes alone.
     abort_chi2 : float
         Stop (not converged) when, a step past the start, the pixels' reduced chi-square
-        exceeds this and their misfit pulls the attitude (:func:`misfit_pulls`): the model
-        does not place the stars, the rest of the fit is wasted.
+        exceeds this and their misfit pulls the attitude
+        (:func:`starsense.model.misfit.misfit_pulls`): the model does not place the stars, the
+        rest of the fit is wasted.
     window_rate_rad_s : array_like, shape (3,), optional
         Lay the windows around the tracks of this rate (default: the starting rate's): two
         fits on one set of pixels (a likelihood ratio of two models).
@@ -452,7 +400,11 @@ def fit_windows(
         if np.all(np.abs(step) <= STEP_TOL_SIGMAS * sigma) and settled:
             converged = True
             break
-        if it >= 2 and scatter > abort_chi2 and _pulls(*_sandwich(s, scores, s_groups), scatter):
+        if (
+            it >= 2
+            and scatter > abort_chi2
+            and covariance_pulls(*sandwich(s, scores, s_groups), reduced_chi2=scatter)
+        ):
             break  # one step from the start: the model does not place the stars
     if converged:  # the information, scores and chi-square of where the last step reached
         # (not of where it started: the model is linear in the fluxes and backgrounds and the
@@ -465,7 +417,7 @@ def fit_windows(
     out = np.full(len(v_free), np.nan)
     fr = pb.free
     out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
-    cov, robust, robust_noise = _sandwich(s, scores, s_groups)
+    cov, robust, robust_noise = sandwich(s, scores, s_groups)
     n_par = jac.shape[1] + int((lin.any(axis=2)).sum())
     return ModelFit(
         rotation=rotation,

@@ -7,7 +7,7 @@ whose gain or read noise differ from the sensor's), each axis's variance is rais
 pixels' own scatter gives (the sandwich of the groups' scores: a profile error symmetric about
 the stars, which does not move them, does not raise it) and the note says so. Above
 :data:`MAX_REDUCED_CHI2`, a fit whose misfit also pulls the attitude
-(:func:`starsense.model.fit.misfit_pulls`: the stars' scores scatter beyond what the pixels'
+(:func:`starsense.model.misfit.misfit_pulls`: the stars' scores scatter beyond what the pixels'
 excess explains, as where the sensor's PSF or optics do not describe a real camera's) does
 not place the stars, and the model-free centroids' attitude is kept (the fit stops a step
 past its start); a fit whose misfit is a profile error about the stars (a lens's Airy or
@@ -35,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from starsense.geometry.attitude import small_rotation_angles
-from starsense.model.fit import ModelFit, misfit_pulls, sandwich_exceeds
+from starsense.model.fit import ModelFit
+from starsense.model.misfit import misfit_pulls, sandwich_exceeds
 
 __all__ = [
     "LOCAL_MISFIT_SIGMAS",
@@ -53,7 +54,7 @@ __all__ = [
 #: chi-square of a right model over N ~ 10^3 pixels lies within 1 +- 0.1)
 SCALED_CHI2 = 1.3
 #: a fit whose pixels' reduced chi-square exceeds this, and whose misfit pulls the attitude
-#: (:func:`starsense.model.fit.misfit_pulls`), does not describe the frame (a camera's PSF
+#: (:func:`starsense.model.misfit.misfit_pulls`), does not describe the frame (a camera's PSF
 #: and optics the sensor does not give): the model-free centroids' attitude is kept. Above
 #: :data:`SCALED_CHI2` otherwise, the covariance is the sandwich's.
 MAX_REDUCED_CHI2 = 4.0
