@@ -1,5 +1,6 @@
-"""The model fit's stars: every star the detector found, each at its own apparent place; and the
-centroids' attitude as sure as its residuals allow."""
+"""The model fit's stars: every catalogue star the model predicts above the noise, detected or
+not, each at its own apparent place; the datasheet counts the same stars; and the centroids'
+attitude as sure as its residuals allow."""
 
 from __future__ import annotations
 
@@ -25,7 +26,8 @@ def st16_frame():
 
 
 def test_the_stars_added_to_the_fit_are_rendered_stars(st16_frame, monkeypatch):
-    """Each star the fit adds is a star the frame holds, near where the renderer put it."""
+    """Each star the fit adds is a star the frame holds, near where the renderer put it, and
+    the fit holds stars the detector did not find: the model chooses them."""
     sensor, frame = st16_frame
     seen = {}
 
@@ -49,6 +51,44 @@ def test_the_stars_added_to_the_fit_are_rendered_stars(st16_frame, monkeypatch):
     matched = {c for _, c in sol.matches}
     nearest = truth.ids[np.argmin(d, axis=1)]
     assert not matched & set(nearest.tolist())  # never an identified star twice
+    # more stars than the detector found: the fit's stars do not depend on the extraction
+    assert len(mags) + sol.n_matched > sol.n_detections
+
+
+def test_the_datasheet_counts_the_stars_the_solver_fits(st16_frame, monkeypatch):
+    """The solver's fitted stars (the identified ones and those it adds) and the datasheet's
+    (:meth:`FittedStars.presence` at rest) in the frame's true attitude are the same stars but
+    for those near the floor: the frame's zero point is measured from its stars (a few per
+    cent), the datasheet's predicted, so a star within a tenth of a magnitude of the floor may
+    fall either side."""
+    from starsense.analysis.datasheet.field import field_stars_cam
+    from starsense.analysis.datasheet.stars import fitted_stars
+    from starsense.analysis.slew import slew_tolerance
+    from starsense.model.selection import fitted_min_electrons
+    from starsense.photometry.sensitivity import Sensitivity
+
+    sensor, frame = st16_frame
+    seen = {}
+
+    def spy(*args, **kwargs):
+        seen["added"] = original(*args, **kwargs)
+        return seen["added"]
+
+    original = refine_module.stars_in_view
+    monkeypatch.setattr(refine_module, "stars_in_view", spy)
+    sol = Solver(sensor, background="known")(frame.image)
+    assert sol.solved and sol.notes[0].startswith("model fit")
+    solver_n = sol.n_matched + len(seen["added"][2])
+    slew = slew_tolerance(sensor, magnitudes=[4.0, 6.0], rates_rad_s=[0.0], n_trials=4, rng=1)
+    stars = fitted_stars(load_catalog("hipparcos"), sensor, slew=slew, limit_mag=6.0)
+    v, mags, _, _ = stars.at(0.0)
+    pairs = field_stars_cam(sensor.fov(), frame.truth.attitude.as_matrix()[None], v)
+    predicted = mags[pairs.star]
+    floor = fitted_min_electrons(sensor)
+    zero = float(Sensitivity.for_sensor(sensor).electrons(0.0))
+    near = np.abs(predicted - 2.5 * np.log10(zero / floor)) < 0.1
+    assert len(predicted) > 20
+    assert abs(solver_n - len(predicted)) <= max(2, int(near.sum())), (solver_n, len(predicted))
 
 
 def test_the_fit_is_bounded_on_long_streaks():

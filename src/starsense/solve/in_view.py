@@ -1,14 +1,11 @@
-"""The stars in view the model fit draws beside the identified ones: every star the frame shows.
+"""The stars in view the model fit draws beside the identified ones: every star the model sees.
 
 Identification verifies a frame on its brightest detections and pairs only those; the forward
-model's attitude is fitted to every star the detector found, which the datasheet's noise sums
-over. Once the attitude is known each unmatched detection is looked up in the sky catalogue:
-the nearest star within the reach of a detection's centroid (the PSF's core, and half a streak
-on a smeared frame, whose pieces lie anywhere along it) joins the fit, with its flux free, when
-the frame's zero point predicts it above the noise of a PSF's area (a noise detection beside a
-star too faint to be seen adds nothing). A star the catalogue holds is where the catalogue puts
-it whatever lit the pixel near it: the fit weighs its window by the light it finds there. Its
-reference direction is its apparent place, as the identified stars' are.
+model's attitude is fitted to every catalogue star on the detector that the frame's zero point
+predicts above the noise of its footprint (:func:`starsense.model.selection.fitted_min_electrons`),
+detected or not: the fit's stars are the model's choice, not the extraction's, and the
+datasheet sums its noise over the same stars. Each joins with its flux free, at its apparent
+place: a star fainter than predicted adds little information and no bias.
 
 The fit's work is bounded: on a frame of long streaks over a crowded field the brightest are
 added until their windows would hold :data:`IN_VIEW_PIXELS` pixels (the faint ones left carry
@@ -23,45 +20,35 @@ import numpy as np
 
 from starsense.model.windows import MAX_WINDOW_PIXELS
 
-__all__ = ["DETECTABLE_SNR", "IN_VIEW_PIXELS", "room_for", "stars_in_view"]
+__all__ = ["IN_VIEW_PIXELS", "room_for", "stars_in_view"]
 
-#: an added star's predicted flux over the noise of a PSF's area (read, dark, background) at
-#: least this: below it the detector's threshold could not have been passed by the star
-DETECTABLE_SNR = 3.0
 #: the pixels the windows of the fitted stars may hold (half the most a fit may hold: room for
 #: the padding of their groups to one shape)
 IN_VIEW_PIXELS = MAX_WINDOW_PIXELS // 2
-#: a detection's centroid lies within this many PSF sigmas (plus a pixel) of its star at rest
-REACH_SIGMAS = 2.0
+#: two catalogue places closer than this are the same star as an identified one, px
+SAME_STAR_PX = 0.5
 
 
 def stars_in_view(
     sensor,
     rotation,
     *,
-    detections,
-    matched,
     plain,
     sky,
     place,
     min_electrons_e: float,
     zero_point_e: float,
-    streak_px: float = 0.0,
     max_stars: int | None = None,
 ):
-    """Return the sky stars lit by the unmatched detections: (plain, reference, mags).
+    """Return the catalogue stars on the detector the fit adds: (plain, reference, mags).
 
     Parameters
     ----------
     sensor : Sensor
     rotation : Rotation
         The frame's attitude (ICRS -> camera).
-    detections : ndarray (N, 2)
-        Every detection's centroid (x, y), px.
-    matched : ndarray of int
-        The identified detections.
     plain : ndarray (K, 3)
-        The identified stars' catalogue places.
+        The identified stars' catalogue places (not added again).
     sky : SkyStars
         The catalogue's stars.
     place : callable
@@ -71,8 +58,6 @@ def stars_in_view(
         An added star's predicted electrons at least this.
     zero_point_e : float
         Electrons of a magnitude-0 star.
-    streak_px : float
-        The streaks' length, px (0 at rest).
     max_stars : int, optional
         The most stars added (the brightest): the fit's work is bounded.
 
@@ -82,27 +67,31 @@ def stars_in_view(
     mags : ndarray (M,)
     """
     vectors, mags, tree = sky.vectors, sky.mags, sky.tree
-    plain = np.asarray(plain, float)
-    free = np.ones(len(detections), dtype=bool)
-    free[np.asarray(matched, dtype=int)] = False
     none = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
-    if not free.any():
+    if zero_point_e <= 0 or not math.isfinite(zero_point_e):
         return none
-    xy = np.asarray(detections, float)[free]
-    icrs = rotation.inv().apply(sensor.unproject(xy[:, 0], xy[:, 1]))
-    reach = REACH_SIGMAS * sensor.detector.psf_sigma_px + 1.0 + 0.5 * streak_px
-    chord = 2.0 * math.sin(0.5 * reach / sensor.focal_length_px)
-    dist, near = tree.query(icrs, distance_upper_bound=chord)
-    near = np.unique(near[np.isfinite(dist)])
+    faint = 2.5 * math.log10(zero_point_e / min_electrons_e) if min_electrons_e > 0 else np.inf
+    det = sensor.detector
+    hx, hy = sensor.half_fov_rad
+    half_diagonal = math.atan(math.hypot(math.tan(hx), math.tan(hy)))
+    axis = rotation.inv().apply([0.0, 0.0, 1.0])
+    near = np.asarray(tree.query_ball_point(axis, 2.0 * math.sin(0.5 * half_diagonal)), int)
+    near = near[mags[near] <= faint]
     if near.size == 0:
         return none
-    if len(plain):  # not an identified star (their own light)
-        taken = tree.query_ball_point(plain, 2.0 * math.sin(0.5 * 0.5 / sensor.focal_length_px))
+    cam = rotation.apply(vectors[near])
+    x, y = sensor.project(cam)
+    on = (cam[:, 2] > 0) & (x >= -0.5) & (x <= det.columns - 0.5)
+    on &= (y >= -0.5) & (y <= det.rows - 0.5)
+    near = near[on]
+    plain = np.asarray(plain, float)
+    if len(plain) and near.size:  # not an identified star (their own light)
+        same = 2.0 * math.sin(0.5 * SAME_STAR_PX / sensor.focal_length_px)
+        taken = tree.query_ball_point(plain, same)
         near = np.setdiff1d(near, np.fromiter((i for t in taken for i in t), int))
-    bright = zero_point_e * 10.0 ** (-0.4 * mags[near]) >= min_electrons_e
-    near = near[bright]
+    near = near[np.argsort(mags[near], kind="stable")]
     if max_stars is not None:
-        near = near[np.argsort(mags[near], kind="stable")[: max(int(max_stars), 0)]]
+        near = near[: max(int(max_stars), 0)]
     return vectors[near], place(near), mags[near]
 
 

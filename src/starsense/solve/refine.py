@@ -30,10 +30,10 @@ from scipy.spatial import cKDTree
 
 from starsense.errors import InputError
 from starsense.model.fit import fit_windows, window_half_px
-from starsense.model.pixels import pixel_variance
 from starsense.model.psf import psf_of
+from starsense.model.selection import fitted_min_electrons, psf_noise_e, streak_px
 from starsense.solve.fit_judgement import MAX_REDUCED_CHI2, Refinement, judged
-from starsense.solve.in_view import DETECTABLE_SNR, room_for, stars_in_view
+from starsense.solve.in_view import room_for, stars_in_view
 from starsense.solve.streak_model import MIN_STREAK_SIGMAS
 
 __all__ = [
@@ -144,6 +144,10 @@ def refine_attitude(
     rate_hint_rad_s : ndarray (3,), optional
         At rest (``rate_rad_s`` None): the rate a frame's short streaks suggest. Where the
         pixels reject the model at rest, the rate is fitted from there (:func:`_smeared_fit`).
+    more : callable, optional
+        ``more(zero_point_e, rotation, rate) -> (plain, reference, mags)``: the other stars in
+        view (:func:`starsense.solve.in_view.stars_in_view`), fitted with the identified ones
+        once the model describes those.
 
     Returns
     -------
@@ -169,10 +173,6 @@ def refine_attitude(
             return judged(
                 first, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=(len(ref), 0)
             )
-        stars = (plain, ref, mags)
-        if more is not None:  # the other stars in view, at that zero point
-            px, rx, mx = more(zp, rotation if first is None else first.rotation)
-            stars = (np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx))
         neighboured = functools.partial(
             _with_neighbours,
             image=image,
@@ -183,27 +183,45 @@ def refine_attitude(
             rate=rate,
             opts=opts,
         )
-        also, used = "", stars
-        try:
-            fit, counts = neighboured(stars=stars, first=first, zero_point=zp)
-        except InputError as exc:  # past the work a fit may do (long streaks, crowded field)
-            if len(stars[0]) == len(plain):
-                raise
-            # the identified stars with their neighbours (unmodelled, a crowded field's
-            # neighbours bias the fit): the stars in view add information, not accuracy
-            used = (plain, ref, mags)
-            fit, counts = neighboured(stars=used, first=first, zero_point=zp)
-            also = f"; the other stars in view left out: {exc}"
+        stars = (plain, ref, mags)
+        # the identified stars first: the model's verdict and the frame's smear are decided on
+        # them (a real lens unlike the sensor's [psf] is refused before fainter stars are fitted)
+        fit, counts = neighboured(stars=stars, first=first, zero_point=zp)
+        also = ""
         if rate_hint_rad_s is not None and not fit_rate:  # at rest, unless the pixels say not
             moving = _smeared_fit(
-                fit, neighboured.keywords, stars=used, hint=rate_hint_rad_s, zero_point=zp
+                fit, neighboured.keywords, stars=stars, hint=rate_hint_rad_s, zero_point=zp
             )
             if moving is not None:
-                fit, counts = moving
-                also += "; the stars' short streaks fitted with the body rate"
+                (fit, counts), fit_rate = moving, True
+                also = "; the stars' short streaks fitted with the body rate"
+                smeared = dict(opts, fit_rate=True)
+                neighboured = functools.partial(neighboured, rate=fit.rate_rad_s, opts=smeared)
+        verdict = judged(
+            fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also
+        )
+        if more is None or not verdict.used:
+            return verdict
+        # the other stars in view, at that zero point and the rate fitted
+        px, rx, mx = more(zp, fit.rotation, fit.rate_rad_s if fit_rate else None)
+        if not len(mx):
+            return verdict
+        every = (np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx))
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    return judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also)
+    try:
+        fit, counts = neighboured(stars=every, first=fit, zero_point=zp)
+    except (InputError, np.linalg.LinAlgError) as exc:  # past a fit's work (crowded, streaks)
+        why = str(exc)
+    else:
+        done = judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also)
+        if done.used:
+            return done
+        why = done.note
+    # the identified stars with their neighbours: the stars in view add information only
+    return dataclasses.replace(
+        verdict, note=f"{verdict.note}; the other stars in view left out: {why}"
+    )
 
 
 def _smeared_fit(fit, keywords, *, stars, hint, zero_point):
@@ -306,7 +324,7 @@ def _with_neighbours(
             rotation=start,
             reach_px=_reach_px(sensor, rate),
             zero_point=zp,
-            noise_e=_psf_noise_e(sensor, rate),
+            noise_e=psf_noise_e(sensor, rate),
         )
         if fit is first and fit is not None and not len(nv) and n_fitted == len(ref):
             break
@@ -336,28 +354,10 @@ def _with_neighbours(
     return fit, (len(ref), len(nv))
 
 
-def _psf_noise_e(sensor, rate=None) -> float:
-    """Return a dark pixel's noise summed over a star's footprint, electrons.
-
-    The noise-equivalent area of a Gaussian PSF, ``4 pi sigma^2``; smeared over a streak of
-    ``L`` px it grows by ``2 sqrt(pi) sigma L`` (the light spread along the track: a faint star
-    under slew puts less in each pixel than at rest).
-    """
-    sigma = psf_of(sensor).sigma_px
-    streak = 0.0 if rate is None else _streak_px(sensor, rate)
-    area = 4.0 * math.pi * sigma**2 + 2.0 * math.sqrt(math.pi) * sigma * streak
-    return math.sqrt(pixel_variance(sensor.detector, 0.0, sensor.exposure_s) * area)
-
-
-def _streak_px(sensor, rate) -> float:
-    """Return the length of a star's streak near the boresight at body rate ``rate``, px."""
-    return float(np.linalg.norm(rate)) * sensor.exposure_s * sensor.focal_length_px
-
-
 def _reach_px(sensor, rate) -> float:
     """How far from a star a neighbour's light may reach its window, px."""
     psf = psf_of(sensor)
-    streak = 0.0 if rate is None else _streak_px(sensor, rate)
+    streak = 0.0 if rate is None else streak_px(sensor, rate)
     return window_half_px(psf) * math.sqrt(2.0) + psf.radius_px + streak
 
 
@@ -402,26 +402,20 @@ def refined_attitude(
     if points.what == "detections" and rate_rad_s is None:  # frame's pieces do not: a first fit
         flux = np.asarray(points.flux, dtype=float)[np.asarray(ident.detection_index)]
         electrons = flux / sensor.detector.gain_counts_per_e
-    more = None
-    if points.what == "detections":  # every star the detector found joins the fit (in_view.py)
-        streak = 0.0 if rate_rad_s is None else float(np.linalg.norm(rate_rad_s))
-        half = window_half_px(psf_of(sensor))
-        room = room_for(sensor, len(ref), half_px=half, rate_rad_s=rate_rad_s)
+    # every catalogue star the model predicts above the noise joins the fit (in_view.py)
+    room = room_for(sensor, len(ref), half_px=window_half_px(psf_of(sensor)), rate_rad_s=rate_rad_s)
 
-        def more(zero_point_e, rotation):
-            return stars_in_view(
-                sensor,
-                rotation,
-                detections=np.column_stack([points.x, points.y]),
-                matched=ident.detection_index,
-                plain=plain,
-                sky=sky,
-                place=place,
-                min_electrons_e=DETECTABLE_SNR * _psf_noise_e(sensor, rate_rad_s),
-                zero_point_e=zero_point_e,
-                streak_px=streak * sensor.exposure_s * sensor.focal_length_px,
-                max_stars=room,
-            )
+    def more(zero_point_e, rotation, rate):
+        return stars_in_view(
+            sensor,
+            rotation,
+            plain=plain,
+            sky=sky,
+            place=place,
+            min_electrons_e=fitted_min_electrons(sensor, 0.0 if rate is None else rate),
+            zero_point_e=zero_point_e,
+            max_stars=room,
+        )
 
     opts = {"ref": ref, "plain": plain, "mags": mags, "sky": sky, "place": place}
     opts |= {"cog_sigma_rad": att.sigma_axes_rad, "rate_rad_s": rate_rad_s, "electrons": electrons}

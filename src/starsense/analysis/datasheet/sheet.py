@@ -190,11 +190,18 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, detection, fov, database):
         held = np.ones(len(every), dtype=bool)
     else:  # the centroids' attitude models no neighbour: every one pulls unmodelled
         held = np.zeros(len(every), dtype=bool)
+    # the stars in the fit: the model's (to its floor), or the detector's by their chance
+    fitted = fitted_stars(
+        cat, sensor, slew=slew, limit_mag=limit_mag, refine=st.refine, model=st.model
+    )
+    faint = limit_mag
+    if fitted.electrons is not None:  # the model fit's stars reach its floor
+        faint = max(limit_mag, float(np.max(fitted.magnitudes, initial=limit_mag)))
     model = StarModel.build(
         sensor,
         model=st.model,
         bright_mag=float(np.min(mags)),
-        faint_mag=limit_mag,
+        faint_mag=faint,
         star_counts=every,
         unmodelled=every[~held],
         modelled=every[held],
@@ -203,8 +210,6 @@ def _sky_noise(cat, sensor, st: DatasheetSettings, detection, fov, database):
     boresights, att = sky_attitudes(st.n_orientations, None, st.seed)
     mats = att.as_matrix()
     counts = field_stars_cam(fov, mats, vectors).counts()  # every detectable star
-    # the stars in the fit, each by its chance of detection (the slew run's at rest)
-    fitted = fitted_stars(cat, sensor, slew=slew, limit_mag=limit_mag, refine=st.refine)
     v, m, p, catalogue = fitted.at(0.0)
     kinds = error_kinds(sensor) + (() if catalogue is None else ("catalogue",))
     sig, _ = nea_at(

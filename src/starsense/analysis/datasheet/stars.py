@@ -1,16 +1,17 @@
 """The stars the solver fits its attitude to, and the chance that each is in a frame's fit.
 
-The forward model's fit (``refine="model"``) takes every star the detector found: the
-identified ones and, once the attitude is known, each detection that lies on a catalogue star
-(:func:`starsense.solve.in_view.stars_in_view`). A star is in a frame's fit when it is
-detected, so its information counts by its chance of detection: the fraction of the slew
-tolerance run's renders of its magnitude that the detector found, at rest or at the frame's
-rate (:func:`detection_chance`). The sums of the prediction are their expectations over the
-frames (:func:`starsense.analysis.datasheet.field.propagated_sigmas`, ``presence``); stars
-past the run's faintest magnitude are never found and are left out.
+The forward model's fit (``refine="model"``) takes every catalogue star on the detector that
+the model predicts above the noise of its footprint at the frame's rate
+(:func:`starsense.model.selection.fitted_min_electrons`; the solver's
+:func:`starsense.solve.in_view.stars_in_view`), detected or not: the same stars here, each
+in the fit or not by its predicted electrons (:meth:`FittedStars.presence` is 1 or 0).
 
 The centroids' attitude (``refine="cog"``) fits the identified stars alone: those of its
-database (:func:`tracked_stars`), when detected.
+database (:func:`tracked_stars`), when detected, so its information counts by its chance of
+detection: the fraction of the slew tolerance run's renders of its magnitude that the detector
+found, at rest or at the frame's rate (:func:`detection_chance`). The sums of the prediction
+are their expectations over the frames (:func:`starsense.analysis.datasheet.field.
+propagated_sigmas`, ``presence``); stars past the run's faintest magnitude are never found.
 """
 
 from __future__ import annotations
@@ -25,8 +26,10 @@ from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.datasheet.catalogue import catalogue_term_rad
 from starsense.identify.database import build_database
 from starsense.identify.patterns import thin_by_region
+from starsense.model.selection import fitted_min_electrons
+from starsense.photometry.sensitivity import Sensitivity
 
-__all__ = ["FittedStars", "detection_chance", "fitted_stars", "tracked_stars"]
+__all__ = ["FittedStars", "detection_chance", "fitted_faint_mag", "fitted_stars", "tracked_stars"]
 
 #: the database's thinning, as the solver builds it (its defaults: one copy, in build_database)
 _DB_DEFAULTS = inspect.signature(build_database).parameters
@@ -116,6 +119,11 @@ class FittedStars:
         The detector's slew tolerance run (the chance of detection per magnitude and rate).
     catalogue : ndarray (N, 3) or None
         Each star's database position less its rendered one, ICRS, rad (None: no such term).
+    electrons : ndarray (N,) or None
+        The model fit's stars: each one's predicted electrons (None: the centroids' attitude,
+        whose stars are the detector's).
+    sensor : Sensor or None
+        With ``electrons``: the sensor whose noise sets the fit's floor.
     """
 
     vectors: np.ndarray
@@ -123,9 +131,14 @@ class FittedStars:
     held: np.ndarray
     slew: object
     catalogue: np.ndarray | None = None
+    electrons: np.ndarray | None = None
+    sensor: object = None
 
     def presence(self, rate_rad_s: float = 0.0) -> NDArray[np.float64]:
         """Return the chance each star is in a frame's fit at ``rate_rad_s`` (N,)."""
+        if self.electrons is not None:  # the model's choice: 1 above the fit's floor, else 0
+            floor = fitted_min_electrons(self.sensor, abs(float(rate_rad_s)))
+            return np.where(self.held & (self.electrons >= floor), 1.0, 0.0)
         return np.where(self.held, detection_chance(self.slew, self.magnitudes, rate_rad_s), 0.0)
 
     def at(self, rate_rad_s: float = 0.0):
@@ -142,7 +155,13 @@ class FittedStars:
         return self.vectors[k], self.magnitudes[k], p[k], cat
 
 
-def fitted_stars(catalog, sensor, *, slew, limit_mag: float, refine: str = "model"):
+def fitted_faint_mag(sensor, model: str = "reed") -> float:
+    """Return the faintest V magnitude the model fit holds at rest (its floor, in magnitudes)."""
+    zero = float(Sensitivity.for_sensor(sensor, model).electrons(0.0))
+    return 2.5 * float(np.log10(zero / fitted_min_electrons(sensor, 0.0)))
+
+
+def fitted_stars(catalog, sensor, *, slew, limit_mag: float, refine: str = "model", model="reed"):
     """Return the :class:`FittedStars` of ``sensor`` on ``catalog`` (module docstring).
 
     Parameters
@@ -156,17 +175,23 @@ def fitted_stars(catalog, sensor, *, slew, limit_mag: float, refine: str = "mode
         Its limiting magnitude at rest, V (the database's stars are thinned among those).
     refine : {"model", "cog"}
         The solver's last step.
+    model : str
+        The sensitivity model (magnitude -> electrons) of the model fit's floor.
 
     Returns
     -------
     FittedStars
     """
+    if refine == "model":
+        faint = max(fitted_faint_mag(sensor, model), float(limit_mag))
+        vectors, mags = catalog_stars(catalog, faint, band="V")
+        held = np.ones(len(mags), dtype=bool)
+        electrons = Sensitivity.for_sensor(sensor, model).electrons(mags)
+        catalogue = catalogue_term_rad(catalog, sensor, max_mag=faint)
+        return FittedStars(vectors, mags, held, slew, catalogue, electrons, sensor)
     faint = max(float(np.max(slew.magnitudes)), float(limit_mag))
     vectors, mags = catalog_stars(catalog, faint, band="V")
-    if refine == "model":
-        held = np.ones(len(mags), dtype=bool)
-    else:
-        held = mags <= limit_mag
-        held[held] = tracked_stars(vectors[held], mags[held], 2.0 * sensor.half_fov_rad[0])
+    held = mags <= limit_mag
+    held[held] = tracked_stars(vectors[held], mags[held], 2.0 * sensor.half_fov_rad[0])
     catalogue = catalogue_term_rad(catalog, sensor, max_mag=faint)
     return FittedStars(vectors, mags, held, slew, catalogue)

@@ -127,7 +127,7 @@ def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[st
     fov : RectangularFov
         The sensor's field.
     stars : FittedStars
-        The stars the solver may fit, each counted by its chance of detection at the run's
+        The stars the solver may fit, each counted when the fit holds it at the run's
         rate (:class:`starsense.analysis.datasheet.stars.FittedStars`); at a rate the
         prediction is the model fit's information of the smeared stars
         (:func:`starsense.analysis.datasheet.model_noise.model_nea_at_rate`). A centre-of-gravity

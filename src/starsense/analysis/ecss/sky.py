@@ -3,7 +3,7 @@
 The statement is computed on the datasheet's own sky statistics: the same catalogue (completed
 with the solver's database, :func:`starsense.analysis.inputs.completed_sky`), the same
 quasi-uniform attitudes (:func:`starsense.analysis.availability.pointings.sky_attitudes`, its
-seed), the same stars (each counted by its chance of detection,
+seed), the same stars (those the model fit holds,
 :mod:`starsense.analysis.datasheet.stars`) and the same star model
 (:class:`starsense.analysis.datasheet.predict.StarModel`). Per attitude its X and Y are
 then the datasheet's cross split in two (``X^2 + Y^2 = 2 cross^2``).
@@ -111,7 +111,7 @@ class SkyStars:
         Each attitude turns about a cross-boresight axis at its own angle, spread evenly over
         the circle (the datasheet's Monte Carlo draws it at random,
         :func:`starsense.analysis.montecarlo.montecarlo`), from the seed;
-        each star counts by its chance of detection at the rate. A smeared star's
+        each star counts when the fit holds it at the rate. A smeared star's
         information is computed star by star (about a millisecond each), so the attitudes are
         thinned to at most :data:`MAX_RATE_ATTITUDES`, every :attr:`rate_stride`-th of the
         lattice (which spirals from pole to pole: a stride keeps it spread over the sky).
@@ -210,13 +210,15 @@ def sky_stars(sensor, catalog, settings, *, limit_mag: float, slew) -> SkyStars:
     SkyStars
     """
     cat = completed_sky(catalog, Solver(sensor=sensor).catalog)
-    stars = fitted_stars(cat, sensor, slew=slew, limit_mag=limit_mag, refine=settings.refine)
+    stars = fitted_stars(
+        cat, sensor, slew=slew, limit_mag=limit_mag, refine=settings.refine, model=settings.model
+    )
     vectors, mags, presence, _ = stars.at(0.0)  # as the datasheet
     model = StarModel.build(
         sensor,
         model=settings.model,
         bright_mag=float(np.min(mags)),
-        faint_mag=limit_mag,
+        faint_mag=max(limit_mag, float(np.max(mags, initial=limit_mag))),
         refine=settings.refine,
     )
     _, att = sky_attitudes(settings.n_orientations, None, settings.seed)
