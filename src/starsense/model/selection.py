@@ -2,7 +2,7 @@
 
 The forward model's fit and the datasheet's prediction of it hold the same stars, chosen by
 the model rather than by a detector: every catalogue star on the detector whose predicted
-light exceeds :data:`FITTED_SNR` times the noise of its footprint (read, dark: a dark pixel's
+light exceeds :data:`FITTED_SNR` (5) times the noise of its footprint (read, dark: a dark pixel's
 noise summed over the PSF's noise-equivalent area, and over the streak under slew). Its
 window is fitted whether or not a detector found it, with its flux free: a star fainter than
 predicted adds little information, never a bias, since its position is the catalogue's moved
@@ -22,11 +22,13 @@ from starsense.model.psf import psf_of
 __all__ = ["FITTED_SNR", "fitted_min_electrons", "psf_noise_e", "streak_px"]
 
 #: a star joins the fit when its predicted electrons exceed this many times its footprint's
-#: noise. A star's position information grows as its SNR squared: one at SNR 10 carries a
-#: hundredth of one at SNR 100, and the fainter stars of a field (about 3 times more per
-#: magnitude, each about 6 times less informative) add little: on the ST-16 the stars from
-#: SNR 10 down to 3 would sharpen the attitude by 6 % at 2.5 times the fit's work
-FITTED_SNR = 10.0
+#: noise: the solver's matched filter detects at 5 sigma of the filtered noise, which for a
+#: star is this signal-to-noise ratio over the PSF's noise-equivalent area, so every star a
+#: detector can find (and identify) is among the model's stars, and the prediction counts the
+#: identified ones whichever detector found them. A star's position information grows as its
+#: SNR squared: the fainter stars left out (SNR 3-5) would sharpen the ST-16's attitude by
+#: about 2 % with 1.5 times the stars to fit
+FITTED_SNR = 5.0
 
 
 def streak_px(sensor, rate_rad_s) -> float:

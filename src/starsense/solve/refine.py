@@ -202,7 +202,9 @@ def refine_attitude(
         )
         if more is None or not verdict.used:
             return verdict
-        # the other stars in view, at that zero point and the rate fitted
+        # the other stars in view, at the fit's zero point (its fluxes hold the PSF's wings, a
+        # lit sum does not) and the rate fitted
+        zp = _zero_point(fit.fluxes_e[: len(ref)], mags) or zp
         px, rx, mx = more(zp, fit.rotation, fit.rate_rad_s if fit_rate else None)
         if not len(mx):
             return verdict
