@@ -111,3 +111,17 @@ def test_blind_sensor_has_only_the_settings_and_why():
     assert sheet.limiting_magnitude is None and sheet.nea_arcsec is None
     assert "detects no star" in sheet.warnings[0]
     assert Comparison.from_sheets([sheet]).rows[2].values == (None,)
+
+
+def test_a_sky_fainter_than_the_limit_is_no_star():
+    """A sky whose brightest star lies below the sensor's limit (the ST-16, V 5.8, over the
+    catalogue's stars fainter than V 7) gives the blind sensor's sheet, saying both magnitudes,
+    not an error."""
+    from starsense.catalog import load_catalog
+
+    hip = load_catalog("hipparcos")
+    faint = hip.subset(np.asarray(hip.mags["V"]) > 7.0)
+    sheet = datasheet(load_sensor("st16"), faint, **LIGHT)
+    assert sheet.limiting_magnitude is None and sheet.nea_arcsec is None
+    assert "detects no star of the sky" in sheet.warnings[0]
+    assert "brightest star (V 7." in sheet.warnings[0]

@@ -147,13 +147,24 @@ def _geometry(sensor, limit_mag, model) -> dict:
     }
 
 
-def _no_stars(sensor, settings, catalog_name: str) -> Datasheet:
-    """Return the datasheet of a sensor that detects no star at rest: every number null, and why."""
-    why = (
-        f"{sensor.name} detects no star at rest, not even of magnitude -2 (the detection logic "
-        f"needs {sensor.detection.min_pixels} pixels above {sensor.detection.lit_pixel_counts:g} "
-        f"counts and {sensor.detection.min_integrated_counts:g} counts in all)"
+def _no_stars(sensor, settings, catalog_name: str, sky=None) -> Datasheet:
+    """Return the datasheet of a sensor that detects no star at rest: every number null, and why.
+
+    ``sky``: (its limiting magnitude, the catalogue's brightest star), V, where the limit lies
+    above every star of the sky; None where it detects none of magnitude -2.
+    """
+    needs = (
+        f"(the detection logic needs {sensor.detection.min_pixels} pixels above "
+        f"{sensor.detection.lit_pixel_counts:g} counts and "
+        f"{sensor.detection.min_integrated_counts:g} counts in all)"
     )
+    why = f"{sensor.name} detects no star at rest, not even of magnitude -2 {needs}"
+    if sky is not None:
+        why = (
+            f"{sensor.name} detects no star of the sky at rest: its limiting magnitude, V "
+            f"{sky[0]:.2f}, is brighter than the catalogue's brightest star (V {sky[1]:.2f}) "
+            f"{needs}"
+        )
     return Datasheet(
         schema=SCHEMA,
         sensor=sensor.name,
@@ -257,6 +268,9 @@ def build_datasheet(
     limit_mag, slew, curve = _detection(sensor, st, tick)
     if limit_mag is None:
         return _no_stars(sensor, st, getattr(cat, "name", ""))
+    brightest = float(np.nanmin(cat.mags["V"], initial=np.inf))
+    if limit_mag < brightest:
+        return _no_stars(sensor, st, getattr(cat, "name", ""), (limit_mag, brightest))
     fov = sensor.fov()
     analysis = AvailabilityAnalysis.from_catalog(
         cat, fov, limit_mag, band="V", n_orientations=st.n_orientations, roll_rad=None, rng=st.seed
