@@ -22,7 +22,13 @@ from starsense.analysis.datasheet.noise import empty_pixel_sigma_counts
 from starsense.analysis.datasheet.verify import MIN_CHECKED_FRAMES
 from starsense.render.noise import empty_pixel_moments
 
-__all__ = ["COMPLETENESS_V", "empty_pixel_sigma_counts", "sanity_warnings", "solving_warnings"]
+__all__ = [
+    "COMPLETENESS_V",
+    "empty_pixel_sigma_counts",
+    "no_star_reason",
+    "sanity_warnings",
+    "solving_warnings",
+]
 
 #: V to which each catalogue is complete, and the source of the figure
 COMPLETENESS_V = {
@@ -191,3 +197,22 @@ def solving_warnings(stars, avail, runs, *, n_min: int) -> list[str]:
         if run.wrong:
             out.append(f"{key}: {run.wrong} wrong identifications in {run.frames} frames")
     return out
+
+
+def no_star_reason(sensor, sky=None) -> str:
+    """Return why a sensor's datasheet holds no number: it detects no star at rest.
+
+    ``sky``: (its limiting magnitude, the catalogue's brightest star), V, where the limit lies
+    above every star of the sky; None where it detects none of magnitude -2.
+    """
+    needs = (
+        f"(the detection logic needs {sensor.detection.min_pixels} pixels above "
+        f"{sensor.detection.lit_pixel_counts:g} counts and "
+        f"{sensor.detection.min_integrated_counts:g} counts in all)"
+    )
+    if sky is None:
+        return f"{sensor.name} detects no star at rest, not even of magnitude -2 {needs}"
+    return (
+        f"{sensor.name} detects no star of the sky at rest: its limiting magnitude, V "
+        f"{sky[0]:.2f}, is brighter than the catalogue's brightest star (V {sky[1]:.2f}) {needs}"
+    )

@@ -6,12 +6,13 @@ from dataclasses import dataclass
 
 from starsense._validate import check_count
 from starsense.analysis.availability.pointings import MAX_ORIENTATIONS, ORIENTATION_COST
+from starsense.analysis.datasheet.sections import SheetSettings
 from starsense.analysis.inputs import FRAME_COST, MAX_FRAMES
 from starsense.analysis.slew import MAX_TRIALS_PER_POINT, SLEW_TRIAL_COST
 from starsense.errors import InputError
-from starsense.units import DEG
+from starsense.units import DEG, RAD_TO_DEG
 
-__all__ = ["DatasheetSettings"]
+__all__ = ["DatasheetSettings", "sheet_settings"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -74,3 +75,20 @@ class DatasheetSettings:
             )
         for name, value in counts.items():
             object.__setattr__(self, name, value)
+
+
+def sheet_settings(
+    settings: DatasheetSettings, catalog_name: str, cut: float | None
+) -> SheetSettings:
+    """Return the settings as a datasheet records them (its ``settings`` section)."""
+    return SheetSettings(
+        catalog=catalog_name,
+        model=settings.model,
+        n_trials=settings.n_trials,
+        rate_deg_s=settings.rate_rad_s * RAD_TO_DEG,
+        seed=settings.seed,
+        n_orientations=settings.n_orientations,
+        n_slew_trials=settings.n_slew_trials,
+        catalog_cut_mag=cut,
+        fov="rectangular (the detector)",
+    )

@@ -19,7 +19,7 @@ from starsense.analysis.availability.analysis import AvailabilityAnalysis
 from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.datasheet.budget import error_budget, quoted_values, sky_median
-from starsense.analysis.datasheet.checks import sanity_warnings, solving_warnings
+from starsense.analysis.datasheet.checks import no_star_reason, sanity_warnings, solving_warnings
 from starsense.analysis.datasheet.field import field_stars_cam
 from starsense.analysis.datasheet.predict import (
     DEFAULT_RATES_RAD_S,
@@ -38,11 +38,10 @@ from starsense.analysis.datasheet.sections import (
     FastestRates,
     RatesKept,
     RollOverCross,
-    SheetSettings,
     Spread,
     StarsInFov,
 )
-from starsense.analysis.datasheet.settings import DatasheetSettings
+from starsense.analysis.datasheet.settings import DatasheetSettings, sheet_settings
 from starsense.analysis.datasheet.skycache import limit_sigmas
 from starsense.analysis.datasheet.stars import fitted_stars
 from starsense.analysis.datasheet.verify import run_checks
@@ -153,38 +152,13 @@ def _no_stars(sensor, settings, catalog_name: str, sky=None) -> Datasheet:
     ``sky``: (its limiting magnitude, the catalogue's brightest star), V, where the limit lies
     above every star of the sky; None where it detects none of magnitude -2.
     """
-    needs = (
-        f"(the detection logic needs {sensor.detection.min_pixels} pixels above "
-        f"{sensor.detection.lit_pixel_counts:g} counts and "
-        f"{sensor.detection.min_integrated_counts:g} counts in all)"
-    )
-    why = f"{sensor.name} detects no star at rest, not even of magnitude -2 {needs}"
-    if sky is not None:
-        why = (
-            f"{sensor.name} detects no star of the sky at rest: its limiting magnitude, V "
-            f"{sky[0]:.2f}, is brighter than the catalogue's brightest star (V {sky[1]:.2f}) "
-            f"{needs}"
-        )
+    why = no_star_reason(sensor, sky)
     return Datasheet(
         schema=SCHEMA,
         sensor=sensor.name,
         limiting_magnitude=None,
         warnings=(why, *sanity_warnings(sensor, catalog_name="", limit_mag=None, runs={})),
-        settings=_settings(settings, catalog_name, None),
-    )
-
-
-def _settings(settings: DatasheetSettings, catalog_name: str, cut: float | None) -> SheetSettings:
-    return SheetSettings(
-        catalog=catalog_name,
-        model=settings.model,
-        n_trials=settings.n_trials,
-        rate_deg_s=settings.rate_rad_s * RAD_TO_DEG,
-        seed=settings.seed,
-        n_orientations=settings.n_orientations,
-        n_slew_trials=settings.n_slew_trials,
-        catalog_cut_mag=cut,
-        fov="rectangular (the detector)",
+        settings=sheet_settings(settings, catalog_name, None),
     )
 
 
@@ -335,7 +309,7 @@ def build_datasheet(
             )
         ),
         quoted_source=dict(sensor.quoted).get("source"),
-        settings=_settings(st, getattr(cat, "name", ""), limit_mag),
+        settings=sheet_settings(st, getattr(cat, "name", ""), limit_mag),
         warnings=(
             *([colour_note] if colour_note else []),
             *solving_warnings(stars, avail, runs, n_min=_N_MIN_LIS),
