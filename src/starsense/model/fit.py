@@ -380,6 +380,8 @@ def fit_windows(
         weight, resid, chi2 = pixel_terms(det, mu, pb.data, use=pb.use, exposure_s=te)
         s, scores, a_inv_b, a_inv_u, s_groups = _normal_equations(lin, jac, weight, resid)
         step = np.linalg.solve(s, scores.sum(axis=0))
+        if not np.all(np.isfinite(step)):  # a model with no light left in its windows
+            raise np.linalg.LinAlgError("the fit diverged (a step that is not finite)")
         dlin = a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step)
         lin_values = lin_values + dlin
         rotation = Rotation.from_rotvec(step[:3]) * rotation
