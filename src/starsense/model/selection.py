@@ -19,7 +19,7 @@ import numpy as np
 from starsense.model.pixels import pixel_variance
 from starsense.model.psf import psf_of
 
-__all__ = ["FITTED_SNR", "fitted_min_electrons", "psf_noise_e", "streak_px"]
+__all__ = ["FITTED_SNR", "faintest_mag", "fitted_min_electrons", "psf_noise_e", "streak_px"]
 
 #: a star joins the fit when its predicted electrons exceed this many times its footprint's
 #: noise: the solver's matched filter detects at 5 sigma of the filtered noise, which for a
@@ -56,3 +56,13 @@ def psf_noise_e(sensor, rate_rad_s=0.0) -> float:
 def fitted_min_electrons(sensor, rate_rad_s=0.0) -> float:
     """Return the fewest predicted electrons of a star the fit holds at ``rate_rad_s``."""
     return FITTED_SNR * psf_noise_e(sensor, rate_rad_s)
+
+
+def faintest_mag(zero_point_e: float, min_electrons_e: float) -> float:
+    """Return the magnitude of a star of ``min_electrons_e`` at a zero point.
+
+    ``zero_point_e``: electrons of a magnitude-0 star. Infinite without a floor.
+    """
+    if min_electrons_e <= 0:
+        return math.inf
+    return 2.5 * math.log10(zero_point_e / min_electrons_e)

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from starsense.model.selection import faintest_mag
 from starsense.model.windows import MAX_WINDOW_PIXELS
 
 __all__ = ["IN_VIEW_PIXELS", "room_for", "stars_in_view"]
@@ -70,7 +71,7 @@ def stars_in_view(
     none = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
     if zero_point_e <= 0 or not math.isfinite(zero_point_e):
         return none
-    faint = 2.5 * math.log10(zero_point_e / min_electrons_e) if min_electrons_e > 0 else np.inf
+    faint = faintest_mag(zero_point_e, min_electrons_e)
     det = sensor.detector
     hx, hy = sensor.half_fov_rad
     half_diagonal = math.atan(math.hypot(math.tan(hx), math.tan(hy)))

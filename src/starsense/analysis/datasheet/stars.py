@@ -26,7 +26,7 @@ from starsense.analysis.availability.field import catalog_stars
 from starsense.analysis.datasheet.catalogue import catalogue_term_rad
 from starsense.identify.database import build_database
 from starsense.identify.patterns import thin_by_region
-from starsense.model.selection import fitted_min_electrons
+from starsense.model.selection import faintest_mag, fitted_min_electrons
 from starsense.photometry.sensitivity import Sensitivity
 
 __all__ = ["FittedStars", "detection_chance", "fitted_faint_mag", "fitted_stars", "tracked_stars"]
@@ -158,7 +158,7 @@ class FittedStars:
 def fitted_faint_mag(sensor, model: str = "reed") -> float:
     """Return the faintest V magnitude the model fit holds at rest (its floor, in magnitudes)."""
     zero = float(Sensitivity.for_sensor(sensor, model).electrons(0.0))
-    return 2.5 * float(np.log10(zero / fitted_min_electrons(sensor, 0.0)))
+    return faintest_mag(zero, fitted_min_electrons(sensor, 0.0))
 
 
 def fitted_stars(catalog, sensor, *, slew, limit_mag: float, refine: str = "model", model="reed"):
@@ -182,16 +182,15 @@ def fitted_stars(catalog, sensor, *, slew, limit_mag: float, refine: str = "mode
     -------
     FittedStars
     """
-    if refine == "model":
-        faint = max(fitted_faint_mag(sensor, model), float(limit_mag))
-        vectors, mags = catalog_stars(catalog, faint, band="V")
-        held = np.ones(len(mags), dtype=bool)
-        electrons = Sensitivity.for_sensor(sensor, model).electrons(mags)
-        catalogue = catalogue_term_rad(catalog, sensor, max_mag=faint)
-        return FittedStars(vectors, mags, held, slew, catalogue, electrons, sensor)
-    faint = max(float(np.max(slew.magnitudes)), float(limit_mag))
+    fit = refine == "model"  # the model's stars to its floor, or the detector's to its reach
+    reach = fitted_faint_mag(sensor, model) if fit else float(np.max(slew.magnitudes))
+    faint = max(reach, float(limit_mag))
     vectors, mags = catalog_stars(catalog, faint, band="V")
+    catalogue = catalogue_term_rad(catalog, sensor, max_mag=faint)
+    if fit:
+        electrons = Sensitivity.for_sensor(sensor, model).electrons(mags)
+        held = np.ones(len(mags), dtype=bool)
+        return FittedStars(vectors, mags, held, slew, catalogue, electrons, sensor)
     held = mags <= limit_mag
     held[held] = tracked_stars(vectors[held], mags[held], 2.0 * sensor.half_fov_rad[0])
-    catalogue = catalogue_term_rad(catalog, sensor, max_mag=faint)
     return FittedStars(vectors, mags, held, slew, catalogue)
