@@ -25,11 +25,11 @@ import math
 
 import numpy as np
 
-from starsense.model.fit import window_half_px
 from starsense.model.pixels import censored_information, floor_e, pixel_variance
 from starsense.model.psf import PixelPSF, psf_of
 from starsense.model.stamps import source_stamps
 from starsense.model.tracks import NodePositions, time_nodes
+from starsense.model.windows import window_half_px
 
 __all__ = ["attitude_information", "position_information", "position_sigma_px"]
 

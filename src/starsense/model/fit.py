@@ -30,27 +30,18 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from starsense._workspace import scratch
 from starsense.model.misfit import covariance_pulls, sandwich
 from starsense.model.pixels import pixel_terms, pixel_variance
+from starsense.model.problem import Problem, linearised, set_up
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of
-from starsense.model.tracks import node_positions, track_nodes
-from starsense.model.windows import MAX_WORK, Windows, evaluate, make_windows
 
 try:  # the normal equations' sums, compiled (setup.py)
     import starsense.model._modelc as _modelc
 except ImportError:  # pragma: no cover - built without a C compiler: the NumPy form
     _modelc = None
 
-__all__ = [
-    "WINDOW_HALF_SIGMAS",
-    "ModelFit",
-    "fit_windows",
-    "window_half_px",
-]
+__all__ = ["ModelFit", "fit_windows"]
 
-#: a star's box reaches this many PSF sigmas (+1 px) beyond its track
-WINDOW_HALF_SIGMAS = 3.5
 #: Gauss-Newton stops when its last step was below this fraction of each parameter's sigma
 #: (what is left, ~the square of the step in sigma for a quadratic convergence, is nothing)
 STEP_TOL_SIGMAS = 0.1
@@ -59,14 +50,7 @@ STEP_TOL_SIGMAS = 0.1
 #: from given ones (or near the ADC's floor, where the likelihood is not a least-squares one)
 #: may still be moving
 INFO_RTOL = 0.02
-#: the width's central difference, a fraction of the width
-WIDTH_STEP = 2e-3
 MAX_ITERATIONS = 10
-
-
-def window_half_px(psf: PixelPSF) -> float:
-    """Half-size of a star's box beyond its track, px."""
-    return WINDOW_HALF_SIGMAS * psf.sigma_px + 1.0
 
 
 @dataclass(frozen=True)
@@ -128,21 +112,6 @@ class ModelFit:
         return self.chi2 / max(self.dof, 1)
 
 
-def _data(image, windows: Windows, detector) -> tuple[np.ndarray, np.ndarray]:
-    """Return the windows' pixels in electrons above the bias (G, N) and which are usable."""
-    h, w = windows.shape
-    rows = windows.row0[:, None, None] + np.arange(h)[None, :, None]
-    cols = windows.col0[:, None, None] + np.arange(w)[None, None, :]
-    on = windows.on
-    r = np.clip(rows, 0, image.shape[0] - 1)
-    c = np.clip(cols, 0, image.shape[1] - 1)
-    counts = np.asarray(image)[r, c].astype(float)
-    e = (counts - detector.bias_counts) / detector.gain_counts_per_e
-    use = on & (counts < detector.saturation_counts - 0.5) & (e < 0.999 * detector.full_well_e)
-    g = windows.n_groups
-    return e.reshape(g, -1), use.reshape(g, -1)
-
-
 def _normal_equations(lin, jac, weight, resid):
     """Schur-complement system of the geometric parameters (module docstring)."""
     if _modelc is not None:
@@ -170,133 +139,6 @@ def _sums(lin, jac, weight, resid):
     args = (np.ascontiguousarray(x, dtype=float) for x in (lin, jac, weight, resid))
     _modelc.normal_equations(*args, g, m, p, n, *out)
     return out
-
-
-#: most float64 values of a fit's arrays kept in the thread's work buffer between fits (16 MB);
-#: a larger fit allocates its own
-MAX_KEPT_VALUES = 1 << 21
-
-
-def _zeros(n: int) -> np.ndarray:
-    """Return ``n`` float64 zeros, in this thread's work buffer for the model when they fit.
-
-    Reused by the next fit: freshly mapped pages cost more to fault in than the kernel takes
-    to fill them (~1 ms a fit of 20,000 pixels). The buffer's length is a power of two, so
-    that fits of other sizes share it; one fit at a time holds it (no fit runs inside another).
-    """
-    if n > MAX_KEPT_VALUES:
-        return np.zeros(n)
-    out = scratch("model.fit", (1 << max(int(n) - 1, 0).bit_length(),), np.float64)[:n]
-    out.fill(0.0)
-    return out
-
-
-@dataclass
-class _Problem:
-    """What stays fixed while the fit iterates: the sources, windows, data and quadrature."""
-
-    sensor: object
-    vectors: np.ndarray
-    free: np.ndarray
-    fluxes: np.ndarray
-    windows: Windows
-    data: np.ndarray
-    use: np.ndarray
-    fractions: np.ndarray
-    weights: np.ndarray
-    fit_rate: bool
-    fit_width: bool
-    kept: np.ndarray
-    buffers: tuple | None = None
-
-    def out(self, n_par: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return the model's arrays, laid out once for the fit (:func:`evaluate`'s ``out``).
-
-        The linear design (its last row ones), the fixed light, the Jacobian of ``n_par``
-        parameters.
-        """
-        w = self.windows
-        if self.buffers is None or self.buffers[2].shape[1] != n_par:
-            g, m, (h, wd) = w.n_groups, w.n_slots, w.shape
-            flat = _zeros(g * h * wd * (m + 2 + n_par))
-            a, b = g * (m + 1) * h * wd, g * (m + 2) * h * wd
-            lin = flat[:a].reshape(g, m + 1, h, wd)
-            lin[:, -1] = 1.0  # the background's
-            self.buffers = (lin, flat[a:b].reshape(g, h, wd), flat[b:].reshape(g, n_par, h, wd))
-        return self.buffers
-
-
-def _setup(
-    image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width, window_rate=None
-):
-    """Lay out the windows around the sources' tracks and read their pixels.
-
-    The tracks at ``window_rate`` where given (else at the rate's).
-    """
-    allv = np.concatenate([v_free, v_fix])
-    free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
-    lay = {"sigma_px": psf.sigma_px, "max_nodes": MAX_WORK}  # nodes bounded by the fit's work
-    moving = fit_rate or bool(np.any(rate))
-    frac, wts, nodes = track_nodes(
-        sensor, (v_free, allv), rotation, rate_rad_s=rate, moving=moving, **lay
-    )
-    if window_rate is not None:  # the windows laid around the tracks of another rate
-        nodes = track_nodes(
-            sensor, (v_free, allv), rotation, rate_rad_s=window_rate, moving=True, **lay
-        )[2]
-    windows, kept = make_windows(
-        nodes.x, nodes.y, half_px=window_half_px(psf), shape=image.shape, free=free
-    )
-    data, use = _data(image, windows, sensor.detector)
-    fluxes = np.r_[np.zeros(len(v_free)), f_fix][kept]
-    return _Problem(
-        sensor,
-        allv[kept],
-        free[kept],
-        fluxes,
-        windows,
-        data,
-        use,
-        frac,
-        wts,
-        fit_rate,
-        fit_width,
-        kept,
-    )
-
-
-def _linearised(pb: _Problem, psf: PixelPSF, rotation, rate, lin_values):
-    """Return the linear design (G, M+1, N), the geometric Jacobian (G, P, N) and the model."""
-    sensor, w = pb.sensor, pb.windows
-    nodes = node_positions(
-        sensor,
-        pb.vectors,
-        rotation,
-        rate_rad_s=rate,
-        exposure_s=sensor.exposure_s,
-        fractions=pb.fractions,
-        weights=pb.weights,
-        fit_rate=pb.fit_rate,
-    )
-    fl = pb.fluxes
-    fl[pb.free] = lin_values[w.group[pb.free], w.slot[pb.free]]  # the Jacobian at these fluxes
-    exact = pb.fit_width and psf.spec.is_gaussian  # the width's derivative in closed form
-    out = pb.out(nodes.dx.shape[-1] + int(exact))
-    ev = evaluate(w, psf, nodes, fluxes=fl, width=exact, out=out)
-    g_n, m = w.n_groups, w.n_slots
-    lin = out[0].reshape(g_n, m + 1, -1)
-    jac = ev.jacobian.reshape(g_n, ev.jacobian.shape[1], -1)
-    if pb.fit_width and not exact:  # d mu / d sigma by a central difference of the width
-        h = WIDTH_STEP * psf.sigma_px
-        sides = []
-        for sign in (1.0, -1.0):
-            other = pixel_psf(psf.spec, psf.sigma_px + sign * h)
-            e = evaluate(w, other, nodes, fluxes=fl, gradient=False)
-            sides.append(e.fixed + np.einsum("gm,gmhw->ghw", lin_values[:, :m], e.templates))
-        dw = (sides[0] - sides[1]) / (2.0 * h)
-        jac = np.concatenate([jac, dw.reshape(g_n, 1, -1)], axis=1)
-    mu = ev.fixed.reshape(g_n, -1) + np.einsum("gm,gmn->gn", lin_values, lin)
-    return lin, jac, mu
 
 
 def fit_windows(
@@ -353,37 +195,29 @@ def fit_windows(
     ModelFit
     """
     psf = psf or psf_of(sensor)
-    det, te = sensor.detector, sensor.exposure_s
     v_free = np.asarray(vectors, float).reshape(-1, 3)
     v_fix = np.zeros((0, 3)) if fixed_vectors is None else np.asarray(fixed_vectors, float)
     f_fix = np.zeros(0) if fixed_electrons is None else np.asarray(fixed_electrons, float)
     rate = np.asarray(rate_rad_s, float).copy()
     window_rate = None if window_rate_rad_s is None else np.asarray(window_rate_rad_s, float)
-    pb = _setup(
-        image, sensor, rotation, rate, psf, v_free, v_fix, f_fix, fit_rate, fit_width, window_rate
-    )
+    pb = set_up(
+        image, sensor, rotation, rate=rate, psf=psf, sources=(v_free, v_fix, f_fix),
+        flags=(fit_rate, fit_width), window_rate=window_rate,
+    )  # fmt: skip
+    if not pb.parts:
+        raise np.linalg.LinAlgError("no star's window lies on the detector")
     n_geo = 6 if fit_rate else 3
-    lin_values = np.zeros((pb.windows.n_groups, pb.windows.n_slots + 1))
-    weight = pb.use / pixel_variance(det, np.median(pb.data[pb.use]) if pb.use.any() else 0, te)
-    start = None if fluxes_e is None else np.asarray(fluxes_e, dtype=float)
-    w = pb.windows
-    if start is not None and start.shape == (len(v_free),) and np.all(start > 0):
-        fr = pb.free  # the given fluxes start the fit: its first step has a Jacobian
-        lin_values[w.group[fr], w.slot[fr]] = start[pb.kept[fr]]  # free: the given vectors
-    else:  # the fluxes first, at the starting geometry
-        lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
-        lin_values = lin_values + _normal_equations(lin, jac, weight, pb.data - mu)[3]
-    converged, it, s, scores, prev_info = False, 0, np.eye(3), np.zeros((1, 3)), None
-    s_groups = np.eye(3)[None]
+    lin_values = _start(pb, psf, rotation, rate, fluxes_e)
+    n_lin = int(pb.free.sum()) + sum(p.windows.n_groups for p in pb.parts)
+    converged, it, prev_info = False, 0, None
     for it in range(1, MAX_ITERATIONS + 1):
-        lin, jac, mu = _linearised(pb, psf, rotation, rate, lin_values)
-        weight, resid, chi2 = pixel_terms(det, mu, pb.data, use=pb.use, exposure_s=te)
-        s, scores, a_inv_b, a_inv_u, s_groups = _normal_equations(lin, jac, weight, resid)
+        terms = linearised(pb, psf, rotation, rate=rate, lin_values=lin_values)
+        pix, s, scores, s_groups, eqs = _step_sums(pb, terms)
         step = np.linalg.solve(s, scores.sum(axis=0))
         if not np.all(np.isfinite(step)):  # a model with no light left in its windows
             raise np.linalg.LinAlgError("the fit diverged (a step that is not finite)")
-        dlin = a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step)
-        lin_values = lin_values + dlin
+        dlins = [a_inv_u - np.einsum("gmp,p->gm", a_inv_b, step) for *_, a_inv_b, a_inv_u, _ in eqs]
+        lin_values = [lv + d for lv, d in zip(lin_values, dlins, strict=True)]
         rotation = Rotation.from_rotvec(step[:3]) * rotation
         if fit_rate:
             rate = rate + step[3:n_geo]
@@ -393,8 +227,8 @@ def fit_windows(
             )
             psf = pixel_psf(psf.spec, width)
         # the pixels' scatter about the model sets the scale of a step
-        dof = max(int(pb.use.sum()) - len(step) - lin.shape[1] * lin.shape[0], 1)
-        scatter = max(1.0, float(chi2.sum()) / dof)
+        dof = max(pb.n_pixels - len(step) - n_lin, 1)
+        scatter = max(1.0, sum(float(c.sum()) for *_, c in pix) / dof)
         sigma = np.sqrt(np.clip(np.diag(np.linalg.inv(s)), 0.0, None) * scatter)
         info = np.diag(s)
         settled = prev_info is not None and np.all(np.abs(info - prev_info) <= INFO_RTOL * info)
@@ -412,22 +246,24 @@ def fit_windows(
         # (not of where it started: the model is linear in the fluxes and backgrounds and the
         # geometric step is small, so the pixels move by the linear change; their variance
         # follows them). A fit that did not converge is not used: its last state stands.
-        mu = mu + np.einsum("gm,gmn->gn", dlin, lin) + np.einsum("gpn,p->gn", jac, step)
-        weight, resid, chi2 = pixel_terms(det, mu, pb.data, use=pb.use, exposure_s=te)
-        s, scores, _, _, s_groups = _normal_equations(lin, jac, weight, resid)
-    n_pix = int(pb.use.sum())
+        terms = [
+            (lin, jac, mu + np.einsum("gm,gmn->gn", d, lin) + np.einsum("gpn,p->gn", jac, step))
+            for (lin, jac, mu), d in zip(terms, dlins, strict=True)
+        ]
+        pix, s, scores, s_groups, _ = _step_sums(pb, terms)
     out = np.full(len(v_free), np.nan)
-    fr = pb.free
-    out[pb.kept[fr]] = lin_values[pb.windows.group[fr], pb.windows.slot[fr]]
+    for p, lv in zip(pb.parts, lin_values, strict=True):
+        out[pb.kept[p.mine]] = p.fluxes(lv)
     cov, robust, robust_noise = sandwich(s, scores, s_groups)
-    n_par = jac.shape[1] + int((lin.any(axis=2)).sum())
+    n_par = len(step) + sum(int(lin.any(axis=2).sum()) for lin, _, _ in terms)
+    n_pix = pb.n_pixels
     return ModelFit(
         rotation=rotation,
         rate_rad_s=rate,
         covariance=cov,
         robust_covariance=robust,
         fluxes_e=out,
-        chi2=float(chi2.sum()),
+        chi2=sum(float(c.sum()) for *_, c in pix),
         dof=n_pix - n_par,
         n_pixels=n_pix,
         iterations=it,
@@ -435,3 +271,47 @@ def fit_windows(
         psf_sigma_px=psf.sigma_px,
         robust_noise=robust_noise,
     )
+
+
+def _start(pb: Problem, psf: PixelPSF, rotation, rate, fluxes_e) -> list[np.ndarray]:
+    """Return each part's starting linear values: the fluxes given, or fitted at the start.
+
+    Given fluxes (all > 0) start the fit, so that its first step has a Jacobian; without them
+    the fluxes and backgrounds are solved for first at the starting geometry.
+    """
+    lin_values = [np.zeros((p.windows.n_groups, p.windows.n_slots + 1)) for p in pb.parts]
+    n_free = int(pb.free.sum())
+    start = None if fluxes_e is None else np.asarray(fluxes_e, dtype=float)
+    if start is not None and start.shape == (n_free,) and np.all(start > 0):
+        for p, lv in zip(pb.parts, lin_values, strict=True):
+            lv[p.windows.group[p.mine], p.windows.slot[p.mine]] = start[pb.kept[p.mine]]
+        return lin_values
+    det, te = pb.sensor.detector, pb.sensor.exposure_s
+    used = np.concatenate([p.data[p.use] for p in pb.parts])
+    var = pixel_variance(det, np.median(used) if used.size else 0.0, te)
+    terms = linearised(pb, psf, rotation, rate=rate, lin_values=lin_values)
+    return [
+        lv + _normal_equations(lin, jac, p.use / var, p.data - mu)[3]
+        for p, lv, (lin, jac, mu) in zip(pb.parts, lin_values, terms, strict=True)
+    ]
+
+
+def _step_sums(pb: Problem, terms):
+    """Return the parts' pixel terms and the normal equations summed over their groups.
+
+    ``(pix, S, scores, per-group information, the parts' equations)``: the groups of all
+    parts in one sum (the likelihood is a sum over groups).
+    """
+    det, te = pb.sensor.detector, pb.sensor.exposure_s
+    pix = [
+        pixel_terms(det, mu, p.data, use=p.use, exposure_s=te)
+        for p, (_, _, mu) in zip(pb.parts, terms, strict=True)
+    ]
+    eqs = [
+        _normal_equations(lin, jac, wt, r)
+        for (lin, jac, _), (wt, r, _) in zip(terms, pix, strict=True)
+    ]
+    s = sum(e[0] for e in eqs)
+    scores = np.concatenate([e[1] for e in eqs])
+    s_groups = np.concatenate([e[4] for e in eqs])
+    return pix, s, scores, s_groups, eqs

@@ -6,7 +6,8 @@ boxes stays compact (a blend at rest: its stars' fluxes are fitted together); st
 overlapping boxes would make a large group (long crossing streaks) keep groups of their own.
 Every pixel belongs to one group at most: the group of the free star whose track is nearest
 (so that no pixel counts twice), within the group's box. Each group's grid is padded to one
-shape for all groups, so that the fit works on arrays. In a group's pixel ``j``::
+shape for all groups, so that the fit works on arrays (the fit lays groups of like sizes out on
+grids of their own: :mod:`starsense.model.problem`). In a group's pixel ``j``::
 
     mu_j = b_g + sum_s F_s T_s(j),   T_s(j) = sum_k w_k P(x_j - x_sk, y_j - y_sk)
 
@@ -40,7 +41,15 @@ try:  # the compiled form of evaluate() for Gaussian stars at rest (setup.py)
 except ImportError:  # pragma: no cover - built without a C compiler: the NumPy form
     _modelc = None
 
-__all__ = ["MAX_WINDOW_PIXELS", "Evaluation", "Windows", "evaluate", "make_windows"]
+__all__ = [
+    "MAX_WINDOW_PIXELS",
+    "WINDOW_HALF_SIGMAS",
+    "Evaluation",
+    "Windows",
+    "evaluate",
+    "make_windows",
+    "window_half_px",
+]
 
 #: most pixels the groups of one frame may hold (padded): the fit holds ~(slots + parameters)
 #: arrays of this size, ~8 MB each at 1,000,000
@@ -48,6 +57,13 @@ MAX_WINDOW_PIXELS = 1_000_000
 #: most PSF evaluations (pixels x time nodes over every source in every group it reaches) of
 #: one evaluation of the model: ~0.5 s of NumPy a step
 MAX_WORK = 2e7
+#: a star's box reaches this many PSF sigmas (+1 px) beyond its track
+WINDOW_HALF_SIGMAS = 3.5
+
+
+def window_half_px(psf: PixelPSF) -> float:
+    """Half-size of a star's box beyond its track, px."""
+    return WINDOW_HALF_SIGMAS * psf.sigma_px + 1.0
 
 
 @dataclass(frozen=True)
@@ -80,6 +96,8 @@ class Windows:
         The first row and column of each time node's stamp (:func:`source_stamps`), laid
         where the windows were made (as the boxes are: the model stays smooth in its
         parameters while the fit moves the nodes).
+    extent : ndarray of int, shape (G, 2)
+        Each group's box: its rows and columns (at most ``shape``).
     """
 
     row0: np.ndarray
@@ -95,6 +113,7 @@ class Windows:
     pair_box: np.ndarray
     half_px: float
     node_origin: np.ndarray
+    extent: np.ndarray
 
     @property
     def n_groups(self) -> int:
@@ -280,7 +299,7 @@ def make_windows(
     origin = np.stack([np.floor(y - half_px + 0.5), np.floor(x - half_px + 0.5)], axis=-1)
     windows = Windows(
         g_r0, g_c0, (h, w), on, group, slot, n_slots, p_src, p_grp, p_slot, p_box, half_px,
-        origin.astype(np.int64),
+        origin.astype(np.int64), np.column_stack([gb[:, 1] - gb[:, 0], gb[:, 3] - gb[:, 2]]),
     )  # fmt: skip
     return windows, kept
 

@@ -29,9 +29,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from starsense.errors import InputError
-from starsense.model.fit import fit_windows, window_half_px
+from starsense.model.fit import fit_windows
 from starsense.model.psf import psf_of
 from starsense.model.selection import fitted_min_electrons, psf_noise_e, streak_px
+from starsense.model.windows import window_half_px
 from starsense.solve.fit_judgement import MAX_REDUCED_CHI2, Refinement, judged
 from starsense.solve.in_view import room_for, stars_in_view
 from starsense.solve.streak_model import MIN_STREAK_SIGMAS

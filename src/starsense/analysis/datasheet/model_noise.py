@@ -25,8 +25,8 @@ from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam
 from starsense.analysis.datasheet.noise import CentroidNoise
 from starsense.analysis.datasheet.terms import PixelSpatialError
 from starsense.model.fisher import attitude_information, position_information
-from starsense.model.fit import window_half_px
 from starsense.model.psf import psf_of
+from starsense.model.windows import window_half_px
 
 __all__ = [
     "model_centroid_noise",
