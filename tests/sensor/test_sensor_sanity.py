@@ -18,6 +18,7 @@ from starsense.photometry.colour import (
     EVANS2018_G_MINUS_V_BP_RP,
     EVANS2018_G_MINUS_V_BV,
     gaia_to_johnson,
+    magnitudes_in,
     with_johnson_from_gaia,
 )
 from starsense.sensor import load_sensor
@@ -185,6 +186,33 @@ def test_a_gaia_catalogue_gets_v_and_b_v():
     np.testing.assert_allclose(out.colours["B-V"], bv)
     assert "Riello et al. 2021" in note and "1 of 3 stars have no BP-RP" in note
     assert with_johnson_from_gaia(out) == (out, None)  # V already there: as is
+
+
+def test_a_star_without_the_band_takes_it_from_its_other_bands():
+    """G from V and B - V (Evans et al. 2018's cubic), V from G and BP - RP (Riello et al.).
+
+    The Sun (B - V = 0.653, BP - RP = 0.82: Casagrande & VandenBerg 2018): its G - V from B - V
+    and from BP - RP, two relations fitted to different stars, agree within their rms (0.063
+    and 0.03 mag); a star with its own G keeps it; a catalogue with neither input gives NaN.
+    """
+    hip = Catalog.from_columns(
+        name="hip2", source="test", epoch_yr=1991.25, ids=[1, 2, 3], ra_deg=[0.0, 10.0, 20.0],
+        dec_deg=[0.0, 5.0, -5.0], mags={"V": [5.0, 6.0, 7.0], "G": [np.nan, 5.5, np.nan]},
+        colours={"B-V": [0.653, 0.2, np.nan]},
+    )  # fmt: skip
+    g = magnitudes_in(hip, "G")
+    # gaia_to_johnson at G = 0 returns V = -(G - V)
+    from_bp_rp = 5.0 - gaia_to_johnson(np.array([0.0]), np.array([0.82]))[0][0]
+    assert g[0] == pytest.approx(from_bp_rp, abs=0.063 + 0.03)
+    assert g[1] == 5.5  # its own
+    # no B - V: the colour of the default BP - RP (about a G dwarf's), not NaN
+    assert np.isfinite(g[2]) and 6.5 < g[2] < 7.0
+    gaia = Catalog.from_columns(
+        name="gaia_dr3", source="test", epoch_yr=2016.0, ids=[1], ra_deg=[0.0], dec_deg=[0.0],
+        mags={"G": [6.0]}, colours={"BP-RP": [0.82]},
+    )  # fmt: skip
+    assert magnitudes_in(gaia, "V")[0] == pytest.approx(gaia_to_johnson([6.0], [0.82])[0][0])
+    assert np.isnan(magnitudes_in(gaia, "Ks")).all()
 
 
 #: presets that reproduce a paper and no camera keep what the paper assumed (Lin et al. 2024:

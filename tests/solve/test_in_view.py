@@ -135,3 +135,20 @@ def test_residual_scaled_sigma_matches_the_scatter_of_the_attitude(inflation):
     # freedom scatters by ~30 % per fit, and max(1, .) lifts the right model's sigma by ~10 %:
     # the rms over fits lies within 0.8-1.25 of the truth either way
     assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+
+
+def test_a_sky_without_the_databases_band_keeps_its_stars():
+    """Hipparcos (V, no G) as the sky of a Gaia database (band G): every star with a V is in
+    the model fit's sky, at G from its V and B - V; none is left out for lacking G (a narrow
+    field's bright neighbours and stars in view would be missing from the model)."""
+    from starsense.photometry.colour import magnitudes_in
+
+    hip = load_catalog("hipparcos")
+    assert "G" not in hip.mags or not np.isfinite(hip.mags["G"]).all()
+    sky = Solver(load_sensor("st16"), sky=hip).sky_stars("G")
+    with_v = np.isfinite(np.asarray(hip.mags["V"], float))
+    assert len(sky.mags) == int(with_v.sum())
+    np.testing.assert_allclose(sky.mags, magnitudes_in(hip, "G")[with_v])
+    # G - V of Evans et al. 2018's cubic: -0.03 at B - V = -0.05 falling to -1.55 at 2.5
+    gv = sky.mags - np.asarray(hip.mags["V"], float)[with_v]
+    assert gv.min() > -1.56 and gv.max() < -0.02

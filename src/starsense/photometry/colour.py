@@ -292,3 +292,47 @@ def with_johnson_from_gaia(catalog):
         catalog, mags={**catalog.mags, "V": v}, colours={**catalog.colours, "B-V": b_v}
     )
     return out, note
+
+
+#: the monotonic branch of Evans et al. 2018's G - V cubic in B - V (:func:`gaia_to_johnson`)
+EVANS2018_B_V_RANGE = (-0.05, 2.5)
+
+
+def magnitudes_in(catalog, band: str) -> np.ndarray:
+    """Return each star's magnitude in ``band``: its own, else from the bands it has.
+
+    A catalogue rendered beside another (Hipparcos beside the narrow field's Gaia DR3) lacks
+    the other's band for its own stars. A star without ``band`` takes it from published
+    relations where its catalogue gives their inputs: Gaia G from Johnson V and B - V (Evans et
+    al. 2018, Table C.2: rms 0.06 mag; B - V clipped to the cubic's monotonic branch, a star
+    without B - V taking that of :data:`DEFAULT_BP_RP`), Johnson V from G and BP - RP
+    (:func:`gaia_to_johnson`: rms 0.03 mag). NaN where neither applies.
+
+    Parameters
+    ----------
+    catalog : Catalog
+    band : str
+
+    Returns
+    -------
+    ndarray (N,)
+        mag.
+    """
+    n = len(catalog.ids)
+    nan = np.full(n, np.nan)
+    out = np.array(catalog.mags.get(band, nan), dtype=float)
+    miss = ~np.isfinite(out)
+    if not miss.any():
+        return out
+    if band == "G" and "V" in catalog.mags:
+        bv = np.asarray(catalog.colours.get("B-V", nan), dtype=float)
+        default_bv = float(gaia_to_johnson(0.0, DEFAULT_BP_RP)[1])
+        bv = np.clip(np.where(np.isfinite(bv), bv, default_bv), *EVANS2018_B_V_RANGE)
+        g = np.asarray(catalog.mags["V"], dtype=float) + np.polynomial.polynomial.polyval(
+            bv, EVANS2018_G_MINUS_V_BV
+        )
+        out[miss] = g[miss]
+    elif band == "V" and "G" in catalog.mags:
+        v, _ = gaia_to_johnson(catalog.mags["G"], catalog.colours.get("BP-RP", nan))
+        out[miss] = v[miss]
+    return out

@@ -21,6 +21,7 @@ from starsense.geometry.projection import tangent_to_vectors, vectors_to_tangent
 from starsense.identify import Identification, identify_ranked
 from starsense.identify.fields import FieldRange, identifier_for, unknown_field_plan
 from starsense.identify.verify import apply_scale
+from starsense.photometry.colour import magnitudes_in
 from starsense.solve.near_miss import is_near_miss, near_miss
 
 #: radial distortions (k1, tangent-plane units of each range's nominal focal length) tried for a
@@ -165,10 +166,12 @@ class FieldIdentifiers:
 
         The stars the forward model's fit draws beside the identified ones (their neighbours,
         the stars in view): the whole catalogue, not the identification database, which keeps
-        a few stars per field.
+        a few stars per field. A star the catalogue gives no magnitude in ``band`` takes one
+        from its other bands (:func:`starsense.photometry.colour.magnitudes_in`): a sky of
+        Hipparcos stars beside a Gaia database keeps its bright stars.
         """
         if band not in self._skies:
-            mags = np.asarray(self.catalog.mags[band], dtype=float)
+            mags = magnitudes_in(self.catalog, band)
             keep = np.flatnonzero(np.isfinite(mags))
             vectors = np.asarray(self.catalog.vectors)[keep]
             self._skies[band] = SkyStars(vectors, mags[keep], cKDTree(vectors), keep, self.catalog)
