@@ -55,6 +55,44 @@ def test_the_stars_added_to_the_fit_are_rendered_stars(st16_frame, monkeypatch):
     assert len(mags) + sol.n_matched > sol.n_detections
 
 
+def test_stars_in_view_past_the_fits_work_are_halved_not_dropped(st16_frame, monkeypatch):
+    """Where the fit with every star in view passes a fit's work (long streaks crossing a
+    crowded field), the brightest half of them is fitted, and again, rather than none.
+
+    The work budget is simulated: any fit of more than the identified stars and a third of
+    those in view is refused as make_windows refuses one (InputError)."""
+    from starsense.errors import InputError
+
+    sensor, frame = st16_frame
+    seen = {}
+    in_view, fit_windows = refine_module.stars_in_view, refine_module.fit_windows
+
+    def added(*args, **kwargs):
+        seen["added"] = got = in_view(*args, **kwargs)
+        return got
+
+    def budget(image, sensor_, rotation, *, vectors, **kwargs):
+        seen.setdefault("sizes", []).append(len(vectors))
+        if "added" in seen and len(vectors) > seen.get("limit", np.inf):
+            raise InputError("the stars' tracks cover more pixel-nodes than a fit may evaluate")
+        return fit_windows(image, sensor_, rotation, vectors=vectors, **kwargs)
+
+    monkeypatch.setattr(refine_module, "stars_in_view", added)
+    monkeypatch.setattr(refine_module, "fit_windows", budget)
+    whole = Solver(sensor, background="known")(frame.image)
+    n_view = len(seen["added"][2])
+    n_id = whole.n_matched
+    seen.clear()
+    seen["limit"] = n_id + n_view // 3
+    sol = Solver(sensor, background="known")(frame.image)
+    assert sol.solved and sol.notes[0].startswith("model fit")
+    kept = n_view // 4  # halved twice: n, n // 2 (refused), n // 4 (within a third)
+    assert f"the {kept} brightest of the {n_view} other stars in view" in sol.notes[0]
+    assert seen["sizes"][-1] == n_id + kept  # the last fit: the identified and the brightest
+    # the stars fitted: more than the identified ones, as the note's counts say
+    assert f"{n_id + kept} stars" in sol.notes[0]
+
+
 def test_the_datasheet_counts_the_stars_the_solver_fits(st16_frame, monkeypatch):
     """The solver's fitted stars (the identified ones and those it adds) and the datasheet's
     (:meth:`FittedStars.presence` at rest) in the frame's true attitude are the same stars but

@@ -209,22 +209,58 @@ def refine_attitude(
         px, rx, mx = more(zp, fit.rotation, fit.rate_rad_s if fit_rate else None)
         if not len(mx):
             return verdict
-        every = (np.vstack([plain, px]), np.vstack([ref, rx]), np.append(mags, mx))
     except (InputError, np.linalg.LinAlgError) as exc:
         return Refinement(None, False, f"model fit not used: {exc}")
-    try:
-        fit, counts = neighboured(stars=every, first=fit, zero_point=zp)
-    except (InputError, np.linalg.LinAlgError) as exc:  # past a fit's work (crowded, streaks)
-        why = str(exc)
-    else:
-        done = judged(fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also)
-        if done.used:
-            return done
-        why = done.note
+    judge = functools.partial(judged, sensor=sensor, rotation=rotation, cog_sigma_rad=cog_sigma_rad)
+    done, why = _in_view_fit(neighboured, judge, stars=(plain, ref, mags), more=(px, rx, mx),
+                             first=fit, zero_point=zp, also=also)  # fmt: skip
+    if done is not None:
+        return done
     # the identified stars with their neighbours: the stars in view add information only
     return dataclasses.replace(
         verdict, note=f"{verdict.note}; the other stars in view left out: {why}"
     )
+
+
+def _in_view_fit(neighboured, judge, *, stars, more, first, zero_point, also):
+    """Fit the identified ``stars`` with the other stars in view ``more``, judged.
+
+    The stars in view come brightest first; where their fit passes a fit's work (long streaks
+    crossing a crowded field) the brightest half of them is fitted instead, again, at most
+    :data:`MAX_HALVINGS` times. Returns the judged fit (None where none was used) and why not.
+    """
+    (plain, ref, mags), (px, rx, mx) = stars, more
+    why = ""
+    for n_added in _halvings(len(mx)):
+        every = (
+            np.vstack([plain, px[:n_added]]),
+            np.vstack([ref, rx[:n_added]]),
+            np.append(mags, mx[:n_added]),
+        )
+        try:
+            fit, counts = neighboured(stars=every, first=first, zero_point=zero_point)
+        except InputError as exc:  # past a fit's work
+            why = str(exc)
+            continue
+        except np.linalg.LinAlgError as exc:
+            return None, str(exc)
+        if n_added < len(mx):
+            also += f"; the {n_added} brightest of the {len(mx)} other stars in view ({why})"
+        done = judge(fit, counts=counts, also=also)
+        return (done, "") if done.used else (None, done.note)
+    return None, why
+
+
+#: the times the stars in view are halved (the brightest kept) when their fit passes its work
+MAX_HALVINGS = 4
+
+
+def _halvings(n: int) -> list[int]:
+    """Return ``n`` and its successive halves (at most :data:`MAX_HALVINGS`), each >= 1."""
+    out = [n]
+    while len(out) <= MAX_HALVINGS and out[-1] > 1:
+        out.append(out[-1] // 2)
+    return out
 
 
 def _smeared_fit(fit, keywords, *, stars, hint, zero_point):
