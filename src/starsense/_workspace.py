@@ -8,8 +8,8 @@ buffers once; :func:`scratch` does the same per thread, one buffer per name and 
 from frame to frame. Only internal temporaries use it: nothing returned to a caller
 is a scratch buffer. Frames above :data:`MAX_KEPT_PIXELS` are not kept (their buffers are
 allocated per frame, as before), so that a few huge frames do not pin hundreds of MB. The
-forward model's fit (:mod:`starsense.model.fit`) lays its arrays out in one such buffer, of a
-power-of-two length so that fits of other sizes reuse it.
+forward model's fit lays its arrays out in one such buffer (:mod:`starsense.model.problem`), of
+a power-of-two length so that fits of other sizes reuse it.
 """
 
 from __future__ import annotations
