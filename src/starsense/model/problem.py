@@ -11,6 +11,7 @@ not depend on the split, only its cost does.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -136,7 +137,7 @@ class Part:
     use: np.ndarray
     buffers: tuple | None = None
 
-    @property
+    @functools.cached_property
     def mine(self) -> np.ndarray:
         """The free sources whose fluxes this part fits (indices of the problem's sources)."""
         return np.flatnonzero(self.windows.group >= 0)
@@ -242,15 +243,18 @@ def linearised(pb: Problem, psf: PixelPSF, rotation, *, rate, lin_values: list[n
     exact = pb.fit_width and psf.spec.is_gaussian  # the width's derivative in closed form
     pb.lay_out(nodes.dx.shape[-1] + int(exact))
     return [
-        _part_terms(p, psf, nodes, fl, lv, pb.fit_width)
+        _part_terms(p, psf, nodes, fl, lv, (pb.fit_width, exact))
         for p, lv in zip(pb.parts, lin_values, strict=True)
     ]
 
 
-def _part_terms(p: Part, psf: PixelPSF, nodes, fl, lin_values, fit_width):
-    """One part's linear design, geometric Jacobian and model (:func:`linearised`)."""
+def _part_terms(p: Part, psf: PixelPSF, nodes, fl, lin_values, width):
+    """One part's linear design, geometric Jacobian and model (:func:`linearised`).
+
+    ``width``: (the width is fitted, its derivative is in closed form).
+    """
     w = p.windows
-    exact = fit_width and psf.spec.is_gaussian
+    fit_width, exact = width
     ev = evaluate(w, psf, nodes, fluxes=fl, width=exact, out=p.buffers)
     g_n, m = w.n_groups, w.n_slots
     lin = p.buffers[0].reshape(g_n, m + 1, -1)
