@@ -213,3 +213,60 @@ def test_track_nodes_refuses_more_nodes_than_allowed():
             moving=True,
             max_nodes=15 * len(frac) - 1,
         )
+
+
+def _pair_at_rate(sensor, rate_rad_s, sep_px):
+    """Node positions of two stars ``sep_px`` apart across a streak of 1 deg/s, and a third."""
+    frac, wts = time_nodes(sensor.streak_length_px(float(np.linalg.norm(rate_rad_s))), 0.8)
+    x0, y0 = 500.0, 380.0
+    v = sensor.unproject(np.array([x0, x0 + sep_px, 300.0]), np.array([y0, y0, 200.0]))
+    nodes = node_positions(
+        sensor, v, Rotation.identity(), rate_rad_s=rate_rad_s, exposure_s=sensor.exposure_s,
+        fractions=frac, weights=wts,
+    )  # fmt: skip
+    return v, nodes
+
+
+def test_a_close_pair_at_a_rate_is_one_group_and_crossing_streaks_are_not():
+    """Parallel tracks that share their pixels are one group; crossing streaks keep their own.
+
+    At a body rate a close pair's two streaks lie along one line: fitted in two groups, each
+    would own half of the other's pixels and hold the other's flux fixed at its last value.
+    Two streaks crossing at right angles (a roll about a star between them) share only their
+    crossing, and one group would need the square their union spans.
+    """
+    sensor = load_sensor("esa_blackfly")
+    _, nodes = _pair_at_rate(sensor, np.radians([0.0, 1.0, 0.0]), 0.4)
+    w, _ = make_windows(nodes.x, nodes.y, half_px=5.0, shape=(768, 1024),
+                        free=np.ones(3, bool))  # fmt: skip
+    assert w.group[0] == w.group[1] != w.group[2]
+    streak = np.linspace(-15.0, 15.0, 9)
+    x = np.vstack([500.0 + streak, np.full(9, 500.0)])  # one along the rows, one along the columns
+    y = np.vstack([np.full(9, 380.0), 380.0 + streak])
+    w, _ = make_windows(x, y, half_px=5.0, shape=(768, 1024), free=np.ones(2, bool))
+    assert w.group[0] != w.group[1]
+
+
+def test_a_close_pair_at_a_rate_fits_to_the_noise():
+    """A close pair streaked by the body rate, drawn by the renderer with noise, fits to it.
+
+    The renderer (:mod:`starsense.render`) draws the frame, not the model. At the fit the
+    reduced chi-square is 1 within 5 of its sigma, sqrt(2 / dof): the pixels carry no light the
+    model does not place (with the pair split over two groups the pair's pixels read 7-13).
+    """
+    from starsense.catalog.table import Catalog
+    from starsense.render.scene import render_frame
+
+    sensor = load_sensor("esa_blackfly")
+    rate = np.radians([0.0, 1.0, 0.0])
+    v, _ = _pair_at_rate(sensor, rate, 0.4)
+    ra = np.degrees(np.arctan2(v[:, 1], v[:, 0]))
+    dec = np.degrees(np.arcsin(v[:, 2]))
+    cat = Catalog.from_columns(
+        name="pair", source="test", epoch_yr=2016.0, ids=[1, 2, 3], ra_deg=ra, dec_deg=dec,
+        mags={"V": [3.3, 3.5, 4.0]}, colours={"B-V": [0.6, 0.6, 0.6]},
+    )  # fmt: skip
+    frame = render_frame(sensor, Rotation.identity(), cat, rate_rad_s=rate, rng=11)
+    fit = fit_windows(frame.image, sensor, Rotation.identity(), vectors=v, rate_rad_s=rate)
+    assert fit.converged
+    assert abs(fit.reduced_chi2 - 1.0) < 5.0 * math.sqrt(2.0 / fit.dof)

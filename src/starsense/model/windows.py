@@ -2,8 +2,10 @@
 
 Each modelled star is given a box around its track (its nodes' extent padded by ``half_px``).
 Free stars (their fluxes fitted) whose boxes overlap share a *group* when the union of their
-boxes stays compact (a blend at rest: its stars' fluxes are fitted together); stars whose
-overlapping boxes would make a large group (long crossing streaks) keep groups of their own.
+boxes stays compact (a blend at rest: its stars' fluxes are fitted together) or holds no more
+pixels than their own boxes (a close pair at a body rate: two streaks along one line); stars
+whose overlapping boxes would make a large group (long crossing streaks) keep groups of their
+own.
 Every pixel belongs to one group at most: the group of the free star whose track is nearest
 (so that no pixel counts twice), within the group's box. Each group's grid is padded to one
 shape for all groups, so that the fit works on arrays (the fit lays groups of like sizes out on
@@ -137,11 +139,18 @@ def _boxes(x, y, half_px: float) -> np.ndarray:
     return np.column_stack([r0, r1, c0, c1])
 
 
+def _area(box) -> int:
+    """Pixels of a box (row0, row1, col0, col1)."""
+    return int((box[1] - box[0]) * (box[3] - box[2]))
+
+
 def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
     """Return each free box's group (-1 for fixed ones).
 
     Overlapping free boxes share a group while the union of the group's boxes stays within
-    ``max_side`` px a side.
+    ``max_side`` px a side, or holds no more pixels than the two grids it replaces: parallel
+    tracks that share their pixels (a close pair at a body rate moves along one line) are one
+    group whatever their length, crossing streaks (whose union is a square) keep their own.
     """
     n = len(boxes)
     parent = np.arange(n)
@@ -171,7 +180,9 @@ def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
                 min(ext[ri, 2], ext[rj, 2]),
                 max(ext[ri, 3], ext[rj, 3]),
             ]
-            if u[1] - u[0] <= max_side and u[3] - u[2] <= max_side:
+            if (u[1] - u[0] <= max_side and u[3] - u[2] <= max_side) or _area(u) <= _area(
+                ext[ri]
+            ) + _area(ext[rj]):
                 parent[rj] = ri
                 ext[ri] = u
     group = np.full(n, -1)
