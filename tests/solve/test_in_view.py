@@ -14,6 +14,7 @@ from starsense.geometry.sampling import random_attitudes
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
 from starsense.solve import Solver
+from starsense.solve import neighbours as neighbours_module
 from starsense.solve import refine as refine_module
 from starsense.solve.in_view import IN_VIEW_PIXELS, room_for
 
@@ -65,7 +66,7 @@ def test_stars_in_view_past_the_fits_work_are_halved_not_dropped(st16_frame, mon
 
     sensor, frame = st16_frame
     seen = {}
-    in_view, fit_windows = refine_module.stars_in_view, refine_module.fit_windows
+    in_view, fit_windows = refine_module.stars_in_view, neighbours_module.fit_windows
 
     def added(*args, **kwargs):
         seen["added"] = got = in_view(*args, **kwargs)
@@ -78,7 +79,7 @@ def test_stars_in_view_past_the_fits_work_are_halved_not_dropped(st16_frame, mon
         return fit_windows(image, sensor_, rotation, vectors=vectors, **kwargs)
 
     monkeypatch.setattr(refine_module, "stars_in_view", added)
-    monkeypatch.setattr(refine_module, "fit_windows", budget)
+    monkeypatch.setattr(neighbours_module, "fit_windows", budget)
     whole = Solver(sensor, background="known")(frame.image)
     n_view = len(seen["added"][2])
     n_id = whole.n_matched

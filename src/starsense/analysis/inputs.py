@@ -31,7 +31,6 @@ __all__ = [
     "as_sensor",
     "at_epoch",
     "completed_sky",
-    "held_by",
     "root_seed",
     "same_star_index",
 ]
@@ -108,29 +107,6 @@ def at_epoch(catalog: Catalog, epoch_yr: float) -> Catalog:
     if catalog.epoch_yr == epoch_yr or catalog.pm_ra_rad_yr is None:
         return catalog
     return catalog.propagate(epoch_yr)
-
-
-def held_by(catalog: Catalog, database: Catalog) -> np.ndarray:
-    """Return which stars of ``catalog`` the solver's ``database`` holds (within 1 arcsec).
-
-    The solver models the streaks of its catalogue's stars through each capsule
-    (:func:`starsense.solve.blends.streak_reference`); a frame's other stars pull unmodelled.
-    Matched at the database's epoch, as :func:`completed_sky`.
-
-    Parameters
-    ----------
-    catalog : Catalog
-        The frames' sky.
-    database : Catalog
-        The catalogue the solver identifies against.
-
-    Returns
-    -------
-    ndarray of bool, shape (len(catalog),)
-    """
-    if database is catalog or len(database) == 0 or len(catalog) == 0:
-        return np.full(len(catalog), database is catalog and len(catalog) > 0, dtype=bool)
-    return _has_same_star(at_epoch(catalog, database.epoch_yr).vectors, database.vectors)
 
 
 def same_star_index(vectors: np.ndarray, others: np.ndarray) -> np.ndarray:

@@ -21,14 +21,10 @@ rendering is the database itself the frames are exact and the term is zero.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-from scipy.spatial import cKDTree
 
-from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch, held_by, same_star_index
+from starsense.analysis.inputs import SAME_STAR_RAD, at_epoch, same_star_index
 from starsense.identify.fields import plan_band
-from starsense.solve.refine import MERGED_PX
 from starsense.solve.solver import Solver
 from starsense.units import MAS
 
@@ -37,7 +33,6 @@ __all__ = [
     "MATCH_RAD",
     "catalogue_term_rad",
     "flux_ratio_error",
-    "merged_pull_rad",
     "position_sigma_rad",
     "rendered_against_database_rad",
 ]
@@ -160,69 +155,7 @@ def catalogue_term_rad(rendered, sensor, *, max_mag: float, band: str = "V"):
         ICRS offsets, rad, or None (the term is zero).
     """
     database = Solver(sensor=sensor).catalog
-    off = rendered_against_database_rad(rendered, database, max_mag=max_mag, band=band)
-    if off is None:
-        return None
-    return off - merged_pull_rad(rendered, database, sensor, max_mag=max_mag, band=band)
-
-
-def merged_pull_rad(rendered, database, sensor, *, max_mag: float, band: str = "V"):
-    """Return how far the stars the model fit merges into each kept star pull its light, rad.
-
-    The solver's model fit draws the frame's other stars as the identified stars' neighbours,
-    but one closer than :data:`starsense.solve.refine.MERGED_PX` to an identified star is part
-    of its image (a double the PSF does not split: a binary's companion that Gaia resolves and
-    Hipparcos lists as one star): the fitted position is their light's centre. For a star of
-    PSF sigma ``s`` (pixel-integrated: ``sqrt(s^2 + 1/12)`` px) and a companion of flux ratio
-    ``f`` at offset ``d``, the fit of one profile moves, to first order in ``f`` (the
-    companion's light projected on the position's derivative over the position's Fisher
-    information, for a Gaussian profile on a uniform background), by ``f w d`` with
-    ``w = exp(-|d|^2 / (4 s^2))``, and to the light's centre ``f d / (1 + f)`` as ``d -> 0``:
-    over companions, ``sum(f w d) / (1 + sum(f w))``. The same offset in every frame that holds
-    the star, as its catalogue offset (:func:`rendered_against_database_rad`), whose order the
-    result follows.
-
-    Parameters
-    ----------
-    rendered, database : Catalog
-        The frames' sky and the solver's catalogue.
-    sensor : Sensor
-        Its PSF width and plate scale.
-    max_mag : float
-        The stars kept (``band`` magnitude <= ``max_mag``), as the catalogue term keeps them.
-    band : str
-        Magnitude band of the cut and of the flux ratios.
-
-    Returns
-    -------
-    ndarray (K, 3)
-        Light centre less rendered direction of each kept star the database holds (0 for
-        the others, as their catalogue offset), ICRS, rad.
-    """
-    mags = np.asarray(rendered.mags[band], dtype=float)
-    keep = mags <= max_mag
-    out = np.zeros((int(keep.sum()), 3))
-    if not len(out):
-        return out
-    sky = at_epoch(rendered, database.epoch_yr).vectors
-    held = held_by(rendered, database)[keep]
-    pixel_rad = 1.0 / sensor.focal_length_px
-    sigma_rad = float(np.hypot(sensor.detector.psf_sigma_px, math.sqrt(1.0 / 12.0))) * pixel_rad
-    kept_v, kept_m = sky[keep], mags[keep]
-    reach = 2.0 * np.sin(0.5 * MERGED_PX * pixel_rad)
-    pairs = cKDTree(kept_v).sparse_distance_matrix(cKDTree(sky), reach, output_type="ndarray")
-    i, j = pairs["i"], pairs["j"]
-    mine = (pairs["v"] > 0.0) & held[i]  # not the star itself; a star the solver holds
-    i, j = i[mine], j[mine]
-    d = sky[j] - kept_v[i]
-    fw = 10.0 ** (-0.4 * (mags[j] - kept_m[i]))
-    fw = fw * np.exp(-np.einsum("ij,ij->i", d, d) / (4.0 * sigma_rad * sigma_rad))
-    fw = np.where(np.isfinite(fw), fw, 0.0)
-    np.add.at(out, i, fw[:, None] * d)
-    total = np.zeros(len(out))
-    np.add.at(total, i, fw)
-    out /= (1.0 + total)[:, None]
-    return out
+    return rendered_against_database_rad(rendered, database, max_mag=max_mag, band=band)
 
 
 def flux_ratio_error(rendered, database, sensitivity, *, colour: str = "B-V") -> float:
