@@ -66,8 +66,9 @@ def table(rows: list[dict]) -> str:
     )
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
-        if "error" in r:
-            lines.append(f"| {r['design']} | failed: {r['error']} |" + " |" * 14)
+        if "error" in r or "skipped" in r:
+            why = f"failed: {r['error']}" if "error" in r else f"no Monte Carlo: {r['skipped']}"
+            lines.append(f"| {r['design']} | {why} |" + " |" * 14)
             continue
         p = r["params"]
         fov = p.get("fov_deg")
@@ -94,7 +95,7 @@ def table(rows: list[dict]) -> str:
 
 def summary_line(rows: list[dict]) -> str:
     """Return the counts: designs, with ratios, in band at rest and at rate, wrong, peak memory."""
-    ok = [r for r in rows if "error" not in r]
+    ok = [r for r in rows if "error" not in r and "skipped" not in r]
     rest = [_both_in_band(r.get("monte_carlo")) for r in ok]
     rate = [_both_in_band(r.get("monte_carlo_at_rate")) for r in ok]
     wrong = sum(
