@@ -213,6 +213,10 @@ def test_track_nodes_refuses_more_nodes_than_allowed():
             moving=True,
             max_nodes=15 * len(frac) - 1,
         )
+    # an attitude that turns every star behind the camera (a diverged step): refused in words
+    behind = Rotation.from_rotvec([np.pi, 0.0, 0.0])
+    with pytest.raises(InputError, match="no fitted star projects"):
+        track_nodes(sensor, (v, v), behind, rate_rad_s=rate, sigma_px=0.8, moving=True)
 
 
 def _pair_at_rate(sensor, rate_rad_s, sep_px):

@@ -207,7 +207,10 @@ def track_nodes(
         fractions=np.array([-0.5, 0.5]),
         weights=np.array([0.5, 0.5]),
     )
-    length = float(np.nanmax(np.hypot(np.diff(ends.x), np.diff(ends.y)))) if len(v_free) else 0.0
+    lengths = np.hypot(np.diff(ends.x), np.diff(ends.y)) if len(v_free) else np.zeros(1)
+    if not np.isfinite(lengths).any():  # every star behind the camera (a fit's wild step)
+        raise InputError("no fitted star projects onto the detector at this attitude and rate")
+    length = float(np.nanmax(lengths))
     frac, wts = time_nodes(length if moving else 0.0, sigma_px)
     if len(frac) * len(allv) > max_nodes:
         raise InputError(
