@@ -158,6 +158,35 @@ def test_a_parallel_neighbour_is_not_bridged():
     )
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_a_bright_star_at_rest_does_not_bridge_to_a_neighbour(seed):
+    """A bright star at rest is a round lit disc several PSF sigmas wide at a low threshold;
+    its moments' axis is the noise's. A fainter neighbour a band beyond its disc, on that axis,
+    stays out of its measure: bridged along it, the pair measured as a streak (10-12 px in a
+    crowded field at rest, read as smeared)."""
+    rng = np.random.default_rng(seed)
+    sigma = rng.uniform(1.2, 2.0)
+    band = 2.5 * sigma + 1.0  # the solver's capsule half-width
+    yy, xx = np.mgrid[0:81, 0:81].astype(float)
+
+    def star(x0, y0, peak):
+        return peak * np.exp(-((xx - x0) ** 2 + (yy - y0) ** 2) / (2 * sigma**2))
+
+    x0, y0 = 40.0 + rng.uniform(-0.5, 0.5), 40.0 + rng.uniform(-0.5, 0.5)
+    alone = star(x0, y0, 5000.0) + rng.normal(0.0, 1.0, xx.shape)  # 5000 counts, noise 1
+    threshold = 5.0
+    kw = {"half_px": 30, "threshold": threshold}
+    axis = np.linalg.eigh(streak_axes(alone, [x0], [y0], **kw)[0])[1][:, -1]  # the noise's
+    disc = sigma * np.sqrt(2.0 * np.log(5000.0 / threshold))  # the lit discs' radii
+    other = sigma * np.sqrt(2.0 * np.log(200.0 / threshold))
+    # the discs parted by 1.5 px (8-connected regions never touch) up to the band: in reach
+    d = disc + other + rng.uniform(1.5, band)
+    pair = alone + star(x0 + d * axis[0], y0 + d * axis[1], 200.0)
+    unbridged = streak_axes(pair, [x0], [y0], **kw)
+    assert np.sqrt(np.trace(unbridged[0])) < 1.0  # round: the noise's elongation only
+    np.testing.assert_array_equal(streak_axes(pair, [x0], [y0], bridge_px=band, **kw), unbridged)
+
+
 def test_windows_in_chunks_equal_all_at_once(monkeypatch):
     import starsense.detect.streak as streak_module
 

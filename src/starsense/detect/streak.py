@@ -434,7 +434,15 @@ def _moments(sub, mask, ar) -> np.ndarray:
 
 
 def _bridged(sub, lit, mine, m, ar, band: float) -> np.ndarray:
-    """Return :func:`_moments` over ``mine`` and the lit pixels on its line (``bridge_px``)."""
+    """Return :func:`_moments` over ``mine`` and the lit pixels on its line (``bridge_px``).
+
+    Only a region narrower than the band is a piece of a line: a faint streak's pieces are a
+    PSF wide. A region that reaches the band's width across its own axis is a star's lit disc
+    (a bright star at rest is lit several PSF sigmas out at a low threshold), the axis of its
+    moments the noise's: bridged along it, it would take in a neighbour a band away in any
+    direction and measure as a streak (a crowded field at rest read as smeared). A bright
+    streak is whole: it needs no bridge.
+    """
     for _ in range(64):  # each pass adds at least one pixel; a window holds few pieces
         good = np.isfinite(m).all(axis=(1, 2))
         vec = np.linalg.eigh(np.where(good[:, None, None], m[:, :2], np.eye(2)))[1][:, :, 1]
@@ -442,6 +450,7 @@ def _bridged(sub, lit, mine, m, ar, band: float) -> np.ndarray:
         dx = ar[None, None, :] - m[:, 2, 0, None, None]
         dy = ar[None, :, None] - m[:, 2, 1, None, None]
         along, across = dx * ex + dy * ey, dx * ey - dy * ex
+        good &= np.where(mine, np.abs(across), 0.0).max(axis=(1, 2)) < band  # a line's piece
         lo = np.where(mine, along, np.inf).min(axis=(1, 2))[:, None, None]
         hi = np.where(mine, along, -np.inf).max(axis=(1, 2))[:, None, None]
         near = lit & (np.abs(across) <= band) & (along >= lo - band) & (along <= hi + band)
