@@ -139,9 +139,9 @@ def _boxes(x, y, half_px: float) -> np.ndarray:
     return np.column_stack([r0, r1, c0, c1])
 
 
-def _area(box) -> int:
+def _area(box) -> float:
     """Pixels of a box (row0, row1, col0, col1)."""
-    return int((box[1] - box[0]) * (box[3] - box[2]))
+    return float((box[1] - box[0]) * (box[3] - box[2]))
 
 
 def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
@@ -154,6 +154,9 @@ def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
     """
     n = len(boxes)
     parent = np.arange(n)
+    # in floating point: a track that leaves the camera's view during the exposure (a wrong
+    # rate) reaches coordinates whose differences and products overflow int64
+    boxes = np.asarray(boxes, dtype=float)
     ext = boxes.copy()  # each root's union box
 
     def root(i):
