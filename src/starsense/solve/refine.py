@@ -5,8 +5,9 @@ body rate, when the frame is smeared) is refined by maximum likelihood on the pi
 identified stars (:func:`starsense.model.fit.fit_windows`): each star's flux and each window's
 background are free, and the catalogue stars whose light reaches a window are in the model
 (:mod:`starsense.solve.neighbours`); a frame fitted at rest whose pixels reject it is fitted
-again with the body rate free (:mod:`starsense.solve.smeared_fit`); then the other stars in
-view join (:mod:`starsense.solve.in_view`).
+again with the body rate free (:mod:`starsense.solve.smeared_fit`), and a frame whose fit at
+its streaks' rate is refused is fitted at rest (blends in a crowded field can measure as
+streaks); then the other stars in view join (:mod:`starsense.solve.in_view`).
 
 Whether the fit's attitude replaces the centroids' one, and with what covariance, is
 :mod:`starsense.solve.fit_judgement`'s to say.
@@ -92,6 +93,11 @@ def refine_attitude(
     """
     fit_rate = rate_rad_s is not None
     rate = np.zeros(3) if rate_rad_s is None else np.asarray(rate_rad_s, float)
+    at_rest = functools.partial(  # the same frame fitted at rest, the streaks' rate its hint
+        refine_attitude, image, sensor, rotation, ref=ref, plain=plain, mags=mags, sky=sky,
+        cog_sigma_rad=cog_sigma_rad, fit_width=fit_width, place=place, more=more,
+        rate_hint_rad_s=rate,
+    )  # fmt: skip
     if fit_width is None:
         fit_width = sensor.psf.fit_width or sensor.psf.is_gaussian
     mags = np.asarray(mags, float)
@@ -137,6 +143,8 @@ def refine_attitude(
         verdict = judged(
             fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also
         )
+        if not verdict.used and rate_rad_s is not None:  # the streaks' rate: the pixels say no
+            return _at_rest(verdict, at_rest)
         if more is None or not verdict.used:
             return verdict
         # the other stars in view, at the fit's zero point (its fluxes hold the PSF's wings, a
@@ -146,7 +154,10 @@ def refine_attitude(
         if not len(mx):
             return verdict
     except (InputError, np.linalg.LinAlgError) as exc:
-        return Refinement(None, False, f"model fit not used: {exc}")
+        refused = Refinement(None, False, f"model fit not used: {exc}")
+        if rate_rad_s is not None and isinstance(exc, InputError):  # more than a fit holds
+            return _at_rest(refused, at_rest)
+        return refused
     judge = functools.partial(judged, sensor=sensor, rotation=rotation, cog_sigma_rad=cog_sigma_rad)
     done, why = _in_view_fit(neighboured, judge, stars=(plain, ref, mags), more=(px, rx, mx),
                              first=fit, zero_point=zp, also=also)  # fmt: skip
@@ -155,6 +166,24 @@ def refine_attitude(
     # the identified stars with their neighbours: the stars in view add information only
     return dataclasses.replace(
         verdict, note=f"{verdict.note}; the other stars in view left out: {why}"
+    )
+
+
+def _at_rest(refused: Refinement, at_rest) -> Refinement:
+    """Return the frame fitted at rest (``at_rest()``) where its streaks' rate was ``refused``.
+
+    A crowded field's blended stars can measure as streaks: fitted at their rate, the frame's
+    pixels reject the model, or the stars' and neighbours' tracks pass a fit's work. Fitted at
+    rest, the rate its hint, the likelihood decides: where the pixels reject the model at rest
+    the rate is fitted from there (:func:`starsense.solve.smeared_fit.smeared_fit`); a fit at
+    rest they accept is used. Else the refusal stands.
+    """
+    done = at_rest()
+    if not done.used:
+        return refused
+    why = refused.note.removeprefix("model fit not used: ")
+    return dataclasses.replace(
+        done, note=f"{done.note}; fitted at rest (at the streaks' rate: {why})"
     )
 
 
