@@ -191,6 +191,26 @@ def test_a_rate_far_from_the_frames_is_refused_before_its_nodes_are_laid():
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 500_000
 
 
+def test_nodes_past_their_memory_are_refused_before_they_are_laid():
+    """400 stars at a rate drawing 10,000 px tracks need 10^7 time nodes: under the fit's
+    work in PSF evaluations, but their positions and derivatives alone would hold gigabytes
+    (a wrong rate from blends measured as streaks took one process to 6 GB). The fit refuses
+    them, counted before they are laid, and stays small."""
+    import resource
+
+    from starsense.errors import InputError
+
+    sensor, v = _scene(n=400, seed=5)
+    f, te = sensor.focal_length_px, sensor.exposure_s
+    rate = np.array([2.0 * math.atan(1e4 / (2.0 * f)) / te, 0.0, 0.0])  # 10,000 px end to end
+    image = np.zeros((sensor.detector.rows, sensor.detector.columns))
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    with pytest.raises(InputError, match="nodes, more than"):
+        fit_windows(image, sensor, Rotation.identity(), vectors=v, rate_rad_s=rate, fit_rate=True)
+    # ru_maxrss is in kB: the refusal allocates nothing near the nodes' gigabytes
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 500_000
+
+
 def test_track_nodes_refuses_more_nodes_than_allowed():
     """The tracks' quadrature counts its nodes before laying them: over the budget, an
     InputError; within it, the nodes of every source (time_nodes' count each)."""

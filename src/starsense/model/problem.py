@@ -19,7 +19,7 @@ import numpy as np
 from starsense._workspace import scratch
 from starsense.model.psf import PixelPSF, pixel_psf
 from starsense.model.tracks import node_positions, track_nodes
-from starsense.model.windows import MAX_WORK, Windows, evaluate, make_windows, window_half_px
+from starsense.model.windows import MAX_NODES, Windows, evaluate, make_windows, window_half_px
 
 __all__ = ["MAX_PARTS", "PART_VALUES", "Part", "Problem", "linearised", "set_up", "split_parts"]
 
@@ -202,7 +202,7 @@ def set_up(image, sensor, rotation, *, rate, psf, sources, flags, window_rate=No
     fit_rate, fit_width = flags
     allv = np.concatenate([v_free, v_fix])
     free = np.r_[np.ones(len(v_free), bool), np.zeros(len(v_fix), bool)]
-    lay = {"sigma_px": psf.sigma_px, "max_nodes": MAX_WORK}  # nodes bounded by the fit's work
+    lay = {"sigma_px": psf.sigma_px, "max_nodes": MAX_NODES}  # nodes bounded by their memory
     moving = fit_rate or bool(np.any(rate))
     frac, wts, nodes = track_nodes(
         sensor, (v_free, allv), rotation, rate_rad_s=rate, moving=moving, **lay

@@ -44,6 +44,7 @@ except ImportError:  # pragma: no cover - built without a C compiler: the NumPy 
     _modelc = None
 
 __all__ = [
+    "MAX_NODES",
     "MAX_WINDOW_PIXELS",
     "WINDOW_HALF_SIGMAS",
     "Evaluation",
@@ -59,6 +60,9 @@ MAX_WINDOW_PIXELS = 1_000_000
 #: most PSF evaluations (pixels x time nodes over every source in every group it reaches) of
 #: one evaluation of the model: ~0.5 s of NumPy a step
 MAX_WORK = 2e7
+#: most time nodes over every source (free and fixed) of one fit: each holds its position and
+#: its derivatives (14 floats) and laying them out 21 more, ~0.3 GB at 1,000,000
+MAX_NODES = 1_000_000
 #: a star's box reaches this many PSF sigmas (+1 px) beyond its track
 WINDOW_HALF_SIGMAS = 3.5
 
