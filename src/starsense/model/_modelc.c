@@ -1,4 +1,4 @@
-/* Compiled kernels of the forward model (windows.py, fit.py) for stars at rest with a Gaussian PSF.
+/* Compiled kernels of the forward model (windows.py, fit.py, psf_table.py).
  *
  *   static_gaussian   windows.py's evaluate for one time node and a Gaussian PSF: every
  *                     (source, group) pair's box, its pixel fractions the outer product of the
@@ -12,7 +12,9 @@
  *                     _gaussian_width_1d) appended as the last parameter;
  *   normal_equations  fit.py's _normal_equations' sums per group: A = L W L^T, B = L W J^T,
  *                     C = J W J^T, u = L W r, v = J W r over the group's pixels (L the linear
- *                     rows, J the geometric ones, W the weights, r the residuals).
+ *                     rows, J the geometric ones, W the weights, r the residuals);
+ *   table_grid        psf_table.py's SplineTable.grid: a tabulated PSF's cubic B-spline and its
+ *                     gradient on grids of whole pixels (one phase between nodes per grid).
  *
  * The NumPy forms are the reference (tests/model/test_model_kernels.py holds them equal to within
  * rounding: the sums' order differs). Built by setup.py as an optional extension (no fused
@@ -214,11 +216,96 @@ done:
     return out;
 }
 
+/* the cubic B-spline's weights at phase t in [0, 1) and their d/dt (psf_table.py's _weights) */
+static void bspline_weights(double t, double *w, double *dw)
+{
+    double s = 1.0 - t, t2 = t * t, t3 = t * t * t;
+    w[0] = s * s * s / 6.0;
+    w[1] = (4.0 - 6.0 * t2 + 3.0 * t3) / 6.0;
+    w[2] = (1.0 + 3.0 * (t + t2 - t3)) / 6.0;
+    w[3] = t3 / 6.0;
+    dw[0] = -0.5 * s * s;
+    dw[1] = -2.0 * t + 1.5 * t2;
+    dw[2] = 0.5 + t - 1.5 * t2;
+    dw[3] = 0.5 * t2;
+}
+
+/* table_grid(coef, m, radius, per_px, pad, x0, y0, n, ny, nx, gradient, v, gx, gy):
+ * psf_table.py's SplineTable.grid: n grids of ny x nx whole pixels at offsets x0 + j, y0 + i
+ * from their star, the spline of the (m, m) coefficients; gx, gy written with gradient. */
+static PyObject *py_table_grid(PyObject *self, PyObject *args)
+{
+    Py_buffer b[6];
+    Py_ssize_t m, per_px, pad, n, ny, nx;
+    double radius;
+    int gradient;
+    memset(b, 0, sizeof(b));
+    if (!PyArg_ParseTuple(args, "y*ndnny*y*nnnpw*w*w*", &b[0], &m, &radius, &per_px, &pad,
+                          &b[1], &b[2], &n, &ny, &nx, &gradient, &b[3], &b[4], &b[5]))
+        return NULL;
+    PyObject *out = NULL;
+    Py_ssize_t cells = n * ny * nx;
+    if (check(&b[0], 8 * m * m, "coef") || check(&b[1], 8 * n, "x0") ||
+        check(&b[2], 8 * n, "y0") || check(&b[3], 8 * cells, "v") ||
+        (gradient && (check(&b[4], 8 * cells, "gx") || check(&b[5], 8 * cells, "gy"))))
+        goto done;
+    const double *coef = b[0].buf, *x0 = b[1].buf, *y0 = b[2].buf;
+    double *v = b[3].buf, *gx = b[4].buf, *gy = b[5].buf;
+    double scale = (double)per_px;
+    for (Py_ssize_t k = 0; k < n; k++) {
+        double ux = (x0[k] + radius) * scale + (double)pad;
+        double uy = (y0[k] + radius) * scale + (double)pad;
+        double fx = floor(ux), fy = floor(uy);
+        double wx[4], dwx[4], wy[4], dwy[4];
+        bspline_weights(ux - fx, wx, dwx);
+        bspline_weights(uy - fy, wy, dwy);
+        Py_ssize_t ix0 = (Py_ssize_t)fx - 1, iy0 = (Py_ssize_t)fy - 1;
+        for (Py_ssize_t i = 0; i < ny; i++) {
+            double dy = y0[k] + (double)i;
+            Py_ssize_t iy = iy0 + per_px * i;
+            int row_in = fabs(dy) < radius && iy >= 0 && iy + 3 < m;
+            Py_ssize_t o = (k * ny + i) * nx;
+            for (Py_ssize_t j = 0; j < nx; j++) {
+                double dx = x0[k] + (double)j;
+                Py_ssize_t ix = ix0 + per_px * j;
+                if (!row_in || !(fabs(dx) < radius) || ix < 0 || ix + 3 >= m) {
+                    v[o + j] = 0.0;
+                    if (gradient) gx[o + j] = gy[o + j] = 0.0;
+                    continue;
+                }
+                double val = 0.0, ddx = 0.0, ddy = 0.0;
+                for (int p = 0; p < 4; p++) {
+                    const double *c = coef + (iy + p) * m + ix;
+                    double hx = wx[0] * c[0] + wx[1] * c[1] + wx[2] * c[2] + wx[3] * c[3];
+                    val += wy[p] * hx;
+                    if (gradient) {
+                        double dh = dwx[0] * c[0] + dwx[1] * c[1] + dwx[2] * c[2] + dwx[3] * c[3];
+                        ddx += wy[p] * dh;
+                        ddy += dwy[p] * hx;
+                    }
+                }
+                v[o + j] = val > 0.0 ? val : 0.0;
+                if (gradient) {
+                    gx[o + j] = ddx * scale;
+                    gy[o + j] = ddy * scale;
+                }
+            }
+        }
+    }
+    out = Py_NewRef(Py_None);
+done:
+    for (int i = 0; i < 6; i++)
+        if (b[i].obj != NULL) PyBuffer_Release(&b[i]);
+    return out;
+}
+
 static PyMethodDef methods[] = {
     {"static_gaussian", py_static_gaussian, METH_VARARGS,
      "Templates, fixed light and Jacobian of Gaussian stars at rest on their windows."},
     {"normal_equations", py_normal_equations, METH_VARARGS,
      "Per group: A, B, C, u, v of the normal equations."},
+    {"table_grid", py_table_grid, METH_VARARGS,
+     "A tabulated PSF's cubic B-spline on grids of whole pixels, and its gradient."},
     {NULL, NULL, 0, NULL}};
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_modelc", NULL, -1, methods};

@@ -23,11 +23,12 @@ Shapes (:class:`~starsense.sensor.psf_spec.PSFSpec`), each of the FWHM of the Ga
 The last three are tabulated once per width: the profile is sampled on a fine grid (at most
 1/32 px, or FWHM/24), averaged over a one-pixel box by cumulative sums (the pixel integral; the
 midpoint rule's error is below 1e-5 of the peak at these steps) and kept on a grid of 1/8 px,
-between whose nodes a bicubic interpolating spline gives the value and its derivatives
-(:class:`scipy.interpolate.RectBivariateSpline`). The table covers ``radius_px`` around the star,
-its last 2 px tapered smoothly to zero (so that a pixel's light and its derivatives stay
-continuous as a star moves past the edge): light beyond (an Airy or a Moffat wing) is neither
-drawn nor modelled; the fraction left out is :attr:`PixelPSF.outside_fraction`.
+between whose nodes a cubic B-spline gives the value and its derivatives
+(:class:`~starsense.model.psf_table.SplineTable`, fast on grids of whole pixels). The table
+covers ``radius_px`` around the star, its last 2 px tapered smoothly to zero (so that a pixel's
+light and its derivatives stay continuous as a star moves past the edge): light beyond (an Airy
+or a Moffat wing) is neither drawn nor modelled; the fraction left out is
+:attr:`PixelPSF.outside_fraction`.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ import numpy as np
 from scipy.special import erf, j1
 
 from starsense.errors import InputError
+from starsense.model.psf_table import SplineTable
 from starsense.sensor.psf_spec import FWHM_PER_SIGMA, PSFSpec
 
 __all__ = ["PixelPSF", "gaussian_pixel_1d", "pixel_psf", "psf_of"]
@@ -76,14 +78,14 @@ class PixelPSF:
             raise InputError(f"PSF width must be a finite number > 0 px, got {sigma_px!r}")
         self.spec = spec
         self.sigma_px = float(sigma_px)
-        self._spline = None
+        self._table = None
         if spec.is_gaussian:
             self.radius_px = spec.radius_px or 6.0 * self.sigma_px
             self.outside_fraction = 0.0
             return
         density, radius = _density(spec, self.sigma_px)
         self.radius_px = min(spec.radius_px or radius, MAX_RADIUS_PX)
-        self._spline, inside = _table(density, self.radius_px, self.sigma_px)
+        self._table, inside = _table(density, self.radius_px, self.sigma_px)
         self.outside_fraction = max(0.0, 1.0 - inside)
 
     @property
@@ -110,20 +112,36 @@ class PixelPSF:
             Its derivatives, px^-1 (only with ``gradient``).
         """
         dx, dy = np.broadcast_arrays(np.asarray(dx, float), np.asarray(dy, float))
-        if self._spline is None:
+        if self._table is None:
             return _gaussian(dx, dy, self.sigma_px, gradient)
-        r = self.radius_px
-        inside = (np.abs(dx) < r) & (np.abs(dy) < r)
-        value = np.zeros(dx.shape)
-        grads = (np.zeros(dx.shape), np.zeros(dx.shape)) if gradient else ()
-        if inside.any():
-            ys, xs = dy[inside], dx[inside]
-            # no pixel holds less than no light (the table's round-off leaves -1e-16 in wings)
-            value[inside] = np.maximum(self._spline.ev(ys, xs), 0.0)
-            if gradient:
-                grads[0][inside] = self._spline.ev(ys, xs, dy=1)
-                grads[1][inside] = self._spline.ev(ys, xs, dx=1)
-        return (value, *grads) if gradient else value
+        return self._table.points(dx, dy, gradient=gradient)
+
+    def grid(self, x0, y0, shape: tuple[int, int], *, gradient: bool = True):
+        """:meth:`evaluate` on grids of whole pixels: offsets ``x0 + j`` and ``y0 + i``.
+
+        Parameters
+        ----------
+        x0, y0 : array_like, shape (N,)
+            Each grid's first column's and first row's offset from its star, px.
+        shape : (int, int)
+            Rows and columns of every grid.
+
+        Returns
+        -------
+        value : ndarray, shape (N, rows, columns)
+        d_dx, d_dy : ndarray, shape (N, rows, columns)
+            Only with ``gradient``.
+        """
+        x0 = np.asarray(x0, dtype=float).ravel()
+        y0 = np.asarray(y0, dtype=float).ravel()
+        if self._table is not None:
+            return self._table.grid(x0, y0, shape, gradient=gradient)
+        px, dpx = gaussian_pixel_1d(x0[:, None] + np.arange(shape[1]), self.sigma_px)
+        py, dpy = gaussian_pixel_1d(y0[:, None] + np.arange(shape[0]), self.sigma_px)
+        v = py[:, :, None] * px[:, None, :]
+        if not gradient:
+            return v
+        return v, py[:, :, None] * dpx[:, None, :], dpy[:, :, None] * px[:, None, :]
 
 
 def gaussian_pixel_1d(d, sigma: float) -> tuple[np.ndarray, np.ndarray]:
@@ -212,8 +230,6 @@ def _airy_half_width(e: float) -> float:
 
 def _table(density, radius: float, sigma: float):
     """Tabulate the pixel integral of ``density`` on 1/8 px out to ``radius``; its spline."""
-    from scipy.interpolate import RectBivariateSpline
-
     os_ = TABLE_OVERSAMPLING
     fine = max(4, math.ceil(1.0 / (os_ * min(1.0 / 32.0, FWHM_PER_SIGMA * sigma / 24.0))))
     step = 1.0 / (os_ * fine)  # fine samples per px: os_ * fine
@@ -240,7 +256,7 @@ def _table(density, radius: float, sigma: float):
     taper = np.sin(0.5 * math.pi * ramp) ** 2
     box *= taper[:, None] * taper[None, :]
     inside = float(box.sum()) / (os_ * os_)  # the integral over all offsets: the light drawn
-    return RectBivariateSpline(nodes, nodes, box, kx=3, ky=3), inside
+    return SplineTable(box, radius, os_), inside
 
 
 @functools.lru_cache(maxsize=64)

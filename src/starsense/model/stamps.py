@@ -101,11 +101,14 @@ def source_stamps(
         ]  # fmt: skip
         t = np.concatenate([p[0] for p in parts])
         return t, (np.concatenate([p[1] for p in parts]) if gradient else None)
-    dxg = cols[:, None, None, :] - xk[:, :, None, None]  # (S, K, h, w)
-    dyg = rows[:, None, :, None] - yk[:, :, None, None]
+    # each box a grid of whole pixels: its first column's and row's offsets from each node
+    shape = (rows.shape[1], cols.shape[1])
+    x0 = cols[:, :1] - xk  # (S, K)
+    y0 = rows[:, :1] - yk
     if not gradient:
-        return np.einsum("k,skrc->src", wk, psf.evaluate(dxg, dyg, gradient=False)), None
-    v, gx, gy = psf.evaluate(dxg, dyg)
+        v = psf.grid(x0, y0, shape, gradient=False).reshape(*xk.shape, *shape)
+        return np.einsum("k,skrc->src", wk, v), None
+    v, gx, gy = (a.reshape(*xk.shape, *shape) for a in psf.grid(x0, y0, shape))
     t = np.einsum("k,skrc->src", wk, v)
     d = -(
         np.einsum("skrc,skp->sprc", gx, wk[None, :, None] * nodes.dx[idx])
@@ -164,8 +167,10 @@ def _node_stamps(psf: PixelPSF, nodes: NodePositions, idx, grid, half_px, gradie
         py, dpy = gaussian_pixel_1d(dy, psf.sigma_px)
         v = py[..., :, None] * px[..., None, :]  # (S, K, n, n)
         gx, gy = py[..., :, None] * dpx[..., None, :], dpy[..., :, None] * px[..., None, :]
+    elif gradient:  # each node's stamp a grid of whole pixels from its first row and column
+        v, gx, gy = (a.reshape(*dx.shape, n) for a in psf.grid(dx[..., 0], dy[..., 0], (n, n)))
     else:
-        v, gx, gy = psf.evaluate(dx[..., None, :], dy[..., :, None])
+        v = psf.grid(dx[..., 0], dy[..., 0], (n, n), gradient=False).reshape(*dx.shape, n)
     lr, lc = r - rows[:, :1, None], c - cols[:, :1, None]  # in the source's box
     inside = ((lr >= 0) & (lr < h))[..., :, None] & ((lc >= 0) & (lc < w))[..., None, :]
     at = ((np.arange(n_src)[:, None, None] * h + lr)[..., :, None] * w + lc[..., None, :])[inside]

@@ -45,17 +45,11 @@ def _track_nodes(verts: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarra
 
 def _stamp(psf, xs, ys, ws, box: Box) -> np.ndarray:
     """Return a star's light per electron over ``box``: the sum over nodes of w_k P(pixel - p_k)."""
-    rows = np.arange(box.row0, box.row1, dtype=float)
-    cols = np.arange(box.col0, box.col1, dtype=float)
-    out = np.zeros((len(rows), len(cols)))
+    out = np.zeros((box.row1 - box.row0, box.col1 - box.col0))
     step = max(1, _CHUNK // max(out.size, 1))
     for k0 in range(0, len(xs), step):
         sl = slice(k0, k0 + step)
-        v = psf.evaluate(
-            cols[None, None, :] - xs[sl, None, None],
-            rows[None, :, None] - ys[sl, None, None],
-            gradient=False,
-        )
+        v = psf.grid(box.col0 - xs[sl], box.row0 - ys[sl], out.shape, gradient=False)
         out += np.tensordot(ws[sl], v, axes=1)
     return out
 

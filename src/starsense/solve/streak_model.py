@@ -187,8 +187,8 @@ def _psf_axes(sensor, xy, counts, which, half: int, measure: dict) -> np.ndarray
     thr = float(measure.get("threshold", 0.0))
     ar = np.arange(-half, half + 1, dtype=float)
     fx, fy = x - np.round(x), y - np.round(y)
-    dx, dy = ar[None, None, :] - fx[:, None, None], ar[None, :, None] - fy[:, None, None]
-    tmpl = psf.evaluate(dx, dy, gradient=False)  # (K, rows, columns)
+    side = len(ar)
+    tmpl = psf.grid(ar[0] - fx, ar[0] - fy, (side, side), gradient=False)  # (K, rows, columns)
     scale = lit_sum.copy()  # counts per unit of light: the lit fraction, found in two passes
     for _ in range(2):
         lit = tmpl * scale[:, None, None] > thr
