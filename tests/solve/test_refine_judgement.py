@@ -75,9 +75,13 @@ def test_a_fit_far_from_the_centroids_is_kept_on_a_smeared_frame_only():
     sensor = load_sensor("st16")
     cog_sigma = np.full(3, 1e-5)
     moved = Rotation.from_rotvec([3e-4, 0.0, 0.0])  # 30 centroid sigmas, ~5 px on the sky
-    for p, kept in ((3, False), (6, True)):
+    # the parameters: the attitude at rest (3), with the PSF's width (4), attitude and rate
+    # (6), with the width (7); and a fit at rest drawn at a given rate (a smeared frame)
+    cases = ((3, False, 0.0), (4, False, 0.0), (6, True, 0.0), (7, True, 0.0), (3, True, 1e-2))
+    for p, kept, rate in cases:
         cov = np.eye(p) * 1e-12
         fit = _fit(cov, cov.copy(), np.full(p, 0.2), rotation=moved)
+        fit = dataclasses.replace(fit, rate_rad_s=np.array([0.0, rate, 0.0]))
         verdict = judged(fit, sensor, Rotation.identity(), cog_sigma_rad=cog_sigma, counts=(10, 0))
         assert verdict.used is kept, verdict.note
         assert kept or "sigma from the centroids'" in verdict.note

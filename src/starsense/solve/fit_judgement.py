@@ -162,8 +162,10 @@ def judged(fit: ModelFit, sensor, rotation, *, cog_sigma_rad, counts, also="") -
     edge = 0.5 * math.hypot(det.columns, det.rows)  # the farthest a star sits from the axis, px
     moved_px = math.hypot(move[0], move[1]) * sensor.focal_length_px + move[2] * edge
     # a smeared frame's centroids (its streaks') are no reference for the fit: their attitude's
-    # sigma leaves out where along its streak each centroid lies
-    smeared = fit.covariance.shape[0] > 3
+    # sigma leaves out where along its streak each centroid lies. The frame is smeared when the
+    # fit draws a motion (a rate fitted: attitude and rate, 6 parameters, 7 with the PSF's
+    # width; or given); a fit at rest that also fits the width has 4
+    smeared = fit.covariance.shape[0] >= 6 or bool(np.any(fit.rate_rad_s != 0.0))
     if not smeared and np.any(move > MAX_MOVE_SIGMAS * scale) and moved_px > MAX_MOVE_PX:
         return Refinement(
             fit,
