@@ -21,7 +21,8 @@ and weights from each star's signal). Reported per design x PSF x rate:
 
 The frames hold the sky the datasheet's frames hold (the catalogue and the solver database's
 stars it lacks, at the database's epoch). ``python bench/galsim_check.py [--designs N]
-[--frames N] [--psf KIND ...] [--rate-deg-s R] [--seed S] [--json PATH] [--jobs N]``; one JSON
+[--frames N] [--psf KIND ...] [--rate-deg-s R] [--seed S] [--json PATH] [--jobs N]
+[--max-mpixel M]``; one JSON
 object per line per design x PSF x rate in ``bench/results/galsim_check.json``.
 """
 
@@ -266,6 +267,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--json", default=str(RESULTS / "galsim_check.json"))
     ap.add_argument("--jobs", type=int, default=1, help="designs at once (one process each)")
     ap.add_argument("--no-imx296", action="store_true", help="zoo designs only")
+    ap.add_argument("--max-mpixel", type=float, default=None, help="only designs this small")
     ap.add_argument(
         "--solver",
         choices=("default", "datasheet", "told"),
@@ -285,6 +287,12 @@ def main(argv: list[str]) -> int:
     seeds = np.random.SeedSequence(seed).spawn(len(designs))
     jobs = [(n, p, args.psf, rates, args.frames, int(s.generate_state(1)[0]), args.solver)
             for (n, p), s in zip(designs, seeds, strict=True)]  # fmt: skip
+    if args.max_mpixel is not None:  # each design keeps its frames' seed either way
+        for n, p, *_ in jobs:
+            mpx = p["columns"] * p["rows"] / 1e6
+            if mpx > args.max_mpixel:
+                print(f"{n}: {mpx:.1f} Mpixel, over --max-mpixel: skipped", flush=True)
+        jobs = [j for j in jobs if j[1]["columns"] * j[1]["rows"] <= args.max_mpixel * 1e6]
     rows: list[dict] = []
     ctx = mp.get_context("spawn")
     with ctx.Pool(max(1, args.jobs), maxtasksperchild=1) as pool:
