@@ -59,20 +59,29 @@ class SplineTable:
         self.coef = np.ascontiguousarray(ndimage.spline_filter(padded, order=3, mode="mirror"))
         self.radius = float(radius)
         self.per_px = int(per_px)
-        self._origin = self.radius * self.per_px + PAD  # the node index of offset 0
 
     def _phase(self, d: np.ndarray):
         """Node index of the spline's first weight, phase and inside mask of offsets ``d``."""
-        u = (d + self.radius) * self.per_px + PAD
-        i = np.floor(u)
         inside = np.abs(d) < self.radius
-        i = np.where(inside, i, PAD).astype(np.intp)
-        return i - 1, np.where(inside, u - np.floor(u), 0.0), inside
+        u = np.where(inside, (d + self.radius) * self.per_px + PAD, PAD)  # outside: any node
+        i = np.floor(u)
+        return i.astype(np.intp) - 1, u - i, inside
 
     def points(self, dx: np.ndarray, dy: np.ndarray, *, gradient: bool):
         """Values (and d/ddx, d/ddy) at offsets ``dx``, ``dy`` of one shape."""
-        ix, tx, in_x = self._phase(dx.ravel())
-        iy, ty, in_y = self._phase(dy.ravel())
+        flat_x, flat_y = dx.ravel(), dy.ravel()
+        outs = [np.zeros(flat_x.size) for _ in range(3 if gradient else 1)]
+        step = _GATHER_NUMBERS // 16
+        for a in range(0, flat_x.size, step):
+            parts = self._points(flat_x[a : a + step], flat_y[a : a + step], gradient)
+            for out, part in zip(outs, parts, strict=True):
+                out[a : a + step] = part
+        outs = [o.reshape(dx.shape) for o in outs]
+        return tuple(outs) if gradient else outs[0]
+
+    def _points(self, dx, dy, gradient):
+        ix, tx, in_x = self._phase(dx)
+        iy, ty, in_y = self._phase(dy)
         wx, dwx = _weights(tx)
         wy, dwy = _weights(ty)
         k = np.arange(4)
@@ -81,10 +90,10 @@ class SplineTable:
         hx = np.einsum("npq,nq->np", g, wx)
         v = np.where(inside, np.maximum(np.einsum("np,np->n", hx, wy), 0.0), 0.0)
         if not gradient:
-            return v.reshape(dx.shape)
+            return (v,)
         gx = np.where(inside, np.einsum("npq,nq,np->n", g, dwx, wy), 0.0) * self.per_px
         gy = np.where(inside, np.einsum("np,np->n", hx, dwy), 0.0) * self.per_px
-        return v.reshape(dx.shape), gx.reshape(dx.shape), gy.reshape(dx.shape)
+        return v, gx, gy
 
     def grid(self, x0, y0, shape: tuple[int, int], *, gradient: bool):
         """Values (and gradients) on grids of whole pixels: offsets ``x0 + j``, ``y0 + i``.
@@ -131,6 +140,9 @@ class SplineTable:
             # index and weights agree for every pixel whatever the rounding of x0 + j
             ux = (x0[sl] + self.radius) * self.per_px + PAD
             uy = (y0[sl] + self.radius) * self.per_px + PAD
+            # a grid at a position not a number, or far beyond any index, lies outside (masked
+            # below): its phase is not cast
+            ux, uy = (np.where(np.abs(u) < 1e12, u, 0.0) for u in (ux, uy))
             wx, dwx = _weights(ux - np.floor(ux))
             wy, dwy = _weights(uy - np.floor(uy))
             ix = np.floor(ux).astype(np.intp)[:, None] - 1 + self.per_px * np.arange(nx)
