@@ -86,3 +86,23 @@ def test_a_fit_through_the_floor_is_honest_and_its_chi_square_is_one():
         z.append(err / np.sqrt(np.diag(fit.covariance)[:3]))
     rms = float(np.sqrt(np.mean(np.square(z))))
     assert rms == pytest.approx(1.0, abs=0.15)
+
+
+def test_a_star_past_the_full_well_everywhere_holds_no_position_information():
+    # an undersampled Airy star (sigma 0.5 px) of 1e7 electrons on a 1,000-electron well: every
+    # pixel of its window is past the well (no weight), its flux and the background cannot be
+    # told apart and its position is unknown (information 0, sigma infinite), not an error;
+    # a star within the well keeps its information
+    from starsense.model.fisher import position_information, position_sigma_px
+    from starsense.sensor.psf_spec import PSFSpec
+
+    base = load_sensor("st16")
+    det = dataclasses.replace(base.detector, full_well_e=1000.0, psf_sigma_px=0.5)
+    sensor = base.with_(detector=det, psf=PSFSpec(kind="airy"))
+    electrons = [500.0, 1e7]
+    info = position_information(sensor, electrons)
+    assert np.all(np.isfinite(info))
+    assert info[0, 0, 0] > 0 and info[0, 1, 1] > 0
+    np.testing.assert_array_equal(info[1], 0.0)
+    sigma = position_sigma_px(sensor, electrons)
+    assert math.isfinite(sigma[0]) and sigma[1] == math.inf

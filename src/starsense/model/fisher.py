@@ -68,7 +68,10 @@ def _one(psf: PixelPSF, sensor, electrons: float, streak, phase, background_e: f
     a = (h * w) @ h.T
     b = (h * w) @ g.T
     c = (g * w) @ g.T
-    return c - b.T @ np.linalg.solve(a, b)
+    # the flux and the background marginalised; where no pixel tells them apart (every pixel
+    # of a bright star past the full well: no weight) the pseudo-inverse leaves what is known,
+    # none of the position's information where no pixel holds any
+    return c - b.T @ np.linalg.pinv(a) @ b
 
 
 def position_information(
