@@ -96,21 +96,7 @@ class SplineTable:
         return v, gx, gy
 
     def grid(self, x0, y0, shape: tuple[int, int], *, gradient: bool):
-        """Values (and gradients) on grids of whole pixels: offsets ``x0 + j``, ``y0 + i``.
-
-        Parameters
-        ----------
-        x0, y0 : ndarray, shape (N,)
-            Each grid's first column's and first row's offset from its star, px.
-        shape : (int, int)
-            Rows and columns of every grid.
-        gradient : bool
-            Also return the derivatives with respect to the offsets.
-
-        Returns
-        -------
-        ndarray, shape (N, rows, columns), or three of them (value, d/ddx, d/ddy).
-        """
+        """Return :meth:`starsense.model.psf.PixelPSF.grid` of this table (its form and shapes)."""
         x0 = np.ascontiguousarray(x0, dtype=np.float64).ravel()
         y0 = np.ascontiguousarray(y0, dtype=np.float64).ravel()
         ny, nx = int(shape[0]), int(shape[1])
