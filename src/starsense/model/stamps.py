@@ -74,11 +74,11 @@ def source_stamps(
 ):
     """Return templates (S, h, w) of sources ``idx`` and their derivatives (S, P, h, w).
 
-    Over pixel rows (S, h) and columns (S, w) of the detector. With ``width`` (a Gaussian), the
-    derivative with respect to the PSF's sigma is appended (P + 1 columns). Each time node
-    lights the pixels of a stamp of :func:`stamp_side` pixels a side around it (the reach
-    ``half_px`` of a star's box at rest), whose first row and column are ``origin`` (S, K, 2)
-    (default: where the nodes are now).
+    Over consecutive pixel rows (S, h) and columns (S, w) of the detector (each source's box).
+    With ``width`` (a Gaussian), the derivative with respect to the PSF's sigma is appended (P +
+    1 columns). Each time node lights the pixels of a stamp of :func:`stamp_side` pixels a side
+    around it (the reach ``half_px`` of a star's box at rest), whose first row and column are
+    ``origin`` (S, K, 2) (default: where the nodes are now).
     """
     wk = nodes.weights
     xk, yk = nodes.x[idx], nodes.y[idx]  # (S, K)
