@@ -214,3 +214,39 @@ def test_cache_of_an_older_format_is_rebuilt(hipparcos, tmp_path, monkeypatch):
     del meta["files"]  # the current format without its checksums: refused, not trusted
     (path / "meta.json").write_text(json.dumps(meta))
     assert database_module.IdentificationDatabase.load(path) is None
+
+
+def _rss_file_bytes() -> int | None:
+    """This process's resident pages of mapped files (Linux's RssFile), bytes; None elsewhere."""
+    try:
+        with open("/proc/self/status") as fh:
+            status = fh.read()
+    except OSError:
+        return None
+    for line in status.splitlines():
+        if line.startswith("RssFile:"):
+            return int(line.split()[1]) * 1024
+    return None
+
+
+def test_page_in_reads_the_mapped_tables(hipparcos, tmp_path):
+    """A database opened from the cache maps its pattern tables; page_in makes them resident.
+
+    Opening maps the files without reading them (a lookup then reads a page at a time); after
+    page_in the process holds every page of the mapped tables: its resident file pages grow by
+    their size (a 1 % slack for pages the kernel dropped meanwhile), the values unchanged.
+    """
+    fov = math.radians(20)
+    built = build_database(hipparcos, fov, cache_dir=tmp_path)
+    db = build_database(hipparcos, fov, cache_dir=tmp_path)  # from the cache: freshly mapped
+    mapped = [n for n in db._ARRAYS if isinstance(getattr(db, n).base, np.memmap)]
+    assert mapped, "the pattern tables are memory-mapped"
+    before = _rss_file_bytes()
+    if before is None:
+        pytest.skip("no /proc/self/status RssFile: not Linux")
+    db.page_in()
+    grown = _rss_file_bytes() - before
+    assert grown >= 0.99 * sum(getattr(db, n).nbytes for n in mapped)
+    for name in db._ARRAYS:
+        np.testing.assert_array_equal(getattr(db, name), getattr(built, name))
+    built.page_in()  # a database built in memory maps nothing: nothing to read

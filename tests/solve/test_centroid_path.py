@@ -176,3 +176,26 @@ def test_a_noisy_list_keeps_its_right_stars():
     truth_bore = sets.boresights[i]
     bore = sol.rotation.inv().apply([0.0, 0.0, 1.0])
     assert math.degrees(math.acos(min(1.0, float(bore @ truth_bore)))) * 3600 < 60.0
+
+
+@pytest.mark.slow  # builds the scale search's databases when the session's cache lacks them
+def test_after_prepare_no_call_loads_a_database(monkeypatch):
+    """prepare() loads every database a call may reach: the known field's and the scale
+    search's, which a set takes when it does not identify at the field given (here the stars
+    span a field 10 % wider than the one given, so it is searched). After it, no solve builds
+    or loads one."""
+    solver = Solver(fov_rad=FOV15)
+    solver.prepare()
+
+    def no_load(*args, **kwargs):
+        raise AssertionError("a database was loaded after prepare()")
+
+    monkeypatch.setattr("starsense.solve.identifiers.identifier_for", no_load)
+    wide = FOV15 * 1.1
+    got = centroid_sets(load_catalog("hipparcos"), 10, fov_rad=wide, image_size=SIZE, seed=8,
+                        noise_px=0.3, n_false=2)  # fmt: skip
+    for i in range(len(got.offsets) - 1):
+        sol = solver.solve_centroids(_inside(got.xy[got.offsets[i] : got.offsets[i + 1]]),
+                                     (SIZE[1], SIZE[0]))  # fmt: skip
+        assert sol.solved
+        assert abs(sol.fov_rad - wide) < 0.01 * wide  # the field found, not the one given
