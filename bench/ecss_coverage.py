@@ -52,6 +52,12 @@ def _fmt(v, spec: str) -> str:
     return "-" if v is None else format(v, spec)
 
 
+def _cell(row: dict, key: str, spec: str) -> str:
+    """A fraction, starred where chance on its frames does not explain it (exact 95 %)."""
+    star = "*" if row.get(key.replace("inside_", "consistent_")) is False else ""
+    return _fmt(row.get(key), spec) + star
+
+
 def _line(name: str, rec: dict) -> list[str]:
     """Table rows of one sensor: per rate, the fractions inside (sky-median; ensemble)."""
     if "error" in rec:
@@ -68,7 +74,7 @@ def _line(name: str, rec: dict) -> list[str]:
             ("inside_1sigma_sky_ensemble", ".2f"),
             ("inside_3sigma_sky_ensemble", ".3f"),
         ):
-            cells.append(" / ".join(_fmt(axes[a].get(key), spec) for a in ("X", "Y", "Z")))
+            cells.append(" / ".join(_cell(axes[a], key, spec) for a in ("X", "Y", "Z")))
         frames = f"{axes['X']['frames']} of {axes['X']['frames_rendered']}"
         out.append(f"| {name} | {rate:g} | {frames} | " + " | ".join(cells) + " |")
     return out
@@ -142,9 +148,11 @@ def main(argv=None) -> int:
         "within 3 sigma, median | within 1 sigma, ensemble | within 3 sigma, ensemble |",
         "|---|---|---|---|---|---|---|",
     ]
+    footnote = "\n\n\\* beyond what chance on that many frames explains (exact binomial 95 %)"
 
     def write() -> str:  # after every sensor: a long run that is stopped keeps what it did
         table = "\n".join(header + [row for n, r in results.items() for row in _line(n, r)])
+        table += footnote if "*" in table else ""
         record = {
             "name": "ecss_coverage",
             "seed": seed,

@@ -9,7 +9,12 @@ import pytest
 
 from starsense.analysis.datasheet import DatasheetSettings
 from starsense.analysis.ecss.confidence import ONE_SIGMA, THREE_SIGMA
-from starsense.analysis.ecss.coverage import coverage_rows, frame_errors_at, inside_fraction
+from starsense.analysis.ecss.coverage import (
+    consistent_with,
+    coverage_rows,
+    frame_errors_at,
+    inside_fraction,
+)
 from starsense.analysis.ecss.export import ROW_KEYS, statement_rows
 from starsense.analysis.ecss.statement import Statement
 from starsense.analysis.ecss.terms import Term
@@ -77,8 +82,32 @@ def test_coverage_is_the_hand_count_of_frames_inside():
     got = {r["axis"]: (r["inside_1sigma"], r["inside_3sigma"]) for r in rows[:3]}
     assert got == {"X": (0.4, 0.8), "Y": (0.6, 0.8), "Z": (0.4, 0.8)}
     assert all(r["frames"] == 5 and r["reason"] is None for r in rows[:3])
+    # 2, 3 of 5 inside the 1-sigma bound: chance on 5 frames explains both (the exact 95 %
+    # intervals hold 0.683); 4 of 5 inside the 3-sigma bound: the one-sided 95 % upper bound
+    # is 0.95^(1/5) = 0.990 < 0.9973, a miss beyond chance
+    assert all(r["consistent_1sigma"] is True for r in rows[:3])
+    assert all(r["consistent_3sigma"] is False for r in rows[:3])
     # no right solution at 1 deg/s: no fraction, and why
     assert all(r["inside_1sigma"] is None and "no right solution" in r["reason"] for r in rows[3:])
+
+
+def test_consistency_is_scipys_exact_binomial_interval():
+    """consistent_with against scipy.stats.binomtest's Clopper-Pearson intervals."""
+    from scipy.stats import binomtest
+
+    for n in (5, 30, 88, 100, 400):
+        for inside in sorted({0, 1, n // 2, round(0.68 * n), n - 3, n - 2, n - 1, n}):
+            if not 0 <= inside <= n:
+                continue
+            lo, hi = binomtest(inside, n).proportion_ci(0.95, method="exact")
+            assert consistent_with(inside, n, ONE_SIGMA, two_sided=True) == (lo <= ONE_SIGMA <= hi)
+            up = binomtest(inside, n, alternative="less").proportion_ci(0.95, method="exact").high
+            assert consistent_with(inside, n, THREE_SIGMA, two_sided=False) == (up >= THREE_SIGMA)
+    assert consistent_with(0, 0, THREE_SIGMA, two_sided=False) is None
+    # one frame of 100 outside a 3-sigma bound is chance (a right bound does it 24 % of the
+    # time); two are not (the claim's 0.9973 lies above the count's 95 % upper bound 0.9964)
+    assert consistent_with(99, 100, THREE_SIGMA, two_sided=False)
+    assert not consistent_with(98, 100, THREE_SIGMA, two_sided=False)
 
 
 def test_frames_already_run_are_not_run_again():

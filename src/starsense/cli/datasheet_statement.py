@@ -183,19 +183,26 @@ def _coverage_lines(rows: list[dict]) -> list[str]:
         if r["reason"]:
             lines.append(f"{head}: not known ({r['reason']})")
             continue
-        cells = ", ".join(
-            f"{g['axis']} {100 * g['inside_1sigma']:.0f} % / {100 * g['inside_3sigma']:.0f} %"
-            for g in group
-        )
-        lines.append(f"{head}: {cells}")
+        lines.append(f"{head}: {_cells(group, '')}")
         if all(g["inside_1sigma_sky_ensemble"] is not None for g in group):
-            cells = ", ".join(
-                f"{g['axis']} {100 * g['inside_1sigma_sky_ensemble']:.0f} % / "
-                f"{100 * g['inside_3sigma_sky_ensemble']:.0f} %"
-                for g in group
-            )
+            cells = _cells(group, "_sky_ensemble")
             lines.append(f"    of the sky ensemble's (a random attitude's) bounds: {cells}")
+    if any("*" in line for line in lines):
+        lines.append(
+            "  * more or fewer inside than chance on this many frames explains (exact binomial "
+            "95 %): the bound misses"
+        )
     return lines
+
+
+def _cells(group: list[dict], suffix: str) -> str:
+    """``X 68 % / 100 %, ...``: a fraction that chance does not explain is starred."""
+
+    def one(g: dict, tag: str) -> str:
+        star = "*" if g[f"consistent_{tag}{suffix}"] is False else ""
+        return f"{100 * g[f'inside_{tag}{suffix}']:.0f} %{star}"
+
+    return ", ".join(f"{g['axis']} {one(g, '1sigma')} / {one(g, '3sigma')}" for g in group)
 
 
 def statement_section(

@@ -7,6 +7,12 @@ and Y across the boresight along the columns and rows, Z the roll, the axes of
 rate (:attr:`~starsense.analysis.ecss.statement.Statement.totals`), at 1 sigma and at 3 sigma.
 For a Gaussian error of the stated 1-sigma, 68.3 % and 99.7 % of the frames are inside.
 
+A fraction counted on N frames scatters about the true one: 100 frames under a right 3-sigma
+bound leave one or more outside one time in four. Each fraction is therefore judged too
+(:func:`consistent_with`): consistent when the claim lies within the exact binomial
+(Clopper-Pearson) 95 % interval of the count, two-sided for the 1-sigma bound (a claim of
+68.3 %, too wide or too narrow), one-sided for the 3-sigma bound (a claim of at least 99.7 %).
+
 The frames are the datasheet's check (rendered frames solved by the default solver, its right
 solutions: :func:`starsense.analysis.datasheet.verify.run_checks`); a rate of the statement the
 datasheet did not run is run here, the same frames per rate (:func:`frame_errors_at`).
@@ -17,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.special import betaincinv
 
 from starsense.analysis.ecss.confidence import ONE_SIGMA, THREE_SIGMA
 from starsense.analysis.ecss.statement import AXES, Statement
@@ -25,6 +32,7 @@ from starsense.units import ARCSEC, DEG, RAD_TO_ARCSEC
 
 __all__ = [
     "RATE_MATCH_DEG_S",
+    "consistent_with",
     "coverage_rows",
     "frame_errors_arcsec",
     "frame_errors_at",
@@ -54,6 +62,52 @@ def inside_fraction(errors, bound) -> float | None:
     if bound is None or not math.isfinite(bound) or len(e) == 0:
         return None
     return float(np.count_nonzero(np.abs(e) <= bound)) / len(e)
+
+
+def consistent_with(inside: int, n: int, claimed: float, *, two_sided: bool) -> bool | None:
+    """Return whether ``inside`` of ``n`` frames is consistent with a coverage ``claimed``.
+
+    The exact binomial (Clopper-Pearson) 95 % interval of the fraction: two-sided (the claim
+    within ``[lo, hi]``) or one-sided (a claim of at least ``claimed``: consistent unless the
+    95 % upper bound lies below it).
+
+    Parameters
+    ----------
+    inside, n : int
+        Frames inside the bound, and frames counted.
+    claimed : float
+        The fraction the bound claims, in (0, 1).
+    two_sided : bool
+
+    Returns
+    -------
+    bool or None
+        None without frames.
+    """
+    if n <= 0:
+        return None
+    alpha = 0.05 / 2.0 if two_sided else 0.05
+    hi = 1.0 if inside >= n else float(betaincinv(inside + 1, n - inside, 1.0 - alpha))
+    if not two_sided:
+        return bool(hi >= claimed)
+    lo = 0.0 if inside <= 0 else float(betaincinv(inside, n - inside + 1, alpha))
+    return bool(lo <= claimed <= hi)
+
+
+def _judged(col: np.ndarray, bound, suffix: str, reason) -> dict:
+    """Return the fractions inside a bound's 1- and 3-sigma values; whether chance explains each."""
+    out = {}
+    for tag, b, claimed in (("1sigma", bound[0], ONE_SIGMA), ("3sigma", bound[1], THREE_SIGMA)):
+        frac = None if reason else inside_fraction(col, b)
+        out[f"inside_{tag}{suffix}"] = frac
+        out[f"consistent_{tag}{suffix}"] = (
+            None
+            if frac is None
+            else consistent_with(
+                round(frac * len(col)), len(col), claimed, two_sided=tag == "1sigma"
+            )
+        )
+    return out
 
 
 def _matching(frames: dict, rate_deg_s: float):
@@ -129,10 +183,12 @@ def coverage_rows(statement: Statement, frames: dict) -> list[dict]:
         ``rate_deg_s``, ``axis`` (X, Y, Z), ``frames`` (right solutions counted),
         ``frames_rendered``,
         ``bound_1sigma_arcsec``, ``bound_3sigma_arcsec``, ``inside_1sigma``, ``inside_3sigma``
-        (fractions in [0, 1]), the same against the sky ensemble's totals (the bound at a random
-        attitude, what frames at random attitudes test: ``bound_1sigma_sky_ensemble_arcsec``,
-        ``inside_1sigma_sky_ensemble``, ...), ``frames_from`` and ``reason`` (why a fraction
-        is None).
+        (fractions in [0, 1]), ``consistent_1sigma``, ``consistent_3sigma`` (whether chance
+        on this many frames explains the fraction: :func:`consistent_with`), the same against
+        the sky ensemble's totals (the bound at a random attitude, what frames at random
+        attitudes test: ``bound_1sigma_sky_ensemble_arcsec``, ``inside_1sigma_sky_ensemble``,
+        ``consistent_1sigma_sky_ensemble``, ...), ``frames_from`` and ``reason`` (why a
+        fraction is None).
     """
     one, three = statement.at_confidence(ONE_SIGMA), statement.at_confidence(THREE_SIGMA)
     rows = []
@@ -157,12 +213,10 @@ def coverage_rows(statement: Statement, frames: dict) -> list[dict]:
                     "frames_rendered": rendered,
                     "bound_1sigma_arcsec": b1,
                     "bound_3sigma_arcsec": b3,
-                    "inside_1sigma": None if reason else inside_fraction(col, b1),
-                    "inside_3sigma": None if reason else inside_fraction(col, b3),
+                    **_judged(col, (b1, b3), "", reason),
                     "bound_1sigma_sky_ensemble_arcsec": e1,
                     "bound_3sigma_sky_ensemble_arcsec": e3,
-                    "inside_1sigma_sky_ensemble": None if reason else inside_fraction(col, e1),
-                    "inside_3sigma_sky_ensemble": None if reason else inside_fraction(col, e3),
+                    **_judged(col, (e1, e3), "_sky_ensemble", reason),
                     "frames_from": origin,
                     "reason": reason,
                 }
