@@ -161,6 +161,13 @@ def test_toml_round_trips_and_carries_provenance(runs, tmp_path):
     assert loaded.detector.gain_counts_per_e == pytest.approx(values["gain_counts_per_e"].value)
     assert "detector.pixel_pitch_m" in prov["kept_from_base"]
     assert prov["frames"] == ch.names
+    # each value said written to a field is that field's value in the sensor written (the
+    # focal length is converted to metres, the principal point kept in px: compared as such)
+    for key, entry in prov["measured"].items():
+        if entry["written_to"] and key != "focal_length_px":
+            section, name = entry["written_to"].split(".")
+            got = getattr(getattr(loaded, section), name)
+            assert got == pytest.approx(entry["value"]), (key, entry["written_to"])
 
 
 def test_one_exposure_cannot_tell_the_gain(runs):

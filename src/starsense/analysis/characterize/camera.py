@@ -237,6 +237,33 @@ def measured_values(ch: Characterisation) -> tuple[dict, dict]:
     return out, not_told
 
 
+def _psf_varies(values: dict) -> bool:
+    """Return whether the corners' PSF width is more than SIGNIFICANT sigma from the centre's.
+
+    Then the centre's and the corners' widths are written; else the width over the whole field,
+    the same everywhere (``optics.psf_sigma_corner_px = 0``).
+    """
+    centre, corner = values.get("psf_sigma_centre_px"), values.get("psf_sigma_corner_px")
+    return (
+        centre is not None
+        and corner is not None
+        and abs(corner.value - centre.value)
+        > SIGNIFICANT * math.hypot(corner.uncertainty, centre.uncertainty)
+    )
+
+
+def _written_to(values: dict) -> dict:
+    """Return each measured value's sensor field as :func:`camera_sensor` writes it ("": none)."""
+    out = {key: WRITTEN_TO.get(key, "") for key in values}
+    if "psf_sigma_corner_px" in out:  # the field's width alone, or the centre's and corners'
+        varies = _psf_varies(values)
+        out["psf_sigma_corner_px"] = "optics.psf_sigma_corner_px" if varies else ""
+        out["psf_sigma_centre_px"] = "detector.psf_sigma_px" if varies else ""
+        if varies and "psf_sigma_px" in out:
+            out["psf_sigma_px"] = ""
+    return out
+
+
 def camera_sensor(ch: Characterisation, name: str = "camera"):
     """Return the base sensor with the measured values written in (see :data:`WRITTEN_TO`)."""
     values, _ = measured_values(ch)
@@ -245,12 +272,7 @@ def camera_sensor(ch: Characterisation, name: str = "camera"):
     o, d = {}, {}
     width = values.get("psf_sigma_px")
     centre, corner = values.get("psf_sigma_centre_px"), values.get("psf_sigma_corner_px")
-    if (
-        centre is not None
-        and corner is not None
-        and abs(corner.value - centre.value)
-        > (SIGNIFICANT * math.hypot(corner.uncertainty, centre.uncertainty))
-    ):
+    if _psf_varies(values):
         d["psf_sigma_px"], o["psf_sigma_corner_px"] = centre.value, max(corner.value, 0.0)
     elif width is not None:
         d["psf_sigma_px"], o["psf_sigma_corner_px"] = width.value, 0.0
@@ -290,12 +312,11 @@ def camera_toml(ch: Characterisation, name: str = "camera") -> str:
         "measured values, their uncertainties and frames: [provenance] at the end"
     )
     text = sensor_to_toml(sensor, header)
-    written = set()
-    for key, target in WRITTEN_TO.items():
-        if key in values:
-            written.add(target)
+    targets = _written_to(values)
+    written = set(targets.values()) - {""}
     if "psf_sigma_centre_px" in values:
         written.add("detector.psf_sigma_px")
+        written.add("optics.psf_sigma_corner_px")  # 0 (uniform) or the corners' width
     kept = []
     for section in ("optics", "detector"):
         for f in dataclasses.fields(getattr(sensor, section)):
@@ -320,6 +341,6 @@ def camera_toml(ch: Characterisation, name: str = "camera") -> str:
             f"uncertainty = {_toml_value(float(m.uncertainty))}",
             f"unit = {_toml_value(m.unit)}",
             f"method = {_toml_value(m.method)}",
-            f"written_to = {_toml_value(WRITTEN_TO.get(key, ''))}",
+            f"written_to = {_toml_value(targets[key])}",
         ]
     return text + "\n".join(lines) + "\n"
