@@ -99,6 +99,9 @@ def test_catalogue_term_of_a_rotated_catalogue_is_the_rotation():
         def star_sigmas_rad(self, m, z, kind):
             return 1e-5 * (1.0 + np.asarray(m) - 3.0) * np.ones_like(z)
 
+        def star_shape(self, m):
+            return None  # a round PSF
+
     got, _ = nea_at(
         Weights(),
         sens.fov(),

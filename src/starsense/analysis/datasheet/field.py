@@ -23,6 +23,7 @@ from starsense.attitude.covariance import (
     fisher_components,
     fisher_from_components,
 )
+from starsense.model.fisher import projection_jacobian
 
 __all__ = [
     "FieldStarsCam",
@@ -68,7 +69,9 @@ def field_stars_cam(fov, matrices: NDArray[np.float64], vectors: NDArray[np.floa
     return FieldStarsCam(point, star, v_cam, n_pointings=matrices.shape[0])
 
 
-def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> np.ndarray:
+def fisher_per_pointing(
+    pairs: FieldStarsCam, weights: NDArray[np.float64], shape=None
+) -> np.ndarray:
     """Return eq. 21 per pointing, camera frame, (M, 3, 3) rad^-2.
 
     Parameters
@@ -77,9 +80,17 @@ def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> n
         Stars in the field of each attitude.
     weights : ndarray (P,)
         Information of each pair's star, ``1 / sigma^2``, rad^-2 (0 drops the pair).
+    shape : (ndarray (P,), ndarray (P,)), optional
+        ``(a, c)``: each star's information is ``w (I + D)`` in the image plane, not ``w I``,
+        with ``D = [[a, c], [c, -a]]`` (a PSF that is not round is located better across its
+        long axis than along it); its part ``sum w J^T D J`` is added (``J`` the projection's
+        Jacobian per unit focal length, :func:`starsense.model.fisher.projection_jacobian`).
+        Default: round (``D = 0``).
     """
     comp = fisher_components(pairs.v_cam, weights)
-    sums = np.zeros((pairs.n_pointings, 7))
+    if shape is not None:
+        comp = np.column_stack([comp, _shape_components(pairs.v_cam, weights, shape)])
+    sums = np.zeros((pairs.n_pointings, comp.shape[1]))
     point = np.asarray(pairs.point)
     if point.size and np.all(point[1:] >= point[:-1]):  # grouped by pointing: segment sums
         starts = np.searchsorted(point, np.arange(pairs.n_pointings))
@@ -87,7 +98,22 @@ def fisher_per_pointing(pairs: FieldStarsCam, weights: NDArray[np.float64]) -> n
         sums[held] = np.add.reduceat(comp, starts[held], axis=0)
     else:
         np.add.at(sums, point, comp)
-    return fisher_from_components(sums)
+    f = fisher_from_components(sums[:, :7])
+    if shape is not None:
+        xx, yy, zz, xy, xz, yz = sums[:, 7:].T
+        f = f + np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1),
+                          np.stack([xz, yz, zz], -1)], -2)  # fmt: skip
+    return f
+
+
+def _shape_components(v_cam, weights, shape) -> np.ndarray:
+    """Return the six terms (xx, yy, zz, xy, xz, yz) of ``w J^T D J`` per pair (P, 6)."""
+    a, c = (np.asarray(t, dtype=float) for t in shape)
+    jac = projection_jacobian(v_cam)
+    d = np.empty((len(a), 2, 2))
+    d[:, 0, 0], d[:, 1, 1], d[:, 0, 1], d[:, 1, 0] = a, -a, c, c
+    m = np.einsum("pai,pab,pbj->pij", jac, d, jac) * np.asarray(weights, dtype=float)[:, None, None]
+    return np.column_stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], m[:, 0, 1], m[:, 0, 2], m[:, 1, 2]])
 
 
 def axis_sigmas(fishers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -121,6 +147,8 @@ def propagated_sigmas(
     error_rad: NDArray[np.float64],
     *,
     presence: NDArray[np.float64] | None = None,
+    shape=None,
+    efficient: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return the attitude error a per-star error makes through the weighted estimate, rad.
 
@@ -142,28 +170,45 @@ def propagated_sigmas(
     presence : ndarray (P,), optional
         The chance each pair's star is in the fit (detected): both sums are their expectations
         over the frames, ``sum p w`` and ``sum p w^2 e^2``. Default: every star, always.
+    shape, efficient
+        A PSF that is not round, and whether the error is the noise of the fit that weighs
+        (:func:`sandwich_terms`).
 
     Returns
     -------
     cross, roll : ndarray (M,)
         rad (rms of x and y; about z); NaN where F is singular.
     """
-    return _sandwich(*sandwich_terms(pairs, weights, error_rad, presence=presence))
+    terms = sandwich_terms(
+        pairs, weights, error_rad, presence=presence, shape=shape, efficient=efficient
+    )
+    return _sandwich(*terms)
 
 
 def sandwich_terms(
-    pairs: FieldStarsCam, weights, error_rad, *, presence=None
+    pairs: FieldStarsCam, weights, error_rad, *, presence=None, shape=None, efficient=False
 ) -> tuple[np.ndarray, np.ndarray]:
     """Return ``F = sum p w (I - r r^T)`` and ``G = sum p w^2 e^2 (I - r r^T)`` per attitude.
 
     The two sums (M, 3, 3) of :func:`propagated_sigmas`' sandwich ``F^-1 G F^-1``
     (``weights`` (P,) rad^-2 and ``error_rad`` (P,) rad per pair, a non-finite one counting as
-    0; ``presence`` (P,) the chance each star is in the fit, default 1).
+    0; ``presence`` (P,) the chance each star is in the fit, default 1). With ``shape``
+    (:func:`fisher_per_pointing`) the weights are ``w (I + D)``, and the error is round
+    (``e^2 I``: G's shape follows), or, with ``efficient``, the inverse of each star's
+    information (the noise of an efficient fit: ``G = F``).
     """
     w = np.where(np.isfinite(weights), weights, 0.0)
     e2 = np.where(np.isfinite(error_rad), np.asarray(error_rad, dtype=float) ** 2, 0.0)
     p = 1.0 if presence is None else np.asarray(presence, dtype=float)
-    return fisher_per_pointing(pairs, p * w), fisher_per_pointing(pairs, p * w * w * e2)
+    f = fisher_per_pointing(pairs, p * w, shape)
+    if shape is None:
+        return f, fisher_per_pointing(pairs, p * w * w * e2)
+    if efficient:  # each star's error covariance is the inverse of its information: G = F
+        return f, f
+    # G = sum w^2 e^2 J^T (I + D)^2 J, and (I + D)^2 = (1 + a^2 + c^2) I + 2 D
+    a, c = (np.asarray(t, dtype=float) for t in shape)
+    k = 1.0 + a * a + c * c
+    return f, fisher_per_pointing(pairs, p * w * w * e2 * k, (2.0 * a / k, 2.0 * c / k))
 
 
 def _sandwich(f: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -5,11 +5,12 @@ The default solver refines every attitude by maximum likelihood on the identifie
 (:mod:`starsense.model.fisher`). Its noise-equivalent angle is therefore that information,
 summed over the stars of each attitude through the projection:
 
-- at rest, each star's position information is isotropic (averaged over its sub-pixel phase)
-  and depends on its electrons alone: :func:`model_centroid_noise` tabulates it as a
+- at rest, each star's position information depends on its electrons alone (averaged over its
+  sub-pixel phase): :func:`model_centroid_noise` tabulates its mean over the two axes as a
   :class:`~starsense.analysis.datasheet.noise.CentroidNoise` whose noise, the solver's weights
   and the bound are the same number (an efficient estimator weighs each star by its own
-  information) and whose sub-pixel bias is zero (the model holds the pixel response);
+  information) and whose sub-pixel bias is zero (the model holds the pixel response); a PSF
+  that is not round adds its anisotropy (:func:`model_noise_and_shape`);
 - under a body rate, each star is a streak whose information is anisotropic (less along the
   streak): :func:`model_nea_at_rate` sums ``J^T I J`` per attitude (the rate is a nuisance of
   the fit, nearly uncorrelated with the attitude: a symmetric streak's mid-point does not move
@@ -29,15 +30,19 @@ from starsense.model.psf import psf_of
 from starsense.model.windows import window_half_px
 
 __all__ = [
+    "ROUND_SHAPE",
     "model_centroid_noise",
     "model_fisher_at_rate",
     "model_nea_at_rate",
+    "model_noise_and_shape",
     "streaks_px_of",
     "zero_pixel_bias",
 ]
 
 #: sub-pixel phases per axis of a star at rest (a streak averages its phases along itself: 2)
 N_PHASE_REST, N_PHASE_STREAK = 4, 2
+#: an anisotropy below this (a, c of model_noise_and_shape) is a round PSF's
+ROUND_SHAPE = 1e-3
 
 
 def model_centroid_noise(
@@ -58,6 +63,25 @@ def model_centroid_noise(
     CentroidNoise
         ``sigma_px``, ``solver_sigma_px``, ``crb_px``, ``window_model_px``: the bound; biases 0.
     """
+    return model_noise_and_shape(sensor, electrons_min, electrons_max, n_grid=n_grid)[0]
+
+
+def model_noise_and_shape(sensor, electrons_min: float, electrons_max: float, *, n_grid: int = 16):
+    """Return :func:`model_centroid_noise`'s table and the shape of the same information.
+
+    A star's position information at rest is the 2 x 2 ``I = m (I + D)``: ``m`` its mean over
+    the two axes (the table's ``1 / sigma^2``) and ``D = [[a, c], [c, -a]]`` its anisotropy,
+    zero for a round PSF (Gaussian, Airy, Moffat), not for a lens with astigmatism or coma,
+    whose star is located better across its long axis than along it: the attitude axes that
+    move stars along it are then the less certain
+    (:func:`~starsense.analysis.datasheet.field.fisher_per_pointing`'s ``shape``).
+
+    Returns
+    -------
+    CentroidNoise, and (electrons (K,), a (K,), c (K,)) or None
+        None where the PSF is round (``|a|, |c| < 1e-3`` on the whole table: a round PSF's
+        phases average to within ~1e-4 of it).
+    """
     lo = max(float(electrons_min), 1.0)
     hi = max(float(electrons_max), 2.0 * lo)
     grid = np.geomspace(lo, hi, int(n_grid))
@@ -66,7 +90,13 @@ def model_centroid_noise(
     sigma = np.where(mean > 0, 1.0 / np.sqrt(np.where(mean > 0, mean, 1.0)), np.nan)
     zero = np.zeros(len(grid))
     side = np.full(len(grid), 2.0 * window_half_px(psf_of(sensor)) + 1.0)
-    return CentroidNoise(grid, sigma, sigma, zero, zero, side, sigma, zero, sigma)
+    noise = CentroidNoise(grid, sigma, sigma, zero, zero, side, sigma, zero, sigma)
+    safe = np.where(mean > 0, mean, 1.0)
+    a = np.where(mean > 0, 0.5 * (info[:, 0, 0] - info[:, 1, 1]) / safe, 0.0)
+    c = np.where(mean > 0, info[:, 0, 1] / safe, 0.0)
+    if max(float(np.max(np.abs(a))), float(np.max(np.abs(c)))) < ROUND_SHAPE:
+        return noise, None
+    return noise, (grid, a, c)
 
 
 def zero_pixel_bias(electrons) -> PixelSpatialError:

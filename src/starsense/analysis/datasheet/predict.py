@@ -20,7 +20,10 @@ from starsense.analysis.datasheet.field import (
     fisher_per_pointing,
     propagated_sigmas,
 )
-from starsense.analysis.datasheet.model_noise import model_centroid_noise, zero_pixel_bias
+from starsense.analysis.datasheet.model_noise import (
+    model_noise_and_shape,
+    zero_pixel_bias,
+)
 from starsense.analysis.datasheet.noise import CentroidNoise, centroid_noise
 from starsense.analysis.datasheet.terms import (
     confusion_px,
@@ -115,6 +118,10 @@ class StarModel:
         for those it models; None without the counts.
     refine : {"model", "cog"}
         The solver's last step the prediction is of (:class:`starsense.solve.Solver`).
+    shape : (ndarray, ndarray, ndarray) or None
+        The model fit's position information's anisotropy on electrons: (electrons, a, c) of
+        :func:`~starsense.analysis.datasheet.model_noise.model_noise_and_shape`; None for a
+        round PSF and for the centre of gravity.
     """
 
     sensor: object
@@ -125,6 +132,7 @@ class StarModel:
     confusion_px: np.ndarray | None = None
     neighbours: tuple | None = None
     refine: str = "model"
+    shape: tuple | None = None
 
     @classmethod
     def build(
@@ -156,15 +164,20 @@ class StarModel:
         """
         sens = Sensitivity.for_sensor(sensor, model)
         e_hi, e_lo = (float(x) for x in sens.electrons(np.array([bright_mag, faint_mag])))
-        table = model_centroid_noise if refine == "model" else centroid_noise
-        noise = table(sensor, 0.5 * e_lo, 2.0 * e_hi)
+
+        def table(s):
+            if refine == "model":
+                return model_noise_and_shape(s, 0.5 * e_lo, 2.0 * e_hi)
+            return centroid_noise(s, 0.5 * e_lo, 2.0 * e_hi), None
+
+        noise, shape = table(sensor)
         probe = np.geomspace(max(e_lo, 1.0), max(e_hi, 2.0), 5)
         bias = zero_pixel_bias(probe) if refine == "model" else pixel_spatial_error(sensor, probe)
         corner = None
         sc = sensor.optics.psf_sigma_corner_px
         if sc > 0 and sc != sensor.detector.psf_sigma_px:
             wide = sensor.with_(detector=dataclasses.replace(sensor.detector, psf_sigma_px=sc))
-            corner = table(wide, 0.5 * e_lo, 2.0 * e_hi)
+            corner = table(wide)[0]
         conf = near = None
         if star_counts is not None:
             counts = np.asarray(star_counts, dtype=float)
@@ -181,7 +194,19 @@ class StarModel:
                 flux, rho = np.append(flux, f_m), np.append(rho, rho_m)
                 share = np.append(share, np.full(len(f_m), float(flux_error)))
             near = (flux, rho, share)
-        return cls(sensor, sens, noise, bias, corner, conf, near, refine)
+        return cls(sensor, sens, noise, bias, corner, conf, near, refine, shape)
+
+    def star_shape(self, magnitudes) -> tuple[np.ndarray, np.ndarray] | None:
+        """Return each star's position information's anisotropy ``(a, c)``, or None if round.
+
+        The model fit's (:attr:`shape`, on the star's electrons); the sums it enters are
+        :func:`~starsense.analysis.datasheet.field.fisher_per_pointing`'s ``shape``.
+        """
+        if self.shape is None:
+            return None
+        grid, a, c = self.shape
+        log_e = np.log(self.sensitivity.electrons(np.asarray(magnitudes, dtype=float)))
+        return np.interp(log_e, np.log(grid), a), np.interp(log_e, np.log(grid), c)
 
     def _corner_weight(self, z_cam) -> np.ndarray:
         """Return (r / r_corner)^2 of stars at camera-frame z (r from the detector centre)."""
@@ -296,6 +321,7 @@ def nea_at(
     # the solver's own weights (its assumed noise), which are not the stars' true noise: a
     # saturated star's centroid is worse than its photons say, and the fit trusts it anyway
     weights = 1.0 / model.star_sigmas_rad(mags, z, "weight") ** 2
+    shape = model.star_shape(mags)  # a PSF that is not round: the fit's weights are 2 x 2
     out = {}
     for kind in kinds:
         if kind == "catalogue":  # per star, not per magnitude: each star's own offset
@@ -303,10 +329,13 @@ def nea_at(
             continue
         sigma = model.star_sigmas_rad(mags, z, kind)
         if kind == "crb":
-            out[kind] = axis_sigmas(fisher_per_pointing(pairs, chance / sigma**2))
+            out[kind] = axis_sigmas(fisher_per_pointing(pairs, chance / sigma**2, shape))
         else:
             error = np.where(np.isfinite(sigma), sigma, 0)
-            out[kind] = propagated_sigmas(pairs, weights, error, presence=p)
+            efficient = kind == "nea" and model.refine == "model"  # its noise: 1 / information
+            out[kind] = propagated_sigmas(
+                pairs, weights, error, presence=p, shape=shape, efficient=efficient
+            )
     return out, pairs.counts()
 
 

@@ -48,7 +48,9 @@ def fisher_axes(fishers: np.ndarray) -> np.ndarray:
     return out
 
 
-def propagated_axes(pairs: FieldStarsCam, weights, error_rad, *, presence=None) -> np.ndarray:
+def propagated_axes(
+    pairs: FieldStarsCam, weights, error_rad, *, presence=None, shape=None, efficient=False
+) -> np.ndarray:
     """Return the X, Y, Z error (M, 3) that per-star errors make through the weighted fit, rad.
 
     The weighted least-squares sandwich ``F^-1 G F^-1`` with ``F = sum w (I - r r^T)`` and
@@ -65,13 +67,18 @@ def propagated_axes(pairs: FieldStarsCam, weights, error_rad, *, presence=None) 
         Each pair's error, 1 sigma per axis, rad.
     presence : ndarray (P,), optional
         The chance each pair's star is in the fit (the expected sums); default 1.
+    shape, efficient
+        A PSF that is not round, and whether the error is the weighing fit's own noise
+        (:func:`~starsense.analysis.datasheet.field.sandwich_terms`).
 
     Returns
     -------
     ndarray (M, 3)
         rad; NaN where F is singular.
     """
-    f, g = sandwich_terms(pairs, weights, error_rad, presence=presence)
+    f, g = sandwich_terms(
+        pairs, weights, error_rad, presence=presence, shape=shape, efficient=efficient
+    )
     out = np.full((len(f), 3), np.nan)
     ok = _regular(f)
     if ok.any():

@@ -87,7 +87,12 @@ class SkyStars:
         sigma = self.model.star_sigmas_rad(mags, self.pairs.v_cam[:, 2], kind)
         error = np.where(np.isfinite(sigma), sigma, 0.0)
         return propagated_axes(
-            self.pairs, self.weights, error, presence=self.presence[self.pairs.star]
+            self.pairs,
+            self.weights,
+            error,
+            presence=self.presence[self.pairs.star],
+            shape=self.model.star_shape(mags),
+            efficient=kind == "nea" and self.model.refine == "model",
         )
 
     def solving(self, rate_rad_s: float) -> np.ndarray:
