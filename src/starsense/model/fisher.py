@@ -31,12 +31,7 @@ from starsense.model.stamps import source_stamps
 from starsense.model.tracks import NodePositions, time_nodes
 from starsense.model.windows import window_half_px
 
-__all__ = [
-    "attitude_information",
-    "position_information",
-    "position_sigma_px",
-    "projection_jacobian",
-]
+__all__ = ["attitude_information", "position_information", "position_sigma_px"]
 
 
 def _one(psf: PixelPSF, sensor, electrons: float, streak, phase, background_e: float):
@@ -141,19 +136,8 @@ def attitude_information(sensor, v_cam, info_px) -> np.ndarray:
     ``v_cam`` (N, 3) (a rotation ``theta`` moves it by ``theta x v``), ``info_px`` (N, 2, 2) its
     position information. Sum the result over a frame's stars for its Fisher matrix.
     """
-    jac = projection_jacobian(v_cam, sensor.focal_length_px)
-    return np.einsum("nai,nab,nbj->nij", jac, np.asarray(info_px, float), jac)
-
-
-def projection_jacobian(v_cam, focal_px: float = 1.0) -> np.ndarray:
-    """Return ``J`` (N, 2, 3): how a small rotation ``theta`` (rad) moves each star's pixel (px).
-
-    The pinhole projection ``x = f vx / vz``, ``y = f vy / vz`` of the camera directions
-    ``v_cam`` (N, 3), with focal length ``focal_px`` (1: per unit focal length, the image
-    plane in radians at the centre).
-    """
     v = np.asarray(v_cam, dtype=float)
-    f = float(focal_px)
+    f = sensor.focal_length_px
     z = v[:, 2]
     # d(x, y)/d(v) of x = f vx / vz (px per unit vector), times d(v)/d(theta) = -[v]_x
     dproj = np.zeros((len(v), 2, 3))
@@ -164,4 +148,5 @@ def projection_jacobian(v_cam, focal_px: float = 1.0) -> np.ndarray:
     skew = np.zeros((len(v), 3, 3))
     skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = v[:, 2], -v[:, 1], v[:, 0]
     skew[:, 1, 0], skew[:, 2, 0], skew[:, 2, 1] = -v[:, 2], v[:, 1], -v[:, 0]
-    return dproj @ skew  # d(theta x v) = -[v]x theta = skew(v)^T... sign irrelevant in J^T I J
+    jac = dproj @ skew  # d(theta x v) = -[v]x theta = skew(v)^T... sign irrelevant in J^T I J
+    return np.einsum("nai,nab,nbj->nij", jac, np.asarray(info_px, float), jac)

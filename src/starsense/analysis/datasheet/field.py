@@ -23,7 +23,6 @@ from starsense.attitude.covariance import (
     fisher_components,
     fisher_from_components,
 )
-from starsense.model.fisher import projection_jacobian
 
 __all__ = [
     "FieldStarsCam",
@@ -83,9 +82,8 @@ def fisher_per_pointing(
     shape : (ndarray (P,), ndarray (P,)), optional
         ``(a, c)``: each star's information is ``w (I + D)`` in the image plane, not ``w I``,
         with ``D = [[a, c], [c, -a]]`` (a PSF that is not round is located better across its
-        long axis than along it); its part ``sum w J^T D J`` is added (``J`` the projection's
-        Jacobian per unit focal length, :func:`starsense.model.fisher.projection_jacobian`).
-        Default: round (``D = 0``).
+        long axis than along it); its part ``sum w T^T D T`` is added (``T`` a rotation's move
+        of the star in its tangent plane, along the pixel axes there). Default: round.
     """
     comp = fisher_components(pairs.v_cam, weights)
     if shape is not None:
@@ -107,12 +105,25 @@ def fisher_per_pointing(
 
 
 def _shape_components(v_cam, weights, shape) -> np.ndarray:
-    """Return the six terms (xx, yy, zz, xy, xz, yz) of ``w J^T D J`` per pair (P, 6)."""
+    """Return the six terms (xx, yy, zz, xy, xz, yz) of ``w T^T D T`` per pair (P, 6).
+
+    ``T`` (2 x 3) takes a small rotation to the star's move in its tangent plane, along the
+    pixel rows' direction there (``e1``, the camera x axis made normal to the star) and
+    ``e2 = v x e1``: ``T^T T = I - v v^T``, eq. 21's round part, of which this is the
+    anisotropic rest (the pixel axes seen from the star, as eq. 21 sees the pixel there).
+    """
     a, c = (np.asarray(t, dtype=float) for t in shape)
-    jac = projection_jacobian(v_cam)
+    v = np.asarray(v_cam, dtype=float)
+    e1 = np.zeros_like(v)
+    e1[:, 0] = 1.0
+    e1 -= v[:, :1] * v
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(v, e1)
+    # the move of v under theta is theta x v; its e_k part is e_k . (theta x v) = (v x e_k) . theta
+    t = np.stack([np.cross(v, e1), np.cross(v, e2)], axis=1)
     d = np.empty((len(a), 2, 2))
     d[:, 0, 0], d[:, 1, 1], d[:, 0, 1], d[:, 1, 0] = a, -a, c, c
-    m = np.einsum("pai,pab,pbj->pij", jac, d, jac) * np.asarray(weights, dtype=float)[:, None, None]
+    m = np.einsum("pai,pab,pbj->pij", t, d, t) * np.asarray(weights, dtype=float)[:, None, None]
     return np.column_stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], m[:, 0, 1], m[:, 0, 2], m[:, 1, 2]])
 
 
