@@ -14,6 +14,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from elongated_psf import elongated
 from scipy.spatial.transform import Rotation
 
 from starsense.analysis.availability.pointings import sky_attitudes
@@ -28,7 +29,6 @@ from starsense.analysis.datasheet.predict import StarModel, nea_at
 from starsense.catalog import load_catalog
 from starsense.model.fisher import attitude_information, position_information
 from starsense.sensor import load_sensor
-from starsense.sensor.psf_spec import PSFSpec
 
 
 def _pairs(rng, n=40, half_deg=8.0):
@@ -99,22 +99,9 @@ def test_a_round_error_through_elongated_weights():
     np.testing.assert_array_equal(f, g)
 
 
-def _elongated(sensor, sigma_major, sigma_minor, turn_rad, oversampling=8):
-    """The sensor with an empirical PSF: an elliptical Gaussian (an astigmatic lens's image)."""
-    half = 12 * oversampling
-    g = (np.arange(2 * half + 1) - half) / oversampling
-    x, y = np.meshgrid(g, g)
-    cos, sin = np.cos(turn_rad), np.sin(turn_rad)
-    u, w = cos * x + sin * y, -sin * x + cos * y
-    samples = np.exp(-0.5 * (u / sigma_major) ** 2 - 0.5 * (w / sigma_minor) ** 2)
-    spec = PSFSpec(kind="empirical", samples=samples / samples.sum(), oversampling=oversampling,
-                   source="elliptical Gaussian")  # fmt: skip
-    return sensor.with_(psf=spec)
-
-
 def test_prediction_of_an_elongated_psf_is_each_stars_full_information():
     """nea_at with the table's shape against J^T I J summed with each star's own 2 x 2."""
-    sensor = _elongated(load_sensor("st16"), 1.6, 0.9, np.radians(30.0))
+    sensor = elongated(load_sensor("st16"), 1.6, 0.9, np.radians(30.0))
     cat = load_catalog("hipparcos")
     v_mag = np.asarray(cat.mags["V"])
     keep = np.isfinite(v_mag) & (v_mag < 5.5)

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from elongated_psf import elongated
 from zoo_trials import zoo_trial
 
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.geometry.sampling import random_attitudes
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
-from starsense.sensor.psf_spec import PSFSpec
 from starsense.solve import Solver
 from starsense.solve.streaks import MIN_STREAK_SIGMAS, StreakCentroids, streak_centroids_of
 
@@ -56,19 +56,6 @@ def test_a_blend_measuring_long_does_not_stretch_every_capsule():
     assert np.all(np.abs(z) < 3.0), np.round(z, 2)
 
 
-def _elongated(sensor, sigma_major, sigma_minor, turn_rad, oversampling=8):
-    """The sensor with an empirical PSF: an elliptical Gaussian (an astigmatic lens's image)."""
-    half = 12 * oversampling
-    g = (np.arange(2 * half + 1) - half) / oversampling
-    x, y = np.meshgrid(g, g)
-    c, s = np.cos(turn_rad), np.sin(turn_rad)
-    u, w = c * x + s * y, -s * x + c * y
-    samples = np.exp(-0.5 * (u / sigma_major) ** 2 - 0.5 * (w / sigma_minor) ** 2)
-    spec = PSFSpec(kind="empirical", samples=samples / samples.sum(), oversampling=oversampling,
-                   source="elliptical Gaussian")  # fmt: skip
-    return sensor.with_(psf=spec)
-
-
 def _streaks_of(sensor, solver, image, sol=None):
     """What the solver's smear decision makes of the frame's matched detections."""
     sol = sol or solver(image)
@@ -98,7 +85,7 @@ def test_a_psf_elongated_at_rest_is_not_read_as_a_streak():
     stars are, is taken out: at rest no frame is smeared; at 1 deg/s (streaks of ~20 px) every
     frame still is.
     """
-    sensor = _elongated(load_sensor("st16"), 3.0, 0.8, 0.5)
+    sensor = elongated(load_sensor("st16"), 3.0, 0.8, 0.5)
     solver = Solver(sensor)
     rng = np.random.default_rng(5)
     for truth in random_attitudes(2, rng):
