@@ -26,7 +26,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import mmap
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -42,6 +41,7 @@ from starsense.errors import InputError
 from starsense.identify.cache import (
     DATABASE_FORMAT_VERSION,
     database_cache_file,
+    page_in,
     read_arrays,
     write_arrays,
 )
@@ -225,20 +225,8 @@ class IdentificationDatabase:
         return self._tree
 
     def page_in(self) -> None:
-        """Read every page of the tables kept memory-mapped from the cache, once.
-
-        A table mapped from the disk cache (:func:`starsense.identify.cache.read_arrays`) is
-        read from the file a page at a time the first time a lookup reaches it: the first
-        frames pay those reads (a search of an unknown scale reaches many). Reading one byte
-        a page here moves them to the start (a few ms for 100 MB of tables already in the
-        system's file cache); :meth:`starsense.solve.solver.Solver.prepare` calls it.
-        """
-        page = mmap.PAGESIZE
-        for name in self._ARRAYS:
-            a = getattr(self, name)
-            if isinstance(a.base, np.memmap):
-                flat = a.reshape(-1).view(np.uint8)
-                int(np.add.reduce(flat[::page], dtype=np.int64))
+        """Read the tables mapped from the disk cache through (:func:`~.cache.page_in`)."""
+        page_in([getattr(self, name) for name in self._ARRAYS])
 
     def __len__(self) -> int:
         return len(self.vectors)
