@@ -12,6 +12,7 @@ residual_scaled`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 
 import numpy as np
@@ -122,6 +123,7 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
             sky=sky,
             place=sky_places(solver, sky, obs_time=obs_time),
             points=points,
+            misfit=functools.partial(median_misfit, body, ref, sigma * pixel_rad),
         )
     if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
         att = residual_scaled(att)

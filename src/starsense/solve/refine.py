@@ -52,6 +52,7 @@ def refine_attitude(
     place=None,
     more=None,
     rate_hint_rad_s=None,
+    misfit=None,
 ) -> Refinement:
     """Fit the attitude to the pixels of the identified stars (module docstring).
 
@@ -82,6 +83,9 @@ def refine_attitude(
         At rest (``rate_rad_s`` None): the rate a frame's short streaks suggest. Where the
         pixels reject the model at rest, the rate is fitted from there
         (:func:`starsense.solve.smeared_fit.smeared_fit`).
+    misfit : callable, optional
+        ``misfit(rotation=R)``: the median of the centroids' normalised residuals at an
+        attitude (:func:`starsense.solve.fit_judgement.judged`'s move rule).
     more : callable, optional
         ``more(zero_point_e, rotation, rate) -> (plain, reference, mags)``: the other stars in
         view (:func:`starsense.solve.in_view.stars_in_view`), fitted with the identified ones
@@ -96,8 +100,11 @@ def refine_attitude(
     at_rest = functools.partial(  # the same frame fitted at rest, the streaks' rate its hint
         refine_attitude, image, sensor, rotation, ref=ref, plain=plain, mags=mags, sky=sky,
         cog_sigma_rad=cog_sigma_rad, fit_width=fit_width, place=place, more=more,
-        rate_hint_rad_s=rate,
+        rate_hint_rad_s=rate, misfit=misfit,
     )  # fmt: skip
+    judge = functools.partial(
+        judged, sensor=sensor, rotation=rotation, cog_sigma_rad=cog_sigma_rad, misfit=misfit
+    )
     if fit_width is None:
         fit_width = sensor.psf.fit_width or sensor.psf.is_gaussian
     mags = np.asarray(mags, float)
@@ -113,9 +120,7 @@ def refine_attitude(
         if zp is None:  # no flux to draw the neighbours at: the identified stars alone
             if first is None:
                 first = fit_windows(image, sensor, rotation, vectors=ref, rate_rad_s=rate, **opts)
-            return judged(
-                first, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=(len(ref), 0)
-            )
+            return judge(first, counts=(len(ref), 0))
         neighboured = functools.partial(
             fit_with_neighbours,
             image=image,
@@ -140,9 +145,7 @@ def refine_attitude(
                 also = "; the stars' short streaks fitted with the body rate"
                 smeared = dict(opts, fit_rate=True)
                 neighboured = functools.partial(neighboured, rate=fit.rate_rad_s, opts=smeared)
-        verdict = judged(
-            fit, sensor, rotation, cog_sigma_rad=cog_sigma_rad, counts=counts, also=also
-        )
+        verdict = judge(fit, counts=counts, also=also)
         if not verdict.used and rate_rad_s is not None:  # the streaks' rate: the pixels say no
             return _at_rest(verdict, at_rest)
         if more is None or not verdict.used:
@@ -158,7 +161,6 @@ def refine_attitude(
         if rate_rad_s is not None and isinstance(exc, InputError):  # more than a fit holds
             return _at_rest(refused, at_rest)
         return refused
-    judge = functools.partial(judged, sensor=sensor, rotation=rotation, cog_sigma_rad=cog_sigma_rad)
     done, why = _in_view_fit(neighboured, judge, stars=(plain, ref, mags), more=(px, rx, mx),
                              first=fit, zero_point=zp, also=also)  # fmt: skip
     if done is not None:
@@ -229,7 +231,19 @@ def _halvings(n: int) -> list[int]:
 
 
 def refined_attitude(
-    image, att, sensor, *, db, ident, places, rate_rad_s, sky, place, points, rate_hint_rad_s=None
+    image,
+    att,
+    sensor,
+    *,
+    db,
+    ident,
+    places,
+    rate_rad_s,
+    sky,
+    place,
+    points,
+    rate_hint_rad_s=None,
+    misfit=None,
 ):
     """Return the solver's attitude refined on the pixels, and a note saying how.
 
@@ -257,6 +271,9 @@ def refined_attitude(
         (:func:`starsense.solve.references.sky_places`).
     points : CentroidPoints
         The detections (their lit sums set the neighbours' zero point).
+    misfit : callable, optional
+        ``misfit(rotation=R)``: the median of the matched centroids' normalised residuals at
+        an attitude (:func:`refine_attitude`).
 
     Returns
     -------
@@ -286,7 +303,7 @@ def refined_attitude(
 
     opts = {"ref": ref, "plain": plain, "mags": mags, "sky": sky, "place": place}
     opts |= {"cog_sigma_rad": att.sigma_axes_rad, "rate_rad_s": rate_rad_s, "electrons": electrons}
-    opts["rate_hint_rad_s"] = rate_hint_rad_s
+    opts |= {"rate_hint_rad_s": rate_hint_rad_s, "misfit": misfit}
     done = refine_attitude(image, sensor, att.rotation, more=more, **opts)
     if not done.used:
         return att, (done.note,)
