@@ -295,3 +295,26 @@ def test_residuals_well_below_their_sigmas_lower_the_covariance_to_their_95_boun
     att = kernel_fit(add_noise(rng, few, np.full(8, ARCSEC)), few, np.full(8, 20.0 * ARCSEC))
     assert att.chi2_dof < MIN_DOF_LOWERED
     np.testing.assert_array_equal(residual_scaled(att).covariance_rad2, att.covariance_rad2)
+
+
+def test_residuals_beyond_noise_alarm_at_their_chance_and_always_at_four_times():
+    # 10 stars of right sigmas (dof 17): the chi-square passes its 1e-3 upper quantile in
+    # 1e-3 of fields; over 3,000 at most 10 (Poisson mean 3, P(> 10) ~ 3e-4). At sigmas a
+    # quarter of the scatter the chi-square is 16 times a right one (272 against the bound
+    # 40.8): under it only where a chi-square of 17 dof falls under 2.55 (P 2e-5), so in
+    # every one of 200 fields
+    from starsense.attitude.robust import RESIDUALS_P, residuals_beyond_noise
+
+    assert RESIDUALS_P == 1e-3  # the chance these bounds are for
+    rng = np.random.default_rng(21)
+    sigma = np.full(10, 10.0 * ARCSEC)
+    alarms = stated_low = 0
+    for _ in range(3000):
+        b_true = star_field(rng, 10, 15.0)
+        alarms += residuals_beyond_noise(kernel_fit(add_noise(rng, b_true, sigma), b_true, sigma))
+    for _ in range(200):
+        b_true = star_field(rng, 10, 15.0)
+        att = kernel_fit(add_noise(rng, b_true, 4.0 * sigma), b_true, sigma)
+        stated_low += residuals_beyond_noise(att)
+    assert alarms <= 10
+    assert stated_low == 200

@@ -13,12 +13,14 @@ __all__ = [
     "MIN_DOF_LOWERED",
     "MISFIT_SIGMAS",
     "OUTLIER_SIGMA",
+    "RESIDUALS_P",
     "SCATTER_STARS",
     "median_misfit",
     "pair_disagreements",
     "pair_outliers",
     "pair_scatter",
     "residual_scaled",
+    "residuals_beyond_noise",
     "robust_attitude",
 ]
 
@@ -29,6 +31,9 @@ OUTLIER_SIGMA = 7.0
 #: an attitude whose kept stars lie a median of more than this many of their own sigma from it
 #: does not fit its measurements (right ones: 1.18); the solver reports no attitude
 MISFIT_SIGMAS = 10.0
+#: the chance, for stars whose sigmas are right, that their residuals' chi-square exceeds the
+#: bound :func:`residuals_beyond_noise` tests
+RESIDUALS_P = 1e-3
 #: the fewest degrees of freedom (2 N - 3 for N stars) whose residuals may lower a covariance
 #: (:func:`residual_scaled`): 20, eleven or more stars
 MIN_DOF_LOWERED = 20
@@ -289,3 +294,15 @@ def residual_scaled(att):
     else:
         return att
     return att.replaced(covariance_rad2=np.asarray(att.covariance_rad2) * scale)
+
+
+def residuals_beyond_noise(att, p: float = RESIDUALS_P) -> bool:
+    """Whether the residuals of ``att`` scatter beyond what the stars' sigmas allow.
+
+    True where their chi-square (``2 loss``) exceeds the upper ``p`` quantile of a chi-square
+    of ``2 N - 3`` degrees of freedom: the stars' sigmas, or their model, do not describe them.
+    """
+    dof = att.chi2_dof
+    if dof <= 0 or not np.isfinite(att.loss):
+        return False
+    return 2.0 * float(att.loss) > 2.0 * float(gammaincinv(0.5 * dof, 1.0 - p))

@@ -6,7 +6,10 @@ streaks, :mod:`starsense.solve.streaks`, whose body rate starts the model's), th
 sensor and a frame, fits the sensor's forward model to the stars' pixels
 (:mod:`starsense.solve.refine`). The centroids' attitude, where it stands, reports its
 covariance scaled to what its residuals show (:func:`starsense.attitude.robust.
-residual_scaled`).
+residual_scaled`); a smeared frame's does not where they scatter beyond their model
+(:func:`starsense.attitude.robust.residuals_beyond_noise`): a rate or a streak model wrong
+enough to scatter them also moves every centroid along its streak the same way, an error of
+the attitude that no residual shows, and no attitude is reported.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from starsense.attitude.robust import (
     MISFIT_SIGMAS,
     median_misfit,
     residual_scaled,
+    residuals_beyond_noise,
     robust_attitude,
 )
 from starsense.solve.attitude_fit import kernel_fit
@@ -125,6 +129,11 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
             points=points,
             misfit=functools.partial(median_misfit, body, ref, sigma * pixel_rad),
         )
+    if att.method != "model" and streaks is not None and residuals_beyond_noise(att):
+        # smeared, no fit of the pixels stands, and the streak centroids scatter beyond their
+        # model: the rate or the streaks' model is wrong, which also moves every centroid
+        # along its streak the same way, an error the residuals do not show; no attitude
+        return median_misfit(body, ref, sigma * pixel_rad, rotation=att.rotation, keep=keep)
     if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
         att = residual_scaled(att)
     return att, apparent, notes
