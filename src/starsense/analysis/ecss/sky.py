@@ -20,7 +20,7 @@ from starsense.analysis.availability.pointings import sky_attitudes
 from starsense.analysis.datasheet.field import FieldStarsCam, field_stars_cam
 from starsense.analysis.datasheet.model_noise import model_fisher_at_rate
 from starsense.analysis.datasheet.predict import StarModel
-from starsense.analysis.datasheet.stars import FittedStars, fitted_stars
+from starsense.analysis.datasheet.stars import FittedStars, detection_chance, fitted_stars
 from starsense.analysis.ecss.axes import fisher_axes, propagated_axes
 from starsense.analysis.inputs import completed_sky
 from starsense.errors import InputError
@@ -100,12 +100,18 @@ class SkyStars:
 
         The chance that at least :data:`~starsense.identify.hashing.MIN_SOLVING_STARS` of the
         field's stars are detected, each with its own chance at the rate (a Poisson-binomial
-        tail: :func:`chance_at_least`); the datasheet's availability counts the same stars
-        against the same number. The statement describes the attitudes a sensor outputs: its
-        values over the sky are weighted by this chance.
+        tail: :func:`chance_at_least`; a star the model fit holds but the detector misses
+        identifies nothing); the datasheet's availability counts the same stars against the
+        same number, each in or out at its limiting magnitude. The statement describes the
+        attitudes a sensor outputs: its values over the sky are weighted by this chance.
         """
-        rest = self.stars.presence(0.0)
-        at_rate = self.stars.presence(rate_rad_s)[rest > 0.0]  # aligned with self.vectors
+        stars = self.stars
+        rest = stars.presence(0.0)
+        # detected, not fitted: the model fit also holds stars too faint to detect, which
+        # identify nothing (counted, every attitude of a sensor that solves 70 % of the sky
+        # read as solving)
+        seen = detection_chance(stars.slew, stars.magnitudes, rate_rad_s)
+        at_rate = np.where(stars.held, seen, 0.0)[rest > 0.0]  # aligned with self.vectors
         return chance_at_least(
             self.pairs.point, at_rate[self.pairs.star], self.pairs.n_pointings, k=MIN_SOLVING_STARS
         )
