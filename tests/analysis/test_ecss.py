@@ -185,3 +185,35 @@ def test_bad_rates(st16):
     if top < 29.0:
         with pytest.raises(InputError, match="past the slew tolerance"):
             ecss_statement(sensor, cat, rates_deg_s=[top + 1.0], settings=LIGHT, sheet=sheet)
+
+
+def test_too_few_solving_attitudes_give_every_attitudes_values(st16):
+    # the statement over the attitudes that solve, weighed by their chances: 25 attitudes of
+    # equal chance (an effective 25, at least MIN_SOLVING_ATTITUDES) give the median of those
+    # 25; a single one of chance 1e-3 (an
+    # effective 1: what esa_blackfly at 2 deg/s weighed) gives that of every attitude, and a
+    # note names the rate
+    from starsense.analysis.ecss.confidence import weighted_median
+    from starsense.analysis.ecss.statement import MIN_SOLVING_ATTITUDES, effective_attitudes
+
+    *_, statement = st16
+    source = next(t for t in statement.sources if t.key == "temporal_noise")
+    col = source.values_rad[0][:, 0]
+    n = len(col)
+    few = np.zeros(n)
+    few[:25] = 1.0
+    one = np.zeros(n)
+    one[7] = 1e-3
+    assert effective_attitudes(few) == pytest.approx(25.0)
+    assert effective_attitudes(one) == pytest.approx(1.0)
+    assert effective_attitudes(np.zeros(n)) == 0.0
+    assert MIN_SOLVING_ATTITUDES == 20  # between the two
+    rows = statement.solving[1]
+    for w, want, noted in ((few, weighted_median(col, few), False), (one, np.median(col), True)):
+        solving = ({n: w}, rows)
+        got = dataclasses.replace(statement, solving=solving).at_confidence(ONE_SIGMA)
+        rest = next(t for t in got.terms if t["key"] == "temporal_noise")["at_rate"][0]
+        assert rest["x_1sigma_arcsec"] == pytest.approx(want * RAD_TO_ARCSEC, rel=1e-12)
+        assert any(note.startswith("at 0 deg/s fewer than") for note in got.notes) is noted
+    # the 25 are not the sky's median attitude, or the two cases could not be told apart
+    assert abs(weighted_median(col, few) / np.median(col) - 1.0) > 0.01

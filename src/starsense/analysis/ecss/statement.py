@@ -28,7 +28,14 @@ from starsense.errors import InputError
 from starsense.photometry.colour import with_johnson_from_gaia
 from starsense.units import DEG, RAD_TO_ARCSEC
 
-__all__ = ["AXES", "SCHEMA", "Statement", "ecss_statement"]
+__all__ = [
+    "AXES",
+    "MIN_SOLVING_ATTITUDES",
+    "SCHEMA",
+    "Statement",
+    "ecss_statement",
+    "effective_attitudes",
+]
 
 #: the JSON's schema name and version
 SCHEMA = "starsense.ecss/1"
@@ -138,14 +145,41 @@ class Statement:
         }
 
 
+#: the fewest attitudes' worth of solving chances (Kish's effective number, ``(sum w)^2 /
+#: sum w^2``) whose weighted sky statistics describe the attitudes that solve. With fewer, one or
+#: two attitudes, each turned about its one rate direction, make the value: esa_blackfly at
+#: 2 deg/s weighed a single attitude (effective number 1.0) whose X noise was its rest value
+MIN_SOLVING_ATTITUDES = 20
+
+
+def effective_attitudes(w) -> float:
+    """Return Kish's effective number of attitudes of the weights ``w`` (0 for none)."""
+    w = np.asarray(w, dtype=float)
+    total = float(np.sum(w))
+    return total * total / float(np.sum(w * w)) if total > 0.0 else 0.0
+
+
 def _weights(solving: tuple, i: int, n: int):
     """Return the solving chances of rate ``i`` over ``n`` attitudes (None: unweighted).
 
-    Where no attitude can solve at that rate, the values are those of every attitude (what the
-    sensor would do if it solved; its availability says that it does not).
+    Where fewer than :data:`MIN_SOLVING_ATTITUDES` attitudes' worth can solve at that rate, the
+    values are those of every attitude (what the sensor would do if it solved, the poorer fields
+    with the rest: conservative; its availability says how seldom it does).
     """
     w = solving[i].get(n) if solving else None
-    return w if w is not None and float(np.sum(w)) > 0.0 else None
+    if w is None or effective_attitudes(w) < MIN_SOLVING_ATTITUDES:
+        return None
+    return w
+
+
+def _thin_rates(solving: tuple, rates: tuple) -> list[str]:
+    """Return the rates (deg/s, as text) at which too few attitudes solve to weigh them."""
+    return [
+        f"{r:g}"
+        for i, r in enumerate(rates)
+        if solving
+        and any(effective_attitudes(w) < MIN_SOLVING_ATTITUDES for w in solving[i].values())
+    ]
 
 
 def _at_rate(term, i: int, rate_rad_s: float, k: float, p: float, geometry, solving) -> dict:
@@ -345,4 +379,11 @@ def _assemble(
         "attitude weighs its chance of detecting the stars lost in space needs at that rate "
         "(the availability's count); the availability is stated apart",
     )
+    thin = _thin_rates(solving, rates)
+    if thin:
+        notes += (
+            f"at {', '.join(thin)} deg/s fewer than {MIN_SOLVING_ATTITUDES} attitudes' worth "
+            "of the sky solve: the values there are over every attitude, poorer fields included "
+            "(conservative)",
+        )
     return Statement(name, p, k, rates, tuple(rows), totals, notes, terms, tuple(geometry), solving)
