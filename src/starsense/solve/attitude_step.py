@@ -104,12 +104,13 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
     body, sigma, streaks = sigma_px(matched, points.x, vectors[matched])
     listed = points.what == "centroids"  # a list: its sigma stated, not measured (no pixels)
     att, keep = robust_attitude(body, ref, sigma * pixel_rad, fit=kernel_fit, scatter=listed)
+    misfit = functools.partial(median_misfit, body, ref, sigma * pixel_rad)  # at an attitude
     rate = hint = None  # smeared: the body rate the streaks give (starts the model fit's)
     if isinstance(streaks, ShortStreaks):  # too short to re-centroid: the rate they suggest
         hint, streaks = streaks.rate_rad_s, None
     if streaks is not None:  # smeared: centroids over the streaks, which must fit them
         rate = streak_body_rate(solver.sensor, body, streaks.streaks_px)
-        miss = median_misfit(body, ref, sigma * pixel_rad, rotation=att.rotation, keep=keep)
+        miss = misfit(rotation=att.rotation, keep=keep)
         if miss > MISFIT_SIGMAS:
             return float(miss)
     notes = ()
@@ -127,13 +128,13 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
             sky=sky,
             place=sky_places(solver, sky, obs_time=obs_time),
             points=points,
-            misfit=functools.partial(median_misfit, body, ref, sigma * pixel_rad),
+            misfit=misfit,
         )
     if att.method != "model" and streaks is not None and residuals_beyond_noise(att):
         # smeared, no fit of the pixels stands, and the streak centroids scatter beyond their
         # model: the rate or the streaks' model is wrong, which also moves every centroid
         # along its streak the same way, an error the residuals do not show; no attitude
-        return median_misfit(body, ref, sigma * pixel_rad, rotation=att.rotation, keep=keep)
+        return misfit(rotation=att.rotation, keep=keep)
     if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
         att = residual_scaled(att)
     return att, apparent, notes
