@@ -5,14 +5,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from elongated_psf import elongated
-from zoo_trials import zoo_trial
+from zoo_trials import zoo, zoo_trial
 
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.geometry.sampling import random_attitudes
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
 from starsense.solve import Solver
-from starsense.solve.streaks import MIN_STREAK_SIGMAS, StreakCentroids, streak_centroids_of
+from starsense.solve.streaks import (
+    MIN_STREAK_SIGMAS,
+    ShortStreaks,
+    StreakCentroids,
+    streak_centroids_of,
+)
+from starsense.units import DEG
 
 
 def test_faint_streaks_measuring_short_are_still_recentroided():
@@ -122,3 +128,56 @@ def test_short_streaks_are_fitted_with_the_body_rate():
         sol = solver(render_frame(sensor, truth, solver.catalog, rng=rng).image)
         assert sol.solved
         assert not any("short streaks" in n for n in sol.notes), sol.notes
+
+
+#: a wide field of faint stars: 36 deg on 640 x 480 px (209 arcsec/px), PSF sigma 2.5 px,
+#: f/2.8, 12 e- of read noise, 0.5 s: at 1 deg/s a streak of 8.6 px (3.4 PSF sigmas) that
+#: doubles a star's variance along it, on stars whose brightest pixels stand 2-6 sigma above
+#: the noise (too few lit to measure their streaks)
+FAINT_WIDE = {
+    "fov_deg": 36.0, "columns": 640, "rows": 480, "pitch_um": 10.0, "psf_sigma_px": 2.5,
+    "exposure_s": 0.5, "bit_depth": 12, "read_noise_e": 12.0, "qe": 0.5, "f_number": 2.8,
+}  # fmt: skip
+
+
+@pytest.mark.slow
+def test_faint_streaks_that_light_too_few_pixels_still_have_the_rate_fitted():
+    """Fitted at rest, a frame of faint stars smeared over 3.4 PSF sigmas was not rejected by
+    its chi-square (the faint pixels barely see the smear) and its stars' lit pixels measured
+    no streak, so the rate was never tried: the fit's sigmas assumed the narrower image. The
+    brightest stars' adaptive moments suggest the rate, and a smear that long is put to the
+    likelihood ratio: most solved frames are fitted with the rate, within 3.5 of their sigma on
+    each axis (the Gaussian bound of the tests above)."""
+    sensor = zoo.make_sensor("faint_wide", **FAINT_WIDE)
+    solver = Solver(sensor)
+    rng = np.random.default_rng(20261207)
+    fitted, solved = 0, 0
+    for truth in random_attitudes(12, rng):
+        turn = rng.uniform(0.0, 2.0 * np.pi)
+        rate = DEG * np.array([np.cos(turn), np.sin(turn), 0.0])
+        frame = render_frame(sensor, truth, solver.catalog, rate_rad_s=rate, rng=rng)
+        sol = solver(frame.image)
+        if not sol.solved:  # some fields hold too few stars this bright
+            continue
+        solved += 1
+        fitted += any("short streaks fitted with the body rate" in n for n in sol.notes)
+        z = small_rotation_angles(truth, sol.rotation) / np.asarray(sol.sigma_rad)
+        assert np.all(np.abs(z) < 3.5), np.round(z, 2)
+    assert solved >= 5  # 7 of these 12 fields solve (5 have too few stars this bright)
+    assert fitted >= 0.75 * solved, (fitted, solved)
+
+
+def test_faint_stars_that_light_no_streak_suggest_the_rate_by_their_weighted_moments():
+    """On the faint wide field above, the brightest matched stars light too few pixels to
+    measure their streaks; their adaptive moments give the rate, up to its sign, within 20 deg
+    of the true one's direction (8.6 px streaks on a 2.5 px PSF)."""
+    sensor = zoo.make_sensor("faint_wide", **FAINT_WIDE)
+    solver = Solver(sensor)
+    rng = np.random.default_rng(3)
+    truth = random_attitudes(1, rng)[0]
+    rate = DEG * np.array([0.6, -0.8, 0.0])
+    frame = render_frame(sensor, truth, solver.catalog, rate_rad_s=rate, rng=rng)
+    got = _streaks_of(sensor, solver, frame.image)
+    assert isinstance(got, ShortStreaks)
+    hint = got.rate_rad_s[:2] / np.linalg.norm(got.rate_rad_s[:2])
+    assert abs(hint @ rate[:2]) / np.linalg.norm(rate[:2]) > np.cos(np.radians(20.0))

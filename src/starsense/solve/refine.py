@@ -4,8 +4,9 @@ Once a frame is identified and a first attitude fitted to the centroids, the att
 body rate, when the frame is smeared) is refined by maximum likelihood on the pixels around the
 identified stars (:func:`starsense.model.fit.fit_windows`): each star's flux and each window's
 background are free, and the catalogue stars whose light reaches a window are in the model
-(:mod:`starsense.solve.neighbours`); a frame fitted at rest whose pixels reject it is fitted
-again with the body rate free (:mod:`starsense.solve.smeared_fit`), and a frame whose fit at
+(:mod:`starsense.solve.neighbours`); a frame fitted at rest whose short streaks suggest a smear
+that matters is fitted again with the body rate free (:mod:`starsense.solve.smeared_fit`), the
+likelihood ratio deciding, and a frame whose fit at
 its streaks' rate is refused is fitted at rest (blends in a crowded field can measure as
 streaks); then the other stars in view join (:mod:`starsense.solve.in_view`).
 
@@ -80,9 +81,9 @@ def refine_attitude(
         Fit the PSF's width (default: the sensor's ``psf.fit_width``, and always for a
         Gaussian, whose width costs nothing to fit).
     rate_hint_rad_s : ndarray (3,), optional
-        At rest (``rate_rad_s`` None): the rate a frame's short streaks suggest. Where the
-        pixels reject the model at rest, the rate is fitted from there
-        (:func:`starsense.solve.smeared_fit.smeared_fit`).
+        At rest (``rate_rad_s`` None): the rate a frame's short streaks suggest. Where it draws
+        streaks long enough to matter, the rate is fitted from there and kept where the
+        likelihood ratio says so (:func:`starsense.solve.smeared_fit.smeared_fit`).
     misfit : callable, optional
         ``misfit(rotation=R)``: the median of the centroids' normalised residuals at an
         attitude (:func:`starsense.solve.fit_judgement.judged`'s move rule).
@@ -136,16 +137,19 @@ def refine_attitude(
         # them (a real lens unlike the sensor's [psf] is refused before fainter stars are fitted)
         fit, counts = neighboured(stars=stars, first=first, zero_point=zp)
         also = ""
+        verdict = judge(fit, counts=counts)
         if rate_hint_rad_s is not None and not fit_rate:  # at rest, unless the pixels say not
             moving = smeared_fit(
                 fit, neighboured.keywords, stars=stars, hint=rate_hint_rad_s, zero_point=zp
             )
-            if moving is not None:
-                (fit, counts), fit_rate = moving, True
-                also = "; the stars' short streaks fitted with the body rate"
+            also = "; the stars' short streaks fitted with the body rate"
+            moved = None if moving is None else judge(moving[0], counts=moving[1], also=also)
+            if moved is not None and (moved.used or not verdict.used):  # else at rest stands
+                (fit, counts), fit_rate, verdict = moving, True, moved
                 smeared = dict(opts, fit_rate=True)
                 neighboured = functools.partial(neighboured, rate=fit.rate_rad_s, opts=smeared)
-        verdict = judge(fit, counts=counts, also=also)
+            else:
+                also = ""
         if not verdict.used and rate_rad_s is not None:  # the streaks' rate: the pixels say no
             return _at_rest(verdict, at_rest)
         if more is None or not verdict.used:
@@ -176,9 +180,9 @@ def _at_rest(refused: Refinement, at_rest) -> Refinement:
 
     A crowded field's blended stars can measure as streaks: fitted at their rate, the frame's
     pixels reject the model, or the stars' and neighbours' tracks pass a fit's work. Fitted at
-    rest, the rate its hint, the likelihood decides: where the pixels reject the model at rest
-    the rate is fitted from there (:func:`starsense.solve.smeared_fit.smeared_fit`); a fit at
-    rest they accept is used. Else the refusal stands.
+    rest, the rate its hint, the likelihood decides between the two models
+    (:func:`starsense.solve.smeared_fit.smeared_fit`); a fit at rest the pixels accept is
+    used. Else the refusal stands.
     """
     done = at_rest()
     if not done.used:

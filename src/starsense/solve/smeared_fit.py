@@ -1,13 +1,11 @@
 """A frame fitted at rest that the pixels reject: fitted again with the body rate free.
 
 Short streaks (too short to re-centroid) leave a frame to be fitted at rest first
-(:mod:`starsense.solve.refine`); where the pixels reject that model the likelihood decides
-whether the smear is real (:func:`smeared_fit`).
+(:mod:`starsense.solve.refine`); where the streaks suggest a smear long enough to matter the
+likelihood decides whether it is real (:func:`smeared_fit`).
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -19,10 +17,6 @@ from starsense.solve.streak_model import MIN_STREAK_SIGMAS
 
 __all__ = ["smeared_fit"]
 
-#: a fit at rest whose chi-square exceeds the pixels' count by this many of its standard
-#: deviations (``sqrt(2 dof)``) is rejected: a frame whose streaks are short is fitted again with
-#: the body rate free
-REJECTED_SIGMAS = 3.0
 #: the chi-square drop that keeps the rate: the likelihood-ratio test of 3 more parameters at a
 #: false alarm of 1e-3 (``scipy.stats.chi2.isf(1e-3, 3)``)
 RATE_EVIDENCE_CHI2 = 16.27
@@ -31,22 +25,20 @@ RATE_EVIDENCE_CHI2 = 16.27
 def smeared_fit(fit, keywords, *, stars, hint, zero_point):
     """Return the fit of ``stars`` with the body rate free (and its counts), or None.
 
-    A frame whose streaks are too short to re-centroid is fitted at rest first. Where the
-    pixels reject that model (its chi-square above the pixels' count by
-    :data:`REJECTED_SIGMAS` of its own spread) the fit is made again with the rate free,
-    started at ``hint`` (the rate the measured streaks suggest: the likelihood is even in the
-    rate, flat at rest, so a fit started there stays) where it draws a streak of at least
-    ``MIN_STREAK_SIGMAS`` PSF sigmas (shorter, the smear lengthens the image by under 15 %:
-    a width fitted between the axes costs under 1 % of the stars' position information). It
+    A frame whose streaks are too short to re-centroid is fitted at rest first; it is fitted
+    again with the rate free, started at ``hint`` (the rate the measured streaks suggest: the
+    likelihood is even in the rate, flat at rest, so a fit started there stays), where the
+    hint draws a streak of at least ``MIN_STREAK_SIGMAS`` PSF sigmas (shorter, the smear
+    lengthens the image by under 15 %: a width fitted between the axes costs under 1 % of the
+    stars' position information). Whether the fit at rest was rejected does not decide: the
+    chi-square of faint stars' pixels barely sees a smear that doubles their width along the
+    streak (and halves the information there), the likelihood ratio of the two models does. It
     is kept where the likelihood ratio says so: the model at rest, fitted again on the same
     pixels (the streaks' windows) with the same neighbours, has a chi-square higher by more
     than :data:`RATE_EVIDENCE_CHI2` (3 rate parameters at a false alarm of 1e-3), and the
     rate fitted draws streaks as long as the hint had to (a tiny rate that takes up a
     model's small misfit of many bright stars is no smear).
     """
-    excess = fit.chi2 - fit.dof
-    if not math.isfinite(excess) or excess <= REJECTED_SIGMAS * math.sqrt(2.0 * fit.dof):
-        return None
     image, sensor = keywords["image"], keywords["sensor"]
     shortest = MIN_STREAK_SIGMAS * psf_of(sensor).sigma_px
     if _longest_px(sensor, fit.rotation, stars[1], hint) < shortest:

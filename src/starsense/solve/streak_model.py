@@ -27,6 +27,7 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from starsense.detect.adaptive_moments import adaptive_axes
 from starsense.detect.streak import SYSTEMATIC, streak_axes
 from starsense.model.psf import psf_of
 
@@ -116,6 +117,8 @@ def streak_model(sensor, image, xy, *, order, counts=None, **measure):
     hint = None  # the rate the brightest streaks suggest, however short
     if np.count_nonzero(measured) >= 3:
         hint = _rate(sensor, x[bright][measured], y[bright][measured], first[measured])
+    else:  # too faint to light their streaks: their weighted moments suggest it
+        hint = _faint_hint(sensor, image, (x[bright], y[bright]), half, measure.get("level"))
     first2, screen = first2[measured], 0.5 * shortest
     if len(first2) == 0 or np.median(first2) < screen**2:
         return None, hint
@@ -149,6 +152,34 @@ def streak_model(sensor, image, xy, *, order, counts=None, **measure):
     if float(np.max(np.hypot(drawn[:, 0], drawn[:, 1]))) < shortest:
         return None, hint
     return model, hint
+
+
+def _faint_hint(sensor, image, xy, half: int, level) -> np.ndarray | None:
+    """Return the rate the adaptive moments of stars ``xy`` suggest (at least 3), or None.
+
+    :func:`starsense.detect.adaptive_moments.adaptive_axes`, less what the sensor's PSF shows
+    on its own at each star's phase (:func:`_psf_adaptive`; a round PSF shows nothing).
+    """
+    x, y = xy
+    axes = adaptive_axes(image, x, y, half_px=half, start_sigma_px=psf_of(sensor).sigma_px,
+                         level=level)  # fmt: skip
+    if not sensor.psf.is_gaussian:
+        axes = less_psf(axes, _psf_adaptive(sensor, xy, half))
+    ok = np.isfinite(axes).all(axis=(1, 2))
+    if np.count_nonzero(ok) < 3:
+        return None
+    return _rate(sensor, x[ok], y[ok], axes[ok])
+
+
+def _psf_adaptive(sensor, xy, half: int) -> np.ndarray:
+    """Return :func:`adaptive_axes` of the sensor's PSF alone at stars ``xy``' phases."""
+    psf = psf_of(sensor)
+    fx, fy = (np.asarray(v, float) - np.round(v) for v in xy)
+    side = 2 * half + 1
+    tmpl = psf.grid(-half - fx, -half - fy, (side, side), gradient=False)  # (K, rows, columns)
+    strip = np.concatenate(list(tmpl), axis=1)  # the stars side by side, each in its window
+    return adaptive_axes(strip, half + fx + side * np.arange(len(fx)), half + fy, half_px=half,
+                         start_sigma_px=psf.sigma_px, level=0.0)  # fmt: skip
 
 
 def _streaks_of(sensor, rate, xs, ys) -> np.ndarray:
