@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.model.fit import fit_windows
 from starsense.model.psf import pixel_psf
-from starsense.model.stamps import source_stamps, stamp_side
+from starsense.model.stamps import SEPARABLE_BOX_STAMPS, source_stamps, stamp_side
 from starsense.model.tracks import NodePositions, node_positions, time_nodes
 from starsense.model.windows import evaluate, make_windows
 from starsense.sensor import load_sensor
@@ -79,22 +79,27 @@ def test_jacobian_is_the_derivative_of_the_pixels(kind, rate_deg_s):
         assert np.abs(fd - jac[:, p]).max() < 1e-4 * np.abs(jac[:, p]).max()
 
 
+@pytest.mark.parametrize("length", [60.0, 200.0])
 @pytest.mark.parametrize("kind", ["gaussian", "moffat", "airy"])
-def test_a_long_streak_is_each_nodes_light_within_the_reach(kind):
-    """A 60 px streak drawn node by node is, pixel by pixel, the sum over its time nodes of the
+def test_a_long_streak_is_each_nodes_light_within_the_reach(kind, length):
+    """A 60 px (200 px) streak drawn is, pixel by pixel, the sum over its time nodes of the
     pixel-integrated PSF at each pixel centre within the reach (``half_px``) of the node: the
     same light a star at rest puts in its box. The reference is summed here node by node over
-    the whole box, masked to each node's reach; agreement to round-off (1e-12 of the peak)."""
+    the whole box, masked to each node's reach; agreement to round-off (1e-12 of the peak).
+    A Gaussian's 60 px box (19 stamps) is summed as matrix products, its 200 px one (155
+    stamps, past ``SEPARABLE_BOX_STAMPS``) node by node, as the other profiles are."""
     psf = pixel_psf(PSFSpec(kind=kind), 1.3)
     half = 5.0
-    frac, wts = time_nodes(60.0, psf.sigma_px)
-    x, y = 200.3 + 48.0 * frac, 300.7 + 36.0 * frac
+    frac, wts = time_nodes(length, psf.sigma_px)
+    x, y = 200.3 + 0.8 * length * frac, 300.7 + 0.6 * length * frac
     par = np.broadcast_to(np.eye(3), (1, len(frac), 3, 3))
     nodes = NodePositions(x[None], y[None], wts, par[..., 0, :], 2.0 * par[..., 1, :])
     box = (math.floor(y.min() - half + 0.5), math.floor(y.max() + half + 0.5) + 1,
            math.floor(x.min() - half + 0.5), math.floor(x.max() + half + 0.5) + 1)  # fmt: skip
     rows, cols = np.arange(box[0], box[1])[None], np.arange(box[2], box[3])[None]
     assert rows.size * cols.size > 10 * stamp_side(half) ** 2  # a box of many stamps
+    by_nodes = rows.size * cols.size > SEPARABLE_BOX_STAMPS * stamp_side(half) ** 2
+    assert by_nodes == (length > 100.0)  # both of a Gaussian's ways are drawn
     t, d = source_stamps(psf, nodes, np.array([0]), rows=rows, cols=cols, half_px=half)
     ref, ref_dx, ref_dy = np.zeros(t.shape[1:]), np.zeros(t.shape[1:]), np.zeros(t.shape[1:])
     r, c = rows[0][:, None], cols[0][None, :]
@@ -112,6 +117,28 @@ def test_a_long_streak_is_each_nodes_light_within_the_reach(kind):
     # nearly all the light of a Gaussian (99.9 %) lies within the reach of 5 px at sigma 1.3
     if kind == "gaussian":
         assert 0.999 < t.sum() <= 1.0
+
+
+@pytest.mark.parametrize("kind", ["gaussian", "moffat"])
+def test_a_box_cut_from_a_long_track_holds_the_light_of_the_whole_tracks(kind):
+    """A 200 px streak's stamps on a box cut from its own (a group's box, the detector's edge:
+    most nodes' reach lies off it) equal, pixel by pixel, that part of the whole box's (only
+    the nodes reaching the cut are drawn). Round-off agreement (1e-12 of the peak)."""
+    psf = pixel_psf(PSFSpec(kind=kind), 1.3)
+    half, length = 5.0, 200.0
+    frac, wts = time_nodes(length, psf.sigma_px)
+    x, y = 200.3 + 0.8 * length * frac, 300.7 + 0.6 * length * frac
+    par = np.broadcast_to(np.eye(3), (1, len(frac), 3, 3))
+    nodes = NodePositions(x[None], y[None], wts, par[..., 0, :], 2.0 * par[..., 1, :])
+    rows = np.arange(math.floor(y.min() - half), math.ceil(y.max() + half) + 1)[None]
+    cols = np.arange(math.floor(x.min() - half), math.ceil(x.max() + half) + 1)[None]
+    whole = source_stamps(psf, nodes, np.array([0]), rows=rows, cols=cols, half_px=half)
+    r, c = slice(40, 75), slice(60, 110)  # across the track's middle
+    cut = source_stamps(psf, nodes, np.array([0]), rows=rows[:, r], cols=cols[:, c], half_px=half)
+    ref_t, ref_d = whole[0][:, r, c], whole[1][:, :, r, c]
+    assert ref_t.max() > 0.0  # the cut holds part of the streak
+    np.testing.assert_allclose(cut[0], ref_t, rtol=0, atol=1e-12 * ref_t.max())
+    np.testing.assert_allclose(cut[1], ref_d, rtol=0, atol=1e-12 * np.abs(ref_d).max())
 
 
 def _slots(windows, fluxes):

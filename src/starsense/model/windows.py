@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from starsense.errors import InputError
 from starsense.model.psf import PixelPSF
@@ -202,26 +203,31 @@ def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
 def _nearest_mask(windows_shape, g_r0, g_c0, group, x, y, hit, on):
     """Keep in each group the pixels nearer its own free tracks than another group's.
 
-    ``hit`` (S, G): which groups each source's box reaches (only there it competes).
+    ``hit`` (S, G): which groups each source's box reaches (only there it competes). A
+    pixel's distance to a track is to its nearest time node; a group's pixels are queried
+    against a k-d tree of its own tracks' nodes and one of the other free tracks' reaching it
+    (a streak's box holds ~1e4 pixels and its track ~1e3 nodes: a tree, not every pair).
     """
-    g_n, (h, w) = len(g_r0), windows_shape
-    best = np.full((g_n, h, w), np.inf)
-    own = np.full((g_n, h, w), np.inf)
+    (h, w), out = windows_shape, on.copy()
     free = group >= 0
-    shared = hit[free].sum(axis=0) > 1  # a group no other free track reaches keeps its pixels
-    best[~shared] = own[~shared] = 0.0
-    for s in np.flatnonzero(free & (hit & shared[None, :]).any(axis=1)):
-        gs = np.flatnonzero(hit[s] & shared)  # each free track's distance over the grids it shares
-        rows = g_r0[gs, None] + np.arange(h)
-        cols = g_c0[gs, None] + np.arange(w)
-        dy2 = (rows[:, :, None] - y[s][None, None, :]) ** 2  # (g, h, K)
-        dx2 = (cols[:, :, None] - x[s][None, None, :]) ** 2  # (g, w, K)
-        d2 = np.min(dy2[:, :, None, :] + dx2[:, None, :, :], axis=-1)
-        best[gs] = np.minimum(best[gs], d2)
-        mine = gs == group[s]
-        if mine.any():
-            own[group[s]] = np.minimum(own[group[s]], d2[mine][0])
-    return on & (own <= best)
+    for g in np.flatnonzero(hit[free].sum(axis=0) > 1):  # a group no other track reaches: all
+        others = free & hit[:, g] & (group != g)
+        if not others.any():
+            continue
+        mine = free & (group == g)
+        pix = np.column_stack(
+            [np.repeat(g_r0[g] + np.arange(h), w), np.tile(g_c0[g] + np.arange(w), h)]
+        ).astype(float)
+        d_own = _nearest_node(pix, x[mine], y[mine])
+        d_other = _nearest_node(pix, x[others], y[others])
+        out[g] &= (d_own <= d_other).reshape(h, w)
+    return out
+
+
+def _nearest_node(pix, x, y) -> np.ndarray:
+    """Return each pixel's (row, column) distance to the nearest of the nodes (x, y), px."""
+    tree = cKDTree(np.column_stack([np.ravel(y), np.ravel(x)]))
+    return tree.query(pix)[0]
 
 
 def make_windows(
