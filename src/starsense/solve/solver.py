@@ -45,6 +45,7 @@ from starsense.solve.pinhole import pinhole_vectors
 from starsense.solve.settings import Algorithm, BackgroundMode, SolverSettings, solver_settings
 from starsense.solve.sharp import retry_with_spikes, spike_detector
 from starsense.solve.solution import Solution
+from starsense.solve.streak_pieces import joined_pieces
 from starsense.solve.streaks import matched_measurements
 from starsense.units import DEG
 
@@ -280,7 +281,7 @@ class Solver:
     def _solve_frame(self, a, detector, t0, stages, obs_time, first=False) -> Solution:
         """Detect and solve frame ``a`` (a ``first`` attempt: at the known field only)."""
         t1 = time.perf_counter()
-        det = detector(a)
+        det = joined_pieces(self, a, detector(a))  # a long faint streak's pieces: one star
         stages["detect_ms"] = ms(t1)
         counts = detection_counts(a, det)
         if len(det) == 0:

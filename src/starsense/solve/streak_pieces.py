@@ -1,0 +1,189 @@
+"""The pieces of a long faint streak joined into one detection before identification.
+
+A star smeared over many PSF widths lights a narrow ridge; where its light per pixel is a few
+noise sigmas the noise takes the ridge below the threshold here and there, and the detector
+finds pieces of it, each centroided somewhere along the streak instead of at its middle (the
+star's place at mid-exposure): identification then matches only the few stars bright enough to
+stay whole. The brightest streaks give the body rate (:func:`~starsense.solve.streak_model.
+streak_model`), which draws every star's streak where it lies; detections on one such streak
+(within the PSF's width of its line, together no longer than it) are one star's pieces. Where
+together they span the whole streak they become one detection at the span's middle, their
+light summed; pieces that span less of it are left as they are (their middle is not the
+star's), as is a frame whose streaks are short or whose brightest detections are not streaks.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from starsense.detect.streak import SYSTEMATIC
+from starsense.solve.streak_model import (
+    CAPSULE_PAD_PX,
+    CAPSULE_SIGMAS,
+    MIN_STREAK_SIGMAS,
+    N_RATE_STARS,
+    streak_model,
+)
+
+__all__ = ["joined_pieces"]
+
+
+def joined_pieces(solver, image, det):
+    """Return the detections ``det`` with each long streak's pieces joined (module docstring).
+
+    Parameters
+    ----------
+    solver : Solver
+        Its sensor (None: nothing is joined), settings and detection logic.
+    image : ndarray, shape (rows, columns)
+        The frame, counts.
+    det : Detections
+
+    Returns
+    -------
+    Detections
+        ``det`` itself where nothing is joined.
+    """
+    sensor = solver.sensor
+    if sensor is None or len(det) < 3:
+        return det
+    sigma = float(sensor.detector.psf_sigma_px)
+    margin = solver.detector.margin_px
+    box = det.bbox
+    extent = np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2])
+    order = np.argsort(-det.integrated_counts, kind="stable")
+    shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * margin  # the shortest re-centroided streak
+    if np.median(extent[order[:N_RATE_STARS]]) < shortest:
+        return det  # the brightest are no streaks: at rest, or too short to break
+    known = solver.settings.background == "known"
+    model, _ = streak_model(
+        sensor,
+        image,
+        (det.x, det.y),
+        order=order,
+        extent_px=extent.astype(float),
+        level=float(sensor.detector.bias_counts) if known else None,
+        threshold=solver.logic.lit_pixel_counts,
+        threshold_sigma=None if known else solver.settings.threshold_sigma,
+        margin_px=margin,
+    )
+    if model is None:
+        return det
+    streaks = model(det.x, det.y)
+    groups = _streak_groups(det, streaks, width=CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX)
+    if all(len(g) == 1 for g in groups):
+        return det
+    return _merged(det, groups, streaks)
+
+
+def _streak_groups(det, streaks, *, width: float) -> list[np.ndarray]:
+    """Return the detections grouped by the streak they lie on: whole streaks' pieces joined.
+
+    ``streaks`` (N, 2): each detection's streak as the rate draws it there, px. Two detections
+    lie on one streak when each is within ``width`` of the other's line and within its length
+    along it; pieces are joined, closest first, while together they span no more than the
+    streak (its lit ends lie within ``width`` of its ends). A group is kept joined where it
+    spans the streak's length to within ``SYSTEMATIC`` (the lit pixels' shortfall at the
+    ends); the others fall back to their single detections.
+    """
+    xy = np.column_stack([det.x, det.y])
+    length = np.hypot(streaks[:, 0], streaks[:, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        along = np.where(length[:, None] > 0, streaks / length[:, None], 0.0)
+    # each detection's lit extent along its streak: its box's corners projected on the line
+    corners = _corners(det.bbox)
+    pairs = cKDTree(xy).query_pairs(float(np.max(length, initial=0.0)), output_type="ndarray")
+    if len(pairs) == 0:
+        return [np.array([i]) for i in range(len(xy))]
+    i, j = pairs[:, 0], pairs[:, 1]
+    d = xy[j] - xy[i]
+    s = np.einsum("ij,ij->i", d, along[i])
+    cross = np.abs(d[:, 0] * along[i, 1] - d[:, 1] * along[i, 0])
+    cross_j = np.abs(d[:, 0] * along[j, 1] - d[:, 1] * along[j, 0])
+    ok = (cross <= width) & (cross_j <= width) & (np.abs(s) <= np.minimum(length[i], length[j]))
+    i, j, s = i[ok], j[ok], np.abs(s[ok])
+    parent = np.arange(len(xy))
+
+    def root(k):
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    members = {k: [k] for k in range(len(xy))}
+    for a, c in zip(i[np.argsort(s)], j[np.argsort(s)], strict=True):
+        ra, rc = root(a), root(c)
+        if ra == rc:
+            continue
+        joined = members[ra] + members[rc]
+        if _span(corners[joined], along[ra]) > length[ra] + 2.0 * width:
+            continue  # longer than one star's streak: two stars on one line
+        parent[rc] = ra
+        members[ra] = joined
+        del members[rc]
+    out = []
+    for r, m in members.items():
+        m = np.asarray(m)
+        if len(m) > 1 and _span(corners[m], along[r]) < (1.0 - SYSTEMATIC) * length[r]:
+            out.extend(np.array([k]) for k in m)  # part of a streak: its middle is not the star's
+        else:
+            out.append(m)
+    return out
+
+
+def _corners(bbox) -> np.ndarray:
+    """Return the (x, y) centres of the corner pixels of boxes (row0, row1, col0, col1)."""
+    b = np.asarray(bbox, dtype=float)
+    return np.stack([b[:, [2, 0]], b[:, [3, 0]] - [1.0, 0.0], b[:, [2, 1]] - [0.0, 1.0],
+                     b[:, [3, 1]] - 1.0], axis=1)  # fmt: skip
+
+
+def _span(corners, direction) -> float:
+    """Return the extent of boxes' ``corners`` (M, 4, 2) (x, y) along ``direction``, px."""
+    proj = corners @ direction
+    return float(proj.max() - proj.min())
+
+
+def _merged(det, groups, streaks):
+    """Return ``det`` with each group of detections made one, brightest first.
+
+    A joined streak's place is the middle of its lit span along its line (the boxes' corners,
+    whose PSF margins are alike at both ends) and, across the line, its pieces' mean weighted
+    by their light; its light, pixels and box are theirs together.
+    """
+    xy = np.column_stack([det.x, det.y])
+    corners = _corners(det.bbox)
+    places = []
+    for g in groups:
+        if len(g) == 1:
+            places.append(xy[g[0]])
+            continue
+        e = streaks[g[0]] / np.hypot(*streaks[g[0]])
+        n = np.array([-e[1], e[0]])
+        proj = corners[g].reshape(-1, 2) @ e
+        w = np.maximum(det.integrated_counts[g], 1e-12)
+        places.append(e * 0.5 * (proj.max() + proj.min()) + n * np.average(xy[g] @ n, weights=w))
+    light = np.array([det.integrated_counts[g].sum() for g in groups])
+    order = np.argsort(-light, kind="stable")
+    groups = [groups[k] for k in order]
+    places = np.asarray(places)[order]
+    b = det.bbox
+    out = {f.name: getattr(det, f.name) for f in dataclasses.fields(det)}
+    out.update(
+        x=places[:, 0].astype(float),
+        y=places[:, 1].astype(float),
+        integrated_counts=light[order],
+        n_pixels=np.array([det.n_pixels[g].sum() for g in groups]),
+        peak_counts=np.array([det.peak_counts[g].max() for g in groups]),
+        saturated=np.array([det.saturated[g].any() for g in groups]),
+        fit_ok=np.array([det.fit_ok[g].all() for g in groups]),
+        bbox=np.array(
+            [[b[g, 0].min(), b[g, 1].max(), b[g, 2].min(), b[g, 3].max()] for g in groups]
+        ),
+    )
+    out["extra"] = {k: v for k, v in det.extra.items() if k != "rank"}
+    out["extra"]["joined_pieces"] = len(det) - len(groups)
+    return type(det)(**out)
