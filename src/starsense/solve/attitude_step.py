@@ -59,7 +59,7 @@ def solution_of(solver, points, ident, *, database, vectors, fov, k1, sigma_px, 
         solver, points, ident, db=database, vectors=vectors, sigma_px=sigma_px,
         pixel_rad=fov / points.shape[1], obs_time=obs_time, image=image,
     )  # fmt: skip
-    if isinstance(got, float):  # the streaks' model does not fit: no attitude
+    if isinstance(got, str):  # the streaks' model does not fit: no attitude
         return misfit_solution(len(points.x), ident, got, time_ms=ms(t0), stages=stages)
     att, apparent, notes = got
     stages["attitude_ms"] = ms(t3)
@@ -71,7 +71,7 @@ def solution_of(solver, points, ident, *, database, vectors, fov, k1, sigma_px, 
 
 
 def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, obs_time, image):
-    """Return (attitude, apparent places' record, notes), or the misfit of a smeared frame.
+    """Return (attitude, apparent places' record, notes), or why a smeared frame misfits.
 
     Parameters
     ----------
@@ -94,10 +94,11 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
 
     Returns
     -------
-    (AttitudeSolution, dict, tuple of str), or float
+    (AttitudeSolution, dict, tuple of str), or str
         The attitude, how the references were placed and what the fit noted; or, for a smeared
         frame whose stars lie more than ``MISFIT_SIGMAS`` of their sigmas (median) from the
-        attitude fitted to their streaks, that median.
+        attitude fitted to their streaks, or (no model fit standing) whose residuals exceed
+        their noise, how they disagree.
     """
     matched = np.asarray(ident.detection_index)
     ref, apparent, places = matched_references(solver, db, ident, obs_time=obs_time)
@@ -112,7 +113,10 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
         rate = streak_body_rate(solver.sensor, body, streaks.streaks_px)
         miss = misfit(rotation=att.rotation, keep=keep)
         if miss > MISFIT_SIGMAS:
-            return float(miss)
+            return (
+                f"the matched stars lie {miss:.0f} times their sigma (median) from the attitude "
+                "fitted to their streaks"
+            )
     notes = ()
     if image is not None and solver.settings.refine == "model":  # the forward model's fit
         sky = solver.sky_stars(db.params.band)
@@ -134,7 +138,11 @@ def frame_attitude(solver, points, ident, *, db, vectors, sigma_px, pixel_rad, o
         # smeared, no fit of the pixels stands, and the streak centroids scatter beyond their
         # model: the rate or the streaks' model is wrong, which also moves every centroid
         # along its streak the same way, an error the residuals do not show; no attitude
-        return misfit(rotation=att.rotation, keep=keep)
+        return (
+            f"the matched stars' residuals about the attitude fitted to their streaks exceed "
+            f"their noise (chi-square {2.0 * float(att.loss):.0f} on {int(att.chi2_dof)} degrees "
+            "of freedom, past its 0.1 % point)"
+        )
     if att.method != "model":  # the centroids' attitude: as sure as its residuals allow
         att = residual_scaled(att)
     return att, apparent, notes

@@ -91,18 +91,16 @@ def too_many_message(n: int, shape, *, limit: int, then: str) -> str:
     )
 
 
-def misfit_solution(n_detections: int, ident, miss: float, *, time_ms: float, stages):
+def misfit_solution(n_detections: int, ident, why: str, *, time_ms: float, stages):
     """Return the unsolved result of a frame identified whose attitude does not fit its stars.
 
     A smeared frame's stars are centroided over their streaks as a body rate predicts them
     (:mod:`starsense.solve.streaks`); a rate fitted wrong (a spurious roll turns and shortens
     the predicted streaks across the field) leaves the capsules short of the streaks and the
-    centroids tens of pixels along them: an attitude fitted to those is not reported.
+    centroids tens of pixels along them: an attitude fitted to those is not reported. ``why``
+    says how the stars disagree with it.
     """
-    why = (
-        f"identified, but the matched stars lie {miss:.0f} times their sigma (median) from the "
-        "attitude fitted to their streaks: the streaks' model does not fit this frame"
-    )
+    why = f"identified, but {why}: the streaks' model does not fit this frame"
     return Solution("unverified", why, n_detections=n_detections, time_ms=time_ms,
                     stage_ms=stages, counts=identification_counts(ident))  # fmt: skip
 

@@ -6,15 +6,18 @@ finds pieces of it, each centroided somewhere along the streak instead of at its
 star's place at mid-exposure): identification then matches only the few stars bright enough to
 stay whole. The brightest streaks give the body rate (:func:`~starsense.solve.streak_model.
 streak_model`), which draws every star's streak where it lies; detections on one such streak
-(within the PSF's width of its line, together no longer than it) are one star's pieces. Where
-together they span the whole streak they become one detection at the span's middle, their
-light summed; pieces that span less of it are left as they are (their middle is not the
-star's), as is a frame whose streaks are short or whose brightest detections are not streaks.
+(within the PSF's width of its line, together no longer than it) are one star's pieces,
+joined into one detection, their light summed. Its place is the centre of gravity over the
+capsule the rate draws there (every pixel within a few PSF sigmas of the streak, lit or not),
+moved until it stays, started at the middle of the pieces' lit span: where an end of the streak
+fades under the threshold the span's middle misses the star's, the capsule does not. A frame
+whose streaks are short, or whose brightest detections are not streaks, is left as it is.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -27,6 +30,7 @@ from starsense.solve.streak_model import (
     N_RATE_STARS,
     streak_model,
 )
+from starsense.solve.streaks import capsule_centroids
 
 __all__ = ["joined_pieces"]
 
@@ -73,21 +77,40 @@ def joined_pieces(solver, image, det):
     if model is None:
         return det
     streaks = model(det.x, det.y)
-    groups = _streak_groups(det, streaks, width=CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX)
+    radius = CAPSULE_SIGMAS * sigma + CAPSULE_PAD_PX
+    groups = _streak_groups(det, streaks, width=radius)
     if all(len(g) == 1 for g in groups):
         return det
-    return _merged(det, groups, streaks)
+    places = _span_middles(det, groups, streaks)
+    joined = np.array([len(g) > 1 for g in groups])
+    level = float(sensor.detector.bias_counts) if known else None
+    places[joined] = _capsule_places(image, places[joined], model, level, radius)
+    return _merged(det, groups, places)
+
+
+def _capsule_places(image, places, model, level, radius: float) -> np.ndarray:
+    """Return joined streaks' places moved to their light's centre over their whole capsule.
+
+    The lit span's middle misses where an end of the streak fades under the threshold; the
+    centre of gravity over the capsule the rate draws there (every pixel within ``radius`` of
+    the streak, lit or not), moved until it stays, is the star's mid-exposure place, as after
+    identification (:func:`starsense.solve.streaks.capsule_centroids`).
+    """
+    x, y = places[:, 0].copy(), places[:, 1].copy()
+    seg = model(x, y) * (1.0 + SYSTEMATIC)
+    half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
+    gx, gy, total, _, _, r0, c0 = capsule_centroids(image, x, y, seg, half, level, radius)
+    found = np.isfinite(gx) & (total > 0)
+    return np.column_stack([np.where(found, gx + c0, x), np.where(found, gy + r0, y)])
 
 
 def _streak_groups(det, streaks, *, width: float) -> list[np.ndarray]:
-    """Return the detections grouped by the streak they lie on: whole streaks' pieces joined.
+    """Return the detections grouped by the streak they lie on: a streak's pieces joined.
 
     ``streaks`` (N, 2): each detection's streak as the rate draws it there, px. Two detections
     lie on one streak when each is within ``width`` of the other's line and within its length
     along it; pieces are joined, closest first, while together they span no more than the
-    streak (its lit ends lie within ``width`` of its ends). A group is kept joined where it
-    spans the streak's length to within ``SYSTEMATIC`` (the lit pixels' shortfall at the
-    ends); the others fall back to their single detections.
+    streak (its lit ends lie within ``width`` of its ends): two stars on one line stay two.
     """
     xy = np.column_stack([det.x, det.y])
     length = np.hypot(streaks[:, 0], streaks[:, 1])
@@ -124,14 +147,7 @@ def _streak_groups(det, streaks, *, width: float) -> list[np.ndarray]:
         parent[rc] = ra
         members[ra] = joined
         del members[rc]
-    out = []
-    for r, m in members.items():
-        m = np.asarray(m)
-        if len(m) > 1 and _span(corners[m], along[r]) < (1.0 - SYSTEMATIC) * length[r]:
-            out.extend(np.array([k]) for k in m)  # part of a streak: its middle is not the star's
-        else:
-            out.append(m)
-    return out
+    return [np.asarray(m) for m in members.values()]
 
 
 def _corners(bbox) -> np.ndarray:
@@ -147,25 +163,32 @@ def _span(corners, direction) -> float:
     return float(proj.max() - proj.min())
 
 
-def _merged(det, groups, streaks):
-    """Return ``det`` with each group of detections made one, brightest first.
+def _span_middles(det, groups, streaks) -> np.ndarray:
+    """Return each group's place (G, 2): a joined one's at the middle of its lit span.
 
-    A joined streak's place is the middle of its lit span along its line (the boxes' corners,
-    whose PSF margins are alike at both ends) and, across the line, its pieces' mean weighted
-    by their light; its light, pixels and box are theirs together.
+    Along the streak's line the middle of the boxes' corners (whose PSF margins are alike at
+    both ends); across it, the pieces' mean weighted by their light.
     """
     xy = np.column_stack([det.x, det.y])
     corners = _corners(det.bbox)
-    places = []
-    for g in groups:
+    places = np.empty((len(groups), 2))
+    for k, g in enumerate(groups):
         if len(g) == 1:
-            places.append(xy[g[0]])
+            places[k] = xy[g[0]]
             continue
         e = streaks[g[0]] / np.hypot(*streaks[g[0]])
         n = np.array([-e[1], e[0]])
         proj = corners[g].reshape(-1, 2) @ e
         w = np.maximum(det.integrated_counts[g], 1e-12)
-        places.append(e * 0.5 * (proj.max() + proj.min()) + n * np.average(xy[g] @ n, weights=w))
+        places[k] = e * 0.5 * (proj.max() + proj.min()) + n * np.average(xy[g] @ n, weights=w)
+    return places
+
+
+def _merged(det, groups, places):
+    """Return ``det`` with each group of detections made one at ``places``, brightest first.
+
+    A joined streak's light, pixels and box are its pieces' together.
+    """
     light = np.array([det.integrated_counts[g].sum() for g in groups])
     order = np.argsort(-light, kind="stable")
     groups = [groups[k] for k in order]
