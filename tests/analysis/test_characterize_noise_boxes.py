@@ -27,3 +27,23 @@ def test_a_box_without_sky_is_left_out_quietly():
     # the level is the median over boxes: the blob's few boxes do not move it (1 count is
     # 0.2 sigma, far above the median's scatter of ~0.03 counts over 64 box means)
     assert abs(noise.level_counts - level) < 1.0
+
+
+def test_the_noise_map_places_each_box_where_its_noise_is():
+    """A frame whose left half reads noise 2 and right half 6 (a warm amplifier): the map's
+    boxes left of the middle read 2 and right of it 6 (the median of 24 boxes within 5 %: a
+    box's robust sigma scatters ~4 %), every left box below every right one, and the box
+    centres tile the frame a box apart."""
+    rng = np.random.default_rng(7)
+    rows, cols = 6 * BOX_PX, 8 * BOX_PX
+    sigma = np.where(np.arange(cols) < cols // 2, 2.0, 6.0)[None, :]
+    frame = 300.0 + sigma * rng.standard_normal((rows, cols))
+    got = frame_noise(frame)
+    assert len(got.box_xy) == 48
+    left = got.box_xy[:, 0] < cols / 2
+    noise = np.sqrt(got.box_variances)
+    assert abs(np.median(noise[left]) - 2.0) < 0.05 * 2.0
+    assert abs(np.median(noise[~left]) - 6.0) < 0.05 * 6.0
+    assert noise[left].max() < 3.0 < noise[~left].min()
+    np.testing.assert_allclose(np.unique(got.box_xy[:, 0]), (np.arange(8) + 0.5) * BOX_PX - 0.5)
+    np.testing.assert_allclose(np.unique(got.box_xy[:, 1]), (np.arange(6) + 0.5) * BOX_PX - 0.5)

@@ -89,7 +89,10 @@ def characterize_command(
     ] = None,
     plot: Annotated[
         Path | None,
-        typer.Option("--plot", help="PNG: PSF across the field, zero point, photon transfer."),
+        typer.Option(
+            "--plot",
+            help="PNG: PSF across the field, zero point, photon transfer, noise and residual maps.",
+        ),
     ] = None,
     as_json: JsonOpt = False,
 ) -> None:

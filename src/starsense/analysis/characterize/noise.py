@@ -23,7 +23,7 @@ whose levels differ by :data:`MIN_LEVEL_RATIO`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -67,6 +67,8 @@ class FrameNoise:
     clipped_at_zero : bool
         The background sits within 3 noise sigmas of zero (an 8-bit frame whose sky is clipped):
         its variances are not those of the light.
+    box_xy : ndarray (B, 2)
+        Each usable box's centre (x = column, y = row), px: the noise map.
     """
 
     level_counts: float
@@ -75,6 +77,7 @@ class FrameNoise:
     box_variances: np.ndarray
     box_pixels: np.ndarray
     clipped_at_zero: bool
+    box_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 def frame_noise(image) -> FrameNoise:
@@ -118,6 +121,8 @@ def frame_noise(image) -> FrameNoise:
     ok = (n >= MIN_KEPT * r.shape[1]) & (mad > 0)
     noise = float(np.sqrt(np.median(var[ok]))) if ok.any() else float(bg.noise)
     level_med = float(np.median(lv))
+    k = np.arange(nr * nc)
+    centres = np.column_stack([(k % nc + 0.5) * hc - 0.5, (k // nc + 0.5) * hr - 0.5])
     return FrameNoise(
         level_counts=level_med,
         noise_counts=noise,
@@ -125,6 +130,7 @@ def frame_noise(image) -> FrameNoise:
         box_variances=var[ok],
         box_pixels=n[ok],
         clipped_at_zero=bool(level_med < 3.0 * noise),
+        box_xy=centres[ok],
     )
 
 

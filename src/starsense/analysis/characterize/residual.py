@@ -16,11 +16,14 @@ import math
 
 import numpy as np
 
-__all__ = ["lens_residual_px", "star_residuals_px2"]
+__all__ = ["lens_residual_px", "star_residuals", "star_residuals_px2"]
 
 
-def star_residuals_px2(frames, calibration) -> tuple[np.ndarray, np.ndarray]:
-    """Return each matched star's V magnitude and squared residual per axis (px^2).
+def star_residuals(frames, calibration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return each matched star's centroid (N, 2), residual (N, 2) and V magnitude, px.
+
+    The residual is the centroid less where the calibrated sensor projects the star at its
+    frame's fitted attitude (x = column, y = row).
 
     Parameters
     ----------
@@ -29,14 +32,21 @@ def star_residuals_px2(frames, calibration) -> tuple[np.ndarray, np.ndarray]:
         Its sensor and fitted attitudes (one per frame, in order).
     """
     sensor = calibration.sensor
-    mags, r2 = [], []
+    xy, res, mags = [np.zeros((0, 2))], [np.zeros((0, 2))], [np.zeros(0)]
     for fr, rot in zip(frames, calibration.rotations, strict=True):
         cam = np.asarray(fr.stars.vectors, dtype=float) @ rot.as_matrix().T
         x, y = sensor.project(cam)
-        d = np.asarray(fr.stars.centroids_px, dtype=float) - np.column_stack([x, y])
-        mags.append(fr.mags_v)
-        r2.append(0.5 * np.sum(d * d, axis=1))
-    return np.concatenate(mags), np.concatenate(r2)
+        c = np.asarray(fr.stars.centroids_px, dtype=float)
+        xy.append(c)
+        res.append(c - np.column_stack([x, y]))
+        mags.append(np.asarray(fr.mags_v, dtype=float))
+    return np.concatenate(xy), np.concatenate(res), np.concatenate(mags)
+
+
+def star_residuals_px2(frames, calibration) -> tuple[np.ndarray, np.ndarray]:
+    """Return each matched star's V magnitude and squared residual per axis (px^2)."""
+    _, d, mags = star_residuals(frames, calibration)
+    return mags, 0.5 * np.sum(d * d, axis=1)
 
 
 def lens_residual_px(mags, r2_px2, *, clip: float = 5.0) -> tuple[float, float, float]:

@@ -29,7 +29,7 @@ from starsense.analysis.characterize.noise import (
 )
 from starsense.analysis.characterize.photometry import ZeroPoint, zero_point
 from starsense.analysis.characterize.psf import FieldPSF, fit_frame, psf_across_field, width_sigma
-from starsense.analysis.characterize.residual import lens_residual_px, star_residuals_px2
+from starsense.analysis.characterize.residual import lens_residual_px, star_residuals
 from starsense.analysis.characterize.values import weighted_mean
 from starsense.analysis.characterize.working import working_sensor
 from starsense.errors import InputError
@@ -103,6 +103,9 @@ class Characterisation:
     lens_residual : (float, float, float)
         What the calibrated lens leaves, its 1-sigma and the stars' rms, px per axis
         (:func:`~.residual.lens_residual_px`).
+    residual_map : (ndarray (N, 2), ndarray (N, 2))
+        Every matched star's centroid and residual after the calibration, px
+        (:func:`~.residual.star_residuals`).
     """
 
     base: Sensor
@@ -120,6 +123,7 @@ class Characterisation:
     skipped: dict = field(default_factory=dict)
     exposures_s: tuple | None = None
     lens_residual: tuple = (math.nan, math.nan, math.nan)
+    residual_map: tuple = (np.zeros((0, 2)), np.zeros((0, 2)))
 
     @property
     def names(self) -> list[str]:
@@ -243,6 +247,7 @@ def characterize(
             np.concatenate(fluxes),
             None if exposures is None else np.concatenate(star_exp),
         )
+    xy, res, res_mags = star_residuals(solved, cal)
     return Characterisation(
         base=start,
         base_given=base is not None,
@@ -258,5 +263,6 @@ def characterize(
         gain_used=float(gain),
         skipped=skipped,
         exposures_s=exposures,
-        lens_residual=lens_residual_px(*star_residuals_px2(solved, cal)),
+        lens_residual=lens_residual_px(res_mags, 0.5 * np.sum(res * res, axis=1)),
+        residual_map=(xy, res),
     )
