@@ -99,7 +99,9 @@ def _capsule_places(image, places, model, level, radius: float) -> np.ndarray:
     x, y = places[:, 0].copy(), places[:, 1].copy()
     seg = model(x, y) * (1.0 + SYSTEMATIC)
     half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
-    gx, gy, total, _, _, r0, c0 = capsule_centroids(image, x, y, seg, half, level, radius)
+    gx, gy, total, _, _, r0, c0 = capsule_centroids(
+        image, x, y, seg=seg, half=half, level=level, radius=radius
+    )
     found = np.isfinite(gx) & (total > 0)
     return np.column_stack([np.where(found, gx + c0, x), np.where(found, gy + r0, y)])
 

@@ -135,7 +135,7 @@ def _planes(image, x, y, half: int, level) -> tuple[np.ndarray, np.ndarray, np.n
 _CHUNK_PIXELS = WINDOW_PIXELS
 
 
-def capsule_centroids(image, x, y, seg, half: int, level, radius: float) -> tuple:
+def capsule_centroids(image, x, y, *, seg, half: int, level, radius: float) -> tuple:
     """Return :func:`streak_centroids` over the stars' windows (:func:`_planes`), in chunks.
 
     (x, y, counts, boxes, spread) in the windows, and the windows' first rows and columns.
@@ -221,7 +221,9 @@ def streak_centroids_of(
     rows, cols = image.shape
     seg = streaks * (1.0 + SYSTEMATIC)
     half = math.ceil(float(np.hypot(seg[:, 0], seg[:, 1]).max()) + radius + 2.0)
-    gx, gy, total, _, spread, r0, c0 = capsule_centroids(image, x, y, seg, half, level, radius)
+    gx, gy, total, _, spread, r0, c0 = capsule_centroids(
+        image, x, y, seg=seg, half=half, level=level, radius=radius
+    )
     found = np.isfinite(gx) & (total > 0)
     out_x = np.where(found, gx + c0, x)
     out_y = np.where(found, gy + r0, y)
