@@ -74,17 +74,21 @@ def _recentroided(solver, sensor, frame, sol):
     ones and their streak centroids."""
     det = joined_pieces(solver, frame.image, solver.detector(frame.image))
     matched = np.array([d for d, _ in sol.matches])
-    box = det.bbox[matched]
-    got = streak_centroids_of(
+    return det, matched, _streak_centroids(sensor, frame.image, det, matched)
+
+
+def _streak_centroids(sensor, image, det, which):
+    """Detections ``which`` of ``det`` centroided over their streaks (the known bias)."""
+    box = det.bbox[which]
+    return streak_centroids_of(
         sensor,
-        frame.image,
-        np.column_stack([det.x[matched], det.y[matched]]),
-        counts=det.integrated_counts[matched],
+        image,
+        np.column_stack([det.x[which], det.y[which]]),
+        counts=det.integrated_counts[which],
         extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
         level=float(sensor.detector.bias_counts),
         threshold=sensor.detection.lit_pixel_counts,
     )
-    return det, matched, got
 
 
 def _zoo00():
@@ -139,16 +143,7 @@ def test_pieces_of_a_streak_centroid_to_its_middle(catalog):
     on = np.array([_on_streak(det, st, k) for k in j])  # each star's brightest detection
     keep = on >= 0
     j, on = j[keep], on[keep]
-    box = det.bbox[on]
-    got = streak_centroids_of(
-        sensor,
-        frame.image,
-        np.column_stack([det.x[on], det.y[on]]),
-        counts=det.integrated_counts[on],
-        extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
-        level=float(sensor.detector.bias_counts),
-        threshold=sensor.detection.lit_pixel_counts,
-    )
+    got = _streak_centroids(sensor, frame.image, det, on)
     assert isinstance(got, StreakCentroids)
     before = np.hypot(det.x[on] - st.x_mid[j], det.y[on] - st.y_mid[j])
     after = np.hypot(got.x - st.x_mid[j], got.y - st.y_mid[j])
