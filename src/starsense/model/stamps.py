@@ -144,8 +144,9 @@ def _meeting(nodes: NodePositions, origin, rows, cols, n: int):
         return nodes, origin
     need[int(np.argmax(need))] = True
     k = np.flatnonzero(need)
-    cut = NodePositions(nodes.x[:, k], nodes.y[:, k], nodes.weights[k], nodes.dx[:, k],
-                        nodes.dy[:, k])  # fmt: skip
+    cut = NodePositions(
+        nodes.x[:, k], nodes.y[:, k], nodes.weights[k], nodes.dx[:, k], nodes.dy[:, k]
+    )
     return cut, origin[:, k]
 
 

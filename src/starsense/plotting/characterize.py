@@ -101,8 +101,14 @@ def noise_map_axes(ch, ax: Axes | None = None) -> Figure:
         ax.text(0.5, 0.5, "no background box", ha="center", transform=ax.transAxes)
         return fig
     det = ch.base.detector
-    sc = ax.scatter(n.box_xy[:, 0], n.box_xy[:, 1], c=np.sqrt(n.box_variances), marker="s",
-                    s=30.0, cmap="viridis")  # fmt: skip
+    sc = ax.scatter(
+        n.box_xy[:, 0],
+        n.box_xy[:, 1],
+        c=np.sqrt(n.box_variances),
+        marker="s",
+        s=30.0,
+        cmap="viridis",
+    )
     fig.colorbar(sc, ax=ax, label="noise (counts rms)")
     ax.set_xlim(0, det.columns)
     ax.set_ylim(det.rows, 0)  # rows down, as the frame is shown
@@ -128,8 +134,16 @@ def residual_map_axes(ch, ax: Axes | None = None) -> Figure:
         return fig
     rms = float(np.sqrt(np.mean(d * d)))
     scale = 0.05 * det.columns / max(rms, 1e-6)  # an rms residual drawn 5 % of the width
-    ax.quiver(xy[:, 0], xy[:, 1], d[:, 0], -d[:, 1], angles="xy", scale_units="xy",
-              scale=1.0 / scale, width=0.003)  # fmt: skip
+    ax.quiver(
+        xy[:, 0],
+        xy[:, 1],
+        d[:, 0],
+        -d[:, 1],
+        angles="xy",
+        scale_units="xy",
+        scale=1.0 / scale,
+        width=0.003,
+    )
     ax.set_xlim(0, det.columns)
     ax.set_ylim(det.rows, 0)
     ax.set_aspect("equal")

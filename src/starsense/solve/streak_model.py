@@ -161,8 +161,9 @@ def _faint_hint(sensor, image, xy, half: int, level) -> np.ndarray | None:
     on its own at each star's phase (:func:`_psf_adaptive`; a round PSF shows nothing).
     """
     x, y = xy
-    axes = adaptive_axes(image, x, y, half_px=half, start_sigma_px=psf_of(sensor).sigma_px,
-                         level=level)  # fmt: skip
+    axes = adaptive_axes(
+        image, x, y, half_px=half, start_sigma_px=psf_of(sensor).sigma_px, level=level
+    )
     if not sensor.psf.is_gaussian:
         axes = less_psf(axes, _psf_adaptive(sensor, xy, half))
     ok = np.isfinite(axes).all(axis=(1, 2))
@@ -178,8 +179,14 @@ def _psf_adaptive(sensor, xy, half: int) -> np.ndarray:
     side = 2 * half + 1
     tmpl = psf.grid(-half - fx, -half - fy, (side, side), gradient=False)  # (K, rows, columns)
     strip = np.concatenate(list(tmpl), axis=1)  # the stars side by side, each in its window
-    return adaptive_axes(strip, half + fx + side * np.arange(len(fx)), half + fy, half_px=half,
-                         start_sigma_px=psf.sigma_px, level=0.0)  # fmt: skip
+    return adaptive_axes(
+        strip,
+        half + fx + side * np.arange(len(fx)),
+        half + fy,
+        half_px=half,
+        start_sigma_px=psf.sigma_px,
+        level=0.0,
+    )
 
 
 def _streaks_of(sensor, rate, xs, ys) -> np.ndarray:
