@@ -142,14 +142,12 @@ def refine_attitude(
             moving = smeared_fit(
                 fit, neighboured.keywords, stars=stars, hint=rate_hint_rad_s, zero_point=zp
             )
-            also = "; the stars' short streaks fitted with the body rate"
-            moved = None if moving is None else judge(moving[0], counts=moving[1], also=also)
+            fitted = "; the stars' short streaks fitted with the body rate"
+            moved = None if moving is None else judge(moving[0], counts=moving[1], also=fitted)
             if moved is not None and (moved.used or not verdict.used):  # else at rest stands
-                (fit, counts), fit_rate, verdict = moving, True, moved
+                (fit, counts), fit_rate, verdict, also = moving, True, moved, fitted
                 smeared = dict(opts, fit_rate=True)
                 neighboured = functools.partial(neighboured, rate=fit.rate_rad_s, opts=smeared)
-            else:
-                also = ""
         if not verdict.used and rate_rad_s is not None:  # the streaks' rate: the pixels say no
             return _at_rest(verdict, at_rest)
         if more is None or not verdict.used:

@@ -30,7 +30,7 @@ from starsense.solve.streak_model import (
     N_RATE_STARS,
     streak_model,
 )
-from starsense.solve.streaks import capsule_centroids
+from starsense.solve.streaks import capsule_centroids, streak_measure
 
 __all__ = ["joined_pieces"]
 
@@ -55,24 +55,15 @@ def joined_pieces(solver, image, det):
     if sensor is None or len(det) < 3:
         return det
     sigma = float(sensor.detector.psf_sigma_px)
-    margin = solver.detector.margin_px
+    measure = streak_measure(solver)
     box = det.bbox
     extent = np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2])
     order = np.argsort(-det.integrated_counts, kind="stable")
-    shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * margin  # the shortest re-centroided streak
+    shortest = MIN_STREAK_SIGMAS * sigma + 2.0 * measure["margin_px"]  # re-centroided from
     if np.median(extent[order[:N_RATE_STARS]]) < shortest:
         return det  # the brightest are no streaks: at rest, or too short to break
-    known = solver.settings.background == "known"
     model, _ = streak_model(
-        sensor,
-        image,
-        (det.x, det.y),
-        order=order,
-        extent_px=extent.astype(float),
-        level=float(sensor.detector.bias_counts) if known else None,
-        threshold=solver.logic.lit_pixel_counts,
-        threshold_sigma=None if known else solver.settings.threshold_sigma,
-        margin_px=margin,
+        sensor, image, (det.x, det.y), order=order, extent_px=extent.astype(float), **measure
     )
     if model is None:
         return det
@@ -83,8 +74,7 @@ def joined_pieces(solver, image, det):
         return det
     places = _span_middles(det, groups, streaks)
     joined = np.array([len(g) > 1 for g in groups])
-    level = float(sensor.detector.bias_counts) if known else None
-    places[joined] = _capsule_places(image, places[joined], model, level, radius)
+    places[joined] = _capsule_places(image, places[joined], model, measure["level"], radius)
     return _merged(det, groups, places)
 
 
@@ -155,8 +145,10 @@ def _streak_groups(det, streaks, *, width: float) -> list[np.ndarray]:
 def _corners(bbox) -> np.ndarray:
     """Return the (x, y) centres of the corner pixels of boxes (row0, row1, col0, col1)."""
     b = np.asarray(bbox, dtype=float)
-    return np.stack([b[:, [2, 0]], b[:, [3, 0]] - [1.0, 0.0], b[:, [2, 1]] - [0.0, 1.0],
-                     b[:, [3, 1]] - 1.0], axis=1)  # fmt: skip
+    return np.stack(
+        [b[:, [2, 0]], b[:, [3, 0]] - [1.0, 0.0], b[:, [2, 1]] - [0.0, 1.0], b[:, [3, 1]] - 1.0],
+        axis=1,
+    )
 
 
 def _span(corners, direction) -> float:

@@ -65,6 +65,7 @@ __all__ = [
     "matched_measurements",
     "streak_centroids_of",
     "streak_cov_px2",
+    "streak_measure",
 ]
 
 
@@ -275,6 +276,23 @@ def streak_cov_px2(electrons, spread_px2, streaks_px, *, whole, sigma_px: float,
     return np.where(np.asarray(whole)[:, None, None], cov + along / n_e, along)
 
 
+def streak_measure(solver) -> dict:
+    """Return the keywords :func:`streak_centroids_of` measures the solver's streaks with.
+
+    ``level``, ``threshold``, ``threshold_sigma`` and ``margin_px``: the known bias, or (the
+    background estimated) each window's border median with the threshold at least
+    ``threshold_sigma`` of its noise; the detection logic's lit-pixel threshold and the
+    detector's centroid margin.
+    """
+    known = solver.settings.background == "known"
+    return {
+        "level": float(solver.sensor.detector.bias_counts) if known else None,
+        "threshold": solver.logic.lit_pixel_counts,
+        "threshold_sigma": None if known else solver.settings.threshold_sigma,
+        "margin_px": solver.detector.margin_px,
+    }
+
+
 def matched_measurements(solver, image, det, *, matched, x, vectors):
     """Return the matched detections' unit vectors and 1-sigma, px, for the final attitude.
 
@@ -321,7 +339,6 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         )
     if sensor is None or x is not det.x or len(matched) < 3:
         return vectors, sigma, None
-    known = solver.settings.background == "known"
     box = det.bbox[matched]
     got = streak_centroids_of(
         sensor,
@@ -329,10 +346,7 @@ def matched_measurements(solver, image, det, *, matched, x, vectors):
         np.column_stack([det.x[matched], det.y[matched]]),
         counts=det.integrated_counts[matched],
         extent_px=np.maximum(box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]),
-        level=float(sensor.detector.bias_counts) if known else None,
-        threshold=solver.logic.lit_pixel_counts,
-        threshold_sigma=None if known else solver.settings.threshold_sigma,
-        margin_px=solver.detector.margin_px,
+        **streak_measure(solver),
     )
     if got is None or isinstance(got, ShortStreaks):
         return vectors, sigma, got
