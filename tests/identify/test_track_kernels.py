@@ -302,3 +302,30 @@ def test_fisher_inverse_equals_fisher_covariance(seed, n, spread, degenerate):
     # the inverse of a matrix of condition number k is known to k x rounding: 1e-16 k
     k = np.linalg.cond(np.linalg.inv(ref))
     np.testing.assert_allclose(got, ref, rtol=0, atol=max(1e-12, 1e-15 * k) * np.abs(ref).max())
+
+
+@needs_kernel
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 300), noise=st.floats(0.0, 1e-2))
+def test_one_call_fit_is_the_fit_and_the_fisher_inverse(seed, n, noise):
+    # weighted_fit: fit_compiled with weights sigma^-2 and fisher_inverse_compiled of the same
+    # stars in one call (the same C cores; past 256 stars its weights are allocated)
+    rng, body, ref = _pairs(seed, n, noise)
+    sigma = rng.uniform(1e-6, 1e-4, n)
+    c, resid, chord2, cov, loss = tk.weighted_fit_compiled(body, ref, sigma, rcond=SINGULAR_RCOND)
+    c1, r1, h1 = tk.fit_compiled(body, ref, sigma**-2.0, two_exact=False)
+    cov1 = tk.fisher_inverse_compiled(body, sigma, rcond=SINGULAR_RCOND)
+    # the weights from C's pow against NumPy's power: equal or one ulp apart, which the
+    # eigenvector carries at most to its conditioning (test_weighted_fit_equals_svd's bound)
+    w = sigma**-2.0
+    sv = np.linalg.svd(np.einsum("i,ij,ik->jk", w, body, ref), compute_uv=False)
+    tol = max(1e-12, 4.0 * np.finfo(float).eps * sv[0] / sv[1])
+    np.testing.assert_allclose(c, c1, rtol=0, atol=tol)
+    np.testing.assert_allclose(resid, r1, rtol=0, atol=tol)
+    np.testing.assert_allclose(chord2, h1, rtol=0, atol=tol)
+    if cov1 is False:
+        assert cov is False
+    else:
+        np.testing.assert_array_equal(cov, cov1)  # the same function of the same numbers
+    # the loss: 1/2 sum chord2 w, summed in order here and by NumPy's dot there
+    assert loss == pytest.approx(0.5 * float(chord2 @ w), rel=1e-12, abs=1e-300)

@@ -8,6 +8,7 @@ from attitude_fields import ARCSEC, add_noise, star_field
 from scipy.spatial.transform import Rotation
 
 from starsense.attitude.estimate import estimate_attitude
+from starsense.attitude.solution import AttitudeSolution
 from starsense.errors import SingularGeometryError
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.solve.attitude_fit import kernel_fit
@@ -45,3 +46,36 @@ def test_stars_that_fix_no_attitude_raise_the_estimators_error():
     body = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
     with pytest.raises(SingularGeometryError, match="singular geometry"):
         kernel_fit(body, body, np.full(3, 1e-5))
+
+
+def test_the_fit_stored_at_once_is_the_dataclass_and_replaced_keeps_it():
+    rng = np.random.default_rng(5)
+    attitude = Rotation.random(random_state=rng)
+    b_true = star_field(rng, 12, 15.0)
+    sigma = np.full(12, 5.0 * ARCSEC)
+    body = add_noise(rng, b_true, sigma)
+    got = kernel_fit(body, attitude.inv().apply(b_true), sigma)
+    made = AttitudeSolution(
+        rotation=got.matrix,
+        covariance_rad2=got.covariance_rad2,
+        residual_rms_rad=got.residual_rms_rad,
+        residuals_rad=got.residuals_rad,
+        method=got.method,
+        n_stars=got.n_stars,
+        loss=got.loss,
+    )
+    assert made.__dict__.keys() == got.__dict__.keys()
+    for name, value in made.__dict__.items():
+        assert np.array_equal(got.__dict__[name], value), name
+    # replaced without a new rotation: the fields copied, the matrix still unbuilt
+    scaled = got.replaced(covariance_rad2=2.0 * got.covariance_rad2)
+    assert scaled.__dict__["_rotation"] is None and scaled.matrix is got.matrix
+    np.testing.assert_array_equal(scaled.covariance_rad2, 2.0 * got.covariance_rad2)
+    assert (scaled.loss, scaled.n_stars, scaled.notes) == (got.loss, got.n_stars, got.notes)
+    # with one, or a name that is no field: as dataclasses.replace (which refuses the name)
+    turned = got.replaced(rotation=Rotation.identity())
+    np.testing.assert_array_equal(turned.matrix, np.eye(3))
+    with pytest.raises(TypeError):
+        got.replaced(sigma=1.0)
+    with pytest.raises(TypeError):
+        AttitudeSolution.of_fit(got.matrix, rotation=got.matrix)

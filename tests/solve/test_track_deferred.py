@@ -171,3 +171,34 @@ def test_unproject_equals_the_gnomonic_reference(st16, seed, n, offset):
 def test_unproject_refuses_non_finite_pixels(st16):
     with pytest.raises(InputError, match="pixel coordinates must be finite"):
         st16.unproject(np.array([10.0, np.nan]), np.array([3.0, 4.0]))
+
+
+def test_a_solution_stored_at_once_is_the_dataclass():
+    # Solution.of stores what Solution(...) stores: every field, the deferred ones in their
+    # slots (computed when read), fresh dicts for the defaults; a status that is none refused
+    values = dict(
+        ra_rad=0.1,
+        dec_rad=Deferred(lambda: 0.2),
+        roll_rad=0.3,
+        fov_rad=0.25,
+        n_detections=20,
+        n_matched=15,
+        sigma_rad=(1e-5, 1e-5, 1e-4),
+        matches=((0, 7), (1, 9)),
+        centroids_px=np.ones((2, 2)),
+        image_shape=(960, 1280),
+        notes=("a note",),
+    )
+    made, stored = Solution("solved", "m", **values), Solution.of("solved", "m", **values)
+    assert made.__dict__.keys() == stored.__dict__.keys()
+    for name in (f.name for f in dataclasses.fields(Solution)):
+        a, b = getattr(made, name), getattr(stored, name)
+        assert np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b, name
+    assert stored.dec_rad == 0.2 and stored.solved
+    bare = Solution.of("no_match")
+    assert bare.stage_ms == {} and bare.stage_ms is not Solution.of("no_match").stage_ms
+    assert bare.counts == {} and bare.matches == () and bare.rotation is None
+    with pytest.raises(InputError, match="status must be one of"):
+        Solution.of("sovled")
+    with pytest.raises(TypeError, match="no field"):
+        Solution.of("solved", ra_deg=1.0)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -290,10 +291,16 @@ def residual_scaled(att):
     if chi2 > dof:
         scale = chi2 / dof
     elif dof >= MIN_DOF_LOWERED:
-        scale = min(1.0, chi2 / (2.0 * float(gammaincinv(0.5 * dof, 0.05))))
+        scale = min(1.0, chi2 / _chi2_quantile(dof, 0.05))
     else:
         return att
     return att.replaced(covariance_rad2=np.asarray(att.covariance_rad2) * scale)
+
+
+@functools.lru_cache(maxsize=1024)
+def _chi2_quantile(dof: int, q: float) -> float:
+    """Return the ``q`` quantile of a chi-square of ``dof`` degrees of freedom (cached)."""
+    return 2.0 * float(gammaincinv(0.5 * dof, q))
 
 
 def residuals_beyond_noise(att, p: float = RESIDUALS_P) -> bool:
@@ -305,4 +312,4 @@ def residuals_beyond_noise(att, p: float = RESIDUALS_P) -> bool:
     dof = att.chi2_dof
     if dof <= 0 or not np.isfinite(att.loss):
         return False
-    return 2.0 * float(att.loss) > 2.0 * float(gammaincinv(0.5 * dof, 1.0 - p))
+    return 2.0 * float(att.loss) > _chi2_quantile(dof, 1.0 - p)

@@ -14,7 +14,7 @@ the sigmas are right, so the loss is a consistency check as well as an objective
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -86,16 +86,35 @@ class AttitudeSolution:
         """sqrt(diag(covariance)), rad, shape (3,): cross-boresight x, y and roll about z."""
         return np.sqrt(np.diag(self.covariance_rad2))
 
+    @classmethod
+    def of_fit(cls, matrix: NDArray[np.float64], **values) -> AttitudeSolution:
+        """Return the solution of a fit given as its matrix, every other field by keyword.
+
+        What ``AttitudeSolution(rotation=matrix, **fields)`` stores, without the frozen
+        dataclass's per-field ``object.__setattr__`` (a solve of a centroid list makes a few):
+        the class has no ``__post_init__`` to skip. The Rotation is built when first read.
+        """
+        if not _FIELDS.issuperset(values) or "rotation" in values:
+            raise TypeError(f"AttitudeSolution.of_fit: unexpected fields {sorted(values)}")
+        out = object.__new__(cls)
+        out.__dict__.update(_DEFAULTS, _matrix=matrix, _rotation=None, **values)
+        return out
+
     def replaced(self, **changes) -> AttitudeSolution:
         """Return ``dataclasses.replace(self, **changes)``, a fit's matrix kept unbuilt.
 
         ``dataclasses.replace`` reads every field, which would make the Rotation of a matrix
         given (~50 us, that a centroid solve need not pay); the rotation is passed on as
-        stored, a Rotation or the matrix.
+        stored, a Rotation or the matrix. Without a new rotation the instance's fields are
+        copied as stored (the class has no ``__post_init__``).
         """
-        stored = self.__dict__
-        rotation = stored["_rotation"] if stored["_rotation"] is not None else stored["_matrix"]
-        return replace(self, **{"rotation": rotation, **changes})
+        if "rotation" in changes or not _FIELDS.issuperset(changes):
+            stored = self.__dict__
+            rotation = stored["_rotation"] if stored["_rotation"] is not None else stored["_matrix"]
+            return replace(self, **{"rotation": rotation, **changes})
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__, **changes)
+        return out
 
     @property
     def chi2_dof(self) -> int:
@@ -137,6 +156,10 @@ class _RotationField:
 
 # installed after the dataclass is made: its __init__ stores the field through it
 AttitudeSolution.rotation = _RotationField()  # type: ignore[assignment]
+
+#: AttitudeSolution's fields, and the defaults of those with one (AttitudeSolution.of_fit)
+_FIELDS = frozenset(f.name for f in fields(AttitudeSolution))
+_DEFAULTS = {f.name: f.default for f in fields(AttitudeSolution) if f.default is not MISSING}
 
 
 def cross3(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:

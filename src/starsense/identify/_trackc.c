@@ -20,6 +20,8 @@
  * fisher_inverse  F^-1 of eq. 21 with covariance()'s singularity test (attitude/
  *           covariance.py; its eigenvalues by Jacobi rotations, the inverse by the adjugate:
  *           equal to rounding, 1e-13 relative for the condition numbers of a star field).
+ * weighted_fit  wahba with weights sigma^-2 and fisher_inverse of the same stars, and the
+ *           Wahba loss, in one call (the solver's fit of its matched stars).
  * sandwich  P = F^-1 (sum_i w_i^2 J_i^T G_i C_i G_i^T J_i) F^-1 of star_noise.py: the same sums
  *           in another order (1e-13 relative).
  * unblended whether each matched star has no other predicted star within the blend distance
@@ -551,6 +553,78 @@ done:
     return result;
 }
 
+/* F^-1 of weighted unit vectors into out (3, 3): 1, or 0 (out unset) where F is not finite
+ * or singular (fisher_inverse below). */
+static int fisher_core(const double *b, const double *sg, Py_ssize_t n, double rcond,
+                       double *out)
+{
+    double f[3][3] = {{0}}, sw = 0.0;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        double w = pow(sg[i], -2.0);
+        sw += w;
+        for (int j = 0; j < 3; j++)
+            for (int k = 0; k < 3; k++)
+                f[j][k] -= w * b[3 * i + j] * b[3 * i + k];
+    }
+    int finite = isfinite(sw);
+    for (int j = 0; j < 3; j++) {
+        f[j][j] += sw;
+        for (int k = 0; k < 3; k++)
+            finite = finite && isfinite(f[j][k]);
+    }
+    int ok = 0;
+    if (finite) {
+        double a[3][3], lo, hi;
+        memcpy(a, f, sizeof(a));
+        for (int sweep = 0; sweep < 50; sweep++) {
+            double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+            if (off == 0.0)
+                break;
+            for (int p = 0; p < 2; p++)
+                for (int r = p + 1; r < 3; r++) {
+                    double apr = a[p][r];
+                    if (fabs(apr) <= 1e-18 * (fabs(a[p][p]) + fabs(a[r][r]))) {
+                        a[p][r] = a[r][p] = 0.0;
+                        continue;
+                    }
+                    double theta = (a[r][r] - a[p][p]) / (2.0 * apr);
+                    double t = (theta >= 0 ? 1.0 : -1.0) /
+                               (fabs(theta) + sqrt(theta * theta + 1.0));
+                    double cs = 1.0 / sqrt(t * t + 1.0), sn = t * cs;
+                    for (int k = 0; k < 3; k++) {
+                        double akp = a[k][p], akr = a[k][r];
+                        a[k][p] = cs * akp - sn * akr;
+                        a[k][r] = sn * akp + cs * akr;
+                    }
+                    for (int k = 0; k < 3; k++) {
+                        double apk = a[p][k], ark = a[r][k];
+                        a[p][k] = cs * apk - sn * ark;
+                        a[r][k] = sn * apk + cs * ark;
+                    }
+                }
+        }
+        lo = fmin(a[0][0], fmin(a[1][1], a[2][2]));
+        hi = fmax(a[0][0], fmax(a[1][1], a[2][2]));
+        ok = hi > 0 && lo > rcond * hi;
+    }
+    if (ok) {
+        double c00 = f[1][1] * f[2][2] - f[1][2] * f[2][1];
+        double c01 = f[1][2] * f[2][0] - f[1][0] * f[2][2];
+        double c02 = f[1][0] * f[2][1] - f[1][1] * f[2][0];
+        double det = f[0][0] * c00 + f[0][1] * c01 + f[0][2] * c02;
+        out[0] = c00 / det;
+        out[1] = (f[0][2] * f[2][1] - f[0][1] * f[2][2]) / det;
+        out[2] = (f[0][1] * f[1][2] - f[0][2] * f[1][1]) / det;
+        out[3] = c01 / det;
+        out[4] = (f[0][0] * f[2][2] - f[0][2] * f[2][0]) / det;
+        out[5] = (f[0][2] * f[1][0] - f[0][0] * f[1][2]) / det;
+        out[6] = c02 / det;
+        out[7] = (f[0][1] * f[2][0] - f[0][0] * f[2][1]) / det;
+        out[8] = (f[0][0] * f[1][1] - f[0][1] * f[1][0]) / det;
+    }
+    return ok;
+}
+
 /* fisher_inverse(body, sigma, n, rcond, out) -> bool
  * F = sum_i sigma_i^-2 (I - b_i b_i^T) (Fialho & Mortari 2019 eq. 21, attitude/covariance.py)
  * and out = F^-1 (adjugate / determinant); False (out unset) where F is not finite or singular
@@ -567,78 +641,62 @@ static PyObject *fisher_inverse(PyObject *self, PyObject *args)
     if (!check(&bb, n * 3 * 8, "body") || !check(&sb, n * 8, "sigma") ||
         !check(&ob, 9 * 8, "out"))
         goto done;
-    {
-        const double *b = bb.buf, *sg = sb.buf;
-        double *out = ob.buf;
-        double f[3][3] = {{0}}, sw = 0.0;
-        for (Py_ssize_t i = 0; i < n; i++) {
-            double w = pow(sg[i], -2.0);
-            sw += w;
-            for (int j = 0; j < 3; j++)
-                for (int k = 0; k < 3; k++)
-                    f[j][k] -= w * b[3 * i + j] * b[3 * i + k];
-        }
-        int finite = isfinite(sw);
-        for (int j = 0; j < 3; j++) {
-            f[j][j] += sw;
-            for (int k = 0; k < 3; k++)
-                finite = finite && isfinite(f[j][k]);
-        }
-        int ok = 0;
-        if (finite) {
-            double a[3][3], lo, hi;
-            memcpy(a, f, sizeof(a));
-            for (int sweep = 0; sweep < 50; sweep++) {
-                double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-                if (off == 0.0)
-                    break;
-                for (int p = 0; p < 2; p++)
-                    for (int r = p + 1; r < 3; r++) {
-                        double apr = a[p][r];
-                        if (fabs(apr) <= 1e-18 * (fabs(a[p][p]) + fabs(a[r][r]))) {
-                            a[p][r] = a[r][p] = 0.0;
-                            continue;
-                        }
-                        double theta = (a[r][r] - a[p][p]) / (2.0 * apr);
-                        double t = (theta >= 0 ? 1.0 : -1.0) /
-                                   (fabs(theta) + sqrt(theta * theta + 1.0));
-                        double cs = 1.0 / sqrt(t * t + 1.0), sn = t * cs;
-                        for (int k = 0; k < 3; k++) {
-                            double akp = a[k][p], akr = a[k][r];
-                            a[k][p] = cs * akp - sn * akr;
-                            a[k][r] = sn * akp + cs * akr;
-                        }
-                        for (int k = 0; k < 3; k++) {
-                            double apk = a[p][k], ark = a[r][k];
-                            a[p][k] = cs * apk - sn * ark;
-                            a[r][k] = sn * apk + cs * ark;
-                        }
-                    }
-            }
-            lo = fmin(a[0][0], fmin(a[1][1], a[2][2]));
-            hi = fmax(a[0][0], fmax(a[1][1], a[2][2]));
-            ok = hi > 0 && lo > rcond * hi;
-        }
-        if (ok) {
-            double c00 = f[1][1] * f[2][2] - f[1][2] * f[2][1];
-            double c01 = f[1][2] * f[2][0] - f[1][0] * f[2][2];
-            double c02 = f[1][0] * f[2][1] - f[1][1] * f[2][0];
-            double det = f[0][0] * c00 + f[0][1] * c01 + f[0][2] * c02;
-            out[0] = c00 / det;
-            out[1] = (f[0][2] * f[2][1] - f[0][1] * f[2][2]) / det;
-            out[2] = (f[0][1] * f[1][2] - f[0][2] * f[1][1]) / det;
-            out[3] = c01 / det;
-            out[4] = (f[0][0] * f[2][2] - f[0][2] * f[2][0]) / det;
-            out[5] = (f[0][2] * f[1][0] - f[0][0] * f[1][2]) / det;
-            out[6] = c02 / det;
-            out[7] = (f[0][1] * f[2][0] - f[0][0] * f[2][1]) / det;
-            out[8] = (f[0][0] * f[1][1] - f[0][1] * f[1][0]) / det;
-        }
-        result = PyBool_FromLong(ok);
-    }
+    result = PyBool_FromLong(fisher_core(bb.buf, sb.buf, n, rcond, ob.buf));
+
 done:
     PyBuffer_Release(&bb);
     PyBuffer_Release(&sb);
+    PyBuffer_Release(&ob);
+    return result;
+}
+
+/* weighted_fit(body, ref, sigma, n, rcond, c_out, resid_out, chord2_out, cov_out)
+ *     -> (covariance found, loss)
+ * wahba() with weights sigma^-2 and fisher_inverse() of the same stars in one call (the
+ * solver's fit of matched stars, attitude/robust.py); loss = 1/2 sum_i chord2_i / sigma_i^2. */
+static PyObject *weighted_fit(PyObject *self, PyObject *args)
+{
+    Py_buffer bb, rb, sb, cb, eb, hb, ob;
+    Py_ssize_t n;
+    double rcond;
+    PyObject *result = NULL;
+    double wbuf[256], *w = wbuf;
+    if (!PyArg_ParseTuple(args, "y*y*y*ndw*w*w*w*", &bb, &rb, &sb, &n, &rcond, &cb, &eb, &hb,
+                          &ob))
+        return NULL;
+    if (!check(&bb, n * 3 * 8, "body") || !check(&rb, n * 3 * 8, "ref") ||
+        !check(&sb, n * 8, "sigma") || !check(&cb, 9 * 8, "c_out") ||
+        !check(&eb, n * 8, "resid_out") || !check(&hb, n * 8, "chord2_out") ||
+        !check(&ob, 9 * 8, "cov_out"))
+        goto done;
+    if (n < 2) {
+        PyErr_SetString(PyExc_ValueError, "_trackc.weighted_fit: at least 2 pairs are needed");
+        goto done;
+    }
+    if (n > 256 && (w = malloc(n * sizeof(double))) == NULL) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    {
+        const double *sg = sb.buf, *h = hb.buf;
+        for (Py_ssize_t i = 0; i < n; i++)
+            w[i] = pow(sg[i], -2.0);
+        int ok = fisher_core(bb.buf, sg, n, rcond, ob.buf);
+        fit_core(bb.buf, rb.buf, w, n, 0, cb.buf, eb.buf, hb.buf);
+        double loss = 0.0;
+        for (Py_ssize_t i = 0; i < n; i++)
+            loss += h[i] * w[i];
+        result = Py_BuildValue("Nd", PyBool_FromLong(ok), 0.5 * loss);
+    }
+    if (w != wbuf)
+        free(w);
+done:
+    PyBuffer_Release(&bb);
+    PyBuffer_Release(&rb);
+    PyBuffer_Release(&sb);
+    PyBuffer_Release(&cb);
+    PyBuffer_Release(&eb);
+    PyBuffer_Release(&hb);
     PyBuffer_Release(&ob);
     return result;
 }
@@ -648,6 +706,7 @@ static PyMethodDef methods[] = {
     {"wahba", wahba, METH_VARARGS, "Attitude matrix and residuals of paired vectors."},
     {"match", match, METH_VARARGS, "TrackingIdentifier's pair-fit-pair loop."},
     {"fisher_inverse", fisher_inverse, METH_VARARGS, "Inverse Fisher matrix of weighted stars."},
+    {"weighted_fit", weighted_fit, METH_VARARGS, "wahba and fisher_inverse of one star set."},
     {"sandwich", sandwich, METH_VARARGS, "Covariance of the weighted SVD attitude."},
     {"unblended", unblended, METH_VARARGS, "Matched stars with no predicted neighbour near."},
     {NULL, NULL, 0, NULL}};

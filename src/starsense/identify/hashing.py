@@ -273,7 +273,7 @@ class HashIdentifier:
             )
 
         n_pat = min(n, self.n_pattern_detections)
-        if max_patterns is not None:
+        if max_patterns is not None and not (type(max_patterns) is int and max_patterns >= 0):
             max_patterns = check_int(max_patterns, "max_patterns", 0)
         if self._kernel is not None:
             search = self._search_compiled(v, n_pat, fov_rad, t0, max_patterns)

@@ -234,6 +234,8 @@ def identify_ranked(identifier, vectors_cam, brightness, *args, **kwargs) -> Ide
     b = np.asarray(brightness, dtype=float)
     if b.shape != (len(v),):
         raise InputError(f"brightness must have one value per detection ({len(v)}), got {b.shape}")
+    if len(b) < 2 or (b[:-1] >= b[1:]).all():
+        return identifier(v, *args, **kwargs)  # ranked already: the stable order is the same
     order = np.argsort(-b, kind="stable")
     result = identifier(v[order], *args, **kwargs)
     if len(result.detection_index) == 0:

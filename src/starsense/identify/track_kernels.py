@@ -41,6 +41,7 @@ __all__ = [
     "sandwich_numpy",
     "unblended_compiled",
     "unblended_numpy",
+    "weighted_fit_compiled",
 ]
 
 #: Whether the compiled kernel is built.
@@ -235,6 +236,44 @@ def fit_compiled(body: np.ndarray, ref: np.ndarray, weights: np.ndarray, *, two_
         chord2,
     )
     return c, resid, chord2
+
+
+def weighted_fit_compiled(body: np.ndarray, ref: np.ndarray, sigma: np.ndarray, *, rcond: float):
+    """:func:`fit_compiled` with weights ``sigma^-2`` and :func:`fisher_inverse_compiled`, at once.
+
+    Parameters
+    ----------
+    body, ref : ndarray, shape (N, 3)
+        Camera-frame and ICRS unit vectors of paired stars, N >= 2.
+    sigma : ndarray, shape (N,)
+        Each star's sigma, rad.
+    rcond : float
+        Smallest eigenvalue ratio of the Fisher matrix taken as non-singular.
+
+    Returns
+    -------
+    tuple or None
+        ``(c, resid, chord2, cov, loss)``: the matrix (3, 3), the residual angles and squared
+        chords (N,), the covariance (3, 3) or False where the Fisher matrix is singular or not
+        finite, the Wahba loss ``1/2 sum chord2 / sigma^2``; None where the kernel is not built.
+    """
+    if _trackc is None:
+        return None
+    n = len(body)
+    c, cov = np.empty((3, 3)), np.empty((3, 3))
+    resid, chord2 = np.empty(n), np.empty(n)
+    ok, loss = _trackc.weighted_fit(
+        np.ascontiguousarray(body, dtype=float),
+        np.ascontiguousarray(ref, dtype=float),
+        np.ascontiguousarray(sigma, dtype=float),
+        n,
+        float(rcond),
+        c,
+        resid,
+        chord2,
+        cov,
+    )
+    return c, resid, chord2, (cov if ok else False), loss
 
 
 def sandwich_numpy(body, g, cov, *, w, inv) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 from starsense.attitude.covariance import SINGULAR_RCOND, fisher_covariance
 from starsense.attitude.estimate import estimate_attitude
 from starsense.attitude.solution import AttitudeSolution
-from starsense.identify.track_kernels import fisher_inverse_compiled, fit_compiled
+from starsense.identify.track_kernels import weighted_fit_compiled
 
 __all__ = ["kernel_fit"]
 
@@ -45,19 +45,18 @@ def kernel_fit(body: np.ndarray, reference: np.ndarray, sigma: np.ndarray) -> At
     SingularGeometryError
         The stars do not determine the attitude (as the estimator raises it).
     """
-    cov = fisher_inverse_compiled(body, sigma, rcond=SINGULAR_RCOND)
-    if cov is None:  # no kernel: the estimator itself
+    fitted = weighted_fit_compiled(body, reference, sigma, rcond=SINGULAR_RCOND)
+    if fitted is None:  # no kernel: the estimator itself
         return estimate_attitude(body, reference, sigma, method="svd")
+    c, resid, _chord2, cov, loss = fitted
     if cov is False:  # singular or not finite: the estimator's check raises its error
         cov = fisher_covariance(body, sigma)
-    w = sigma**-2.0
-    c, resid, chord2 = fit_compiled(body, reference, w, two_exact=False)
-    return AttitudeSolution(
-        rotation=c,
+    return AttitudeSolution.of_fit(
+        c,
         covariance_rad2=cov,
         residual_rms_rad=math.sqrt(float(resid @ resid) / len(resid)),
         residuals_rad=resid,
         method="svd",
         n_stars=len(body),
-        loss=0.5 * float(chord2 @ w),
+        loss=loss,
     )

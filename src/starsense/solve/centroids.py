@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -246,7 +247,7 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
         finite value per centroid, an image size that is not the sensor's, a centroid
         more than ``EDGE_MARGIN_PX`` (2 px) outside the image (closer: an edge star, kept).
     """
-    pts = check_centroids(xy)
+    pts = _as_points(xy)
     shape = check_image_size(image_size)
     if fov_rad is not None:
         if sensor is not None:
@@ -271,6 +272,18 @@ def check_centroid_input(xy, image_size, *, brightness=None, fov_rad=None, senso
     return pts, shape, flux, fov_rad
 
 
+def _as_points(xy) -> np.ndarray:
+    """:func:`check_centroids` of an (N, 2) float array, its finite test left to the bounds.
+
+    The bounds test of :func:`_check_inside` takes the columns' least and largest values,
+    which a NaN or an infinity fails: a list inside the image is finite, and any other goes
+    through :func:`check_centroids`, which names what is wrong.
+    """
+    if isinstance(xy, np.ndarray) and xy.dtype == np.float64 and xy.ndim == 2 and xy.shape[1] == 2:
+        return xy
+    return check_centroids(xy)
+
+
 def _check_inside(pts: np.ndarray, shape: tuple[int, int]) -> None:
     """Refuse centroids more than ``EDGE_MARGIN_PX`` outside the image of ``shape`` (rows, cols).
 
@@ -284,6 +297,7 @@ def _check_inside(pts: np.ndarray, shape: tuple[int, int]) -> None:
     (x_min, y_min), (x_max, y_max) = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
     if x_min >= lo and y_min >= lo and x_max <= cols - 0.5 + m and y_max <= rows - 0.5 + m:
         return
+    check_centroids(pts)  # a value not finite is named first
     outside = (pts[:, 0] < lo) | (pts[:, 0] > cols - 0.5 + m)
     outside |= (pts[:, 1] < lo) | (pts[:, 1] > rows - 0.5 + m)
     if outside.any():
@@ -329,9 +343,10 @@ def check_frame_shape(shape, sensor) -> None:
     )
 
 
-@dataclass(frozen=True)
-class CentroidPoints:
+class CentroidPoints(NamedTuple):
     """Centroids to solve, as the Solver carries them from detection to the attitude.
+
+    A named tuple (immutable; made once per solve, and per mirror image tried).
 
     Parameters
     ----------

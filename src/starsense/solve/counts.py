@@ -136,7 +136,10 @@ def solved(points, ident, att, *, fov, apparent, time_ms, stages, radial, sensor
         focal = radial.focal_px
     else:
         focal = shape[1] / 2.0 / math.tan(fov / 2.0)
-    return Solution(
+    centroids = np.empty((n, 2))
+    centroids[:, 0], centroids[:, 1] = points.x, points.y
+    near_miss = ident.message.partition("; near miss")[2]
+    return Solution.of(
         "solved",
         f"{ident.n_matches} of {n} {points.what} matched ({ident.algorithm})",
         ra_rad=ra,
@@ -152,14 +155,8 @@ def solved(points, ident, att, *, fov, apparent, time_ms, stages, radial, sensor
         stage_ms=stages,
         # a fit's matrix is made a Rotation when the solution's is first read
         rotation=Deferred(functools.partial(getattr, att, "rotation")),
-        matches=tuple(
-            zip(
-                np.asarray(ident.detection_index).tolist(),
-                np.asarray(ident.catalog_id).tolist(),
-                strict=True,
-            )
-        ),
-        centroids_px=np.column_stack([points.x, points.y]),
+        matches=tuple(zip(ident.detection_index.tolist(), ident.catalog_id.tolist(), strict=True)),
+        centroids_px=centroids,
         image_shape=tuple(shape),
         focal_px=focal,
         distortion=None if radial is None else radial.to_dict(),
@@ -167,5 +164,5 @@ def solved(points, ident, att, *, fov, apparent, time_ms, stages, radial, sensor
         sensor=sensor,
         counts=identification_counts(ident),
         # a near miss accepted on the frame's fainter stars says so (starsense.solve.near_miss)
-        notes=tuple(f"near miss{n}" for n in [ident.message.partition("; near miss")[2]] if n),
+        notes=(f"near miss{near_miss}",) if near_miss else (),
     )

@@ -10,7 +10,7 @@ that never reads it (a tracking loop that keeps the matrix) does not pay for it.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import Literal, TypeAlias, get_args
 
@@ -216,10 +216,27 @@ class Solution:
 
     def __post_init__(self) -> None:
         """Refuse a status that is not one of :data:`SolveStatus` (a typo would read as failed)."""
-        if not isinstance(self.status, str) or self.status not in _STATUSES:
-            raise InputError(
-                f"status must be one of {', '.join(_STATUSES)}; got {self.status!r:.80}"
-            )
+        _check_status(self.status)
+
+    @classmethod
+    def of(cls, status: SolveStatus, message: str = "", **values) -> Solution:
+        """Return ``Solution(status, message, **values)``, stored without the dataclass's __init__.
+
+        The frozen dataclass's ``__init__`` sets its 23 fields one ``object.__setattr__`` at a
+        time (a tenth of a centroid list's solve); this stores the same values (the defaults,
+        fresh dicts for ``stage_ms`` and ``counts``, the deferred fields in their slots) at
+        once, after the same check of ``status``.
+        """
+        _check_status(status)
+        if not _FIELD_NAMES.issuperset(values):
+            raise TypeError(f"Solution has no field {sorted(set(values) - _FIELD_NAMES)}")
+        out = object.__new__(cls)
+        stored = out.__dict__
+        stored.update(_DEFAULT_VALUES, stage_ms={}, counts={})
+        for name, value in values.items():
+            stored[_SLOTS.get(name, name)] = value
+        stored["status"], stored["message"] = status, message
+        return out
 
     @property
     def ra_deg(self) -> float | None:
@@ -296,3 +313,17 @@ class Solution:
 allow_deferred(
     Solution, "ra_rad", "dec_rad", "roll_rad", "sigma_rad", "rotation", "matches", "centroids_px"
 )
+
+
+def _check_status(status: object) -> None:
+    if not isinstance(status, str) or status not in _STATUSES:
+        raise InputError(f"status must be one of {', '.join(_STATUSES)}; got {status!r:.80}")
+
+
+#: Solution's fields; where :meth:`Solution.of` stores each (a deferred field in its slot) and
+#: the defaults it stores (the dict fields' factories are called per solution)
+_FIELD_NAMES = frozenset(f.name for f in fields(Solution))
+_SLOTS = {name: "_" + name for name in Solution.deferred_fields}
+_DEFAULT_VALUES = {
+    _SLOTS.get(f.name, f.name): f.default for f in fields(Solution) if f.default is not MISSING
+}
