@@ -11,6 +11,7 @@ from starsense.attitude.estimate import estimate_attitude
 from starsense.attitude.robust import (
     SCATTER_STARS,
     median_misfit,
+    pair_disagreements,
     pair_outliers,
     pair_scatter,
     robust_attitude,
@@ -318,3 +319,27 @@ def test_residuals_beyond_noise_alarm_at_their_chance_and_always_at_four_times()
         stated_low += residuals_beyond_noise(att)
     assert alarms <= 10
     assert stated_low == 200
+
+
+@pytest.mark.parametrize("spread_rad", [5e-6, 1e-3, 0.3, 1.5])
+def test_pair_disagreements_are_the_angles_differences(spread_rad):
+    # the angles from the chords against atan2(|a x b|, a . b) (accurate at every angle): the
+    # dot product's rounding (a few 1e-16) moves an angle theta by about 1e-16 / theta rad,
+    # 2e-11 rad for stars 1 arcsec apart; bound: 2e-15 / spread + 1e-12 rad, at most 4e-10 rad
+    # (1e-4 arcsec), far below any centroid's noise
+    rng = np.random.default_rng(7)
+
+    def units(n):
+        v = np.column_stack([spread_rad * rng.normal(size=(n, 2)), np.ones(n)])
+        return v / np.linalg.norm(v, axis=1)[:, None]
+
+    body, ref = units(12), units(12)
+
+    def angles(v):
+        cross = np.linalg.norm(np.cross(v[:, None, :], v[None, :, :]), axis=-1)
+        return np.arctan2(cross, v @ v.T)
+
+    want = np.abs(angles(body) - angles(ref))
+    tol = 2e-15 / spread_rad + 1e-12
+    np.testing.assert_allclose(pair_disagreements(body, ref), want, rtol=0, atol=tol)
+    assert np.all(np.diag(pair_disagreements(body, ref)) == 0.0)
