@@ -16,9 +16,9 @@ model's fit of the body rate, which decides.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
+
+from starsense.detect.row_stats import row_nanmedian
 
 __all__ = ["adaptive_axes"]
 
@@ -60,13 +60,11 @@ def adaptive_axes(image, x, y, *, half_px: int, start_sigma_px: float, level=Non
     on = ((rr >= 0) & (rr < a.shape[0]))[:, :, None] & ((cc >= 0) & (cc < a.shape[1]))[:, None, :]
     sub = a[np.clip(rr, 0, a.shape[0] - 1)[:, :, None], np.clip(cc, 0, a.shape[1] - 1)[:, None, :]]
     sub = np.where(on, sub.astype(float), np.nan)
-    with warnings.catch_warnings():  # a window whose border is off the frame: NaN, unmeasured
-        warnings.simplefilter("ignore", RuntimeWarning)
-        if level is None:
-            border = np.concatenate([sub[:, 0], sub[:, -1], sub[:, :, 0], sub[:, :, -1]], axis=1)
-            sub = sub - np.nanmedian(border, axis=1)[:, None, None]
-        else:
-            sub = sub - float(level)
+    if level is None:  # a window whose border is off the frame: NaN, unmeasured
+        border = np.concatenate([sub[:, 0], sub[:, -1], sub[:, :, 0], sub[:, :, -1]], axis=1)
+        sub = sub - row_nanmedian(border)[:, None, None]
+    else:
+        sub = sub - float(level)
     sub = np.nan_to_num(sub, nan=0.0)
     dx0 = ar[None, None, :] - (x - c0)[:, None, None]  # (N, 1, w): column offsets
     dy0 = ar[None, :, None] - (y - r0)[:, None, None]  # (N, w, 1): row offsets

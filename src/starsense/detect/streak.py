@@ -12,12 +12,12 @@ is smeared at all).
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 from scipy import ndimage
 
 from starsense.detect.clip import MAD_TO_SIGMA
+from starsense.detect.row_stats import row_nanmedian
 
 __all__ = [
     "SYSTEMATIC",
@@ -378,12 +378,10 @@ def streak_axes(
     cut = np.full(len(k), float(threshold))
     if level is None:
         border = np.concatenate([sub[:, 0], sub[:, -1], sub[:, 1:-1, 0], sub[:, 1:-1, -1]], axis=1)
-        with warnings.catch_warnings():  # a window with its whole border off the frame
-            warnings.simplefilter("ignore", RuntimeWarning)
-            base = np.nanmedian(border, axis=1)
-            if threshold_sigma is not None:
-                noise = MAD_TO_SIGMA * np.nanmedian(np.abs(border - base[:, None]), axis=1)
-                cut = np.maximum(cut, threshold_sigma * noise)
+        base = row_nanmedian(border)  # NaN: a window with its whole border off the frame
+        if threshold_sigma is not None:
+            noise = MAD_TO_SIGMA * row_nanmedian(np.abs(border - base[:, None]))
+            cut = np.maximum(cut, threshold_sigma * noise)
         sub -= base[:, None, None]
     else:
         sub -= level
