@@ -182,6 +182,14 @@ def test_one_exposure_cannot_tell_the_gain(runs):
     assert camera_sensor(ch).detector.gain_counts_per_e == base.detector.gain_counts_per_e
     assert "gain is not known" in values["read_noise_e"].method
     assert "one frame" in values["hot_pixel_fraction"].method
+    # two fields at one exposure still cannot tell the gain; the read noise's uncertainty is
+    # then its spread over the frames, as the other per-frame values' (one frame: none)
+    two = characterize([image, _frames(truth, 12, exposures=(0.5,))[0]], base)
+    values, not_told = measured_values(two)
+    assert "gain_counts_per_e" in not_told
+    reads = values["read_noise_e"]
+    assert np.isnan(measured_values(ch)[0]["read_noise_e"].uncertainty)
+    assert 0.0 <= reads.uncertainty < reads.value
 
 
 def test_bad_input_is_one_error(runs):

@@ -192,12 +192,12 @@ def _noise(ch: Characterisation, out: dict, frames: tuple, not_told: dict) -> No
     ]
     out["read_noise_e"] = Measured(
         float(np.median(reads)),
-        math.nan,
+        float(np.std(reads, ddof=1)) if len(reads) > 1 else math.nan,
         "e",
         frames,
         f"the background's per-pixel noise less the sky's shot noise at the base gain {g:g} "
-        "counts/e (the gain is not known, so read and shot noise are not told apart: a frame "
-        "rendered with both has the measured noise)",
+        "counts/e, median over frames (+- their spread; the gain is not known, so read and "
+        "shot noise are not told apart: a frame rendered with both has the measured noise)",
     )
 
 
