@@ -82,6 +82,26 @@ def test_ctrl_c_while_the_report_loads_its_stars(tmp_path, monkeypatch, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]  # no temporary left
 
 
+def test_files_completed_in_a_discarded_staging_folder_are_not_reported(
+    tmp_path, monkeypatch, capsys
+):
+    # the report completes its figures inside a staging folder; Ctrl-C before that folder is
+    # renamed into place discards it: nothing of it is the user's, so "nothing written"
+    from starsense._io import atomic_paths
+
+    def write_then_interrupt(work, *args, **kwargs):
+        with atomic_paths([work / "figure.pdf"]) as (tmp,):
+            tmp.write_bytes(b"%PDF")
+        assert (work / "figure.pdf").exists()  # complete, in the staging folder
+        _interrupt()
+
+    monkeypatch.setattr(build, "_write_index", write_then_interrupt)
+    monkeypatch.setattr(build, "SECTION_BUILDERS", [])
+    code = main(["report", "--out", str(tmp_path / "r")])
+    assert code == 130 and capsys.readouterr().err.strip() == LINE
+    assert list(tmp_path.iterdir()) == []  # the staging folder is gone with its figure
+
+
 def test_a_second_ctrl_c_does_not_cut_the_cleanup_short(tmp_path, monkeypatch, capsys):
     # Ctrl-C pressed again while the command unwinds is ignored until main returns
     def twice(*args, **kwargs):

@@ -59,10 +59,12 @@ def written(*, forget: bool = False) -> list[Path]:
     """Return the outputs this process has put in place (renamed complete), oldest first.
 
     The command line says after an interrupt whether anything was written before it (a signal
-    held back during a commit is raised once the files are complete). ``forget`` clears the
+    held back during a commit is raised once the files are complete). Only what is still there
+    counts: a file completed inside a staging folder that was then renamed into place or
+    discarded is not the user's output (the folder, when renamed, is). ``forget`` clears the
     list (a new command starts).
     """
-    out = list(_WRITTEN)
+    out = [p for p in _WRITTEN if os.path.lexists(p)]
     if forget:
         _WRITTEN.clear()
     return out
