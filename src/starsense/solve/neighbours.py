@@ -12,7 +12,9 @@ The forward model's fit (:func:`starsense.model.fit.fit_windows`) of the stars a
    companion is;
 3. the fit is made with them; where its fluxes move the zero point by more than
    :data:`ZERO_POINT_AGREES` (a lit sum misses a wide PSF's wings), the neighbours are
-   predicted again and the fit repeated from its attitude.
+   predicted again and the fit repeated from its attitude. A fit that did not converge (the
+   model does not place the stars: :func:`~starsense.model.fit.fit_windows` stops it) is not
+   repeated: its fluxes measure nothing, and its attitude is not a start.
 """
 
 from __future__ import annotations
@@ -131,6 +133,8 @@ def fit_with_neighbours(
             **opts,
         )
         n_fitted = len(ref)
+        if not fit.converged:  # its fluxes are not a measurement: the zero point stands
+            break
         new = frame_zero_point(fit.fluxes_e[: len(ref)], mags)
         if new is None or abs(new / zp - 1.0) < ZERO_POINT_AGREES or not len(nv):
             break
