@@ -17,6 +17,7 @@ only the module of the command it runs (:data:`COMMANDS`, :func:`app_for`); the 
 from __future__ import annotations
 
 import contextlib
+import gc
 import importlib
 import os
 import signal
@@ -329,8 +330,16 @@ def _written(*, forget: bool = False) -> list:
 
 
 def console_main() -> None:  # pragma: no cover - thin wrapper for the console script
-    """Run the command line on ``sys.argv`` and exit with its status (the ``starsense`` script)."""
-    sys.exit(main())
+    """Run the command line on ``sys.argv`` and exit with its status (the ``starsense`` script).
+
+    The process ends right after: its objects are frozen out of the collector first, so that
+    the interpreter's last collection does not walk the hundreds of thousands the scientific
+    modules hold (40-60 ms of a 0.6 s solve). Files are closed by their owners before this
+    (the writers' context managers); the exit handlers still run.
+    """
+    code = main()
+    gc.freeze()
+    sys.exit(code)
 
 
 if __name__ == "__main__":  # pragma: no cover
