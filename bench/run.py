@@ -252,7 +252,7 @@ def _solve_esa_robust() -> float:
 @bench(
     "solve_cli_esa_frame",
     "`starsense solve FRAME --sensor esa_blackfly --json` as a process: start-up + one frame",
-    0.7,
+    0.5,
 )
 def _solve_cli_esa() -> float:
     folder = Path(__file__).resolve().parents[2] / "shared" / "data" / "images" / "esa"
