@@ -189,12 +189,16 @@ def starsense_side(synth_sets, esa):
     public = Solver(fov_rad=fov)  # the README's call: Solver(fov_rad=...).solve_centroids(...)
     public.prepare()  # its database loaded, once
     size = (SYNTH_SIZE[1], SYNTH_SIZE[0])  # width, height
+    # each call timed in a pass of its own over the sets, as the peers' are (alternating the
+    # public call with the inner identifier's own copy of the database evicts each one's
+    # tables from the cache between calls)
     for key, (xy, offsets, _bores) in synth_sets.items():
+        sets = [xy[offsets[i] : offsets[i + 1]] for i in range(len(offsets) - 1)]
         synth[key], synth[f"{key}_inner"] = [], []
-        for i in range(len(offsets) - 1):
-            pts = xy[offsets[i] : offsets[i + 1]]
+        for pts in sets:
             sol, ms = _best_of(lambda pts=pts: public.solve_centroids(pts, size), 1)
             synth[key].append({**_solution_record(sol, ms), "patterns": _patterns(sol)})
+        for pts in sets:
 
             def solve(pts=pts):
                 return identify(
@@ -209,10 +213,11 @@ def starsense_side(synth_sets, esa):
     esa_public = Solver(sensor=sensor)  # solve_centroids with the sensor's optics
     esa_public.prepare()
     esa_size = (sensor.detector.columns, sensor.detector.rows)
-    for i in range(len(names)):
-        pts = exy[eoff[i] : eoff[i + 1]]
+    esa_sets = [exy[eoff[i] : eoff[i + 1]] for i in range(len(names))]
+    for pts in esa_sets:
         sol, ms = _best_of(lambda pts=pts: esa_public.solve_centroids(pts, esa_size), 3)
         same.append(_solution_record(sol, ms))
+    for pts in esa_sets:
 
         def solve(pts=pts):
             return identify_esa(sensor.unproject(pts[:, 0], pts[:, 1]), esa_fov)
