@@ -10,11 +10,11 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from field_stars import catalog_of
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 import starsense.solve.neighbours as neighbours
-from starsense.catalog.table import Catalog
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
 from starsense.solve.identifiers import SkyStars
@@ -29,12 +29,7 @@ def _field(sensor, rng, n=14):
     v = sensor.unproject(x, y)
     mags = rng.uniform(3.0, 5.5, n)
     mags[n // 2 :] += 1.5  # the companions fainter: drawn as neighbours, not fitted
-    cat = Catalog.from_columns(
-        name="field", source="test", epoch_yr=2016.0, ids=np.arange(n),
-        ra_deg=np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0,
-        dec_deg=np.degrees(np.arcsin(v[:, 2])), mags={"V": mags},
-        colours={"B-V": np.full(n, 0.6)},
-    )  # fmt: skip
+    cat = catalog_of(v, mags)
     return cat, v, mags
 
 

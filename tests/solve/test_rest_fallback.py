@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from field_stars import catalog_of
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from starsense.catalog.table import Catalog
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.render.scene import render_frame
 from starsense.sensor import load_sensor
@@ -26,12 +26,7 @@ def _sky(sensor, rng, n=12):
     x, y = rng.uniform(60, det.columns - 60, n), rng.uniform(60, det.rows - 60, n)
     v = sensor.unproject(x, y)  # camera = ICRS at the identity attitude
     mags = rng.uniform(3.0, 5.5, n)
-    cat = Catalog.from_columns(
-        name="field", source="test", epoch_yr=2016.0, ids=np.arange(n),
-        ra_deg=np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0,
-        dec_deg=np.degrees(np.arcsin(v[:, 2])), mags={"V": mags},
-        colours={"B-V": np.full(n, 0.6)},
-    )  # fmt: skip
+    cat = catalog_of(v, mags)
     return cat, v, mags
 
 
