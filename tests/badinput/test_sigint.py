@@ -102,6 +102,64 @@ def test_files_completed_in_a_discarded_staging_folder_are_not_reported(
     assert list(tmp_path.iterdir()) == []  # the staging folder is gone with its figure
 
 
+def _interrupt_and_swallow(*args, **kwargs):
+    # what a library that catches everything does (an import whose unwind became an
+    # ImportError it passed over): the signal arrived, the command goes on
+    try:
+        _interrupt()
+    except BaseException:
+        pass
+
+
+def test_ctrl_c_a_library_swallowed_still_writes_nothing(tmp_path, monkeypatch, capsys):
+    # the report's stars load through the swallowing library: the report is built, then its
+    # commit refuses to put it in place
+    load_stars = build._load_stars
+
+    def swallowing_load(*args, **kwargs):
+        _interrupt_and_swallow()
+        return load_stars(*args, **kwargs)
+
+    monkeypatch.setattr(build, "_load_stars", swallowing_load)
+    monkeypatch.setattr(build, "SECTION_BUILDERS", [])
+    code = main(["report", "--out", str(tmp_path / "r")])
+    assert code == 130 and capsys.readouterr().err.strip() == LINE
+    assert list(tmp_path.iterdir()) == []  # no report, no staging folder
+
+
+def test_ctrl_c_a_library_swallowed_ends_an_import_before_its_cluster(
+    tmp_path, monkeypatch, capsys
+):
+    # catalog import: the signal lands in its optional imports and is swallowed; the import
+    # stops before it starts a cluster, writes nothing and says why it ended
+    pytest.importorskip("hats_import")
+    importer = importlib.import_module("starsense.scale.importer")
+    started = []
+    monkeypatch.setattr(importer, "require", _interrupt_and_swallow)
+    monkeypatch.setattr(importer, "client_or_local", lambda *a, **k: started.append(1))
+    source = tmp_path / "stars.csv"
+    source.write_text("ra,dec,V\n10.0,20.0,5.0\n11.0,21.0,6.0\n")
+    code = main(["catalog", "import", str(source), str(tmp_path / "hats")])
+    assert code == 130 and capsys.readouterr().err.strip() == LINE
+    assert started == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["stars.csv"]
+
+
+def test_ctrl_c_turned_into_a_user_error_is_still_ctrl_c(tmp_path, monkeypatch, capsys):
+    # an optional import, interrupted, fails as "not installed": the signal ended the command
+    from starsense.errors import InputError
+
+    def interrupted_import(*args, **kwargs):
+        try:
+            _interrupt()
+        except BaseException:
+            raise InputError("deep catalogues need the optional dependency") from None
+
+    monkeypatch.setattr(cli_app, "_load", interrupted_import)
+    assert main(_argv("trade", tmp_path / "out")) == 130
+    assert capsys.readouterr().err.strip() == LINE
+
+
 def test_a_second_ctrl_c_does_not_cut_the_cleanup_short(tmp_path, monkeypatch, capsys):
     # Ctrl-C pressed again while the command unwinds is ignored until main returns
     def twice(*args, **kwargs):

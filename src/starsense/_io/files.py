@@ -28,7 +28,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
-from starsense.errors import OutputError, one_line
+from starsense.errors import OutputError, one_line, unwind_if_signalled
 
 __all__ = [
     "atomic_path",
@@ -295,8 +295,11 @@ def deferred_signals() -> Iterator[None]:
     handler that was in place, so renames that belong together (an image and its truth, a
     report swapped for the old one) happen all or none. (The Python-level handlers are swapped
     rather than the thread's signal mask: a process-directed signal may land on any thread.)
-    Outside the main thread, where handlers cannot be set, the block runs as is.
+    Outside the main thread, where handlers cannot be set, the block runs as is. A signal that
+    arrived before the block, its unwind swallowed by a library on the way, ends it before it
+    starts (:func:`~starsense.errors.unwind_if_signalled`): nothing is committed after one.
     """
+    unwind_if_signalled()
     if threading.current_thread() is not threading.main_thread():
         yield
         return

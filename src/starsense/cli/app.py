@@ -26,7 +26,16 @@ import threading
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
-from starsense.errors import StarsenseError, one_line
+from starsense.errors import (
+    UNWIND,
+    Interrupted,
+    StarsenseError,
+    Terminated,
+    forget_signals,
+    note_signal,
+    one_line,
+    signal_received,
+)
 
 if TYPE_CHECKING:
     import typer
@@ -171,35 +180,16 @@ def __getattr__(name: str) -> typer.Typer:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-class Terminated(BaseException):
-    """SIGTERM arrived: unwind like KeyboardInterrupt (a BaseException, so no handler eats it)."""
-
-
-class Interrupted(BaseException):
-    """Ctrl-C (SIGINT) arrived: unwind, and exit 130 with one line.
-
-    Not :class:`KeyboardInterrupt`, which typer turns into "Aborted!" and status 1, and which
-    Python prints as a traceback where nothing catches it.
-    """
-
-
 #: exit status after SIGTERM (the shell's 128 + signal number)
 EXIT_TERMINATED = 128 + signal.SIGTERM
 #: exit status after Ctrl-C (SIGINT)
 EXIT_INTERRUPTED = 128 + signal.SIGINT
 
-_UNWIND = {signal.SIGINT: Interrupted, signal.SIGTERM: Terminated}
-
-
-#: the signal that ended the command, if one did (reset by :func:`main`)
-_received: list[int] = []
-
 
 def _on_signal(signum: int, frame: object) -> None:
-    for s in _UNWIND:  # a second signal must not cut the cleanup short
+    for s in UNWIND:  # a second signal must not cut the cleanup short
         signal.signal(s, signal.SIG_IGN)
-    _received.append(signum)
-    raise _UNWIND[signum]
+    raise note_signal(signum)
 
 
 @contextlib.contextmanager
@@ -209,7 +199,7 @@ def _signals_unwind() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = {s: signal.signal(s, _on_signal) for s in _UNWIND}
+    old = {s: signal.signal(s, _on_signal) for s in UNWIND}
     hook = sys.unraisablehook
     sys.unraisablehook = _unwind_again(hook)
     try:
@@ -231,7 +221,7 @@ def _unwind_again(hook):
     """
 
     def unraisable(info) -> None:
-        for signum, kind in _UNWIND.items():
+        for signum, kind in UNWIND.items():
             if isinstance(info.exc_value, kind):
                 signal.signal(signum, _on_signal)
                 again = threading.Timer(0.05, os.kill, args=(os.getpid(), signum))
@@ -269,44 +259,53 @@ def main(argv: list[str] | None = None) -> int:
         130 after Ctrl-C, 143 after SIGTERM.
     """
     args = sys.argv[1:] if argv is None else list(argv)
-    _received.clear()
+    forget_signals()
     _written(forget=True)
+    try:
+        return _run(args)
+    finally:
+        forget_signals()  # a signal of this command says nothing about what the caller does next
+
+
+def _run(args: list[str]) -> int:
+    """Run the command ``args`` with the signals unwinding it; return its exit status."""
     try:
         with _signals_unwind():
             app = app_for(args)
             importlib.import_module("starsense.cli.helptext").reflow_app(app)
             app(args=args, prog_name="starsense")  # standalone mode: ends with SystemExit
-    except SystemExit as exc:
-        if _received:  # a signal came, and something swallowed its unwind: it still ended it
-            return _interrupted(_received[0])
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    except StarsenseError as exc:
-        _say(f"error: {exc}")
-        return 2
-    except FileNotFoundError as exc:
-        _say(f"error: file not found: {one_line(str(exc.filename), 300)}")
-        return 2
-    except OSError as exc:
-        # the system refused a path the user gave (a name too long, a permission) where no
-        # reader said so in its own words: that path and the system's reason, on one line
-        if _received:
-            return _interrupted(_received[0])
-        if exc.filename is None:
-            raise
-        _say(f"error: {one_line(str(exc.filename), 300)}: {exc.strerror or exc}")
-        return 2
     except Terminated:
         return _interrupted(signal.SIGTERM)
     except Interrupted:
         return _interrupted(signal.SIGINT)
-    except Exception:
-        # a library that caught the unwind and raised its own error instead (pandas' compiled
-        # modules, interrupted while they import, say "partially initialized module"): the
-        # signal ended the command, not the error
-        if _received:
-            return _interrupted(_received[0])
-        raise
+    except BaseException as exc:
+        # a signal came and something swallowed its unwind, or turned it into an error of its
+        # own (pandas' compiled modules, interrupted while they import, say "partially
+        # initialized module"; an optional import's ImportError reads "not installed"): the
+        # signal ended the command, not what came after it
+        received = signal_received()
+        if received is not None:
+            return _interrupted(received)
+        return _ended_by(exc)
     return 0
+
+
+def _ended_by(exc: BaseException) -> int:
+    """Report how the command ended when no signal ended it; return its exit status."""
+    if isinstance(exc, SystemExit):
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    if isinstance(exc, StarsenseError):
+        _say(f"error: {exc}")
+        return 2
+    if isinstance(exc, FileNotFoundError):
+        _say(f"error: file not found: {one_line(str(exc.filename), 300)}")
+        return 2
+    if isinstance(exc, OSError) and exc.filename is not None:
+        # the system refused a path the user gave (a name too long, a permission) where no
+        # reader said so in its own words: that path and the system's reason, on one line
+        _say(f"error: {one_line(str(exc.filename), 300)}: {exc.strerror or exc}")
+        return 2
+    raise exc
 
 
 def _interrupted(signum: int) -> int:

@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from starsense._io import check_output, note_written, sweep_stale, temp_prefix
+from starsense._io import check_output, deferred_signals, note_written, sweep_stale, temp_prefix
 from starsense._validate import check_int, show
 from starsense.catalog._parse import locate_delimited_error
-from starsense.errors import InputError
+from starsense.errors import InputError, unwind_if_signalled
 from starsense.scale._deps import quiet_third_party_warnings, require
 from starsense.scale.errors import CatalogUnavailableError, MissingColumnsError
 from starsense.scale.run import client_or_local
@@ -230,6 +230,8 @@ def import_catalog(
     from hats_import.catalog.arguments import ImportArguments
     from hats_import.pipeline import pipeline_with_client
 
+    unwind_if_signalled()  # a signal its imports swallowed: no cluster is started for nothing
+
     dst.parent.mkdir(parents=True, exist_ok=True)
     sweep_stale(dst)  # what a killed import left beside the output
     work = Path(tempfile.mkdtemp(prefix=temp_prefix(dst), suffix=".tmp", dir=dst.parent))
@@ -251,8 +253,9 @@ def import_catalog(
             with client_or_local(client) as c, _collect_worker_prints(c) as printed:
                 pipeline_with_client(args, c)
         shutil.rmtree(work / "intermediate", ignore_errors=True)
-        (work / dst.name).rename(dst)
-        note_written(dst)
+        with deferred_signals():  # never after a signal, even one a worker pool swallowed
+            (work / dst.name).rename(dst)
+            note_written(dst)
     except (ValueError, KeyError) as exc:
         raise InputError(f"hats-import could not import {src}: {exc}") from None
     except RuntimeError:  # "Some mapping stages failed. See above Exceptions."
