@@ -16,6 +16,7 @@ differences of the projection (steps of 1e-6 rad: the truncation error, ~eps^2 f
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -94,10 +95,31 @@ def rotvec_matrices(rotvec) -> np.ndarray:
     return np.eye(3) + s * k + c * (k @ k)
 
 
-def _camera_rotations(rotation: Rotation, rate, tau, theta_steps, rate_steps) -> np.ndarray:
+@functools.lru_cache(maxsize=64)
+def _steps(n_par: int, eps_w: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the central differences' perturbations: (D, 3) attitude and rate steps, and the
+    attitude steps' matrices R(dtheta), (D, 3, 3) (D = 1 + 2 P: none, then +- each parameter)."""
+    steps_t, steps_w = np.zeros((1 + 2 * n_par, 3)), np.zeros((1 + 2 * n_par, 3))
+    for j in range(n_par):
+        for k, sign in enumerate((1.0, -1.0)):
+            if j < 3:
+                steps_t[1 + 2 * j + k, j] = sign * EPS_RAD
+            else:
+                steps_w[1 + 2 * j + k, j - 3] = sign * eps_w
+    for a in (steps_t, steps_w):
+        a.flags.writeable = False
+    mats = rotvec_matrices(steps_t)
+    mats.flags.writeable = False
+    return steps_t, steps_w, mats
+
+
+def _camera_rotations(rotation: Rotation, rate, tau, steps) -> np.ndarray:
     """Matrices R(-(w + dw) tau) R(dtheta) A, shape (D, K, 3, 3), for D perturbations."""
-    head = rotvec_matrices(np.asarray(theta_steps)) @ rotation.as_matrix()  # (D, 3, 3)
-    turns = np.asarray(rate)[None, :] + np.asarray(rate_steps)  # (D, 3)
+    _, rate_steps, theta_mats = steps
+    head = theta_mats @ rotation.as_matrix()  # (D, 3, 3)
+    if not np.any(tau):  # one node at mid-exposure: no turn
+        return head[:, None]
+    turns = np.asarray(rate)[None, :] + rate_steps  # (D, 3)
     turn = rotvec_matrices(-turns[:, None, :] * tau[None, :, None])  # (D, K, 3, 3)
     return turn @ head[:, None]
 
@@ -140,17 +162,7 @@ def node_positions(
     tau = np.asarray(fractions, dtype=float) * exposure_s
     n_par = 6 if fit_rate else 3
     eps_w = EPS_RAD / max(0.5 * exposure_s, 1e-9)
-    steps_t, steps_w = [np.zeros(3)], [np.zeros(3)]
-    for j in range(n_par):
-        for sign in (1.0, -1.0):
-            dt, dw = np.zeros(3), np.zeros(3)
-            if j < 3:
-                dt[j] = sign * EPS_RAD
-            else:
-                dw[j - 3] = sign * eps_w
-            steps_t.append(dt)
-            steps_w.append(dw)
-    mats = _camera_rotations(rotation, w, tau, steps_t, steps_w)  # (D, K, 3, 3)
+    mats = _camera_rotations(rotation, w, tau, _steps(n_par, eps_w))  # (D, K, 3, 3)
     cam = np.einsum("dkij,sj->dski", mats, v)  # (D, S, K, 3)
     px, py = sensor.project(cam)
     scale = np.array([EPS_RAD] * 3 + [eps_w] * 3)[:n_par]
