@@ -97,8 +97,11 @@ def rotvec_matrices(rotvec) -> np.ndarray:
 
 @functools.lru_cache(maxsize=64)
 def _steps(n_par: int, eps_w: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return the central differences' perturbations: (D, 3) attitude and rate steps, and the
-    attitude steps' matrices R(dtheta), (D, 3, 3) (D = 1 + 2 P: none, then +- each parameter)."""
+    """Return the central differences' perturbations and the attitude steps' matrices.
+
+    ``(steps_t, steps_w, R(steps_t))``: (D, 3) attitude and rate steps and (D, 3, 3) matrices,
+    D = 1 + 2 P (none, then + and - each parameter); read-only (shared between calls).
+    """
     steps_t, steps_w = np.zeros((1 + 2 * n_par, 3)), np.zeros((1 + 2 * n_par, 3))
     for j in range(n_par):
         for k, sign in enumerate((1.0, -1.0)):
