@@ -8,7 +8,8 @@ background are free, and the catalogue stars whose light reaches a window are in
 that matters is fitted again with the body rate free (:mod:`starsense.solve.smeared_fit`), the
 likelihood ratio deciding, and a frame whose fit at
 its streaks' rate is refused is fitted at rest (blends in a crowded field can measure as
-streaks); then the other stars in view join (:mod:`starsense.solve.in_view`).
+streaks), kept where its pixels accept the model at rest; then the other stars in view join
+(:mod:`starsense.solve.in_view`).
 
 Whether the fit's attitude replaces the centroids' one, and with what covariance, is
 :mod:`starsense.solve.fit_judgement`'s to say.
@@ -179,11 +180,15 @@ def _at_rest(refused: Refinement, at_rest) -> Refinement:
     A crowded field's blended stars can measure as streaks: fitted at their rate, the frame's
     pixels reject the model, or the stars' and neighbours' tracks pass a fit's work. Fitted at
     rest, the rate its hint, the likelihood decides between the two models
-    (:func:`starsense.solve.smeared_fit.smeared_fit`); a fit at rest the pixels accept is
-    used. Else the refusal stands.
+    (:func:`starsense.solve.smeared_fit.smeared_fit`); a fit at rest the pixels accept (a
+    reduced chi-square within :data:`~starsense.solve.fit_judgement.MAX_REDUCED_CHI2`) is
+    used. Else the refusal stands: real streaks too long for a fit, fitted at rest, leave
+    their pixels far from the model (windows at rest cut a stretch of each streak, whose place
+    along it the windows' edges set, not the star), and the misfit, symmetric about the
+    stars, need not pull the attitude that the judgement of a fit watches for.
     """
     done = at_rest()
-    if not done.used:
+    if not done.used or not done.fit.reduced_chi2 <= MAX_REDUCED_CHI2:
         return refused
     why = refused.note.removeprefix("model fit not used: ")
     return dataclasses.replace(
