@@ -28,15 +28,15 @@ group's current fit) and move with the attitude.
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from starsense.errors import InputError
+from starsense.model.boxes import over_capacity, window_layout
 from starsense.model.psf import PixelPSF
-from starsense.model.stamps import source_stamps, stamp_side
+from starsense.model.stamps import source_stamps
 from starsense.model.tracks import NodePositions
 
 try:  # the compiled form of evaluate() for Gaussian stars at rest (setup.py)
@@ -46,7 +46,6 @@ except ImportError:  # pragma: no cover - built without a C compiler: the NumPy 
 
 __all__ = [
     "MAX_NODES",
-    "MAX_WINDOW_PIXELS",
     "WINDOW_HALF_SIGMAS",
     "Evaluation",
     "Windows",
@@ -55,12 +54,6 @@ __all__ = [
     "window_half_px",
 ]
 
-#: most pixels the groups of one frame may hold (padded): the fit holds ~(slots + parameters)
-#: arrays of this size, ~8 MB each at 1,000,000
-MAX_WINDOW_PIXELS = 1_000_000
-#: most PSF evaluations (pixels x time nodes over every source in every group it reaches) of
-#: one evaluation of the model: ~0.5 s of NumPy a step
-MAX_WORK = 2e7
 #: most time nodes over every source (free and fixed) of one fit: each holds its position and
 #: its derivatives (14 floats) and laying them out 21 more, ~0.3 GB at 1,000,000
 MAX_NODES = 1_000_000
@@ -135,71 +128,6 @@ class Windows:
         return [(z, np.flatnonzero((sizes == z).all(axis=1))) for z in np.unique(sizes, axis=0)]
 
 
-def _boxes(x, y, half_px: float) -> np.ndarray:
-    """Detector boxes (row0, row1, col0, col1) of the tracks' nodes padded by ``half_px``."""
-    r0 = np.floor(np.nanmin(y, axis=1) - half_px + 0.5).astype(np.int64)
-    r1 = np.floor(np.nanmax(y, axis=1) + half_px + 0.5).astype(np.int64) + 1
-    c0 = np.floor(np.nanmin(x, axis=1) - half_px + 0.5).astype(np.int64)
-    c1 = np.floor(np.nanmax(x, axis=1) + half_px + 0.5).astype(np.int64) + 1
-    return np.column_stack([r0, r1, c0, c1])
-
-
-def _area(box) -> float:
-    """Pixels of a box (row0, row1, col0, col1)."""
-    return float((box[1] - box[0]) * (box[3] - box[2]))
-
-
-def _merge(boxes: np.ndarray, free: np.ndarray, max_side: int) -> np.ndarray:
-    """Return each free box's group (-1 for fixed ones).
-
-    Overlapping free boxes share a group while the union of the group's boxes stays within
-    ``max_side`` px a side, or holds no more pixels than the two grids it replaces: parallel
-    tracks that share their pixels (a close pair at a body rate moves along one line) are one
-    group whatever their length, crossing streaks (whose union is a square) keep their own.
-    """
-    n = len(boxes)
-    parent = np.arange(n)
-    # in floating point: a track that leaves the camera's view during the exposure (a wrong
-    # rate) reaches coordinates whose differences and products overflow int64
-    boxes = np.asarray(boxes, dtype=float)
-    ext = boxes.copy()  # each root's union box
-
-    def root(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    idx = np.flatnonzero(free)
-    order = idx[np.argsort(boxes[idx, 2])]  # sweep along the columns
-    for i_pos, i in enumerate(order):
-        for j in order[i_pos + 1 :]:
-            if boxes[j, 2] >= boxes[i, 3]:
-                break
-            a, b = boxes[i], boxes[j]
-            if not (a[0] < b[1] and b[0] < a[1]):
-                continue
-            ri, rj = root(i), root(j)
-            if ri == rj:
-                continue
-            u = np.r_[
-                min(ext[ri, 0], ext[rj, 0]),
-                max(ext[ri, 1], ext[rj, 1]),
-                min(ext[ri, 2], ext[rj, 2]),
-                max(ext[ri, 3], ext[rj, 3]),
-            ]
-            if (u[1] - u[0] <= max_side and u[3] - u[2] <= max_side) or _area(u) <= _area(
-                ext[ri]
-            ) + _area(ext[rj]):
-                parent[rj] = ri
-                ext[ri] = u
-    group = np.full(n, -1)
-    roots = {r: g for g, r in enumerate(sorted({root(i) for i in idx}))}
-    for i in idx:
-        group[i] = roots[root(i)]
-    return group
-
-
 def _nearest_mask(windows_shape, g_r0, g_c0, group, x, y, hit, on):
     """Keep in each group the pixels nearer its own free tracks than another group's.
 
@@ -254,44 +182,16 @@ def make_windows(
         the input; ``windows`` describes them in that order.
     """
     free = np.asarray(free, bool)
-    boxes = _boxes(x, y, half_px)
-    side = 2 * (2 * math.ceil(half_px) + 1)  # a compact blend: two stars' boxes a side
-    group = _merge(boxes, free, side)
-    n_groups = int(group.max()) + 1 if np.any(free) else 0
-    big = np.iinfo(np.int64).max
-    gb = np.column_stack([np.full(n_groups, big), np.full(n_groups, -big)] * 2)
-    fr = np.flatnonzero(free)
-    np.minimum.at(gb[:, 0], group[fr], boxes[fr, 0])
-    np.maximum.at(gb[:, 1], group[fr], boxes[fr, 1])
-    np.minimum.at(gb[:, 2], group[fr], boxes[fr, 2])
-    np.maximum.at(gb[:, 3], group[fr], boxes[fr, 3])
-    # every source drawn in every group its box reaches
-    hit = (
-        (boxes[:, None, 0] < gb[None, :, 1])
-        & (gb[None, :, 0] < boxes[:, None, 1])
-        & (boxes[:, None, 2] < gb[None, :, 3])
-        & (gb[None, :, 2] < boxes[:, None, 3])
-    )
+    boxes, group, gb, hit = window_layout(x, y, half_px=half_px, free=free)
+    why = over_capacity(boxes, gb, hit, n_nodes=np.asarray(x).shape[1], half_px=half_px)
+    if why:
+        raise InputError(why)
+    n_groups = len(gb)
     kept = np.flatnonzero(hit.any(axis=1) | free)
     boxes, group, free, hit = boxes[kept], group[kept], free[kept], hit[kept]
     x, y = np.asarray(x)[kept], np.asarray(y)[kept]
     h = int((gb[:, 1] - gb[:, 0]).max()) if n_groups else 0
     w = int((gb[:, 3] - gb[:, 2]).max()) if n_groups else 0
-    if n_groups * h * w > MAX_WINDOW_PIXELS:
-        raise InputError(
-            f"the stars' windows span {n_groups} x {h} x {w} pixels, more than the "
-            f"{MAX_WINDOW_PIXELS:,} a fit may hold"
-        )
-    area = (boxes[:, 1] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 2])
-    n_nodes = np.asarray(x).shape[1]
-    if n_nodes > 1:  # tracks: each node's stamp, then the box it is added into
-        area = np.minimum(area, stamp_side(half_px) ** 2 + area // n_nodes)
-    work = n_nodes * float((hit * area[:, None]).sum())
-    if work > MAX_WORK:
-        raise InputError(
-            f"the stars' tracks and their neighbours' cover {work:.3g} pixel-nodes, more than "
-            f"the {MAX_WORK:.3g} a fit may evaluate (long streaks crossing a crowded field)"
-        )
     slot = np.full(len(kept), -1)
     members = np.flatnonzero(free)
     order = members[np.argsort(group[members], kind="stable")]  # by group, in source order

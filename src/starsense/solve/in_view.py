@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
+from starsense.model.boxes import MAX_WINDOW_PIXELS
 from starsense.model.selection import faintest_mag
-from starsense.model.windows import MAX_WINDOW_PIXELS
 
 __all__ = ["IN_VIEW_PIXELS", "room_for", "stars_in_view"]
 
