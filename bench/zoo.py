@@ -212,6 +212,7 @@ def _run_one(args) -> dict:
                 "cross_predicted_arcsec",
                 "roll_predicted_arcsec",
                 "stars_matched_median",
+                "frames_beyond_fit",
                 "median_ms",
             )
         }
@@ -353,6 +354,12 @@ def summary(rows: list[dict]) -> dict:
         out[f"with_ratios{suffix}"] = len(seeing)
         out[f"in_band_0.8_1.25{suffix}"] = sum(in_band(r, key) for r in seeing)
         out[f"out_of_band{suffix}"] = [r["design"] for r in seeing if not in_band(r, key)]
+    # right solutions at the rate whose streaks no fit holds (not compared): by design
+    out["beyond_fit_at_rate"] = {
+        r["design"]: n
+        for r in rows
+        if (n := (r.get("monte_carlo_at_rate") or {}).get("frames_beyond_fit"))
+    }
     return out
 
 

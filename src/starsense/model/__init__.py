@@ -9,9 +9,10 @@ the datasheet sums its Fisher information over the sky (:mod:`starsense.analysis
 
 Modules: :mod:`~starsense.model.psf` (the pixel-integrated PSF of each shape),
 :mod:`~starsense.model.tracks` (where each star is during the exposure, and how that moves with
-the attitude and rate), :mod:`~starsense.model.boxes` (where each star's window lies and whether a fit can
-hold them), :mod:`~starsense.model.windows` (the expected pixels of groups of stars and their
-Jacobian), :mod:`~starsense.model.fit` (maximum likelihood and the Fisher information).
+the attitude and rate), :mod:`~starsense.model.boxes` (where each star's window lies and
+whether a fit can hold them), :mod:`~starsense.model.windows` (the expected pixels of groups of
+stars and their Jacobian), :mod:`~starsense.model.fit` (maximum likelihood and the Fisher
+information).
 """
 
 from starsense.model.psf import PixelPSF, pixel_psf, psf_of

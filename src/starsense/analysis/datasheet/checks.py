@@ -196,6 +196,13 @@ def solving_warnings(stars, avail, runs, *, n_min: int) -> list[str]:
     for key, run in runs.items():
         if run.wrong:
             out.append(f"{key}: {run.wrong} wrong identifications in {run.frames} frames")
+        if run.frames_beyond_fit:
+            out.append(
+                f"at {run.rate_deg_s:g} deg/s, {run.frames_beyond_fit} of {run.solved} right "
+                "solutions had streaks whose windows pass what the model fit may hold: the "
+                "solver kept their centroids' attitude, which the datasheet does not predict at "
+                "a rate (the check compares the others)"
+            )
     return out
 
 

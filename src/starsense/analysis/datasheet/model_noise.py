@@ -25,12 +25,15 @@ from scipy.spatial.transform import Rotation
 from starsense.analysis.datasheet.field import axis_sigmas, field_stars_cam
 from starsense.analysis.datasheet.noise import CentroidNoise
 from starsense.analysis.datasheet.terms import PixelSpatialError
+from starsense.model.boxes import window_capacity
 from starsense.model.fisher import attitude_information, position_information
 from starsense.model.psf import psf_of
+from starsense.model.tracks import time_nodes
 from starsense.model.windows import window_half_px
 
 __all__ = [
     "ROUND_SHAPE",
+    "fit_holds_at_rate",
     "model_centroid_noise",
     "model_fisher_at_rate",
     "model_nea_at_rate",
@@ -174,3 +177,51 @@ def model_fisher_at_rate(model, fov, matrices, *, rates_rad_s, vectors, magnitud
     fisher = np.zeros((pairs.n_pointings, 3, 3))
     np.add.at(fisher, point, per_star)
     return fisher
+
+
+def fit_holds_at_rate(sensor, fov, matrices, *, rates_rad_s, vectors, magnitudes, n_stars):
+    """Return whether the model fit holds the streaks of each attitude at its body rate (M,).
+
+    The solver first fits its identified stars at their streaks' rate, each in the window of
+    its track; where those windows pass what a fit may hold
+    (:func:`starsense.model.boxes.window_capacity`: the groups' padded pixels, the model's
+    pixel-nodes), it keeps its centroids' attitude. The identified stars are taken as the
+    ``n_stars`` brightest in view (the run's matched count); the catalogue neighbours the fit
+    also draws add to its work only, and are left out (the test is the pixels' for long
+    streaks, which it is about).
+
+    Parameters
+    ----------
+    sensor : Sensor
+    fov : RectangularFov
+    matrices : ndarray (M, 3, 3)
+        Attitudes, ICRS -> camera.
+    rates_rad_s : ndarray (M, 3)
+        Body rate of each, camera frame, rad/s.
+    vectors, magnitudes : ndarray (N, 3), (N,)
+        The stars the fit may use, ICRS, V.
+    n_stars : array_like of int (M,)
+        The stars fitted at each attitude.
+
+    Returns
+    -------
+    ndarray of bool (M,)
+    """
+    psf = psf_of(sensor)
+    half = window_half_px(psf)
+    pairs = field_stars_cam(fov, np.asarray(matrices), np.asarray(vectors))
+    rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[pairs.point]
+    mids, streaks = streaks_px_of(sensor, pairs.v_cam, rates)
+    mags = np.asarray(magnitudes, dtype=float)[pairs.star]
+    out = np.ones(pairs.n_pointings, dtype=bool)
+    for m, n in enumerate(np.asarray(n_stars, dtype=int)):
+        mine = np.flatnonzero(pairs.point == m)
+        mine = mine[np.argsort(mags[mine], kind="stable")[: max(int(n), 0)]]
+        if not len(mine):
+            continue
+        lengths = np.hypot(streaks[mine, 0], streaks[mine, 1])
+        frac, _ = time_nodes(float(np.max(lengths)), psf.sigma_px)
+        x = mids[mine, 0, None] + frac[None, :] * streaks[mine, 0, None]
+        y = mids[mine, 1, None] + frac[None, :] * streaks[mine, 1, None]
+        out[m] = not window_capacity(x, y, half_px=half, free=np.ones(len(mine), dtype=bool))
+    return out

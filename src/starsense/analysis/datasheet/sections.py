@@ -158,7 +158,9 @@ class MonteCarloCheck(_Section):
     (arcsec; at a rate, the prediction of the smeared stars' streak centroids) and their
     ratios, None where nothing solved, with each ratio's 95 % interval over the frames
     (``[low, high]``, :func:`starsense.analysis.datasheet.verify.ratio_interval`);
-    ``stars_matched_median`` only where predicted (absent from the JSON otherwise).
+    ``stars_matched_median`` only where predicted (absent from the JSON otherwise);
+    ``frames_beyond_fit`` at a rate: the right solutions whose streaks' windows pass what the
+    model fit may hold (their centroids' attitude, left out of the comparison).
     """
 
     frames: int
@@ -181,6 +183,7 @@ class MonteCarloCheck(_Section):
     cross_ratio_ci95: list[float] | None = None
     roll_ratio_ci95: list[float] | None = None
     stars_matched_median: float | None = field(default=None, metadata={"omit_none": True})
+    frames_beyond_fit: int | None = field(default=None, metadata={"omit_none": True})
 
     @property
     def solved_fraction(self) -> float | None:

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import beta
 
-from starsense.analysis.datasheet.model_noise import model_nea_at_rate
+from starsense.analysis.datasheet.model_noise import fit_holds_at_rate, model_nea_at_rate
 from starsense.analysis.datasheet.predict import error_kinds, nea_at
 from starsense.analysis.datasheet.sections import MonteCarloCheck
 from starsense.analysis.montecarlo import montecarlo
@@ -132,7 +132,10 @@ def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[st
         prediction is the model fit's information of the smeared stars
         (:func:`starsense.analysis.datasheet.model_noise.model_nea_at_rate`). A centre-of-gravity
         solver is predicted at rest only (its windowed noise): at a rate its run is measured,
-        not compared.
+        not compared. At a rate, an attitude whose streaks' windows pass what the model fit
+        may hold (:func:`~starsense.analysis.datasheet.model_noise.fit_holds_at_rate`) keeps
+        its centroids' attitude: it is counted (``frames_beyond_fit``) and left out of the
+        comparison.
     predict : bool
         Compare with the prediction (False: only the measurement is reported).
 
@@ -158,16 +161,10 @@ def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[st
         "statuses": dict(res.statuses),
     }
     if right < MIN_CHECKED_FRAMES or not predict:  # measured, but too few frames to check
-        out = {**out, **dict.fromkeys(MEASURED_KEYS)}
-        if right:
-            e = res.errors_rad
-            out["cross_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(
-                float(np.mean(0.5 * (e[:, 0] ** 2 + e[:, 1] ** 2)))
-            )
-            out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
-        return out
+        return {**out, **_measured_only(res.errors_rad)}
     mats = Rotation.from_quat(res.truth_quat).as_matrix().reshape(-1, 3, 3)
     vectors, magnitudes, presence, catalogue = stars.at(res.rate_rad_s)
+    e, held = res.errors_rad, np.ones(right, dtype=bool)
     if res.rate_rad_s > 0:
         cross, roll = model_nea_at_rate(
             model,
@@ -178,6 +175,15 @@ def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[st
             magnitudes=magnitudes,
             presence=presence,
         )
+        # attitudes whose streaks no fit holds keep their centroids': compared, the others
+        held = fit_holds_at_rate(
+            model.sensor, fov, mats, rates_rad_s=res.rates_rad_s, vectors=vectors,
+            magnitudes=magnitudes, n_stars=res.n_matched,
+        )  # fmt: skip
+        out["frames_beyond_fit"] = int(np.count_nonzero(~held))
+        if np.count_nonzero(held) < MIN_CHECKED_FRAMES:
+            return {**out, **_measured_only(e)}
+        e, cross, roll = e[held], cross[held], roll[held]
     else:
         kinds = tuple(k for k in error_kinds(model.sensor) if k != "crb")
         kinds += ("catalogue",) if catalogue is not None else ()
@@ -195,9 +201,20 @@ def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[st
         roll = np.sqrt(sum(pred[k][1] ** 2 for k in kinds))
     return {
         **out,
-        **_ratios(res.errors_rad, cross, roll),
-        "stars_matched_median": float(np.median(res.n_matched)),
+        **_ratios(e, cross, roll),
+        "stars_matched_median": float(np.median(res.n_matched[held])),
     }
+
+
+def _measured_only(e: np.ndarray) -> dict[str, Any]:
+    """Return the measured rms per axis of right solutions' errors ``e`` (N, 3), rad; no ratio."""
+    out = dict.fromkeys(MEASURED_KEYS)
+    if len(e):
+        out["cross_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(
+            float(np.mean(0.5 * (e[:, 0] ** 2 + e[:, 1] ** 2)))
+        )
+        out["roll_rms_arcsec"] = RAD_TO_ARCSEC * math.sqrt(float(np.mean(e[:, 2] ** 2)))
+    return out
 
 
 def _ratios(e: np.ndarray, cross: np.ndarray, roll: np.ndarray) -> dict[str, Any]:
