@@ -175,7 +175,7 @@ def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[st
             magnitudes=magnitudes,
             presence=presence,
         )
-        # attitudes whose streaks no fit holds keep their centroids': compared, the others
+        # an attitude whose streaks no fit holds keeps its centroids': the others are compared
         held = fit_holds_at_rate(
             model.sensor, fov, mats, rates_rad_s=res.rates_rad_s, vectors=vectors,
             magnitudes=magnitudes, n_stars=res.n_matched,
