@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 import pytest
+from narrow_camera import narrow_camera
 from scipy.spatial.transform import Rotation
 
 from starsense.analysis.datasheet.field import field_stars_cam
@@ -24,22 +25,6 @@ from starsense.model.boxes import window_capacity
 from starsense.model.psf import psf_of
 from starsense.model.tracks import time_nodes
 from starsense.model.windows import make_windows, window_half_px
-from starsense.sensor import DetectionThresholds, Sensor
-from starsense.sensor.detector import Detector
-from starsense.sensor.optics import Optics
-
-
-def _narrow():
-    """A 5 deg, 2048 x 1536 camera exposing 1 s: at 1 deg/s its streaks are ~410 px."""
-    det = Detector(
-        columns=2048, rows=1536, pixel_pitch_m=16e-6, gain_counts_per_e=0.5, read_noise_e=2.0,
-        bit_depth=12, psf_sigma_px=1.0, qe_mean=0.55, passband_nm=(400.0, 900.0),
-        full_well_e=384_000.0,
-    )  # fmt: skip
-    focal = 0.5 * 2048 * 16e-6 / math.tan(math.radians(2.5))
-    optics = Optics(focal_length_m=focal, aperture_m=focal / 3.2, transmission=0.8)
-    logic = DetectionThresholds(lit_pixel_counts=5.0, min_pixels=3, min_integrated_counts=15.0)
-    return Sensor(name="narrow", optics=optics, detector=det, exposure_s=1.0, detection=logic)
 
 
 def _stars(sensor, n, rng):
@@ -52,7 +37,7 @@ def _stars(sensor, n, rng):
 def test_the_prediction_and_the_fit_refuse_the_same_windows(seed):
     """For each attitude and rate, fit_holds_at_rate says False exactly where make_windows,
     given the same stars' tracks, raises (both ask one rule)."""
-    sensor = _narrow()
+    sensor = narrow_camera()
     rng = np.random.default_rng(seed)
     v, mags = _stars(sensor, 16, rng)
     psf = psf_of(sensor)
@@ -62,9 +47,14 @@ def test_the_prediction_and_the_fit_refuse_the_same_windows(seed):
         phi = rng.uniform(0, 2 * np.pi)
         rate = math.radians(turn_deg) * np.array([math.cos(phi), math.sin(phi), 0.0])
         held = fit_holds_at_rate(
-            sensor, sensor.fov(), np.eye(3)[None], rates_rad_s=rate[None], vectors=v,
-            magnitudes=mags, n_stars=[12],
-        )[0]  # fmt: skip
+            sensor,
+            sensor.fov(),
+            np.eye(3)[None],
+            rates_rad_s=rate[None],
+            vectors=v,
+            magnitudes=mags,
+            n_stars=[12],
+        )[0]
         pairs = field_stars_cam(sensor.fov(), np.eye(3)[None], v)
         mine = pairs.star[np.argsort(mags[pairs.star], kind="stable")][:12]
         mids, streaks = streaks_px_of(sensor, v[mine], np.repeat(rate[None], len(mine), 0))
@@ -86,20 +76,30 @@ def test_a_streak_along_an_axis_is_held_where_one_along_the_diagonal_is_not():
     """12 stars, 1 deg/s: streaks of ~410 px. Along a pixel axis each window is ~410 x 16 px
     (~80,000 px in all); along the diagonal ~300 x 300 px each (~1.1 million, past the
     1,000,000 a fit may hold)."""
-    sensor = _narrow()
+    sensor = narrow_camera()
     v, mags = _stars(sensor, 12, np.random.default_rng(5))
     turn = math.radians(1.0)
     rates = np.array([[turn, 0.0, 0.0], [turn, turn, 0.0] / np.sqrt(2.0)])
     held = fit_holds_at_rate(
-        sensor, sensor.fov(), np.repeat(np.eye(3)[None], 2, 0), rates_rad_s=rates, vectors=v,
-        magnitudes=mags, n_stars=[12, 12],
-    )  # fmt: skip
+        sensor,
+        sensor.fov(),
+        np.repeat(np.eye(3)[None], 2, 0),
+        rates_rad_s=rates,
+        vectors=v,
+        magnitudes=mags,
+        n_stars=[12, 12],
+    )
     assert held.tolist() == [True, False]
     # the same attitudes turned about the boresight by 45 deg swap the answers: the rule is the
     # pixel grid's, not the sky's
     turned = Rotation.from_euler("z", 45, degrees=True).as_matrix()
     diagonal = fit_holds_at_rate(
-        sensor, sensor.fov(), np.eye(3)[None], rates_rad_s=(turned @ rates[0])[None], vectors=v,
-        magnitudes=mags, n_stars=[12],
-    )  # fmt: skip
+        sensor,
+        sensor.fov(),
+        np.eye(3)[None],
+        rates_rad_s=(turned @ rates[0])[None],
+        vectors=v,
+        magnitudes=mags,
+        n_stars=[12],
+    )
     assert not diagonal[0]

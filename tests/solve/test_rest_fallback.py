@@ -8,19 +8,16 @@ at rest with that rate as the hint, the likelihood says whether the frame moved.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from field_stars import catalog_of
+from narrow_camera import narrow_camera
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from starsense.geometry.attitude import small_rotation_angles
 from starsense.render.scene import render_frame
-from starsense.sensor import DetectionThresholds, Sensor, load_sensor
-from starsense.sensor.detector import Detector
-from starsense.sensor.optics import Optics
+from starsense.sensor import load_sensor
 from starsense.solve.identifiers import SkyStars
 from starsense.solve.refine import refine_attitude
 
@@ -61,20 +58,6 @@ def test_a_frame_at_rest_given_a_wrong_rate_is_fitted_at_rest(streak_px):
         assert np.all(np.abs(z) < 4.0), z
 
 
-def _narrow_8bit():
-    """A 5 deg, 2048 x 1536, 8-bit camera exposing 1 s: its ADC clips at ~510 e- (gain 0.5
-    counts/e-, one count of read noise), so a bright star's streak clips along its length."""
-    det = Detector(
-        columns=2048, rows=1536, pixel_pitch_m=16e-6, gain_counts_per_e=0.5, read_noise_e=2.0,
-        bit_depth=8, psf_sigma_px=1.0, qe_mean=0.55, passband_nm=(400.0, 900.0),
-        full_well_e=384_000.0,
-    )  # fmt: skip
-    focal = 0.5 * 2048 * 16e-6 / math.tan(math.radians(2.5))
-    optics = Optics(focal_length_m=focal, aperture_m=focal / 3.2, transmission=0.8)
-    logic = DetectionThresholds(lit_pixel_counts=5.0, min_pixels=3, min_integrated_counts=15.0)
-    return Sensor(name="narrow8", optics=optics, detector=det, exposure_s=1.0, detection=logic)
-
-
 def test_real_streaks_too_long_for_a_fit_are_not_fitted_at_rest():
     """Streaks of 400 px across the diagonal: at their rate the stars' windows pass what a fit
     may hold. Fitted at rest, windows cut a stretch of each streak and the pixels are far from
@@ -82,7 +65,7 @@ def test_real_streaks_too_long_for_a_fit_are_not_fitted_at_rest():
     sums) leave a misfit symmetric about the stars it need not pull the attitude: such a fit
     was used, 7-8 of its sigmas off (one frame of these six). The refusal stands for all six:
     the likelihood says the frame is not at rest, and the centroids' attitude is kept."""
-    sensor = _narrow_8bit()
+    sensor = narrow_camera(bit_depth=8)
     det = sensor.detector
     truth = Rotation.identity()
     start = Rotation.from_rotvec([2e-5, -1e-5, 4e-5])
@@ -97,8 +80,15 @@ def test_real_streaks_too_long_for_a_fit_are_not_fitted_at_rest():
         sky = SkyStars(v, mags, cKDTree(v), np.arange(len(v)), cat)
         frame = render_frame(sensor, truth, cat, rate_rad_s=rate, rng=seed)
         done = refine_attitude(
-            frame.image, sensor, start, ref=v, plain=v, mags=mags, sky=sky,
-            cog_sigma_rad=np.full(3, 5e-5), rate_rad_s=rate,
-        )  # fmt: skip
+            frame.image,
+            sensor,
+            start,
+            ref=v,
+            plain=v,
+            mags=mags,
+            sky=sky,
+            cog_sigma_rad=np.full(3, 5e-5),
+            rate_rad_s=rate,
+        )
         assert not done.used, (seed, done.note)
         assert "a fit may hold" in done.note

@@ -177,9 +177,14 @@ def score_montecarlo(res, model, *, fov, stars, predict: bool = True) -> dict[st
         )
         # an attitude whose streaks no fit holds keeps its centroids': the others are compared
         held = fit_holds_at_rate(
-            model.sensor, fov, mats, rates_rad_s=res.rates_rad_s, vectors=vectors,
-            magnitudes=magnitudes, n_stars=res.n_matched,
-        )  # fmt: skip
+            model.sensor,
+            fov,
+            mats,
+            rates_rad_s=res.rates_rad_s,
+            vectors=vectors,
+            magnitudes=magnitudes,
+            n_stars=res.n_matched,
+        )
         out["frames_beyond_fit"] = int(np.count_nonzero(~held))
         if np.count_nonzero(held) < MIN_CHECKED_FRAMES:
             return {**out, **_measured_only(e)}
