@@ -213,10 +213,12 @@ def fit_holds_at_rate(sensor, fov, matrices, *, rates_rad_s, vectors, magnitudes
     rates = np.asarray(rates_rad_s, dtype=float).reshape(-1, 3)[pairs.point]
     mids, streaks = streaks_px_of(sensor, pairs.v_cam, rates)
     mags = np.asarray(magnitudes, dtype=float)[pairs.star]
+    # the pairs by pointing, brightest first within each: one sort, then each pointing's slice
+    order = np.lexsort((mags, pairs.point))
+    bounds = np.searchsorted(pairs.point[order], np.arange(pairs.n_pointings + 1))
     out = np.ones(pairs.n_pointings, dtype=bool)
     for m, n in enumerate(np.asarray(n_stars, dtype=int)):
-        mine = np.flatnonzero(pairs.point == m)
-        mine = mine[np.argsort(mags[mine], kind="stable")[: max(int(n), 0)]]
+        mine = order[bounds[m] : bounds[m] + max(min(int(n), bounds[m + 1] - bounds[m]), 0)]
         if not len(mine):
             continue
         lengths = np.hypot(streaks[mine, 0], streaks[mine, 1])
